@@ -1,0 +1,1 @@
+"""Pieces shared by every MAST model: parameter schema and the Block base."""

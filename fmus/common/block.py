@@ -1,0 +1,63 @@
+"""Sampled-data block: the model object an FMU wraps.
+
+A block owns a flat list ``values``: the inputs first (in ``INPUTS`` order),
+then the outputs (in ``OUTPUTS`` order). The FMI wrapper maps value references
+0..n-1 straight onto this list, and the direct composition reads and writes the
+same list, so both routes run exactly the same arithmetic.
+
+Life cycle: ``Block(params)`` validates the parameters; ``initialize(t0)``
+computes the outputs at the start time from the initial state and the current
+inputs; ``do_step(t, h)`` advances from ``t`` to ``t + h`` with the inputs held
+(zero-order hold) and leaves the outputs valid at ``t + h``.
+"""
+from __future__ import annotations
+
+from typing import ClassVar, Mapping
+
+from .parameters import Param, Value, validate
+
+
+class ModelError(RuntimeError):
+    """The model cannot go on: unreachable pose, singularity, divergence, ..."""
+
+
+class Block:
+    INPUTS: ClassVar[tuple[str, ...]] = ()
+    OUTPUTS: ClassVar[tuple[str, ...]] = ()
+    PARAMETERS: ClassVar[tuple[Param, ...]] = ()
+    #: units of inputs and outputs, by name (documentation and modelDescription)
+    UNITS: ClassVar[Mapping[str, str]] = {}
+    #: one-line descriptions of inputs and outputs, by name
+    DESCRIPTIONS: ClassVar[Mapping[str, str]] = {}
+
+    def __init__(self, params: Mapping[str, Value], name: str = "") -> None:
+        self.name = name or type(self).__name__
+        self.params = validate(self.PARAMETERS, params, self.name)
+        self.values: list[float] = [0.0] * (len(self.INPUTS) + len(self.OUTPUTS))
+
+    # -- convenience accessors by name (not for hot paths) -------------------
+    def index(self, name: str) -> int:
+        try:
+            return (self.INPUTS + self.OUTPUTS).index(name)
+        except ValueError:
+            raise KeyError(f"{self.name}: no input or output named '{name}'") from None
+
+    def set(self, **inputs: float) -> None:
+        for key, value in inputs.items():
+            if key not in self.INPUTS:
+                raise KeyError(f"{self.name}: no input named '{key}'; inputs are {', '.join(self.INPUTS)}")
+            self.values[self.INPUTS.index(key)] = float(value)
+
+    def get(self, name: str) -> float:
+        return self.values[self.index(name)]
+
+    def outputs(self) -> dict[str, float]:
+        n = len(self.INPUTS)
+        return dict(zip(self.OUTPUTS, self.values[n:]))
+
+    # -- to implement ----------------------------------------------------------
+    def initialize(self, t0: float) -> None:
+        raise NotImplementedError
+
+    def do_step(self, t: float, h: float) -> None:
+        raise NotImplementedError

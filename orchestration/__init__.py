@@ -1,0 +1,1 @@
+"""mast: build, validate and run the MAST co-simulation (the ``orchestration/`` folder)."""
