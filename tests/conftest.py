@@ -1,26 +1,29 @@
-"""Shared fixtures: parameter sets loaded from the project's own .ssv files."""
+"""Shared fixtures: parameter values as the default system (ssp/MAST.ssd) binds them."""
 from __future__ import annotations
 
 from pathlib import Path
 
 import pytest
 
+from mast.ssp import read_ssd
 from mast.ssv import read_values
 
 ROOT = Path(__file__).resolve().parents[1]
-PARAMS = ROOT / "ssp" / "parameters"
-
-#: which parameter sets each component binds in the default system (ssp/MAST.ssd), in binding order
-DEFAULT_SETS = {
-    "actuator": ("transmission", "actuator_manufacturer"),
-    "actuator_identified": ("transmission", "actuator_manufacturer", "actuator_identified"),
-    "mechanism": ("geometry_3prs", "mass_3prs"),
-    "controller": ("transmission", "geometry_3prs", "controller_joint"),
-}
+SSD = ROOT / "ssp" / "MAST.ssd"
+RESOURCES = ROOT / "ssp" / "resources"
 
 
 def load_params(component: str) -> dict:
-    return read_values(*(PARAMS / f"{name}.ssv" for name in DEFAULT_SETS[component]))
+    """Merged parameter bindings of a component of the default system.
+
+    ``component`` is "actuator" (actuator_1), "mechanism", "controller", or
+    "actuator_identified" (actuator_1 with the paper's identified set bound last).
+    """
+    system = read_ssd(SSD)
+    if component == "actuator_identified":
+        return {**system.components["actuator_1"].parameters, **read_values(RESOURCES / "actuator_identified.ssv")}
+    name = "actuator_1" if component == "actuator" else component
+    return dict(system.components[name].parameters)
 
 
 @pytest.fixture

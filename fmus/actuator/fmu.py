@@ -1,0 +1,13 @@
+"""FMI 2.0 Co-Simulation wrapper of the actuator model (the equations live in model.py)."""
+from __future__ import annotations
+
+from ..common.fmi import BlockSlave
+from .model import ActuatorBlock
+
+
+class MastActuator(BlockSlave):
+    """One linear axis of the MAST: DC motor, gearbox and belt guide (paper section 2.2, Fig. 2)."""
+
+    block_class = ActuatorBlock
+    author = "MAST co-simulation project"
+    version = "0.1.0"

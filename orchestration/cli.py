@@ -1,0 +1,133 @@
+"""The ``mast`` command line: build, validate, run, bench."""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import tempfile
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+DEFAULT_SSP = REPO / "build" / "ssp" / "MAST.ssp"
+
+
+class Progress:
+    """A one-line progress bar on stderr."""
+
+    def __init__(self, label: str) -> None:
+        self.label = label
+        self.last = -1
+
+    def __call__(self, fraction: float) -> None:
+        percent = int(fraction * 100)
+        if percent != self.last:
+            self.last = percent
+            bar = "#" * (percent // 4)
+            sys.stderr.write(f"\r{self.label} [{bar:<25}] {percent:3d}%")
+            if percent >= 100:
+                sys.stderr.write("\n")
+            sys.stderr.flush()
+
+
+def cmd_build(args) -> int:
+    from .build import build_all
+
+    build_all(Path(args.out))
+    return 0
+
+
+def validate_all(build_dir: Path) -> list[str]:
+    """Problems found in the built FMUs (fmpy validation) and SSPs (SSP 1.0 schema)."""
+    from fmpy.validation import validate_fmu
+
+    from .ssp import safe_extract, validate_ssd_schema
+
+    problems = []
+    fmus = sorted((build_dir / "fmus").glob("*.fmu"))
+    ssps = sorted((build_dir / "ssp").glob("*.ssp"))
+    if not fmus or not ssps:
+        problems.append(f"{build_dir}: nothing built yet (run `mast build`)")
+    for fmu in fmus:
+        problems += [f"{fmu.name}: {p}" for p in validate_fmu(str(fmu))]
+    for ssp in ssps:
+        with tempfile.TemporaryDirectory() as tmp:
+            safe_extract(ssp, tmp)
+            problems += [f"{ssp.name}: {p}" for p in validate_ssd_schema(Path(tmp) / "SystemStructure.ssd")]
+    return problems
+
+
+def cmd_validate(args) -> int:
+    problems = validate_all(Path(args.build))
+    for p in problems:
+        print(p)
+    print("validation: no problems" if not problems else f"validation: {len(problems)} problem(s)")
+    return 1 if problems else 0
+
+
+def cmd_run(args) -> int:
+    from .master import SimulationError
+    from .run import motion_from_cli, parse_overrides, simulate, write_outputs
+
+    motion = motion_from_cli(args.motion, args.amplitude, args.frequency)
+    out = Path(args.out)
+    try:
+        result = simulate(args.ssp, motion, args.stop_time, parameters=parse_overrides(args.set or []),
+                          record_step=args.record_step, direct=args.direct, progress=Progress("co-simulation"))
+        failed = None
+    except SimulationError as err:
+        result, failed = err.result, str(err)
+    summary = write_outputs(result, out, args.stop_time, motion)
+    print(json.dumps({k: summary[k] for k in ("wall_time_s", "real_time_factor") if k in summary}))
+    if failed:
+        print(f"error: {failed} (results up to the failure are in {out})", file=sys.stderr)
+        return 2
+    print(f"wrote {out / 'results.csv'}, {out / 'summary.json'}, {out / 'motion.png'}")
+    return 0
+
+
+def cmd_bench(args) -> int:
+    from .bench import main as bench_main
+
+    return bench_main(args)
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(prog="mast", description="MAST co-simulation: FMUs, SSP and master")
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    p = sub.add_parser("build", help="build build/fmus/*.fmu and build/ssp/*.ssp from fmus/ and ssp/")
+    p.add_argument("--out", default=str(REPO / "build"))
+    p.set_defaults(func=cmd_build)
+
+    p = sub.add_parser("validate", help="fmpy validation of every FMU and SSP 1.0 schema check of every SSD")
+    p.add_argument("--build", default=str(REPO / "build"))
+    p.set_defaults(func=cmd_validate)
+
+    p = sub.add_parser("run", help="run a co-simulation with a sine pose command around the home pose")
+    p.add_argument("ssp", nargs="?", default=str(DEFAULT_SSP))
+    p.add_argument("--motion", choices=("z", "psi", "theta"), default="z")
+    p.add_argument("--amplitude", type=float, default=0.01, help="metres for z, degrees for psi and theta")
+    p.add_argument("--frequency", type=float, default=1.0, help="Hz")
+    p.add_argument("--stop-time", type=float, default=2.0, help="s")
+    p.add_argument("--set", action="append", metavar="ELEMENT.PARAMETER=VALUE", help="override a parameter (repeatable)")
+    p.add_argument("--record-step", type=float, default=1e-3, help="s between recorded samples")
+    p.add_argument("--direct", action="store_true", help="run the model objects directly (no FMI), same schedule")
+    p.add_argument("--out", default="results")
+    p.set_defaults(func=cmd_run)
+
+    p = sub.add_parser("bench", help="real-time factor of the default system, FMU co-simulation vs direct composition")
+    p.add_argument("ssp", nargs="?", default=str(DEFAULT_SSP))
+    p.add_argument("--stop-time", type=float, default=10.0)
+    p.add_argument("--profile", action="store_true", help="print where the time goes (cProfile of the direct run)")
+    p.set_defaults(func=cmd_bench)
+
+    args = parser.parse_args(argv)
+    try:
+        return args.func(args)
+    except (ValueError, FileNotFoundError, RuntimeError) as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

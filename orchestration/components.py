@@ -1,0 +1,220 @@
+"""What the master drives: an FMU through fmpy, or a Block called directly.
+
+Both adapters offer the same small interface, so the master runs the very same
+schedule on either; the direct route is the check that the FMI wrappers and the
+SSP wiring are right (results equal to rounding) and the speed reference.
+"""
+from __future__ import annotations
+
+import ctypes
+import importlib
+from pathlib import Path
+from typing import Callable, Mapping, Sequence
+
+from fmus.common.block import Block
+from fmus.common.parameters import Value
+
+
+class ComponentError(RuntimeError):
+    """A component failed: the message names the component, the call, the time and the model's cause."""
+
+
+class FMUComponent:
+    """An FMI 2.0 co-simulation FMU, through fmpy's FMU2Slave with prepared ctypes arrays."""
+
+    def __init__(self, name: str, fmu: Path, unzip_dir: Path) -> None:
+        from fmpy import read_model_description
+        from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE, calloc, free
+
+        self.name = name
+        self.messages: list[str] = []
+        try:
+            self.md = read_model_description(str(fmu))
+        except Exception as err:
+            raise ComponentError(f"{name}: cannot read FMU {fmu.name}: {err}") from None
+        if self.md.coSimulation is None:
+            raise ComponentError(f"{name}: {fmu.name} is not a co-simulation FMU")
+        self.variables = {v.name: v for v in self.md.modelVariables}
+        self._slave = FMU2Slave(guid=self.md.guid, unzipDirectory=str(unzip_dir),
+                                modelIdentifier=self.md.coSimulation.modelIdentifier, instanceName=name)
+
+        def logger(_env, _instance, status, category, message):
+            self.messages.append(f"[{category.decode(errors='replace')}] {message.decode(errors='replace')}")
+
+        self._callbacks = fmi2CallbackFunctions()
+        self._callbacks.logger = fmi2CallbackLoggerTYPE(logger)
+        self._callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+        self._callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+        self._call("instantiate", lambda: self._slave.instantiate(callbacks=self._callbacks, loggingOn=True))
+        self._component = self._slave.component
+
+    # -- helpers -----------------------------------------------------------------
+    def _call(self, what: str, func: Callable, t: float | None = None):
+        try:
+            return func()
+        except Exception as err:
+            raise self._error(what, t, err) from None
+
+    def _error(self, what: str, t: float | None, err: object = "") -> ComponentError:
+        when = f" at t={t:.6g} s" if t is not None else ""
+        cause = self.messages[-1] if self.messages else str(err)
+        return ComponentError(f"{self.name}{when}: {what} failed: {cause}")
+
+    def _refs(self, names: Sequence[str], causalities: tuple[str, ...]) -> list[int]:
+        refs = []
+        for name in names:
+            var = self.variables.get(name)
+            if var is None or var.causality not in causalities:
+                have = sorted(v.name for v in self.md.modelVariables if v.causality in causalities)
+                raise ComponentError(f"{self.name}: no {'/'.join(causalities)} variable named '{name}'; it has: {', '.join(have)}")
+            refs.append(var.valueReference)
+        return refs
+
+    # -- interface -----------------------------------------------------------------
+    def enter_initialization(self, start_time: float, stop_time: float, parameters: Mapping[str, Value]) -> None:
+        self._call("setupExperiment", lambda: self._slave.setupExperiment(startTime=start_time, stopTime=stop_time))
+        self._call("enterInitializationMode", self._slave.enterInitializationMode)
+        for name, value in parameters.items():
+            var = self.variables.get(name)
+            if var is None or var.causality != "parameter":
+                have = sorted(v.name for v in self.md.modelVariables if v.causality == "parameter")
+                raise ComponentError(f"{self.name}: unknown parameter '{name}'; its parameters are: {', '.join(have)}")
+            setter = {"Real": self._slave.setReal, "Integer": self._slave.setInteger,
+                      "Boolean": self._slave.setBoolean, "String": self._slave.setString}[var.type]
+            convert = {"Real": float, "Integer": int, "Boolean": bool, "String": str}[var.type]
+            try:
+                converted = convert(value)
+            except (TypeError, ValueError):
+                raise ComponentError(f"{self.name}: parameter '{name}' = {value!r} is not a valid {var.type}") from None
+            self._call(f"setting parameter {name}", lambda: setter([var.valueReference], [converted]))
+
+    def exit_initialization(self) -> None:
+        self._call("exitInitializationMode", self._slave.exitInitializationMode)
+
+    def start_value(self, name: str) -> float:
+        start = self.variables[name].start
+        return float(start) if start is not None else 0.0
+
+    def setter(self, names: Sequence[str]) -> Callable[[Sequence[float]], None]:
+        refs = self._refs(names, ("input", "parameter"))
+        n = len(refs)
+        vr = (ctypes.c_uint * n)(*refs)
+        buf = (ctypes.c_double * n)()
+        raw, comp = self._slave.fmi2SetReal, self._component
+
+        def set_values(values: Sequence[float]) -> None:
+            buf[:] = values
+            if raw(comp, vr, n, buf) > 1:
+                raise self._error("setReal", None)
+        return set_values
+
+    def getter(self, names: Sequence[str]) -> Callable[[], list[float]]:
+        refs = self._refs(names, ("output", "input", "parameter", "calculatedParameter", "local"))
+        n = len(refs)
+        vr = (ctypes.c_uint * n)(*refs)
+        buf = (ctypes.c_double * n)()
+        raw, comp = self._slave.fmi2GetReal, self._component
+
+        def get_values() -> list[float]:
+            if raw(comp, vr, n, buf) > 1:
+                raise self._error("getReal", None)
+            return buf[:]
+        return get_values
+
+    def stepper(self) -> Callable[[float, float], None]:
+        raw, comp = self._slave.fmi2DoStep, self._component
+
+        def do_step(t: float, h: float) -> None:
+            if raw(comp, t, h, 1) > 1:
+                raise self._error("doStep", t)
+        return do_step
+
+    def close(self) -> None:
+        try:
+            self._slave.terminate()
+        except Exception:  # an instance that failed may refuse to terminate; free it all the same
+            pass
+        self._slave.freeInstance()
+
+
+class BlockComponent:
+    """The same model object as inside the FMU, called directly (no FMI)."""
+
+    def __init__(self, name: str, block_class: type[Block]) -> None:
+        self.name = name
+        self.block_class = block_class
+        self.block: Block | None = None
+        self._in_init = False
+        self._dirty = True
+        self._t0 = 0.0
+
+    @staticmethod
+    def class_for(model_identifier: str) -> type[Block]:
+        """The Block class an FMU of this project wraps (fmus/<package>/fmu.py)."""
+        from .build import FMUS
+
+        for spec in FMUS:
+            if spec.model_identifier == model_identifier:
+                return getattr(importlib.import_module(f"fmus.{spec.package}.fmu"), model_identifier).block_class
+        raise ComponentError(f"no model of this project is built as {model_identifier}.fmu")
+
+    def _run(self, what: str, func: Callable, t: float | None = None):
+        try:
+            return func()
+        except Exception as err:
+            when = f" at t={t:.6g} s" if t is not None else ""
+            raise ComponentError(f"{self.name}{when}: {what} failed: {type(err).__name__}: {err}") from None
+
+    def enter_initialization(self, start_time: float, stop_time: float, parameters: Mapping[str, Value]) -> None:
+        self._t0 = start_time
+        self.block = self._run("parameters", lambda: self.block_class(parameters, name=self.name))
+        self._in_init = True
+
+    def exit_initialization(self) -> None:
+        self._refresh()
+        self._in_init = False
+
+    def _refresh(self) -> None:
+        if self._dirty:
+            self._run("initialization", lambda: self.block.initialize(self._t0))
+            self._dirty = False
+
+    def start_value(self, name: str) -> float:
+        return 0.0
+
+    def _indices(self, names: Sequence[str]) -> list[int]:
+        return [self._run("variable lookup", lambda n=n: self.block.index(n)) for n in names]
+
+    def setter(self, names: Sequence[str]) -> Callable[[Sequence[float]], None]:
+        idx = self._indices(names)
+        values = self.block.values
+
+        def set_values(new: Sequence[float]) -> None:
+            for i, v in zip(idx, new):
+                values[i] = v
+            if self._in_init:
+                self._dirty = True
+        return set_values
+
+    def getter(self, names: Sequence[str]) -> Callable[[], list[float]]:
+        idx = self._indices(names)
+        values = self.block.values
+
+        def get_values() -> list[float]:
+            if self._in_init:
+                self._refresh()
+            return [values[i] for i in idx]
+        return get_values
+
+    def stepper(self) -> Callable[[float, float], None]:
+        step = self.block.do_step
+
+        def do_step(t: float, h: float) -> None:
+            try:
+                step(t, h)
+            except Exception as err:
+                raise ComponentError(f"{self.name} at t={t:.6g} s: doStep failed: {type(err).__name__}: {err}") from None
+        return do_step
+
+    def close(self) -> None:
+        self.block = None

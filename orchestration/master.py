@@ -1,0 +1,244 @@
+"""The project's co-simulation master: fixed base step, multi-rate, Jacobi.
+
+Schedule. Every component c has a step size h_c, an integer multiple m_c of the
+base step h. At base tick n (t_n = t0 + n h) the components with n % m_c == 0
+are *due*. For them the master first publishes the outputs their previous step
+produced (valid at t_n), then gives each due component its inputs from the
+outputs published so far (every value valid at t_n or sampled at the source's
+last communication point) and calls doStep(t_n, h_c). This is a Jacobi scheme:
+within one tick the order of the components does not matter, and the FMU
+co-simulation and the direct composition are bit-for-bit the same computation.
+
+Initialization. All components enter initialization mode and get their
+parameters (bindings in SSD order, then the caller's overrides). Components
+fed by no system input are brought to a consistent initial point first
+(repeated Jacobi passes until values stop changing); then the stimulus starts,
+reading any output it needs (for example the platform's home pose), and the
+whole system is iterated to a consistent point before leaving initialization.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Callable, Mapping, Optional, Protocol, Sequence
+
+import numpy as np
+
+from fmus.common.parameters import Value
+
+from .ssp import SystemSpec
+
+
+class SimulationError(RuntimeError):
+    """The co-simulation stopped; ``result`` keeps everything computed before the failure."""
+
+    def __init__(self, message: str, result: "Result") -> None:
+        super().__init__(message)
+        self.result = result
+
+
+class Stimulus(Protocol):
+    """Drives the system inputs (SSD system connectors)."""
+
+    reads: Sequence[str]  # outputs (element.connector) that start() may read
+
+    def start(self, t0: float, read: Callable[[str], float]) -> None: ...
+    def __call__(self, t: float) -> Sequence[float]: ...
+
+
+@dataclass
+class Result:
+    """Recorded signals: ``time`` and one array per ``element.connector`` (system inputs by name)."""
+
+    time: np.ndarray
+    signals: dict[str, np.ndarray]
+    wall_time_s: float = 0.0
+    error: Optional[str] = None
+    stats: dict = field(default_factory=dict)
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        return self.signals[name]
+
+    def write_csv(self, path) -> None:
+        names = list(self.signals)
+        table = np.column_stack([self.time] + [self.signals[n] for n in names]) if len(self.time) else np.zeros((0, len(names) + 1))
+        np.savetxt(path, table, delimiter=",", header=",".join(["time"] + names), comments="", fmt="%.12g")
+
+
+@dataclass
+class _Wiring:
+    """Compiled data paths of one component."""
+
+    name: str
+    multiple: int
+    step: float
+    sources: list[tuple[int, int]]  # (source slot, index in its published list); slot -1: system inputs
+    set_inputs: Callable
+    get_outputs: Callable
+    do_step: Callable
+    output_names: list[str]
+
+
+class Master:
+    """Runs a SystemSpec whose components are FMUComponent or BlockComponent objects."""
+
+    def __init__(self, system: SystemSpec, components: Mapping[str, object], base_step: Optional[float] = None,
+                 step_sizes: Optional[Mapping[str, float]] = None) -> None:
+        self.system = system
+        self.components = dict(components)
+        steps = {name: (step_sizes or {}).get(name, spec.step_size) for name, spec in system.components.items()}
+        self.base_step = base_step or system.base_step or min((h for h in steps.values() if h), default=None)
+        if not self.base_step:
+            raise ValueError(f"system '{system.name}': no base step (no osp:FixedStepAlgorithm and no step size hints)")
+        self.multiples = {}
+        for name, h in steps.items():
+            h = h or self.base_step
+            m = round(h / self.base_step)
+            if m < 1 or abs(m * self.base_step - h) > 1e-9 * h:
+                raise ValueError(f"component '{name}': step size {h:g} s is not a whole multiple of the base step {self.base_step:g} s")
+            self.multiples[name] = m
+
+    # -- initialization -----------------------------------------------------------
+    def _initialize(self, t0: float, t1: float, parameters: Mapping[str, Mapping[str, Value]], stimulus: Stimulus,
+                    record: Sequence[str]) -> tuple[list[_Wiring], list[list[float]], list[str]]:
+        system = self.system
+        unknown = sorted(set(parameters) - set(system.components))
+        if unknown:
+            raise ValueError(f"parameter overrides name unknown component(s) {', '.join(unknown)}; components: {', '.join(system.components)}")
+        order = list(system.components)
+        for name in order:
+            merged = {**system.components[name].parameters, **parameters.get(name, {})}
+            self.components[name].enter_initialization(t0, t1, merged)
+
+        published_names: dict[str, list[str]] = {name: [] for name in order}
+        for con in system.connections:
+            if con.start_element and con.start_connector not in published_names[con.start_element]:
+                published_names[con.start_element].append(con.start_connector)
+        record = list(record)
+        for signal in list(record) + list(getattr(stimulus, "reads", ())):
+            element, _, connector = signal.rpartition(".")
+            if not element:
+                if signal not in system.system_inputs:
+                    raise ValueError(f"cannot record '{signal}': not a system input; use element.connector")
+                continue
+            if element not in published_names:
+                raise ValueError(f"cannot record '{signal}': no component '{element}'")
+            if connector not in published_names[element]:
+                published_names[element].append(connector)
+
+        slots = {name: k for k, name in enumerate(order)}
+        wirings: list[_Wiring] = []
+        for name in order:
+            comp = self.components[name]
+            incoming = [c for c in system.connections if c.end_element == name]
+            sources = [(-1, system.system_inputs.index(c.start_connector)) if not c.start_element
+                       else (slots[c.start_element], published_names[c.start_element].index(c.start_connector))
+                       for c in incoming]
+            m = self.multiples[name]
+            wirings.append(_Wiring(name, m, m * self.base_step, sources,
+                                   comp.setter([c.end_connector for c in incoming]),
+                                   comp.getter(published_names[name]), comp.stepper(), published_names[name]))
+
+        published = [[self.components[w.name].start_value(n) for n in w.output_names] for w in wirings]
+        plant = [k for k, w in enumerate(wirings) if all(s >= 0 for s, _ in w.sources)]
+        self._settle(wirings, plant, published, [0.0] * len(system.system_inputs))
+
+        def read(signal: str) -> float:
+            element, _, connector = signal.rpartition(".")
+            return published[slots[element]][published_names[element].index(connector)]
+
+        stimulus.start(t0, read)
+        self._settle(wirings, range(len(wirings)), published, list(stimulus(t0)))
+        for w in wirings:
+            self.components[w.name].exit_initialization()
+        for k, w in enumerate(wirings):
+            published[k] = w.get_outputs()
+        return wirings, published, record
+
+    @staticmethod
+    def _settle(wirings: Sequence[_Wiring], members: Sequence[int], published: list[list[float]],
+                sys_values: Sequence[float], passes: int = 200, tol: float = 1e-13) -> None:
+        """Jacobi passes over the members' initial values until they stop changing."""
+        for _ in range(passes):
+            inputs = [[sys_values[j] if s < 0 else published[s][j] for s, j in wirings[k].sources] for k in members]
+            for k, values in zip(members, inputs):
+                wirings[k].set_inputs(values)
+            changed = []
+            for k in members:
+                new = wirings[k].get_outputs()
+                if any(abs(a - b) > tol * (1.0 + abs(b)) for a, b in zip(new, published[k])):
+                    changed.append(wirings[k].name)
+                published[k] = new
+            if not changed:
+                return
+        raise RuntimeError(f"initialization: the initial values of {', '.join(changed)} did not settle in {passes} passes "
+                           "(an algebraic loop that does not converge)")
+
+    # -- run ----------------------------------------------------------------------
+    def run(self, stop_time: float, stimulus: Stimulus, record: Sequence[str] = (), record_step: Optional[float] = None,
+            parameters: Optional[Mapping[str, Mapping[str, Value]]] = None, start_time: Optional[float] = None,
+            progress: Optional[Callable[[float], None]] = None) -> Result:
+        """Simulate from the SSD start time to ``stop_time``; see the module docstring for the schedule."""
+        t0 = self.system.start_time if start_time is None else start_time
+        h = self.base_step
+        n_ticks = round((stop_time - t0) / h)
+        if n_ticks < 1 or abs(n_ticks * h - (stop_time - t0)) > 1e-9 * max(1.0, stop_time):
+            raise ValueError(f"stop time {stop_time:g} s is not start + a whole number of base steps ({h:g} s)")
+        record_every = max(1, round((record_step or h) / h))
+        wall0 = time.perf_counter()
+        wirings, published, record = self._initialize(t0, stop_time, parameters or {}, stimulus, record)
+        slot = {w.name: k for k, w in enumerate(wirings)}
+        rec_paths = []
+        for signal in record:
+            element, _, connector = signal.rpartition(".")
+            rec_paths.append((-1, self.system.system_inputs.index(signal)) if not element
+                             else (slot[element], wirings[slot[element]].output_names.index(connector)))
+        cycle = math.lcm(*[w.multiple for w in wirings])
+        due = [[(k, w) for k, w in enumerate(wirings) if phase % w.multiple == 0] for phase in range(cycle)]
+        pending = [list(p) for p in published]
+        n_rec = n_ticks // record_every + 1
+        times = np.empty(n_rec)
+        data = np.empty((n_rec, len(record)))
+        rows = 0
+        sys_values = list(stimulus(t0))
+        report_every = max(1, n_ticks // 100)
+        error = None
+        n = 0
+        try:
+            for n in range(n_ticks + 1):
+                t = t0 + n * h
+                now = due[n % cycle]
+                if n:
+                    for k, w in now:
+                        published[k] = pending[k]
+                    sys_values = stimulus(t)
+                if n % record_every == 0:
+                    times[rows] = t
+                    data[rows] = [sys_values[j] if s < 0 else published[s][j] for s, j in rec_paths]
+                    rows += 1
+                    for k, values in enumerate(published):
+                        if any(v != v or v in (math.inf, -math.inf) for v in values):
+                            bad = [wirings[k].output_names[j] for j, v in enumerate(values) if not math.isfinite(v)]
+                            raise RuntimeError(f"{wirings[k].name} at t={t:.6g} s: the run diverged: non-finite {', '.join(bad)}")
+                    if progress and n % report_every == 0:
+                        progress(n / n_ticks)
+                if n == n_ticks:
+                    break
+                for k, w in now:
+                    w.set_inputs([sys_values[j] if s < 0 else published[s][j] for s, j in w.sources])
+                for k, w in now:
+                    w.do_step(t, w.step)
+                    pending[k] = w.get_outputs()
+        except Exception as err:  # keep what was computed, then report the failure
+            error = str(err)
+        finally:
+            for name in self.components:
+                self.components[name].close()
+        result = Result(times[:rows].copy(), {name: data[:rows, j].copy() for j, name in enumerate(record)},
+                        wall_time_s=time.perf_counter() - wall0, error=error,
+                        stats={"base_step": h, "ticks": n, "multiples": dict(self.multiples)})
+        if error:
+            raise SimulationError(error, result)
+        return result
+

@@ -1,0 +1,48 @@
+"""Pose commands for the system inputs ``z_cmd``, ``psi_cmd``, ``theta_cmd``."""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Callable, Sequence
+
+POSE_INPUTS = ("z_cmd", "psi_cmd", "theta_cmd")
+AXES = ("z", "psi", "theta")
+
+
+@dataclass
+class SineMotion:
+    """Home pose plus ``amplitude * sin(2 pi frequency (t - t0))`` on one axis.
+
+    ``axis`` is z, psi or theta; ``amplitude`` is in metres for z and radians
+    for psi and theta; ``frequency`` in Hz (0 holds the home pose). The home
+    pose is the platform pose at the start time, read from the outputs
+    ``<home_from>.z``, ``.psi``, ``.theta`` once the plant is initialised.
+    """
+
+    axis: str
+    amplitude: float
+    frequency: float
+    home_from: str = "mechanism"
+    home: list[float] = field(default_factory=list)
+
+    def __post_init__(self) -> None:
+        if self.axis not in AXES:
+            raise ValueError(f"motion axis '{self.axis}': expected one of {', '.join(AXES)}")
+        if not (math.isfinite(self.amplitude) and math.isfinite(self.frequency) and self.frequency >= 0):
+            raise ValueError(f"motion amplitude {self.amplitude!r} / frequency {self.frequency!r}: expected finite values, frequency >= 0 Hz")
+        self._k = AXES.index(self.axis)
+        self._omega = 2 * math.pi * self.frequency
+        self._t0 = 0.0
+
+    @property
+    def reads(self) -> Sequence[str]:
+        return [f"{self.home_from}.{a}" for a in AXES]
+
+    def start(self, t0: float, read: Callable[[str], float]) -> None:
+        self._t0 = t0
+        self.home = [read(name) for name in self.reads]
+
+    def __call__(self, t: float) -> list[float]:
+        values = list(self.home)
+        values[self._k] += self.amplitude * math.sin(self._omega * (t - self._t0))
+        return values

@@ -1,0 +1,182 @@
+"""The master's schedule, initialization and error handling, on toy blocks with known answers."""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from fmus.common.block import Block, ModelError
+from fmus.common.parameters import Param
+from mast.components import BlockComponent
+from mast.master import Master, SimulationError
+from mast.ssp import ComponentSpec, Connection, SystemSpec
+
+
+class Integrator(Block):
+    """x(t+h) = x(t) + h u (exact for a held input); y = x."""
+
+    INPUTS = ("u",)
+    OUTPUTS = ("y",)
+    PARAMETERS = (Param("x0", "1", "initial state"),)
+
+    def initialize(self, t0):
+        self.values[1] = self.params["x0"]
+
+    def do_step(self, t, h):
+        self.values[1] += h * self.values[0]
+        if abs(self.values[1]) > 1e6:
+            raise ModelError("state above 1e6")
+
+
+class Gain(Block):
+    """y = k u (algebraic: after a step, the output is k times the held input)."""
+
+    INPUTS = ("u",)
+    OUTPUTS = ("y",)
+    PARAMETERS = (Param("k", "1", "gain"),)
+
+    def initialize(self, t0):
+        self.values[1] = self.params["k"] * self.values[0]
+
+    def do_step(self, t, h):
+        self.values[1] = self.params["k"] * self.values[0]
+
+
+class Clock(Block):
+    """y = time at the end of the last step, to check the times the master passes."""
+
+    INPUTS = ()
+    OUTPUTS = ("y",)
+    PARAMETERS = ()
+
+    def initialize(self, t0):
+        self.values[0] = t0
+
+    def do_step(self, t, h):
+        self.values[0] = t + h
+
+
+class Hold:
+    reads = ()
+
+    def __init__(self, value=0.0):
+        self.value = value
+
+    def start(self, t0, read):
+        pass
+
+    def __call__(self, t):
+        return [self.value]
+
+
+def loop_system(h_gain: float, k: float = -2.0, x0: float = 1.0, system_input: bool = False):
+    comps = {
+        "int": ComponentSpec("int", "resources/int.fmu", 0.01, ["u"], ["y"], {"x0": x0}),
+        "gain": ComponentSpec("gain", "resources/gain.fmu", h_gain, ["u"], ["y"], {"k": k}),
+    }
+    cons = [Connection("int", "y", "gain", "u"), Connection("gain", "y", "int", "u")]
+    spec = SystemSpec("loop", Path("."), comps, cons, [], 0.01, 0.0, 1.0)
+    blocks = {"int": BlockComponent("int", Integrator), "gain": BlockComponent("gain", Gain)}
+    return spec, blocks
+
+
+def expected_loop(n: int, h: float, k: float, x0: float, m_gain: int) -> np.ndarray:
+    """Independent recursion of the Jacobi schedule: the gain samples x every m_gain ticks,
+    its output becomes visible m_gain ticks later; the integrator uses the visible value."""
+    x = [x0]
+    visible = k * x0  # initialization: consistent algebraic value
+    pending = visible
+    for i in range(n):
+        if i % m_gain == 0:
+            if i:
+                visible = pending
+            pending = k * x[-1]
+        x.append(x[-1] + h * visible)
+    return np.array(x)
+
+
+@pytest.mark.parametrize("m_gain", [1, 2, 5])
+def test_multirate_jacobi_schedule_matches_independent_recursion(m_gain):
+    h = 0.01
+    spec, blocks = loop_system(h * m_gain)
+    result = Master(spec, blocks).run(1.0, Hold(), record=["int.y"])
+    want = expected_loop(100, h, -2.0, 1.0, m_gain)
+    np.testing.assert_allclose(result["int.y"], want, rtol=0, atol=1e-15)
+    assert result.time[-1] == pytest.approx(1.0)
+    # and it approximates the continuous solution exp(-2 t) to first order
+    assert abs(result["int.y"][-1] - math.exp(-2.0)) < 0.02 * m_gain
+
+
+def test_step_times_are_multiples_of_component_steps():
+    comps = {"clk": ComponentSpec("clk", "x", 0.05, [], ["y"], {})}
+    spec = SystemSpec("c", Path("."), comps, [], [], 0.01, 0.0, 1.0)
+    result = Master(spec, {"clk": BlockComponent("clk", Clock)}).run(0.2, Hold(), record=["clk.y"])
+    # outputs of a 0.05 s component are published at its communication points only
+    expected = np.floor(np.round(result.time / 0.05, 9)) * 0.05
+    np.testing.assert_allclose(result["clk.y"], expected, atol=1e-12)
+
+
+def test_step_size_not_multiple_of_base_step_is_rejected():
+    spec, blocks = loop_system(0.015)
+    with pytest.raises(ValueError, match="gain.*not a whole multiple"):
+        Master(spec, blocks)
+
+
+def test_model_error_names_component_and_time_and_keeps_partial_results():
+    spec, blocks = loop_system(0.01, k=1e4)  # unstable: the integrator exceeds 1e6 and raises
+    with pytest.raises(SimulationError) as info:
+        Master(spec, blocks).run(1.0, Hold(), record=["int.y"])
+    message = str(info.value)
+    assert "int at t=" in message and "state above 1e6" in message
+    partial = info.value.result
+    assert 0 < len(partial.time) < 101 and np.all(np.isfinite(partial["int.y"]))
+
+
+class NaNMaker(Block):
+    INPUTS = ()
+    OUTPUTS = ("y",)
+    PARAMETERS = ()
+
+    def initialize(self, t0):
+        self.values[0] = 0.0
+
+    def do_step(self, t, h):
+        self.values[0] = float("nan") if t >= 0.05 else 1.0
+
+
+def test_divergence_to_nan_is_reported_with_signal_name():
+    comps = {"bad": ComponentSpec("bad", "x", 0.01, [], ["y"], {})}
+    spec = SystemSpec("n", Path("."), comps, [], [], 0.01, 0.0, 1.0)
+    with pytest.raises(SimulationError, match=r"bad at t=0.06.*diverged.*y") as info:
+        Master(spec, {"bad": BlockComponent("bad", NaNMaker)}).run(1.0, Hold(), record=["bad.y"])
+    assert len(info.value.result.time) == 7
+
+
+def test_unknown_parameter_and_component_overrides_are_rejected():
+    spec, blocks = loop_system(0.01)
+    with pytest.raises(ValueError, match="unknown component.*nope"):
+        Master(spec, blocks).run(0.1, Hold(), parameters={"nope": {"k": 1}})
+    spec, blocks = loop_system(0.01)
+    with pytest.raises(Exception, match="unknown parameter.*kk"):
+        Master(spec, blocks).run(0.1, Hold(), parameters={"gain": {"kk": 1}})
+
+
+def test_system_input_drives_component_and_start_reads_outputs():
+    comps = {"gain": ComponentSpec("gain", "x", 0.01, ["u"], ["y"], {"k": 3.0})}
+    spec = SystemSpec("s", Path("."), comps, [Connection("", "cmd", "gain", "u")], ["cmd"], 0.01, 0.0, 1.0)
+
+    class Ramp:
+        reads = ()
+
+        def start(self, t0, read):
+            self.t0 = t0
+
+        def __call__(self, t):
+            return [t]
+
+    result = Master(spec, {"gain": BlockComponent("gain", Gain)}).run(0.1, Ramp(), record=["cmd", "gain.y"])
+    np.testing.assert_allclose(result["cmd"], result.time)
+    # the gain's output at t_n is 3 * the input it held over the previous step
+    np.testing.assert_allclose(result["gain.y"][1:], 3 * result.time[:-1], atol=1e-12)
