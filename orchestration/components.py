@@ -20,7 +20,12 @@ class ComponentError(RuntimeError):
 
 
 class FMUComponent:
-    """An FMI 2.0 co-simulation FMU, through fmpy's FMU2Slave with prepared ctypes arrays."""
+    """An FMI 2.0 co-simulation FMU, through fmpy's FMU2Slave.
+
+    The hot calls (set, get, doStep) go straight to the shared library's
+    functions with prepared ctypes arrays; a status above fmi2Warning raises
+    ComponentError carrying the message the model logged.
+    """
 
     def __init__(self, name: str, fmu: Path, unzip_dir: Path) -> None:
         from fmpy import read_model_description
@@ -39,7 +44,8 @@ class FMUComponent:
                                 modelIdentifier=self.md.coSimulation.modelIdentifier, instanceName=name)
 
         def logger(_env, _instance, status, category, message):
-            self.messages.append(f"[{category.decode(errors='replace')}] {message.decode(errors='replace')}")
+            text = (message or b"").decode(errors="replace")
+            self.messages.append(f"[{(category or b'').decode(errors='replace')}] {text}" if category else text)
 
         self._callbacks = fmi2CallbackFunctions()
         self._callbacks.logger = fmi2CallbackLoggerTYPE(logger)
@@ -56,8 +62,10 @@ class FMUComponent:
             raise self._error(what, t, err) from None
 
     def _error(self, what: str, t: float | None, err: object = "") -> ComponentError:
+        """The model's own logged error is the cause; pythonfmu's generic 'Fatal py exception' is not."""
         when = f" at t={t:.6g} s" if t is not None else ""
-        cause = self.messages[-1] if self.messages else str(err)
+        ours = [m for m in self.messages if m.startswith("[logStatusError]")]
+        cause = ours[-1].removeprefix("[logStatusError] ") if ours else (self.messages[-1] if self.messages else str(err))
         return ComponentError(f"{self.name}{when}: {what} failed: {cause}")
 
     def _refs(self, names: Sequence[str], causalities: tuple[str, ...]) -> list[int]:
@@ -100,7 +108,7 @@ class FMUComponent:
         n = len(refs)
         vr = (ctypes.c_uint * n)(*refs)
         buf = (ctypes.c_double * n)()
-        raw, comp = self._slave.fmi2SetReal, self._component
+        raw, comp = self._slave.dll.fmi2SetReal, self._component
 
         def set_values(values: Sequence[float]) -> None:
             buf[:] = values
@@ -113,7 +121,7 @@ class FMUComponent:
         n = len(refs)
         vr = (ctypes.c_uint * n)(*refs)
         buf = (ctypes.c_double * n)()
-        raw, comp = self._slave.fmi2GetReal, self._component
+        raw, comp = self._slave.dll.fmi2GetReal, self._component
 
         def get_values() -> list[float]:
             if raw(comp, vr, n, buf) > 1:
@@ -122,7 +130,7 @@ class FMUComponent:
         return get_values
 
     def stepper(self) -> Callable[[float, float], None]:
-        raw, comp = self._slave.fmi2DoStep, self._component
+        raw, comp = self._slave.dll.fmi2DoStep, self._component
 
         def do_step(t: float, h: float) -> None:
             if raw(comp, t, h, 1) > 1:

@@ -28,6 +28,14 @@ from .block import Block
 PARAMETERS_FILE = "parameters.json"
 
 
+_GLOBALS_REFERENCES: list = []
+
+
+def keep_alive(namespace: dict) -> None:
+    """Hold a reference to an FMU entry script's globals (see the script mast build writes)."""
+    _GLOBALS_REFERENCES.append(namespace)
+
+
 def load_defaults(resources: Optional[str]) -> dict:
     """Parameter start values baked into the FMU by the build (empty if absent)."""
     if not resources:
@@ -122,16 +130,21 @@ class BlockSlave(Fmi2Slave):
         self._in_init = False
 
     def do_step(self, current_time: float, step_size: float) -> bool:
-        self._guard(self._block.do_step, current_time, step_size)
+        """Advance the block; a model failure is logged and reported as a refused step (fmi2Discard)."""
+        try:
+            self._block.do_step(current_time, step_size)
+        except Exception as err:  # the host decides what to do; the instance stays usable for terminate/free
+            self.log(f"{self.instance_name} at t={current_time:.6g} s: {type(err).__name__}: {err}",
+                     status=Fmi2Status.error, category="logStatusError")
+            return False
         return True
 
-    def _guard(self, func, *args) -> None:
-        """Run model code; log the cause of any failure before it reaches the host."""
+    def _guard(self, func) -> None:
+        """Run model code; log the cause of a failure, then let pythonfmu turn it into an error status."""
         try:
-            func(*args)
-        except Exception as err:  # every model failure must reach the host as a logged error
-            t = f" at t={args[0]:.6g} s" if args else ""
-            self.log(f"{self.instance_name}{t}: {type(err).__name__}: {err}", status=Fmi2Status.error,
+            func()
+        except Exception as err:  # logged first: pythonfmu's own message does not carry the cause
+            self.log(f"{self.instance_name}: {type(err).__name__}: {err}", status=Fmi2Status.error,
                      category="logStatusError")
             raise
 

@@ -1,0 +1,31 @@
+# Two entry points on a fresh machine (see README): `make run` and `make test`.
+PY ?= python3
+VENV ?= .venv
+BIN := $(VENV)/bin
+
+.PHONY: run test build validate bench clean
+
+$(BIN)/mast: pyproject.toml
+	$(PY) -m venv $(VENV)
+	$(BIN)/pip install --quiet --upgrade pip
+	$(BIN)/pip install --quiet -e '.[test]'
+	touch $@
+
+build: $(BIN)/mast
+	$(BIN)/mast build
+
+validate: build
+	$(BIN)/mast validate
+
+# The main job: build the FMUs and the SSP, validate them, run the default co-simulation.
+run: validate
+	$(BIN)/mast run build/ssp/MAST.ssp --motion z --amplitude 0.01 --frequency 1 --stop-time 3 --out results/z_1Hz
+
+test: $(BIN)/mast
+	$(BIN)/python -m pytest
+
+bench: build
+	$(BIN)/mast bench
+
+clean:
+	rm -rf build results .pytest_cache
