@@ -1,0 +1,13 @@
+"""Joint-space cascade controller of the MAST (paper Fig. 1, 2 and 6).
+
+One drive controller for the three linear axes: the pose command (z, psi, theta)
+goes through the controller's own kinematic model (the mechanism's inverse
+kinematics code, bound to the controller's geometry parameter set) to joint
+position commands; each axis then runs a sampled cascade of a P position loop
+(k_v, every T_pos), a PI velocity loop (k_p, k_i, every T_vel) and a PI current
+loop (k_pc, k_ic, every T_cur), with command limits and anti-windup.
+
+``model.ControllerBlock`` holds the equations (see docs/controller.md for the
+difference equations, the timing and the computation delay); the FMI wrapper,
+if any, lives apart from it.
+"""

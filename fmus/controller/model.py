@@ -1,0 +1,314 @@
+"""Joint-space cascade controller for the three axes of the MAST.
+
+Per axis j (paper Fig. 2 and 6), all loops sampled, forward-Euler integrators:
+
+position (every T_pos = N_pos T_cur, P):
+    rho_cmd_j  = IK_j(z_cmd, psi_cmd, theta_cmd)       controller's own geometry
+    omega_cmd_j = k_v (rho_cmd_j - rho_j) / i_R         i_R = p / (2 pi i_r)  (paper Eq. 1)
+velocity (every T_vel = N_vel T_cur, PI, limit i_max):
+    e = omega_cmd_j - omega_m_j
+    v = k_p e + x_v
+    i_cmd_j = sat(v, i_max)
+    x_v <- x_v + k_i T_vel e      unless saturated and e pushes further into the limit
+current (every T_cur, PI, limit u_max):
+    e = i_cmd_j - i_m_j
+    v = k_pc e + x_c
+    u_j = sat(v, u_max)
+    x_c <- x_c + k_ic T_cur e     unless saturated and e pushes further into the limit
+
+So each PI is C(z) = K_P + K_I T / (z - 1) while it does not saturate, and the
+anti-windup is conditional integration (clamping).
+
+Timing: the block counts current-loop ticks n = 0, 1, 2, ... from ``initialize``
+(tick n belongs to t0 + n T_cur). ``do_step(t, h)`` with h = m T_cur runs the m
+ticks n .. n+m-1 with the inputs held at their values at t; tick n runs the
+position loop if n % N_pos == 0, then the velocity loop if n % N_vel == 0, then
+the current loop, each using the command just computed by the outer loop. The
+outputs after the step are the commands of the last tick, so a master that
+applies them over the next step sees one current cycle (h) of computation delay,
+as a real drive does.
+
+For commissioning and for tests, ``set_mode`` switches the drive's operating
+mode: "pose" (default), "joint" (rho_cmd given, the IK bypassed), "velocity"
+(omega_cmd given, the position loop off) or "current" (i_cmd given, position and
+velocity loops off), like a drive's position/velocity/current modes.
+"""
+from __future__ import annotations
+
+import math
+from typing import Mapping, Sequence
+
+from ..common.block import Block, ModelError
+from ..common.parameters import Param, ParameterError, Value
+from ..mechanism.kinematics import Geometry, KinematicsError, inverse_kinematics
+
+_TWO_PI = 2.0 * math.pi
+
+#: operating modes, outermost first; the value is the first loop that runs
+MODES = ("pose", "joint", "velocity", "current")
+_MODE_COMMAND = {"joint": "rho_cmd", "velocity": "omega_cmd", "current": "i_cmd"}
+
+
+def _gain(name: str, unit: str, description: str) -> Param:
+    return Param(name, unit, description, minimum=0.0)
+
+
+def _positive(name: str, unit: str, description: str) -> Param:
+    return Param(name, unit, description, minimum=0.0, exclusive=True)
+
+
+class ControllerBlock(Block):
+    """Joint-space P/PI/PI cascade for the three axes, with its own inverse kinematics."""
+
+    INPUTS = ("z_cmd", "psi_cmd", "theta_cmd",
+              "rho_1", "rho_2", "rho_3",
+              "omega_m_1", "omega_m_2", "omega_m_3",
+              "i_m_1", "i_m_2", "i_m_3")
+    OUTPUTS = ("u_1", "u_2", "u_3",
+               "rho_cmd_1", "rho_cmd_2", "rho_cmd_3",
+               "omega_cmd_1", "omega_cmd_2", "omega_cmd_3",
+               "i_cmd_1", "i_cmd_2", "i_cmd_3")
+    PARAMETERS = (
+        _gain("k_v", "1/s", "Position P gain: linear velocity command per metre of joint error"),
+        _gain("k_p", "A.s/rad", "Velocity PI proportional gain: current per motor speed error"),
+        _gain("k_i", "A/rad", "Velocity PI integral gain"),
+        _gain("k_pc", "V/A", "Current PI proportional gain: voltage per current error"),
+        _gain("k_ic", "V/(A.s)", "Current PI integral gain"),
+        _positive("T_pos", "s", "Position loop cycle time (integer multiple of T_cur)"),
+        _positive("T_vel", "s", "Velocity loop cycle time (integer multiple of T_cur)"),
+        _positive("T_cur", "s", "Current loop cycle time (the block's tick)"),
+        _positive("i_max", "A", "Current command limit (symmetric)"),
+        _positive("u_max", "V", "Voltage command limit (symmetric)"),
+        _positive("i_r", "1", "Gear ratio (motor turns per output turn)"),
+        _positive("p", "m", "Linear guide feed per output revolution"),
+        _positive("H", "m", "Geometry of the controller's kinematic model (see fmus.mechanism.kinematics)"),
+        _positive("r", "m", "Platform radius to the spherical joints (controller's kinematic model)"),
+        _positive("L", "m", "Leg length (controller's kinematic model)"),
+        Param("alpha_1", "rad", "Guide 1 angle around the centre (controller's kinematic model)", -_TWO_PI, _TWO_PI),
+        Param("alpha_2", "rad", "Guide 2 angle around the centre (controller's kinematic model)", -_TWO_PI, _TWO_PI),
+        Param("alpha_3", "rad", "Guide 3 angle around the centre (controller's kinematic model)", -_TWO_PI, _TWO_PI),
+    )
+    UNITS = {
+        "z_cmd": "m", "psi_cmd": "rad", "theta_cmd": "rad",
+        **{f"rho_{j}": "m" for j in (1, 2, 3)},
+        **{f"omega_m_{j}": "rad/s" for j in (1, 2, 3)},
+        **{f"i_m_{j}": "A" for j in (1, 2, 3)},
+        **{f"u_{j}": "V" for j in (1, 2, 3)},
+        **{f"rho_cmd_{j}": "m" for j in (1, 2, 3)},
+        **{f"omega_cmd_{j}": "rad/s" for j in (1, 2, 3)},
+        **{f"i_cmd_{j}": "A" for j in (1, 2, 3)},
+    }
+    DESCRIPTIONS = {
+        "z_cmd": "Platform height command",
+        "psi_cmd": "Platform rotation command psi",
+        "theta_cmd": "Platform rotation command theta",
+        **{f"rho_{j}": f"Measured position of guide {j} (linear encoder)" for j in (1, 2, 3)},
+        **{f"omega_m_{j}": f"Measured speed of motor {j} (motor encoder)" for j in (1, 2, 3)},
+        **{f"i_m_{j}": f"Measured current of motor {j}" for j in (1, 2, 3)},
+        **{f"u_{j}": f"Voltage command to actuator {j}" for j in (1, 2, 3)},
+        **{f"rho_cmd_{j}": f"Joint position command of axis {j} (inverse kinematics)" for j in (1, 2, 3)},
+        **{f"omega_cmd_{j}": f"Motor speed command of axis {j} (position loop output)" for j in (1, 2, 3)},
+        **{f"i_cmd_{j}": f"Current command of axis {j} (velocity loop output)" for j in (1, 2, 3)},
+    }
+
+    def __init__(self, params: Mapping[str, Value], name: str = "") -> None:
+        super().__init__(params, name)
+        P = self.params
+        T_cur = float(P["T_cur"])
+        self._N_pos = self._ratio("T_pos", float(P["T_pos"]), T_cur)
+        self._N_vel = self._ratio("T_vel", float(P["T_vel"]), T_cur)
+        self.T_cur = T_cur
+        #: i_R = p / (2 pi i_r), metres of guide travel per motor radian (paper Eq. 1)
+        self.i_R = float(P["p"]) / (_TWO_PI * float(P["i_r"]))
+        self.geometry = Geometry.from_params(P)
+        # pre-multiplied gains (pure Python floats for the hot loop)
+        self._kv_iR = float(P["k_v"]) / self.i_R
+        self._kp = float(P["k_p"])
+        self._kiT = float(P["k_i"]) * float(P["T_vel"])
+        self._kpc = float(P["k_pc"])
+        self._kicT = float(P["k_ic"]) * T_cur
+        self._i_max = float(P["i_max"])
+        self._u_max = float(P["u_max"])
+        self._mode = 0
+        self._t0 = 0.0
+        self._reset()
+
+    def _ratio(self, name: str, T: float, T_cur: float) -> int:
+        ratio = T / T_cur
+        n = round(ratio)
+        if n < 1 or abs(ratio - n) > 1e-6 * n:
+            raise ParameterError(
+                f"{self.name}: parameter '{name}' = {T!r} s must be an integer multiple of "
+                f"T_cur = {T_cur!r} s (ratio {ratio:.9g})")
+        return int(n)
+
+    def _reset(self) -> None:
+        self._n = 0
+        self._x_v = [0.0, 0.0, 0.0]      # velocity PI integrator states [A]
+        self._x_c = [0.0, 0.0, 0.0]      # current PI integrator states [V]
+        self._u = [0.0, 0.0, 0.0]
+        self._rho_cmd = [0.0, 0.0, 0.0]
+        self._omega_cmd = [0.0, 0.0, 0.0]
+        self._i_cmd = [0.0, 0.0, 0.0]
+        self._pose_ik: tuple[float, float, float] | None = None   # pose of the cached IK
+        self._override: tuple[float, float, float] | None = None
+
+    # -- properties -----------------------------------------------------------
+    @property
+    def ticks(self) -> int:
+        """Number of current-loop ticks run since ``initialize``."""
+        return self._n
+
+    @property
+    def ticks_per_position(self) -> int:
+        return self._N_pos
+
+    @property
+    def ticks_per_velocity(self) -> int:
+        return self._N_vel
+
+    @property
+    def mode(self) -> str:
+        return MODES[self._mode]
+
+    # -- operating mode (drive modes; commissioning and tests) -----------------
+    def set_mode(self, mode: str, commands: Sequence[float] | None = None) -> None:
+        """Choose where the cascade starts.
+
+        ``"pose"``: normal operation, rho_cmd from the IK of the pose inputs.
+        ``"joint"``: rho_cmd = ``commands`` [m] (IK bypassed).
+        ``"velocity"``: omega_cmd = ``commands`` [rad/s] (position loop off).
+        ``"current"``: i_cmd = ``commands`` [A] (position and velocity loops off).
+
+        The given commands are sampled by the next loop at its next tick, as an
+        outer loop's output would be. Call again to change them. Integrator
+        states are kept.
+        """
+        if mode not in MODES:
+            raise ValueError(f"{self.name}: unknown mode {mode!r}; modes are {', '.join(MODES)}")
+        if mode == "pose":
+            if commands is not None:
+                raise ValueError(f"{self.name}: mode 'pose' takes its commands from the inputs")
+            self._mode = 0
+            self._override = None
+            self._pose_ik = None
+            return
+        if commands is None or len(commands) != 3:
+            raise ValueError(f"{self.name}: mode {mode!r} needs three {_MODE_COMMAND[mode]} values")
+        values = tuple(float(c) for c in commands)
+        for j, c in enumerate(values, 1):
+            if not math.isfinite(c):
+                raise ModelError(f"{self.name}: {_MODE_COMMAND[mode]}_{j} = {c!r} is not finite")
+        self._mode = MODES.index(mode)
+        self._override = values  # type: ignore[assignment]
+        if mode == "joint":
+            self._rho_cmd = list(values)
+        elif mode == "velocity":
+            self._omega_cmd = list(values)
+        else:
+            self._i_cmd = list(values)
+        self._write_outputs()
+
+    # -- life cycle -------------------------------------------------------------
+    def initialize(self, t0: float) -> None:
+        """Reset the integrators and the tick counter; rho_cmd = IK(pose) at t0, other commands 0."""
+        override, mode = self._override, self._mode
+        self._reset()
+        self._t0 = float(t0)
+        self._check_inputs(t0)
+        if mode == 0:
+            self._update_ik(t0)
+        elif override is not None:
+            self._override = override
+            if mode == 1:
+                self._rho_cmd = list(override)
+            elif mode == 2:
+                self._omega_cmd = list(override)
+            else:
+                self._i_cmd = list(override)
+        self._write_outputs()
+
+    def do_step(self, t: float, h: float) -> None:
+        T = self.T_cur
+        m = round(h / T)
+        if m < 1 or abs(h - m * T) > 1e-6 * T:
+            raise ModelError(f"{self.name}: step size h = {h!r} s is not a positive integer multiple of T_cur = {T!r} s")
+        n = self._n
+        if abs(t - (self._t0 + n * T)) > 0.5 * T:
+            raise ModelError(
+                f"{self.name}: do_step at t = {t!r} s, but tick {n} belongs to t = {self._t0 + n * T!r} s "
+                "(steps must be contiguous from initialize)")
+        vals = self.values
+        s = sum(vals[:12])
+        if s - s != 0.0:   # NaN or inf among the inputs
+            self._check_inputs(t)
+
+        N_pos, N_vel, mode = self._N_pos, self._N_vel, self._mode
+        rho_cmd, omega_cmd, i_cmd, u = self._rho_cmd, self._omega_cmd, self._i_cmd, self._u
+        x_v, x_c = self._x_v, self._x_c
+        kpc, kicT, u_max = self._kpc, self._kicT, self._u_max
+        for _ in range(m):
+            if mode <= 1 and n % N_pos == 0:
+                if mode == 0:
+                    self._update_ik(self._t0 + n * T)
+                kv_iR = self._kv_iR
+                for j in range(3):
+                    omega_cmd[j] = kv_iR * (rho_cmd[j] - vals[3 + j])
+            if mode <= 2 and n % N_vel == 0:
+                kp, kiT, i_max = self._kp, self._kiT, self._i_max
+                for j in range(3):
+                    e = omega_cmd[j] - vals[6 + j]
+                    v = kp * e + x_v[j]
+                    if v > i_max:
+                        i_cmd[j] = i_max
+                        if e < 0.0:
+                            x_v[j] += kiT * e
+                    elif v < -i_max:
+                        i_cmd[j] = -i_max
+                        if e > 0.0:
+                            x_v[j] += kiT * e
+                    else:
+                        i_cmd[j] = v
+                        x_v[j] += kiT * e
+            for j in range(3):
+                e = i_cmd[j] - vals[9 + j]
+                v = kpc * e + x_c[j]
+                if v > u_max:
+                    u[j] = u_max
+                    if e < 0.0:
+                        x_c[j] += kicT * e
+                elif v < -u_max:
+                    u[j] = -u_max
+                    if e > 0.0:
+                        x_c[j] += kicT * e
+                else:
+                    u[j] = v
+                    x_c[j] += kicT * e
+            n += 1
+        self._n = n
+        vals[12:24] = u + rho_cmd + omega_cmd + i_cmd
+
+    # -- helpers ------------------------------------------------------------------
+    def _write_outputs(self) -> None:
+        self.values[12:24] = self._u + self._rho_cmd + self._omega_cmd + self._i_cmd
+
+    def _check_inputs(self, t: float) -> None:
+        for name, value in zip(self.INPUTS, self.values):
+            if not math.isfinite(value):
+                raise ModelError(f"{self.name}: input '{name}' = {value!r} is not finite at t = {t!r} s")
+
+    def _update_ik(self, t: float) -> None:
+        vals = self.values
+        pose = (vals[0], vals[1], vals[2])
+        if pose == self._pose_ik:
+            return
+        try:
+            rho = inverse_kinematics(self.geometry, *pose)
+        except KinematicsError as exc:
+            raise KinematicsError(
+                f"{self.name}: inverse kinematics of the pose command z = {pose[0]!r} m, psi = {pose[1]!r} rad, "
+                f"theta = {pose[2]!r} rad failed at t = {t!r} s: {exc}") from exc
+        self._rho_cmd[0] = float(rho[0])
+        self._rho_cmd[1] = float(rho[1])
+        self._rho_cmd[2] = float(rho[2])
+        self._pose_ik = pose
