@@ -63,9 +63,11 @@ class FMUComponent:
 
     def _error(self, what: str, t: float | None, err: object = "") -> ComponentError:
         """The model's own logged error is the cause; pythonfmu's generic 'Fatal py exception' is not."""
-        when = f" at t={t:.6g} s" if t is not None else ""
         ours = [m for m in self.messages if m.startswith("[logStatusError]")]
-        cause = ours[-1].removeprefix("[logStatusError] ") if ours else (self.messages[-1] if self.messages else str(err))
+        if ours:  # the model's message already says when (doStep at t=...) and why
+            return ComponentError(f"{self.name}: {ours[-1].removeprefix('[logStatusError] ')}")
+        when = f" at t={t:.6g} s" if t is not None else ""
+        cause = self.messages[-1] if self.messages else str(err)
         return ComponentError(f"{self.name}{when}: {what} failed: {cause}")
 
     def _refs(self, names: Sequence[str], causalities: tuple[str, ...]) -> list[int]:
@@ -221,7 +223,7 @@ class BlockComponent:
             try:
                 step(t, h)
             except Exception as err:
-                raise ComponentError(f"{self.name} at t={t:.6g} s: doStep failed: {type(err).__name__}: {err}") from None
+                raise ComponentError(f"{self.name}: doStep at t={t:.6g} s: {type(err).__name__}: {err}") from None
         return do_step
 
     def close(self) -> None:

@@ -45,13 +45,25 @@ def test_fmu_cosimulation_reproduces_direct_composition(ssp):
     assert np.ptp(fmi["actuator_2.tau_m"]) > 0.01
 
 
+def harmonic(t: np.ndarray, y: np.ndarray, f: float) -> complex:
+    """Complex amplitude of the f-Hz component by least squares on [1, sin, cos] (whole periods)."""
+    w = 2 * np.pi * f
+    basis = np.column_stack([np.ones_like(t), np.sin(w * t), np.cos(w * t)])
+    c = np.linalg.lstsq(basis, y, rcond=None)[0]
+    return complex(c[1], c[2])
+
+
 def test_default_system_tracks_a_slow_z_motion(ssp):
-    result = simulate(ssp, SineMotion("z", 0.005, 0.5), 2.0, direct=True)
-    steady = result.time > 1.0
-    amplitude = np.ptp(result["mechanism.z"][steady]) / np.ptp(result["z_cmd"][steady])
-    assert 0.9 < amplitude < 1.1
-    # a pure z motion leaves the platform level
-    assert np.max(np.abs(result["mechanism.psi"])) < 1e-4
+    result = simulate(ssp, SineMotion("z", 0.005, 0.5), 4.0, direct=True)
+    steady = result.time >= 2.0  # one whole period after the settling period
+    ratio = harmonic(result.time[steady], result["mechanism.z"][steady], 0.5) / harmonic(
+        result.time[steady], result["z_cmd"][steady], 0.5)
+    assert 0.95 < abs(ratio) < 1.02  # the paper measures 99.4 % at 0.4 Hz
+    assert -15.0 < np.degrees(np.angle(ratio)) < 0.0  # a lag of a few degrees (paper: -6.3 deg at 0.4 Hz)
+    # a pure z motion leaves the platform level: the T layout loads the guides unequally, so the
+    # axes lag by slightly different amounts (~1e-4 rad); a kinematic sign error would tilt it ~1e-2 rad
+    assert np.max(np.abs(result["mechanism.psi"])) < 1e-3
+    assert np.max(np.abs(result["mechanism.theta"])) < 1e-3
     # at rest the guides carry the platform: forces positive (upward) at the start
     assert np.all(result["mechanism.F_1"][:5] > 0)
 
@@ -63,12 +75,18 @@ def test_unknown_and_out_of_range_parameters_are_named(ssp):
         simulate(ssp, SineMotion("z", 0.0, 0.0), 0.01, parameters={"mechanism": {"m_platform": -1.0}})
 
 
-def test_unreachable_pose_is_reported_with_component_and_time_and_partial_results(ssp):
+@pytest.mark.parametrize("direct", [False, True])
+@pytest.mark.parametrize("motion, component, cause", [
+    (SineMotion("psi", math.radians(70.0), 1.0), "controller", "out of range"),  # beyond the admissible tilt
+    (SineMotion("z", 0.5, 1.0), "actuator_", "left the stroke"),                 # beyond the 300 mm guides
+])
+def test_failures_name_component_time_and_cause_and_keep_partial_results(ssp, direct, motion, component, cause):
     with pytest.raises(SimulationError) as info:
-        simulate(ssp, SineMotion("z", 0.5, 1.0), 0.5)
-    assert "controller at t=" in str(info.value)
-    assert "unreachable" in str(info.value).lower() or "stroke" in str(info.value).lower()
-    assert len(info.value.result.time) > 10
+        simulate(ssp, motion, 0.5, direct=direct)
+    message = str(info.value)
+    assert message.startswith(component) and "doStep at t=" in message and cause in message.lower()
+    partial = info.value.result
+    assert 10 < len(partial.time) < 501 and np.all(np.isfinite(partial["mechanism.z"]))
 
 
 def test_cli_run_writes_results_summary_and_plot(ssp, tmp_path):

@@ -134,7 +134,7 @@ class BlockSlave(Fmi2Slave):
         try:
             self._block.do_step(current_time, step_size)
         except Exception as err:  # the host decides what to do; the instance stays usable for terminate/free
-            self.log(f"{self.instance_name} at t={current_time:.6g} s: {type(err).__name__}: {err}",
+            self.log(f"doStep at t={current_time:.6g} s: {type(err).__name__}: {err}",
                      status=Fmi2Status.error, category="logStatusError")
             return False
         return True
@@ -144,7 +144,7 @@ class BlockSlave(Fmi2Slave):
         try:
             func()
         except Exception as err:  # logged first: pythonfmu's own message does not carry the cause
-            self.log(f"{self.instance_name}: {type(err).__name__}: {err}", status=Fmi2Status.error,
+            self.log(f"{type(err).__name__}: {err}", status=Fmi2Status.error,
                      category="logStatusError")
             raise
 
