@@ -12,19 +12,20 @@ DEFAULT_SSP = REPO / "build" / "ssp" / "MAST.ssp"
 
 
 class Progress:
-    """A one-line progress bar on stderr."""
+    """A progress bar on stderr: redrawn in place on a terminal, a line every 10 % in logs."""
 
     def __init__(self, label: str) -> None:
         self.label = label
         self.last = -1
+        self.granularity = 1 if sys.stderr.isatty() else 10
 
     def __call__(self, fraction: float) -> None:
-        percent = int(fraction * 100)
+        percent = int(fraction * 100) // self.granularity * self.granularity
         if percent != self.last:
             self.last = percent
             bar = "#" * (percent // 4)
             sys.stderr.write(f"\r{self.label} [{bar:<25}] {percent:3d}%")
-            if percent >= 100:
+            if percent >= 100 or self.granularity > 1:
                 sys.stderr.write("\n")
             sys.stderr.flush()
 
