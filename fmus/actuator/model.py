@@ -51,7 +51,7 @@ import numpy as np
 from scipy.linalg import expm
 
 from ..common.block import Block, ModelError
-from ..common.parameters import Param, ParameterError, Value
+from ..common.parameters import Param, ParameterError, Value, nonnegative, positive
 
 __all__ = [
     "ActuatorBlock",
@@ -64,36 +64,27 @@ __all__ = [
     "chain_frequencies",
 ]
 
-_INF = math.inf
 _MAX_PHASE_PER_SUBSTEP = 2.0  # rad: fastest chain mode x substep (keeps the friction equation monotone)
 
 
-def _pos(name: str, unit: str, description: str) -> Param:
-    return Param(name, unit, description, 0.0, _INF, exclusive=True)
-
-
-def _nonneg(name: str, unit: str, description: str) -> Param:
-    return Param(name, unit, description, 0.0, _INF)
-
-
 PARAMETERS: tuple[Param, ...] = (
-    _pos("R", "ohm", "winding terminal resistance"),
-    _pos("L", "H", "winding terminal inductance"),
-    _pos("k_T", "N.m/A", "torque constant"),
-    _pos("k_E", "V.s/rad", "back-EMF constant"),
-    _pos("u_supply", "V", "power stage supply: the voltage command is clipped to +-u_supply"),
-    _pos("J_motor", "kg.m2", "rotor inertia (Eq. 20)"),
-    _nonneg("J_gearbox", "kg.m2", "gearbox inertia referred to the motor shaft (Eq. 20)"),
-    _nonneg("J_coupling", "kg.m2", "coupling inertia, added to J1 as in Eq. 20"),
-    _nonneg("J_brake", "kg.m2", "brake inertia, on the motor shaft: added to J1"),
-    _pos("J1_scale", "1", "multiplier on J1 (paper identified set: 1/1.56); scales J_chain[0] when n_dof >= 3"),
-    _pos("J_guide", "kg.m2", "linear guide inertia at its input shaft (Eq. 21)"),
-    _pos("M_load", "kg", "drive carriage mass (Eqs. 21-22); its weight acts on the guide"),
-    _pos("K_t", "N.m/rad", "transmission stiffness, motor side (Eqs. 2-3, Table 1)"),
-    _nonneg("C_t", "N.m.s/rad", "transmission damping, motor side (Eqs. 2-3, Table 1)"),
-    _nonneg("tau_c", "N.m", "guide Coulomb friction referred to the motor shaft (Eq. 23)"),
-    _pos("omega_c", "rad/s", "friction smoothing speed at the motor shaft: tau_c tanh(omega/omega_c)"),
-    _nonneg("b_v", "N.m.s/rad", "viscous friction on the guide side, motor shaft"),
+    positive("R", "ohm", "winding terminal resistance"),
+    positive("L", "H", "winding terminal inductance"),
+    positive("k_T", "N.m/A", "torque constant"),
+    positive("k_E", "V.s/rad", "back-EMF constant"),
+    positive("u_supply", "V", "power stage supply: the voltage command is clipped to +-u_supply"),
+    positive("J_motor", "kg.m2", "rotor inertia (Eq. 20)"),
+    nonnegative("J_gearbox", "kg.m2", "gearbox inertia referred to the motor shaft (Eq. 20)"),
+    nonnegative("J_coupling", "kg.m2", "coupling inertia, added to J1 as in Eq. 20"),
+    nonnegative("J_brake", "kg.m2", "brake inertia, on the motor shaft: added to J1"),
+    positive("J1_scale", "1", "multiplier on J1 (paper identified set: 1/1.56); scales J_chain[0] when n_dof >= 3"),
+    positive("J_guide", "kg.m2", "linear guide inertia at its input shaft (Eq. 21)"),
+    positive("M_load", "kg", "drive carriage mass (Eqs. 21-22); its weight acts on the guide"),
+    positive("K_t", "N.m/rad", "transmission stiffness, motor side (Eqs. 2-3, Table 1)"),
+    nonnegative("C_t", "N.m.s/rad", "transmission damping, motor side (Eqs. 2-3, Table 1)"),
+    nonnegative("tau_c", "N.m", "guide Coulomb friction referred to the motor shaft (Eq. 23)"),
+    positive("omega_c", "rad/s", "friction smoothing speed at the motor shaft: tau_c tanh(omega/omega_c)"),
+    nonnegative("b_v", "N.m.s/rad", "viscous friction on the guide side, motor shaft"),
     Param("g_guide", "m/s2", "gravity along the guide (positive: pulls the carriage to lower rho)"),
     Param("rho_0", "m", "initial carriage position, rho_min < rho_0 < rho_max"),
     Param("rho_min", "m", "lower end of the stroke"),
@@ -106,8 +97,8 @@ PARAMETERS: tuple[Param, ...] = (
           kind=str),
     Param("C_chain", "N.m.s/rad", "n_dof >= 3: N-1 dampings referred to the motor shaft, space separated",
           kind=str),
-    _pos("i_r", "1", "gearbox ratio (Eq. 1)"),
-    _pos("p", "m", "guide feed per revolution of its input shaft (Eq. 1)"),
+    positive("i_r", "1", "gearbox ratio (Eq. 1)"),
+    positive("p", "m", "guide feed per revolution of its input shaft (Eq. 1)"),
 )
 
 

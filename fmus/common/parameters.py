@@ -65,6 +65,16 @@ class Param:
         return number
 
 
+def positive(name: str, unit: str, description: str) -> Param:
+    """A parameter that must be strictly positive (lengths, resistances, cycle times ...)."""
+    return Param(name, unit, description, minimum=0.0, exclusive=True)
+
+
+def nonnegative(name: str, unit: str, description: str) -> Param:
+    """A parameter that may be zero but not negative (gains, optional inertias ...)."""
+    return Param(name, unit, description, minimum=0.0)
+
+
 def validate(specs: Sequence[Param], values: Mapping[str, Value], owner: str = "") -> dict[str, Value]:
     """Check a complete parameter set against its schema.
 

@@ -39,22 +39,31 @@ import math
 from typing import Mapping, Sequence
 
 from ..common.block import Block, ModelError
-from ..common.parameters import Param, ParameterError, Value
-from ..mechanism.kinematics import Geometry, KinematicsError, inverse_kinematics
+from ..common.parameters import ParameterError, Value, nonnegative, positive
+from ..actuator.model import transmission_ratio
+from ..mechanism.kinematics import GEOMETRY_PARAMETERS, Geometry, KinematicsError, inverse_kinematics
 
-_TWO_PI = 2.0 * math.pi
 
 #: operating modes, outermost first; the value is the first loop that runs
 MODES = ("pose", "joint", "velocity", "current")
 _MODE_COMMAND = {"joint": "rho_cmd", "velocity": "omega_cmd", "current": "i_cmd"}
 
 
-def _gain(name: str, unit: str, description: str) -> Param:
-    return Param(name, unit, description, minimum=0.0)
+def pi_step(e: float, x: float, k_p: float, k_iT: float, limit: float) -> tuple[float, float]:
+    """One forward-Euler PI update with output limit and conditional integration.
 
-
-def _positive(name: str, unit: str, description: str) -> Param:
-    return Param(name, unit, description, minimum=0.0, exclusive=True)
+    ``e`` error, ``x`` integrator state (in output units), ``k_p`` proportional
+    gain, ``k_iT`` integral gain times the loop's cycle time, ``limit`` the
+    symmetric output limit. Returns (output, new state): while the output is
+    saturated, the integrator only moves when the error drives it back out of
+    the limit (anti-windup).
+    """
+    v = k_p * e + x
+    if v > limit:
+        return limit, (x + k_iT * e if e < 0.0 else x)
+    if v < -limit:
+        return -limit, (x + k_iT * e if e > 0.0 else x)
+    return v, x + k_iT * e
 
 
 class ControllerBlock(Block):
@@ -69,24 +78,19 @@ class ControllerBlock(Block):
                "omega_cmd_1", "omega_cmd_2", "omega_cmd_3",
                "i_cmd_1", "i_cmd_2", "i_cmd_3")
     PARAMETERS = (
-        _gain("k_v", "1/s", "Position P gain: linear velocity command per metre of joint error"),
-        _gain("k_p", "A.s/rad", "Velocity PI proportional gain: current per motor speed error"),
-        _gain("k_i", "A/rad", "Velocity PI integral gain"),
-        _gain("k_pc", "V/A", "Current PI proportional gain: voltage per current error"),
-        _gain("k_ic", "V/(A.s)", "Current PI integral gain"),
-        _positive("T_pos", "s", "Position loop cycle time (integer multiple of T_cur)"),
-        _positive("T_vel", "s", "Velocity loop cycle time (integer multiple of T_cur)"),
-        _positive("T_cur", "s", "Current loop cycle time (the block's tick)"),
-        _positive("i_max", "A", "Current command limit (symmetric)"),
-        _positive("u_max", "V", "Voltage command limit (symmetric)"),
-        _positive("i_r", "1", "Gear ratio (motor turns per output turn)"),
-        _positive("p", "m", "Linear guide feed per output revolution"),
-        _positive("H", "m", "Geometry of the controller's kinematic model (see fmus.mechanism.kinematics)"),
-        _positive("r", "m", "Platform radius to the spherical joints (controller's kinematic model)"),
-        _positive("L", "m", "Leg length (controller's kinematic model)"),
-        Param("alpha_1", "rad", "Guide 1 angle around the centre (controller's kinematic model)", -_TWO_PI, _TWO_PI),
-        Param("alpha_2", "rad", "Guide 2 angle around the centre (controller's kinematic model)", -_TWO_PI, _TWO_PI),
-        Param("alpha_3", "rad", "Guide 3 angle around the centre (controller's kinematic model)", -_TWO_PI, _TWO_PI),
+        nonnegative("k_v", "1/s", "Position P gain: linear velocity command per metre of joint error"),
+        nonnegative("k_p", "A.s/rad", "Velocity PI proportional gain: current per motor speed error"),
+        nonnegative("k_i", "A/rad", "Velocity PI integral gain"),
+        nonnegative("k_pc", "V/A", "Current PI proportional gain: voltage per current error"),
+        nonnegative("k_ic", "V/(A.s)", "Current PI integral gain"),
+        positive("T_pos", "s", "Position loop cycle time (integer multiple of T_cur)"),
+        positive("T_vel", "s", "Velocity loop cycle time (integer multiple of T_cur)"),
+        positive("T_cur", "s", "Current loop cycle time (the block's tick)"),
+        positive("i_max", "A", "Current command limit (symmetric)"),
+        positive("u_max", "V", "Voltage command limit (symmetric)"),
+        positive("i_r", "1", "Gear ratio (motor turns per output turn)"),
+        positive("p", "m", "Linear guide feed per output revolution"),
+        *GEOMETRY_PARAMETERS,  # the controller's own kinematic model of the machine
     )
     UNITS = {
         "z_cmd": "m", "psi_cmd": "rad", "theta_cmd": "rad",
@@ -119,8 +123,8 @@ class ControllerBlock(Block):
         self._N_vel = self._ratio("T_vel", float(P["T_vel"]), T_cur)
         self.T_cur = T_cur
         #: i_R = p / (2 pi i_r), metres of guide travel per motor radian (paper Eq. 1)
-        self.i_R = float(P["p"]) / (_TWO_PI * float(P["i_r"]))
-        self.geometry = Geometry.from_params(P)
+        self.i_R = transmission_ratio(P["p"], P["i_r"])
+        self.geometry = Geometry.checked(P, self.name)
         # pre-multiplied gains (pure Python floats for the hot loop)
         self._kv_iR = float(P["k_v"]) / self.i_R
         self._kp = float(P["k_p"])
@@ -257,33 +261,9 @@ class ControllerBlock(Block):
             if mode <= 2 and n % N_vel == 0:
                 kp, kiT, i_max = self._kp, self._kiT, self._i_max
                 for j in range(3):
-                    e = omega_cmd[j] - vals[6 + j]
-                    v = kp * e + x_v[j]
-                    if v > i_max:
-                        i_cmd[j] = i_max
-                        if e < 0.0:
-                            x_v[j] += kiT * e
-                    elif v < -i_max:
-                        i_cmd[j] = -i_max
-                        if e > 0.0:
-                            x_v[j] += kiT * e
-                    else:
-                        i_cmd[j] = v
-                        x_v[j] += kiT * e
+                    i_cmd[j], x_v[j] = pi_step(omega_cmd[j] - vals[6 + j], x_v[j], kp, kiT, i_max)
             for j in range(3):
-                e = i_cmd[j] - vals[9 + j]
-                v = kpc * e + x_c[j]
-                if v > u_max:
-                    u[j] = u_max
-                    if e < 0.0:
-                        x_c[j] += kicT * e
-                elif v < -u_max:
-                    u[j] = -u_max
-                    if e > 0.0:
-                        x_c[j] += kicT * e
-                else:
-                    u[j] = v
-                    x_c[j] += kicT * e
+                u[j], x_c[j] = pi_step(i_cmd[j] - vals[9 + j], x_c[j], kpc, kicT, u_max)
             n += 1
         self._n = n
         vals[12:24] = u + rho_cmd + omega_cmd + i_cmd

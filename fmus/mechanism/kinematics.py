@@ -37,7 +37,7 @@ from typing import Mapping, Optional, Sequence
 import numpy as np
 
 from ..common.block import ModelError
-from ..common.parameters import ParameterError
+from ..common.parameters import Param, ParameterError, positive
 
 __all__ = [
     "Geometry", "KinematicsError", "PoseSolution", "Jacobians", "JacobianRates",
@@ -55,6 +55,17 @@ _sin = math.sin
 _cos = math.cos
 _sqrt = math.sqrt
 _isfinite = math.isfinite
+
+
+#: the geometry parameters, declared once for every block that holds a kinematic model
+GEOMETRY_PARAMETERS: tuple[Param, ...] = (
+    positive("H", "m", "Horizontal distance from the centre axis to each guide"),
+    positive("r", "m", "Platform radius: distance from the platform centre P to each spherical joint"),
+    positive("L", "m", "Leg length (slider revolute joint to platform spherical joint)"),
+    Param("alpha_1", "rad", "Angle of guide 1 around the vertical centre axis", -2 * math.pi, 2 * math.pi),
+    Param("alpha_2", "rad", "Angle of guide 2 around the vertical centre axis", -2 * math.pi, 2 * math.pi),
+    Param("alpha_3", "rad", "Angle of guide 3 around the vertical centre axis", -2 * math.pi, 2 * math.pi),
+)
 
 
 class KinematicsError(ModelError):
@@ -100,6 +111,29 @@ class Geometry:
                        alpha=(float(params["alpha_1"]), float(params["alpha_2"]), float(params["alpha_3"])))
         except KeyError as exc:
             raise ParameterError(f"Geometry: missing parameter {exc.args[0]!r}") from None
+
+    @classmethod
+    def checked(cls, params: Mapping[str, object], owner: str) -> "Geometry":
+        """Geometry from validated parameters, refusing layouts that cannot be assembled.
+
+        Raises ParameterError naming the parameter: r >= H (the spherical joints must lie
+        inside the guide radius), L <= H - r (the legs cannot reach the platform), or guide
+        angles that give no assembly at the level pose.
+        """
+        geom = cls.from_params(params)
+        H, r, L = geom.H, geom.r, geom.L
+        if not r < H:
+            raise ParameterError(f"{owner}: parameter 'r' = {r!r}: must be < H = {H!r} m (working assembly: the "
+                                 f"spherical joints lie inside the guide radius)")
+        if not H - r < L:
+            raise ParameterError(f"{owner}: parameter 'L' = {L!r}: must exceed H - r = {H - r!r} m, or the legs "
+                                 f"cannot reach the platform")
+        try:
+            _first(geom, _frame(geom, geom.home_reach, 0.0, 0.0))
+        except KinematicsError as exc:
+            raise ParameterError(f"{owner}: parameters 'alpha_1', 'alpha_2', 'alpha_3' = {geom.alpha} rad: the "
+                                 f"mechanism cannot be assembled at the level pose: {exc}") from None
+        return geom
 
     @property
     def home_reach(self) -> float:

@@ -12,24 +12,9 @@ import math
 from typing import Mapping
 
 from ..common.block import Block, ModelError
-from ..common.parameters import Param, ParameterError, Value
+from ..common.parameters import Param, Value, nonnegative
 from .dynamics import Masses, _idp
-from .kinematics import Geometry, KinematicsError, _dk_frame, _first, _frame
-
-_TWO_PI = 2.0 * math.pi
-
-
-def _length(name: str, description: str) -> Param:
-    return Param(name, "m", description, minimum=0.0, exclusive=True)
-
-
-def _angle(name: str, description: str) -> Param:
-    return Param(name, "rad", description, minimum=-_TWO_PI, maximum=_TWO_PI)
-
-
-def _nonneg(name: str, unit: str, description: str) -> Param:
-    return Param(name, unit, description, minimum=0.0)
-
+from .kinematics import GEOMETRY_PARAMETERS, Geometry, KinematicsError, _dk_frame
 
 class MechanismBlock(Block):
     """3PRS mechanism: DK and IDP; outputs the actuator forces and the platform pose."""
@@ -39,18 +24,13 @@ class MechanismBlock(Block):
               "rho_ddot_1", "rho_ddot_2", "rho_ddot_3")
     OUTPUTS = ("F_1", "F_2", "F_3", "x", "y", "z", "psi", "theta", "phi")
     PARAMETERS = (
-        _length("H", "Horizontal distance from the centre axis to each guide"),
-        _length("r", "Platform radius: distance from the platform centre P to each spherical joint"),
-        _length("L", "Leg length (slider revolute joint to platform spherical joint)"),
-        _angle("alpha_1", "Angle of guide 1 around the vertical centre axis"),
-        _angle("alpha_2", "Angle of guide 2 around the vertical centre axis"),
-        _angle("alpha_3", "Angle of guide 3 around the vertical centre axis"),
-        _nonneg("m_leg", "kg", "Mass of each leg (COM at mid-length)"),
-        _nonneg("I_leg", "kg.m2", "Inertia of each leg about its COM, about the revolute axis direction"),
+        *GEOMETRY_PARAMETERS,
+        nonnegative("m_leg", "kg", "Mass of each leg (COM at mid-length)"),
+        nonnegative("I_leg", "kg.m2", "Inertia of each leg about its COM, about the revolute axis direction"),
         Param("m_platform", "kg", "Platform mass (COM at P)", minimum=0.0, exclusive=True, maximum=math.inf),
-        _nonneg("I_px", "kg.m2", "Platform inertia about its own x axis, at P"),
-        _nonneg("I_py", "kg.m2", "Platform inertia about its own y axis, at P"),
-        _nonneg("I_pz", "kg.m2", "Platform inertia about its own z axis, at P"),
+        nonnegative("I_px", "kg.m2", "Platform inertia about its own x axis, at P"),
+        nonnegative("I_py", "kg.m2", "Platform inertia about its own y axis, at P"),
+        nonnegative("I_pz", "kg.m2", "Platform inertia about its own z axis, at P"),
         Param("g", "m/s2", "Gravitational acceleration (along -z)", minimum=0.0, maximum=100.0),
     )
     UNITS = {
@@ -76,24 +56,8 @@ class MechanismBlock(Block):
 
     def __init__(self, params: Mapping[str, Value], name: str = "") -> None:
         super().__init__(params, name)
-        P = self.params
-        H, r, L = float(P["H"]), float(P["r"]), float(P["L"])
-        if not r < H:
-            raise ParameterError(
-                f"{self.name}: parameter 'r' = {r!r}: must be < H = {H!r} m (working assembly: the spherical "
-                f"joints lie inside the guide radius)")
-        if not H - r < L:
-            raise ParameterError(
-                f"{self.name}: parameter 'L' = {L!r}: must exceed H - r = {H - r!r} m, or the legs cannot "
-                f"reach the platform")
-        self.geometry = Geometry.from_params(P)
-        self.masses = Masses.from_params(P)
-        try:
-            _first(self.geometry, _frame(self.geometry, self.geometry.home_reach, 0.0, 0.0))
-        except KinematicsError as exc:
-            raise ParameterError(
-                f"{self.name}: parameters 'alpha_1', 'alpha_2', 'alpha_3' = {self.geometry.alpha} rad: the "
-                f"mechanism cannot be assembled at the level pose: {exc}") from None
+        self.geometry = Geometry.checked(self.params, self.name)
+        self.masses = Masses.from_params(self.params)
         self._guess = None
         self._zero = (0.0, 0.0, 0.0)
 
