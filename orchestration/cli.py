@@ -73,7 +73,8 @@ def cmd_run(args) -> int:
     out = Path(args.out)
     try:
         result = simulate(args.ssp, motion, args.stop_time, parameters=parse_overrides(args.set or []),
-                          record_step=args.record_step, direct=args.direct, progress=Progress("co-simulation"))
+                          record=args.record, record_step=args.record_step, direct=args.direct,
+                          progress=Progress("co-simulation"))
         failed = None
     except SimulationError as err:
         result, failed = err.result, str(err)
@@ -111,6 +112,8 @@ def main(argv=None) -> int:
     p.add_argument("--frequency", type=float, default=1.0, help="Hz")
     p.add_argument("--stop-time", type=float, default=2.0, help="s")
     p.add_argument("--set", action="append", metavar="ELEMENT.PARAMETER=VALUE", help="override a parameter (repeatable)")
+    p.add_argument("--record", action="append", metavar="ELEMENT.CONNECTOR",
+                   help="signal to record (repeatable; default: every system input and declared output)")
     p.add_argument("--record-step", type=float, default=1e-3, help="s between recorded samples")
     p.add_argument("--direct", action="store_true", help="run the model objects directly (no FMI), same schedule")
     p.add_argument("--out", default="results")

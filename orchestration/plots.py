@@ -22,7 +22,7 @@ def plot_run(result: Result, axis: str, path: Path) -> None:
     if f"mechanism.{axis}" in result.signals:
         ax.plot(t, result[f"mechanism.{axis}"] * scale, label=f"{axis} achieved")
     ax.set_ylabel(f"{axis} [{unit}]")
-    ax.legend(loc="upper right")
+    _legend(ax)
     ax.set_title("Platform pose: commanded vs achieved")
     ax = axes[1]
     for j in (1, 2, 3):
@@ -30,16 +30,23 @@ def plot_run(result: Result, axis: str, path: Path) -> None:
             line, = ax.plot(t, result[f"actuator_{j}.rho"] * 1e3, label=f"rho_{j}")
             ax.plot(t, result[f"controller.rho_cmd_{j}"] * 1e3, "--", color=line.get_color(), label=f"rho_cmd_{j}")
     ax.set_ylabel("guide position [mm]")
-    ax.legend(loc="upper right", ncol=3, fontsize="small")
+    _legend(ax, ncol=3)
     ax = axes[2]
     for j in (1, 2, 3):
         if f"actuator_{j}.tau_m" in result.signals:
             ax.plot(t, result[f"actuator_{j}.tau_m"], label=f"tau_m_{j}")
     ax.set_ylabel("motor torque [N m]")
     ax.set_xlabel("time [s]")
-    ax.legend(loc="upper right", ncol=3, fontsize="small")
+    _legend(ax, ncol=3)
     for ax in axes:
         ax.grid(True, alpha=0.3)
+        if not ax.get_legend_handles_labels()[0]:
+            ax.text(0.5, 0.5, "not recorded", transform=ax.transAxes, ha="center", color="gray")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
+
+
+def _legend(ax, ncol: int = 1) -> None:
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend(loc="upper right", ncol=ncol, fontsize="small")

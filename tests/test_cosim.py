@@ -99,3 +99,11 @@ def test_cli_run_writes_results_summary_and_plot(ssp, tmp_path):
     header = (out / "results.csv").read_text().splitlines()[0].split(",")
     assert header[0] == "time" and "mechanism.theta" in header and "actuator_3.tau_m" in header
     assert (out / "motion.png").stat().st_size > 10_000
+
+
+def test_cli_records_only_the_chosen_signals(ssp, tmp_path):
+    out = tmp_path / "chosen"
+    assert cli_main(["run", str(ssp), "--stop-time", "0.05", "--out", str(out),
+                     "--record", "mechanism.z", "--record", "actuator_2.i_m"]) == 0
+    assert (out / "results.csv").read_text().splitlines()[0] == "time,mechanism.z,actuator_2.i_m"
+    assert cli_main(["run", str(ssp), "--stop-time", "0.05", "--out", str(out), "--record", "mechanism.nope"]) == 2
