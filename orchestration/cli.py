@@ -87,6 +87,26 @@ def cmd_run(args) -> int:
     return 0
 
 
+def cmd_fit_gains(args) -> int:
+    from .identify import main as fit_main
+
+    fit = fit_main(args.ssp, Path(args.out) if args.out else None, args.workers)
+    print("gains: " + ", ".join(f"{k} = {v:.6g}" for k, v in fit.gains.items()))
+    for f, (mag, ph) in fit.responses.items():
+        print(f"  {f:g} Hz: magnitude {100 * mag:.1f} %, phase {ph:.1f} deg")
+    print(f"scaled cost {fit.cost:.4f} ({fit.evaluations} evaluations, {fit.wall_time_s:.0f} s)")
+    return 0
+
+
+def cmd_reproduce(args) -> int:
+    from .reproduce import reproduce
+
+    summary = reproduce(args.ssp, Path(args.out), workers=args.workers, direct=args.direct)
+    print(f"{summary['within']} of {summary['judged']} judged rows within the paper's deviation; "
+          f"{summary['runs']} co-simulations in {summary['wall_time_s']:.0f} s; wrote {Path(args.out) / 'report.md'}")
+    return 1 if summary["failures"] else 0
+
+
 def cmd_bench(args) -> int:
     from .bench import main as bench_main
 
@@ -118,6 +138,19 @@ def main(argv=None) -> int:
     p.add_argument("--direct", action="store_true", help="run the model objects directly (no FMI), same schedule")
     p.add_argument("--out", default="results")
     p.set_defaults(func=cmd_run)
+
+    p = sub.add_parser("fit-gains", help="identify k_v, k_p, k_i from the paper's reported position responses")
+    p.add_argument("ssp", nargs="?", default=str(DEFAULT_SSP))
+    p.add_argument("--out", help="write the fitted gains as an .ssv parameter set")
+    p.add_argument("--workers", type=int, default=2)
+    p.set_defaults(func=cmd_fit_gains)
+
+    p = sub.add_parser("reproduce", help="regenerate the paper's analyses: DIR/report.md, figures, paper_table.json")
+    p.add_argument("ssp", nargs="?", default=str(DEFAULT_SSP))
+    p.add_argument("--out", default="results/reproduce")
+    p.add_argument("--workers", type=int, default=2)
+    p.add_argument("--direct", action="store_true", help="run the model objects without FMI (same numbers, faster)")
+    p.set_defaults(func=cmd_reproduce)
 
     p = sub.add_parser("bench", help="real-time factor of the default system, FMU co-simulation vs direct composition")
     p.add_argument("ssp", nargs="?", default=str(DEFAULT_SSP))

@@ -179,12 +179,12 @@ class Master:
     def run(self, stop_time: float, stimulus: Stimulus, record: Sequence[str] = (), record_step: Optional[float] = None,
             parameters: Optional[Mapping[str, Mapping[str, Value]]] = None, start_time: Optional[float] = None,
             progress: Optional[Callable[[float], None]] = None) -> Result:
-        """Simulate from the SSD start time to ``stop_time``; see the module docstring for the schedule."""
+        """Simulate from the SSD start time to ``stop_time`` (rounded up to a base tick); see the module docstring."""
         t0 = self.system.start_time if start_time is None else start_time
         h = self.base_step
-        n_ticks = round((stop_time - t0) / h)
-        if n_ticks < 1 or abs(n_ticks * h - (stop_time - t0)) > 1e-9 * max(1.0, stop_time):
-            raise ValueError(f"stop time {stop_time:g} s is not start + a whole number of base steps ({h:g} s)")
+        n_ticks = math.ceil((stop_time - t0) / h - 1e-9)  # a stop time between ticks ends at the next tick
+        if n_ticks < 1:
+            raise ValueError(f"stop time {stop_time:g} s: expected at least one base step ({h:g} s) after the start {t0:g} s")
         record_every = max(1, round((record_step or h) / h))
         wall0 = time.perf_counter()
         wirings, published, record = self._initialize(t0, stop_time, parameters or {}, stimulus, record)

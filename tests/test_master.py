@@ -180,3 +180,9 @@ def test_system_input_drives_component_and_start_reads_outputs():
     np.testing.assert_allclose(result["cmd"], result.time)
     # the gain's output at t_n is 3 * the input it held over the previous step
     np.testing.assert_allclose(result["gain.y"][1:], 3 * result.time[:-1], atol=1e-12)
+
+
+def test_stop_time_between_ticks_ends_at_the_next_tick():
+    spec, blocks = loop_system(0.01)
+    result = Master(spec, blocks).run(0.1234, Hold(), record=["int.y"])
+    assert result.time[-1] == pytest.approx(0.13)
