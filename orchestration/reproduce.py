@@ -23,7 +23,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from . import paper  # noqa: E402
-from .frequency import CountProgress, SineCase, SineResult, bandwidth, run_cases  # noqa: E402
+from .frequency import CountProgress, SineCase, bandwidth, run_cases  # noqa: E402
 from .identify import identified_parameters  # noqa: E402
 from .ssp import SSPArchive  # noqa: E402
 
