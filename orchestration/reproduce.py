@@ -32,6 +32,8 @@ TIME_DOMAIN_HZ = (0.4, 5.0, 10.0)
 MOTIONS = ("z", "psi", "theta")
 #: the mechanism without mass: what the actuators see "without the MAST" (paper Fig. 10)
 NO_MECHANISM = {"mechanism": {"m_platform": 1e-9, "m_leg": 0.0, "I_leg": 0.0, "I_px": 0.0, "I_py": 0.0, "I_pz": 0.0}}
+#: the motor whose torque the time-domain figures show: one that moves in that motion (T layout)
+MOTOR_SHOWN = {"z": 1, "psi": 2, "theta": 1}
 KEEP = ("actuator_1.tau_m", "actuator_2.tau_m", "actuator_3.tau_m", "z_cmd", "psi_cmd", "theta_cmd",
         "mechanism.z", "mechanism.psi", "mechanism.theta")
 
@@ -248,7 +250,7 @@ def _plot_time(groups: dict, out: Path) -> list[str]:
                 if name == "time_ident":
                     axes[0, col].plot(t, r.signals[f"{m}_cmd"] * scale - np.mean(r.signals[f"{m}_cmd"] * scale), "k:", label="command")
                 axes[0, col].plot(t, r.signals[f"mechanism.{m}"] * scale - np.mean(r.signals[f"{m}_cmd"] * scale), style, label=label)
-                joint = int(np.argmax(r.torque_rms)) + 1
+                joint = MOTOR_SHOWN[m]
                 axes[1, col].plot(t, r.signals[f"actuator_{joint}.tau_m"], style, label=f"{label}, motor {joint}")
             axes[0, col].set_title(f"{m}, {f:g} Hz")
             axes[1, col].set_xlabel("time in steady state [s]")
@@ -272,9 +274,13 @@ def _notes(ssp: str) -> list[str]:
     from fmus.mechanism.dynamics import Masses, inverse_dynamics
     from fmus.mechanism.kinematics import Geometry
 
+    from .ssv import parse_ssv
+
     with SSPArchive(ssp) as archive:
         comps = archive.system.components
         act, mech, ctl = (dict(comps[n].parameters) for n in ("actuator_1", "mechanism", "controller"))
+        fit_file = archive.ssd.parent / "resources" / "controller_paper_fit.ssv"
+        fit = parse_ssv(fit_file)["k_v"].source if fit_file.exists() else "no fitted gains in this SSP"
     ident = {**act, **paper.IDENTIFIED}
     i_R = transmission_ratio(act["p"], act["i_r"])
     J1, J2 = two_inertia(ident)
@@ -302,6 +308,7 @@ def _notes(ssp: str) -> list[str]:
         f"{float(ctl['k_i']):.4g} A/rad (fitted), k_pc = {float(ctl['k_pc']):.4g} V/A, k_ic = {float(ctl['k_ic']):.4g} "
         f"V/(A s), cycle times {1e6 * float(ctl['T_cur']):.0f} us / {1e3 * float(ctl['T_vel']):g} ms / "
         f"{1e3 * float(ctl['T_pos']):g} ms (current / velocity / position).",
+        f"- Gain fit and its residual: {fit}.",
     ]
 
 
