@@ -3,7 +3,7 @@ PY ?= python3
 VENV ?= .venv
 BIN := $(VENV)/bin
 
-.PHONY: run test build validate bench clean
+.PHONY: run test build validate bench bench-batch clean
 
 $(BIN)/mast: pyproject.toml
 	$(PY) -m venv $(VENV)
@@ -26,6 +26,10 @@ test: $(BIN)/mast
 
 bench: build
 	$(BIN)/mast bench
+
+# batch throughput with 1 and 2 workers, per-case overhead, real-time factor (docs/batch.md)
+bench-batch: build
+	$(BIN)/python benchmarks/batch_throughput.py
 
 clean:
 	rm -rf build results .pytest_cache

@@ -33,7 +33,7 @@ class Progress:
 def cmd_build(args) -> int:
     from .build import build_all
 
-    build_all(Path(args.out))
+    build_all(Path(args.out), fmi3=args.fmi3)
     return 0
 
 
@@ -46,6 +46,7 @@ def validate_all(build_dir: Path) -> list[str]:
     problems = []
     fmus = sorted((build_dir / "fmus").glob("*.fmu"))
     ssps = sorted((build_dir / "ssp").glob("*.ssp"))
+    fmus += sorted((build_dir / "fmus3").glob("*.fmu"))  # FMI 3.0 variants, if built (mast build --fmi3)
     if not fmus or not ssps:
         problems.append(f"{build_dir}: nothing built yet (run `mast build`)")
     for fmu in fmus:
@@ -107,10 +108,84 @@ def cmd_reproduce(args) -> int:
     return 1 if summary["failures"] else 0
 
 
+def cmd_hosts(args) -> int:
+    from .hosts import HOSTS, cross_check
+
+    rows = cross_check(args.ssp, args.stop_time, args.host or HOSTS)
+    return 1 if any(row.get("failed") for row in rows) else 0
+
+
 def cmd_bench(args) -> int:
     from .bench import main as bench_main
 
     return bench_main(args)
+
+
+def cmd_synthesize(args) -> int:
+    from .run import parse_overrides
+    from .synthesize import DEFAULT_TESTS, parse_tests, synthesize
+
+    def pairs(items, what):
+        out = {}
+        for item in items or []:
+            key, sep, value = item.partition("=")
+            if not sep:
+                raise ValueError(f"--{what} {item!r}: expected SIGNAL=VALUE, e.g. tau_m=0.002")
+            out[key.strip()] = float(value)
+        return out
+
+    synthesize(args.ssp, Path(args.out), parse_overrides(args.set or []),
+               tests=parse_tests(args.tests) if args.tests else DEFAULT_TESTS,
+               noise=pairs(args.noise, "noise"), resolution=pairs(args.resolution, "resolution"),
+               torque_filter_s=args.torque_filter, sample_time=args.sample_time, seed=args.seed,
+               direct=args.direct, workers=args.workers, truth_path=Path(args.truth) if args.truth else None)
+    return 0
+
+
+def cmd_diagnose(args) -> int:
+    from .diagnose import Options, diagnose
+
+    doc = diagnose(Options(Path(args.measured), Path(args.out), args.ssp, model=args.model,
+                           holdout=args.holdout.split(",") if args.holdout else None, workers=args.workers,
+                           direct=not args.fmu))
+    return 0 if doc["verdict"]["status"] != "unexplained residual" else 3
+
+
+def cmd_check_mechanism(args) -> int:
+    from .conformance import check_mechanism
+
+    failed = 0
+    for fmu in args.fmu:
+        results = check_mechanism(fmu)
+        print(f"{fmu}:")
+        for c in results:
+            print(f"  {c}")
+        failed += sum(not c.passed for c in results)
+    print("all checks passed" if not failed else f"{failed} check(s) failed")
+    return 1 if failed else 0
+
+
+def cmd_compare(args) -> int:
+    from .compare import DEFAULT, QUICK, TestSet, compare
+    from .frequency import CountProgress
+    from .run import parse_overrides
+
+    base = QUICK if args.quick else DEFAULT
+    test_set = TestSet(tuple(args.motions) if args.motions else base.axes,
+                       tuple(args.frequencies) if args.frequencies else base.frequencies, base.amplitudes)
+    comp = compare(args.mechanism, Path(args.out), test_set, workers=args.workers, direct=args.direct,
+                   parameters=parse_overrides(args.set or []), base_ssd=args.ssd, fmu_dir=args.fmus,
+                   progress=CountProgress("compare"))
+    print((Path(args.out) / "comparison.md").read_text(), end="")
+    print(f"{sum(r['tests'] for r in comp.summary)} sine tests in {comp.wall_time_s:.0f} s; "
+          f"wrote {', '.join(p.name for p in comp.files)} in {args.out}")
+    return 1 if any(r["failed"] for r in comp.summary) else 0
+
+
+def cmd_batch(args) -> int:
+    from .batch_cli import main as batch_main
+
+    return batch_main(args)
 
 
 def main(argv=None) -> int:
@@ -119,7 +194,14 @@ def main(argv=None) -> int:
 
     p = sub.add_parser("build", help="build build/fmus/*.fmu and build/ssp/*.ssp from fmus/ and ssp/")
     p.add_argument("--out", default=str(REPO / "build"))
+    p.add_argument("--fmi3", action="store_true", help="also build the FMI 3.0 variants into OUT/fmus3 (pythonfmu3)")
     p.set_defaults(func=cmd_build)
+
+    p = sub.add_parser("hosts", help="run an SSP in libcosim, ecospy and the ecos CLI; compare with this master")
+    p.add_argument("ssp", nargs="?", default=str(REPO / "build" / "ssp" / "MAST_standalone.ssp"))
+    p.add_argument("--stop-time", type=float, default=1.0)
+    p.add_argument("--host", action="append", choices=("libcosim", "ecospy", "ecos"), help="(repeatable; default: all)")
+    p.set_defaults(func=cmd_hosts)
 
     p = sub.add_parser("validate", help="fmpy validation of every FMU and SSP 1.0 schema check of every SSD")
     p.add_argument("--build", default=str(REPO / "build"))
@@ -157,6 +239,66 @@ def main(argv=None) -> int:
     p.add_argument("--stop-time", type=float, default=10.0)
     p.add_argument("--profile", action="store_true", help="print where the time goes (cProfile of the direct run)")
     p.set_defaults(func=cmd_bench)
+
+    p = sub.add_parser("synthesize", help="synthetic measured data with a hidden effect (docs/measured-data.md)")
+    p.add_argument("ssp", nargs="?", default=str(DEFAULT_SSP))
+    p.add_argument("--out", required=True, help="measured-data folder to write (CSV per test + meta.json)")
+    p.add_argument("--set", action="append", metavar="ELEMENT.PARAMETER=VALUE",
+                   help="the truth: override a parameter (repeatable; 'actuator.X' sets X on every actuator)")
+    p.add_argument("--noise", action="append", metavar="SIGNAL=STD",
+                   help="white sensor noise: tau_m=0.002 (N.m, default), rho=0 (m, default)")
+    p.add_argument("--resolution", action="append", metavar="SIGNAL=STEP", help="encoder quantisation: rho=1e-6 (m, default)")
+    p.add_argument("--torque-filter", type=float, default=5e-4, help="the drive's torque low-pass time constant [s]")
+    p.add_argument("--sample-time", type=float, default=1e-3, help="log sampling step [s]")
+    p.add_argument("--tests", help="MOTION:AMPLITUDE:FREQUENCY[,...] (m for z, degrees for psi/theta; default: 7 tests)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--truth", help="where to write the truth (default: next to the folder, DIR.truth.json)")
+    p.add_argument("--direct", action="store_true", help="run the model objects without FMI (same numbers, faster)")
+    p.add_argument("--workers", type=int, default=2)
+    p.set_defaults(func=cmd_synthesize)
+
+    p = sub.add_parser("diagnose", help="name the effects missing from the model by comparing it with measured data "
+                                        "(docs/diagnose.md)")
+    p.add_argument("ssp", nargs="?", default=str(DEFAULT_SSP))
+    p.add_argument("--measured", required=True, help="measured-data folder (docs/measured-data.md)")
+    p.add_argument("--out", required=True, help="folder for diagnosis.json, report.md, figures, the augmented model")
+    p.add_argument("--model", help="nominal actuator parameter set: an .ssv file or the name of one in the SSP "
+                                   "(default: the SSP's bindings, i.e. the manufacturer data)")
+    p.add_argument("--holdout", help="comma-separated test names to hold out (default: meta.json roles, else every "
+                                     "second test in frequency order)")
+    p.add_argument("--workers", type=int, default=2)
+    p.add_argument("--fmu", action="store_true", help="simulate through the FMUs (default: the direct composition, "
+                                                      "the same numbers to 1e-12, about twice as fast)")
+    p.set_defaults(func=cmd_diagnose)
+
+    p = sub.add_parser("check-mechanism", help="black-box checks a mechanism FMU must pass to plug in (docs/interfaces.md)")
+    p.add_argument("fmu", nargs="+", help="mechanism FMU(s)")
+    p.set_defaults(func=cmd_check_mechanism)
+
+    p = sub.add_parser("compare", help="run one sine test set on several mechanism designs: table and plots (docs/designs)")
+    p.add_argument("--mechanism", nargs="+", required=True, metavar="FMU_OR_SSP",
+                   help="mechanism FMUs to swap into the base system (or whole systems, .ssp/.ssd)")
+    p.add_argument("--out", required=True, help="folder for comparison.csv/.json/.md, runs.csv, the plots, systems/")
+    p.add_argument("--quick", action="store_true", help="the small test set: z motion at 1, 4 and 8 Hz")
+    p.add_argument("--motions", nargs="+", choices=("z", "psi", "theta"), help="motions to test (default: all three)")
+    p.add_argument("--frequencies", nargs="+", type=float, metavar="HZ", help="test frequencies (default: 0.5 to 10 Hz)")
+    p.add_argument("--set", action="append", metavar="ELEMENT.PARAMETER=VALUE", help="override a parameter in every design")
+    p.add_argument("--workers", type=int, help="parallel processes (default: the number of cores)")
+    p.add_argument("--direct", action="store_true", help="run the model objects without FMI (this project's FMUs only)")
+    p.add_argument("--ssd", default=str(REPO / "ssp" / "MAST.ssd"), help="base system the FMUs are swapped into")
+    p.add_argument("--fmus", default=str(REPO / "build" / "fmus"), help="FMUs of the base system's other components")
+    p.set_defaults(func=cmd_compare)
+
+    p = sub.add_parser("batch", help="run the cases of a batch config (TOML/YAML) in parallel: docs/batch.md")
+    p.add_argument("config", help="batch config: .toml, .yaml or .json")
+    p.add_argument("--out", required=True, help="folder for the results (manifest, per-case files, tables, plots)")
+    p.add_argument("--workers", type=int, help="local worker processes (default: the number of cores)")
+    p.add_argument("--scheduler", metavar="ADDRESS", help="run on this Dask scheduler (tcp://host:8786) instead")
+    p.add_argument("--resume", action="store_true", help="go on with the batch in --out: skip its finished cases")
+    p.add_argument("--retry-failed", action="store_true", help="with --resume: run failed and crashed cases again")
+    p.add_argument("--dry-run", action="store_true", help="list the cases and stop")
+    p.add_argument("--no-plots", action="store_true", help="write no figures")
+    p.set_defaults(func=cmd_batch)
 
     args = parser.parse_args(argv)
     try:

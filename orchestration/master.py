@@ -19,6 +19,7 @@ whole system is iterated to a consistent point before leaving initialization.
 from __future__ import annotations
 
 import math
+import operator
 import time
 from dataclasses import dataclass, field
 from typing import Callable, Mapping, Optional, Protocol, Sequence
@@ -80,13 +81,26 @@ class _Wiring:
     output_names: list[str]
 
 
+def _gather(indices: Sequence[int]) -> Callable[[Sequence[float]], tuple]:
+    """A function picking ``indices`` out of a list, as a tuple (operator.itemgetter, also for 0 or 1 index)."""
+    if len(indices) > 1:
+        return operator.itemgetter(*indices)
+    if len(indices) == 1:
+        i = indices[0]
+        return lambda values: (values[i],)
+    return lambda values: ()
+
+
 class Master:
     """Runs a SystemSpec whose components are FMUComponent or BlockComponent objects."""
 
     def __init__(self, system: SystemSpec, components: Mapping[str, object], base_step: Optional[float] = None,
-                 step_sizes: Optional[Mapping[str, float]] = None) -> None:
+                 step_sizes: Optional[Mapping[str, float]] = None, own_components: bool = True) -> None:
+        """``own_components=False``: the caller keeps the components (e.g. a Session resets and reuses
+        them across runs); ``run`` then leaves them open instead of closing them at the end."""
         self.system = system
         self.components = dict(components)
+        self.own_components = own_components
         steps = {name: (step_sizes or {}).get(name, spec.step_size) for name, spec in system.components.items()}
         self.base_step = base_step or system.base_step or min((h for h in steps.values() if h), default=None)
         if not self.base_step:
@@ -188,6 +202,7 @@ class Master:
         record_every = max(1, round((record_step or h) / h))
         wall0 = time.perf_counter()
         wirings, published, record = self._initialize(t0, stop_time, parameters or {}, stimulus, record)
+        init_s = time.perf_counter() - wall0
         slot = {w.name: k for k, w in enumerate(wirings)}
         rec_paths = []
         for signal in record:
@@ -195,13 +210,24 @@ class Master:
             rec_paths.append((-1, self.system.system_inputs.index(signal)) if not element
                              else (slot[element], wirings[slot[element]].output_names.index(connector)))
         cycle = math.lcm(*[w.multiple for w in wirings])
-        due = [[(k, w) for k, w in enumerate(wirings) if phase % w.multiple == 0] for phase in range(cycle)]
+        # The hot loop works on one flat list: every component's published outputs, then the system
+        # inputs; each component's inputs and the recorded signals are gathered from it by itemgetter.
+        offsets, flat = [], []
+        for values in published:
+            offsets.append(len(flat))
+            flat.extend(values)
+        n_out = len(flat)
+        flat.extend(stimulus(t0))
+        index = lambda s, j: n_out + j if s < 0 else offsets[s] + j  # noqa: E731
+        due = [[(k, offsets[k], offsets[k] + len(w.output_names), _gather([index(s, j) for s, j in w.sources]),
+                 w.set_inputs, w.do_step, w.get_outputs, w.step)
+                for k, w in enumerate(wirings) if phase % w.multiple == 0] for phase in range(cycle)]
+        recorded = _gather([index(s, j) for s, j in rec_paths])
         pending = [list(p) for p in published]
         n_rec = n_ticks // record_every + 1
         times = np.empty(n_rec)
         data = np.empty((n_rec, len(record)))
         rows = 0
-        sys_values = list(stimulus(t0))
         report_every = max(1, n_ticks // 100)
         error = None
         n = 0
@@ -210,34 +236,37 @@ class Master:
                 t = t0 + n * h
                 now = due[n % cycle]
                 if n:
-                    for k, w in now:
-                        published[k] = pending[k]
-                    sys_values = stimulus(t)
+                    for item in now:
+                        flat[item[1]:item[2]] = pending[item[0]]
+                    flat[n_out:] = stimulus(t)
                 if n % record_every == 0:
                     times[rows] = t
-                    data[rows] = [sys_values[j] if s < 0 else published[s][j] for s, j in rec_paths]
+                    data[rows] = recorded(flat)
                     rows += 1
-                    for k, values in enumerate(published):
-                        if any(v != v or v in (math.inf, -math.inf) for v in values):
-                            bad = [wirings[k].output_names[j] for j, v in enumerate(values) if not math.isfinite(v)]
-                            raise RuntimeError(f"{wirings[k].name} at t={t:.6g} s: the run diverged: non-finite {', '.join(bad)}")
+                    total = sum(flat[:n_out])  # NaN and inf propagate through the sum: details only on a hit
+                    if total - total != 0.0:
+                        for k, w in enumerate(wirings):
+                            bad = [name for name, v in zip(w.output_names, flat[offsets[k]:]) if not math.isfinite(v)]
+                            if bad:
+                                raise RuntimeError(f"{w.name} at t={t:.6g} s: the run diverged: non-finite {', '.join(bad)}")
                     if progress and n % report_every == 0:
                         progress(n / n_ticks)
                 if n == n_ticks:
                     break
-                for k, w in now:
-                    w.set_inputs([sys_values[j] if s < 0 else published[s][j] for s, j in w.sources])
-                for k, w in now:
-                    w.do_step(t, w.step)
-                    pending[k] = w.get_outputs()
+                for k, lo, hi, gather, set_inputs, do_step, get_outputs, step in now:
+                    set_inputs(gather(flat))
+                for k, lo, hi, gather, set_inputs, do_step, get_outputs, step in now:
+                    do_step(t, step)
+                    pending[k] = get_outputs()
         except Exception as err:  # keep what was computed, then report the failure
             error = str(err)
         finally:
-            for name in self.components:
-                self.components[name].close()
+            if self.own_components:
+                for name in self.components:
+                    self.components[name].close()
         result = Result(times[:rows].copy(), {name: data[:rows, j].copy() for j, name in enumerate(record)},
                         wall_time_s=time.perf_counter() - wall0, error=error,
-                        stats={"base_step": h, "ticks": n, "multiples": dict(self.multiples)})
+                        stats={"base_step": h, "ticks": n, "multiples": dict(self.multiples), "init_s": init_s})
         if error:
             raise SimulationError(error, result)
         return result

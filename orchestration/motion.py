@@ -46,3 +46,15 @@ class SineMotion:
         values = list(self.home)
         values[self._k] += self.amplitude * math.sin(self._omega * (t - self._t0))
         return values
+
+
+class NoStimulus:
+    """For systems without inputs (e.g. ssp/MAST_standalone.ssd, driven by its own trajectory FMU)."""
+
+    reads: Sequence[str] = ()
+
+    def start(self, t0: float, read: Callable[[str], float]) -> None:
+        pass
+
+    def __call__(self, t: float) -> list[float]:
+        return []

@@ -30,8 +30,8 @@ from .ssp import SSPArchive  # noqa: E402
 SWEEP_HZ = (0.4, 0.7, 1.0, 1.5, 2.0, 2.5, 3.0, 3.5, 4.0, 5.0, 6.0, 8.0, 10.0, 13.0, 16.0, 20.0)
 TIME_DOMAIN_HZ = (0.4, 5.0, 10.0)
 MOTIONS = ("z", "psi", "theta")
-#: the mechanism without mass: what the actuators see "without the MAST" (paper Fig. 10)
-NO_MECHANISM = {"mechanism": {"m_platform": 1e-9, "m_leg": 0.0, "I_leg": 0.0, "I_px": 0.0, "I_py": 0.0, "I_pz": 0.0}}
+#: what the actuators see "without the MAST" (paper Fig. 10): the mechanism detached (no forces, pose still reported)
+NO_MECHANISM = {"mechanism": {"attached": 0}}
 #: the motor whose torque the time-domain figures show: one that moves in that motion (T layout)
 MOTOR_SHOWN = {"z": 1, "psi": 2, "theta": 1}
 KEEP = ("actuator_1.tau_m", "actuator_2.tau_m", "actuator_3.tau_m", "z_cmd", "psi_cmd", "theta_cmd",

@@ -11,7 +11,7 @@ from fmus.common.parameters import Value
 
 from .components import BlockComponent, FMUComponent
 from .master import Master, Result, SimulationError, Stimulus
-from .motion import AXES, SineMotion
+from .motion import AXES, NoStimulus, SineMotion
 from .ssp import SSPArchive, safe_extract
 
 
@@ -40,7 +40,7 @@ def parse_overrides(items: Sequence[str]) -> dict[str, dict[str, Value]]:
     return overrides
 
 
-def simulate(ssp: Union[str, Path], stimulus: Stimulus, stop_time: float,
+def simulate(ssp: Union[str, Path], stimulus: Optional[Stimulus], stop_time: float,
              parameters: Optional[Mapping[str, Mapping[str, Value]]] = None,
              record: Optional[Sequence[str]] = None, record_step: float = 1e-3,
              direct: bool = False, base_step: Optional[float] = None,
@@ -51,9 +51,14 @@ def simulate(ssp: Union[str, Path], stimulus: Stimulus, stop_time: float,
     ``direct=True`` runs the same schedule on the model objects the FMUs wrap
     (no FMI): the reference the co-simulation must reproduce to rounding.
     A failing run raises SimulationError carrying the partial Result.
+    ``stimulus=None`` runs a system without inputs (its command comes from a component).
     """
     with SSPArchive(ssp) as archive, tempfile.TemporaryDirectory(prefix="mast_fmus_") as unzip_root:
         system = archive.system
+        if stimulus is None:
+            if system.system_inputs:
+                raise ValueError(f"{ssp}: the system has inputs ({', '.join(system.system_inputs)}): give a stimulus")
+            stimulus = NoStimulus()
         components = {}
         unzipped: dict[Path, Path] = {}
         try:

@@ -7,9 +7,18 @@ electrical   L di/dt = u_sat - R i - k_E omega_1,        u_sat = clip(u, -u_supp
 motor        tau_m = k_T i                               on the first inertia
 chain        J_k domega_k/dt = sum of spring/damper torques of the neighbours
                                (+ tau_m on k = 1) (+ tau_L - b_v omega_N on k = N)
-load         tau_L = -i_R F - i_R M_load g_guide - tau_c tanh(omega_N / omega_c)
-                     (mechanism reaction, Eq. 1; carriage weight; guide Coulomb friction, Eq. 23)
+load         tau_L = -i_R F - i_R M_load g_guide - tau_f(omega_N) - tau_ripple sin(2 pi (rho - rho_0) / ripple_period)
+                     (mechanism reaction, Eq. 1; carriage weight; guide friction; position ripple)
+friction     tau_f(w) = (tau_c + tau_s exp(-(w/omega_s)^2)) tanh(w / omega_c)
+                     (guide Coulomb friction, Eq. 23, with an optional Stribeck excess tau_s)
 output       rho = rho_0 + i_R theta_N
+measurement  tau_meas = tau_offset + LPF_T_meas(tau_m(t - delay_meas))          (sensor.py)
+
+Effects with neutral defaults (the paper has none of them; they exist so that a
+diagnosis can name and fit them): tau_s (Stribeck), backlash (a dead zone of width
+``backlash`` in the spring K_t, n_dof = 2), tau_ripple (position-periodic guide torque),
+T_meas / delay_meas / tau_offset (the torque measurement, output ``tau_meas``). With the
+defaults the generated step is the same code as without them.
 
 Transmission, chosen by ``n_dof``:
 
@@ -39,6 +48,14 @@ and at velocity reversals even when the smoothed friction is much stiffer than t
 against h = 100 us). Substeps are used only when the step is long against the fastest
 chain mode (omega_max h_s <= 2 rad), which keeps b > 0.
 
+Stribeck friction (tau_s > 0) is not monotone in the speed: the same implicit scheme
+solves its scalar equation by Newton safeguarded with bisection on a bracket that
+always holds the root (and substeps keep the equation monotone). The position ripple
+is evaluated at the start of each step and held (like F). Backlash makes the spring
+piecewise linear: two exact discretisations (in contact, with the dead-zone offset as an
+extra input, and in the gap, without spring and damper) with substeps of at most 10 us,
+the mode chosen from the deflection at the start of each substep.
+
 The step is compiled once per step size into straight-line Python (constants inlined):
 for a 5-state system scalar code is several times faster than numpy calls.
 """
@@ -52,6 +69,7 @@ from scipy.linalg import expm
 
 from ..common.block import Block, ModelError
 from ..common.parameters import Param, ParameterError, Value, nonnegative, positive
+from .sensor import TorqueSensor, is_neutral
 
 __all__ = [
     "ActuatorBlock",
@@ -65,6 +83,7 @@ __all__ = [
 ]
 
 _MAX_PHASE_PER_SUBSTEP = 2.0  # rad: fastest chain mode x substep (keeps the friction equation monotone)
+_BACKLASH_SUBSTEP = 1e-5  # s: longest substep with backlash (contact and separation resolved to 10 us)
 
 
 PARAMETERS: tuple[Param, ...] = (
@@ -85,6 +104,17 @@ PARAMETERS: tuple[Param, ...] = (
     nonnegative("tau_c", "N.m", "guide Coulomb friction referred to the motor shaft (Eq. 23)"),
     positive("omega_c", "rad/s", "friction smoothing speed at the motor shaft: tau_c tanh(omega/omega_c)"),
     nonnegative("b_v", "N.m.s/rad", "viscous friction on the guide side, motor shaft"),
+    nonnegative("tau_s", "N.m", "Stribeck: static friction excess over tau_c at standstill, motor shaft "
+                "(0: no Stribeck effect)"),
+    positive("omega_s", "rad/s", "Stribeck speed at the motor shaft: the excess decays as exp(-(omega/omega_s)^2)"),
+    nonnegative("backlash", "rad", "total dead zone of the transmission spring K_t at the motor shaft "
+                "(n_dof = 2 only; 0: no backlash)"),
+    nonnegative("tau_ripple", "N.m", "amplitude of a position-periodic guide torque (belt tooth mesh, cogging) "
+                "at the motor shaft: tau_ripple sin(2 pi (rho - rho_0) / ripple_period); 0: none"),
+    positive("ripple_period", "m", "carriage travel per period of the guide torque ripple"),
+    nonnegative("T_meas", "s", "torque measurement: first-order low-pass time constant (output tau_meas)"),
+    nonnegative("delay_meas", "s", "torque measurement: pure delay (output tau_meas)"),
+    Param("tau_offset", "N.m", "torque measurement: constant offset (output tau_meas)"),
     Param("g_guide", "m/s2", "gravity along the guide (positive: pulls the carriage to lower rho)"),
     Param("rho_0", "m", "initial carriage position, rho_min < rho_0 < rho_max"),
     Param("rho_min", "m", "lower end of the stroke"),
@@ -255,10 +285,10 @@ class ActuatorBlock(Block):
     """One MAST linear axis: DC motor, gearbox, flexible transmission and belt guide."""
 
     INPUTS = ("u", "F")
-    OUTPUTS = ("rho", "rho_dot", "rho_ddot", "theta_m", "omega_m", "i_m", "tau_m")
+    OUTPUTS = ("rho", "rho_dot", "rho_ddot", "theta_m", "omega_m", "i_m", "tau_m", "tau_meas")
     PARAMETERS = PARAMETERS
     UNITS = {"u": "V", "F": "N", "rho": "m", "rho_dot": "m/s", "rho_ddot": "m/s2", "theta_m": "rad",
-             "omega_m": "rad/s", "i_m": "A", "tau_m": "N.m"}
+             "omega_m": "rad/s", "i_m": "A", "tau_m": "N.m", "tau_meas": "N.m"}
     DESCRIPTIONS = {
         "u": "voltage command from the controller (clipped to +-u_supply)",
         "F": "force this actuator applies to the mechanism along its guide, positive upward",
@@ -269,6 +299,7 @@ class ActuatorBlock(Block):
         "omega_m": "motor speed",
         "i_m": "motor current",
         "tau_m": "motor torque k_T i_m",
+        "tau_meas": "measured motor torque: tau_m through the measurement model (T_meas, delay_meas, tau_offset)",
     }
 
     def __init__(self, params: Mapping[str, Value], name: str = "") -> None:
@@ -288,6 +319,11 @@ class ActuatorBlock(Block):
         self.i_R = transmission_ratio(p["p"], p["i_r"])
         self.A, self.B, self.state_names = state_matrices(p)
         self._omega_max = 2.0 * math.pi * float(chain_frequencies(self.J, self.K).max(initial=0.0))
+        if p["backlash"] > 0.0 and self.N != 2:
+            raise ParameterError(f"{self.name}: parameter 'backlash' = {p['backlash']!r}: backlash is modelled "
+                                 f"in the two-inertia transmission only (n_dof = 2, here {self.N})")
+        self._sensor = (None if is_neutral(p["T_meas"], p["delay_meas"], p["tau_offset"])
+                        else TorqueSensor(p["T_meas"], p["delay_meas"], p["tau_offset"]))
         self._kernels: dict[float, tuple[Callable, int]] = {}
         self._h = math.nan
         self._kernel: Callable = _no_kernel
@@ -312,6 +348,9 @@ class ActuatorBlock(Block):
         code = self._kernel(self.values, self._x)
         if code:
             self._fail(code, t, h)
+        if self._sensor is not None:
+            values = self.values
+            values[-1] = self._sensor.step(values[-2], h)
 
     # -- helpers ---------------------------------------------------------------------
     def state(self) -> dict[str, float]:
@@ -323,11 +362,17 @@ class ActuatorBlock(Block):
         p, x, N = self.params, self._x, self.N
         w = x[2 * N]
         tau_f = p["tau_c"] * math.tanh(w / p["omega_c"])
+        if p["tau_s"] > 0.0:
+            tau_f += p["tau_s"] * math.exp(-(w / p["omega_s"]) ** 2) * math.tanh(w / p["omega_c"])
         tau_L = -self.i_R * (F + p["M_load"] * p["g_guide"]) - tau_f
-        alpha = float(self.A[2 * N] @ np.asarray(x) + self.B[2 * N, 1] * tau_L)
+        if p["tau_ripple"] > 0.0:
+            tau_L -= p["tau_ripple"] * math.sin(2.0 * math.pi * self.i_R * x[N] / p["ripple_period"])
+        alpha = float(self.A[2 * N] @ np.asarray(x) + self.B[2 * N, 1] * tau_L)  # springs undeflected here
         n_in = len(self.INPUTS)
+        tau_m = p["k_T"] * x[0]
+        tau_meas = tau_m if self._sensor is None else self._sensor.reset(tau_m)
         self.values[n_in:] = [p["rho_0"] + self.i_R * x[N], self.i_R * w, self.i_R * alpha,
-                              x[1], x[N + 1], x[0], p["k_T"] * x[0]]
+                              x[1], x[N + 1], x[0], tau_m, tau_meas]
 
     def _fail(self, code: int, t: float, h: float) -> None:
         if code in _ERRORS:
@@ -364,17 +409,25 @@ class ActuatorBlock(Block):
 
     def _compile(self, h: float) -> tuple[Callable, int]:
         """Generate the step function for step h: straight-line scalar code, constants inlined."""
+        p = self.params
         m = max(1, math.ceil(self._omega_max * h / _MAX_PHASE_PER_SUBSTEP - 1e-12))
+        if p["backlash"] > 0.0:
+            m = max(m, math.ceil(h / _BACKLASH_SUBSTEP - 1e-9))
+        # Stribeck: the friction's steepest fall is tau_s sqrt(2/e) / omega_s; keep b times it below 1/2
+        fall = p["tau_s"] * math.sqrt(2.0 / math.e) / p["omega_s"] if p["tau_s"] > 0.0 else 0.0
         while True:
             Phi, Gam = self.discretise(h / m)
             b = Gam[2 * self.N, 1]  # d omega_N(end) / d tau_L over a substep
-            if b > 0.0 or m > 4096:
+            if (b > 0.0 and b * fall < 0.5) or m > 4096:
                 break
             m *= 2
         if not b > 0.0:
             raise ModelError(f"{self.name}: no substep gives a monotone friction update for h = {h} s")
-        source = _kernel_source(self, Phi, Gam, m)
-        namespace: dict = {"tanh": math.tanh}
+        if p["backlash"] > 0.0:
+            source = _backlash_kernel_source(self, h / m, m)
+        else:
+            source = _kernel_source(self, Phi, Gam, m)
+        namespace: dict = {"tanh": math.tanh, "exp": math.exp, "sin": math.sin}
         exec(compile(source, f"<actuator kernel h={h!r} m={m}>", "exec"), namespace)
         kernel = namespace["kernel"]
         kernel.source = source
@@ -431,17 +484,70 @@ def _friction_source(b: float, tau_c: float, omega_c: float, indent: str) -> lis
     ]
 
 
-def _kernel_source(block: ActuatorBlock, Phi: np.ndarray, Gam: np.ndarray, m: int) -> str:
-    """Python source of ``kernel(values, x) -> int`` (0 ok, 1/2 bad input u/F, 3 diverged, 4 stroke)."""
-    p, N = block.params, block.N
-    n = 2 * N + 1
-    xs = [f"x{j}" for j in range(n)]
-    wN = 2 * N  # index of omega_N
-    tau_c, omega_c = float(p["tau_c"]), float(p["omega_c"])
-    i_R = block.i_R
+def _stribeck_source(b: float, tau_c: float, tau_s: float, omega_c: float, omega_s: float,
+                     indent: str) -> list[str]:
+    """Implicit friction with a Stribeck excess over one substep (same idea as ``_friction_source``).
+
+    tau_f(v) = (tau_c + tau_s exp(-(v/omega_s)^2)) tanh(v/omega_c) is not monotone, so the
+    root of f(v) = v - a + b tau_f(v) is bracketed: for a > 0 it lies in
+    [max(0, a - b (tau_c + tau_s)), a] (f <= 0 at the left end, f >= 0 at the right end);
+    Newton steps that leave the bracket are replaced by bisection. The substep keeps
+    b tau_s sqrt(2/e) / omega_s < 1/2, so f is increasing and the root unique.
+    """
+    i = indent
+    bt = b * (tau_c + tau_s)
+    iwc, iws2 = 1.0 / omega_c, 1.0 / omega_s ** 2
+    tol = 1e-10 * omega_c
+    return [
+        f"{i}if a != 0.0:",
+        f"{i}    sg = 1.0 if a > 0.0 else -1.0",
+        f"{i}    aa = a*sg",
+        f"{i}    lo = aa - {bt!r}",
+        f"{i}    if lo < 0.0: lo = 0.0",
+        f"{i}    hi = aa",
+        f"{i}    v = lo",
+        f"{i}    for _ in range(200):",
+        f"{i}        th = tanh(v*{iwc!r})",
+        f"{i}        ex = {tau_s!r}*exp(-v*v*{iws2!r})",
+        f"{i}        gl = {tau_c!r} + ex",
+        f"{i}        fv = v - aa + {b!r}*gl*th",
+        f"{i}        if fv > 0.0: hi = v",
+        f"{i}        else: lo = v",
+        f"{i}        df = 1.0 + {b!r}*(gl*(1.0 - th*th)*{iwc!r} - 2.0*ex*v*{iws2!r}*th)",
+        f"{i}        vn = v - fv/df if df > 0.0 else 0.5*(lo + hi)",
+        f"{i}        if not lo <= vn <= hi: vn = 0.5*(lo + hi)",
+        f"{i}        dv = vn - v",
+        f"{i}        v = vn",
+        f"{i}        if -{tol!r} < dv < {tol!r} or hi - lo < {tol!r}: break",
+        f"{i}    v = v*sg",
+        f"{i}else:",
+        f"{i}    v = 0.0",
+        f"{i}tf = (a - v)*{1.0 / b!r}",
+    ]
+
+
+def _friction_lines(p: Mapping[str, Value], b: float) -> list[str]:
+    """The implicit friction solve for this parameter set (``a`` given, sets ``tf``)."""
+    tau_c, omega_c, tau_s = float(p["tau_c"]), float(p["omega_c"]), float(p["tau_s"])
+    if tau_s > 0.0:
+        return _stribeck_source(b, tau_c, tau_s, omega_c, float(p["omega_s"]), "")
+    return _friction_source(b, tau_c, omega_c, "")
+
+
+def _load_lines(block: ActuatorBlock, xs: Sequence[str]) -> list[str]:
+    """Unpack the state and compute tl, the torque on the last inertia except friction (held over the step)."""
+    p, N, i_R = block.params, block.N, block.i_R
     weight = i_R * float(p["M_load"]) * float(p["g_guide"])
-    us = float(p["u_supply"])
-    lines = [
+    if float(p["tau_ripple"]) > 0.0:
+        k = 2.0 * math.pi * i_R / float(p["ripple_period"])
+        return [f"    {', '.join(xs)}, = x",
+                f"    tl = {-i_R!r}*F - {weight!r} - {float(p['tau_ripple'])!r}*sin({k!r}*x{N})"]
+    return [f"    tl = {-i_R!r}*F - {weight!r}", f"    {', '.join(xs)}, = x"]
+
+
+def _kernel_head(block: ActuatorBlock) -> list[str]:
+    us = float(block.params["u_supply"])
+    return [
         "def kernel(values, x):",
         "    u = values[0]",
         "    F = values[1]",
@@ -449,14 +555,39 @@ def _kernel_source(block: ActuatorBlock, Phi: np.ndarray, Gam: np.ndarray, m: in
         "    if F - F != 0.0: return 2",
         f"    if u > {us!r}: u = {us!r}",
         f"    elif u < {-us!r}: u = {-us!r}",
-        f"    tl = {-i_R!r}*F - {weight!r}",
-        f"    {', '.join(xs)}, = x",
     ]
+
+
+def _kernel_tail(block: ActuatorBlock, xs: Sequence[str], alpha: str) -> list[str]:
+    p, N, i_R = block.params, block.N, block.i_R
+    rho0, rmin, rmax = float(p["rho_0"]), float(p["rho_min"]), float(p["rho_max"])
+    n_in = len(block.INPUTS)
+    wN = 2 * N
+    return [
+        f"    s = {' + '.join(xs)}",
+        "    if s - s != 0.0: return 3",
+        f"    rho = {rho0!r} + {i_R!r}*x{N}",
+        f"    x[:] = ({', '.join(xs)},)",
+        f"    tm = {float(p['k_T'])!r}*x0",
+        f"    values[{n_in}:] = (rho, {i_R!r}*x{wN}, {i_R!r}*({alpha}), x1, x{N + 1}, x0, tm, tm)",
+        f"    if rho < {rmin!r} or rho > {rmax!r}: return 4",
+        "    return 0",
+    ]
+
+
+def _kernel_source(block: ActuatorBlock, Phi: np.ndarray, Gam: np.ndarray, m: int) -> str:
+    """Python source of ``kernel(values, x) -> int`` (0 ok, 1/2 bad input u/F, 3 diverged, 4 stroke)."""
+    p, N = block.params, block.N
+    n = 2 * N + 1
+    xs = [f"x{j}" for j in range(n)]
+    wN = 2 * N  # index of omega_N
+    tau_c = float(p["tau_c"])
+    lines = _kernel_head(block) + _load_lines(block, xs)
     body = []
-    if tau_c > 0.0:
+    if tau_c > 0.0 or float(p["tau_s"]) > 0.0:
         a_terms = _lin(list(Phi[wN]) + [Gam[wN, 0], Gam[wN, 1]], xs + ["u", "tl"])
         body.append(f"a = {a_terms}")
-        body += _friction_source(float(Gam[wN, 1]), tau_c, omega_c, "")
+        body += _friction_lines(p, float(Gam[wN, 1]))
         body.append("w = tl - tf")
     else:
         body += ["tf = 0.0", "w = tl"]
@@ -472,15 +603,80 @@ def _kernel_source(block: ActuatorBlock, Phi: np.ndarray, Gam: np.ndarray, m: in
     # end of step: checks, state, outputs
     A, B = block.A, block.B
     alpha = _lin(list(A[wN]) + [B[wN, 1]], xs + ["(tl - tf)"])
-    rho0, rmin, rmax = float(p["rho_0"]), float(p["rho_min"]), float(p["rho_max"])
-    n_in = len(block.INPUTS)
+    lines += _kernel_tail(block, xs, alpha)
+    return "\n".join(lines) + "\n"
+
+
+def _backlash_matrices(block: ActuatorBlock, h_sub: float) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]:
+    """Exact ZOH discretisations of the two-inertia model in contact and in the gap.
+
+    Inputs [u_sat, tau_L, pl]: pl is the dead-zone offset K_t hb sgn (on inertia 1, and minus
+    it on inertia 2) that makes the spring torque K_t (theta_1 - theta_2 -+ hb) in contact.
+    In the gap the spring and the damper carry no torque.
+    """
+    A, B = block.A.copy(), block.B
+    J1, J2 = block.J
+    B3 = np.zeros((5, 3))
+    B3[:, :2] = B
+    B3[3, 2] = 1.0 / J1
+    B3[4, 2] = -1.0 / J2
+    Ag = A.copy()
+    K, C = block.K[0], block.C[0]
+    Ag[3, 1] += K / J1
+    Ag[3, 2] -= K / J1
+    Ag[3, 3] += C / J1
+    Ag[3, 4] -= C / J1
+    Ag[4, 2] += K / J2
+    Ag[4, 1] -= K / J2
+    Ag[4, 4] += C / J2
+    Ag[4, 3] -= C / J2
+    out = []
+    for mat in (A, Ag):
+        M = np.zeros((8, 8))
+        M[:5, :5] = mat
+        M[:5, 5:] = B3
+        E = expm(M * h_sub)
+        out.append((E[:5, :5], E[:5, 5:]))
+    return out[0], out[1]
+
+
+def _backlash_kernel_source(block: ActuatorBlock, h_sub: float, m: int) -> str:
+    """Step with backlash (n_dof = 2): substeps of h_sub, the mode from the deflection at each substep start."""
+    p = block.params
+    xs = [f"x{j}" for j in range(5)]
+    hb = 0.5 * float(p["backlash"])
+    K, C = block.K[0], block.C[0]
+    (Pc, Gc), (Pg, Gg) = _backlash_matrices(block, h_sub)
+    friction = float(p["tau_c"]) > 0.0 or float(p["tau_s"]) > 0.0
+    lines = _kernel_head(block) + _load_lines(block, xs)
+    lines.append(f"    for _ in range({m}):")
+    lines.append("        d = x1 - x2")
+    lines.append(f"        if d > {hb!r}: pl = {K * hb!r}")
+    lines.append(f"        elif d < {-hb!r}: pl = {-K * hb!r}")
+    lines.append("        else: pl = None")
+    for cond, (Phi, Gam) in (("if pl is not None:", (Pc, Gc)), ("else:", (Pg, Gg))):
+        lines.append(f"        {cond}")
+        body = []
+        if friction:
+            body.append(f"a = {_lin(list(Phi[4]) + list(Gam[4]), xs + ['u', 'tl', 'pl'])}" if cond.startswith("if")
+                        else f"a = {_lin(list(Phi[4]) + list(Gam[4, :2]), xs + ['u', 'tl'])}")
+            body += _friction_lines(p, float(Gam[4, 1]))
+            body.append("w = tl - tf")
+        else:
+            body += ["tf = 0.0", "w = tl"]
+        ins = xs + ["u", "w", "pl"] if cond.startswith("if") else xs + ["u", "w"]
+        for j in range(5):
+            coefs = list(Phi[j]) + (list(Gam[j]) if cond.startswith("if") else list(Gam[j, :2]))
+            body.append(f"n{j} = {_lin(coefs, ins)}")
+        body.append(f"{', '.join(xs)} = {', '.join(f'n{j}' for j in range(5))}")
+        lines += ["            " + s for s in body]
+    J2, b_v = block.J[1], float(p["b_v"])
     lines += [
-        f"    s = {' + '.join(xs)}",
-        "    if s - s != 0.0: return 3",
-        f"    rho = {rho0!r} + {i_R!r}*x{N}",
-        f"    x[:] = ({', '.join(xs)},)",
-        f"    values[{n_in}:] = (rho, {i_R!r}*x{wN}, {i_R!r}*({alpha}), x1, x{N + 1}, x0, {float(p['k_T'])!r}*x0)",
-        f"    if rho < {rmin!r} or rho > {rmax!r}: return 4",
-        "    return 0",
+        "    d = x1 - x2",
+        f"    if d > {hb!r}: ts = {K!r}*(d - {hb!r}) + {C!r}*(x3 - x4)",
+        f"    elif d < {-hb!r}: ts = {K!r}*(d + {hb!r}) + {C!r}*(x3 - x4)",
+        "    else: ts = 0.0",
     ]
+    alpha = f"(ts + tl - tf - {b_v!r}*x4)*{1.0 / J2!r}"
+    lines += _kernel_tail(block, xs, alpha)
     return "\n".join(lines) + "\n"

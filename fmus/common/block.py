@@ -9,9 +9,15 @@ Life cycle: ``Block(params)`` validates the parameters; ``initialize(t0)``
 computes the outputs at the start time from the initial state and the current
 inputs; ``do_step(t, h)`` advances from ``t`` to ``t + h`` with the inputs held
 (zero-order hold) and leaves the outputs valid at ``t + h``.
+
+State: ``get_state()`` returns a snapshot of everything the block holds and
+``set_state(snapshot)`` puts the block back there, so a host can roll back
+(FMI get/set FMU state). The default copies the block's attributes deeply;
+a block whose state is cheaper to describe may override both.
 """
 from __future__ import annotations
 
+import copy
 from typing import ClassVar, Mapping
 
 from .parameters import Param, Value, validate
@@ -54,6 +60,22 @@ class Block:
     def outputs(self) -> dict[str, float]:
         n = len(self.INPUTS)
         return dict(zip(self.OUTPUTS, self.values[n:]))
+
+    # -- state snapshots (roll-back) ----------------------------------------------
+    def get_state(self) -> object:
+        """A snapshot of the block: parameters, internal state, inputs and outputs (deep copies)."""
+        return copy.deepcopy(vars(self), {id(self): self})
+
+    def set_state(self, state: object) -> None:
+        """Return to a snapshot taken by ``get_state`` (of this block or of one of the same class).
+
+        ``values`` is restored in place: whoever holds the list (the FMI wrapper,
+        the master's prepared setters and getters) keeps seeing the live values.
+        """
+        restored = copy.deepcopy(state, {id(self): self})
+        values = restored.pop("values")
+        vars(self).update(restored)
+        self.values[:] = values
 
     # -- to implement ----------------------------------------------------------
     def initialize(self, t0: float) -> None:

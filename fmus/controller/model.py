@@ -41,7 +41,8 @@ from typing import Mapping, Sequence
 from ..common.block import Block, ModelError
 from ..common.parameters import ParameterError, Value, nonnegative, positive
 from ..actuator.model import transmission_ratio
-from ..mechanism.kinematics import GEOMETRY_PARAMETERS, Geometry, KinematicsError, inverse_kinematics
+from ..mechanism.designs import KINEMATIC_PARAMETERS, kinematic_engine
+from ..mechanism.kinematics import KinematicsError
 
 
 #: operating modes, outermost first; the value is the first loop that runs
@@ -90,7 +91,7 @@ class ControllerBlock(Block):
         positive("u_max", "V", "Voltage command limit (symmetric)"),
         positive("i_r", "1", "Gear ratio (motor turns per output turn)"),
         positive("p", "m", "Linear guide feed per output revolution"),
-        *GEOMETRY_PARAMETERS,  # the controller's own kinematic model of the machine
+        *KINEMATIC_PARAMETERS,  # the controller's own kinematic model of the machine (designs.py)
     )
     UNITS = {
         "z_cmd": "m", "psi_cmd": "rad", "theta_cmd": "rad",
@@ -124,7 +125,11 @@ class ControllerBlock(Block):
         self.T_cur = T_cur
         #: i_R = p / (2 pi i_r), metres of guide travel per motor radian (paper Eq. 1)
         self.i_R = transmission_ratio(P["p"], P["i_r"])
-        self.geometry = Geometry.checked(P, self.name)
+        #: the controller's kinematic model: the description its geometry set selects (``kinematics``),
+        #: the same code as the mechanism's; only its inverse kinematics runs here
+        self.kinematics = kinematic_engine(P, self.name)
+        self.geometry = self.kinematics.description.geometry
+        self._ik = self.kinematics.ik
         # pre-multiplied gains (pure Python floats for the hot loop)
         self._kv_iR = float(P["k_v"]) / self.i_R
         self._kp = float(P["k_p"])
@@ -283,7 +288,7 @@ class ControllerBlock(Block):
         if pose == self._pose_ik:
             return
         try:
-            rho = inverse_kinematics(self.geometry, *pose)
+            rho = self._ik(pose)
         except KinematicsError as exc:
             raise KinematicsError(
                 f"{self.name}: inverse kinematics of the pose command z = {pose[0]!r} m, psi = {pose[1]!r} rad, "

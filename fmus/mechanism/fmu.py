@@ -1,4 +1,10 @@
-"""FMI 2.0 Co-Simulation wrapper of the mechanism model (the equations live in model.py)."""
+"""FMI 2.0 Co-Simulation wrappers of the mechanism model (the equations live in model.py).
+
+One model, several FMUs: each design is the same ``MechanismBlock`` with the default
+parameters of its own system (``ssp/MAST_<design>.ssd``, written into the FMU by ``mast
+build``); the classes below only give each FMU its model identifier and description.
+Swap a design by the mechanism component's ``source`` and its parameter sets in the SSP.
+"""
 from __future__ import annotations
 
 from ..common.fmi import BlockSlave
@@ -11,3 +17,19 @@ class MastMechanism(BlockSlave):
     block_class = MechanismBlock
     author = "MAST co-simulation project"
     version = "0.1.0"
+
+
+class Mast3PRS120(MastMechanism):
+    """3PRS mechanism with its guides at 120 degrees (design 3PRS_120): kinematics and inverse dynamics, the disturbance forces on the actuators."""
+
+
+class Mast3PRSInclined(MastMechanism):
+    """3PRS mechanism, T layout, guides inclined 15 degrees towards the axis (design 3PRS_inclined): kinematics and inverse dynamics, the disturbance forces on the actuators."""
+
+
+class MastActuatorsOnly(MastMechanism):
+    """No mechanism attached (design actuators_only, paper Fig. 10): zero force on the actuators; the pose outputs are the kinematics of the massless 3PRS."""
+
+
+#: every mechanism FMU built from this model (model identifier -> class)
+VARIANTS = {cls.__name__: cls for cls in (MastMechanism, Mast3PRS120, Mast3PRSInclined, MastActuatorsOnly)}

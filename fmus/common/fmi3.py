@@ -1,0 +1,99 @@
+"""Generic FMI 3.0 Co-Simulation wrapper (pythonfmu3) around a :class:`Block`.
+
+The FMI 3.0 variants of the MAST FMUs (``mast build --fmi3``): the same blocks,
+the same behaviour (``slave.py``), FMI 3.0 types (Float64, Int32, String), the
+independent variable ``time`` and unit definitions. Only the build imports this
+module outside an FMU; inside one, pythonfmu3 travels with it.
+"""
+from __future__ import annotations
+
+from typing import List
+
+from pythonfmu3 import Fmi3Causality, Fmi3Initial, Fmi3Slave, Fmi3Variability, Float64, Int32, String
+from pythonfmu3.enums import Fmi3Status
+from pythonfmu3.unit import Unit
+
+from .slave import BlockWrapper, fmi_call
+
+
+class BlockSlave3(BlockWrapper, Fmi3Slave):
+    """FMI 3.0 slave exposing one Block; subclasses set ``block_class``."""
+
+    def __init__(self, **kwargs) -> None:
+        super().__init__(**kwargs)
+        self._wrap(kwargs)
+        self._time = 0.0
+        cls = self.block_class
+        units = dict(cls.UNITS)
+        units.update({p.name: p.unit for p in cls.PARAMETERS if p.kind is float and p.unit})
+        self.register_units([Unit(u) for u in sorted(set(units.values()))])
+        for name in cls.INPUTS:
+            self.register_variable(Float64(name, causality=Fmi3Causality.input, variability=Fmi3Variability.continuous,
+                                           description=cls.DESCRIPTIONS.get(name), unit=units.get(name),
+                                           start=0.0))
+        for name in cls.OUTPUTS:
+            self.register_variable(Float64(name, causality=Fmi3Causality.output,
+                                           variability=Fmi3Variability.continuous, initial=Fmi3Initial.exact,
+                                           description=cls.DESCRIPTIONS.get(name), unit=units.get(name)))
+        kinds = {float: Float64, int: Int32, str: String}
+        for spec in cls.PARAMETERS:
+            extra = {"unit": spec.unit} if spec.kind is float and spec.unit else {}
+            self.register_variable(kinds[spec.kind](
+                spec.name, causality=Fmi3Causality.parameter, variability=Fmi3Variability.fixed,
+                description=f"[{spec.unit}] {spec.description}" if spec.unit else spec.description,
+                getter=lambda n=spec.name: self._params[n],
+                setter=lambda v, n=spec.name: self._set_param(n, v), **extra))
+        self.register_variable(Float64("time", causality=Fmi3Causality.independent,
+                                       variability=Fmi3Variability.continuous, getter=lambda: self._time))
+
+    # the host's logger takes the message as a printf format (FMI): a '%' in it must be written '%%'
+    def _log_warning(self, message: str) -> None:
+        self.log(message.replace("%", "%%"), status=Fmi3Status.warning, category="logStatusWarning")
+
+    def _log_error(self, message: str) -> None:
+        self.log(message.replace("%", "%%"), status=Fmi3Status.error, category="logStatusError")
+
+    # -- the calls pythonfmu3's C layer makes --------------------------------------------
+    @fmi_call
+    def get_float64(self, vrs: List[int]) -> List[float]:
+        return self._get_values(vrs)
+
+    @fmi_call
+    def set_float64(self, vrs: List[int], values: List[float]) -> None:
+        self._set_values(vrs, values)
+
+    @fmi_call
+    def get_int32(self, vrs: List[int]) -> List[int]:
+        return super().get_int32(vrs)
+
+    @fmi_call
+    def set_int32(self, vrs: List[int], values: List[int]) -> None:
+        super().set_int32(vrs, values)
+
+    @fmi_call
+    def get_string(self, vrs: List[int]) -> List[str]:
+        return super().get_string(vrs)
+
+    @fmi_call
+    def set_string(self, vrs: List[int], values: List[str]) -> None:
+        super().set_string(vrs, values)
+
+    @fmi_call
+    def setup_experiment(self, start_time: float) -> None:
+        self._setup(start_time)
+        self._time = start_time
+
+    @fmi_call
+    def enter_initialization_mode(self) -> None:
+        self._enter_initialization()
+
+    @fmi_call
+    def exit_initialization_mode(self) -> None:
+        self._exit_initialization()
+
+    @fmi_call
+    def do_step(self, current_time: float, step_size: float) -> bool:
+        ok = self._step(current_time, step_size)
+        if ok:
+            self._time = current_time + step_size
+        return ok

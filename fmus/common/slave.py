@@ -1,0 +1,285 @@
+"""What the FMI 2.0 and FMI 3.0 wrappers of a :class:`Block` share (``fmi.py``: pythonfmu, ``fmi3.py``: pythonfmu3).
+
+This module imports neither pythonfmu nor pythonfmu3: an FMU bundles only the one it uses.
+
+Value references: 0..n_in-1 are the block's inputs, n_in..n_in+n_out-1 its
+outputs (both straight onto ``Block.values``), then the parameters (FMI 3.0
+adds the independent variable ``time`` last). Parameter start values come from
+``resources/parameters.json``, written by ``mast build`` from the SSP parameter
+sets, so the values live in one place (the .ssv files).
+
+Behaviour hosts rely on:
+- parameters are validated when the block is built, at the latest when
+  leaving initialization mode: a bad value (or a model that cannot start) is
+  logged there with status Error, naming the parameter and the expected
+  range, and from then on every doStep returns Discard with that cause.
+  exitInitializationMode itself returns OK: pythonfmu can only turn a Python
+  exception into Fatal, and libcosim aborts the whole process when a
+  component fails exitInitializationMode; a refused step every host handles;
+- in initialization mode outputs follow the inputs (the host may iterate to
+  a consistent initial point), so get after set recomputes them; while the
+  host iterates, inputs that are not consistent yet only log a warning and
+  leave the outputs as they were;
+- a model failure during doStep is logged (class and message, instance and
+  time) and doStep returns Discard: the instance stays usable;
+- get/set FMU state: a deep snapshot of the block (``Block.get_state``), so a
+  host can roll back and recompute;
+- several instances, and instances that failed, come and go in one process
+  (``_survive_pythonfmu_cleanup``, ``_drop_repeated_path``).
+"""
+from __future__ import annotations
+
+import atexit
+import ctypes
+import functools
+import glob
+import json
+import os
+import sys
+import types
+from typing import Any, Callable, ClassVar, List, Optional
+
+from .block import Block
+
+PARAMETERS_FILE = "parameters.json"
+
+_GLOBALS_REFERENCES: list = []
+
+
+def keep_alive(namespace: dict) -> None:
+    """Hold a reference to an FMU entry script's globals (see the script mast build writes)."""
+    _GLOBALS_REFERENCES.append(namespace)
+
+
+def load_defaults(resources: Optional[str]) -> dict:
+    """Parameter start values baked into the FMU by the build (empty if absent)."""
+    if not resources:
+        return {}
+    path = os.path.join(resources, PARAMETERS_FILE)
+    if not os.path.exists(path):
+        return {}
+    with open(path, encoding="utf-8") as handle:
+        return json.load(handle)
+
+
+def fmi_call(method: Callable) -> Callable:
+    """For methods the FMU's C layer calls: an exception that escapes is logged, and the instance survives it."""
+    @functools.wraps(method)
+    def call(self, *args):
+        try:
+            return method(self, *args)
+        except Exception as err:
+            self._log_error(f"{method.__name__}: {type(err).__name__}: {err}")
+            if self._native:
+                _survive_pythonfmu_cleanup(self)
+            raise
+    return call
+
+
+class BlockWrapper:
+    """The version-independent part of a slave exposing one Block; subclasses set ``block_class``.
+
+    A concrete slave derives from this class and from pythonfmu's Fmi2Slave or
+    pythonfmu3's Fmi3Slave; its __init__ calls ``_wrap`` and registers the
+    variables, and it maps the calls of its FMI version (typed get/set, life
+    cycle) onto ``_get_values``/``_set_values``, ``_setup``, ``_step`` ...
+    """
+
+    block_class: ClassVar[type[Block]]
+    _in_init = False
+    _init_error: Optional[str] = None
+
+    def _wrap(self, kwargs: dict) -> None:
+        """Called by the subclass's __init__ after the pythonfmu base class's."""
+        # pythonfmu's C layer passes its logger; the builders and Python callers do not
+        self._native = "logger" in kwargs
+        _drop_repeated_path(self.resources)
+        if self._native:
+            _defuse_pythonfmu_teardown(self.resources)
+        cls = self.block_class
+        self.description = (type(self).__doc__ or cls.__doc__ or "").strip().split("\n")[0] or None
+        self._n_io = len(cls.INPUTS) + len(cls.OUTPUTS)
+        self._values: List[float] = [0.0] * self._n_io
+        self._block: Optional[Block] = None
+        self._dirty = True
+        self._t0 = 0.0
+        defaults = load_defaults(self.resources)
+        self._params = {p.name: defaults.get(p.name, _neutral(p.kind)) for p in cls.PARAMETERS}
+
+    # -- to provide (FMI version specific) -----------------------------------------
+    def _log_warning(self, message: str) -> None:
+        raise NotImplementedError
+
+    def _log_error(self, message: str) -> None:
+        raise NotImplementedError
+
+    # -- values ----------------------------------------------------------------------
+    def _set_param(self, name: str, value) -> None:
+        self._params[name] = value
+        self._block = None
+        self._dirty = True
+
+    def _ensure_outputs(self) -> None:
+        """In initialization mode, (re)build the block and compute outputs from the inputs."""
+        if self._block is None:
+            self._block = self.block_class(self._params, name=self.instance_name)
+            self._block.values[:] = self._values
+            self._values = self._block.values
+        if self._dirty:
+            self._block.initialize(self._t0)
+            self._dirty = False
+
+    def _get_values(self, vrs: List[int]) -> List[float]:
+        n = self._n_io
+        if self._in_init and self._dirty and any(len(self.block_class.INPUTS) <= vr < n for vr in vrs):
+            self._tentative_outputs()
+        values = self._values
+        return [values[vr] if vr < n else float(self.vars[vr].getter()) for vr in vrs]
+
+    def _set_values(self, vrs: List[int], values: List[float]) -> None:
+        n = self._n_io
+        target = self._values
+        for vr, value in zip(vrs, values):
+            if vr < n:
+                target[vr] = value
+            else:
+                self.vars[vr].setter(value)
+        if self._in_init:
+            self._dirty = True
+
+    def _tentative_outputs(self) -> None:
+        """Outputs read during initialization: a failure may be an input the host has not set yet."""
+        try:
+            self._ensure_outputs()
+        except Exception as err:  # exitInitializationMode decides, with the inputs the host settled on
+            self._log_warning(f"initialization mode, outputs kept at their last values: {type(err).__name__}: {err}")
+
+    # -- life cycle ------------------------------------------------------------------
+    def _setup(self, start_time: float) -> None:
+        self._t0 = start_time
+
+    def _enter_initialization(self) -> None:
+        self._in_init = True
+
+    def _exit_initialization(self) -> None:
+        """Build the block and compute the outputs at the start; a failure is logged, then refuses every step."""
+        try:
+            self._ensure_outputs()
+            self._init_error = None
+        except Exception as err:  # see the module docstring: a refused step, not an exception, reaches the host
+            self._init_error = f"{type(err).__name__}: {err}"
+            self._log_error(f"exitInitializationMode: {self._init_error}")
+        self._in_init = False
+
+    def _step(self, current_time: float, step_size: float) -> bool:
+        """Advance the block; a model failure is logged and reported as a refused step (Discard)."""
+        try:
+            if self._init_error is not None:
+                raise RuntimeError(f"the instance did not initialise: {self._init_error}")
+            if self._block is None or self._dirty or self._in_init:
+                raise RuntimeError("doStep before exitInitializationMode")
+            self._block.do_step(current_time, step_size)
+        except Exception as err:  # the host decides what to do; the instance stays usable for terminate/free
+            self._log_error(f"doStep at t={current_time:.6g} s: {type(err).__name__}: {err}")
+            return False
+        return True
+
+    # -- FMU state (get/set FMU state) -------------------------------------------------
+    @fmi_call
+    def _get_fmu_state(self) -> "SlaveState":
+        block = self._block
+        return SlaveState(type(self).__name__, dict(self._params), list(self._values) if block is None else None,
+                          None if block is None else block.get_state(), self._dirty, self._t0, self._in_init,
+                          self._init_error)
+
+    @fmi_call
+    def _set_fmu_state(self, state: "SlaveState") -> None:
+        if getattr(state, "owner", None) != type(self).__name__ or not hasattr(state, "block"):
+            raise TypeError(f"not an FMU state of {type(self).__name__}: {type(state).__name__} "
+                            f"{getattr(state, 'owner', '')}".rstrip())
+        self._params = dict(state.params)
+        if state.block is None:
+            self._block = None
+            self._values = list(state.values)
+        else:
+            if self._block is None:  # a block of the same class: set_state replaces all it holds
+                self._block = self.block_class(state.params, name=self.instance_name)
+            self._block.set_state(state.block)
+            self._values = self._block.values
+        self._dirty, self._t0, self._in_init, self._init_error = state.dirty, state.t0, state.in_init, state.error
+
+
+class SlaveState:
+    """What get FMU state hands the host (pythonfmu keeps the Python object behind the pointer)."""
+
+    __slots__ = ("owner", "params", "values", "block", "dirty", "t0", "in_init", "error")
+
+    def __init__(self, owner, params, values, block, dirty, t0, in_init, error) -> None:
+        self.owner, self.params, self.values, self.block = owner, params, values, block
+        self.dirty, self.t0, self.in_init, self.error = dirty, t0, in_init, error
+
+
+def _survive_pythonfmu_cleanup(slave: Any) -> None:
+    """Keep an instance that raised alive for the calls FMI still allows (terminate, reset, free).
+
+    pythonfmu 0.7.0 and pythonfmu3 0.3.4 (PySlaveInstance::handle_py_exception)
+    answer any Python exception by releasing one reference each to the slave
+    class, the slave and its log queue, and release them again when the
+    instance is freed: a double release that corrupts the interpreter after a
+    few dozen failed calls (measured: segmentation fault after 68). One extra
+    reference per exception, owned by nobody, balances the count. Only done
+    under pythonfmu's C layer (the ``logger`` argument it passes).
+    """
+    for obj in (type(slave), slave, slave.log_queue):
+        ctypes.pythonapi.Py_IncRef(ctypes.py_object(obj))
+
+
+def _defuse_pythonfmu_teardown(resources: Optional[str]) -> None:
+    """Release the FMU library's interpreter guard before the process exits, where that is safe.
+
+    pythonfmu 0.7.0 and pythonfmu3 0.3.4 keep a static ``std::shared_ptr<PyState>``
+    in the FMU's library and reset it from the library's destructor function
+    (``finalizePythonInterpreter``). The library cannot be unloaded (it has
+    unique symbols), so that happens at process exit, after the exit handlers
+    have already destroyed the shared_ptr: a release through a dangling pointer
+    that writes into freed memory (valgrind: invalid read in
+    finalizePythonInterpreter of a block freed by __run_exit_handlers) and now
+    and then aborts the host at exit ("corrupted double-linked list").
+    In a Python program (``sys.orig_argv`` set), which owns the interpreter,
+    an atexit hook releases every library's guard before the C exit handlers
+    run, and the late reset finds nothing to release (valgrind: the invalid
+    read is gone). In a C/C++ host the guard of the library that started the
+    interpreter must live until the end: nothing is done there (valgrind shows
+    the one invalid read, in that library). Linux only (on Windows pythonfmu
+    resets it from DllMain).
+    """
+    if not sys.platform.startswith("linux") or not resources:
+        return
+    found = glob.glob(os.path.join(os.path.dirname(os.path.abspath(resources)), "binaries", "*", "*.so"))
+    if len(found) != 1:
+        return
+    library = found[0]
+    if not sys.orig_argv:  # the interpreter was started by pythonfmu itself: a C/C++ host
+        return
+    registry = sys.modules.get("_mast_pythonfmu_process")
+    if registry is None:  # shared by every FMU's bundled copy of this module
+        registry = sys.modules["_mast_pythonfmu_process"] = types.ModuleType("_mast_pythonfmu_process")
+        registry.released_at_exit = set()
+    if library not in registry.released_at_exit:
+        registry.released_at_exit.add(library)
+        try:  # the loaded library (found by the file, which a host may delete before it exits)
+            release = ctypes.CDLL(library).finalizePythonInterpreter
+        except (OSError, AttributeError):
+            return
+        atexit.register(release)
+
+
+def _drop_repeated_path(resources: Optional[str]) -> None:
+    """pythonfmu inserts the resources folder into sys.path at every instantiation: keep one entry."""
+    if resources and sys.path.count(resources) > 1:
+        first = sys.path.index(resources)
+        sys.path[:] = sys.path[:first + 1] + [p for p in sys.path[first + 1:] if p != resources]
+
+
+def _neutral(kind: type):
+    return {float: 0.0, int: 0, str: ""}[kind]

@@ -1,0 +1,317 @@
+"""Mechanism designs as descriptions for the inverse-dynamics engine (``engine.py``).
+
+One parameterised family, chosen by the geometry parameter ``kinematics`` (bound to the
+mechanism *and* to the controller, whose inverse kinematics must be the machine's):
+
+``"3PRS"``: three guides around the vertical centre axis at angles alpha_1..3, at horizontal
+distance H from it at the base plane z = 0 and inclined by ``beta`` towards the axis
+(beta = 0: vertical guides, the paper's machine). Slider i moves along its guide; a revolute
+joint with the horizontal tangential axis t_i carries leg i (length L), whose upper end is the
+spherical joint S_i on the platform (radius r). The paper's T layout is alpha = 0, 90, 180 deg,
+beta = 0; the textbook layout alpha = 0, 120, 240 deg; with beta != 0 the actuation direction
+changes (a structurally different design: the guide is no longer parallel to the platform's
+heave motion). See docs/designs/.
+
+Bodies: three legs (mass m_leg, centre of mass at mid-length, inertia I_leg about the revolute
+axis direction), the platform (m_platform, centre of mass at P, principal inertias I_px, I_py,
+I_pz) and an optional payload fixed to the platform (m_payload, centre of mass at
+(payload_x, payload_y, payload_z) in the platform frame, inertia tensor I_payload_* about its
+centre of mass, platform axes). Sliders are massless here: their mass is the actuators' M_load.
+
+The 3PRS description repeats the closed form of ``kinematics.py`` operation for operation,
+so for beta = 0 its inverse kinematics gives the very same floats.
+"""
+from __future__ import annotations
+
+import math
+from typing import Mapping, Sequence
+
+from ..common.parameters import Param, ParameterError, nonnegative
+from .engine import Body, Description, Engine, Evaluation, atan2, hypot, require, sign, sqrt
+from .engine import cos as _cos
+from .engine import sin as _sin
+from .kinematics import GEOMETRY_PARAMETERS, MAX_TILT, Geometry, KinematicsError, _det3
+
+__all__ = ["KINEMATICS", "KINEMATIC_PARAMETERS", "KINEMATIC_PARAMETERS_NAMES", "MASS_PARAMETERS", "PAYLOAD_PARAMETERS",
+           "PRS3", "describe", "engine", "kinematic_engine"]
+
+
+#: the geometry parameter set: bound to the mechanism and to the controller (its kinematic model)
+KINEMATIC_PARAMETERS: tuple[Param, ...] = (
+    Param("kinematics", "", "Kinematic model of the mechanism: 3PRS (three guides, revolute + spherical joints)",
+          kind=str),
+    *GEOMETRY_PARAMETERS,
+    Param("beta", "rad", "Inclination of every guide from the vertical, towards the centre axis (0: vertical guides)",
+          -math.radians(45.0), math.radians(45.0)),
+)
+
+KINEMATIC_PARAMETERS_NAMES: tuple[str, ...] = tuple(p.name for p in KINEMATIC_PARAMETERS)
+
+#: bodies of the 3PRS (and switch for the actuators-alone design)
+MASS_PARAMETERS: tuple[Param, ...] = (
+    nonnegative("m_leg", "kg", "Mass of each leg (COM at mid-length)"),
+    nonnegative("I_leg", "kg.m2", "Inertia of each leg about its COM, about the revolute axis direction"),
+    Param("m_platform", "kg", "Platform mass (COM at P)", minimum=0.0, exclusive=True, maximum=math.inf),
+    nonnegative("I_px", "kg.m2", "Platform inertia about its own x axis, at P"),
+    nonnegative("I_py", "kg.m2", "Platform inertia about its own y axis, at P"),
+    nonnegative("I_pz", "kg.m2", "Platform inertia about its own z axis, at P"),
+    Param("g", "m/s2", "Gravitational acceleration (along -z)", minimum=0.0, maximum=100.0),
+    Param("attached", "", "1: the mechanism loads the actuators (its inverse dynamics); 0: actuators alone "
+                          "(paper Fig. 10 'without the MAST'): no force, the pose outputs are the kinematics",
+          minimum=0, maximum=1, kind=int),
+)
+
+PAYLOAD_PARAMETERS: tuple[Param, ...] = (
+    nonnegative("m_payload", "kg", "Payload mass, fixed to the platform (0: no payload)"),
+    Param("payload_x", "m", "Payload centre of mass, platform frame x"),
+    Param("payload_y", "m", "Payload centre of mass, platform frame y"),
+    Param("payload_z", "m", "Payload centre of mass, platform frame z (above P: positive)"),
+    nonnegative("I_payload_xx", "kg.m2", "Payload inertia about its COM, platform axes, xx"),
+    nonnegative("I_payload_yy", "kg.m2", "Payload inertia about its COM, platform axes, yy"),
+    nonnegative("I_payload_zz", "kg.m2", "Payload inertia about its COM, platform axes, zz"),
+    Param("I_payload_xy", "kg.m2", "Payload inertia about its COM, platform axes, xy (tensor entry)"),
+    Param("I_payload_xz", "kg.m2", "Payload inertia about its COM, platform axes, xz (tensor entry)"),
+    Param("I_payload_yz", "kg.m2", "Payload inertia about its COM, platform axes, yz (tensor entry)"),
+)
+
+
+def _fmt(v: float) -> str:
+    return f"{v:.6g}"
+
+
+# ----------------------------------------------------------------------------- admissibility checks
+# (run at the point of the evaluation where the description calls require(); messages as kinematics.py)
+def _finite(z, psi, theta) -> None:
+    if not (math.isfinite(z) and math.isfinite(psi) and math.isfinite(theta)):
+        raise KinematicsError(f"pose (z = {z!r} m, psi = {psi!r} rad, theta = {theta!r} rad) is not finite")
+
+
+def _tilt(psi, theta) -> None:
+    if abs(psi) > MAX_TILT or abs(theta) > MAX_TILT:
+        raise KinematicsError(
+            f"pose out of range: |psi| = {abs(psi):.6g} rad or |theta| = {abs(theta):.6g} rad exceeds "
+            f"the admissible tilt {MAX_TILT:.6g} rad ({math.degrees(MAX_TILT):g} deg)")
+
+
+def _pose_text(z, psi, theta) -> str:
+    return f"z = {_fmt(z)} m, psi = {_fmt(psi)} rad, theta = {_fmt(theta)} rad"
+
+
+class _NullCheck:
+    def __init__(self, r: float, alpha) -> None:
+        self.r, self.alpha = r, alpha
+
+    def __call__(self, norm, z, psi, theta) -> None:
+        if not norm > 1e-9 * self.r * self.r:
+            raise KinematicsError(
+                f"singular configuration: the constraints S_i . t_i = 0 do not determine the parasitic motion "
+                f"(x, y, phi) at {_pose_text(z, psi, theta)} (guide angles {self.alpha} rad; "
+                f"|null vector (cos, sin)| = {norm:.3g})")
+
+
+class _InsideCheck:
+    """S_i on the inner side of guide i (the working assembly)."""
+
+    def __init__(self, i: int, H: float, inclined: bool) -> None:
+        self.i, self.H, self.inclined = i, H, inclined
+
+    def __call__(self, u, d, z, psi, theta) -> None:
+        if not u > 0.0:
+            i = self.i + 1
+            if self.inclined:
+                raise KinematicsError(
+                    f"pose unreachable (not the working assembly): spherical joint S_{i} is {_fmt(-u)} m on the "
+                    f"outer side of guide {i} ({_pose_text(z, psi, theta)})")
+            raise KinematicsError(
+                f"pose unreachable (not the working assembly): spherical joint S_{i} at radial distance "
+                f"{_fmt(d)} m is outside the guide radius H = {_fmt(self.H)} m by {_fmt(-u)} m "
+                f"({_pose_text(z, psi, theta)})")
+
+
+class _ReachCheck:
+    def __init__(self, i: int, L: float, inclined: bool) -> None:
+        self.i, self.L, self.inclined = i, L, inclined
+
+    def __call__(self, w2, u, z, psi, theta) -> None:
+        if not w2 > 0.0:
+            what = "a reach perpendicular to its guide" if self.inclined else "a horizontal reach"
+            raise KinematicsError(
+                f"pose unreachable: leg {self.i + 1} would need {what} of {_fmt(u)} m > L = {_fmt(self.L)} m "
+                f"(short by {_fmt(u - self.L)} m) at {_pose_text(z, psi, theta)}")
+
+
+# ----------------------------------------------------------------------------- the 3PRS
+class PRS3(Description):
+    """3-PRS with guides at angles alpha around the centre axis, inclined by beta (module docstring).
+
+    Coordinates q = (z, psi, theta); joints rho_i = slider position along guide i, measured
+    from the base plane (for vertical guides: the slider height). Parasitic motion (x, y, phi)
+    from S_i . t_i = 0 (closed form, kinematics.py). R = Rz(phi) Ry(theta) Rx(psi).
+    """
+
+    name = "3PRS"
+
+    def __init__(self, H: float, r: float, L: float, alpha: Sequence[float], beta: float = 0.0,
+                 m_leg: float = 0.0, I_leg: float = 0.0, m_platform: float = 0.0,
+                 I_p: Sequence[float] = (0.0, 0.0, 0.0), payload: "Body | None" = None) -> None:
+        self.geometry = Geometry(H, r, L, tuple(alpha))     # validates H, r, L > 0 and the angles
+        self.H, self.r, self.L = self.geometry.H, self.geometry.r, self.geometry.L
+        self.alpha = self.geometry.alpha
+        self.beta = float(beta)
+        self._ca, self._sa = self.geometry._ca, self.geometry._sa
+        self._cb, self._sb = math.cos(self.beta), math.sin(self.beta)
+        self.inclined = self.beta != 0.0
+        L = self.L
+        leg_inertia = ((0.0, 0.0, 0.0), (0.0, float(I_leg), 0.0), (0.0, 0.0, float(I_leg)))
+        legs = tuple(Body(f"leg_{i + 1}", float(m_leg), (0.5 * L, 0.0, 0.0), leg_inertia) for i in range(3))
+        Ix, Iy, Iz = (float(v) for v in I_p)
+        platform = Body("platform", float(m_platform), (0.0, 0.0, 0.0), ((Ix, 0.0, 0.0), (0.0, Iy, 0.0), (0.0, 0.0, Iz)))
+        self.payload = payload
+        self.bodies = legs + (platform,) + ((payload,) if payload is not None else ())
+
+    def key(self) -> tuple:
+        return (type(self).__name__, self.H, self.r, self.L, self.alpha, self.beta, self.bodies)
+
+    # ---------------------------------------------------------------- positions (the closed form)
+    def evaluate(self, q: Sequence) -> Evaluation:
+        z, psi, theta = q
+        require(_finite, z, psi, theta)
+        require(_tilt, psi, theta)
+        r = self.r
+        cp, sp = _cos(psi), _sin(psi)
+        ct, st = _cos(theta), _sin(theta)
+        ca, sa = self._ca, self._sa
+        # v_i = Ry(theta) Rx(psi) s_i ; constraint i: -sa x + ca y + cos(phi) A_i + sin(phi) B_i = 0
+        v = []
+        rows = []
+        for i in range(3):
+            vx = r * (ca[i] * ct + sa[i] * st * sp)
+            vy = r * sa[i] * cp
+            vz = r * (sa[i] * ct * sp - ca[i] * st)
+            v.append((vx, vy, vz))
+            rows.append((-sa[i], ca[i], -sa[i] * vx + ca[i] * vy, ca[i] * vx + sa[i] * vy))
+        (m00, m01, m02, m03), (m10, m11, m12, m13), (m20, m21, m22, m23) = rows
+        # null vector of the 3x4 homogeneous system (generalised cross product)
+        n0 = _det3(m01, m02, m03, m11, m12, m13, m21, m22, m23)
+        n1 = -_det3(m00, m02, m03, m10, m12, m13, m20, m22, m23)
+        n2 = _det3(m00, m01, m03, m10, m11, m13, m20, m21, m23)
+        n3 = -_det3(m00, m01, m02, m10, m11, m12, m20, m21, m22)
+        norm = hypot(n2, n3)
+        require(_NullCheck(r, self.alpha), norm, z, psi, theta)
+        k = sign(n2) / norm       # choose cos(phi) > 0
+        x, y, c, s = n0 * k, n1 * k, n2 * k, n3 * k
+        R = ((c * ct, c * st * sp - s * cp, c * st * cp + s * sp),
+             (s * ct, s * st * sp + c * cp, s * st * cp - c * sp),
+             (-st, ct * sp, ct * cp))
+        H, L = self.H, self.L
+        cb, sb = self._cb, self._sb
+        rho, frames = [], []
+        for i in range(3):
+            vx, vy, vz = v[i]
+            ax, ay = c * vx - s * vy, s * vx + c * vy
+            Sx, Sy, Sz = x + ax, y + ay, z + vz
+            d = ca[i] * Sx + sa[i] * Sy
+            h = Sz
+            if self.inclined:
+                dr = d - H                           # S_i relative to the foot of guide i, in its plane
+                u = -(cb * dr + sb * h)              # distance of S_i inside the guide line
+                a = cb * h - sb * dr                 # position of S_i's projection along the guide
+            else:
+                u = H - d
+                a = h
+            require(_InsideCheck(i, H, self.inclined), u, d, z, psi, theta)
+            w2 = L * L - u * u
+            require(_ReachCheck(i, L, self.inclined), w2, u, z, psi, theta)
+            w = sqrt(w2)
+            rho_i = a - w
+            rho.append(rho_i)
+            # leg frame: x along the leg (slider -> S_i), y = t_i (revolute axis), z = x cross y
+            radial = H - sb * rho_i
+            Bx, By, Bz = ca[i] * radial, sa[i] * radial, cb * rho_i
+            lx, ly, lz = (Sx - Bx) / L, (Sy - By) / L, (Sz - Bz) / L
+            tx, ty = -sa[i], ca[i]
+            frames.append(((Bx, By, Bz), ((lx, tx, -lz * ty), (ly, ty, lz * tx), (lz, 0.0, lx * ty - ly * tx))))
+        frames.append(((x, y, z), R))
+        if self.payload is not None:
+            frames.append(((x, y, z), R))
+        return Evaluation(rho, (x, y, z, psi, theta, atan2(s, c)), frames)
+
+    def guess(self, rho: Sequence[float]) -> tuple[float, float, float]:
+        """Level pose for the mean slider position (the direct kinematics' cold start)."""
+        mean = (rho[0] + rho[1] + rho[2]) / 3.0
+        if not self.inclined:
+            return (mean + self.geometry.home_reach, 0.0, 0.0)
+        gap = self.r - self.H + mean * self._sb
+        return (mean * self._cb + math.sqrt(max(self.L * self.L - gap * gap, 0.0)), 0.0, 0.0)
+
+
+# ----------------------------------------------------------------------------- from parameters
+KINEMATICS = {"3PRS": PRS3}
+
+
+def _payload(params: Mapping[str, object]) -> "Body | None":
+    m = float(params.get("m_payload", 0.0))
+    I = ((float(params.get("I_payload_xx", 0.0)), float(params.get("I_payload_xy", 0.0)), float(params.get("I_payload_xz", 0.0))),
+         (float(params.get("I_payload_xy", 0.0)), float(params.get("I_payload_yy", 0.0)), float(params.get("I_payload_yz", 0.0))),
+         (float(params.get("I_payload_xz", 0.0)), float(params.get("I_payload_yz", 0.0)), float(params.get("I_payload_zz", 0.0))))
+    if m == 0.0 and not any(any(row) for row in I):
+        return None
+    com = (float(params.get("payload_x", 0.0)), float(params.get("payload_y", 0.0)), float(params.get("payload_z", 0.0)))
+    try:
+        return Body("payload", m, com, I)
+    except ValueError as exc:
+        raise ParameterError(f"parameters 'I_payload_*': {exc}") from None
+
+
+def describe(params: Mapping[str, object], owner: str = "", masses: bool = True) -> Description:
+    """The description a parameter set defines (``masses=False``: kinematics only, massless bodies).
+
+    Raises ParameterError naming the parameter: an unknown ``kinematics``, or a geometry that
+    cannot be assembled at the level pose.
+    """
+    where = owner or "mechanism"
+    kind = params.get("kinematics", "3PRS")
+    if kind not in KINEMATICS:
+        raise ParameterError(f"{where}: parameter 'kinematics' = {kind!r}: expected one of {', '.join(KINEMATICS)}")
+    beta = float(params.get("beta", 0.0))
+    geom = Geometry.checked(params, where) if beta == 0.0 else Geometry.from_params(params)
+    args = dict(H=geom.H, r=geom.r, L=geom.L, alpha=geom.alpha, beta=beta)
+    if masses:
+        args.update(m_leg=float(params["m_leg"]), I_leg=float(params["I_leg"]),
+                    m_platform=float(params["m_platform"]),
+                    I_p=(float(params["I_px"]), float(params["I_py"]), float(params["I_pz"])),
+                    payload=_payload(params))
+    desc = KINEMATICS[kind](**args)
+    if beta != 0.0:
+        _check_inclined(desc, where)
+    return desc
+
+
+def _check_inclined(desc: PRS3, owner: str) -> None:
+    """Inclined guides: the level pose with the sliders at rho = 0 must exist (working assembly, reach)."""
+    try:
+        desc.evaluate(list(desc.guess((0.0, 0.0, 0.0))))      # plain floats: the checks run at once
+    except KinematicsError as exc:
+        raise ParameterError(f"{owner}: parameters 'H', 'r', 'L', 'beta' = {desc.H!r} m, {desc.r!r} m, {desc.L!r} m, "
+                             f"{desc.beta!r} rad: the mechanism cannot be assembled at the level pose with the "
+                             f"sliders at the foot of their guides: {exc}") from None
+
+
+_ENGINES: dict = {}
+
+
+def engine(params: Mapping[str, object], owner: str = "", masses: bool = True) -> Engine:
+    """The engine of a parameter set, shared between blocks with the same description and g."""
+    desc = describe(params, owner, masses)
+    key = (desc.key(), float(params.get("g", 9.81)) if masses else 0.0)
+    found = _ENGINES.get(key)
+    if found is None:
+        if len(_ENGINES) > 64:
+            _ENGINES.clear()
+        found = _ENGINES[key] = Engine(desc, g=key[1])
+    return found
+
+
+def kinematic_engine(params: Mapping[str, object], owner: str = "") -> Engine:
+    """Kinematics only (the controller's model): the same description with massless bodies."""
+    return engine(params, owner, masses=False)

@@ -1,0 +1,996 @@
+"""Systematic inverse dynamics of a mechanism from its description (paper sections 2.4, 3.3).
+
+A mechanism is *described* by (``Description``):
+
+- its independent coordinates q (for the MAST: z, psi, theta) and its n joint coordinates rho
+  (the actuated slider positions), as many as coordinates;
+- ``evaluate(q)``: the joint coordinates rho(q) (inverse kinematics), the platform pose
+  (x, y, z, psi, theta, phi), and the frame (origin, rotation matrix) of every moving body;
+- the bodies' inertial data (``Body``: mass, centre of mass in the body frame, inertia tensor
+  about the centre of mass in the body frame).
+
+``evaluate`` is written with ordinary arithmetic and the functions of this module (``sin``,
+``cos``, ``sqrt``, ``atan2``, ``hypot``, ``sign``, ``require``). With floats it simply
+evaluates. The engine runs it once on *traced* numbers: that records an expression graph,
+which the engine differentiates symbolically (forward mode, first order in each coordinate
+and second order along the motion) and turns into straight-line Python code. So the
+Jacobians and their time derivatives are exact (no finite differences) and cost about as
+much as hand-written closed forms.
+
+From the description the engine produces, with gravity g along -z:
+
+- per body b, with J_vb, J_wb the Jacobians (in rho_dot) of its centre-of-mass velocity
+  (world frame) and of its angular velocity (body frame) and a_b0, wdot_b0 the accelerations
+  when rho_ddot = 0 ("Jdot rho_dot"):
+
+      M   = sum_b m_b J_vb^T J_vb + J_wb^T I_b J_wb                         (inertial term I = M rho_ddot)
+      c   = sum_b m_b J_vb^T a_b0 + J_wb^T (I_b wdot_b0 + w_b x I_b w_b)    (Coriolis/centrifugal)
+      g   = sum_b m_b g J_vb^T e_z                                          (gravity)
+      t_rho = M rho_ddot + c + g                                            (Eq. 32)
+
+  Translation by the principle of energy equivalence (Eqs. 5-9, 24-27), rotation by
+  Boltzmann-Hamel with the body angular velocity as quasi-velocities (Eqs. 13, 18-19);
+  each body's contribution (translation and rotation separately) is reported.
+- the direct kinematics (Newton on the inverse kinematics, warm-started).
+
+Joint coordinates and forces: t_rho_i is the generalized force conjugate to rho_i, i.e. the
+force the actuator applies along its joint (power t_rho . rho_dot).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Callable, Optional, Sequence
+
+import numpy as np
+
+from .kinematics import COND_LIMIT, KinematicsError, _inv3
+
+__all__ = [
+    "Body", "Description", "Evaluation", "Engine", "EngineIDP", "EngineJacobians", "KinematicsError",
+    "sin", "cos", "sqrt", "atan2", "hypot", "sign", "require", "traced",
+]
+
+
+# ===================================================================================== expressions
+class _Graph:
+    """An expression DAG: nodes in creation order (a valid evaluation order), hash-consed."""
+
+    def __init__(self) -> None:
+        self.nodes: list[E] = []
+        self.memo: dict = {}
+        self.checks: list[E] = []
+
+    def node(self, op: str, args: tuple, value=None, key=None) -> "E":
+        k = key if key is not None else (op, *(a.id for a in args))
+        found = self.memo.get(k)
+        if found is not None:
+            return found
+        n = E(self, len(self.nodes), op, args, value)
+        self.nodes.append(n)
+        self.memo[k] = n
+        return n
+
+    def const(self, value: float) -> "E":
+        value = float(value)
+        return self.node("const", (), value, key=("const", value.hex()))
+
+    def input(self, name: str) -> "E":
+        return self.node("input", (), name, key=("input", name))
+
+
+class TraceError(TypeError):
+    """A description branched on a traced value (use sign, require, or a parameter instead)."""
+
+
+class E:
+    """A traced number: a node of the expression graph. Arithmetic builds new nodes."""
+
+    __slots__ = ("g", "id", "op", "args", "value")
+
+    def __init__(self, g: _Graph, id_: int, op: str, args: tuple, value) -> None:
+        self.g, self.id, self.op, self.args, self.value = g, id_, op, args, value
+
+    # never copied: graphs are immutable once built
+    def __deepcopy__(self, memo):
+        return self
+
+    def __repr__(self) -> str:
+        return f"E#{self.id}({self.op})"
+
+    def __bool__(self):
+        raise TraceError("a mechanism description may not branch on a traced value; use sign(), require() "
+                         "or decide on parameters only")
+
+    __lt__ = __le__ = __gt__ = __ge__ = lambda self, other: self.__bool__()  # noqa: E731
+
+    def __add__(self, o):
+        return _add(self, o)
+
+    def __radd__(self, o):
+        return _add(o, self)
+
+    def __sub__(self, o):
+        return _sub(self, o)
+
+    def __rsub__(self, o):
+        return _sub(o, self)
+
+    def __mul__(self, o):
+        return _mul(self, o)
+
+    def __rmul__(self, o):
+        return _mul(o, self)
+
+    def __truediv__(self, o):
+        return _div(self, o)
+
+    def __rtruediv__(self, o):
+        return _div(o, self)
+
+    def __neg__(self):
+        return _neg(self)
+
+    def __pos__(self):
+        return self
+
+    def __abs__(self):
+        return _unary("abs", self, abs)
+
+
+def _lift(g: _Graph, x) -> E:
+    return x if isinstance(x, E) else g.const(x)
+
+
+def _graph_of(*xs) -> Optional[_Graph]:
+    for x in xs:
+        if isinstance(x, E):
+            return x.g
+    return None
+
+
+def _is(x: E, value: float) -> bool:
+    return x.op == "const" and x.value == value
+
+
+# Folding rules are exact for finite values (x*1, x+0, x*0 -> 0, 0/x -> 0): the traced values are
+# the same floats as a plain evaluation of the description, up to the sign of a zero.
+def _add(a, b):
+    g = _graph_of(a, b)
+    if g is None:
+        return a + b
+    a, b = _lift(g, a), _lift(g, b)
+    if a.op == "const" and b.op == "const":
+        return g.const(a.value + b.value)
+    if _is(a, 0.0):
+        return b
+    if _is(b, 0.0):
+        return a
+    return g.node("add", (a, b))
+
+
+def _sub(a, b):
+    g = _graph_of(a, b)
+    if g is None:
+        return a - b
+    a, b = _lift(g, a), _lift(g, b)
+    if a.op == "const" and b.op == "const":
+        return g.const(a.value - b.value)
+    if _is(b, 0.0):
+        return a
+    if _is(a, 0.0):
+        return _neg(b)
+    return g.node("sub", (a, b))
+
+
+def _mul(a, b):
+    g = _graph_of(a, b)
+    if g is None:
+        return a * b
+    a, b = _lift(g, a), _lift(g, b)
+    if a.op == "const" and b.op == "const":
+        return g.const(a.value * b.value)
+    if _is(a, 0.0) or _is(b, 0.0):
+        return g.const(0.0)
+    if _is(a, 1.0):
+        return b
+    if _is(b, 1.0):
+        return a
+    if _is(a, -1.0):
+        return _neg(b)
+    if _is(b, -1.0):
+        return _neg(a)
+    return g.node("mul", (a, b))
+
+
+def _div(a, b):
+    g = _graph_of(a, b)
+    if g is None:
+        return a / b
+    a, b = _lift(g, a), _lift(g, b)
+    if a.op == "const" and b.op == "const":
+        return g.const(a.value / b.value)
+    if _is(a, 0.0):
+        return g.const(0.0)
+    if _is(b, 1.0):
+        return a
+    return g.node("div", (a, b))
+
+
+def _neg(a):
+    if not isinstance(a, E):
+        return -a
+    if a.op == "const":
+        return a.g.const(-a.value)
+    if a.op == "neg":
+        return a.args[0]
+    return a.g.node("neg", (a,))
+
+
+def _unary(op: str, a, fn):
+    if not isinstance(a, E):
+        return fn(a)
+    if a.op == "const":
+        return a.g.const(fn(a.value))
+    return a.g.node(op, (a,))
+
+
+def _sign(x: float) -> float:
+    return 1.0 if x > 0.0 else -1.0
+
+
+def _sgn0(x: float) -> float:
+    return 1.0 if x >= 0.0 else -1.0
+
+
+def sin(x):
+    """sin for floats and traced numbers."""
+    return _unary("sin", x, math.sin)
+
+
+def cos(x):
+    """cos for floats and traced numbers."""
+    return _unary("cos", x, math.cos)
+
+
+def sqrt(x):
+    """sqrt for floats and traced numbers (guard the argument with ``require`` first)."""
+    return _unary("sqrt", x, math.sqrt)
+
+
+def sign(x):
+    """1.0 if x > 0 else -1.0 (so sign(0) = -1); its derivative is zero."""
+    return _unary("sign", x, _sign)
+
+
+def atan2(y, x):
+    """atan2 for floats and traced numbers."""
+    g = _graph_of(y, x)
+    if g is None:
+        return math.atan2(y, x)
+    y, x = _lift(g, y), _lift(g, x)
+    if y.op == "const" and x.op == "const":
+        return g.const(math.atan2(y.value, x.value))
+    return g.node("atan2", (y, x))
+
+
+def hypot(a, b):
+    """math.hypot for floats and traced numbers."""
+    g = _graph_of(a, b)
+    if g is None:
+        return math.hypot(a, b)
+    a, b = _lift(g, a), _lift(g, b)
+    if a.op == "const" and b.op == "const":
+        return g.const(math.hypot(a.value, b.value))
+    return g.node("hypot", (a, b))
+
+
+def require(check: Callable[..., None], *args) -> None:
+    """Admissibility check: ``check(*values)`` must raise (KinematicsError) if the values are not admissible.
+
+    With floats it runs at once; traced, it runs at that point of every generated function
+    that computes its first argument.
+    """
+    g = _graph_of(*args)
+    if g is None:
+        check(*args)
+        return
+    node = E(g, len(g.nodes), "check", tuple(_lift(g, a) for a in args), check)
+    g.nodes.append(node)
+    g.checks.append(node)
+
+
+def traced(x) -> bool:
+    """True for a traced number (for descriptions that need to know; rarely useful)."""
+    return isinstance(x, E)
+
+
+# ===================================================================================== derivatives
+class _Forward:
+    """Forward-mode derivative of every node along one seed (memoized)."""
+
+    def __init__(self, g: _Graph, seeds: dict[str, object]) -> None:
+        self.g = g
+        self.seeds = seeds          # input name -> derivative (E or float)
+        self.d: dict[int, E] = {}
+        self.zero = g.const(0.0)
+
+    def __call__(self, n: E) -> E:
+        d = self.d.get(n.id)
+        if d is not None:
+            return d
+        # iterative post-order (graphs are deep: avoid Python recursion)
+        stack = [n]
+        while stack:
+            top = stack[-1]
+            if top.id in self.d:
+                stack.pop()
+                continue
+            pending = [a for a in top.args if a.id not in self.d]
+            if pending and top.op != "check":
+                stack.extend(pending)
+                continue
+            stack.pop()
+            self.d[top.id] = self._rule(top)
+        return self.d[n.id]
+
+    def _rule(self, n: E) -> E:
+        op, g, d = n.op, self.g, self.d
+        if op == "const":
+            return self.zero
+        if op == "input":
+            return _lift(g, self.seeds.get(n.value, 0.0))
+        if op == "check":
+            return self.zero
+        a = n.args[0]
+        da = d[a.id]
+        if op == "add":
+            return _add(da, d[n.args[1].id])
+        if op == "sub":
+            return _sub(da, d[n.args[1].id])
+        if op == "neg":
+            return _neg(da)
+        if op == "mul":
+            b = n.args[1]
+            return _add(_mul(a, d[b.id]), _mul(da, b))
+        if op == "div":
+            b = n.args[1]
+            return _div(_sub(da, _mul(n, d[b.id])), b)
+        if op == "sin":
+            return _mul(cos(a), da)
+        if op == "cos":
+            return _neg(_mul(sin(a), da))
+        if op == "sqrt":
+            return _mul(_div(0.5, n), da)
+        if op == "atan2":
+            y, x = a, n.args[1]
+            dy, dx = da, d[x.id]
+            return _div(_sub(_mul(x, dy), _mul(y, dx)), _add(_mul(x, x), _mul(y, y)))
+        if op == "hypot":
+            b = n.args[1]
+            return _div(_add(_mul(a, da), _mul(b, d[b.id])), n)
+        if op == "abs":
+            return _mul(_unary("sgn0", a, _sgn0), da)
+        if op in ("sign", "sgn0"):
+            return self.zero
+        raise AssertionError(f"no derivative rule for {op}")
+
+
+class _Second:
+    """Second derivative along a path whose first derivative is ``first`` and whose inputs have
+    second derivative ``seeds`` (zero for rho_ddot = 0 in q-space: the engine adds qdd0 later)."""
+
+    def __init__(self, g: _Graph, first: _Forward, seeds: dict[str, object]) -> None:
+        self.g, self.p1, self.seeds = g, first, seeds
+        self.d: dict[int, E] = {}
+        self.zero = g.const(0.0)
+
+    def __call__(self, n: E) -> E:
+        d = self.d.get(n.id)
+        if d is not None:
+            return d
+        stack = [n]
+        while stack:
+            top = stack[-1]
+            if top.id in self.d:
+                stack.pop()
+                continue
+            pending = [a for a in top.args if a.id not in self.d]
+            if pending and top.op != "check":
+                stack.extend(pending)
+                continue
+            stack.pop()
+            self.d[top.id] = self._rule(top)
+        return self.d[n.id]
+
+    def _rule(self, n: E) -> E:
+        op, g, d, p1 = n.op, self.g, self.d, self.p1
+        if op == "const" or op == "check":
+            return self.zero
+        if op == "input":
+            return _lift(g, self.seeds.get(n.value, 0.0))
+        a = n.args[0]
+        aa = d[a.id]
+        if op == "add":
+            return _add(aa, d[n.args[1].id])
+        if op == "sub":
+            return _sub(aa, d[n.args[1].id])
+        if op == "neg":
+            return _neg(aa)
+        if op == "mul":
+            b = n.args[1]
+            return _add(_add(_mul(a, d[b.id]), _mul(2.0, _mul(p1(a), p1(b)))), _mul(aa, b))
+        if op == "div":        # a = n b  ->  a'' = n'' b + 2 n' b' + n b''
+            b = n.args[1]
+            return _div(_sub(_sub(aa, _mul(2.0, _mul(p1(n), p1(b)))), _mul(n, d[b.id])), b)
+        if op == "sin":
+            va = p1(a)
+            return _sub(_mul(cos(a), aa), _mul(sin(a), _mul(va, va)))
+        if op == "cos":
+            va = p1(a)
+            return _neg(_add(_mul(sin(a), aa), _mul(cos(a), _mul(va, va))))
+        if op == "sqrt":        # n^2 = a  ->  2 n n'' + 2 n'^2 = a''
+            vn = p1(n)
+            return _mul(_div(0.5, n), _sub(aa, _mul(2.0, _mul(vn, vn))))
+        if op == "atan2":       # n' = N / r2, N = x y' - y x', N' = x y'' - y x'', r2' = 2 (x x' + y y')
+            y, x = a, n.args[1]
+            r2 = _add(_mul(x, x), _mul(y, y))
+            dN = _sub(_mul(x, aa), _mul(y, d[x.id]))
+            dr2 = _mul(2.0, _add(_mul(x, p1(x)), _mul(y, p1(y))))
+            return _div(_sub(dN, _mul(p1(n), dr2)), r2)
+        if op == "hypot":       # n^2 = a^2 + b^2 -> n n'' + n'^2 = a a'' + a'^2 + b b'' + b'^2
+            b = n.args[1]
+            va, vb, vn = p1(a), p1(b), p1(n)
+            num = _add(_add(_mul(a, aa), _mul(va, va)), _add(_mul(b, d[b.id]), _mul(vb, vb)))
+            return _div(_sub(num, _mul(vn, vn)), n)
+        if op == "abs":
+            return _mul(_unary("sgn0", a, _sgn0), aa)
+        if op in ("sign", "sgn0"):
+            return self.zero
+        raise AssertionError(f"no second-derivative rule for {op}")
+
+
+# ===================================================================================== code generation
+_FUNCS = {"sin": "_sin", "cos": "_cos", "sqrt": "_sqrt", "atan2": "_atan2", "hypot": "_hypot",
+          "sign": "_sign", "sgn0": "_sgn0", "abs": "_abs"}
+_BINOP = {"add": "+", "sub": "-", "mul": "*", "div": "/"}
+
+
+def _needed(outputs: Sequence[E], checks: Sequence[E]) -> set[int]:
+    """Nodes the outputs depend on, plus the checks on any of them (and what those checks read)."""
+    seen: set[int] = set()
+
+    def close(roots):
+        stack = [r for r in roots if r.op != "const" and r.id not in seen]
+        while stack:
+            n = stack.pop()
+            if n.id in seen:
+                continue
+            seen.add(n.id)
+            stack.extend(a for a in n.args if a.op != "const" and a.id not in seen)
+
+    close(outputs)
+    changed = True
+    while changed:
+        changed = False
+        for c in checks:
+            tested = c.args[0] if c.args else None
+            if c.id not in seen and tested is not None and (tested.id in seen or tested.op == "input"):
+                close([c])
+                changed = True
+    return seen
+
+
+def compile_function(name: str, inputs: Sequence[str], outputs: Sequence[E], graph: _Graph,
+                     label: str = "") -> Callable:
+    """Straight-line Python computing ``outputs`` (a flat tuple) from the named inputs.
+
+    Nodes in creation order (checks where the description called ``require``); a node used
+    once is written into its user's expression (same operations, same order: same floats),
+    up to a nesting depth that keeps the generated source easy on the parser.
+    """
+    ids = _needed(outputs, graph.checks)
+    ns: dict = {"_sin": math.sin, "_cos": math.cos, "_sqrt": math.sqrt, "_atan2": math.atan2,
+                "_hypot": math.hypot, "_sign": _sign, "_sgn0": _sgn0, "_abs": abs}
+    uses: dict[int, int] = {}
+    for i in ids:
+        for a in graph.nodes[i].args:
+            uses[a.id] = uses.get(a.id, 0) + 1
+    for o in outputs:
+        uses[o.id] = uses.get(o.id, 0) + 2
+    inline: dict[int, tuple[str, int]] = {}   # node id -> (expression, nesting depth)
+
+    def ref(n: E) -> tuple[str, int]:
+        if n.op == "const":
+            return (repr(n.value) if n.value >= 0 or math.isnan(n.value) else f"({n.value!r})"), 0
+        if n.op == "input":
+            return n.value, 0
+        if n.id in inline:
+            text, depth = inline.pop(n.id)
+            return f"({text})", depth
+        return f"t{n.id}", 0
+
+    def expr(n: E) -> tuple[str, int]:
+        parts = [ref(a) for a in n.args]
+        depth = 1 + max((d for _, d in parts), default=0)
+        if n.op in _BINOP:
+            return f"{parts[0][0]} {_BINOP[n.op]} {parts[1][0]}", depth
+        if n.op == "neg":
+            return f"-{parts[0][0]}", depth
+        return f"{_FUNCS[n.op]}({', '.join(p for p, _ in parts)})", depth
+
+    lines = [f"def {name}({', '.join(inputs)}):"]
+    for i in sorted(ids):
+        n = graph.nodes[i]
+        if n.op in ("input", "const"):
+            continue
+        if n.op == "check":
+            key = f"_check{i}"
+            ns[key] = n.value
+            lines.append(f"    {key}({', '.join(ref(a)[0] for a in n.args)})")
+            continue
+        text, depth = expr(n)
+        if uses.get(n.id, 0) == 1 and depth < 24:
+            inline[n.id] = (text, depth)   # written where it is used
+        else:
+            lines.append(f"    t{i} = {text}")
+    lines.append(f"    return ({''.join(ref(o)[0] + ', ' for o in outputs)})")
+    assert not inline, "internal error: an inlined expression was never used"
+    code = "\n".join(lines)
+    exec(compile(code, f"<mast engine: {label or name}>", "exec"), ns)  # noqa: S102 (our own generated code)
+    fn = ns[name]
+    fn.source = code
+    return fn
+
+
+# ===================================================================================== descriptions
+@dataclass(frozen=True)
+class Body:
+    """Inertial data of a rigid body: ``mass`` [kg], ``com`` (3,) [m] centre of mass in the body
+    frame, ``inertia`` (3, 3) [kg m^2] inertia tensor about the centre of mass, body-frame axes."""
+
+    name: str
+    mass: float
+    com: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    inertia: tuple[tuple[float, float, float], ...] = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
+
+    def __post_init__(self) -> None:
+        I = np.array(self.inertia, dtype=float)
+        if I.shape != (3, 3) or not np.all(np.isfinite(I)) or not np.allclose(I, I.T, atol=0.0, rtol=0.0):
+            raise ValueError(f"body {self.name}: inertia must be a finite symmetric 3x3 tensor")
+        if not (math.isfinite(self.mass) and self.mass >= 0.0):
+            raise ValueError(f"body {self.name}: mass {self.mass!r} must be finite and >= 0")
+        if np.linalg.eigvalsh(I).min() < -1e-12 * max(1.0, abs(I).max()):
+            raise ValueError(f"body {self.name}: inertia tensor is not positive semi-definite")
+        object.__setattr__(self, "com", tuple(float(c) for c in self.com))
+        object.__setattr__(self, "inertia", tuple(tuple(float(v) for v in row) for row in I))
+
+    @property
+    def massless(self) -> bool:
+        return self.mass == 0.0 and not any(any(row) for row in self.inertia)
+
+
+@dataclass
+class Evaluation:
+    """What ``Description.evaluate(q)`` returns: joint coordinates, pose, body frames.
+
+    rho: n joint coordinates; pose: (x, y, z, psi, theta, phi) of the platform;
+    frames: one (origin (3,), rotation (3, 3) as nested sequences, world <- body) per body,
+    in the order of ``Description.bodies``.
+    """
+
+    rho: Sequence
+    pose: Sequence
+    frames: Sequence
+
+
+class Description:
+    """A mechanism for the engine. Subclasses set ``name``, ``coordinates``, ``joints``, ``bodies``
+    and implement ``evaluate`` (with this module's functions) and ``guess``."""
+
+    name: str = "mechanism"
+    coordinates: tuple[str, ...] = ("z", "psi", "theta")
+    joints: tuple[str, ...] = ("rho_1", "rho_2", "rho_3")
+    bodies: tuple[Body, ...] = ()
+
+    def evaluate(self, q: Sequence) -> Evaluation:
+        raise NotImplementedError
+
+    def guess(self, rho: Sequence[float]) -> tuple[float, ...]:
+        """A starting pose for the direct kinematics (for example the level pose for rho)."""
+        raise NotImplementedError
+
+    def key(self) -> tuple:
+        """Everything that defines the description (used to share compiled code)."""
+        raise NotImplementedError
+
+    def __deepcopy__(self, memo):
+        return self
+
+
+# ===================================================================================== results
+@dataclass(frozen=True)
+class EngineJacobians:
+    """Kinematics to first and second order at one (q, rho_dot), in joint space.
+
+    q (n,), rho (n,); J (n, n) = dq/drho, J_inv = drho/dq, cond = condition number of J_inv;
+    qdot = J rho_dot, Jdot (n,) = "Jdot rho_dot" (q acceleration when rho_ddot = 0);
+    per body (dicts by name): J_v (3, n) centre-of-mass velocity Jacobian (world frame),
+    J_w (3, n) angular velocity Jacobian (body frame), a0 (3,) / wdot0 (3,) the centre-of-mass
+    and angular accelerations when rho_ddot = 0, v (3,), w (3,) the velocities.
+    """
+
+    q: np.ndarray
+    rho: np.ndarray
+    J: np.ndarray
+    J_inv: np.ndarray
+    cond: float
+    qdot: np.ndarray
+    Jdot: np.ndarray
+    J_v: dict
+    J_w: dict
+    a0: dict
+    wdot0: dict
+    v: dict
+    w: dict
+
+
+@dataclass(frozen=True)
+class EngineIDP:
+    """Inverse dynamics at one instant (Eq. 32).
+
+    t_rho (n,) [N]: generalized forces along the joints, t_rho = I_term + c_term + g_term;
+    I_term = M rho_ddot (inertial), c_term (Coriolis/centrifugal, quadratic in rho_dot),
+    g_term (gravity); M (n, n) mass matrix in rho; q (n,) independent coordinates;
+    pose (6,) (x, y, z, psi, theta, phi); cond: condition number of drho/dq (a singularity flag);
+    terms: {(body, "translation" | "rotation"): (I, c, g) arrays (n,)}: each body's share.
+    """
+
+    t_rho: np.ndarray
+    I_term: np.ndarray
+    c_term: np.ndarray
+    g_term: np.ndarray
+    M: np.ndarray
+    q: np.ndarray
+    pose: np.ndarray
+    cond: float
+    terms: dict = field(default_factory=dict)
+
+    def by_body(self) -> dict:
+        """{body: I + c + g} summed over translation and rotation."""
+        out: dict = {}
+        for (body, _), (i, c, g) in self.terms.items():
+            out[body] = out.get(body, 0.0) + i + c + g
+        return out
+
+
+# ===================================================================================== the engine
+def _inv(m: list[float], n: int) -> tuple[list[float], float]:
+    """Inverse (row-major) and determinant of an n x n matrix; ZeroDivisionError if singular."""
+    if n == 3:
+        inv, det = _inv3(m)
+        return list(inv), det
+    a = [list(m[r * n:(r + 1) * n]) + [1.0 if c == r else 0.0 for c in range(n)] for r in range(n)]
+    det = 1.0
+    for c in range(n):
+        p = max(range(c, n), key=lambda r: abs(a[r][c]))
+        if a[p][c] == 0.0:
+            raise ZeroDivisionError("singular matrix")
+        if p != c:
+            a[c], a[p] = a[p], a[c]
+            det = -det
+        piv = a[c][c]
+        det *= piv
+        a[c] = [v / piv for v in a[c]]
+        for r in range(n):
+            if r != c and a[r][c] != 0.0:
+                f = a[r][c]
+                a[r] = [v - f * w for v, w in zip(a[r], a[c])]
+    return [a[r][n + c] for r in range(n) for c in range(n)], det
+
+
+def _cond(m: Sequence[float], minv: Sequence[float]) -> float:
+    return math.sqrt(sum(v * v for v in m)) * math.sqrt(sum(v * v for v in minv))
+
+
+def _vee_RtX(R, X):
+    """vee of the antisymmetric part of R^T X (R, X: 3x3 nested): ((R^T X)_21 - (R^T X)_12)/2, ..."""
+    def rtx(i, j):
+        return _add(_add(_mul(R[0][i], X[0][j]), _mul(R[1][i], X[1][j])), _mul(R[2][i], X[2][j]))
+    return [_mul(0.5, _sub(rtx(2, 1), rtx(1, 2))), _mul(0.5, _sub(rtx(0, 2), rtx(2, 0))),
+            _mul(0.5, _sub(rtx(1, 0), rtx(0, 1)))]
+
+
+class Engine:
+    """Kinematics and inverse dynamics of a ``Description`` (see the module docstring).
+
+    ``g`` [m/s^2]: gravitational acceleration along -z. ``cond_limit``: condition number of
+    drho/dq above which a configuration is reported singular (KinematicsError).
+    """
+
+    def __init__(self, description: Description, g: float = 9.81, cond_limit: float = COND_LIMIT) -> None:
+        self.description = description
+        self.g = float(g)
+        self.cond_limit = cond_limit
+        self.n = n = len(description.coordinates)
+        if len(description.joints) != n:
+            raise ValueError(f"{description.name}: {len(description.joints)} joints for {n} coordinates; "
+                             "the engine needs as many joint coordinates as independent coordinates")
+        self.bodies = tuple(description.bodies)
+        self._fns: dict[str, Callable] = {}
+        graph = _Graph()
+        self._graph = graph
+        q = [graph.input(f"q{j}") for j in range(n)]
+        ev = description.evaluate(q)
+        if len(ev.rho) != n or len(ev.pose) != 6 or len(ev.frames) != len(self.bodies):
+            raise ValueError(f"{description.name}: evaluate() must give {n} joint coordinates, a 6-value pose "
+                             f"and one frame per body ({len(self.bodies)})")
+        lift = lambda x: _lift(graph, x)  # noqa: E731
+        self._q = q
+        self._rho = [lift(r) for r in ev.rho]
+        self._pose = [lift(p) for p in ev.pose]
+        self._frames = []
+        for body, (origin, R) in zip(self.bodies, ev.frames):
+            R = [[lift(R[i][j]) for j in range(3)] for i in range(3)]
+            o = [lift(v) for v in origin]
+            com = [_add(o[i], _add(_add(_mul(R[i][0], body.com[0]), _mul(R[i][1], body.com[1])),
+                                   _mul(R[i][2], body.com[2]))) for i in range(3)]
+            self._frames.append((com, R))
+        # first derivatives along each coordinate (q-space basis): shared by every function
+        self._dq = [_Forward(graph, {f"q{j}": (1.0 if j == k else 0.0) for j in range(n)}) for k in range(n)]
+
+    def __deepcopy__(self, memo):      # immutable once built (Block.get_state deep-copies blocks)
+        return self
+
+    # -------------------------------------------------------------------------- generated functions
+    def _fn(self, name: str) -> Callable:
+        fn = self._fns.get(name)
+        if fn is None:
+            fn = self._fns[name] = getattr(self, f"_build_{name}")()
+        return fn
+
+    def _qnames(self) -> list[str]:
+        return [f"q{j}" for j in range(self.n)]
+
+    def _build_ik(self) -> Callable:
+        return compile_function("ik", self._qnames(), self._rho, self._graph, f"{self.description.name} ik")
+
+    def _build_ikjac(self) -> Callable:
+        n = self.n
+        outs = list(self._rho) + [self._dq[k](self._rho[i]) for i in range(n) for k in range(n)]
+        return compile_function("ikjac", self._qnames(), outs, self._graph, f"{self.description.name} ik+jacobian")
+
+    def _build_pose(self) -> Callable:
+        return compile_function("pose", self._qnames(), self._pose, self._graph, f"{self.description.name} pose")
+
+    def _dynamics_graph(self, detailed: bool):
+        """Outputs of the inverse dynamics, built on the graph (inputs q, J = dq/drho, rd, rdd)."""
+        n, g = self.n, self._graph
+        Jm = [[g.input(f"J{j}{k}") for k in range(n)] for j in range(n)]
+        rd = [g.input(f"rd{k}") for k in range(n)]
+        rdd = [g.input(f"rdd{k}") for k in range(n)]
+        qd = [_sum(_mul(Jm[j][k], rd[k]) for k in range(n)) for j in range(n)]
+        p1 = _Forward(g, {f"q{j}": qd[j] for j in range(n)})
+        p2 = _Second(g, p1, {})
+        h = [p2(r) for r in self._rho]                           # rho'' when qdd = 0
+        qdd0 = [_neg(_sum(_mul(Jm[j][k], h[k]) for k in range(n))) for j in range(n)]   # Jdot rho_dot
+        dq = self._dq
+
+        def acc(y: E) -> E:                                          # y'' with rho_ddot = 0
+            return _add(p2(y), _sum(_mul(dq[k](y), qdd0[k]) for k in range(n)))
+
+        def to_rho(col_q: list[E]) -> list[E]:                       # row vector in q -> in rho
+            return [_sum(_mul(col_q[k], Jm[k][c]) for k in range(n)) for c in range(n)]
+
+        M = [[g.const(0.0)] * n for _ in range(n)]
+        c = [g.const(0.0)] * n
+        gt = [g.const(0.0)] * n
+        terms, kin = [], []
+        grav = self.g
+        for body, (com, R) in zip(self.bodies, self._frames):
+            m = body.mass
+            I = body.inertia
+            Jv = [to_rho([dq[k](com[i]) for k in range(n)]) for i in range(3)]       # 3 x n
+            a0 = [acc(com[i]) for i in range(3)]
+            dR = [[[dq[k](R[i][j]) for j in range(3)] for i in range(3)] for k in range(n)]
+            Jw_q = [_vee_RtX(R, dR[k]) for k in range(n)]                            # n columns
+            Jw = [to_rho([Jw_q[k][i] for k in range(n)]) for i in range(3)]          # 3 x n
+            w = [_sum(_mul(Jw[i][k], rd[k]) for k in range(n)) for i in range(3)]
+            wdot0 = _vee_RtX(R, [[acc(R[i][j]) for j in range(3)] for i in range(3)])
+            Iw = [_sum(_mul(I[i][j], w[j]) for j in range(3)) for i in range(3)]
+            mom = [_add(_sum(_mul(I[i][j], wdot0[j]) for j in range(3)),
+                        _sub(_mul(w[(i + 1) % 3], Iw[(i + 2) % 3]), _mul(w[(i + 2) % 3], Iw[(i + 1) % 3])))
+                   for i in range(3)]
+            Mt = [[None] * n for _ in range(n)]
+            Mr = [[None] * n for _ in range(n)]
+            for a in range(n):
+                for b in range(a, n):
+                    Mt[a][b] = Mt[b][a] = _mul(m, _sum(_mul(Jv[i][a], Jv[i][b]) for i in range(3)))
+                    IJb = [_sum(_mul(I[i][j], Jw[j][b]) for j in range(3)) for i in range(3)]
+                    Mr[a][b] = Mr[b][a] = _sum(_mul(Jw[i][a], IJb[i]) for i in range(3))
+            ct = [_mul(m, _sum(_mul(Jv[i][a], a0[i]) for i in range(3))) for a in range(n)]
+            cr = [_sum(_mul(Jw[i][a], mom[i]) for i in range(3)) for a in range(n)]
+            gtr = [_mul(m * grav, Jv[2][a]) for a in range(n)]
+            for a in range(n):
+                c[a] = _add(c[a], _add(ct[a], cr[a]))
+                gt[a] = _add(gt[a], gtr[a])
+                for b in range(n):
+                    M[a][b] = _add(M[a][b], _add(Mt[a][b], Mr[a][b]))
+            if detailed:
+                It = [_sum(_mul(Mt[a][b], rdd[b]) for b in range(n)) for a in range(n)]
+                Ir = [_sum(_mul(Mr[a][b], rdd[b]) for b in range(n)) for a in range(n)]
+                terms.append((It, ct, gtr, Ir, cr))
+                kin.append((Jv, Jw, a0, wdot0, [p1(x) for x in com], w))
+        It = [_sum(_mul(M[a][b], rdd[b]) for b in range(n)) for a in range(n)]
+        t = [_add(_add(It[a], c[a]), gt[a]) for a in range(n)]
+        return t, It, c, gt, M, terms, kin, qd, qdd0
+
+    def _build_forces(self) -> Callable:
+        t = self._dynamics_graph(False)[0]
+        n = self.n
+        inputs = self._qnames() + [f"J{j}{k}" for j in range(n) for k in range(n)] + \
+            [f"rd{k}" for k in range(n)] + [f"rdd{k}" for k in range(n)]
+        return compile_function("forces", inputs, list(t) + list(self._pose), self._graph,
+                                f"{self.description.name} forces")
+
+    def _build_detailed(self) -> Callable:
+        n = self.n
+        t, It, c, gt, M, terms, kin, qd, qdd0 = self._dynamics_graph(True)
+        outs = list(t) + list(It) + list(c) + list(gt) + [M[a][b] for a in range(n) for b in range(n)]
+        outs += list(self._pose) + list(self._rho) + list(qd) + list(qdd0)
+        for (Itb, ctb, gtb, Irb, crb), (Jv, Jw, a0, wd0, v, w) in zip(terms, kin):
+            outs += list(Itb) + list(ctb) + list(gtb) + list(Irb) + list(crb)
+            outs += [x for row in Jv for x in row] + [x for row in Jw for x in row] + list(a0) + list(wd0)
+            outs += list(v) + list(w)
+        inputs = self._qnames() + [f"J{j}{k}" for j in range(n) for k in range(n)] + \
+            [f"rd{k}" for k in range(n)] + [f"rdd{k}" for k in range(n)]
+        return compile_function("detailed", inputs, outs, self._graph, f"{self.description.name} detailed")
+
+    # -------------------------------------------------------------------------- kinematics
+    def ik(self, q: Sequence[float]) -> tuple[float, ...]:
+        """Joint coordinates rho(q) (inverse kinematics); KinematicsError if unreachable."""
+        return self._fn("ik")(*q)
+
+    def pose(self, q: Sequence[float]) -> tuple[float, ...]:
+        """(x, y, z, psi, theta, phi) of the platform at q."""
+        return self._fn("pose")(*q)
+
+    def jacobian(self, q: Sequence[float], check: bool = True) -> tuple[list[float], list[float], float]:
+        """(J_inv = drho/dq, J = dq/drho, cond) at q, row-major flat lists; KinematicsError if singular."""
+        n = self.n
+        out = self._fn("ikjac")(*q)
+        Jinv = list(out[n:])
+        return (Jinv,) + self._invert(Jinv, q, check)
+
+    def _invert(self, Jinv: list[float], q, check: bool) -> tuple[list[float], float]:
+        n = self.n
+        try:
+            J, det = _inv(Jinv, n)
+        except ZeroDivisionError:
+            raise KinematicsError(f"singular configuration: drho/dq is singular at {self._fmt_q(q)}") from None
+        cond = _cond(Jinv, J)
+        if check and not cond < self.cond_limit:
+            raise KinematicsError(f"singular configuration: drho/dq has condition number {cond:.3g} "
+                                  f"(limit {self.cond_limit:.0e}) at {self._fmt_q(q)}")
+        return J, cond
+
+    def _fmt_q(self, q) -> str:
+        units = {"z": "m", "x": "m", "y": "m"}
+        return ", ".join(f"{name} = {float(v):.6g} {units.get(name, 'rad')}"
+                         for name, v in zip(self.description.coordinates, q))
+
+    def dk(self, rho: Sequence[float], guess: Optional[Sequence[float]] = None, tol: float = 1e-12,
+           max_iter: int = 50) -> tuple[tuple[float, ...], list[float], float]:
+        """Direct kinematics: (q, J = dq/drho, cond) for joint coordinates rho.
+
+        Newton's method on the inverse kinematics, from ``guess`` (or the description's level
+        guess), until max |rho(q) - rho| < tol. KinematicsError if it does not converge, leaves
+        the workspace, or ends in a singular configuration (cond(drho/dq) >= cond_limit).
+        """
+        n = self.n
+        r = [float(v) for v in rho]
+        if len(r) != n:
+            raise KinematicsError(f"direct kinematics: expected {n} joint coordinates, got {len(r)}")
+        if not all(math.isfinite(v) for v in r):
+            raise KinematicsError(f"direct kinematics: rho = {tuple(r)!r} is not finite")
+        if guess is None or not all(math.isfinite(float(v)) for v in guess):
+            q = list(self.description.guess(r))
+        else:
+            q = [float(v) for v in guess]
+        ikjac = self._fn("ikjac")
+        res = math.inf
+        shown = ", ".join(f"{v:.9g}" for v in r)
+        for it in range(max_iter + 1):
+            try:
+                out = ikjac(*q)
+                e = [out[i] - r[i] for i in range(n)]
+                res = max(abs(v) for v in e)
+                Jinv = list(out[n:])
+                J, cond = self._invert(Jinv, q, check=res < tol)
+            except KinematicsError as exc:
+                raise KinematicsError(f"direct kinematics did not converge for rho = ({shown}) m: iteration {it} "
+                                      f"reached {self._fmt_q(q)}, where: {exc}") from exc
+            if not math.isfinite(res):
+                raise KinematicsError(f"direct kinematics did not converge for rho = ({shown}) m: non-finite "
+                                      f"residual at iteration {it} ({self._fmt_q(q)})")
+            if res < tol:
+                return tuple(q), J, cond
+            if it == max_iter:
+                break
+            for j in range(n):
+                q[j] -= sum(J[j * n + k] * e[k] for k in range(n))
+        raise KinematicsError(f"direct kinematics did not converge for rho = ({shown}) m: {max_iter} iterations, "
+                              f"residual max|rho(q) - rho| = {res:.3g} m > tol = {tol:.3g} m "
+                              f"(last {self._fmt_q(q)})")
+
+    # -------------------------------------------------------------------------- dynamics
+    def forces(self, q: Sequence[float], J: Sequence[float], rho_dot: Sequence[float],
+               rho_ddot: Sequence[float]) -> tuple[float, ...]:
+        """Hot path: (t_rho..., x, y, z, psi, theta, phi) at q with J = dq/drho (from ``dk``)."""
+        return self._fn("forces")(*q, *J, *rho_dot, *rho_ddot)
+
+    def _detailed(self, q, J, rd, rdd):
+        return self._fn("detailed")(*q, *J, *rd, *rdd)
+
+    def _unpack(self, q, J, cond, rd, rdd) -> tuple[EngineIDP, EngineJacobians]:
+        n = self.n
+        out = self._detailed(q, J, rd, rdd)
+        k = 0
+
+        def take(m):
+            nonlocal k
+            v = np.array(out[k:k + m], dtype=float)
+            k += m
+            return v
+
+        t, It, c, gt, M = take(n), take(n), take(n), take(n), take(n * n).reshape(n, n)
+        pose, rho, qd, qdd0 = take(6), take(n), take(n), take(n)
+        terms, Jv, Jw, a0, wd0, v, w = {}, {}, {}, {}, {}, {}, {}
+        for body in self.bodies:
+            Itb, ctb, gtb, Irb, crb = take(n), take(n), take(n), take(n), take(n)
+            terms[(body.name, "translation")] = (Itb, ctb, gtb)
+            terms[(body.name, "rotation")] = (Irb, crb, np.zeros(n))
+            Jv[body.name], Jw[body.name] = take(3 * n).reshape(3, n), take(3 * n).reshape(3, n)
+            a0[body.name], wd0[body.name], v[body.name], w[body.name] = take(3), take(3), take(3), take(3)
+        qa = np.array(q, dtype=float)
+        Jm = np.array(J, dtype=float).reshape(n, n)
+        idp = EngineIDP(t, It, c, gt, M, qa, pose, cond, terms)
+        jac = EngineJacobians(qa, rho, Jm, np.linalg.inv(Jm), cond, qd, qdd0, Jv, Jw, a0, wd0, v, w)
+        return idp, jac
+
+    def inverse_dynamics(self, rho: Sequence[float], rho_dot: Sequence[float], rho_ddot: Sequence[float],
+                         guess: Optional[Sequence[float]] = None) -> EngineIDP:
+        """Forces t_rho for the joint motion (rho, rho_dot, rho_ddot), pose by the direct kinematics."""
+        rd, rdd = self._vector("rho_dot", rho_dot), self._vector("rho_ddot", rho_ddot)
+        q, J, cond = self.dk(self._vector("rho", rho), guess)
+        return self._unpack(q, J, cond, rd, rdd)[0]
+
+    def inverse_dynamics_at_pose(self, q: Sequence[float], rho_dot: Sequence[float],
+                                 rho_ddot: Sequence[float]) -> EngineIDP:
+        """As ``inverse_dynamics`` at a known q (no direct kinematics)."""
+        q = self._vector("q", q)
+        _, J, cond = self.jacobian(q)
+        return self._unpack(q, J, cond, self._vector("rho_dot", rho_dot), self._vector("rho_ddot", rho_ddot))[0]
+
+    def jacobians(self, q: Sequence[float], rho_dot: Optional[Sequence[float]] = None) -> EngineJacobians:
+        """Every Jacobian at q and, for rho_dot, the velocities and "Jdot rho_dot" terms."""
+        q = self._vector("q", q)
+        rd = self._vector("rho_dot", rho_dot) if rho_dot is not None else [0.0] * self.n
+        _, J, cond = self.jacobian(q)
+        return self._unpack(q, J, cond, rd, [0.0] * self.n)[1]
+
+    def _vector(self, name: str, v) -> list[float]:
+        out = [float(x) for x in v]
+        if len(out) != self.n:
+            raise KinematicsError(f"{self.description.name}: {name} must have {self.n} components, got {len(out)}")
+        for k, x in enumerate(out):
+            if not math.isfinite(x):
+                raise KinematicsError(f"{self.description.name}: {name}_{k + 1} = {x!r} is not finite")
+        return out
+
+
+def _sum(items) -> E:
+    total = None
+    for x in items:
+        total = x if total is None else _add(total, x)
+    return total if total is not None else 0.0

@@ -1,0 +1,308 @@
+"""The library of candidate effects a diagnosis can name, and their residual signatures.
+
+Each effect maps to named parameters of the actuator FMU (applied to every axis) and,
+where the effect is smooth enough, to a regression column: the change of the observed
+motor torque per unit change of its first parameter, computed from a simulation
+(reference.md section 6):
+
+| effect | parameters | column (motor shaft; through the measurement chain) |
+|---|---|---|
+| Coulomb friction | tau_c | tanh(omega_N / omega_c): sign of the guide speed, flat in frequency, square wave |
+| viscous friction | b_v | omega_N: in phase with velocity, grows with f |
+| Stribeck friction | tau_s, omega_s | exp(-(omega_N/omega_s)^2) tanh(omega_N/omega_c): at low speed, after reversals |
+| inertia, motor side | J1_scale | J1 / J1_scale * domega_1/dt: in phase with acceleration, grows with f^2 |
+| inertia, guide side | J_guide | domega_N/dt / i_r^2 (the same as the motor side below the transmission resonance) |
+| carriage mass | M_load | i_R^2 domega_N/dt + i_R g_guide: acceleration plus a weight bias in a fixed ratio |
+| torque offset | tau_offset | 1: a bias |
+| measurement lag | T_meas (or delay_meas) | d tau_obs / d T: phase lag growing with f |
+| backlash | backlash | none: nonlinear, scored by re-simulation |
+
+In the selection, plant effects use re-simulated sensitivities (a simulation with the
+parameter stepped by ``Effect.step``: the exact linearisation of the closed loop, which
+reacts to a plant change; the signatures above miss that reaction by 20-50 % at these
+test frequencies); measurement effects use their columns, which are exact. The
+signatures serve the Jacobian of the fit and the reading of the residual.
+
+The observed torque is tau_obs = drive(sensor(tau_m)), where sensor is the FMU's own
+measurement model (T_meas, delay_meas, tau_offset; fmus/actuator/sensor.py) and drive the
+measurement chain the data's meta.json documents (the drive's torque filter). Columns go
+through the same linear chain and are sampled at the data's time stamps.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Callable, Mapping, Optional, Sequence
+
+import numpy as np
+
+from fmus.actuator.model import transmission_ratio, two_inertia
+from fmus.actuator.sensor import measure
+
+#: parameters of the measurement model (no re-simulation needed when they change)
+MEASUREMENT_PARAMETERS = ("T_meas", "delay_meas", "tau_offset")
+
+
+@dataclass
+class SimSignals:
+    """One simulated test on the base-step grid (arrays (m, 3): one column per actuator)."""
+
+    time: np.ndarray
+    h: float
+    tau_m: np.ndarray
+    rho: np.ndarray
+    rho_dot: np.ndarray
+    omega_m: np.ndarray
+    _cache: dict = field(default_factory=dict, repr=False)
+
+    def derived(self, name: str, params: Mapping) -> np.ndarray:
+        key = (name, float(params["p"]), float(params["i_r"]))
+        if key not in self._cache:
+            i_R = transmission_ratio(params["p"], params["i_r"])
+            if name == "omega_N":
+                v = self.rho_dot / i_R
+            elif name == "acc_N":
+                v = np.gradient(self.rho_dot, self.h, axis=0) / i_R
+            elif name == "acc_1":
+                v = np.gradient(self.omega_m, self.h, axis=0)
+            else:
+                raise KeyError(name)
+            self._cache[key] = v
+        return self._cache[key]
+
+
+@dataclass
+class Chain:
+    """The observation chain: FMU measurement model, then the documented drive filter, then sampling."""
+
+    h: float
+    drive_T: float
+    drive_delay: float
+    T_meas: float = 0.0
+    delay_meas: float = 0.0
+    tau_offset: float = 0.0
+
+    def linear(self, u: np.ndarray) -> np.ndarray:
+        """The linear part (no offset) on the base grid."""
+        y = measure(u, self.h, self.T_meas, self.delay_meas, 0.0, axis=0)
+        return measure(y, self.h, self.drive_T, self.drive_delay, 0.0, axis=0)
+
+    def observe(self, tau_m: np.ndarray) -> np.ndarray:
+        return self.linear(tau_m) + self.tau_offset
+
+    def with_(self, **changes) -> "Chain":
+        d = dict(self.__dict__)
+        d.update(changes)
+        return Chain(**d)
+
+
+def chain_for(params: Mapping, h: float, drive_T: float, drive_delay: float) -> Chain:
+    return Chain(h, drive_T, drive_delay, float(params["T_meas"]), float(params["delay_meas"]),
+                 float(params["tau_offset"]))
+
+
+# --------------------------------------------------------------------------------------
+# columns: d(observed torque) / d(first parameter), on the base grid, before the chain
+# --------------------------------------------------------------------------------------
+def _col_coulomb(s: SimSignals, p: Mapping, grid: Optional[float]) -> np.ndarray:
+    return np.tanh(s.derived("omega_N", p) / float(p["omega_c"]))
+
+
+def _col_viscous(s: SimSignals, p: Mapping, grid: Optional[float]) -> np.ndarray:
+    return s.derived("omega_N", p)
+
+
+def _col_stribeck(s: SimSignals, p: Mapping, grid: Optional[float]) -> np.ndarray:
+    w = s.derived("omega_N", p)
+    ws = float(grid if grid is not None else p["omega_s"])
+    return np.exp(-(w / ws) ** 2) * np.tanh(w / float(p["omega_c"]))
+
+
+def _col_omega_s(s: SimSignals, p: Mapping, grid: Optional[float]) -> np.ndarray:
+    w = s.derived("omega_N", p)
+    ws = float(p["omega_s"])
+    return float(p["tau_s"]) * np.exp(-(w / ws) ** 2) * 2.0 * w ** 2 / ws ** 3 * np.tanh(w / float(p["omega_c"]))
+
+
+def _col_inertia_motor(s: SimSignals, p: Mapping, grid: Optional[float]) -> np.ndarray:
+    J1, _ = two_inertia(p)
+    return J1 / float(p["J1_scale"]) * s.derived("acc_1", p)
+
+
+def _col_inertia_guide(s: SimSignals, p: Mapping, grid: Optional[float]) -> np.ndarray:
+    return s.derived("acc_N", p) / float(p["i_r"]) ** 2
+
+
+def _col_mass(s: SimSignals, p: Mapping, grid: Optional[float]) -> np.ndarray:
+    i_R = transmission_ratio(p["p"], p["i_r"])
+    return i_R ** 2 * s.derived("acc_N", p) + i_R * float(p["g_guide"])
+
+
+#: plant columns per parameter (for the Jacobian of the fit)
+PLANT_COLUMNS: dict[str, Callable] = {
+    "tau_c": _col_coulomb, "b_v": _col_viscous, "tau_s": _col_stribeck, "omega_s": _col_omega_s,
+    "J1_scale": _col_inertia_motor, "J_guide": _col_inertia_guide, "M_load": _col_mass,
+}
+
+
+@dataclass(frozen=True)
+class Effect:
+    key: str
+    title: str
+    parameters: tuple[str, ...]          # FMU parameters (the first one is the regression coefficient)
+    kind: str                            # "plant" or "measurement"
+    signature: str
+    bounds: dict[str, tuple[float, float]]
+    regression: bool = True              # False: scored by re-simulation only (no linear selection)
+    step: float = 0.0                    # plant effects: parameter step of the re-simulated sensitivity
+    group: Optional[str] = None          # effects in one group are alternatives (not separable)
+    preferred: bool = True               # within a group: the one named when the data cannot tell
+    grid: tuple[float, ...] = ()         # values of the second (nonlinear) parameter tried in the regression
+    cost: int = 1                        # parameters counted by the information criterion
+
+    @property
+    def parameter(self) -> str:
+        return self.parameters[0]
+
+
+LIBRARY: tuple[Effect, ...] = (
+    Effect("coulomb", "Coulomb friction", ("tau_c",), "plant",
+           "in phase with sign(velocity), flat in frequency, a square wave (3rd/1st harmonic about 1/3), "
+           "dominant at low frequency", {"tau_c": (0.0, 1.0)}, step=0.01),
+    Effect("viscous", "viscous friction", ("b_v",), "plant",
+           "in phase with velocity, amplitude grows with f", {"b_v": (0.0, 0.05)}, step=1e-4),
+    Effect("stribeck", "Stribeck friction", ("tau_s", "omega_s"), "plant",
+           "at low speed, right after velocity reversals; decays within omega_s of standstill",
+           {"tau_s": (0.0, 0.5), "omega_s": (0.6, 40.0)}, regression=False, cost=2),
+    Effect("inertia_motor", "inertia mismatch, motor side", ("J1_scale",), "plant",
+           "in phase with acceleration, amplitude grows with f^2", {"J1_scale": (0.05, 20.0)},
+           group="inertia", preferred=True, step=-0.1),
+    Effect("inertia_guide", "inertia mismatch, guide side", ("J_guide",), "plant",
+           "in phase with acceleration, amplitude grows with f^2 (same as the motor side below the "
+           "transmission resonance)", {"J_guide": (1e-7, 0.02)}, group="inertia", preferred=False, step=1e-4),
+    Effect("carriage_mass", "carriage or payload mass", ("M_load",), "plant",
+           "in phase with acceleration plus a bias (the weight) in the fixed ratio g", {"M_load": (0.01, 100.0)},
+           step=0.5),
+    Effect("offset", "constant torque offset", ("tau_offset",), "measurement",
+           "a bias, the same in every test", {"tau_offset": (-1.0, 1.0)}),
+    Effect("lag", "measurement low-pass filter or delay", ("T_meas",), "measurement",
+           "phase lag growing with frequency (a filter and a delay look alike at low f)",
+           {"T_meas": (0.0, 0.05), "delay_meas": (0.0, 0.05)}),
+    Effect("backlash", "backlash", ("backlash",), "plant",
+           "at torque reversals: the motor crosses the dead zone unloaded, then an impact",
+           {"backlash": (0.0, 0.2)}, regression=False),
+)
+BY_KEY = {e.key: e for e in LIBRARY}
+BY_PARAMETER = {p: e for e in LIBRARY for p in e.parameters}
+BOUNDS = {name: b for e in LIBRARY for name, b in e.bounds.items()}
+
+
+def column(effect_or_param: str, signals: SimSignals, params: Mapping, chain: Chain,
+           grid: Optional[float] = None, eps: float = 2e-4) -> np.ndarray:
+    """d tau_obs / d parameter on the base grid (through the chain), for a plant or measurement parameter."""
+    if effect_or_param in PLANT_COLUMNS:
+        return chain.linear(PLANT_COLUMNS[effect_or_param](signals, params, grid))
+    if effect_or_param == "tau_offset":
+        return np.ones_like(signals.tau_m)
+    if effect_or_param in ("T_meas", "delay_meas"):
+        v = getattr(chain, effect_or_param)
+        lo = max(0.0, v - eps)
+        hi = lo + 2 * eps if v - eps < 0 else v + eps
+        return (chain.with_(**{effect_or_param: hi}).linear(signals.tau_m)
+                - chain.with_(**{effect_or_param: lo}).linear(signals.tau_m)) / (hi - lo)
+    raise KeyError(f"no regression column for parameter {effect_or_param!r}")
+
+
+# --------------------------------------------------------------------------------------
+# signal analysis
+# --------------------------------------------------------------------------------------
+def noise_std(y: np.ndarray) -> float:
+    """Standard deviation of white measurement noise from third differences (robust: MAD).
+
+    The third difference of white noise has variance 20 sigma^2; a smooth signal sampled
+    well above its bandwidth contributes (omega dt)^3 of its amplitude; steps (friction
+    reversals) are outliers the median ignores.
+    """
+    d = np.diff(np.asarray(y, dtype=float), n=3, axis=0).ravel()
+    mad = np.median(np.abs(d - np.median(d)))
+    return float(1.4826 * mad / math.sqrt(20.0))
+
+
+def nrmse(y: np.ndarray, yhat: np.ndarray) -> float:
+    """||y - yhat|| / ||y - mean(y)|| (columns: one mean per actuator)."""
+    y = np.asarray(y)
+    den = float(np.linalg.norm(y - y.mean(axis=0)))
+    return float(np.linalg.norm(y - yhat)) / den if den > 0 else float("nan")
+
+
+def harmonic(t: np.ndarray, y: np.ndarray, f: float) -> complex:
+    """Complex amplitude of y at f (least squares with an offset), over whole periods of t."""
+    w = 2.0 * math.pi * f
+    T = 1.0 / f
+    n_per = math.floor((t[-1] - t[0]) / T + 1e-9)
+    if n_per < 1:
+        keep = np.ones_like(t, dtype=bool)
+    else:
+        keep = t <= t[-1] - ((t[-1] - t[0]) - n_per * T) + 1e-12
+    tt, yy = t[keep], y[keep]
+    basis = np.column_stack([np.ones_like(tt), np.cos(w * tt), np.sin(w * tt)])
+    c = np.linalg.lstsq(basis, yy, rcond=None)[0]
+    return complex(c[1], -c[2])
+
+
+def localise(t: np.ndarray, r: np.ndarray, omega: np.ndarray, acc: np.ndarray, frequency: Optional[float],
+             sigma: float) -> dict:
+    """Where in the cycle the residual r (n, 3) concentrates.
+
+    Energy shares of the residual near velocity reversals (|omega| < 15 % of its peak) and
+    near peak acceleration (|acc| > 70 % of its peak), against the share of time spent
+    there (concentration = share of energy / share of time), the bias share, the
+    correlation with sign(velocity), velocity and acceleration, and for sine tests the
+    residual's harmonics.
+    """
+    e = r ** 2
+    total = float(e.sum()) or 1e-300
+    out: dict = {"rms": float(np.sqrt(e.mean())), "rms_over_noise": float(np.sqrt(e.mean()) / sigma) if sigma > 0 else None}
+    zones = {"velocity reversals": np.abs(omega) < 0.15 * np.abs(omega).max(axis=0),
+             "peak acceleration": np.abs(acc) > 0.7 * np.abs(acc).max(axis=0)}
+    for name, mask in zones.items():
+        share_e = float(e[mask].sum()) / total
+        share_t = float(mask.mean())
+        out[name] = {"energy_share": round(share_e, 4), "time_share": round(share_t, 4),
+                     "concentration": round(share_e / share_t, 3) if share_t > 0 else None}
+    out["bias_share"] = round(float((r.mean(axis=0) ** 2).sum() / (e.mean(axis=0).sum() or 1e-300)), 4)
+
+    def corr(a: np.ndarray) -> float:
+        a = a - a.mean(axis=0)
+        rr = r - r.mean(axis=0)
+        den = float(np.linalg.norm(a) * np.linalg.norm(rr))
+        return round(float((a * rr).sum()) / den, 3) if den > 0 else 0.0
+
+    out["correlation"] = {"sign(velocity)": corr(np.sign(omega)), "velocity": corr(omega), "acceleration": corr(acc)}
+    if frequency:
+        h1 = [harmonic(t, r[:, j], frequency) for j in range(r.shape[1])]
+        h3 = [harmonic(t, r[:, j], 3 * frequency) for j in range(r.shape[1])]
+        a1 = float(np.mean([abs(c) for c in h1]))
+        out["harmonic_1"] = a1
+        out["harmonic_3_over_1"] = round(float(np.mean([abs(c) for c in h3])) / a1, 3) if a1 > 0 else None
+    words = []
+    for name in zones:
+        c = out[name]["concentration"]
+        if c is not None and c > 1.5:
+            words.append(f"concentrates at {name} ({c:.1f} x its share of time)")
+    if out["bias_share"] > 0.5:
+        words.append("mostly a bias")
+    best = max(out["correlation"].items(), key=lambda kv: abs(kv[1]))
+    if abs(best[1]) > 0.5:
+        words.append(f"follows {best[0]} (correlation {best[1]:+.2f})")
+    out["summary"] = "; ".join(words) if words else "no concentration (spread over the cycle)"
+    return out
+
+
+def frequency_slope(freqs: Sequence[float], amps: Sequence[float]) -> Optional[float]:
+    """Slope of log(residual harmonic amplitude) against log(f): 0 flat, 1 grows with f, 2 with f^2."""
+    pts = [(math.log(f), math.log(a)) for f, a in zip(freqs, amps) if f and a and a > 0]
+    if len(pts) < 2:
+        return None
+    x, y = np.array(pts).T
+    return float(np.polyfit(x, y, 1)[0])

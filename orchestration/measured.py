@@ -1,0 +1,423 @@
+"""Measured data: a folder of tests (one CSV each) and a meta.json; loading, validation, replay.
+
+Format (docs/measured-data.md): columns ``time``, ``rho_cmd_1..3``, ``rho_1..3`` and
+``tau_m_1..3`` (or ``i_m_1..3`` with ``k_T`` in meta.json), optional pose columns
+``x, y, z, psi, theta, phi``; meta.json names the tests, their units and the measurement
+chain the lab knows (the drive's torque filter). Every problem (irregular sampling, gaps,
+NaNs, missing columns, units that are unknown or give implausible values) is a
+MeasuredDataError naming the file and the column.
+
+The simulation of a test is driven by the commands in the data: ``CommandReplay`` turns the
+recorded joint commands into the pose commands the SSP's controller takes (direct
+kinematics with the controller's own geometry), so that the controller's inverse
+kinematics gives back the recorded rho_cmd (to 1e-12 m) at its position-loop ticks.
+"""
+from __future__ import annotations
+
+import csv
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Mapping, Optional, Sequence, Union
+
+import numpy as np
+
+FORMAT = "mast-measured-data"
+VERSION = 1
+AXES = (1, 2, 3)
+POSE_COLUMNS = ("x", "y", "z", "psi", "theta", "phi")
+
+#: accepted unit strings -> factor to SI, per quantity
+UNITS: dict[str, dict[str, float]] = {
+    "time": {"s": 1.0, "ms": 1e-3, "us": 1e-6},
+    "length": {"m": 1.0, "mm": 1e-3, "um": 1e-6},
+    "torque": {"N.m": 1.0, "Nm": 1.0, "N m": 1.0, "mN.m": 1e-3, "mNm": 1e-3},
+    "current": {"A": 1.0, "mA": 1e-3},
+    "angle": {"rad": 1.0, "deg": math.pi / 180.0, "mrad": 1e-3},
+}
+#: the unit key in meta.json of each column group, and its quantity
+UNIT_KEYS = {"time": "time", "rho_cmd": "length", "rho": "length", "tau_m": "torque", "i_m": "current",
+             "position": "length", "angle": "angle"}
+#: plausibility limits after conversion to SI (catch a wrong unit)
+MAX_TORQUE = 10.0      # N m at the motor shaft (Maxon RE 40: 2.5 N m stall torque)
+MIN_TORQUE = 1e-4      # N m: the largest |tau| of a test must exceed this
+MAX_CURRENT = 100.0    # A
+MIN_STEP, MAX_STEP = 1e-5, 0.05   # s between samples
+JITTER = 0.01          # relative deviation of a sampling step from the median
+MIN_SAMPLES = 50
+
+
+class MeasuredDataError(ValueError):
+    """The measured-data folder does not follow docs/measured-data.md."""
+
+
+@dataclass
+class MeasuredTest:
+    """One test, in SI units, time starting at 0."""
+
+    name: str
+    file: Path
+    time: np.ndarray                 # (n,) s, from 0
+    rho_cmd: np.ndarray              # (n, 3) m
+    rho: np.ndarray                  # (n, 3) m
+    tau_m: np.ndarray                # (n, 3) N m (from i_m * k_T when the data hold currents)
+    motion: Optional[str] = None
+    amplitude: Optional[float] = None   # m for z, rad for psi/theta
+    frequency: Optional[float] = None   # Hz (sine tests)
+    role: Optional[str] = None          # "training" / "held-out" / None (the diagnosis decides)
+    settle_s: float = 1.0               # analysis starts here
+    pose: dict[str, np.ndarray] = field(default_factory=dict)
+    time_offset: float = 0.0            # the file's first time stamp [s]
+
+    @property
+    def sample_time(self) -> float:
+        return float(np.median(np.diff(self.time)))
+
+    @property
+    def duration(self) -> float:
+        return float(self.time[-1])
+
+    def label(self) -> str:
+        if self.motion and self.frequency:
+            return f"{self.motion} {self.frequency:g} Hz"
+        return self.name
+
+
+@dataclass
+class MeasuredData:
+    folder: Path
+    meta: dict
+    tests: list[MeasuredTest]
+    torque_filter_s: float = 0.0        # the drive's documented torque filter (first-order) [s]
+    torque_delay_s: float = 0.0         # documented logging delay [s]
+
+    def test(self, name: str) -> MeasuredTest:
+        for t in self.tests:
+            if t.name == name:
+                return t
+        raise KeyError(f"{self.folder}: no test named {name!r}; tests: {', '.join(t.name for t in self.tests)}")
+
+
+# --------------------------------------------------------------------------------------
+# loading
+# --------------------------------------------------------------------------------------
+def _unit_factor(meta_units: Mapping[str, str], key: str, where: str) -> float:
+    quantity = UNIT_KEYS[key]
+    if key not in meta_units:
+        raise MeasuredDataError(f"{where}: meta.json 'units' has no entry for '{key}' "
+                                f"(one of {', '.join(UNITS[quantity])})")
+    unit = str(meta_units[key]).strip()
+    if unit not in UNITS[quantity]:
+        raise MeasuredDataError(f"{where}: unit '{unit}' for '{key}' is not known; expected one of "
+                                f"{', '.join(UNITS[quantity])}")
+    return UNITS[quantity][unit]
+
+
+def _read_csv(path: Path) -> tuple[list[str], np.ndarray]:
+    try:
+        with path.open(newline="", encoding="utf-8") as handle:
+            rows = [r for r in csv.reader(handle) if r and not r[0].lstrip().startswith("#")]
+    except OSError as err:
+        raise MeasuredDataError(f"{path.name}: cannot read: {err}") from None
+    if not rows:
+        raise MeasuredDataError(f"{path.name}: empty file (expected a header line and data)")
+    header = [h.strip() for h in rows[0]]
+    if len(set(header)) != len(header):
+        dup = sorted({h for h in header if header.count(h) > 1})
+        raise MeasuredDataError(f"{path.name}: column(s) {', '.join(dup)} appear twice in the header")
+    data = np.full((len(rows) - 1, len(header)), np.nan)
+    for i, row in enumerate(rows[1:]):
+        if len(row) != len(header):
+            raise MeasuredDataError(f"{path.name}: line {i + 2} has {len(row)} fields, the header has {len(header)}")
+        for j, cell in enumerate(row):
+            cell = cell.strip()
+            try:
+                data[i, j] = float(cell) if cell else np.nan
+            except ValueError:
+                raise MeasuredDataError(f"{path.name}: column {header[j]}: {cell!r} on line {i + 2} "
+                                        "is not a number") from None
+    return header, data
+
+
+def _finite(name: str, column: str, values: np.ndarray, time: Optional[np.ndarray]) -> None:
+    bad = ~np.isfinite(values)
+    if bad.any():
+        k = int(np.argmax(bad))
+        at = f" (t = {time[k]:.6g} s)" if time is not None and np.isfinite(time[k]) else ""
+        raise MeasuredDataError(f"{name}: column {column}: {int(bad.sum())} missing or non-finite value(s), "
+                                f"the first on data row {k + 1}{at}")
+
+
+def _check_sampling(name: str, t: np.ndarray) -> None:
+    if len(t) < MIN_SAMPLES:
+        raise MeasuredDataError(f"{name}: column time: {len(t)} samples, expected at least {MIN_SAMPLES}")
+    dt = np.diff(t)
+    if (dt <= 0).any():
+        k = int(np.argmax(dt <= 0))
+        raise MeasuredDataError(f"{name}: column time: not increasing at data row {k + 2} "
+                                f"(t = {t[k]:.9g} s then {t[k + 1]:.9g} s)")
+    step = float(np.median(dt))
+    if not MIN_STEP <= step <= MAX_STEP:
+        raise MeasuredDataError(f"{name}: column time: sampling step {step:.3g} s is implausible for a dynamic "
+                                f"test (expected {MIN_STEP:g} to {MAX_STEP:g} s): check units.time")
+    dev = np.abs(dt - step) / step
+    if (dev > JITTER).any():
+        k = int(np.argmax(dev))
+        if dt[k] > 1.5 * step:
+            raise MeasuredDataError(f"{name}: column time: gap of {dt[k]:.6g} s after t = {t[k]:.9g} s "
+                                    f"(data row {k + 1}); the sampling step is {step:.6g} s. Regular sampling "
+                                    "without gaps is required: split the test or fill the gap in the source")
+        raise MeasuredDataError(f"{name}: column time: irregular sampling: step {dt[k]:.6g} s at t = {t[k]:.9g} s "
+                                f"(data row {k + 1}) against the median {step:.6g} s (tolerance {100 * JITTER:g} %); "
+                                "resample to a regular grid first")
+
+
+def load(folder: Union[str, Path], stroke: tuple[float, float] = (0.0, 0.3)) -> MeasuredData:
+    """Read and validate a measured-data folder (SI units, time from 0 in every test).
+
+    ``stroke`` [m]: carriage positions outside it (with 10 mm margin) are reported as a
+    unit problem.
+    """
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise MeasuredDataError(f"{folder}: no such folder")
+    meta_path = folder / "meta.json"
+    if not meta_path.exists():
+        raise MeasuredDataError(f"{folder}: no meta.json (see docs/measured-data.md)")
+    try:
+        meta = json.loads(meta_path.read_text())
+    except json.JSONDecodeError as err:
+        raise MeasuredDataError(f"meta.json: not valid JSON: {err}") from None
+    if meta.get("format", FORMAT) != FORMAT:
+        raise MeasuredDataError(f"meta.json: format {meta.get('format')!r}, expected {FORMAT!r}")
+    units = meta.get("units")
+    if not isinstance(units, dict):
+        raise MeasuredDataError("meta.json: no 'units' object (e.g. {\"time\": \"s\", \"rho_cmd\": \"m\", "
+                                "\"rho\": \"m\", \"tau_m\": \"N.m\"})")
+    tests_meta = meta.get("tests")
+    if not isinstance(tests_meta, list) or not tests_meta:
+        raise MeasuredDataError("meta.json: 'tests' must be a non-empty list of {\"file\": ..., ...}")
+    listed = []
+    for k, entry in enumerate(tests_meta):
+        if not isinstance(entry, dict) or "file" not in entry:
+            raise MeasuredDataError(f"meta.json: tests[{k}] has no 'file'")
+        listed.append(str(entry["file"]))
+    for csv_file in sorted(folder.glob("*.csv")):
+        if csv_file.name not in listed:
+            raise MeasuredDataError(f"{csv_file.name}: not listed in meta.json 'tests' (list it or move it away)")
+    measurement = meta.get("measurement", {}) or {}
+    filt = float(measurement.get("torque_filter_s", 0.0) or 0.0)
+    delay = float(measurement.get("torque_delay_s", 0.0) or 0.0)
+    if filt < 0 or delay < 0 or not math.isfinite(filt + delay):
+        raise MeasuredDataError("meta.json: measurement.torque_filter_s and torque_delay_s must be finite and >= 0")
+    k_T = meta.get("k_T")
+    tests = [_load_test(folder, entry, units, k_T, stroke) for entry in tests_meta]
+    names = [t.name for t in tests]
+    if len(set(names)) != len(names):
+        raise MeasuredDataError("meta.json: two tests have the same name")
+    return MeasuredData(folder, meta, tests, filt, delay)
+
+
+def _load_test(folder: Path, entry: dict, units: Mapping[str, str], k_T, stroke) -> MeasuredTest:
+    name = str(entry["file"])
+    path = folder / name
+    if not path.exists():
+        raise MeasuredDataError(f"{name}: listed in meta.json but not in {folder}")
+    header, data = _read_csv(path)
+    col = {h: j for j, h in enumerate(header)}
+    torque_cols = [f"tau_m_{j}" for j in AXES]
+    current_cols = [f"i_m_{j}" for j in AXES]
+    use_current = not all(c in col for c in torque_cols) and all(c in col for c in current_cols)
+    needed = ["time"] + [f"rho_cmd_{j}" for j in AXES] + [f"rho_{j}" for j in AXES] + \
+        (current_cols if use_current else torque_cols)
+    missing = [c for c in needed if c not in col]
+    if missing:
+        raise MeasuredDataError(f"{name}: missing column(s) {', '.join(missing)}; expected time, rho_cmd_1..3, "
+                                "rho_1..3 and tau_m_1..3 (or i_m_1..3 with k_T in meta.json)")
+    if len(data) == 0:
+        raise MeasuredDataError(f"{name}: no data rows")
+    t_raw = data[:, col["time"]]
+    _finite(name, "time", t_raw, None)
+    t = t_raw * _unit_factor(units, "time", name)
+    _check_sampling(name, t)
+    out = {}
+    f_len = _unit_factor(units, "rho_cmd", name)
+    f_rho = _unit_factor(units, "rho", name)
+    lo, hi = stroke[0] - 0.01, stroke[1] + 0.01
+    for group, factor in (("rho_cmd", f_len), ("rho", f_rho)):
+        cols = []
+        for j in AXES:
+            c = f"{group}_{j}"
+            v = data[:, col[c]]
+            _finite(name, c, v, t)
+            v = v * factor
+            if v.min() < lo or v.max() > hi:
+                bad = v.max() if v.max() > hi else v.min()
+                raise MeasuredDataError(f"{name}: column {c}: {bad:.6g} m lies outside the stroke "
+                                        f"[{stroke[0]:g}, {stroke[1]:g}] m: check units.{group} "
+                                        f"(now '{units.get(group)}')")
+            cols.append(v)
+        out[group] = np.column_stack(cols)
+    if use_current:
+        f_cur = _unit_factor(units, "i_m", name)
+        if k_T is None:
+            raise MeasuredDataError(f"{name}: columns i_m_1..3 need the torque constant 'k_T' [N.m/A] in meta.json")
+        try:
+            kT = float(k_T)
+        except (TypeError, ValueError):
+            kT = float("nan")
+        if not kT > 0 or not math.isfinite(kT):
+            raise MeasuredDataError(f"meta.json: k_T = {k_T!r}: expected a positive number [N.m/A]")
+        cols = []
+        for c in current_cols:
+            v = data[:, col[c]]
+            _finite(name, c, v, t)
+            v = v * f_cur
+            if np.abs(v).max() > MAX_CURRENT:
+                raise MeasuredDataError(f"{name}: column {c}: |i| up to {np.abs(v).max():.6g} A is implausible "
+                                        f"(> {MAX_CURRENT:g} A): check units.i_m (now '{units.get('i_m')}')")
+            cols.append(v * kT)
+        tau = np.column_stack(cols)
+        tcols = current_cols
+    else:
+        f_tau = _unit_factor(units, "tau_m", name)
+        cols = []
+        for c in torque_cols:
+            v = data[:, col[c]]
+            _finite(name, c, v, t)
+            cols.append(v * f_tau)
+        tau = np.column_stack(cols)
+        tcols = torque_cols
+    for j, c in enumerate(tcols):
+        peak = float(np.abs(tau[:, j]).max())
+        unit_key = "i_m" if use_current else "tau_m"
+        if peak > MAX_TORQUE:
+            raise MeasuredDataError(f"{name}: column {c}: motor torque up to {peak:.6g} N.m is implausible "
+                                    f"(> {MAX_TORQUE:g} N.m): check units.{unit_key} (now '{units.get(unit_key)}')")
+        if peak < MIN_TORQUE:
+            raise MeasuredDataError(f"{name}: column {c}: motor torque never exceeds {peak:.3g} N.m: "
+                                    f"check units.{unit_key} (now '{units.get(unit_key)}')")
+    pose = {}
+    for c in POSE_COLUMNS:
+        if c in col:
+            key = "position" if c in ("x", "y", "z") else "angle"
+            v = data[:, col[c]]
+            _finite(name, c, v, t)
+            pose[c] = v * _unit_factor(units, key, name)
+    motion = entry.get("motion")
+    amplitude = entry.get("amplitude")
+    if amplitude is not None:
+        unit = entry.get("amplitude_unit", "m" if motion == "z" else "rad")
+        quantity = "length" if unit in UNITS["length"] else "angle"
+        if unit not in UNITS[quantity]:
+            raise MeasuredDataError(f"meta.json: test {name}: amplitude_unit '{unit}' is not known")
+        amplitude = float(amplitude) * UNITS[quantity][unit]
+    frequency = entry.get("frequency")
+    if frequency is not None:
+        frequency = float(frequency)
+        if not frequency > 0:
+            raise MeasuredDataError(f"meta.json: test {name}: frequency {frequency!r} Hz: expected > 0")
+    role = entry.get("role")
+    if role not in (None, "training", "held-out"):
+        raise MeasuredDataError(f"meta.json: test {name}: role {role!r}: expected 'training' or 'held-out'")
+    settle = float(entry.get("settle_s", min(1.0, 0.3 * (t[-1] - t[0]))))
+    if not 0 <= settle < t[-1] - t[0]:
+        raise MeasuredDataError(f"meta.json: test {name}: settle_s = {settle!r} s: expected 0 <= settle_s < "
+                                f"duration {t[-1] - t[0]:.6g} s")
+    return MeasuredTest(name=Path(name).stem, file=path, time=t - t[0], rho_cmd=out["rho_cmd"], rho=out["rho"],
+                        tau_m=tau, motion=motion, amplitude=amplitude, frequency=frequency, role=role,
+                        settle_s=settle, pose=pose, time_offset=float(t[0]))
+
+
+# --------------------------------------------------------------------------------------
+# writing (synthesize, and labs converting their logs)
+# --------------------------------------------------------------------------------------
+def write_test_csv(path: Path, time: np.ndarray, rho_cmd: np.ndarray, rho: np.ndarray, tau_m: np.ndarray,
+                   pose: Optional[Mapping[str, np.ndarray]] = None) -> None:
+    names = ["time"] + [f"rho_cmd_{j}" for j in AXES] + [f"rho_{j}" for j in AXES] + [f"tau_m_{j}" for j in AXES]
+    cols = [time, *rho_cmd.T, *rho.T, *tau_m.T]
+    for k, v in (pose or {}).items():
+        names.append(k)
+        cols.append(v)
+    table = np.column_stack(cols)
+    fmt = ["%.9f"] + ["%.12g"] * 3 + ["%.12g"] * 3 + ["%.9g"] * 3 + ["%.9g"] * len(pose or {})
+    np.savetxt(path, table, delimiter=",", header=",".join(names), comments="", fmt=fmt)
+
+
+# --------------------------------------------------------------------------------------
+# replay: drive the co-simulation by the recorded joint commands
+# --------------------------------------------------------------------------------------
+class CommandReplay:
+    """Stimulus (mast.master.Stimulus) replaying recorded joint commands as pose commands.
+
+    The controller of the SSP takes pose commands and converts them with its own inverse
+    kinematics; the recorded rho_cmd are turned into poses once, with the direct
+    kinematics of the same geometry (warm-started Newton, 1e-13 m), and the pose is
+    interpolated linearly in time between samples. At the samples (and so at the
+    controller's position ticks when the data are logged at the position-loop rate or a
+    divisor of it) the controller's IK returns the recorded rho_cmd to 1e-12 m.
+    """
+
+    reads: Sequence[str] = ()
+
+    def __init__(self, time: np.ndarray, rho_cmd: np.ndarray, geometry) -> None:
+        from fmus.mechanism.kinematics import direct_kinematics, inverse_kinematics
+
+        self.time = np.asarray(time, dtype=float)
+        n = len(self.time)
+        poses = np.empty((n, 3))
+        guess = None
+        worst = 0.0
+        for k in range(n):
+            q = direct_kinematics(geometry, rho_cmd[k], guess=guess, tol=1e-13)
+            poses[k] = q
+            guess = q
+        for k in range(0, n, max(1, n // 50)):   # spot check the round trip
+            worst = max(worst, float(np.abs(inverse_kinematics(geometry, *poses[k]) - rho_cmd[k]).max()))
+        if worst > 1e-9:
+            raise MeasuredDataError(f"command replay: IK(DK(rho_cmd)) differs from rho_cmd by {worst:.3g} m")
+        self.poses = poses
+        self._t0 = float(self.time[0])
+        self._dt = float((self.time[-1] - self.time[0]) / (n - 1))
+        self._n = n
+        self._rows = [tuple(map(float, p)) for p in poses]
+
+    def start(self, t0: float, read) -> None:
+        pass
+
+    def __call__(self, t: float) -> list[float]:
+        s = (t - self._t0) / self._dt
+        if s <= 0.0:
+            return list(self._rows[0])
+        k = int(s)
+        if k >= self._n - 1:
+            return list(self._rows[-1])
+        f = s - k
+        a = self._rows[k]
+        if f < 1e-9:
+            return list(a)
+        b = self._rows[k + 1]
+        if f > 1.0 - 1e-9:
+            return list(b)
+        return [a[0] + f * (b[0] - a[0]), a[1] + f * (b[1] - a[1]), a[2] + f * (b[2] - a[2])]
+
+
+def controller_geometry(ssp: Union[str, Path], overrides: Optional[Mapping[str, Mapping]] = None,
+                        controller: str = "controller"):
+    """The Geometry the SSP binds to its controller (with ``overrides``)."""
+    from fmus.mechanism.kinematics import Geometry
+
+    from .ssp import SSPArchive
+
+    with SSPArchive(ssp) as archive:
+        params = dict(archive.system.components[controller].parameters)
+    params.update((overrides or {}).get(controller, {}))
+    return Geometry.checked(params, controller)
+
+
+def actuator_names(ssp: Union[str, Path]) -> list[str]:
+    from .ssp import SSPArchive
+
+    with SSPArchive(ssp) as archive:
+        return [n for n in archive.system.components if n.startswith("actuator_")]

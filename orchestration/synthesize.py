@@ -1,0 +1,193 @@
+"""Synthetic measurements with a hidden effect: ``mast synthesize``.
+
+Runs the co-simulation with a *truth* (the SSP's parameters plus ``--set`` overrides),
+then measures it the way a lab would: the drive's torque filter (first-order low-pass,
+documented in meta.json), white sensor noise on the logged torque, encoder quantisation
+and noise of the carriage positions, sampling at the log rate. The joint commands are
+logged as the drive sees them: the controller's inverse kinematics of the pose command at
+each sample. Writes a measured-data folder (docs/measured-data.md) and, *outside* it, the
+truth (``DIR.truth.json`` by default): the diagnosis never reads that file.
+"""
+from __future__ import annotations
+
+import json
+import math
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Mapping, Optional, Sequence
+
+import numpy as np
+
+from fmus.actuator.sensor import measure
+
+from .measured import AXES, FORMAT, VERSION, controller_geometry, write_test_csv
+
+#: the drive's torque filter that every synthetic measurement goes through [s] (about 320 Hz)
+DEFAULT_TORQUE_FILTER = 5e-4
+#: sensor noise (standard deviation) on the logged torque [N m] and carriage position [m]
+DEFAULT_NOISE = {"tau_m": 2e-3, "rho": 0.0}
+#: encoder resolution of the carriage position [m]
+DEFAULT_RESOLUTION = {"rho": 1e-6}
+DEFAULT_SAMPLE_TIME = 1e-3
+SETTLE_S = 1.0
+
+
+@dataclass(frozen=True)
+class TestSpec:
+    """One sine test: motion z (amplitude in m) or psi/theta (amplitude in rad)."""
+
+    motion: str
+    amplitude: float
+    frequency: float
+    duration: float = 0.0     # 0: SETTLE_S + 2 periods, at least 2 s
+
+    def stop_time(self) -> float:
+        return self.duration or max(2.0, SETTLE_S + 2.0 / self.frequency)
+
+    @property
+    def name(self) -> str:
+        return f"{self.motion}_{self.frequency:g}Hz"
+
+
+#: the default test plan: z sines over the paper's range, and one psi and one theta test
+DEFAULT_TESTS: tuple[TestSpec, ...] = (
+    TestSpec("z", 0.005, 0.4),
+    TestSpec("theta", math.radians(0.8), 0.8),
+    TestSpec("z", 0.005, 1.0),
+    TestSpec("z", 0.005, 2.0),
+    TestSpec("psi", math.radians(0.8), 3.0),
+    TestSpec("z", 0.005, 5.0),
+    TestSpec("z", 0.005, 10.0),
+)
+
+
+def parse_tests(text: str) -> list[TestSpec]:
+    """'z:0.005:0.4,theta:0.8:2' (amplitude in m for z, degrees for psi/theta; frequency in Hz)."""
+    tests = []
+    for item in text.split(","):
+        parts = item.strip().split(":")
+        if len(parts) not in (3, 4) or parts[0] not in ("z", "psi", "theta"):
+            raise ValueError(f"--tests item {item!r}: expected MOTION:AMPLITUDE:FREQUENCY[:DURATION], "
+                             "motion z, psi or theta")
+        a, f = float(parts[1]), float(parts[2])
+        d = float(parts[3]) if len(parts) == 4 else 0.0
+        tests.append(TestSpec(parts[0], a if parts[0] == "z" else math.radians(a), f, d))
+    return tests
+
+
+def expand_overrides(overrides: Mapping[str, Mapping], components: Sequence[str]) -> dict[str, dict]:
+    """``actuator.X`` (or ``actuators.X``) applies X to every actuator_k; other elements as given."""
+    out: dict[str, dict] = {}
+    actuators = [c for c in components if c.startswith("actuator_")]
+    for element, values in overrides.items():
+        targets = actuators if element in ("actuator", "actuators") else [element]
+        for t in targets:
+            if t not in components:
+                raise ValueError(f"--set {element}.*: no component '{t}' (components: {', '.join(components)})")
+            out.setdefault(t, {}).update(values)
+    return out
+
+
+def _synth_worker(args: tuple) -> dict:
+    from .motion import SineMotion
+    from .run import simulate
+
+    ssp, spec, parameters, direct = args
+    record = ["z_cmd", "psi_cmd", "theta_cmd", "mechanism.z", "mechanism.psi", "mechanism.theta"]
+    for j in AXES:
+        record += [f"actuator_{j}.rho", f"actuator_{j}.tau_meas", f"actuator_{j}.tau_m"]
+    res = simulate(ssp, SineMotion(spec.motion, spec.amplitude, spec.frequency), spec.stop_time(),
+                   parameters=parameters, record=record, record_step=1e-9, direct=direct)
+    return {"time": res.time, **res.signals, "base_step": res.stats["base_step"]}
+
+
+def synthesize(ssp: str, out: Path, truth: Mapping[str, Mapping] = None, tests: Sequence[TestSpec] = DEFAULT_TESTS,
+               noise: Optional[Mapping[str, float]] = None, resolution: Optional[Mapping[str, float]] = None,
+               torque_filter_s: float = DEFAULT_TORQUE_FILTER, sample_time: float = DEFAULT_SAMPLE_TIME,
+               seed: int = 0, direct: bool = False, workers: int = 2, truth_path: Optional[Path] = None,
+               log=print) -> dict:
+    """Write the measured-data folder ``out`` and the truth file; return the noise-free signals too."""
+    from fmus.mechanism.kinematics import inverse_kinematics
+
+    from .ssp import SSPArchive
+
+    out = Path(out)
+    noise = {**DEFAULT_NOISE, **(noise or {})}
+    resolution = {**DEFAULT_RESOLUTION, **(resolution or {})}
+    for key in noise:
+        if key not in ("tau_m", "rho"):
+            raise ValueError(f"--noise {key}: expected tau_m or rho")
+    with SSPArchive(ssp) as archive:
+        components = list(archive.system.components)
+        base = archive.system.base_step
+    truth = expand_overrides(truth or {}, components)
+    geometry = controller_geometry(ssp, truth)
+    every = round(sample_time / base)
+    if every < 1 or abs(every * base - sample_time) > 1e-9 * sample_time:
+        raise ValueError(f"--sample-time {sample_time:g} s: expected a whole multiple of the base step {base:g} s")
+    out.mkdir(parents=True, exist_ok=True)
+    for old in out.glob("*.csv"):
+        old.unlink()
+    jobs = [(str(ssp), spec, truth, direct) for spec in tests]
+    names = [spec.name for spec in tests]
+    if len(set(names)) != len(names):
+        raise ValueError("two tests with the same motion and frequency")
+    workers = max(1, min(workers, len(jobs)))
+    if workers > 1:
+        with ProcessPoolExecutor(max_workers=workers) as pool:
+            runs = list(pool.map(_synth_worker, jobs))
+    else:
+        runs = [_synth_worker(j) for j in jobs]
+    clean = {}
+    entries = []
+    for k, (spec, run) in enumerate(zip(tests, runs)):
+        rng = np.random.default_rng([seed, k])
+        h = run["base_step"]
+        idx = np.arange(0, len(run["time"]), every)
+        t = run["time"][idx]
+        poses = np.column_stack([run["z_cmd"][idx], run["psi_cmd"][idx], run["theta_cmd"][idx]])
+        rho_cmd = np.array([inverse_kinematics(geometry, *q) for q in poses])
+        rho = np.column_stack([run[f"actuator_{j}.rho"][idx] for j in AXES])
+        tau_fine = np.column_stack([run[f"actuator_{j}.tau_meas"] for j in AXES])
+        tau = measure(tau_fine, h, T=torque_filter_s, axis=0)[idx]
+        clean[spec.name] = {"time": t, "rho_cmd": rho_cmd, "rho": rho.copy(), "tau_m": tau.copy(),
+                            "tau_m_plant": np.column_stack([run[f"actuator_{j}.tau_m"][idx] for j in AXES])}
+        rho_meas = rho + noise["rho"] * rng.standard_normal(rho.shape)
+        if resolution.get("rho"):
+            q = resolution["rho"]
+            rho_meas = np.round(rho_meas / q) * q
+        tau_meas = tau + noise["tau_m"] * rng.standard_normal(tau.shape)
+        pose = {a: run[f"mechanism.{a}"][idx] for a in ("z", "psi", "theta")}
+        file = f"{spec.name}.csv"
+        write_test_csv(out / file, t, rho_cmd, rho_meas, tau_meas, pose)
+        entries.append({"file": file, "motion": spec.motion,
+                        "amplitude": spec.amplitude if spec.motion == "z" else math.degrees(spec.amplitude),
+                        "amplitude_unit": "m" if spec.motion == "z" else "deg",
+                        "frequency": spec.frequency, "settle_s": min(SETTLE_S, 0.5 * spec.stop_time())})
+    meta = {
+        "format": FORMAT, "version": VERSION,
+        "machine": "MAST (synthetic: mast synthesize)",
+        "description": "Sine tests around the home pose; joint commands as logged by the drive",
+        "units": {"time": "s", "rho_cmd": "m", "rho": "m", "tau_m": "N.m", "position": "m", "angle": "rad"},
+        "measurement": {
+            "torque_filter_s": torque_filter_s,
+            "torque_filter": "first-order low-pass of the drive's torque (current) measurement",
+            "rho_resolution_m": resolution.get("rho", 0.0),
+            "sample_time_s": sample_time,
+        },
+        "tests": entries,
+    }
+    (out / "meta.json").write_text(json.dumps(meta, indent=2))
+    truth_path = Path(truth_path) if truth_path else out.parent / f"{out.name}.truth.json"
+    truth_doc = {
+        "note": "The truth behind the synthetic measurements in the folder next to this file. "
+                "The diagnosis never reads it.",
+        "ssp": str(ssp), "parameters": truth, "seed": seed,
+        "measurement": {"noise_std": noise, "resolution": resolution, "torque_filter_s": torque_filter_s,
+                        "sample_time_s": sample_time},
+        "tests": [asdict(s) for s in tests],
+    }
+    truth_path.write_text(json.dumps(truth_doc, indent=2))
+    log(f"wrote {len(tests)} tests to {out} (meta.json), the truth to {truth_path}")
+    return {"folder": out, "truth": truth_path, "clean": clean}

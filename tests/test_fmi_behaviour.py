@@ -1,0 +1,410 @@
+"""What hosts rely on, through the FMI C API of the built FMUs (fmpy's FMU2Slave, raw status codes).
+
+Several instances in one process; two versions of one FMU in one process; 200 instantiate/free
+cycles (and failing ones) without a crash or growing memory; reset; get/set FMU state; model
+errors as fmi2Discard with the cause logged; parameter errors at initialisation; the Python
+requirements each FMU carries.
+"""
+from __future__ import annotations
+
+import ast
+import ctypes
+import functools
+import importlib.metadata
+import json
+import shutil
+import subprocess
+import sys
+import textwrap
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import mast.build as build
+from mast.build import FMU_REQUIREMENTS, FMUS, build_all, build_fmu
+
+ROOT = Path(__file__).resolve().parents[1]
+OK, WARNING, DISCARD, ERROR, FATAL = range(5)
+IDENTIFIERS = [spec.model_identifier for spec in FMUS if spec.model_identifier in
+               ("MastActuator", "MastMechanism", "MastController", "MastTrajectory")]
+
+
+@pytest.fixture(scope="module")
+def built(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("build")
+    build_all(out, log=lambda *_: None)
+    return out
+
+
+@functools.lru_cache(maxsize=None)
+def model_description(fmu: str):
+    from fmpy import read_model_description
+
+    return read_model_description(fmu)
+
+
+class Instance:
+    """One FMU instance through fmpy, with its log and the raw status of each call."""
+
+    def __init__(self, fmu: Path, name: str, unzip: Path | None = None) -> None:
+        from fmpy import extract
+        from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
+                               fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, calloc, free)
+
+        self.md = model_description(str(fmu))
+        self.unzip = unzip or Path(extract(str(fmu)))
+        self.log: list[tuple[int, str]] = []
+        self.vr = {v.name: v.valueReference for v in self.md.modelVariables}
+        self.inputs = [v.name for v in self.md.modelVariables if v.causality == "input"]
+        self.outputs = [v.name for v in self.md.modelVariables if v.causality == "output"]
+        self.slave = FMU2Slave(guid=self.md.guid, unzipDirectory=str(self.unzip),
+                               modelIdentifier=self.md.coSimulation.modelIdentifier, instanceName=name)
+
+        def logger(_env, _name, status, _category, message):
+            self.log.append((status, (message or b"").decode(errors="replace")))
+
+        self._callbacks = fmi2CallbackFunctions()
+        self._callbacks.logger = fmi2CallbackLoggerTYPE(logger)
+        self._callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+        self._callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+        self.slave.instantiate(callbacks=self._callbacks, loggingOn=True)
+        self.dll, self.c = self.slave.dll, self.slave.component
+
+    def start(self, parameters: dict | None = None, t0: float = 0.0) -> int:
+        """setupExperiment, enterInitializationMode, parameters, exitInitializationMode: the last status."""
+        self.slave.setupExperiment(startTime=t0)
+        self.slave.enterInitializationMode()
+        for name, value in (parameters or {}).items():
+            self.slave.setReal([self.vr[name]], [value])
+        return self.dll.fmi2ExitInitializationMode(self.c)
+
+    def set(self, **values: float) -> None:
+        self.slave.setReal([self.vr[n] for n in values], list(values.values()))
+
+    def get(self, names=None) -> list[float]:
+        return self.slave.getReal([self.vr[n] for n in (names or self.outputs)])
+
+    def step(self, t: float, h: float) -> int:
+        return self.dll.fmi2DoStep(self.c, t, h, 1)
+
+    def close(self) -> None:
+        self.slave.terminate()
+        self.slave.freeInstance()
+        self._callbacks = None  # the logger closure refers to self: let reference counting free both
+
+
+def drive(inst: Instance, first: int, n: int, h: float = 1e-4, seed: float = 0.0) -> np.ndarray:
+    """Steps first .. first + n - 1 (t = k h) with smooth, instance-specific inputs; the outputs after each."""
+    rows = []
+    for k in range(first, first + n):
+        t = k * h
+        if inst.inputs:
+            inst.set(**{name: _input(name, t, seed) for name in inst.inputs})
+        assert inst.step(t, h) == OK, inst.log[-3:]
+        rows.append(inst.get())
+    return np.array(rows)
+
+
+def _input(name: str, t: float, seed: float) -> float:
+    """Inputs each FMU accepts: voltages, forces, carriage motion and a pose near home."""
+    wave = np.sin(2 * np.pi * (3.0 + seed) * t)
+    base = {"u": 4.0 * wave, "F": 6.0 + seed, "z_cmd": 0.405147 + 0.003 * wave, "psi_cmd": 0.0, "theta_cmd": 0.0}
+    if name in base:
+        return float(base[name])
+    if name.startswith("rho_dot"):
+        return 0.01 * float(np.cos(2 * np.pi * 3.0 * t))
+    if name.startswith("rho_ddot"):
+        return -0.2 * wave
+    if name.startswith("rho"):
+        return 0.15 + 0.002 * wave
+    return 0.1 * wave  # omega_m_k, i_m_k
+
+
+# -- what each FMU carries ---------------------------------------------------------------------------
+def _imports(package: Path) -> set[str]:
+    names = set()
+    for file in package.rglob("*.py"):
+        for node in ast.walk(ast.parse(file.read_text())):
+            if isinstance(node, ast.Import):
+                names |= {a.name.split(".")[0] for a in node.names}
+            elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+                names.add(node.module.split(".")[0])
+    return names
+
+
+def test_each_fmu_carries_the_requirements_of_its_code_for_pythonfmu_deploy(built):
+    third_party = _imports(ROOT / "fmus") - set(sys.stdlib_module_names) - {"__future__", "pythonfmu", "pythonfmu3"}
+    required = {r.split(">")[0].split("=")[0].split("<")[0].strip() for r in FMU_REQUIREMENTS}
+    assert third_party == required, "fmus/ imports and mast.build.FMU_REQUIREMENTS disagree"
+    project = {r.split(";")[0].replace(" ", "") for r in importlib.metadata.requires("mast-cosim")}
+    assert set(FMU_REQUIREMENTS) <= project, "an FMU requirement differs from the project's own dependency"
+    for identifier in IDENTIFIERS:
+        with zipfile.ZipFile(built / "fmus" / f"{identifier}.fmu") as z:
+            assert z.read("resources/requirements.txt").decode().split() == list(FMU_REQUIREMENTS)
+            names = z.namelist()
+        assert any(n.startswith("resources/pythonfmu/") for n in names)  # pythonfmu itself travels inside
+
+
+def test_pythonfmu_deploy_installs_from_the_bundled_requirements(built):
+    """`pythonfmu deploy` runs pip on resources/requirements.txt (here everything is present already)."""
+    proc = subprocess.run([sys.executable, "-m", "pythonfmu", "deploy", "-f", str(built / "fmus" / "MastTrajectory.fmu")],
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert "numpy" in proc.stdout and "scipy" in proc.stdout
+
+
+def test_model_descriptions_declare_what_the_fmus_do(built):
+    for identifier in IDENTIFIERS:
+        from fmpy import read_model_description
+
+        cs = read_model_description(str(built / "fmus" / f"{identifier}.fmu")).coSimulation
+        assert cs.canGetAndSetFMUstate and not cs.needsExecutionTool and not cs.canBeInstantiatedOnlyOncePerProcess
+
+
+# -- several instances, several versions ---------------------------------------------------------------
+def test_instances_of_one_fmu_in_one_process_stay_independent(built):
+    fmu = built / "fmus" / "MastActuator.fmu"
+    solo = []
+    for seed in (0.0, 1.0, 2.0):
+        inst = Instance(fmu, f"solo{seed}")
+        assert inst.start({"tau_c": 0.0718} if seed == 1.0 else None) == OK
+        solo.append(drive(inst, 0, 300, seed=seed))
+        inst.close()
+    together = [Instance(fmu, f"axis{k}") for k in range(3)]
+    for k, inst in enumerate(together):
+        assert inst.start({"tau_c": 0.0718} if k == 1 else None) == OK
+    runs = [[], [], []]
+    for block in range(6):  # interleaved: 50 steps each, in turn
+        for k, inst in enumerate(together):
+            runs[k].append(drive(inst, block * 50, 50, seed=float(k)))
+    for inst in together:
+        inst.close()
+    for k in range(3):
+        np.testing.assert_array_equal(np.vstack(runs[k]), solo[k])
+    assert not np.array_equal(solo[0], solo[1])  # the parameter and the inputs made a difference
+
+
+def test_two_versions_of_one_fmu_in_one_process_each_run_their_own_code(built, tmp_path, monkeypatch):
+    """Same model identifier, same entry script name in pythonfmu's eyes, different code: no collision."""
+    changed = tmp_path / "fmus"
+    shutil.copytree(ROOT / "fmus", changed, ignore=shutil.ignore_patterns("__pycache__"))
+    model = changed / "trajectory" / "model.py"
+    source = model.read_text()
+    marker = "self.values[:] = [h + a * s for h, a in zip(self._home, self._amplitude)]"
+    assert marker in source
+    model.write_text(source.replace(marker, marker.replace("h + a * s", "h + a * s + 1.0")))
+    spec = next(s for s in FMUS if s.model_identifier == "MastTrajectory")
+    monkeypatch.setattr(build, "FMUS_SRC", changed)
+    other = build_fmu(spec, tmp_path / "other")
+    monkeypatch.undo()
+
+    def first_output(fmu: Path, name: str) -> float:
+        inst = Instance(fmu, name)
+        assert inst.start() == OK
+        value = inst.get(["z_cmd"])[0]
+        inst.close()
+        return value
+
+    original = built / "fmus" / "MastTrajectory.fmu"
+    for _ in range(2):  # each loaded and instantiated again after the other
+        assert first_output(other, "changed") == pytest.approx(first_output(original, "original") + 1.0)
+    entries = set()
+    for fmu in (original, other):
+        with zipfile.ZipFile(fmu) as z:
+            entries.add(z.read("resources/slavemodule.txt").decode().strip())
+    assert len(entries) == 2 and all(e.startswith("mast_trajectory_") for e in entries)
+
+
+def test_same_entry_and_package_names_would_collide(built, tmp_path, monkeypatch):
+    """The failure the unique names prevent: with one name for both, the second FMU runs the first one's code."""
+    changed = tmp_path / "fmus"
+    shutil.copytree(ROOT / "fmus", changed, ignore=shutil.ignore_patterns("__pycache__"))
+    model = changed / "trajectory" / "model.py"
+    model.write_text(model.read_text().replace("h + a * s for h, a", "h + a * s + 1.0 for h, a"))
+    spec = next(s for s in FMUS if s.model_identifier == "MastTrajectory")
+    name = f"collide{tmp_path.name.replace('-', '_')}"
+    monkeypatch.setattr(build, "_source_hash", lambda extra: name)
+    first = build_fmu(spec, tmp_path / "first")
+    monkeypatch.setattr(build, "FMUS_SRC", changed)
+    second = build_fmu(spec, tmp_path / "second")
+    values = []
+    for fmu, label in ((first, "a"), (second, "b")):
+        inst = Instance(fmu, label)
+        inst.start()
+        values.append(inst.get(["z_cmd"])[0])
+        inst.close()
+    assert values[0] == values[1]  # the second FMU ran the first one's code: hence mast_<pkg>_<hash>
+
+
+# -- life cycle: cycles, failures, reset, state ----------------------------------------------------------
+CYCLES = """
+import json, sys, gc
+sys.path.insert(0, {tests!r})
+from test_fmi_behaviour import Instance, drive, OK, DISCARD
+def rss():
+    with open("/proc/self/statm") as f:
+        return int(f.read().split()[1]) * 4096
+fmus, n = {fmus!r}, {n}
+report, unzipped = {{}}, {{}}
+for name, fmu in fmus.items():
+    for k in range(n):
+        if k == n // 2:  # after the allocator has warmed up
+            gc.collect(); before = rss(); path = len(sys.path)
+        inst = Instance(fmu, f"i{{k}}", unzipped.get(name))
+        unzipped[name] = inst.unzip
+        assert inst.start() == OK, inst.log
+        drive(inst, 0, 5)
+        inst.close()
+    gc.collect()
+    report[name] = {{"growth_per_cycle": (rss() - before) / (n - n // 2), "sys_path_growth": len(sys.path) - path}}
+# failing instances, each terminated and freed: a bad parameter (logged at exitInitializationMode, then
+# every doStep refused) and a doStep on a non-finite input
+failures = {{"parameter": 0, "step": 0}}
+for k in range(n):
+    inst = Instance(fmus["MastTrajectory"], f"bad{{k}}", unzipped["MastTrajectory"])
+    assert inst.start({{"frequency": -1.0}}) == OK
+    failures["parameter"] += inst.step(0.0, 1e-4) == DISCARD
+    inst.close()
+    inst = Instance(fmus["MastMechanism"], f"nan{{k}}", unzipped["MastMechanism"])
+    assert inst.start() == OK
+    inst.set(rho_1=float("nan"))
+    failures["step"] += inst.step(0.0, 1e-3) == DISCARD
+    inst.close()
+report["failures"] = failures
+print(json.dumps(report))
+"""
+
+
+def test_200_instantiate_free_cycles_and_200_failing_instances_without_crash_or_growing_memory(built):
+    fmus = {identifier: str(built / "fmus" / f"{identifier}.fmu") for identifier in IDENTIFIERS}
+    script = CYCLES.format(tests=str(Path(__file__).parent), fmus=fmus, n=200)
+    proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, f"exit {proc.returncode}: {proc.stderr[-3000:]}"
+    report = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert report.pop("failures") == {"parameter": 200, "step": 200}
+    for fmu, figures in report.items():
+        # measured 1-2 KiB per cycle: ~1 KiB are 14 Python objects pythonfmu 0.7.0 creates and never
+        # releases at each instantiation (docs/using-the-fmus.md); a block or instance kept alive costs far more
+        assert figures["growth_per_cycle"] < 8 * 1024, (fmu, figures)
+        assert figures["sys_path_growth"] == 0, (fmu, figures)
+
+
+def test_a_model_failure_is_a_refused_step_that_names_the_cause(built):
+    inst = Instance(built / "fmus" / "MastActuator.fmu", "axis2")
+    assert inst.start() == OK
+    assert inst.step(0.0, 1e-4) == OK
+    inst.set(F=float("inf"))
+    assert inst.step(1e-4, 1e-4) == DISCARD
+    status, message = inst.log[-1]
+    assert status == ERROR and "doStep at t=0.0001 s" in message and "input 'F' = inf" in message
+    assert "axis2" in message and "not finite" in message
+    assert inst.slave.getBooleanStatus(3)  # fmi2Terminated: the FMU asks the host to stop
+    inst.close()  # still usable for terminate and free
+
+
+def test_a_bad_parameter_is_named_at_initialization_and_refuses_every_step(built):
+    inst = Instance(built / "fmus" / "MastMechanism.fmu", "mechanism")
+    assert inst.start({"m_platform": -1.0}) == OK  # see fmus/common/fmi.py: a status pythonfmu cannot give
+    status, message = next((s, m) for s, m in inst.log if "exitInitializationMode" in m)
+    assert status == ERROR and "m_platform" in message and "-1" in message and "(0, inf) kg" in message
+    for k in range(3):
+        assert inst.step(k * 1e-3, 1e-3) == DISCARD
+        assert "did not initialise" in inst.log[-1][1] and "m_platform" in inst.log[-1][1]
+    inst.close()
+
+
+def test_outputs_read_during_initialization_tolerate_inputs_not_set_yet(built):
+    """A host iterating to a consistent start may read outputs while the inputs are not consistent yet."""
+    inst = Instance(built / "fmus" / "MastController.fmu", "controller")
+    inst.slave.setupExperiment(startTime=0.0)
+    inst.slave.enterInitializationMode()
+    inst.set(z_cmd=0.4, psi_cmd=1.3)  # a tilt the mechanism cannot reach
+    vr, value = (ctypes.c_uint * 1)(inst.vr["rho_cmd_1"]), (ctypes.c_double * 1)()
+    assert inst.dll.fmi2GetReal(inst.c, vr, 1, value) == OK
+    status, message = inst.log[-1]
+    assert status == WARNING and "inverse kinematics of the pose command" in message and "psi = 1.3 rad" in message
+    inst.set(z_cmd=0.4051470164434615, psi_cmd=0.0, **{f"rho_{k}": 0.15 for k in (1, 2, 3)})
+    assert inst.dll.fmi2ExitInitializationMode(inst.c) == OK
+    assert not [m for s, m in inst.log if s >= ERROR]
+    assert inst.get(["rho_cmd_1"])[0] == pytest.approx(0.15, abs=1e-9)
+    inst.close()
+
+
+def test_reset_returns_to_the_instantiated_state(built):
+    inst = Instance(built / "fmus" / "MastActuator.fmu", "axis")
+    default_tau_c = inst.get(["tau_c"])[0]
+    assert inst.start({"tau_c": 0.0718}) == OK
+    first = drive(inst, 0, 200)
+    inst.slave.terminate()
+    assert inst.dll.fmi2Reset(inst.c) == OK
+    assert inst.get(["tau_c"])[0] == default_tau_c  # parameters back to their start values
+    assert inst.start({"tau_c": 0.0718}) == OK
+    np.testing.assert_array_equal(drive(inst, 0, 200), first)
+    inst.close()
+
+
+@pytest.mark.parametrize("identifier", IDENTIFIERS)
+def test_a_restored_state_reproduces_the_same_continuation(built, identifier):
+    inst = Instance(built / "fmus" / f"{identifier}.fmu", "x")
+    assert inst.start() == OK
+    h = 1e-3 if identifier == "MastMechanism" else 1e-4
+    drive(inst, 0, 50, h)
+    state = inst.slave.getFMUstate()
+    ahead = drive(inst, 50, 100, h)
+    inst.slave.setFMUstate(state)
+    again = drive(inst, 50, 100, h)
+    np.testing.assert_array_equal(again, ahead)
+    assert np.ptp(ahead, axis=0).max() > 0  # the continuation moved
+    # a state is independent of what happened after it was taken: roll back twice
+    inst.slave.setFMUstate(state)
+    np.testing.assert_array_equal(drive(inst, 50, 100, h), ahead)
+    inst.slave.freeFMUstate(state)
+    inst.close()
+
+
+def test_state_taken_before_initialization_and_after_a_parameter_change(built):
+    inst = Instance(built / "fmus" / "MastActuator.fmu", "axis")
+    inst.slave.setupExperiment(startTime=0.0)
+    inst.slave.enterInitializationMode()
+    early = inst.slave.getFMUstate()  # no block yet
+    inst.set(tau_c=0.0718)
+    assert inst.dll.fmi2ExitInitializationMode(inst.c) == OK
+    with_friction = drive(inst, 0, 100)
+    inst.slave.setFMUstate(early)  # back in initialization mode, default parameters
+    assert inst.get(["tau_c"])[0] != 0.0718
+    assert inst.dll.fmi2ExitInitializationMode(inst.c) == OK
+    default = drive(inst, 0, 100)
+    assert not np.array_equal(default, with_friction)
+    fresh = Instance(built / "fmus" / "MastActuator.fmu", "fresh", inst.unzip)
+    assert fresh.start() == OK
+    np.testing.assert_array_equal(drive(fresh, 0, 100), default)
+    inst.slave.freeFMUstate(early)
+    for i in (inst, fresh):
+        i.close()
+
+
+def test_a_foreign_state_is_refused_and_the_instance_survives(built):
+    """fmi2SetFMUstate with another FMU's state raises inside the slave: pythonfmu reports fmi2Fatal and,
+    without mast's compensation (fmus/common/fmi.py), would release the instance twice."""
+    script = textwrap.dedent(f"""
+        import sys
+        sys.path.insert(0, {str(Path(__file__).parent)!r})
+        from test_fmi_behaviour import Instance, drive, OK, FATAL
+        unzip = {{}}
+        for k in range(100):
+            a = Instance({str(built / "fmus" / "MastActuator.fmu")!r}, f"a{{k}}", unzip.get("a"))
+            t = Instance({str(built / "fmus" / "MastTrajectory.fmu")!r}, f"t{{k}}", unzip.get("t"))
+            unzip.update(a=a.unzip, t=t.unzip)
+            assert a.start() == OK and t.start() == OK
+            foreign = t.slave.getFMUstate()
+            assert a.dll.fmi2SetFMUstate(a.c, foreign) == FATAL
+            assert any("not an FMU state of MastActuator" in m for s, m in a.log), a.log[-3:]
+            drive(a, 0, 3)  # still answers
+            t.slave.freeFMUstate(foreign)
+            a.close(); t.close()
+        print("survived")
+    """)
+    proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0 and proc.stdout.strip().endswith("survived"), proc.stderr[-3000:]

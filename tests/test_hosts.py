@@ -1,0 +1,304 @@
+"""The built SSPs in third-party co-simulation hosts: libcosim (libcosimpy), ecos (ecospy) and ecos's C++ CLI.
+
+Each host runs in a child process (mast.hosts). What is checked:
+- the standalone SSD is the default system with its own pose command, and its home pose is the mechanism's;
+- the build flattens the parameter bindings to one set per component, values, units and sources kept;
+- our master runs the standalone SSP exactly like the default SSP driven by the Python stimulus;
+- each host runs an SSP whose bindings differ from the FMUs' built-in defaults (a file that overrides
+  another, inline values) and matches our master within the documented tolerance (mast.hosts.TOLERANCES);
+- the hosts step the mechanism at its 1 ms step size hint and the others at 100 us;
+- the ecos command line (a C++ program, libpython preloaded) reproduces ecospy to its printed precision;
+- a model failure and a bad parameter reach the host as the model's message, and the host is not killed.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from fmus.mechanism.kinematics import Geometry, home_pose
+from mast.build import FLAT_SET_NAME, build_all, build_ssp
+from mast.hosts import (COMPARED, TOLERANCES, HostError, availability, deviations, run_host)
+from mast.motion import SineMotion
+from mast.run import simulate
+from mast.ssp import NS, SSPArchive, read_ssd, validate_ssd_schema
+from mast.ssv import parse_ssv
+
+ROOT = Path(__file__).resolve().parents[1]
+SSP_SRC = ROOT / "ssp"
+STOP = 0.5  # s of simulated time in the host comparisons
+
+
+def needs(host: str):
+    reason = availability(host)
+    return pytest.mark.skipif(reason is not None, reason=f"{host}: {reason}")
+
+
+@pytest.fixture(scope="module")
+def built(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("build")
+    build_all(out, log=lambda *_: None)
+    return out
+
+
+def inline_binding(component: str, values: dict[str, tuple[float, str]]):
+    """An edit of the SSD text: one more binding, inline values, after the component's last binding."""
+    def edit(text: str) -> str:
+        start = text.index(f'<ssd:Component name="{component}"')
+        end = text.index("</ssd:ParameterBindings>", start)
+        params = "".join(f'<ssv:Parameter name="{n}"><ssv:Real value="{v!r}" unit="{u}"/></ssv:Parameter>'
+                         for n, (v, u) in values.items())
+        binding = ('<ssd:ParameterBinding><ssd:ParameterValues><ssv:ParameterSet version="1.0" name="test">'
+                   f"<ssv:Parameters>{params}</ssv:Parameters></ssv:ParameterSet></ssd:ParameterValues>"
+                   "</ssd:ParameterBinding>\n        ")
+        return text[:end] + binding + text[end:]
+    return edit
+
+
+def file_binding(component: str, source: str):
+    def edit(text: str) -> str:
+        start = text.index(f'<ssd:Component name="{component}"')
+        end = text.index("</ssd:ParameterBindings>", start)
+        return text[:end] + f'<ssd:ParameterBinding source="{source}"/>\n        ' + text[end:]
+    return edit
+
+
+def variant(built: Path, folder: Path, name: str, *edits) -> Path:
+    """MAST_standalone.ssd with ``edits``, built into an SSP with the FMUs of ``built``."""
+    folder.mkdir(parents=True, exist_ok=True)
+    if not (folder / "resources").exists():
+        (folder / "resources").symlink_to(SSP_SRC / "resources")
+    text = (SSP_SRC / "MAST_standalone.ssd").read_text()
+    for edit in edits:
+        text = edit(text)
+    ssd = folder / f"{name}.ssd"
+    ssd.write_text(text)
+    assert validate_ssd_schema(ssd) == []
+    return build_ssp(ssd, built / "fmus", folder / "ssp")
+
+
+# Parameter values the FMUs were not built with: the hosts must apply the SSP's bindings
+MOTION = {"amplitude_z": (0.004, "m"), "amplitude_theta": (0.02, "rad"), "frequency": (2.0, "Hz")}
+
+
+@pytest.fixture(scope="module")
+def bound(built, tmp_path_factory) -> Path:
+    """actuator_1 with the paper's identified set bound over the manufacturer's; a 2 Hz z + theta motion inline."""
+    return variant(built, tmp_path_factory.mktemp("variant"), "bound",
+                   file_binding("actuator_1", "resources/actuator_identified.ssv"),
+                   inline_binding("trajectory", MOTION))
+
+
+@pytest.fixture(scope="module")
+def reference(bound):
+    return simulate(bound, None, STOP, record=list(COMPARED) + ["actuator_1.tau_c", "trajectory.z_cmd"])
+
+
+# -- the standalone system and the built archives ------------------------------------------------
+def _shape(system, component):
+    c = system.components[component]
+    return c.source, c.step_size, c.inputs, c.outputs, c.parameters
+
+
+def test_standalone_ssd_is_the_default_system_with_its_own_pose_command():
+    mast, alone = read_ssd(SSP_SRC / "MAST.ssd"), read_ssd(SSP_SRC / "MAST_standalone.ssd")
+    assert validate_ssd_schema(SSP_SRC / "MAST_standalone.ssd") == []
+    assert alone.system_inputs == [] and set(alone.components) == set(mast.components) | {"trajectory"}
+    for name in mast.components:  # same FMUs, connectors, step sizes and merged bindings
+        assert _shape(alone, name) == _shape(mast, name), f"{name} differs between MAST.ssd and MAST_standalone.ssd"
+    pose = {(c.end_element, c.end_connector) for c in mast.connections if not c.start_element}
+    assert {(c.start_element, c.start_connector, c.end_element, c.end_connector) for c in alone.connections} == (
+        {(c.start_element, c.start_connector, c.end_element, c.end_connector) for c in mast.connections
+         if c.start_element}
+        | {("trajectory", connector, element, connector) for element, connector in pose})
+    assert (alone.base_step, alone.start_time) == (mast.base_step, mast.start_time)
+    assert alone.components["trajectory"].step_size == alone.components["controller"].step_size
+
+
+def test_trajectory_starts_at_the_mechanisms_home_pose():
+    system = read_ssd(SSP_SRC / "MAST_standalone.ssd")
+    traj = system.components["trajectory"].parameters
+    rho0 = {system.components[f"actuator_{k}"].parameters["rho_0"] for k in (1, 2, 3)}
+    assert len(rho0) == 1
+    z, psi, theta = home_pose(Geometry.from_params(system.components["mechanism"].parameters), rho0.pop())
+    assert traj["z_home"] == pytest.approx(z, abs=1e-12)
+    assert (traj["psi_home"], traj["theta_home"]) == (pytest.approx(psi, abs=1e-12), pytest.approx(theta, abs=1e-12))
+    assert 0.40514701644 < traj["z_home"] < 0.40514701645  # rho_0 = 0.15 m in the default geometry
+
+
+def test_built_ssps_bind_one_parameter_set_per_component_with_values_units_and_sources(built, tmp_path):
+    from fmpy.ssp.ssd import validate_tree
+    from lxml import etree
+
+    for source in sorted(SSP_SRC.glob("*.ssd")):
+        original = read_ssd(source)
+        with SSPArchive(built / "ssp" / f"{source.stem}.ssp") as archive:
+            assert validate_ssd_schema(archive.ssd) == []
+            doc = etree.parse(str(archive.ssd)).getroot()
+            for comp in doc.iterfind("ssd:System/ssd:Elements/ssd:Component", NS):
+                name = comp.get("name")
+                bindings = comp.findall("ssd:ParameterBindings/ssd:ParameterBinding", NS)
+                assert [b.get("source") for b in bindings] == [f"resources/parameters/{name}.ssv"]
+                ssv = archive.ssd.parent / bindings[0].get("source")
+                validate_tree(etree.parse(str(ssv)).getroot(), "SystemStructureParameterValues.xsd")
+                assert etree.parse(str(ssv)).getroot().get("name") == FLAT_SET_NAME
+                flat = parse_ssv(ssv)
+                assert {n: p.value for n, p in flat.items()} == original.components[name].parameters
+                # unit and source travel with each value: the last binding that set it
+                for binding in reversed(original_bindings(source, name)):
+                    for n, p in parse_ssv(source.parent / binding).items():
+                        if flat[n].value == p.value:
+                            assert (flat[n].unit, flat[n].source) == (p.unit, p.source), f"{name}.{n}"
+    # an inline binding after a file: the inline values win, the rest of the file stays
+    ssp = variant(built, tmp_path, "inline", inline_binding("mechanism", {"m_platform": (3.5, "kg")}))
+    with SSPArchive(ssp) as archive:
+        flat = parse_ssv(archive.ssd.parent / "resources/parameters/mechanism.ssv")
+    assert flat["m_platform"].value == 3.5 and flat["m_platform"].unit == "kg"
+    assert flat["I_px"].value == read_ssd(SSP_SRC / "MAST.ssd").components["mechanism"].parameters["I_px"]
+
+
+def original_bindings(ssd: Path, component: str) -> list[str]:
+    from lxml import etree
+
+    comp = etree.parse(str(ssd)).getroot().find(f"ssd:System/ssd:Elements/ssd:Component[@name='{component}']", NS)
+    return [b.get("source") for b in comp.iterfind("ssd:ParameterBindings/ssd:ParameterBinding", NS)
+            if b.get("source")]
+
+
+class HomeMotion(SineMotion):
+    """SineMotion around a given home pose (the trajectory FMU's parameters) instead of the one read."""
+
+    def __init__(self, home, *args) -> None:
+        super().__init__(*args)
+        self._given = list(home)
+
+    def start(self, t0, read) -> None:
+        super().start(t0, read)
+        self.home = list(self._given)
+
+
+def test_our_master_runs_the_standalone_ssp_like_the_default_one_with_the_python_stimulus(built):
+    alone = simulate(built / "ssp" / "MAST_standalone.ssp", None, 0.3)
+    traj = read_ssd(SSP_SRC / "MAST_standalone.ssd").components["trajectory"].parameters
+    assert traj["amplitude_z"] > 0 and traj["amplitude_psi"] == traj["amplitude_theta"] == 0
+    stimulus = HomeMotion([traj["z_home"], traj["psi_home"], traj["theta_home"]], "z", traj["amplitude_z"],
+                          traj["frequency"])
+    driven = simulate(built / "ssp" / "MAST.ssp", stimulus, 0.3)
+    np.testing.assert_allclose(alone["trajectory.z_cmd"], driven["z_cmd"], rtol=0, atol=1e-15)
+    for name in driven.signals:  # equal but for the rounding of t + h (FMU) against t0 + (n + 1) h (master)
+        if "." in name:
+            np.testing.assert_allclose(alone[name], driven[name], rtol=0, atol=1e-8 * np.ptp(driven[name]) + 1e-15,
+                                       err_msg=name)
+    assert np.ptp(alone["mechanism.z"]) > 0.009  # it moved: up to the +10 mm crest of the 1 Hz sine
+
+
+def test_standalone_ssp_needs_no_stimulus_and_the_default_one_does(built):
+    with pytest.raises(ValueError, match="z_cmd.*give a stimulus"):
+        simulate(built / "ssp" / "MAST.ssp", None, 0.01)
+
+
+# -- third-party hosts -----------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def host_runs() -> dict:
+    """Host results shared by the tests of this module (a run takes seconds)."""
+    return {}
+
+
+def run_cached(host_runs, host, ssp, signals, **kwargs):
+    key = (host, str(ssp), tuple(signals), tuple(sorted(kwargs.items())))
+    if key not in host_runs:
+        host_runs[key] = run_host(host, ssp, STOP, signals, **kwargs)
+    return host_runs[key]
+
+
+SIGNALS = list(COMPARED) + ["actuator_1.tau_c", "actuator_2.tau_c", "trajectory.frequency", "trajectory.z_cmd"]
+
+
+@pytest.mark.parametrize("host", [pytest.param("libcosim", marks=needs("libcosim")),
+                                  pytest.param("ecospy", marks=needs("ecospy"))])
+def test_host_applies_the_bindings_and_matches_our_master(host, bound, reference, host_runs):
+    result = run_cached(host_runs, host, bound, SIGNALS)
+    assert "exit_signal" not in result.stats  # a Python host exits cleanly (fmus/common/slave.py)
+    # the SSP's bindings, not the FMUs' built-in defaults (0.0193 N.m, 1 Hz)
+    assert result["actuator_1.tau_c"][-1] == pytest.approx(0.0718)
+    assert result["actuator_2.tau_c"][-1] == pytest.approx(0.019278, rel=1e-4)
+    assert result["trajectory.frequency"][-1] == 2.0
+    assert result.time[-1] == pytest.approx(STOP) and np.all(np.diff(result.time) == pytest.approx(1e-3))
+    dev = deviations(result, reference, list(COMPARED))
+    tolerance = TOLERANCES[host]
+    over = {s: f"{d:.3g} > {tolerance[COMPARED[s]]:g} {COMPARED[s]}" for s, d in dev.items()
+            if not d <= tolerance[COMPARED[s]]}
+    assert not over, f"{host} differs from our master: {over}"
+    # and the run is the bound one: 2 Hz, 4 mm on z and 0.02 rad on theta around the home pose
+    assert np.ptp(result["mechanism.theta"]) == pytest.approx(np.ptp(reference["mechanism.theta"]), rel=1e-4)
+    assert 0.03 < np.ptp(result["mechanism.theta"]) < 0.045
+
+
+@pytest.mark.parametrize("host", [pytest.param("libcosim", marks=needs("libcosim")),
+                                  pytest.param("ecospy", marks=needs("ecospy"))])
+def test_host_steps_each_component_at_its_step_size_hint(host, bound):
+    result = run_host(host, bound, 0.02, ["mechanism.F_1", "actuator_1.rho", "trajectory.z_cmd"], sample_step=1e-4)
+    ticks = np.rint(result.time / 1e-4).astype(int)
+    changed = ticks[1:][np.diff(result["mechanism.F_1"]) != 0]
+    # once every 10 base steps (1 ms); libcosim shows a new value at the end of the step (ticks 10, 20, ...),
+    # ecos one base step after the step began (ticks 1, 11, ...): see mast.hosts
+    assert len(changed) >= 15 and len(set(changed % 10)) == 1, f"mechanism outputs changed at ticks {changed[:20]}"
+    assert np.all(np.diff(result["trajectory.z_cmd"]) != 0)  # 100 us: a new command every base step
+    assert np.count_nonzero(np.diff(result["actuator_1.rho"])) > 150
+
+
+@needs("ecos")
+@needs("ecospy")
+def test_ecos_command_line_runs_the_ssp_like_ecospy(bound, reference, host_runs):
+    cli = run_host("ecos", bound, STOP, SIGNALS)
+    python = run_cached(host_runs, "ecospy", bound, SIGNALS)
+    np.testing.assert_allclose(cli.time, python.time, atol=1e-9)
+    for s in SIGNALS:  # the CLI prints 6 decimals
+        np.testing.assert_allclose(cli[s], python[s], rtol=0, atol=5.0001e-7, err_msg=s)
+    dev = deviations(cli, reference, list(COMPARED))
+    assert all(d <= TOLERANCES["ecos"][COMPARED[s]] for s, d in dev.items()), dev
+
+
+# -- failures inside a host ------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def out_of_stroke(built, tmp_path_factory) -> Path:
+    return variant(built, tmp_path_factory.mktemp("stroke"), "stroke",
+                   inline_binding("trajectory", {"amplitude_z": (0.5, "m")}))
+
+
+@pytest.fixture(scope="module")
+def bad_parameter(built, tmp_path_factory) -> Path:
+    return variant(built, tmp_path_factory.mktemp("param"), "param",
+                   inline_binding("mechanism", {"m_platform": (-1.0, "kg")}))
+
+
+@needs("libcosim")
+def test_libcosim_reports_a_model_failure_with_its_cause(out_of_stroke):
+    with pytest.raises(HostError) as info:
+        run_host("libcosim", out_of_stroke, STOP, ["mechanism.z"])
+    message = str(info.value)
+    assert "exit status 2" in message  # our child reported the failed step: the host did not crash
+    assert "left the stroke" in message and "actuator_" in message and "doStep at t=" in message
+
+
+@needs("libcosim")
+def test_libcosim_reports_a_bad_parameter_by_name(bad_parameter):
+    with pytest.raises(HostError) as info:
+        run_host("libcosim", bad_parameter, STOP, ["mechanism.z"])
+    message = str(info.value)
+    assert "exit status 2" in message
+    assert "m_platform" in message and "-1" in message
+
+
+@needs("ecos")
+@pytest.mark.parametrize("case, cause", [("out_of_stroke", "left the stroke"), ("bad_parameter", "m_platform")])
+def test_ecos_command_line_logs_the_cause_and_keeps_running(case, cause, request):
+    """ecos ignores the status of doStep and exitInitializationMode: the run goes on, the log names the cause."""
+    result = run_host("ecos", request.getfixturevalue(case), 0.4, ["mechanism.z"], fmu_log=True)
+    assert cause in result.stats["log"]
+    assert result.time[-1] == pytest.approx(0.4) and np.all(np.isfinite(result["mechanism.z"]))
+
+
+def test_unknown_host_is_refused_with_the_list_of_hosts():
+    assert availability("nohost") == "unknown host 'nohost'; hosts: libcosim, ecospy, ecos"

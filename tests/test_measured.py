@@ -1,0 +1,190 @@
+"""Measured-data format (docs/measured-data.md): loading, unit conversion, every validation error
+names the file and the column; synthesize writes the format and keeps the truth outside;
+replaying the recorded commands with the truth reproduces the noise-free signals."""
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mast.measured import MeasuredDataError, load
+
+N = 400
+DT = 1e-3
+
+
+@pytest.fixture(scope="module")
+def built_ssp(tmp_path_factory) -> str:
+    from mast.build import build_all
+
+    out = tmp_path_factory.mktemp("build")
+    build_all(out, log=lambda *_: None)
+    return str(out / "ssp" / "MAST.ssp")
+
+
+def _write(folder: Path, files: dict, meta_over: dict | None = None, units: dict | None = None) -> Path:
+    folder.mkdir(parents=True, exist_ok=True)
+    meta = {"format": "mast-measured-data", "version": 1,
+            "units": units or {"time": "s", "rho_cmd": "m", "rho": "m", "tau_m": "N.m"},
+            "measurement": {"torque_filter_s": 5e-4},
+            "tests": [{"file": f, "motion": "z", "amplitude": 0.005, "frequency": 2.0} for f in files]}
+    meta.update(meta_over or {})
+    (folder / "meta.json").write_text(json.dumps(meta))
+    for name, table in files.items():
+        header = ",".join(table)
+        rows = np.column_stack(list(table.values()))
+        np.savetxt(folder / name, rows, delimiter=",", header=header, comments="", fmt="%.10g")
+    return folder
+
+
+def _table(scale_time=1.0, scale_len=1.0, scale_tau=1.0, current=False) -> dict:
+    t = np.arange(N) * DT
+    cmd = 0.15 + 0.005 * np.sin(2 * math.pi * 2 * t)
+    tab = {"time": t * scale_time}
+    for j in (1, 2, 3):
+        tab[f"rho_cmd_{j}"] = cmd * scale_len
+    for j in (1, 2, 3):
+        tab[f"rho_{j}"] = (cmd - 1e-5) * scale_len
+    for j in (1, 2, 3):
+        if current:
+            tab[f"i_m_{j}"] = 0.05 * np.cos(2 * math.pi * 2 * t) / 0.0302
+        else:
+            tab[f"tau_m_{j}"] = 0.05 * np.cos(2 * math.pi * 2 * t) * scale_tau
+    return tab
+
+
+def test_load_converts_units(tmp_path):
+    si = load(_write(tmp_path / "si", {"a.csv": _table()}))
+    mm = load(_write(tmp_path / "mm", {"a.csv": _table(scale_time=1e3, scale_len=1e3, scale_tau=1e3)},
+                     units={"time": "ms", "rho_cmd": "mm", "rho": "mm", "tau_m": "mN.m"}))
+    cur = load(_write(tmp_path / "cur", {"a.csv": _table(current=True)}, meta_over={"k_T": 0.0302},
+                      units={"time": "s", "rho_cmd": "m", "rho": "m", "i_m": "A"}))
+    a, b, c = si.tests[0], mm.tests[0], cur.tests[0]
+    np.testing.assert_allclose(b.time, a.time, atol=1e-12)
+    np.testing.assert_allclose(b.rho_cmd, a.rho_cmd, rtol=1e-9)
+    np.testing.assert_allclose(b.tau_m, a.tau_m, rtol=1e-9)
+    np.testing.assert_allclose(c.tau_m, a.tau_m, rtol=1e-9)
+    assert a.name == "a" and a.frequency == 2.0 and a.amplitude == 0.005 and a.sample_time == pytest.approx(DT)
+    assert si.torque_filter_s == 5e-4
+
+
+def _broken(kind: str) -> tuple[dict, dict, dict | None]:
+    tab = _table()
+    meta_over: dict = {}
+    units = None
+    if kind == "missing column":
+        del tab["rho_2"]
+    elif kind == "nan":
+        tab["tau_m_2"][123] = np.nan
+    elif kind == "gap":
+        tab["time"][200:] += 0.05
+    elif kind == "irregular":
+        tab["time"][200] += 0.3 * DT
+    elif kind == "not increasing":
+        tab["time"][17] = tab["time"][16]
+    elif kind == "unknown unit":
+        units = {"time": "s", "rho_cmd": "m", "rho": "inch", "tau_m": "N.m"}
+    elif kind == "rho in mm labelled m":
+        for j in (1, 2, 3):
+            tab[f"rho_{j}"] = tab[f"rho_{j}"] * 1e3
+    elif kind == "torque in mN.m labelled N.m":
+        for j in (1, 2, 3):
+            tab[f"tau_m_{j}"] = tab[f"tau_m_{j}"] * 1e3
+    elif kind == "time in ms labelled s":
+        tab["time"] = tab["time"] * 1e3
+    elif kind == "current without k_T":
+        tab = _table(current=True)
+        units = {"time": "s", "rho_cmd": "m", "rho": "m", "i_m": "A"}
+    elif kind == "no units entry":
+        units = {"time": "s", "rho": "m", "tau_m": "N.m"}
+    return tab, meta_over, units
+
+
+@pytest.mark.parametrize("kind, pattern", [
+    ("missing column", r"a\.csv: missing column\(s\) rho_2"),
+    ("nan", r"a\.csv: column tau_m_2: 1 missing or non-finite value\(s\), the first on data row 124 \(t = 0\.123 s\)"),
+    ("gap", r"a\.csv: column time: gap of 0\.051 s after t = 0\.199"),
+    ("irregular", r"a\.csv: column time: irregular sampling"),
+    ("not increasing", r"a\.csv: column time: not increasing at data row 18"),
+    ("unknown unit", r"a\.csv: unit 'inch' for 'rho' is not known"),
+    ("rho in mm labelled m", r"a\.csv: column rho_1: 154\.99 m lies outside the stroke \[0, 0\.3\] m: check units\.rho"),
+    ("torque in mN.m labelled N.m", r"a\.csv: column tau_m_1: motor torque up to 50 N\.m is implausible .* units\.tau_m"),
+    ("time in ms labelled s", r"a\.csv: column time: sampling step 1 s is implausible .* check units\.time"),
+    ("current without k_T", r"a\.csv: columns i_m_1\.\.3 need the torque constant 'k_T'"),
+    ("no units entry", r"a\.csv: meta\.json 'units' has no entry for 'rho_cmd'"),
+])
+def test_validation_errors_name_file_and_column(tmp_path, kind, pattern):
+    tab, meta_over, units = _broken(kind)
+    folder = _write(tmp_path / "d", {"a.csv": tab}, meta_over, units)
+    with pytest.raises(MeasuredDataError, match=pattern):
+        load(folder)
+
+
+def test_folder_level_errors(tmp_path):
+    folder = _write(tmp_path / "d", {"a.csv": _table()})
+    np.savetxt(folder / "extra.csv", np.zeros((3, 2)), delimiter=",", header="time,x", comments="")
+    with pytest.raises(MeasuredDataError, match=r"extra\.csv: not listed in meta\.json"):
+        load(folder)
+    (folder / "extra.csv").unlink()
+    meta = json.loads((folder / "meta.json").read_text())
+    meta["tests"].append({"file": "b.csv"})
+    (folder / "meta.json").write_text(json.dumps(meta))
+    with pytest.raises(MeasuredDataError, match=r"b\.csv: listed in meta\.json but not in"):
+        load(folder)
+    (folder / "meta.json").write_text("{not json")
+    with pytest.raises(MeasuredDataError, match=r"meta\.json: not valid JSON"):
+        load(folder)
+    (folder / "meta.json").unlink()
+    with pytest.raises(MeasuredDataError, match=r"no meta\.json"):
+        load(folder)
+    text = (tmp_path / "d" / "a.csv").read_text().splitlines()
+    text[5] = text[5].replace(text[5].split(",")[1], "abc", 1)
+    (tmp_path / "d" / "a.csv").write_text("\n".join(text))
+    _write(tmp_path / "d", {}, meta_over={"tests": [{"file": "a.csv"}]})
+    with pytest.raises(MeasuredDataError, match=r"a\.csv: column rho_cmd_1: 'abc' on line 6 is not a number"):
+        load(tmp_path / "d")
+
+
+def test_replay_reproduces_the_noise_free_signals(built_ssp, tmp_path):
+    """Synthesize one test with a truth, reload it, simulate it driven by its recorded commands with the
+    same truth: the torques before noise agree to 1e-9 N m, the positions to 1e-12 m."""
+    from mast.diagnose import _sim_job
+    from mast.measured import CommandReplay, controller_geometry
+    from mast.synthesize import TestSpec, synthesize
+    from fmus.actuator.sensor import measure
+
+    truth = {"actuator": {"tau_c": 0.0718, "J1_scale": 0.641, "T_meas": 2e-3}}
+    res = synthesize(built_ssp, tmp_path / "data", truth, tests=[TestSpec("theta", math.radians(0.8), 3.0, 1.0)],
+                     direct=True, workers=1, seed=4, log=lambda *_: None)
+    assert res["truth"] == tmp_path / "data.truth.json" and res["truth"].exists()
+    assert "tau_c" not in (tmp_path / "data" / "meta.json").read_text()
+    data = load(tmp_path / "data")
+    t = data.tests[0]
+    replay = CommandReplay(t.time, t.rho_cmd, controller_geometry(built_ssp))
+    params = {f"actuator_{j}": {**truth["actuator"], "rho_0": float(t.rho_cmd[0, j - 1])} for j in (1, 2, 3)}
+    run = _sim_job((built_ssp, t.name, replay, t.duration + 1e-12, params, True))
+    obs = measure(measure(run["tau_m"], run["h"], T=2e-3, axis=0), run["h"], T=data.torque_filter_s, axis=0)
+    idx = np.round(t.time / run["h"]).astype(int)
+    clean = res["clean"][t.name]
+    assert np.abs(obs[idx] - clean["tau_m"]).max() < 1e-9
+    assert np.abs(run["rho"][idx] - clean["rho"]).max() < 1e-12
+    # the measured data: the drive's filter, the noise (2 mN m) and the 1 um encoder steps
+    assert np.std(t.tau_m - clean["tau_m"]) == pytest.approx(2e-3, rel=0.1)
+    np.testing.assert_allclose(t.rho / 1e-6, np.round(t.rho / 1e-6), atol=1e-6)
+
+
+def test_synthesize_cli(built_ssp, tmp_path):
+    from mast.cli import main
+
+    out = tmp_path / "cli"
+    assert main(["synthesize", built_ssp, "--out", str(out), "--set", "actuator.tau_c=0.05", "--tests", "z:0.005:4:0.5",
+                 "--noise", "tau_m=0.001", "--direct", "--seed", "2", "--workers", "1"]) == 0
+    data = load(out)
+    assert [t.name for t in data.tests] == ["z_4Hz"]
+    truth = json.loads((tmp_path / "cli.truth.json").read_text())
+    assert truth["parameters"] == {f"actuator_{j}": {"tau_c": 0.05} for j in (1, 2, 3)}
+    assert truth["measurement"]["noise_std"]["tau_m"] == 0.001
+    assert main(["synthesize", built_ssp, "--out", str(out), "--set", "nowhere.x=1", "--direct"]) == 2
