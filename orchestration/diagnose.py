@@ -45,6 +45,8 @@ RELATIVE = 0.1
 FD_STEP = {"tau_s": 2e-3, "omega_s": 0.3, "backlash": 1e-3}
 #: effects tried by re-simulation when a residual remains after the regression loop
 NONLINEAR = ("stribeck", "backlash")
+#: ... and at least this share of the whole gap of the current model (above the noise)
+SHARE_OF_GAP = 0.01
 #: at most this many effects at once
 MAX_EFFECTS = 4
 #: residual RMS within this factor of the noise floor: nothing left to explain
@@ -328,6 +330,10 @@ class Regression:
         self._fits[idx] = fit
         return fit
 
+    def score(self, fit: SubsetFit) -> float:
+        held = self.n_ho * math.log(max(fit.rss_ho, 1e-300) / self.n_ho) if self.n_ho else 0.0
+        return fit.bic + held
+
     def held_out_needed(self, rss_ho_without: float) -> float:
         """The held-out RSS an effect must remove: a share of the noise and of what is left to explain."""
         noise = self.sigma ** 2 * self.n_ho
@@ -354,6 +360,13 @@ def select(reg: Regression, nominal: Mapping, max_size: int, exclude: frozenset 
     within its bounds. Subsets in ``exclude`` (by effect keys) were refuted by re-simulation.
     """
     fits = []
+    # far from the data (the first rounds), each member must also carry a share of the whole gap:
+    # small terms that only soak up the linearisation error of the big ones wait for the next round
+    empty = reg.fit(())
+    if reg.n_ho:
+        floor_total = SHARE_OF_GAP * max(empty.rss_ho - reg.sigma ** 2 * reg.n_ho, 0.0)
+    else:
+        floor_total = SHARE_OF_GAP * max(empty.rss_tr - reg.sigma ** 2 * reg.n_tr, 0.0)
     by_effect: dict[str, list[int]] = {}
     for i, a in enumerate(reg.atoms):
         by_effect.setdefault(a.effect.key, []).append(i)
@@ -379,11 +392,17 @@ def select(reg: Regression, nominal: Mapping, max_size: int, exclude: frozenset 
                         reasons.append(f"{fit.atoms[m].label}: BIC gain {dbic:.1f} < {DELTA_BIC:g}")
                     if reg.n_ho and dho < reg.held_out_needed(rest.rss_ho):
                         reasons.append(f"{fit.atoms[m].label}: held-out gain too small")
+                    gain = dho if reg.n_ho else rest.rss_tr - fit.rss_tr
+                    if gain < floor_total:
+                        reasons.append(f"{fit.atoms[m].label}: less than {100 * SHARE_OF_GAP:g} % of the gap")
                 fit.admissible = not reasons
                 fit.reasons = reasons
                 fits.append(fit)
     admissible = [f for f in fits if f.admissible]
-    best = min(admissible, key=lambda f: f.bic) if admissible else reg.fit(())
+    # score: BIC on the training tests plus the held-out deviance n_ho ln(RSS_ho / n_ho): explanations the
+    # training tests cannot tell apart (a heavier carriage, or more inertia and an offset, on z motions
+    # only) are told apart by how they predict the held-out tests
+    best = min(admissible, key=reg.score) if admissible else reg.fit(())
     # alternatives the data cannot separate: name the preferred member of a group
     for a in list(best.atoms):
         if a.effect.group and not a.effect.preferred:
@@ -391,8 +410,8 @@ def select(reg: Regression, nominal: Mapping, max_size: int, exclude: frozenset 
             want = {x.effect.key for x in best.atoms if x is not a} | {pref.key}
             cand = [f for f in admissible if {x.effect.key for x in f.atoms} == want]
             if cand:
-                c = min(cand, key=lambda f: f.bic)
-                if c.bic - best.bic < DELTA_BIC:
+                c = min(cand, key=reg.score)
+                if reg.score(c) - reg.score(best) < DELTA_BIC:
                     best = c
     return best, fits
 
@@ -414,22 +433,27 @@ class Options:
 
 
 def _model_overrides(ssp: str, model: Optional[str]) -> dict:
-    """Actuator parameter overrides of the nominal model (``--model``)."""
+    """Actuator parameter overrides of the nominal model (``--model``): an .ssv file, or the name of a
+    parameter set inside the SSP (resources/NAME.ssv) or of the project's sources (ssp/resources/NAME.ssv)."""
     if not model:
         return {}
     from .ssp import SSPArchive
     from .ssv import parse_ssv
 
     path = Path(model)
-    if not path.exists():
-        with SSPArchive(ssp) as archive:
-            inside = archive.ssd.parent / "resources" / (model if model.endswith(".ssv") else f"{model}.ssv")
-            if not inside.exists():
-                have = sorted(p.stem for p in (archive.ssd.parent / "resources").glob("*.ssv"))
-                raise DiagnosisError(f"--model {model}: neither a file nor a parameter set of the SSP "
-                                     f"(it has: {', '.join(have)})")
-            return {k: v.value for k, v in parse_ssv(inside).items()}
-    return {k: v.value for k, v in parse_ssv(path).items()}
+    if path.exists():
+        return {k: v.value for k, v in parse_ssv(path).items()}
+    name = model if model.endswith(".ssv") else f"{model}.ssv"
+    with SSPArchive(ssp) as archive:
+        res = archive.ssd.parent / "resources"
+        for candidate in (res / name, res / "parameters" / name, Path(__file__).resolve().parents[1] / "ssp" /
+                          "resources" / name):
+            if candidate.exists():
+                return {k: v.value for k, v in parse_ssv(candidate).items()}
+        have = sorted({p.stem for p in res.rglob("*.ssv")} |
+                      {p.stem for p in (Path(__file__).resolve().parents[1] / "ssp" / "resources").glob("*.ssv")})
+    raise DiagnosisError(f"--model {model}: neither a file nor a parameter set of the SSP or of ssp/resources "
+                         f"(known: {', '.join(have)})")
 
 
 def _split(data: MeasuredData, holdout: Optional[Sequence[str]]) -> dict[str, str]:
@@ -505,9 +529,7 @@ def diagnose(opt: Options, log: Callable[[str], None] = print) -> dict:
         log("diagnose: nominal model: " + ", ".join(f"{n} {before[n]['torque_nrmse_percent']:.1f} %" for n in names))
 
         library = [BY_KEY[k] for k in opt.library]
-        # non-preferred members of a group are compared by re-simulation (_alias_check), not regressed
-        atoms = [Atom(e, g) for e in library if e.regression and (e.preferred or not e.group)
-                 for g in (e.grid or (None,))]
+        atoms = [Atom(e, g) for e in library if e.regression for g in (e.grid or (None,))]
         state = State((), {}, nominal_pt)
         steps: list = []
         rejected: set = set()
@@ -601,7 +623,7 @@ def _regression_loop(ctx: _Context, state: State, atoms, rejected: set, steps: l
         current = [a for a in state.selected if a.effect.key not in keys]
         if all(a.label in labels for a in current):
             now = reg.fit(tuple(labels.index(a.label) for a in current))
-            if math.isfinite(now.bic) and best.bic >= now.bic:
+            if math.isfinite(now.bic) and reg.score(best) >= reg.score(now):
                 break       # the regression sees nothing better than the current model
         ctx.log(f"diagnose: proposed by regression: {[a.label for a in proposal] or 'none'}")
         start = dict(state.changes)
@@ -653,18 +675,27 @@ def _verify(ctx: _Context, old: State, new: State, steps: list, how: str) -> boo
     ho1, _ = _band_rss(ctx, new.pt, ctx.held) if ctx.held else (0.0, 0)
     noise = ctx.sigma_b ** 2 * nh
     need = max(PRACTICAL * noise, RELATIVE * max(ho0 - noise, 0.0))
+    # no held-out test may get markedly worse: a true effect improves every test or leaves it alone
+    worse = []
+    for name in ctx.held:
+        a, m = _band_rss(ctx, old.pt, [name])
+        b, _ = _band_rss(ctx, new.pt, [name])
+        if b > a + max(PRACTICAL * ctx.sigma_b ** 2 * m, RELATIVE * a, 3.0 * math.sqrt(2.0 * m) * ctx.sigma_b ** 2):
+            worse.append(name)
     if k1 > k0:
-        ok = bic1 <= bic0 - DELTA_BIC and (not ctx.held or ho0 - ho1 >= need)
+        ok = bic1 <= bic0 - DELTA_BIC and (not ctx.held or ho0 - ho1 >= need) and not worse
     else:   # fewer or as many parameters: kept effects must have been strongly needed
         ok = bic1 < bic0 + (DELTA_BIC if k1 < k0 else 0.0) and (not ctx.held or ho1 <= ho0 + need)
     step = {"how": how, "from": [a.label for a in old.selected], "to": [a.label for a in new.selected],
             "parameters": dict(new.changes), "delta_bic_training": bic1 - bic0,
             "held_out_rss_change_percent": 100 * (ho1 - ho0) / ho0 if ho0 > 0 else None,
             "held_out_rss_needed_percent": -100 * need / ho0 if ho0 > 0 else None,
+            "held_out_tests_worse": worse,
             "accepted": bool(ok), "fit": new.info}
     steps.append(step)
     ctx.log(f"diagnose:   {'accepted' if ok else 'refuted by re-simulation'}: {step['to'] or 'none'} "
-            f"(dBIC {bic1 - bic0:+.0f}, held-out RSS {step['held_out_rss_change_percent'] or 0:+.1f} %)")
+            f"(dBIC {bic1 - bic0:+.0f}, held-out RSS {step['held_out_rss_change_percent'] or 0:+.1f} %"
+            + (f"; worse on {', '.join(worse)}" if worse else "") + ")")
     return ok
 
 
@@ -678,6 +709,16 @@ def _nonlinear_stage(ctx: _Context, state: State, effects: Sequence[Effect], rej
     """Effects whose signature does not linearise (Stribeck, backlash): fitted and scored by re-simulation."""
     best: Optional[State] = None
     best_bic = math.inf
+    where = _reversal_concentration(ctx, state.pt)
+    if where < REVERSAL_GATE:
+        steps.append({"how": "re-simulation candidates", "from": [a.label for a in state.selected],
+                      "to": [e.key for e in effects], "accepted": False,
+                      "note": f"not tried: the residual does not concentrate at velocity reversals "
+                              f"({where:.2f} x its share of time < {REVERSAL_GATE:g}), where Stribeck friction "
+                              "and backlash act"})
+        ctx.log(f"diagnose: Stribeck friction and backlash not tried: the residual does not concentrate at "
+                f"velocity reversals ({where:.2f} x its share of time)")
+        return None
     for e in effects:
         if any(a.effect.key == e.key for a in state.selected):
             continue
@@ -704,10 +745,29 @@ def _nonlinear_stage(ctx: _Context, state: State, effects: Sequence[Effect], rej
 
 #: start grids of the nonlinear effects (the Stribeck cost has a narrow curved valley in omega_s)
 START_GRIDS = {
-    "stribeck": [{"tau_s": ts, "omega_s": ws} for ts in (0.01, 0.02, 0.04)
+    "stribeck": [{"tau_s": ts, "omega_s": ws} for ts in (0.012, 0.03)
                  for ws in (1.0, 1.3, 1.7, 2.2, 2.9, 3.7, 4.8, 6.3, 8.2)],
     "backlash": [{"backlash": b} for b in (0.001, 0.003, 0.01, 0.03)],
 }
+
+
+#: the re-simulation candidates are tried when the residual concentrates at velocity reversals this much
+REVERSAL_GATE = 2.0
+
+
+def _reversal_concentration(ctx: _Context, pt: Point) -> float:
+    """Largest concentration of the residual near velocity reversals (energy share / time share) over
+    the tests whose residual is above the noise floor (0 if none is)."""
+    best = 0.0
+    for n in ctx.names:
+        r = ctx.model.tests[n].y - pt.obs[n]
+        if float(np.sqrt(np.mean(r ** 2))) <= FLOOR_FACTOR * ctx.sigma:
+            continue
+        omega = ctx.model.signals(pt, n)[0]
+        mask = np.abs(omega) < 0.15 * np.abs(omega).max(axis=0)
+        if mask.any():
+            best = max(best, float((r[mask] ** 2).sum() / (r ** 2).sum()) / float(mask.mean()))
+    return best
 
 
 def _nonlinear_start(ctx: _Context, state: State, e: Effect) -> dict:
@@ -1426,13 +1486,14 @@ def _figures(out: Path, model: Model, prepared, names, before: Point, after: Poi
             _, _, rho = model.signals(after, n)
             r = prepared[n].y - after.obs[n]
             step = max(1, r.shape[0] // 600)
-            axes[0].plot((rho - rho[0])[::step].ravel() * 1e3, r[::step].ravel(), ".", ms=1.5, alpha=0.5,
+            start = prepared[n].test.rho_cmd[0]
+            axes[0].plot((rho - start)[::step].ravel() * 1e3, r[::step].ravel(), ".", ms=1.5, alpha=0.5,
                          label=prepared[n].test.label())
             dt = prepared[n].test.sample_time
             spec = np.abs(np.fft.rfft(r - r.mean(axis=0), axis=0)).mean(axis=1) / r.shape[0]
             fr = np.fft.rfftfreq(r.shape[0], dt)
-            axes[1].semilogy(fr, spec, lw=0.6, label=prepared[n].test.label())
-        axes[0].set_xlabel("carriage position from start [mm]")
+            axes[1].loglog(fr[1:], spec[1:], lw=0.6, label=prepared[n].test.label())
+        axes[0].set_xlabel("carriage position from the test's start [mm]")
         axes[0].set_ylabel("torque residual [N m]")
         axes[1].set_xlabel("frequency [Hz]")
         axes[1].set_ylabel("residual spectrum [N m]")

@@ -40,10 +40,11 @@ class TestSpec:
     motion: str
     amplitude: float
     frequency: float
-    duration: float = 0.0     # 0: SETTLE_S + 2 periods, at least 2 s
+    duration: float = 0.0     # 0: settle + 2 periods, at least 2 s
+    settle: float = SETTLE_S  # the analysis starts here (at most half the test)
 
     def stop_time(self) -> float:
-        return self.duration or max(2.0, SETTLE_S + 2.0 / self.frequency)
+        return self.duration or max(2.0, self.settle + 2.0 / self.frequency)
 
     @property
     def name(self) -> str:
@@ -164,7 +165,7 @@ def synthesize(ssp: str, out: Path, truth: Mapping[str, Mapping] = None, tests: 
         entries.append({"file": file, "motion": spec.motion,
                         "amplitude": spec.amplitude if spec.motion == "z" else math.degrees(spec.amplitude),
                         "amplitude_unit": "m" if spec.motion == "z" else "deg",
-                        "frequency": spec.frequency, "settle_s": min(SETTLE_S, 0.5 * spec.stop_time())})
+                        "frequency": spec.frequency, "settle_s": min(spec.settle, 0.5 * spec.stop_time())})
     meta = {
         "format": FORMAT, "version": VERSION,
         "machine": "MAST (synthetic: mast synthesize)",

@@ -298,6 +298,12 @@ def test_interrupted_batch_resumes_without_repeating_a_finished_case(ssp, tmp_pa
     assert json.loads((out / "manifest.json").read_text())["pending"] == 6 - len(first)
     with pytest.raises(BatchConfigError, match="already holds a batch"):
         run_batch(_small(ssp), out, progress=False)
+    import fcntl
+
+    with open(out / ".lock", "a+") as other_driver:  # a second driver on the same folder stops at once
+        fcntl.flock(other_driver, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        with pytest.raises(BatchConfigError, match="another mast batch is running"):
+            run_batch(_small(ssp), out, resume=True, progress=False)
     changed = _small(ssp, run={"stop_time": 0.13, "record_step": 0.001})
     with pytest.raises(BatchConfigError, match="other settings"):
         run_batch(changed, out, resume=True, progress=False)

@@ -153,11 +153,11 @@ def test_replay_reproduces_the_noise_free_signals(built_ssp, tmp_path):
     same truth: the torques before noise agree to 1e-9 N m, the positions to 1e-12 m."""
     from mast.diagnose import _sim_job
     from mast.measured import CommandReplay, controller_geometry
-    from mast.synthesize import TestSpec, synthesize
+    from mast.synthesize import TestSpec as Spec, synthesize
     from fmus.actuator.sensor import measure
 
     truth = {"actuator": {"tau_c": 0.0718, "J1_scale": 0.641, "T_meas": 2e-3}}
-    res = synthesize(built_ssp, tmp_path / "data", truth, tests=[TestSpec("theta", math.radians(0.8), 3.0, 1.0)],
+    res = synthesize(built_ssp, tmp_path / "data", truth, tests=[Spec("theta", math.radians(0.8), 3.0, 1.0)],
                      direct=True, workers=1, seed=4, log=lambda *_: None)
     assert res["truth"] == tmp_path / "data.truth.json" and res["truth"].exists()
     assert "tau_c" not in (tmp_path / "data" / "meta.json").read_text()

@@ -1,0 +1,158 @@
+"""`mast diagnose` on synthesized data with hidden effects (issue 5 acceptance).
+
+Each case: `mast synthesize` hides an effect (the truth), the diagnosis sees only the
+measured-data folder. A compact test plan keeps the suite short: z sines at 0.6, 3 and
+7 Hz and a theta sine at 1.5 Hz (0.3 s settling, 0.8 to 2 s each); every second test in
+frequency order is held out (theta 1.5 Hz, z 7 Hz). Default noise: 2 mN m on the torque,
+1 um encoder steps, the drive's 0.5 ms torque filter. Seeds differ between cases.
+"""
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import pytest
+
+from mast.diagnose import Options, diagnose
+from mast.synthesize import TestSpec as Spec, synthesize
+
+PLAN = (Spec("z", 0.005, 0.6, 2.0, 0.3), Spec("theta", math.radians(0.8), 1.5, 1.0, 0.3),
+        Spec("z", 0.005, 3.0, 1.0, 0.3), Spec("z", 0.005, 7.0, 0.8, 0.3))
+IDENTIFIED = {"tau_c": 0.0718, "J1_scale": 1 / 1.56}
+
+
+@pytest.fixture(scope="module")
+def built_ssp(tmp_path_factory) -> str:
+    from mast.build import build_all
+
+    out = tmp_path_factory.mktemp("build")
+    build_all(out, log=lambda *_: None)
+    return str(out / "ssp" / "MAST.ssp")
+
+
+def run_case(ssp: str, tmp: Path, truth: dict, seed: int, figures: bool = False) -> dict:
+    data = tmp / "data"
+    synthesize(ssp, data, {"actuator": truth}, tests=PLAN, direct=True, seed=seed, log=lambda *_: None)
+    return diagnose(Options(data, tmp / "out", ssp, figures=figures), log=lambda *_: None)
+
+
+def named(doc: dict) -> dict:
+    return {e["key"]: e for e in doc["named_effects"]}
+
+
+def held_out(doc: dict) -> list[str]:
+    return [n for n, g in doc["gap"].items() if g["role"] == "held-out"]
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_paper_case(built_ssp, tmp_path, seed):
+    """Nominal = manufacturer data, truth = the paper's identified set: Coulomb friction and inertia
+    mismatch are named, both recovered within 5 %, the held-out torque gap falls from tens of percent
+    to the noise floor."""
+    doc = run_case(built_ssp, tmp_path, IDENTIFIED, seed, figures=seed == 1)
+    effects = named(doc)
+    assert set(effects) == {"coulomb", "inertia_motor"}
+    assert effects["coulomb"]["parameters"]["tau_c"] == pytest.approx(0.0718, rel=0.05)
+    assert effects["inertia_motor"]["parameters"]["J1_scale"] == pytest.approx(1 / 1.56, rel=0.05)
+    for name in held_out(doc):
+        gap = doc["gap"][name]
+        assert gap["before"]["torque_nrmse_percent"] > 50
+        assert gap["after"]["torque_nrmse_percent"] < 1.2 * gap["before"]["torque_floor_percent"]
+    assert doc["verdict"]["status"] == "explained"
+    for e in effects.values():
+        assert e["uncertainty"][next(iter(e["parameters"]))]["std"] > 0
+        assert e["evidence"]["when_added"]["delta_bic_training"] < -10
+    if seed == 1:   # the outputs a user gets
+        out = tmp_path / "out"
+        text = (out / "report.md").read_text()
+        for fig in ("fig_time.png", "fig_residual_signals.png", "fig_residual_frequency.png"):
+            assert (out / fig).stat().st_size > 10_000 and f"({fig})" in text
+        assert json.loads((out / "diagnosis.json").read_text())["named_effects"][0]["effect"]
+        from mast.ssp import SSPArchive
+
+        with SSPArchive(out / "MAST_diagnosed.ssp") as archive:
+            p = archive.system.components["actuator_2"].parameters
+        assert p["tau_c"] == pytest.approx(effects["coulomb"]["parameters"]["tau_c"], rel=1e-12)
+        assert p["J1_scale"] == pytest.approx(effects["inertia_motor"]["parameters"]["J1_scale"], rel=1e-12)
+
+
+CASES = {   # effect key: (truth, parameters to recover)
+    "coulomb": ({"tau_c": 0.035}, ("tau_c",)),
+    "viscous": ({"b_v": 2e-4}, ("b_v",)),
+    "stribeck": ({"tau_s": 0.02, "omega_s": 3.0}, ("tau_s", "omega_s")),
+    "inertia_motor": ({"J1_scale": 0.8}, ("J1_scale",)),
+    "inertia_guide": ({"J_guide": 6.8e-4}, ("J_guide",)),
+    "carriage_mass": ({"M_load": 3.5}, ("M_load",)),
+    "offset": ({"tau_offset": 0.01}, ("tau_offset",)),
+    "lag": ({"T_meas": 3e-3}, ("T_meas",)),
+    "delay": ({"delay_meas": 2e-3}, ("delay_meas",)),
+}
+
+
+@pytest.mark.parametrize("case", list(CASES))
+def test_each_library_effect_hidden_alone_is_named(built_ssp, tmp_path, case):
+    truth, params = CASES[case]
+    doc = run_case(built_ssp, tmp_path, truth, seed=10 + list(CASES).index(case))
+    effects = named(doc)
+    assert len(effects) == 1, effects
+    (key, effect), = effects.items()
+    assert doc["verdict"]["status"] == "explained"
+    if case == "inertia_guide":
+        # the two sides of the transmission: either named directly or reported as the equivalent alternative
+        assert key in ("inertia_motor", "inertia_guide")
+        values = dict(effect["parameters"])
+        for alt in effect["evidence"]["alternatives"]:
+            values.update(alt.get("parameters", {}))
+        assert values["J_guide"] == pytest.approx(6.8e-4, rel=0.05)
+        return
+    assert key == ("lag" if case == "delay" else case)
+    for p in params:
+        assert effect["parameters"][p] == pytest.approx(truth[p], rel=0.05), p
+
+
+@pytest.mark.parametrize("seed", [3, 4])
+def test_nothing_hidden_names_nothing(built_ssp, tmp_path, seed):
+    doc = run_case(built_ssp, tmp_path, {}, seed)
+    assert doc["named_effects"] == []
+    assert doc["verdict"]["status"] == "nothing missing"
+    assert doc["unexplained"] is None
+    assert all(r < 1.2 for r in doc["verdict"]["residual_over_noise_per_test"].values())
+
+
+def test_effect_outside_the_library_is_reported_unexplained(built_ssp, tmp_path):
+    """A position-periodic guide torque (belt tooth mesh): no candidate explains it; nothing is named,
+    the residual is shown."""
+    doc = run_case(built_ssp, tmp_path, {"tau_ripple": 0.01}, seed=5, figures=True)
+    assert doc["named_effects"] == []
+    assert doc["verdict"]["status"] == "unexplained residual"
+    assert doc["verdict"]["residual_over_noise_training"] > 2
+    assert doc["unexplained"]["candidates_tried"]
+    out = tmp_path / "out"
+    assert (out / "fig_unexplained.png").stat().st_size > 10_000
+    assert "Unexplained residual" in (out / "report.md").read_text()
+
+
+def test_backlash_is_not_forced_onto_another_name(built_ssp, tmp_path):
+    """Backlash hidden: NOT named (not achieved): in this closed loop (position measured on the load side,
+    speed on the motor side) backlash makes the axes hunt chaotically, so even the exact truth does not
+    reproduce the data sample by sample. What the diagnosis must still do: name nothing else."""
+    doc = run_case(built_ssp, tmp_path, {"backlash": 0.01}, seed=7)
+    assert doc["named_effects"] == []
+    assert doc["verdict"]["status"] == "unexplained residual"
+
+
+def test_cli_and_errors(built_ssp, tmp_path):
+    from mast.cli import main
+
+    data = tmp_path / "data"
+    synthesize(built_ssp, data, {"actuator": IDENTIFIED}, tests=PLAN[2:3], direct=True, seed=6, log=lambda *_: None)
+    # the identified set as the nominal model (a parameter set inside the SSP): nothing is missing
+    assert main(["diagnose", built_ssp, "--measured", str(data), "--out", str(tmp_path / "o"),
+                 "--model", "actuator_identified"]) == 0
+    doc = json.loads((tmp_path / "o" / "diagnosis.json").read_text())
+    assert doc["model"] == "actuator_identified" and doc["verdict"]["status"] == "nothing missing"
+    assert doc["augmented_model"]["values"]["tau_c"] == 0.0718
+    assert main(["diagnose", built_ssp, "--measured", str(tmp_path / "nowhere"), "--out", str(tmp_path / "x")]) == 2
+    assert main(["diagnose", built_ssp, "--measured", str(data), "--out", str(tmp_path / "x"),
+                 "--model", "no_such_set"]) == 2
