@@ -1348,8 +1348,8 @@ def _write_model(opt: Options, changes: Mapping[str, float], named: Sequence[dic
     root = etree.Element(f"{{{ssv}}}ParameterSet", nsmap={"ssv": ssv, "ssc": ssc}, version="1.0",
                          name="actuator_diagnosed")
     root.append(etree.Comment(f" Written by mast diagnose from {Path(opt.measured).name}: the nominal model "
-                              f"({opt.model or 'SSP bindings'}) plus the named effects; bind after "
-                              "actuator_manufacturer.ssv. "))
+                              f"({opt.model or 'SSP bindings'}) plus the named effects; bind it after the "
+                              "actuators' other parameter sets (MAST_diagnosed.ssp does). "))
     params = etree.SubElement(root, f"{{{ssv}}}Parameters")
     used_units = set()
     for name, v in values.items():
@@ -1375,7 +1375,7 @@ def _write_model(opt: Options, changes: Mapping[str, float], named: Sequence[dic
     ssv_path = opt.out / "actuator_diagnosed.ssv"
     ssv_path.write_bytes(etree.tostring(root, xml_declaration=True, encoding="UTF-8", pretty_print=True))
     out = {"parameter_set": str(ssv_path), "values": dict(values),
-           "use": "bind resources/actuator_diagnosed.ssv after actuator_manufacturer.ssv for every actuator_k "
+           "use": "bind resources/actuator_diagnosed.ssv after the other parameter sets of every actuator_k "
                   "(MAST_diagnosed.ssp does that); compare the lab's torque with actuator_k.tau_meas"}
     src = Path(opt.ssp)
     if src.suffix == ".ssp" and src.exists():
