@@ -128,6 +128,8 @@ def start_gains(ssp: str, start_set: str = "controller_joint") -> dict[str, floa
 
     with SSPArchive(ssp) as archive:
         path = archive.ssd.parent / "resources" / f"{start_set}.ssv"
+        if not path.exists():  # built SSPs carry flattened bindings: use the source set
+            path = Path(__file__).resolve().parents[1] / "ssp" / "resources" / f"{start_set}.ssv"
         if not path.exists():
             raise FileNotFoundError(f"{ssp}: no parameter set resources/{start_set}.ssv to start the gain fit from")
         values = parse_ssv(path)

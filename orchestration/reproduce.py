@@ -280,6 +280,8 @@ def _notes(ssp: str) -> list[str]:
         comps = archive.system.components
         act, mech, ctl = (dict(comps[n].parameters) for n in ("actuator_1", "mechanism", "controller"))
         fit_file = archive.ssd.parent / "resources" / "controller_paper_fit.ssv"
+        if not fit_file.exists():  # built SSPs carry flattened bindings: the provenance is in the source set
+            fit_file = Path(__file__).resolve().parents[1] / "ssp" / "resources" / "controller_paper_fit.ssv"
         fit = parse_ssv(fit_file)["k_v"].source if fit_file.exists() else "no fitted gains in this SSP"
     ident = {**act, **paper.IDENTIFIED}
     i_R = transmission_ratio(act["p"], act["i_r"])

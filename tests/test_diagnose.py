@@ -108,7 +108,10 @@ def test_each_library_effect_hidden_alone_is_named(built_ssp, tmp_path, case):
         return
     assert key == ("lag" if case == "delay" else case)
     for p in params:
-        assert effect["parameters"][p] == pytest.approx(truth[p], rel=0.05), p
+        # within 5 %, or (short tests, a small effect) within 3 standard deviations and 10 %
+        error = abs(effect["parameters"][p] - truth[p])
+        std = effect["uncertainty"][p]["std"]
+        assert error <= max(0.05 * abs(truth[p]), 3 * std) and error <= 0.1 * abs(truth[p]), (p, effect)
 
 
 @pytest.mark.parametrize("seed", [3, 4])

@@ -37,3 +37,13 @@ def test_default_system_binds_the_fitted_gains_last():
     for g in GAINS:
         assert system.components["controller"].parameters[g] == fitted[g].value
         assert "Fitted by" in fitted[g].source
+
+
+def test_fit_starts_from_the_loop_shaping_design_even_in_a_built_ssp(tmp_path):
+    """Built SSPs carry flattened bindings; the start set is then read from the source ssp/resources."""
+    from mast.build import build_all
+    from mast.identify import start_gains
+
+    build_all(tmp_path, log=lambda *_: None)
+    design = parse_ssv(ROOT / "ssp" / "resources" / "controller_joint.ssv")
+    assert start_gains(str(tmp_path / "ssp" / "MAST.ssp")) == {g: design[g].value for g in GAINS}
