@@ -28,11 +28,11 @@ import tempfile
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Iterable, Optional
+from typing import Iterable, Mapping, Optional
 
 from lxml import etree
 
-from .ssp import NS, read_ssd
+from .ssp import NS, applicable_parameters, read_ssd
 
 REPO = Path(__file__).resolve().parents[1]
 FMUS_SRC = REPO / "fmus"
@@ -49,6 +49,10 @@ FMUS = (
     FmuSpec("MastActuator", "actuator"),
     FmuSpec("MastMechanism", "mechanism"),
     FmuSpec("MastController", "controller"),
+    # controllers: the same interface, defaults from their own systems ssp/MAST_<controller>.ssd (mast.controllers)
+    FmuSpec("MastWorkspaceController", "controller"),
+    FmuSpec("MastFeedForwardController", "controller"),
+    FmuSpec("MastComputedTorqueController", "controller"),
     FmuSpec("MastTrajectory", "trajectory"),
     # mechanism designs: the same model, defaults from their own systems ssp/MAST_<design>.ssd (mast.designs)
     FmuSpec("Mast3PRS120", "mechanism"),
@@ -73,14 +77,28 @@ def _source_hash(extra: bytes) -> str:
     return digest.hexdigest()[:10]
 
 
+def block_class(model_identifier: str):
+    """The Block class the project's FMU ``model_identifier`` wraps (fmus/<package>/fmu.py)."""
+    import importlib
+
+    for spec in FMUS:
+        if spec.model_identifier == model_identifier:
+            return getattr(importlib.import_module(f"fmus.{spec.package}.fmu"), model_identifier).block_class
+    raise ValueError(f"no model of this project is built as {model_identifier}.fmu")
+
+
 def default_parameters(model_identifier: str, ssd: Optional[Path] = None) -> dict:
-    """Merged bindings of the first component using the FMU, in ``ssd`` or else in ssp/MAST.ssd, then ssp/*.ssd."""
+    """Bindings of the first component using the FMU, in ``ssd`` or else in ssp/MAST.ssd, then ssp/*.ssd:
+    merged in order and restricted to the FMU's own parameters (``ssp.applicable_parameters``)."""
     main = SSP_SRC / "MAST.ssd"
     candidates = [ssd] if ssd is not None else [main] + [p for p in sorted(SSP_SRC.glob("*.ssd")) if p != main]
     for path in candidates:
-        for comp in read_ssd(path).components.values():
+        system = read_ssd(path)
+        for name, comp in system.components.items():
             if Path(comp.source).stem == model_identifier:
-                return dict(comp.parameters)
+                names = {c: {p.name for p in block_class(Path(s.source).stem).PARAMETERS}
+                         for c, s in system.components.items()}
+                return applicable_parameters(system, names)[name]
     raise ValueError(f"{', '.join(map(str, candidates))}: no component uses {model_identifier}.fmu, "
                      "so it gives no default parameters")
 
@@ -166,10 +184,7 @@ def build_fmu3(spec: FmuSpec, out_dir: Path, parameters: Optional[dict] = None) 
 
 def _add_units(fmu: Path, spec: FmuSpec) -> None:
     """pythonfmu 0.7 writes no units: add them to modelDescription.xml from the model's declarations."""
-    import importlib
-
-    block_module = importlib.import_module(f"fmus.{spec.package}.fmu")
-    block = getattr(block_module, spec.model_identifier).block_class
+    block = block_class(spec.model_identifier)
     units = dict(block.UNITS)
     units.update({p.name: p.unit for p in block.PARAMETERS if p.kind is float and p.unit})
     with zipfile.ZipFile(fmu) as zin:
@@ -195,8 +210,16 @@ def _add_units(fmu: Path, spec: FmuSpec) -> None:
 
 def build_ssp(ssd: Path, fmu_dir: Path, out_dir: Path) -> Path:
     """Pack ``ssd`` with the FMUs it references and its bindings flattened (one .ssv per component)."""
+    from fmpy import read_model_description
+
     system = read_ssd(ssd)  # checks the structure and that every bound .ssv exists
-    structure, parameter_sets = flatten_bindings(ssd)
+    names = {}
+    for comp, spec in system.components.items():
+        fmu = fmu_dir / Path(spec.source).name
+        if not fmu.exists():
+            raise FileNotFoundError(f"{ssd}: component source {spec.source} needs {fmu}, which was not built")
+        names[comp] = {v.name for v in read_model_description(str(fmu)).modelVariables if v.causality == "parameter"}
+    structure, parameter_sets = flatten_bindings(ssd, names)
     out_dir.mkdir(parents=True, exist_ok=True)
     target = out_dir / f"{ssd.stem}.ssp"
     with zipfile.ZipFile(target, "w", zipfile.ZIP_DEFLATED) as zout:
@@ -211,15 +234,19 @@ def build_ssp(ssd: Path, fmu_dir: Path, out_dir: Path) -> Path:
     return target
 
 
-def flatten_bindings(ssd: Path) -> tuple[bytes, dict[str, bytes]]:
+def flatten_bindings(ssd: Path, parameter_names: Mapping[str, Iterable[str]]) -> tuple[bytes, dict[str, bytes]]:
     """``ssd`` with each component's bindings replaced by one: (SystemStructure.ssd, {archive path: .ssv}).
 
     Values merge in binding order (later bindings override), each keeping the
     unit and description of the binding that set it; the units the values use
-    are declared in the .ssv. A component without bindings keeps none.
+    are declared in the .ssv. Only the component's own parameters (``parameter_names``
+    per component) are kept, so hosts that refuse unknown names run the result; a name
+    that no component of its set has is refused (``ssp.applicable_parameters``).
+    A component without bindings keeps none.
     """
     from .ssv import parse_ssv
 
+    applicable_parameters(read_ssd(ssd), parameter_names)       # the typo check
     doc = etree.parse(str(ssd))
     root = doc.getroot()
     sets: dict[str, bytes] = {}
@@ -242,6 +269,8 @@ def flatten_bindings(ssd: Path) -> tuple[bytes, dict[str, bytes]]:
             merged.update(parse_ssv(etree.tostring(element), origin=origin))
             for unit in element.iterfind("ssv:Units/ssc:Unit", NS):
                 units[unit.get("name")] = unit
+        own = set(parameter_names[comp.get("name")])
+        merged = {k: v for k, v in merged.items() if k in own}
         name = comp.get("name")
         path = f"resources/parameters/{name}.ssv"
         sets[path] = _parameter_set_xml(merged, units, f"Parameters of '{name}' in {ssd.name}: "

@@ -7,7 +7,6 @@ SSP wiring are right (results equal to rounding) and the speed reference.
 from __future__ import annotations
 
 import ctypes
-import importlib
 from pathlib import Path
 from typing import Callable, Mapping, Sequence
 
@@ -40,6 +39,7 @@ class FMUComponent:
         if self.md.coSimulation is None:
             raise ComponentError(f"{name}: {fmu.name} is not a co-simulation FMU")
         self.variables = {v.name: v for v in self.md.modelVariables}
+        self.parameter_names = frozenset(v.name for v in self.md.modelVariables if v.causality == "parameter")
         self._slave = FMU2Slave(guid=self.md.guid, unzipDirectory=str(unzip_dir),
                                 modelIdentifier=self.md.coSimulation.modelIdentifier, instanceName=name)
 
@@ -180,6 +180,7 @@ class BlockComponent:
     def __init__(self, name: str, block_class: type[Block]) -> None:
         self.name = name
         self.block_class = block_class
+        self.parameter_names = frozenset(p.name for p in block_class.PARAMETERS)
         self.block: Block | None = None
         self._in_init = False
         self._dirty = True
@@ -188,12 +189,12 @@ class BlockComponent:
     @staticmethod
     def class_for(model_identifier: str) -> type[Block]:
         """The Block class an FMU of this project wraps (fmus/<package>/fmu.py)."""
-        from .build import FMUS
+        from .build import block_class
 
-        for spec in FMUS:
-            if spec.model_identifier == model_identifier:
-                return getattr(importlib.import_module(f"fmus.{spec.package}.fmu"), model_identifier).block_class
-        raise ComponentError(f"no model of this project is built as {model_identifier}.fmu")
+        try:
+            return block_class(model_identifier)
+        except ValueError as err:
+            raise ComponentError(str(err)) from None
 
     def _run(self, what: str, func: Callable, t: float | None = None):
         try:

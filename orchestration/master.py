@@ -28,7 +28,7 @@ import numpy as np
 
 from fmus.common.parameters import Value
 
-from .ssp import SystemSpec
+from .ssp import SystemSpec, applicable_parameters
 
 
 class SimulationError(RuntimeError):
@@ -121,8 +121,9 @@ class Master:
         if unknown:
             raise ValueError(f"parameter overrides name unknown component(s) {', '.join(unknown)}; components: {', '.join(system.components)}")
         order = list(system.components)
+        bound = applicable_parameters(system, {name: self.components[name].parameter_names for name in order})
         for name in order:
-            merged = {**system.components[name].parameters, **parameters.get(name, {})}
+            merged = {**bound[name], **parameters.get(name, {})}
             self.components[name].enter_initialization(t0, t1, merged)
 
         published_names: dict[str, list[str]] = {name: [] for name in order}

@@ -4,7 +4,11 @@ What the project's master needs from an SSP, and nothing else:
 - components, their FMU source and their connectors;
 - connections (component to component, and system inputs to components);
 - parameter bindings (.ssv files or inline values), applied in document order,
-  later bindings overriding earlier ones;
+  later bindings overriding earlier ones. As SSP 1.0 says (ParameterBinding), a name in a
+  parameter source that matches no parameter of the component is ignored, so one set can
+  describe a machine to several components (the plant's actuator set also parametrises a
+  model-based controller's copy of the actuator). Against typos, ``applicable_parameters``
+  refuses a name that matches a parameter of *no* component the set is bound to;
 - step sizes from the Open Simulation Platform annotations: the base step of
   ``osp:FixedStepAlgorithm`` and each component's ``osp:StepSizeHint``.
 """
@@ -15,7 +19,7 @@ import tempfile
 import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path, PurePosixPath
-from typing import Optional, Union
+from typing import Iterable, Mapping, Optional, Union
 
 from lxml import etree
 
@@ -40,6 +44,7 @@ class ComponentSpec:
     inputs: list[str]
     outputs: list[str]
     parameters: dict[str, Value] = field(default_factory=dict)  # bindings merged in order
+    bindings: list[tuple[str, dict[str, Value]]] = field(default_factory=list)  # (source, values) in order
 
 
 @dataclass(frozen=True)
@@ -128,7 +133,9 @@ def read_ssd(path: Union[str, Path], root: Optional[Path] = None) -> SystemSpec:
             outputs=[c.get("name") for c in connectors if c.get("kind") in ("output", "calculatedParameter")],
         )
         for binding in comp.findall("ssd:ParameterBindings/ssd:ParameterBinding", NS):
-            spec.parameters.update(_binding_values(binding, root, path, name))
+            values = _binding_values(binding, root, path, name)
+            spec.bindings.append((binding.get("source") or f"inline values of '{name}'", values))
+            spec.parameters.update(values)
         components[name] = spec
     if not components:
         raise SSPFormatError(f"{path}: the system has no components")
@@ -180,6 +187,29 @@ def _binding_values(binding, root: Path, path: Path, component: str) -> dict[str
             raise SSPFormatError(f"{path}: a parameter binding of '{component}' has neither a source nor values")
         values = parse_ssv(etree.tostring(inline), origin=f"{path} (inline values of '{component}')")
     return {name: p.value for name, p in values.items()}
+
+
+def applicable_parameters(system: SystemSpec, parameter_names: Mapping[str, Iterable[str]]) -> dict[str, dict[str, Value]]:
+    """Each component's bound values restricted to its own parameters (``parameter_names``).
+
+    SSP 1.0 ignores a bound name the component does not have; here that is allowed only
+    when another component bound to the same source has it: a name no component of its
+    set uses is a typo, and raises SSPFormatError naming the set and the name.
+    """
+    names = {comp: set(parameter_names[comp]) for comp in system.components}
+    users: dict[str, set] = {}
+    for comp, spec in system.components.items():
+        for source, values in spec.bindings:
+            users.setdefault(source, set()).update(k for k in values if k in names[comp])
+    for comp, spec in system.components.items():
+        for source, values in spec.bindings:
+            unused = sorted(k for k in values if k not in users[source])
+            if unused:
+                bound = sorted(c for c, s in system.components.items() if any(src == source for src, _ in s.bindings))
+                raise SSPFormatError(f"parameter set {source}: {', '.join(map(repr, unused))} is a parameter of no "
+                                     f"component it is bound to ({', '.join(bound)})")
+    return {comp: {k: v for k, v in spec.parameters.items() if k in names[comp]}
+            for comp, spec in system.components.items()}
 
 
 def _check_end(element: str, connector: str, kind: str, components, system_inputs, path: Path) -> None:

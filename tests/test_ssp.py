@@ -102,3 +102,22 @@ def test_parse_overrides():
         "actuator_1": {"tau_c": 0.07}, "actuator_2": {"n_dof": 1}, "x": {"s": "abc"}}
     with pytest.raises(ValueError, match="ELEMENT.PARAMETER=VALUE"):
         parse_overrides(["tau_c=0.07"])
+
+
+def test_bound_names_a_component_lacks_are_ignored_unless_no_component_of_the_set_has_them():
+    """SSP 1.0: a bound name the component does not have is ignored (the plant's actuator set also
+    parametrises the computed-torque controller's model); a name no component of its set has is a typo."""
+    from mast.build import block_class
+    from mast.ssp import applicable_parameters
+    from mast.ssv import SSPFormatError
+
+    system = read_ssd(ROOT / "ssp" / "MAST_computed_torque.ssd")
+    names = {c: {p.name for p in block_class(Path(s.source).stem).PARAMETERS} for c, s in system.components.items()}
+    bound = applicable_parameters(system, names)
+    assert "R" in system.components["controller"].parameters and "R" not in bound["controller"]
+    assert bound["controller"]["k_T"] == bound["actuator_1"]["k_T"]
+    assert bound["controller"]["L"] == bound["mechanism"]["L"]            # the later (geometry) binding wins
+    source, values = system.components["controller"].bindings[-1]
+    system.components["controller"].bindings[-1] = (source, {**values, "omega_nn": 1.0})
+    with pytest.raises(SSPFormatError, match=r"controller_computed_torque.ssv: 'omega_nn' is a parameter of no component"):
+        applicable_parameters(system, names)
