@@ -9,8 +9,9 @@ system ``ssp/MAST.ssd`` with, and only with:
   must be the machine's) replaced by the design's;
 - the design's extra sets bound after the others (mechanism, actuators).
 
-``python -m mast.designs`` rewrites those files from ``ssp/MAST.ssd`` (tests check they are
-up to date); ``mast build`` builds each design's FMU with the defaults of its system.
+``python -m mast.designs`` rewrites those files from ``ssp/MAST.ssd``, and the controller
+variants of ``controllers.py`` (tests check they are up to date); ``mast build`` builds each
+design's FMU with the defaults of its system.
 """
 from __future__ import annotations
 
@@ -76,24 +77,29 @@ def _append_bindings(block: str, sources: Sequence[str]) -> str:
     return block[:last.end()] + lines + block[last.end():]
 
 
+def retitle(base: Path, name: str, what: str, note: str) -> str:
+    """``base``'s text named MAST_<name>, its system description extended by ``what``, its leading comment ``note``."""
+    text = base.read_text(encoding="utf-8")
+    text, n = re.subn(r"<!--.*?-->", lambda m: note, text, count=1, flags=re.S)
+    if not n:
+        raise ValueError(f"{base}: no leading comment to replace")
+    text = re.sub(r'(<ssd:SystemStructureDescription\b[^>]*?\bname=")[^"]*(")', rf"\g<1>MAST_{name}\g<2>",
+                  text, count=1)
+    return re.sub(r'(<ssd:System\b[^>]*?\bdescription=")([^"]*)(")',
+                  lambda m: f"{m.group(1)}{m.group(2)} - {what}{m.group(3)}", text, count=1)
+
+
 def variant_ssd(d: Design, base: Path = SSP_SRC / "MAST.ssd") -> bytes:
     """The system of design ``d``: ``base`` with the mechanism swapped (module docstring).
 
     Edits the text, so that everything else stays byte for byte as in ``base``.
     """
-    text = base.read_text(encoding="utf-8")
-    note = (f"<!-- Design {d.name}: {d.title} (docs/designs/{d.name}.md).\n"
-            f"     Written by `python -m mast.designs` from {base.name}: it differs from it only in the mechanism's\n"
-            f"     source ({d.model_identifier}.fmu) and the design's parameter sets\n"
-            f"     ({', '.join((d.geometry,) + d.mechanism_sets + d.actuator_sets)}).\n"
-            f"     Components may be swapped by editing their `source`; parameter sets are bound in order, later ones override. -->")
-    text, n = re.subn(r"<!--.*?-->", lambda m: note, text, count=1, flags=re.S)
-    if not n:
-        raise ValueError(f"{base}: no leading comment to replace")
-    text = re.sub(r'(<ssd:SystemStructureDescription\b[^>]*?\bname=")[^"]*(")', rf"\g<1>MAST_{d.name}\g<2>",
-                  text, count=1)
-    text = re.sub(r'(<ssd:System\b[^>]*?\bdescription=")([^"]*)(")',
-                  lambda m: f"{m.group(1)}{m.group(2)} - design {d.name}: {d.title}{m.group(3)}", text, count=1)
+    text = retitle(base, d.name, f"design {d.name}: {d.title}", (
+        f"<!-- Design {d.name}: {d.title} (docs/designs/{d.name}.md).\n"
+        f"     Written by `python -m mast.designs` from {base.name}: it differs from it only in the mechanism's\n"
+        f"     source ({d.model_identifier}.fmu) and the design's parameter sets\n"
+        f"     ({', '.join((d.geometry,) + d.mechanism_sets + d.actuator_sets)}).\n"
+        f"     Components may be swapped by editing their `source`; parameter sets are bound in order, later ones override. -->"))
     text = text.replace(f'source="{DEFAULT_GEOMETRY}"', f'source="{d.geometry}"')
     swapped = 0
 
@@ -128,7 +134,9 @@ def write_variants(base: Path = SSP_SRC / "MAST.ssd") -> list[Path]:
 
 
 def main() -> int:
-    for path in write_variants():
+    from . import controllers
+
+    for path in write_variants() + controllers.write_variants():
         print(f"wrote {path}")
     return 0
 

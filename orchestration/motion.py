@@ -10,6 +10,35 @@ AXES = ("z", "psi", "theta")
 
 
 @dataclass
+class PoseStep:
+    """Home pose plus constant ``offsets`` (m for z, rad for psi and theta) from the start on: a step response.
+
+    The command holds its final value from t0 on, so the controllers start with the whole
+    error and a constant reference (zero reference velocity and acceleration). The home
+    pose is read as for ``SineMotion``.
+    """
+
+    offsets: dict
+    home_from: str = "mechanism"
+    target: list[float] = field(default_factory=list)
+
+    def __post_init__(self) -> None:
+        for axis, value in self.offsets.items():
+            if axis not in AXES or not math.isfinite(value):
+                raise ValueError(f"pose step {axis!r} = {value!r}: expected finite offsets of {', '.join(AXES)}")
+
+    @property
+    def reads(self) -> Sequence[str]:
+        return [f"{self.home_from}.{a}" for a in AXES]
+
+    def start(self, t0: float, read: Callable[[str], float]) -> None:
+        self.target = [read(name) + self.offsets.get(a, 0.0) for name, a in zip(self.reads, AXES)]
+
+    def __call__(self, t: float) -> list[float]:
+        return list(self.target)
+
+
+@dataclass
 class SineMotion:
     """Home pose plus ``amplitude * sin(2 pi frequency (t - t0))`` on one axis.
 

@@ -75,6 +75,7 @@ __all__ = [
     "ActuatorBlock",
     "transmission_ratio",
     "two_inertia",
+    "guide_friction",
     "chain",
     "state_matrices",
     "transfer_functions",
@@ -155,6 +156,13 @@ def two_inertia(params: Mapping[str, Value]) -> tuple[float, float]:
     J1 = f["J1_scale"] * (f["J_motor"] + f["J_gearbox"] + f["J_coupling"] + f["J_brake"])
     J2 = f["J_guide"] / f["i_r"] ** 2 + f["M_load"] * i_R ** 2
     return J1, J2
+
+
+def guide_friction(omega: float, tau_c: float, omega_c: float, tau_s: float = 0.0, omega_s: float = 1.0) -> float:
+    """Guide friction torque at the motor shaft [N m] at motor speed ``omega`` [rad/s] (module docstring):
+    (tau_c + tau_s exp(-(omega/omega_s)^2)) tanh(omega/omega_c); tau_c, tau_s [N m], omega_c, omega_s [rad/s]."""
+    excess = tau_s * math.exp(-(omega / omega_s) ** 2) if tau_s else 0.0
+    return (tau_c + excess) * math.tanh(omega / omega_c)
 
 
 def _parse_list(params: Mapping[str, Value], name: str, count: int, positive: bool) -> list[float]:

@@ -1,8 +1,16 @@
-"""FMI 2.0 Co-Simulation wrapper of the controller model (the equations live in model.py)."""
+"""FMI 2.0 Co-Simulation wrappers of the controllers (the equations live in model.py and its siblings).
+
+All four have the same inputs and outputs (``DriveController``), so a system swaps its
+controller by the controller component's ``source`` and parameter sets in the SSP
+(``ssp/MAST_<controller>.ssd``).
+"""
 from __future__ import annotations
 
 from ..common.fmi import BlockSlave
+from .computed_torque import ComputedTorqueController
+from .feedforward import FeedForwardController
 from .model import ControllerBlock
+from .workspace import WorkspaceController
 
 
 class MastController(BlockSlave):
@@ -11,3 +19,22 @@ class MastController(BlockSlave):
     block_class = ControllerBlock
     author = "MAST co-simulation project"
     version = "0.1.0"
+
+
+class MastWorkspaceController(MastController):
+    """Workspace position control of the MAST (paper Fig. 3a): pose error through the direct kinematics, velocity command through the inverse Jacobian, PI velocity and current loops per axis."""
+
+    block_class = WorkspaceController
+
+
+class MastFeedForwardController(MastController):
+    """Joint-space cascade of the MAST with velocity and inverse-dynamics torque feed-forward (the controller's own model of actuators and mechanism)."""
+
+    block_class = FeedForwardController
+
+
+class MastComputedTorqueController(MastController):
+    """Computed torque control of the MAST (paper Fig. 3b): PD error dynamics through the controller's own inverse dynamic model, PI current loop per axis."""
+
+    block_class = ComputedTorqueController
+

@@ -1,13 +1,20 @@
-"""Joint-space cascade controller for the three axes of the MAST.
+"""The drive under every MAST controller, and the joint-space cascade (paper Fig. 2 and 6).
 
-Per axis j (paper Fig. 2 and 6), all loops sampled, forward-Euler integrators:
+``DriveController`` is what all controllers share: the interface (pose commands and the
+three axes' measurements in, voltages and the loop commands out), the drive's multi-rate
+schedule, the PI current loop, the joint reference and the operating modes. The outer
+law is the subclass's: ``ControllerBlock`` here (the paper's joint-space cascade),
+``WorkspaceController`` (workspace.py), ``FeedForwardController`` (feedforward.py) and
+``ComputedTorqueController`` (computed_torque.py).
+
+Joint-space cascade, per axis j, all loops sampled, forward-Euler integrators:
 
 position (every T_pos = N_pos T_cur, P):
     rho_cmd_j  = IK_j(z_cmd, psi_cmd, theta_cmd)       controller's own geometry
     omega_cmd_j = k_v (rho_cmd_j - rho_j) / i_R         i_R = p / (2 pi i_r)  (paper Eq. 1)
 velocity (every T_vel = N_vel T_cur, PI, limit i_max):
     e = omega_cmd_j - omega_m_j
-    v = k_p e + x_v
+    v = k_p e + x_v + i_ff_j                            i_ff: a feed-forward current (0 here)
     i_cmd_j = sat(v, i_max)
     x_v <- x_v + k_i T_vel e      unless saturated and e pushes further into the limit
 current (every T_cur, PI, limit u_max):
@@ -26,7 +33,8 @@ position loop if n % N_pos == 0, then the velocity loop if n % N_vel == 0, then
 the current loop, each using the command just computed by the outer loop. The
 outputs after the step are the commands of the last tick, so a master that
 applies them over the next step sees one current cycle (h) of computation delay,
-as a real drive does.
+as a real drive does. At every position tick the joint reference rho_cmd also
+gives its velocity and acceleration (reference.py) to the laws that use them.
 
 For commissioning and for tests, ``set_mode`` switches the drive's operating
 mode: "pose" (default), "joint" (rho_cmd given, the IK bypassed), "velocity"
@@ -43,6 +51,7 @@ from ..common.parameters import ParameterError, Value, nonnegative, positive
 from ..actuator.model import transmission_ratio
 from ..mechanism.designs import KINEMATIC_PARAMETERS, kinematic_engine
 from ..mechanism.kinematics import KinematicsError
+from .reference import JointReference
 
 
 #: operating modes, outermost first; the value is the first loop that runs
@@ -50,16 +59,17 @@ MODES = ("pose", "joint", "velocity", "current")
 _MODE_COMMAND = {"joint": "rho_cmd", "velocity": "omega_cmd", "current": "i_cmd"}
 
 
-def pi_step(e: float, x: float, k_p: float, k_iT: float, limit: float) -> tuple[float, float]:
+def pi_step(e: float, x: float, k_p: float, k_iT: float, limit: float, offset: float = 0.0) -> tuple[float, float]:
     """One forward-Euler PI update with output limit and conditional integration.
 
     ``e`` error, ``x`` integrator state (in output units), ``k_p`` proportional
     gain, ``k_iT`` integral gain times the loop's cycle time, ``limit`` the
-    symmetric output limit. Returns (output, new state): while the output is
-    saturated, the integrator only moves when the error drives it back out of
-    the limit (anti-windup).
+    symmetric output limit, ``offset`` a feed-forward added to the output before
+    the limit. Returns (output, new state): while the output is saturated, the
+    integrator only moves when the error drives it back out of the limit
+    (anti-windup).
     """
-    v = k_p * e + x
+    v = k_p * e + x + offset
     if v > limit:
         return limit, (x + k_iT * e if e < 0.0 else x)
     if v < -limit:
@@ -67,8 +77,31 @@ def pi_step(e: float, x: float, k_p: float, k_iT: float, limit: float) -> tuple[
     return v, x + k_iT * e
 
 
-class ControllerBlock(Block):
-    """Joint-space P/PI/PI cascade for the three axes, with its own inverse kinematics."""
+#: the servo drive under every controller (ssp/resources/drive.ssv) and the machine's transmission
+DRIVE_PARAMETERS = (
+    nonnegative("k_pc", "V/A", "Current PI proportional gain: voltage per current error"),
+    nonnegative("k_ic", "V/(A.s)", "Current PI integral gain"),
+    positive("T_pos", "s", "Position loop cycle time (integer multiple of T_cur)"),
+    positive("T_vel", "s", "Velocity loop cycle time (integer multiple of T_cur)"),
+    positive("T_cur", "s", "Current loop cycle time (the block's tick)"),
+    positive("i_max", "A", "Current command limit (symmetric)"),
+    positive("u_max", "V", "Voltage command limit (symmetric)"),
+    positive("i_r", "1", "Gear ratio (motor turns per output turn)"),
+    positive("p", "m", "Linear guide feed per output revolution"),
+    *KINEMATIC_PARAMETERS,  # the controller's own kinematic model of the machine (designs.py)
+)
+
+#: the joint-space cascade's outer gains (ssp/resources/controller_joint.ssv)
+CASCADE_PARAMETERS = (
+    nonnegative("k_v", "1/s", "Position P gain: linear velocity command per metre of joint error"),
+    nonnegative("k_p", "A.s/rad", "Velocity PI proportional gain: current per motor speed error"),
+    nonnegative("k_i", "A/rad", "Velocity PI integral gain"),
+)
+
+
+class DriveController(Block):
+    """The shared part of every MAST controller (module docstring); subclasses give the laws
+    ``_position_law`` and ``_velocity_law``."""
 
     INPUTS = ("z_cmd", "psi_cmd", "theta_cmd",
               "rho_1", "rho_2", "rho_3",
@@ -78,21 +111,7 @@ class ControllerBlock(Block):
                "rho_cmd_1", "rho_cmd_2", "rho_cmd_3",
                "omega_cmd_1", "omega_cmd_2", "omega_cmd_3",
                "i_cmd_1", "i_cmd_2", "i_cmd_3")
-    PARAMETERS = (
-        nonnegative("k_v", "1/s", "Position P gain: linear velocity command per metre of joint error"),
-        nonnegative("k_p", "A.s/rad", "Velocity PI proportional gain: current per motor speed error"),
-        nonnegative("k_i", "A/rad", "Velocity PI integral gain"),
-        nonnegative("k_pc", "V/A", "Current PI proportional gain: voltage per current error"),
-        nonnegative("k_ic", "V/(A.s)", "Current PI integral gain"),
-        positive("T_pos", "s", "Position loop cycle time (integer multiple of T_cur)"),
-        positive("T_vel", "s", "Velocity loop cycle time (integer multiple of T_cur)"),
-        positive("T_cur", "s", "Current loop cycle time (the block's tick)"),
-        positive("i_max", "A", "Current command limit (symmetric)"),
-        positive("u_max", "V", "Voltage command limit (symmetric)"),
-        positive("i_r", "1", "Gear ratio (motor turns per output turn)"),
-        positive("p", "m", "Linear guide feed per output revolution"),
-        *KINEMATIC_PARAMETERS,  # the controller's own kinematic model of the machine (designs.py)
-    )
+    PARAMETERS = DRIVE_PARAMETERS
     UNITS = {
         "z_cmd": "m", "psi_cmd": "rad", "theta_cmd": "rad",
         **{f"rho_{j}": "m" for j in (1, 2, 3)},
@@ -115,6 +134,8 @@ class ControllerBlock(Block):
         **{f"omega_cmd_{j}": f"Motor speed command of axis {j} (position loop output)" for j in (1, 2, 3)},
         **{f"i_cmd_{j}": f"Current command of axis {j} (velocity loop output)" for j in (1, 2, 3)},
     }
+    #: operating modes this controller offers (one without a velocity loop has no "velocity" mode)
+    MODES: tuple[str, ...] = MODES
 
     def __init__(self, params: Mapping[str, Value], name: str = "") -> None:
         super().__init__(params, name)
@@ -126,14 +147,12 @@ class ControllerBlock(Block):
         #: i_R = p / (2 pi i_r), metres of guide travel per motor radian (paper Eq. 1)
         self.i_R = transmission_ratio(P["p"], P["i_r"])
         #: the controller's kinematic model: the description its geometry set selects (``kinematics``),
-        #: the same code as the mechanism's; only its inverse kinematics runs here
+        #: the same code as the mechanism's
         self.kinematics = kinematic_engine(P, self.name)
         self.geometry = self.kinematics.description.geometry
         self._ik = self.kinematics.ik
+        self.reference = JointReference(float(P["T_pos"]))
         # pre-multiplied gains (pure Python floats for the hot loop)
-        self._kv_iR = float(P["k_v"]) / self.i_R
-        self._kp = float(P["k_p"])
-        self._kiT = float(P["k_i"]) * float(P["T_vel"])
         self._kpc = float(P["k_pc"])
         self._kicT = float(P["k_ic"]) * T_cur
         self._i_max = float(P["i_max"])
@@ -159,6 +178,7 @@ class ControllerBlock(Block):
         self._rho_cmd = [0.0, 0.0, 0.0]
         self._omega_cmd = [0.0, 0.0, 0.0]
         self._i_cmd = [0.0, 0.0, 0.0]
+        self._i_ff = [0.0, 0.0, 0.0]     # feed-forward current added to the velocity PI output [A]
         self._pose_ik: tuple[float, float, float] | None = None   # pose of the cached IK
         self._override: tuple[float, float, float] | None = None
 
@@ -193,8 +213,8 @@ class ControllerBlock(Block):
         outer loop's output would be. Call again to change them. Integrator
         states are kept.
         """
-        if mode not in MODES:
-            raise ValueError(f"{self.name}: unknown mode {mode!r}; modes are {', '.join(MODES)}")
+        if mode not in self.MODES:
+            raise ValueError(f"{self.name}: unknown mode {mode!r}; modes are {', '.join(self.MODES)}")
         if mode == "pose":
             if commands is not None:
                 raise ValueError(f"{self.name}: mode 'pose' takes its commands from the inputs")
@@ -210,13 +230,17 @@ class ControllerBlock(Block):
                 raise ModelError(f"{self.name}: {_MODE_COMMAND[mode]}_{j} = {c!r} is not finite")
         self._mode = MODES.index(mode)
         self._override = values  # type: ignore[assignment]
-        if mode == "joint":
-            self._rho_cmd = list(values)
-        elif mode == "velocity":
-            self._omega_cmd = list(values)
-        else:
-            self._i_cmd = list(values)
+        self._apply_override()
         self._write_outputs()
+
+    def _apply_override(self) -> None:
+        values = list(self._override)
+        if self._mode == 1:
+            self._rho_cmd = values
+        elif self._mode == 2:
+            self._omega_cmd = values
+        else:
+            self._i_cmd = values
 
     # -- life cycle -------------------------------------------------------------
     def initialize(self, t0: float) -> None:
@@ -229,12 +253,8 @@ class ControllerBlock(Block):
             self._update_ik(t0)
         elif override is not None:
             self._override = override
-            if mode == 1:
-                self._rho_cmd = list(override)
-            elif mode == 2:
-                self._omega_cmd = list(override)
-            else:
-                self._i_cmd = list(override)
+            self._apply_override()
+        self.reference.reset()
         self._write_outputs()
 
     def do_step(self, t: float, h: float) -> None:
@@ -253,25 +273,31 @@ class ControllerBlock(Block):
             self._check_inputs(t)
 
         N_pos, N_vel, mode = self._N_pos, self._N_vel, self._mode
-        rho_cmd, omega_cmd, i_cmd, u = self._rho_cmd, self._omega_cmd, self._i_cmd, self._u
-        x_v, x_c = self._x_v, self._x_c
+        i_cmd, u, x_c = self._i_cmd, self._u, self._x_c
         kpc, kicT, u_max = self._kpc, self._kicT, self._u_max
         for _ in range(m):
             if mode <= 1 and n % N_pos == 0:
+                t_n = self._t0 + n * T
                 if mode == 0:
-                    self._update_ik(self._t0 + n * T)
-                kv_iR = self._kv_iR
-                for j in range(3):
-                    omega_cmd[j] = kv_iR * (rho_cmd[j] - vals[3 + j])
+                    self._update_ik(t_n)
+                self.reference.update(self._rho_cmd)
+                self._position_law(t_n)
             if mode <= 2 and n % N_vel == 0:
-                kp, kiT, i_max = self._kp, self._kiT, self._i_max
-                for j in range(3):
-                    i_cmd[j], x_v[j] = pi_step(omega_cmd[j] - vals[6 + j], x_v[j], kp, kiT, i_max)
+                self._velocity_law(self._t0 + n * T)
             for j in range(3):
                 u[j], x_c[j] = pi_step(i_cmd[j] - vals[9 + j], x_c[j], kpc, kicT, u_max)
             n += 1
         self._n = n
-        vals[12:24] = u + rho_cmd + omega_cmd + i_cmd
+        self._write_outputs()
+
+    # -- the laws (subclasses) ------------------------------------------------------
+    def _position_law(self, t: float) -> None:
+        """At a position tick, with rho_cmd and ``reference`` up to date: set omega_cmd (and i_ff)."""
+        raise NotImplementedError
+
+    def _velocity_law(self, t: float) -> None:
+        """At a velocity tick (or in velocity mode): set i_cmd."""
+        raise NotImplementedError
 
     # -- helpers ------------------------------------------------------------------
     def _write_outputs(self) -> None:
@@ -297,3 +323,28 @@ class ControllerBlock(Block):
         self._rho_cmd[1] = float(rho[1])
         self._rho_cmd[2] = float(rho[2])
         self._pose_ik = pose
+
+
+class ControllerBlock(DriveController):
+    """Joint-space P/PI/PI cascade for the three axes (paper Fig. 2 and 6), with its own inverse kinematics."""
+
+    PARAMETERS = (*CASCADE_PARAMETERS, *DRIVE_PARAMETERS)
+
+    def __init__(self, params: Mapping[str, Value], name: str = "") -> None:
+        super().__init__(params, name)
+        self._kv_iR = float(self.params["k_v"]) / self.i_R
+        self._kp = float(self.params["k_p"])
+        self._kiT = float(self.params["k_i"]) * float(self.params["T_vel"])
+
+    def _position_law(self, t: float) -> None:
+        """omega_cmd = k_v (rho_cmd - rho) / i_R."""
+        vals, omega_cmd, rho_cmd, kv_iR = self.values, self._omega_cmd, self._rho_cmd, self._kv_iR
+        for j in range(3):
+            omega_cmd[j] = kv_iR * (rho_cmd[j] - vals[3 + j])
+
+    def _velocity_law(self, t: float) -> None:
+        """i_cmd = PI(omega_cmd - omega_m) + i_ff, limited to i_max."""
+        vals, omega_cmd, i_cmd, x_v, i_ff = self.values, self._omega_cmd, self._i_cmd, self._x_v, self._i_ff
+        kp, kiT, i_max = self._kp, self._kiT, self._i_max
+        for j in range(3):
+            i_cmd[j], x_v[j] = pi_step(omega_cmd[j] - vals[6 + j], x_v[j], kp, kiT, i_max, i_ff[j])

@@ -1,0 +1,47 @@
+"""Joint-space cascade with velocity and inverse-dynamics torque feed-forward.
+
+The cascade of model.py, plus two feed-forward paths from the joint reference
+(rho_ref = rho_cmd, its velocity and acceleration from reference.py), per axis j:
+
+    omega_cmd_j = k_v (rho_ref_j - rho_j) / i_R + k_ff_v rho_dot_ref_j / i_R
+    i_ff_j      = k_ff_tau tau_model_j(rho_ref, rho_dot_ref, rho_ddot_ref) / k_T      added to the velocity PI
+
+tau_model is the controller's inverse dynamic model (inverse_model.py) evaluated on the
+reference, so the feedback loops only correct what the model misses. With both weights
+0 this is the plain cascade; with 1 and an exact model the tracking error is what the
+reference estimate and the loops' sampling leave.
+"""
+from __future__ import annotations
+
+from typing import Mapping
+
+from ..common.parameters import Param, Value
+from .inverse_model import MODEL_PARAMETERS, InverseModel
+from .model import ControllerBlock
+
+FEEDFORWARD_PARAMETERS = (
+    Param("k_ff_v", "1", "Weight of the velocity feed-forward (0: none, 1: full)", 0.0, 1.5),
+    Param("k_ff_tau", "1", "Weight of the inverse-dynamics torque feed-forward (0: none, 1: full)", 0.0, 1.5),
+)
+
+
+class FeedForwardController(ControllerBlock):
+    """Joint-space P/PI/PI cascade with velocity and inverse-dynamics torque feed-forward."""
+
+    PARAMETERS = (*ControllerBlock.PARAMETERS, *MODEL_PARAMETERS, *FEEDFORWARD_PARAMETERS)
+
+    def __init__(self, params: Mapping[str, Value], name: str = "") -> None:
+        super().__init__(params, name)
+        self.model = InverseModel(self.params, self.name)
+        self._kff_v_iR = float(self.params["k_ff_v"]) / self.i_R
+        self._kff_tau = float(self.params["k_ff_tau"])
+
+    def _position_law(self, t: float) -> None:
+        super()._position_law(t)
+        ref = self.reference
+        for j in range(3):
+            self._omega_cmd[j] += self._kff_v_iR * ref.rho_dot[j]
+        if self._kff_tau:
+            i_ff = self.model.currents(self._rho_cmd, ref.rho_dot, ref.rho_ddot)
+            for j in range(3):
+                self._i_ff[j] = self._kff_tau * i_ff[j]

@@ -1,0 +1,90 @@
+"""The controller's own inverse dynamic model of the machine (computed torque, torque feed-forward).
+
+Motor torque [N m] axis j needs for the joint motion (rho, rho_dot, rho_ddot), everything
+referred to the motor shaft through i_R = p / (2 pi i_r) (paper Eq. 1):
+
+    tau_m_j = J rho_ddot_j / i_R + b_v w_j + tau_f(w_j) + i_R (M_load g_guide + F_j),   w_j = rho_dot_j / i_R
+
+J = J1 + J2 is the actuator's inertia with its transmission taken rigid (Eqs. 20-22; the
+733 Hz transmission mode lies far above any control bandwidth here), tau_f the guide
+friction (Eq. 23, with the Stribeck excess when the set has one), M_load g_guide the
+carriage's weight along the guide, and F_j the force the mechanism needs from actuator j:
+its inverse dynamics (Eq. 32, the engine of ``fmus/mechanism``, with the payload; zero
+when ``attached`` = 0).
+
+How the controller gets the model: its own copy. The same model code as the mechanism FMU
+runs here, parametrised by the same parameter sets the SSP binds to the plant (actuator,
+geometry, masses), so the controller is exact by default, and a mismatch is a binding:
+give the mechanism a payload the controller's sets do not have (``--set
+mechanism.m_payload=5``), or bind the controller other sets. The alternative, the
+mechanism FMU exchanging M(q) and the bias forces as signals, would be exact always
+(no mismatch to study), would add 12 signals and a step of delay to the interface, and no
+real controller can ask its plant for its mass matrix. The price of the copy is
+computation in the controller: one direct kinematics (warm-started Newton) and one
+inverse dynamics per evaluation, about 0.1 ms.
+"""
+from __future__ import annotations
+
+from typing import Mapping, Sequence
+
+from ..actuator.model import PARAMETERS as ACTUATOR_PARAMETERS
+from ..actuator.model import guide_friction, transmission_ratio, two_inertia
+from ..common.parameters import Value
+from ..mechanism.designs import MASS_PARAMETERS, PAYLOAD_PARAMETERS, engine
+from ..mechanism.kinematics import KinematicsError
+
+_ACTUATOR = {p.name: p for p in ACTUATOR_PARAMETERS}
+
+#: the model's parameters: the plant's own declarations (bind the plant's sets to the controller)
+MODEL_PARAMETERS = (
+    *(_ACTUATOR[n] for n in ("k_T", "J_motor", "J_gearbox", "J_coupling", "J_brake", "J1_scale", "J_guide",
+                             "M_load", "tau_c", "omega_c", "b_v", "tau_s", "omega_s", "g_guide")),
+    *MASS_PARAMETERS,
+    *PAYLOAD_PARAMETERS,
+)
+
+
+class InverseModel:
+    """Motor torques for a joint motion (module docstring), from validated parameters."""
+
+    def __init__(self, params: Mapping[str, Value], owner: str = "") -> None:
+        P = params
+        self.owner = owner or "controller"
+        self.i_R = transmission_ratio(P["p"], P["i_r"])
+        J1, J2 = two_inertia(P)
+        #: rigid actuator inertia at the motor shaft [kg m^2]
+        self.J = J1 + J2
+        self.k_T = float(P["k_T"])
+        self.b_v = float(P["b_v"])
+        self._friction = tuple(float(P[n]) for n in ("tau_c", "omega_c", "tau_s", "omega_s"))
+        self.weight = float(P["M_load"]) * float(P["g_guide"])       # [N] along the guide
+        self.engine = engine(P, self.owner) if int(P["attached"]) else None
+        self._guess = None
+
+    def torques(self, rho: Sequence[float], rho_dot: Sequence[float], rho_ddot: Sequence[float]) -> list[float]:
+        """tau_m [N m] of the three motors; KinematicsError (naming the controller) if rho is unreachable."""
+        i_R = self.i_R
+        if self.engine is None:
+            F = (0.0, 0.0, 0.0)
+        else:
+            try:
+                try:
+                    q, Jq, _ = self.engine.dk(rho, self._guess)
+                except KinematicsError:
+                    if self._guess is None:
+                        raise
+                    q, Jq, _ = self.engine.dk(rho, None)
+                F = self.engine.forces(q, Jq, rho_dot, rho_ddot)
+            except KinematicsError as exc:
+                raise KinematicsError(f"{self.owner}: inverse dynamic model at rho = {tuple(rho)!r} m: {exc}") from exc
+            self._guess = q
+        out = []
+        for j in range(3):
+            w = rho_dot[j] / i_R
+            out.append(self.J * rho_ddot[j] / i_R + self.b_v * w + guide_friction(w, *self._friction)
+                       + i_R * (self.weight + F[j]))
+        return out
+
+    def currents(self, rho: Sequence[float], rho_dot: Sequence[float], rho_ddot: Sequence[float]) -> list[float]:
+        """The motor currents [A] of ``torques`` (tau_m / k_T)."""
+        return [tau / self.k_T for tau in self.torques(rho, rho_dot, rho_ddot)]
