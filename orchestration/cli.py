@@ -173,9 +173,9 @@ def cmd_compare(args) -> int:
     base = QUICK if args.quick else DEFAULT
     test_set = TestSet(tuple(args.motions) if args.motions else base.axes,
                        tuple(args.frequencies) if args.frequencies else base.frequencies, base.amplitudes)
-    comp = compare(args.mechanism, Path(args.out), test_set, workers=args.workers, direct=args.direct,
+    comp = compare(args.mechanism or (), Path(args.out), test_set, workers=args.workers, direct=args.direct,
                    parameters=parse_overrides(args.set or []), base_ssd=args.ssd, fmu_dir=args.fmus,
-                   progress=CountProgress("compare"))
+                   progress=CountProgress("compare"), controllers=args.controller or (), payload=args.payload)
     print((Path(args.out) / "comparison.md").read_text(), end="")
     print(f"{sum(r['tests'] for r in comp.summary)} sine tests in {comp.wall_time_s:.0f} s; "
           f"wrote {', '.join(p.name for p in comp.files)} in {args.out}")
@@ -275,9 +275,19 @@ def main(argv=None) -> int:
     p.add_argument("fmu", nargs="+", help="mechanism FMU(s)")
     p.set_defaults(func=cmd_check_mechanism)
 
-    p = sub.add_parser("compare", help="run one sine test set on several mechanism designs: table and plots (docs/designs)")
-    p.add_argument("--mechanism", nargs="+", required=True, metavar="FMU_OR_SSP",
-                   help="mechanism FMUs to swap into the base system (or whole systems, .ssp/.ssd)")
+    from .compare import PAYLOAD_MISMATCH_KG
+
+    p = sub.add_parser("compare", help="run one sine test set on several mechanism designs or controllers: table and "
+                                       "plots (docs/designs, docs/controller.md)")
+    which = p.add_mutually_exclusive_group(required=True)
+    which.add_argument("--mechanism", nargs="+", metavar="FMU_OR_SSP",
+                       help="mechanism FMUs to swap into the base system (or whole systems, .ssp/.ssd)")
+    which.add_argument("--controller", nargs="+", metavar="NAME_FMU_OR_SSP",
+                       help="controllers: joint, workspace, feedforward, computed_torque, controller FMUs to swap into "
+                            "the base system, or whole systems (.ssp/.ssd)")
+    p.add_argument("--payload", type=float, default=PAYLOAD_MISMATCH_KG, metavar="KG",
+                   help="with --controller: also run every test with this payload on the platform, unknown to the "
+                        f"controllers (default {PAYLOAD_MISMATCH_KG:g} kg; 0: no robustness runs)")
     p.add_argument("--out", required=True, help="folder for comparison.csv/.json/.md, runs.csv, the plots, systems/")
     p.add_argument("--quick", action="store_true", help="the small test set: z motion at 1, 4 and 8 Hz")
     p.add_argument("--motions", nargs="+", choices=("z", "psi", "theta"), help="motions to test (default: all three)")

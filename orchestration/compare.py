@@ -1,4 +1,4 @@
-"""`mast compare`: run one test set on several mechanism designs; write a table and plots.
+"""`mast compare`: run one test set on several mechanism designs, or several controllers; write a table and plots.
 
 A design is given as a mechanism FMU (or as a whole system, .ssp/.ssd). For an FMU the
 system is the base system (``ssp/MAST.ssd``) with the mechanism swapped, exactly as a user
@@ -17,6 +17,16 @@ parasitic motion amplitudes. Outputs in DIR: comparison.csv (one row per design 
 runs.csv (one row per sine test), comparison.json (everything), comparison.md (the table),
 bode.png, bandwidth.png, torque.png, tracking.png, parasitic.png, and systems/*.ssp (the
 systems that were run, for `mast run`).
+
+``--controller`` compares controllers the same way (``compare(controllers=...)``): a
+controller is named (joint, workspace, feedforward, computed_torque: its system
+``ssp/MAST_<name>.ssd``), given as a controller FMU (swapped into the base system's
+``controller`` component with the FMU's own defaults) or as a whole system. Every test runs
+twice: as designed, and with a payload of ``payload`` kg on the platform that the
+controllers do not know (the mechanism's ``m_payload``; their models keep the nominal
+sets): the robustness to a model mismatch. The table gains the payload's effect on
+bandwidth and tracking error, and each motion gets its figure motion_<axis>.png (magnitude,
+tracking error, peak torque against frequency, nominal and with the payload).
 """
 from __future__ import annotations
 
@@ -41,6 +51,9 @@ REPO = Path(__file__).resolve().parents[1]
 BASE_SSD = REPO / "ssp" / "MAST.ssd"
 FMU_DIR = REPO / "build" / "fmus"
 MOTIONS = ("z", "psi", "theta")
+#: payload [kg] the controllers do not know, for the robustness runs (assumed: about 1.5 times the
+#: 2.06 kg platform, a heavy specimen; it must stay within the drives' current at the test amplitudes)
+PAYLOAD_MISMATCH_KG = 3.0
 #: geometry parameters the controller's kinematic model takes from the mechanism FMU
 KINEMATIC_NAMES = KINEMATIC_PARAMETERS_NAMES
 
@@ -70,6 +83,16 @@ class Candidate:
     ssp: str
     source: str
     parameters: dict = field(default_factory=dict)   # the mechanism FMU's defaults (empty for a system)
+    payload_kg: float = 0.0                           # a payload on the platform the controller does not know
+    nominal: str = ""                                 # label of the same system without it (payload runs)
+
+    def overrides(self, parameters: Optional[Mapping[str, Mapping[str, Value]]]) -> Optional[dict]:
+        """The caller's overrides, plus the unknown payload on the mechanism."""
+        if not self.payload_kg:
+            return dict(parameters) if parameters else None
+        out = {k: dict(v) for k, v in (parameters or {}).items()}
+        out.setdefault("mechanism", {})["m_payload"] = self.payload_kg
+        return out
 
 
 @dataclass
@@ -82,6 +105,7 @@ class Comparison:
     summary: list[dict]
     wall_time_s: float
     files: list[Path]
+    kind: str = "design"          # what the candidates are: "design" (mechanisms) or "controller"
 
     def row(self, label: str, axis: str) -> dict:
         for r in self.summary:
@@ -137,8 +161,9 @@ def _bindings_span(block: str) -> tuple[str, int, int, bool]:
     return at.group(1), at.end(), at.end(), False
 
 
-def swapped_ssd(base_text: str, fmu_name: str, params: Mapping[str, Value], label: str) -> str:
-    """The base system's text with its ``mechanism`` swapped for the FMU (module docstring)."""
+def swapped_ssd(base_text: str, fmu_name: str, params: Mapping[str, Value], label: str,
+                component_name: str = "mechanism") -> str:
+    """The base system's text with its ``mechanism`` (or ``controller``) swapped for the FMU (module docstring)."""
     mechanism_found = False
 
     def component(m: re.Match) -> str:
@@ -146,13 +171,15 @@ def swapped_ssd(base_text: str, fmu_name: str, params: Mapping[str, Value], labe
         block = m.group(0)
         name = re.search(r'\bname="([^"]*)"', block).group(1)
         source = re.search(r'\bsource="([^"]*)"', block).group(1)
-        if name == "mechanism":       # its own defaults replace whatever the base bound
+        if name == component_name:    # its own defaults replace whatever the base bound
             mechanism_found = True
             block = block.replace(f'source="{source}"', f'source="resources/{fmu_name}"', 1)
             pad, start, end, _ = _bindings_span(block)
             inline = _parameter_set_xml(params, "design", f"default of {fmu_name}", pad + "  ")
             return block[:start] + f"\n{pad}<ssd:ParameterBindings>\n{inline}\n{pad}</ssd:ParameterBindings>" + block[end:]
         extra, why = {}, ""
+        if component_name != "mechanism":
+            return block
         if name == "controller":
             extra = {k: params[k] for k in KINEMATIC_NAMES if k in params}
             why = f"the controller's kinematic model: the geometry of {fmu_name}"
@@ -170,7 +197,7 @@ def swapped_ssd(base_text: str, fmu_name: str, params: Mapping[str, Value], labe
 
     text = re.sub(r"<ssd:Component\b.*?</ssd:Component>", component, base_text, flags=re.S)
     if not mechanism_found:
-        raise ValueError("the base system has no component named 'mechanism' to swap")
+        raise ValueError(f"the base system has no component named '{component_name}' to swap")
     text = re.sub(r'(<ssd:SystemStructureDescription\b[^>]*?\bname=")[^"]*(")', rf"\g<1>MAST_{label}\g<2>", text,
                   count=1)
     return text
@@ -186,31 +213,41 @@ def _label(path: Path, taken: set) -> str:
 
 
 def prepare(mechanisms: Sequence[Union[str, Path]], out: Union[str, Path], base_ssd: Union[str, Path] = BASE_SSD,
-            fmu_dir: Union[str, Path] = FMU_DIR) -> list[Candidate]:
+            fmu_dir: Union[str, Path] = FMU_DIR, component: str = "mechanism") -> list[Candidate]:
     """One runnable system per design: an FMU is swapped into ``base_ssd`` (packed into
     out/systems/<label>.ssp with the FMUs of ``fmu_dir`` for the other components); an .ssp or
-    .ssd is used as it is."""
+    .ssd is used as it is. ``component="controller"``: the items are controllers, and a
+    controller's name (``controllers.CONTROLLERS``) stands for its system ssp/MAST_<name>.ssd."""
     from .build import build_ssp
+    from .controllers import CONTROLLERS
 
     out, base_ssd, fmu_dir = Path(out), Path(base_ssd), Path(fmu_dir)
     candidates: list[Candidate] = []
     taken: set = set()
     base_text = base_ssd.read_text(encoding="utf-8")
+    named = {c.name: c for c in CONTROLLERS} if component == "controller" else {}
     for item in mechanisms:
+        if str(item) in named:
+            label = _label(Path(str(item)), taken)
+            built = build_ssp(named[str(item)].ssd, fmu_dir, out / "systems")
+            ssp = built.replace(built.with_name(f"{label}.ssp"))
+            candidates.append(Candidate(label, str(ssp), str(named[str(item)].ssd)))
+            continue
         path = Path(item)
         if not path.exists():
-            raise FileNotFoundError(f"mechanism {path}: no such file")
+            known = f" or a controller name ({', '.join(named)})" if named else ""
+            raise FileNotFoundError(f"{component} {path}: no such file{known}")
         label = _label(path, taken)
         if path.suffix in (".ssp", ".ssd"):
             from .ssp import SSPArchive
 
             with SSPArchive(path) as archive:      # the mechanism's bound parameters (attached, geometry ...)
                 comp = archive.system.components.get("mechanism")
-                params = dict(comp.parameters) if comp is not None else {}
+                params = dict(comp.parameters) if comp is not None and component == "mechanism" else {}
             candidates.append(Candidate(label, str(path), str(path), params))
             continue
         if path.suffix != ".fmu":
-            raise ValueError(f"mechanism {path}: expected an .fmu (a mechanism to swap in) or an .ssp/.ssd (a system)")
+            raise ValueError(f"{component} {path}: expected an .fmu (a {component} to swap in) or an .ssp/.ssd (a system)")
         params = fmu_parameters(path)
         with tempfile.TemporaryDirectory(prefix="mast_compare_") as tmp:
             tmp = Path(tmp)
@@ -225,9 +262,9 @@ def prepare(mechanisms: Sequence[Union[str, Path]], out: Union[str, Path], base_
                 target.unlink()
             target.symlink_to(path.resolve())
             ssd = tmp / f"{label}.ssd"
-            ssd.write_text(swapped_ssd(base_text, path.name, params, label), encoding="utf-8")
+            ssd.write_text(swapped_ssd(base_text, path.name, params, label, component), encoding="utf-8")
             ssp = build_ssp(ssd, fmus, out / "systems")
-        candidates.append(Candidate(label, str(ssp), str(path), params))
+        candidates.append(Candidate(label, str(ssp), str(path), params if component == "mechanism" else {}))
     return candidates
 
 
@@ -236,38 +273,47 @@ def _finite(x: Optional[float]) -> Optional[float]:
     return x if x is not None and math.isfinite(x) else None
 
 
-def summarize(label: str, axis: str, amplitude: float, results: Sequence[SineResult]) -> dict:
+def summarize(label: str, axis: str, amplitude: float, results: Sequence[SineResult], payload_kg: float = 0.0) -> dict:
     ok = [r for r in results if not r.error]
     freqs = [r.frequency for r in ok]
     bw = bandwidth(freqs, [r.ratio for r in ok]) if len(ok) > 1 else None
     peak = max((max(r.torque_peak) for r in ok), default=math.nan)
     rms = max((max(r.torque_rms) for r in ok), default=math.nan)
     track = max((r.tracking_peak for r in ok), default=math.nan)
+    current = max((max(r.current_peak) for r in ok if r.current_peak), default=math.nan)
     par = {k: max((r.parasitic.get(k, math.nan) for r in ok), default=math.nan) for k in ("x", "y", "phi")}
     return {
-        "design": label, "motion": axis, "amplitude": amplitude,
+        "design": label, "motion": axis, "amplitude": amplitude, "payload_kg": payload_kg,
         "bandwidth_Hz": bw,
         "bandwidth_note": ("" if bw is not None else
                            (f"above {max(freqs):g} Hz" if ok and abs(ok[-1].ratio) >= 10 ** (-3 / 20)
                             else "not found")),
-        "torque_peak_Nm": _finite(peak), "torque_rms_Nm": _finite(rms),
+        "torque_peak_Nm": _finite(peak), "torque_rms_Nm": _finite(rms), "current_peak_A": _finite(current),
         "tracking_peak": _finite(track), "tracking_peak_rel": _finite(track / amplitude) if amplitude else None,
+        "tracking_peak_f_min": _finite(ok[0].tracking_peak) if ok else None,   # at the lowest frequency: quasi-static
         "parasitic_x_m": _finite(par["x"]), "parasitic_y_m": _finite(par["y"]), "parasitic_phi_rad": _finite(par["phi"]),
         "tests": len(results), "failed": len(results) - len(ok),
         "errors": sorted({r.error for r in results if r.error}),
     }
 
 
-def compare(mechanisms: Sequence[Union[str, Path]], out: Union[str, Path], test_set: Optional[TestSet] = None,
+def compare(mechanisms: Sequence[Union[str, Path]] = (), out: Union[str, Path] = "comparison",
+            test_set: Optional[TestSet] = None,
             quick: bool = False, workers: Optional[int] = None, direct: bool = False,
             parameters: Optional[Mapping[str, Mapping[str, Value]]] = None, base_ssd: Union[str, Path] = BASE_SSD,
             fmu_dir: Union[str, Path] = FMU_DIR, plots: bool = True,
-            progress: Optional[Callable[[int, int], None]] = None) -> Comparison:
-    """Run the test set (``QUICK`` if ``quick``, else ``DEFAULT``) on every design; write DIR (module docstring).
+            progress: Optional[Callable[[int, int], None]] = None,
+            controllers: Sequence[Union[str, Path]] = (), payload: float = PAYLOAD_MISMATCH_KG) -> Comparison:
+    """Run the test set (``QUICK`` if ``quick``, else ``DEFAULT``) on every design, or on every controller
+    (``controllers``, each also with an unknown ``payload`` [kg] unless it is 0); write DIR (module docstring).
 
     ``parameters``: overrides applied to every design (``{"actuator_1": {"tau_c": 0.07}}``);
     ``direct``: run the model objects without FMI (only for this project's FMUs).
     """
+    if bool(mechanisms) == bool(controllers):
+        raise ValueError("compare: give either mechanisms or controllers")
+    if not (math.isfinite(payload) and payload >= 0.0):
+        raise ValueError(f"compare: payload = {payload!r} kg: expected a finite mass >= 0")
     t0 = time.perf_counter()
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -275,20 +321,25 @@ def compare(mechanisms: Sequence[Union[str, Path]], out: Union[str, Path], test_
     for axis in test_set.axes:
         if axis not in MOTIONS:
             raise ValueError(f"test set: motion {axis!r}: expected one of {', '.join(MOTIONS)}")
-    candidates = prepare(mechanisms, out, base_ssd, fmu_dir)
+    kind = "controller" if controllers else "design"
+    candidates = prepare(controllers or mechanisms, out, base_ssd, fmu_dir, "controller" if controllers else "mechanism")
+    if controllers and payload:
+        candidates += [Candidate(f"{c.label} +{payload:g} kg", c.ssp, c.source, c.parameters, payload, c.label)
+                       for c in candidates]
     cases, keys = [], []
     for c in candidates:
         for axis in test_set.axes:
             for f in test_set.frequencies:
-                cases.append(SineCase(c.ssp, axis, test_set.amplitudes[axis], f, parameters, direct, label=c.label))
+                cases.append(SineCase(c.ssp, axis, test_set.amplitudes[axis], f, c.overrides(parameters), direct,
+                                      label=c.label))
                 keys.append((c.label, axis))
     results_flat = run_cases(cases, workers=workers, progress=progress)
     results: dict = {}
     for key, res in zip(keys, results_flat):
         results.setdefault(key, []).append(res)
-    summary = [summarize(c.label, axis, test_set.amplitudes[axis], results[(c.label, axis)])
+    summary = [summarize(c.label, axis, test_set.amplitudes[axis], results[(c.label, axis)], c.payload_kg)
                for c in candidates for axis in test_set.axes]
-    comp = Comparison(candidates, test_set, results, summary, 0.0, [])
+    comp = Comparison(candidates, test_set, results, summary, 0.0, [], kind)
     comp.files = write(comp, out, plots=plots)
     comp.wall_time_s = time.perf_counter() - t0
     meta = json.loads((out / "comparison.json").read_text())
@@ -318,11 +369,12 @@ def fig10(comp: Comparison) -> Optional[dict]:
     }
 
 
-SUMMARY_COLUMNS = ("design", "motion", "amplitude", "bandwidth_Hz", "bandwidth_note", "torque_peak_Nm", "torque_rms_Nm",
-                   "tracking_peak", "tracking_peak_rel", "parasitic_x_m", "parasitic_y_m", "parasitic_phi_rad",
+SUMMARY_COLUMNS = ("design", "motion", "amplitude", "payload_kg", "bandwidth_Hz", "bandwidth_note", "torque_peak_Nm", "torque_rms_Nm",
+                   "current_peak_A",
+                   "tracking_peak", "tracking_peak_rel", "tracking_peak_f_min", "parasitic_x_m", "parasitic_y_m", "parasitic_phi_rad",
                    "tests", "failed")
 RUN_COLUMNS = ("design", "motion", "frequency_Hz", "amplitude", "magnitude", "magnitude_dB", "phase_deg",
-               "torque_peak_Nm", "torque_rms_Nm", "tracking_peak", "parasitic_x_m", "parasitic_y_m",
+               "torque_peak_Nm", "torque_rms_Nm", "current_peak_A", "tracking_peak", "parasitic_x_m", "parasitic_y_m",
                "parasitic_phi_rad", "error")
 
 
@@ -333,6 +385,7 @@ def _run_row(label: str, r: SineResult) -> dict:
             "magnitude_dB": 20 * math.log10(r.magnitude) if ok and r.magnitude > 0 else None,
             "phase_deg": r.phase_deg if ok else None,
             "torque_peak_Nm": max(r.torque_peak) if ok else None, "torque_rms_Nm": max(r.torque_rms) if ok else None,
+            "current_peak_A": max(r.current_peak) if ok and r.current_peak else None,
             "tracking_peak": r.tracking_peak if ok else None,
             "parasitic_x_m": r.parasitic.get("x") if ok else None, "parasitic_y_m": r.parasitic.get("y") if ok else None,
             "parasitic_phi_rad": r.parasitic.get("phi") if ok else None, "error": r.error or ""}
@@ -346,37 +399,62 @@ def _fmt(v) -> str:
     return str(v)
 
 
+def _renamed(rows: Sequence[dict], kind: str) -> list[dict]:
+    """Rows with their first key, "design", named after what the candidates are."""
+    return [{(kind if k == "design" else k): v for k, v in r.items()} for r in rows]
+
+
+def robustness(comp: Comparison) -> list[dict]:
+    """Per controller and motion: bandwidth and peak tracking error, as designed and with the unknown payload."""
+    rows = []
+    for c in comp.candidates:
+        if not c.nominal:
+            continue
+        for axis in comp.test_set.axes:
+            nom, pay = comp.row(c.nominal, axis), comp.row(c.label, axis)
+            row = {"controller": c.nominal, "motion": axis, "payload_kg": c.payload_kg,
+                   "bandwidth_Hz": nom["bandwidth_Hz"], "bandwidth_payload_Hz": pay["bandwidth_Hz"]}
+            for key in ("tracking_peak", "tracking_peak_f_min"):
+                row[key], row[f"{key}_payload"] = nom[key], pay[key]
+                row[f"{key}_ratio"] = pay[key] / nom[key] if pay[key] and nom[key] else None
+            rows.append(row)
+    return rows
+
+
 def write(comp: Comparison, out: Path, plots: bool = True) -> list[Path]:
     """comparison.csv/.json/.md, runs.csv and the plots."""
     files = []
+    kind = comp.kind
     with open(out / "comparison.csv", "w", newline="") as handle:
-        w = csv.DictWriter(handle, SUMMARY_COLUMNS, extrasaction="ignore")
+        w = csv.DictWriter(handle, (kind,) + SUMMARY_COLUMNS[1:], extrasaction="ignore")
         w.writeheader()
-        w.writerows(comp.summary)
+        w.writerows(_renamed(comp.summary, kind))
     files.append(out / "comparison.csv")
-    runs = [_run_row(label, r) for (label, _), rs in comp.results.items() for r in rs]
+    runs = _renamed([_run_row(label, r) for (label, _), rs in comp.results.items() for r in rs], kind)
     with open(out / "runs.csv", "w", newline="") as handle:
-        w = csv.DictWriter(handle, RUN_COLUMNS)
+        w = csv.DictWriter(handle, (kind,) + RUN_COLUMNS[1:])
         w.writeheader()
         w.writerows(runs)
     files.append(out / "runs.csv")
     data = {
-        "designs": [{"label": c.label, "source": c.source, "system": c.ssp, "parameters": c.parameters}
-                    for c in comp.candidates],
+        f"{kind}s": [{"label": c.label, "source": c.source, "system": c.ssp, "parameters": c.parameters,
+                      "payload_kg": c.payload_kg} for c in comp.candidates],
         "test_set": {"axes": list(comp.test_set.axes), "frequencies_Hz": list(comp.test_set.frequencies),
                      "amplitudes": dict(comp.test_set.amplitudes),
                      "amplitude_units": {"z": "m", "psi": "rad", "theta": "rad"}},
-        "summary": comp.summary, "runs": runs, "fig10": fig10(comp),
+        "summary": _renamed(comp.summary, kind), "runs": runs, "fig10": fig10(comp) if kind == "design" else None,
+        "robustness": robustness(comp),
     }
     (out / "comparison.json").write_text(json.dumps(data, indent=2))
     files.append(out / "comparison.json")
-    lines = ["| design | motion | bandwidth [Hz] | peak torque [N m] | RMS torque [N m] | peak tracking error "
-             "| parasitic x [m] | parasitic y [m] | parasitic phi [rad] | failed |",
-             "|---|---|---|---|---|---|---|---|---|---|"]
+    lines = [f"| {kind} | motion | bandwidth [Hz] | peak torque [N m] | RMS torque [N m] | peak current [A] "
+             "| peak tracking error | parasitic x [m] | parasitic y [m] | parasitic phi [rad] | failed |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in comp.summary:
         unit = "m" if r["motion"] == "z" else "rad"
         bw = _fmt(r["bandwidth_Hz"]) if r["bandwidth_Hz"] is not None else r["bandwidth_note"]
         lines.append(f"| {r['design']} | {r['motion']} | {bw} | {_fmt(r['torque_peak_Nm'])} | {_fmt(r['torque_rms_Nm'])} "
+                     f"| {_fmt(r['current_peak_A'])} "
                      f"| {_fmt(r['tracking_peak'])} {unit} | {_fmt(r['parasitic_x_m'])} | {_fmt(r['parasitic_y_m'])} "
                      f"| {_fmt(r['parasitic_phi_rad'])} | {r['failed']}/{r['tests']} |")
     f10 = data["fig10"]
@@ -385,10 +463,68 @@ def write(comp: Comparison, out: Path, plots: bool = True) -> list[Path]:
                   + "; ".join(f"{k} {_fmt(v)} Hz" for k, v in f10["with_mechanism"].items()) + " with the mechanism, "
                   + "; ".join(f"{k} {_fmt(v)} Hz" for k, v in f10["actuators_alone"].items())
                   + f" actuators alone (paper: {paper.BANDWIDTH_WITH_MAST} and {paper.BANDWIDTH_ACTUATORS_ALONE} Hz)."]
+    if data["robustness"]:
+        lines += ["", "Robustness: the same tests with a payload on the platform that the controllers do not know "
+                  "(their models keep the nominal sets).", "",
+                  f"| controller | motion | payload [kg] | bandwidth [Hz] | with payload [Hz] | tracking error at "
+                  f"{min(comp.test_set.frequencies):g} Hz | with payload | ratio | peak tracking error | with payload "
+                  "| ratio |", "|---|---|---|---|---|---|---|---|---|---|---|"]
+        for r in data["robustness"]:
+            unit = "m" if r["motion"] == "z" else "rad"
+            lines.append(f"| {r['controller']} | {r['motion']} | {_fmt(r['payload_kg'])} | {_fmt(r['bandwidth_Hz'])} "
+                         f"| {_fmt(r['bandwidth_payload_Hz'])} | {_fmt(r['tracking_peak_f_min'])} {unit} "
+                         f"| {_fmt(r['tracking_peak_f_min_payload'])} {unit} | {_fmt(r['tracking_peak_f_min_ratio'])} "
+                         f"| {_fmt(r['tracking_peak'])} {unit} | {_fmt(r['tracking_peak_payload'])} {unit} "
+                         f"| {_fmt(r['tracking_peak_ratio'])} |")
     (out / "comparison.md").write_text("\n".join(lines) + "\n")
     files.append(out / "comparison.md")
     if plots:
         files += _plots(comp, out)
+        if kind == "controller":
+            files += _motion_plots(comp, out)
+    return files
+
+
+def _motion_plots(comp: Comparison, out: Path) -> list[Path]:
+    """motion_<axis>.png: magnitude, peak tracking error and peak torque against frequency per controller,
+    as designed (solid) and with the unknown payload (dashed, same colour)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    files = []
+    nominal = [c for c in comp.candidates if not c.nominal]
+    loaded = {c.nominal: c for c in comp.candidates if c.nominal}
+    panels = (("magnitude [dB]", lambda r: 20 * math.log10(r.magnitude)),
+              ("peak tracking error [m or rad]", lambda r: r.tracking_peak),
+              ("peak motor torque [N m]", lambda r: max(r.torque_peak)))
+    for axis in comp.test_set.axes:
+        fig, ax = plt.subplots(1, 3, figsize=(14, 4))
+        for k, c in enumerate(nominal):
+            colour = f"C{k}"
+            for cand, style in ((c, "o-"), (loaded.get(c.label), "s--")):
+                if cand is None:
+                    continue
+                rs = [r for r in comp.results[(cand.label, axis)] if not r.error]
+                for a, (_, get) in zip(ax, panels):
+                    a.plot([r.frequency for r in rs], [get(r) for r in rs], style, color=colour, ms=3,
+                           label=cand.label)
+        for a, (title, _) in zip(ax, panels):
+            a.set_xscale("log")
+            a.set_xlabel("frequency [Hz]")
+            a.set_title(title, fontsize=9)
+            a.grid(True, lw=0.3)
+        ax[0].axhline(-3.0, color="0.5", lw=0.8, ls="--")
+        ax[1].set_yscale("log")
+        ax[0].legend(fontsize=7)
+        amplitude = comp.test_set.amplitudes[axis]
+        fig.suptitle(f"{axis} motion, amplitude {amplitude:g} {'m' if axis == 'z' else 'rad'}: controllers as designed "
+                     f"(solid) and with a payload they do not know (dashed)")
+        fig.tight_layout()
+        fig.savefig(out / f"motion_{axis}.png", dpi=110)
+        plt.close(fig)
+        files.append(out / f"motion_{axis}.png")
     return files
 
 

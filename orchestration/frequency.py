@@ -61,6 +61,7 @@ class SineResult:
     torque_h3_h1: list[float]           # 3rd / 1st harmonic of the motor torque (square wave: 1/3)
     tracking_peak: float                # max |command - achieved| on the axis, steady state
     parasitic: dict[str, float]         # peak-to-peak/2 of x, y, phi in steady state
+    current_peak: list[float] = field(default_factory=list)   # per axis, max |i_cmd| in steady state [A] (if recorded)
     error: Optional[str] = None
     signals: dict = field(default_factory=dict)  # steady-state time series, if asked for
 
@@ -81,7 +82,8 @@ def sine_test(ssp: str, axis: str, amplitude: float, frequency: float,
 
     start, stop = measuring_window(frequency)
     record = [f"{axis}_cmd", f"mechanism.{axis}", "mechanism.x", "mechanism.y", "mechanism.phi",
-              "actuator_1.tau_m", "actuator_2.tau_m", "actuator_3.tau_m"]
+              "actuator_1.tau_m", "actuator_2.tau_m", "actuator_3.tau_m",
+              "controller.i_cmd_1", "controller.i_cmd_2", "controller.i_cmd_3"]
     record = list(dict.fromkeys(record + list(keep)))
     result = simulate(ssp, SineMotion(axis, amplitude, frequency), stop, parameters=parameters,
                       record=record, record_step=_record_step(frequency), direct=direct)
@@ -107,6 +109,8 @@ def analyse(result: Result, axis: str, amplitude: float, frequency: float, start
         torque_rms=[float(np.sqrt(np.mean(tau ** 2))) for tau in torques],
         torque_h3_h1=h3h1,
         tracking_peak=float(np.abs(cmd - got).max()),
+        current_peak=[float(np.abs(result[f"controller.i_cmd_{j}"][steady]).max()) for j in (1, 2, 3)
+                      if f"controller.i_cmd_{j}" in result.signals],
         parasitic={k: float(np.ptp(result[f"mechanism.{k}"][steady]) / 2) for k in ("x", "y", "phi")
                    if f"mechanism.{k}" in result.signals},
         signals={"time": t, **{name: result[name][steady] for name in keep}} if keep else {},
