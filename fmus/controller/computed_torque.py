@@ -35,6 +35,7 @@ class ComputedTorqueController(DriveController):
     """Computed torque control of the three axes with the controller's own inverse dynamic model."""
 
     PARAMETERS = (*DRIVE_PARAMETERS, *MODEL_PARAMETERS, *COMPUTED_TORQUE_PARAMETERS)
+    REFERENCE_RATES = True
     MODES = ("pose", "joint", "current")
     DESCRIPTIONS = {**DriveController.DESCRIPTIONS,
                     **{f"omega_cmd_{j}": f"Reference speed of motor {j} (rho_dot_ref / i_R; no velocity loop)"

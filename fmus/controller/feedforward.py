@@ -29,6 +29,7 @@ class FeedForwardController(ControllerBlock):
     """Joint-space P/PI/PI cascade with velocity and inverse-dynamics torque feed-forward."""
 
     PARAMETERS = (*ControllerBlock.PARAMETERS, *MODEL_PARAMETERS, *FEEDFORWARD_PARAMETERS)
+    REFERENCE_RATES = True
 
     def __init__(self, params: Mapping[str, Value], name: str = "") -> None:
         super().__init__(params, name)

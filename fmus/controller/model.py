@@ -33,8 +33,8 @@ position loop if n % N_pos == 0, then the velocity loop if n % N_vel == 0, then
 the current loop, each using the command just computed by the outer loop. The
 outputs after the step are the commands of the last tick, so a master that
 applies them over the next step sees one current cycle (h) of computation delay,
-as a real drive does. At every position tick the joint reference rho_cmd also
-gives its velocity and acceleration (reference.py) to the laws that use them.
+as a real drive does. For the laws that use them (``REFERENCE_RATES``), every position
+tick also updates the velocity and acceleration of the joint reference (reference.py).
 
 For commissioning and for tests, ``set_mode`` switches the drive's operating
 mode: "pose" (default), "joint" (rho_cmd given, the IK bypassed), "velocity"
@@ -136,6 +136,8 @@ class DriveController(Block):
     }
     #: operating modes this controller offers (one without a velocity loop has no "velocity" mode)
     MODES: tuple[str, ...] = MODES
+    #: whether the laws use the reference velocity and acceleration (``reference``, updated every position tick)
+    REFERENCE_RATES = False
 
     def __init__(self, params: Mapping[str, Value], name: str = "") -> None:
         super().__init__(params, name)
@@ -280,7 +282,8 @@ class DriveController(Block):
                 t_n = self._t0 + n * T
                 if mode == 0:
                     self._update_ik(t_n)
-                self.reference.update(self._rho_cmd)
+                if self.REFERENCE_RATES:
+                    self.reference.update(self._rho_cmd)
                 self._position_law(t_n)
             if mode <= 2 and n % N_vel == 0:
                 self._velocity_law(self._t0 + n * T)
