@@ -42,13 +42,11 @@ class WorkspaceController(ControllerBlock):
         k_v = float(self.params["k_v"])
         #: pose-space gains [1/s] for z, psi, theta
         self.K = tuple(k_v * float(self.params[f"k_v_scale_{c}"]) for c in ("z", "psi", "theta"))
-        self._q_meas = None
-        self._q_target = None
 
     def _reset(self) -> None:
         super()._reset()
-        self._q_meas = None
-        self._q_target = None
+        self._q_meas = None       # last direct kinematics of the measured joints (its warm start)
+        self._q_target = None     # last direct kinematics of rho_cmd (joint mode)
 
     def _dk(self, rho, guess, what: str, t: float):
         try:
