@@ -12,10 +12,14 @@ add it, show the gap shrink (docs/diagnose.md).
    re-simulating the co-simulation at every step (start: the regression estimate;
    Jacobian: the effect signatures of the current simulation). Steps 2-3 repeat,
    re-linearised at the fitted model, until the selection stops changing.
+   Backlash, which makes the loop hunt (unpredictably sample by sample), comes last, on a
+   phase-free score: band powers of the residual against ensembles of re-simulations
+   (orchestration/phasefree.py).
 4. Show: re-simulate every test; diagnosis.json, report.md with figures, the augmented
    parameter set (actuator_diagnosed.ssv) and an SSP that binds it.
-5. The verdict: nothing missing (residual at the noise floor), explained, or an
-   unexplained residual (shown, never forced onto a name).
+5. The verdict: nothing missing (residual at the noise floor), explained (at the floor
+   sample by sample, or by the band powers where a named backlash makes the loop hunt), or
+   an unexplained residual (shown, never forced onto a name).
 """
 from __future__ import annotations
 
@@ -46,10 +50,10 @@ RELATIVE = 0.1
 FD_STEP = {"tau_s": 2e-3, "omega_s": 0.3}
 #: effects fitted and verified by re-simulation (sample by sample) when a residual remains after the regression loop
 NONLINEAR = tuple(e.key for e in LIBRARY if not e.regression and not e.phase_free)
-#: effects that make the loop hunt: scored by the phase-free score (phasefree.py), tried last
-PHASE_FREE = tuple(e.key for e in LIBRARY if e.phase_free)
-#: bisection levels of the phase-free value after its scan (ratio 2 -> 2^(1/32): 2.2 %)
+#: bisection levels of a phase-free value after its scan (ratio 2 -> 2^(1/32): 2.2 %) ...
 REFINE_LEVELS = 5
+#: ... and the parabola through the deviances within the ratio of this level (2^(1/8)) of the best value
+PARABOLA_LEVEL = 3
 #: ... and at least this share of the whole gap of the current model (above the noise)
 SHARE_OF_GAP = 0.01
 #: at most this many effects at once
@@ -817,16 +821,27 @@ def _phase_free_stage(ctx: _Context, state: State, effect: Effect, steps: list) 
     almost any excess (a position ripple, say), so the effect must explain all of what is left.
     """
     model, p = ctx.model, effect.parameter
-    score = PhaseFreeScore({n: model.tests[n].y for n in ctx.names}, state.pt.obs,
-                           {n: model.tests[n].test.sample_time for n in ctx.names}, ctx.sigma)
+    try:
+        score = PhaseFreeScore({n: model.tests[n].y for n in ctx.names}, state.pt.obs,
+                               {n: model.tests[n].test.sample_time for n in ctx.names}, ctx.sigma)
+    except ValueError as err:   # sampled too slowly for the bands
+        steps.append({"how": "phase-free score", "from": [a.label for a in state.selected],
+                      "to": [a.label for a in state.selected] + [effect.key], "accepted": False,
+                      "note": f"not tried: {err}"})
+        ctx.log(f"diagnose: {effect.title} not tried: {err}")
+        return state
     ensembles: dict[float, Optional[dict]] = {}
+    current = float(state.changes.get(p, ctx.nominal[p]))
+
+    def changes(v: float) -> dict:   # the current model as it is (its simulations are cached)
+        return dict(state.changes) if v == current else {**state.changes, p: v}
 
     def simulate(values: Sequence[float]) -> None:
         new = [v for v in values if v not in ensembles]
-        model.sim.prefetch([{**state.changes, p: v} for v in new], ctx.names, range(ENSEMBLE))
+        model.sim.prefetch([changes(v) for v in new], ctx.names, range(ENSEMBLE))
         for v in new:
             try:
-                ensembles[v] = {n: np.array([score.powers(n, model.point({**state.changes, p: v}, [n], r).obs[n])
+                ensembles[v] = {n: np.array([score.powers(n, model.point(changes(v), [n], r).obs[n])
                                              for r in range(ENSEMBLE)]) for n in ctx.names}
             except DiagnosisError:
                 ensembles[v] = None
@@ -834,7 +849,6 @@ def _phase_free_stage(ctx: _Context, state: State, effect: Effect, steps: list) 
     def deviance(v: float, names: Sequence[str]) -> float:
         return score.fit(ensembles[v], names).deviance if ensembles[v] is not None else math.inf
 
-    current = float(state.changes.get(p, ctx.nominal[p]))
     ctx.log(f"diagnose: trying {effect.title} on the phase-free score ({len(effect.scan)} values x {ENSEMBLE} "
             f"realisations of every test)")
     simulate([current, *effect.scan])
@@ -854,8 +868,11 @@ def _phase_free_stage(ctx: _Context, state: State, effect: Effect, steps: list) 
     labels = [a.label for a in state.selected]
     steps.append({"how": "phase-free score", "from": labels, "to": labels + [effect.key], "parameters": {p: v_tr},
                   "delta_bic_training": dbic, "held_out_deviance_change": dho, "held_out_tests_worse": worse,
-                  "accepted": bool(ok), "note": "the best value of the scan on the training tests; band powers of "
-                                                 "the residual against ensembles of re-simulations"})
+                  "accepted": bool(ok),
+                  "note": "the best value of the scan on the training tests, band powers of the residual against "
+                          "ensembles of re-simulations" + ("" if ok else
+                          f": refused (training dBIC and held-out deviance change must be <= -{DELTA_BIC:g}, "
+                          f"no held-out test worse by {DELTA_BIC:g})")})
     ctx.log(f"diagnose:   {effect.key} = {v_tr:.3g} (training scan): phase-free dBIC {dbic:+.0f}, held-out deviance "
             f"{dho if dho is not None else 0:+.0f}" + (f"; worse on {', '.join(worse)}" if worse else "")
             + (": confirmed" if ok else ": refused"))
@@ -869,14 +886,16 @@ def _phase_free_stage(ctx: _Context, state: State, effect: Effect, steps: list) 
         return {v: deviance(v, ctx.names) for v in values}
 
     points = refine(on_all, on_all(effect.scan), ratio, REFINE_LEVELS, effect.bounds[p])
-    value, s_log = estimate(points, ratio ** (0.5 ** 3))
+    value, s_log = estimate(points, ratio ** (0.5 ** PARABOLA_LEVEL))
     simulate([value])
+    if ensembles[value] is None:    # the estimate's simulation failed: the best value simulated instead
+        value = min(points, key=points.get)
     final, before = score.fit(ensembles[value], ctx.names), score.fit(ensembles[current], ctx.names)
     floors = {n: score.floor(n) for n in ctx.names}
     above = [n for n, d in final.per_test.items() if d > floors[n]]
     steps.append({"how": "phase-free score: value on all tests", "from": labels, "to": labels + [effect.key],
-                  "parameters": {p: value}, "deviance_per_test": final.per_test, "floor_per_test": floors,
-                  "accepted": not above,
+                  "parameters": {p: value}, "delta_bic_training": dbic, "deviance_per_test": final.per_test,
+                  "floor_per_test": floors, "accepted": not above,
                   "note": ("every test's band powers at the floor with it" if not above else
                            f"not named: with it the band powers of {', '.join(above)} stay above the floor "
                            "(it would explain only part of the residual)")})
@@ -893,13 +912,12 @@ def _phase_free_stage(ctx: _Context, state: State, effect: Effect, steps: list) 
         "deviance_per_test": {"before": before.per_test, "after": final.per_test}, "floor_per_test": floors,
         "noise_std_Nm": final.sigma, "bands_Hz": {n: score.bands[n].bands for n in ctx.names},
         "ensemble": ENSEMBLE,
-        "band_powers": {n: {"measured": score.measured[n],
-                            "predicted": ensembles[value][n].mean(axis=0) + final.sigma ** 2 * nf[n],
-                            "nominal": ensembles[current][n].mean(axis=0) + before.sigma ** 2 * nf[n]}
-                        for n in ctx.names},
+        "band_powers_Nm_squared": {n: {"measured": score.measured[n].tolist(),
+                                 "with": (ensembles[value][n].mean(axis=0) + final.sigma ** 2 * nf[n]).tolist(),
+                                 "without": (ensembles[current][n].mean(axis=0) + before.sigma ** 2 * nf[n]).tolist()}
+                             for n in ctx.names},
         "profile": {v: points[v] for v in sorted(points)}}}
-    changes = {**state.changes, p: value}
-    return State(tuple(state.selected) + (Atom(effect),), changes, model.point(changes, ctx.names), info)
+    return State(tuple(state.selected) + (Atom(effect),), changes(value), model.point(changes(value), ctx.names), info)
 
 
 def _alias_check(ctx: _Context, state: State, last_fit, steps: list) -> State:
@@ -1296,7 +1314,7 @@ def _named_effects(ctx: _Context, state: State, last_fit, steps: list) -> list:
                                 "held_out_deviance_change": added["held_out_deviance_change"],
                                 "note": "phase-free score: band powers of the residual against ensembles of "
                                         "re-simulations, the model before and after adding it"}
-            ev["phase_free"] = {k: v for k, v in state.info["phase_free"].items() if k != "band_powers"}
+            ev["phase_free"] = state.info["phase_free"]
         elif added:
             ev["when_added"] = {"how": added["how"], "delta_bic_training": added["delta_bic_training"],
                                 "held_out_rss_change_percent": added["held_out_rss_change_percent"],
@@ -1431,17 +1449,11 @@ def _verdict(ctx: _Context, state: State, after: dict, last_fit, steps: list) ->
                           "held_out_rss_change_percent": (100 * (f.rss_ho - best.rss_ho) / best.rss_ho
                                                           if best.rss_ho > 0 else None),
                           "rejected_because": "; ".join(f.reasons) or "not better than the selection"})
-        selection = None
-        for st in steps:    # the phase-free candidates: refused on the held-out tests or below the floor
-            if st["how"] == "phase-free score":
-                selection = st
+        for st in steps:    # the phase-free candidates: not tried, not confirmed, or not explaining all
             if st["how"].startswith("phase-free score") and not st["accepted"]:
                 tried.append({"candidate": f"{st['to'][-1]} (phase-free score)",
-                              "delta_bic": selection["delta_bic_training"], "held_out_rss_change_percent": None,
-                              "rejected_because": st["note"] if st is not selection else
-                              f"phase-free: training dBIC {st['delta_bic_training']:+.0f}, held-out deviance change "
-                              + (f"{st['held_out_deviance_change']:+.0f}" if st["held_out_deviance_change"] is not None
-                                 else "-") + f" (both must be <= -{DELTA_BIC:g})"})
+                              "delta_bic": st.get("delta_bic_training"), "held_out_rss_change_percent": None,
+                              "rejected_because": st["note"]})
         unexplained = {
             "text": "The residual is above the noise floor and no candidate of the library reduces it on the "
                     "held-out tests (by regression, for the nonlinear candidates by re-simulation, for backlash by "
@@ -1631,10 +1643,10 @@ def _figures(out: Path, model: Model, prepared, names, before: Point, after: Poi
     if phase_free:
         fig, axes = plt.subplots(1, len(names), figsize=(3.2 * len(names), 3.4), squeeze=False)
         for ax, n in zip(axes[0], names):
-            bp, bands = phase_free["band_powers"][n], phase_free["bands_Hz"][n]
+            bp, bands = phase_free["band_powers_Nm_squared"][n], phase_free["bands_Hz"][n]
             x = np.arange(len(bands))
-            for key, style, label in (("measured", "ko", "measured"), ("nominal", "s--", "without it"),
-                                      ("predicted", "o-", "with it (ensemble)")):
+            for key, style, label in (("measured", "ko", "measured"), ("without", "s--", "without it"),
+                                      ("with", "o-", "with it (ensemble)")):
                 ax.semilogy(x, np.sqrt(bp[key]) * 1e3, style, ms=4, lw=1, label=label)
             ax.set_xticks(x, [f"{lo:g}-{hi:g}" for lo, hi in bands], fontsize=7)
             ax.set_title(f"{prepared[n].test.label()} ({roles[n]})", fontsize=8)
@@ -1756,9 +1768,9 @@ def _report(out: Path, doc: dict, figs: Mapping[str, str]) -> None:
         lines += [f"- {n}: {w}" for n, w in u["where"].items()]
         lines += ["", "| candidate | dBIC | held-out RSS change % | rejected because |", "|---|---|---|---|"]
         for c in u["candidates_tried"]:
-            ho = c["held_out_rss_change_percent"]
-            lines.append(f"| {c['candidate']} | {c['delta_bic']:+.1f} | {ho:+.1f} | {c['rejected_because']} |"
-                         if ho is not None else f"| {c['candidate']} | {c['delta_bic']:+.1f} | - | {c['rejected_because']} |")
+            ho, dbic = c["held_out_rss_change_percent"], c["delta_bic"]
+            lines.append(f"| {c['candidate']} | {'-' if dbic is None else f'{dbic:+.1f}'} | "
+                         f"{'-' if ho is None else f'{ho:+.1f}'} | {c['rejected_because']} |")
         lines.append("")
     lines += ["## Figures", ""]
     captions = {"time": "Measured and simulated motor torque, before and after",

@@ -59,21 +59,35 @@ class BandPowers:
             else:
                 self.sos.append(butter(4, [lo, hi], btype="band", fs=fs, output="sos"))
         # the exact impulse response of each zero-phase filter: the power fraction of white noise it
-        # passes, and the degrees of freedom per sample of the mean square of filtered white noise
-        impulse = np.zeros(8193)
-        impulse[4096] = 1.0
+        # passes, the degrees of freedom per sample of the mean square of filtered white noise, and
+        # the samples at each end of a record where the filter has not settled (the power there is
+        # not that of the band: they are left out, 1e-4 of the response's energy beyond them)
+        half = 4096
+        impulse = np.zeros(2 * half + 1)
+        impulse[half] = 1.0
         self.noise_fraction = np.empty(len(self.bands))
         self.dof_per_sample = np.empty(len(self.bands))
+        self.margin = np.empty(len(self.bands), dtype=int)
         for k, sos in enumerate(self.sos):
             h = sosfiltfilt(sos, impulse)
             energy = float(h @ h)
             rho = np.correlate(h, h, mode="full") / energy
             self.noise_fraction[k] = energy
             self.dof_per_sample[k] = 1.0 / float(rho @ rho)
+            outside = energy - np.cumsum(h[half:] ** 2 + np.concatenate([[0.0], h[half - 1::-1] ** 2]))
+            self.margin[k] = int(np.argmax(outside < 1e-4 * energy))
+
+    def samples(self, n: int) -> np.ndarray:
+        """Samples of a record of n per band after the margins (at least a third of the record)."""
+        return np.maximum(n - 2 * self.margin, n // 3)
 
     def powers(self, x: np.ndarray) -> np.ndarray:
-        """Mean square of x (n, axes) in every band, averaged over samples and axes."""
-        return np.array([float(np.mean(self._filt(sos, x, axis=0) ** 2)) for sos in self.sos])
+        """Mean square of x (n, axes) in every band, averaged over axes and the samples between the margins."""
+        out = []
+        for sos, keep in zip(self.sos, self.samples(len(x))):
+            m = (len(x) - keep) // 2
+            out.append(float(np.mean(self._filt(sos, x, axis=0)[m:m + keep] ** 2)))
+        return np.array(out)
 
 
 @dataclass
@@ -81,9 +95,6 @@ class Fit:
     deviance: float                  # summed over the tests
     per_test: dict[str, float]
     sigma: float                     # the profiled noise standard deviation
-
-    def at_floor(self, score: "PhaseFreeScore") -> dict[str, bool]:
-        return {n: d <= score.floor(n) for n, d in self.per_test.items()}
 
 
 class PhaseFreeScore:
@@ -93,10 +104,14 @@ class PhaseFreeScore:
                  dt: Mapping[str, float], sigma_floor: float) -> None:
         self.reference = dict(reference)
         self.sigma_floor = sigma_floor
-        self._bands: dict = {}
-        self.bands = {n: self._bands.setdefault(round(dt[n], 12), BandPowers(dt[n])) for n in measured}
+        by_step: dict[float, BandPowers] = {}
+        for n in measured:
+            if round(dt[n], 12) not in by_step:
+                by_step[round(dt[n], 12)] = BandPowers(dt[n])
+        self.bands = {n: by_step[round(dt[n], 12)] for n in measured}
         self.measured = {n: self.powers(n, y) for n, y in measured.items()}
-        self.dof = {n: y.size * self.bands[n].dof_per_sample for n, y in measured.items()}
+        self.dof = {n: self.bands[n].samples(len(y)) * y.shape[1] * self.bands[n].dof_per_sample
+                    for n, y in measured.items()}
 
     def powers(self, name: str, observed: np.ndarray) -> np.ndarray:
         """Band powers of a torque (n, 3) of test ``name`` against the reference."""
