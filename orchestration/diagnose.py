@@ -12,10 +12,14 @@ add it, show the gap shrink (docs/diagnose.md).
    re-simulating the co-simulation at every step (start: the regression estimate;
    Jacobian: the effect signatures of the current simulation). Steps 2-3 repeat,
    re-linearised at the fitted model, until the selection stops changing.
+   Backlash, which makes the loop hunt (unpredictably sample by sample), comes last, on a
+   phase-free score: band powers of the residual against ensembles of re-simulations
+   (orchestration/phasefree.py).
 4. Show: re-simulate every test; diagnosis.json, report.md with figures, the augmented
    parameter set (actuator_diagnosed.ssv) and an SSP that binds it.
-5. The verdict: nothing missing (residual at the noise floor), explained, or an
-   unexplained residual (shown, never forced onto a name).
+5. The verdict: nothing missing (residual at the noise floor), explained (at the floor
+   sample by sample, or by the band powers where a named backlash makes the loop hunt), or
+   an unexplained residual (shown, never forced onto a name).
 """
 from __future__ import annotations
 
@@ -34,6 +38,7 @@ import numpy as np
 from .effects import (BOUNDS, BY_KEY, BY_PARAMETER, LIBRARY, MEASUREMENT_PARAMETERS, Chain, Effect, SimSignals, chain_for, column,
                       frequency_slope, localise, noise_std, nrmse)
 from .measured import AXES, CommandReplay, MeasuredData, MeasuredTest, controller_geometry, load
+from .phasefree import COMMAND_JITTER, ENSEMBLE, PhaseFreeScore, estimate, refine
 
 #: a member of a selection must lower BIC by at least this much ("very strong" evidence)
 DELTA_BIC = 10.0
@@ -42,9 +47,13 @@ PRACTICAL = 0.05
 #: ... and at least this fraction of the held-out residual left above the noise
 RELATIVE = 0.1
 #: re-simulation steps (finite differences) for the parameters whose signature does not linearise well
-FD_STEP = {"tau_s": 2e-3, "omega_s": 0.3, "backlash": 1e-3}
-#: effects tried by re-simulation when a residual remains after the regression loop
-NONLINEAR = ("stribeck", "backlash")
+FD_STEP = {"tau_s": 2e-3, "omega_s": 0.3}
+#: effects fitted and verified by re-simulation (sample by sample) when a residual remains after the regression loop
+NONLINEAR = tuple(e.key for e in LIBRARY if not e.regression and not e.phase_free)
+#: bisection levels of a phase-free value after its scan (ratio 2 -> 2^(1/32): 2.2 %) ...
+REFINE_LEVELS = 5
+#: ... and the parabola through the deviances within the ratio of this level (2^(1/8)) of the best value
+PARABOLA_LEVEL = 3
 #: ... and at least this share of the whole gap of the current model (above the noise)
 SHARE_OF_GAP = 0.01
 #: at most this many effects at once
@@ -130,17 +139,22 @@ class Simulator:
     def _key(plant: Mapping[str, float]) -> tuple:
         return tuple(sorted((k, float(v)) for k, v in plant.items() if k not in MEASUREMENT_PARAMETERS))
 
-    def prefetch(self, plants: Sequence[Mapping[str, float]], names: Sequence[str]) -> None:
-        """Simulate every (parameter set, test) not cached yet, all in one parallel batch."""
+    def prefetch(self, plants: Sequence[Mapping[str, float]], names: Sequence[str],
+                 realisations: Sequence[int] = (0,)) -> None:
+        """Simulate every (parameter set, test, realisation) not cached yet, all in one parallel batch.
+
+        Realisation 0 replays the recorded commands; realisation r > 0 replays them perturbed far
+        below their precision (phasefree.COMMAND_JITTER, seed r): another run of a loop that hunts."""
         todo = []
         for plant in plants:
             key = self._key(plant)
-            todo += [(key, n) for n in names if (key, n) not in self._cache and (key, n) not in todo]
+            todo += [(key, n, r) for n in names for r in realisations
+                     if (key, n, r) not in self._cache and (key, n, r) not in todo]
         if not todo:
             return
         t0 = time.perf_counter()
-        jobs = [(self.ssp, n, self.tests[n].replay, self.tests[n].test.duration + 1e-12,
-                 self.parameters(dict(key), self.tests[n]), self.direct) for key, n in todo]
+        jobs = [(self.ssp, n, self._replay(n, r), self.tests[n].test.duration + 1e-12,
+                 self.parameters(dict(key), self.tests[n]), self.direct) for key, n, r in todo]
         order = sorted(range(len(jobs)), key=lambda k: -jobs[k][3])   # longest first keeps the workers busy
         if self._pool and len(jobs) > 1:
             results = dict(zip(order, self._pool.map(_sim_job, [jobs[k] for k in order])))
@@ -151,17 +165,21 @@ class Simulator:
         if len(self._cache) + len(jobs) > 400:
             for k in list(self._cache)[:len(self._cache) // 2]:
                 del self._cache[k]
-        for k, (key, n) in enumerate(todo):
+        for k, entry in enumerate(todo):
             r = results[k]
-            self._cache[(key, n)] = r["error"] if "error" in r else SimSignals(
+            self._cache[entry] = r["error"] if "error" in r else SimSignals(
                 r["time"], r["h"], r["tau_m"], r["rho"], r["rho_dot"], r["omega_m"])
 
-    def run(self, plant: Mapping[str, float], names: Sequence[str]) -> dict[str, SimSignals]:
+    def _replay(self, name: str, realisation: int) -> CommandReplay:
+        replay = self.tests[name].replay
+        return replay.perturbed(realisation, COMMAND_JITTER) if realisation else replay
+
+    def run(self, plant: Mapping[str, float], names: Sequence[str], realisation: int = 0) -> dict[str, SimSignals]:
         key = self._key(plant)
-        self.prefetch([plant], names)
+        self.prefetch([plant], names, (realisation,))
         out = {}
         for n in names:
-            v = self._cache[(key, n)]
+            v = self._cache[(key, n, realisation)]
             if isinstance(v, str):
                 raise DiagnosisError(f"simulation of test {n} with {dict(plant)} failed: {v}")
             out[n] = v
@@ -195,10 +213,10 @@ class Model:
         self.sim, self.nominal, self.tests = sim, dict(nominal), tests
         self.drive_T, self.drive_delay = drive_T, drive_delay
 
-    def point(self, changes: Mapping[str, float], names: Sequence[str]) -> Point:
+    def point(self, changes: Mapping[str, float], names: Sequence[str], realisation: int = 0) -> Point:
         params = {**self.nominal, **changes}
         changed_plant = {k: v for k, v in changes.items() if k not in MEASUREMENT_PARAMETERS}
-        sims = self.sim.run(changed_plant, names)
+        sims = self.sim.run(changed_plant, names, realisation)
         h = next(iter(sims.values())).h
         chain = chain_for(params, h, self.drive_T, self.drive_delay)
         pt = Point(params, sims, chain)
@@ -543,10 +561,13 @@ def diagnose(opt: Options, log: Callable[[str], None] = print) -> dict:
             state, last_fit = _regression_loop(ctx, tried, atoms, rejected, steps)
         state = _alias_check(ctx, state, last_fit, steps)
         state = _prune(ctx, state, steps)
+        for e in library:   # effects that make the loop hunt: last, on the phase-free score
+            if e.phase_free and not _at_floor(ctx, state.pt) and len(state.selected) < MAX_EFFECTS:
+                state = _phase_free_stage(ctx, state, e, steps)
         final_pt = state.pt
         after = _gaps(prepared, final_pt, names, sigma, resolution)
         named = _named_effects(ctx, state, last_fit, steps)
-        verdict, unexplained = _verdict(ctx, state, after, last_fit)
+        verdict, unexplained = _verdict(ctx, state, after, last_fit, steps)
         final_local = {n: _localise(model, final_pt, prepared[n], sigma) for n in names}
         n_sims, sim_seconds = sim.count, sim.seconds
 
@@ -575,7 +596,8 @@ def diagnose(opt: Options, log: Callable[[str], None] = print) -> dict:
     }
     (opt.out / "diagnosis.json").write_text(json.dumps(_jsonable(doc), indent=2))
     if opt.figures:
-        figs = _figures(opt.out, model, prepared, names, nominal_pt, final_pt, sigma, roles, unexplained is not None)
+        figs = _figures(opt.out, model, prepared, names, nominal_pt, final_pt, sigma, roles, unexplained is not None,
+                        state.info.get("phase_free"))
     else:
         figs = {}
     _report(opt.out, doc, figs)
@@ -706,7 +728,7 @@ def _at_floor(ctx: _Context, pt: Point) -> bool:
 
 def _nonlinear_stage(ctx: _Context, state: State, effects: Sequence[Effect], rejected: set, steps: list
                      ) -> Optional[State]:
-    """Effects whose signature does not linearise (Stribeck, backlash): fitted and scored by re-simulation."""
+    """Effects whose signature does not linearise (Stribeck friction): fitted and scored by re-simulation."""
     best: Optional[State] = None
     best_bic = math.inf
     where = _reversal_concentration(ctx, state.pt)
@@ -714,9 +736,9 @@ def _nonlinear_stage(ctx: _Context, state: State, effects: Sequence[Effect], rej
         steps.append({"how": "re-simulation candidates", "from": [a.label for a in state.selected],
                       "to": [e.key for e in effects], "accepted": False,
                       "note": f"not tried: the residual does not concentrate at velocity reversals "
-                              f"({where:.2f} x its share of time < {REVERSAL_GATE:g}), where Stribeck friction "
-                              "and backlash act"})
-        ctx.log(f"diagnose: Stribeck friction and backlash not tried: the residual does not concentrate at "
+                              f"({where:.2f} x its share of time < {REVERSAL_GATE:g}), where "
+                              + ", ".join(e.title for e in effects) + " act"})
+        ctx.log(f"diagnose: {', '.join(e.title for e in effects)} not tried: the residual does not concentrate at "
                 f"velocity reversals ({where:.2f} x its share of time)")
         return None
     for e in effects:
@@ -747,7 +769,6 @@ def _nonlinear_stage(ctx: _Context, state: State, effects: Sequence[Effect], rej
 START_GRIDS = {
     "stribeck": [{"tau_s": ts, "omega_s": ws} for ts in (0.012, 0.03)
                  for ws in (1.0, 1.3, 1.7, 2.2, 2.9, 3.7, 4.8, 6.3, 8.2)],
-    "backlash": [{"backlash": b} for b in (0.001, 0.003, 0.01, 0.03)],
 }
 
 
@@ -772,7 +793,7 @@ def _reversal_concentration(ctx: _Context, pt: Point) -> float:
 
 def _nonlinear_start(ctx: _Context, state: State, e: Effect) -> dict:
     """A start for the fit: the best point of a grid, each simulated on the lowest-frequency training test
-    (the one friction and backlash dominate), all in one parallel batch."""
+    (the one friction dominates), all in one parallel batch."""
     grid = START_GRIDS[e.key]
     probe = [min(ctx.train, key=lambda n: (ctx.model.tests[n].test.frequency or 0.0, n))]
     ctx.model.sim.prefetch([{**state.changes, **g} for g in grid], probe)
@@ -786,6 +807,117 @@ def _nonlinear_start(ctx: _Context, state: State, e: Effect) -> dict:
         if rss < best_rss:
             best, best_rss = g, rss
     return best
+
+
+def _phase_free_stage(ctx: _Context, state: State, effect: Effect, steps: list) -> State:
+    """An effect that makes the loop hunt (backlash), on the phase-free score (phasefree.py).
+
+    Every value is an ensemble of re-simulations of every test. Selection: the best value of the
+    effect's scan on the training tests must lower the training BIC (deviance plus ln(statistics)
+    per parameter) by DELTA_BIC and the held-out deviance by DELTA_BIC, no held-out test worse by
+    DELTA_BIC. The value: refined on all tests (log-scale bisection around the best scan value,
+    then a parabola), once the held-out tests have confirmed the effect. It is named only if with
+    it every test's score is at the floor: the hunting's band powers can stand in for part of
+    almost any excess (a position ripple, say), so the effect must explain all of what is left.
+    """
+    model, p = ctx.model, effect.parameter
+    try:
+        score = PhaseFreeScore({n: model.tests[n].y for n in ctx.names}, state.pt.obs,
+                               {n: model.tests[n].test.sample_time for n in ctx.names}, ctx.sigma)
+    except ValueError as err:   # sampled too slowly for the bands
+        steps.append({"how": "phase-free score", "from": [a.label for a in state.selected],
+                      "to": [a.label for a in state.selected] + [effect.key], "accepted": False,
+                      "note": f"not tried: {err}"})
+        ctx.log(f"diagnose: {effect.title} not tried: {err}")
+        return state
+    ensembles: dict[float, Optional[dict]] = {}
+    current = float(state.changes.get(p, ctx.nominal[p]))
+
+    def changes(v: float) -> dict:   # the current model as it is (its simulations are cached)
+        return dict(state.changes) if v == current else {**state.changes, p: v}
+
+    def simulate(values: Sequence[float]) -> None:
+        new = [v for v in values if v not in ensembles]
+        model.sim.prefetch([changes(v) for v in new], ctx.names, range(ENSEMBLE))
+        for v in new:
+            try:
+                ensembles[v] = {n: np.array([score.powers(n, model.point(changes(v), [n], r).obs[n])
+                                             for r in range(ENSEMBLE)]) for n in ctx.names}
+            except DiagnosisError:
+                ensembles[v] = None
+
+    def deviance(v: float, names: Sequence[str]) -> float:
+        return score.fit(ensembles[v], names).deviance if ensembles[v] is not None else math.inf
+
+    ctx.log(f"diagnose: trying {effect.title} on the phase-free score ({len(effect.scan)} values x {ENSEMBLE} "
+            f"realisations of every test)")
+    simulate([current, *effect.scan])
+    scan_tr = {v: deviance(v, ctx.train) for v in effect.scan}
+    v_tr = min(scan_tr, key=scan_tr.get)
+    if ensembles[current] is None or not math.isfinite(scan_tr[v_tr]):
+        raise DiagnosisError(f"the phase-free score of {effect.title}: every simulation of its scan failed")
+    before_tr, with_tr = score.fit(ensembles[current], ctx.train), score.fit(ensembles[v_tr], ctx.train)
+    dbic = with_tr.deviance - before_tr.deviance + effect.cost * math.log(score.statistics(ctx.train))
+    ok = dbic <= -DELTA_BIC
+    dho, worse = None, []
+    if ctx.held:
+        before_ho, with_ho = score.fit(ensembles[current], ctx.held), score.fit(ensembles[v_tr], ctx.held)
+        dho = with_ho.deviance - before_ho.deviance
+        worse = [n for n in ctx.held if with_ho.per_test[n] - before_ho.per_test[n] > DELTA_BIC]
+        ok = ok and dho <= -DELTA_BIC and not worse
+    labels = [a.label for a in state.selected]
+    steps.append({"how": "phase-free score", "from": labels, "to": labels + [effect.key], "parameters": {p: v_tr},
+                  "delta_bic_training": dbic, "held_out_deviance_change": dho, "held_out_tests_worse": worse,
+                  "accepted": bool(ok),
+                  "note": "the best value of the scan on the training tests, band powers of the residual against "
+                          "ensembles of re-simulations" + ("" if ok else
+                          f": refused (training dBIC and held-out deviance change must be <= -{DELTA_BIC:g}, "
+                          f"no held-out test worse by {DELTA_BIC:g})")})
+    ctx.log(f"diagnose:   {effect.key} = {v_tr:.3g} (training scan): phase-free dBIC {dbic:+.0f}, held-out deviance "
+            f"{dho if dho is not None else 0:+.0f}" + (f"; worse on {', '.join(worse)}" if worse else "")
+            + (": confirmed" if ok else ": refused"))
+    if not ok:
+        return state
+
+    ratio = effect.scan[1] / effect.scan[0]
+
+    def on_all(values: Sequence[float]) -> dict[float, float]:
+        simulate(values)
+        return {v: deviance(v, ctx.names) for v in values}
+
+    points = refine(on_all, on_all(effect.scan), ratio, REFINE_LEVELS, effect.bounds[p])
+    value, s_log = estimate(points, ratio ** (0.5 ** PARABOLA_LEVEL))
+    simulate([value])
+    if ensembles[value] is None:    # the estimate's simulation failed: the best value simulated instead
+        value = min(points, key=points.get)
+    final, before = score.fit(ensembles[value], ctx.names), score.fit(ensembles[current], ctx.names)
+    floors = {n: score.floor(n) for n in ctx.names}
+    above = [n for n, d in final.per_test.items() if d > floors[n]]
+    steps.append({"how": "phase-free score: value on all tests", "from": labels, "to": labels + [effect.key],
+                  "parameters": {p: value}, "delta_bic_training": dbic, "deviance_per_test": final.per_test,
+                  "floor_per_test": floors, "accepted": not above,
+                  "note": ("every test's band powers at the floor with it" if not above else
+                           f"not named: with it the band powers of {', '.join(above)} stay above the floor "
+                           "(it would explain only part of the residual)")})
+    ctx.log(f"diagnose:   {effect.key} = {value:.4g} on all tests (deviance per test "
+            + ", ".join(f"{n} {d:.1f}" for n, d in final.per_test.items()) + ")"
+            + (f": above the floor on {', '.join(above)}, not named" if above else ": named"))
+    if above:
+        return state
+    nf = {n: score.bands[n].noise_fraction for n in ctx.names}
+    info = {**state.info, "phase_free": {
+        "parameter": p, "value": value, "std": value * s_log,
+        "ci95": [value * math.exp(-1.96 * s_log), value * math.exp(1.96 * s_log)],
+        "training_scan_value": v_tr, "delta_bic_training": dbic, "held_out_deviance_change": dho,
+        "deviance_per_test": {"before": before.per_test, "after": final.per_test}, "floor_per_test": floors,
+        "noise_std_Nm": final.sigma, "bands_Hz": {n: score.bands[n].bands for n in ctx.names},
+        "ensemble": ENSEMBLE,
+        "band_powers_Nm_squared": {n: {"measured": score.measured[n].tolist(),
+                                 "with": (ensembles[value][n].mean(axis=0) + final.sigma ** 2 * nf[n]).tolist(),
+                                 "without": (ensembles[current][n].mean(axis=0) + before.sigma ** 2 * nf[n]).tolist()}
+                             for n in ctx.names},
+        "profile": {v: points[v] for v in sorted(points)}}}
+    return State(tuple(state.selected) + (Atom(effect),), changes(value), model.point(changes(value), ctx.names), info)
 
 
 def _alias_check(ctx: _Context, state: State, last_fit, steps: list) -> State:
@@ -1140,7 +1272,8 @@ def _named_effects(ctx: _Context, state: State, last_fit, steps: list) -> list:
     if not state.selected:
         return []
     model, names, nominal, pt = ctx.model, ctx.train, ctx.nominal, state.pt
-    free = list(state.changes)
+    # the phase-free effects' uncertainty comes from their score (phasefree.estimate)
+    free = [p for p in state.changes if not (p in BY_PARAMETER and BY_PARAMETER[p].phase_free)]
     y = np.concatenate([model.tests[n].y.ravel() for n in names])
     r = y - np.concatenate([pt.obs[n].ravel() for n in names])
     cols = []
@@ -1152,15 +1285,19 @@ def _named_effects(ctx: _Context, state: State, last_fit, steps: list) -> list:
         else:
             c = model.columns(pt, names, p)
             cols.append(np.concatenate([c[n].ravel() for n in names]))
-    J = np.column_stack(cols)
     s2 = float(r @ r) / max(len(r) - len(free), 1)
     rho1 = _lag1(model, pt, names)
     inflate = max((1 + rho1) / (1 - rho1), 1.0) if -0.99 < rho1 < 0.99 else 1.0
     try:
+        J = np.column_stack(cols) if cols else np.zeros((len(r), 0))
         std = np.sqrt(np.clip(np.diag(s2 * np.linalg.inv(J.T @ J) * inflate), 0, None))
     except np.linalg.LinAlgError:
         std = np.full(len(free), np.nan)
     stds = dict(zip(free, map(float, std)))
+    ci95 = {p: [v - 1.96 * stds[p], v + 1.96 * stds[p]] for p, v in state.changes.items() if p in stds}
+    if "phase_free" in state.info:
+        pf = state.info["phase_free"]
+        stds[pf["parameter"]], ci95[pf["parameter"]] = pf["std"], pf["ci95"]
     reg, best, fits = last_fit
     out = []
     for a in state.selected:
@@ -1171,7 +1308,14 @@ def _named_effects(ctx: _Context, state: State, last_fit, steps: list) -> list:
         added = next((st for st in steps if st.get("accepted") and "delta_bic_training" in st
                       and a.label in st["to"] and a.label not in st["from"]), None)
         ev: dict = {"signature": e.signature}
-        if added:
+        if added and e.phase_free:
+            ev["when_added"] = {"how": added["how"], "delta_bic_training": added["delta_bic_training"],
+                                "held_out_rss_change_percent": None,
+                                "held_out_deviance_change": added["held_out_deviance_change"],
+                                "note": "phase-free score: band powers of the residual against ensembles of "
+                                        "re-simulations, the model before and after adding it"}
+            ev["phase_free"] = state.info["phase_free"]
+        elif added:
             ev["when_added"] = {"how": added["how"], "delta_bic_training": added["delta_bic_training"],
                                 "held_out_rss_change_percent": added["held_out_rss_change_percent"],
                                 "note": "re-simulated: the model before and after adding it (band below "
@@ -1192,9 +1336,7 @@ def _named_effects(ctx: _Context, state: State, last_fit, steps: list) -> list:
             "effect": e.title, "key": e.key, "kind": e.kind,
             "parameters": params,
             "nominal": {p: float(nominal[p]) for p in params},
-            "uncertainty": {p: {"std": stds.get(p), "ci95": [params[p] - 1.96 * stds.get(p, float("nan")),
-                                                           params[p] + 1.96 * stds.get(p, float("nan"))]}
-                            for p in params},
+            "uncertainty": {p: {"std": stds.get(p), "ci95": ci95.get(p)} for p in params},
             "evidence": ev,
         })
     return out
@@ -1248,7 +1390,7 @@ def _alternatives(reg: Regression, best: SubsetFit, a: Atom, nominal) -> list:
     return out
 
 
-def _verdict(ctx: _Context, state: State, after: dict, last_fit) -> tuple[dict, Optional[dict]]:
+def _verdict(ctx: _Context, state: State, after: dict, last_fit, steps: list) -> tuple[dict, Optional[dict]]:
     model, pt, names, sigma = ctx.model, state.pt, ctx.names, ctx.sigma
     prepared = model.tests
 
@@ -1262,13 +1404,25 @@ def _verdict(ctx: _Context, state: State, after: dict, last_fit) -> tuple[dict, 
     per_test = {n: float(np.sqrt(np.mean((prepared[n].y - pt.obs[n]) ** 2)) / sigma) for n in names}
     white = _whiteness(prepared, pt, names)
     worst = max(per_test.values())
-    at_floor = worst <= FLOOR_FACTOR
+    # where a named effect makes the loop hunt, the band powers decide (phasefree.py): not sample by sample
+    pf = state.info.get("phase_free")
+    by_bands = [n for n in names if per_test[n] > FLOOR_FACTOR and pf
+                and pf["deviance_per_test"]["after"][n] <= pf["floor_per_test"][n]]
+    at_floor = all(per_test[n] <= FLOOR_FACTOR or n in by_bands for n in names)
     titles = ", ".join(a.effect.title for a in state.selected)
     rh_text = f"{rh:.2f}" if rh is not None else "-"
     if at_floor and not state.selected:
         status, text = "nothing missing", (f"the nominal model's residual is at the noise floor (RMS {rt:.2f} x the "
                                            f"noise on training, {rh_text} x on held-out tests) and no candidate "
                                            "effect improves it: nothing is missing")
+    elif at_floor and by_bands:
+        status, text = "explained", (f"with {titles} the residual is at the noise floor: sample by sample on "
+                                     f"{', '.join(n for n in names if n not in by_bands) or 'no test'}; on "
+                                     f"{', '.join(by_bands)}, where the loop hunts (RMS "
+                                     + ", ".join(f"{per_test[n]:.1f}" for n in by_bands)
+                                     + " x noise, not predictable sample by sample), in its band powers (phase-free "
+                                     "deviance " + ", ".join(f"{pf['deviance_per_test']['after'][n]:.1f}" for n in by_bands)
+                                     + f" <= {max(pf['floor_per_test'][n] for n in by_bands):.1f})")
     elif at_floor:
         status, text = "explained", (f"with {titles} the residual is at the noise floor (RMS {rt:.2f} x noise on "
                                      f"training, {rh_text} x on held-out)")
@@ -1278,7 +1432,8 @@ def _verdict(ctx: _Context, state: State, after: dict, last_fit) -> tuple[dict, 
                 f"{rh_text} x on held-out tests (worst test {worst:.2f} x); "
                 + (f"named: {titles}" if state.selected else "nothing named"))
     verdict = {"status": status, "text": text, "residual_over_noise_training": rt, "residual_over_noise_held_out": rh,
-               "residual_over_noise_per_test": per_test, "floor_factor": FLOOR_FACTOR, "whiteness": white}
+               "residual_over_noise_per_test": per_test, "floor_factor": FLOOR_FACTOR, "whiteness": white,
+               "judged_by_band_powers": by_bands}
     unexplained = None
     if not at_floor:
         loc = {n: _localise(model, pt, prepared[n], sigma) for n in names}
@@ -1294,10 +1449,15 @@ def _verdict(ctx: _Context, state: State, after: dict, last_fit) -> tuple[dict, 
                           "held_out_rss_change_percent": (100 * (f.rss_ho - best.rss_ho) / best.rss_ho
                                                           if best.rss_ho > 0 else None),
                           "rejected_because": "; ".join(f.reasons) or "not better than the selection"})
+        for st in steps:    # the phase-free candidates: not tried, not confirmed, or not explaining all
+            if st["how"].startswith("phase-free score") and not st["accepted"]:
+                tried.append({"candidate": f"{st['to'][-1]} (phase-free score)",
+                              "delta_bic": st.get("delta_bic_training"), "held_out_rss_change_percent": None,
+                              "rejected_because": st["note"]})
         unexplained = {
             "text": "The residual is above the noise floor and no candidate of the library reduces it on the "
-                    "held-out tests (by regression, and for the nonlinear candidates by re-simulation); it is "
-                    "shown, not named.",
+                    "held-out tests (by regression, for the nonlinear candidates by re-simulation, for backlash by "
+                    "the phase-free score) or explains all of it; it is shown, not named.",
             "where": {n: loc[n]["summary"] for n in names},
             "candidates_tried": tried,
             "figure": "fig_unexplained.png",
@@ -1408,7 +1568,7 @@ def _bind_diagnosed(ssd: bytes) -> bytes:
 
 
 def _figures(out: Path, model: Model, prepared, names, before: Point, after: Point, sigma: float, roles,
-             unexplained: bool) -> dict:
+             unexplained: bool, phase_free: Optional[dict]) -> dict:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -1480,6 +1640,27 @@ def _figures(out: Path, model: Model, prepared, names, before: Point, after: Poi
     plt.close(fig)
     figs["residual_frequency"] = "fig_residual_frequency.png"
 
+    if phase_free:
+        fig, axes = plt.subplots(1, len(names), figsize=(3.2 * len(names), 3.4), squeeze=False)
+        for ax, n in zip(axes[0], names):
+            bp, bands = phase_free["band_powers_Nm_squared"][n], phase_free["bands_Hz"][n]
+            x = np.arange(len(bands))
+            for key, style, label in (("measured", "ko", "measured"), ("without", "s--", "without it"),
+                                      ("with", "o-", "with it (ensemble)")):
+                ax.semilogy(x, np.sqrt(bp[key]) * 1e3, style, ms=4, lw=1, label=label)
+            ax.set_xticks(x, [f"{lo:g}-{hi:g}" for lo, hi in bands], fontsize=7)
+            ax.set_title(f"{prepared[n].test.label()} ({roles[n]})", fontsize=8)
+            ax.set_xlabel("band [Hz]", fontsize=8)
+            ax.grid(alpha=0.3, which="both")
+        axes[0, 0].set_ylabel("residual RMS in the band [mN m]")
+        axes[0, 0].legend(fontsize=7)
+        fig.suptitle(f"Phase-free score of {phase_free['parameter']} = {phase_free['value']:.4g}: band powers of the "
+                     "residual against the nominal model", fontsize=9)
+        fig.tight_layout()
+        fig.savefig(out / "fig_phase_free.png", dpi=110)
+        plt.close(fig)
+        figs["phase_free"] = "fig_phase_free.png"
+
     if unexplained:
         fig, axes = plt.subplots(1, 2, figsize=(11, 4))
         for n in names:
@@ -1523,7 +1704,9 @@ def _report(out: Path, doc: dict, figs: Mapping[str, str]) -> None:
             wa = ev.get("when_added")
             text = (f"dBIC {wa['delta_bic_training']:+.0f}, held-out RSS {wa['held_out_rss_change_percent']:+.0f} %"
                     if wa and wa.get("held_out_rss_change_percent") is not None else
-                    f"dBIC {wa['delta_bic_training']:+.0f}" if wa else "")
+                    f"phase-free dBIC {wa['delta_bic_training']:+.0f}, held-out deviance "
+                    f"{wa['held_out_deviance_change']:+.0f}" if wa and wa.get("held_out_deviance_change") is not None
+                    else f"dBIC {wa['delta_bic_training']:+.0f}" if wa else "")
             for p, val in e["parameters"].items():
                 std = e["uncertainty"][p]["std"]
                 std_text = f"{std:.2g}" if std is not None and math.isfinite(std) else "-"
@@ -1544,6 +1727,23 @@ def _report(out: Path, doc: dict, figs: Mapping[str, str]) -> None:
         lines.append("")
     else:
         lines += ["None.", ""]
+    for e in doc["named_effects"]:
+        pf = e["evidence"].get("phase_free")
+        if not pf:
+            continue
+        lo, hi = pf["ci95"]
+        lines += ["## Phase-free score", "",
+                  f"{e['effect']} makes the loop hunt, which no simulation reproduces sample by sample; it was scored by "
+                  f"the band powers of the torque residual against ensembles of {pf['ensemble']} re-simulations "
+                  f"(commands perturbed far below their precision), noise {1e3 * pf['noise_std_Nm']:.3g} mN m "
+                  f"(profiled). `{pf['parameter']}` = {pf['value']:.4g} (95 %: {lo:.4g} to {hi:.4g}); the training "
+                  f"scan chose {pf['training_scan_value']:.4g} (dBIC {pf['delta_bic_training']:+.0f}, held-out "
+                  f"deviance {pf['held_out_deviance_change'] or 0:+.0f}).", "",
+                  "| test | deviance without it | with it | floor |", "|---|---|---|---|"]
+        dev = pf["deviance_per_test"]
+        lines += [f"| {n} | {dev['before'][n]:.1f} | {dev['after'][n]:.1f} | {pf['floor_per_test'][n]:.1f} |"
+                  for n in dev["after"]]
+        lines.append("")
     lines += ["## Gap per test (torque NRMSE %, lower is better)", "",
               "| test | role | before | after | noise floor | tracking error NRMSE % before / after |",
               "|---|---|---|---|---|---|"]
@@ -1568,15 +1768,16 @@ def _report(out: Path, doc: dict, figs: Mapping[str, str]) -> None:
         lines += [f"- {n}: {w}" for n, w in u["where"].items()]
         lines += ["", "| candidate | dBIC | held-out RSS change % | rejected because |", "|---|---|---|---|"]
         for c in u["candidates_tried"]:
-            ho = c["held_out_rss_change_percent"]
-            lines.append(f"| {c['candidate']} | {c['delta_bic']:+.1f} | {ho:+.1f} | {c['rejected_because']} |"
-                         if ho is not None else f"| {c['candidate']} | {c['delta_bic']:+.1f} | - | {c['rejected_because']} |")
+            ho, dbic = c["held_out_rss_change_percent"], c["delta_bic"]
+            lines.append(f"| {c['candidate']} | {'-' if dbic is None else f'{dbic:+.1f}'} | "
+                         f"{'-' if ho is None else f'{ho:+.1f}'} | {c['rejected_because']} |")
         lines.append("")
     lines += ["## Figures", ""]
     captions = {"time": "Measured and simulated motor torque, before and after",
                 "residual_signals": "Residual against velocity and acceleration",
                 "residual_frequency": "Residual amplitude against test frequency",
-                "unexplained": "The residual no candidate explains"}
+                "unexplained": "The residual no candidate explains",
+                "phase_free": "Band powers of the residual: measured, and predicted with and without the effect"}
     for k, f in figs.items():
         lines += [f"![{captions[k]}]({f})", ""]
     am = doc["augmented_model"]

@@ -15,7 +15,7 @@ motor torque per unit change of its first parameter, computed from a simulation
 | carriage mass | M_load | i_R^2 domega_N/dt + i_R g_guide: acceleration plus a weight bias in a fixed ratio |
 | torque offset | tau_offset | 1: a bias |
 | measurement lag | T_meas (or delay_meas) | d tau_obs / d T: phase lag growing with f |
-| backlash | backlash | none: nonlinear, scored by re-simulation |
+| backlash | backlash | none: the loop hunts, scored phase-free (band powers against re-simulated ensembles, phasefree.py) |
 
 In the selection, plant effects use re-simulated sensitivities (a simulation with the
 parameter stepped by ``Effect.step``: the exact linearisation of the closed loop, which
@@ -154,6 +154,8 @@ class Effect:
     signature: str
     bounds: dict[str, tuple[float, float]]
     regression: bool = True              # False: scored by re-simulation only (no linear selection)
+    phase_free: bool = False             # scored by the phase-free score (phasefree.py), not sample by sample
+    scan: tuple[float, ...] = ()         # phase-free effects: the values of the first scan (log-spaced, ratio 2)
     step: float = 0.0                    # plant effects: parameter step of the re-simulated sensitivity
     group: Optional[str] = None          # effects in one group are alternatives (not separable)
     preferred: bool = True               # within a group: the one named when the data cannot tell
@@ -190,7 +192,8 @@ LIBRARY: tuple[Effect, ...] = (
            {"T_meas": (0.0, 0.05), "delay_meas": (0.0, 0.05)}),
     Effect("backlash", "backlash", ("backlash",), "plant",
            "at torque reversals: the motor crosses the dead zone unloaded, then an impact",
-           {"backlash": (0.0, 0.2)}, regression=False),
+           {"backlash": (0.0, 0.2)}, regression=False, phase_free=True,
+           scan=tuple(5e-4 * 2.0 ** k for k in range(8))),
 )
 BY_KEY = {e.key: e for e in LIBRARY}
 BY_PARAMETER = {p: e for e in LIBRARY for p in e.parameters}

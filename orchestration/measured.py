@@ -14,6 +14,7 @@ kinematics gives back the recorded rho_cmd (to 1e-12 m) at its position-loop tic
 """
 from __future__ import annotations
 
+import copy
 import csv
 import json
 import math
@@ -382,6 +383,16 @@ class CommandReplay:
         self._dt = float((self.time[-1] - self.time[0]) / (n - 1))
         self._n = n
         self._rows = [tuple(map(float, p)) for p in poses]
+
+    def perturbed(self, seed: int, scale: float) -> "CommandReplay":
+        """A copy whose pose commands carry independent normal perturbations of standard deviation
+        ``scale`` (m for z, rad for the angles): another realisation of commands known only to finite
+        precision (for a closed loop that hunts chaotically, docs/diagnose.md)."""
+        out = copy.copy(self)
+        rng = np.random.default_rng(seed)
+        out.poses = self.poses + scale * rng.standard_normal(self.poses.shape)
+        out._rows = [tuple(map(float, p)) for p in out.poses]
+        return out
 
     def start(self, t0: float, read) -> None:
         pass

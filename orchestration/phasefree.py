@@ -1,0 +1,187 @@
+"""A phase-insensitive score for effects that make the closed loop hunt (backlash).
+
+With backlash the axes hunt: a limit cycle whose phase depends chaotically on the commands
+(two runs whose commands differ by 1e-13 m part after 0.17 s) or, where it is periodic, so
+sensitively on the parameter that 2 % more backlash turns a residual at the noise floor
+into 2.4 x the noise. No sample-by-sample residual can confirm such an effect; what the
+model does predict is how much the torque hunts and in which frequency bands.
+
+The statistic: per test, the mean square of the torque residual against a fixed
+reference (the current model's simulation) in a few frequency bands, averaged over the
+axes. The measurement's statistic is compared with an *ensemble*: the candidate model
+re-simulated with commands perturbed far below their precision (``ENSEMBLE`` realisations),
+plus white noise of variance s^2. A band power of white noise over N samples is a
+chi-square (Gamma) variable with nu = N / sum(rho_k^2) degrees of freedom (rho the
+autocorrelation of the band filter), so given one realisation the measured band powers
+have a Gamma likelihood; the model's likelihood of a test is the average over its
+realisations (a mixture: where the loop sometimes hunts and sometimes not, both count).
+The deviance -2 ln L (0 for a perfect match) is summed over tests; the noise variance
+s^2 is profiled, between a quarter of the noise floor's variance and the floor (the
+floor from third differences also sees fast content of the signal: an upper estimate).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Callable, Mapping, Sequence
+
+import numpy as np
+
+#: band edges of the statistic [Hz]: the hunting (tens of hertz), its harmonics, the transmission's ringing
+BAND_EDGES_HZ = (20.0, 60.0, 200.0)
+#: realisations of every candidate (commands perturbed far below their precision)
+ENSEMBLE = 3
+#: standard deviation of the command perturbation between realisations (m for z, rad for the angles)
+COMMAND_JITTER = 1e-12
+#: a test's deviance is at the floor below this quantile of chi-square with one degree per band
+FLOOR_QUANTILE = 0.999
+
+
+class BandPowers:
+    """Zero-phase Butterworth bands of one sample time; the white-noise power and dof of each band."""
+
+    def __init__(self, dt: float) -> None:
+        from scipy.signal import butter, sosfiltfilt
+
+        self._filt = sosfiltfilt
+        fs = 1.0 / dt
+        edges = [e for e in BAND_EDGES_HZ if e < 0.8 * fs / 2]
+        if not edges:
+            raise ValueError(f"sample time {dt:g} s: too slow for the phase-free score (bands from "
+                             f"{BAND_EDGES_HZ[0]:g} Hz)")
+        self.bands = list(zip([0.0] + edges, edges + [fs / 2]))
+        self.sos = []
+        for lo, hi in self.bands:
+            if lo == 0.0:
+                self.sos.append(butter(4, hi, fs=fs, output="sos"))
+            elif hi >= fs / 2:
+                self.sos.append(butter(4, lo, btype="high", fs=fs, output="sos"))
+            else:
+                self.sos.append(butter(4, [lo, hi], btype="band", fs=fs, output="sos"))
+        # the exact impulse response of each zero-phase filter: the power fraction of white noise it
+        # passes, the degrees of freedom per sample of the mean square of filtered white noise, and
+        # the samples at each end of a record where the filter has not settled (the power there is
+        # not that of the band: they are left out, 1e-4 of the response's energy beyond them)
+        half = 4096
+        impulse = np.zeros(2 * half + 1)
+        impulse[half] = 1.0
+        self.noise_fraction = np.empty(len(self.bands))
+        self.dof_per_sample = np.empty(len(self.bands))
+        self.margin = np.empty(len(self.bands), dtype=int)
+        for k, sos in enumerate(self.sos):
+            h = sosfiltfilt(sos, impulse)
+            energy = float(h @ h)
+            rho = np.correlate(h, h, mode="full") / energy
+            self.noise_fraction[k] = energy
+            self.dof_per_sample[k] = 1.0 / float(rho @ rho)
+            outside = energy - np.cumsum(h[half:] ** 2 + np.concatenate([[0.0], h[half - 1::-1] ** 2]))
+            self.margin[k] = int(np.argmax(outside < 1e-4 * energy))
+
+    def samples(self, n: int) -> np.ndarray:
+        """Samples of a record of n per band after the margins (at least a third of the record)."""
+        return np.maximum(n - 2 * self.margin, n // 3)
+
+    def powers(self, x: np.ndarray) -> np.ndarray:
+        """Mean square of x (n, axes) in every band, averaged over axes and the samples between the margins."""
+        out = []
+        for sos, keep in zip(self.sos, self.samples(len(x))):
+            m = (len(x) - keep) // 2
+            out.append(float(np.mean(self._filt(sos, x, axis=0)[m:m + keep] ** 2)))
+        return np.array(out)
+
+
+@dataclass
+class Fit:
+    deviance: float                  # summed over the tests
+    per_test: dict[str, float]
+    sigma: float                     # the profiled noise standard deviation
+
+
+class PhaseFreeScore:
+    """Band powers of the measured residual (against a fixed reference) and the deviance of ensembles."""
+
+    def __init__(self, measured: Mapping[str, np.ndarray], reference: Mapping[str, np.ndarray],
+                 dt: Mapping[str, float], sigma_floor: float) -> None:
+        self.reference = dict(reference)
+        self.sigma_floor = sigma_floor
+        by_step: dict[float, BandPowers] = {}
+        for n in measured:
+            if round(dt[n], 12) not in by_step:
+                by_step[round(dt[n], 12)] = BandPowers(dt[n])
+        self.bands = {n: by_step[round(dt[n], 12)] for n in measured}
+        self.measured = {n: self.powers(n, y) for n, y in measured.items()}
+        self.dof = {n: self.bands[n].samples(len(y)) * y.shape[1] * self.bands[n].dof_per_sample
+                    for n, y in measured.items()}
+
+    def powers(self, name: str, observed: np.ndarray) -> np.ndarray:
+        """Band powers of a torque (n, 3) of test ``name`` against the reference."""
+        return self.bands[name].powers(observed - self.reference[name])
+
+    def floor(self, name: str) -> float:
+        from scipy.stats import chi2
+
+        return float(chi2.ppf(FLOOR_QUANTILE, len(self.bands[name].bands)))
+
+    def statistics(self, names: Sequence[str]) -> int:
+        return sum(len(self.bands[n].bands) for n in names)
+
+    def _test_deviance(self, name: str, ensemble: np.ndarray, s2: float) -> float:
+        from scipy.special import logsumexp
+
+        m, nu = self.measured[name], self.dof[name]
+        mu = ensemble + s2 * self.bands[name].noise_fraction          # (realisations, bands)
+        q = m / mu
+        loglik = -0.5 * (nu * (q - 1.0 - np.log(q))).sum(axis=1)
+        return float(-2.0 * (logsumexp(loglik) - math.log(len(loglik))))
+
+    def fit(self, ensembles: Mapping[str, np.ndarray], names: Sequence[str]) -> Fit:
+        """Deviance of the ensembles (per test: realisations x bands, from ``powers``) on the tests
+        ``names``, with the noise variance profiled."""
+        from scipy.optimize import minimize_scalar
+
+        def total(log_s2: float) -> float:
+            return sum(self._test_deviance(n, ensembles[n], math.exp(log_s2)) for n in names)
+
+        hi = 2.0 * math.log(self.sigma_floor)
+        res = minimize_scalar(total, bounds=(hi - math.log(4.0), hi), method="bounded", options={"xatol": 1e-4})
+        s2 = math.exp(float(res.x))
+        per = {n: self._test_deviance(n, ensembles[n], s2) for n in names}
+        return Fit(sum(per.values()), per, math.sqrt(s2))
+
+
+def refine(deviance: Callable[[Sequence[float]], Mapping[float, float]], points: dict[float, float],
+           ratio: float, levels: int, bounds: tuple[float, float]) -> dict[float, float]:
+    """Log-scale bisection around the best point: at level l its neighbours at ratio^(1/2^l)."""
+    lo, hi = bounds
+    for level in range(1, levels + 1):
+        best = min(points, key=points.get)
+        r = ratio ** (0.5 ** level)
+        points.update(deviance([v for v in (best / r, best * r) if lo <= v <= hi and v not in points]))
+    return points
+
+
+def estimate(points: Mapping[float, float], span: float) -> tuple[float, float]:
+    """Minimum of a parabola in ln(value) fitted to the deviances within ``span`` (a ratio) of the best
+    point, and the standard deviation of ln(value): the statistical part 1/sqrt(curvature) (the
+    deviance is -2 ln L) and the part from the scatter of the deviances about the parabola (the
+    ensembles are finite), by the delta method. Falls back to the best point when the parabola has
+    no minimum inside the span (std then the span)."""
+    best = min(points, key=points.get)
+    near = sorted(v for v in points if best / span <= v <= best * span and math.isfinite(points[v]))
+    x = np.log(np.array(near))
+    d = np.array([points[v] for v in near])
+    if len(near) < 3:
+        return best, math.log(span)
+    X = np.column_stack([np.ones_like(x), x, x ** 2])
+    c, *_ = np.linalg.lstsq(X, d, rcond=None)
+    if c[2] <= 0:
+        return best, math.log(span)
+    x0 = -c[1] / (2.0 * c[2])
+    if not x.min() <= x0 <= x.max():
+        return best, math.log(span)
+    var = 1.0 / c[2]
+    if len(near) > 3:
+        s2 = float(np.sum((d - X @ c) ** 2)) / (len(near) - 3)
+        g = np.array([0.0, -1.0 / (2.0 * c[2]), c[1] / (2.0 * c[2] ** 2)])
+        var += s2 * float(g @ np.linalg.inv(X.T @ X) @ g)
+    return float(math.exp(x0)), math.sqrt(var)
