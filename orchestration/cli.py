@@ -143,7 +143,7 @@ def cmd_synthesize(args) -> int:
 
 
 def cmd_diagnose(args) -> int:
-    from .diagnose import Options, diagnose
+    from .diagnosis import Options, diagnose
 
     doc = diagnose(Options(Path(args.measured), Path(args.out), args.ssp, model=args.model,
                            holdout=args.holdout.split(",") if args.holdout else None, workers=args.workers,

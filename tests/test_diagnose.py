@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from mast.diagnose import Options, diagnose
+from mast.diagnosis import Options, diagnose
 from mast.synthesize import TestSpec as Spec, synthesize
 
 PLAN = (Spec("z", 0.005, 0.6, 2.0, 0.3), Spec("theta", math.radians(0.8), 1.5, 1.0, 0.3),
@@ -143,7 +143,7 @@ def test_effect_outside_the_library_is_reported_unexplained(built_ssp, tmp_path)
 def test_backlash_hidden_alone_is_named_on_the_phase_free_score(built_ssp, tmp_path, backlash, seed):
     """Backlash hidden: the axes hunt (chaotically: even the exact truth does not reproduce the data sample by
     sample), so it is named and fitted on the band powers of the residual against ensembles of re-simulations
-    (orchestration/phasefree.py), and the tests where the loop hunts are judged at the floor by their band
+    (orchestration/diagnosis/phasefree.py), and the tests where the loop hunts are judged at the floor by their band
     powers."""
     doc = run_case(built_ssp, tmp_path, {"backlash": backlash}, seed, figures=seed == 7)
     effects = named(doc)

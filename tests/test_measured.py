@@ -151,7 +151,7 @@ def test_folder_level_errors(tmp_path):
 def test_replay_reproduces_the_noise_free_signals(built_ssp, tmp_path):
     """Synthesize one test with a truth, reload it, simulate it driven by its recorded commands with the
     same truth: the torques before noise agree to 1e-9 N m, the positions to 1e-12 m."""
-    from mast.diagnose import _sim_job
+    from mast.diagnosis.resimulation import sim_job
     from mast.measured import CommandReplay, controller_geometry
     from mast.synthesize import TestSpec as Spec, synthesize
     from fmus.actuator.sensor import measure
@@ -165,7 +165,7 @@ def test_replay_reproduces_the_noise_free_signals(built_ssp, tmp_path):
     t = data.tests[0]
     replay = CommandReplay(t.time, t.rho_cmd, controller_geometry(built_ssp))
     params = {f"actuator_{j}": {**truth["actuator"], "rho_0": float(t.rho_cmd[0, j - 1])} for j in (1, 2, 3)}
-    run = _sim_job((built_ssp, t.name, replay, t.duration + 1e-12, params, True))
+    run = sim_job((built_ssp, t.name, replay, t.duration + 1e-12, params, True))
     obs = measure(measure(run["tau_m"], run["h"], T=2e-3, axis=0), run["h"], T=data.torque_filter_s, axis=0)
     idx = np.round(t.time / run["h"]).astype(int)
     clean = res["clean"][t.name]

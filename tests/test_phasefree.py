@@ -1,4 +1,4 @@
-"""The phase-free score (orchestration/phasefree.py), checked against Monte Carlo (no simulation)."""
+"""The phase-free score (orchestration/diagnosis/phasefree.py), checked against Monte Carlo (no simulation)."""
 from __future__ import annotations
 
 import math
@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from mast.phasefree import BandPowers, PhaseFreeScore, estimate, refine
+from mast.diagnosis.phasefree import BandPowers, PhaseFreeScore, estimate, refine
 
 DT = 1e-3
 

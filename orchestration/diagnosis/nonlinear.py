@@ -1,0 +1,214 @@
+"""Effects fitted by re-simulation only: Stribeck friction (sample by sample, started from a grid) and
+backlash, which makes the loop hunt (on the phase-free score of phasefree.py)."""
+from __future__ import annotations
+
+import math
+from typing import Optional, Sequence
+
+import numpy as np
+
+from .effects import Effect
+from .phasefree import ENSEMBLE, PhaseFreeScore, estimate, refine
+from .resimulation import DiagnosisError, Point
+from .selection import DELTA_BIC, Atom, atom_labels
+from .stages import FLOOR_FACTOR, Context, State, band_rss, fit_state, residual_at_floor, selection_cost, verify
+
+
+#: bisection levels of a phase-free value after its scan (ratio 2 -> 2^(1/32): 2.2 %) ...
+REFINE_LEVELS = 5
+#: ... and the parabola through the deviances within the ratio of this level (2^(1/8)) of the best value
+PARABOLA_LEVEL = 3
+
+
+def nonlinear_stage(ctx: Context, state: State, effects: Sequence[Effect], rejected: set, steps: list
+                     ) -> Optional[State]:
+    """Effects whose signature does not linearise (Stribeck friction): fitted and scored by re-simulation."""
+    best: Optional[State] = None
+    best_bic = math.inf
+    where = _reversal_concentration(ctx, state.pt)
+    if where < REVERSAL_GATE:
+        steps.append({"how": "re-simulation candidates", "from": [a.label for a in state.selected],
+                      "to": [e.key for e in effects], "accepted": False,
+                      "note": f"not tried: the residual does not concentrate at velocity reversals "
+                              f"({where:.2f} x its share of time < {REVERSAL_GATE:g}), where "
+                              + ", ".join(e.title for e in effects) + " act"})
+        ctx.log(f"diagnose: {', '.join(e.title for e in effects)} not tried: the residual does not concentrate at "
+                f"velocity reversals ({where:.2f} x its share of time)")
+        return None
+    for e in effects:
+        if any(a.effect.key == e.key for a in state.selected):
+            continue
+        labels = atom_labels(tuple(state.selected) + (Atom(e),))
+        if labels in rejected or ("refuted", e.key) in rejected:
+            continue
+        start = dict(state.changes)
+        start.update(_nonlinear_start(ctx, state, e))
+        atom = Atom(e, start.get("omega_s") if e.key == "stribeck" else None)
+        ctx.log(f"diagnose: trying {e.title} by re-simulation (start {', '.join(f'{p} = {start[p]:.3g}' for p in e.parameters)})")
+        cand = fit_state(ctx, tuple(state.selected) + (atom,), start)
+        if verify(ctx, state, cand, steps, "re-simulation"):
+            rss, n = band_rss(ctx, cand.pt, ctx.train)
+            bic = n * math.log(rss / n) + selection_cost(cand.selected) * math.log(n)
+            if bic < best_bic:
+                best, best_bic = cand, bic
+            if residual_at_floor(ctx, cand.pt):
+                break       # explained: no need to try the others
+        else:
+            rejected.add(labels)
+            rejected.add(("refuted", e.key))
+    return best
+
+
+#: start grids of the nonlinear effects (the Stribeck cost has a narrow curved valley in omega_s)
+START_GRIDS = {
+    "stribeck": [{"tau_s": ts, "omega_s": ws} for ts in (0.012, 0.03)
+                 for ws in (1.0, 1.3, 1.7, 2.2, 2.9, 3.7, 4.8, 6.3, 8.2)],
+}
+
+
+#: the re-simulation candidates are tried when the residual concentrates at velocity reversals this much
+REVERSAL_GATE = 2.0
+
+
+def _reversal_concentration(ctx: Context, pt: Point) -> float:
+    """Largest concentration of the residual near velocity reversals (energy share / time share) over
+    the tests whose residual is above the noise floor (0 if none is)."""
+    best = 0.0
+    for n in ctx.names:
+        r = ctx.model.tests[n].y - pt.obs[n]
+        if float(np.sqrt(np.mean(r ** 2))) <= FLOOR_FACTOR * ctx.sigma:
+            continue
+        omega = ctx.model.signals(pt, n)[0]
+        mask = np.abs(omega) < 0.15 * np.abs(omega).max(axis=0)
+        if mask.any():
+            best = max(best, float((r[mask] ** 2).sum() / (r ** 2).sum()) / float(mask.mean()))
+    return best
+
+
+def _nonlinear_start(ctx: Context, state: State, e: Effect) -> dict:
+    """A start for the fit: the best point of a grid, each simulated on the lowest-frequency training test
+    (the one friction dominates), all in one parallel batch."""
+    grid = START_GRIDS[e.key]
+    probe = [min(ctx.train, key=lambda n: (ctx.model.tests[n].test.frequency or 0.0, n))]
+    ctx.model.sim.prefetch([{**state.changes, **g} for g in grid], probe)
+    best, best_rss = grid[0], math.inf
+    for g in grid:
+        try:
+            pt = ctx.model.point({**state.changes, **g}, probe)
+        except DiagnosisError:
+            continue
+        rss, _ = band_rss(ctx, pt, probe)
+        if rss < best_rss:
+            best, best_rss = g, rss
+    return best
+
+
+def phase_free_stage(ctx: Context, state: State, effect: Effect, steps: list) -> State:
+    """An effect that makes the loop hunt (backlash), on the phase-free score (phasefree.py).
+
+    Every value is an ensemble of re-simulations of every test. Selection: the best value of the
+    effect's scan on the training tests must lower the training BIC (deviance plus ln(statistics)
+    per parameter) by DELTA_BIC and the held-out deviance by DELTA_BIC, no held-out test worse by
+    DELTA_BIC. The value: refined on all tests (log-scale bisection around the best scan value,
+    then a parabola), once the held-out tests have confirmed the effect. It is named only if with
+    it every test's score is at the floor: the hunting's band powers can stand in for part of
+    almost any excess (a position ripple, say), so the effect must explain all of what is left.
+    """
+    model, p = ctx.model, effect.parameter
+    try:
+        score = PhaseFreeScore({n: model.tests[n].y for n in ctx.names}, state.pt.obs,
+                               {n: model.tests[n].test.sample_time for n in ctx.names}, ctx.sigma)
+    except ValueError as err:   # sampled too slowly for the bands
+        steps.append({"how": "phase-free score", "from": [a.label for a in state.selected],
+                      "to": [a.label for a in state.selected] + [effect.key], "accepted": False,
+                      "note": f"not tried: {err}"})
+        ctx.log(f"diagnose: {effect.title} not tried: {err}")
+        return state
+    ensembles: dict[float, Optional[dict]] = {}
+    current = float(state.changes.get(p, ctx.nominal[p]))
+
+    def changes(v: float) -> dict:   # the current model as it is (its simulations are cached)
+        return dict(state.changes) if v == current else {**state.changes, p: v}
+
+    def simulate(values: Sequence[float]) -> None:
+        new = [v for v in values if v not in ensembles]
+        model.sim.prefetch([changes(v) for v in new], ctx.names, range(ENSEMBLE))
+        for v in new:
+            try:
+                ensembles[v] = {n: np.array([score.powers(n, model.point(changes(v), [n], r).obs[n])
+                                             for r in range(ENSEMBLE)]) for n in ctx.names}
+            except DiagnosisError:
+                ensembles[v] = None
+
+    def deviance(v: float, names: Sequence[str]) -> float:
+        return score.fit(ensembles[v], names).deviance if ensembles[v] is not None else math.inf
+
+    ctx.log(f"diagnose: trying {effect.title} on the phase-free score ({len(effect.scan)} values x {ENSEMBLE} "
+            f"realisations of every test)")
+    simulate([current, *effect.scan])
+    scan_tr = {v: deviance(v, ctx.train) for v in effect.scan}
+    v_tr = min(scan_tr, key=scan_tr.get)
+    if ensembles[current] is None or not math.isfinite(scan_tr[v_tr]):
+        raise DiagnosisError(f"the phase-free score of {effect.title}: every simulation of its scan failed")
+    before_tr, with_tr = score.fit(ensembles[current], ctx.train), score.fit(ensembles[v_tr], ctx.train)
+    dbic = with_tr.deviance - before_tr.deviance + effect.cost * math.log(score.statistics(ctx.train))
+    ok = dbic <= -DELTA_BIC
+    dho, worse = None, []
+    if ctx.held:
+        before_ho, with_ho = score.fit(ensembles[current], ctx.held), score.fit(ensembles[v_tr], ctx.held)
+        dho = with_ho.deviance - before_ho.deviance
+        worse = [n for n in ctx.held if with_ho.per_test[n] - before_ho.per_test[n] > DELTA_BIC]
+        ok = ok and dho <= -DELTA_BIC and not worse
+    labels = [a.label for a in state.selected]
+    steps.append({"how": "phase-free score", "from": labels, "to": labels + [effect.key], "parameters": {p: v_tr},
+                  "delta_bic_training": dbic, "held_out_deviance_change": dho, "held_out_tests_worse": worse,
+                  "accepted": bool(ok),
+                  "note": "the best value of the scan on the training tests, band powers of the residual against "
+                          "ensembles of re-simulations" + ("" if ok else
+                          f": refused (training dBIC and held-out deviance change must be <= -{DELTA_BIC:g}, "
+                          f"no held-out test worse by {DELTA_BIC:g})")})
+    ctx.log(f"diagnose:   {effect.key} = {v_tr:.3g} (training scan): phase-free dBIC {dbic:+.0f}, held-out deviance "
+            f"{dho if dho is not None else 0:+.0f}" + (f"; worse on {', '.join(worse)}" if worse else "")
+            + (": confirmed" if ok else ": refused"))
+    if not ok:
+        return state
+
+    ratio = effect.scan[1] / effect.scan[0]
+
+    def on_all(values: Sequence[float]) -> dict[float, float]:
+        simulate(values)
+        return {v: deviance(v, ctx.names) for v in values}
+
+    points = refine(on_all, on_all(effect.scan), ratio, REFINE_LEVELS, effect.bounds[p])
+    value, s_log = estimate(points, ratio ** (0.5 ** PARABOLA_LEVEL))
+    simulate([value])
+    if ensembles[value] is None:    # the estimate's simulation failed: the best value simulated instead
+        value = min(points, key=points.get)
+    final, before = score.fit(ensembles[value], ctx.names), score.fit(ensembles[current], ctx.names)
+    floors = {n: score.floor(n) for n in ctx.names}
+    above = [n for n, d in final.per_test.items() if d > floors[n]]
+    steps.append({"how": "phase-free score: value on all tests", "from": labels, "to": labels + [effect.key],
+                  "parameters": {p: value}, "delta_bic_training": dbic, "deviance_per_test": final.per_test,
+                  "floor_per_test": floors, "accepted": not above,
+                  "note": ("every test's band powers at the floor with it" if not above else
+                           f"not named: with it the band powers of {', '.join(above)} stay above the floor "
+                           "(it would explain only part of the residual)")})
+    ctx.log(f"diagnose:   {effect.key} = {value:.4g} on all tests (deviance per test "
+            + ", ".join(f"{n} {d:.1f}" for n, d in final.per_test.items()) + ")"
+            + (f": above the floor on {', '.join(above)}, not named" if above else ": named"))
+    if above:
+        return state
+    nf = {n: score.bands[n].noise_fraction for n in ctx.names}
+    info = {**state.info, "phase_free": {
+        "parameter": p, "value": value, "std": value * s_log,
+        "ci95": [value * math.exp(-1.96 * s_log), value * math.exp(1.96 * s_log)],
+        "training_scan_value": v_tr, "delta_bic_training": dbic, "held_out_deviance_change": dho,
+        "deviance_per_test": {"before": before.per_test, "after": final.per_test}, "floor_per_test": floors,
+        "noise_std_Nm": final.sigma, "bands_Hz": {n: score.bands[n].bands for n in ctx.names},
+        "ensemble": ENSEMBLE,
+        "band_powers_Nm_squared": {n: {"measured": score.measured[n].tolist(),
+                                 "with": (ensembles[value][n].mean(axis=0) + final.sigma ** 2 * nf[n]).tolist(),
+                                 "without": (ensembles[current][n].mean(axis=0) + before.sigma ** 2 * nf[n]).tolist()}
+                             for n in ctx.names},
+        "profile": {v: points[v] for v in sorted(points)}}}
+    return State(tuple(state.selected) + (Atom(effect),), changes(value), model.point(changes(value), ctx.names), info)

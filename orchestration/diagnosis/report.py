@@ -1,0 +1,341 @@
+"""Outputs of the diagnosis: the augmented parameter set and an SSP that binds it, the figures, report.md."""
+from __future__ import annotations
+
+import math
+import zipfile
+from pathlib import Path
+from typing import TYPE_CHECKING, Mapping, Optional, Sequence
+
+import numpy as np
+
+from .resimulation import Model, Point
+
+if TYPE_CHECKING:
+    from .workflow import Options
+
+
+def jsonable(x):
+    if isinstance(x, dict):
+        return {str(k): jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [jsonable(v) for v in x]
+    if isinstance(x, (np.floating, np.integer)):
+        return x.item()
+    if isinstance(x, float) and not math.isfinite(x):
+        return None
+    if isinstance(x, Path):
+        return str(x)
+    return x
+
+
+def write_model(opt: Options, changes: Mapping[str, float], named: Sequence[dict], nominal: Mapping,
+                 model_over: Mapping) -> dict:
+    from lxml import etree
+
+    from ..ssp import NS
+
+    values = {**{k: v for k, v in model_over.items()}, **changes}
+    why = {}
+    for eff in named:
+        for p, v in eff["parameters"].items():
+            u = eff["uncertainty"].get(p, {}).get("std")
+            why[p] = (f"mast diagnose: {eff['effect']}; fitted {v:.6g} (std {u:.2g})" if u is not None
+                      else f"mast diagnose: {eff['effect']}; fitted {v:.6g}")
+    from fmus.actuator.model import PARAMETERS
+
+    units = {p.name: p.unit for p in PARAMETERS}
+    ssv, ssc = NS["ssv"], NS["ssc"]
+    root = etree.Element(f"{{{ssv}}}ParameterSet", nsmap={"ssv": ssv, "ssc": ssc}, version="1.0",
+                         name="actuator_diagnosed")
+    root.append(etree.Comment(f" Written by mast diagnose from {Path(opt.measured).name}: the nominal model "
+                              f"({opt.model or 'SSP bindings'}) plus the named effects; bind it after the "
+                              "actuators' other parameter sets (MAST_diagnosed.ssp does). "))
+    params = etree.SubElement(root, f"{{{ssv}}}Parameters")
+    used_units = set()
+    for name, v in values.items():
+        desc = why.get(name, f"nominal model ({opt.model})")
+        par = etree.SubElement(params, f"{{{ssv}}}Parameter", name=name, description=desc)
+        if isinstance(v, str):
+            etree.SubElement(par, f"{{{ssv}}}String", value=v)
+        elif isinstance(v, int) and not isinstance(v, bool):
+            etree.SubElement(par, f"{{{ssv}}}Integer", value=str(v))
+        else:
+            unit = units.get(name, "")
+            etree.SubElement(par, f"{{{ssv}}}Real", value=repr(float(v)), **({"unit": unit} if unit else {}))
+            if unit:
+                used_units.add(unit)
+    base_units = {"N.m": {"kg": "1", "m": "2", "s": "-2"}, "1": {}, "kg": {"kg": "1"}, "kg.m2": {"kg": "1", "m": "2"},
+                  "N.m.s/rad": {"kg": "1", "m": "2", "s": "-1", "rad": "-1"}, "rad/s": {"rad": "1", "s": "-1"},
+                  "rad": {"rad": "1"}, "s": {"s": "1"}, "m": {"m": "1"}}
+    if used_units:
+        ue = etree.SubElement(root, f"{{{ssv}}}Units")
+        for u in sorted(used_units):
+            etree.SubElement(etree.SubElement(ue, f"{{{ssc}}}Unit", name=u), f"{{{ssc}}}BaseUnit",
+                             **base_units.get(u, {}))
+    ssv_path = opt.out / "actuator_diagnosed.ssv"
+    ssv_path.write_bytes(etree.tostring(root, xml_declaration=True, encoding="UTF-8", pretty_print=True))
+    out = {"parameter_set": str(ssv_path), "values": dict(values),
+           "use": "bind resources/actuator_diagnosed.ssv after the other parameter sets of every actuator_k "
+                  "(MAST_diagnosed.ssp does that); compare the lab's torque with actuator_k.tau_meas"}
+    src = Path(opt.ssp)
+    if src.suffix == ".ssp" and src.exists():
+        dst = opt.out / "MAST_diagnosed.ssp"
+        with zipfile.ZipFile(src) as zin, zipfile.ZipFile(dst, "w", zipfile.ZIP_DEFLATED) as zout:
+            for item in zin.infolist():
+                data = zin.read(item.filename)
+                if item.filename == "SystemStructure.ssd":
+                    data = _bind_diagnosed(data)
+                zout.writestr(item, data)
+            zout.write(ssv_path, "resources/actuator_diagnosed.ssv")
+        out["ssp"] = str(dst)
+    return out
+
+
+def _bind_diagnosed(ssd: bytes) -> bytes:
+    from lxml import etree
+
+    from ..ssp import NS
+
+    root = etree.fromstring(ssd)
+    for comp in root.iterfind(".//ssd:Component", NS):
+        if not comp.get("name", "").startswith("actuator_"):
+            continue
+        bindings = comp.find("ssd:ParameterBindings", NS)
+        if bindings is None:
+            bindings = etree.SubElement(comp, f"{{{NS['ssd']}}}ParameterBindings")
+        etree.SubElement(bindings, f"{{{NS['ssd']}}}ParameterBinding", source="resources/actuator_diagnosed.ssv")
+    return etree.tostring(root, xml_declaration=True, encoding="UTF-8")
+
+
+def plot_figures(out: Path, model: Model, prepared, names, before: Point, after: Point, sigma: float, roles,
+             unexplained: bool, phase_free: Optional[dict]) -> dict:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    figs = {}
+    # 1. measured vs simulated, before and after: lowest, a held-out, highest frequency
+    order = sorted(names, key=lambda n: (prepared[n].test.frequency or 0.0, n))
+    show = list(dict.fromkeys([order[0]] + [n for n in order if roles[n] == "held-out"][:1] + [order[-1]]))
+    fig, axes = plt.subplots(len(show), 1, figsize=(9, 2.6 * len(show)), squeeze=False)
+    for ax, n in zip(axes[:, 0], show):
+        p = prepared[n]
+        f = p.test.frequency
+        keep = p.t >= (p.t[-1] - min(2.0 / f, p.t[-1] - p.t[0]) if f else p.t[0])
+        ax.plot(p.t[keep], p.y[keep, 0], color="0.55", lw=0.8, label="measured")
+        ax.plot(p.t[keep], before.obs[n][keep, 0], color="tab:red", lw=1.2, label="nominal model")
+        ax.plot(p.t[keep], after.obs[n][keep, 0], color="tab:blue", lw=1.2, ls="--", label="diagnosed model")
+        ax.set_title(f"{p.test.label()} ({roles[n]}), motor 1", fontsize=9)
+        ax.set_ylabel("tau_m [N m]")
+        ax.grid(alpha=0.3)
+    axes[0, 0].legend(fontsize=8, loc="upper right")
+    axes[-1, 0].set_xlabel("t [s]")
+    fig.tight_layout()
+    fig.savefig(out / "fig_time.png", dpi=110)
+    plt.close(fig)
+    figs["time"] = "fig_time.png"
+
+    # 2. residual against velocity and acceleration, before and after
+    fig, axes = plt.subplots(2, 2, figsize=(10, 7), sharey="row")
+    for row, (pt, title) in enumerate(((before, "nominal model"), (after, "diagnosed model"))):
+        for n in names:
+            w, a, _ = model.signals(pt, n)
+            r = prepared[n].y - pt.obs[n]
+            step = max(1, r.shape[0] // 400)
+            axes[row, 0].plot(w[::step].ravel(), r[::step].ravel(), ".", ms=1.5, alpha=0.5, label=prepared[n].test.label())
+            axes[row, 1].plot(a[::step].ravel(), r[::step].ravel(), ".", ms=1.5, alpha=0.5)
+        for c in (0, 1):
+            axes[row, c].axhline(2 * sigma, color="k", lw=0.6, ls=":")
+            axes[row, c].axhline(-2 * sigma, color="k", lw=0.6, ls=":")
+            axes[row, c].grid(alpha=0.3)
+        axes[row, 0].set_ylabel(f"torque residual [N m]\n{title}")
+    axes[1, 0].set_xlabel("guide speed at the motor shaft omega_N [rad/s]")
+    axes[1, 1].set_xlabel("guide acceleration [rad/s^2]")
+    axes[0, 0].legend(fontsize=7, markerscale=6, loc="best")
+    fig.suptitle("Residual (measured - simulated) against velocity and acceleration; dotted: +-2 sigma noise", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(out / "fig_residual_signals.png", dpi=110)
+    plt.close(fig)
+    figs["residual_signals"] = "fig_residual_signals.png"
+
+    # 3. residual amplitude against frequency
+    fig, ax = plt.subplots(figsize=(7, 4.2))
+    for pt, color, label in ((before, "tab:red", "nominal"), (after, "tab:blue", "diagnosed")):
+        for role, marker in (("training", "o"), ("held-out", "s")):
+            ns = [n for n in names if roles[n] == role and prepared[n].test.frequency]
+            if not ns:
+                continue
+            f = [prepared[n].test.frequency for n in ns]
+            rms = [float(np.sqrt(np.mean((prepared[n].y - pt.obs[n]) ** 2))) for n in ns]
+            ax.loglog(f, rms, marker, color=color, mfc=color if role == "training" else "none",
+                      label=f"{label}, {role}")
+    ax.axhline(sigma, color="k", ls="--", lw=0.8, label="noise floor")
+    ax.set_xlabel("test frequency [Hz]")
+    ax.set_ylabel("torque residual RMS [N m]")
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(out / "fig_residual_frequency.png", dpi=110)
+    plt.close(fig)
+    figs["residual_frequency"] = "fig_residual_frequency.png"
+
+    if phase_free:
+        fig, axes = plt.subplots(1, len(names), figsize=(3.2 * len(names), 3.4), squeeze=False)
+        for ax, n in zip(axes[0], names):
+            bp, bands = phase_free["band_powers_Nm_squared"][n], phase_free["bands_Hz"][n]
+            x = np.arange(len(bands))
+            for key, style, label in (("measured", "ko", "measured"), ("without", "s--", "without it"),
+                                      ("with", "o-", "with it (ensemble)")):
+                ax.semilogy(x, np.sqrt(bp[key]) * 1e3, style, ms=4, lw=1, label=label)
+            ax.set_xticks(x, [f"{lo:g}-{hi:g}" for lo, hi in bands], fontsize=7)
+            ax.set_title(f"{prepared[n].test.label()} ({roles[n]})", fontsize=8)
+            ax.set_xlabel("band [Hz]", fontsize=8)
+            ax.grid(alpha=0.3, which="both")
+        axes[0, 0].set_ylabel("residual RMS in the band [mN m]")
+        axes[0, 0].legend(fontsize=7)
+        fig.suptitle(f"Phase-free score of {phase_free['parameter']} = {phase_free['value']:.4g}: band powers of the "
+                     "residual against the nominal model", fontsize=9)
+        fig.tight_layout()
+        fig.savefig(out / "fig_phase_free.png", dpi=110)
+        plt.close(fig)
+        figs["phase_free"] = "fig_phase_free.png"
+
+    if unexplained:
+        fig, axes = plt.subplots(1, 2, figsize=(11, 4))
+        for n in names:
+            _, _, rho = model.signals(after, n)
+            r = prepared[n].y - after.obs[n]
+            step = max(1, r.shape[0] // 600)
+            start = prepared[n].test.rho_cmd[0]
+            axes[0].plot((rho - start)[::step].ravel() * 1e3, r[::step].ravel(), ".", ms=1.5, alpha=0.5,
+                         label=prepared[n].test.label())
+            dt = prepared[n].test.sample_time
+            spec = np.abs(np.fft.rfft(r - r.mean(axis=0), axis=0)).mean(axis=1) / r.shape[0]
+            fr = np.fft.rfftfreq(r.shape[0], dt)
+            axes[1].loglog(fr[1:], spec[1:], lw=0.6, label=prepared[n].test.label())
+        axes[0].set_xlabel("carriage position from the test's start [mm]")
+        axes[0].set_ylabel("torque residual [N m]")
+        axes[1].set_xlabel("frequency [Hz]")
+        axes[1].set_ylabel("residual spectrum [N m]")
+        axes[0].legend(fontsize=7, markerscale=6)
+        for ax in axes:
+            ax.grid(alpha=0.3)
+        fig.suptitle("Unexplained residual of the diagnosed model: against position and its spectrum", fontsize=10)
+        fig.tight_layout()
+        fig.savefig(out / "fig_unexplained.png", dpi=110)
+        plt.close(fig)
+        figs["unexplained"] = "fig_unexplained.png"
+    return figs
+
+
+def write_report(out: Path, doc: dict, figs: Mapping[str, str]) -> None:
+    v = doc["verdict"]
+    lines = [f"# Diagnosis of {Path(doc['measured']).name}", "",
+             f"Nominal model: {doc['model']} ({Path(doc['ssp']).name}). Torque noise floor: "
+             f"{1e3 * doc['noise_floor']['torque_std_Nm']:.3g} mN m ({doc['noise_floor']['method']}).", "",
+             f"**Verdict: {v['status']}.** {v['text']}.", ""]
+    lines += ["## Named effects", ""]
+    if doc["named_effects"]:
+        lines += ["| effect | parameter | nominal | fitted | std | evidence (re-simulated when added) |",
+                  "|---|---|---|---|---|---|"]
+        for e in doc["named_effects"]:
+            ev = e["evidence"]
+            wa = ev.get("when_added")
+            text = (f"dBIC {wa['delta_bic_training']:+.0f}, held-out RSS {wa['held_out_rss_change_percent']:+.0f} %"
+                    if wa and wa.get("held_out_rss_change_percent") is not None else
+                    f"phase-free dBIC {wa['delta_bic_training']:+.0f}, held-out deviance "
+                    f"{wa['held_out_deviance_change']:+.0f}" if wa and wa.get("held_out_deviance_change") is not None
+                    else f"dBIC {wa['delta_bic_training']:+.0f}" if wa else "")
+            for p, val in e["parameters"].items():
+                std = e["uncertainty"][p]["std"]
+                std_text = f"{std:.2g}" if std is not None and math.isfinite(std) else "-"
+                lines.append(f"| {e['effect']} | `{p}` | {e['nominal'][p]:.5g} | {val:.5g} | {std_text} | {text} |")
+            for alt in ev.get("alternatives", []):
+                if "equivalent_value" in alt and alt["equivalent_value"] is not None:
+                    lines.append(f"| (or) {alt['effect']} | `{alt['parameter']}` | | {alt['equivalent_value']:.5g} | | "
+                                 f"{alt['how']}: dBIC {alt['delta_bic_band']:+.1f} |")
+                elif "parameters" in alt:
+                    vals = ", ".join(f"`{k}` = {v:.5g}" for k, v in alt["parameters"].items())
+                    lines.append(f"| (or) {alt['effect']} | {vals} | | | | {alt['how']}: dBIC full band "
+                                 f"{alt['delta_bic_full_band']:+.0f}, in the band {alt['delta_bic_band']:+.1f}: "
+                                 f"{alt['note']} |")
+            if "filter_or_delay" in ev:
+                fd = ev["filter_or_delay"]
+                lines.append(f"| (filter or delay) | `delay_meas` | | {fd['delay_meas']:.4g} | | "
+                             f"dBIC delay vs filter {fd['delta_bic_delay_vs_filter']:+.0f}: chose {fd['choice']} |")
+        lines.append("")
+    else:
+        lines += ["None.", ""]
+    for e in doc["named_effects"]:
+        pf = e["evidence"].get("phase_free")
+        if not pf:
+            continue
+        lo, hi = pf["ci95"]
+        lines += ["## Phase-free score", "",
+                  f"{e['effect']} makes the loop hunt, which no simulation reproduces sample by sample; it was scored by "
+                  f"the band powers of the torque residual against ensembles of {pf['ensemble']} re-simulations "
+                  f"(commands perturbed far below their precision), noise {1e3 * pf['noise_std_Nm']:.3g} mN m "
+                  f"(profiled). `{pf['parameter']}` = {pf['value']:.4g} (95 %: {lo:.4g} to {hi:.4g}); the training "
+                  f"scan chose {pf['training_scan_value']:.4g} (dBIC {pf['delta_bic_training']:+.0f}, held-out "
+                  f"deviance {pf['held_out_deviance_change'] or 0:+.0f}).", "",
+                  "| test | deviance without it | with it | floor |", "|---|---|---|---|"]
+        dev = pf["deviance_per_test"]
+        lines += [f"| {n} | {dev['before'][n]:.1f} | {dev['after'][n]:.1f} | {pf['floor_per_test'][n]:.1f} |"
+                  for n in dev["after"]]
+        lines.append("")
+    lines += ["## Gap per test (torque NRMSE %, lower is better)", "",
+              "| test | role | before | after | noise floor | tracking error NRMSE % before / after |",
+              "|---|---|---|---|---|---|"]
+    for t in doc["tests"]:
+        g = doc["gap"][t["name"]]
+        b, a = g["before"], g["after"]
+        lines.append(f"| {t['label']} | {g['role']} | {b['torque_nrmse_percent']:.1f} | {a['torque_nrmse_percent']:.1f} | "
+                     f"{b['torque_floor_percent']:.1f} | {b['tracking_error_nrmse_percent']:.1f} / "
+                     f"{a['tracking_error_nrmse_percent']:.1f} |")
+    lines += ["", "## Where the nominal model's residual concentrates", ""]
+    for t in doc["tests"]:
+        lb = t["localise_before"]
+        lines.append(f"- {t['label']}: RMS {lb['rms_over_noise']:.1f} x noise; {lb['summary']}")
+    for motion, tr in doc["frequency_trend"].items():
+        if tr["log_slope_before"] is not None:
+            lines.append(f"- {motion} tests: residual at the test frequency {tr['reading']} "
+                         f"(log-log slope {tr['log_slope_before']:.2f})")
+    lines.append("")
+    if doc["unexplained"]:
+        u = doc["unexplained"]
+        lines += ["## Unexplained residual", "", u["text"], ""]
+        lines += [f"- {n}: {w}" for n, w in u["where"].items()]
+        lines += ["", "| candidate | dBIC | held-out RSS change % | rejected because |", "|---|---|---|---|"]
+        for c in u["candidates_tried"]:
+            ho, dbic = c["held_out_rss_change_percent"], c["delta_bic"]
+            lines.append(f"| {c['candidate']} | {'-' if dbic is None else f'{dbic:+.1f}'} | "
+                         f"{'-' if ho is None else f'{ho:+.1f}'} | {c['rejected_because']} |")
+        lines.append("")
+    lines += ["## Figures", ""]
+    captions = {"time": "Measured and simulated motor torque, before and after",
+                "residual_signals": "Residual against velocity and acceleration",
+                "residual_frequency": "Residual amplitude against test frequency",
+                "unexplained": "The residual no candidate explains",
+                "phase_free": "Band powers of the residual: measured, and predicted with and without the effect"}
+    for k, f in figs.items():
+        lines += [f"![{captions[k]}]({f})", ""]
+    am = doc["augmented_model"]
+    lines += ["## The augmented model", "", f"Parameter set: `{Path(am['parameter_set']).name}` ({am['use']}).", ""]
+    if am.get("ssp"):
+        lines += [f"Ready to run: `mast run {Path(am['ssp']).name} ...` (records `actuator_k.tau_meas`).", ""]
+    lines += ["## Steps", "", "| how | from | to | dBIC training | held-out RSS % | accepted |", "|---|---|---|---|---|---|"]
+    for st in doc["steps"]:
+        dbic = st.get("delta_bic_training", st.get("delta_bic_full_band"))
+        ho = st.get("held_out_rss_change_percent")
+        lines.append(f"| {st['how']} | {', '.join(st['from']) or 'nominal'} | "
+                     f"{', '.join(st['to']) if isinstance(st['to'], list) else st['to']} | "
+                     f"{dbic:+.0f} | {ho:+.1f} | {st['accepted']} |" if dbic is not None and ho is not None else
+                     f"| {st['how']} | {', '.join(st['from']) or 'nominal'} | "
+                     f"{', '.join(st['to']) if isinstance(st['to'], list) else st['to']} | "
+                     f"{'' if dbic is None else f'{dbic:+.0f}'} | | {st['accepted']} |")
+    lines.append("")
+    tm = doc["timing"]
+    lines += ["## Timing", "", f"{tm['wall_s']} s wall ({tm['simulations']} test simulations, {tm['simulation_wall_s']} s "
+              f"in simulation, {tm['workers']} workers, direct composition: {tm['direct']}).", ""]
+    (out / "report.md").write_text("\n".join(lines))

@@ -1,0 +1,445 @@
+"""The stages of the search: the regression loop (select, fit by re-simulation, verify), the alias check
+between the two sides of the transmission, pruning, and the bounded least-squares fit (polish)."""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Callable, Mapping, Optional, Sequence
+
+import numpy as np
+
+from .effects import BOUNDS, BY_PARAMETER, LIBRARY, MEASUREMENT_PARAMETERS, Chain
+from .resimulation import DiagnosisError, Model, Point, resample
+from .selection import DELTA_BIC, PRACTICAL, RELATIVE, Atom, Band, Regression, atom_labels, select
+
+
+#: re-simulation steps (finite differences) for the parameters whose signature does not linearise well
+FD_STEP = {"tau_s": 2e-3, "omega_s": 0.3}
+#: effects fitted and verified by re-simulation (sample by sample) when a residual remains after the regression loop
+NONLINEAR = tuple(e.key for e in LIBRARY if not e.regression and not e.phase_free)
+#: at most this many effects at once
+MAX_EFFECTS = 4
+#: residual RMS within this factor of the noise floor: nothing left to explain
+FLOOR_FACTOR = 1.2
+MAX_ROUNDS = 5
+
+
+@dataclass
+class State:
+    """The current model: selected effects, their fitted parameters, its evaluation on every test."""
+
+    selected: tuple
+    changes: dict
+    pt: Point
+    info: dict = field(default_factory=dict)
+
+
+@dataclass
+class Context:
+    model: Model
+    nominal: dict
+    names: list
+    train: list
+    held: list
+    band: Band
+    sigma: float
+    sigma_b: float
+    log: Callable
+
+
+def regression_loop(ctx: Context, state: State, atoms, rejected: set, steps: list) -> tuple[State, tuple]:
+    """Select by regression at the current model, fit by re-simulation, verify; until the selection is stable."""
+    last_fit = None
+    for _ in range(MAX_ROUNDS):
+        # effects found by re-simulation stay in, at their fitted values (their signature does not linearise)
+        locked = tuple(a for a in state.selected if a.effect.key in NONLINEAR)
+        keys = {a.effect.key for a in locked}
+        free_atoms = [a for a in atoms if a.effect.key not in keys]
+        exclude = frozenset(tuple(sorted(set(r) - keys)) for r in rejected if keys <= set(r))
+        if residual_at_floor(ctx, state.pt):
+            # at the noise floor: a cheap screen with the signatures first; sensitivities only if it proposes a change
+            reg = regression_at(ctx, state, free_atoms, sensitivities=False)
+            best, fits = select(reg, ctx.nominal, MAX_EFFECTS - len(locked), exclude)
+            if atom_labels(tuple(best.atoms) + locked) == atom_labels(state.selected):
+                last_fit = (reg, best, fits)
+                break
+        reg = regression_at(ctx, state, free_atoms)
+        best, fits = select(reg, ctx.nominal, MAX_EFFECTS - len(locked), exclude)
+        last_fit = (reg, best, fits)
+        proposal = tuple(best.atoms) + locked
+        if atom_labels(proposal) == atom_labels(state.selected):
+            break
+        labels = [a.label for a in reg.atoms]
+        current = [a for a in state.selected if a.effect.key not in keys]
+        if all(a.label in labels for a in current):
+            now = reg.fit(tuple(labels.index(a.label) for a in current))
+            if math.isfinite(now.bic) and reg.score(best) >= reg.score(now):
+                break       # the regression sees nothing better than the current model
+        ctx.log(f"diagnose: proposed by regression: {[a.label for a in proposal] or 'none'}")
+        start = dict(state.changes)
+        for a, c in zip(best.atoms, best.coef):
+            p0 = a.effect.parameter
+            lo, hi = BOUNDS[p0]
+            start[p0] = float(np.clip(float(ctx.nominal[p0]) + c, lo, hi))
+            if a.grid is not None:
+                start[a.effect.parameters[1]] = a.grid
+        cand = fit_state(ctx, proposal, start, getattr(reg, "columns", {}))
+        ok = verify(ctx, state, cand, steps, "regression")
+        if ok:
+            state = cand
+        else:
+            rejected.add(atom_labels(proposal))
+    return state, last_fit
+
+
+def fit_state(ctx: Context, selected: Sequence[Atom], start: Mapping[str, float],
+               columns: Optional[Mapping] = None) -> State:
+    free = _free_parameters(selected)
+    start = {p: start.get(p, float(ctx.nominal[p])) for p in free}
+    changes, info = polish(ctx, selected, start, columns or {})
+    return State(tuple(selected), changes, ctx.model.point(changes, ctx.names), info)
+
+
+def band_rss(ctx: Context, pt: Point, names: Sequence[str]) -> tuple[float, int]:
+    rss, n = 0.0, 0
+    for name in names:
+        prep = ctx.model.tests[name]
+        r = ctx.band.apply(prep.y - pt.obs[name], prep.test.sample_time)
+        rss += float(np.sum(r ** 2))
+        n += r.size
+    return rss, n
+
+
+def selection_cost(selected: Sequence[Atom]) -> int:
+    return sum(a.effect.cost for a in selected)
+
+
+def verify(ctx: Context, old: State, new: State, steps: list, how: str) -> bool:
+    """Accept a new selection only if re-simulation confirms it: training BIC and held-out residual."""
+    rss0, n = band_rss(ctx, old.pt, ctx.train)
+    rss1, _ = band_rss(ctx, new.pt, ctx.train)
+    k0, k1 = selection_cost(old.selected), selection_cost(new.selected)
+    bic0 = n * math.log(rss0 / n) + k0 * math.log(n)
+    bic1 = n * math.log(rss1 / n) + k1 * math.log(n)
+    ho0, nh = band_rss(ctx, old.pt, ctx.held) if ctx.held else (0.0, 0)
+    ho1, _ = band_rss(ctx, new.pt, ctx.held) if ctx.held else (0.0, 0)
+    noise = ctx.sigma_b ** 2 * nh
+    need = max(PRACTICAL * noise, RELATIVE * max(ho0 - noise, 0.0))
+    # no held-out test may get markedly worse: a true effect improves every test or leaves it alone
+    worse = []
+    for name in ctx.held:
+        a, m = band_rss(ctx, old.pt, [name])
+        b, _ = band_rss(ctx, new.pt, [name])
+        if b > a + max(PRACTICAL * ctx.sigma_b ** 2 * m, RELATIVE * a, 3.0 * math.sqrt(2.0 * m) * ctx.sigma_b ** 2):
+            worse.append(name)
+    if k1 > k0:
+        ok = bic1 <= bic0 - DELTA_BIC and (not ctx.held or ho0 - ho1 >= need) and not worse
+    else:   # fewer or as many parameters: kept effects must have been strongly needed
+        ok = bic1 < bic0 + (DELTA_BIC if k1 < k0 else 0.0) and (not ctx.held or ho1 <= ho0 + need)
+    step = {"how": how, "from": [a.label for a in old.selected], "to": [a.label for a in new.selected],
+            "parameters": dict(new.changes), "delta_bic_training": bic1 - bic0,
+            "held_out_rss_change_percent": 100 * (ho1 - ho0) / ho0 if ho0 > 0 else None,
+            "held_out_rss_needed_percent": -100 * need / ho0 if ho0 > 0 else None,
+            "held_out_tests_worse": worse,
+            "accepted": bool(ok), "fit": new.info}
+    steps.append(step)
+    ctx.log(f"diagnose:   {'accepted' if ok else 'refuted by re-simulation'}: {step['to'] or 'none'} "
+            f"(dBIC {bic1 - bic0:+.0f}, held-out RSS {step['held_out_rss_change_percent'] or 0:+.1f} %"
+            + (f"; worse on {', '.join(worse)}" if worse else "") + ")")
+    return ok
+
+
+def residual_at_floor(ctx: Context, pt: Point) -> bool:
+    return all(float(np.sqrt(np.mean((ctx.model.tests[n].y - pt.obs[n]) ** 2))) <= FLOOR_FACTOR * ctx.sigma
+               for n in ctx.names)
+
+
+def alias_check(ctx: Context, state: State, last_fit, steps: list) -> State:
+    """Effects the regression cannot separate (inertia on either side): compare them by re-simulation."""
+    for a in state.selected:
+        if not a.effect.group:
+            continue
+        for other in LIBRARY:
+            if other.group != a.effect.group or other.key == a.effect.key:
+                continue
+            start = {k: v for k, v in state.changes.items() if k not in a.effect.parameters}
+            # the equivalent value of the other side: the same change of reflected inertia
+            start[other.parameter] = _equivalent(ctx.nominal, a.effect.parameter, state.changes[a.effect.parameter],
+                                                 other.parameter)
+            lo, hi = BOUNDS[other.parameter]
+            if not lo <= start[other.parameter] <= hi:
+                steps.append({"how": "alias check", "from": [x.label for x in state.selected],
+                              "to": f"{other.key} instead of {a.effect.key}", "accepted": False,
+                              "note": f"the equivalent {other.parameter} = {start[other.parameter]:.3g} is outside its bounds"})
+                continue
+            swapped = tuple(x for x in state.selected if x is not a) + (Atom(other),)
+            cand = fit_state(ctx, swapped, start)
+            rss0, n = band_rss(ctx, state.pt, ctx.train)
+            rss1, _ = band_rss(ctx, cand.pt, ctx.train)
+            full0 = sum(float(np.sum((ctx.model.tests[m].y - state.pt.obs[m]) ** 2)) for m in ctx.train)
+            full1 = sum(float(np.sum((ctx.model.tests[m].y - cand.pt.obs[m]) ** 2)) for m in ctx.train)
+            nf = sum(ctx.model.tests[m].y.size for m in ctx.train)
+            dbic_full = nf * math.log(full1 / full0)
+            better = dbic_full <= -DELTA_BIC
+            steps.append({"how": "alias check", "from": [x.label for x in state.selected],
+                          "to": [x.label for x in swapped], "parameters": dict(cand.changes),
+                          "delta_bic_band": n * math.log(rss1 / rss0), "delta_bic_full_band": dbic_full,
+                          "accepted": bool(better),
+                          "note": "full band (the transmission's ringing) decides; in the band the two are alike"})
+            ctx.log(f"diagnose:   alias check {a.effect.key} -> {other.key}: dBIC (full band) {dbic_full:+.0f}"
+                    + (": swapped" if better else ": kept"))
+            state.info.setdefault("alias", []).append({"effect": other.key, "parameters": dict(cand.changes),
+                                                        "delta_bic_full_band": dbic_full,
+                                                        "delta_bic_band": n * math.log(rss1 / rss0)})
+            if better:
+                cand.info.setdefault("alias", []).append({"effect": a.effect.key, "parameters": dict(state.changes),
+                                                           "delta_bic_full_band": -dbic_full,
+                                                           "delta_bic_band": -n * math.log(rss1 / rss0)})
+                return cand
+    return state
+
+
+#: effects whose removal costs less than this (linearised BIC) are re-checked by re-simulation
+PRUNE_DBIC = 200.0
+
+
+def prune(ctx: Context, state: State, steps: list) -> State:
+    """Backward check: an effect that the others (refitted) can stand in for is removed if re-simulation
+    does not show it strongly needed (e.g. a mass change and an offset cancelling each other's weight)."""
+    while len(state.selected) > 1:
+        linear = [a for a in state.selected if a.effect.key not in NONLINEAR]
+        if len(linear) < 2:
+            return state
+        reg = regression_at(ctx, state, linear, sensitivities=False)
+        full = tuple(range(len(linear)))
+        costs = []
+        for k, a in enumerate(linear):
+            rest = reg.fit(tuple(i for i in full if i != k))
+            costs.append((rest.bic - reg.fit(full).bic, a))
+        costs.sort(key=lambda c: c[0])
+        removed = False
+        for dbic, a in costs:
+            if dbic > PRUNE_DBIC:
+                break
+            rest = tuple(x for x in state.selected if x is not a)
+            cand = fit_state(ctx, rest, dict(state.changes))
+            if verify(ctx, state, cand, steps, f"backward check (removing {a.effect.key})"):
+                state, removed = cand, True
+                break
+        if not removed:
+            return state
+    return state
+
+
+def _equivalent(nominal: Mapping, param: str, value: float, other: str) -> float:
+    """The value of ``other`` giving the same total reflected inertia as ``param`` = value."""
+    from fmus.actuator.model import two_inertia
+
+    J1, J2 = two_inertia(nominal)
+    J = two_inertia({**nominal, param: value})
+    delta = (J[0] + J[1]) - (J1 + J2)
+    if other == "J_guide":
+        return float(nominal["J_guide"]) + delta * float(nominal["i_r"]) ** 2
+    if other == "J1_scale":
+        return float(nominal["J1_scale"]) + delta / (J1 / float(nominal["J1_scale"]))
+    raise KeyError(other)
+
+
+def _steps(ctx: Context, state: State, atoms: Sequence[Atom]) -> dict[str, tuple[float, float]]:
+    """(value, step) of the re-simulated sensitivity of each plant atom's parameter."""
+    out = {}
+    for a in atoms:
+        if a.effect.kind == "plant":
+            p0 = a.effect.parameter
+            v0 = float(state.changes.get(p0, ctx.nominal[p0]))
+            step = a.effect.step if BOUNDS[p0][0] <= v0 + a.effect.step <= BOUNDS[p0][1] else -a.effect.step
+            out[a.label] = (v0, step)
+    return out
+
+
+def regression_at(ctx: Context, state: State, atoms: Sequence[Atom], sensitivities: bool = True) -> Regression:
+    """Columns at the current model; the residual taken back to the nominal model (linearised); in the band.
+
+    ``sensitivities``: plant columns re-simulated (exact linearisation of the closed loop, one
+    simulation of every test per plant parameter, all in one parallel batch); otherwise the
+    effect signatures (no simulation: a screen).
+    """
+    model, pt, names = ctx.model, state.pt, ctx.names
+    cols = {}
+    steps = _steps(ctx, state, atoms) if sensitivities else {}
+    if steps:
+        model.sim.prefetch([{**state.changes, a.effect.parameter: v0 + st} for a in atoms if a.label in steps
+                            for v0, st in [steps[a.label]]], names)
+    for a in atoms:
+        if a.label in steps:   # re-simulated sensitivity: the closed loop's own response
+            p0 = a.effect.parameter
+            v0, step = steps[a.label]
+            try:
+                pt1 = model.point({**state.changes, p0: v0 + step}, names)
+                cols[a.label] = {n: (pt1.obs[n] - pt.obs[n]) / step for n in names}
+            except DiagnosisError:
+                cols[a.label] = model.columns(pt, names, p0, a.grid)
+        else:
+            cols[a.label] = model.columns(pt, names, a.effect.parameter, a.grid if a not in state.selected else None)
+    resid = {n: model.tests[n].y - pt.obs[n] for n in names}
+    for a in state.selected:
+        if a.effect.key in NONLINEAR:
+            continue
+        for pname in a.effect.parameters:
+            if pname in state.changes:
+                delta = state.changes[pname] - float(ctx.nominal[pname])
+                if delta:
+                    c = cols[a.label] if (pname == a.effect.parameter and a.label in cols) else \
+                        model.columns(pt, names, pname)
+                    for n in names:
+                        resid[n] = resid[n] + c[n] * delta
+
+    def banded(d: Mapping[str, np.ndarray], ns: Sequence[str]) -> np.ndarray:
+        return np.concatenate([ctx.band.apply(d[n], model.tests[n].test.sample_time).ravel() for n in ns]) \
+            if ns else np.zeros(0)
+
+    A_tr = np.column_stack([banded(cols[a.label], ctx.train) for a in atoms]) if atoms else np.zeros((0, 0))
+    A_ho = np.column_stack([banded(cols[a.label], ctx.held) for a in atoms]) if ctx.held and atoms else \
+        np.zeros((0, len(atoms)))
+    if not atoms:
+        A_tr = np.zeros((len(banded(resid, ctx.train)), 0))
+    reg = Regression(atoms, A_tr, banded(resid, ctx.train), A_ho, banded(resid, ctx.held), ctx.sigma_b)
+    reg.columns = {a.effect.parameter: cols[a.label] for a in atoms if a.label in steps}
+    return reg
+
+
+def _free_parameters(selected: Sequence[Atom]) -> list[str]:
+    out = []
+    for a in selected:
+        out += [p for p in a.effect.parameters if p not in out]
+    return out
+
+
+def polish(ctx: Context, selected: Sequence[Atom], start: Mapping[str, float],
+            columns: Mapping[str, Mapping[str, np.ndarray]]) -> tuple[dict, dict]:
+    """Bounded least squares of the selected parameters on the training tests, re-simulating.
+
+    Jacobian: the measurement parameters' columns are exact (no simulation); plant
+    parameters start from re-simulated sensitivities (those of the regression, or one
+    simulation each at the start) and are updated by Broyden's rank-one formula along the
+    iterates, so each iteration costs one simulation of the training tests.
+    """
+    from scipy.optimize import least_squares
+
+    model, train, sigma = ctx.model, ctx.train, ctx.sigma
+    free = _free_parameters(selected)
+    x0 = np.array([start[p] for p in free], dtype=float)
+    lo = np.array([BOUNDS[p][0] for p in free])
+    hi = np.array([BOUNDS[p][1] for p in free])
+    x0 = np.clip(x0, lo + 1e-9 * (hi - lo), hi - 1e-9 * (hi - lo))
+    scale = np.array([max(abs(v), 0.01 * (h - l), 1e-9) for v, l, h in zip(x0, lo, hi)])
+    y = np.concatenate([model.tests[n].y.ravel() for n in train])
+    count = [0]
+    points: dict = {}
+    plant = [k for k, p in enumerate(free) if p not in MEASUREMENT_PARAMETERS]
+    sensor = [k for k, p in enumerate(free) if p in MEASUREMENT_PARAMETERS]
+
+    def at(x: np.ndarray) -> Point:
+        key = tuple(np.round(x, 15))
+        if key not in points:
+            if len(points) > 8:
+                points.clear()
+            points[key] = model.point(dict(zip(free, map(float, x))), train)
+            count[0] += 1
+        return points[key]
+
+    def obs(pt: Point) -> np.ndarray:
+        return np.concatenate([pt.obs[n].ravel() for n in train])
+
+    def fun(x: np.ndarray) -> np.ndarray:
+        try:
+            pt = at(x)
+        except DiagnosisError:
+            return np.full(y.shape, 1e3)
+        return (y - obs(pt)) / sigma
+
+    memory: dict = {}
+
+    def initial(x: np.ndarray, pt: Point) -> np.ndarray:
+        J = np.zeros((len(y), len(free)))
+        need = []
+        for k in plant:
+            p = free[k]
+            if p in columns and p not in FD_STEP:
+                J[:, k] = -np.concatenate([columns[p][n].ravel() for n in train]) / sigma
+            else:
+                need.append(k)
+        fd = {}
+        for k in need:
+            p = free[k]
+            # a small step: the fit needs the local slope (the regression's secant columns are for naming)
+            d = FD_STEP.get(p) or max(0.01 * abs(x[k]), 0.1 * abs(BY_PARAMETER[p].step)) or 1e-3 * scale[k]
+            d = d if x[k] + d <= hi[k] else -d
+            x1 = x.copy()
+            x1[k] += d
+            fd[k] = (x1, d)
+        model.sim.prefetch([dict(zip(free, map(float, x1))) for x1, _ in fd.values()], train)
+        for k, (x1, d) in fd.items():
+            try:
+                J[:, k] = -(obs(at(x1)) - obs(pt)) / d / sigma
+            except DiagnosisError:
+                J[:, k] = 0.0
+        return J
+
+    def jac(x: np.ndarray) -> np.ndarray:
+        try:
+            pt = at(x)
+        except DiagnosisError:
+            return np.zeros((len(y), len(free)))
+        r = (y - obs(pt)) / sigma
+        if "J" not in memory:
+            J = initial(x, pt)
+        else:
+            J = memory["J"].copy()
+            dx = x - memory["x"]
+            if plant and float(dx[plant] @ dx[plant]) > 0:
+                dr = r - memory["r"]
+                J[:, plant] += np.outer(dr - J @ dx, dx[plant]) / float(dx[plant] @ dx[plant])
+        for k in sensor:
+            c = model.columns(pt, train, free[k])
+            J[:, k] = -np.concatenate([c[n].ravel() for n in train]) / sigma
+        memory.update(J=J, x=x.copy(), r=r)
+        return J
+
+    t0 = time.perf_counter()
+    sol = least_squares(fun, x0, jac=jac, bounds=(lo, hi), x_scale=scale, method="trf", xtol=1e-4, ftol=1e-5,
+                        max_nfev=12)
+    values = dict(zip(free, map(float, sol.x)))
+    info = {"simulations_of_the_training_tests": count[0], "cost": float(sol.cost),
+            "wall_s": round(time.perf_counter() - t0, 1), "status": sol.message,
+            "jacobian": "exact columns (measurement), re-simulated sensitivities with Broyden updates (plant)"}
+    if "T_meas" in values:   # a filter or a delay? (measurement only: no re-simulation)
+        info["lag"] = _filter_or_delay(model, at(sol.x), values, train)
+        if info["lag"]["choice"] == "delay_meas":
+            values.pop("T_meas")
+            values["delay_meas"] = info["lag"]["delay_meas"]
+    ctx.log("diagnose:   fit " + ", ".join(f"{k} = {v:.5g}" for k, v in values.items())
+            + f" ({count[0]} simulations of the training tests, {info['wall_s']:.0f} s)")
+    return values, info
+
+
+def _filter_or_delay(model: Model, pt: Point, values: Mapping, train: Sequence[str]) -> dict:
+    from scipy.optimize import minimize_scalar
+
+    y = np.concatenate([model.tests[n].y.ravel() for n in train])
+
+    def rss(chain: Chain) -> float:
+        yh = np.concatenate([resample(pt.sims[n], chain.observe(pt.sims[n].tau_m), model.tests[n].t).ravel()
+                             for n in train])
+        return float(np.sum((y - yh) ** 2))
+
+    rss_filter = rss(pt.chain)
+    base = pt.chain.with_(T_meas=0.0)
+    res = minimize_scalar(lambda d: rss(base.with_(delay_meas=d)), bounds=(0.0, 4 * values["T_meas"] + 1e-4),
+                          method="bounded", options={"xatol": 1e-6})
+    n = len(y)
+    dbic = n * math.log(res.fun / rss_filter)
+    choice = "delay_meas" if dbic < -DELTA_BIC else "T_meas"
+    return {"T_meas": values["T_meas"], "rss_filter": rss_filter, "delay_meas": float(res.x), "rss_delay": float(res.fun),
+            "delta_bic_delay_vs_filter": dbic, "choice": choice, "separable": abs(dbic) >= DELTA_BIC}

@@ -1,0 +1,180 @@
+"""``mast diagnose``: the workflow from the measured data to diagnosis.json and report.md."""
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable, Optional, Sequence
+
+import numpy as np
+
+from ..measured import CommandReplay, MeasuredData, controller_geometry, load
+from .effects import BY_KEY, LIBRARY, noise_std
+from .nonlinear import nonlinear_stage, phase_free_stage
+from .report import jsonable, plot_figures, write_model, write_report
+from .resimulation import DiagnosisError, Model, Prepared, Simulator
+from .selection import Atom, Band
+from .stages import MAX_EFFECTS, NONLINEAR, Context, State, alias_check, prune, regression_loop, residual_at_floor
+from .verdict import gap_table, gap_trend, judge, localise_test, named_effects
+
+
+@dataclass
+class Options:
+    measured: Path
+    out: Path
+    ssp: str
+    model: Optional[str] = None           # a parameter set (.ssv path or name in the SSP's resources)
+    holdout: Optional[Sequence[str]] = None
+    workers: int = 2
+    direct: bool = True
+    library: Sequence[str] = tuple(e.key for e in LIBRARY)
+    figures: bool = True
+
+
+def _model_overrides(ssp: str, model: Optional[str]) -> dict:
+    """Actuator parameter overrides of the nominal model (``--model``): an .ssv file, or the name of a
+    parameter set inside the SSP (resources/NAME.ssv) or of the project's sources (ssp/resources/NAME.ssv)."""
+    if not model:
+        return {}
+    from ..build import REPO
+    from ..ssp import SSPArchive
+    from ..ssv import parse_ssv
+
+    sources = REPO / "ssp" / "resources"
+    path = Path(model)
+    if path.exists():
+        return {k: v.value for k, v in parse_ssv(path).items()}
+    name = model if model.endswith(".ssv") else f"{model}.ssv"
+    with SSPArchive(ssp) as archive:
+        res = archive.ssd.parent / "resources"
+        for candidate in (res / name, res / "parameters" / name, sources / name):
+            if candidate.exists():
+                return {k: v.value for k, v in parse_ssv(candidate).items()}
+        have = sorted({p.stem for p in res.rglob("*.ssv")} |
+                      {p.stem for p in sources.glob("*.ssv")})
+    raise DiagnosisError(f"--model {model}: neither a file nor a parameter set of the SSP or of ssp/resources "
+                         f"(known: {', '.join(have)})")
+
+
+def _split(data: MeasuredData, holdout: Optional[Sequence[str]]) -> dict[str, str]:
+    """Role of every test: ``--holdout`` names the held-out tests, else the roles the data give,
+    else every second test in frequency order is held out (all training with fewer than three)."""
+    names = [t.name for t in data.tests]
+    if holdout:
+        unknown = [h for h in holdout if h not in names]
+        if unknown:
+            raise DiagnosisError(f"--holdout {', '.join(unknown)}: no such test (tests: {', '.join(names)})")
+        return {n: ("held-out" if n in holdout else "training") for n in names}
+    if any(t.role for t in data.tests):
+        return {t.name: (t.role or "training") for t in data.tests}
+    order = sorted(data.tests, key=lambda t: (t.frequency or 0.0, t.name))
+    roles = {t.name: ("held-out" if k % 2 else "training") for k, t in enumerate(order)}
+    if len(order) < 3:
+        roles = {t.name: "training" for t in order}
+    return roles
+
+
+def diagnose(opt: Options, log: Callable[[str], None] = print) -> dict:
+    """The five steps of the package docstring on the measured-data folder ``opt.measured``; writes
+    diagnosis.json, report.md, the figures and the augmented model to ``opt.out`` and returns the
+    diagnosis (the content of diagnosis.json)."""
+    t_start = time.perf_counter()
+    from ..ssp import SSPArchive
+
+    with SSPArchive(opt.ssp) as archive:
+        system = archive.system
+        actuators = [n for n in system.components if n.startswith("actuator_")]
+        if len(actuators) != 3:
+            raise DiagnosisError(f"{opt.ssp}: expected three actuator_k components, found {', '.join(actuators)}")
+        ssp_actuator = dict(system.components[actuators[0]].parameters)
+    stroke = (float(ssp_actuator["rho_min"]), float(ssp_actuator["rho_max"]))
+    data = load(opt.measured, stroke=stroke)
+    model_over = _model_overrides(opt.ssp, opt.model)
+    nominal = {**ssp_actuator, **model_over}
+    base = {a: dict(model_over) for a in actuators} if model_over else {}
+    geometry = controller_geometry(opt.ssp)
+    roles = _split(data, opt.holdout)
+    prepared: dict[str, Prepared] = {}
+    for t in data.tests:
+        mask = t.time >= t.settle_s - 1e-12
+        prepared[t.name] = Prepared(t, roles[t.name], CommandReplay(t.time, t.rho_cmd, geometry), mask, t.time[mask],
+                                    t.tau_m[mask], (t.rho - t.rho_cmd)[mask])
+    names = [t.name for t in data.tests]
+    train = [n for n in names if roles[n] == "training"]
+    held = [n for n in names if roles[n] == "held-out"]
+    sigma = float(np.median([noise_std(prepared[n].y[:, j]) for n in names for j in range(3)]))
+    if not sigma > 0:
+        raise DiagnosisError("the torque noise floor came out as 0: are the torques quantised coarsely or constant?")
+    resolution = float(data.meta.get("measurement", {}).get("rho_resolution_m", 0.0) or 0.0)
+    band = Band()
+    sigma_b = sigma * float(np.median([band.noise_factor(prepared[n].test.sample_time) for n in names]))
+    log(f"diagnose: {len(names)} tests ({len(train)} training, {len(held)} held-out), torque noise floor "
+        f"{1e3 * sigma:.3g} mN.m")
+
+    with Simulator(opt.ssp, prepared, base, actuators, direct=opt.direct, workers=opt.workers) as sim:
+        model = Model(sim, nominal, prepared, data.torque_filter_s, data.torque_delay_s)
+        ctx = Context(model, nominal, names, train, held, band, sigma, sigma_b, log)
+        nominal_pt = model.point({}, names)
+        before = gap_table(prepared, nominal_pt, names, sigma, resolution)
+        localised = {n: localise_test(model, nominal_pt, prepared[n], sigma) for n in names}
+        log("diagnose: nominal model: " + ", ".join(f"{n} {before[n]['torque_nrmse_percent']:.1f} %" for n in names))
+
+        library = [BY_KEY[k] for k in opt.library]
+        atoms = [Atom(e, g) for e in library if e.regression for g in (e.grid or (None,))]
+        state = State((), {}, nominal_pt)
+        steps: list = []
+        rejected: set = set()
+        state, last_fit = regression_loop(ctx, state, atoms, rejected, steps)
+        for _ in range(2):   # nonlinear candidates, then the regression loop again around the new model
+            if residual_at_floor(ctx, state.pt) or len(state.selected) >= MAX_EFFECTS:
+                break
+            tried = nonlinear_stage(ctx, state, [e for e in library if e.key in NONLINEAR], rejected, steps)
+            if tried is None:
+                break
+            state, last_fit = regression_loop(ctx, tried, atoms, rejected, steps)
+        state = alias_check(ctx, state, last_fit, steps)
+        state = prune(ctx, state, steps)
+        for e in library:   # effects that make the loop hunt: last, on the phase-free score
+            if e.phase_free and not residual_at_floor(ctx, state.pt) and len(state.selected) < MAX_EFFECTS:
+                state = phase_free_stage(ctx, state, e, steps)
+        final_pt = state.pt
+        after = gap_table(prepared, final_pt, names, sigma, resolution)
+        named = named_effects(ctx, state, last_fit, steps)
+        verdict, unexplained = judge(ctx, state, after, last_fit, steps)
+        final_local = {n: localise_test(model, final_pt, prepared[n], sigma) for n in names}
+        n_sims, sim_seconds = sim.count, sim.seconds
+
+    opt.out.mkdir(parents=True, exist_ok=True)
+    outputs = write_model(opt, state.changes, named, nominal, model_over)
+    wall = time.perf_counter() - t_start
+    doc = {
+        "measured": str(opt.measured), "ssp": str(opt.ssp), "model": opt.model or "the SSP's bindings",
+        "tests": [{"name": n, "label": prepared[n].test.label(), "role": roles[n],
+                   "frequency_Hz": prepared[n].test.frequency, "motion": prepared[n].test.motion,
+                   "localise_before": localised[n], "localise_after": final_local[n]} for n in names],
+        "noise_floor": {"torque_std_Nm": sigma,
+                        "method": "robust (MAD) third differences of the measured torques, median over tests and axes",
+                        "torque_std_in_band_Nm": sigma_b, "band_Hz": band.fc,
+                        "position_resolution_m": resolution or None,
+                        "per_test_torque_nrmse_percent": {n: before[n]["torque_floor_percent"] for n in names}},
+        "named_effects": named,
+        "gap": {n: {"role": roles[n], "before": before[n], "after": after[n]} for n in names},
+        "frequency_trend": gap_trend(prepared, localised, final_local, names),
+        "verdict": verdict,
+        "unexplained": unexplained,
+        "steps": steps,
+        "augmented_model": outputs,
+        "timing": {"wall_s": round(wall, 1), "simulations": n_sims, "simulation_wall_s": round(sim_seconds, 1),
+                   "workers": opt.workers, "direct": opt.direct},
+    }
+    (opt.out / "diagnosis.json").write_text(json.dumps(jsonable(doc), indent=2))
+    if opt.figures:
+        figs = plot_figures(opt.out, model, prepared, names, nominal_pt, final_pt, sigma, roles, unexplained is not None,
+                        state.info.get("phase_free"))
+    else:
+        figs = {}
+    write_report(opt.out, doc, figs)
+    log(f"diagnose: {verdict['status']}: {verdict['text']}")
+    log(f"diagnose: wrote {opt.out / 'diagnosis.json'}, {opt.out / 'report.md'} in {wall:.0f} s")
+    return doc
