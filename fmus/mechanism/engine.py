@@ -306,12 +306,12 @@ def traced(x) -> bool:
 
 
 # ===================================================================================== derivatives
-class _Forward:
-    """Forward-mode derivative of every node along one seed (memoized)."""
+class _Derivative:
+    """A derivative of every node (memoized), built in post-order by the subclass's ``_rule``."""
 
     def __init__(self, g: _Graph, seeds: dict[str, object]) -> None:
         self.g = g
-        self.seeds = seeds          # input name -> derivative (E or float)
+        self.seeds = seeds          # input name -> derivative of the input (E or float)
         self.d: dict[int, E] = {}
         self.zero = g.const(0.0)
 
@@ -333,6 +333,13 @@ class _Forward:
             stack.pop()
             self.d[top.id] = self._rule(top)
         return self.d[n.id]
+
+    def _rule(self, n: E) -> E:
+        raise NotImplementedError
+
+
+class _Forward(_Derivative):
+    """Forward-mode derivative of every node along one seed."""
 
     def _rule(self, n: E) -> E:
         op, g, d = n.op, self.g, self.d
@@ -376,32 +383,13 @@ class _Forward:
         raise AssertionError(f"no derivative rule for {op}")
 
 
-class _Second:
+class _Second(_Derivative):
     """Second derivative along a path whose first derivative is ``first`` and whose inputs have
     second derivative ``seeds`` (zero for rho_ddot = 0 in q-space: the engine adds qdd0 later)."""
 
     def __init__(self, g: _Graph, first: _Forward, seeds: dict[str, object]) -> None:
-        self.g, self.p1, self.seeds = g, first, seeds
-        self.d: dict[int, E] = {}
-        self.zero = g.const(0.0)
-
-    def __call__(self, n: E) -> E:
-        d = self.d.get(n.id)
-        if d is not None:
-            return d
-        stack = [n]
-        while stack:
-            top = stack[-1]
-            if top.id in self.d:
-                stack.pop()
-                continue
-            pending = [a for a in top.args if a.id not in self.d]
-            if pending and top.op != "check":
-                stack.extend(pending)
-                continue
-            stack.pop()
-            self.d[top.id] = self._rule(top)
-        return self.d[n.id]
+        super().__init__(g, seeds)
+        self.p1 = first
 
     def _rule(self, n: E) -> E:
         op, g, d, p1 = n.op, self.g, self.d, self.p1
