@@ -11,39 +11,19 @@ from typing import List
 from pythonfmu import Fmi2Causality, Fmi2Initial, Fmi2Slave, Fmi2Variability, Integer, Real, String
 from pythonfmu.enums import Fmi2Status
 
-from .slave import PARAMETERS_FILE, BlockWrapper, fmi_call, keep_alive, load_defaults  # noqa: F401 (re-exported)
+from .slave import PARAMETERS_FILE, BlockWrapper, FmiVocabulary, fmi_call, keep_alive, load_defaults  # noqa: F401 (re-exported)
 
 
 class BlockSlave(BlockWrapper, Fmi2Slave):
     """FMI 2.0 slave exposing one Block; subclasses set ``block_class``."""
 
+    fmi = FmiVocabulary({float: Real, int: Integer, str: String}, Fmi2Causality, Fmi2Variability, Fmi2Initial,
+                        Fmi2Status)
+
     def __init__(self, **kwargs) -> None:
         super().__init__(**kwargs)
         self._wrap(kwargs)
-        cls = self.block_class
-        for name in cls.INPUTS:
-            self.register_variable(Real(name, causality=Fmi2Causality.input,
-                                        variability=Fmi2Variability.continuous,
-                                        description=cls.DESCRIPTIONS.get(name)))
-        for name in cls.OUTPUTS:
-            self.register_variable(Real(name, causality=Fmi2Causality.output,
-                                        variability=Fmi2Variability.continuous,
-                                        initial=Fmi2Initial.exact,
-                                        description=cls.DESCRIPTIONS.get(name)))
-        kinds = {float: Real, int: Integer, str: String}
-        for spec in cls.PARAMETERS:
-            self.register_variable(kinds[spec.kind](
-                spec.name, causality=Fmi2Causality.parameter, variability=Fmi2Variability.fixed,
-                description=f"[{spec.unit}] {spec.description}" if spec.unit else spec.description,
-                getter=lambda n=spec.name: self._params[n],
-                setter=lambda v, n=spec.name: self._set_param(n, v)))
-
-    # the host's logger takes the message as a printf format (FMI): a '%' in it must be written '%%'
-    def _log_warning(self, message: str) -> None:
-        self.log(message.replace("%", "%%"), status=Fmi2Status.warning, category="logStatusWarning")
-
-    def _log_error(self, message: str) -> None:
-        self.log(message.replace("%", "%%"), status=Fmi2Status.error, category="logStatusError")
+        self._register_block()
 
     # -- the calls pythonfmu's C layer makes ---------------------------------------------
     @fmi_call

@@ -13,11 +13,14 @@ from pythonfmu3 import Fmi3Causality, Fmi3Initial, Fmi3Slave, Fmi3Variability, F
 from pythonfmu3.enums import Fmi3Status
 from pythonfmu3.unit import Unit
 
-from .slave import BlockWrapper, fmi_call
+from .slave import BlockWrapper, FmiVocabulary, fmi_call
 
 
 class BlockSlave3(BlockWrapper, Fmi3Slave):
     """FMI 3.0 slave exposing one Block; subclasses set ``block_class``."""
+
+    fmi = FmiVocabulary({float: Float64, int: Int32, str: String}, Fmi3Causality, Fmi3Variability, Fmi3Initial,
+                        Fmi3Status)
 
     def __init__(self, **kwargs) -> None:
         super().__init__(**kwargs)
@@ -27,31 +30,9 @@ class BlockSlave3(BlockWrapper, Fmi3Slave):
         units = dict(cls.UNITS)
         units.update({p.name: p.unit for p in cls.PARAMETERS if p.kind is float and p.unit})
         self.register_units([Unit(u) for u in sorted(set(units.values()))])
-        for name in cls.INPUTS:
-            self.register_variable(Float64(name, causality=Fmi3Causality.input, variability=Fmi3Variability.continuous,
-                                           description=cls.DESCRIPTIONS.get(name), unit=units.get(name),
-                                           start=0.0))
-        for name in cls.OUTPUTS:
-            self.register_variable(Float64(name, causality=Fmi3Causality.output,
-                                           variability=Fmi3Variability.continuous, initial=Fmi3Initial.exact,
-                                           description=cls.DESCRIPTIONS.get(name), unit=units.get(name)))
-        kinds = {float: Float64, int: Int32, str: String}
-        for spec in cls.PARAMETERS:
-            extra = {"unit": spec.unit} if spec.kind is float and spec.unit else {}
-            self.register_variable(kinds[spec.kind](
-                spec.name, causality=Fmi3Causality.parameter, variability=Fmi3Variability.fixed,
-                description=f"[{spec.unit}] {spec.description}" if spec.unit else spec.description,
-                getter=lambda n=spec.name: self._params[n],
-                setter=lambda v, n=spec.name: self._set_param(n, v), **extra))
+        self._register_block(units, input_start=0.0)
         self.register_variable(Float64("time", causality=Fmi3Causality.independent,
                                        variability=Fmi3Variability.continuous, getter=lambda: self._time))
-
-    # the host's logger takes the message as a printf format (FMI): a '%' in it must be written '%%'
-    def _log_warning(self, message: str) -> None:
-        self.log(message.replace("%", "%%"), status=Fmi3Status.warning, category="logStatusWarning")
-
-    def _log_error(self, message: str) -> None:
-        self.log(message.replace("%", "%%"), status=Fmi3Status.error, category="logStatusError")
 
     # -- the calls pythonfmu3's C layer makes --------------------------------------------
     @fmi_call

@@ -37,7 +37,8 @@ import json
 import os
 import sys
 import types
-from typing import Any, Callable, ClassVar, List, Optional
+from dataclasses import dataclass
+from typing import Any, Callable, ClassVar, List, Mapping, Optional
 
 from .block import Block
 
@@ -60,6 +61,17 @@ def load_defaults(resources: Optional[str]) -> dict:
         return {}
     with open(path, encoding="utf-8") as handle:
         return json.load(handle)
+
+
+@dataclass(frozen=True)
+class FmiVocabulary:
+    """The names an FMI version's Python package gives to what both versions have."""
+
+    kinds: Mapping[type, Callable]   # Python type of a value -> variable class (Real, Integer, ... / Float64, Int32, ...)
+    causality: Any                   # enumerations: Fmi2Causality / Fmi3Causality, ...
+    variability: Any
+    initial: Any
+    status: Any
 
 
 def fmi_call(method: Callable) -> Callable:
@@ -86,6 +98,7 @@ class BlockWrapper:
     """
 
     block_class: ClassVar[type[Block]]
+    fmi: ClassVar[FmiVocabulary]
     _in_init = False
     _init_error: Optional[str] = None
 
@@ -106,12 +119,36 @@ class BlockWrapper:
         defaults = load_defaults(self.resources)
         self._params = {p.name: defaults.get(p.name, _neutral(p.kind)) for p in cls.PARAMETERS}
 
-    # -- to provide (FMI version specific) -----------------------------------------
+    def _register_block(self, units: Optional[Mapping[str, str]] = None, input_start: Optional[float] = None) -> None:
+        """Register the block's inputs, outputs and parameters in value-reference order, with ``units``
+        per variable name (FMI 3.0) and the inputs' start value where the version requires one."""
+        cls, fmi, units = self.block_class, self.fmi, units or {}
+        real, causality, variability = fmi.kinds[float], fmi.causality, fmi.variability
+
+        def unit(name: str) -> dict:
+            return {"unit": units[name]} if name in units else {}
+
+        start = {} if input_start is None else {"start": input_start}
+        for name in cls.INPUTS:
+            self.register_variable(real(name, causality=causality.input, variability=variability.continuous,
+                                        description=cls.DESCRIPTIONS.get(name), **unit(name), **start))
+        for name in cls.OUTPUTS:
+            self.register_variable(real(name, causality=causality.output, variability=variability.continuous,
+                                        initial=fmi.initial.exact, description=cls.DESCRIPTIONS.get(name),
+                                        **unit(name)))
+        for spec in cls.PARAMETERS:
+            self.register_variable(fmi.kinds[spec.kind](
+                spec.name, causality=causality.parameter, variability=variability.fixed,
+                description=f"[{spec.unit}] {spec.description}" if spec.unit else spec.description,
+                getter=lambda n=spec.name: self._params[n],
+                setter=lambda v, n=spec.name: self._set_param(n, v), **unit(spec.name)))
+
+    # the host's logger takes the message as a printf format (FMI): a '%' in it must be written '%%'
     def _log_warning(self, message: str) -> None:
-        raise NotImplementedError
+        self.log(message.replace("%", "%%"), status=self.fmi.status.warning, category="logStatusWarning")
 
     def _log_error(self, message: str) -> None:
-        raise NotImplementedError
+        self.log(message.replace("%", "%%"), status=self.fmi.status.error, category="logStatusError")
 
     # -- values ----------------------------------------------------------------------
     def _set_param(self, name: str, value) -> None:
