@@ -51,24 +51,8 @@ class BlockSlave(BlockWrapper, Fmi2Slave):
         super().set_boolean(vrs, values)
 
     @fmi_call
-    def get_string(self, vrs: List[int]) -> List[str]:
-        return super().get_string(vrs)
-
-    @fmi_call
-    def set_string(self, vrs: List[int], values: List[str]) -> None:
-        super().set_string(vrs, values)
-
-    @fmi_call
     def setup_experiment(self, start_time: float, stop_time, tolerance) -> None:
         self._setup(start_time)
-
-    @fmi_call
-    def enter_initialization_mode(self) -> None:
-        self._enter_initialization()
-
-    @fmi_call
-    def exit_initialization_mode(self) -> None:
-        self._exit_initialization()
 
     @fmi_call
     def do_step(self, current_time: float, step_size: float) -> bool:

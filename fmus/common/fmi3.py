@@ -52,25 +52,9 @@ class BlockSlave3(BlockWrapper, Fmi3Slave):
         super().set_int32(vrs, values)
 
     @fmi_call
-    def get_string(self, vrs: List[int]) -> List[str]:
-        return super().get_string(vrs)
-
-    @fmi_call
-    def set_string(self, vrs: List[int], values: List[str]) -> None:
-        super().set_string(vrs, values)
-
-    @fmi_call
     def setup_experiment(self, start_time: float) -> None:
         self._setup(start_time)
         self._time = start_time
-
-    @fmi_call
-    def enter_initialization_mode(self) -> None:
-        self._enter_initialization()
-
-    @fmi_call
-    def exit_initialization_mode(self) -> None:
-        self._exit_initialization()
 
     @fmi_call
     def do_step(self, current_time: float, step_size: float) -> bool:

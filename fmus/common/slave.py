@@ -92,9 +92,10 @@ class BlockWrapper:
     """The version-independent part of a slave exposing one Block; subclasses set ``block_class``.
 
     A concrete slave derives from this class and from pythonfmu's Fmi2Slave or
-    pythonfmu3's Fmi3Slave; its __init__ calls ``_wrap`` and registers the
-    variables, and it maps the calls of its FMI version (typed get/set, life
-    cycle) onto ``_get_values``/``_set_values``, ``_setup``, ``_step`` ...
+    pythonfmu3's Fmi3Slave and sets ``fmi`` (its version's types); its __init__
+    calls ``_wrap`` and ``_register_block``, and it maps the calls that differ
+    between the versions (typed get/set of numbers, setup, doStep) onto
+    ``_get_values``/``_set_values``, ``_setup`` and ``_step``.
     """
 
     block_class: ClassVar[type[Block]]
@@ -195,10 +196,21 @@ class BlockWrapper:
     def _setup(self, start_time: float) -> None:
         self._t0 = start_time
 
-    def _enter_initialization(self) -> None:
+    # the calls that are the same in FMI 2.0 and 3.0 (the others map onto the helpers here in fmi.py, fmi3.py)
+    @fmi_call
+    def get_string(self, vrs: List[int]) -> List[str]:
+        return super().get_string(vrs)
+
+    @fmi_call
+    def set_string(self, vrs: List[int], values: List[str]) -> None:
+        super().set_string(vrs, values)
+
+    @fmi_call
+    def enter_initialization_mode(self) -> None:
         self._in_init = True
 
-    def _exit_initialization(self) -> None:
+    @fmi_call
+    def exit_initialization_mode(self) -> None:
         """Build the block and compute the outputs at the start; a failure is logged, then refuses every step."""
         try:
             self._ensure_outputs()
