@@ -183,7 +183,7 @@ def cmd_compare(args) -> int:
 
 
 def cmd_batch(args) -> int:
-    from .batch_cli import main as batch_main
+    from .batch.cli import main as batch_main
 
     return batch_main(args)
 

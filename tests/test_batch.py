@@ -129,16 +129,16 @@ def test_sweep_metrics_bandwidth_by_the_frequency_module():
 
 
 def test_atomic_write_leaves_the_old_file_or_the_new_one(tmp_path, monkeypatch):
-    from mast import batch
+    from mast.batch import store
 
     target = tmp_path / "case.json"
-    batch._atomic_write(target, b"old")
-    monkeypatch.setattr(batch.os, "replace", lambda *a: (_ for _ in ()).throw(OSError("disk full")))
+    store.atomic_write(target, b"old")
+    monkeypatch.setattr(store.os, "replace", lambda *a: (_ for _ in ()).throw(OSError("disk full")))
     with pytest.raises(OSError):
-        batch._atomic_write(target, b"new")
+        store.atomic_write(target, b"new")
     assert target.read_bytes() == b"old" and [p.name for p in tmp_path.iterdir()] == ["case.json"]
     monkeypatch.undo()
-    batch._atomic_write(target, b"new")
+    store.atomic_write(target, b"new")
     assert target.read_bytes() == b"new" and len(list(tmp_path.iterdir())) == 1
 
 

@@ -8,7 +8,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from .batch import BatchConfig, BatchConfigError, describe, expand, run_batch
+from . import BatchConfig, BatchConfigError, describe, expand, run_batch
 
 
 def main(args) -> int:
