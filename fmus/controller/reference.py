@@ -32,13 +32,11 @@ class JointReference:
     def __init__(self, T: float, n: int = 3) -> None:
         self.T = float(T)
         self.n = n
-        self._history: list[list[float]] = []
-        self.rho_dot = [0.0] * n
-        self.rho_ddot = [0.0] * n
+        self.reset()
 
     def reset(self) -> None:
         """Forget every sample (the next ``update`` gives zero velocity and acceleration)."""
-        self._history = []
+        self._history: list[list[float]] = []
         self.rho_dot = [0.0] * self.n
         self.rho_ddot = [0.0] * self.n
 
