@@ -1,0 +1,1 @@
+"""Measured data from outside the project: lab file formats read into the measured-data format."""
