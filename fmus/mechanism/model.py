@@ -84,7 +84,7 @@ class MechanismBlock(Block):
             else:
                 out = (0.0, 0.0, 0.0) + eng.pose(q)
         except KinematicsError as exc:
-            raise KinematicsError(f"{self.name}: at t = {t!r} s, rho = {rho!r} m: {exc}") from exc
+            raise type(exc)(f"{self.name}: at t = {t!r} s, rho = {rho!r} m: {exc}") from exc   # SingularityError stays one
         self._guess = q
         vals[9:18] = out
 

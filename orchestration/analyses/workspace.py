@@ -179,7 +179,7 @@ class Workspace:
     distance: np.ndarray        # [m] to the nearest sampled singular (margin or branch) pose; inf: none in the box
     rho: np.ndarray             # (3, ...)
     forces: Optional[np.ndarray] = None    # (3, ...) static actuator forces [N], inside only (NaN elsewhere)
-    edges: int = 0
+    kept: tuple = ()            # per axis, the edges of the workspace's graph (both nodes and the midpoint pass)
     wall_time_s: float = 0.0
 
     @property
@@ -198,15 +198,25 @@ def _axis(centre: float, step: float, below: int, above: int) -> np.ndarray:
     return centre + step * np.arange(-below, above + 1, dtype=float)
 
 
-def _edges(inside_nodes: np.ndarray, mids_ok: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
-    """Pairs of flat node indices joined by a kept edge (both nodes and the midpoint pass)."""
-    idx = np.arange(inside_nodes.size).reshape(inside_nodes.shape)
-    a_all, b_all = [], []
+def _kept(inside_nodes: np.ndarray, mids_ok: Sequence[np.ndarray]) -> tuple[np.ndarray, ...]:
+    """Per axis, the edges kept: both nodes and the midpoint pass (shape: one less along that axis)."""
+    out = []
     for axis, mid in enumerate(mids_ok):
         lo = [slice(None)] * 3
         hi = [slice(None)] * 3
         lo[axis], hi[axis] = slice(None, -1), slice(1, None)
-        keep = inside_nodes[tuple(lo)] & inside_nodes[tuple(hi)] & mid
+        out.append(inside_nodes[tuple(lo)] & inside_nodes[tuple(hi)] & mid)
+    return tuple(out)
+
+
+def _pairs(kept: Sequence[np.ndarray], shape: tuple) -> tuple[np.ndarray, np.ndarray]:
+    """Flat node indices (a, b) of the kept edges."""
+    idx = np.arange(int(np.prod(shape))).reshape(shape)
+    a_all, b_all = [], []
+    for axis, keep in enumerate(kept):
+        lo = [slice(None)] * 3
+        hi = [slice(None)] * 3
+        lo[axis], hi[axis] = slice(None, -1), slice(1, None)
         a_all.append(idx[tuple(lo)][keep])
         b_all.append(idx[tuple(hi)][keep])
     return np.concatenate(a_all), np.concatenate(b_all)
@@ -252,7 +262,8 @@ def _fill(eng: Engine, m: Machine, home: tuple, sign: float, margin: float, axes
         tick(2)
     mids += [np.concatenate(mid_p, axis=0), np.concatenate(mid_t, axis=0)]
     ok = nodes.status == INSIDE
-    a, b = _edges(ok, mids)
+    kept = _kept(ok, mids)
+    a, b = _pairs(kept, shape)
     n = ok.size
     graph = coo_matrix((np.ones(len(a), dtype=np.int8), (a, b)), shape=(n, n))
     _, labels = connected_components(graph, directed=False)
@@ -262,7 +273,7 @@ def _fill(eng: Engine, m: Machine, home: tuple, sign: float, margin: float, axes
     connected = (labels == labels[home_flat]).reshape(shape)
     status = nodes.status.copy()
     status[ok & ~connected] = DISCONNECTED
-    return nodes, status, int(len(a))
+    return nodes, status, _kept(status == INSIDE, kept)
 
 
 def compute(m: Machine, step_z: float = STEP_Z, step_tilt: float = STEP_TILT_DEG * DEG, margin: float = MARGIN,
@@ -290,7 +301,7 @@ def compute(m: Machine, step_z: float = STEP_Z, step_tilt: float = STEP_TILT_DEG
         axes = (_axis(home[0], step_z, extent[0], extent[1]), _axis(home[1], step_tilt, extent[2], extent[3]),
                 _axis(home[2], step_tilt, extent[4], extent[5]))
         index = (extent[0], extent[2], extent[4])
-        nodes, status, edges = _fill(eng, m, index, sign, margin, axes, progress)
+        nodes, status, kept = _fill(eng, m, index, sign, margin, axes, progress)
         inside = status == INSIDE
         faces = (inside[0].any(), inside[-1].any(), inside[:, 0].any(), inside[:, -1].any(),
                  inside[:, :, 0].any(), inside[:, :, -1].any())
@@ -310,7 +321,7 @@ def compute(m: Machine, step_z: float = STEP_Z, step_tilt: float = STEP_TILT_DEG
         zero = [0.0] * 3
         forces[:, inside] = eng.forces_many([g[inside] for g in grids], Jq, zero, zero)
     return Workspace(m, tuple(home), sign, margin, eng.lengths, axes, index, status, nodes.det, nodes.parallel,
-                     nodes.inverse, nodes.dexterity, distance, nodes.rho, forces, edges, time.perf_counter() - t0)
+                     nodes.inverse, nodes.dexterity, distance, nodes.rho, forces, kept, time.perf_counter() - t0)
 
 
 # ----------------------------------------------------------------------------- one pose
@@ -442,7 +453,7 @@ def summarize(ws: Workspace) -> dict:
                  "box": {"z_m": [float(ws.axes[0][0]), float(ws.axes[0][-1])],
                          "psi_deg": [math.degrees(ws.axes[1][0]), math.degrees(ws.axes[1][-1])],
                          "theta_deg": [math.degrees(ws.axes[2][0]), math.degrees(ws.axes[2][-1])]},
-                 "nodes": int(ws.status.size), "kept_edges": ws.edges},
+                 "nodes": int(ws.status.size), "kept_edges": int(sum(k.sum() for k in ws.kept))},
         "poses_inside": n,
         "volume_m_rad2": n * dz * dp * dt,
         "volume_m_deg2": n * dz * math.degrees(dp) * math.degrees(dt),
