@@ -166,7 +166,7 @@ def cmd_check_mechanism(args) -> int:
 
 
 def cmd_compare(args) -> int:
-    from .compare import DEFAULT, QUICK, TestSet, compare
+    from .compare import DEFAULT, QUICK, WORKSPACE_GRID, WORKSPACE_GRID_QUICK, TestSet, compare
     from .frequency import CountProgress
     from .run import parse_overrides
 
@@ -175,7 +175,8 @@ def cmd_compare(args) -> int:
                        tuple(args.frequencies) if args.frequencies else base.frequencies, base.amplitudes)
     comp = compare(args.mechanism or (), Path(args.out), test_set, workers=args.workers, direct=args.direct,
                    parameters=parse_overrides(args.set or []), base_ssd=args.ssd, fmu_dir=args.fmus,
-                   progress=CountProgress("compare"), controllers=args.controller or (), payload=args.payload)
+                   progress=CountProgress("compare"), controllers=args.controller or (), payload=args.payload,
+                   workspace_grid=WORKSPACE_GRID_QUICK if args.quick else WORKSPACE_GRID)
     print((Path(args.out) / "comparison.md").read_text(), end="")
     print(f"{sum(r['tests'] for r in comp.summary)} sine tests in {comp.wall_time_s:.0f} s; "
           f"wrote {', '.join(p.name for p in comp.files)} in {args.out}")
@@ -330,7 +331,8 @@ def main(argv=None) -> int:
                    help="with --controller: also run every test with this payload on the platform, unknown to the "
                         f"controllers (default {PAYLOAD_MISMATCH_KG:g} kg; 0: no robustness runs)")
     p.add_argument("--out", required=True, help="folder for comparison.csv/.json/.md, runs.csv, the plots, systems/")
-    p.add_argument("--quick", action="store_true", help="the small test set: z motion at 1, 4 and 8 Hz")
+    p.add_argument("--quick", action="store_true", help="the small test set: z motion at 1, 4 and 8 Hz (and the designs' "
+                                                        "workspaces on a coarse grid: 25 mm, 4 deg)")
     p.add_argument("--motions", nargs="+", choices=("z", "psi", "theta"), help="motions to test (default: all three)")
     p.add_argument("--frequencies", nargs="+", type=float, metavar="HZ", help="test frequencies (default: 0.5 to 10 Hz)")
     p.add_argument("--set", action="append", metavar="ELEMENT.PARAMETER=VALUE", help="override a parameter in every design")

@@ -123,7 +123,7 @@ def machine(design: Union[str, Path], payload: float = 0.0, mechanism: Optional[
         with SSPArchive(path) as archive:
             return _from_system(path.stem, archive.system, mechanism, payload)
     if path.suffix == ".fmu":
-        from ..compare import fmu_parameters
+        from ..components import fmu_parameters
 
         return _from_system(path.stem, read_ssd(BASE_SSD), {**fmu_parameters(path), **(mechanism or {})}, payload)
     raise ValueError(f"design {text!r}: expected a design name, an .ssd/.ssp system or a mechanism .fmu")
@@ -250,10 +250,12 @@ def _fill(eng: Engine, m: Machine, home: tuple, sign: float, margin: float, axes
                       for f in _Judged.__dataclass_fields__))
     del parts
     zm = 0.5 * (z[:-1] + z[1:])
-    mid_z = np.concatenate([_judge(eng, m, np.meshgrid(zm[i:i + 1], ps, th, indexing="ij"), sign, margin).status
-                            for i in range(len(zm))] or [np.zeros((0,) + shape[1:], np.int8)], axis=0) == INSIDE
-    tick(len(z))
-    mids.append(mid_z)
+    mid_z = [np.zeros((0,) + shape[1:], dtype=bool)]
+    for i in range(len(zm)):
+        mid_z.append(_judge(eng, m, np.meshgrid(zm[i:i + 1], ps, th, indexing="ij"), sign, margin).status == INSIDE)
+        tick()
+    tick()
+    mids.append(np.concatenate(mid_z, axis=0))
     pm, tm = 0.5 * (ps[:-1] + ps[1:]), 0.5 * (th[:-1] + th[1:])
     mid_p, mid_t = [], []
     for i in range(len(z)):
@@ -291,12 +293,23 @@ def compute(m: Machine, step_z: float = STEP_Z, step_tilt: float = STEP_TILT_DEG
     except KinematicsError as exc:
         raise ValueError(f"{m.label}: no home pose for the carriages at rho_0 = {m.rho_home} m: {exc}") from None
     sign = math.copysign(1.0, eng.margins(home).det)
-    # initial box: the heave all carriages' strokes allow (from the home Jacobian), +-35 deg of tilt
+    # the box: the heave all carriages' strokes allow (from the home Jacobian) and +-35 deg of tilt, or
+    # on a fine grid the extent of a pass 4 times coarser (1/64 of the work) with two of its steps around
     J = np.array(eng.jacobian(home)[1]).reshape(3, 3)
     span = max(hi - lo for lo, hi in zip(m.rho_min, m.rho_max))
-    half_z = 0.6 * span * abs(J[0].sum())
-    extent = [int(math.ceil(half_z / step_z))] * 2 + [int(math.ceil(35 * DEG / step_tilt))] * 4   # z-, z+, psi-, ...
-    limits = [int(4 * span * abs(J[0].sum()) / step_z)] * 2 + [int(max_tilt / step_tilt)] * 4
+    limits = [int(4 * span * abs(J[0].sum()) / step_z)] * 2 + [int(max_tilt / step_tilt)] * 4   # z-, z+, psi-, ...
+    if step_z < 0.02 or step_tilt < 4 * DEG:
+        rough = compute(m, 4 * step_z, 4 * step_tilt, margin, None, max_tilt)
+        ins = rough.inside
+        first_last = [np.flatnonzero(ins.any(axis=tuple(a for a in range(3) if a != d))) for d in range(3)]
+        extent = []
+        for d, idx in enumerate(first_last):
+            k = rough.home_index[d]
+            extent += [4 * (k - idx.min() + 2), 4 * (idx.max() - k + 2)]
+        extent = [min(e, lim) for e, lim in zip(extent, limits)]
+    else:
+        extent = [int(math.ceil(0.6 * span * abs(J[0].sum()) / step_z))] * 2 + \
+            [int(math.ceil(35 * DEG / step_tilt))] * 4
     while True:
         axes = (_axis(home[0], step_z, extent[0], extent[1]), _axis(home[1], step_tilt, extent[2], extent[3]),
                 _axis(home[2], step_tilt, extent[4], extent[5]))
