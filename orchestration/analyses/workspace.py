@@ -498,9 +498,12 @@ def summarize(ws: Workspace) -> dict:
         if d:
             # motor torque holding the carriage and its share of the mechanism at rest (friction left out)
             tau = (np.abs(F + d["M_load"] * d["g_guide"])).max(axis=0) * d["p"] / (2 * math.pi * d["i_r"])
+            peak_torque = d["k_T"] * d["i_max"]
             out["static_forces"].update({"largest_motor_torque_Nm": float(tau.max()),
-                                         "motor_peak_torque_Nm": d["k_T"] * d["i_max"],
-                                         "largest_torque_fraction_of_peak": float(tau.max() / (d["k_T"] * d["i_max"]))})
+                                         "at_largest_torque": _at(ws, int(flat[np.argmax(tau)])),
+                                         "motor_peak_torque_Nm": peak_torque,
+                                         "largest_torque_fraction_of_peak": float(tau.max() / peak_torque),
+                                         "fraction_of_poses_beyond_peak_torque": float(np.mean(tau > peak_torque))})
     return out
 
 
