@@ -222,15 +222,15 @@ def _pairs(kept: Sequence[np.ndarray], shape: tuple) -> tuple[np.ndarray, np.nda
     return np.concatenate(a_all), np.concatenate(b_all)
 
 
-def _fill(eng: Engine, m: Machine, home: tuple, sign: float, margin: float, axes: tuple,
+def _fill(eng: Engine, m: Machine, home_index: tuple, sign: float, margin: float, axes: tuple,
           progress: Optional[Callable[[float], None]]) -> tuple:
-    """Judge the nodes and edge midpoints of the grid ``axes``; the component of home."""
+    """Judge the nodes and edge midpoints of the grid ``axes``: (nodes, status with the nodes not connected to
+    home marked, the kept edges of the workspace per axis)."""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
     z, ps, th = axes
     shape = (len(z), len(ps), len(th))
-    nodes = None
     mids = []
     # work in slabs of z (memory, progress): nodes, then the midpoints along z, psi, theta
     total = 4 * len(z)
@@ -269,7 +269,7 @@ def _fill(eng: Engine, m: Machine, home: tuple, sign: float, margin: float, axes
     n = ok.size
     graph = coo_matrix((np.ones(len(a), dtype=np.int8), (a, b)), shape=(n, n))
     _, labels = connected_components(graph, directed=False)
-    home_flat = np.ravel_multi_index(home, shape)
+    home_flat = np.ravel_multi_index(home_index, shape)
     if not ok.ravel()[home_flat]:
         raise ValueError(f"{m.label}: the home pose is not inside the workspace: {STATUS[nodes.status.ravel()[home_flat]]}")
     connected = (labels == labels[home_flat]).reshape(shape)
