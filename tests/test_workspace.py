@@ -11,7 +11,8 @@ determinant tells the branches apart, its singular values (tilts scaled by r) gi
 - the singular pose of issue 17 is refused (DK and workspace);
 - brute force: random walks along the workspace's edges, each edge sampled finely, never change
   the sign of the determinant nor leave the strokes;
-- the T and 120 deg designs' workspaces contain the paper's test motions around home.
+- the T and 120 deg designs' workspaces contain the paper's test motions around home;
+- the engine's kinematics on arrays (the workspace's route) give the scalar route's floats.
 Grids are coarse here (25 mm, 4 deg): the figures of the docs come from the default grid.
 """
 from __future__ import annotations
@@ -22,7 +23,8 @@ import math
 import numpy as np
 import pytest
 
-from fmus.mechanism.engine import MARGIN, SingularityError
+import fmus.mechanism.engine as E
+from fmus.mechanism.engine import MARGIN, Body, Description, Engine, Evaluation, KinematicsError, SingularityError
 from fmus.mechanism.model import MechanismBlock
 from mast import paper
 from mast.analyses import workspace as W
@@ -186,3 +188,35 @@ def test_cli_workspace(tmp_path, capsys):
     assert cli(args + ["--pose", "0.405,0,45"]) == 1
     assert cli(args + ["--pose", "0.405,five,0"]) == 2
     assert "expected Z,PSI_DEG,THETA_DEG" in capsys.readouterr().err
+
+
+def test_arrays_give_the_scalar_floats(inclined):
+    """Engine.evaluate_many (the generated code on arrays, checks as masks) against the scalar route."""
+    m, eng, _ = inclined
+    rng = np.random.default_rng(3)
+    q = [rng.uniform(0.1, 0.6, 300), rng.uniform(-70, 70, 300) * DEG, rng.uniform(-70, 70, 300) * DEG]
+    rho, Jinv, ok = eng.evaluate_many(q)
+    assert 30 < ok.sum() < 270                                   # both kinds present
+    for k in range(300):
+        qk = [v[k] for v in q]
+        try:
+            Jk = eng.jacobian(qk, check=False)[0]
+        except Exception:
+            assert not ok[k], qk
+            continue
+        assert ok[k], qk
+        assert tuple(rho[:, k]) == eng.ik(qk) and list(Jinv[k].ravel()) == Jk   # the same floats
+
+    class Plain(Description):                                    # a check without an array form: point by point
+        bodies = (Body("b", 1.0),)
+
+        def evaluate(self, q):
+            def reach(w2):
+                if not w2 > 0.0:
+                    raise KinematicsError("reach lost")
+            w2 = 1.0 - q[1] * q[1]
+            E.require(reach, w2)
+            return Evaluation([q[0], E.sqrt(w2), q[2]], [0.0] * 6, [((q[0], 0.0, 0.0), np.eye(3))])
+
+    rho, _, ok = Engine(Plain()).evaluate_many([np.zeros(3), np.array([0.5, 1.5, -0.2]), np.zeros(3)])
+    assert list(ok) == [True, False, True] and rho[1, 0] == math.sqrt(0.75)
