@@ -1,0 +1,208 @@
+"""The EMPS bench (docs/emps.md): load-side axis, EMPS controller, import of a lab's file, replay.
+
+The shipped record /work/shared/data/emps/DATA_EMPS.mat (../shared/data/emps from the
+repository) is read from there, never copied or edited.
+"""
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+import scipy.io
+
+from fmus.actuator.load_axis import LoadAxisBlock, load_friction
+from fmus.common.parameters import ParameterError
+from fmus.controller.emps import EmpsController
+from mast.data.importer import LabFileError, import_file
+from mast.data.record import RecordError, load_records
+
+REPO = Path(__file__).resolve().parents[1]
+EMPS = REPO.parent / "shared" / "data" / "emps" / "DATA_EMPS.mat"
+MAP = REPO / "examples" / "emps" / "map.toml"
+#: the benchmark's published inverse-model least-squares estimates (EMPS README)
+PUBLISHED = {"M": 95.11, "F_v": 203.5, "F_c": 20.39, "F_offset": -3.16}
+
+needs_data = pytest.mark.skipif(not EMPS.exists(), reason=f"{EMPS} not present")
+
+
+@pytest.fixture(scope="module")
+def bench(tmp_path_factory) -> Path:
+    """build/ssp/EMPS_bench.ssp, built from the sources into a temporary folder (its two FMUs only)."""
+    from mast.build import FMUS, SSP_SRC, build_fmu, build_ssp
+
+    out = tmp_path_factory.mktemp("build")
+    for spec in FMUS:
+        if spec.model_identifier in ("MastLoadAxis", "MastEmpsController"):
+            build_fmu(spec, out / "fmus")
+    return build_ssp(SSP_SRC / "EMPS_bench.ssd", out / "fmus", out / "ssp")
+
+
+def axis(**changes) -> LoadAxisBlock:
+    p = {"M": 10.0, "F_c": 0.0, "F_v": 0.0, "dF_c": 0.0, "dF_v": 0.0, "F_offset": 0.0, "q_0": 0.0, "h_max": 1e-4}
+    p.update(changes)
+    block = LoadAxisBlock(p)
+    block.initialize(0.0)
+    return block
+
+
+def run_axis(block: LoadAxisBlock, F: float, T: float, h: float = 1e-3) -> None:
+    block.set(F=F)
+    for k in range(round(T / h)):
+        block.do_step(k * h, h)
+
+
+def test_axis_matches_the_exact_solution_of_mass_viscous_coulomb_offset():
+    M, Fv, Fc, off, F, T = 10.0, 20.0, 3.0, -1.0, 12.0, 1.5
+    block = axis(M=M, F_v=Fv, F_c=Fc, F_offset=off)
+    run_axis(block, F, T)
+    # M v' = F - Fc - off - Fv v from rest (v > 0 throughout)
+    a, tau = (F - Fc - off) / Fv, M / Fv
+    v = a * (1 - math.exp(-T / tau))
+    q = a * (T - tau * (1 - math.exp(-T / tau)))
+    assert block.get("q_dot") == pytest.approx(v, rel=2e-4)
+    assert block.get("q") == pytest.approx(q, rel=2e-4)
+    assert block.get("F_friction") == pytest.approx(Fc + Fv * block.get("q_dot"), rel=1e-3)
+
+
+def test_axis_asymmetric_friction_and_sticking():
+    # below the friction (|F - offset| <= F_c -dF_c side) the axis sticks exactly
+    block = axis(F_c=5.0, dF_c=1.0, F_offset=0.5)
+    run_axis(block, -4.4, 0.5)        # |-4.4 - 0.5| = 4.9 > F_c - dF_c = 4 -> moves backwards
+    assert block.get("q_dot") < 0
+    block = axis(F_c=5.0, dF_c=1.0, F_offset=0.5)
+    run_axis(block, 6.4, 0.5)         # 6.4 - 0.5 = 5.9 < F_c + dF_c = 6 -> sticks
+    assert block.get("q") == 0.0 and block.get("q_dot") == 0.0
+    # steady velocity per direction: F - off = (F_c +- dF_c) + (F_v +- dF_v) v
+    for F, c, fv in ((50.0, 6.0, 25.0), (-50.0, 4.0, 15.0)):
+        block = axis(M=1.0, F_c=5.0, dF_c=1.0, F_v=20.0, dF_v=5.0)
+        run_axis(block, F, 2.0)
+        assert block.get("q_dot") == pytest.approx(math.copysign((abs(F) - c) / fv, F), rel=1e-6)
+    assert load_friction(np.array([-2.0, 0.0, 2.0]), 5.0, 20.0, 1.0, 5.0).tolist() == [-34.0, 0.0, 56.0]
+    with pytest.raises(ParameterError, match="dF_v"):
+        axis(F_v=1.0, dF_v=2.0)
+
+
+@needs_data
+def test_controller_reproduces_the_logged_drive_command():
+    """The EMPS law fed with the logged positions gives the logged command vir (an independent route:
+    the lab's own controller output)."""
+    d = scipy.io.loadmat(str(EMPS))
+    qm, qg, vir = (d[k].ravel() for k in ("qm", "qg", "vir"))
+    block = EmpsController({"k_p": float(d["kp"].item()), "k_v": float(d["kv"].item()),
+                            "g_tau": float(d["gtau"].item()), "u_max": 10.0, "T_s": 1e-3, "q_0": float(qm[0])})
+    block.initialize(0.0)
+    n = 3000
+    u = np.empty(n)
+    for k in range(n):
+        block.set(q_ref=qg[k], q_m=qm[k], u_inj=0.0)
+        for tick in range(10):                 # stepped at 0.1 ms: samples on the first tick
+            block.do_step(k * 1e-3 + tick * 1e-4, 1e-4)
+            if tick == 0:
+                u[k] = block.get("u")
+    assert block.get("F_cmd") == pytest.approx(float(d["gtau"].item()) * u[-1])
+    err = u[5:] - vir[5:n]                        # the first samples: the filter's unknown history
+    assert np.sqrt(np.mean(err ** 2)) < 0.01 * np.sqrt(np.mean(vir[:n] ** 2))
+
+
+# --------------------------------------------------------------------------------------
+# mast import
+# --------------------------------------------------------------------------------------
+@needs_data
+def test_import_emps_record(tmp_path):
+    summary = import_file(EMPS, MAP, tmp_path / "rec")
+    assert summary["samples"] == 24841
+    rec = load_records(tmp_path / "rec").tests[0]
+    d = scipy.io.loadmat(str(EMPS))
+    assert np.allclose(rec.values["force"], d["gtau"].item() * d["vir"].ravel(), rtol=1e-11, atol=1e-9)
+    assert np.array_equal(rec.values["u_inj"], np.zeros(24841))
+    assert {s.kind for s in rec.specs.values()} == {"command", "position", "effort", "injected"}
+    assert rec.specs["force"].sampled and rec.specs["force"].model == "controller.F_cmd"
+
+
+def _mat(path: Path, **variables) -> Path:
+    t = np.arange(200) * 1e-3
+    base = {"t": t[:, None], "qm": np.sin(t)[:, None], "qg": np.sin(t)[:, None], "vir": np.cos(t)[:, None],
+            "gtau": np.array([[35.0]])}
+    base.update(variables)
+    scipy.io.savemat(str(path), {k: v for k, v in base.items() if v is not None})
+    return path
+
+
+@pytest.mark.parametrize("change, match", [
+    ({"qm": None}, r"bad\.mat: variable 'qm' \(signal q_m\) not found"),
+    ({"vir": np.ones((200, 2))}, r"bad\.mat: variable 'vir' \(signal force\): shape \(200, 2\)"),
+    ({"qg": np.ones((150, 1))}, r"bad\.mat: variable 'qg' \(signal q_ref\): 150 samples, expected 200"),
+    ({"t": np.r_[np.arange(100), np.arange(99, 199)][:, None] * 1e-3}, r"bad\.mat: variable 't' \(time\): not increasing at sample 101"),
+    ({"vir": np.r_[np.zeros(50), np.nan, np.zeros(149)][:, None]}, r"bad\.mat: variable 'vir' \(signal force\): 1 NaN .* sample 51"),
+    ({"gtau": np.ones((2, 2))}, r"bad\.mat: variable 'gtau' \(scale of signal force\): shape \(2, 2\)"),
+])
+def test_import_errors_name_the_file_and_the_variable(tmp_path, change, match):
+    bad = _mat(tmp_path / "bad.mat", **change)
+    with pytest.raises(LabFileError, match=match):
+        import_file(bad, MAP, tmp_path / "out")
+    assert not (tmp_path / "out").exists()
+
+
+def test_import_csv_through_a_map_with_units(tmp_path):
+    t = np.arange(100) * 1.0                                   # ms
+    table = np.column_stack([t, 1000 * np.sin(t / 100), 1000 * np.sin(t / 100), np.cos(t), np.ones(100)])
+    np.savetxt(tmp_path / "log.csv", table, delimiter=",", header="t_ms,ref_mm,pos_mm,cmd_V,pulse_V", comments="")
+    (tmp_path / "map.toml").write_text("""
+[source]
+time = { variable = "t_ms", unit = "ms" }
+[signals.q_ref]
+variable = "ref_mm"
+unit = "mm"
+kind = "command"
+input = "q_ref"
+[signals.q_m]
+variable = "pos_mm"
+unit = "mm"
+kind = "position"
+model = "axis.q"
+[signals.force]
+variable = "cmd_V"
+scale = 35.0
+unit = "N"
+kind = "effort"
+model = "controller.F_cmd"
+[signals.u_inj]
+variable = "pulse_V"
+unit = "V"
+kind = "injected"
+input = "u_inj"
+""")
+    import_file(tmp_path / "log.csv", tmp_path / "map.toml", tmp_path / "rec")
+    rec = load_records(tmp_path / "rec").tests[0]
+    assert rec.sample_time == pytest.approx(1e-3)
+    assert np.allclose(rec.values["q_m"], np.sin(t / 100))
+    assert np.allclose(rec.values["force"], 35 * np.cos(t))
+    assert np.array_equal(rec.values["u_inj"], np.ones(100))
+    meta = json.loads((tmp_path / "rec" / "meta.json").read_text())
+    assert meta["signals"]["q_m"] == {"kind": "position", "unit": "m", "model": "axis.q"}
+    meta["signals"]["q_m"]["kind"] = "speed"
+    (tmp_path / "rec" / "meta.json").write_text(json.dumps(meta))
+    with pytest.raises(RecordError, match="signal q_m: kind 'speed'"):
+        load_records(tmp_path / "rec")
+
+
+# --------------------------------------------------------------------------------------
+# the bench and mast replay
+# --------------------------------------------------------------------------------------
+@needs_data
+def test_bench_with_the_published_estimates_meets_the_published_closed_loop_figures(tmp_path, bench):
+    """The bench (controller + axis FMU models) with the benchmark's inverse-model estimates, driven by the
+    record's reference: position and force errors at most the published closed-loop simulation figures
+    (0.014 % and 5.85 %); the nominal model (80 kg, no friction) misses the force by far."""
+    from mast.analyses.replay import replay
+
+    import_file(EMPS, MAP, tmp_path / "rec")
+    doc = replay(bench, tmp_path / "rec", tmp_path / "out", {"axis": PUBLISHED}, figures=False)
+    sig = json.loads((tmp_path / "out" / "replay.json").read_text())["signals"]
+    assert sig == doc["signals"] and sig["force"]["kind"] == "effort" and sig["q_m"]["kind"] == "position"
+    assert sig["q_m"]["relative_error_pct"] < 0.014
+    assert 4.0 < sig["force"]["relative_error_pct"] < 5.85
+    assert sig["force"]["fit_pct"] == pytest.approx(100 - sig["force"]["relative_error_pct"], abs=1.0)
