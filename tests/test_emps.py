@@ -206,3 +206,60 @@ def test_bench_with_the_published_estimates_meets_the_published_closed_loop_figu
     assert sig["q_m"]["relative_error_pct"] < 0.014
     assert 4.0 < sig["force"]["relative_error_pct"] < 5.85
     assert sig["force"]["fit_pct"] == pytest.approx(100 - sig["force"]["relative_error_pct"], abs=1.0)
+
+
+@needs_data
+def test_inverse_model_least_squares_reproduces_the_published_estimates(tmp_path):
+    """Our own inverse-model least squares on the record (the benchmark's route, independent of the
+    closed-loop simulation) gives the published values."""
+    from mast.analyses.inverse_model import inverse_model_ls
+
+    import_file(EMPS, MAP, tmp_path / "rec")
+    rec = load_records(tmp_path / "rec").tests[0]
+    sym = inverse_model_ls(rec.time, rec.values["q_m"], rec.values["force"])
+    for p in ("M", "F_v", "F_c"):
+        assert sym[p] == pytest.approx(PUBLISHED[p], rel=0.01), p
+    assert sym["F_offset"] == pytest.approx(PUBLISHED["F_offset"], abs=0.1)
+    asym = inverse_model_ls(rec.time, rec.values["q_m"], rec.values["force"], asymmetric=True)
+    published = {"M": 95.15, "F_v+": 166.7, "F_c+": 20.14, "F_v-": 240.4, "F_c-": 20.63}
+    for p, v in published.items():
+        assert asym[p] == pytest.approx(v, rel=0.02), p
+    assert asym["relative_error_pct"] < sym["relative_error_pct"]
+
+
+# --------------------------------------------------------------------------------------
+# acceptance: mast diagnose on the record, from the nominal model
+# --------------------------------------------------------------------------------------
+@needs_data
+def test_diagnose_names_friction_offset_and_asymmetry_on_the_emps_record(tmp_path, bench):
+    """From the nominal bench (80 kg, no friction, no offset) the diagnosis names mass, viscous and Coulomb
+    friction and the offset (values within 3 % / 0.5 N of the published inverse-model estimates), then
+    finds the viscous friction asymmetric; the force relative error falls from about 71 % to at most the
+    published closed-loop figure, 5.85 %; the augmented SSP replays to the same figure."""
+    from mast.analyses.replay import replay
+    from mast.diagnosis import Options, diagnose
+
+    import_file(EMPS, MAP, tmp_path / "rec")
+    out = tmp_path / "diag"
+    doc = diagnose(Options(tmp_path / "rec", out, str(bench)), log=lambda *_: None)
+    sym = doc["symmetric_model"]
+    assert set(sym["named"]) == {"mass", "viscous", "coulomb", "offset"}
+    for p in ("M", "F_v", "F_c"):
+        assert sym["values"][p] == pytest.approx(PUBLISHED[p], rel=0.03), p
+    assert sym["values"]["F_offset"] == pytest.approx(PUBLISHED["F_offset"], abs=0.5)
+    keys = [e["key"] for e in doc["named_effects"]]
+    assert {"mass", "viscous", "coulomb", "viscous_asymmetry"} <= set(keys)
+    assert doc["asymmetry"]["viscous"]["asymmetric"]
+    # the benchmark's asymmetric estimates: F_v+ 166.7, F_v- 240.4 N s/m: the negative direction is stiffer
+    assert doc["asymmetry"]["viscous"]["negative_velocity"] > 1.25 * doc["asymmetry"]["viscous"]["positive_velocity"]
+    force = {when: doc["gap"][when]["emps"]["force"] for when in ("before", "after")}
+    assert force["before"]["whole"]["relative_error_pct"] > 60
+    assert force["after"]["whole"]["relative_error_pct"] <= 5.85
+    assert force["after"]["held-out"]["relative_error_pct"] < 0.1 * force["before"]["held-out"]["relative_error_pct"]
+    assert sym["gap"]["emps"]["force"]["whole"]["relative_error_pct"] <= 5.85
+    for f in ("diagnosis.json", "report.md", "fig_residual.png", "fig_friction.png", "axis_diagnosed.ssv",
+              "EMPS_bench_diagnosed.ssp"):
+        assert (out / f).exists(), f
+    again = replay(out / "EMPS_bench_diagnosed.ssp", tmp_path / "rec", tmp_path / "replay", figures=False)
+    assert again["signals"]["force"]["relative_error_pct"] == pytest.approx(
+        force["after"]["whole"]["relative_error_pct"], rel=1e-6)

@@ -88,6 +88,7 @@ class LoadAxisBlock(Block):
                                          f"coefficient {mean} {'+' if sign > 0 else '-'} {delta} would be negative "
                                          f"({mean} = {p[mean]!r})")
         self._q = self._v = self._ff = 0.0
+        self._steps: dict = {}
 
     def initialize(self, t0: float) -> None:
         self._q, self._v, self._ff = float(self.params["q_0"]), 0.0, 0.0
@@ -96,18 +97,25 @@ class LoadAxisBlock(Block):
     def _write(self) -> None:
         self.values[1:] = [self._q, self._v, self._ff]
 
+    def _constants(self, h: float) -> tuple:
+        """Per step size: (substeps, substep, b, F_c+, F_c-, 1 + b F_v+, 1 + b F_v-) of the module docstring."""
+        if h not in self._steps:
+            p = self.params
+            n = max(1, math.ceil(h / p["h_max"] - 1e-9))
+            hs = h / n
+            b = hs / p["M"]
+            self._steps[h] = (n, hs, b, p["F_c"] + p["dF_c"], p["F_c"] - p["dF_c"],
+                              1.0 + b * (p["F_v"] + p["dF_v"]), 1.0 + b * (p["F_v"] - p["dF_v"]))
+        return self._steps[h]
+
     def do_step(self, t: float, h: float) -> None:
-        p = self.params
         F = self.values[0]
         if not math.isfinite(F):
             raise ModelError(f"{self.name} at t={t:.6g} s: input F = {F!r} is not finite")
-        n = max(1, math.ceil(h / p["h_max"] - 1e-9))
-        hs = h / n
-        b = hs / p["M"]
-        c_pos, c_neg = p["F_c"] + p["dF_c"], p["F_c"] - p["dF_c"]
-        v_pos, v_neg = 1.0 + b * (p["F_v"] + p["dF_v"]), 1.0 + b * (p["F_v"] - p["dF_v"])
-        push = b * (F - p["F_offset"])
+        n, hs, b, c_pos, c_neg, v_pos, v_neg = self._constants(h)
+        push = b * (F - self.params["F_offset"])
         q, v = self._q, self._v
+        a = v + push
         for _ in range(n):
             a = v + push
             if a > b * c_pos:
@@ -118,9 +126,11 @@ class LoadAxisBlock(Block):
                 v1 = 0.0
             q += 0.5 * hs * (v + v1)
             v = v1
-        self._ff = (a - v) / b if b > 0 else 0.0
+        self._ff = (a - v) / b
         self._q, self._v = q, v
-        self._write()
+        self.values[1] = q
+        self.values[2] = v
+        self.values[3] = self._ff
 
     def get_state(self) -> object:
         return (list(self.values), self._q, self._v, self._ff)

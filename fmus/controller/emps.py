@@ -54,7 +54,7 @@ class EmpsController(Block):
 
     def __init__(self, params: Mapping[str, Value], name: str = "") -> None:
         super().__init__(params, name)
-        self._ticks_per_sample = 1
+        self._per_sample: dict = {}
         self._tick = 0
         self._q_prev = self._qf_prev = 0.0
         self._u = self._qd = 0.0
@@ -69,27 +69,41 @@ class EmpsController(Block):
     def _write(self) -> None:
         g = self.params["g_tau"]
         u_inj = self.values[2]
+        if not math.isfinite(u_inj):
+            raise ModelError(f"{self.name}: non-finite input u_inj={u_inj!r}")
         self.values[3:] = [self._u, g * (self._u + u_inj), g * self._u, self._qd]
 
+    def _ticks(self, h: float) -> int:
+        """Block steps per sample (T_s a whole multiple of the step ``h``)."""
+        if h not in self._per_sample:
+            ratio = self.params["T_s"] / h
+            m = round(ratio)
+            if m < 1 or abs(ratio - m) > 1e-9 * ratio:
+                raise ParameterError(f"{self.name}: parameter 'T_s' = {self.params['T_s']!r} s: expected a whole "
+                                     f"multiple of the step {h!r} s")
+            self._per_sample[h] = m
+        return self._per_sample[h]
+
     def do_step(self, t: float, h: float) -> None:
-        p = self.params
-        ratio = p["T_s"] / h
-        m = round(ratio)
-        if m < 1 or abs(ratio - m) > 1e-9 * ratio:
-            raise ParameterError(f"{self.name}: parameter 'T_s' = {p['T_s']!r} s: expected a whole multiple of "
-                                 f"the step {h!r} s")
-        q_ref, q_m = self.values[0], self.values[1]
-        if not (math.isfinite(q_ref) and math.isfinite(q_m) and math.isfinite(self.values[2])):
-            raise ModelError(f"{self.name} at t={t:.6g} s: non-finite input (q_ref={q_ref!r}, q_m={q_m!r}, "
-                             f"u_inj={self.values[2]!r})")
-        if self._tick % m == 0:
+        values = self.values
+        if self._tick % self._ticks(h) == 0:
+            p = self.params
+            q_ref, q_m = values[0], values[1]
+            if not (math.isfinite(q_ref) and math.isfinite(q_m)):
+                raise ModelError(f"{self.name} at t={t:.6g} s: non-finite input (q_ref={q_ref!r}, q_m={q_m!r})")
             qf = 0.5 * q_m + 0.5 * self._q_prev
             self._qd = (qf - self._qf_prev) / p["T_s"]
             self._q_prev, self._qf_prev = q_m, qf
             v = p["k_p"] * p["k_v"] * (q_ref - q_m) - p["k_v"] * self._qd
             self._u = min(p["u_max"], max(-p["u_max"], v))
+            self._tick += 1
+            self._write()
+            return
         self._tick += 1
-        self._write()
+        u_inj = values[2]
+        if not math.isfinite(u_inj):
+            raise ModelError(f"{self.name} at t={t:.6g} s: non-finite input u_inj={u_inj!r}")
+        values[4] = self.params["g_tau"] * (self._u + u_inj)
 
     def get_state(self) -> object:
         return (list(self.values), self._tick, self._q_prev, self._qf_prev, self._u, self._qd)

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Mapping, Optional, Union
+from typing import Mapping, Optional, Sequence, Union
 
 import numpy as np
 
@@ -57,9 +57,11 @@ def initial_parameters(ssp: Union[str, Path], record: Record) -> dict[str, dict[
 
 
 def simulate_record(ssp: Union[str, Path], record: Record, parameters: Optional[Mapping[str, Mapping]] = None,
-                    direct: bool = True) -> dict[str, np.ndarray]:
+                    direct: bool = True, extra: Sequence[str] = (), stop_time: Optional[float] = None
+                    ) -> dict[str, np.ndarray]:
     """The model's outputs named by the record's measured signals, at the record's samples (sampled outputs
-    one sample later, module docstring); keys: signal names."""
+    one sample later, module docstring); keys: signal names, and the ``extra`` outputs (ELEMENT.CONNECTOR)
+    at the samples. ``stop_time``: simulate the record only up to there (the samples before it)."""
     from ..run import simulate
     from ..ssp import SSPArchive
 
@@ -70,12 +72,16 @@ def simulate_record(ssp: Union[str, Path], record: Record, parameters: Optional[
         params.setdefault(comp, {}).update(values)
     measured = record.of_kind(*MEASURED)
     dt = record.sample_time
-    res = simulate(ssp, RecordReplay(record, inputs), record.duration + dt, parameters=params,
-                   record=sorted({s.model for s in measured}), record_step=1e-12, direct=direct)
+    end = record.duration if stop_time is None else min(float(stop_time), record.duration)
+    time = record.time[record.time <= end + 1e-9]
+    res = simulate(ssp, RecordReplay(record, inputs), float(time[-1]) + dt, parameters=params,
+                   record=sorted({s.model for s in measured} | set(extra)), record_step=1e-12, direct=direct)
     out = {}
     for s in measured:
-        at = record.time + (dt if s.sampled else 0.0)
+        at = time + (dt if s.sampled else 0.0)
         out[s.name] = np.interp(at, res.time, res[s.model])
+    for name in extra:
+        out[name] = np.interp(time, res.time, res[name])
     return out
 
 

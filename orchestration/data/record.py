@@ -245,10 +245,13 @@ class RecordReplay:
             table[:, list(system_inputs).index(s.input)] = record.values[s.name]
         self._rows = [list(map(float, r)) for r in table]
         self._n = len(self._rows)
+        self._k = 0
 
     def start(self, t0: float, read) -> None:
         pass
 
     def __call__(self, t: float) -> list[float]:
-        k = bisect.bisect_right(self._times, t + self._tol) - 1
-        return list(self._rows[min(max(k, 0), self._n - 1)])
+        k, times, at = self._k, self._times, t + self._tol
+        if not (times[k] <= at and (k + 1 == self._n or times[k + 1] > at)):     # not the last sample's hold
+            k = self._k = min(max(bisect.bisect_right(times, at) - 1, 0), self._n - 1)
+        return self._rows[k]

@@ -79,6 +79,12 @@ def diagnose(opt: Options, log: Callable[[str], None] = print) -> dict:
     """The five steps of the package docstring on the measured-data folder ``opt.measured``; writes
     diagnosis.json, report.md, the figures and the augmented model to ``opt.out`` and returns the
     diagnosis (the content of diagnosis.json)."""
+    from ..data.record import is_record_folder
+
+    if is_record_folder(opt.measured):     # a record of any machine (mast import): a drive axis on a bench
+        from .records import diagnose_records
+
+        return diagnose_records(opt, log)
     t_start = time.perf_counter()
     from ..ssp import SSPArchive
 
