@@ -147,7 +147,7 @@ def cmd_diagnose(args) -> int:
 
     doc = diagnose(Options(Path(args.measured), Path(args.out), args.ssp, model=args.model,
                            holdout=args.holdout.split(",") if args.holdout else None, workers=args.workers,
-                           direct=not args.fmu))
+                           direct=not args.fmu, holdout_fraction=args.holdout_fraction))
     return 0 if doc["verdict"]["status"] != "unexplained residual" else 3
 
 
@@ -281,12 +281,16 @@ def main(argv=None) -> int:
     p = sub.add_parser("diagnose", help="name the effects missing from the model by comparing it with measured data "
                                         "(docs/diagnose.md)")
     p.add_argument("ssp", nargs="?", default=str(DEFAULT_SSP))
-    p.add_argument("--measured", required=True, help="measured-data folder (docs/measured-data.md)")
+    p.add_argument("--measured", required=True, help="measured-data folder, or a record folder from mast import "
+                                                     "(docs/measured-data.md)")
     p.add_argument("--out", required=True, help="folder for diagnosis.json, report.md, figures, the augmented model")
     p.add_argument("--model", help="nominal actuator parameter set: an .ssv file or the name of one in the SSP "
                                    "(default: the SSP's bindings, i.e. the manufacturer data)")
     p.add_argument("--holdout", help="comma-separated test names to hold out (default: meta.json roles, else every "
                                      "second test in frequency order)")
+    p.add_argument("--holdout-fraction", type=float, metavar="SHARE",
+                   help="records of any machine (mast import) with no held-out test: hold out this last share of "
+                        "every test (default 1/3; docs/emps.md)")
     p.add_argument("--workers", type=int, default=2)
     p.add_argument("--fmu", action="store_true", help="simulate through the FMUs (default: the direct composition, "
                                                       "the same numbers to 1e-12, about twice as fast)")

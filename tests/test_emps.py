@@ -257,6 +257,8 @@ def test_diagnose_names_friction_offset_and_asymmetry_on_the_emps_record(tmp_pat
     assert force["after"]["whole"]["relative_error_pct"] <= 5.85
     assert force["after"]["held-out"]["relative_error_pct"] < 0.1 * force["before"]["held-out"]["relative_error_pct"]
     assert sym["gap"]["emps"]["force"]["whole"]["relative_error_pct"] <= 5.85
+    # what is left is not in the library: a friction transition at the reversals, said, not named
+    assert doc["verdict"]["status"] == "unexplained residual" and "velocity reversals" in doc["verdict"]["text"]
     for f in ("diagnosis.json", "report.md", "fig_residual.png", "fig_friction.png", "axis_diagnosed.ssv",
               "EMPS_bench_diagnosed.ssp"):
         assert (out / f).exists(), f

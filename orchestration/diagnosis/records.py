@@ -258,7 +258,7 @@ class Diagnosis:
             std = {p: float(math.sqrt(max(cov[i, i], 0.0))) for i, p in enumerate(free)}
         except np.linalg.LinAlgError:
             std = {p: float("nan") for p in free}
-        return x, {"rss_history": history, "std": std, "lag1_autocorrelation": r1, "simulations": len(history)}
+        return x, {"rss_history": history, "std": std, "lag1_autocorrelation": r1, "steps": len(history) - 1}
 
 
 def gap(cases: Sequence[Case], pt: Point) -> dict:
@@ -279,6 +279,30 @@ def gap(cases: Sequence[Case], pt: Point) -> dict:
             table[s.name] = row
         out[c.name] = table
     return out
+
+
+#: the held-out residual of every effort within this factor of the noise floor: nothing left to explain
+AT_FLOOR = 1.2
+
+
+def _verdict(diag: Diagnosis, after: dict, localised: dict, effects: Sequence[dict]) -> dict:
+    """nothing missing / explained (held-out residual at the noise floor) / unexplained residual (where it is)."""
+    ratios = {}
+    for c in diag.cases:
+        for s in c.efforts:
+            part = after[c.name][s].get("held-out") or after[c.name][s]["whole"]
+            ratios[f"{c.name}.{s}"] = part["rms"] / diag.sigma
+    worst = max(ratios.values())
+    if worst <= AT_FLOOR:
+        status = "explained" if effects else "nothing missing"
+        text = (f"held-out effort residual within {AT_FLOOR:g} x the noise floor"
+                + (f" with {', '.join(e['effect'] for e in effects)}" if effects else ""))
+    else:
+        status = "unexplained residual"
+        where = "; ".join(f"{k}: {v['summary']}" for k, v in localised.items())
+        text = (f"after {', '.join(e['effect'] for e in effects) or 'nothing named'}, the held-out effort residual is "
+                f"{worst:.3g} x the noise floor, outside the library: {where}")
+    return {"status": status, "text": text, "residual_over_noise_held_out": ratios}
 
 
 def _localise(diag: Diagnosis, pt: Point) -> dict:
@@ -303,7 +327,9 @@ def diagnose_records(opt, log: Callable[[str], None] = print) -> dict:
     by_param = {p: e for e in library for p in e.parameters}
     nominal = {p: float({**bound, **model_over}[p]) for p in by_param}
     bounds = {p: e.bounds[p] for e in library for p in e.parameters}
-    fraction = getattr(opt, "holdout_fraction", None) or HELD_OUT_FRACTION
+    fraction = opt.holdout_fraction or HELD_OUT_FRACTION
+    if not 0.0 < fraction < 1.0:
+        raise DiagnosisError(f"--holdout-fraction {fraction!r}: expected a share between 0 and 1")
     cases, holdout_how = _cases(records, fraction)
     base = {component: dict(model_over)} if model_over else {}
     model = AxisModel(opt.ssp, cases, component, base, direct=opt.direct)
@@ -400,6 +426,8 @@ def diagnose_records(opt, log: Callable[[str], None] = print) -> dict:
         for s in c.efforts:
             y = c.record.values[s][c.held] if c.held.any() else c.record.values[s]
             floor_pct[f"{c.name}.{s}"] = 100.0 * diag.sigma / float(np.sqrt(np.mean(y ** 2)))
+    localised_after = _localise(diag, final)
+    verdict = _verdict(diag, after, localised_after, effects_doc)
     wall = time.perf_counter() - t_start
     doc = {"measured": str(opt.measured), "ssp": str(opt.ssp), "machine": records.machine, "component": component,
            "model": opt.model or "the SSP's bindings", "held_out": holdout_how,
@@ -407,7 +435,7 @@ def diagnose_records(opt, log: Callable[[str], None] = print) -> dict:
                            "effort", "band_Hz": diag.band.fc, "relative_error_pct": floor_pct},
            "named_effects": effects_doc, "asymmetry": asym, "symmetric_model": symmetric,
            "gap": {"before": before, "after": after},
-           "localise": {"before": localised_before, "after": _localise(diag, final)},
+           "localise": {"before": localised_before, "after": localised_after}, "verdict": verdict,
            "steps": steps, "values": values, "nominal": nominal,
            "timing": {"wall_s": round(wall, 1), "simulations": model.count, "simulation_wall_s": round(model.seconds, 1)}}
     opt.out.mkdir(parents=True, exist_ok=True)
@@ -415,7 +443,8 @@ def diagnose_records(opt, log: Callable[[str], None] = print) -> dict:
 
     doc["augmented_model"] = write_outputs(opt, doc, component, model, cases, pt0, final, diag)
     (opt.out / "diagnosis.json").write_text(json.dumps(_jsonable(doc), indent=2))
-    log(f"diagnose: named {', '.join(e['effect'] for e in effects_doc) or 'nothing'}; wrote {opt.out} in {wall:.0f} s")
+    log(f"diagnose: {verdict['status']}: {verdict['text']}")
+    log(f"diagnose: wrote {opt.out / 'diagnosis.json'}, {opt.out / 'report.md'} in {wall:.0f} s")
     return doc
 
 

@@ -94,7 +94,8 @@ def plot(out: Path, model: "AxisModel", cases: Sequence["Case"], before: "Point"
     ff = y - vals["M"] * a - vals["F_offset"]
     plateau = np.abs(a) < 0.05 * np.abs(a).max()
     fig, ax = plt.subplots(figsize=(7, 4.5))
-    ax.plot(v[plateau], ff[plateau], ",", alpha=0.4, color="0.3", label="measured - M q'' - offset (|q''| small)")
+    ax.plot(v[plateau], ff[plateau], ".", ms=1.5, alpha=0.4, color="0.3",
+            label="measured - M q'' - offset (|q''| < 5 % of its peak)")
     vv = np.linspace(v.min(), v.max(), 400)
     from fmus.actuator.load_axis import load_friction
 
@@ -103,8 +104,9 @@ def plot(out: Path, model: "AxisModel", cases: Sequence["Case"], before: "Point"
     sym = doc.get("symmetric_model") or {}
     if sym.get("values"):
         sv = {**vals, **sym["values"]}
-        ax.plot(vv, load_friction(vv, sv.get("F_c", 0.0), sv.get("F_v", 0.0)), "--", color="C1",
-                label="symmetric model (stage 'name')")
+        shift = sv.get("F_offset", 0.0) - vals["F_offset"]       # the same offset subtracted from the points
+        ax.plot(vv, load_friction(vv, sv.get("F_c", 0.0), sv.get("F_v", 0.0)) + shift * (vv != 0), "--", color="C1",
+                label="symmetric model (stage 'name'), its offset relative to the diagnosed one")
     ax.set_xlabel("simulated velocity [m/s]")
     ax.set_ylabel(f"friction [{unit}]")
     ax.legend(fontsize=7)
@@ -123,6 +125,7 @@ def write_report(out: Path, doc: dict, figs: dict) -> None:
     lines = [f"# Diagnosis of {doc['machine']}", "",
              f"Model `{doc['ssp']}` (component `{doc['component']}`, nominal: {doc['model']}), record "
              f"`{doc['measured']}`. Held out: {doc['held_out']}.", "",
+             f"**Verdict: {doc['verdict']['status']}.** {doc['verdict']['text']}", "",
              "## Named effects", "", "| effect | parameter | nominal | fitted | std |", "|---|---|---|---|---|"]
     for e in doc["named_effects"]:
         for p, v in e["parameters"].items():
@@ -158,7 +161,7 @@ def write_report(out: Path, doc: dict, figs: dict) -> None:
     for st in doc["steps"]:
         txt = f"- {st['stage']}: regression proposes {', '.join(st['proposed']) or 'nothing'}"
         if "confirmed" in st:
-            txt += (f"; fitted by re-simulation ({st['fit']['simulations']} simulations): dBIC {st['delta_bic_training']:.1f}, "
+            txt += (f"; fitted by re-simulation ({st['fit']['steps']} Gauss-Newton step(s)): dBIC {st['delta_bic_training']:.1f}, "
                     f"held-out band RSS {st['held_out_rss_change_percent']:+.1f} %: "
                     f"{'confirmed' if st['confirmed'] else 'refused'}")
         lines.append(txt)

@@ -26,6 +26,7 @@ class Options:
     ssp: str
     model: Optional[str] = None           # a parameter set (.ssv path or name in the SSP's resources)
     holdout: Optional[Sequence[str]] = None
+    holdout_fraction: Optional[float] = None   # records (mast import) without held-out tests: the share held out
     workers: int = 2
     direct: bool = True
     library: Sequence[str] = tuple(e.key for e in LIBRARY)
