@@ -33,15 +33,15 @@ from __future__ import annotations
 import json
 import math
 import time
-from dataclasses import dataclass, field
-from pathlib import Path
-from typing import Callable, Mapping, Optional, Sequence
+from dataclasses import dataclass
+from typing import Callable, Mapping, Sequence
 
 import numpy as np
 
 from ..analyses.replay import fit_pct, relative_error_pct, simulate_record
 from ..data.record import Record, RecordSet, load_records
 from .effects import AXIS_LIBRARY, Effect, axis_column, localise, noise_std
+from .report import jsonable
 from .resimulation import DiagnosisError
 from .selection import DELTA_BIC, Atom, Band, Regression, select
 
@@ -165,7 +165,7 @@ class Diagnosis:
 
     def _split(self, case: Case, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         dt = case.record.sample_time
-        q = self.band._design(dt)[1]
+        q = self.band.decimation(dt)
         n = x.shape[0]
         tr, ho = case.train[::q][:n].copy(), case.held[::q][:n].copy()
         margin = max(1, int(0.05 / (dt * q)))     # the filter's settling at both ends of a part
@@ -324,8 +324,8 @@ def diagnose_records(opt, log: Callable[[str], None] = print) -> dict:
     library = AXIS_LIBRARY
     component, bound = _plant(opt.ssp, library)
     model_over = _model_overrides(opt.ssp, opt.model) if opt.model else {}
-    by_param = {p: e for e in library for p in e.parameters}
-    nominal = {p: float({**bound, **model_over}[p]) for p in by_param}
+    by_key = {e.key: e for e in library}
+    nominal = {p: float({**bound, **model_over}[p]) for e in library for p in e.parameters}
     bounds = {p: e.bounds[p] for e in library for p in e.parameters}
     fraction = opt.holdout_fraction or HELD_OUT_FRACTION
     if not 0.0 < fraction < 1.0:
@@ -366,18 +366,16 @@ def diagnose_records(opt, log: Callable[[str], None] = print) -> dict:
                 steps.append(step)
                 break
             # drop members of a group an effect of the proposal replaces (offset <-> Coulomb asymmetry)
-            groups = {by_key.group for by_key in (e for e in library if e.key in keys) if by_key.group}
-            kept = [k for k in named if not (next(e for e in library if e.key == k).group in groups and k not in keys)]
-            trial_named = kept + new
-            free = [next(e for e in library if e.key == k).parameter for k in trial_named]
+            groups = {by_key[k].group for k in keys if by_key[k].group}
+            trial_named = [k for k in named if k in keys or by_key[k].group not in groups] + new
+            free = [by_key[k].parameter for k in trial_named]
             start = dict(values)
             for k, change in proposal.items():
                 p = change["parameter"]
                 start[p] = float(np.clip(values[p] + change["change"], *bounds[p]))
             for k in named:
                 if k not in trial_named:
-                    e = next(e for e in library if e.key == k)
-                    start[e.parameter] = nominal[e.parameter]
+                    start[by_key[k].parameter] = nominal[by_key[k].parameter]
             fitted, info = diag.fit(start, free, bounds)
             old_tr, n_tr, old_ho, n_ho = diag.band_rss(pt)
             new_pt = model.point(fitted)
@@ -393,24 +391,23 @@ def diagnose_records(opt, log: Callable[[str], None] = print) -> dict:
                          "held_out_rss_change_percent": 100.0 * (new_ho - old_ho) / old_ho if n_ho else None,
                          "confirmed": confirmed})
             steps.append(step)
-            log(f"diagnose: {stage}: proposed {', '.join(keys)}; re-simulation dBIC {dbic:.1f}, held-out "
-                f"{step['held_out_rss_change_percent']:+.1f} %: {'confirmed' if confirmed else 'refused'}")
+            held = f", held-out {step['held_out_rss_change_percent']:+.1f} %" if n_ho else ""
+            log(f"diagnose: {stage}: proposed {', '.join(keys)}; re-simulation dBIC {dbic:.1f}{held}: "
+                f"{'confirmed' if confirmed else 'refused'}")
             if not confirmed:
                 rejected.add(tuple(sorted(keys)))
                 break
             named, values, stds = trial_named, fitted, info["std"]
         if stage == "name":
             pt_sym = model.point(values)
-            symmetric = {"named": list(named), "values": {next(e for e in library if e.key == k).parameter:
-                                                          values[next(e for e in library if e.key == k).parameter]
-                                                          for k in named},
+            symmetric = {"named": list(named), "values": {by_key[k].parameter: values[by_key[k].parameter] for k in named},
                          "std": dict(stds), "gap": gap(cases, pt_sym)}
 
     final = model.point(values)
     after = gap(cases, final)
     effects_doc = []
     for k in named:
-        e = next(e for e in library if e.key == k)
+        e = by_key[k]
         p = e.parameter
         effects_doc.append({"effect": e.title, "key": k, "parameters": {p: values[p]}, "nominal": {p: nominal[p]},
                             "uncertainty": {p: {"std": stds.get(p), "ci95": [values[p] - 1.96 * stds[p],
@@ -442,13 +439,7 @@ def diagnose_records(opt, log: Callable[[str], None] = print) -> dict:
     from .records_report import write_outputs
 
     doc["augmented_model"] = write_outputs(opt, doc, component, model, cases, pt0, final, diag)
-    (opt.out / "diagnosis.json").write_text(json.dumps(_jsonable(doc), indent=2))
+    (opt.out / "diagnosis.json").write_text(json.dumps(jsonable(doc), indent=2))
     log(f"diagnose: {verdict['status']}: {verdict['text']}")
     log(f"diagnose: wrote {opt.out / 'diagnosis.json'}, {opt.out / 'report.md'} in {wall:.0f} s")
     return doc
-
-
-def _jsonable(x):
-    from .report import jsonable
-
-    return jsonable(x)

@@ -161,9 +161,10 @@ def write_report(out: Path, doc: dict, figs: dict) -> None:
     for st in doc["steps"]:
         txt = f"- {st['stage']}: regression proposes {', '.join(st['proposed']) or 'nothing'}"
         if "confirmed" in st:
-            txt += (f"; fitted by re-simulation ({st['fit']['steps']} Gauss-Newton step(s)): dBIC {st['delta_bic_training']:.1f}, "
-                    f"held-out band RSS {st['held_out_rss_change_percent']:+.1f} %: "
-                    f"{'confirmed' if st['confirmed'] else 'refused'}")
+            held = (f"held-out band RSS {st['held_out_rss_change_percent']:+.1f} %: "
+                    if st["held_out_rss_change_percent"] is not None else "")
+            txt += (f"; fitted by re-simulation ({st['fit']['steps']} Gauss-Newton step(s)): "
+                    f"dBIC {st['delta_bic_training']:.1f}, {held}{'confirmed' if st['confirmed'] else 'refused'}")
         lines.append(txt)
     for key, title in (("residual", "Effort and residual"), ("friction", "Friction against velocity")):
         if key in figs:

@@ -70,6 +70,10 @@ class Band:
                 self._sos[key] = (butter(4, self.fc, fs=fs, output="sos"), max(1, int(fs / (2.5 * self.fc))))
         return self._sos[key]
 
+    def decimation(self, dt: float) -> int:
+        """Every how many samples ``apply`` keeps one."""
+        return self._design(dt)[1]
+
     def apply(self, x: np.ndarray, dt: float) -> np.ndarray:
         from scipy.signal import sosfiltfilt
 
