@@ -313,3 +313,24 @@ def test_replay_drives_the_injected_input_after_the_saturation(tmp_path, bench):
     part = simulate_record(bench, rec, {"axis": {"M": M, "F_v": Fv, "F_c": Fc, "F_offset": off}}, stop_time=0.1)
     assert len(part["q_m"]) == 101                                # the samples up to the stop time, the same values
     assert np.abs(part["q_m"] - q_m[:101]).max() < 1e-12 + 1e-9 * np.abs(q_m).max()
+
+
+def test_held_out_samples_last_third_or_named_tests(tmp_path):
+    from mast.data.record import SignalSpec, write_records
+    from mast.diagnosis.records import _cases
+    from mast.diagnosis.resimulation import DiagnosisError
+
+    t = np.arange(300) * 1e-3
+    specs = {"q_ref": SignalSpec("q_ref", "command", "m", input="q_ref"),
+             "force": SignalSpec("force", "effort", "N", model="controller.F_cmd")}
+    tests = [{"name": n, "time": t, "values": {"q_ref": np.sin(t), "force": np.cos(t)}} for n in ("a", "b")]
+    records = load_records(write_records(tmp_path / "rec", specs, tests))
+    cases, how = _cases(records, 1 / 3)
+    assert "last 0.333" in how
+    for c in cases:
+        assert c.held.sum() == 100 and c.train.sum() == 200 and not (c.train & c.held).any()
+        assert c.record.time[c.held].min() > c.record.time[c.train].max()
+    cases, how = _cases(records, 1 / 3, ("b",))
+    assert not cases[0].held.any() and cases[0].train.all() and cases[1].held.all() and "b (--holdout)" in how
+    with pytest.raises(DiagnosisError, match="--holdout c: no such test"):
+        _cases(records, 1 / 3, ("c",))

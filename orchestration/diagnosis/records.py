@@ -117,22 +117,32 @@ class AxisModel:
         return np.column_stack([axis_column(p, v, a) for p in params]) if params else np.zeros((len(v), 0))
 
 
-def _cases(records: RecordSet, fraction: float) -> tuple[list[Case], str]:
+def _cases(records: RecordSet, fraction: float, holdout: Sequence[str] = ()) -> tuple[list[Case], str]:
+    """The tests with their training and held-out samples: the tests named in ``holdout`` (--holdout), else
+    those meta.json marks held-out, else the last ``fraction`` of every test."""
+    names = [t.name for t in records.tests]
+    unknown = [h for h in holdout if h not in names]
+    if unknown:
+        raise DiagnosisError(f"--holdout {', '.join(unknown)}: no such test (tests: {', '.join(names)})")
+    if holdout and len(holdout) == len(names):
+        raise DiagnosisError("--holdout names every test: nothing is left to train on")
     cases = []
-    marked = any(t.role for t in records.tests)
+    roles = {t.name: ("held-out" if t.name in holdout else "training") for t in records.tests} if holdout else \
+        {t.name: t.role for t in records.tests}
+    marked = any(roles.values())
     for rec in records.tests:
         efforts = [s.name for s in rec.of_kind("effort")]
         if not efforts:
             raise DiagnosisError(f"{rec.file.name}: no signal of kind 'effort' to diagnose")
         keep = rec.time >= rec.settle_s - 1e-12
         if marked:
-            held = keep & (rec.role == "held-out")
-            train = keep & (rec.role != "held-out")
+            held = keep & (roles[rec.name] == "held-out")
+            train = keep & (roles[rec.name] != "held-out")
         else:
             cut = rec.time[keep][0] + (1.0 - fraction) * (rec.duration - rec.time[keep][0])
             train, held = keep & (rec.time < cut), keep & (rec.time >= cut)
         cases.append(Case(rec, train, held, efforts))
-    how = ("the tests meta.json marks held-out" if marked else
+    how = (f"the tests {', '.join(holdout)} (--holdout)" if holdout else "the tests meta.json marks held-out" if marked else
            f"the last {fraction:.3g} of every test (t >= {(1 - fraction):.3g} x its duration); the rest trains")
     return cases, how
 
@@ -330,7 +340,7 @@ def diagnose_records(opt, log: Callable[[str], None] = print) -> dict:
     fraction = opt.holdout_fraction or HELD_OUT_FRACTION
     if not 0.0 < fraction < 1.0:
         raise DiagnosisError(f"--holdout-fraction {fraction!r}: expected a share between 0 and 1")
-    cases, holdout_how = _cases(records, fraction)
+    cases, holdout_how = _cases(records, fraction, tuple(opt.holdout or ()))
     base = {component: dict(model_over)} if model_over else {}
     model = AxisModel(opt.ssp, cases, component, base, direct=opt.direct)
     diag = Diagnosis(model, cases, Band(), log)
