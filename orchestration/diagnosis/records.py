@@ -9,8 +9,12 @@ axis with bang-bang acceleration profiles):
    of every effort signal (measured - simulated force) is located (velocity reversals, peak
    acceleration, bias, correlations with sign(velocity), velocity, acceleration).
 2. Name: the residual, low-passed and decimated (selection.Band), is regressed on the
-   library's columns along the simulated motion (the inverse-dynamics signatures; the loop
-   is stiff, the fit below corrects what it does not follow); every subset is scored by BIC
+   library's columns along the simulated motion: the inverse-dynamics signatures, where the
+   MAST uses re-simulated sensitivities. A position loop that tracks to 0.02 % moves the
+   load along the reference whatever the plant, so the force a plant change costs is its
+   inverse dynamics along that motion (on EMPS the first re-simulated Gauss-Newton step
+   from the regression estimate lowers the cost by 0.6 % only), and the fit below corrects
+   what the signatures miss, without one simulation per parameter. Every subset is scored by BIC
    on the training samples plus the held-out deviance, each member must be needed on both
    (selection.select, the MAST's rules). Asymmetries are tried only once the friction they
    refine is named (stage "refine"), so the symmetric model is found first and reported.
@@ -24,9 +28,9 @@ axis with bang-bang acceleration profiles):
 5. Verdict: what is left, against the noise floor of the effort (third differences), and
    where it concentrates (report.md).
 
-Held-out data: the tests the record's meta.json marks ``held-out``; otherwise the last third
-of every test (the first two thirds train: the same machine, later in the record, other
-motions of the profile).
+Held-out data: the tests named by ``--holdout``, else those the record's meta.json marks
+``held-out``, else the last third of every test (``--holdout-fraction``; the first two
+thirds train: the same machine, later in the record).
 """
 from __future__ import annotations
 
