@@ -59,6 +59,9 @@ FMUS = (
     FmuSpec("Mast3PRS120", "mechanism"),
     FmuSpec("Mast3PRSInclined", "mechanism"),
     FmuSpec("MastActuatorsOnly", "mechanism"),
+    # single-axis test benches (ssp/EMPS_bench.ssd)
+    FmuSpec("MastLoadAxis", "actuator"),
+    FmuSpec("MastEmpsController", "controller"),
 )
 
 #: Python packages the bundled model code imports (pythonfmu itself travels inside each FMU);

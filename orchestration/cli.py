@@ -147,8 +147,29 @@ def cmd_diagnose(args) -> int:
 
     doc = diagnose(Options(Path(args.measured), Path(args.out), args.ssp, model=args.model,
                            holdout=args.holdout.split(",") if args.holdout else None, workers=args.workers,
-                           direct=not args.fmu))
+                           direct=not args.fmu, holdout_fraction=args.holdout_fraction))
     return 0 if doc["verdict"]["status"] != "unexplained residual" else 3
+
+
+def cmd_import(args) -> int:
+    from .data.importer import import_file
+
+    summary = import_file(args.file, args.map, args.out)
+    print(f"import: {summary['samples']} samples every {summary['sample_time_s']:.6g} s "
+          f"({summary['duration_s']:.6g} s), signals {', '.join(f'{k} ({v})' for k, v in summary['signals'].items())} "
+          f"-> {summary['folder']}")
+    return 0
+
+
+def cmd_replay(args) -> int:
+    from .analyses.replay import replay
+    from .run import parse_overrides
+
+    doc = replay(args.model, args.measured, args.out, parse_overrides(args.set or []), direct=not args.fmu)
+    for name, s in doc["signals"].items():
+        print(f"replay: {name} ({s['kind']}): relative error {s['relative_error_pct']:.4g} %, fit {s['fit_pct']:.4g} %")
+    print(f"replay: wrote {Path(args.out) / 'replay.json'}")
+    return 0
 
 
 def cmd_check_mechanism(args) -> int:
@@ -302,16 +323,36 @@ def main(argv=None) -> int:
     p = sub.add_parser("diagnose", help="name the effects missing from the model by comparing it with measured data "
                                         "(docs/diagnose.md)")
     p.add_argument("ssp", nargs="?", default=str(DEFAULT_SSP))
-    p.add_argument("--measured", required=True, help="measured-data folder (docs/measured-data.md)")
+    p.add_argument("--measured", required=True, help="measured-data folder, or a record folder from mast import "
+                                                     "(docs/measured-data.md)")
     p.add_argument("--out", required=True, help="folder for diagnosis.json, report.md, figures, the augmented model")
     p.add_argument("--model", help="nominal actuator parameter set: an .ssv file or the name of one in the SSP "
                                    "(default: the SSP's bindings, i.e. the manufacturer data)")
     p.add_argument("--holdout", help="comma-separated test names to hold out (default: meta.json roles, else every "
                                      "second test in frequency order)")
+    p.add_argument("--holdout-fraction", type=float, metavar="SHARE",
+                   help="records of any machine (mast import) with no held-out test: hold out this last share of "
+                        "every test (default 1/3; docs/emps.md)")
     p.add_argument("--workers", type=int, default=2)
     p.add_argument("--fmu", action="store_true", help="simulate through the FMUs (default: the direct composition, "
                                                       "the same numbers to 1e-12, about twice as fast)")
     p.set_defaults(func=cmd_diagnose)
+
+    p = sub.add_parser("import", help="a lab's log (.mat or CSV) through a column map into a record folder "
+                                      "(docs/measured-data.md)")
+    p.add_argument("file", help="the lab's file: .mat (MATLAB) or .csv")
+    p.add_argument("--map", required=True, help="column map (TOML), e.g. examples/emps/map.toml")
+    p.add_argument("--out", required=True, help="record folder to write (meta.json and one CSV)")
+    p.set_defaults(func=cmd_import)
+
+    p = sub.add_parser("replay", help="drive a model with a record's commands and inputs; relative error and fit "
+                                      "per signal, plots (docs/measured-data.md)")
+    p.add_argument("--model", required=True, help="the model: a built .ssp, e.g. build/ssp/EMPS_bench.ssp")
+    p.add_argument("--measured", required=True, help="record folder (mast import)")
+    p.add_argument("--out", required=True, help="folder for replay.json, replay.csv and the plots")
+    p.add_argument("--set", action="append", metavar="ELEMENT.PARAMETER=VALUE", help="override a parameter")
+    p.add_argument("--fmu", action="store_true", help="simulate through the FMUs (default: the direct composition)")
+    p.set_defaults(func=cmd_replay)
 
     p = sub.add_parser("check-mechanism", help="black-box checks a mechanism FMU must pass to plug in (docs/interfaces.md)")
     p.add_argument("fmu", nargs="+", help="mechanism FMU(s)")

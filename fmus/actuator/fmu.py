@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 from ..common.fmi import BlockSlave
+from .load_axis import LoadAxisBlock
 from .model import ActuatorBlock
 
 
@@ -9,5 +10,13 @@ class MastActuator(BlockSlave):
     """One linear axis of the MAST: DC motor, gearbox and belt guide (paper section 2.2, Fig. 2)."""
 
     block_class = ActuatorBlock
+    author = "MAST co-simulation project"
+    version = "0.1.0"
+
+
+class MastLoadAxis(BlockSlave):
+    """A drive axis seen from the load, force-driven: mass, asymmetric Coulomb and viscous friction, force offset (single-axis benches such as EMPS)."""
+
+    block_class = LoadAxisBlock
     author = "MAST co-simulation project"
     version = "0.1.0"

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from ..common.fmi import BlockSlave
 from .computed_torque import ComputedTorqueController
+from .emps import EmpsController
 from .feedforward import FeedForwardController
 from .model import ControllerBlock
 from .workspace import WorkspaceController
@@ -38,3 +39,11 @@ class MastComputedTorqueController(MastController):
 
     block_class = ComputedTorqueController
 
+
+
+class MastEmpsController(BlockSlave):
+    """Sampled P position loop into a P velocity loop of one drive axis, FIR velocity estimate, drive command saturation and gain (the EMPS benchmark's controller)."""
+
+    block_class = EmpsController
+    author = "MAST co-simulation project"
+    version = "0.1.0"

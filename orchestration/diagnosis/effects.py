@@ -161,6 +161,7 @@ class Effect:
     preferred: bool = True               # within a group: the one named when the data cannot tell
     grid: tuple[float, ...] = ()         # values of the second (nonlinear) parameter tried in the regression
     cost: int = 1                        # parameters counted by the information criterion
+    refines: Optional[str] = None        # an asymmetry of this effect: tried only once it is named
 
     @property
     def parameter(self) -> str:
@@ -198,6 +199,39 @@ LIBRARY: tuple[Effect, ...] = (
 BY_KEY = {e.key: e for e in LIBRARY}
 BY_PARAMETER = {p: e for e in LIBRARY for p in e.parameters}
 BOUNDS = {name: b for e in LIBRARY for name, b in e.bounds.items()}
+
+#: The library of a drive axis seen from the load, force-driven (fmus/actuator/load_axis.py: single-axis
+#: benches such as EMPS). The effort compared is the drive force; columns d F / d parameter (axis_column)
+#: are the inverse-dynamics signatures along the simulated motion. The asymmetries refine a named
+#: friction: dF_c differs from the offset only at standstill (both shift the force by a constant while
+#: the axis moves), so the two are alternatives and the offset is preferred when the data cannot tell.
+AXIS_LIBRARY: tuple[Effect, ...] = (
+    Effect("mass", "moving mass", ("M",), "plant", "in phase with acceleration (the bang-bang phases)",
+           {"M": (0.1, 1e4)}),
+    Effect("viscous", "viscous friction", ("F_v",), "plant", "in phase with velocity (the constant-velocity "
+           "plateaus, growing with speed)", {"F_v": (0.0, 1e5)}),
+    Effect("coulomb", "Coulomb friction", ("F_c",), "plant", "in phase with sign(velocity): a step at every "
+           "reversal, the same on every plateau", {"F_c": (0.0, 1e4)}),
+    Effect("offset", "constant force offset", ("F_offset",), "plant", "a bias, moving or not",
+           {"F_offset": (-1e4, 1e4)}, group="bias", preferred=True),
+    Effect("viscous_asymmetry", "asymmetric viscous friction", ("dF_v",), "plant",
+           "in phase with |velocity|: the plateaus of one direction need more force per speed than the other",
+           {"dF_v": (-1e5, 1e5)}, refines="viscous"),
+    Effect("coulomb_asymmetry", "asymmetric Coulomb friction", ("dF_c",), "plant",
+           "a bias while moving, none at standstill (the same as an offset while the axis moves)",
+           {"dF_c": (-1e4, 1e4)}, refines="coulomb", group="bias", preferred=False),
+)
+
+
+def axis_column(param: str, q_dot: np.ndarray, q_ddot: np.ndarray) -> np.ndarray:
+    """d F / d parameter of the load-side axis along a motion (q_dot [m/s], q_ddot [m/s^2]): the inverse
+    dynamics F = M q'' + F_f(q') + F_offset differentiated (load_axis.py)."""
+    s = np.sign(q_dot)
+    columns = {"M": q_ddot, "F_v": q_dot, "F_c": s, "F_offset": np.ones_like(q_dot), "dF_v": np.abs(q_dot),
+               "dF_c": np.abs(s)}
+    if param not in columns:
+        raise KeyError(f"no load-axis column for parameter {param!r}; known: {', '.join(columns)}")
+    return columns[param]
 
 
 def column(effect_or_param: str, signals: SimSignals, params: Mapping, chain: Chain,

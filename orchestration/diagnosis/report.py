@@ -4,7 +4,7 @@ from __future__ import annotations
 import math
 import zipfile
 from pathlib import Path
-from typing import TYPE_CHECKING, Mapping, Optional, Sequence
+from typing import TYPE_CHECKING, Callable, Mapping, Optional, Sequence
 
 import numpy as np
 
@@ -30,10 +30,6 @@ def jsonable(x):
 
 def write_model(opt: Options, changes: Mapping[str, float], named: Sequence[dict], nominal: Mapping,
                  model_over: Mapping) -> dict:
-    from lxml import etree
-
-    from ..ssp import NS
-
     values = {**{k: v for k, v in model_over.items()}, **changes}
     why = {}
     for eff in named:
@@ -44,36 +40,12 @@ def write_model(opt: Options, changes: Mapping[str, float], named: Sequence[dict
     from fmus.actuator.model import PARAMETERS
 
     units = {p.name: p.unit for p in PARAMETERS}
-    ssv, ssc = NS["ssv"], NS["ssc"]
-    root = etree.Element(f"{{{ssv}}}ParameterSet", nsmap={"ssv": ssv, "ssc": ssc}, version="1.0",
-                         name="actuator_diagnosed")
-    root.append(etree.Comment(f" Written by mast diagnose from {Path(opt.measured).name}: the nominal model "
-                              f"({opt.model or 'SSP bindings'}) plus the named effects; bind it after the "
-                              "actuators' other parameter sets (MAST_diagnosed.ssp does). "))
-    params = etree.SubElement(root, f"{{{ssv}}}Parameters")
-    used_units = set()
-    for name, v in values.items():
-        desc = why.get(name, f"nominal model ({opt.model})")
-        par = etree.SubElement(params, f"{{{ssv}}}Parameter", name=name, description=desc)
-        if isinstance(v, str):
-            etree.SubElement(par, f"{{{ssv}}}String", value=v)
-        elif isinstance(v, int) and not isinstance(v, bool):
-            etree.SubElement(par, f"{{{ssv}}}Integer", value=str(v))
-        else:
-            unit = units.get(name, "")
-            etree.SubElement(par, f"{{{ssv}}}Real", value=repr(float(v)), **({"unit": unit} if unit else {}))
-            if unit:
-                used_units.add(unit)
-    base_units = {"N.m": {"kg": "1", "m": "2", "s": "-2"}, "1": {}, "kg": {"kg": "1"}, "kg.m2": {"kg": "1", "m": "2"},
-                  "N.m.s/rad": {"kg": "1", "m": "2", "s": "-1", "rad": "-1"}, "rad/s": {"rad": "1", "s": "-1"},
-                  "rad": {"rad": "1"}, "s": {"s": "1"}, "m": {"m": "1"}}
-    if used_units:
-        ue = etree.SubElement(root, f"{{{ssv}}}Units")
-        for u in sorted(used_units):
-            etree.SubElement(etree.SubElement(ue, f"{{{ssc}}}Unit", name=u), f"{{{ssc}}}BaseUnit",
-                             **base_units.get(u, {}))
+    xml = parameter_set_xml("actuator_diagnosed", f" Written by mast diagnose from {Path(opt.measured).name}: the nominal "
+                            f"model ({opt.model or 'SSP bindings'}) plus the named effects; bind it after the "
+                            "actuators' other parameter sets (MAST_diagnosed.ssp does). ",
+                            values, units, {name: why.get(name, f"nominal model ({opt.model})") for name in values})
     ssv_path = opt.out / "actuator_diagnosed.ssv"
-    ssv_path.write_bytes(etree.tostring(root, xml_declaration=True, encoding="UTF-8", pretty_print=True))
+    ssv_path.write_bytes(xml)
     out = {"parameter_set": str(ssv_path), "values": dict(values),
            "use": "bind resources/actuator_diagnosed.ssv after the other parameter sets of every actuator_k "
                   "(MAST_diagnosed.ssp does that); compare the lab's torque with actuator_k.tau_meas"}
@@ -84,27 +56,67 @@ def write_model(opt: Options, changes: Mapping[str, float], named: Sequence[dict
             for item in zin.infolist():
                 data = zin.read(item.filename)
                 if item.filename == "SystemStructure.ssd":
-                    data = _bind_diagnosed(data)
+                    data = bind_parameter_set(data, "resources/actuator_diagnosed.ssv",
+                                              lambda name: name.startswith("actuator_"))
                 zout.writestr(item, data)
             zout.write(ssv_path, "resources/actuator_diagnosed.ssv")
         out["ssp"] = str(dst)
     return out
 
 
-def _bind_diagnosed(ssd: bytes) -> bytes:
+def bind_parameter_set(ssd: bytes, source: str, component: Callable[[str], bool]) -> bytes:
+    """``ssd`` with the parameter set ``source`` bound last to every component whose name ``component`` accepts."""
     from lxml import etree
 
     from ..ssp import NS
 
     root = etree.fromstring(ssd)
     for comp in root.iterfind(".//ssd:Component", NS):
-        if not comp.get("name", "").startswith("actuator_"):
+        if not component(comp.get("name", "")):
             continue
         bindings = comp.find("ssd:ParameterBindings", NS)
         if bindings is None:
             bindings = etree.SubElement(comp, f"{{{NS['ssd']}}}ParameterBindings")
-        etree.SubElement(bindings, f"{{{NS['ssd']}}}ParameterBinding", source="resources/actuator_diagnosed.ssv")
+        etree.SubElement(bindings, f"{{{NS['ssd']}}}ParameterBinding", source=source)
     return etree.tostring(root, xml_declaration=True, encoding="UTF-8")
+
+
+def parameter_set_xml(name: str, comment: str, values: Mapping, units: Mapping[str, str],
+                      descriptions: Mapping[str, str]) -> bytes:
+    """An SSP parameter set (.ssv): every value with its unit (declared in ssv:Units) and description."""
+    from lxml import etree
+
+    from ..ssp import NS
+
+    ssv, ssc = NS["ssv"], NS["ssc"]
+    root = etree.Element(f"{{{ssv}}}ParameterSet", nsmap={"ssv": ssv, "ssc": ssc}, version="1.0", name=name)
+    root.append(etree.Comment(comment))
+    params = etree.SubElement(root, f"{{{ssv}}}Parameters")
+    used_units = set()
+    for pname, v in values.items():
+        par = etree.SubElement(params, f"{{{ssv}}}Parameter", name=pname, description=descriptions.get(pname, ""))
+        if isinstance(v, str):
+            etree.SubElement(par, f"{{{ssv}}}String", value=v)
+        elif isinstance(v, int) and not isinstance(v, bool):
+            etree.SubElement(par, f"{{{ssv}}}Integer", value=str(v))
+        else:
+            unit = units.get(pname, "")
+            etree.SubElement(par, f"{{{ssv}}}Real", value=repr(float(v)), **({"unit": unit} if unit else {}))
+            if unit:
+                used_units.add(unit)
+    if used_units:
+        ue = etree.SubElement(root, f"{{{ssv}}}Units")
+        for u in sorted(used_units):
+            etree.SubElement(etree.SubElement(ue, f"{{{ssc}}}Unit", name=u), f"{{{ssc}}}BaseUnit",
+                             **BASE_UNITS.get(u, {}))
+    return etree.tostring(root, xml_declaration=True, encoding="UTF-8", pretty_print=True)
+
+
+#: SI base-unit exponents of the units parameter sets use
+BASE_UNITS = {"N.m": {"kg": "1", "m": "2", "s": "-2"}, "1": {}, "kg": {"kg": "1"}, "kg.m2": {"kg": "1", "m": "2"},
+              "N.m.s/rad": {"kg": "1", "m": "2", "s": "-1", "rad": "-1"}, "rad/s": {"rad": "1", "s": "-1"},
+              "rad": {"rad": "1"}, "s": {"s": "1"}, "m": {"m": "1"}, "N": {"kg": "1", "m": "1", "s": "-2"},
+              "N.s/m": {"kg": "1", "s": "-1"}}
 
 
 def plot_figures(out: Path, model: Model, prepared, names, before: Point, after: Point, sigma: float, roles,

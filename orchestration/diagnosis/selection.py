@@ -9,7 +9,7 @@ from typing import Mapping, Optional, Sequence
 
 import numpy as np
 
-from .effects import BOUNDS, BY_KEY, LIBRARY, Effect
+from .effects import LIBRARY, Effect
 
 
 #: a member of a selection must lower BIC by at least this much ("very strong" evidence)
@@ -69,6 +69,10 @@ class Band:
             else:
                 self._sos[key] = (butter(4, self.fc, fs=fs, output="sos"), max(1, int(fs / (2.5 * self.fc))))
         return self._sos[key]
+
+    def decimation(self, dt: float) -> int:
+        """Every how many samples ``apply`` keeps one."""
+        return self._design(dt)[1]
 
     def apply(self, x: np.ndarray, dt: float) -> np.ndarray:
         from scipy.signal import sosfiltfilt
@@ -139,7 +143,7 @@ class Regression:
 
 def _in_bounds(effect: Effect, nominal: Mapping, change: float) -> bool:
     name = effect.parameter
-    lo, hi = BOUNDS[name]
+    lo, hi = effect.bounds[name]
     value = float(nominal[name]) + change
     return lo - 1e-12 <= value <= hi + 1e-12
 
@@ -148,14 +152,16 @@ def atom_labels(atoms: Sequence[Atom]) -> tuple[str, ...]:
     return tuple(sorted(a.effect.key for a in atoms))
 
 
-def select(reg: Regression, nominal: Mapping, max_size: int, exclude: frozenset = frozenset()
-           ) -> tuple[SubsetFit, list[SubsetFit]]:
+def select(reg: Regression, nominal: Mapping, max_size: int, exclude: frozenset = frozenset(),
+           library: Sequence[Effect] = LIBRARY) -> tuple[SubsetFit, list[SubsetFit]]:
     """The admissible subset with the lowest BIC (at most ``max_size`` effects, one per group).
 
     Admissible: every member is needed (removing it raises BIC by >= DELTA_BIC on the
     training tests and the held-out RSS by ``held_out_needed``) and every parameter stays
     within its bounds. Subsets in ``exclude`` (by effect keys) were refuted by re-simulation.
+    ``library``: the effects the atoms come from (groups and preferred members).
     """
+    by_key = {e.key: e for e in library}
     fits = []
     # far from the data (the first rounds), each member must also carry a share of the whole gap:
     # small terms that only soak up the linearisation error of the big ones wait for the next round
@@ -170,7 +176,7 @@ def select(reg: Regression, nominal: Mapping, max_size: int, exclude: frozenset 
     keys = list(by_effect)
     for size in range(0, max_size + 1):
         for combo in itertools.combinations(keys, size):
-            groups = [BY_KEY[k].group for k in combo if BY_KEY[k].group]
+            groups = [by_key[k].group for k in combo if by_key[k].group]
             if len(groups) != len(set(groups)) or tuple(sorted(combo)) in exclude:
                 continue
             for idx in itertools.product(*[by_effect[k] for k in combo]):
@@ -203,7 +209,7 @@ def select(reg: Regression, nominal: Mapping, max_size: int, exclude: frozenset 
     # alternatives the data cannot separate: name the preferred member of a group
     for a in list(best.atoms):
         if a.effect.group and not a.effect.preferred:
-            pref = [e for e in LIBRARY if e.group == a.effect.group and e.preferred][0]
+            pref = [e for e in library if e.group == a.effect.group and e.preferred][0]
             want = {x.effect.key for x in best.atoms if x is not a} | {pref.key}
             cand = [f for f in admissible if {x.effect.key for x in f.atoms} == want]
             if cand:

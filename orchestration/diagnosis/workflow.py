@@ -26,6 +26,7 @@ class Options:
     ssp: str
     model: Optional[str] = None           # a parameter set (.ssv path or name in the SSP's resources)
     holdout: Optional[Sequence[str]] = None
+    holdout_fraction: Optional[float] = None   # records (mast import) without held-out tests: the share held out
     workers: int = 2
     direct: bool = True
     library: Sequence[str] = tuple(e.key for e in LIBRARY)
@@ -79,6 +80,12 @@ def diagnose(opt: Options, log: Callable[[str], None] = print) -> dict:
     """The five steps of the package docstring on the measured-data folder ``opt.measured``; writes
     diagnosis.json, report.md, the figures and the augmented model to ``opt.out`` and returns the
     diagnosis (the content of diagnosis.json)."""
+    from ..data.record import is_record_folder
+
+    if is_record_folder(opt.measured):     # a record of any machine (mast import): a drive axis on a bench
+        from .records import diagnose_records
+
+        return diagnose_records(opt, log)
     t_start = time.perf_counter()
     from ..ssp import SSPArchive
 
