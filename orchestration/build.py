@@ -97,9 +97,9 @@ def default_parameters(model_identifier: str, ssd: Optional[Path] = None) -> dic
         system = read_ssd(path)
         for name, comp in system.components.items():
             if Path(comp.source).stem == model_identifier:
-                names = {c: {p.name for p in block_class(Path(s.source).stem).PARAMETERS}
+                units = {c: {p.name: p.unit for p in block_class(Path(s.source).stem).PARAMETERS}
                          for c, s in system.components.items()}
-                return applicable_parameters(system, names)[name]
+                return applicable_parameters(system, units, units)[name]
     raise ValueError(f"{', '.join(map(str, candidates))}: no component uses {model_identifier}.fmu, "
                      "so it gives no default parameters")
 
@@ -304,14 +304,15 @@ def _parameter_set_xml(values: dict, units: dict, comment: str) -> bytes:
         par = etree.SubElement(params, f"{{{ssv}}}Parameter", name=name)
         if p.source:
             par.set("description", p.source)
-        if isinstance(p.value, bool):
-            kind, text = "Boolean", "true" if p.value else "false"
-        elif isinstance(p.value, int):
-            kind, text = "Integer", str(p.value)
-        elif isinstance(p.value, float):
-            kind, text = "Real", repr(p.value)
+        value = p.value if p.written is None else p.written  # in p.unit, as the source set wrote it
+        if isinstance(value, bool):
+            kind, text = "Boolean", "true" if value else "false"
+        elif isinstance(value, int):
+            kind, text = "Integer", str(value)
+        elif isinstance(value, float):
+            kind, text = "Real", repr(value)
         else:
-            kind, text = "String", str(p.value)
+            kind, text = "String", str(value)
         typed = etree.SubElement(par, f"{{{ssv}}}{kind}", value=text)
         if p.unit and kind == "Real":
             typed.set("unit", p.unit)

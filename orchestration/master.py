@@ -121,7 +121,8 @@ class Master:
         if unknown:
             raise ValueError(f"parameter overrides name unknown component(s) {', '.join(unknown)}; components: {', '.join(system.components)}")
         order = list(system.components)
-        bound = applicable_parameters(system, {name: self.components[name].parameter_names for name in order})
+        bound = applicable_parameters(system, {name: self.components[name].parameter_names for name in order},
+                                      {name: getattr(self.components[name], "parameter_units", {}) for name in order})
         for name in order:
             merged = {**bound[name], **parameters.get(name, {})}
             self.components[name].enter_initialization(t0, t1, merged)
@@ -197,6 +198,11 @@ class Master:
         """Simulate from the SSD start time to ``stop_time`` (rounded up to a base tick); see the module docstring."""
         t0 = self.system.start_time if start_time is None else start_time
         h = self.base_step
+        if not isinstance(stop_time, (int, float)) or not math.isfinite(stop_time):
+            raise ValueError(f"stop time {stop_time!r} s: expected a finite number of seconds")
+        if record_step is not None and (not isinstance(record_step, (int, float)) or not record_step > 0
+                                        or not math.isfinite(record_step)):
+            raise ValueError(f"record step {record_step!r} s: expected a positive, finite number of seconds")
         n_ticks = math.ceil((stop_time - t0) / h - 1e-9)  # a stop time between ticks ends at the next tick
         if n_ticks < 1:
             raise ValueError(f"stop time {stop_time:g} s: expected at least one base step ({h:g} s) after the start {t0:g} s")

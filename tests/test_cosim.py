@@ -107,3 +107,26 @@ def test_cli_records_only_the_chosen_signals(ssp, tmp_path):
                      "--record", "mechanism.z", "--record", "actuator_2.i_m"]) == 0
     assert (out / "results.csv").read_text().splitlines()[0] == "time,mechanism.z,actuator_2.i_m"
     assert cli_main(["run", str(ssp), "--stop-time", "0.05", "--out", str(out), "--record", "mechanism.nope"]) == 2
+
+
+@pytest.mark.parametrize("direct", [False, True])
+@pytest.mark.parametrize("component, parameter, value", [
+    ("actuator_1", "n_dof", 2.5),          # an Integer parameter: 2.5 ran as 2 through FMI
+    ("mechanism", "attached", 0.5),        # 0/1: 0.5 ran as 0 (no mechanism load) through FMI
+    ("actuator_1", "n_dof", 2 ** 32 + 2),  # wraps around to 2 in a C int
+])
+def test_integer_parameters_refuse_what_they_cannot_hold_on_every_route(ssp, direct, component, parameter, value):
+    with pytest.raises(Exception) as info:
+        simulate(ssp, SineMotion("z", 0.0, 0.0), 0.002, parameters={component: {parameter: value}}, direct=direct)
+    message = str(info.value)
+    assert component in message and f"'{parameter}'" in message and str(value) in message
+
+
+@pytest.mark.parametrize("direct", [False, True])
+@pytest.mark.parametrize("component, parameter", [("mechanism", "m_platform"), ("actuator_2", "tau_c")])
+def test_overflowing_parameters_are_named_not_a_name_error(ssp, direct, component, parameter):
+    """1e308 is a finite, admissible value whose products overflow: the generated code must not print 'inf'."""
+    with pytest.raises(Exception) as info:
+        simulate(ssp, SineMotion("z", 0.0, 0.0), 0.002, parameters={component: {parameter: 1e308}}, direct=direct)
+    message = str(info.value)
+    assert "NameError" not in message and f"{parameter} = 1e+308" in message and component in message
