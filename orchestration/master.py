@@ -13,8 +13,9 @@ Initialization. All components enter initialization mode and get their
 parameters (bindings in SSD order, then the caller's overrides). Components
 fed by no system input are brought to a consistent initial point first
 (repeated Jacobi passes until values stop changing); then the stimulus starts,
-reading any output it needs (for example the platform's home pose), and the
-whole system is iterated to a consistent point before leaving initialization.
+reading any output it needs (for example the platform's home pose); pose commands
+that would leave the workspace are refused there, before any step (``admissible.py``);
+the whole system is iterated to a consistent point before leaving initialization.
 """
 from __future__ import annotations
 
@@ -28,6 +29,7 @@ import numpy as np
 
 from fmus.common.parameters import Value
 
+from .admissible import check_commands
 from .ssp import SystemSpec, applicable_parameters
 
 
@@ -123,9 +125,9 @@ class Master:
         order = list(system.components)
         bound = applicable_parameters(system, {name: self.components[name].parameter_names for name in order},
                                       {name: getattr(self.components[name], "parameter_units", {}) for name in order})
+        merged = {name: {**bound[name], **parameters.get(name, {})} for name in order}
         for name in order:
-            merged = {**bound[name], **parameters.get(name, {})}
-            self.components[name].enter_initialization(t0, t1, merged)
+            self.components[name].enter_initialization(t0, t1, merged[name])
 
         published_names: dict[str, list[str]] = {name: [] for name in order}
         for con in system.connections:
@@ -165,6 +167,8 @@ class Master:
             return published[slots[element]][published_names[element].index(connector)]
 
         stimulus.start(t0, read)
+        if hasattr(stimulus, "extremes"):  # pose commands: refused up front if they leave the workspace
+            check_commands(system, merged, *stimulus.extremes(t0, t1), getattr(stimulus, "home_from", "mechanism"))
         self._settle(wirings, range(len(wirings)), published, list(stimulus(t0)))
         for w in wirings:
             self.components[w.name].exit_initialization()

@@ -21,6 +21,7 @@ class PoseStep:
     offsets: dict
     home_from: str = "mechanism"
     target: list[float] = field(default_factory=list)
+    home: list[float] = field(default_factory=list)
 
     def __post_init__(self) -> None:
         for axis, value in self.offsets.items():
@@ -32,7 +33,12 @@ class PoseStep:
         return [f"{self.home_from}.{a}" for a in AXES]
 
     def start(self, t0: float, read: Callable[[str], float]) -> None:
-        self.target = [read(name) + self.offsets.get(a, 0.0) for name, a in zip(self.reads, AXES)]
+        self.home = [read(name) for name in self.reads]
+        self.target = [h + self.offsets.get(a, 0.0) for h, a in zip(self.home, AXES)]
+
+    def extremes(self, t0: float, t1: float) -> tuple[list[float], list[list[float]]]:
+        """(home pose, the poses commanded between t0 and t1 that bound the motion), after ``start``."""
+        return list(self.home), [list(self.target)]
 
     def __call__(self, t: float) -> list[float]:
         return list(self.target)
@@ -70,6 +76,18 @@ class SineMotion:
     def start(self, t0: float, read: Callable[[str], float]) -> None:
         self._t0 = t0
         self.home = [read(name) for name in self.reads]
+
+    def extremes(self, t0: float, t1: float) -> tuple[list[float], list[list[float]]]:
+        """(home pose, the poses of the largest and smallest command between t0 and t1), after ``start``."""
+        span = self._omega * max(t1 - self._t0, 0.0)          # the sine's phase at t1
+        high = 1.0 if span >= math.pi / 2 else math.sin(span)
+        low = -1.0 if span >= 3 * math.pi / 2 else min(0.0, math.sin(span))
+        poses = []
+        for s in sorted({self.amplitude * high, self.amplitude * low}):
+            pose = list(self.home)
+            pose[self._k] += s
+            poses.append(pose)
+        return list(self.home), poses
 
     def __call__(self, t: float) -> list[float]:
         values = list(self.home)
