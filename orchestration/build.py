@@ -145,7 +145,7 @@ def build_fmu(spec: FmuSpec, out_dir: Path, parameters: Optional[dict] = None) -
             "keep_alive(globals())\n")
         fmu = FmuBuilder.build_FMU(script, dest=out_dir / f"{spec.model_identifier}.fmu",
                                    project_files=files, needsExecutionTool=False, canGetAndSetFMUstate=True)
-    _add_units(Path(fmu), spec)
+    _complete_model_description(Path(fmu), spec)
     return Path(fmu)
 
 
@@ -187,8 +187,9 @@ def build_fmu3(spec: FmuSpec, out_dir: Path, parameters: Optional[dict] = None) 
     return target
 
 
-def _add_units(fmu: Path, spec: FmuSpec) -> None:
-    """pythonfmu 0.7 writes no units: add them to modelDescription.xml from the model's declarations."""
+def _complete_model_description(fmu: Path, spec: FmuSpec) -> None:
+    """What pythonfmu 0.7 leaves out of modelDescription.xml: the units (from the model's declarations) and
+    ModelStructure/InitialUnknowns, which FMI 2.0 requires for outputs with initial="calculated"."""
     block = block_class(spec.model_identifier)
     units = dict(block.UNITS)
     units.update({p.name: p.unit for p in block.PARAMETERS if p.kind is float and p.unit})
@@ -207,6 +208,12 @@ def _add_units(fmu: Path, spec: FmuSpec) -> None:
         for unit in sorted(set(used)):
             etree.SubElement(defs, "Unit", name=unit)
         root.find("CoSimulation").addnext(defs)
+    outputs = root.find("ModelStructure/Outputs")
+    if outputs is not None and root.find("ModelStructure/InitialUnknowns") is None:
+        initial = etree.Element("InitialUnknowns")
+        for unknown in outputs.iterfind("Unknown"):
+            etree.SubElement(initial, "Unknown", index=unknown.get("index"))
+        outputs.addnext(initial)
     items["modelDescription.xml"] = etree.tostring(root, xml_declaration=True, encoding="UTF-8", pretty_print=True)
     with zipfile.ZipFile(fmu, "w", zipfile.ZIP_DEFLATED) as zout:
         for name, data in items.items():

@@ -201,9 +201,13 @@ def cmd_synthesize(args) -> int:
         out = {}
         for item in items or []:
             key, sep, value = item.partition("=")
-            if not sep:
-                raise ValueError(f"--{what} {item!r}: expected SIGNAL=VALUE, e.g. tau_m=0.002")
-            out[key.strip()] = float(value)
+            try:
+                number = float(value) if sep else math.nan
+            except ValueError:
+                number = math.nan
+            if not sep or not math.isfinite(number) or number < 0:
+                raise ValueError(f"--{what} {item!r}: expected SIGNAL=VALUE with a finite VALUE >= 0, e.g. tau_m=0.002")
+            out[key.strip()] = number
         return out
 
     synthesize(args.ssp, Path(args.out), parse_overrides(args.set or []),

@@ -123,3 +123,16 @@ def test_cli_refuses_an_output_that_is_a_file_before_running(capsys, a_file, arg
     err = capsys.readouterr().err
     assert "--out" in err and str(named) in err and "Traceback" not in err
     assert a_file.read_text() == "keep me"
+
+
+@pytest.mark.parametrize("argv, named", [
+    (["synthesize", "--out", "{tmp}/x", "--noise", "tau_m=abc"], "--noise 'tau_m=abc'"),
+    (["synthesize", "--out", "{tmp}/x", "--resolution", "rho=-1"], "--resolution 'rho=-1'"),
+    (["synthesize", "--out", "{tmp}/x", "--tests", "z:0.005:nan"], "--tests item 'z:0.005:nan'"),
+    (["synthesize", "--out", "{tmp}/x", "--tests", "z:abc:1"], "--tests item 'z:abc:1'"),
+])
+def test_cli_synthesize_options_name_the_bad_item(capsys, tmp_path, argv, named):
+    assert cli_main([a.format(tmp=tmp_path) for a in argv]) == 2
+    err = capsys.readouterr().err
+    assert named in err and "Traceback" not in err
+    assert not (tmp_path / "x").exists()
