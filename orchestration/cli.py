@@ -12,12 +12,18 @@ REPO = Path(__file__).resolve().parents[1]
 DEFAULT_SSP = REPO / "build" / "ssp" / "MAST.ssp"
 
 
-def seconds(text: str) -> float:
-    """argparse type: a positive, finite number of seconds (inf, nan, 0 and negatives are refused)."""
-    value = _number(text)
-    if not value > 0 or not math.isfinite(value):
-        raise argparse.ArgumentTypeError(f"{text!r}: expected a positive, finite number of seconds")
-    return value
+def _positive(what: str):
+    """An argparse type: a positive, finite number of ``what`` (inf, nan, 0 and negatives are refused)."""
+    def parse(text: str) -> float:
+        value = _number(text)
+        if not value > 0 or not math.isfinite(value):
+            raise argparse.ArgumentTypeError(f"{text!r}: expected a positive, finite number of {what}")
+        return value
+    return parse
+
+
+seconds = _positive("seconds")
+hertz = _positive("Hz")
 
 
 def finite(text: str) -> float:
@@ -33,14 +39,6 @@ def nonnegative(text: str) -> float:
     value = finite(text)
     if value < 0:
         raise argparse.ArgumentTypeError(f"{text!r}: expected a number >= 0")
-    return value
-
-
-def seconds_inverse(text: str) -> float:
-    """argparse type: a positive, finite frequency [Hz]."""
-    value = _number(text)
-    if not value > 0 or not math.isfinite(value):
-        raise argparse.ArgumentTypeError(f"{text!r}: expected a positive, finite frequency in Hz")
     return value
 
 
@@ -230,6 +228,9 @@ def cmd_diagnose(args) -> int:
 def cmd_check_mechanism(args) -> int:
     from .conformance import check_mechanism
 
+    missing = [fmu for fmu in args.fmu if not Path(fmu).is_file()]
+    if missing:
+        raise FileNotFoundError(f"{', '.join(missing)}: no such FMU file")
     failed = 0
     for fmu in args.fmu:
         results = check_mechanism(fmu)
@@ -367,7 +368,7 @@ def main(argv=None) -> int:
     p.add_argument("--out", type=folder, required=True, help="folder for comparison.csv/.json/.md, runs.csv, the plots, systems/")
     p.add_argument("--quick", action="store_true", help="the small test set: z motion at 1, 4 and 8 Hz")
     p.add_argument("--motions", nargs="+", choices=("z", "psi", "theta"), help="motions to test (default: all three)")
-    p.add_argument("--frequencies", nargs="+", type=seconds_inverse, metavar="HZ", help="test frequencies (default: 0.5 to 10 Hz)")
+    p.add_argument("--frequencies", nargs="+", type=hertz, metavar="HZ", help="test frequencies (default: 0.5 to 10 Hz)")
     p.add_argument("--set", action="append", metavar="ELEMENT.PARAMETER=VALUE", help="override a parameter in every design")
     p.add_argument("--workers", type=count, help="parallel processes (default: the number of cores)")
     p.add_argument("--direct", action="store_true", help="run the model objects without FMI (this project's FMUs only)")

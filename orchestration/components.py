@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import Callable, Mapping, Sequence
 
 from fmus.common.block import Block
-from fmus.common.parameters import Value, exact_boolean, exact_integer
+from fmus.common.parameters import Value, exact_boolean, exact_integer, exact_string
 
 
 class ComponentError(RuntimeError):
@@ -26,7 +26,7 @@ def _real(value: object) -> float:
 
 #: what a parameter value of each FMI type may be: nothing is truncated or reinterpreted on the way in
 #: (the same rules as the blocks' own check, fmus/common/parameters.py, so every route agrees)
-_FMI_VALUE = {"Real": _real, "Integer": exact_integer, "Boolean": exact_boolean, "String": str}
+_FMI_VALUE = {"Real": _real, "Integer": exact_integer, "Boolean": exact_boolean, "String": exact_string}
 
 
 class FMUComponent:

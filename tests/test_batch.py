@@ -78,7 +78,7 @@ def test_reset_instances_reproduce_fresh_ones(ssp):
         c = session.run(SineMotion(**motion), 0.15, parameters=heavy)      # reset: the overrides again
         assert (session.instantiations, session.resets) == (1, 2)
         with pytest.raises(SimulationError):                              # a failing run discards the instances
-            session.run(SineMotion("z", 0.5, 1.0), 0.5)
+            session.run(SineMotion(**motion), 0.5, parameters={"actuator_1": {"g_guide": 5000.0}})  # off its stroke
         d = session.run(SineMotion(**motion), 0.15)
         assert session.instantiations == 2
     fresh = simulate(ssp, SineMotion(**motion), 0.15)

@@ -136,3 +136,25 @@ def test_cli_synthesize_options_name_the_bad_item(capsys, tmp_path, argv, named)
     err = capsys.readouterr().err
     assert named in err and "Traceback" not in err
     assert not (tmp_path / "x").exists()
+
+
+def test_a_number_for_a_string_parameter_is_its_text_on_both_routes():
+    """--set actuator_1.J_chain=0.001 arrives as a number: the FMU route wrote str(value), the direct
+    route refused it; both now take its exact text, and both refuse a boolean."""
+    from fmus.common.parameters import Param, ParameterError, exact_string
+    from mast.components import _FMI_VALUE
+
+    spec = Param("J_chain", "kg.m2", "", kind=str)
+    for value in (0.001, 3, "1e-3 2e-3"):
+        assert spec.check(value) == _FMI_VALUE["String"](value) == exact_string(value)
+    with pytest.raises(ParameterError, match="'J_chain' = True"):
+        spec.check(True)
+    with pytest.raises(ValueError, match="True is not a string"):
+        _FMI_VALUE["String"](True)
+
+
+def test_cli_check_mechanism_names_a_missing_fmu_without_a_traceback(capsys, tmp_path):
+    missing = tmp_path / "nowhere.fmu"
+    assert cli_main(["check-mechanism", str(missing)]) == 2
+    err = capsys.readouterr().err
+    assert f"{missing}: no such FMU file" in err and "Traceback" not in err

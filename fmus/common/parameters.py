@@ -47,6 +47,16 @@ def exact_integer(value: object) -> int:
     return number
 
 
+def exact_string(value: object) -> str:
+    """``value`` as a String parameter: a string, or a number written as its exact text (``--set`` gives
+    ``J_chain=0.001`` as a number); a boolean or anything else is refused."""
+    if isinstance(value, str):
+        return value
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        return repr(value)
+    raise ValueError(f"{value!r} is not a string")
+
+
 def exact_boolean(value: object) -> bool:
     """``value`` as a bool if it is one: True/False, 1/0 (also 1.0) or the strings true/false/1/0."""
     if isinstance(value, bool):
@@ -89,9 +99,10 @@ class Param:
         """Return ``value`` converted to ``kind``; raise ParameterError if inadmissible."""
         where = f"{owner}: " if owner else ""
         if self.kind is str:
-            if not isinstance(value, str):
-                raise ParameterError(f"{where}parameter '{self.name}' = {value!r}: expected {self.expected()}")
-            return value
+            try:
+                return exact_string(value)
+            except ValueError:
+                raise ParameterError(f"{where}parameter '{self.name}' = {value!r}: expected {self.expected()}") from None
         try:
             number = exact_integer(value) if self.kind is int else float(value)
         except (TypeError, ValueError, OverflowError):
