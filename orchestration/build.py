@@ -29,7 +29,7 @@ import zipfile
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Iterable, Iterator, Mapping, Optional
+from typing import Iterable, Iterator, Mapping, Optional, Union
 
 from lxml import etree
 
@@ -230,7 +230,8 @@ def build_ssp(ssd: Path, fmu_dir: Path, out_dir: Path) -> Path:
         fmu = fmu_dir / Path(spec.source).name
         if not fmu.exists():
             raise FileNotFoundError(f"{ssd}: component source {spec.source} needs {fmu}, which was not built")
-        names[comp] = {v.name for v in read_model_description(str(fmu)).modelVariables if v.causality == "parameter"}
+        names[comp] = {v.name: v.unit or "" for v in read_model_description(str(fmu)).modelVariables
+                       if v.causality == "parameter"}
     structure, parameter_sets = flatten_bindings(ssd, names)
     out_dir.mkdir(parents=True, exist_ok=True)
     target = out_dir / f"{ssd.stem}.ssp"
@@ -246,7 +247,8 @@ def build_ssp(ssd: Path, fmu_dir: Path, out_dir: Path) -> Path:
     return target
 
 
-def flatten_bindings(ssd: Path, parameter_names: Mapping[str, Iterable[str]]) -> tuple[bytes, dict[str, bytes]]:
+def flatten_bindings(ssd: Path, parameter_names: Mapping[str, Union[Iterable[str], Mapping[str, str]]]
+                     ) -> tuple[bytes, dict[str, bytes]]:
     """``ssd`` with each component's bindings replaced by one: (SystemStructure.ssd, {archive path: .ssv}).
 
     Values merge in binding order (later bindings override), each keeping the
@@ -254,11 +256,17 @@ def flatten_bindings(ssd: Path, parameter_names: Mapping[str, Iterable[str]]) ->
     are declared in the .ssv. Only the component's own parameters (``parameter_names``
     per component) are kept, so hosts that refuse unknown names run the result; a name
     that no component of its set has is refused (``ssp.applicable_parameters``).
-    A component without bindings keeps none.
+    A component without bindings keeps none. With ``parameter_names`` mapping each name to the
+    unit the component declares, a value given in another unit of that dimension (``unit="g"``
+    for a mass in kg) is written converted, in the declared unit: hosts that ignore units
+    (libcosim, ecos) then read the right value.
     """
+    import dataclasses
+
     from .ssv import parse_ssv
 
-    applicable_parameters(read_ssd(ssd), parameter_names)       # the typo check
+    declared = {c: dict(n) for c, n in parameter_names.items() if isinstance(n, Mapping)}
+    bound = applicable_parameters(read_ssd(ssd), parameter_names, declared)   # the typo and unit checks
     doc = etree.parse(str(ssd))
     root = doc.getroot()
     sets: dict[str, bytes] = {}
@@ -284,6 +292,9 @@ def flatten_bindings(ssd: Path, parameter_names: Mapping[str, Iterable[str]]) ->
         own = set(parameter_names[comp.get("name")])
         merged = {k: v for k, v in merged.items() if k in own}
         name = comp.get("name")
+        for k, p in merged.items():
+            if p.si is not None and (p.si.factor != 1.0 or p.si.offset) and declared.get(name, {}).get(k):
+                merged[k] = dataclasses.replace(p, value=bound[name][k], unit=declared[name][k], written=None)
         path = f"resources/parameters/{name}.ssv"
         sets[path] = _parameter_set_xml(merged, units, f"Parameters of '{name}' in {ssd.name}: "
                                         f"{', '.join(sources)} merged in this order by mast build")

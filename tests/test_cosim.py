@@ -143,3 +143,21 @@ def test_overflowing_parameters_are_named_not_a_name_error(ssp, direct, componen
         simulate(ssp, SineMotion("z", 0.0, 0.0), 0.002, parameters={component: {parameter: 1e308}}, direct=direct)
     message = str(info.value)
     assert "NameError" not in message and f"{parameter} = 1e+308" in message and component in message
+
+
+def test_a_set_in_grams_is_built_into_the_ssp_in_kilograms(built, tmp_path):
+    """libcosim and ecos ignore .ssv units: the built SSP carries the value in the unit the FMU declares."""
+    import shutil
+    import zipfile
+
+    from mast.build import build_ssp
+    from mast.ssv import parse_ssv
+
+    root = Path(__file__).resolve().parents[1] / "ssp"
+    shutil.copytree(root / "resources", tmp_path / "resources")
+    shutil.copy(root / "MAST.ssd", tmp_path / "MAST.ssd")
+    ssv = tmp_path / "resources" / "mass_3prs.ssv"
+    ssv.write_text(ssv.read_text().replace('<ssv:Real value="2.06" unit="kg"/>', '<ssv:Real value="2060" unit="g"/>'))
+    with zipfile.ZipFile(build_ssp(tmp_path / "MAST.ssd", built / "fmus", tmp_path / "out")) as archive:
+        flat = parse_ssv(archive.read("resources/parameters/mechanism.ssv"))["m_platform"]
+    assert (flat.written, flat.unit, flat.value) == (2.06, "kg", 2.06)
