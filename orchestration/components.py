@@ -7,8 +7,11 @@ SSP wiring are right (results equal to rounding) and the speed reference.
 from __future__ import annotations
 
 import ctypes
+import numbers
 from pathlib import Path
 from typing import Callable, Mapping, Sequence
+
+import numpy as np
 
 from fmus.common.block import Block
 from fmus.common.parameters import Value, exact_boolean, exact_integer, exact_string
@@ -19,7 +22,7 @@ class ComponentError(RuntimeError):
 
 
 def _real(value: object) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float, str)):
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (numbers.Real, str)):
         raise ValueError(f"{value!r} is not a number")
     return float(value)
 

@@ -8,6 +8,7 @@ with a message that names it.
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass
 from typing import Mapping, Sequence, Union
 
@@ -30,8 +31,8 @@ def exact_integer(value: object) -> int:
     """
     if isinstance(value, bool):
         return int(value)
-    if isinstance(value, int):
-        number = value
+    if isinstance(value, numbers.Integral):
+        number = int(value)
     else:
         try:
             text = value.strip() if isinstance(value, str) else value
@@ -52,8 +53,8 @@ def exact_string(value: object) -> str:
     ``J_chain=0.001`` as a number); a boolean or anything else is refused."""
     if isinstance(value, str):
         return value
-    if isinstance(value, (int, float)) and not isinstance(value, bool):
-        return repr(value)
+    if isinstance(value, numbers.Real) and not isinstance(value, bool):
+        return repr(float(value)) if not isinstance(value, numbers.Integral) else str(int(value))
     raise ValueError(f"{value!r} is not a string")
 
 
