@@ -161,3 +161,30 @@ def test_a_set_in_grams_is_built_into_the_ssp_in_kilograms(built, tmp_path):
     with zipfile.ZipFile(build_ssp(tmp_path / "MAST.ssd", built / "fmus", tmp_path / "out")) as archive:
         flat = parse_ssv(archive.read("resources/parameters/mechanism.ssv"))["m_platform"]
     assert (flat.written, flat.unit, flat.value) == (2.06, "kg", 2.06)
+
+
+@pytest.mark.parametrize("identifier, parameter", [("MastActuator", "n_dof"), ("MastMechanism", "attached")])
+def test_a_host_setting_a_fraction_through_set_real_gets_the_parameter_named(built, tmp_path, identifier, parameter):
+    """A host (not this master) may set an Integer parameter with fmi2SetReal: 2.5 is refused, never truncated."""
+    from fmpy import extract, read_model_description
+    from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
+                           fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, calloc, free)
+
+    fmu = built / "fmus" / f"{identifier}.fmu"
+    md = read_model_description(str(fmu))
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    log = []
+    callbacks = fmi2CallbackFunctions()
+    callbacks.logger = fmi2CallbackLoggerTYPE(lambda _e, _n, _s, _c, message: log.append(message.decode()))
+    callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+    callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+    slave = FMU2Slave(guid=md.guid, unzipDirectory=extract(str(fmu), unzipdir=str(tmp_path)), modelIdentifier=identifier,
+                      instanceName="x")
+    slave.instantiate(callbacks=callbacks, loggingOn=True)
+    slave.setupExperiment(startTime=0.0)
+    slave.enterInitializationMode()
+    slave.setReal([vr[parameter]], [2.5])
+    slave.exitInitializationMode()
+    assert any(f"'{parameter}' = 2.5" in m for m in log), log
+    slave.terminate()
+    slave.freeInstance()
