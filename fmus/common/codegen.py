@@ -7,8 +7,7 @@ no Python literal: refused here with the parameters to blame, instead of a NameE
 """
 from __future__ import annotations
 
-import io
-import tokenize
+import types
 from typing import Callable, Mapping
 
 _NON_FINITE = {"inf", "nan"}
@@ -16,11 +15,17 @@ _NON_FINITE = {"inf", "nan"}
 
 def compile_generated(source: str, name: str, label: str, namespace: dict, hint: str = "") -> Callable:
     """``exec`` ``source`` into ``namespace`` and return the function ``name`` (``label``: its file name)."""
-    for tok in tokenize.generate_tokens(io.StringIO(source).readline):
-        if tok.type == tokenize.NAME and tok.string in _NON_FINITE and tok.string not in namespace:
-            raise OverflowError(f"{label}: a constant of the generated code is {tok.string} (parameter values "
-                                f"outside what floating-point arithmetic can hold){hint}")
-    exec(compile(source, f"<{label}>", "exec"), namespace)  # noqa: S102 (the project's own generated code)
+    code = compile(source, f"<{label}>", "exec")
+    names, stack = set(), [code]
+    while stack:  # the global names the code and its functions use: 'inf' or 'nan' only from a printed constant
+        c = stack.pop()
+        names.update(c.co_names)
+        stack.extend(k for k in c.co_consts if isinstance(k, types.CodeType))
+    bad = sorted((names & _NON_FINITE) - namespace.keys())
+    if bad:
+        raise OverflowError(f"{label}: a constant of the generated code is {bad[0]} (parameter values "
+                            f"outside what floating-point arithmetic can hold){hint}")
+    exec(code, namespace)  # noqa: S102 (the project's own generated code)
     fn = namespace[name]
     fn.source = source
     return fn
