@@ -18,7 +18,7 @@ from __future__ import annotations
 import math
 from typing import Mapping, Optional, Sequence
 
-from .motion import AXES
+from .motion import AXES, sine_extremes
 
 #: units and display of the pose axes
 _UNIT = {"z": "m", "psi": "rad", "theta": "rad"}
@@ -54,6 +54,22 @@ def _plant(system, params: Mapping[str, Mapping],
     except Exception:  # a mechanism this project does not describe (a third-party FMU): nothing to check
         return None
     return mechanism, eng, strokes
+
+
+#: the parameters of a pose-command component (fmus/trajectory: home pose plus one sine on every axis)
+TRAJECTORY = ("z_home", "psi_home", "theta_home", "amplitude_z", "amplitude_psi", "amplitude_theta", "frequency")
+
+
+def trajectory_extremes(system, params: Mapping[str, Mapping],
+                        t0: float, t1: float) -> Optional[tuple[list[float], list[list[float]]]]:
+    """The extreme poses a trajectory component of ``system`` commands between t0 and t1 (None: none)."""
+    for name, spec in system.components.items():
+        p = params.get(name, {})
+        if all(o in spec.outputs for o in ("z_cmd", "psi_cmd", "theta_cmd")) and all(k in p for k in TRAJECTORY):
+            home = [float(p[k]) for k in TRAJECTORY[:3]]
+            amplitude = [float(p[k]) for k in TRAJECTORY[3:6]]
+            return sine_extremes(home, amplitude, 2.0 * math.pi * float(p["frequency"]) * max(t1 - t0, 0.0))
+    return None
 
 
 def _violation(eng, strokes, pose: Sequence[float]) -> Optional[str]:

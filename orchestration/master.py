@@ -29,7 +29,7 @@ import numpy as np
 
 from fmus.common.parameters import Value
 
-from .admissible import check_commands
+from .admissible import check_commands, trajectory_extremes
 from .ssp import SystemSpec, applicable_parameters
 
 
@@ -167,8 +167,12 @@ class Master:
             return published[slots[element]][published_names[element].index(connector)]
 
         stimulus.start(t0, read)
-        if hasattr(stimulus, "extremes"):  # pose commands: refused up front if they leave the workspace
-            check_commands(system, merged, *stimulus.extremes(t0, t1), getattr(stimulus, "home_from", "mechanism"))
+        # pose commands (the stimulus's, a trajectory component's): refused up front if they leave the workspace
+        sources = [trajectory_extremes(system, merged, t0, t1)]
+        if system.system_inputs and hasattr(stimulus, "extremes"):
+            sources.append(stimulus.extremes(t0, t1))
+        for commands in filter(None, sources):
+            check_commands(system, merged, *commands, getattr(stimulus, "home_from", "mechanism"))
         self._settle(wirings, range(len(wirings)), published, list(stimulus(t0)))
         for w in wirings:
             self.components[w.name].exit_initialization()

@@ -79,20 +79,22 @@ class SineMotion:
 
     def extremes(self, t0: float, t1: float) -> tuple[list[float], list[list[float]]]:
         """(home pose, the poses of the largest and smallest command between t0 and t1), after ``start``."""
-        span = self._omega * max(t1 - self._t0, 0.0)          # the sine's phase at t1
-        high = 1.0 if span >= math.pi / 2 else math.sin(span)
-        low = -1.0 if span >= 3 * math.pi / 2 else min(0.0, math.sin(span))
-        poses = []
-        for s in sorted({self.amplitude * high, self.amplitude * low}):
-            pose = list(self.home)
-            pose[self._k] += s
-            poses.append(pose)
-        return list(self.home), poses
+        amplitude = [0.0, 0.0, 0.0]
+        amplitude[self._k] = self.amplitude
+        return sine_extremes(self.home, amplitude, self._omega * max(t1 - self._t0, 0.0))
 
     def __call__(self, t: float) -> list[float]:
         values = list(self.home)
         values[self._k] += self.amplitude * math.sin(self._omega * (t - self._t0))
         return values
+
+
+def sine_extremes(home: Sequence[float], amplitude: Sequence[float],
+                  phase: float) -> tuple[list[float], list[list[float]]]:
+    """(home, the extreme poses of home + amplitude sin(p) for p from 0 to ``phase`` [rad])."""
+    high = 1.0 if phase >= math.pi / 2 else math.sin(phase)
+    low = -1.0 if phase >= 3 * math.pi / 2 else min(0.0, math.sin(phase))
+    return list(home), [[h + a * s for h, a in zip(home, amplitude)] for s in sorted({high, low})]
 
 
 class NoStimulus:

@@ -188,3 +188,11 @@ def test_a_host_setting_a_fraction_through_set_real_gets_the_parameter_named(bui
     assert any(f"'{parameter}' = 2.5" in m for m in log), log
     slave.terminate()
     slave.freeInstance()
+
+
+def test_a_trajectory_component_outside_the_workspace_is_refused_before_the_first_step(built):
+    """A system without inputs commands itself (ssp/MAST_standalone.ssd): its trajectory is checked the same way."""
+    standalone = built / "ssp" / "MAST_standalone.ssp"
+    with pytest.raises(ValueError, match=r"z_cmd = 0\.905\d* m is outside the workspace of 'mechanism': carriage 1 "
+                                         r".* stroke \[0, 0\.3\] m of actuator_1\. The largest reachable z_cmd .* 0\.555"):
+        simulate(standalone, None, 0.5, parameters={"trajectory": {"amplitude_z": 0.5}}, direct=True)
