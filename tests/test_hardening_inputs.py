@@ -158,3 +158,11 @@ def test_cli_check_mechanism_names_a_missing_fmu_without_a_traceback(capsys, tmp
     assert cli_main(["check-mechanism", str(missing)]) == 2
     err = capsys.readouterr().err
     assert f"{missing}: no such FMU file" in err and "Traceback" not in err
+
+
+def test_cli_reproduce_names_a_missing_ssp_before_running_anything(capsys, tmp_path):
+    """It ran its 82 co-simulations, each failing on the missing file, before saying so (and made --out)."""
+    assert cli_main(["reproduce", str(tmp_path / "none.ssp"), "--out", str(tmp_path / "r")]) == 2
+    err = capsys.readouterr().err
+    assert f"{tmp_path / 'none.ssp'}: no such SSP file" in err and "sine tests" not in err
+    assert not (tmp_path / "r").exists()
