@@ -29,7 +29,7 @@ import zipfile
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Iterable, Iterator, Mapping, Optional
+from typing import Iterable, Iterator, Mapping, Optional, Union
 
 from lxml import etree
 
@@ -100,9 +100,9 @@ def default_parameters(model_identifier: str, ssd: Optional[Path] = None) -> dic
         system = read_ssd(path)
         for name, comp in system.components.items():
             if Path(comp.source).stem == model_identifier:
-                names = {c: {p.name for p in block_class(Path(s.source).stem).PARAMETERS}
+                units = {c: {p.name: p.unit for p in block_class(Path(s.source).stem).PARAMETERS}
                          for c, s in system.components.items()}
-                return applicable_parameters(system, names)[name]
+                return applicable_parameters(system, units, units)[name]
     raise ValueError(f"{', '.join(map(str, candidates))}: no component uses {model_identifier}.fmu, "
                      "so it gives no default parameters")
 
@@ -148,7 +148,7 @@ def build_fmu(spec: FmuSpec, out_dir: Path, parameters: Optional[dict] = None) -
             "keep_alive(globals())\n")
         fmu = FmuBuilder.build_FMU(script, dest=out_dir / f"{spec.model_identifier}.fmu",
                                    project_files=files, needsExecutionTool=False, canGetAndSetFMUstate=True)
-    _add_units(Path(fmu), spec)
+    _complete_model_description(Path(fmu), spec)
     return Path(fmu)
 
 
@@ -190,8 +190,9 @@ def build_fmu3(spec: FmuSpec, out_dir: Path, parameters: Optional[dict] = None) 
     return target
 
 
-def _add_units(fmu: Path, spec: FmuSpec) -> None:
-    """pythonfmu 0.7 writes no units: add them to modelDescription.xml from the model's declarations."""
+def _complete_model_description(fmu: Path, spec: FmuSpec) -> None:
+    """What pythonfmu 0.7 leaves out of modelDescription.xml: the units (from the model's declarations) and
+    ModelStructure/InitialUnknowns, which FMI 2.0 requires for outputs with initial="calculated"."""
     block = block_class(spec.model_identifier)
     units = dict(block.UNITS)
     units.update({p.name: p.unit for p in block.PARAMETERS if p.kind is float and p.unit})
@@ -210,6 +211,12 @@ def _add_units(fmu: Path, spec: FmuSpec) -> None:
         for unit in sorted(set(used)):
             etree.SubElement(defs, "Unit", name=unit)
         root.find("CoSimulation").addnext(defs)
+    outputs = root.find("ModelStructure/Outputs")
+    if outputs is not None and root.find("ModelStructure/InitialUnknowns") is None:
+        initial = etree.Element("InitialUnknowns")
+        for unknown in outputs.iterfind("Unknown"):
+            etree.SubElement(initial, "Unknown", index=unknown.get("index"))
+        outputs.addnext(initial)
     items["modelDescription.xml"] = etree.tostring(root, xml_declaration=True, encoding="UTF-8", pretty_print=True)
     with zipfile.ZipFile(fmu, "w", zipfile.ZIP_DEFLATED) as zout:
         for name, data in items.items():
@@ -226,7 +233,8 @@ def build_ssp(ssd: Path, fmu_dir: Path, out_dir: Path) -> Path:
         fmu = fmu_dir / Path(spec.source).name
         if not fmu.exists():
             raise FileNotFoundError(f"{ssd}: component source {spec.source} needs {fmu}, which was not built")
-        names[comp] = {v.name for v in read_model_description(str(fmu)).modelVariables if v.causality == "parameter"}
+        names[comp] = {v.name: v.unit or "" for v in read_model_description(str(fmu)).modelVariables
+                       if v.causality == "parameter"}
     structure, parameter_sets = flatten_bindings(ssd, names)
     out_dir.mkdir(parents=True, exist_ok=True)
     target = out_dir / f"{ssd.stem}.ssp"
@@ -242,7 +250,8 @@ def build_ssp(ssd: Path, fmu_dir: Path, out_dir: Path) -> Path:
     return target
 
 
-def flatten_bindings(ssd: Path, parameter_names: Mapping[str, Iterable[str]]) -> tuple[bytes, dict[str, bytes]]:
+def flatten_bindings(ssd: Path, parameter_names: Mapping[str, Union[Iterable[str], Mapping[str, str]]]
+                     ) -> tuple[bytes, dict[str, bytes]]:
     """``ssd`` with each component's bindings replaced by one: (SystemStructure.ssd, {archive path: .ssv}).
 
     Values merge in binding order (later bindings override), each keeping the
@@ -250,11 +259,17 @@ def flatten_bindings(ssd: Path, parameter_names: Mapping[str, Iterable[str]]) ->
     are declared in the .ssv. Only the component's own parameters (``parameter_names``
     per component) are kept, so hosts that refuse unknown names run the result; a name
     that no component of its set has is refused (``ssp.applicable_parameters``).
-    A component without bindings keeps none.
+    A component without bindings keeps none. With ``parameter_names`` mapping each name to the
+    unit the component declares, a value given in another unit of that dimension (``unit="g"``
+    for a mass in kg) is written converted, in the declared unit: hosts that ignore units
+    (libcosim, ecos) then read the right value.
     """
+    import dataclasses
+
     from .ssv import parse_ssv
 
-    applicable_parameters(read_ssd(ssd), parameter_names)       # the typo check
+    declared = {c: dict(n) for c, n in parameter_names.items() if isinstance(n, Mapping)}
+    bound = applicable_parameters(read_ssd(ssd), parameter_names, declared)   # the typo and unit checks
     doc = etree.parse(str(ssd))
     root = doc.getroot()
     sets: dict[str, bytes] = {}
@@ -280,6 +295,9 @@ def flatten_bindings(ssd: Path, parameter_names: Mapping[str, Iterable[str]]) ->
         own = set(parameter_names[comp.get("name")])
         merged = {k: v for k, v in merged.items() if k in own}
         name = comp.get("name")
+        for k, p in merged.items():
+            if p.si is not None and (p.si.factor != 1.0 or p.si.offset) and declared.get(name, {}).get(k):
+                merged[k] = dataclasses.replace(p, value=bound[name][k], unit=declared[name][k], written=None)
         path = f"resources/parameters/{name}.ssv"
         sets[path] = _parameter_set_xml(merged, units, f"Parameters of '{name}' in {ssd.name}: "
                                         f"{', '.join(sources)} merged in this order by mast build")
@@ -307,14 +325,15 @@ def _parameter_set_xml(values: dict, units: dict, comment: str) -> bytes:
         par = etree.SubElement(params, f"{{{ssv}}}Parameter", name=name)
         if p.source:
             par.set("description", p.source)
-        if isinstance(p.value, bool):
-            kind, text = "Boolean", "true" if p.value else "false"
-        elif isinstance(p.value, int):
-            kind, text = "Integer", str(p.value)
-        elif isinstance(p.value, float):
-            kind, text = "Real", repr(p.value)
+        value = p.value if p.written is None else p.written  # in p.unit, as the source set wrote it
+        if isinstance(value, bool):
+            kind, text = "Boolean", "true" if value else "false"
+        elif isinstance(value, int):
+            kind, text = "Integer", str(value)
+        elif isinstance(value, float):
+            kind, text = "Real", repr(value)
         else:
-            kind, text = "String", str(p.value)
+            kind, text = "String", str(value)
         typed = etree.SubElement(par, f"{{{ssv}}}{kind}", value=text)
         if p.unit and kind == "Real":
             typed.set("unit", p.unit)

@@ -3,12 +3,90 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 import tempfile
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
 DEFAULT_SSP = REPO / "build" / "ssp" / "MAST.ssp"
+
+
+def _positive(what: str):
+    """An argparse type: a positive, finite number of ``what`` (inf, nan, 0 and negatives are refused)."""
+    def parse(text: str) -> float:
+        value = _number(text)
+        if not value > 0 or not math.isfinite(value):
+            raise argparse.ArgumentTypeError(f"{text!r}: expected a positive, finite number of {what}")
+        return value
+    return parse
+
+
+seconds = _positive("seconds")
+hertz = _positive("Hz")
+
+
+def finite(text: str) -> float:
+    """argparse type: a finite number."""
+    value = _number(text)
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"{text!r}: expected a finite number")
+    return value
+
+
+def share(text: str) -> float:
+    """argparse type: a fraction strictly between 0 and 1."""
+    value = finite(text)
+    if not 0 < value < 1:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected a fraction between 0 and 1 (exclusive)")
+    return value
+
+
+def nonnegative(text: str) -> float:
+    """argparse type: a finite number >= 0."""
+    value = finite(text)
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected a number >= 0")
+    return value
+
+
+def count(text: str) -> int:
+    """argparse type: a whole number >= 1 (workers)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected a whole number >= 1") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected a whole number >= 1")
+    return value
+
+
+def folder(text: str) -> str:
+    """argparse type: an output folder, which may exist but must not be a file (checked before any run)."""
+    path = Path(text)
+    if path.exists() and not path.is_dir():
+        raise argparse.ArgumentTypeError(f"{text!r} is an existing file; expected a folder (new or existing)")
+    for parent in path.absolute().parents:
+        if parent.exists():
+            if not parent.is_dir():
+                raise argparse.ArgumentTypeError(f"{text!r}: {parent} is a file, so the folder cannot be made")
+            break
+    return text
+
+
+def output_file(text: str) -> str:
+    """argparse type: a file to write, whose folder exists (or can be made) and which is not a folder."""
+    if Path(text).is_dir():
+        raise argparse.ArgumentTypeError(f"{text!r} is a folder; expected a file name")
+    folder(str(Path(text).parent))
+    return text
+
+
+def _number(text: str) -> float:
+    try:
+        return float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
 
 
 class Progress:
@@ -129,9 +207,13 @@ def cmd_synthesize(args) -> int:
         out = {}
         for item in items or []:
             key, sep, value = item.partition("=")
-            if not sep:
-                raise ValueError(f"--{what} {item!r}: expected SIGNAL=VALUE, e.g. tau_m=0.002")
-            out[key.strip()] = float(value)
+            try:
+                number = float(value) if sep else math.nan
+            except ValueError:
+                number = math.nan
+            if not sep or not math.isfinite(number) or number < 0:
+                raise ValueError(f"--{what} {item!r}: expected SIGNAL=VALUE with a finite VALUE >= 0, e.g. tau_m=0.002")
+            out[key.strip()] = number
         return out
 
     synthesize(args.ssp, Path(args.out), parse_overrides(args.set or []),
@@ -175,6 +257,9 @@ def cmd_replay(args) -> int:
 def cmd_check_mechanism(args) -> int:
     from .conformance import check_mechanism
 
+    missing = [fmu for fmu in args.fmu if not Path(fmu).is_file()]
+    if missing:
+        raise FileNotFoundError(f"{', '.join(missing)}: no such FMU file")
     failed = 0
     for fmu in args.fmu:
         results = check_mechanism(fmu)
@@ -256,13 +341,13 @@ def main(argv=None) -> int:
     sub = parser.add_subparsers(dest="command", required=True)
 
     p = sub.add_parser("build", help="build build/fmus/*.fmu and build/ssp/*.ssp from fmus/ and ssp/")
-    p.add_argument("--out", default=str(REPO / "build"))
+    p.add_argument("--out", type=folder, default=str(REPO / "build"))
     p.add_argument("--fmi3", action="store_true", help="also build the FMI 3.0 variants into OUT/fmus3 (pythonfmu3)")
     p.set_defaults(func=cmd_build)
 
     p = sub.add_parser("hosts", help="run an SSP in libcosim, ecospy and the ecos CLI; compare with this master")
     p.add_argument("ssp", nargs="?", default=str(REPO / "build" / "ssp" / "MAST_standalone.ssp"))
-    p.add_argument("--stop-time", type=float, default=1.0)
+    p.add_argument("--stop-time", type=seconds, default=1.0)
     p.add_argument("--host", action="append", choices=("libcosim", "ecospy", "ecos"), help="(repeatable; default: all)")
     p.set_defaults(func=cmd_hosts)
 
@@ -273,51 +358,51 @@ def main(argv=None) -> int:
     p = sub.add_parser("run", help="run a co-simulation with a sine pose command around the home pose")
     p.add_argument("ssp", nargs="?", default=str(DEFAULT_SSP))
     p.add_argument("--motion", choices=("z", "psi", "theta"), default="z")
-    p.add_argument("--amplitude", type=float, default=0.01, help="metres for z, degrees for psi and theta")
-    p.add_argument("--frequency", type=float, default=1.0, help="Hz")
-    p.add_argument("--stop-time", type=float, default=2.0, help="s")
+    p.add_argument("--amplitude", type=finite, default=0.01, help="metres for z, degrees for psi and theta")
+    p.add_argument("--frequency", type=nonnegative, default=1.0, help="Hz")
+    p.add_argument("--stop-time", type=seconds, default=2.0, help="s")
     p.add_argument("--set", action="append", metavar="ELEMENT.PARAMETER=VALUE", help="override a parameter (repeatable)")
     p.add_argument("--record", action="append", metavar="ELEMENT.CONNECTOR",
                    help="signal to record (repeatable; default: every system input and declared output)")
-    p.add_argument("--record-step", type=float, default=1e-3, help="s between recorded samples")
+    p.add_argument("--record-step", type=seconds, default=1e-3, help="s between recorded samples")
     p.add_argument("--direct", action="store_true", help="run the model objects directly (no FMI), same schedule")
-    p.add_argument("--out", default="results")
+    p.add_argument("--out", type=folder, default="results")
     p.set_defaults(func=cmd_run)
 
     p = sub.add_parser("fit-gains", help="identify k_v, k_p, k_i from the paper's reported position responses")
     p.add_argument("ssp", nargs="?", default=str(DEFAULT_SSP))
-    p.add_argument("--out", help="write the fitted gains as an .ssv parameter set")
-    p.add_argument("--workers", type=int, default=2)
+    p.add_argument("--out", type=output_file, help="write the fitted gains as an .ssv parameter set")
+    p.add_argument("--workers", type=count, default=2)
     p.set_defaults(func=cmd_fit_gains)
 
     p = sub.add_parser("reproduce", help="regenerate the paper's analyses: DIR/report.md, figures, paper_table.json")
     p.add_argument("ssp", nargs="?", default=str(DEFAULT_SSP))
-    p.add_argument("--out", default="results/reproduce")
-    p.add_argument("--workers", type=int, default=2)
+    p.add_argument("--out", type=folder, default="results/reproduce")
+    p.add_argument("--workers", type=count, default=2)
     p.add_argument("--direct", action="store_true", help="run the model objects without FMI (same numbers, faster)")
     p.set_defaults(func=cmd_reproduce)
 
     p = sub.add_parser("bench", help="real-time factor of the default system, FMU co-simulation vs direct composition")
     p.add_argument("ssp", nargs="?", default=str(DEFAULT_SSP))
-    p.add_argument("--stop-time", type=float, default=10.0)
+    p.add_argument("--stop-time", type=seconds, default=10.0)
     p.add_argument("--profile", action="store_true", help="print where the time goes (cProfile of the direct run)")
     p.set_defaults(func=cmd_bench)
 
     p = sub.add_parser("synthesize", help="synthetic measured data with a hidden effect (docs/measured-data.md)")
     p.add_argument("ssp", nargs="?", default=str(DEFAULT_SSP))
-    p.add_argument("--out", required=True, help="measured-data folder to write (CSV per test + meta.json)")
+    p.add_argument("--out", type=folder, required=True, help="measured-data folder to write (CSV per test + meta.json)")
     p.add_argument("--set", action="append", metavar="ELEMENT.PARAMETER=VALUE",
                    help="the truth: override a parameter (repeatable; 'actuator.X' sets X on every actuator)")
     p.add_argument("--noise", action="append", metavar="SIGNAL=STD",
                    help="white sensor noise: tau_m=0.002 (N.m, default), rho=0 (m, default)")
     p.add_argument("--resolution", action="append", metavar="SIGNAL=STEP", help="encoder quantisation: rho=1e-6 (m, default)")
-    p.add_argument("--torque-filter", type=float, default=5e-4, help="the drive's torque low-pass time constant [s]")
-    p.add_argument("--sample-time", type=float, default=1e-3, help="log sampling step [s]")
+    p.add_argument("--torque-filter", type=nonnegative, default=5e-4, help="the drive's torque low-pass time constant [s]")
+    p.add_argument("--sample-time", type=seconds, default=1e-3, help="log sampling step [s]")
     p.add_argument("--tests", help="MOTION:AMPLITUDE:FREQUENCY[,...] (m for z, degrees for psi/theta; default: 7 tests)")
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--truth", help="where to write the truth (default: next to the folder, DIR.truth.json)")
+    p.add_argument("--truth", type=output_file, help="where to write the truth (default: next to the folder, DIR.truth.json)")
     p.add_argument("--direct", action="store_true", help="run the model objects without FMI (same numbers, faster)")
-    p.add_argument("--workers", type=int, default=2)
+    p.add_argument("--workers", type=count, default=2)
     p.set_defaults(func=cmd_synthesize)
 
     p = sub.add_parser("diagnose", help="name the effects missing from the model by comparing it with measured data "
@@ -325,15 +410,15 @@ def main(argv=None) -> int:
     p.add_argument("ssp", nargs="?", default=str(DEFAULT_SSP))
     p.add_argument("--measured", required=True, help="measured-data folder, or a record folder from mast import "
                                                      "(docs/measured-data.md)")
-    p.add_argument("--out", required=True, help="folder for diagnosis.json, report.md, figures, the augmented model")
+    p.add_argument("--out", type=folder, required=True, help="folder for diagnosis.json, report.md, figures, the augmented model")
     p.add_argument("--model", help="nominal actuator parameter set: an .ssv file or the name of one in the SSP "
                                    "(default: the SSP's bindings, i.e. the manufacturer data)")
     p.add_argument("--holdout", help="comma-separated test names to hold out (default: meta.json roles, else every "
                                      "second test in frequency order)")
-    p.add_argument("--holdout-fraction", type=float, metavar="SHARE",
+    p.add_argument("--holdout-fraction", type=share, metavar="SHARE",
                    help="records of any machine (mast import) with no held-out test: hold out this last share of "
                         "every test (default 1/3; docs/emps.md)")
-    p.add_argument("--workers", type=int, default=2)
+    p.add_argument("--workers", type=count, default=2)
     p.add_argument("--fmu", action="store_true", help="simulate through the FMUs (default: the direct composition, "
                                                       "the same numbers to 1e-12, about twice as fast)")
     p.set_defaults(func=cmd_diagnose)
@@ -342,14 +427,14 @@ def main(argv=None) -> int:
                                       "(docs/measured-data.md)")
     p.add_argument("file", help="the lab's file: .mat (MATLAB) or .csv")
     p.add_argument("--map", required=True, help="column map (TOML), e.g. examples/emps/map.toml")
-    p.add_argument("--out", required=True, help="record folder to write (meta.json and one CSV)")
+    p.add_argument("--out", type=folder, required=True, help="record folder to write (meta.json and one CSV)")
     p.set_defaults(func=cmd_import)
 
     p = sub.add_parser("replay", help="drive a model with a record's commands and inputs; relative error and fit "
                                       "per signal, plots (docs/measured-data.md)")
     p.add_argument("--model", required=True, help="the model: a built .ssp, e.g. build/ssp/EMPS_bench.ssp")
     p.add_argument("--measured", required=True, help="record folder (mast import)")
-    p.add_argument("--out", required=True, help="folder for replay.json, replay.csv and the plots")
+    p.add_argument("--out", type=folder, required=True, help="folder for replay.json, replay.csv and the plots")
     p.add_argument("--set", action="append", metavar="ELEMENT.PARAMETER=VALUE", help="override a parameter")
     p.add_argument("--fmu", action="store_true", help="simulate through the FMUs (default: the direct composition)")
     p.set_defaults(func=cmd_replay)
@@ -368,16 +453,16 @@ def main(argv=None) -> int:
     which.add_argument("--controller", nargs="+", metavar="NAME_FMU_OR_SSP",
                        help="controllers: joint, workspace, feedforward, computed_torque, controller FMUs to swap into "
                             "the base system, or whole systems (.ssp/.ssd)")
-    p.add_argument("--payload", type=float, default=PAYLOAD_MISMATCH_KG, metavar="KG",
+    p.add_argument("--payload", type=nonnegative, default=PAYLOAD_MISMATCH_KG, metavar="KG",
                    help="with --controller: also run every test with this payload on the platform, unknown to the "
                         f"controllers (default {PAYLOAD_MISMATCH_KG:g} kg; 0: no robustness runs)")
-    p.add_argument("--out", required=True, help="folder for comparison.csv/.json/.md, runs.csv, the plots, systems/")
+    p.add_argument("--out", type=folder, required=True, help="folder for comparison.csv/.json/.md, runs.csv, the plots, systems/")
     p.add_argument("--quick", action="store_true", help="the small test set: z motion at 1, 4 and 8 Hz (and the designs' "
                                                         "workspaces on a coarse grid: 25 mm, 4 deg)")
     p.add_argument("--motions", nargs="+", choices=("z", "psi", "theta"), help="motions to test (default: all three)")
-    p.add_argument("--frequencies", nargs="+", type=float, metavar="HZ", help="test frequencies (default: 0.5 to 10 Hz)")
+    p.add_argument("--frequencies", nargs="+", type=hertz, metavar="HZ", help="test frequencies (default: 0.5 to 10 Hz)")
     p.add_argument("--set", action="append", metavar="ELEMENT.PARAMETER=VALUE", help="override a parameter in every design")
-    p.add_argument("--workers", type=int, help="parallel processes (default: the number of cores)")
+    p.add_argument("--workers", type=count, help="parallel processes (default: the number of cores)")
     p.add_argument("--direct", action="store_true", help="run the model objects without FMI (this project's FMUs only)")
     p.add_argument("--ssd", default=str(REPO / "ssp" / "MAST.ssd"), help="base system the FMUs are swapped into")
     p.add_argument("--fmus", default=str(REPO / "build" / "fmus"), help="FMUs of the base system's other components")
@@ -389,21 +474,21 @@ def main(argv=None) -> int:
                                          "DIR/workspace.json/.csv/.png, or one pose (docs/workspace.md)")
     p.add_argument("design", help="design name (3PRS_T, 3PRS_120, 3PRS_inclined, actuators_only), a system .ssd/.ssp "
                                   "or a mechanism .fmu")
-    p.add_argument("--payload", type=float, default=0.0, metavar="KG",
+    p.add_argument("--payload", type=nonnegative, default=0.0, metavar="KG",
                    help="payload on the platform, centre of mass at P (static actuator forces, default 0)")
-    p.add_argument("--out", help="folder for workspace.json, workspace.csv, workspace.png")
+    p.add_argument("--out", type=folder, help="folder for workspace.json, workspace.csv, workspace.png")
     p.add_argument("--pose", metavar="Z,PSI_DEG,THETA_DEG",
                    help="answer for one pose: inside (exit 0) or not (exit 1), with its margins")
-    p.add_argument("--step-z", type=float, default=STEP_Z, metavar="M", help=f"grid step in z (default {STEP_Z:g} m)")
-    p.add_argument("--step-tilt", type=float, default=STEP_TILT_DEG, metavar="DEG",
+    p.add_argument("--step-z", type=_positive("metres"), default=STEP_Z, metavar="M", help=f"grid step in z (default {STEP_Z:g} m)")
+    p.add_argument("--step-tilt", type=_positive("degrees"), default=STEP_TILT_DEG, metavar="DEG",
                    help=f"grid step in psi and theta (default {STEP_TILT_DEG:g} deg)")
     p.add_argument("--no-plots", action="store_true", help="write no figure")
     p.set_defaults(func=cmd_workspace)
 
     p = sub.add_parser("batch", help="run the cases of a batch config (TOML/YAML) in parallel: docs/batch.md")
     p.add_argument("config", help="batch config: .toml, .yaml or .json")
-    p.add_argument("--out", required=True, help="folder for the results (manifest, per-case files, tables, plots)")
-    p.add_argument("--workers", type=int, help="local worker processes (default: the number of cores)")
+    p.add_argument("--out", type=folder, required=True, help="folder for the results (manifest, per-case files, tables, plots)")
+    p.add_argument("--workers", type=count, help="local worker processes (default: the number of cores)")
     p.add_argument("--scheduler", metavar="ADDRESS", help="run on this Dask scheduler (tcp://host:8786) instead")
     p.add_argument("--resume", action="store_true", help="go on with the batch in --out: skip its finished cases")
     p.add_argument("--retry-failed", action="store_true", help="with --resume: run failed and crashed cases again")
@@ -414,7 +499,7 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     try:
         return args.func(args)
-    except (ValueError, FileNotFoundError, RuntimeError) as err:
+    except (ValueError, OSError, RuntimeError) as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
 

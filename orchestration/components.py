@@ -7,15 +7,29 @@ SSP wiring are right (results equal to rounding) and the speed reference.
 from __future__ import annotations
 
 import ctypes
+import numbers
 from pathlib import Path
 from typing import Callable, Mapping, Sequence, Union
 
+import numpy as np
+
 from fmus.common.block import Block
-from fmus.common.parameters import Value
+from fmus.common.parameters import Value, exact_boolean, exact_integer, exact_string
 
 
 class ComponentError(RuntimeError):
     """A component failed: the message names the component, the call, the time and the model's cause."""
+
+
+def _real(value: object) -> float:
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (numbers.Real, str)):
+        raise ValueError(f"{value!r} is not a number")
+    return float(value)
+
+
+#: what a parameter value of each FMI type may be: nothing is truncated or reinterpreted on the way in
+#: (the same rules as the blocks' own check, fmus/common/parameters.py, so every route agrees)
+_FMI_VALUE = {"Real": _real, "Integer": exact_integer, "Boolean": exact_boolean, "String": exact_string}
 
 
 class FMUComponent:
@@ -40,6 +54,9 @@ class FMUComponent:
             raise ComponentError(f"{name}: {fmu.name} is not a co-simulation FMU")
         self.variables = {v.name: v for v in self.md.modelVariables}
         self.parameter_names = frozenset(v.name for v in self.md.modelVariables if v.causality == "parameter")
+        #: the unit each parameter declares (modelDescription), for the unit check of parameter sets
+        self.parameter_units = {v.name: v.unit or (v.declaredType.unit if v.declaredType else None) or ""
+                                for v in self.md.modelVariables if v.causality == "parameter"}
         self._slave = FMU2Slave(guid=self.md.guid, unzipDirectory=str(unzip_dir),
                                 modelIdentifier=self.md.coSimulation.modelIdentifier, instanceName=name)
 
@@ -91,11 +108,11 @@ class FMUComponent:
                 raise ComponentError(f"{self.name}: unknown parameter '{name}'; its parameters are: {', '.join(have)}")
             setter = {"Real": self._slave.setReal, "Integer": self._slave.setInteger,
                       "Boolean": self._slave.setBoolean, "String": self._slave.setString}[var.type]
-            convert = {"Real": float, "Integer": int, "Boolean": bool, "String": str}[var.type]
             try:
-                converted = convert(value)
-            except (TypeError, ValueError):
-                raise ComponentError(f"{self.name}: parameter '{name}' = {value!r} is not a valid {var.type}") from None
+                converted = _FMI_VALUE[var.type](value)
+            except (TypeError, ValueError, OverflowError) as err:
+                raise ComponentError(f"{self.name}: parameter '{name}' = {value!r} is not a valid {var.type} "
+                                     f"({err})") from None
             self._call(f"setting parameter {name}", lambda: setter([var.valueReference], [converted]))
 
     def exit_initialization(self) -> None:
@@ -181,6 +198,7 @@ class BlockComponent:
         self.name = name
         self.block_class = block_class
         self.parameter_names = frozenset(p.name for p in block_class.PARAMETERS)
+        self.parameter_units = {p.name: p.unit for p in block_class.PARAMETERS}
         self.block: Block | None = None
         self._in_init = False
         self._dirty = True

@@ -13,8 +13,9 @@ Initialization. All components enter initialization mode and get their
 parameters (bindings in SSD order, then the caller's overrides). Components
 fed by no system input are brought to a consistent initial point first
 (repeated Jacobi passes until values stop changing); then the stimulus starts,
-reading any output it needs (for example the platform's home pose), and the
-whole system is iterated to a consistent point before leaving initialization.
+reading any output it needs (for example the platform's home pose); pose commands
+that would leave the workspace are refused there, before any step (``admissible.py``);
+the whole system is iterated to a consistent point before leaving initialization.
 """
 from __future__ import annotations
 
@@ -28,6 +29,7 @@ import numpy as np
 
 from fmus.common.parameters import Value
 
+from .admissible import check_commands, trajectory_extremes
 from .ssp import SystemSpec, applicable_parameters
 
 
@@ -121,10 +123,11 @@ class Master:
         if unknown:
             raise ValueError(f"parameter overrides name unknown component(s) {', '.join(unknown)}; components: {', '.join(system.components)}")
         order = list(system.components)
-        bound = applicable_parameters(system, {name: self.components[name].parameter_names for name in order})
+        bound = applicable_parameters(system, {name: self.components[name].parameter_names for name in order},
+                                      {name: getattr(self.components[name], "parameter_units", {}) for name in order})
+        merged = {name: {**bound[name], **parameters.get(name, {})} for name in order}
         for name in order:
-            merged = {**bound[name], **parameters.get(name, {})}
-            self.components[name].enter_initialization(t0, t1, merged)
+            self.components[name].enter_initialization(t0, t1, merged[name])
 
         published_names: dict[str, list[str]] = {name: [] for name in order}
         for con in system.connections:
@@ -164,6 +167,12 @@ class Master:
             return published[slots[element]][published_names[element].index(connector)]
 
         stimulus.start(t0, read)
+        # pose commands (the stimulus's, a trajectory component's): refused up front if they leave the workspace
+        sources = [trajectory_extremes(system, merged, t0, t1)]
+        if system.system_inputs and hasattr(stimulus, "extremes"):
+            sources.append(stimulus.extremes(t0, t1))
+        for commands in filter(None, sources):
+            check_commands(system, merged, *commands, getattr(stimulus, "home_from", "mechanism"))
         self._settle(wirings, range(len(wirings)), published, list(stimulus(t0)))
         for w in wirings:
             self.components[w.name].exit_initialization()
@@ -197,6 +206,11 @@ class Master:
         """Simulate from the SSD start time to ``stop_time`` (rounded up to a base tick); see the module docstring."""
         t0 = self.system.start_time if start_time is None else start_time
         h = self.base_step
+        if not isinstance(stop_time, (int, float)) or not math.isfinite(stop_time):
+            raise ValueError(f"stop time {stop_time!r} s: expected a finite number of seconds")
+        if record_step is not None and (not isinstance(record_step, (int, float)) or not record_step > 0
+                                        or not math.isfinite(record_step)):
+            raise ValueError(f"record step {record_step!r} s: expected a positive, finite number of seconds")
         n_ticks = math.ceil((stop_time - t0) / h - 1e-9)  # a stop time between ticks ends at the next tick
         if n_ticks < 1:
             raise ValueError(f"stop time {stop_time:g} s: expected at least one base step ({h:g} s) after the start {t0:g} s")

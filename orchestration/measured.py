@@ -47,6 +47,10 @@ MAX_CURRENT = 100.0    # A
 MIN_STEP, MAX_STEP = 1e-5, 0.05   # s between samples
 JITTER = 0.01          # relative deviation of a sampling step from the median
 MIN_SAMPLES = 50
+MAX_TRACKING = 0.01    # m: median |rho - rho_cmd| above this is no tracking error but a unit mismatch
+#: the commanded joint swing per unit of commanded pose amplitude: z moves every carriage 1:1 (vertical
+#: guides; less on inclined ones), psi/theta move the carriages about (platform radius) x angle
+SWING_PER_AMPLITUDE = {"z": (0.2, 5.0), "psi": (0.01, 3.0), "theta": (0.01, 3.0)}   # m/m, m/rad
 
 
 class MeasuredDataError(ValueError):
@@ -115,9 +119,20 @@ def _unit_factor(meta_units: Mapping[str, str], key: str, where: str) -> float:
     return UNITS[quantity][unit]
 
 
+def _number(value, key: str, unit: str) -> float:
+    """A finite number from meta.json, or an error naming the key."""
+    try:
+        number = float(value) if not isinstance(value, bool) else math.nan
+    except (TypeError, ValueError):
+        number = math.nan
+    if not math.isfinite(number):
+        raise MeasuredDataError(f"meta.json: {key} = {value!r}: expected a finite number [{unit}]")
+    return number
+
+
 def _read_csv(path: Path) -> tuple[list[str], np.ndarray]:
     try:
-        with path.open(newline="", encoding="utf-8") as handle:
+        with path.open(newline="", encoding="utf-8-sig") as handle:  # -sig: spreadsheets write a BOM
             rows = [r for r in csv.reader(handle) if r and not r[0].lstrip().startswith("#")]
     except OSError as err:
         raise MeasuredDataError(f"{path.name}: cannot read: {err}") from None
@@ -187,7 +202,7 @@ def load(folder: Union[str, Path], stroke: tuple[float, float] = (0.0, 0.3)) -> 
     if not meta_path.exists():
         raise MeasuredDataError(f"{folder}: no meta.json (see docs/measured-data.md)")
     try:
-        meta = json.loads(meta_path.read_text())
+        meta = json.loads(meta_path.read_text(encoding="utf-8-sig"))
     except json.JSONDecodeError as err:
         raise MeasuredDataError(f"meta.json: not valid JSON: {err}") from None
     if meta.get("format", FORMAT) != FORMAT:
@@ -208,9 +223,12 @@ def load(folder: Union[str, Path], stroke: tuple[float, float] = (0.0, 0.3)) -> 
         if csv_file.name not in listed:
             raise MeasuredDataError(f"{csv_file.name}: not listed in meta.json 'tests' (list it or move it away)")
     measurement = meta.get("measurement", {}) or {}
-    filt = float(measurement.get("torque_filter_s", 0.0) or 0.0)
-    delay = float(measurement.get("torque_delay_s", 0.0) or 0.0)
-    if filt < 0 or delay < 0 or not math.isfinite(filt + delay):
+    if not isinstance(measurement, dict):
+        raise MeasuredDataError(f"meta.json: 'measurement' = {measurement!r}: expected an object")
+    filt = _number(measurement.get("torque_filter_s", 0.0) or 0.0, "measurement.torque_filter_s", "s")
+    delay = _number(measurement.get("torque_delay_s", 0.0) or 0.0, "measurement.torque_delay_s", "s")
+    _number(measurement.get("rho_resolution_m", 0.0) or 0.0, "measurement.rho_resolution_m", "m")
+    if filt < 0 or delay < 0:
         raise MeasuredDataError("meta.json: measurement.torque_filter_s and torque_delay_s must be finite and >= 0")
     k_T = meta.get("k_T")
     tests = [_load_test(folder, entry, units, k_T, stroke) for entry in tests_meta]
@@ -313,22 +331,48 @@ def _load_test(folder: Path, entry: dict, units: Mapping[str, str], k_T, stroke)
         quantity = "length" if unit in UNITS["length"] else "angle"
         if unit not in UNITS[quantity]:
             raise MeasuredDataError(f"meta.json: test {name}: amplitude_unit '{unit}' is not known")
-        amplitude = float(amplitude) * UNITS[quantity][unit]
+        amplitude = _number(amplitude, f"tests[{name}].amplitude", unit) * UNITS[quantity][unit]
     frequency = entry.get("frequency")
     if frequency is not None:
-        frequency = float(frequency)
+        frequency = _number(frequency, f"tests[{name}].frequency", "Hz")
         if not frequency > 0:
             raise MeasuredDataError(f"meta.json: test {name}: frequency {frequency!r} Hz: expected > 0")
+    _check_positions(name, out["rho_cmd"], out["rho"], units, motion, amplitude)
     role = entry.get("role")
     if role not in (None, "training", "held-out"):
         raise MeasuredDataError(f"meta.json: test {name}: role {role!r}: expected 'training' or 'held-out'")
-    settle = float(entry.get("settle_s", min(1.0, 0.3 * (t[-1] - t[0]))))
+    settle = _number(entry.get("settle_s", min(1.0, 0.3 * (t[-1] - t[0]))), f"tests[{name}].settle_s", "s")
     if not 0 <= settle < t[-1] - t[0]:
         raise MeasuredDataError(f"meta.json: test {name}: settle_s = {settle!r} s: expected 0 <= settle_s < "
                                 f"duration {t[-1] - t[0]:.6g} s")
     return MeasuredTest(name=Path(name).stem, file=path, time=t - t[0], rho_cmd=out["rho_cmd"], rho=out["rho"],
                         tau_m=tau, motion=motion, amplitude=amplitude, frequency=frequency, role=role,
                         settle_s=settle, pose=pose, time_offset=float(t[0]))
+
+
+def _check_positions(name: str, rho_cmd: np.ndarray, rho: np.ndarray, units: Mapping[str, str],
+                     motion: Optional[str], amplitude: Optional[float]) -> None:
+    """Catch a length unit that is off (m declared as mm or um, or the reverse) though inside the stroke:
+    measured positions must follow their commands, and the commands must swing as the test says."""
+    now = f"units.rho = '{units.get('rho')}', units.rho_cmd = '{units.get('rho_cmd')}'"
+    for j in range(rho.shape[1]):
+        dev = float(np.median(np.abs(rho[:, j] - rho_cmd[:, j])))
+        if dev > MAX_TRACKING:
+            scale = float(np.median(np.abs(rho[:, j]))) / max(float(np.median(np.abs(rho_cmd[:, j]))), 1e-300)
+            raise MeasuredDataError(
+                f"{name}: column rho_{j + 1} differs from rho_cmd_{j + 1} by {1e3 * dev:.3g} mm (median), far more "
+                f"than a tracking error (< {1e3 * MAX_TRACKING:g} mm): the positions are {scale:.3g} times the "
+                f"commands; check the unit of one of them ({now})")
+    if motion in SWING_PER_AMPLITUDE and amplitude:
+        swing = float(np.max(np.ptp(rho_cmd, axis=0))) / 2.0
+        ratio = swing / abs(amplitude)
+        low, high = SWING_PER_AMPLITUDE[motion]
+        if not low <= ratio <= high:
+            per = "m" if motion == "z" else "rad"
+            raise MeasuredDataError(
+                f"{name}: columns rho_cmd_1..3 swing by +-{swing:.3g} m while meta.json gives a {motion} amplitude of "
+                f"{abs(amplitude):.3g} {per}: {ratio:.3g} m per {per}, expected {low:g} to {high:g}; check "
+                f"units.rho_cmd (now '{units.get('rho_cmd')}') or the test's amplitude and amplitude_unit")
 
 
 # --------------------------------------------------------------------------------------

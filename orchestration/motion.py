@@ -21,6 +21,7 @@ class PoseStep:
     offsets: dict
     home_from: str = "mechanism"
     target: list[float] = field(default_factory=list)
+    home: list[float] = field(default_factory=list)
 
     def __post_init__(self) -> None:
         for axis, value in self.offsets.items():
@@ -32,7 +33,12 @@ class PoseStep:
         return [f"{self.home_from}.{a}" for a in AXES]
 
     def start(self, t0: float, read: Callable[[str], float]) -> None:
-        self.target = [read(name) + self.offsets.get(a, 0.0) for name, a in zip(self.reads, AXES)]
+        self.home = [read(name) for name in self.reads]
+        self.target = [h + self.offsets.get(a, 0.0) for h, a in zip(self.home, AXES)]
+
+    def extremes(self, t0: float, t1: float) -> tuple[list[float], list[list[float]]]:
+        """(home pose, the poses commanded between t0 and t1 that bound the motion), after ``start``."""
+        return list(self.home), [list(self.target)]
 
     def __call__(self, t: float) -> list[float]:
         return list(self.target)
@@ -71,10 +77,24 @@ class SineMotion:
         self._t0 = t0
         self.home = [read(name) for name in self.reads]
 
+    def extremes(self, t0: float, t1: float) -> tuple[list[float], list[list[float]]]:
+        """(home pose, the poses of the largest and smallest command between t0 and t1), after ``start``."""
+        amplitude = [0.0, 0.0, 0.0]
+        amplitude[self._k] = self.amplitude
+        return sine_extremes(self.home, amplitude, self._omega * max(t1 - self._t0, 0.0))
+
     def __call__(self, t: float) -> list[float]:
         values = list(self.home)
         values[self._k] += self.amplitude * math.sin(self._omega * (t - self._t0))
         return values
+
+
+def sine_extremes(home: Sequence[float], amplitude: Sequence[float],
+                  phase: float) -> tuple[list[float], list[list[float]]]:
+    """(home, the extreme poses of home + amplitude sin(p) for p from 0 to ``phase`` [rad])."""
+    high = 1.0 if phase >= math.pi / 2 else math.sin(phase)
+    low = -1.0 if phase >= 3 * math.pi / 2 else min(0.0, math.sin(phase))
+    return list(home), [[h + a * s for h, a in zip(home, amplitude)] for s in sorted({high, low})]
 
 
 class NoStimulus:

@@ -90,6 +90,8 @@ def reproduce(ssp: str, out: Path, workers: int = 2, direct: bool = False,
               sweep_hz: tuple[float, ...] = SWEEP_HZ) -> dict:
     """Run everything, write the report; return a summary (wall time, rows within tolerance)."""
     t0 = time.perf_counter()
+    with SSPArchive(ssp):   # a missing or malformed SSP stops here, before 82 runs fail and a folder is made
+        pass
     out.mkdir(parents=True, exist_ok=True)
     groups = plan(ssp, direct, sweep_hz)
     flat = [case for cases in groups.values() for case in cases]

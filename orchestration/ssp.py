@@ -25,7 +25,8 @@ from lxml import etree
 
 from fmus.common.parameters import Value
 
-from .ssv import SSPFormatError, parse_ssv
+from .data.units import Unit, UnitError, convert, parse_unit
+from .ssv import ParameterValue, SSPFormatError, parse_ssv
 
 NS = {
     "ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription",
@@ -45,6 +46,8 @@ class ComponentSpec:
     outputs: list[str]
     parameters: dict[str, Value] = field(default_factory=dict)  # bindings merged in order
     bindings: list[tuple[str, dict[str, Value]]] = field(default_factory=list)  # (source, values) in order
+    #: per binding source, the unit each Real value was given in (values are in its coherent SI unit)
+    units: dict[str, dict[str, tuple[str, Unit]]] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -133,8 +136,11 @@ def read_ssd(path: Union[str, Path], root: Optional[Path] = None) -> SystemSpec:
             outputs=[c.get("name") for c in connectors if c.get("kind") in ("output", "calculatedParameter")],
         )
         for binding in comp.findall("ssd:ParameterBindings/ssd:ParameterBinding", NS):
-            values = _binding_values(binding, root, path, name)
-            spec.bindings.append((binding.get("source") or f"inline values of '{name}'", values))
+            parsed = _binding_values(binding, root, path, name)
+            source = binding.get("source") or f"inline values of '{name}'"
+            values = {k: p.value for k, p in parsed.items()}
+            spec.bindings.append((source, values))
+            spec.units.setdefault(source, {}).update((k, (p.unit, p.si)) for k, p in parsed.items() if p.si is not None)
             spec.parameters.update(values)
         components[name] = spec
     if not components:
@@ -174,7 +180,7 @@ def _step_size_hint(comp, path: Path, name: str) -> Optional[float]:
     return None if hint is None else _positive(hint.get("value", ""), path, f"StepSizeHint of '{name}'")
 
 
-def _binding_values(binding, root: Path, path: Path, component: str) -> dict[str, Value]:
+def _binding_values(binding, root: Path, path: Path, component: str) -> dict[str, ParameterValue]:
     source = binding.get("source")
     if source:
         file = root / source
@@ -186,15 +192,22 @@ def _binding_values(binding, root: Path, path: Path, component: str) -> dict[str
         if inline is None:
             raise SSPFormatError(f"{path}: a parameter binding of '{component}' has neither a source nor values")
         values = parse_ssv(etree.tostring(inline), origin=f"{path} (inline values of '{component}')")
-    return {name: p.value for name, p in values.items()}
+    return values
 
 
-def applicable_parameters(system: SystemSpec, parameter_names: Mapping[str, Iterable[str]]) -> dict[str, dict[str, Value]]:
+def applicable_parameters(system: SystemSpec, parameter_names: Mapping[str, Iterable[str]],
+                          parameter_units: Optional[Mapping[str, Mapping[str, str]]] = None) -> dict[str, dict[str, Value]]:
     """Each component's bound values restricted to its own parameters (``parameter_names``).
 
     SSP 1.0 ignores a bound name the component does not have; here that is allowed only
     when another component bound to the same source has it: a name no component of its
     set uses is a typo, and raises SSPFormatError naming the set and the name.
+
+    A value the set gives with a unit is in that unit's coherent SI unit (``ssv.parse_ssv``);
+    against ``parameter_units`` (per component, the unit each parameter declares) it is
+    expressed in the declared unit, and a unit of another dimension is refused, naming the
+    set, the parameter, both units and the component. A declared unit that is unknown
+    (or not given) takes values in coherent SI units only.
     """
     names = {comp: set(parameter_names[comp]) for comp in system.components}
     users: dict[str, set] = {}
@@ -208,8 +221,41 @@ def applicable_parameters(system: SystemSpec, parameter_names: Mapping[str, Iter
                 bound = sorted(c for c, s in system.components.items() if any(src == source for src, _ in s.bindings))
                 raise SSPFormatError(f"parameter set {source}: {', '.join(map(repr, unused))} is a parameter of no "
                                      f"component it is bound to ({', '.join(bound)})")
-    return {comp: {k: v for k, v in spec.parameters.items() if k in names[comp]}
-            for comp, spec in system.components.items()}
+    out = {}
+    for comp, spec in system.components.items():
+        values = {k: v for k, v in spec.parameters.items() if k in names[comp]}
+        declared = (parameter_units or {}).get(comp, {})
+        setter = {k: source for source, bound in spec.bindings for k in bound}  # the binding whose value counts
+        for k in values:
+            given = spec.units.get(setter.get(k, ""), {}).get(k)
+            if given is not None:
+                values[k] = _in_declared_unit(values[k], given, declared.get(k), setter[k], k, comp)
+        out[comp] = values
+    return out
+
+
+def _in_declared_unit(value: float, given: tuple[str, Unit], declared: Optional[str], source: str, name: str,
+                      comp: str) -> float:
+    """``value`` (coherent SI of the ``given`` unit's dimension) in the unit the component declares."""
+    text, unit = given
+    target = None
+    if declared:
+        try:
+            target = parse_unit(declared)
+        except UnitError:
+            target = None
+    if target is None:
+        if unit.factor != 1.0 or unit.offset:
+            raise SSPFormatError(f"parameter set {source}: '{name}' is given in '{text}', but component '{comp}' "
+                                 f"declares no unit this tool knows for it ({declared or 'none'}): give it in "
+                                 "coherent SI units")
+        return value
+    try:
+        return convert(value, Unit(dims=unit.dims), target)
+    except UnitError:
+        raise SSPFormatError(f"parameter set {source}: '{name}' is given in '{text}' (dimension {unit.dimension()}), "
+                             f"but component '{comp}' declares it in '{declared}' (dimension "
+                             f"{target.dimension()})") from None
 
 
 def _check_end(element: str, connector: str, kind: str, components, system_inputs, path: Path) -> None:

@@ -1,16 +1,27 @@
-"""Read SSP parameter sets (.ssv): values with their unit and source."""
+"""Read SSP parameter sets (.ssv): values with their unit and source.
+
+A Real value with a ``unit`` is converted to the coherent SI unit of its dimension (``unit="g"``:
+2.06 g is 0.00206 kg), the unit the project's models declare for every parameter; the unit
+stays with the value (``ParameterValue.unit``) so that ``ssp.applicable_parameters`` can
+refuse one whose dimension is not the parameter's. Units come from the set's own
+definitions (``ssv:Units``, SSP 1.0) or the notation of ``mast.data.units``; an unknown unit
+is an error naming the set, the parameter and the unit.
+"""
 from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Union
+from typing import Optional, Union
 
 from lxml import etree
 
-from fmus.common.parameters import Value
+from fmus.common.parameters import Value, exact_boolean
+
+from .data.units import BASE, Unit, UnitError, parse_unit
 
 SSV_NS = "http://ssp-standard.org/SSP1/SystemStructureParameterValues"
-_TYPES = {"Real": float, "Integer": int, "Boolean": lambda s: s.strip() in ("true", "1"), "String": str}
+SSC_NS = "http://ssp-standard.org/SSP1/SystemStructureCommon"
+_TYPES = {"Real": float, "Integer": int, "Boolean": exact_boolean, "String": str}
 
 
 class SSPFormatError(ValueError):
@@ -20,9 +31,11 @@ class SSPFormatError(ValueError):
 @dataclass(frozen=True)
 class ParameterValue:
     name: str
-    value: Value
-    unit: str
+    value: Value       # a Real with a unit: in the coherent SI unit of that unit's dimension
+    unit: str          # as written in the set ("" if none)
     source: str
+    si: Optional[Unit] = None   # the parsed ``unit`` (None: no unit given)
+    written: Optional[Value] = None  # the value as written in the set, in ``unit`` (None: ``value``)
 
 
 def parse_ssv(data: Union[bytes, str, Path], origin: str = "") -> dict[str, ParameterValue]:
@@ -38,6 +51,7 @@ def parse_ssv(data: Union[bytes, str, Path], origin: str = "") -> dict[str, Para
         raise SSPFormatError(f"{origin}: not well-formed XML: {err}") from None
     if root.tag != f"{{{SSV_NS}}}ParameterSet":
         raise SSPFormatError(f"{origin}: root element is {root.tag}, expected ssv:ParameterSet")
+    defined = _unit_definitions(root, origin)
     values: dict[str, ParameterValue] = {}
     for par in root.iter(f"{{{SSV_NS}}}Parameter"):
         name = par.get("name")
@@ -56,8 +70,35 @@ def parse_ssv(data: Union[bytes, str, Path], origin: str = "") -> dict[str, Para
             raise SSPFormatError(f"{origin}: parameter '{name}': value {raw!r} is not a valid {kind}") from None
         if name in values:
             raise SSPFormatError(f"{origin}: parameter '{name}' is defined twice")
-        values[name] = ParameterValue(name, value, kinds[0].get("unit", ""), par.get("description", ""))
+        unit_text = (kinds[0].get("unit") or "").strip()
+        unit, written = None, value
+        if unit_text:
+            if kind != "Real":
+                raise SSPFormatError(f"{origin}: parameter '{name}': a unit ('{unit_text}') on a {kind} value; "
+                                     "SSP gives units to Real values only")
+            try:
+                unit = parse_unit(unit_text, defined)
+            except UnitError as err:
+                raise SSPFormatError(f"{origin}: parameter '{name}': {err}") from None
+            value = unit.factor * value + unit.offset
+        values[name] = ParameterValue(name, value, unit_text, par.get("description", ""), unit, written)
     return values
+
+
+def _unit_definitions(root, origin: str) -> dict[str, Unit]:
+    """The set's own ``ssv:Units/ssc:Unit`` definitions, by name."""
+    defined = {}
+    for element in root.iter(f"{{{SSC_NS}}}Unit"):
+        name = element.get("name")
+        base = element.find(f"{{{SSC_NS}}}BaseUnit")
+        if not name or base is None:
+            raise SSPFormatError(f"{origin}: an ssc:Unit needs a name and an ssc:BaseUnit")
+        try:
+            dims = tuple(int(base.get(b, "0")) for b in BASE)
+            defined[name] = Unit(float(base.get("factor", "1")), dims, float(base.get("offset", "0")))
+        except ValueError:
+            raise SSPFormatError(f"{origin}: unit '{name}': its ssc:BaseUnit has a value that is not a number") from None
+    return defined
 
 
 def read_values(*paths: Union[str, Path]) -> dict[str, Value]:

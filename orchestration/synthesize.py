@@ -71,8 +71,14 @@ def parse_tests(text: str) -> list[TestSpec]:
         if len(parts) not in (3, 4) or parts[0] not in ("z", "psi", "theta"):
             raise ValueError(f"--tests item {item!r}: expected MOTION:AMPLITUDE:FREQUENCY[:DURATION], "
                              "motion z, psi or theta")
-        a, f = float(parts[1]), float(parts[2])
-        d = float(parts[3]) if len(parts) == 4 else 0.0
+        try:
+            a, f = float(parts[1]), float(parts[2])
+            d = float(parts[3]) if len(parts) == 4 else 0.0
+        except ValueError:
+            a = f = d = math.nan
+        if not (math.isfinite(a) and f > 0 and math.isfinite(f) and d >= 0 and math.isfinite(d)):
+            raise ValueError(f"--tests item {item!r}: expected a finite amplitude, a frequency > 0 Hz and a "
+                             "duration >= 0 s")
         tests.append(TestSpec(parts[0], a if parts[0] == "z" else math.radians(a), f, d))
     return tests
 

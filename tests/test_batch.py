@@ -78,7 +78,7 @@ def test_reset_instances_reproduce_fresh_ones(ssp):
         c = session.run(SineMotion(**motion), 0.15, parameters=heavy)      # reset: the overrides again
         assert (session.instantiations, session.resets) == (1, 2)
         with pytest.raises(SimulationError):                              # a failing run discards the instances
-            session.run(SineMotion("z", 0.5, 1.0), 0.5)
+            session.run(SineMotion(**motion), 0.5, parameters={"actuator_1": {"g_guide": 5000.0}})  # off its stroke
         d = session.run(SineMotion(**motion), 0.15)
         assert session.instantiations == 2
     fresh = simulate(ssp, SineMotion(**motion), 0.15)
@@ -369,3 +369,15 @@ def test_dask_local_cluster_runs_the_same_batch_and_survives_a_dead_worker(ssp, 
         if b["status"] == "ok":
             assert a["metrics"] == b["metrics"]  # bit for bit: the same FMUs, reset between cases
     assert len({r["worker"]["pid"] for r in remote.records if r["status"] == "ok"}) >= 1
+
+
+def test_a_batch_without_motion_holds_the_home_pose(ssp, tmp_path):
+    """docs/batch.md: without a motion the system holds its home pose (every case failed before)."""
+    config = {"name": "hold", "ssp": str(ssp), "run": {"stop_time": 0.05, "record_step": 0.001},
+              "cases": {"list": [{"mechanism.m_platform": m} for m in (2.06, 3.0)]},
+              "outputs": {"keep": ["z_cmd", "mechanism.z"]}}
+    result = run_batch(config, tmp_path / "b", workers=1, progress=False)
+    assert [r["status"] for r in result.records] == ["ok", "ok"], [r["error"] for r in result.records]
+    signals = np.load(tmp_path / "b" / "cases" / "c00000.npz")
+    assert np.ptp(signals["z_cmd"]) == 0.0 and signals["z_cmd"][0] == pytest.approx(signals["mechanism.z"][0], abs=1e-9)
+    assert np.ptp(signals["mechanism.z"]) < 1e-4   # held: the loop takes up the load (tens of micrometres)

@@ -76,17 +76,30 @@ def test_unknown_and_out_of_range_parameters_are_named(ssp):
 
 
 @pytest.mark.parametrize("direct", [False, True])
-@pytest.mark.parametrize("motion, component, cause", [
-    (SineMotion("psi", math.radians(70.0), 1.0), "controller", "out of range"),  # beyond the admissible tilt
-    (SineMotion("z", 0.5, 1.0), "actuator_", "left the stroke"),                 # beyond the 300 mm guides
-])
-def test_failures_name_component_time_and_cause_and_keep_partial_results(ssp, direct, motion, component, cause):
+@pytest.mark.parametrize("component", ["actuator_1", "actuator_3"])
+def test_failures_name_component_time_and_cause_and_keep_partial_results(ssp, direct, component):
+    # a commanded motion well inside the workspace; a guide gravity of 500 g pulls one carriage off its stroke
     with pytest.raises(SimulationError) as info:
-        simulate(ssp, motion, 0.5, direct=direct)
+        simulate(ssp, SineMotion("z", 0.01, 1.0), 0.5, direct=direct, parameters={component: {"g_guide": 5000.0}})
     message = str(info.value)
-    assert message.startswith(component) and "doStep at t=" in message and cause in message.lower()
+    assert message.startswith(component) and "doStep at t=" in message and "left the stroke" in message.lower()
     partial = info.value.result
     assert 10 < len(partial.time) < 501 and np.all(np.isfinite(partial["mechanism.z"]))
+
+
+@pytest.mark.parametrize("motion, named", [
+    (SineMotion("z", 1e9, 1.0), r"z_cmd = 1e\+09 m is outside the workspace of 'mechanism': carriage 1 would be at "
+                                r"rho_1 = 1e\+09 m, beyond the stroke \[0, 0\.3\] m of actuator_1\. The largest "
+                                r"reachable z_cmd .* is 0\.555\d* m"),
+    (SineMotion("z", -0.5, 1.0), r"z_cmd = -0\.09\d* m is outside .* The smallest reachable z_cmd .* is 0\.255\d* m"),
+    (SineMotion("psi", math.radians(70.0), 1.0), r"psi_cmd = 1\.22173 rad \(70 deg\) is outside the workspace.*"
+                                                 r"largest reachable psi_cmd .* is 0\.41\d* rad"),
+])
+def test_commands_outside_the_workspace_are_refused_before_the_first_step(ssp, motion, named):
+    with pytest.raises(ValueError, match=named):
+        simulate(ssp, motion, 0.5, direct=True)
+    # a motion that reaches its extremes only after the stop time is not refused for them
+    assert len(simulate(ssp, SineMotion("z", 0.5, 0.01), 0.2, direct=True).time) == 201
 
 
 def test_cli_run_writes_results_summary_and_plot(ssp, tmp_path):
@@ -107,3 +120,79 @@ def test_cli_records_only_the_chosen_signals(ssp, tmp_path):
                      "--record", "mechanism.z", "--record", "actuator_2.i_m"]) == 0
     assert (out / "results.csv").read_text().splitlines()[0] == "time,mechanism.z,actuator_2.i_m"
     assert cli_main(["run", str(ssp), "--stop-time", "0.05", "--out", str(out), "--record", "mechanism.nope"]) == 2
+
+
+@pytest.mark.parametrize("direct", [False, True])
+@pytest.mark.parametrize("component, parameter, value", [
+    ("actuator_1", "n_dof", 2.5),          # an Integer parameter: 2.5 ran as 2 through FMI
+    ("mechanism", "attached", 0.5),        # 0/1: 0.5 ran as 0 (no mechanism load) through FMI
+    ("actuator_1", "n_dof", 2 ** 32 + 2),  # wraps around to 2 in a C int
+])
+def test_integer_parameters_refuse_what_they_cannot_hold_on_every_route(ssp, direct, component, parameter, value):
+    with pytest.raises(Exception) as info:
+        simulate(ssp, SineMotion("z", 0.0, 0.0), 0.002, parameters={component: {parameter: value}}, direct=direct)
+    message = str(info.value)
+    assert component in message and f"'{parameter}'" in message and str(value) in message
+
+
+@pytest.mark.parametrize("direct", [False, True])
+@pytest.mark.parametrize("component, parameter", [("mechanism", "m_platform"), ("actuator_2", "tau_c")])
+def test_overflowing_parameters_are_named_not_a_name_error(ssp, direct, component, parameter):
+    """1e308 is a finite, admissible value whose products overflow: the generated code must not print 'inf'."""
+    with pytest.raises(Exception) as info:
+        simulate(ssp, SineMotion("z", 0.0, 0.0), 0.002, parameters={component: {parameter: 1e308}}, direct=direct)
+    message = str(info.value)
+    assert "NameError" not in message and f"{parameter} = 1e+308" in message and component in message
+
+
+def test_a_set_in_grams_is_built_into_the_ssp_in_kilograms(built, tmp_path):
+    """libcosim and ecos ignore .ssv units: the built SSP carries the value in the unit the FMU declares."""
+    import shutil
+    import zipfile
+
+    from mast.build import build_ssp
+    from mast.ssv import parse_ssv
+
+    root = Path(__file__).resolve().parents[1] / "ssp"
+    shutil.copytree(root / "resources", tmp_path / "resources")
+    shutil.copy(root / "MAST.ssd", tmp_path / "MAST.ssd")
+    ssv = tmp_path / "resources" / "mass_3prs.ssv"
+    ssv.write_text(ssv.read_text().replace('<ssv:Real value="2.06" unit="kg"/>', '<ssv:Real value="2060" unit="g"/>'))
+    with zipfile.ZipFile(build_ssp(tmp_path / "MAST.ssd", built / "fmus", tmp_path / "out")) as archive:
+        flat = parse_ssv(archive.read("resources/parameters/mechanism.ssv"))["m_platform"]
+    assert (flat.written, flat.unit, flat.value) == (2.06, "kg", 2.06)
+
+
+@pytest.mark.parametrize("identifier, parameter", [("MastActuator", "n_dof"), ("MastMechanism", "attached")])
+def test_a_host_setting_a_fraction_through_set_real_gets_the_parameter_named(built, tmp_path, identifier, parameter):
+    """A host (not this master) may set an Integer parameter with fmi2SetReal: 2.5 is refused, never truncated."""
+    from fmpy import extract, read_model_description
+    from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
+                           fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, calloc, free)
+
+    fmu = built / "fmus" / f"{identifier}.fmu"
+    md = read_model_description(str(fmu))
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    log = []
+    callbacks = fmi2CallbackFunctions()
+    callbacks.logger = fmi2CallbackLoggerTYPE(lambda _e, _n, _s, _c, message: log.append(message.decode()))
+    callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+    callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+    slave = FMU2Slave(guid=md.guid, unzipDirectory=extract(str(fmu), unzipdir=str(tmp_path)), modelIdentifier=identifier,
+                      instanceName="x")
+    slave.instantiate(callbacks=callbacks, loggingOn=True)
+    slave.setupExperiment(startTime=0.0)
+    slave.enterInitializationMode()
+    slave.setReal([vr[parameter]], [2.5])
+    slave.exitInitializationMode()
+    assert any(f"'{parameter}' = 2.5" in m for m in log), log
+    slave.terminate()
+    slave.freeInstance()
+
+
+def test_a_trajectory_component_outside_the_workspace_is_refused_before_the_first_step(built):
+    """A system without inputs commands itself (ssp/MAST_standalone.ssd): its trajectory is checked the same way."""
+    standalone = built / "ssp" / "MAST_standalone.ssp"
+    with pytest.raises(ValueError, match=r"z_cmd = 0\.905\d* m is outside the workspace of 'mechanism': carriage 1 "
+                                         r".* stroke \[0, 0\.3\] m of actuator_1\. The largest reachable z_cmd .* 0\.555"):
+        simulate(standalone, None, 0.5, parameters={"trajectory": {"amplitude_z": 0.5}}, direct=True)

@@ -175,3 +175,20 @@ def test_libcosim_0_0_6_cannot_load_fmi3_fmus(ssps):
     an SSP of FMI 3.0 FMUs (docs/using-the-fmus.md). If this starts to fail, update the docs."""
     with pytest.raises(HostError, match="Unsupported FMI version for FMU .*MastMechanism.fmu"):
         run_host("libcosim", ssps[1], 0.01, ["mechanism.z"])
+
+
+def test_outputs_are_calculated_in_initialization_and_declare_no_start_value(built):
+    """The outputs depend on the inputs at the start (the pose on the carriages' positions, rho_cmd on the
+    pose command): initial="calculated", no start value, listed as initial unknowns (FMI 2.0 section 2.2.8,
+    FMI 3.0 section 2.4.8). 'exact' with start 0 claimed mechanism.z = 0 where it is 0.405 m."""
+    from fmpy import read_model_description
+
+    fmus = sorted((built / "fmus").glob("*.fmu")) + sorted((built / "fmus3").glob("*.fmu"))
+    assert len(fmus) == 20
+    for fmu in fmus:
+        md = read_model_description(str(fmu))
+        outputs = [v for v in md.modelVariables if v.causality == "output"]
+        assert outputs, fmu.name
+        for v in outputs:
+            assert v.initial == "calculated" and v.start is None, f"{fmu.parent.name}/{fmu.name}: {v.name}"
+        assert {u.variable.name for u in md.initialUnknowns} == {v.name for v in outputs}, fmu.name

@@ -188,3 +188,56 @@ def test_synthesize_cli(built_ssp, tmp_path):
     assert truth["parameters"] == {f"actuator_{j}": {"tau_c": 0.05} for j in (1, 2, 3)}
     assert truth["measurement"]["noise_std"]["tau_m"] == 0.001
     assert main(["synthesize", built_ssp, "--out", str(out), "--set", "nowhere.x=1", "--direct"]) == 2
+
+
+def test_diagnose_refuses_torques_whose_unit_is_a_thousand_times_off_before_searching(built_ssp, tmp_path, capsys):
+    """Torques in N.m declared as mN.m pass every plausibility bound of the loader; the nominal model's
+    torque (gravity, inertia, friction of the recorded motion) shows the factor 1000 at once."""
+    from mast.cli import main
+
+    data = tmp_path / "data"
+    assert main(["synthesize", built_ssp, "--out", str(data), "--tests", "z:0.005:4:0.3", "--direct",
+                 "--workers", "1"]) == 0
+    meta = json.loads((data / "meta.json").read_text())
+    meta["units"]["tau_m"] = "mN.m"
+    (data / "meta.json").write_text(json.dumps(meta))
+    capsys.readouterr()
+    assert main(["diagnose", built_ssp, "--measured", str(data), "--out", str(tmp_path / "d"), "--workers", "1"]) == 2
+    err = capsys.readouterr().err
+    assert "z_4Hz.csv: column tau_m_1" in err and "units.tau_m (now 'mN.m')" in err and "0.001 times" in err
+
+
+@pytest.mark.parametrize("units, pattern", [
+    ({"time": "s", "rho_cmd": "mm", "rho": "mm", "tau_m": "N.m"},     # metres declared as mm: inside the stroke
+     r"a\.csv: columns rho_cmd_1\.\.3 swing by \+-5e-06 m while meta\.json gives a z amplitude of 0\.005 m.*"
+     r"check units\.rho_cmd \(now 'mm'\)"),
+    ({"time": "s", "rho_cmd": "m", "rho": "um", "tau_m": "N.m"},
+     r"a\.csv: column rho_1 differs from rho_cmd_1 by 15\d mm .* 1e-06 times the commands.*units\.rho = 'um'"),
+])
+def test_positions_in_the_wrong_length_unit_are_named(tmp_path, units, pattern):
+    with pytest.raises(MeasuredDataError, match=pattern):
+        load(_write(tmp_path / "d", {"a.csv": _table()}, units=units))
+
+
+@pytest.mark.parametrize("where, value, pattern", [
+    ("measurement", {"torque_filter_s": "fast"}, r"meta\.json: measurement\.torque_filter_s = 'fast': expected a finite"),
+    ("measurement", {"rho_resolution_m": [1]}, r"meta\.json: measurement\.rho_resolution_m = \[1\]"),
+    ("test", {"frequency": "2 Hz"}, r"meta\.json: tests\[a\.csv\]\.frequency = '2 Hz'"),
+    ("test", {"amplitude": None, "settle_s": "x"}, r"meta\.json: tests\[a\.csv\]\.settle_s = 'x'"),
+])
+def test_non_numeric_meta_values_name_the_key(tmp_path, where, value, pattern):
+    folder = _write(tmp_path / "d", {"a.csv": _table()})
+    meta = json.loads((folder / "meta.json").read_text())
+    (meta["measurement"] if where == "measurement" else meta["tests"][0]).update(value)
+    (folder / "meta.json").write_text(json.dumps(meta))
+    with pytest.raises(MeasuredDataError, match=pattern):
+        load(folder)
+
+
+def test_csv_and_meta_with_a_utf8_byte_order_mark_load(tmp_path):
+    """Spreadsheet programs save 'CSV UTF-8' with a BOM: the first column is still 'time'."""
+    plain = load(_write(tmp_path / "plain", {"a.csv": _table()}))
+    folder = _write(tmp_path / "bom", {"a.csv": _table()})
+    for name in ("a.csv", "meta.json"):
+        (folder / name).write_bytes(b"\xef\xbb\xbf" + (folder / name).read_bytes())
+    np.testing.assert_array_equal(load(folder).tests[0].tau_m, plain.tests[0].tau_m)

@@ -68,6 +68,7 @@ import numpy as np
 from scipy.linalg import expm
 
 from ..common.block import Block, ModelError
+from ..common.codegen import compile_generated, largest_parameters
 from ..common.parameters import Param, ParameterError, Value, nonnegative, positive
 from .sensor import TorqueSensor, is_neutral
 
@@ -436,9 +437,8 @@ class ActuatorBlock(Block):
         else:
             source = _kernel_source(self, Phi, Gam, m)
         namespace: dict = {"tanh": math.tanh, "exp": math.exp, "sin": math.sin}
-        exec(compile(source, f"<actuator kernel h={h!r} m={m}>", "exec"), namespace)
-        kernel = namespace["kernel"]
-        kernel.source = source
+        kernel = compile_generated(source, "kernel", f"{self.name}: actuator kernel h={h!r} m={m}", namespace,
+                                   largest_parameters(p))
         return kernel, m
 
 

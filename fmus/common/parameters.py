@@ -8,6 +8,7 @@ with a message that names it.
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass
 from typing import Mapping, Sequence, Union
 
@@ -16,6 +17,60 @@ Value = Union[float, int, str]
 
 class ParameterError(ValueError):
     """A parameter is unknown, missing, of the wrong type or out of range."""
+
+
+#: the range of an FMI Integer (fmi2Integer, fmi3Int32): a larger value would wrap around in the C call
+INT32_MIN, INT32_MAX = -2 ** 31, 2 ** 31 - 1
+
+
+def exact_integer(value: object) -> int:
+    """``value`` as an int if it is a whole number (2, 2.0, "2", "2e0") within the FMI Integer range.
+
+    Every route (FMI, direct, .ssv, --set, batch) goes through this: 2.5 is refused, never truncated.
+    Raises ValueError (the caller names the parameter).
+    """
+    if isinstance(value, bool):
+        return int(value)
+    if isinstance(value, numbers.Integral):
+        number = int(value)
+    else:
+        try:
+            text = value.strip() if isinstance(value, str) else value
+            number = int(text) if isinstance(text, str) and text.lstrip("+-").isdigit() else float(text)
+        except (TypeError, ValueError):
+            raise ValueError(f"{value!r} is not a number") from None
+        if isinstance(number, float):
+            if not math.isfinite(number) or not number.is_integer():
+                raise ValueError(f"{value!r} is not a whole number")
+            number = int(number)
+    if not INT32_MIN <= number <= INT32_MAX:
+        raise ValueError(f"{value!r} is outside the integer range [{INT32_MIN}, {INT32_MAX}]")
+    return number
+
+
+def exact_string(value: object) -> str:
+    """``value`` as a String parameter: a string, or a number written as its exact text (``--set`` gives
+    ``J_chain=0.001`` as a number); a boolean or anything else is refused."""
+    if isinstance(value, str):
+        return value
+    if isinstance(value, numbers.Real) and not isinstance(value, bool):
+        return repr(float(value)) if not isinstance(value, numbers.Integral) else str(int(value))
+    raise ValueError(f"{value!r} is not a string")
+
+
+def exact_boolean(value: object) -> bool:
+    """``value`` as a bool if it is one: True/False, 1/0 (also 1.0) or the strings true/false/1/0."""
+    if isinstance(value, bool):
+        return value
+    if isinstance(value, str):
+        text = value.strip().lower()
+        if text in ("true", "1"):
+            return True
+        if text in ("false", "0"):
+            return False
+    elif isinstance(value, (int, float)) and value in (0, 1):
+        return bool(value)
+    raise ValueError(f"{value!r} is not a boolean (true/false or 1/0)")
 
 
 @dataclass(frozen=True)
@@ -45,17 +100,14 @@ class Param:
         """Return ``value`` converted to ``kind``; raise ParameterError if inadmissible."""
         where = f"{owner}: " if owner else ""
         if self.kind is str:
-            if not isinstance(value, str):
-                raise ParameterError(f"{where}parameter '{self.name}' = {value!r}: expected {self.expected()}")
-            return value
+            try:
+                return exact_string(value)
+            except ValueError:
+                raise ParameterError(f"{where}parameter '{self.name}' = {value!r}: expected {self.expected()}") from None
         try:
-            number = float(value)
-        except (TypeError, ValueError):
+            number = exact_integer(value) if self.kind is int else float(value)
+        except (TypeError, ValueError, OverflowError):
             raise ParameterError(f"{where}parameter '{self.name}' = {value!r}: expected {self.expected()}") from None
-        if self.kind is int:
-            if number != int(number):
-                raise ParameterError(f"{where}parameter '{self.name}' = {value!r}: expected {self.expected()}")
-            number = int(number)
         if not math.isfinite(number):
             raise ParameterError(f"{where}parameter '{self.name}' = {value!r}: expected a finite number")
         low_bad = number <= self.minimum if self.exclusive else number < self.minimum

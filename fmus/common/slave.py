@@ -133,9 +133,11 @@ class BlockWrapper:
         for name in cls.INPUTS:
             self.register_variable(real(name, causality=causality.input, variability=variability.continuous,
                                         description=cls.DESCRIPTIONS.get(name), **unit(name), **start))
+        # outputs: initial="calculated" (no start value): computed in initialization mode from the parameters
+        # and the inputs (the mechanism's pose from the carriages' positions ...), as FMI 2.0/3.0 define it
         for name in cls.OUTPUTS:
             self.register_variable(real(name, causality=causality.output, variability=variability.continuous,
-                                        initial=fmi.initial.exact, description=cls.DESCRIPTIONS.get(name),
+                                        initial=fmi.initial.calculated, description=cls.DESCRIPTIONS.get(name),
                                         **unit(name)))
         for spec in cls.PARAMETERS:
             self.register_variable(fmi.kinds[spec.kind](

@@ -28,6 +28,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
+from ..common.codegen import largest_parameters
 from ..common.parameters import Param, ParameterError, nonnegative
 from .engine import Body, Description, Engine, Evaluation, atan2, hypot, require, sign, sqrt
 from .engine import cos as _cos
@@ -323,14 +324,19 @@ _ENGINES: dict = {}
 
 def engine(params: Mapping[str, object], owner: str = "", masses: bool = True) -> Engine:
     """The engine of a parameter set, shared between blocks with the same description and g."""
-    desc = describe(params, owner, masses)
-    key = (desc.key(), float(params.get("g", 9.81)) if masses else 0.0)
-    found = _ENGINES.get(key)
-    if found is None:
-        if len(_ENGINES) > 64:
-            _ENGINES.clear()
-        found = _ENGINES[key] = Engine(desc, g=key[1])
-    return found
+    try:
+        desc = describe(params, owner, masses)
+        key = (desc.key(), float(params.get("g", 9.81)) if masses else 0.0)
+        found = _ENGINES.get(key)
+        if found is None:
+            if len(_ENGINES) > 64:
+                _ENGINES.clear()
+            found = Engine(desc, g=key[1])
+            found.overflow_hint = largest_parameters(params)
+            _ENGINES[key] = found
+        return found
+    except OverflowError as err:
+        raise ParameterError(f"{owner}: {err}{largest_parameters(params)}") from None
 
 
 def kinematic_engine(params: Mapping[str, object], owner: str = "") -> Engine:

@@ -56,6 +56,7 @@ from typing import Callable, Optional, Sequence
 
 import numpy as np
 
+from ..common.codegen import compile_generated
 from .kinematics import COND_LIMIT, KinematicsError, _inv3
 
 __all__ = [
@@ -575,17 +576,14 @@ def compile_function(name: str, inputs: Sequence[str], outputs: Sequence[E], gra
             lines.append(f"    t{i} = {text}")
     lines.append(f"    return ({''.join(ref(o)[0] + ', ' for o in outputs)}{'_ok, ' if vector else ''})")
     assert not inline, "internal error: an inlined expression was never used"
-    code = "\n".join(lines)
-    exec(compile(code, f"<mast engine: {label or name}>", "exec"), ns)  # noqa: S102 (our own generated code)
-    fn = ns[name]
-    fn.source = code
+    fn = compile_generated("\n".join(lines), name, f"mast engine: {label or name}", ns)
     if not vector:
         return fn
 
     def on_arrays(*args):
         with np.errstate(all="ignore"):       # outside the mask: NaN, never an exception
             return fn(*args)
-    on_arrays.source = code
+    on_arrays.source = fn.source
     return on_arrays
 
 
@@ -833,10 +831,16 @@ class Engine:
         return self
 
     # -------------------------------------------------------------------------- generated functions
+    #: what an overflow of the equations' coefficients is blamed on (``designs.engine``: the largest parameters)
+    overflow_hint = ""
+
     def _fn(self, name: str) -> Callable:
         fn = self._fns.get(name)
         if fn is None:
-            fn = self._fns[name] = getattr(self, f"_build_{name}")()
+            try:
+                fn = self._fns[name] = getattr(self, f"_build_{name}")()
+            except OverflowError as err:
+                raise OverflowError(f"{err}{self.overflow_hint}") from None
         return fn
 
     def _qnames(self) -> list[str]:

@@ -19,7 +19,7 @@ import math
 from typing import Mapping
 
 from ..common.block import Block, ModelError
-from ..common.parameters import Value
+from ..common.parameters import ParameterError, Value
 from .designs import KINEMATIC_PARAMETERS, MASS_PARAMETERS, PAYLOAD_PARAMETERS, engine
 from .engine import SingularityError
 from .kinematics import KinematicsError
@@ -85,6 +85,8 @@ class MechanismBlock(Block):
                 out = (0.0, 0.0, 0.0) + eng.pose(q)
         except KinematicsError as exc:
             raise type(exc)(f"{self.name}: at t = {t!r} s, rho = {rho!r} m: {exc}") from exc   # SingularityError stays one
+        except OverflowError as exc:   # the equations built for these parameters (engine.overflow_hint)
+            raise ParameterError(f"{self.name}: {exc}") from None
         self._guess = q
         vals[9:18] = out
 

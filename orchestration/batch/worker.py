@@ -71,7 +71,7 @@ def _session(path: str, direct: bool):
 def run_case(task: Mapping) -> dict:
     """Run one case in this process (a worker): its metrics, kept signals, timings; never raises."""
     from ..master import SimulationError
-    from ..motion import SineMotion
+    from ..motion import POSE_INPUTS, PoseStep, SineMotion
     from ..run import default_signals
 
     t_case, cpu_case = time.perf_counter(), time.process_time()
@@ -87,8 +87,10 @@ def run_case(task: Mapping) -> dict:
         motion = task.get("motion")
         if motion is not None:
             stimulus = SineMotion(motion["axis"], motion["amplitude_si"], motion["frequency"])
+        elif all(s in session.system.system_inputs for s in POSE_INPUTS):
+            stimulus = PoseStep({})   # no motion: the system holds its home pose (docs/batch.md)
         else:
-            stimulus = None
+            stimulus = None           # a system without inputs (its own trajectory component)
         families = task.get("metrics", FAMILIES)
         wanted = signals_for(families, default_signals(session.system))
         record_names = list(dict.fromkeys(wanted + list(task.get("keep", ()))))

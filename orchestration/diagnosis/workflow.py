@@ -76,6 +76,27 @@ def _split(data: MeasuredData, holdout: Optional[Sequence[str]]) -> dict[str, st
     return roles
 
 
+#: measured / simulated torque (rms) beyond which the nominal model is not what is off, the unit is
+TORQUE_SCALE_LIMIT = 10.0
+
+
+def _check_torque_scale(prepared: dict[str, Prepared], simulated: dict[str, np.ndarray], names: Sequence[str],
+                        units: dict) -> None:
+    """Before the search: a measured torque 1000 times off what the nominal model needs to follow the
+    recorded commands (gravity, inertia, friction) is a unit declared wrong (mN.m for N.m), not an effect."""
+    for n in names:
+        y, yh = prepared[n].y, simulated[n]
+        for j in range(y.shape[1]):
+            measured, needed = float(np.sqrt(np.mean(y[:, j] ** 2))), float(np.sqrt(np.mean(yh[:, j] ** 2)))
+            if needed > 0 and not 1 / TORQUE_SCALE_LIMIT <= measured / needed <= TORQUE_SCALE_LIMIT:
+                key = "i_m" if "i_m" in units and "tau_m" not in units else "tau_m"
+                raise DiagnosisError(
+                    f"{prepared[n].test.file.name}: column {key}_{j + 1}: the measured torque (rms {measured:.3g} N.m) "
+                    f"is {measured / needed:.3g} times what the nominal model needs to follow the recorded commands "
+                    f"(rms {needed:.3g} N.m): check units.{key} (now '{units.get(key)}')"
+                    + (" and k_T" if key == "i_m" else ""))
+
+
 def diagnose(opt: Options, log: Callable[[str], None] = print) -> dict:
     """The five steps of the package docstring on the measured-data folder ``opt.measured``; writes
     diagnosis.json, report.md, the figures and the augmented model to ``opt.out`` and returns the
@@ -123,6 +144,7 @@ def diagnose(opt: Options, log: Callable[[str], None] = print) -> dict:
         model = Model(sim, nominal, prepared, data.torque_filter_s, data.torque_delay_s)
         ctx = Context(model, nominal, names, train, held, band, sigma, sigma_b, log)
         nominal_pt = model.point({}, names)
+        _check_torque_scale(prepared, nominal_pt.obs, names, data.meta.get("units", {}))
         before = gap_table(prepared, nominal_pt, names, sigma, resolution)
         localised = {n: localise_test(model, nominal_pt, prepared[n], sigma) for n in names}
         log("diagnose: nominal model: " + ", ".join(f"{n} {before[n]['torque_nrmse_percent']:.1f} %" for n in names))
