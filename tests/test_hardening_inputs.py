@@ -99,6 +99,9 @@ def a_file(tmp_path) -> Path:
     (["synthesize", "--out", "x", "--sample-time", "nan"], "--sample-time: 'nan'"),
     (["compare", "--mechanism", "a.fmu", "--out", "x", "--frequencies", "inf"], "--frequencies: 'inf'"),
     (["diagnose", "--measured", "m", "--out", "x", "--workers", "0"], "--workers: '0'"),
+    (["diagnose", "--measured", "m", "--out", "x", "--holdout-fraction", "1.5"], "--holdout-fraction: '1.5'"),
+    (["workspace", "3PRS_T", "--out", "x", "--step-z", "-0.01"], "--step-z: '-0.01'"),
+    (["workspace", "3PRS_T", "--out", "x", "--payload", "nan"], "--payload: 'nan'"),
 ])
 def test_cli_refuses_non_finite_and_non_positive_numbers(capsys, argv, named):
     with pytest.raises(SystemExit) as info:
@@ -112,7 +115,8 @@ def test_cli_refuses_non_finite_and_non_positive_numbers(capsys, argv, named):
     ["run", "--out", "{file}"], ["run", "--out", "{file}/sub"], ["reproduce", "--out", "{file}"],
     ["batch", "config.toml", "--out", "{file}"], ["compare", "--mechanism", "a.fmu", "--out", "{file}"],
     ["synthesize", "--out", "{file}"], ["diagnose", "--measured", "m", "--out", "{file}"],
-    ["fit-gains", "--out", "{dir}"],
+    ["fit-gains", "--out", "{dir}"], ["import", "f.mat", "--map", "m.toml", "--out", "{file}"],
+    ["replay", "--model", "a.ssp", "--measured", "m", "--out", "{file}"], ["workspace", "3PRS_T", "--out", "{file}"],
 ])
 def test_cli_refuses_an_output_that_is_a_file_before_running(capsys, a_file, argv):
     named = a_file.parent if "{dir}" in argv else a_file
