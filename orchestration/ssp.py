@@ -66,9 +66,15 @@ class SystemSpec:
     base_step: Optional[float]
     start_time: float
     stop_time: Optional[float]
+    archive: Optional[Path] = None  # the .ssp the system was extracted from (None: a folder)
 
     def fmu_path(self, component: str) -> Path:
         return self.root / self.components[component].source
+
+    def fmu_label(self, component: str) -> str:
+        """How messages name a component's FMU: its path, or the archive and the entry."""
+        source = self.components[component].source
+        return f"{self.archive} (entry {source})" if self.archive else str(self.fmu_path(component))
 
 
 #: what an untrusted archive (SSP or FMU) may expand to; beyond, extraction is refused before a byte is written
@@ -79,36 +85,27 @@ MAX_RATIO = 200                    # uncompressed / compressed, for an entry of 
 RATIO_FLOOR = 1 << 20              # small entries (XML, JSON) may compress better without filling a disk
 
 
-def safe_extract(archive: Union[str, Path], target: Union[str, Path], label: Optional[str] = None) -> Path:
-    """Extract a zip (SSP or FMU) into ``target``, refusing what an untrusted archive must not do.
+def check_archive(archive: Union[str, Path], label: Optional[str] = None) -> None:
+    """Refuse (SSPFormatError naming the archive, ``label`` or its path, and the entry) a zip whose
+    entries would land outside the folder it is extracted to (absolute, ``..``, a drive), or that
+    would expand beyond MAX_ARCHIVE_BYTES in all, MAX_ENTRY_BYTES per entry, MAX_ENTRIES entries,
+    or has an entry of more than RATIO_FLOOR bytes compressed more than MAX_RATIO times (a zip
+    bomb). Reads the archive's directory only: also for readers that take one file out of it
+    (fmpy's read_model_description)."""
+    with _open_zip(archive, label) as handle:
+        _check_members(handle.infolist(), label or str(archive))
 
-    Refused, naming the archive (``label``, default its path) and the entry: an entry that would
-    land outside ``target`` (absolute, ``..``, a drive), and an archive that would expand beyond
-    MAX_ARCHIVE_BYTES in all, MAX_ENTRY_BYTES per entry, MAX_ENTRIES entries, or an entry of more
-    than RATIO_FLOOR bytes compressed more than MAX_RATIO times (a zip bomb). The sizes the
-    archive declares are checked first; the bytes written are counted as well (zipfile stops an
-    entry at its declared size and checks its CRC).
+
+def safe_extract(archive: Union[str, Path], target: Union[str, Path], label: Optional[str] = None) -> Path:
+    """Extract a zip (SSP or FMU) into ``target``, refusing what ``check_archive`` refuses.
+
+    The sizes the archive declares are checked first; the bytes written are counted as well
+    (zipfile stops an entry at its declared size and checks its CRC).
     """
-    archive, target = Path(archive), Path(target)
-    name = label or str(archive)
-    try:
-        handle = zipfile.ZipFile(archive)
-    except (zipfile.BadZipFile, OSError) as err:
-        raise SSPFormatError(f"{name}: not a readable zip archive ({err})") from None
-    with handle:
+    target, name = Path(target), label or str(archive)
+    with _open_zip(archive, label) as handle:
         members = handle.infolist()
-        if len(members) > MAX_ENTRIES:
-            raise SSPFormatError(f"{name}: {len(members)} entries, more than the {MAX_ENTRIES} an archive may hold")
-        total = 0
-        for info in members:
-            pure = PurePosixPath(info.filename.replace("\\", "/"))
-            if pure.is_absolute() or ".." in pure.parts or (pure.parts and ":" in pure.parts[0]):
-                raise SSPFormatError(f"{name}: entry '{info.filename}' would be extracted outside the target folder")
-            _check_size(name, info.filename, info.file_size, info.compress_size)
-            total += info.file_size
-            if total > MAX_ARCHIVE_BYTES:
-                raise SSPFormatError(f"{name}: expands to more than {MAX_ARCHIVE_BYTES >> 20} MiB "
-                                     f"(reached at entry '{info.filename}'): refused as a possible zip bomb")
+        _check_members(members, name)
         written = 0
         for info in members:
             path = target.joinpath(*PurePosixPath(info.filename.replace("\\", "/")).parts)
@@ -127,6 +124,28 @@ def safe_extract(archive: Union[str, Path], target: Union[str, Path], label: Opt
             except (zipfile.BadZipFile, zlib.error, EOFError, NotImplementedError) as err:
                 raise SSPFormatError(f"{name}: entry '{info.filename}' cannot be extracted ({err})") from None
     return target
+
+
+def _open_zip(archive: Union[str, Path], label: Optional[str]) -> zipfile.ZipFile:
+    try:
+        return zipfile.ZipFile(archive)
+    except (zipfile.BadZipFile, OSError) as err:
+        raise SSPFormatError(f"{label or archive}: not a readable zip archive ({err})") from None
+
+
+def _check_members(members: list, name: str) -> None:
+    if len(members) > MAX_ENTRIES:
+        raise SSPFormatError(f"{name}: {len(members)} entries, more than the {MAX_ENTRIES} an archive may hold")
+    total = 0
+    for info in members:
+        pure = PurePosixPath(info.filename.replace("\\", "/"))
+        if pure.is_absolute() or ".." in pure.parts or (pure.parts and ":" in pure.parts[0]):
+            raise SSPFormatError(f"{name}: entry '{info.filename}' would be extracted outside the target folder")
+        _check_size(name, info.filename, info.file_size, info.compress_size)
+        total += info.file_size
+        if total > MAX_ARCHIVE_BYTES:
+            raise SSPFormatError(f"{name}: expands to more than {MAX_ARCHIVE_BYTES >> 20} MiB "
+                                 f"(reached at entry '{info.filename}'): refused as a possible zip bomb")
 
 
 def _check_size(name: str, entry: str, size: int, compressed: int) -> None:
@@ -244,7 +263,8 @@ def read_ssd(path: Union[str, Path], root: Optional[Path] = None, archive: Optio
         algo = experiment.find(f"ssd:Annotations/ssc:Annotation[@type='{OSP_ANNOTATION}']/osp:Algorithm/osp:FixedStepAlgorithm", NS)
         if algo is not None:
             base_step = _positive(need(algo, "baseStepSize", "osp:FixedStepAlgorithm"), path, "baseStepSize")
-    return SystemSpec(system.get("name", ssd_path.stem), root, components, connections, system_inputs, base_step, start, stop)
+    return SystemSpec(system.get("name", ssd_path.stem), root, components, connections, system_inputs, base_step, start,
+                      stop, archive)
 
 
 class _Origin:

@@ -175,3 +175,26 @@ def test_libcosim_0_0_6_cannot_load_fmi3_fmus(ssps):
     an SSP of FMI 3.0 FMUs (docs/using-the-fmus.md). If this starts to fail, update the docs."""
     with pytest.raises(HostError, match="Unsupported FMI version for FMU .*MastMechanism.fmu"):
         run_host("libcosim", ssps[1], 0.01, ["mechanism.z"])
+
+
+def test_fmi3_illegal_calls_are_refused_and_the_instance_stays_refused(built):
+    """The FMI state machine of fmus/common/slave.py in the FMI 3.0 variant: a fixed parameter set in step
+    mode, or exitInitializationMode without enterInitializationMode, is logged and refused (pythonfmu3
+    reports fmi3Fatal); every later call is refused too."""
+    def float64(inst: Instance3, function: str, name: str, value: float = 0.0) -> int:
+        vr, buf = (ctypes.c_uint32 * 1)(inst.vr[name]), (ctypes.c_double * 1)(value)
+        return getattr(inst.slave.dll, function)(inst.slave.component, vr, ctypes.c_size_t(1), buf, ctypes.c_size_t(1))
+
+    inst = Instance3(built / "fmus3" / "MastActuator.fmu", "axis")
+    inst.start()
+    assert inst.step(0.0, 1e-4) == OK
+    assert float64(inst, "fmi3SetFloat64", "R", 1.0) > ERROR
+    assert any(s == ERROR and "parameter 'R' is fixed" in m for s, m in inst.log), inst.log[-3:]
+    assert inst.step(1e-4, 1e-4) > ERROR and any("failed earlier" in m for s, m in inst.log[-2:])
+    assert float64(inst, "fmi3GetFloat64", "rho") > ERROR
+    inst.slave.freeInstance()
+
+    early = Instance3(built / "fmus3" / "MastActuator.fmu", "early")
+    assert early.slave.dll.fmi3ExitInitializationMode(early.slave.component) > ERROR
+    assert any("exitInitializationMode: not allowed in instantiated" in m for s, m in early.log), early.log[-3:]
+    early.slave.freeInstance()

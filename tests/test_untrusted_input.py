@@ -144,20 +144,60 @@ def test_check_mechanism_leaves_no_temporary_files(mechanism_fmu, tmp_path, tmpd
     assert not any(tmpdir_watch.iterdir()), list(tmpdir_watch.iterdir())
 
 
-def test_a_batch_leaves_no_temporary_files_after_success_and_after_failure(tmp_path, tmpdir_watch):
-    from mast.batch import run_batch
+@pytest.fixture(scope="module")
+def built_ssp(tmp_path_factory) -> Path:
     from mast.build import FMUS, SSP_SRC, build_fmu, build_ssp
 
+    out = tmp_path_factory.mktemp("built")
     needed = {Path(c.source).stem for c in read_ssd(SSP_SRC / "MAST.ssd").components.values()}
     for spec in FMUS:
         if spec.model_identifier in needed:
-            build_fmu(spec, tmp_path / "fmus")
-    ssp = build_ssp(SSP_SRC / "MAST.ssd", tmp_path / "fmus", tmp_path / "ssp")
-    leftover = set(tmpdir_watch.iterdir())  # the build's own (removed) folders: none expected
-    assert not leftover
-    config = {"ssp": str(ssp), "run": {"stop_time": 0.01, "record_step": 0.001},
+            build_fmu(spec, out / "fmus")
+    return build_ssp(SSP_SRC / "MAST.ssd", out / "fmus", out / "ssp")
+
+
+def test_a_run_leaves_no_temporary_files_after_success_and_after_failure(built_ssp, tmpdir_watch):
+    from mast.components import ComponentError
+    from mast.master import SimulationError
+    from mast.motion import SineMotion
+    from mast.run import simulate
+
+    motion = SineMotion("z", 0.001, 5.0)
+    assert len(simulate(built_ssp, motion, 0.005).time) > 1
+    assert not any(tmpdir_watch.iterdir()), list(tmpdir_watch.iterdir())
+    with pytest.raises((SimulationError, ComponentError), match="m_platform"):
+        simulate(built_ssp, motion, 0.005, parameters={"mechanism": {"m_platform": -1.0}})
+    assert not any(tmpdir_watch.iterdir()), list(tmpdir_watch.iterdir())
+
+
+def test_a_batch_leaves_no_temporary_files_after_success_and_after_failure(built_ssp, tmp_path, tmpdir_watch):
+    from mast.batch import run_batch
+
+    config = {"ssp": str(built_ssp), "run": {"stop_time": 0.01, "record_step": 0.001},
               "cases": {"motion": {"axis": "z", "amplitude": 0.001, "frequency": 5},
                         "list": [{"mechanism.m_platform": m} for m in (2.0, -1.0)]}}
     result = run_batch(config, tmp_path / "b", workers=1, progress=False, plots=False)
     assert (result.ok, result.failed) == (1, 1)
     assert not any(tmpdir_watch.iterdir()), list(tmpdir_watch.iterdir())
+
+
+def _bomb_fmu(path: Path) -> Path:
+    with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as z:
+        z.writestr("modelDescription.xml", bytes(8 << 20))
+    return path
+
+
+def test_a_zip_bomb_inside_an_ssp_or_given_as_an_fmu_is_named(tmp_path, tmpdir_watch):
+    from mast.compare import fmu_parameters
+    from mast.motion import SineMotion
+    from mast.run import simulate
+
+    bomb = _bomb_fmu(tmp_path / "bomb.fmu").read_bytes()
+    archive = _archive(tmp_path / "user.ssp", SSD.read_text(),
+                       {f"resources/{name}.fmu": bomb for name in ("MastController", "MastActuator", "MastMechanism")})
+    with pytest.raises(SSPFormatError, match=r"user\.ssp \(entry resources/Mast\w+\.fmu\): entry 'modelDescription\.xml' "
+                                             r"is compressed \d+ times"):
+        simulate(archive, SineMotion("z", 0.001, 5.0), 0.01)
+    assert not any(tmpdir_watch.iterdir())
+    with pytest.raises(SSPFormatError, match=r"bomb\.fmu: entry 'modelDescription\.xml' is compressed"):
+        fmu_parameters(tmp_path / "bomb.fmu")  # what `mast compare --mechanism X.fmu` reads first
