@@ -224,9 +224,11 @@ def run_host(host: str, ssp: Union[str, Path], stop_time: float, signals: Sequen
                        "--sample-step", repr(sample_step), "--out", str(out)]
             for s in signals:
                 command += ["--signal", s]
+        env = _environment(host)
+        env["TMPDIR"] = str(work / "tmp")  # ecos leaves its extracted SSP behind: in a folder removed here
+        (work / "tmp").mkdir()
         try:
-            proc = subprocess.run(command, cwd=work, env=_environment(host), capture_output=True, text=True,
-                                  timeout=timeout)
+            proc = subprocess.run(command, cwd=work, env=env, capture_output=True, text=True, timeout=timeout)
         except subprocess.TimeoutExpired:
             raise HostError(f"{host}: no result after {timeout:g} s") from None
         log = proc.stdout + proc.stderr

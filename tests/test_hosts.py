@@ -343,3 +343,17 @@ def test_ecospy_imports_without_ld_library_path_and_the_shown_environment_works(
     shell = subprocess.run(["bash", "-c", f'{exports}\n"{sys.executable}" -c "import ecospy"'], env=env,
                            capture_output=True, text=True)
     assert shell.returncode == 0, shell.stderr[-2000:]
+
+
+@needs("ecospy")
+def test_a_host_run_leaves_no_temporary_files(built, tmp_path, monkeypatch):
+    """ecos extracts the SSP into the temporary directory and leaves it there: run_host gives it a folder it removes."""
+    import tempfile
+
+    fresh = tmp_path / "tmp"
+    fresh.mkdir()
+    monkeypatch.setenv("TMPDIR", str(fresh))
+    monkeypatch.setattr(tempfile, "tempdir", str(fresh))
+    result = run_host("ecospy", built / "ssp" / "MAST_standalone.ssp", 0.01, ["mechanism.z"])
+    assert len(result.time) == 11
+    assert not any(fresh.iterdir()), list(fresh.iterdir())
