@@ -431,8 +431,8 @@ def _refused(inst: Instance, *words: str) -> None:
 
 
 @pytest.mark.parametrize("case", ["exit before enter", "parameter after initialization", "output",
-                                  "unknown reference", "step after terminate", "step before initialization",
-                                  "enter twice"])
+                                  "unknown reference", "wrong type", "step after terminate",
+                                  "step before initialization", "enter twice"])
 def test_illegal_calls_are_refused_and_the_instance_stays_refused(built, case):
     """FMI 2.0 section 4.3: a call its state does not allow, a set the variable does not allow, an unknown
     value reference: logged and refused (pythonfmu can only say fmi2Fatal), and so is every later call
@@ -461,6 +461,10 @@ def test_illegal_calls_are_refused_and_the_instance_stays_refused(built, case):
         elif case == "unknown reference":
             assert _real(inst, "fmi2GetReal", 4711) == FATAL
             _refused(inst, "getReal", "value reference 4711 is not a variable of")
+        elif case == "wrong type":
+            vr, value = (ctypes.c_uint * 1)(inst.vr["tau_c"]), (ctypes.c_int * 1)(1)
+            assert inst.dll.fmi2SetInteger(inst.c, vr, 1, value) == FATAL
+            _refused(inst, "setInteger", "'tau_c'", "is of type Real, not Integer")
         elif case == "step after terminate":
             assert inst.dll.fmi2Terminate(inst.c) == OK
             assert inst.step(3e-4, 1e-4) == FATAL

@@ -47,10 +47,12 @@ class BlockSlave(BlockWrapper, Fmi2Slave):
 
     @fmi_call()
     def get_boolean(self, vrs: List[int]) -> List[bool]:
+        self._check_refs(vrs, bool, write=False)
         return super().get_boolean(vrs)
 
     @fmi_call()
     def set_boolean(self, vrs: List[int], values: List[bool]) -> None:
+        self._check_refs(vrs, bool, write=True)
         super().set_boolean(vrs, values)
 
     @fmi_call(INSTANTIATED)

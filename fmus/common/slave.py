@@ -222,16 +222,16 @@ class BlockWrapper:
         """Refuse (IllegalCall) a value reference that is unknown, of another type, or not settable now."""
         if write and self._phase == STEPPING and self._input_refs.issuperset(vrs) and kind is float:
             return  # the hot path: inputs during the run
-        variable_class = self.fmi.kinds[kind]
+        variable_class = self.fmi.kinds.get(kind)  # None: a type none of the blocks' variables has (Boolean)
+        wanted = variable_class.__name__ if variable_class is not None else "Boolean"
         causality = self.fmi.causality
         for vr in vrs:
             var = self.vars.get(vr)
             if var is None:
                 raise IllegalCall(f"value reference {vr} is not a variable of {type(self).__name__} "
                                   f"(it has {min(self.vars)}..{max(self.vars)})")
-            if not isinstance(var, variable_class):
-                raise IllegalCall(f"'{var.name}' (value reference {vr}) is a {type(var).__name__}, "
-                                  f"not a {variable_class.__name__}")
+            if variable_class is None or not isinstance(var, variable_class):
+                raise IllegalCall(f"'{var.name}' (value reference {vr}) is of type {type(var).__name__}, not {wanted}")
             if not write:
                 continue
             if var.causality == causality.parameter:
