@@ -519,15 +519,15 @@ def _expm_taylor(M: np.ndarray) -> np.ndarray:
     norm = float(np.abs(M).sum(axis=0).max())
     s = max(0, math.ceil(math.log2(norm / 0.5))) if norm > 0.5 else 0
     X = M * 2.0 ** -s
-    diagonal = np.arange(len(M)) * (len(M) + 1)
+    eye = np.eye(len(M))
     E = X * (1.0 / 16.0)
-    E.flat[diagonal] += 1.0
-    for k in range(15, 0, -1):  # Horner: E = I + X E / k
-        E = X @ E
+    E += eye
+    for k in range(15, 0, -1):  # Horner: E = I + X E / k (ndarray.dot: the least overhead for small matrices)
+        E = X.dot(E)
         E *= 1.0 / k
-        E.flat[diagonal] += 1.0
+        E += eye
     for _ in range(s):
-        E = E @ E
+        E = E.dot(E)
     return E
 
 
