@@ -35,6 +35,8 @@ NS = {
     "osp": "http://opensimulationplatform.com/SSP/OSPAnnotations",
 }
 OSP_ANNOTATION = "com.opensimulationplatform"
+SSV_TYPE = "application/x-ssp-parameter-set"
+FMU_TYPE = "application/x-fmu-sharedlibrary"
 
 
 @dataclass
@@ -231,6 +233,9 @@ def read_ssd(path: Union[str, Path], root: Optional[Path] = None, archive: Optio
             raise SSPFormatError(f"{path}: component name '{name}' is used twice")
         connectors = comp.findall("ssd:Connectors/ssd:Connector", NS)
         source = need(comp, "source", f"component '{name}'")
+        if comp.get("type", FMU_TYPE) != FMU_TYPE:
+            raise SSPFormatError(f"{path}: component '{name}' has type '{comp.get('type')}': only FMUs "
+                                 f"({FMU_TYPE}) are supported")
         _inside(root, source, str(path), f"component '{name}' source", within)
         spec = ComponentSpec(
             name=name,
@@ -313,6 +318,13 @@ def _step_size_hint(comp, path, name: str) -> Optional[float]:
 
 
 def _binding_values(binding, root: Path, path: "_Origin", component: str, within: str) -> dict[str, Value]:
+    unsupported = [what for what, present in (
+        (f"prefix={binding.get('prefix')!r}", binding.get("prefix")),
+        ("an ssd:ParameterMapping", binding.find("ssd:ParameterMapping", NS) is not None),
+        (f"type={binding.get('type')!r}", binding.get("type", SSV_TYPE) != SSV_TYPE)) if present]
+    if unsupported:  # applying the values without them would be silently wrong
+        raise SSPFormatError(f"{path}: a parameter binding of '{component}' has {' and '.join(unsupported)}, "
+                             f"which this reader does not support (line {binding.sourceline})")
     source = binding.get("source")
     if source:
         file = _inside(root, source, str(path), f"component '{component}' binds parameter set", within)

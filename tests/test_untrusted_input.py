@@ -80,6 +80,19 @@ def test_ssd_sources_outside_the_archive_are_refused(tmp_path, reference):
         SSPArchive(_archive(tmp_path / "fmu.ssp", fmu))
 
 
+@pytest.mark.parametrize("attributes, message", [('prefix="m."', "prefix='m.'"),
+                                                 ('type="application/x-ssp-parameter-mapping"', "type=")])
+def test_binding_features_the_reader_would_ignore_are_refused(tmp_path, attributes, message):
+    text = SSD.read_text().replace('<ssd:ParameterBinding source="resources/mass_3prs.ssv"/>',
+                                   f'<ssd:ParameterBinding source="resources/mass_3prs.ssv" {attributes}/>')
+    with pytest.raises(SSPFormatError, match=rf"binding of 'mechanism' has {message}.*does not support"):
+        SSPArchive(_archive(tmp_path / "user.ssp", text))
+    nested = SSD.read_text().replace('source="resources/MastMechanism.fmu" type="application/x-fmu-sharedlibrary"',
+                                     'source="resources/MastMechanism.ssp" type="application/x-ssp-package"')
+    with pytest.raises(SSPFormatError, match=r"component 'mechanism' has type 'application/x-ssp-package': only FMUs"):
+        SSPArchive(_archive(tmp_path / "nested.ssp", nested))
+
+
 def test_a_measured_test_file_outside_the_data_folder_is_refused(tmp_path):
     folder = tmp_path / "data"
     folder.mkdir()
