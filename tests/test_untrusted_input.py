@@ -201,7 +201,7 @@ def _bomb_fmu(path: Path) -> Path:
 
 
 def test_a_zip_bomb_inside_an_ssp_or_given_as_an_fmu_is_named(tmp_path, tmpdir_watch):
-    from mast.compare import fmu_parameters
+    from mast.components import fmu_parameters
     from mast.motion import SineMotion
     from mast.run import simulate
 
