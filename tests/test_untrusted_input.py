@@ -14,6 +14,7 @@ import mast.ssp as ssp_module
 from mast.measured import MeasuredDataError, load
 from mast.ssp import SSPArchive, read_ssd, safe_extract
 from mast.ssv import SSPFormatError
+from test_batch import ssp as built_ssp  # noqa: F401 (the fixture: the default system's SSP, built from this tree)
 
 ROOT = Path(__file__).resolve().parents[1]
 SSD = ROOT / "ssp" / "MAST.ssd"
@@ -155,18 +156,6 @@ def test_check_mechanism_leaves_no_temporary_files(mechanism_fmu, tmp_path, tmpd
     results = check_mechanism(broken)  # in the child process the CLI uses
     assert not results[0].passed and "broken.fmu" in results[0].detail
     assert not any(tmpdir_watch.iterdir()), list(tmpdir_watch.iterdir())
-
-
-@pytest.fixture(scope="module")
-def built_ssp(tmp_path_factory) -> Path:
-    from mast.build import FMUS, SSP_SRC, build_fmu, build_ssp
-
-    out = tmp_path_factory.mktemp("built")
-    needed = {Path(c.source).stem for c in read_ssd(SSP_SRC / "MAST.ssd").components.values()}
-    for spec in FMUS:
-        if spec.model_identifier in needed:
-            build_fmu(spec, out / "fmus")
-    return build_ssp(SSP_SRC / "MAST.ssd", out / "fmus", out / "ssp")
 
 
 def test_a_run_leaves_no_temporary_files_after_success_and_after_failure(built_ssp, tmpdir_watch):
