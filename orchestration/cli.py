@@ -187,8 +187,11 @@ def cmd_reproduce(args) -> int:
 
 
 def cmd_hosts(args) -> int:
-    from .hosts import HOSTS, cross_check
+    from .hosts import COMPARED, HOSTS, cross_check, show
 
+    if args.show:
+        print(show(args.show, args.ssp, args.stop_time, list(COMPARED), Path.cwd()))
+        return 0
     rows = cross_check(args.ssp, args.stop_time, args.host or HOSTS)
     return 1 if any(row.get("failed") for row in rows) else 0
 
@@ -349,6 +352,9 @@ def main(argv=None) -> int:
     p.add_argument("ssp", nargs="?", default=str(REPO / "build" / "ssp" / "MAST_standalone.ssp"))
     p.add_argument("--stop-time", type=seconds, default=1.0)
     p.add_argument("--host", action="append", choices=("libcosim", "ecospy", "ecos"), help="(repeatable; default: all)")
+    p.add_argument("--show", choices=("ecospy", "ecos"),
+                   help="run nothing: print the environment (and the ecos command line, its csv.xml written here) "
+                        "to run the host by hand")
     p.set_defaults(func=cmd_hosts)
 
     p = sub.add_parser("validate", help="fmpy validation of every FMU and SSP 1.0 schema check of every SSD")

@@ -284,6 +284,9 @@ def fmu_parameters(fmu: Union[str, Path]) -> dict[str, Value]:
     """Default (start) values of an FMU's parameters, typed."""
     from fmpy import read_model_description
 
+    from .ssp import check_archive
+
+    check_archive(fmu)  # a file the user gave: no zip bomb in its modelDescription.xml
     md = read_model_description(str(fmu))
     convert = {"Real": float, "Integer": int, "Enumeration": int, "String": str,
                "Boolean": lambda s: str(s).strip().lower() in ("true", "1")}

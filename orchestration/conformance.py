@@ -19,6 +19,8 @@ from __future__ import annotations
 
 import json
 import math
+import os
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -108,12 +110,21 @@ class FMUSubject(_Subject):
     """An FMI 2.0 co-simulation FMU through fmpy."""
 
     def __init__(self, fmu: Union[str, Path]) -> None:
-        from fmpy import extract, read_model_description
+        from fmpy import read_model_description
+
+        from .ssp import safe_extract
 
         self.fmu = str(fmu)
-        self.md = read_model_description(self.fmu)
-        if self.md.coSimulation is None:
-            raise ValueError(f"{fmu}: not a co-simulation FMU")
+        self._tmp = tempfile.mkdtemp(prefix="mast_check_")
+        self.slave = None
+        try:  # extracted with the archive limits, then read from the folder
+            self.unzip = str(safe_extract(self.fmu, self._tmp))
+            self.md = read_model_description(self.unzip)
+            if self.md.coSimulation is None:
+                raise ValueError(f"{fmu}: not a co-simulation FMU")
+        except BaseException:
+            self.dispose()
+            raise
         self.vars = {v.name: v for v in self.md.modelVariables}
         self.variables = {v.name: (v.causality, v.unit or (v.declaredType.unit if v.declaredType else None))
                           for v in self.md.modelVariables}
@@ -121,9 +132,6 @@ class FMUSubject(_Subject):
                    "Boolean": lambda s: str(s).lower() in ("true", "1")}
         self.parameters = {v.name: convert.get(v.type, str)(v.start) for v in self.md.modelVariables
                            if v.causality == "parameter" and v.start is not None}
-        self._tmp = tempfile.mkdtemp(prefix="mast_check_")
-        self.unzip = extract(self.fmu, self._tmp)
-        self.slave = None
         self.messages: list[str] = []
         self._n = 0
 
@@ -167,6 +175,11 @@ class FMUSubject(_Subject):
                 pass
             self.slave.freeInstance()
             self.slave = None
+
+    def dispose(self) -> None:
+        """Close, and remove the extracted FMU."""
+        self.close()
+        shutil.rmtree(self._tmp, ignore_errors=True)
 
 
 def _controller_ik(parameters: Mapping) -> tuple[Callable, str]:
@@ -321,9 +334,10 @@ def check_mechanism(target: Union[str, Path], parameters: Optional[Mapping] = No
         from fmus.mechanism.model import MechanismBlock
 
         return check(BlockSubject(MechanismBlock, parameters), **kwargs)
-    if isolate:
-        proc = subprocess.run([sys.executable, "-m", "mast.conformance", "--json", str(target)],
-                              capture_output=True, text=True, timeout=600)
+    if isolate:  # the child's temporary files go to a folder removed here, even if the child crashes
+        with tempfile.TemporaryDirectory(prefix="mast_check_") as tmp:
+            proc = subprocess.run([sys.executable, "-m", "mast.conformance", "--json", str(target)],
+                                  capture_output=True, text=True, timeout=600, env={**os.environ, "TMPDIR": tmp})
         try:
             return [Check(**c) for c in json.loads(proc.stdout.strip().splitlines()[-1])]
         except (IndexError, ValueError, TypeError):
@@ -333,7 +347,7 @@ def check_mechanism(target: Union[str, Path], parameters: Optional[Mapping] = No
     try:
         return check(subject, **kwargs)
     finally:
-        subject.close()
+        subject.dispose()
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:

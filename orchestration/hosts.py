@@ -23,6 +23,11 @@ libcosim and our master pass them on at the end of that component's own step.
 Command line (used by ``run_host``; also handy by hand)::
 
     python -m mast.hosts libcosim build/ssp/MAST_standalone.ssp --stop-time 1 --signal mechanism.z --out z.csv
+
+By hand: ``mast hosts --show ecos`` prints the environment and the ecos command line
+``run_host`` uses (with a CSV configuration: without one, ecos writes every variable of every
+component at every base step, which costs more than the simulation); from Python,
+``import_ecospy()`` loads ecospy without ``LD_LIBRARY_PATH``.
 """
 from __future__ import annotations
 
@@ -121,17 +126,70 @@ def availability(host: str) -> Optional[str]:
 
 
 def _environment(host: str) -> dict[str, str]:
-    env = dict(os.environ)
+    return {**os.environ, **host_environment(host)}
+
+
+def host_environment(host: str) -> dict[str, str]:
+    """The variables ``host`` needs on top of this process's environment (each keeps what it held)."""
+    env: dict[str, str] = {}
     if host in ("ecospy", "ecos"):
-        env["LD_LIBRARY_PATH"] = os.pathsep.join(p for p in (str(_tbb_dir()), env.get("LD_LIBRARY_PATH")) if p)
+        env["LD_LIBRARY_PATH"] = os.pathsep.join(p for p in (str(_tbb_dir()), os.environ.get("LD_LIBRARY_PATH")) if p)
     if host == "ecos":
         # the C++ host starts its own interpreter inside the FMU's library: give it this Python's
         # standard library and the packages of this environment (numpy, scipy for the models)
-        env["LD_PRELOAD"] = " ".join(p for p in (str(_libpython()), env.get("LD_PRELOAD")) if p)
+        env["LD_PRELOAD"] = " ".join(p for p in (str(_libpython()), os.environ.get("LD_PRELOAD")) if p)
         env["PYTHONHOME"] = sys.base_prefix
         paths = dict.fromkeys([sysconfig.get_paths()["purelib"], sysconfig.get_paths()["platlib"]])
-        env["PYTHONPATH"] = os.pathsep.join([*paths, *([env["PYTHONPATH"]] if env.get("PYTHONPATH") else [])])
+        previous = os.environ.get("PYTHONPATH")
+        env["PYTHONPATH"] = os.pathsep.join([*paths, *([previous] if previous else [])])
     return env
+
+
+def import_ecospy():
+    """``import ecospy`` in this process, without ``LD_LIBRARY_PATH``: libtbb.so.12 (from the ``tbb``
+    wheel, in <venv>/lib, which the loader does not search) is loaded first, globally."""
+    import ctypes
+
+    ctypes.CDLL(str(_tbb_dir() / "libtbb.so.12"), mode=ctypes.RTLD_GLOBAL)
+    import ecospy
+
+    return ecospy
+
+
+def ecos_command(ssp: Path, stop_time: float, signals: Sequence[str], sample_step: float, workdir: Path,
+                 base_step: Optional[float] = None, fmu_log: bool = False, executable: str = "ecos") -> list[str]:
+    """The ecos command line for ``ssp`` (its CSV configuration written to ``workdir/csv.xml``).
+
+    The options that matter: ``--parameterSet default`` (ecos applies bindings only by name),
+    a stop time half a step past the end (ecos truncates stop/step), and ``--csvConfig`` naming
+    the ``signals`` and a decimation to ``sample_step``: without it, ecos writes every variable of
+    every component at every base step (measured: 0.2 s simulated took 14 s).
+    """
+    base_step = base_step or _base_step(ssp)
+    _write_ecos_csv_config(workdir / "csv.xml", signals, _decimation(sample_step, base_step))
+    command = [executable, "simulate", "--path", str(ssp), "--stepSize", repr(base_step),
+               "--stopTime", repr(stop_time + 0.5 * base_step),  # ecos truncates stop/step
+               "--parameterSet", FLAT_SET_NAME, "--csvConfig", str(workdir / "csv.xml")]
+    return command + (["--debugLogging", "--logLevel", "debug"] if fmu_log else ["--logLevel", "warn"])
+
+
+def show(host: str, ssp: Union[str, Path], stop_time: float, signals: Sequence[str], workdir: Path) -> str:
+    """What to type to run ``host`` by hand: the environment (shell ``export`` lines) and, for the ecos
+    command line, the command (its CSV configuration written into ``workdir``)."""
+    import shlex
+
+    reason = availability(host)
+    if reason:
+        raise HostUnavailable(f"{host}: {reason}")
+    lines = [f"export {name}={shlex.quote(value)}" for name, value in host_environment(host).items()]
+    if host == "ecos":
+        binary = _package_dir("ecospy", "ecospy") / "binaries" / "ecos"
+        lines.append(f"# ecos ships without the executable bit: cp {binary} . && chmod +x ecos")
+        lines.append(shlex.join(ecos_command(Path(ssp).resolve(), stop_time, signals, 1e-3, workdir,
+                                             executable="./ecos")))
+    elif host == "ecospy":
+        lines.append("# then `import ecospy` works; or, without the export, from mast.hosts import import_ecospy")
+    return "\n".join(lines)
 
 
 # -- running ----------------------------------------------------------------------------
@@ -159,21 +217,18 @@ def run_host(host: str, ssp: Union[str, Path], stop_time: float, signals: Sequen
         work = Path(tmp)
         out = work / "result.csv"
         if host == "ecos":
-            base_step = base_step or _base_step(ssp)
-            decimation = _decimation(sample_step, base_step)
-            _write_ecos_csv_config(work / "csv.xml", signals, decimation)
-            command = [str(_ecos_binary(work)), "simulate", "--path", str(ssp), "--stepSize", repr(base_step),
-                       "--stopTime", repr(stop_time + 0.5 * base_step),  # ecos truncates stop/step
-                       "--parameterSet", FLAT_SET_NAME, "--csvConfig", str(work / "csv.xml")]
-            command += ["--debugLogging", "--logLevel", "debug"] if fmu_log else ["--logLevel", "warn"]
+            command = ecos_command(ssp, stop_time, signals, sample_step, work, base_step, fmu_log,
+                                   str(_ecos_binary(work)))
         else:
             command = [sys.executable, "-m", "mast.hosts", host, str(ssp), "--stop-time", repr(stop_time),
                        "--sample-step", repr(sample_step), "--out", str(out)]
             for s in signals:
                 command += ["--signal", s]
+        env = _environment(host)
+        env["TMPDIR"] = str(work / "tmp")  # ecos leaves its extracted SSP behind: in a folder removed here
+        (work / "tmp").mkdir()
         try:
-            proc = subprocess.run(command, cwd=work, env=_environment(host), capture_output=True, text=True,
-                                  timeout=timeout)
+            proc = subprocess.run(command, cwd=work, env=env, capture_output=True, text=True, timeout=timeout)
         except subprocess.TimeoutExpired:
             raise HostError(f"{host}: no result after {timeout:g} s") from None
         log = proc.stdout + proc.stderr
@@ -372,7 +427,8 @@ def _child_libcosim(ssp: Path, stop_time: float, signals: Sequence[str], sample_
 
 
 def _child_ecospy(ssp: Path, stop_time: float, signals: Sequence[str], sample_step: float) -> Result:
-    from ecospy import EcosLib, EcosSimulation
+    ecospy = import_ecospy()
+    EcosLib, EcosSimulation = ecospy.EcosLib, ecospy.EcosSimulation
 
     EcosLib.set_log_level("warn")
     base_step = _base_step(ssp)

@@ -195,6 +195,8 @@ def load(folder: Union[str, Path], stroke: tuple[float, float] = (0.0, 0.3)) -> 
     ``stroke`` [m]: carriage positions outside it (with 10 mm margin) are reported as a
     unit problem.
     """
+    from .ssp import path_inside
+
     folder = Path(folder)
     if not folder.is_dir():
         raise MeasuredDataError(f"{folder}: no such folder")
@@ -218,6 +220,9 @@ def load(folder: Union[str, Path], stroke: tuple[float, float] = (0.0, 0.3)) -> 
     for k, entry in enumerate(tests_meta):
         if not isinstance(entry, dict) or "file" not in entry:
             raise MeasuredDataError(f"meta.json: tests[{k}] has no 'file'")
+        if path_inside(folder, str(entry["file"])) is None:
+            raise MeasuredDataError(f"{meta_path}: tests[{k}] file {str(entry['file'])!r} is not a relative path "
+                                    f"inside {folder}: refused")
         listed.append(str(entry["file"]))
     for csv_file in sorted(folder.glob("*.csv")):
         if csv_file.name not in listed:

@@ -68,7 +68,8 @@ def simulate(ssp: Union[str, Path], stimulus: Optional[Stimulus], stop_time: flo
                     components[name] = BlockComponent(name, BlockComponent.class_for(fmu.stem))
                 else:
                     if fmu not in unzipped:
-                        unzipped[fmu] = safe_extract(fmu, Path(unzip_root) / f"{len(unzipped)}_{fmu.stem}")
+                        unzipped[fmu] = safe_extract(fmu, Path(unzip_root) / f"{len(unzipped)}_{fmu.stem}",
+                                                     system.fmu_label(name))
                     components[name] = FMUComponent(name, fmu, unzipped[fmu])
             master = Master(system, components, base_step=base_step, step_sizes=step_sizes)
         except Exception:

@@ -58,11 +58,12 @@ class Session:
         self.last_setup_s = 0.0
 
     # -- components ------------------------------------------------------------------
-    def _extract(self, fmu: Path) -> Path:
+    def _extract(self, fmu: Path, label: str) -> Path:
         if fmu not in self._unzipped:
             if self._unzip_root is None:
                 self._unzip_root = tempfile.TemporaryDirectory(prefix="mast_session_")
-            self._unzipped[fmu] = safe_extract(fmu, Path(self._unzip_root.name) / f"{len(self._unzipped)}_{fmu.stem}")
+            self._unzipped[fmu] = safe_extract(fmu, Path(self._unzip_root.name) / f"{len(self._unzipped)}_{fmu.stem}",
+                                               label)
         return self._unzipped[fmu]
 
     def _instantiate(self) -> dict[str, object]:
@@ -73,7 +74,7 @@ class Session:
                 if self.direct:
                     components[name] = BlockComponent(name, BlockComponent.class_for(fmu.stem))
                 else:
-                    components[name] = FMUComponent(name, fmu, self._extract(fmu))
+                    components[name] = FMUComponent(name, fmu, self._extract(fmu, self.system.fmu_label(name)))
         except Exception:
             for comp in components.values():
                 comp.close()

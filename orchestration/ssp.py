@@ -17,6 +17,7 @@ from __future__ import annotations
 import shutil
 import tempfile
 import zipfile
+import zlib
 from dataclasses import dataclass, field
 from pathlib import Path, PurePosixPath
 from typing import Iterable, Mapping, Optional, Union
@@ -35,6 +36,8 @@ NS = {
     "osp": "http://opensimulationplatform.com/SSP/OSPAnnotations",
 }
 OSP_ANNOTATION = "com.opensimulationplatform"
+SSV_TYPE = "application/x-ssp-parameter-set"
+FMU_TYPE = "application/x-fmu-sharedlibrary"
 
 
 @dataclass
@@ -68,25 +71,122 @@ class SystemSpec:
     base_step: Optional[float]
     start_time: float
     stop_time: Optional[float]
+    archive: Optional[Path] = None  # the .ssp the system was extracted from (None: a folder)
 
     def fmu_path(self, component: str) -> Path:
         return self.root / self.components[component].source
 
+    def fmu_label(self, component: str) -> str:
+        """How messages name a component's FMU: its path, or the archive and the entry."""
+        source = self.components[component].source
+        return f"{self.archive} (entry {source})" if self.archive else str(self.fmu_path(component))
 
-def safe_extract(archive: Union[str, Path], target: Union[str, Path]) -> Path:
-    """Extract a zip (SSP or FMU) refusing entries that would land outside ``target``."""
-    archive, target = Path(archive), Path(target)
-    try:
-        handle = zipfile.ZipFile(archive)
-    except (zipfile.BadZipFile, OSError) as err:
-        raise SSPFormatError(f"{archive}: not a readable zip archive ({err})") from None
-    with handle:
-        for member in handle.namelist():
-            pure = PurePosixPath(member.replace("\\", "/"))
-            if pure.is_absolute() or ".." in pure.parts or (pure.parts and ":" in pure.parts[0]):
-                raise SSPFormatError(f"{archive}: entry '{member}' would be extracted outside the target folder")
-        handle.extractall(target)
+
+#: what an untrusted archive (SSP or FMU) may expand to; beyond, extraction is refused before a byte is written
+MAX_ARCHIVE_BYTES = 1 << 30        # all entries together, uncompressed
+MAX_ENTRY_BYTES = 512 << 20        # one entry, uncompressed
+MAX_ENTRIES = 20_000
+MAX_RATIO = 200                    # uncompressed / compressed, for an entry of more than RATIO_FLOOR bytes
+RATIO_FLOOR = 1 << 20              # small entries (XML, JSON) may compress better without filling a disk
+
+
+def check_archive(archive: Union[str, Path], label: Optional[str] = None) -> None:
+    """Refuse (SSPFormatError naming the archive, ``label`` or its path, and the entry) a zip whose
+    entries would land outside the folder it is extracted to (absolute, ``..``, a drive), or that
+    would expand beyond MAX_ARCHIVE_BYTES in all, MAX_ENTRY_BYTES per entry, MAX_ENTRIES entries,
+    or has an entry of more than RATIO_FLOOR bytes compressed more than MAX_RATIO times (a zip
+    bomb). Reads the archive's directory only: also for readers that take one file out of it
+    (fmpy's read_model_description)."""
+    with _open_zip(archive, label) as handle:
+        _check_members(handle.infolist(), label or str(archive))
+
+
+def safe_extract(archive: Union[str, Path], target: Union[str, Path], label: Optional[str] = None) -> Path:
+    """Extract a zip (SSP or FMU) into ``target``, refusing what ``check_archive`` refuses.
+
+    The sizes the archive declares are checked first; the bytes written are counted as well
+    (zipfile stops an entry at its declared size and checks its CRC).
+    """
+    target, name = Path(target), label or str(archive)
+    with _open_zip(archive, label) as handle:
+        members = handle.infolist()
+        _check_members(members, name)
+        written = 0
+        for info in members:
+            path = target.joinpath(*PurePosixPath(info.filename.replace("\\", "/")).parts)
+            if info.is_dir():
+                path.mkdir(parents=True, exist_ok=True)
+                continue
+            path.parent.mkdir(parents=True, exist_ok=True)
+            try:
+                with handle.open(info) as src, open(path, "wb") as dst:
+                    while chunk := src.read(1 << 20):
+                        written += len(chunk)
+                        if written > MAX_ARCHIVE_BYTES:
+                            raise SSPFormatError(f"{name}: entry '{info.filename}' expands beyond the "
+                                                 f"{MAX_ARCHIVE_BYTES >> 20} MiB an archive may hold")
+                        dst.write(chunk)
+            except (zipfile.BadZipFile, zlib.error, EOFError, NotImplementedError) as err:
+                raise SSPFormatError(f"{name}: entry '{info.filename}' cannot be extracted ({err})") from None
     return target
+
+
+def _open_zip(archive: Union[str, Path], label: Optional[str]) -> zipfile.ZipFile:
+    try:
+        return zipfile.ZipFile(archive)
+    except (zipfile.BadZipFile, OSError) as err:
+        raise SSPFormatError(f"{label or archive}: not a readable zip archive ({err})") from None
+
+
+def _check_members(members: list, name: str) -> None:
+    if len(members) > MAX_ENTRIES:
+        raise SSPFormatError(f"{name}: {len(members)} entries, more than the {MAX_ENTRIES} an archive may hold")
+    total = 0
+    for info in members:
+        pure = PurePosixPath(info.filename.replace("\\", "/"))
+        if pure.is_absolute() or ".." in pure.parts or (pure.parts and ":" in pure.parts[0]):
+            raise SSPFormatError(f"{name}: entry '{info.filename}' would be extracted outside the target folder")
+        _check_size(name, info.filename, info.file_size, info.compress_size)
+        total += info.file_size
+        if total > MAX_ARCHIVE_BYTES:
+            raise SSPFormatError(f"{name}: expands to more than {MAX_ARCHIVE_BYTES >> 20} MiB "
+                                 f"(reached at entry '{info.filename}'): refused as a possible zip bomb")
+
+
+def _check_size(name: str, entry: str, size: int, compressed: int) -> None:
+    if size > MAX_ENTRY_BYTES:
+        raise SSPFormatError(f"{name}: entry '{entry}' expands to {size >> 20} MiB, more than the "
+                             f"{MAX_ENTRY_BYTES >> 20} MiB an entry may: refused as a possible zip bomb")
+    if size > RATIO_FLOOR and size > MAX_RATIO * max(compressed, 1):
+        raise SSPFormatError(f"{name}: entry '{entry}' is compressed {size / max(compressed, 1):.0f} times "
+                             f"({compressed} bytes expand to {size >> 20} MiB), more than {MAX_RATIO}: "
+                             "refused as a possible zip bomb")
+
+
+def path_inside(root: Path, reference: str) -> Optional[Path]:
+    """``root / reference`` if the reference stays inside ``root``, else None.
+
+    A reference is a relative path (SSP: a relative URI): an absolute path, a drive, a URI
+    scheme or a ``..`` that climbs above ``root`` is refused. Checked on the text, so a folder
+    of the user's that links elsewhere still works; an extracted archive holds no links
+    (zipfile writes none).
+    """
+    pure = PurePosixPath(reference.replace("\\", "/"))
+    depth = 0
+    for part in pure.parts:
+        depth += -1 if part == ".." else 0 if part == "." else 1
+        if depth < 0:
+            return None
+    if not reference or pure.is_absolute() or (pure.parts and ":" in pure.parts[0]):
+        return None
+    return root.joinpath(*pure.parts)
+
+
+def _inside(root: Path, reference: str, origin: str, what: str, within: str) -> Path:
+    path = path_inside(root, reference)
+    if path is None:
+        raise SSPFormatError(f"{origin}: {what} '{reference}' is not a relative path inside {within}: refused")
+    return path
 
 
 def validate_ssd_schema(path: Union[str, Path]) -> list[str]:
@@ -100,14 +200,21 @@ def validate_ssd_schema(path: Union[str, Path]) -> list[str]:
     return []
 
 
-def read_ssd(path: Union[str, Path], root: Optional[Path] = None) -> SystemSpec:
-    """Parse a SystemStructure.ssd; relative sources resolve against ``root`` (default: its folder)."""
-    path = Path(path)
-    root = root or path.parent
+def read_ssd(path: Union[str, Path], root: Optional[Path] = None, archive: Optional[Path] = None) -> SystemSpec:
+    """Parse a SystemStructure.ssd; relative sources resolve against ``root`` (default: its folder).
+
+    ``archive``: the .ssp the file was extracted from; messages then name it and the entry
+    (``MAST.ssp (entry SystemStructure.ssd)``), not the temporary folder. Every source (FMU,
+    parameter set) must stay inside ``root``.
+    """
+    ssd_path = Path(path)
+    root = root or ssd_path.parent
+    path = _Origin(ssd_path, archive, root)
+    within = f"the archive {archive}" if archive else f"the folder {root}"
     try:
-        doc = etree.parse(str(path)).getroot()
+        doc = etree.parse(str(ssd_path)).getroot()
     except (etree.XMLSyntaxError, OSError) as err:
-        raise SSPFormatError(f"{path}: cannot read the system structure: {err}") from None
+        raise SSPFormatError(f"{path}: cannot read the system structure: {_strip(err, ssd_path)}") from None
     if doc.tag != f"{{{NS['ssd']}}}SystemStructureDescription":
         raise SSPFormatError(f"{path}: root element is {doc.tag}, expected ssd:SystemStructureDescription")
     system = doc.find("ssd:System", NS)
@@ -128,15 +235,20 @@ def read_ssd(path: Union[str, Path], root: Optional[Path] = None) -> SystemSpec:
         if name in components:
             raise SSPFormatError(f"{path}: component name '{name}' is used twice")
         connectors = comp.findall("ssd:Connectors/ssd:Connector", NS)
+        source = need(comp, "source", f"component '{name}'")
+        if comp.get("type", FMU_TYPE) != FMU_TYPE:
+            raise SSPFormatError(f"{path}: component '{name}' has type '{comp.get('type')}': only FMUs "
+                                 f"({FMU_TYPE}) are supported")
+        _inside(root, source, str(path), f"component '{name}' source", within)
         spec = ComponentSpec(
             name=name,
-            source=need(comp, "source", f"component '{name}'"),
+            source=source,
             step_size=_step_size_hint(comp, path, name),
             inputs=[c.get("name") for c in connectors if c.get("kind") in ("input", "parameter")],
             outputs=[c.get("name") for c in connectors if c.get("kind") in ("output", "calculatedParameter")],
         )
         for binding in comp.findall("ssd:ParameterBindings/ssd:ParameterBinding", NS):
-            parsed = _binding_values(binding, root, path, name)
+            parsed = _binding_values(binding, root, path, name, within)
             source = binding.get("source") or f"inline values of '{name}'"
             values = {k: p.value for k, p in parsed.items()}
             spec.bindings.append((source, values))
@@ -157,15 +269,46 @@ def read_ssd(path: Union[str, Path], root: Optional[Path] = None) -> SystemSpec:
     base_step, start, stop = None, 0.0, None
     experiment = doc.find("ssd:DefaultExperiment", NS)
     if experiment is not None:
-        start = float(experiment.get("startTime", 0.0))
-        stop = float(experiment.get("stopTime")) if experiment.get("stopTime") else None
+        start = _number(experiment.get("startTime", "0"), path, "DefaultExperiment startTime")
+        stop = _number(experiment.get("stopTime"), path, "DefaultExperiment stopTime") if experiment.get("stopTime") else None
         algo = experiment.find(f"ssd:Annotations/ssc:Annotation[@type='{OSP_ANNOTATION}']/osp:Algorithm/osp:FixedStepAlgorithm", NS)
         if algo is not None:
             base_step = _positive(need(algo, "baseStepSize", "osp:FixedStepAlgorithm"), path, "baseStepSize")
-    return SystemSpec(system.get("name", path.stem), root, components, connections, system_inputs, base_step, start, stop)
+    return SystemSpec(system.get("name", ssd_path.stem), root, components, connections, system_inputs, base_step, start,
+                      stop, archive)
 
 
-def _positive(text: str, path: Path, what: str) -> float:
+class _Origin:
+    """How messages name an SSD: its path, or the archive and the entry it came from."""
+
+    def __init__(self, path: Path, archive: Optional[Path], root: Path) -> None:
+        self.path, self.archive, self.root = path, archive, root
+
+    def entry(self, file: Path) -> str:
+        if self.archive is None:
+            return str(file)
+        return f"{self.archive} (entry {file.relative_to(self.root).as_posix()})"
+
+    def __str__(self) -> str:
+        return self.entry(self.path)
+
+
+def _strip(err: Exception, path: Path) -> str:
+    """An XML parser's message without the (temporary) file name it repeats."""
+    return str(err).replace(f"{path}:", "").replace(str(path), path.name).strip()
+
+
+def _number(text: str, path, what: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if value != value or value in (float("inf"), float("-inf")):
+        raise SSPFormatError(f"{path}: {what}={text!r}: expected a finite number of seconds")
+    return value
+
+
+def _positive(text: str, path, what: str) -> float:
     try:
         value = float(text)
     except ValueError:
@@ -175,18 +318,25 @@ def _positive(text: str, path: Path, what: str) -> float:
     return value
 
 
-def _step_size_hint(comp, path: Path, name: str) -> Optional[float]:
+def _step_size_hint(comp, path, name: str) -> Optional[float]:
     hint = comp.find(f"ssd:Annotations/ssc:Annotation[@type='{OSP_ANNOTATION}']/osp:StepSizeHint", NS)
     return None if hint is None else _positive(hint.get("value", ""), path, f"StepSizeHint of '{name}'")
 
 
-def _binding_values(binding, root: Path, path: Path, component: str) -> dict[str, ParameterValue]:
+def _binding_values(binding, root: Path, path: "_Origin", component: str, within: str) -> dict[str, ParameterValue]:
+    unsupported = [what for what, present in (
+        (f"prefix={binding.get('prefix')!r}", binding.get("prefix")),
+        ("an ssd:ParameterMapping", binding.find("ssd:ParameterMapping", NS) is not None),
+        (f"type={binding.get('type')!r}", binding.get("type", SSV_TYPE) != SSV_TYPE)) if present]
+    if unsupported:  # applying the values without them would be silently wrong
+        raise SSPFormatError(f"{path}: a parameter binding of '{component}' has {' and '.join(unsupported)}, "
+                             f"which this reader does not support (line {binding.sourceline})")
     source = binding.get("source")
     if source:
-        file = root / source
-        if not file.exists():
+        file = _inside(root, source, str(path), f"component '{component}' binds parameter set", within)
+        if not file.is_file():
             raise SSPFormatError(f"{path}: component '{component}' binds '{source}', which does not exist")
-        values = parse_ssv(file)
+        values = parse_ssv(file.read_bytes(), origin=path.entry(file))
     else:
         inline = binding.find("ssd:ParameterValues/ssv:ParameterSet", NS)
         if inline is None:
@@ -258,7 +408,7 @@ def _in_declared_unit(value: float, given: tuple[str, Unit], declared: Optional[
                              f"{target.dimension()})") from None
 
 
-def _check_end(element: str, connector: str, kind: str, components, system_inputs, path: Path) -> None:
+def _check_end(element: str, connector: str, kind: str, components, system_inputs, path) -> None:
     if element == "":
         if connector not in system_inputs:
             raise SSPFormatError(f"{path}: connection names system connector '{connector}', which is not declared")
@@ -278,21 +428,24 @@ class SSPArchive:
         self._tmp: Optional[str] = None
         if not self.path.exists():
             raise SSPFormatError(f"{self.path}: no such SSP file")
-        if self.path.suffix == ".ssd":
-            self.ssd = self.path
-        else:
-            self._tmp = tempfile.mkdtemp(prefix="mast_ssp_")
-            safe_extract(self.path, self._tmp)
-            self.ssd = Path(self._tmp) / "SystemStructure.ssd"
-            if not self.ssd.exists():
-                self.close()
-                raise SSPFormatError(f"{self.path}: no SystemStructure.ssd at the root of the archive")
-        self.system = read_ssd(self.ssd)
-        for name in self.system.components:
-            fmu = self.system.fmu_path(name)
-            if not fmu.exists():
-                self.close()
-                raise SSPFormatError(f"{self.path}: component '{name}' source {self.system.components[name].source} is missing")
+        try:
+            if self.path.suffix == ".ssd":
+                self.ssd = self.path
+                self.system = read_ssd(self.ssd)
+            else:
+                self._tmp = tempfile.mkdtemp(prefix="mast_ssp_")
+                safe_extract(self.path, self._tmp)
+                self.ssd = Path(self._tmp) / "SystemStructure.ssd"
+                if not self.ssd.is_file():
+                    raise SSPFormatError(f"{self.path}: no SystemStructure.ssd at the root of the archive")
+                self.system = read_ssd(self.ssd, archive=self.path)
+            for name in self.system.components:
+                if not self.system.fmu_path(name).is_file():
+                    raise SSPFormatError(f"{self.path}: component '{name}' source "
+                                         f"{self.system.components[name].source} is missing")
+        except BaseException:  # nothing extracted stays behind a refused archive
+            self.close()
+            raise
 
     def close(self) -> None:
         if self._tmp:

@@ -524,3 +524,45 @@ def test_leaving_the_stroke(actuator_params):
     with pytest.raises(ModelError, match=r"rho = -\d"):
         for k in range(100000):
             block.do_step(k * H, H)
+
+
+# -- a varying communication step ---------------------------------------------------------------------
+@pytest.mark.parametrize("variant", ["manufacturer", "identified (Coulomb friction)", "Stribeck", "backlash",
+                                     "three inertias", "1 ms steps (substeps)"])
+def test_a_varying_step_compiles_nothing_per_step_and_matches_a_kernel_compiled_per_step(monkeypatch, variant):
+    """A host that varies its step: after the first few step sizes each new one is bound to a kernel
+    compiled once (no compilation per step); its results equal those of a kernel compiled for
+    every step size (the route every step size used to take) to rounding."""
+    import fmus.actuator.model as model
+
+    p = load_params("actuator_identified" if variant != "manufacturer" else "actuator")
+    p = {"Stribeck": dict(p, tau_s=0.02, omega_s=2.0),
+         "backlash": dict(p, backlash=2e-4),
+         "three inertias": dict(p, n_dof=3, J_chain=f"{p['J_motor']!r} 1e-4 1e-4", K_chain="800.0 2000.0",
+                                C_chain="0.01 0.0")}.get(variant, p)
+    scale = 10.0 if variant.startswith("1 ms") else 1.0
+    steps = np.random.default_rng(3).uniform(0.5e-4, 1.5e-4, 30) * scale
+    t = np.concatenate([[0.0], np.cumsum(steps)[:-1]])
+    u = 12.0 * np.sin(2 * np.pi * 200 / scale * t)
+    F = 8.0 * np.sin(2 * np.pi * 130 / scale * t)
+
+    def states(compiled: int) -> tuple[np.ndarray, ActuatorBlock]:
+        monkeypatch.setattr(model, "_COMPILED_STEP_SIZES", compiled)
+        block = ActuatorBlock(p)
+        block.values[:2] = [u[0], F[0]]
+        block.initialize(0.0)
+        rows = []
+        for k, h in enumerate(steps):
+            block.values[:2] = [u[k], F[k]]
+            block.do_step(t[k], h)
+            rows.append(list(block._x) + list(block.values[2:]))
+        return np.array(rows), block
+
+    few = model._COMPILED_STEP_SIZES
+    bound, block = states(few)
+    compiled, _ = states(len(steps))  # a kernel compiled for each step size, constants inlined
+    assert block._compiled == few < len(steps) and block._bound_code is not None
+    assert block.substeps > 1 or scale == 1.0
+    size = np.abs(compiled).max(axis=0) + 1e-300
+    assert np.ptp(compiled[:, 0]) > 0.1  # the current moved
+    np.testing.assert_array_less(np.abs(bound - compiled).max(axis=0) / size, 1e-9)

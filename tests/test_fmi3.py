@@ -183,8 +183,9 @@ def test_outputs_are_calculated_in_initialization_and_declare_no_start_value(bui
     FMI 3.0 section 2.4.8). 'exact' with start 0 claimed mechanism.z = 0 where it is 0.405 m."""
     from fmpy import read_model_description
 
-    fmus = sorted((built / "fmus").glob("*.fmu")) + sorted((built / "fmus3").glob("*.fmu"))
-    assert len(fmus) == 20
+    fmi2, fmi3 = sorted((built / "fmus").glob("*.fmu")), sorted((built / "fmus3").glob("*.fmu"))
+    assert fmi2 and [f.name for f in fmi2] == [f.name for f in fmi3]   # every FMU in both versions
+    fmus = fmi2 + fmi3
     for fmu in fmus:
         md = read_model_description(str(fmu))
         outputs = [v for v in md.modelVariables if v.causality == "output"]
@@ -192,3 +193,26 @@ def test_outputs_are_calculated_in_initialization_and_declare_no_start_value(bui
         for v in outputs:
             assert v.initial == "calculated" and v.start is None, f"{fmu.parent.name}/{fmu.name}: {v.name}"
         assert {u.variable.name for u in md.initialUnknowns} == {v.name for v in outputs}, fmu.name
+
+
+def test_fmi3_illegal_calls_are_refused_and_the_instance_stays_refused(built):
+    """The FMI state machine of fmus/common/slave.py in the FMI 3.0 variant: a fixed parameter set in step
+    mode, or exitInitializationMode without enterInitializationMode, is logged and refused (pythonfmu3
+    reports fmi3Fatal); every later call is refused too."""
+    def float64(inst: Instance3, function: str, name: str, value: float = 0.0) -> int:
+        vr, buf = (ctypes.c_uint32 * 1)(inst.vr[name]), (ctypes.c_double * 1)(value)
+        return getattr(inst.slave.dll, function)(inst.slave.component, vr, ctypes.c_size_t(1), buf, ctypes.c_size_t(1))
+
+    inst = Instance3(built / "fmus3" / "MastActuator.fmu", "axis")
+    inst.start()
+    assert inst.step(0.0, 1e-4) == OK
+    assert float64(inst, "fmi3SetFloat64", "R", 1.0) > ERROR
+    assert any(s == ERROR and "parameter 'R' is fixed" in m for s, m in inst.log), inst.log[-3:]
+    assert inst.step(1e-4, 1e-4) > ERROR and any("failed earlier" in m for s, m in inst.log[-2:])
+    assert float64(inst, "fmi3GetFloat64", "rho") > ERROR
+    inst.slave.freeInstance()
+
+    early = Instance3(built / "fmus3" / "MastActuator.fmu", "early")
+    assert early.slave.dll.fmi3ExitInitializationMode(early.slave.component) > ERROR
+    assert any("exitInitializationMode: not allowed in instantiated" in m for s, m in early.log), early.log[-3:]
+    early.slave.freeInstance()

@@ -387,7 +387,8 @@ def test_state_taken_before_initialization_and_after_a_parameter_change(built):
 
 def test_a_foreign_state_is_refused_and_the_instance_survives(built):
     """fmi2SetFMUstate with another FMU's state raises inside the slave: pythonfmu reports fmi2Fatal and,
-    without mast's compensation (fmus/common/fmi.py), would release the instance twice."""
+    without mast's compensation (fmus/common/slave.py), would release the instance twice; the instance
+    then refuses every call until it is freed."""
     script = textwrap.dedent(f"""
         import sys
         sys.path.insert(0, {str(Path(__file__).parent)!r})
@@ -401,10 +402,94 @@ def test_a_foreign_state_is_refused_and_the_instance_survives(built):
             foreign = t.slave.getFMUstate()
             assert a.dll.fmi2SetFMUstate(a.c, foreign) == FATAL
             assert any("not an FMU state of MastActuator" in m for s, m in a.log), a.log[-3:]
-            drive(a, 0, 3)  # still answers
+            assert a.step(0.0, 1e-4) == FATAL  # an instance that answered Fatal refuses what follows
+            assert any("failed earlier" in m for s, m in a.log[-2:]), a.log[-2:]
             t.slave.freeFMUstate(foreign)
-            a.close(); t.close()
+            a.slave.freeInstance(); t.close()
         print("survived")
     """)
     proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0 and proc.stdout.strip().endswith("survived"), proc.stderr[-3000:]
+
+
+# -- the FMI state machine -------------------------------------------------------------------------------
+def _real(inst: Instance, function: str, name_or_vr, value: float = 0.0) -> int:
+    """The raw status of fmi2SetReal or fmi2GetReal on one variable (a name, or a bare value reference)."""
+    vr = (ctypes.c_uint * 1)(inst.vr[name_or_vr] if isinstance(name_or_vr, str) else name_or_vr)
+    buf = (ctypes.c_double * 1)(value)
+    return getattr(inst.dll, function)(inst.c, vr, 1, buf)
+
+
+def _refused(inst: Instance, *words: str) -> None:
+    """The model's last message (before pythonfmu's own Fatal one) is an error naming the call's fault;
+    every later call is refused (Fatal)."""
+    status, message = inst.log[-2]
+    assert status == ERROR and all(w in message for w in words), inst.log[-2:]
+    assert inst.log[-1][0] == FATAL  # pythonfmu: "Fatal py exception encountered"
+    assert inst.step(0.0, 1e-4) == FATAL and "failed earlier" in inst.log[-2][1], inst.log[-2:]
+    assert _real(inst, "fmi2GetReal", inst.outputs[0]) == FATAL
+
+
+@pytest.mark.parametrize("case", ["exit before enter", "parameter after initialization", "output",
+                                  "unknown reference", "wrong type", "step after terminate",
+                                  "step before initialization", "enter twice"])
+def test_illegal_calls_are_refused_and_the_instance_stays_refused(built, case):
+    """FMI 2.0 section 4.3: a call its state does not allow, a set the variable does not allow, an unknown
+    value reference: logged and refused (pythonfmu can only say fmi2Fatal), and so is every later call
+    until fmi2Reset, after which the instance runs as a fresh one."""
+    inst = Instance(built / "fmus" / "MastActuator.fmu", "axis")
+    if case == "exit before enter":
+        assert inst.dll.fmi2ExitInitializationMode(inst.c) == FATAL
+        _refused(inst, "exitInitializationMode", "not allowed in instantiated")
+    elif case == "step before initialization":
+        assert inst.step(0.0, 1e-4) == FATAL
+        _refused(inst, "doStep", "not allowed in instantiated")
+    elif case == "enter twice":
+        inst.slave.setupExperiment(startTime=0.0)
+        inst.slave.enterInitializationMode()
+        assert inst.dll.fmi2EnterInitializationMode(inst.c) == FATAL
+        _refused(inst, "enterInitializationMode", "not allowed in initialization mode")
+    else:
+        assert inst.start({"tau_c": 0.0718}) == OK
+        drive(inst, 0, 3)
+        if case == "parameter after initialization":  # was: OK, then every doStep Discard
+            assert _real(inst, "fmi2SetReal", "tau_c", 0.05) == FATAL
+            _refused(inst, "setReal", "parameter 'tau_c' is fixed", "before exitInitializationMode", "step mode")
+        elif case == "output":
+            assert _real(inst, "fmi2SetReal", "tau_m", 1.0) == FATAL
+            _refused(inst, "'tau_m' is output", "only inputs and parameters")
+        elif case == "unknown reference":
+            assert _real(inst, "fmi2GetReal", 4711) == FATAL
+            _refused(inst, "getReal", "value reference 4711 is not a variable of")
+        elif case == "wrong type":
+            vr, value = (ctypes.c_uint * 1)(inst.vr["tau_c"]), (ctypes.c_int * 1)(1)
+            assert inst.dll.fmi2SetInteger(inst.c, vr, 1, value) == FATAL
+            _refused(inst, "setInteger", "'tau_c'", "is of type Real, not Integer")
+        elif case == "step after terminate":
+            assert inst.dll.fmi2Terminate(inst.c) == OK
+            assert inst.step(3e-4, 1e-4) == FATAL
+            _refused(inst, "doStep", "not allowed in terminated")
+    assert inst.dll.fmi2Reset(inst.c) == OK  # fmi2Reset: a fresh slave, usable again
+    assert inst.start({"tau_c": 0.0718}) == OK
+    fresh = Instance(built / "fmus" / "MastActuator.fmu", "fresh", inst.unzip)
+    assert fresh.start({"tau_c": 0.0718}) == OK
+    np.testing.assert_array_equal(drive(inst, 0, 20), drive(fresh, 0, 20))
+    for i in (inst, fresh):
+        i.close()
+
+
+def test_legal_sets_in_each_state(built):
+    """Parameters before exitInitializationMode, inputs until terminate; gets in every state."""
+    inst = Instance(built / "fmus" / "MastActuator.fmu", "axis")
+    assert _real(inst, "fmi2SetReal", "tau_c", 0.0718) == OK            # instantiated: a parameter
+    inst.slave.setupExperiment(startTime=0.0)
+    inst.slave.enterInitializationMode()
+    assert _real(inst, "fmi2SetReal", "tau_c", 0.0718) == OK            # initialization mode: a parameter
+    assert _real(inst, "fmi2SetReal", "u", 1.0) == OK                   # and an input
+    assert inst.dll.fmi2ExitInitializationMode(inst.c) == OK
+    assert _real(inst, "fmi2SetReal", "u", 2.0) == OK                   # step mode: an input
+    assert inst.step(0.0, 1e-4) == OK and _real(inst, "fmi2GetReal", "tau_c") == OK
+    assert inst.dll.fmi2Terminate(inst.c) == OK
+    assert _real(inst, "fmi2GetReal", "tau_m") == OK                    # terminated: gets still answer
+    assert not [m for st, m in inst.log if st >= ERROR], inst.log
+    inst.slave.freeInstance()

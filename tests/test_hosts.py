@@ -307,3 +307,53 @@ def test_ecos_command_line_logs_the_cause_and_keeps_running(case, cause, request
 
 def test_unknown_host_is_refused_with_the_list_of_hosts():
     assert availability("nohost") == "unknown host 'nohost'; hosts: libcosim, ecospy, ecos"
+
+
+# -- running the hosts by hand ------------------------------------------------------------------------
+def test_the_ecos_command_writes_only_the_signals_asked_for(tmp_path):
+    """Without a CSV configuration ecos writes every variable at every base step (docs/using-the-fmus.md)."""
+    from mast.hosts import ecos_command
+
+    command = ecos_command(Path("x.ssp"), 0.2, ["mechanism.z", "actuator_1.rho"], 1e-3, tmp_path, base_step=1e-4)
+    assert command[command.index("--csvConfig") + 1] == str(tmp_path / "csv.xml")
+    assert command[command.index("--parameterSet") + 1] == FLAT_SET_NAME
+    assert float(command[command.index("--stopTime") + 1]) == pytest.approx(0.20005)
+    config = (tmp_path / "csv.xml").read_text()
+    assert 'decimationFactor="10"' in config and config.count("<ecos:variable ") == 2
+    assert '<ecos:component name="mechanism"><ecos:variable name="z"/></ecos:component>' in config
+
+
+@needs("ecospy")
+def test_ecospy_imports_without_ld_library_path_and_the_shown_environment_works(tmp_path):
+    import os
+    import subprocess
+    import sys
+
+    env = {k: v for k, v in os.environ.items() if k != "LD_LIBRARY_PATH"}
+    plain = subprocess.run([sys.executable, "-c", "import ecospy"], env=env, capture_output=True, text=True)
+    assert plain.returncode != 0 and "libtbb.so.12" in plain.stderr  # what a user meets
+    helped = subprocess.run([sys.executable, "-c", "from mast.hosts import import_ecospy; import_ecospy()"],
+                            env=env, capture_output=True, text=True)
+    assert helped.returncode == 0, helped.stderr[-2000:]
+    from mast.hosts import show
+
+    shown = show("ecospy", "unused.ssp", 1.0, [], tmp_path)  # what `mast hosts --show ecospy` prints
+    assert "export LD_LIBRARY_PATH=" in shown
+    exports = "\n".join(line for line in shown.splitlines() if line.startswith("export"))
+    shell = subprocess.run(["bash", "-c", f'{exports}\n"{sys.executable}" -c "import ecospy"'], env=env,
+                           capture_output=True, text=True)
+    assert shell.returncode == 0, shell.stderr[-2000:]
+
+
+@needs("ecospy")
+def test_a_host_run_leaves_no_temporary_files(built, tmp_path, monkeypatch):
+    """ecos extracts the SSP into the temporary directory and leaves it there: run_host gives it a folder it removes."""
+    import tempfile
+
+    fresh = tmp_path / "tmp"
+    fresh.mkdir()
+    monkeypatch.setenv("TMPDIR", str(fresh))
+    monkeypatch.setattr(tempfile, "tempdir", str(fresh))
+    result = run_host("ecospy", built / "ssp" / "MAST_standalone.ssp", 0.01, ["mechanism.z"])
+    assert len(result.time) == 11
+    assert not any(fresh.iterdir()), list(fresh.iterdir())

@@ -57,15 +57,22 @@ extra input, and in the gap, without spring and damper) with substeps of at most
 the mode chosen from the deflection at the start of each substep.
 
 The step is compiled once per step size into straight-line Python (constants inlined):
-for a 5-state system scalar code is several times faster than numpy calls.
+for a 5-state system scalar code is several times faster than numpy calls. A host that
+varies its step brings a new step size at every step, and a compilation (about 1.5 ms)
+per step would make the step hundreds of times slower: after the first few step sizes,
+the kernel of a new one is the same source with its step-size-dependent numbers as names,
+compiled once and bound to the numbers of each step (``_bind``; exp(M h) balanced, then
+a Taylor polynomial with scaling and squaring: ``_BalancedExp``). benchmarks/variable_step.py
+measures both.
 """
 from __future__ import annotations
 
+import functools
 import math
-from typing import Callable, Mapping, Sequence
+from typing import Callable, Mapping, Optional, Sequence
 
 import numpy as np
-from scipy.linalg import expm
+from scipy.linalg import expm, matrix_balance
 
 from ..common.block import Block, ModelError
 from ..common.codegen import compile_generated, largest_parameters
@@ -86,6 +93,8 @@ __all__ = [
 
 _MAX_PHASE_PER_SUBSTEP = 2.0  # rad: fastest chain mode x substep (keeps the friction equation monotone)
 _BACKLASH_SUBSTEP = 1e-5  # s: longest substep with backlash (contact and separation resolved to 10 us)
+_KERNELS_KEPT = 32        # step functions kept, by step size
+_COMPILED_STEP_SIZES = 4  # a fixed-step host needs one or two; beyond, the host varies its step (see _bind)
 
 
 PARAMETERS: tuple[Param, ...] = (
@@ -334,6 +343,9 @@ class ActuatorBlock(Block):
         self._sensor = (None if is_neutral(p["T_meas"], p["delay_meas"], p["tau_offset"])
                         else TorqueSensor(p["T_meas"], p["delay_meas"], p["tau_offset"]))
         self._kernels: dict[float, tuple[Callable, int]] = {}
+        self._compiled = 0                            # step sizes compiled with their numbers inlined
+        self._bound_code = None                       # the kernel source bound per step size, compiled
+        self._exp = _BalancedExp()
         self._h = math.nan
         self._kernel: Callable = _no_kernel
         self.substeps = 0
@@ -401,23 +413,28 @@ class ActuatorBlock(Block):
         key = float(f"{h:.12g}")
         entry = self._kernels.get(key)
         if entry is None:
-            if len(self._kernels) >= 32:
+            if len(self._kernels) >= _KERNELS_KEPT:
                 self._kernels.pop(next(iter(self._kernels)))
-            entry = self._kernels[key] = self._compile(key)
+            if self._compiled < _COMPILED_STEP_SIZES:
+                self._compiled += 1
+                entry = self._compile(key)
+            else:  # the host varies its step: no compilation per step size
+                entry = self._bind(key)
+            self._kernels[key] = entry
         self._kernel, self.substeps = entry
         self._h = h
 
-    def discretise(self, h_sub: float) -> tuple[np.ndarray, np.ndarray]:
+    def discretise(self, h_sub: float, exponential: Callable = expm) -> tuple[np.ndarray, np.ndarray]:
         """Exact ZOH discretisation over h_sub [s]: (Phi, Gamma) with x+ = Phi x + Gamma [u_sat, tau_L]."""
         n = self.A.shape[0]
         M = np.zeros((n + 2, n + 2))
         M[:n, :n] = self.A
         M[:n, n:] = self.B
-        E = expm(M * h_sub)
+        E = exponential(M * h_sub)
         return E[:n, :n], E[:n, n:]
 
-    def _compile(self, h: float) -> tuple[Callable, int]:
-        """Generate the step function for step h: straight-line scalar code, constants inlined."""
+    def _substeps(self, h: float, exponential: Callable) -> tuple[int, np.ndarray, np.ndarray]:
+        """The number of substeps m for step h, and the discretisation over h / m."""
         p = self.params
         m = max(1, math.ceil(self._omega_max * h / _MAX_PHASE_PER_SUBSTEP - 1e-12))
         if p["backlash"] > 0.0:
@@ -425,33 +442,125 @@ class ActuatorBlock(Block):
         # Stribeck: the friction's steepest fall is tau_s sqrt(2/e) / omega_s; keep b times it below 1/2
         fall = p["tau_s"] * math.sqrt(2.0 / math.e) / p["omega_s"] if p["tau_s"] > 0.0 else 0.0
         while True:
-            Phi, Gam = self.discretise(h / m)
+            Phi, Gam = self.discretise(h / m, exponential)
             b = Gam[2 * self.N, 1]  # d omega_N(end) / d tau_L over a substep
             if (b > 0.0 and b * fall < 0.5) or m > 4096:
                 break
             m *= 2
         if not b > 0.0:
             raise ModelError(f"{self.name}: no substep gives a monotone friction update for h = {h} s")
-        if p["backlash"] > 0.0:
+        return m, Phi, Gam
+
+    def _compile(self, h: float) -> tuple[Callable, int]:
+        """Generate the step function for step h: straight-line scalar code, constants inlined."""
+        m, Phi, Gam = self._substeps(h, expm)
+        if self.params["backlash"] > 0.0:
             source = _backlash_kernel_source(self, h / m, m)
         else:
             source = _kernel_source(self, Phi, Gam, m)
         namespace: dict = {"tanh": math.tanh, "exp": math.exp, "sin": math.sin}
         kernel = compile_generated(source, "kernel", f"{self.name}: actuator kernel h={h!r} m={m}", namespace,
-                                   largest_parameters(p))
+                                   largest_parameters(self.params))
         return kernel, m
+
+    def _bind(self, h: float) -> tuple[Callable, int]:
+        """The step function for step h without compiling: the source with the step-size-dependent
+        numbers (and the number of substeps) as names, compiled once, bound to this step's numbers
+        (the same arithmetic as ``_compile``'s kernel; each number read by name, not inlined)."""
+        p = self.params
+        m, Phi, Gam = self._substeps(h, self._exp)
+        if p["backlash"] > 0.0:
+            (Pc, Gc), (Pg, Gg) = _backlash_matrices(self, h / m, self._exp)
+            numbers = {**_named_values("PC", Pc), **_named_values("GC", Gc), **_named_values("PG", Pg),
+                       **_named_values("GG", Gg)}
+            friction = {"FC_": float(Gc[4, 1]), "FG_": float(Gg[4, 1])}
+        else:
+            numbers = {**_named_values("P", Phi), **_named_values("G", Gam)}
+            friction = {"F_": float(Gam[2 * self.N, 1])}
+        for prefix, b in friction.items():
+            numbers.update({prefix + k: v for k, v in _friction_constants(p, b).items()})
+        if self._bound_code is None:
+            if p["backlash"] > 0.0:
+                source = _backlash_kernel_source(self, h / m, m, named=True)
+            else:
+                source = _kernel_source(self, _names("P", Phi.shape), _names("G", Gam.shape), m, named=True)
+            self._bound_code = compile(source, "<actuator kernel bound per step size>", "exec")
+        namespace: dict = {"tanh": math.tanh, "exp": math.exp, "sin": math.sin, "M_SUB": m, **numbers}
+        exec(self._bound_code, namespace)
+        return namespace["kernel"], m
+
+
+def _names(prefix: str, shape: tuple[int, int]) -> np.ndarray:
+    """A matrix of constant names, ``prefix_i_j``, for a kernel source bound per step size."""
+    out = np.empty(shape, dtype=object)
+    for i, j in np.ndindex(shape):
+        out[i, j] = f"{prefix}_{i}_{j}"
+    return out
+
+
+def _named_values(prefix: str, matrix: np.ndarray) -> dict[str, float]:
+    """{``prefix_i_j``: matrix[i, j]}, the numbers for the names of ``_names(prefix, matrix.shape)``."""
+    return dict(zip(_flat_names(prefix, matrix.shape), matrix.ravel().tolist()))
+
+
+@functools.lru_cache(maxsize=None)
+def _flat_names(prefix: str, shape: tuple[int, int]) -> tuple[str, ...]:
+    return tuple(_names(prefix, shape).ravel().tolist())
+
+
+def _expm_taylor(M: np.ndarray) -> np.ndarray:
+    """exp(M) by scaling and squaring a degree-16 Taylor polynomial (matrix products only).
+
+    With ||M / 2^s||_1 <= 1/2 the truncation is below 0.5^17 / 17! ~ 2e-20; the squarings bring
+    the error to the level of scipy's expm (measured: 1e-13 relative on the actuator's matrices).
+    Used for the step sizes a varying-step host brings: scipy's Pade route solves a linear system,
+    which multi-threaded BLAS makes take milliseconds on a busy machine.
+    """
+    norm = float(np.abs(M).sum(axis=0).max())
+    s = max(0, math.ceil(math.log2(norm / 0.5))) if norm > 0.5 else 0
+    X = M * 2.0 ** -s
+    eye = np.eye(len(M))
+    E = X * (1.0 / 16.0)
+    E += eye
+    for k in range(15, 0, -1):  # Horner: E = I + X E / k (ndarray.dot: the least overhead for small matrices)
+        E = X.dot(E)
+        E *= 1.0 / k
+        E += eye
+    for _ in range(s):
+        E = E.dot(E)
+    return E
+
+
+class _BalancedExp:
+    """exp(M) for the few matrix patterns of one block: balanced by a diagonal similarity
+    D^-1 M D (LAPACK gebal, found once per pattern of non-zeros: it does not change with the
+    step size), then ``_expm_taylor``. The actuator's matrices mix radians, rad/s and amperes:
+    balanced, ||M h||_1 falls from about 3000 to about 1 at 100 us (2 squarings instead of 13)."""
+
+    def __init__(self) -> None:
+        self._scales: dict[bytes, np.ndarray] = {}
+
+    def __call__(self, M: np.ndarray) -> np.ndarray:
+        key = (M != 0.0).tobytes()
+        d = self._scales.get(key)
+        if d is None:
+            d = self._scales[key] = matrix_balance(M, permute=False, separate=True)[1][0]
+        ratio = d[None, :] / d[:, None]
+        return _expm_taylor(M * ratio) / ratio
 
 
 def _no_kernel(values: list, x: list) -> int:  # pragma: no cover - replaced before use
     raise ModelError("do_step before a step size was selected")
 
 
-def _lin(coefs: Sequence[float], names: Sequence[str]) -> str:
-    terms = [f"{float(c)!r}*{v}" for c, v in zip(coefs, names) if c != 0.0]
+def _lin(coefs: Sequence, names: Sequence[str]) -> str:
+    """sum(c v): a number is inlined (a zero left out), a string is the name of a constant bound later."""
+    terms = [f"{c}*{v}" if isinstance(c, str) else f"{float(c)!r}*{v}"
+             for c, v in zip(coefs, names) if isinstance(c, str) or c != 0.0]
     return " + ".join(terms) if terms else "0.0"
 
 
-def _friction_source(b: float, tau_c: float, omega_c: float, indent: str) -> list[str]:
+def _friction_source(c: Mapping[str, str], indent: str) -> list[str]:
     """Implicit Coulomb friction over one substep.
 
     With the friction torque tau_f held over the substep, the end velocity of the last
@@ -462,38 +571,36 @@ def _friction_source(b: float, tau_c: float, omega_c: float, indent: str) -> lis
     where f(v0) <= 0 (tanh(s) <= s for s >= 0), then climbs monotonically to the root:
     no overshoot, whatever the friction stiffness.
     tau_f = (a - v) / b is then exactly consistent with v and bounded by tau_c.
+    ``c``: the constants of ``_friction_constants`` as text (numbers, or names bound later).
     """
-    btc, k, inv_wc, inv_b = b * tau_c, b * tau_c / omega_c, 1.0 / omega_c, 1.0 / b
-    lin = 1.0 / (1.0 + k)
-    tol = 1e-10 * omega_c
+    btc, k, inv_wc, inv_b, lin, tol = c["btc"], c["k"], c["inv_wc"], c["inv_b"], c["lin"], c["tol"]
     i = indent
     return [
         f"{i}if a > 0.0:",
-        f"{i}    v = a - {btc!r}",
-        f"{i}    v0 = a*{lin!r}",
+        f"{i}    v = a - {btc}",
+        f"{i}    v0 = a*{lin}",
         f"{i}    if v0 > v: v = v0",
         f"{i}    for _ in range(60):",
-        f"{i}        th = tanh(v*{inv_wc!r})",
-        f"{i}        dv = (a - v - {btc!r}*th) / (1.0 + {k!r}*(1.0 - th*th))",
+        f"{i}        th = tanh(v*{inv_wc})",
+        f"{i}        dv = (a - v - {btc}*th) / (1.0 + {k}*(1.0 - th*th))",
         f"{i}        v += dv",
-        f"{i}        if dv < {tol!r}: break",
+        f"{i}        if dv < {tol}: break",
         f"{i}elif a < 0.0:",
-        f"{i}    v = a + {btc!r}",
-        f"{i}    v0 = a*{lin!r}",
+        f"{i}    v = a + {btc}",
+        f"{i}    v0 = a*{lin}",
         f"{i}    if v0 < v: v = v0",
         f"{i}    for _ in range(60):",
-        f"{i}        th = tanh(v*{inv_wc!r})",
-        f"{i}        dv = (a - v - {btc!r}*th) / (1.0 + {k!r}*(1.0 - th*th))",
+        f"{i}        th = tanh(v*{inv_wc})",
+        f"{i}        dv = (a - v - {btc}*th) / (1.0 + {k}*(1.0 - th*th))",
         f"{i}        v += dv",
-        f"{i}        if dv > -{tol!r}: break",
+        f"{i}        if dv > -{tol}: break",
         f"{i}else:",
         f"{i}    v = 0.0",
-        f"{i}tf = (a - v)*{inv_b!r}",
+        f"{i}tf = (a - v)*{inv_b}",
     ]
 
 
-def _stribeck_source(b: float, tau_c: float, tau_s: float, omega_c: float, omega_s: float,
-                     indent: str) -> list[str]:
+def _stribeck_source(c: Mapping[str, str], indent: str) -> list[str]:
     """Implicit friction with a Stribeck excess over one substep (same idea as ``_friction_source``).
 
     tau_f(v) = (tau_c + tau_s exp(-(v/omega_s)^2)) tanh(v/omega_c) is not monotone, so the
@@ -503,43 +610,52 @@ def _stribeck_source(b: float, tau_c: float, tau_s: float, omega_c: float, omega
     b tau_s sqrt(2/e) / omega_s < 1/2, so f is increasing and the root unique.
     """
     i = indent
-    bt = b * (tau_c + tau_s)
-    iwc, iws2 = 1.0 / omega_c, 1.0 / omega_s ** 2
-    tol = 1e-10 * omega_c
+    b, bt, iwc, iws2, tol, tau_c, tau_s = c["b"], c["bt"], c["iwc"], c["iws2"], c["tol"], c["tau_c"], c["tau_s"]
     return [
         f"{i}if a != 0.0:",
         f"{i}    sg = 1.0 if a > 0.0 else -1.0",
         f"{i}    aa = a*sg",
-        f"{i}    lo = aa - {bt!r}",
+        f"{i}    lo = aa - {bt}",
         f"{i}    if lo < 0.0: lo = 0.0",
         f"{i}    hi = aa",
         f"{i}    v = lo",
         f"{i}    for _ in range(200):",
-        f"{i}        th = tanh(v*{iwc!r})",
-        f"{i}        ex = {tau_s!r}*exp(-v*v*{iws2!r})",
-        f"{i}        gl = {tau_c!r} + ex",
-        f"{i}        fv = v - aa + {b!r}*gl*th",
+        f"{i}        th = tanh(v*{iwc})",
+        f"{i}        ex = {tau_s}*exp(-v*v*{iws2})",
+        f"{i}        gl = {tau_c} + ex",
+        f"{i}        fv = v - aa + {b}*gl*th",
         f"{i}        if fv > 0.0: hi = v",
         f"{i}        else: lo = v",
-        f"{i}        df = 1.0 + {b!r}*(gl*(1.0 - th*th)*{iwc!r} - 2.0*ex*v*{iws2!r}*th)",
+        f"{i}        df = 1.0 + {b}*(gl*(1.0 - th*th)*{iwc} - 2.0*ex*v*{iws2}*th)",
         f"{i}        vn = v - fv/df if df > 0.0 else 0.5*(lo + hi)",
         f"{i}        if not lo <= vn <= hi: vn = 0.5*(lo + hi)",
         f"{i}        dv = vn - v",
         f"{i}        v = vn",
-        f"{i}        if -{tol!r} < dv < {tol!r} or hi - lo < {tol!r}: break",
+        f"{i}        if -{tol} < dv < {tol} or hi - lo < {tol}: break",
         f"{i}    v = v*sg",
         f"{i}else:",
         f"{i}    v = 0.0",
-        f"{i}tf = (a - v)*{1.0 / b!r}",
+        f"{i}tf = (a - v)*{c['inv_b']}",
     ]
 
 
-def _friction_lines(p: Mapping[str, Value], b: float) -> list[str]:
-    """The implicit friction solve for this parameter set (``a`` given, sets ``tf``)."""
+def _friction_constants(p: Mapping[str, Value], b: float) -> dict[str, float]:
+    """The numbers of the implicit friction solve over a substep whose d omega_N / d tau_L is ``b``."""
     tau_c, omega_c, tau_s = float(p["tau_c"]), float(p["omega_c"]), float(p["tau_s"])
     if tau_s > 0.0:
-        return _stribeck_source(b, tau_c, tau_s, omega_c, float(p["omega_s"]), "")
-    return _friction_source(b, tau_c, omega_c, "")
+        return {"b": b, "bt": b * (tau_c + tau_s), "iwc": 1.0 / omega_c, "iws2": 1.0 / float(p["omega_s"]) ** 2,
+                "tol": 1e-10 * omega_c, "tau_c": tau_c, "tau_s": tau_s, "inv_b": 1.0 / b}
+    k = b * tau_c / omega_c
+    return {"btc": b * tau_c, "k": k, "inv_wc": 1.0 / omega_c, "inv_b": 1.0 / b, "lin": 1.0 / (1.0 + k),
+            "tol": 1e-10 * omega_c}
+
+
+def _friction_lines(p: Mapping[str, Value], b: float, prefix: Optional[str] = None) -> list[str]:
+    """The implicit friction solve for this parameter set (``a`` given, sets ``tf``): its constants
+    inlined, or (``prefix``) read from names ``prefix + key`` bound per step size."""
+    constants = _friction_constants(p, b)
+    text = {k: repr(v) if prefix is None else prefix + k for k, v in constants.items()}
+    return (_stribeck_source if float(p["tau_s"]) > 0.0 else _friction_source)(text, "")
 
 
 def _load_lines(block: ActuatorBlock, xs: Sequence[str]) -> list[str]:
@@ -549,7 +665,7 @@ def _load_lines(block: ActuatorBlock, xs: Sequence[str]) -> list[str]:
     if float(p["tau_ripple"]) > 0.0:
         k = 2.0 * math.pi * i_R / float(p["ripple_period"])
         return [f"    {', '.join(xs)}, = x",
-                f"    tl = {-i_R!r}*F - {weight!r} - {float(p['tau_ripple'])!r}*sin({k!r}*x{N})"]
+                f"    tl = {-i_R!r}*F - {weight!r} - {float(p['tau_ripple'])!r}*sin({k}*x{N})"]
     return [f"    tl = {-i_R!r}*F - {weight!r}", f"    {', '.join(xs)}, = x"]
 
 
@@ -583,8 +699,13 @@ def _kernel_tail(block: ActuatorBlock, xs: Sequence[str], alpha: str) -> list[st
     ]
 
 
-def _kernel_source(block: ActuatorBlock, Phi: np.ndarray, Gam: np.ndarray, m: int) -> str:
-    """Python source of ``kernel(values, x) -> int`` (0 ok, 1/2 bad input u/F, 3 diverged, 4 stroke)."""
+def _kernel_source(block: ActuatorBlock, Phi: np.ndarray, Gam: np.ndarray, m: int, named: bool = False) -> str:
+    """Python source of ``kernel(values, x) -> int`` (0 ok, 1/2 bad input u/F, 3 diverged, 4 stroke).
+
+    ``named``: Phi and Gam are arrays of names (``_names``), the friction constants and the
+    number of substeps (``M_SUB``) are names too: one source for every step size, bound to the
+    numbers by ``ActuatorBlock._bind``.
+    """
     p, N = block.params, block.N
     n = 2 * N + 1
     xs = [f"x{j}" for j in range(n)]
@@ -595,7 +716,7 @@ def _kernel_source(block: ActuatorBlock, Phi: np.ndarray, Gam: np.ndarray, m: in
     if tau_c > 0.0 or float(p["tau_s"]) > 0.0:
         a_terms = _lin(list(Phi[wN]) + [Gam[wN, 0], Gam[wN, 1]], xs + ["u", "tl"])
         body.append(f"a = {a_terms}")
-        body += _friction_lines(p, float(Gam[wN, 1]))
+        body += _friction_lines(p, 1.0, "F_") if named else _friction_lines(p, float(Gam[wN, 1]))
         body.append("w = tl - tf")
     else:
         body += ["tf = 0.0", "w = tl"]
@@ -603,10 +724,10 @@ def _kernel_source(block: ActuatorBlock, Phi: np.ndarray, Gam: np.ndarray, m: in
     for j in range(n):
         body.append(f"{news[j]} = {_lin(list(Phi[j]) + [Gam[j, 0], Gam[j, 1]], xs + ['u', 'w'])}")
     body.append(f"{', '.join(xs)} = {', '.join(news)}")
-    if m == 1:
+    if m == 1 and not named:
         lines += ["    " + s for s in body]
     else:
-        lines.append(f"    for _ in range({m}):")
+        lines.append(f"    for _ in range({'M_SUB' if named else m}):")
         lines += ["        " + s for s in body]
     # end of step: checks, state, outputs
     A, B = block.A, block.B
@@ -615,7 +736,8 @@ def _kernel_source(block: ActuatorBlock, Phi: np.ndarray, Gam: np.ndarray, m: in
     return "\n".join(lines) + "\n"
 
 
-def _backlash_matrices(block: ActuatorBlock, h_sub: float) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]:
+def _backlash_matrices(block: ActuatorBlock, h_sub: float, exponential: Callable = expm
+                       ) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]:
     """Exact ZOH discretisations of the two-inertia model in contact and in the gap.
 
     Inputs [u_sat, tau_L, pl]: pl is the dead-zone offset K_t hb sgn (on inertia 1, and minus
@@ -643,32 +765,37 @@ def _backlash_matrices(block: ActuatorBlock, h_sub: float) -> tuple[tuple[np.nda
         M = np.zeros((8, 8))
         M[:5, :5] = mat
         M[:5, 5:] = B3
-        E = expm(M * h_sub)
+        E = exponential(M * h_sub)
         out.append((E[:5, :5], E[:5, 5:]))
     return out[0], out[1]
 
 
-def _backlash_kernel_source(block: ActuatorBlock, h_sub: float, m: int) -> str:
-    """Step with backlash (n_dof = 2): substeps of h_sub, the mode from the deflection at each substep start."""
+def _backlash_kernel_source(block: ActuatorBlock, h_sub: float, m: int, named: bool = False) -> str:
+    """Step with backlash (n_dof = 2): substeps of h_sub, the mode from the deflection at each substep start.
+
+    ``named``: the step-size-dependent numbers are names (see ``_kernel_source``), h_sub is unused."""
     p = block.params
     xs = [f"x{j}" for j in range(5)]
     hb = 0.5 * float(p["backlash"])
     K, C = block.K[0], block.C[0]
-    (Pc, Gc), (Pg, Gg) = _backlash_matrices(block, h_sub)
+    if named:
+        (Pc, Gc), (Pg, Gg) = (_names("PC", (5, 5)), _names("GC", (5, 3))), (_names("PG", (5, 5)), _names("GG", (5, 3)))
+    else:
+        (Pc, Gc), (Pg, Gg) = _backlash_matrices(block, h_sub)
     friction = float(p["tau_c"]) > 0.0 or float(p["tau_s"]) > 0.0
     lines = _kernel_head(block) + _load_lines(block, xs)
-    lines.append(f"    for _ in range({m}):")
+    lines.append(f"    for _ in range({'M_SUB' if named else m}):")
     lines.append("        d = x1 - x2")
     lines.append(f"        if d > {hb!r}: pl = {K * hb!r}")
     lines.append(f"        elif d < {-hb!r}: pl = {-K * hb!r}")
     lines.append("        else: pl = None")
-    for cond, (Phi, Gam) in (("if pl is not None:", (Pc, Gc)), ("else:", (Pg, Gg))):
+    for cond, (Phi, Gam), prefix in (("if pl is not None:", (Pc, Gc), "FC_"), ("else:", (Pg, Gg), "FG_")):
         lines.append(f"        {cond}")
         body = []
         if friction:
             body.append(f"a = {_lin(list(Phi[4]) + list(Gam[4]), xs + ['u', 'tl', 'pl'])}" if cond.startswith("if")
                         else f"a = {_lin(list(Phi[4]) + list(Gam[4, :2]), xs + ['u', 'tl'])}")
-            body += _friction_lines(p, float(Gam[4, 1]))
+            body += _friction_lines(p, 1.0, prefix) if named else _friction_lines(p, float(Gam[4, 1]))
             body.append("w = tl - tf")
         else:
             body += ["tf = 0.0", "w = tl"]

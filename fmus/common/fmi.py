@@ -11,7 +11,8 @@ from typing import List
 from pythonfmu import Fmi2Causality, Fmi2Initial, Fmi2Slave, Fmi2Variability, Integer, Real, String
 from pythonfmu.enums import Fmi2Status
 
-from .slave import PARAMETERS_FILE, BlockWrapper, FmiVocabulary, fmi_call, keep_alive, load_defaults  # noqa: F401 (re-exported)
+from .slave import (INSTANTIATED, PARAMETERS_FILE, STEPPING, BlockWrapper, FmiVocabulary, fmi_call,  # noqa: F401
+                    keep_alive, load_defaults)  # PARAMETERS_FILE, keep_alive, load_defaults: re-exported
 
 
 class BlockSlave(BlockWrapper, Fmi2Slave):
@@ -26,34 +27,38 @@ class BlockSlave(BlockWrapper, Fmi2Slave):
         self._register_block()
 
     # -- the calls pythonfmu's C layer makes ---------------------------------------------
-    @fmi_call
+    @fmi_call()
     def get_real(self, vrs: List[int]) -> List[float]:
         return self._get_values(vrs)
 
-    @fmi_call
+    @fmi_call()
     def set_real(self, vrs: List[int], values: List[float]) -> None:
         self._set_values(vrs, values)
 
-    @fmi_call
+    @fmi_call()
     def get_integer(self, vrs: List[int]) -> List[int]:
+        self._check_refs(vrs, int, write=False)
         return super().get_integer(vrs)
 
-    @fmi_call
+    @fmi_call()
     def set_integer(self, vrs: List[int], values: List[int]) -> None:
+        self._check_refs(vrs, int, write=True)
         super().set_integer(vrs, values)
 
-    @fmi_call
+    @fmi_call()
     def get_boolean(self, vrs: List[int]) -> List[bool]:
+        self._check_refs(vrs, bool, write=False)
         return super().get_boolean(vrs)
 
-    @fmi_call
+    @fmi_call()
     def set_boolean(self, vrs: List[int], values: List[bool]) -> None:
+        self._check_refs(vrs, bool, write=True)
         super().set_boolean(vrs, values)
 
-    @fmi_call
+    @fmi_call(INSTANTIATED)
     def setup_experiment(self, start_time: float, stop_time, tolerance) -> None:
         self._setup(start_time)
 
-    @fmi_call
+    @fmi_call(STEPPING)
     def do_step(self, current_time: float, step_size: float) -> bool:
         return self._step(current_time, step_size)

@@ -13,7 +13,7 @@ from pythonfmu3 import Fmi3Causality, Fmi3Initial, Fmi3Slave, Fmi3Variability, F
 from pythonfmu3.enums import Fmi3Status
 from pythonfmu3.unit import Unit
 
-from .slave import BlockWrapper, FmiVocabulary, fmi_call
+from .slave import INSTANTIATED, STEPPING, BlockWrapper, FmiVocabulary, fmi_call
 
 
 class BlockSlave3(BlockWrapper, Fmi3Slave):
@@ -35,28 +35,30 @@ class BlockSlave3(BlockWrapper, Fmi3Slave):
                                        variability=Fmi3Variability.continuous, getter=lambda: self._time))
 
     # -- the calls pythonfmu3's C layer makes --------------------------------------------
-    @fmi_call
+    @fmi_call()
     def get_float64(self, vrs: List[int]) -> List[float]:
         return self._get_values(vrs)
 
-    @fmi_call
+    @fmi_call()
     def set_float64(self, vrs: List[int], values: List[float]) -> None:
         self._set_values(vrs, values)
 
-    @fmi_call
+    @fmi_call()
     def get_int32(self, vrs: List[int]) -> List[int]:
+        self._check_refs(vrs, int, write=False)
         return super().get_int32(vrs)
 
-    @fmi_call
+    @fmi_call()
     def set_int32(self, vrs: List[int], values: List[int]) -> None:
+        self._check_refs(vrs, int, write=True)
         super().set_int32(vrs, values)
 
-    @fmi_call
+    @fmi_call(INSTANTIATED)
     def setup_experiment(self, start_time: float) -> None:
         self._setup(start_time)
         self._time = start_time
 
-    @fmi_call
+    @fmi_call(STEPPING)
     def do_step(self, current_time: float, step_size: float) -> bool:
         ok = self._step(current_time, step_size)
         if ok:

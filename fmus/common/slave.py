@@ -24,6 +24,20 @@ Behaviour hosts rely on:
   time) and doStep returns Discard: the instance stays usable;
 - get/set FMU state: a deep snapshot of the block (``Block.get_state``), so a
   host can roll back and recompute;
+- the FMI state machine (FMI 2.0 section 4.3, the same in 3.0 for co-simulation):
+  each call is checked against the instance's state (instantiated,
+  initialization mode, step mode, terminated), and a set against the
+  variable's causality and variability: a fixed parameter only before
+  exitInitializationMode, an input until terminate, an output never, an
+  unknown value reference or a value of the wrong type never. An illegal call
+  is logged (status Error, naming the call, the state or the variable) and
+  refused. pythonfmu's C layer turns every Python exception into fmi2Fatal
+  (it has no other way to report one; FMI asks for fmi2Error here), and an
+  instance that answered Fatal refuses every later call the same way: only
+  fmi2Reset (a new slave object, in pythonfmu's C layer) and fmi2FreeInstance
+  remain. More lenient than the standard, as hosts need: get is allowed in
+  every state, and doStep after a Discard tries again (and is refused again
+  while the cause stays);
 - several instances, and instances that failed, come and go in one process
   (``_survive_pythonfmu_cleanup``, ``_drop_repeated_path``).
 """
@@ -74,18 +88,53 @@ class FmiVocabulary:
     status: Any
 
 
-def fmi_call(method: Callable) -> Callable:
-    """For methods the FMU's C layer calls: an exception that escapes is logged, and the instance survives it."""
-    @functools.wraps(method)
-    def call(self, *args):
-        try:
-            return method(self, *args)
-        except Exception as err:
-            self._log_error(f"{method.__name__}: {type(err).__name__}: {err}")
-            if self._native:
-                _survive_pythonfmu_cleanup(self)
-            raise
-    return call
+# the states of an instance (FMI 2.0 co-simulation; FMI 3.0's step mode is "step mode" here too)
+INSTANTIATED, INITIALIZATION, STEPPING, TERMINATED = "instantiated", "initialization mode", "step mode", "terminated"
+ALIVE = (INSTANTIATED, INITIALIZATION, STEPPING, TERMINATED)
+
+
+class IllegalCall(RuntimeError):
+    """A call the FMI state machine does not allow in the instance's state, or a value reference it cannot take."""
+
+
+def fmi_call(*allowed: str) -> Callable:
+    """For methods the FMU's C layer calls, allowed in the states ``allowed`` (default: every state).
+
+    An illegal call, and any exception that escapes, is logged and raised (pythonfmu: fmi2Fatal);
+    from then on the instance refuses every call it is asked (the Python side of fmi2Fatal). The
+    instance survives it for fmi2Reset and fmi2FreeInstance (``_survive_pythonfmu_cleanup``).
+    """
+    def decorate(method: Callable) -> Callable:
+        name = _fmi_name(method.__name__)
+        states = allowed or ALIVE
+
+        @functools.wraps(method)
+        def call(self, *args):
+            try:
+                if self._failed is not None:
+                    raise IllegalCall(f"refused: the instance failed earlier ({self._failed}); "
+                                      "only reset or free it")
+                if self._phase not in states:
+                    raise IllegalCall(f"not allowed in {self._phase} (allowed in {', '.join(states)})")
+                return method(self, *args)
+            except Exception as err:
+                message = f"{name}: {err}" if isinstance(err, IllegalCall) else f"{name}: {type(err).__name__}: {err}"
+                self._log_error(message)
+                if self._failed is None:
+                    self._failed = message
+                if self._native:
+                    _survive_pythonfmu_cleanup(self)
+                raise
+        return call
+    return decorate
+
+
+def _fmi_name(method: str) -> str:
+    """``set_real`` -> ``setReal``, ``_get_fmu_state`` -> ``getFMUstate``: the call as FMI names it."""
+    if method.endswith("fmu_state"):
+        return method.strip("_").removesuffix("_fmu_state") + "FMUstate"
+    first, *rest = method.strip("_").split("_")
+    return first + "".join(part.title() for part in rest)
 
 
 class BlockWrapper:
@@ -100,7 +149,8 @@ class BlockWrapper:
 
     block_class: ClassVar[type[Block]]
     fmi: ClassVar[FmiVocabulary]
-    _in_init = False
+    _phase = INSTANTIATED
+    _failed: Optional[str] = None     # why the instance refuses every call (it answered fmi2Fatal)
     _init_error: Optional[str] = None
 
     def _wrap(self, kwargs: dict) -> None:
@@ -119,6 +169,7 @@ class BlockWrapper:
         self._t0 = 0.0
         defaults = load_defaults(self.resources)
         self._params = {p.name: defaults.get(p.name, _neutral(p.kind)) for p in cls.PARAMETERS}
+        self._input_refs = frozenset(range(len(cls.INPUTS)))
 
     def _register_block(self, units: Optional[Mapping[str, str]] = None, input_start: Optional[float] = None) -> None:
         """Register the block's inputs, outputs and parameters in value-reference order, with ``units``
@@ -169,14 +220,42 @@ class BlockWrapper:
             self._block.initialize(self._t0)
             self._dirty = False
 
+    def _check_refs(self, vrs: List[int], kind: type, write: bool) -> None:
+        """Refuse (IllegalCall) a value reference that is unknown, of another type, or not settable now."""
+        if write and self._phase == STEPPING and self._input_refs.issuperset(vrs) and kind is float:
+            return  # the hot path: inputs during the run
+        variable_class = self.fmi.kinds.get(kind)  # None: a type none of the blocks' variables has (Boolean)
+        wanted = variable_class.__name__ if variable_class is not None else "Boolean"
+        causality = self.fmi.causality
+        for vr in vrs:
+            var = self.vars.get(vr)
+            if var is None:
+                raise IllegalCall(f"value reference {vr} is not a variable of {type(self).__name__} "
+                                  f"(it has {min(self.vars)}..{max(self.vars)})")
+            if variable_class is None or not isinstance(var, variable_class):
+                raise IllegalCall(f"'{var.name}' (value reference {vr}) is of type {type(var).__name__}, not {wanted}")
+            if not write:
+                continue
+            if var.causality == causality.parameter:
+                if self._phase not in (INSTANTIATED, INITIALIZATION):
+                    raise IllegalCall(f"parameter '{var.name}' is fixed: it can be set before exitInitializationMode, "
+                                      f"not in {self._phase}")
+            elif var.causality == causality.input:
+                if self._phase == TERMINATED:
+                    raise IllegalCall(f"input '{var.name}' cannot be set in {self._phase}")
+            else:
+                raise IllegalCall(f"'{var.name}' is {var.causality.name}: only inputs and parameters can be set")
+
     def _get_values(self, vrs: List[int]) -> List[float]:
+        self._check_refs(vrs, float, write=False)
         n = self._n_io
-        if self._in_init and self._dirty and any(len(self.block_class.INPUTS) <= vr < n for vr in vrs):
+        if self._phase == INITIALIZATION and self._dirty and any(len(self.block_class.INPUTS) <= vr < n for vr in vrs):
             self._tentative_outputs()
         values = self._values
         return [values[vr] if vr < n else float(self.vars[vr].getter()) for vr in vrs]
 
     def _set_values(self, vrs: List[int], values: List[float]) -> None:
+        self._check_refs(vrs, float, write=True)
         n = self._n_io
         target = self._values
         for vr, value in zip(vrs, values):
@@ -184,7 +263,7 @@ class BlockWrapper:
                 target[vr] = value
             else:
                 self.vars[vr].setter(value)
-        if self._in_init:
+        if self._phase == INITIALIZATION:
             self._dirty = True
 
     def _tentative_outputs(self) -> None:
@@ -199,19 +278,25 @@ class BlockWrapper:
         self._t0 = start_time
 
     # the calls that are the same in FMI 2.0 and 3.0 (the others map onto the helpers here in fmi.py, fmi3.py)
-    @fmi_call
+    @fmi_call()
     def get_string(self, vrs: List[int]) -> List[str]:
+        self._check_refs(vrs, str, write=False)
         return super().get_string(vrs)
 
-    @fmi_call
+    @fmi_call()
     def set_string(self, vrs: List[int], values: List[str]) -> None:
+        self._check_refs(vrs, str, write=True)
         super().set_string(vrs, values)
 
-    @fmi_call
+    @fmi_call(INSTANTIATED)
     def enter_initialization_mode(self) -> None:
-        self._in_init = True
+        self._phase = INITIALIZATION
 
-    @fmi_call
+    @fmi_call(STEPPING)
+    def terminate(self) -> None:
+        self._phase = TERMINATED
+
+    @fmi_call(INITIALIZATION)
     def exit_initialization_mode(self) -> None:
         """Build the block and compute the outputs at the start; a failure is logged, then refuses every step."""
         try:
@@ -220,15 +305,13 @@ class BlockWrapper:
         except Exception as err:  # see the module docstring: a refused step, not an exception, reaches the host
             self._init_error = f"{type(err).__name__}: {err}"
             self._log_error(f"exitInitializationMode: {self._init_error}")
-        self._in_init = False
+        self._phase = STEPPING
 
     def _step(self, current_time: float, step_size: float) -> bool:
         """Advance the block; a model failure is logged and reported as a refused step (Discard)."""
         try:
             if self._init_error is not None:
                 raise RuntimeError(f"the instance did not initialise: {self._init_error}")
-            if self._block is None or self._dirty or self._in_init:
-                raise RuntimeError("doStep before exitInitializationMode")
             self._block.do_step(current_time, step_size)
         except Exception as err:  # the host decides what to do; the instance stays usable for terminate/free
             self._log_error(f"doStep at t={current_time:.6g} s: {type(err).__name__}: {err}")
@@ -236,14 +319,14 @@ class BlockWrapper:
         return True
 
     # -- FMU state (get/set FMU state) -------------------------------------------------
-    @fmi_call
+    @fmi_call()
     def _get_fmu_state(self) -> "SlaveState":
         block = self._block
         return SlaveState(type(self).__name__, dict(self._params), list(self._values) if block is None else None,
-                          None if block is None else block.get_state(), self._dirty, self._t0, self._in_init,
+                          None if block is None else block.get_state(), self._dirty, self._t0, self._phase,
                           self._init_error)
 
-    @fmi_call
+    @fmi_call()
     def _set_fmu_state(self, state: "SlaveState") -> None:
         if getattr(state, "owner", None) != type(self).__name__ or not hasattr(state, "block"):
             raise TypeError(f"not an FMU state of {type(self).__name__}: {type(state).__name__} "
@@ -257,17 +340,17 @@ class BlockWrapper:
                 self._block = self.block_class(state.params, name=self.instance_name)
             self._block.set_state(state.block)
             self._values = self._block.values
-        self._dirty, self._t0, self._in_init, self._init_error = state.dirty, state.t0, state.in_init, state.error
+        self._dirty, self._t0, self._phase, self._init_error = state.dirty, state.t0, state.phase, state.error
 
 
 class SlaveState:
     """What get FMU state hands the host (pythonfmu keeps the Python object behind the pointer)."""
 
-    __slots__ = ("owner", "params", "values", "block", "dirty", "t0", "in_init", "error")
+    __slots__ = ("owner", "params", "values", "block", "dirty", "t0", "phase", "error")
 
-    def __init__(self, owner, params, values, block, dirty, t0, in_init, error) -> None:
+    def __init__(self, owner, params, values, block, dirty, t0, phase, error) -> None:
         self.owner, self.params, self.values, self.block = owner, params, values, block
-        self.dirty, self.t0, self.in_init, self.error = dirty, t0, in_init, error
+        self.dirty, self.t0, self.phase, self.error = dirty, t0, phase, error
 
 
 def _survive_pythonfmu_cleanup(slave: Any) -> None:

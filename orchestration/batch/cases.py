@@ -34,7 +34,7 @@ class SystemInfo:
         from fmpy import read_model_description
 
         from ..run import default_signals
-        from ..ssp import SSPArchive
+        from ..ssp import SSPArchive, check_archive
 
         with SSPArchive(path) as archive:
             system = archive.system
@@ -43,6 +43,7 @@ class SystemInfo:
             for comp in system.components:
                 fmu = system.fmu_path(comp)
                 if fmu not in by_fmu:
+                    check_archive(fmu, system.fmu_label(comp))
                     md = read_model_description(str(fmu))
                     by_fmu[fmu] = [v.name for v in md.modelVariables if v.causality == "parameter"]
                 names[comp] = by_fmu[fmu]

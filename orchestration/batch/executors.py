@@ -24,11 +24,22 @@ class LocalPool:
         self.context = multiprocessing.get_context(mp_context) if isinstance(mp_context, str) or mp_context is None \
             else mp_context
         self.restarts = 0
+        self._tmp: Optional[str] = None  # the workers' temporary folder while a batch runs
 
     def _pool(self) -> ProcessPoolExecutor:
-        return ProcessPoolExecutor(max_workers=self.workers, mp_context=self.context, initializer=worker_init)
+        return ProcessPoolExecutor(max_workers=self.workers, mp_context=self.context, initializer=worker_init,
+                                   initargs=(self._tmp,))
 
     def run(self, tasks: Sequence[dict], on_result: Callable[[dict], None]) -> None:
+        # workers are stopped, not asked to clean up: what they extract goes to a folder removed here
+        with tempfile.TemporaryDirectory(prefix="mast_batch_") as tmp:
+            self._tmp = tmp
+            try:
+                self._run(tasks, on_result)
+            finally:
+                self._tmp = None
+
+    def _run(self, tasks: Sequence[dict], on_result: Callable[[dict], None]) -> None:
         queue = deque(tasks)
         pool = self._pool()
         running: dict = {}
@@ -73,7 +84,7 @@ class LocalPool:
         reader, writer = self.context.Pipe(duplex=False)
         fd, fault_file = tempfile.mkstemp(prefix="mast_batch_fault_", suffix=".txt")
         os.close(fd)
-        proc = self.context.Process(target=isolated_main, args=(task, writer, fault_file), daemon=True)
+        proc = self.context.Process(target=isolated_main, args=(task, writer, fault_file, self._tmp), daemon=True)
         proc.start()
         writer.close()
         record = None

@@ -175,15 +175,21 @@ def _deadline(seconds: Optional[float]) -> Optional[Callable[[float], None]]:
     return check
 
 
-def worker_init() -> None:
-    """Pool workers leave Ctrl-C to the driver, which stops them; a crash is diagnosed in its rerun alone."""
+def worker_init(tmp: Optional[str] = None) -> None:
+    """Pool workers leave Ctrl-C to the driver, which stops them; a crash is diagnosed in its rerun alone.
+
+    ``tmp``: the folder this worker's temporary files (extracted SSPs and FMUs) go to; the driver
+    removes it when the batch ends, also after a worker was stopped or died without cleaning up."""
+    if tmp is not None:
+        os.environ["TMPDIR"] = tmp
+        tempfile.tempdir = tmp
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     faulthandler.disable()
     _one_blas_thread()
 
 
-def isolated_main(task: Mapping, conn, fault_file: str) -> None:
-    worker_init()
+def isolated_main(task: Mapping, conn, fault_file: str, tmp: Optional[str] = None) -> None:
+    worker_init(tmp)
     with open(fault_file, "w") as handle:  # the Python stack at a fatal signal, for the crash record
         faulthandler.enable(file=handle)
         conn.send(run_case(task))
