@@ -86,11 +86,22 @@ def _finite(z, psi, theta) -> None:
         raise KinematicsError(f"pose (z = {z!r} m, psi = {psi!r} rad, theta = {theta!r} rad) is not finite")
 
 
+# Each check also states its condition as a C expression of its arguments a0, a1, ... and a
+# message, for the C backend of the engine's generated code (mast.native.translate).
+_finite.c_condition = "isfinite(a0) && isfinite(a1) && isfinite(a2)"
+_finite.c_message = "pose (z, psi, theta) is not finite"
+
+
 def _tilt(psi, theta) -> None:
     if abs(psi) > MAX_TILT or abs(theta) > MAX_TILT:
         raise KinematicsError(
             f"pose out of range: |psi| = {abs(psi):.6g} rad or |theta| = {abs(theta):.6g} rad exceeds "
             f"the admissible tilt {MAX_TILT:.6g} rad ({math.degrees(MAX_TILT):g} deg)")
+
+
+_tilt.c_condition = f"!(fabs(a0) > {MAX_TILT!r} || fabs(a1) > {MAX_TILT!r})"
+_tilt.c_message = (f"pose out of range: |psi| or |theta| exceeds the admissible tilt {MAX_TILT:.6g} rad "
+                   f"({math.degrees(MAX_TILT):g} deg)")
 
 
 def _pose_text(z, psi, theta) -> str:
@@ -100,6 +111,9 @@ def _pose_text(z, psi, theta) -> str:
 class _NullCheck:
     def __init__(self, r: float, alpha) -> None:
         self.r, self.alpha = r, alpha
+        self.c_condition = f"a0 > {1e-9 * r * r!r}"
+        self.c_message = ("singular configuration: the constraints S_i . t_i = 0 do not determine the parasitic "
+                          "motion (x, y, phi)")
 
     def __call__(self, norm, z, psi, theta) -> None:
         if not norm > 1e-9 * self.r * self.r:
@@ -114,6 +128,9 @@ class _InsideCheck:
 
     def __init__(self, i: int, H: float, inclined: bool) -> None:
         self.i, self.H, self.inclined = i, H, inclined
+        self.c_condition = "a0 > 0.0"
+        self.c_message = (f"pose unreachable (not the working assembly): spherical joint S_{i + 1} is on the outer "
+                          f"side of guide {i + 1}")
 
     def __call__(self, u, d, z, psi, theta) -> None:
         if not u > 0.0:
@@ -131,6 +148,8 @@ class _InsideCheck:
 class _ReachCheck:
     def __init__(self, i: int, L: float, inclined: bool) -> None:
         self.i, self.L, self.inclined = i, L, inclined
+        self.c_condition = "a0 > 0.0"
+        self.c_message = f"pose unreachable: leg {i + 1} is too short (L = {_fmt(L)} m) for the pose"
 
     def __call__(self, w2, u, z, psi, theta) -> None:
         if not w2 > 0.0:

@@ -528,6 +528,7 @@ def compile_function(name: str, inputs: Sequence[str], outputs: Sequence[E], gra
     exec(compile(code, f"<mast engine: {label or name}>", "exec"), ns)  # noqa: S102 (our own generated code)
     fn = ns[name]
     fn.source = code
+    fn.namespace = ns   # what the source calls (the checks): for the C backend (mast.native)
     return fn
 
 

@@ -1,0 +1,144 @@
+"""`mast build --native`: FMI 2.0 Co-Simulation FMUs with a compiled C binary, no Python at run time.
+
+A native FMU is made from the Python FMU of the same model (``mast.build``):
+
+- its modelDescription.xml is the Python FMU's (the same variables, value references, units,
+  causality, variability, start values and descriptions: they are generated in one place,
+  ``fmus/common/slave.py``), with the generation tool, the GUID and the source file list changed;
+- its C is the wrapper ``fmus/common/native/fmi2_wrapper.c`` (the FMI glue, once for all models),
+  the support header ``mast_native.h`` and one generated model file (``models.emit_model``);
+- the sources travel in ``sources/`` so a host on another platform can compile them (with the
+  FMI 2.0 headers, which every importer has); the binary is ``binaries/linux64/<id>.so``, compiled
+  here with the C compiler found as ``$CC``, ``cc`` or ``gcc`` (``-O2 -ffp-contract=off``: the
+  same floating-point operations as the Python model, no fused multiply-add).
+
+The generated code has the parameter values inlined, as the Python model's generated code has
+(``models``); so a native FMU is built for the parameter set of the component that uses it, and
+each native SSP carries FMUs built for its own bindings.
+"""
+from __future__ import annotations
+
+import hashlib
+import os
+import shutil
+import subprocess
+import tempfile
+import uuid
+import zipfile
+from pathlib import Path
+from typing import Iterable, Mapping, Optional, Sequence
+
+from lxml import etree
+
+from .models import Variable, emit_model
+
+__all__ = ["NativeBuildError", "compiler", "build_native_fmu", "native_sources", "read_variables", "SUPPORT"]
+
+REPO = Path(__file__).resolve().parents[2]
+SUPPORT = REPO / "fmus" / "common" / "native"
+SUPPORT_FILES = ("fmi2_wrapper.c", "mast_model.h", "mast_native.h")
+CFLAGS = ("-O2", "-ffp-contract=off", "-fPIC", "-shared", "-std=c99", "-D_POSIX_C_SOURCE=200809L",
+          "-Wall", "-Wno-unused-variable", "-Wno-unused-function", "-Wno-maybe-uninitialized", "-Wno-format-truncation")
+
+
+class NativeBuildError(RuntimeError):
+    """A native FMU cannot be built here (no C compiler, a compiler error, a model without a native form)."""
+
+
+def compiler() -> str:
+    """The C compiler: ``$CC``, else ``cc`` or ``gcc`` on PATH (NativeBuildError naming what was looked for)."""
+    for name in ([os.environ["CC"]] if os.environ.get("CC") else []) + ["cc", "gcc"]:
+        found = shutil.which(name.split()[0])
+        if found:
+            return found
+    raise NativeBuildError("mast build --native needs a C compiler: none of $CC, cc, gcc is on PATH "
+                           "(install gcc or clang, or set CC)")
+
+
+def fmi_headers() -> Path:
+    """The FMI 2.0 headers (fmi2Functions.h ...): fmpy, a dependency of this project, ships them."""
+    import fmpy
+
+    folder = Path(fmpy.__file__).parent / "c-code"
+    if not (folder / "fmi2Functions.h").exists():
+        raise NativeBuildError(f"{folder}: the FMI 2.0 headers are missing from this fmpy installation")
+    return folder
+
+
+def read_variables(model_description: bytes) -> list[Variable]:
+    """The ScalarVariables of a modelDescription.xml, in document order."""
+    root = etree.fromstring(model_description)
+    out = []
+    for sv in root.iter("ScalarVariable"):
+        typed = next(iter(sv))
+        start = typed.get("start")
+        kind = typed.tag
+        value = {"Real": lambda s: float(s or 0.0), "Integer": lambda s: int(s or 0),
+                 "String": lambda s: s or ""}[kind](start)
+        out.append(Variable(sv.get("name"), int(sv.get("valueReference")), kind, sv.get("causality"), value))
+    return out
+
+
+def native_sources(identifier: str, block_class: type, parameters: Mapping[str, object],
+                   model_description: bytes, step_sizes: Sequence[float] = ()) -> tuple[dict[str, bytes], bytes]:
+    """({file name: C source}, native modelDescription.xml) for the Python FMU's ``model_description``."""
+    variables = read_variables(model_description)
+    model_file = f"{identifier}_model.c"
+    draft = emit_model(identifier, "GUID", block_class, parameters, variables, step_sizes)
+    digest = hashlib.sha256(draft.encode() + model_description)
+    for name in SUPPORT_FILES:
+        digest.update((SUPPORT / name).read_bytes())
+    guid = "{" + str(uuid.UUID(bytes=digest.digest()[:16], version=4)) + "}"
+    sources = {name: (SUPPORT / name).read_bytes() for name in SUPPORT_FILES}
+    sources[model_file] = draft.replace('"GUID"', f'"{guid}"', 1).encode()
+    root = etree.fromstring(model_description)
+    root.set("guid", guid)
+    root.set("generationTool", "MAST mast build --native (C generated from the model's code)")
+    cs = root.find("CoSimulation")
+    for old in cs.findall("SourceFiles"):
+        cs.remove(old)
+    files = etree.SubElement(cs, "SourceFiles")
+    for name in sorted(sources):
+        if name.endswith(".c"):
+            etree.SubElement(files, "File", name=name)
+    xml = etree.tostring(root, xml_declaration=True, encoding="UTF-8", pretty_print=True)
+    return sources, xml
+
+
+def compile_shared(sources: Mapping[str, bytes], target: Path) -> None:
+    """Compile the sources into the shared library ``target`` (NativeBuildError with the compiler's output)."""
+    cc = compiler()
+    with tempfile.TemporaryDirectory(prefix="mast_native_") as tmp:
+        tmp = Path(tmp)
+        for name, data in sources.items():
+            (tmp / name).write_bytes(data)
+        c_files = sorted(str(tmp / n) for n in sources if n.endswith(".c"))
+        cmd = [cc, *CFLAGS, f"-I{fmi_headers()}", f"-I{tmp}", "-o", str(target), *c_files, "-lm"]
+        done = subprocess.run(cmd, capture_output=True, text=True)
+        if done.returncode != 0:
+            raise NativeBuildError(f"{target.name}: the C compiler failed ({' '.join(cmd[:2])} ...):\n"
+                                   f"{done.stderr.strip()[-4000:]}")
+
+
+def build_native_fmu(identifier: str, python_fmu: Path, out_dir: Path, parameters: Mapping[str, object],
+                     step_sizes: Iterable[float] = ()) -> Path:
+    """The native form of the Python FMU ``python_fmu`` (model ``identifier``) with ``parameters``, into
+    ``out_dir``; ``step_sizes`` [s]: the communication steps the actuator is built for."""
+    from ..build import block_class
+
+    with zipfile.ZipFile(python_fmu) as z:
+        md = z.read("modelDescription.xml")
+    sources, xml = native_sources(identifier, block_class(identifier), parameters, md, sorted(set(step_sizes)))
+    out_dir.mkdir(parents=True, exist_ok=True)
+    target = out_dir / f"{identifier}.fmu"
+    with tempfile.TemporaryDirectory(prefix="mast_native_") as tmp:
+        library = Path(tmp) / f"{identifier}.so"
+        compile_shared(sources, library)
+        partial = Path(tmp) / target.name
+        with zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as zout:
+            zout.writestr("modelDescription.xml", xml)
+            zout.write(library, f"binaries/linux64/{identifier}.so")
+            for name, data in sorted(sources.items()):
+                zout.writestr(f"sources/{name}", data)
+        shutil.move(str(partial), target)
+    return target

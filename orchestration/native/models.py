@@ -1,0 +1,355 @@
+"""One C model file per FMU, from the model the Python FMU runs (``mast build --native``).
+
+Each emitter builds the Python block with the FMU's parameter set and takes its generated
+code, which ``translate.to_c`` writes as C:
+
+- actuator: the exact-discretisation step with the implicit friction solve
+  (``ActuatorBlock._compile``), one kernel per step size the systems use;
+- mechanism (every design): the engine's traced functions (inverse kinematics with its
+  Jacobian, inverse dynamics, pose), driven by the engine's Newton direct kinematics
+  (``mast_native.h``);
+- trajectory: the sine about the home pose (its parameters read at run time).
+
+What the generated code does not cover is written here once, in the same Python subset, and
+translated too: the outputs of the actuator at rest (``initialize``) and the description's cold
+start of the direct kinematics (``guess``).
+
+Parameters: the actuator's and the mechanism's generated code has the parameters' values
+inlined, as in the Python model (where the kernel is compiled at the first step); the C model
+therefore checks at initialisation that every parameter still has the value it was generated
+for, and refuses another value with a message naming it (the same range checks as the Python
+model come first, with the same messages). The trajectory's parameters are read at run time.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Mapping, Optional, Sequence
+
+from fmus.common.parameters import Param
+
+from .translate import c_double, to_c
+
+__all__ = ["Variable", "emit_model", "c_string"]
+
+#: relative difference below which a Real parameter counts as the value a model was generated for
+#: (a host that applies a modelDescription start value, printed with 16 digits, gets the same model)
+SAME_VALUE = 1e-13
+
+
+@dataclass(frozen=True)
+class Variable:
+    """A variable of the modelDescription (value references are 0..n-1 in order)."""
+
+    name: str
+    vr: int
+    type: str          # "Real", "Integer", "String"
+    causality: str     # "input", "output", "parameter"
+    start: object
+
+
+def c_string(text: str) -> str:
+    """A C string literal of ``text``."""
+    out = ['"']
+    for ch in text:
+        if ch in '\\"':
+            out.append("\\" + ch)
+        elif ch == "\n":
+            out.append("\\n")
+        elif ch == "%":
+            out.append("%%")
+        elif 32 <= ord(ch) < 127:
+            out.append(ch)
+        else:
+            out.extend(f"\\{b:03o}" for b in ch.encode())
+    out.append('"')
+    return "".join(out)
+
+
+def _literal(text: str) -> str:
+    """A C string literal used as data, not as a format."""
+    return c_string(text).replace("%%", "%")
+
+
+# ----------------------------------------------------------------------------------- shared parts
+def _variable_table(variables: Sequence[Variable]) -> str:
+    rows = []
+    for v in variables:
+        kind = {"Real": "MAST_REAL", "Integer": "MAST_INTEGER", "String": "MAST_STRING"}[v.type]
+        causality = {"input": "MAST_INPUT", "output": "MAST_OUTPUT", "parameter": "MAST_PARAMETER"}[v.causality]
+        real = c_double(float(v.start)) if v.type == "Real" else "0.0"
+        integer = str(int(v.start)) if v.type == "Integer" else "0"
+        string = _literal(str(v.start)) if v.type == "String" else '""'
+        rows.append(f"    {{{_literal(v.name)}, {kind}, {causality}, {real}, {integer}, {string}}},")
+    return "static const mast_variable VARIABLES[] = {\n" + "\n".join(rows) + "\n};\n"
+
+
+def _check_function(params: Sequence[Param], vrs: Mapping[str, int], fixed: Mapping[str, object]) -> str:
+    """``check``: the Python model's range checks (``Param.check``, the same messages), then, for the
+    parameters in ``fixed``, that the value is the one the code was generated for."""
+    lines = ["static int check(const mast_parameters *p, char *msg, size_t size)", "{",
+             "    char v[40], c[40];", "    (void)v; (void)c;"]
+    for spec in params:
+        vr = vrs[spec.name]
+        name = spec.name
+        if spec.kind is str:
+            if name in fixed:
+                lines += [
+                    f"    if (strcmp(p->string[{vr}] ? p->string[{vr}] : \"\", {_literal(str(fixed[name]))}) != 0) {{",
+                    f"        snprintf(msg, size, \"parameter '{name}' = '%s': this native FMU was generated for "
+                    f"{name} = '%s'; rebuild it (mast build --native) for another value\", p->string[{vr}] ? "
+                    f"p->string[{vr}] : \"\", {_literal(str(fixed[name]))});",
+                    "        return MAST_PARAMETER_ERROR;", "    }"]
+            continue
+        expected = c_string(spec.expected())
+        if spec.kind is int:
+            value, show = f"(double)p->integer[{vr}]", f"snprintf(v, sizeof v, \"%d\", p->integer[{vr}])"
+        else:
+            value, show = f"p->real[{vr}]", f"mast_repr(p->real[{vr}], v, sizeof v)"
+            lines += [f"    if (!isfinite({value})) {{", f"        {show};",
+                      f"        snprintf(msg, size, \"parameter '{name}' = %s: expected a finite number\", v);",
+                      "        return MAST_PARAMETER_ERROR;", "    }"]
+        lo, hi = ("<=", ">=") if spec.exclusive else ("<", ">")
+        bad = []
+        if spec.minimum != -math.inf:
+            bad.append(f"{value} {lo} {c_double(spec.minimum)}")
+        if spec.maximum != math.inf:
+            bad.append(f"{value} {hi} {c_double(spec.maximum)}")
+        if bad:
+            lines += [f"    if ({' || '.join(bad)}) {{", f"        {show};",
+                      f"        snprintf(msg, size, \"parameter '{name}' = %s: expected \" {expected}, v);",
+                      "        return MAST_PARAMETER_ERROR;", "    }"]
+        if name in fixed:
+            if spec.kind is int:
+                same = f"p->integer[{vr}] == {int(fixed[name])}"
+                shown = f"snprintf(c, sizeof c, \"%d\", {int(fixed[name])})"
+            else:
+                ref = c_double(float(fixed[name]))
+                same = f"fabs(p->real[{vr}] - {ref}) <= {c_double(SAME_VALUE)} * fabs({ref})"
+                shown = f"mast_repr({ref}, c, sizeof c)"
+            lines += [f"    if (!({same})) {{", f"        {show};", f"        {shown};",
+                      f"        snprintf(msg, size, \"parameter '{name}' = %s: this native FMU was generated for "
+                      f"{name} = %s; rebuild it (mast build --native) for another value\", v, c);",
+                      "        return MAST_PARAMETER_ERROR;", "    }"]
+    lines += ["    return MAST_OK;", "}", ""]
+    return "\n".join(lines)
+
+
+def _model_struct(identifier: str, guid: str, variables: Sequence[Variable], n_inputs: int, n_io: int) -> str:
+    return (f"const mast_model MAST_MODEL = {{{_literal(identifier)}, {_literal(guid)}, {len(variables)}, VARIABLES, "
+            f"{n_inputs}, {n_io}, sizeof(State), check, initialize, do_step}};\n")
+
+
+_HEAD = """/* Generated by mast build --native from the {what} (mast.native.models): do not edit. */
+#include "mast_native.h"
+#include "mast_model.h"
+
+"""
+
+
+# ----------------------------------------------------------------------------------- actuator
+def _actuator(block, step_sizes: Sequence[float]) -> str:
+    from fmus.actuator.model import _ERRORS
+
+    kernels, keys = [], []
+    for k, h in enumerate(step_sizes):
+        key = float(f"{h:.12g}")      # ActuatorBlock._select's key
+        kernel, _substeps = block._compile(key)
+        kernels.append(to_c(kernel.source, f"kernel_{k}", arrays=("values", "x")))
+        keys.append(key)
+    p, N = block.params, block.N
+    n_in = len(block.INPUTS)
+    nx = 2 * N + 1
+    tau_c, omega_c, tau_s, omega_s = (float(p[k]) for k in ("tau_c", "omega_c", "tau_s", "omega_s"))
+    # ActuatorBlock.initialize + _write_outputs at rest (x = 0), in the generated-code subset
+    rest = ["def rest(values):", "    u = values[0]", "    F = values[1]",
+            "    if u - u != 0.0: return 1", "    if F - F != 0.0: return 2",
+            "    w = 0.0", f"    tf = {tau_c!r}*tanh(w/{omega_c!r})"]
+    if tau_s > 0.0:
+        rest.append(f"    tf = tf + {tau_s!r}*exp(-((w/{omega_s!r})*(w/{omega_s!r})))*tanh(w/{omega_c!r})")
+    weight = float(p["M_load"]) * float(p["g_guide"])
+    rest.append(f"    tl = -{block.i_R!r}*(F + {weight!r}) - tf")
+    if float(p["tau_ripple"]) > 0.0:
+        rest.append("    tl = tl - 0.0")    # sin(0) at rest: tau_ripple * 0.0
+    rest += [f"    al = 0.0 + {float(block.B[2 * N, 1])!r}*tl",
+             f"    values[{n_in}:] = ({float(p['rho_0'])!r} + {block.i_R!r}*0.0, {block.i_R!r}*w, {block.i_R!r}*al, "
+             f"0.0, 0.0, 0.0, {float(p['k_T'])!r}*0.0, {float(p['k_T'])!r}*0.0)",
+             "    return 0"]
+    rest_c = to_c("\n".join(rest) + "\n", "rest", arrays=("values",))
+    names = ", ".join(_literal(_ERRORS[k]) for k in sorted(_ERRORS))
+    key_list = ", ".join(c_double(k) for k in keys)
+    cases = "\n".join(f"    case {k}: code = kernel_{k}(values, s->x); break;" for k in range(len(keys)))
+    shown = ", ".join(f"{k:g}" for k in keys)
+    rho0, iR = c_double(float(p["rho_0"])), c_double(block.i_R)
+    return "\n".join([
+        f"typedef struct {{ double x[{nx}]; }} State;", "",
+        *kernels, rest_c,
+        f"static const char *const INPUT_NAMES[] = {{{names}}};",
+        f"static const double KEYS[] = {{{key_list}}};", "",
+        "static int input_error(const double *values, int code, double t, char *msg, size_t size)", "{",
+        "    char v[40];",
+        "    double x = values[code - 1];",
+        "    mast_repr(x, v, sizeof v);",
+        "    snprintf(msg, size, \"input '%s' = %s at t=%.9g s is not finite\", INPUT_NAMES[code - 1], v, t);",
+        "    return MAST_MODEL_ERROR;", "}", "",
+        "static int initialize(void *state, double *values, const mast_parameters *p, double t0, char *msg, size_t size)",
+        "{", "    State *s = state;", "    (void)p;",
+        f"    for (int k = 0; k < {nx}; k++) s->x[k] = 0.0;",
+        "    int code = rest(values);",
+        "    return code ? input_error(values, code, t0, msg, size) : MAST_OK;", "}", "",
+        "static int do_step(void *state, double *values, const mast_parameters *p, double t, double h, char *msg, size_t size)",
+        "{", "    State *s = state;", "    char v[40], key_text[40];", "    int code = -1;", "    (void)p;",
+        "    if (!(h > 0.0 && isfinite(h))) {",
+        "        snprintf(msg, size, \"step size h = %s s: expected a finite positive number\", mast_repr(h, v, sizeof v));",
+        "        return MAST_MODEL_ERROR;", "    }",
+        "    snprintf(key_text, sizeof key_text, \"%.12g\", h);",
+        "    double key = strtod(key_text, NULL);",
+        "    int which = -1;",
+        f"    for (int k = 0; k < {len(keys)}; k++) if (KEYS[k] == key) which = k;",
+        "    switch (which) {", cases, "    default:",
+        f"        snprintf(msg, size, \"step size h = %s s: this native FMU has the exact discretisation for h in "
+        f"{{{shown}}} s (the step sizes of the systems it was built for); rebuild it (mast build --native) for another\", "
+        f"mast_repr(h, v, sizeof v));",
+        "        return MAST_MODEL_ERROR;", "    }",
+        "    if (code == 1 || code == 2) return input_error(values, code, t, msg, size);",
+        "    if (code == 3) {",
+        "        snprintf(msg, size, \"diverged at t=%.9g s (non-finite state)\", t + h);",
+        "        return MAST_MODEL_ERROR;", "    }",
+        "    if (code == 4) {",
+        f"        snprintf(msg, size, \"carriage left the stroke [%g, %g] m: rho = %.6g m at t=%.9g s\", "
+        f"{c_double(float(p['rho_min']))}, {c_double(float(p['rho_max']))}, {rho0} + {iR} * s->x[{N}], t + h);",
+        "        return MAST_MODEL_ERROR;", "    }",
+        "    return MAST_OK;", "}", ""])
+
+
+# ----------------------------------------------------------------------------------- mechanism
+def _guess_source(desc) -> str:
+    """PRS3.guess (the direct kinematics' cold start) in the generated-code subset."""
+    lines = ["def guess(rho):", "    mean = (rho[0] + rho[1] + rho[2]) / 3.0"]
+    if not desc.inclined:
+        lines.append(f"    return (mean + {desc.geometry.home_reach!r}, 0.0, 0.0)")
+    else:
+        lines += [f"    gap = {desc.r!r} - {desc.H!r} + mean * {desc._sb!r}",
+                  f"    w2 = {desc.L!r} * {desc.L!r} - gap * gap",
+                  "    if 0.0 > w2: w2 = 0.0",
+                  f"    return (mean * {desc._cb!r} + sqrt(w2), 0.0, 0.0)"]
+    return "\n".join(lines) + "\n"
+
+
+def _mechanism(block) -> str:
+    eng = block.engine
+    ikjac = eng._fn("ikjac")
+    main = eng._fn("forces") if block.attached else eng._fn("pose")
+    checks = {**ikjac.namespace, **main.namespace}
+    checks = {k: v for k, v in checks.items() if k.startswith("_check")}
+    ik_c = to_c(ikjac.source, "ikjac", checks=checks)
+    main_c = to_c(main.source, "dynamics" if block.attached else "pose", checks=checks)
+    guess_c = to_c(_guess_source(eng.description), "guess", arrays=("rho",))
+    messages = "\n".join(f"    case {int(k.replace('_check', ''))}: return {_literal(v.c_message)};"
+                         for k, v in sorted(checks.items()))
+    inputs = ", ".join(_literal(n) for n in block.INPUTS)
+    if block.attached:
+        call = "dynamics(q[0], q[1], q[2], J[0], J[1], J[2], J[3], J[4], J[5], J[6], J[7], J[8], " \
+               "values[3], values[4], values[5], values[6], values[7], values[8], values + 9)"
+        write = [f"    code = {call};"]
+    else:
+        write = ["    values[9] = 0.0; values[10] = 0.0; values[11] = 0.0;",
+                 "    code = pose(q[0], q[1], q[2], values + 12);"]
+    return "\n".join([
+        "typedef struct { double q[3]; int warm; } State;", "",
+        ik_c, main_c, guess_c,
+        "static const char *why(int check)", "{", "    switch (check) {", messages,
+        "    default: return \"a check of the description failed\";", "    }", "}", "",
+        f"static const char *const INPUT_NAMES[] = {{{inputs}}};", "",
+        "static int kinematics_error(const double *values, double t, const char *what, char *msg, size_t size)", "{",
+        "    char a[40], b[40], c[40], d[40];",
+        "    snprintf(msg, size, \"at t = %s s, rho = (%s, %s, %s) m: %s\", mast_repr(t, d, sizeof d), "
+        "mast_repr(values[0], a, sizeof a), mast_repr(values[1], b, sizeof b), mast_repr(values[2], c, sizeof c), what);",
+        "    return MAST_KINEMATICS_ERROR;", "}", "",
+        "/* MechanismBlock._compute: direct kinematics (warm start, else cold), then the forces and the pose */",
+        "static int compute(State *s, double *values, double t, char *msg, size_t size)", "{",
+        "    char v[40], w[40], why_text[768];",
+        "    double q[3], J[9], cold[3];",
+        "    int code;",
+        "    for (int k = 0; k < 9; k++) {",
+        "        if (!isfinite(values[k])) {",
+        "            snprintf(msg, size, \"input '%s' = %s is not finite at t = %s s\", INPUT_NAMES[k], "
+        "mast_repr(values[k], v, sizeof v), mast_repr(t, w, sizeof w));",
+        "            return MAST_MODEL_ERROR;", "        }", "    }",
+        "    guess(values, cold);",
+        "    for (int k = 0; k < 3; k++) q[k] = s->warm ? s->q[k] : cold[k];",
+        f"    code = mast_dk3(ikjac, why, values, q, J, 1e-12, 50, {c_double(eng.cond_limit)}, why_text, sizeof why_text);",
+        "    if (code && s->warm) {",
+        "        for (int k = 0; k < 3; k++) q[k] = cold[k];",
+        f"        code = mast_dk3(ikjac, why, values, q, J, 1e-12, 50, {c_double(eng.cond_limit)}, why_text, sizeof why_text);",
+        "    }",
+        "    if (code) return kinematics_error(values, t, why_text, msg, size);",
+        *write,
+        "    if (code) return kinematics_error(values, t, why(-code), msg, size);",
+        "    for (int k = 0; k < 3; k++) s->q[k] = q[k];",
+        "    s->warm = 1;",
+        "    return MAST_OK;", "}", "",
+        "static int initialize(void *state, double *values, const mast_parameters *p, double t0, char *msg, size_t size)",
+        "{", "    State *s = state;", "    (void)p;", "    s->warm = 0;", "    return compute(s, values, t0, msg, size);",
+        "}", "",
+        "static int do_step(void *state, double *values, const mast_parameters *p, double t, double h, char *msg, size_t size)",
+        "{", "    (void)p;", "    return compute(state, values, t + h, msg, size);", "}", ""])
+
+
+# ----------------------------------------------------------------------------------- trajectory
+def _trajectory(block, vrs: Mapping[str, int]) -> str:
+    """TrajectoryBlock._write, its parameters read at run time (tunable as in the Python FMU)."""
+    P = {name: f"p->real[{vrs[name]}]" for name in ("z_home", "psi_home", "theta_home", "amplitude_z",
+                                                    "amplitude_psi", "amplitude_theta", "frequency")}
+    return "\n".join([
+        "typedef struct { double t0; } State;", "",
+        "static int write(const State *s, double *values, const mast_parameters *p, double t, char *msg, size_t size)",
+        "{", "    char v[40];",
+        "    if (!isfinite(t)) {",
+        "        snprintf(msg, size, \"time t = %s s is not finite\", mast_repr(t, v, sizeof v));",
+        "        return MAST_MODEL_ERROR;", "    }",
+        f"    double omega = 2.0 * {c_double(math.pi)} * {P['frequency']};",
+        "    double sn = sin(omega * (t - s->t0));",
+        f"    values[0] = {P['z_home']} + {P['amplitude_z']} * sn;",
+        f"    values[1] = {P['psi_home']} + {P['amplitude_psi']} * sn;",
+        f"    values[2] = {P['theta_home']} + {P['amplitude_theta']} * sn;",
+        "    return MAST_OK;", "}", "",
+        "static int initialize(void *state, double *values, const mast_parameters *p, double t0, char *msg, size_t size)",
+        "{", "    State *s = state;", "    s->t0 = t0;", "    return write(s, values, p, t0, msg, size);", "}", "",
+        "static int do_step(void *state, double *values, const mast_parameters *p, double t, double h, char *msg, size_t size)",
+        "{", "    return write(state, values, p, t + h, msg, size);", "}", ""])
+
+
+# ----------------------------------------------------------------------------------- entry point
+def emit_model(identifier: str, guid: str, block_class: type, parameters: Mapping[str, object],
+               variables: Sequence[Variable], step_sizes: Optional[Sequence[float]] = None) -> str:
+    """The C model file of the FMU ``identifier`` (its modelDescription ``variables``), generated from
+    ``block_class`` built with ``parameters``; ``step_sizes`` [s]: the actuator's communication steps."""
+    vrs = {v.name: v.vr for v in variables}
+    n_inputs, n_io = len(block_class.INPUTS), len(block_class.INPUTS) + len(block_class.OUTPUTS)
+    expected = list(block_class.INPUTS + block_class.OUTPUTS) + [p.name for p in block_class.PARAMETERS]
+    if [v.name for v in variables] != expected or [v.vr for v in variables] != list(range(len(variables))):
+        raise ValueError(f"{identifier}: the modelDescription's variables are not the block's inputs, outputs and "
+                         "parameters in value-reference order")
+    block = block_class(dict(parameters), name=identifier)
+    # parameter starts: the exact values (the XML prints 16 digits; the Python FMU starts from parameters.json)
+    variables = [Variable(v.name, v.vr, v.type, v.causality, block.params[v.name]) if v.causality == "parameter"
+                 else v for v in variables]
+    kind = block_class.__module__.split(".")[-2]
+    if kind == "actuator":
+        if block._sensor is not None:
+            raise ValueError(f"{identifier}: the torque measurement model (T_meas, delay_meas, tau_offset) has no "
+                             "native form yet; build the Python FMU for it")
+        if not step_sizes:
+            raise ValueError(f"{identifier}: the actuator's native form needs the step sizes it will be stepped with")
+        body, fixed = _actuator(block, step_sizes), dict(block.params)
+    elif kind == "mechanism":
+        body, fixed = _mechanism(block), dict(block.params)
+    elif kind == "trajectory":
+        body, fixed = _trajectory(block, vrs), {}
+    else:
+        raise ValueError(f"{identifier}: {block_class.__name__} has no native form yet")
+    return "".join([_HEAD.format(what=f"{block_class.__module__}.{block_class.__name__}"),
+                    _variable_table(variables), "\n",
+                    _check_function(block_class.PARAMETERS, vrs, fixed), "\n", body, "\n",
+                    _model_struct(identifier, guid, variables, n_inputs, n_io)])
