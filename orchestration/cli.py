@@ -31,9 +31,13 @@ class Progress:
 
 
 def cmd_build(args) -> int:
-    from .build import build_all
+    from .build import SSP_SRC, build_all
 
     build_all(Path(args.out), fmi3=args.fmi3)
+    if args.native:
+        from .native.build import build_native_all
+
+        build_native_all(Path(args.out), sorted(SSP_SRC.glob("*.ssd")))
     return 0
 
 
@@ -195,6 +199,9 @@ def main(argv=None) -> int:
     p = sub.add_parser("build", help="build build/fmus/*.fmu and build/ssp/*.ssp from fmus/ and ssp/")
     p.add_argument("--out", default=str(REPO / "build"))
     p.add_argument("--fmi3", action="store_true", help="also build the FMI 3.0 variants into OUT/fmus3 (pythonfmu3)")
+    p.add_argument("--native", action="store_true",
+                   help="also build native FMUs (compiled C, no Python at run time) into OUT/fmus/native and the SSPs "
+                        "that bind them into OUT/ssp/native (needs a C compiler: docs/native.md)")
     p.set_defaults(func=cmd_build)
 
     p = sub.add_parser("hosts", help="run an SSP in libcosim, ecospy and the ecos CLI; compare with this master")

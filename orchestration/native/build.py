@@ -142,3 +142,78 @@ def build_native_fmu(identifier: str, python_fmu: Path, out_dir: Path, parameter
                 zout.writestr(f"sources/{name}", data)
         shutil.move(str(partial), target)
     return target
+
+
+# ----------------------------------------------------------------------------------- every FMU and SSP
+def has_native_form(identifier: str) -> bool:
+    """Whether ``mast build --native`` can make this FMU (the models of ``models.emit_model``)."""
+    from ..build import block_class
+    from fmus.controller.model import ControllerBlock
+
+    cls = block_class(identifier)
+    kind = cls.__module__.split(".")[-2]
+    return kind in ("actuator", "mechanism", "trajectory") or cls is ControllerBlock
+
+
+def _component_sets(ssd: Path) -> dict[str, tuple[str, dict, Optional[float]]]:
+    """Per component of ``ssd``: (FMU identifier, its complete parameter set, its step size hint)."""
+    from ..build import block_class, default_parameters
+    from ..ssp import applicable_parameters, read_ssd
+
+    system = read_ssd(ssd)
+    names = {c: {p.name for p in block_class(Path(s.source).stem).PARAMETERS} for c, s in system.components.items()}
+    bound = applicable_parameters(system, names)
+    out = {}
+    for comp, spec in system.components.items():
+        ident = Path(spec.source).stem
+        out[comp] = (ident, {**default_parameters(ident), **bound[comp]}, spec.step_size)
+    return out
+
+
+def build_native_all(out: Path, ssds: Sequence[Path], log=print) -> list[Path]:
+    """Native FMUs into ``out/fmus/native`` (each for its default parameter set) and, for every SSD whose
+    components all have a native form, ``out/ssp/native/<name>.ssp`` binding native FMUs built for its
+    own parameter sets. Needs the Python FMUs in ``out/fmus`` (``mast build``)."""
+    import json
+
+    from ..build import FMUS, build_ssp, default_parameters
+
+    python_dir = out / "fmus"
+    sets = {Path(ssd): _component_sets(Path(ssd)) for ssd in ssds}
+    steps: dict[str, set] = {}
+    for comps in sets.values():
+        for ident, _, h in comps.values():
+            if h is not None:
+                steps.setdefault(ident, set()).add(h)
+    written = []
+    cache: dict[str, Path] = {}
+
+    def native(ident: str, params: dict, folder: Path) -> Path:
+        key = json.dumps([ident, params, sorted(steps.get(ident, ()))], sort_keys=True, default=str)
+        if key not in cache:
+            cache[key] = build_native_fmu(ident, python_dir / f"{ident}.fmu", folder, params, steps.get(ident, ()))
+        elif cache[key].parent != folder:
+            folder.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(cache[key], folder / cache[key].name)
+        return folder / f"{ident}.fmu"
+
+    for spec in FMUS:
+        if has_native_form(spec.model_identifier):
+            written.append(native(spec.model_identifier, default_parameters(spec.model_identifier), out / "fmus" / "native"))
+            log(f"built {written[-1]}")
+    for ssd, comps in sets.items():
+        missing = sorted({ident for ident, _, _ in comps.values() if not has_native_form(ident)})
+        if missing:
+            log(f"skipped {ssd.name}: no native form yet for {', '.join(missing)}")
+            continue
+        by_source: dict[str, dict] = {}
+        for comp, (ident, params, _) in comps.items():
+            if by_source.setdefault(ident, params) != params:
+                raise NativeBuildError(f"{ssd}: the components using {ident}.fmu have different parameter sets; a "
+                                       "native FMU is built for one set (models.py), so this system has no native form")
+        with tempfile.TemporaryDirectory(prefix="mast_native_ssp_") as tmp:
+            for ident, params in by_source.items():
+                native(ident, params, Path(tmp))
+            written.append(build_ssp(ssd, Path(tmp), out / "ssp" / "native"))
+        log(f"built {written[-1]}")
+    return written

@@ -296,6 +296,128 @@ def _mechanism(block) -> str:
         "{", "    (void)p;", "    return compute(state, values, t + h, msg, size);", "}", ""])
 
 
+# ----------------------------------------------------------------------------------- controller
+#: layout of the joint cascade's state (doubles): tick count, t0, IK cache (valid, pose), PI states, commands
+_S = {"n": 0, "t0": 1, "ik": 2, "pose": 3, "x_v": 6, "x_c": 9, "u": 12, "rho_cmd": 15, "omega_cmd": 18, "i_cmd": 21,
+      "failed": 24}   # the tick whose inverse kinematics failed (for the message)
+_NS = 25
+
+
+def _pi_lines(out: str, x: str, e: str, k_p: float, k_iT: float, limit: float, indent: str) -> list[str]:
+    """controller.model.pi_step (offset 0.0, as the joint cascade calls it) in the generated-code subset."""
+    i = indent
+    return [f"{i}e = {e}",
+            f"{i}v = {k_p!r}*e + {x} + 0.0",
+            f"{i}if v > {limit!r}:",
+            f"{i}    {out} = {limit!r}",
+            f"{i}    if e < 0.0: {x} = {x} + {k_iT!r}*e",
+            f"{i}elif v < {-limit!r}:",
+            f"{i}    {out} = {-limit!r}",
+            f"{i}    if e > 0.0: {x} = {x} + {k_iT!r}*e",
+            f"{i}else:",
+            f"{i}    {out} = v",
+            f"{i}    {x} = {x} + {k_iT!r}*e"]
+
+
+def _ik_lines(indent: str) -> list[str]:
+    """DriveController._update_ik: the engine's inverse kinematics of the pose inputs, cached by pose."""
+    i, P = indent, _S["pose"]
+    return [f"{i}if not (S[{_S['ik']}] == 1.0 and values[0] == S[{P}] and values[1] == S[{P + 1}] "
+            f"and values[2] == S[{P + 2}]):",
+            f"{i}    c = ik(values[0], values[1], values[2], R)",
+            f"{i}    if c != 0:",
+            f"{i}        S[{_S['failed']}:] = (n,)",
+            f"{i}        return c",
+            f"{i}    rc0 = R[0]", f"{i}    rc1 = R[1]", f"{i}    rc2 = R[2]",
+            f"{i}    S[{_S['ik']}:] = (1.0, values[0], values[1], values[2])"]
+
+
+def _joint_sources(block) -> tuple[str, str]:
+    """The joint cascade's start (``initialize`` after the reset) and ``m`` ticks (``do_step``), in the
+    generated-code subset: ControllerBlock's laws and DriveController's schedule (controller/model.py)."""
+    names = {k: [f"{p}{j}" for j in range(3)] for k, p in
+             (("x_v", "xv"), ("x_c", "xc"), ("u", "u"), ("rho_cmd", "rc"), ("omega_cmd", "oc"), ("i_cmd", "ic"))}
+    unpack = [f"    {v} = S[{_S[k] + j}]" for k, vs in names.items() for j, v in enumerate(vs)]
+    state = ", ".join(v for vs in names.values() for v in vs)
+    store = [f"    S[{_S['x_v']}:] = ({state})",
+             f"    values[12:] = ({', '.join(names['u'] + names['rho_cmd'] + names['omega_cmd'] + names['i_cmd'])})",
+             "    return 0"]
+    start = ["def start(values, S, R):", "    n = 0.0", *unpack, *_ik_lines("    "), *store]
+    kv_iR, kp, kiT = block._kv_iR, block._kp, block._kiT
+    kpc, kicT, i_max, u_max = block._kpc, block._kicT, block._i_max, block._u_max
+    body = [f"        if n % {float(block._N_pos)!r} == 0.0:", *_ik_lines("            ")]
+    body += [f"            oc{j} = {kv_iR!r}*(rc{j} - values[{3 + j}])" for j in range(3)]
+    body.append(f"        if n % {float(block._N_vel)!r} == 0.0:")
+    for j in range(3):    # velocity PI with the feed-forward current i_ff = 0.0 (the joint cascade has none)
+        body += _pi_lines(f"ic{j}", f"xv{j}", f"oc{j} - values[{6 + j}]", kp, kiT, i_max, "            ")
+    for j in range(3):
+        body += _pi_lines(f"u{j}", f"xc{j}", f"ic{j} - values[{9 + j}]", kpc, kicT, u_max, "        ")
+    body.append("        n = n + 1.0")
+    ticks = ["def ticks(values, S, R, m):", f"    n = S[{_S['n']}]", *unpack, "    for _ in range(m):", *body,
+             "    S[0:] = (n,)", *store]
+    return "\n".join(start) + "\n", "\n".join(ticks) + "\n"
+
+
+def _joint_controller(block) -> str:
+    from fmus.controller.model import ControllerBlock
+
+    if type(block) is not ControllerBlock:
+        raise ValueError(f"{type(block).__name__} has no native form yet (the joint cascade ControllerBlock has)")
+    ik = block.kinematics._fn("ik")
+    checks = {k: v for k, v in ik.namespace.items() if k.startswith("_check")}
+    start, ticks = _joint_sources(block)
+    messages = "\n".join(f"    case {int(k.replace('_check', ''))}: return {_literal(v.c_message)};"
+                         for k, v in sorted(checks.items()))
+    T = c_double(block.T_cur)
+    inputs = ", ".join(_literal(n) for n in block.INPUTS)
+    return "\n".join([
+        f"typedef struct {{ double S[{_NS}]; }} State;", "",
+        to_c(ik.source, "ik", checks=checks),
+        to_c(start, "start", arrays=("values", "S", "R"), calls=("ik",)),
+        to_c(ticks, "ticks", arrays=("values", "S", "R"), calls=("ik",)),
+        "static const char *why(int check)", "{", "    switch (check) {", messages,
+        "    default: return \"a check of the description failed\";", "    }", "}", "",
+        f"static const char *const INPUT_NAMES[] = {{{inputs}}};", "",
+        "static int input_error(const double *values, double t, char *msg, size_t size)", "{",
+        "    char v[40], w[40];",
+        "    for (int k = 0; k < 12; k++) {",
+        "        if (!isfinite(values[k])) {",
+        "            snprintf(msg, size, \"input '%s' = %s is not finite at t = %s s\", INPUT_NAMES[k], "
+        "mast_repr(values[k], v, sizeof v), mast_repr(t, w, sizeof w));",
+        "            return MAST_MODEL_ERROR;", "        }", "    }", "    return MAST_OK;", "}", "",
+        "static int ik_error(const double *values, double t, int check, char *msg, size_t size)", "{",
+        "    char a[40], b[40], c[40], d[40];",
+        "    snprintf(msg, size, \"inverse kinematics of the pose command z = %s m, psi = %s rad, theta = %s rad failed "
+        "at t = %s s: %s\", mast_repr(values[0], a, sizeof a), mast_repr(values[1], b, sizeof b), "
+        "mast_repr(values[2], c, sizeof c), mast_repr(t, d, sizeof d), why(check));",
+        "    return MAST_KINEMATICS_ERROR;", "}", "",
+        "static int initialize(void *state, double *values, const mast_parameters *p, double t0, char *msg, size_t size)",
+        "{", "    State *s = state;", "    double R[3];", "    (void)p;",
+        f"    for (int k = 0; k < {_NS}; k++) s->S[k] = 0.0;",
+        f"    s->S[{_S['t0']}] = t0;",
+        "    if (input_error(values, t0, msg, size)) return MAST_MODEL_ERROR;",
+        "    int code = start(values, s->S, R);",
+        "    return code ? ik_error(values, t0, -code, msg, size) : MAST_OK;", "}", "",
+        "static int do_step(void *state, double *values, const mast_parameters *p, double t, double h, char *msg, size_t size)",
+        "{", "    State *s = state;", "    double R[3];", "    char a[40], b[40], c[40];", "    (void)p;",
+        f"    double m = nearbyint(h / {T});",
+        f"    if (m < 1.0 || fabs(h - m * {T}) > 1e-6 * {T}) {{",
+        "        snprintf(msg, size, \"step size h = %s s is not a positive integer multiple of T_cur = %s s\", "
+        f"mast_repr(h, a, sizeof a), mast_repr({T}, b, sizeof b));",
+        "        return MAST_MODEL_ERROR;", "    }",
+        f"    double n = s->S[{_S['n']}], t0 = s->S[{_S['t0']}];",
+        f"    if (fabs(t - (t0 + n * {T})) > 0.5 * {T}) {{",
+        "        snprintf(msg, size, \"do_step at t = %s s, but tick %.0f belongs to t = %s s (steps must be contiguous "
+        f"from initialize)\", mast_repr(t, a, sizeof a), n, mast_repr(t0 + n * {T}, c, sizeof c));",
+        "        return MAST_MODEL_ERROR;", "    }",
+        "    double sum = 0.0;",
+        "    for (int k = 0; k < 12; k++) sum += values[k];",
+        "    if (sum - sum != 0.0 && input_error(values, t, msg, size)) return MAST_MODEL_ERROR;",
+        "    int code = ticks(values, s->S, R, m);",
+        f"    if (code) return ik_error(values, t0 + s->S[{_S['failed']}] * {T}, -code, msg, size);",
+        "    return MAST_OK;", "}", ""])
+
+
 # ----------------------------------------------------------------------------------- trajectory
 def _trajectory(block, vrs: Mapping[str, int]) -> str:
     """TrajectoryBlock._write, its parameters read at run time (tunable as in the Python FMU)."""
@@ -345,6 +467,8 @@ def emit_model(identifier: str, guid: str, block_class: type, parameters: Mappin
         body, fixed = _actuator(block, step_sizes), dict(block.params)
     elif kind == "mechanism":
         body, fixed = _mechanism(block), dict(block.params)
+    elif kind == "controller":
+        body, fixed = _joint_controller(block), dict(block.params)
     elif kind == "trajectory":
         body, fixed = _trajectory(block, vrs), {}
     else:

@@ -17,7 +17,8 @@ A generated Python function becomes ``static int NAME(...)``:
 - arguments named in ``arrays`` are ``double *`` (read by index, written by slice
   assignment ``x[:] = (...)`` or ``values[k:] = (...)``); the other arguments are doubles;
 - ``return (a, b, ...)`` (the engine's functions) writes ``out[0..]`` and returns 0; ``return
-  k`` (the actuator's status codes) returns k;
+  k`` (the actuator's status codes) returns k, as does ``return status`` (a status another
+  generated function returned: ``status = f(..., ARRAY)``, its results in ARRAY);
 - a call of a check the tracing recorded (``_checkN(...)``) becomes ``if (!(cond)) return
   -N;`` with ``cond`` the check's ``c_condition`` (a C expression of ``a0, a1, ...``); the
   caller reports which check failed, with the message the check's ``c_message`` gives.
@@ -59,8 +60,10 @@ def c_double(value: float) -> str:
 
 
 class _Writer:
-    def __init__(self, name: str, arrays: Sequence[str], checks: Mapping[str, object]) -> None:
+    def __init__(self, name: str, arrays: Sequence[str], checks: Mapping[str, object],
+                 calls: Sequence[str] = ()) -> None:
         self.name = name
+        self.calls = set(calls)
         self.arrays = set(arrays)
         self.checks = checks
         self.locals: dict[str, None] = {}
@@ -82,6 +85,8 @@ class _Writer:
             if node.id in self.arrays:
                 self.fail(node, "an array used as a number")
             return node.id
+        if isinstance(node, ast.BinOp) and isinstance(node.op, ast.Mod):   # tick counters (>= 0): as Python
+            return f"fmod({self.expr(node.left)}, {self.expr(node.right)})"
         if isinstance(node, ast.BinOp) and type(node.op) in _BINOPS:
             return f"({self.expr(node.left)} {_BINOPS[type(node.op)]} {self.expr(node.right)})"
         if isinstance(node, ast.UnaryOp):
@@ -107,6 +112,10 @@ class _Writer:
         if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id in FUNCTIONS \
                 and not node.keywords:
             return f"{FUNCTIONS[node.func.id]}({', '.join(self.expr(a) for a in node.args)})"
+        if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id in self.calls \
+                and not node.keywords:     # another generated function: status code, results in its array argument
+            args = [a.id if isinstance(a, ast.Name) and a.id in self.arrays else self.expr(a) for a in node.args]
+            return f"{node.func.id}({', '.join(args)})"
         if isinstance(node, ast.Subscript) and isinstance(node.value, ast.Name) and node.value.id in self.arrays:
             index = node.slice
             if isinstance(index, ast.Constant) and isinstance(index.value, int):
@@ -179,11 +188,11 @@ class _Writer:
             it = node.iter
             if not (isinstance(node.target, ast.Name) and node.target.id == "_" and isinstance(it, ast.Call)
                     and isinstance(it.func, ast.Name) and it.func.id == "range" and len(it.args) == 1
-                    and isinstance(it.args[0], ast.Constant) and not node.orelse):
+                    and isinstance(it.args[0], (ast.Constant, ast.Name)) and not node.orelse):
                 self.fail(node, "loop (only 'for _ in range(N)')")
             var = f"k{self.loops}"
             self.loops += 1
-            self.lines.append(f"{indent}for (int {var} = 0; {var} < {it.args[0].value}; {var}++) {{")
+            self.lines.append(f"{indent}for (int {var} = 0; {var} < {self.expr(it.args[0])}; {var}++) {{")
             for s in node.body:
                 self.stmt(s, indent + "    ")
             self.lines.append(f"{indent}}}")
@@ -198,6 +207,8 @@ class _Writer:
                 self.lines.append(f"{indent}return 0;")
             elif isinstance(value, ast.Constant) and isinstance(value.value, int):
                 self.lines.append(f"{indent}return {value.value};")
+            elif isinstance(value, ast.Name) and value.id in self.locals:   # a status another function returned
+                self.lines.append(f"{indent}return (int){value.id};")
             else:
                 self.fail(node, "return (only a tuple or an integer status)")
         elif isinstance(node, ast.Expr) and isinstance(node.value, ast.Call) and isinstance(node.value.func, ast.Name) \
@@ -220,14 +231,15 @@ class _Writer:
 
 
 def to_c(source: str, name: str, arrays: Sequence[str] = (), checks: Mapping[str, Callable] = (),
-         static: bool = True) -> str:
-    """C of the one generated Python function in ``source`` (module docstring), named ``name``."""
+         static: bool = True, calls: Sequence[str] = ()) -> str:
+    """C of the one generated Python function in ``source`` (module docstring), named ``name``;
+    ``calls``: other generated functions it may call (``status = f(..., ARRAY)``)."""
     tree = ast.parse(source)
     functions = [n for n in tree.body if isinstance(n, ast.FunctionDef)]
     if len(functions) != 1 or len(tree.body) != 1:
         raise TranslationError(f"{name}: expected one generated function, found {len(tree.body)} statements")
     fn = functions[0]
-    w = _Writer(name, arrays, dict(checks or {}))
+    w = _Writer(name, arrays, dict(checks or {}), calls)
     for s in fn.body:
         w.stmt(s, "    ")
     args = [f"double *{a.arg}" if a.arg in w.arrays else f"double {a.arg}" for a in fn.args.args]
