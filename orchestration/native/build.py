@@ -170,10 +170,11 @@ def _component_sets(ssd: Path) -> dict[str, tuple[str, dict, Optional[float]]]:
     return out
 
 
-def build_native_all(out: Path, ssds: Sequence[Path], log=print) -> list[Path]:
-    """Native FMUs into ``out/fmus/native`` (each for its default parameter set) and, for every SSD whose
-    components all have a native form, ``out/ssp/native/<name>.ssp`` binding native FMUs built for its
-    own parameter sets. Needs the Python FMUs in ``out/fmus`` (``mast build``)."""
+def build_native_all(out: Path, ssds: Sequence[Path], log=print, fmus: Optional[Sequence[str]] = None) -> list[Path]:
+    """Native FMUs into ``out/fmus/native`` (each for its default parameter set; ``fmus``: only these
+    identifiers, default every FMU with a native form) and, for every SSD whose components all have a
+    native form, ``out/ssp/native/<name>.ssp`` binding native FMUs built for its own parameter sets.
+    Needs the Python FMUs of those FMUs and SSDs in ``out/fmus`` (``mast build``)."""
     import json
 
     from ..build import FMUS, build_ssp, default_parameters
@@ -198,7 +199,7 @@ def build_native_all(out: Path, ssds: Sequence[Path], log=print) -> list[Path]:
         return folder / f"{ident}.fmu"
 
     for spec in FMUS:
-        if has_native_form(spec.model_identifier):
+        if has_native_form(spec.model_identifier) and (fmus is None or spec.model_identifier in fmus):
             written.append(native(spec.model_identifier, default_parameters(spec.model_identifier), out / "fmus" / "native"))
             log(f"built {written[-1]}")
     for ssd, comps in sets.items():

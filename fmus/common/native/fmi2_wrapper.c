@@ -15,8 +15,8 @@
  *   after it, an unknown value reference, a type that is not the variable's) is logged and
  *   returns Error, changing nothing;
  * - get/set FMU state: a copy of everything the instance holds.
- * Errors and warnings are always passed to the host's logger; the message is never used as a
- * printf format.
+ * Errors and warnings are always passed to the host's logger (every '%' of a message escaped,
+ * so a host that uses it as a printf format shows it as it is).
  */
 #include <stdarg.h>
 #include <stdio.h>
@@ -39,6 +39,7 @@ typedef struct {
     double t0;
     int dirty;             /* inputs or parameters changed in initialization mode: outputs to recompute */
     int failed;            /* the instance did not initialise: every doStep is refused */
+    int refused;           /* the last doStep was refused: the FMU asks the host to stop (fmi2Terminated) */
     char cause[MSG_SIZE];
 } Snapshot;
 
@@ -60,7 +61,16 @@ static void log_message(Instance *c, fmi2Status status, const char *category, co
     va_start(ap, fmt);
     vsnprintf(message, sizeof message, fmt, ap);
     va_end(ap);
-    c->logger(c->env, c->name, status, category, "%s", message);
+    /* FMI hands the message to the host as a printf format; some hosts (fmpy) show it unformatted:
+     * the message itself, every '%' written '%%' (as the Python FMUs do) suits both */
+    char escaped[4 * MSG_SIZE];
+    size_t k = 0;
+    for (const char *p = message; *p && k + 2 < sizeof escaped; p++) {
+        if (*p == '%') escaped[k++] = '%';
+        escaped[k++] = *p;
+    }
+    escaped[k] = '\0';
+    c->logger(c->env, c->name, status, category, escaped);
 }
 
 #define LOG_ERROR(c, ...) log_message((c), fmi2Error, "logStatusError", __VA_ARGS__)
@@ -126,6 +136,7 @@ static void set_starts(Instance *c)
     c->s.t0 = 0.0;
     c->s.dirty = 1;
     c->s.failed = 0;
+    c->s.refused = 0;
     c->s.cause[0] = '\0';
 }
 
@@ -419,10 +430,12 @@ fmi2Status fmi2DoStep(fmi2Component comp, fmi2Real t, fmi2Real h, fmi2Boolean no
     }
     if (c->s.failed) {
         LOG_ERROR(c, "doStep at t=%.6g s: RuntimeError: the instance did not initialise: %s", t, c->s.cause);
+        c->s.refused = 1;
         return fmi2Discard;
     }
     mast_parameters p = parameters_of(c);
     int code = M->do_step(c->s.state, c->s.real, &p, t, h, msg, MSG_SIZE);
+    c->s.refused = code != 0;
     if (code) {
         LOG_ERROR(c, "doStep at t=%.6g s: %s: %s: %s", t, error_class(code), c->name, msg);
         return fmi2Discard;
@@ -477,8 +490,14 @@ fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind s, fmi2Real *
 { (void)s; (void)v; return no_status(c, "fmi2GetRealStatus"); }
 fmi2Status fmi2GetIntegerStatus(fmi2Component c, const fmi2StatusKind s, fmi2Integer *v)
 { (void)s; (void)v; return no_status(c, "fmi2GetIntegerStatus"); }
-fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind s, fmi2Boolean *v)
-{ (void)s; (void)v; return no_status(c, "fmi2GetBooleanStatus"); }
+/* fmi2Terminated: after a refused step the FMU cannot go on (as the Python FMUs answer) */
+fmi2Status fmi2GetBooleanStatus(fmi2Component comp, const fmi2StatusKind s, fmi2Boolean *v)
+{
+    Instance *c = comp;
+    if (!c || !v || s != fmi2Terminated) return no_status(comp, "fmi2GetBooleanStatus");
+    *v = c->s.refused ? fmi2True : fmi2False;
+    return fmi2OK;
+}
 fmi2Status fmi2GetStringStatus(fmi2Component c, const fmi2StatusKind s, fmi2String *v)
 { (void)s; (void)v; return no_status(c, "fmi2GetStringStatus"); }
 
@@ -504,6 +523,7 @@ static int copy_snapshot(Snapshot *to, const Snapshot *from)
     to->t0 = from->t0;
     to->dirty = from->dirty;
     to->failed = from->failed;
+    to->refused = from->refused;
     memcpy(to->cause, from->cause, sizeof to->cause);
     return 1;
 }
