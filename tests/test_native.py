@@ -226,3 +226,21 @@ def test_the_c_backend_refuses_python_outside_the_generated_subset():
         to_c("def f(x):\n    return [x]\n", "f")
     with pytest.raises(TranslationError, match="loop"):
         to_c("def f(x):\n    for i in x:\n        pass\n", "f", arrays=("x",))
+
+
+# -- hosts with no Python ----------------------------------------------------------------------------
+def test_ecos_command_line_runs_the_native_ssp_without_python_and_libcosim_runs_it_too(built):
+    from mast.hosts import COMPARED, TOLERANCES, availability, deviations, run_host
+
+    ssp = built / "ssp" / "native" / "MAST_standalone.ssp"
+    signals = list(COMPARED)
+    reference = simulate(ssp, None, 0.3, record=signals)
+    for host, kwargs in (("ecos", {"python_free": True}), ("libcosim", {})):
+        if availability(host):
+            pytest.skip(f"{host}: {availability(host)}")
+        result = run_host(host, ssp, 0.3, signals, **kwargs)
+        assert "exit_signal" not in result.stats, (host, result.stats["exit_signal"])
+        dev = deviations(result, reference, signals)
+        over = {s: d for s, d in dev.items() if not d <= TOLERANCES[host][COMPARED[s]]}
+        assert not over, f"{host} differs from our master: {over}"
+        assert np.ptp(result["mechanism.z"]) > 0.005      # the 10 mm sine ran
