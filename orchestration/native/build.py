@@ -19,6 +19,7 @@ each native SSP carries FMUs built for its own bindings.
 from __future__ import annotations
 
 import hashlib
+import json
 import os
 import shutil
 import subprocess
@@ -37,6 +38,8 @@ __all__ = ["NativeBuildError", "compiler", "build_native_fmu", "native_sources",
 REPO = Path(__file__).resolve().parents[2]
 SUPPORT = REPO / "fmus" / "common" / "native"
 SUPPORT_FILES = ("fmi2_wrapper.c", "mast_model.h", "mast_native.h")
+#: what a native FMU was generated for (its parameter set, the actuator's step sizes), inside the archive
+GENERATED_FOR = "resources/mast_native.json"
 CFLAGS = ("-O2", "-ffp-contract=off", "-fPIC", "-shared", "-std=c99", "-D_POSIX_C_SOURCE=200809L",
           "-Wall", "-Wno-unused-variable", "-Wno-unused-function", "-Wno-maybe-uninitialized", "-Wno-format-truncation")
 
@@ -123,7 +126,8 @@ def compile_shared(sources: Mapping[str, bytes], target: Path) -> None:
 def build_native_fmu(identifier: str, python_fmu: Path, out_dir: Path, parameters: Mapping[str, object],
                      step_sizes: Iterable[float] = ()) -> Path:
     """The native form of the Python FMU ``python_fmu`` (model ``identifier``) with ``parameters``, into
-    ``out_dir``; ``step_sizes`` [s]: the communication steps the actuator is built for."""
+    ``out_dir``; ``step_sizes`` [s]: the communication steps the actuator is built for. ``python_fmu``
+    may also be a native FMU of the same model (its modelDescription is the Python one's)."""
     from ..build import block_class
 
     with zipfile.ZipFile(python_fmu) as z:
@@ -138,6 +142,8 @@ def build_native_fmu(identifier: str, python_fmu: Path, out_dir: Path, parameter
         with zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as zout:
             zout.writestr("modelDescription.xml", xml)
             zout.write(library, f"binaries/linux64/{identifier}.so")
+            zout.writestr(GENERATED_FOR, json.dumps({"identifier": identifier, "parameters": dict(parameters),
+                                                     "step_sizes": sorted(set(step_sizes))}, indent=1, sort_keys=True))
             for name, data in sorted(sources.items()):
                 zout.writestr(f"sources/{name}", data)
         shutil.move(str(partial), target)
@@ -175,8 +181,6 @@ def build_native_all(out: Path, ssds: Sequence[Path], log=print, fmus: Optional[
     identifiers, default every FMU with a native form) and, for every SSD whose components all have a
     native form, ``out/ssp/native/<name>.ssp`` binding native FMUs built for its own parameter sets.
     Needs the Python FMUs of those FMUs and SSDs in ``out/fmus`` (``mast build``)."""
-    import json
-
     from ..build import FMUS, build_ssp, default_parameters
 
     python_dir = out / "fmus"
@@ -218,3 +222,46 @@ def build_native_all(out: Path, ssds: Sequence[Path], log=print, fmus: Optional[
             written.append(build_ssp(ssd, Path(tmp), out / "ssp" / "native"))
         log(f"built {written[-1]}")
     return written
+
+
+# ----------------------------------------------------------------------------------- for another parameter set
+def generated_for(fmu: Path) -> Optional[dict]:
+    """What a native FMU was generated for ({identifier, parameters, step_sizes}); None for other FMUs."""
+    with zipfile.ZipFile(fmu) as z:
+        if GENERATED_FOR not in z.namelist():
+            return None
+        return json.loads(z.read(GENERATED_FOR))
+
+
+def cache_dir() -> Path:
+    """Where native FMUs made for other parameter sets are kept: $MAST_NATIVE_CACHE, else ~/.cache/mast/native."""
+    if os.environ.get("MAST_NATIVE_CACHE"):
+        return Path(os.environ["MAST_NATIVE_CACHE"])
+    return Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "mast" / "native"
+
+
+def for_parameters(fmu: Path, parameters: Mapping[str, object], step_size: Optional[float] = None) -> Path:
+    """``fmu`` itself, or, for a native FMU generated for other values than ``parameters`` (the component's
+    bindings and overrides over the FMU's own set) or without ``step_size``, the same model generated for
+    them (kept in ``cache_dir()``): how the project's master runs native FMUs with any parameter set."""
+    from ..build import block_class
+    from fmus.common.parameters import validate
+
+    made = generated_for(fmu)
+    if made is None:
+        return fmu
+    ident = made["identifier"]
+    specs = block_class(ident).PARAMETERS
+    wanted = validate(specs, {**made["parameters"], **parameters}, ident)
+    steps = set(made["step_sizes"]) | ({float(step_size)} if step_size and made["step_sizes"] else set())
+    if wanted == validate(specs, made["parameters"], ident) and steps == set(made["step_sizes"]):
+        return fmu
+    key = hashlib.sha256(json.dumps([ident, wanted, sorted(steps)], sort_keys=True, default=str).encode())
+    for file in sorted([*(REPO / "fmus").rglob("*.py"), *(REPO / "fmus").rglob("*.[ch]"),
+                        *Path(__file__).parent.glob("*.py")]):   # the model and generator code
+        key.update(file.read_bytes())
+    folder = cache_dir() / key.hexdigest()[:16]
+    target = folder / f"{ident}.fmu"
+    if not target.exists():
+        build_native_fmu(ident, fmu, folder, wanted, steps)
+    return target
