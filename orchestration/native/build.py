@@ -245,14 +245,17 @@ def for_parameters(fmu: Path, parameters: Mapping[str, object], step_size: Optio
     bindings and overrides over the FMU's own set) or without ``step_size``, the same model generated for
     them (kept in ``cache_dir()``): how the project's master runs native FMUs with any parameter set."""
     from ..build import block_class
-    from fmus.common.parameters import validate
+    from fmus.common.parameters import ParameterError, validate
 
     made = generated_for(fmu)
     if made is None:
         return fmu
     ident = made["identifier"]
     specs = block_class(ident).PARAMETERS
-    wanted = validate(specs, {**made["parameters"], **parameters}, ident)
+    try:
+        wanted = validate(specs, {**made["parameters"], **parameters}, ident)
+    except ParameterError:   # the FMU names the bad value at initialisation, as every FMU does
+        return fmu
     steps = set(made["step_sizes"]) | ({float(step_size)} if step_size and made["step_sizes"] else set())
     if wanted == validate(specs, made["parameters"], ident) and steps == set(made["step_sizes"]):
         return fmu
