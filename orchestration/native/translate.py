@@ -4,9 +4,9 @@ The models already generate their hot code from their own descriptions: the mech
 engine traces a description to straight-line functions (``engine.compile_function``), the
 actuator writes its exact-discretisation step with the implicit friction solve
 (``actuator.model._kernel_source``). That generated code uses a small, fixed subset of
-Python: float arithmetic, comparisons, ``if``/``elif``/``else``, ``for _ in range(N)`` with
-``break``, (tuple) assignments, indexing of the argument lists and calls of a few scalar
-functions. This module writes that subset as C, operation for operation and in the same
+Python: float arithmetic (``%`` on the non-negative tick counters), comparisons,
+``if``/``elif``/``else``, ``for _ in range(N)`` with ``break``, (tuple) assignments, indexing of
+the argument lists, calls of a few scalar functions and of other generated functions. This module writes that subset as C, operation for operation and in the same
 order (every binary operation parenthesised, no reassociation; compile without
 ``-ffast-math`` and with ``-ffp-contract=off``), so the C computes the same floats as the
 Python the tests compare against. Anything outside the subset is refused with the line it

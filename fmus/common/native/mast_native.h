@@ -29,9 +29,7 @@ static inline const char *mast_repr(double x, char *buf, size_t size)
     snprintf(e, sizeof e, "%.*e", p - 1, x);
     int exp10 = atoi(strchr(e, 'e') + 1);
     if (exp10 < -4 || exp10 >= 16) {
-        snprintf(buf, size, "%s", e);
-        char *t = strchr(buf, 'e');                        /* Python writes e-05, e+20: as C */
-        (void)t;
+        snprintf(buf, size, "%s", e);                      /* Python writes 1e-05, 1.5e+20: as C does */
     } else {
         int decimals = p - 1 - exp10;
         if (decimals < 0) decimals = 0;
