@@ -23,6 +23,7 @@ import json
 import os
 import shutil
 import subprocess
+import sys
 import tempfile
 import uuid
 import zipfile
@@ -108,15 +109,30 @@ def native_sources(identifier: str, block_class: type, parameters: Mapping[str, 
     return sources, xml
 
 
-def compile_shared(sources: Mapping[str, bytes], target: Path) -> None:
-    """Compile the sources into the shared library ``target`` (NativeBuildError with the compiler's output)."""
-    cc = compiler()
+#: FMI 2.0 platform folder -> (zig target, library suffix); linux64 uses the C compiler found here
+PLATFORMS = {"linux64": (None, ".so"), "win64": ("x86_64-windows-gnu", ".dll"), "darwin64": ("x86_64-macos", ".dylib")}
+
+
+def _cross_compiler(platform: str) -> list[str]:
+    """zig's C compiler for another platform (PyPI package ziglang: ``pip install ziglang``)."""
+    import importlib.util
+
+    if importlib.util.find_spec("ziglang") is None:
+        raise NativeBuildError(f"binaries for {platform} need a cross compiler: pip install ziglang")
+    return [sys.executable, "-m", "ziglang", "cc", "-target", PLATFORMS[platform][0]]
+
+
+def compile_shared(sources: Mapping[str, bytes], target: Path, platform: str = "linux64") -> None:
+    """Compile the sources into the shared library ``target`` for ``platform`` (a key of PLATFORMS;
+    NativeBuildError with the compiler's output)."""
+    cc = [compiler()] if platform == "linux64" else _cross_compiler(platform)
     with tempfile.TemporaryDirectory(prefix="mast_native_") as tmp:
         tmp = Path(tmp)
         for name, data in sources.items():
             (tmp / name).write_bytes(data)
         c_files = sorted(str(tmp / n) for n in sources if n.endswith(".c"))
-        cmd = [cc, *CFLAGS, f"-I{fmi_headers()}", f"-I{tmp}", "-o", str(target), *c_files, "-lm"]
+        cmd = [*cc, *CFLAGS, f"-I{fmi_headers()}", f"-I{tmp}", "-o", str(target), *c_files,
+               *(["-lm"] if platform != "win64" else [])]
         done = subprocess.run(cmd, capture_output=True, text=True)
         if done.returncode != 0:
             raise NativeBuildError(f"{target.name}: the C compiler failed ({' '.join(cmd[:2])} ...):\n"
@@ -124,10 +140,11 @@ def compile_shared(sources: Mapping[str, bytes], target: Path) -> None:
 
 
 def build_native_fmu(identifier: str, python_fmu: Path, out_dir: Path, parameters: Mapping[str, object],
-                     step_sizes: Iterable[float] = ()) -> Path:
+                     step_sizes: Iterable[float] = (), platforms: Sequence[str] = ("linux64",)) -> Path:
     """The native form of the Python FMU ``python_fmu`` (model ``identifier``) with ``parameters``, into
     ``out_dir``; ``step_sizes`` [s]: the communication steps the actuator is built for. ``python_fmu``
-    may also be a native FMU of the same model (its modelDescription is the Python one's)."""
+    may also be a native FMU of the same model (its modelDescription is the Python one's). ``platforms``:
+    the binaries to build (PLATFORMS; other than linux64 with zig, untested)."""
     from ..build import block_class
 
     with zipfile.ZipFile(python_fmu) as z:
@@ -136,12 +153,17 @@ def build_native_fmu(identifier: str, python_fmu: Path, out_dir: Path, parameter
     out_dir.mkdir(parents=True, exist_ok=True)
     target = out_dir / f"{identifier}.fmu"
     with tempfile.TemporaryDirectory(prefix="mast_native_") as tmp:
-        library = Path(tmp) / f"{identifier}.so"
-        compile_shared(sources, library)
+        libraries = {}
+        for platform in platforms:
+            library = Path(tmp) / platform / f"{identifier}{PLATFORMS[platform][1]}"
+            library.parent.mkdir()
+            compile_shared(sources, library, platform)
+            libraries[f"binaries/{platform}/{library.name}"] = library
         partial = Path(tmp) / target.name
         with zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as zout:
             zout.writestr("modelDescription.xml", xml)
-            zout.write(library, f"binaries/linux64/{identifier}.so")
+            for name, library in libraries.items():
+                zout.write(library, name)
             zout.writestr(GENERATED_FOR, json.dumps({"identifier": identifier, "parameters": dict(parameters),
                                                      "step_sizes": sorted(set(step_sizes))}, indent=1, sort_keys=True))
             for name, data in sorted(sources.items()):
@@ -176,11 +198,13 @@ def _component_sets(ssd: Path) -> dict[str, tuple[str, dict, Optional[float]]]:
     return out
 
 
-def build_native_all(out: Path, ssds: Sequence[Path], log=print, fmus: Optional[Sequence[str]] = None) -> list[Path]:
+def build_native_all(out: Path, ssds: Sequence[Path], log=print, fmus: Optional[Sequence[str]] = None,
+                     platforms: Sequence[str] = ("linux64",)) -> list[Path]:
     """Native FMUs into ``out/fmus/native`` (each for its default parameter set; ``fmus``: only these
     identifiers, default every FMU with a native form) and, for every SSD whose components all have a
     native form, ``out/ssp/native/<name>.ssp`` binding native FMUs built for its own parameter sets.
-    Needs the Python FMUs of those FMUs and SSDs in ``out/fmus`` (``mast build``)."""
+    Needs the Python FMUs of those FMUs and SSDs in ``out/fmus`` (``mast build``); ``platforms``: the
+    binaries each FMU carries (``build_native_fmu``)."""
     from ..build import FMUS, build_ssp, default_parameters
 
     python_dir = out / "fmus"
@@ -196,7 +220,8 @@ def build_native_all(out: Path, ssds: Sequence[Path], log=print, fmus: Optional[
     def native(ident: str, params: dict, folder: Path) -> Path:
         key = json.dumps([ident, params, sorted(steps.get(ident, ()))], sort_keys=True, default=str)
         if key not in cache:
-            cache[key] = build_native_fmu(ident, python_dir / f"{ident}.fmu", folder, params, steps.get(ident, ()))
+            cache[key] = build_native_fmu(ident, python_dir / f"{ident}.fmu", folder, params, steps.get(ident, ()),
+                                          platforms)
         elif cache[key].parent != folder:
             folder.mkdir(parents=True, exist_ok=True)
             shutil.copy2(cache[key], folder / cache[key].name)
