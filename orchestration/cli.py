@@ -77,8 +77,17 @@ def cmd_run(args) -> int:
 
     motion = motion_from_cli(args.motion, args.amplitude, args.frequency)
     out = Path(args.out)
+    ssp = args.ssp
+    if args.native:
+        from .bench import native_variant
+
+        ssp = native_variant(args.ssp)
+        if ssp is None:
+            print(f"error: no native variant of {args.ssp} (build/ssp/native/...): run `mast build --native`",
+                  file=sys.stderr)
+            return 2
     try:
-        result = simulate(args.ssp, motion, args.stop_time, parameters=parse_overrides(args.set or []),
+        result = simulate(ssp, motion, args.stop_time, parameters=parse_overrides(args.set or []),
                           record=args.record, record_step=args.record_step, direct=args.direct,
                           progress=Progress("co-simulation"))
         failed = None
@@ -229,6 +238,8 @@ def main(argv=None) -> int:
                    help="signal to record (repeatable; default: every system input and declared output)")
     p.add_argument("--record-step", type=float, default=1e-3, help="s between recorded samples")
     p.add_argument("--direct", action="store_true", help="run the model objects directly (no FMI), same schedule")
+    p.add_argument("--native", action="store_true",
+                   help="run the SSP's native variant (build/ssp/native/, mast build --native): compiled FMUs")
     p.add_argument("--out", default="results")
     p.set_defaults(func=cmd_run)
 
