@@ -247,7 +247,7 @@ def to_c(source: str, name: str, arrays: Sequence[str] = (), checks: Mapping[str
         args.append("double *out")
     head = f"{'static ' if static else ''}int {name}({', '.join(args)})"
     decl = []
-    names = list(w.locals)
+    names = [n for n in w.locals if n not in {a.arg for a in fn.args.args}]   # scalar arguments are assignable
     for k in range(0, len(names), 8):
         decl.append("    double " + ", ".join(names[k:k + 8]) + ";")
     return "\n".join([head, "{"] + decl + w.lines + ["}", ""])
