@@ -8,17 +8,24 @@ code, which ``translate.to_c`` writes as C:
 - mechanism (every design): the engine's traced functions (inverse kinematics with its
   Jacobian, inverse dynamics, pose), driven by the engine's Newton direct kinematics
   (``mast_native.h``);
+- joint controller (``ControllerBlock``): the engine's traced inverse kinematics, and the
+  cascade's tick;
 - trajectory: the sine about the home pose (its parameters read at run time).
 
-What the generated code does not cover is written here once, in the same Python subset, and
-translated too: the outputs of the actuator at rest (``initialize``) and the description's cold
-start of the direct kinematics (``guess``).
+What the models' generators do not cover is written here, in the same Python subset, and
+translated too: the outputs of the actuator at rest (``initialize``), the description's cold
+start of the direct kinematics (``guess``) and the joint cascade's tick (``DriveController``'s
+schedule with ``ControllerBlock``'s laws and ``pi_step``). The tick is a second statement of the
+controller's laws, held bit-identical to the Python model by tests/test_native.py until the
+Python controller runs this generated tick itself (docs/native.md).
 
-Parameters: the actuator's and the mechanism's generated code has the parameters' values
-inlined, as in the Python model (where the kernel is compiled at the first step); the C model
-therefore checks at initialisation that every parameter still has the value it was generated
-for, and refuses another value with a message naming it (the same range checks as the Python
-model come first, with the same messages). The trajectory's parameters are read at run time.
+Parameters: the generated code has the parameters' values inlined, as in the Python model
+(where the actuator's kernel is compiled at the first step and the engine traces with the
+geometry and masses as constants); the C model therefore checks at initialisation that every
+parameter still has the value it was generated for, and refuses another value with a message
+naming it (the Python model's range checks come first, with the same messages). The
+trajectory's parameters are read at run time. The project's master generates the model for
+another parameter set when it needs one (``build.for_parameters``).
 """
 from __future__ import annotations
 
