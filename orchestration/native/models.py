@@ -15,8 +15,8 @@ code, which ``translate.to_c`` writes as C:
 What the models' generators do not cover is written here, in the same Python subset, and
 translated too: the outputs of the actuator at rest (``initialize``), the description's cold
 start of the direct kinematics (``guess``) and the joint cascade's tick (``DriveController``'s
-schedule with ``ControllerBlock``'s laws and ``pi_step``). The tick is a second statement of the
-controller's laws, held bit-identical to the Python model by tests/test_native.py until the
+schedule with ``ControllerBlock``'s position law; the PI steps call ``pi_step``, translated from
+the model's own source). The schedule and the P law are a second statement of the controller's, held bit-identical to the Python model by tests/test_native.py until the
 Python controller runs this generated tick itself (docs/native.md).
 
 Parameters: the generated code has the parameters' values inlined, as in the Python model
@@ -311,19 +311,10 @@ _NS = 25
 
 
 def _pi_lines(out: str, x: str, e: str, k_p: float, k_iT: float, limit: float, indent: str) -> list[str]:
-    """controller.model.pi_step (offset 0.0, as the joint cascade calls it) in the generated-code subset."""
+    """A call of ``controller.model.pi_step`` (translated from its own source), offset 0.0 as the joint
+    cascade passes it; its results land in the scratch array PI."""
     i = indent
-    return [f"{i}e = {e}",
-            f"{i}v = {k_p!r}*e + {x} + 0.0",
-            f"{i}if v > {limit!r}:",
-            f"{i}    {out} = {limit!r}",
-            f"{i}    if e < 0.0: {x} = {x} + {k_iT!r}*e",
-            f"{i}elif v < {-limit!r}:",
-            f"{i}    {out} = {-limit!r}",
-            f"{i}    if e > 0.0: {x} = {x} + {k_iT!r}*e",
-            f"{i}else:",
-            f"{i}    {out} = v",
-            f"{i}    {x} = {x} + {k_iT!r}*e"]
+    return [f"{i}c = pi_step({e}, {x}, {k_p!r}, {k_iT!r}, {limit!r}, 0.0, PI)", f"{i}{out} = PI[0]", f"{i}{x} = PI[1]"]
 
 
 def _ik_lines(indent: str) -> list[str]:
@@ -360,13 +351,15 @@ def _joint_sources(block) -> tuple[str, str]:
     for j in range(3):
         body += _pi_lines(f"u{j}", f"xc{j}", f"ic{j} - values[{9 + j}]", kpc, kicT, u_max, "        ")
     body.append("        n = n + 1.0")
-    ticks = ["def ticks(values, S, R, m):", f"    n = S[{_S['n']}]", *unpack, "    for _ in range(m):", *body,
+    ticks = ["def ticks(values, S, R, PI, m):", f"    n = S[{_S['n']}]", *unpack, "    for _ in range(m):", *body,
              "    S[0:] = (n,)", *store]
     return "\n".join(start) + "\n", "\n".join(ticks) + "\n"
 
 
 def _joint_controller(block) -> str:
-    from fmus.controller.model import ControllerBlock
+    import inspect
+
+    from fmus.controller.model import ControllerBlock, pi_step
 
     if type(block) is not ControllerBlock:
         raise ValueError(f"{type(block).__name__} has no native form yet (the joint cascade ControllerBlock has)")
@@ -380,8 +373,9 @@ def _joint_controller(block) -> str:
     return "\n".join([
         f"typedef struct {{ double S[{_NS}]; }} State;", "",
         to_c(ik.source, "ik", checks=checks),
+        to_c(inspect.getsource(pi_step), "pi_step"),
         to_c(start, "start", arrays=("values", "S", "R"), calls=("ik",)),
-        to_c(ticks, "ticks", arrays=("values", "S", "R"), calls=("ik",)),
+        to_c(ticks, "ticks", arrays=("values", "S", "R", "PI"), calls=("ik", "pi_step")),
         "static const char *why(int check)", "{", "    switch (check) {", messages,
         "    default: return \"a check of the description failed\";", "    }", "}", "",
         f"static const char *const INPUT_NAMES[] = {{{inputs}}};", "",
@@ -406,7 +400,7 @@ def _joint_controller(block) -> str:
         "    int code = start(values, s->S, R);",
         "    return code ? ik_error(values, t0, -code, msg, size) : MAST_OK;", "}", "",
         "static int do_step(void *state, double *values, const mast_parameters *p, double t, double h, char *msg, size_t size)",
-        "{", "    State *s = state;", "    double R[3];", "    char a[40], b[40], c[40];", "    (void)p;",
+        "{", "    State *s = state;", "    double R[3], PI[2];", "    char a[40], b[40], c[40];", "    (void)p;",
         f"    double m = nearbyint(h / {T});",
         f"    if (m < 1.0 || fabs(h - m * {T}) > 1e-6 * {T}) {{",
         "        snprintf(msg, size, \"step size h = %s s is not a positive integer multiple of T_cur = %s s\", "
@@ -420,7 +414,7 @@ def _joint_controller(block) -> str:
         "    double sum = 0.0;",
         "    for (int k = 0; k < 12; k++) sum += values[k];",
         "    if (sum - sum != 0.0 && input_error(values, t, msg, size)) return MAST_MODEL_ERROR;",
-        "    int code = ticks(values, s->S, R, m);",
+        "    int code = ticks(values, s->S, R, PI, m);",
         f"    if (code) return ik_error(values, t0 + s->S[{_S['failed']}] * {T}, -code, msg, size);",
         "    return MAST_OK;", "}", ""])
 

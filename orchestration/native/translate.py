@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import ast
 import math
+import textwrap
 from typing import Callable, Mapping, Optional, Sequence
 
 __all__ = ["TranslationError", "to_c", "c_double"]
@@ -234,13 +235,17 @@ def to_c(source: str, name: str, arrays: Sequence[str] = (), checks: Mapping[str
          static: bool = True, calls: Sequence[str] = ()) -> str:
     """C of the one generated Python function in ``source`` (module docstring), named ``name``;
     ``calls``: other generated functions it may call (``status = f(..., ARRAY)``)."""
-    tree = ast.parse(source)
+    tree = ast.parse(textwrap.dedent(source))
     functions = [n for n in tree.body if isinstance(n, ast.FunctionDef)]
     if len(functions) != 1 or len(tree.body) != 1:
         raise TranslationError(f"{name}: expected one generated function, found {len(tree.body)} statements")
     fn = functions[0]
     w = _Writer(name, arrays, dict(checks or {}), calls)
-    for s in fn.body:
+    body = fn.body
+    if body and isinstance(body[0], ast.Expr) and isinstance(body[0].value, ast.Constant) \
+            and isinstance(body[0].value.value, str):
+        body = body[1:]      # the docstring of a model function translated from its own source
+    for s in body:
         w.stmt(s, "    ")
     args = [f"double *{a.arg}" if a.arg in w.arrays else f"double {a.arg}" for a in fn.args.args]
     if w.returns_tuple:
