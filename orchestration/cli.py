@@ -52,6 +52,8 @@ def validate_all(build_dir: Path) -> list[str]:
     fmus = sorted((build_dir / "fmus").glob("*.fmu"))
     ssps = sorted((build_dir / "ssp").glob("*.ssp"))
     fmus += sorted((build_dir / "fmus3").glob("*.fmu"))  # FMI 3.0 variants, if built (mast build --fmi3)
+    fmus += sorted((build_dir / "fmus" / "native").glob("*.fmu"))  # native FMUs, if built (mast build --native)
+    ssps += sorted((build_dir / "ssp" / "native").glob("*.ssp"))
     if not fmus or not ssps:
         problems.append(f"{build_dir}: nothing built yet (run `mast build`)")
     for fmu in fmus:
