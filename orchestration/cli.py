@@ -182,7 +182,7 @@ def cmd_check_mechanism(args) -> int:
 
 
 def cmd_compare(args) -> int:
-    from .compare import DEFAULT, QUICK, TestSet, compare
+    from .compare import DEFAULT, QUICK, WORKSPACE_GRID, WORKSPACE_GRID_QUICK, TestSet, compare
     from .frequency import CountProgress
     from .run import parse_overrides
 
@@ -191,11 +191,53 @@ def cmd_compare(args) -> int:
                        tuple(args.frequencies) if args.frequencies else base.frequencies, base.amplitudes)
     comp = compare(args.mechanism or (), Path(args.out), test_set, workers=args.workers, direct=args.direct,
                    parameters=parse_overrides(args.set or []), base_ssd=args.ssd, fmu_dir=args.fmus,
-                   progress=CountProgress("compare"), controllers=args.controller or (), payload=args.payload)
+                   progress=CountProgress("compare"), controllers=args.controller or (), payload=args.payload,
+                   workspace_grid=WORKSPACE_GRID_QUICK if args.quick else WORKSPACE_GRID)
     print((Path(args.out) / "comparison.md").read_text(), end="")
     print(f"{sum(r['tests'] for r in comp.summary)} sine tests in {comp.wall_time_s:.0f} s; "
           f"wrote {', '.join(p.name for p in comp.files)} in {args.out}")
     return 1 if any(r["failed"] for r in comp.summary) else 0
+
+
+def _pose(text: str) -> tuple[float, float, float]:
+    """--pose Z,PSI_DEG,THETA_DEG -> (z [m], psi [rad], theta [rad])."""
+    import math
+
+    parts = text.split(",")
+    try:
+        values = [float(v) for v in parts]
+    except ValueError:
+        values = []
+    if len(values) != 3 or not all(math.isfinite(v) for v in values):
+        raise ValueError(f"--pose {text!r}: expected Z,PSI_DEG,THETA_DEG, three finite numbers (m, deg, deg), "
+                         "e.g. 0.40,5,-3")
+    return values[0], math.radians(values[1]), math.radians(values[2])
+
+
+def cmd_workspace(args) -> int:
+    import math
+
+    from .analyses.workspace import classify, compute, machine, summarize, write
+
+    if not args.out and not args.pose:
+        raise ValueError("workspace: give --out DIR (the whole workspace) or --pose Z,PSI_DEG,THETA_DEG (one pose)")
+    pose = _pose(args.pose) if args.pose else None
+    m = machine(args.design, args.payload)
+    ws = compute(m, args.step_z, math.radians(args.step_tilt), progress=Progress(f"workspace of {m.label}"))
+    if args.out:
+        files = write(ws, Path(args.out), plots=not args.no_plots)
+        s = summarize(ws)
+        r = s["ranges_through_home"]
+        print(f"{m.label}: {s['poses_inside']} poses inside, volume {s['volume_m_deg2']:.4g} m deg^2 "
+              f"({s['volume_m_rad2']:.4g} m rad^2); through home z {r['z_m'][0]:.4g}..{r['z_m'][1]:.4g} m, "
+              f"psi {r['psi_deg'][0]:.3g}..{r['psi_deg'][1]:.3g} deg, theta {r['theta_deg'][0]:.3g}..{r['theta_deg'][1]:.3g} deg; "
+              f"smallest margin {s['smallest_margin']['value']:.3g} m/m, worst dexterity {s['worst_dexterity']['value']:.3g}")
+        print(f"wrote {', '.join(str(f) for f in files)}")
+    if pose is None:
+        return 0
+    answer = classify(ws, pose)
+    print(json.dumps(answer, indent=2))
+    return 0 if answer["inside"] else 1
 
 
 def cmd_batch(args) -> int:
@@ -313,7 +355,8 @@ def main(argv=None) -> int:
                    help="with --controller: also run every test with this payload on the platform, unknown to the "
                         f"controllers (default {PAYLOAD_MISMATCH_KG:g} kg; 0: no robustness runs)")
     p.add_argument("--out", required=True, help="folder for comparison.csv/.json/.md, runs.csv, the plots, systems/")
-    p.add_argument("--quick", action="store_true", help="the small test set: z motion at 1, 4 and 8 Hz")
+    p.add_argument("--quick", action="store_true", help="the small test set: z motion at 1, 4 and 8 Hz (and the designs' "
+                                                        "workspaces on a coarse grid: 25 mm, 4 deg)")
     p.add_argument("--motions", nargs="+", choices=("z", "psi", "theta"), help="motions to test (default: all three)")
     p.add_argument("--frequencies", nargs="+", type=float, metavar="HZ", help="test frequencies (default: 0.5 to 10 Hz)")
     p.add_argument("--set", action="append", metavar="ELEMENT.PARAMETER=VALUE", help="override a parameter in every design")
@@ -322,6 +365,23 @@ def main(argv=None) -> int:
     p.add_argument("--ssd", default=str(REPO / "ssp" / "MAST.ssd"), help="base system the FMUs are swapped into")
     p.add_argument("--fmus", default=str(REPO / "build" / "fmus"), help="FMUs of the base system's other components")
     p.set_defaults(func=cmd_compare)
+
+    from .analyses.workspace import STEP_TILT_DEG, STEP_Z
+
+    p = sub.add_parser("workspace", help="the poses a design reaches within its strokes without crossing a singularity: "
+                                         "DIR/workspace.json/.csv/.png, or one pose (docs/workspace.md)")
+    p.add_argument("design", help="design name (3PRS_T, 3PRS_120, 3PRS_inclined, actuators_only), a system .ssd/.ssp "
+                                  "or a mechanism .fmu")
+    p.add_argument("--payload", type=float, default=0.0, metavar="KG",
+                   help="payload on the platform, centre of mass at P (static actuator forces, default 0)")
+    p.add_argument("--out", help="folder for workspace.json, workspace.csv, workspace.png")
+    p.add_argument("--pose", metavar="Z,PSI_DEG,THETA_DEG",
+                   help="answer for one pose: inside (exit 0) or not (exit 1), with its margins")
+    p.add_argument("--step-z", type=float, default=STEP_Z, metavar="M", help=f"grid step in z (default {STEP_Z:g} m)")
+    p.add_argument("--step-tilt", type=float, default=STEP_TILT_DEG, metavar="DEG",
+                   help=f"grid step in psi and theta (default {STEP_TILT_DEG:g} deg)")
+    p.add_argument("--no-plots", action="store_true", help="write no figure")
+    p.set_defaults(func=cmd_workspace)
 
     p = sub.add_parser("batch", help="run the cases of a batch config (TOML/YAML) in parallel: docs/batch.md")
     p.add_argument("config", help="batch config: .toml, .yaml or .json")

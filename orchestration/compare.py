@@ -13,7 +13,9 @@ would swap it by hand in the SSP (docs/interfaces.md, "Writing a mechanism FMU")
 The test set is pure sine motions in z, psi and theta at several frequencies around the
 home pose (paper section 4.1; amplitudes of ``paper.AMPLITUDE``). For every design and
 motion: the closed-loop -3 dB bandwidth, peak and RMS motor torque, peak tracking error and
-parasitic motion amplitudes. Outputs in DIR: comparison.csv (one row per design and motion),
+parasitic motion amplitudes; and beside them each design's workspace (``mast workspace`` of its
+system: volume, smallest singularity margin inside, margin at home, distance from home to the
+nearest singularity). Outputs in DIR: comparison.csv (one row per design and motion),
 runs.csv (one row per sine test), comparison.json (everything), comparison.md (the table),
 bode.png, bandwidth.png, torque.png, tracking.png, parasitic.png, and systems/*.ssp (the
 systems that were run, for `mast run`).
@@ -45,6 +47,8 @@ from fmus.common.parameters import Value
 from fmus.mechanism.designs import KINEMATIC_PARAMETERS_NAMES
 
 from . import paper
+from .analyses.workspace import STEP_TILT_DEG, STEP_Z
+from .components import fmu_parameters
 from .frequency import SineCase, SineResult, bandwidth, run_cases
 
 REPO = Path(__file__).resolve().parents[1]
@@ -56,6 +60,9 @@ MOTIONS = ("z", "psi", "theta")
 PAYLOAD_MISMATCH_KG = 3.0
 #: geometry parameters the controller's kinematic model takes from the mechanism FMU
 KINEMATIC_NAMES = KINEMATIC_PARAMETERS_NAMES
+#: grid of the designs' workspaces (``mast workspace``'s default) and the coarse one of --quick
+WORKSPACE_GRID = (STEP_Z, math.radians(STEP_TILT_DEG))
+WORKSPACE_GRID_QUICK = (0.025, math.radians(4.0))
 
 
 @dataclass(frozen=True)
@@ -85,6 +92,7 @@ class Candidate:
     parameters: dict = field(default_factory=dict)   # the mechanism FMU's defaults (empty for a system)
     payload_kg: float = 0.0                           # a payload on the platform the controller does not know
     nominal: str = ""                                 # label of the same system without it (payload runs)
+    workspace: Optional[dict] = None                  # the design's `mast workspace` summary (designs only)
 
     def overrides(self, parameters: Optional[Mapping[str, Mapping[str, Value]]]) -> Optional[dict]:
         """The caller's overrides, plus the unknown payload on the mechanism."""
@@ -115,20 +123,6 @@ class Comparison:
 
 
 # ----------------------------------------------------------------------------- systems
-def fmu_parameters(fmu: Union[str, Path]) -> dict[str, Value]:
-    """Default (start) values of an FMU's parameters, typed."""
-    from fmpy import read_model_description
-
-    md = read_model_description(str(fmu))
-    convert = {"Real": float, "Integer": int, "Enumeration": int, "String": str,
-               "Boolean": lambda s: str(s).strip().lower() in ("true", "1")}
-    out: dict[str, Value] = {}
-    for v in md.modelVariables:
-        if v.causality == "parameter" and v.start is not None:
-            out[v.name] = convert.get(v.type, str)(v.start)
-    return out
-
-
 def _parameter_set_xml(values: Mapping[str, Value], name: str, why: str, indent: str) -> str:
     """An inline ssd:ParameterBinding holding ``values``."""
     rows = []
@@ -303,12 +297,15 @@ def compare(mechanisms: Sequence[Union[str, Path]] = (), out: Union[str, Path] =
             parameters: Optional[Mapping[str, Mapping[str, Value]]] = None, base_ssd: Union[str, Path] = BASE_SSD,
             fmu_dir: Union[str, Path] = FMU_DIR, plots: bool = True,
             progress: Optional[Callable[[int, int], None]] = None,
-            controllers: Sequence[Union[str, Path]] = (), payload: float = PAYLOAD_MISMATCH_KG) -> Comparison:
+            controllers: Sequence[Union[str, Path]] = (), payload: float = PAYLOAD_MISMATCH_KG,
+            workspace_grid: Optional[tuple[float, float]] = WORKSPACE_GRID) -> Comparison:
     """Run the test set (``QUICK`` if ``quick``, else ``DEFAULT``) on every design, or on every controller
     (``controllers``, each also with an unknown ``payload`` [kg] unless it is 0); write DIR (module docstring).
 
     ``parameters``: overrides applied to every design (``{"actuator_1": {"tau_c": 0.07}}``);
-    ``direct``: run the model objects without FMI (only for this project's FMUs).
+    ``direct``: run the model objects without FMI (only for this project's FMUs);
+    ``workspace_grid``: (step in z [m], step in tilt [rad]) of each design's workspace (``mast workspace``;
+    None: none).
     """
     if bool(mechanisms) == bool(controllers):
         raise ValueError("compare: give either mechanisms or controllers")
@@ -334,11 +331,14 @@ def compare(mechanisms: Sequence[Union[str, Path]] = (), out: Union[str, Path] =
                                       label=c.label))
                 keys.append((c.label, axis))
     results_flat = run_cases(cases, workers=workers, progress=progress)
+    if kind == "design" and workspace_grid is not None:
+        for c in candidates:
+            c.workspace = design_workspace(c, workspace_grid)
     results: dict = {}
     for key, res in zip(keys, results_flat):
         results.setdefault(key, []).append(res)
     summary = [summarize(c.label, axis, test_set.amplitudes[axis], results[(c.label, axis)], c.payload_kg)
-               for c in candidates for axis in test_set.axes]
+               | workspace_columns(c.workspace) for c in candidates for axis in test_set.axes]
     comp = Comparison(candidates, test_set, results, summary, 0.0, [], kind)
     comp.files = write(comp, out, plots=plots)
     comp.wall_time_s = time.perf_counter() - t0
@@ -346,6 +346,31 @@ def compare(mechanisms: Sequence[Union[str, Path]] = (), out: Union[str, Path] =
     meta["wall_time_s"] = round(comp.wall_time_s, 2)
     (out / "comparison.json").write_text(json.dumps(meta, indent=2))
     return comp
+
+
+def design_workspace(c: Candidate, grid: tuple[float, float]) -> dict:
+    """The `mast workspace` summary of a design's system (its mechanism and its actuators' strokes), or
+    {"error": why} when the system does not define them."""
+    from fmus.mechanism.kinematics import KinematicsError
+
+    from .analyses import workspace
+
+    try:
+        return workspace.summarize(workspace.compute(workspace.machine(c.ssp), grid[0], grid[1]))
+    except (ValueError, KeyError, KinematicsError) as exc:
+        return {"error": str(exc)}
+
+
+WORKSPACE_COLUMNS = ("workspace_m_deg2", "margin_min", "margin_home", "singularity_distance_home_m")
+
+
+def workspace_columns(ws: Optional[dict]) -> dict:
+    """The workspace figures a comparison row carries (None without a workspace)."""
+    if not ws or "error" in ws:
+        return {}
+    return {"workspace_m_deg2": ws["volume_m_deg2"], "margin_min": ws["smallest_margin"]["value"],
+            "margin_home": min(ws["home"]["margin_parallel"], ws["home"]["margin_inverse"]),
+            "singularity_distance_home_m": ws["distance_to_singularity_at_home_m"]}
 
 
 def _attached(c: Candidate) -> Optional[bool]:
@@ -372,7 +397,7 @@ def fig10(comp: Comparison) -> Optional[dict]:
 SUMMARY_COLUMNS = ("design", "motion", "amplitude", "payload_kg", "bandwidth_Hz", "bandwidth_note", "torque_peak_Nm", "torque_rms_Nm",
                    "current_peak_A",
                    "tracking_peak", "tracking_peak_rel", "tracking_peak_f_min", "parasitic_x_m", "parasitic_y_m", "parasitic_phi_rad",
-                   "tests", "failed")
+                   "tests", "failed") + WORKSPACE_COLUMNS
 RUN_COLUMNS = ("design", "motion", "frequency_Hz", "amplitude", "magnitude", "magnitude_dB", "phase_deg",
                "torque_peak_Nm", "torque_rms_Nm", "current_peak_A", "tracking_peak", "parasitic_x_m", "parasitic_y_m",
                "parasitic_phi_rad", "error")
@@ -438,7 +463,8 @@ def write(comp: Comparison, out: Path, plots: bool = True) -> list[Path]:
     files.append(out / "runs.csv")
     data = {
         f"{kind}s": [{"label": c.label, "source": c.source, "system": c.ssp, "parameters": c.parameters,
-                      "payload_kg": c.payload_kg} for c in comp.candidates],
+                      "payload_kg": c.payload_kg, **({"workspace": c.workspace} if c.workspace else {})}
+                     for c in comp.candidates],
         "test_set": {"axes": list(comp.test_set.axes), "frequencies_Hz": list(comp.test_set.frequencies),
                      "amplitudes": dict(comp.test_set.amplitudes),
                      "amplitude_units": {"z": "m", "psi": "rad", "theta": "rad"}},
@@ -457,6 +483,24 @@ def write(comp: Comparison, out: Path, plots: bool = True) -> list[Path]:
                      f"| {_fmt(r['current_peak_A'])} "
                      f"| {_fmt(r['tracking_peak'])} {unit} | {_fmt(r['parasitic_x_m'])} | {_fmt(r['parasitic_y_m'])} "
                      f"| {_fmt(r['parasitic_phi_rad'])} | {r['failed']}/{r['tests']} |")
+    spaces = [c for c in comp.candidates if c.workspace]
+    if spaces:
+        lines += ["", "Workspace (`mast workspace`: within the strokes, on the home branch, at least "
+                  f"{spaces[0].workspace.get('margin_limit', '-')} m/m from a singularity, connected to home):", "",
+                  "| design | volume [m deg^2] | z through home [m] | psi through home [deg] | theta through home [deg] "
+                  "| smallest margin [m/m] | margin at home [m/m] | home to singularity [m] | worst dexterity |",
+                  "|---|---|---|---|---|---|---|---|---|"]
+        for c in spaces:
+            w = c.workspace
+            if "error" in w:
+                lines.append(f"| {c.label} | {w['error']} | | | | | | | |")
+                continue
+            r = w["ranges_through_home"]
+            rng = lambda k, f: f"{r[k][0]:{f}} .. {r[k][1]:{f}}"  # noqa: E731
+            cols = workspace_columns(w)
+            lines.append(f"| {c.label} | {_fmt(w['volume_m_deg2'])} | {rng('z_m', '.4g')} | {rng('psi_deg', '.3g')} "
+                         f"| {rng('theta_deg', '.3g')} | {_fmt(cols['margin_min'])} | {_fmt(cols['margin_home'])} "
+                         f"| {_fmt(cols['singularity_distance_home_m'])} | {_fmt(w['worst_dexterity']['value'])} |")
     f10 = data["fig10"]
     if f10:
         lines += ["", "Paper Fig. 10, z motion -3 dB bandwidth: "

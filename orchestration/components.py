@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import ctypes
 from pathlib import Path
-from typing import Callable, Mapping, Sequence
+from typing import Callable, Mapping, Sequence, Union
 
 from fmus.common.block import Block
 from fmus.common.parameters import Value
@@ -260,3 +260,17 @@ class BlockComponent:
 
     def close(self) -> None:
         self.block = None
+
+
+def fmu_parameters(fmu: Union[str, Path]) -> dict[str, Value]:
+    """Default (start) values of an FMU's parameters, typed."""
+    from fmpy import read_model_description
+
+    md = read_model_description(str(fmu))
+    convert = {"Real": float, "Integer": int, "Enumeration": int, "String": str,
+               "Boolean": lambda s: str(s).strip().lower() in ("true", "1")}
+    out: dict[str, Value] = {}
+    for v in md.modelVariables:
+        if v.causality == "parameter" and v.start is not None:
+            out[v.name] = convert.get(v.type, str)(v.start)
+    return out

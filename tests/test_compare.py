@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from mast.cli import main as cli_main
-from mast.compare import TestSet, compare, fmu_parameters, swapped_ssd
+from mast.compare import WORKSPACE_GRID_QUICK, TestSet, compare, fmu_parameters, swapped_ssd
 from mast.designs import DESIGNS
 from mast.ssp import read_ssd, validate_ssd_schema
 
@@ -52,7 +52,8 @@ def test_swapping_an_fmu_gives_the_design_system(fmus, tmp_path):
 def test_compare_writes_table_data_and_plots(fmus, tmp_path):
     out = tmp_path / "cmp"
     comp = compare([fmus / "MastMechanism.fmu", fmus / "MastActuatorsOnly.fmu"], out,
-                   TestSet(axes=("z",), frequencies=(2.0, 8.0)), workers=2, fmu_dir=fmus)
+                   TestSet(axes=("z",), frequencies=(2.0, 8.0)), workers=2, fmu_dir=fmus,
+                   workspace_grid=WORKSPACE_GRID_QUICK)
     assert [c.label for c in comp.candidates] == ["MastMechanism", "MastActuatorsOnly"]
     for name in ("comparison.csv", "runs.csv", "comparison.json", "comparison.md", "bode.png", "bandwidth.png",
                  "torque.png", "tracking.png", "parasitic.png", "systems/MastMechanism.ssp"):
@@ -64,6 +65,10 @@ def test_compare_writes_table_data_and_plots(fmus, tmp_path):
         assert 2.0 < float(r["bandwidth_Hz"]) < 8.0             # magnitude falls through -3 dB in between
         assert 0.0 < float(r["torque_rms_Nm"]) < float(r["torque_peak_Nm"]) < 0.31
         assert 0.0 < float(r["tracking_peak"]) < 2 * 0.005
+        # the workspace beside them: the same kinematics for both (the actuators alone report the 3PRS's poses)
+        assert float(r["workspace_m_deg2"]) == pytest.approx(float(rows[0]["workspace_m_deg2"]))
+        assert float(r["workspace_m_deg2"]) > 100.0
+        assert float(r["margin_min"]) >= 0.05 and float(r["margin_home"]) == pytest.approx(0.5412, abs=1e-3)
     data = json.loads((out / "comparison.json").read_text())
     assert len(data["runs"]) == 4 and data["wall_time_s"] > 0
     fig10 = data["fig10"]
@@ -81,6 +86,7 @@ def test_cli_compare(fmus, tmp_path):
     assert code == 0
     row = next(csv.DictReader(open(out / "comparison.csv")))
     assert row["design"] == "Mast3PRSInclined" and row["motion"] == "theta"
+    assert float(row["workspace_m_deg2"]) > 100.0 and "Workspace (`mast workspace`" in (out / "comparison.md").read_text()
     assert float(row["parasitic_x_m"]) >= 0.0 and math.isfinite(float(row["torque_peak_Nm"]))
     assert cli_main(["compare", "--mechanism", str(tmp_path / "none.fmu"), "--out", str(out)]) == 2
 

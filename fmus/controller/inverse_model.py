@@ -31,6 +31,7 @@ from ..actuator.model import PARAMETERS as ACTUATOR_PARAMETERS
 from ..actuator.model import guide_friction, transmission_ratio, two_inertia
 from ..common.parameters import Value
 from ..mechanism.designs import MASS_PARAMETERS, PAYLOAD_PARAMETERS, engine
+from ..mechanism.engine import SingularityError
 from ..mechanism.kinematics import KinematicsError
 
 _ACTUATOR = {p.name: p for p in ACTUATOR_PARAMETERS}
@@ -70,6 +71,8 @@ class InverseModel:
             try:
                 try:
                     q, Jq, _ = self.engine.dk(rho, self._guess)
+                except SingularityError:
+                    raise                     # as the mechanism block: no cold restart across a singularity
                 except KinematicsError:
                     if self._guess is None:
                         raise

@@ -26,6 +26,8 @@ from __future__ import annotations
 import math
 from typing import Mapping, Sequence
 
+import numpy as np
+
 from ..common.parameters import Param, ParameterError, nonnegative
 from .engine import Body, Description, Engine, Evaluation, atan2, hypot, require, sign, sqrt
 from .engine import cos as _cos
@@ -81,15 +83,17 @@ def _fmt(v: float) -> str:
 
 # ----------------------------------------------------------------------------- admissibility checks
 # (run at the point of the evaluation where the description calls require(); messages as kinematics.py)
+# Each check also has ``admissible``: the same condition as a mask over arrays (Engine.evaluate_many), and
+# ``c_condition``, ``c_message``: the condition as a C expression of its arguments a0, a1, ... and what failed,
+# for the C backend of the engine's generated code (mast.native.translate).
 def _finite(z, psi, theta) -> None:
     if not (math.isfinite(z) and math.isfinite(psi) and math.isfinite(theta)):
         raise KinematicsError(f"pose (z = {z!r} m, psi = {psi!r} rad, theta = {theta!r} rad) is not finite")
 
 
-# Each check also states its condition as a C expression of its arguments a0, a1, ... and a
-# message, for the C backend of the engine's generated code (mast.native.translate).
 _finite.c_condition = "isfinite(a0) && isfinite(a1) && isfinite(a2)"
 _finite.c_message = "pose (z, psi, theta) is not finite"
+_finite.admissible = lambda z, psi, theta: np.isfinite(z) & np.isfinite(psi) & np.isfinite(theta)
 
 
 def _tilt(psi, theta) -> None:
@@ -102,6 +106,7 @@ def _tilt(psi, theta) -> None:
 _tilt.c_condition = f"!(fabs(a0) > {MAX_TILT!r} || fabs(a1) > {MAX_TILT!r})"
 _tilt.c_message = (f"pose out of range: |psi| or |theta| exceeds the admissible tilt {MAX_TILT:.6g} rad "
                    f"({math.degrees(MAX_TILT):g} deg)")
+_tilt.admissible = lambda psi, theta: (np.abs(psi) <= MAX_TILT) & (np.abs(theta) <= MAX_TILT)
 
 
 def _pose_text(z, psi, theta) -> str:
@@ -121,6 +126,9 @@ class _NullCheck:
                 f"singular configuration: the constraints S_i . t_i = 0 do not determine the parasitic motion "
                 f"(x, y, phi) at {_pose_text(z, psi, theta)} (guide angles {self.alpha} rad; "
                 f"|null vector (cos, sin)| = {norm:.3g})")
+
+    def admissible(self, norm, z, psi, theta):
+        return norm > 1e-9 * self.r * self.r
 
 
 class _InsideCheck:
@@ -144,6 +152,10 @@ class _InsideCheck:
                 f"{_fmt(d)} m is outside the guide radius H = {_fmt(self.H)} m by {_fmt(-u)} m "
                 f"({_pose_text(z, psi, theta)})")
 
+    @staticmethod
+    def admissible(u, d, z, psi, theta):
+        return u > 0.0
+
 
 class _ReachCheck:
     def __init__(self, i: int, L: float, inclined: bool) -> None:
@@ -157,6 +169,10 @@ class _ReachCheck:
             raise KinematicsError(
                 f"pose unreachable: leg {self.i + 1} would need {what} of {_fmt(u)} m > L = {_fmt(self.L)} m "
                 f"(short by {_fmt(u - self.L)} m) at {_pose_text(z, psi, theta)}")
+
+    @staticmethod
+    def admissible(w2, u, z, psi, theta):
+        return w2 > 0.0
 
 
 # ----------------------------------------------------------------------------- the 3PRS
@@ -180,6 +196,7 @@ class PRS3(Description):
         self._ca, self._sa = self.geometry._ca, self.geometry._sa
         self._cb, self._sb = math.cos(self.beta), math.sin(self.beta)
         self.inclined = self.beta != 0.0
+        self.lengths = (1.0, self.r, self.r)   # a tilt moves the spherical joints by r times the angle
         L = self.L
         leg_inertia = ((0.0, 0.0, 0.0), (0.0, float(I_leg), 0.0), (0.0, 0.0, float(I_leg)))
         legs = tuple(Body(f"leg_{i + 1}", float(m_leg), (0.5 * L, 0.0, 0.0), leg_inertia) for i in range(3))

@@ -31,7 +31,19 @@ From the description the engine produces, with gravity g along -z:
   Translation by the principle of energy equivalence (Eqs. 5-9, 24-27), rotation by
   Boltzmann-Hamel with the body angular velocity as quasi-velocities (Eqs. 13, 18-19);
   each body's contribution (translation and rotation separately) is reported.
-- the direct kinematics (Newton on the inverse kinematics, warm-started).
+- the direct kinematics (Newton on the inverse kinematics, warm-started) that stays on the
+  assembly branch of its starting pose: a solution where det(drho/dq) has the other sign, or
+  within ``MARGIN`` of a singularity (``margins``), is a ``SingularityError`` naming the pose;
+- the same inverse kinematics and Jacobian over arrays of poses (``evaluate_many``) and the
+  forces over arrays (``forces_many``): the workspace analysis (mast.analyses.workspace).
+
+Singularity margins (docs/mechanism.md, "Singularities and the assembly branch"): with the
+coordinates made lengths by the description's ``lengths`` (q~_k = l_k q_k: a tilt counted as
+the travel of the points at the platform radius), the *parallel margin* is the smallest
+singular value of drho/dq~ (carriage travel per metre of platform motion in the weakest
+direction; 0 where the platform can move with the carriages locked) and the *inverse margin*
+the smallest singular value of dq~/drho (platform motion per metre of carriage travel; 0 where
+a carriage can move without moving the platform).
 
 Joint coordinates and forces: t_rho_i is the generalized force conjugate to rho_i, i.e. the
 force the actuator applies along its joint (power t_rho . rho_dot).
@@ -47,9 +59,15 @@ import numpy as np
 from .kinematics import COND_LIMIT, KinematicsError, _inv3
 
 __all__ = [
-    "Body", "Description", "Evaluation", "Engine", "EngineIDP", "EngineJacobians", "KinematicsError",
-    "sin", "cos", "sqrt", "atan2", "hypot", "sign", "require", "traced",
+    "Body", "Description", "Evaluation", "Engine", "EngineIDP", "EngineJacobians", "KinematicsError", "MARGIN",
+    "Margins", "SingularityError", "sin", "cos", "sqrt", "atan2", "hypot", "sign", "require", "traced",
 ]
+
+#: smallest singularity margin [m/m] the direct kinematics accepts (both kinds, module docstring):
+#: 1/MARGIN = 20 is the largest amplification of a carriage error into a platform error (or of a load
+#: at the platform into an actuator force, by virtual work) and of a platform speed into a carriage
+#: speed. At home the three designs have 0.54-0.63, ten times more (docs/mechanism.md)
+MARGIN = 0.05
 
 
 # ===================================================================================== expressions
@@ -469,17 +487,47 @@ def _needed(outputs: Sequence[E], checks: Sequence[E]) -> set[int]:
     return seen
 
 
+_VECTOR_FUNCS = {"_sin": np.sin, "_cos": np.cos, "_sqrt": np.sqrt, "_atan2": np.arctan2, "_hypot": np.hypot,
+                 "_sign": lambda x: np.where(x > 0.0, 1.0, -1.0), "_sgn0": lambda x: np.where(x >= 0.0, 1.0, -1.0),
+                 "_abs": np.abs}
+
+
+def _admissible(check: Callable) -> Callable:
+    """The check as a mask over arrays: its ``admissible`` method, else the check called point by point."""
+    vector = getattr(check, "admissible", None)
+    if vector is not None:
+        return vector
+
+    def pointwise(*args):
+        arrays = np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in args))
+        ok = np.empty(arrays[0].shape, dtype=bool)
+        for idx in np.ndindex(ok.shape):
+            try:
+                check(*(float(a[idx]) for a in arrays))
+                ok[idx] = True
+            except KinematicsError:
+                ok[idx] = False
+        return ok
+    return pointwise
+
+
 def compile_function(name: str, inputs: Sequence[str], outputs: Sequence[E], graph: _Graph,
-                     label: str = "") -> Callable:
+                     label: str = "", vector: bool = False) -> Callable:
     """Straight-line Python computing ``outputs`` (a flat tuple) from the named inputs.
 
     Nodes in creation order (checks where the description called ``require``); a node used
     once is written into its user's expression (same operations, same order: same floats),
     up to a nesting depth that keeps the generated source easy on the parser.
+
+    ``vector``: the same code on numpy arrays (inputs broadcast together); a check does not
+    raise but clears its points from a mask, returned as one more output (True: admissible;
+    the other outputs are meaningless where it is False).
     """
     ids = _needed(outputs, graph.checks)
     ns: dict = {"_sin": math.sin, "_cos": math.cos, "_sqrt": math.sqrt, "_atan2": math.atan2,
                 "_hypot": math.hypot, "_sign": _sign, "_sgn0": _sgn0, "_abs": abs}
+    if vector:
+        ns.update(_VECTOR_FUNCS)
     uses: dict[int, int] = {}
     for i in ids:
         for a in graph.nodes[i].args:
@@ -508,28 +556,38 @@ def compile_function(name: str, inputs: Sequence[str], outputs: Sequence[E], gra
         return f"{_FUNCS[n.op]}({', '.join(p for p, _ in parts)})", depth
 
     lines = [f"def {name}({', '.join(inputs)}):"]
+    if vector:
+        lines.append("    _ok = True")
     for i in sorted(ids):
         n = graph.nodes[i]
         if n.op in ("input", "const"):
             continue
         if n.op == "check":
             key = f"_check{i}"
-            ns[key] = n.value
-            lines.append(f"    {key}({', '.join(ref(a)[0] for a in n.args)})")
+            ns[key] = _admissible(n.value) if vector else n.value
+            call = f"{key}({', '.join(ref(a)[0] for a in n.args)})"
+            lines.append(f"    _ok = _ok & {call}" if vector else f"    {call}")
             continue
         text, depth = expr(n)
         if uses.get(n.id, 0) == 1 and depth < 24:
             inline[n.id] = (text, depth)   # written where it is used
         else:
             lines.append(f"    t{i} = {text}")
-    lines.append(f"    return ({''.join(ref(o)[0] + ', ' for o in outputs)})")
+    lines.append(f"    return ({''.join(ref(o)[0] + ', ' for o in outputs)}{'_ok, ' if vector else ''})")
     assert not inline, "internal error: an inlined expression was never used"
     code = "\n".join(lines)
     exec(compile(code, f"<mast engine: {label or name}>", "exec"), ns)  # noqa: S102 (our own generated code)
     fn = ns[name]
     fn.source = code
     fn.namespace = ns   # what the source calls (the checks): for the C backend (mast.native)
-    return fn
+    if not vector:
+        return fn
+
+    def on_arrays(*args):
+        with np.errstate(all="ignore"):       # outside the mask: NaN, never an exception
+            return fn(*args)
+    on_arrays.source = code
+    return on_arrays
 
 
 # ===================================================================================== descriptions
@@ -581,6 +639,9 @@ class Description:
     coordinates: tuple[str, ...] = ("z", "psi", "theta")
     joints: tuple[str, ...] = ("rho_1", "rho_2", "rho_3")
     bodies: tuple[Body, ...] = ()
+    #: per coordinate, the length [m] that turns its increment into a displacement (1 for a length; for
+    #: an angle, the radius of the points it moves): the singularity margins compare motions in metres
+    lengths: Optional[tuple[float, ...]] = None
 
     def evaluate(self, q: Sequence) -> Evaluation:
         raise NotImplementedError
@@ -653,6 +714,39 @@ class EngineIDP:
         return out
 
 
+class SingularityError(KinematicsError):
+    """The direct kinematics would leave the assembly branch of its start, or come within MARGIN of a
+    singularity (docs/mechanism.md): the pose is named, nothing jumps."""
+
+
+@dataclass(frozen=True)
+class Margins:
+    """How far a pose is from a singularity (module docstring), coordinates scaled by ``lengths``.
+
+    det: det(drho/dq) (unscaled; its sign tells the assembly branches apart);
+    parallel [m/m]: smallest singular value of drho/dq~ (0 at a parallel singularity);
+    inverse [m/m]: smallest singular value of dq~/drho (0 at an inverse singularity);
+    dexterity: condition number (2-norm) of drho/dq~, >= 1 (1: isotropic).
+    """
+
+    det: float
+    parallel: float
+    inverse: float
+    dexterity: float
+
+    @property
+    def smallest(self) -> float:
+        return min(self.parallel, self.inverse)
+
+
+def margins_of(Jinv: np.ndarray, lengths: Sequence[float]) -> tuple[np.ndarray, ...]:
+    """(det, parallel, inverse, dexterity) of drho/dq matrices ``Jinv`` (..., n, n), as arrays (Margins)."""
+    Jinv = np.asarray(Jinv, dtype=float)
+    with np.errstate(all="ignore"):
+        sv = np.linalg.svd(Jinv / np.asarray(lengths, dtype=float), compute_uv=False)
+        return np.linalg.det(Jinv), sv[..., -1], 1.0 / sv[..., 0], sv[..., 0] / sv[..., -1]
+
+
 # ===================================================================================== the engine
 def _inv(m: list[float], n: int) -> tuple[list[float], float]:
     """Inverse (row-major) and determinant of an n x n matrix; ZeroDivisionError if singular."""
@@ -694,7 +788,8 @@ class Engine:
     """Kinematics and inverse dynamics of a ``Description`` (see the module docstring).
 
     ``g`` [m/s^2]: gravitational acceleration along -z. ``cond_limit``: condition number of
-    drho/dq above which a configuration is reported singular (KinematicsError).
+    drho/dq above which a configuration is reported singular (KinematicsError); ``margin``
+    (``MARGIN``): the smallest singularity margin the direct kinematics accepts.
     """
 
     def __init__(self, description: Description, g: float = 9.81, cond_limit: float = COND_LIMIT) -> None:
@@ -706,6 +801,13 @@ class Engine:
             raise ValueError(f"{description.name}: {len(description.joints)} joints for {n} coordinates; "
                              "the engine needs as many joint coordinates as independent coordinates")
         self.bodies = tuple(description.bodies)
+        self.lengths = tuple(float(v) for v in (description.lengths or (1.0,) * n))
+        if len(self.lengths) != n or not all(math.isfinite(v) and v > 0.0 for v in self.lengths):
+            raise ValueError(f"{description.name}: lengths {description.lengths!r}: expected {n} lengths > 0 m")
+        # squared scales of the entries of drho/dq~ = Jinv / l_k and dq~/drho = l_j J (row-major)
+        self._wa = [1.0 / (self.lengths[m % n] ** 2) for m in range(n * n)]
+        self._wb = [self.lengths[m // n] ** 2 for m in range(n * n)]
+        self.margin = MARGIN
         self._fns: dict[str, Callable] = {}
         graph = _Graph()
         self._graph = graph
@@ -751,6 +853,20 @@ class Engine:
 
     def _build_pose(self) -> Callable:
         return compile_function("pose", self._qnames(), self._pose, self._graph, f"{self.description.name} pose")
+
+    def _build_ikjac_many(self) -> Callable:
+        n = self.n
+        outs = list(self._rho) + [self._dq[k](self._rho[i]) for i in range(n) for k in range(n)]
+        return compile_function("ikjac", self._qnames(), outs, self._graph, f"{self.description.name} ik+jacobian, "
+                                "arrays", vector=True)
+
+    def _build_forces_many(self) -> Callable:
+        t = self._dynamics_graph(False)[0]
+        n = self.n
+        inputs = self._qnames() + [f"J{j}{k}" for j in range(n) for k in range(n)] + \
+            [f"rd{k}" for k in range(n)] + [f"rdd{k}" for k in range(n)]
+        return compile_function("forces", inputs, list(t), self._graph, f"{self.description.name} forces, arrays",
+                                vector=True)
 
     def _dynamics_graph(self, detailed: bool):
         """Outputs of the inverse dynamics, built on the graph (inputs q, J = dq/drho, rd, rdd)."""
@@ -849,23 +965,33 @@ class Engine:
         n = self.n
         out = self._fn("ikjac")(*q)
         Jinv = list(out[n:])
-        return (Jinv,) + self._invert(Jinv, q, check)
+        J, _ = self._inverse(Jinv, q)
+        cond = _cond(Jinv, J)
+        if check:
+            self._check_cond(cond, q)
+        return Jinv, J, cond
 
-    def _invert(self, Jinv: list[float], q, check: bool) -> tuple[list[float], float]:
-        n = self.n
+    def _inverse(self, Jinv: list[float], q) -> tuple[list[float], float]:
         try:
-            J, det = _inv(Jinv, n)
+            return _inv(Jinv, self.n)
         except ZeroDivisionError:
             raise KinematicsError(f"singular configuration: drho/dq is singular at {self._fmt_q(q)}") from None
-        cond = _cond(Jinv, J)
-        if check and not cond < self.cond_limit:
+
+    def _check_cond(self, cond: float, q) -> None:
+        if not cond < self.cond_limit:
             raise KinematicsError(f"singular configuration: drho/dq has condition number {cond:.3g} "
                                   f"(limit {self.cond_limit:.0e}) at {self._fmt_q(q)}")
-        return J, cond
+
+    def margins(self, q: Sequence[float]) -> Margins:
+        """Singularity margins and dexterity at q (``Margins``; KinematicsError if q is not admissible)."""
+        n = self.n
+        Jinv = np.array(self._fn("ikjac")(*q)[n:], dtype=float).reshape(n, n)
+        return Margins(*(float(v) for v in margins_of(Jinv, self.lengths)))
 
     def _fmt_q(self, q) -> str:
         units = {"z": "m", "x": "m", "y": "m"}
         return ", ".join(f"{name} = {float(v):.6g} {units.get(name, 'rad')}"
+                         + ("" if name in units else f" ({math.degrees(float(v)):.4g} deg)")
                          for name, v in zip(self.description.coordinates, q))
 
     def dk(self, rho: Sequence[float], guess: Optional[Sequence[float]] = None, tol: float = 1e-12,
@@ -874,7 +1000,9 @@ class Engine:
 
         Newton's method on the inverse kinematics, from ``guess`` (or the description's level
         guess), until max |rho(q) - rho| < tol. KinematicsError if it does not converge, leaves
-        the workspace, or ends in a singular configuration (cond(drho/dq) >= cond_limit).
+        the workspace, or ends in a singular configuration (cond(drho/dq) >= cond_limit);
+        SingularityError if the solution's det(drho/dq) has another sign than at the start
+        (another assembly branch) or its singularity margin is below ``margin``.
         """
         n = self.n
         r = [float(v) for v in rho]
@@ -889,20 +1017,27 @@ class Engine:
         ikjac = self._fn("ikjac")
         res = math.inf
         shown = ", ".join(f"{v:.9g}" for v in r)
+        start, det0 = None, 0.0
         for it in range(max_iter + 1):
             try:
                 out = ikjac(*q)
                 e = [out[i] - r[i] for i in range(n)]
                 res = max(abs(v) for v in e)
                 Jinv = list(out[n:])
-                J, cond = self._invert(Jinv, q, check=res < tol)
+                J, det = self._inverse(Jinv, q)
+                if res < tol:
+                    cond = _cond(Jinv, J)
+                    self._check_cond(cond, q)
             except KinematicsError as exc:
                 raise KinematicsError(f"direct kinematics did not converge for rho = ({shown}) m: iteration {it} "
                                       f"reached {self._fmt_q(q)}, where: {exc}") from exc
             if not math.isfinite(res):
                 raise KinematicsError(f"direct kinematics did not converge for rho = ({shown}) m: non-finite "
                                       f"residual at iteration {it} ({self._fmt_q(q)})")
+            if it == 0:
+                start, det0 = tuple(q), det
             if res < tol:
+                self._check_branch(q, Jinv, J, det, start, det0, shown)
                 return tuple(q), J, cond
             if it == max_iter:
                 break
@@ -911,6 +1046,51 @@ class Engine:
         raise KinematicsError(f"direct kinematics did not converge for rho = ({shown}) m: {max_iter} iterations, "
                               f"residual max|rho(q) - rho| = {res:.3g} m > tol = {tol:.3g} m "
                               f"(last {self._fmt_q(q)})")
+
+    def _check_branch(self, q, Jinv, J, det, start, det0, shown) -> None:
+        """The solution on the start's branch and at least ``margin`` from a singularity (SingularityError)."""
+        if (det > 0.0) != (det0 > 0.0):
+            raise SingularityError(
+                f"direct kinematics for rho = ({shown}) m: the solution {self._fmt_q(q)} lies on another assembly "
+                f"branch than the start {self._fmt_q(start)} (det(drho/dq) = {det:+.3g} there, {det0:+.3g} at the "
+                f"start): the joints crossed a parallel singularity; refused rather than jump to the other branch")
+        m = self.margin
+        # cheap lower bounds first: sigma_min(A) >= 1 / |A^-1|_F (exact singular values only near the limit)
+        fa = sum(v * v * w for v, w in zip(Jinv, self._wa))
+        fb = sum(v * v * w for v, w in zip(J, self._wb))
+        if fa * m * m <= 1.0 and fb * m * m <= 1.0:
+            return
+        mg = self.margins(q)
+        if mg.smallest < m:
+            kind = "parallel (the platform could move with the joints locked)" if mg.parallel < m else \
+                "inverse (a joint could move without moving the platform)"
+            raise SingularityError(
+                f"direct kinematics for rho = ({shown}) m: the solution {self._fmt_q(q)} is within the margin of a "
+                f"{kind} singularity: margins parallel {mg.parallel:.3g}, inverse {mg.inverse:.3g} < {m:g} m/m "
+                f"(det(drho/dq) = {det:+.3g}; docs/mechanism.md, 'Singularities and the assembly branch')")
+
+    def evaluate_many(self, q: Sequence) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Inverse kinematics and Jacobian over arrays: q = n arrays (broadcast together) ->
+        (rho (n, ...), drho/dq (..., n, n), admissible (...) bool). Values where not admissible are meaningless."""
+        n = self.n
+        arrays = np.broadcast_arrays(*(np.asarray(v, dtype=float) for v in q))
+        out = self._fn("ikjac_many")(*arrays)
+        shape = arrays[0].shape
+        full = [np.broadcast_to(np.asarray(v, dtype=float), shape) for v in out[:-1]]
+        rho = np.stack(full[:n])
+        Jinv = np.stack(full[n:], axis=-1).reshape(shape + (n, n))
+        ok = np.broadcast_to(np.asarray(out[-1], dtype=bool), shape) & np.all(np.isfinite(rho), axis=0)
+        return rho, Jinv, ok
+
+    def forces_many(self, q: Sequence, J: np.ndarray, rho_dot: Sequence, rho_ddot: Sequence) -> np.ndarray:
+        """``forces`` over arrays: q = n arrays, J (..., n, n) = dq/drho; rho_dot, rho_ddot: n arrays or
+        floats -> t_rho (n, ...)."""
+        n = self.n
+        J = np.asarray(J, dtype=float)
+        args = list(q) + [J[..., j, k] for j in range(n) for k in range(n)] + list(rho_dot) + list(rho_ddot)
+        out = self._fn("forces_many")(*args)
+        shape = J.shape[:-2]
+        return np.stack([np.broadcast_to(np.asarray(v, dtype=float), shape) for v in out[:n]])
 
     # -------------------------------------------------------------------------- dynamics
     def forces(self, q: Sequence[float], J: Sequence[float], rho_dot: Sequence[float],

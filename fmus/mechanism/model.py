@@ -2,7 +2,9 @@
 
 An algebraic block: from the slider motion (rho, rho_dot, rho_ddot) held over the step
 it computes the platform pose (direct kinematics, Newton warm-started from the previous
-pose) and the forces F_i = t_rho_i each actuator applies to the mechanism along its
+pose, on its assembly branch and at least ``engine.MARGIN`` from a singularity: a step that
+would cross or approach one stops with an error naming the pose, never a silent jump;
+docs/mechanism.md) and the forces F_i = t_rho_i each actuator applies to the mechanism along its
 guide, positive upward (inverse dynamics). The actuators feel -F_i: the mechanism is
 their disturbance (paper section 2).
 
@@ -19,6 +21,7 @@ from typing import Mapping
 from ..common.block import Block, ModelError
 from ..common.parameters import Value
 from .designs import KINEMATIC_PARAMETERS, MASS_PARAMETERS, PAYLOAD_PARAMETERS, engine
+from .engine import SingularityError
 from .kinematics import KinematicsError
 
 
@@ -70,16 +73,18 @@ class MechanismBlock(Block):
         try:
             try:
                 q, J, _ = eng.dk(rho, self._guess)
+            except SingularityError:
+                raise                         # never restarted: a cold start could jump to another pose
             except KinematicsError:
                 if self._guess is None:
                     raise
-                q, J, _ = eng.dk(rho, None)   # cold start from the level pose
+                q, J, _ = eng.dk(rho, None)   # did not converge: cold start from the level pose
             if self.attached:
                 out = eng.forces(q, J, (vals[3], vals[4], vals[5]), (vals[6], vals[7], vals[8]))
             else:
                 out = (0.0, 0.0, 0.0) + eng.pose(q)
         except KinematicsError as exc:
-            raise KinematicsError(f"{self.name}: at t = {t!r} s, rho = {rho!r} m: {exc}") from exc
+            raise type(exc)(f"{self.name}: at t = {t!r} s, rho = {rho!r} m: {exc}") from exc   # SingularityError stays one
         self._guess = q
         vals[9:18] = out
 

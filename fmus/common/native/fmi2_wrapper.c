@@ -80,6 +80,7 @@ static const char *error_class(int code)
     switch (code) {
     case MAST_PARAMETER_ERROR: return "ParameterError";
     case MAST_KINEMATICS_ERROR: return "KinematicsError";
+    case MAST_SINGULARITY_ERROR: return "SingularityError";
     default: return "ModelError";
     }
 }

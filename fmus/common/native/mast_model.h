@@ -14,7 +14,7 @@ typedef enum { MAST_REAL, MAST_INTEGER, MAST_STRING } mast_type;
 typedef enum { MAST_INPUT, MAST_OUTPUT, MAST_PARAMETER } mast_causality;
 
 /* the kind of failure a model reports, named as the Python model's exception class */
-enum { MAST_OK = 0, MAST_PARAMETER_ERROR = 1, MAST_MODEL_ERROR = 2, MAST_KINEMATICS_ERROR = 3 };
+enum { MAST_OK = 0, MAST_PARAMETER_ERROR = 1, MAST_MODEL_ERROR = 2, MAST_KINEMATICS_ERROR = 3, MAST_SINGULARITY_ERROR = 4 };
 
 typedef struct {
     const char *name;

@@ -69,11 +69,12 @@ typedef int (*mast_ikjac3)(double q0, double q1, double q2, double *out);
 typedef const char *(*mast_check_message)(int check);
 
 /* Engine.dk for three coordinates: Newton on the inverse kinematics from ``q`` (the guess) until
- * max|rho(q) - rho| < tol; J = dq/drho. 0, or MAST_KINEMATICS_ERROR (3) with ``msg`` filled. */
+ * max|rho(q) - rho| < tol; J = dq/drho. 0, MAST_KINEMATICS_ERROR (3) or, for a solution on another
+ * assembly branch than the start, MAST_SINGULARITY_ERROR (4), with ``msg`` filled. */
 static inline int mast_dk3(mast_ikjac3 ikjac, mast_check_message why, const double *rho, double *q, double *J,
                            double tol, int max_iter, double cond_limit, char *msg, size_t size)
 {
-    double out[12], e[3], res = INFINITY, det, cond;
+    double out[12], e[3], res = INFINITY, det = 0.0, det0 = 0.0, cond;
     char r0[32], r1[32], r2[32];
     for (int it = 0; it <= max_iter; it++) {
         int check = ikjac(q[0], q[1], q[2], out);
@@ -104,7 +105,18 @@ static inline int mast_dk3(mast_ikjac3 ikjac, mast_check_message why, const doub
                      "residual at iteration %d", rho[0], rho[1], rho[2], it);
             return 3;
         }
-        if (res < tol) return 0;
+        if (it == 0) det0 = det;
+        if (res < tol) {        /* Engine._check_branch: on the start's assembly branch (the margin is not checked here) */
+            if ((det > 0.0) != (det0 > 0.0)) {
+                snprintf(msg, size, "direct kinematics for rho = (%.9g, %.9g, %.9g) m: the solution z = %.6g m, "
+                         "psi = %.6g rad, theta = %.6g rad lies on another assembly branch than the start "
+                         "(det(drho/dq) = %+.3g there, %+.3g at the start): the joints crossed a parallel singularity; "
+                         "refused rather than jump to the other branch", rho[0], rho[1], rho[2], q[0], q[1], q[2],
+                         det, det0);
+                return 4;
+            }
+            return 0;
+        }
         if (it == max_iter) break;
         for (int j = 0; j < 3; j++) {
             double s = 0.0;
