@@ -190,6 +190,36 @@ def test_a_failing_step_is_refused_with_the_python_fmus_message(built):
     assert messages[0] == messages[1]
 
 
+def test_a_pose_within_the_singularity_margin_is_refused_by_both_routes_with_the_same_message(built):
+    """Engine.dk's margin (engine.MARGIN) in C too: on the inclined design's path from home towards its
+    parallel singularity (tests/test_workspace.py), 98 % of the way is within the margin, 97 % is not."""
+    from fmus.mechanism.engine import MARGIN
+    from mast.analyses import workspace as W
+    from test_designs import Own
+
+    machine = W.machine("3PRS_inclined")
+    engine, own = machine.engine(), Own({**machine.params, "g": 9.81})
+    home = np.array(engine.dk(machine.rho_home)[0])
+    singular = np.array((0.252056, math.radians(17.30), math.radians(-17.45)))
+    outside, inside = (home + s * (singular - home) for s in (0.97, 0.98))
+    assert engine.margins(outside).parallel > MARGIN > engine.margins(inside).parallel > 0.5 * MARGIN
+    messages = []
+    for fmu in (built / "fmus" / "Mast3PRSInclined.fmu", built / "fmus" / "native" / "Mast3PRSInclined.fmu"):
+        for q, accepted in ((outside, True), (inside, False)):
+            inst = Instance(fmu, "table")
+            rho = own.rho(q)
+            inst.set(rho_1=rho[0], rho_2=rho[1], rho_3=rho[2])
+            inst.start()
+            errors = [m for s, m in inst.log if s == ERROR]
+            if accepted:
+                assert not errors and inst.step(0.0, 1e-3) == OK, errors
+            else:
+                assert errors and "SingularityError" in errors[-1] and "within the margin of a parallel (" in errors[-1]
+                messages.append(errors[-1])
+            inst.close()
+    assert messages[0] == messages[1]
+
+
 def test_a_parameter_the_code_was_generated_for_is_refused_with_another_value(built):
     """The actuator's and the mechanism's generated code has the parameter values inlined (docs/native.md)."""
     inst = _native(built, "MastActuator", "axis")

@@ -255,6 +255,12 @@ def _mechanism(block) -> str:
     messages = "\n".join(f"    case {int(k.replace('_check', ''))}: return {_literal(v.c_message)};"
                          for k, v in sorted(checks.items()))
     inputs = ", ".join(_literal(n) for n in block.INPUTS)
+    coordinates = ", ".join(_literal(n) for n in eng.description.coordinates)
+    lengths = ", ".join(c_double(v) for v in eng.lengths)
+    if len(eng.lengths) != 3:
+        raise ValueError(f"{block.name}: the native direct kinematics takes three coordinates, not {len(eng.lengths)}")
+    dk = (f"mast_dk3(ikjac, why, COORDINATES, LENGTHS, {c_double(eng.margin)}, values, q, J, 1e-12, 50, "
+          f"{c_double(eng.cond_limit)}, why_text, sizeof why_text)")
     if block.attached:
         call = "dynamics(q[0], q[1], q[2], J[0], J[1], J[2], J[3], J[4], J[5], J[6], J[7], J[8], " \
                "values[3], values[4], values[5], values[6], values[7], values[8], values + 9)"
@@ -267,7 +273,9 @@ def _mechanism(block) -> str:
         ik_c, main_c, guess_c,
         "static const char *why(int check)", "{", "    switch (check) {", messages,
         "    default: return \"a check of the description failed\";", "    }", "}", "",
-        f"static const char *const INPUT_NAMES[] = {{{inputs}}};", "",
+        f"static const char *const INPUT_NAMES[] = {{{inputs}}};",
+        f"static const char *const COORDINATES[] = {{{coordinates}}};",
+        f"static const double LENGTHS[] = {{{lengths}}};   /* Engine.lengths [m]: the margins compare motions */", "",
         "static int kinematics_error(const double *values, double t, const char *what, char *msg, size_t size)", "{",
         "    char a[40], b[40], c[40], d[40];",
         "    snprintf(msg, size, \"at t = %s s, rho = (%s, %s, %s) m: %s\", mast_repr(t, d, sizeof d), "
@@ -275,7 +283,7 @@ def _mechanism(block) -> str:
         "    return MAST_KINEMATICS_ERROR;", "}", "",
         "/* MechanismBlock._compute: direct kinematics (warm start, else cold), then the forces and the pose */",
         "static int compute(State *s, double *values, double t, char *msg, size_t size)", "{",
-        "    char v[40], w[40], why_text[768];",
+        "    char v[40], w[40], why_text[1024];",
         "    double q[3], J[9], cold[3];",
         "    int code;",
         "    for (int k = 0; k < 9; k++) {",
@@ -285,10 +293,10 @@ def _mechanism(block) -> str:
         "            return MAST_MODEL_ERROR;", "        }", "    }",
         "    guess(values, cold);",
         "    for (int k = 0; k < 3; k++) q[k] = s->warm ? s->q[k] : cold[k];",
-        f"    code = mast_dk3(ikjac, why, values, q, J, 1e-12, 50, {c_double(eng.cond_limit)}, why_text, sizeof why_text);",
+        f"    code = {dk};",
         "    if (code && code != MAST_SINGULARITY_ERROR && s->warm) {   /* never restarted after a SingularityError */",
         "        for (int k = 0; k < 3; k++) q[k] = cold[k];",
-        f"        code = mast_dk3(ikjac, why, values, q, J, 1e-12, 50, {c_double(eng.cond_limit)}, why_text, sizeof why_text);",
+        f"        code = {dk};",
         "    }",
         "    if (code) {",
         "        kinematics_error(values, t, why_text, msg, size);",
