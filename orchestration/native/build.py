@@ -32,7 +32,7 @@ from typing import Iterable, Mapping, Optional, Sequence
 
 from lxml import etree
 
-from .models import Variable, emit_model
+from .models import Variable, emit_model, generated_parameters
 
 __all__ = ["NativeBuildError", "compiler", "build_native_fmu", "native_sources", "read_variables", "SUPPORT"]
 
@@ -282,14 +282,16 @@ def for_parameters(fmu: Path, parameters: Mapping[str, object], step_size: Optio
     except ParameterError:   # the FMU names the bad value at initialisation, as every FMU does
         return fmu
     steps = set(made["step_sizes"]) | ({float(step_size)} if step_size and made["step_sizes"] else set())
-    if wanted == validate(specs, made["parameters"], ident) and steps == set(made["step_sizes"]):
+    own = validate(specs, made["parameters"], ident)
+    inlined = generated_parameters(block_class(ident), wanted)    # the others are set at run time
+    if inlined == generated_parameters(block_class(ident), own) and steps == set(made["step_sizes"]):
         return fmu
-    key = hashlib.sha256(json.dumps([ident, wanted, sorted(steps)], sort_keys=True, default=str).encode())
+    key = hashlib.sha256(json.dumps([ident, inlined, sorted(steps)], sort_keys=True, default=str).encode())
     for file in sorted([*(REPO / "fmus").rglob("*.py"), *(REPO / "fmus").rglob("*.[ch]"),
                         *Path(__file__).parent.glob("*.py")]):   # the model and generator code
         key.update(file.read_bytes())
     folder = cache_dir() / key.hexdigest()[:16]
     target = folder / f"{ident}.fmu"
     if not target.exists():
-        build_native_fmu(ident, fmu, folder, wanted, steps)
+        build_native_fmu(ident, fmu, folder, {**own, **inlined}, steps)   # start values: the FMU's own
     return target

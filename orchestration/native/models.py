@@ -19,13 +19,15 @@ schedule with ``ControllerBlock``'s position law; the PI steps call ``pi_step``,
 the model's own source). The schedule and the P law are a second statement of the controller's, held bit-identical to the Python model by tests/test_native.py until the
 Python controller runs this generated tick itself (docs/native.md).
 
-Parameters: the generated code has the parameters' values inlined, as in the Python model
-(where the actuator's kernel is compiled at the first step and the engine traces with the
-geometry and masses as constants); the C model therefore checks at initialisation that every
-parameter still has the value it was generated for, and refuses another value with a message
-naming it (the Python model's range checks come first, with the same messages). The
-trajectory's parameters are read at run time. The project's master generates the model for
-another parameter set when it needs one (``build.for_parameters``).
+Parameters: the trajectory's, and the joint controller's gains, limits and transmission
+(``CONTROLLER_TUNABLE``: its gains computed at initialisation by the controller's own
+``drive_gains``/``cascade_gains``, translated), are read at run time. The others have their values
+inlined, as in the Python model (where the actuator's kernel is compiled at the first step and
+the engine traces with the geometry and masses as constants): ``generated_parameters`` names
+them, the C model checks at initialisation that each still has the value it was generated for,
+and refuses another value with a message naming it (the Python model's range checks come first,
+with the same messages). The project's master generates the model for another set of those when
+it needs one (``build.for_parameters``).
 """
 from __future__ import annotations
 
@@ -37,7 +39,7 @@ from fmus.common.parameters import Param
 
 from .translate import c_double, to_c
 
-__all__ = ["Variable", "emit_model", "c_string"]
+__all__ = ["Variable", "emit_model", "c_string", "generated_parameters"]
 
 #: relative difference below which a Real parameter counts as the value a model was generated for
 #: (a host that applies a modelDescription start value, printed with 16 digits, gets the same model)
@@ -316,16 +318,21 @@ def _mechanism(block) -> str:
 
 # ----------------------------------------------------------------------------------- controller
 #: layout of the joint cascade's state (doubles): tick count, t0, IK cache (valid, pose), PI states, commands
+#: ("failed": the tick whose inverse kinematics failed, for the message), then the gains computed at
+#: initialisation from the parameters (``gains``: cascade_gains, then drive_gains)
 _S = {"n": 0, "t0": 1, "ik": 2, "pose": 3, "x_v": 6, "x_c": 9, "u": 12, "rho_cmd": 15, "omega_cmd": 18, "i_cmd": 21,
-      "failed": 24}   # the tick whose inverse kinematics failed (for the message)
-_NS = 25
+      "failed": 24, "gains": 25}
+_NS = 32
+#: the joint controller's parameters read at run time (the gains); the others (cycle times, kinematic
+#: model) are in the generated code
+CONTROLLER_TUNABLE = ("k_v", "k_p", "k_i", "k_pc", "k_ic", "i_max", "u_max", "p", "i_r")
 
 
-def _pi_lines(out: str, x: str, e: str, k_p: float, k_iT: float, limit: float, indent: str) -> list[str]:
+def _pi_lines(out: str, x: str, e: str, k_p: str, k_iT: str, limit: str, indent: str) -> list[str]:
     """A call of ``controller.model.pi_step`` (translated from its own source), offset 0.0 as the joint
     cascade passes it; its results land in the scratch array PI."""
     i = indent
-    return [f"{i}c = pi_step({e}, {x}, {k_p!r}, {k_iT!r}, {limit!r}, 0.0, PI)", f"{i}{out} = PI[0]", f"{i}{x} = PI[1]"]
+    return [f"{i}c = pi_step({e}, {x}, {k_p}, {k_iT}, {limit}, 0.0, PI)", f"{i}{out} = PI[0]", f"{i}{x} = PI[1]"]
 
 
 def _ik_lines(indent: str) -> list[str]:
@@ -352,10 +359,9 @@ def _joint_sources(block) -> tuple[str, str]:
              f"    values[12:] = ({', '.join(names['u'] + names['rho_cmd'] + names['omega_cmd'] + names['i_cmd'])})",
              "    return 0"]
     start = ["def start(values, S, R):", "    n = 0.0", *unpack, *_ik_lines("    "), *store]
-    kv_iR, kp, kiT = block._kv_iR, block._kp, block._kiT
-    kpc, kicT, i_max, u_max = block._kpc, block._kicT, block._i_max, block._u_max
+    kv_iR, kp, kiT, kpc, kicT, i_max, u_max = (f"S[{_S['gains'] + k}]" for k in range(7))
     body = [f"        if n % {float(block._N_pos)!r} == 0.0:", *_ik_lines("            ")]
-    body += [f"            oc{j} = {kv_iR!r}*(rc{j} - values[{3 + j}])" for j in range(3)]
+    body += [f"            oc{j} = {kv_iR}*(rc{j} - values[{3 + j}])" for j in range(3)]
     body.append(f"        if n % {float(block._N_vel)!r} == 0.0:")
     for j in range(3):    # velocity PI with the feed-forward current i_ff = 0.0 (the joint cascade has none)
         body += _pi_lines(f"ic{j}", f"xv{j}", f"oc{j} - values[{6 + j}]", kp, kiT, i_max, "            ")
@@ -367,10 +373,11 @@ def _joint_sources(block) -> tuple[str, str]:
     return "\n".join(start) + "\n", "\n".join(ticks) + "\n"
 
 
-def _joint_controller(block) -> str:
+def _joint_controller(block, vrs: Mapping[str, int]) -> str:
     import inspect
 
-    from fmus.controller.model import ControllerBlock, pi_step
+    from fmus.actuator.model import transmission_ratio
+    from fmus.controller.model import ControllerBlock, cascade_gains, drive_gains, pi_step
 
     if type(block) is not ControllerBlock:
         raise ValueError(f"{type(block).__name__} has no native form yet (the joint cascade ControllerBlock has)")
@@ -381,10 +388,17 @@ def _joint_controller(block) -> str:
                          for k, v in sorted(checks.items()))
     T = c_double(block.T_cur)
     inputs = ", ".join(_literal(n) for n in block.INPUTS)
+
+    def P(name: str) -> str:
+        return f"p->real[{vrs[name]}]"
+
     return "\n".join([
         f"typedef struct {{ double S[{_NS}]; }} State;", "",
         to_c(ik.source, "ik", checks=checks),
         to_c(inspect.getsource(pi_step), "pi_step"),
+        to_c(inspect.getsource(transmission_ratio), "transmission_ratio"),
+        to_c(inspect.getsource(cascade_gains), "cascade_gains"),
+        to_c(inspect.getsource(drive_gains), "drive_gains"),
         to_c(start, "start", arrays=("values", "S", "R"), calls=("ik",)),
         to_c(ticks, "ticks", arrays=("values", "S", "R", "PI"), calls=("ik", "pi_step")),
         "static const char *why(int check)", "{", "    switch (check) {", messages,
@@ -404,9 +418,13 @@ def _joint_controller(block) -> str:
         "mast_repr(values[2], c, sizeof c), mast_repr(t, d, sizeof d), why(check));",
         "    return MAST_KINEMATICS_ERROR;", "}", "",
         "static int initialize(void *state, double *values, const mast_parameters *p, double t0, char *msg, size_t size)",
-        "{", "    State *s = state;", "    double R[3];", "    (void)p;",
+        "{", "    State *s = state;", "    double R[3];",
         f"    for (int k = 0; k < {_NS}; k++) s->S[k] = 0.0;",
         f"    s->S[{_S['t0']}] = t0;",
+        "    double i_R[1];   /* the gains from the parameters, by the controller's own functions */",
+        f"    transmission_ratio({P('p')}, {P('i_r')}, i_R);",
+        f"    cascade_gains({P('k_v')}, {P('k_p')}, {P('k_i')}, {P('T_vel')}, i_R[0], s->S + {_S['gains']});",
+        f"    drive_gains({P('k_pc')}, {P('k_ic')}, {P('T_cur')}, {P('i_max')}, {P('u_max')}, s->S + {_S['gains'] + 3});",
         "    if (input_error(values, t0, msg, size)) return MAST_MODEL_ERROR;",
         "    int code = start(values, s->S, R);",
         "    return code ? ik_error(values, t0, -code, msg, size) : MAST_OK;", "}", "",
@@ -455,6 +473,17 @@ def _trajectory(block, vrs: Mapping[str, int]) -> str:
 
 
 # ----------------------------------------------------------------------------------- entry point
+def generated_parameters(block_class: type, parameters: Mapping[str, object]) -> dict[str, object]:
+    """The parameters whose values the generated code of ``block_class`` holds (the others are read
+    at run time): another value needs another build."""
+    kind = block_class.__module__.split(".")[-2]
+    if kind == "trajectory":
+        return {}
+    if kind == "controller":
+        return {k: v for k, v in parameters.items() if k not in CONTROLLER_TUNABLE}
+    return dict(parameters)
+
+
 def emit_model(identifier: str, guid: str, block_class: type, parameters: Mapping[str, object],
                variables: Sequence[Variable], step_sizes: Optional[Sequence[float]] = None) -> str:
     """The C model file of the FMU ``identifier`` (its modelDescription ``variables``), generated from
@@ -476,15 +505,16 @@ def emit_model(identifier: str, guid: str, block_class: type, parameters: Mappin
                              "native form yet; build the Python FMU for it")
         if not step_sizes:
             raise ValueError(f"{identifier}: the actuator's native form needs the step sizes it will be stepped with")
-        body, fixed = _actuator(block, step_sizes), dict(block.params)
+        body = _actuator(block, step_sizes)
     elif kind == "mechanism":
-        body, fixed = _mechanism(block), dict(block.params)
+        body = _mechanism(block)
     elif kind == "controller":
-        body, fixed = _joint_controller(block), dict(block.params)
+        body = _joint_controller(block, vrs)
     elif kind == "trajectory":
-        body, fixed = _trajectory(block, vrs), {}
+        body = _trajectory(block, vrs)
     else:
         raise ValueError(f"{identifier}: {block_class.__name__} has no native form yet")
+    fixed = generated_parameters(block_class, block.params)
     return "".join([_HEAD.format(what=f"{block_class.__module__}.{block_class.__name__}"),
                     _variable_table(variables), "\n",
                     _check_function(block_class.PARAMETERS, vrs, fixed), "\n", body, "\n",

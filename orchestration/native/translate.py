@@ -16,7 +16,8 @@ A generated Python function becomes ``static int NAME(...)``:
 
 - arguments named in ``arrays`` are ``double *`` (read by index, written by slice
   assignment ``x[:] = (...)`` or ``values[k:] = (...)``); the other arguments are doubles;
-- ``return (a, b, ...)`` (the engine's functions) writes ``out[0..]`` and returns 0; ``return
+- ``return (a, b, ...)`` (the engine's functions) writes ``out[0..]`` and returns 0, as does
+  ``return <computed number>`` (``out[0]``; ``float(x)`` and ``math.pi`` are understood); ``return
   k`` (the actuator's status codes) returns k, as does ``return status`` (a status another
   generated function returned: ``status = f(..., ARRAY)``, its results in ARRAY);
 - a call of a check the tracing recorded (``_checkN(...)``) becomes ``if (!(cond)) return
@@ -36,8 +37,10 @@ __all__ = ["TranslationError", "to_c", "c_double"]
 FUNCTIONS = {
     "tanh": "tanh", "exp": "exp", "sin": "sin", "cos": "cos", "sqrt": "sqrt",
     "_sin": "sin", "_cos": "cos", "_sqrt": "sqrt", "_atan2": "atan2", "_hypot": "mast_hypot",
-    "_sign": "mast_sign", "_sgn0": "mast_sgn0", "_abs": "fabs", "abs": "fabs",
+    "_sign": "mast_sign", "_sgn0": "mast_sgn0", "_abs": "fabs", "abs": "fabs", "float": "(double)",
 }
+#: module constants a model's own source may use (``math.pi``)
+CONSTANTS = {("math", "pi"): math.pi, ("math", "e"): math.e}
 
 _BINOPS = {ast.Add: "+", ast.Sub: "-", ast.Mult: "*", ast.Div: "/"}
 _CMPOPS = {ast.Lt: "<", ast.LtE: "<=", ast.Gt: ">", ast.GtE: ">=", ast.Eq: "==", ast.NotEq: "!="}
@@ -86,6 +89,9 @@ class _Writer:
             if node.id in self.arrays:
                 self.fail(node, "an array used as a number")
             return node.id
+        if isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name) \
+                and (node.value.id, node.attr) in CONSTANTS:
+            return c_double(CONSTANTS[node.value.id, node.attr])
         if isinstance(node, ast.BinOp) and isinstance(node.op, ast.Mod):   # tick counters (>= 0): as Python
             return f"fmod({self.expr(node.left)}, {self.expr(node.right)})"
         if isinstance(node, ast.BinOp) and type(node.op) in _BINOPS:
@@ -210,8 +216,11 @@ class _Writer:
                 self.lines.append(f"{indent}return {value.value};")
             elif isinstance(value, ast.Name) and value.id in self.locals:   # a status another function returned
                 self.lines.append(f"{indent}return (int){value.id};")
+            elif isinstance(value, (ast.BinOp, ast.Call, ast.Attribute)):   # one number, as a 1-tuple
+                self.returns_tuple = True
+                self.lines += [f"{indent}out[0] = {self.expr(value)};", f"{indent}return 0;"]
             else:
-                self.fail(node, "return (only a tuple or an integer status)")
+                self.fail(node, "return (only a tuple, an integer status or one computed number)")
         elif isinstance(node, ast.Expr) and isinstance(node.value, ast.Call) and isinstance(node.value.func, ast.Name) \
                 and node.value.func.id in self.checks:
             self.check(node.value, indent)
