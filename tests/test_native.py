@@ -220,22 +220,26 @@ def test_a_pose_within_the_singularity_margin_is_refused_by_both_routes_with_the
     assert messages[0] == messages[1]
 
 
-def test_the_controllers_gains_are_tunable_in_any_host_and_computed_at_initialisation(built):
-    """k_v, k_p, k_i, k_pc, k_ic, i_max, u_max, p, i_r set by the host: the native FMU computes the gains
-    from them with the controller's own functions (drive_gains, cascade_gains, transmission_ratio)."""
-    tuned = {"k_v": 41.5, "k_p": 0.031, "k_i": 2.7, "k_pc": 0.3, "k_ic": 1000.0, "i_max": 3.5, "u_max": 40.0,
-             "p": 0.006, "i_r": 2.5}
+@pytest.mark.parametrize("ident, h, tuned", [
+    # the gains: computed at initialisation by the controller's own drive_gains, cascade_gains, transmission_ratio
+    ("MastController", 1e-4, {"k_v": 41.5, "k_p": 0.031, "k_i": 2.7, "k_pc": 0.3, "k_ic": 1000.0, "i_max": 3.5,
+                              "u_max": 40.0, "p": 0.006, "i_r": 2.5}),
+    # the masses, inertias and g: inputs of the engine's traced forces (Engine.forces_of)
+    ("MastMechanism", 1e-3, {"m_leg": 0.45, "I_leg": 0.003, "m_platform": 3.1, "I_px": 0.011, "I_py": 0.013,
+                             "I_pz": 0.02, "g": 9.7})])
+def test_parameters_read_at_run_time_are_tunable_in_any_host(built, ident, h, tuned):
+    """Set by the host as on the Python FMU (docs/native.md, Parameters): the same outputs, step for step."""
     rows = []
-    for fmu in (built / "fmus" / "MastController.fmu", built / "fmus" / "native" / "MastController.fmu"):
-        inst = Instance(fmu, "controller")
+    for fmu in (built / "fmus" / f"{ident}.fmu", built / "fmus" / "native" / f"{ident}.fmu"):
+        inst = Instance(fmu, "component")
         assert inst.start(tuned) == OK and not [m for s, m in inst.log if s == ERROR]
-        rows.append(drive(inst, 0, 40, seed=3.0))
+        rows.append(drive(inst, 0, 40, h=h, seed=3.0))
         inst.close()
-    default = _native(built, "MastController", "controller")
+    default = _native(built, ident, "component")
     assert default.start() == OK
-    untuned = drive(default, 0, 40, seed=3.0)
+    untuned = drive(default, 0, 40, h=h, seed=3.0)
     default.close()
-    assert np.abs(rows[0] - untuned).max() > 1e-3 * np.abs(untuned).max()     # the gains matter
+    assert np.abs(rows[0] - untuned).max() > 1e-3 * np.abs(untuned).max()     # the parameters matter
     assert np.abs(rows[0] - rows[1]).max() <= TOLERANCE * np.abs(rows[0]).max()   # measured: 0
 
 
@@ -307,7 +311,7 @@ def test_our_master_runs_a_native_system_with_another_parameter_set_like_the_pyt
     python = simulate(built / "ssp" / "MAST.ssp", stimulus, 0.2, parameters=changed)
     native = simulate(built / "ssp" / "native" / "MAST.ssp", stimulus, 0.2, parameters=changed)
     assert _relative_error(python, native) <= TOLERANCE
-    assert len(list(tmp_path.glob("*/*.fmu"))) == 2     # actuator_2's, the mechanism's (k_v is read at run time)
+    assert len(list(tmp_path.glob("*/*.fmu"))) == 1     # actuator_2's (m_platform and k_v are read at run time)
     unchanged = simulate(built / "ssp" / "MAST.ssp", stimulus, 0.2)
     assert _relative_error(python, unchanged) > 1e-3    # the change matters
 

@@ -323,6 +323,15 @@ def describe(params: Mapping[str, object], owner: str = "", masses: bool = True)
     return desc
 
 
+#: the bodies ``describe`` builds, their masses and inertias as the parameters that set them (None: 0 by
+#: construction), and g: the engine's forces with these as inputs (``Engine.forces_of``) read them at run time
+#: in the native FMU (the payload's, which also moves its centre of mass, are not among them)
+_LEG = ("m_leg", ((None, None, None), (None, "I_leg", None), (None, None, "I_leg")))
+INERTIAL_PARAMETERS = {**{f"leg_{i + 1}": _LEG for i in range(3)},
+                       "platform": ("m_platform", (("I_px", None, None), (None, "I_py", None), (None, None, "I_pz")))}
+GRAVITY_PARAMETER = "g"
+
+
 def _check_inclined(desc: PRS3, owner: str) -> None:
     """Inclined guides: the level pose with the sliders at rho = 0 must exist (working assembly, reach)."""
     try:

@@ -12,9 +12,10 @@ A native FMU is made from the Python FMU of the same model (``mast.build``):
   here with the C compiler found as ``$CC``, ``cc`` or ``gcc`` (``-O2 -ffp-contract=off``: the
   same floating-point operations as the Python model, no fused multiply-add).
 
-The generated code has the parameter values inlined, as the Python model's generated code has
-(``models``); so a native FMU is built for the parameter set of the component that uses it, and
-each native SSP carries FMUs built for its own bindings.
+Part of the parameters are read at run time, the others have their values inlined in the
+generated code as in the Python model's (``models.generated_parameters``); so a native FMU is
+built for the inlined parameters of the component that uses it, and each native SSP carries FMUs
+built for its own bindings.
 """
 from __future__ import annotations
 

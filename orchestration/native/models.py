@@ -19,11 +19,12 @@ schedule with ``ControllerBlock``'s position law; the PI steps call ``pi_step``,
 the model's own source). The schedule and the P law are a second statement of the controller's, held bit-identical to the Python model by tests/test_native.py until the
 Python controller runs this generated tick itself (docs/native.md).
 
-Parameters: the trajectory's, and the joint controller's gains, limits and transmission
+Parameters: the trajectory's, the joint controller's gains, limits and transmission
 (``CONTROLLER_TUNABLE``: its gains computed at initialisation by the controller's own
-``drive_gains``/``cascade_gains``, translated), are read at run time. The others have their values
-inlined, as in the Python model (where the actuator's kernel is compiled at the first step and
-the engine traces with the geometry and masses as constants): ``generated_parameters`` names
+``drive_gains``/``cascade_gains``, translated) and the mechanism's masses, inertias and g
+(``MECHANISM_TUNABLE``: inputs of the engine's ``forces_of``) are read at run time. The others
+have their values inlined, as in the Python model (where the actuator's kernel is compiled at
+the first step and the engine traces with the geometry as constants): ``generated_parameters`` names
 them, the C model checks at initialisation that each still has the value it was generated for,
 and refuses another value with a message naming it (the Python model's range checks come first,
 with the same messages). The project's master generates the model for another set of those when
@@ -36,6 +37,7 @@ from dataclasses import dataclass
 from typing import Mapping, Optional, Sequence
 
 from fmus.common.parameters import Param
+from fmus.mechanism.designs import GRAVITY_PARAMETER, INERTIAL_PARAMETERS
 
 from .translate import c_double, to_c
 
@@ -245,10 +247,13 @@ def _guess_source(desc) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _mechanism(block) -> str:
+def _mechanism(block, vrs: Mapping[str, int]) -> str:
     eng = block.engine
     ikjac = eng._fn("ikjac")
-    main = eng._fn("forces") if block.attached else eng._fn("pose")
+    if block.attached:    # the masses, inertias and g read at run time (MECHANISM_TUNABLE)
+        main, tunable = eng.forces_of(INERTIAL_PARAMETERS, GRAVITY_PARAMETER)
+    else:
+        main, tunable = eng._fn("pose"), []
     checks = {**ikjac.namespace, **main.namespace}
     checks = {k: v for k, v in checks.items() if k.startswith("_check")}
     ik_c = to_c(ikjac.source, "ikjac", checks=checks)
@@ -265,7 +270,8 @@ def _mechanism(block) -> str:
           f"{c_double(eng.cond_limit)}, why_text, sizeof why_text)")
     if block.attached:
         call = "dynamics(q[0], q[1], q[2], J[0], J[1], J[2], J[3], J[4], J[5], J[6], J[7], J[8], " \
-               "values[3], values[4], values[5], values[6], values[7], values[8], values + 9)"
+               "values[3], values[4], values[5], values[6], values[7], values[8], " \
+               + "".join(f"p->real[{vrs[name]}], " for name in tunable) + "values + 9)"
         write = [f"    code = {call};"]
     else:
         write = ["    values[9] = 0.0; values[10] = 0.0; values[11] = 0.0;",
@@ -284,7 +290,8 @@ def _mechanism(block) -> str:
         "mast_repr(values[0], a, sizeof a), mast_repr(values[1], b, sizeof b), mast_repr(values[2], c, sizeof c), what);",
         "    return MAST_KINEMATICS_ERROR;", "}", "",
         "/* MechanismBlock._compute: direct kinematics (warm start, else cold), then the forces and the pose */",
-        "static int compute(State *s, double *values, double t, char *msg, size_t size)", "{",
+        "static int compute(State *s, double *values, const mast_parameters *p, double t, char *msg, size_t size)", "{",
+        "    (void)p;",
         "    char v[40], w[40], why_text[1024];",
         "    double q[3], J[9], cold[3];",
         "    int code;",
@@ -310,10 +317,10 @@ def _mechanism(block) -> str:
         "    s->warm = 1;",
         "    return MAST_OK;", "}", "",
         "static int initialize(void *state, double *values, const mast_parameters *p, double t0, char *msg, size_t size)",
-        "{", "    State *s = state;", "    (void)p;", "    s->warm = 0;", "    return compute(s, values, t0, msg, size);",
+        "{", "    State *s = state;", "    s->warm = 0;", "    return compute(s, values, p, t0, msg, size);",
         "}", "",
         "static int do_step(void *state, double *values, const mast_parameters *p, double t, double h, char *msg, size_t size)",
-        "{", "    (void)p;", "    return compute(state, values, t + h, msg, size);", "}", ""])
+        "{", "    return compute(state, values, p, t + h, msg, size);", "}", ""])
 
 
 # ----------------------------------------------------------------------------------- controller
@@ -325,6 +332,10 @@ _S = {"n": 0, "t0": 1, "ik": 2, "pose": 3, "x_v": 6, "x_c": 9, "u": 12, "rho_cmd
 _NS = 32
 #: the joint controller's parameters read at run time (the gains); the others (cycle times, kinematic
 #: model) are in the generated code
+#: the mechanism's parameters read at run time: the masses and inertias of the legs and the platform, and g
+#: (mechanism.designs.INERTIAL_PARAMETERS); the geometry and the payload are in the generated code
+MECHANISM_TUNABLE = frozenset({GRAVITY_PARAMETER} | {name for mass, tensor in INERTIAL_PARAMETERS.values()
+                                                     for name in (mass, *(v for row in tensor for v in row)) if name})
 CONTROLLER_TUNABLE = ("k_v", "k_p", "k_i", "k_pc", "k_ic", "i_max", "u_max", "p", "i_r")
 
 
@@ -481,6 +492,8 @@ def generated_parameters(block_class: type, parameters: Mapping[str, object]) ->
         return {}
     if kind == "controller":
         return {k: v for k, v in parameters.items() if k not in CONTROLLER_TUNABLE}
+    if kind == "mechanism":
+        return {k: v for k, v in parameters.items() if k not in MECHANISM_TUNABLE}
     return dict(parameters)
 
 
@@ -507,7 +520,7 @@ def emit_model(identifier: str, guid: str, block_class: type, parameters: Mappin
             raise ValueError(f"{identifier}: the actuator's native form needs the step sizes it will be stepped with")
         body = _actuator(block, step_sizes)
     elif kind == "mechanism":
-        body = _mechanism(block)
+        body = _mechanism(block, vrs)
     elif kind == "controller":
         body = _joint_controller(block, vrs)
     elif kind == "trajectory":
