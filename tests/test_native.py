@@ -28,8 +28,8 @@ from test_fmi_behaviour import DISCARD, ERROR, OK, Instance, drive
 
 ROOT = Path(__file__).resolve().parents[1]
 NATIVE = ("MastActuator", "MastMechanism", "MastController", "MastTrajectory", "Mast3PRS120", "Mast3PRSInclined",
-          "MastActuatorsOnly")
-SYSTEMS = ("MAST", "MAST_standalone", "MAST_3PRS_120", "MAST_3PRS_inclined", "MAST_actuators_only")
+          "MastActuatorsOnly", "MastFeedForwardController")
+SYSTEMS = ("MAST", "MAST_standalone", "MAST_3PRS_120", "MAST_3PRS_inclined", "MAST_actuators_only", "MAST_feedforward")
 #: native and Python FMUs run the same floating-point operations (mast.native.translate): the issue asks 1e-9
 TOLERANCE = 1e-9
 
@@ -224,6 +224,7 @@ def test_a_pose_within_the_singularity_margin_is_refused_by_both_routes_with_the
     # the gains: computed at initialisation by the controller's own drive_gains, cascade_gains, transmission_ratio
     ("MastController", 1e-4, {"k_v": 41.5, "k_p": 0.031, "k_i": 2.7, "k_pc": 0.3, "k_ic": 1000.0, "i_max": 3.5,
                               "u_max": 40.0, "p": 0.006, "i_r": 2.5}),
+    ("MastFeedForwardController", 1e-4, {"k_v": 41.5, "k_i": 2.7, "k_pc": 0.3, "u_max": 40.0}),
     # the masses, inertias and g: inputs of the engine's traced forces (Engine.forces_of)
     ("MastMechanism", 1e-3, {"m_leg": 0.45, "I_leg": 0.003, "m_platform": 3.1, "I_px": 0.011, "I_py": 0.013,
                              "I_pz": 0.02, "g": 9.7})])
@@ -342,3 +343,10 @@ def test_the_c_backend_computes_what_the_python_computes_branch_for_branch(tmp_p
         for b in grid:
             assert f(a, b, out) == 0
             assert list(out) == list(namespace["f"](a, b)), (a, b)
+    # a slice store that reads the array it writes (a shift register): every value before any store
+    (tmp_path / "g.c").write_text(to_c("def g(x):\n    x[1:] = (x[0], x[1], x[2] + 1.0)\n    return 0\n", "g",
+                                       arrays=("x",), static=False))
+    subprocess.run([compiler(), "-O2", "-shared", "-fPIC", "-o", str(tmp_path / "g.so"), str(tmp_path / "g.c")],
+                   check=True, capture_output=True)
+    x = (ctypes.c_double * 4)(1.0, 2.0, 3.0, 4.0)
+    assert ctypes.CDLL(str(tmp_path / "g.so")).g(x) == 0 and list(x) == [1.0, 1.0, 2.0, 4.0]

@@ -328,8 +328,11 @@ def _mechanism(block, vrs: Mapping[str, int]) -> str:
 #: ("failed": the tick whose inverse kinematics failed, for the message), then the gains computed at
 #: initialisation from the parameters (``gains``: cascade_gains, then drive_gains)
 _S = {"n": 0, "t0": 1, "ik": 2, "pose": 3, "x_v": 6, "x_c": 9, "u": 12, "rho_cmd": 15, "omega_cmd": 18, "i_cmd": 21,
-      "failed": 24, "gains": 25}
-_NS = 32
+      "failed": 24, "gains": 25,
+      # the feed-forward controller: JointReference's samples (newest first) and their count, i_ff, the
+      # inverse model's direct-kinematics guess (valid flag, pose) and the arguments of a failed evaluation
+      "hist": 32, "k": 44, "i_ff": 45, "warm": 48, "guess": 49, "model_args": 52}
+_NS = 61
 #: the joint controller's parameters read at run time (the gains); the others (cycle times, kinematic
 #: model) are in the generated code
 #: the mechanism's parameters read at run time: the masses and inertias of the legs and the platform, and g
@@ -337,13 +340,40 @@ _NS = 32
 MECHANISM_TUNABLE = frozenset({GRAVITY_PARAMETER} | {name for mass, tensor in INERTIAL_PARAMETERS.values()
                                                      for name in (mass, *(v for row in tensor for v in row)) if name})
 CONTROLLER_TUNABLE = ("k_v", "k_p", "k_i", "k_pc", "k_ic", "i_max", "u_max", "p", "i_r")
+#: the feed-forward controller's: the transmission (p, i_r) is also in its inlined inverse model
+FEEDFORWARD_TUNABLE = ("k_v", "k_p", "k_i", "k_pc", "k_ic", "i_max", "u_max")
+#: a failure of the feed-forward controller's inverse model (its direct kinematics or dynamics)
+_MODEL_FAILED = 1000
 
 
-def _pi_lines(out: str, x: str, e: str, k_p: str, k_iT: str, limit: str, indent: str) -> list[str]:
-    """A call of ``controller.model.pi_step`` (translated from its own source), offset 0.0 as the joint
-    cascade passes it; its results land in the scratch array PI."""
+def _pi_lines(out: str, x: str, e: str, k_p: str, k_iT: str, limit: str, indent: str,
+              offset: str = "0.0") -> list[str]:
+    """A call of ``controller.model.pi_step`` (translated from its own source); its results land in
+    the scratch array PI."""
     i = indent
-    return [f"{i}c = pi_step({e}, {x}, {k_p}, {k_iT}, {limit}, 0.0, PI)", f"{i}{out} = PI[0]", f"{i}{x} = PI[1]"]
+    return [f"{i}c = pi_step({e}, {x}, {k_p}, {k_iT}, {limit}, {offset}, PI)", f"{i}{out} = PI[0]",
+            f"{i}{x} = PI[1]"]
+
+
+def _feedforward_lines(block, indent: str) -> list[str]:
+    """FeedForwardController's additions at a position tick, after the IK and the P law: the reference's
+    new sample and rates (reference.rates), the velocity feed-forward, the inverse model's currents."""
+    i, H, K = indent, _S["hist"], _S["k"]
+    old = ", ".join(f"S[{H + k}]" for k in range(9))
+    lines = [f"{i}S[{H + 3}:] = ({old})", f"{i}S[{H}:] = (rc0, rc1, rc2)",
+             f"{i}k = S[{K}] + 1.0", f"{i}if k > 4.0: k = 4.0", f"{i}S[{K}:] = (k,)"]
+    for j in range(3):
+        lines += [f"{i}c = rates(k, rc{j}, S[{H + 3 + j}], S[{H + 6 + j}], S[{H + 9 + j}], {block.reference.T!r}, RT)",
+                  f"{i}rd{j} = RT[0]", f"{i}rdd{j} = RT[1]",
+                  f"{i}oc{j} = oc{j} + {block._kff_v_iR!r}*rd{j}"]
+    if block._kff_tau:
+        lines += [f"{i}c = currents(rc0, rc1, rc2, rd0, rd1, rd2, rdd0, rdd1, rdd2, S, CUR)",
+                  f"{i}if c != 0:",
+                  f"{i}    S[{_S['failed']}:] = (n,)",
+                  f"{i}    S[{_S['model_args']}:] = (rc0, rc1, rc2, rd0, rd1, rd2, rdd0, rdd1, rdd2)",
+                  f"{i}    return {_MODEL_FAILED}"]
+        lines += [f"{i}if{j} = {block._kff_tau!r}*CUR[{j}]" for j in range(3)]
+    return lines
 
 
 def _ik_lines(indent: str) -> list[str]:
@@ -362,24 +392,28 @@ def _ik_lines(indent: str) -> list[str]:
 def _joint_sources(block) -> tuple[str, str]:
     """The joint cascade's start (``initialize`` after the reset) and ``m`` ticks (``do_step``), in the
     generated-code subset: ControllerBlock's laws and DriveController's schedule (controller/model.py)."""
+    ff = hasattr(block, "_kff_tau")     # FeedForwardController
     names = {k: [f"{p}{j}" for j in range(3)] for k, p in
              (("x_v", "xv"), ("x_c", "xc"), ("u", "u"), ("rho_cmd", "rc"), ("omega_cmd", "oc"), ("i_cmd", "ic"))}
     unpack = [f"    {v} = S[{_S[k] + j}]" for k, vs in names.items() for j, v in enumerate(vs)]
+    unpack += [f"    if{j} = S[{_S['i_ff'] + j}]" for j in range(3)] if ff else []
     state = ", ".join(v for vs in names.values() for v in vs)
-    store = [f"    S[{_S['x_v']}:] = ({state})",
+    store = [f"    S[{_S['x_v']}:] = ({state})", *([f"    S[{_S['i_ff']}:] = (if0, if1, if2)"] if ff else []),
              f"    values[12:] = ({', '.join(names['u'] + names['rho_cmd'] + names['omega_cmd'] + names['i_cmd'])})",
              "    return 0"]
     start = ["def start(values, S, R):", "    n = 0.0", *unpack, *_ik_lines("    "), *store]
     kv_iR, kp, kiT, kpc, kicT, i_max, u_max = (f"S[{_S['gains'] + k}]" for k in range(7))
     body = [f"        if n % {float(block._N_pos)!r} == 0.0:", *_ik_lines("            ")]
     body += [f"            oc{j} = {kv_iR}*(rc{j} - values[{3 + j}])" for j in range(3)]
+    body += _feedforward_lines(block, "            ") if ff else []
     body.append(f"        if n % {float(block._N_vel)!r} == 0.0:")
-    for j in range(3):    # velocity PI with the feed-forward current i_ff = 0.0 (the joint cascade has none)
-        body += _pi_lines(f"ic{j}", f"xv{j}", f"oc{j} - values[{6 + j}]", kp, kiT, i_max, "            ")
+    for j in range(3):    # velocity PI with the feed-forward current i_ff (0.0: the joint cascade has none)
+        body += _pi_lines(f"ic{j}", f"xv{j}", f"oc{j} - values[{6 + j}]", kp, kiT, i_max, "            ",
+                          f"if{j}" if ff else "0.0")
     for j in range(3):
         body += _pi_lines(f"u{j}", f"xc{j}", f"ic{j} - values[{9 + j}]", kpc, kicT, u_max, "        ")
     body.append("        n = n + 1.0")
-    ticks = ["def ticks(values, S, R, PI, m):", f"    n = S[{_S['n']}]", *unpack, "    for _ in range(m):", *body,
+    ticks = ["def ticks(values, S, R, PI, RT, CUR, m):", f"    n = S[{_S['n']}]", *unpack, "    for _ in range(m):", *body,
              "    S[0:] = (n,)", *store]
     return "\n".join(start) + "\n", "\n".join(ticks) + "\n"
 
@@ -388,10 +422,13 @@ def _joint_controller(block, vrs: Mapping[str, int]) -> str:
     import inspect
 
     from fmus.actuator.model import transmission_ratio
+    from fmus.controller.feedforward import FeedForwardController
     from fmus.controller.model import ControllerBlock, cascade_gains, drive_gains, pi_step
 
-    if type(block) is not ControllerBlock:
-        raise ValueError(f"{type(block).__name__} has no native form yet (the joint cascade ControllerBlock has)")
+    if type(block) not in (ControllerBlock, FeedForwardController):
+        raise ValueError(f"{type(block).__name__} has no native form yet (ControllerBlock and "
+                         "FeedForwardController have)")
+    ff = type(block) is FeedForwardController
     ik = block.kinematics._fn("ik")
     checks = {k: v for k, v in ik.namespace.items() if k.startswith("_check")}
     start, ticks = _joint_sources(block)
@@ -410,8 +447,9 @@ def _joint_controller(block, vrs: Mapping[str, int]) -> str:
         to_c(inspect.getsource(transmission_ratio), "transmission_ratio"),
         to_c(inspect.getsource(cascade_gains), "cascade_gains"),
         to_c(inspect.getsource(drive_gains), "drive_gains"),
+        _inverse_model(block) if ff else "",
         to_c(start, "start", arrays=("values", "S", "R"), calls=("ik",)),
-        to_c(ticks, "ticks", arrays=("values", "S", "R", "PI"), calls=("ik", "pi_step")),
+        to_c(ticks, "ticks", arrays=("values", "S", "R", "PI", "RT", "CUR"), calls=("ik", "pi_step", "rates", "currents")),
         "static const char *why(int check)", "{", "    switch (check) {", messages,
         "    default: return \"a check of the description failed\";", "    }", "}", "",
         f"static const char *const INPUT_NAMES[] = {{{inputs}}};", "",
@@ -432,15 +470,16 @@ def _joint_controller(block, vrs: Mapping[str, int]) -> str:
         "{", "    State *s = state;", "    double R[3];",
         f"    for (int k = 0; k < {_NS}; k++) s->S[k] = 0.0;",
         f"    s->S[{_S['t0']}] = t0;",
-        "    double i_R[1];   /* the gains from the parameters, by the controller's own functions */",
-        f"    transmission_ratio({P('p')}, {P('i_r')}, i_R);",
-        f"    cascade_gains({P('k_v')}, {P('k_p')}, {P('k_i')}, {P('T_vel')}, i_R[0], s->S + {_S['gains']});",
+        "    /* the gains from the parameters, by the controller's own functions */",
+        f"    cascade_gains({P('k_v')}, {P('k_p')}, {P('k_i')}, {P('T_vel')}, "
+        f"transmission_ratio({P('p')}, {P('i_r')}), s->S + {_S['gains']});",
         f"    drive_gains({P('k_pc')}, {P('k_ic')}, {P('T_cur')}, {P('i_max')}, {P('u_max')}, s->S + {_S['gains'] + 3});",
         "    if (input_error(values, t0, msg, size)) return MAST_MODEL_ERROR;",
         "    int code = start(values, s->S, R);",
         "    return code ? ik_error(values, t0, -code, msg, size) : MAST_OK;", "}", "",
         "static int do_step(void *state, double *values, const mast_parameters *p, double t, double h, char *msg, size_t size)",
-        "{", "    State *s = state;", "    double R[3], PI[2];", "    char a[40], b[40], c[40];", "    (void)p;",
+        "{", "    State *s = state;", "    double R[3], PI[2], RT[2], CUR[3];", "    char a[40], b[40], c[40];",
+        "    (void)p;",
         f"    double m = nearbyint(h / {T});",
         f"    if (m < 1.0 || fabs(h - m * {T}) > 1e-6 * {T}) {{",
         "        snprintf(msg, size, \"step size h = %s s is not a positive integer multiple of T_cur = %s s\", "
@@ -454,9 +493,80 @@ def _joint_controller(block, vrs: Mapping[str, int]) -> str:
         "    double sum = 0.0;",
         "    for (int k = 0; k < 12; k++) sum += values[k];",
         "    if (sum - sum != 0.0 && input_error(values, t, msg, size)) return MAST_MODEL_ERROR;",
-        "    int code = ticks(values, s->S, R, PI, m);",
+        "    int code = ticks(values, s->S, R, PI, RT, CUR, m);",
+        *([f"    if (code == {_MODEL_FAILED}) return model_error(s->S, msg, size);"] if ff else []),
         f"    if (code) return ik_error(values, t0 + s->S[{_S['failed']}] * {T}, -code, msg, size);",
         "    return MAST_OK;", "}", ""])
+
+
+def _inverse_model(block) -> str:
+    """FeedForwardController's inverse model (InverseModel.currents) in C: the engine's direct
+    kinematics (warm start, else cold, as InverseModel.torques) and traced dynamics, then
+    ``motor_torque`` and ``guide_friction`` translated from their own source. ``currents`` is what the
+    tick calls; ``model_error`` makes the message of a failed evaluation by running it again (the
+    guess is only updated on success, so it fails the same way)."""
+    import inspect
+
+    from fmus.actuator.model import guide_friction
+    from fmus.controller.inverse_model import motor_torque
+    from fmus.controller.reference import rates
+
+    model = block.model
+    parts = [to_c(inspect.getsource(rates), "rates"),
+             to_c(inspect.getsource(guide_friction), "guide_friction"),
+             to_c(inspect.getsource(motor_torque), "motor_torque", values=("guide_friction",))]
+    torque = ", ".join(f"{float(v)!r}" for v in (model.J, model.i_R, model.b_v, model.weight, *model._friction))
+    W, G, A = _S["warm"], _S["guess"], _S["model_args"]
+    if model.engine is None:    # attached = 0: no mechanism forces
+        dynamics = ["    double F[3] = {0.0, 0.0, 0.0};", "    (void)S; (void)msg; (void)size;"]
+    else:
+        eng = model.engine
+        ikjac, forces = eng._fn("ikjac"), eng._fn("forces")
+        checks = {k: v for k, v in {**ikjac.namespace, **forces.namespace}.items() if k.startswith("_check")}
+        messages = "\n".join(f"    case {int(k.replace('_check', ''))}: return {_literal(v.c_message)};"
+                             for k, v in sorted(checks.items()))
+        coordinates = ", ".join(_literal(n) for n in eng.description.coordinates)
+        lengths = ", ".join(c_double(v) for v in eng.lengths)
+        dk = (f"mast_dk3(m_ikjac, why_model, M_COORDINATES, M_LENGTHS, {c_double(eng.margin)}, a, q, J, 1e-12, 50, "
+              f"{c_double(eng.cond_limit)}, msg, size)")
+        parts += [to_c(ikjac.source, "m_ikjac", checks=checks), to_c(forces.source, "m_dynamics", checks=checks),
+                  to_c(_guess_source(eng.description), "guess", arrays=("rho",)),
+                  "static const char *why_model(int check)", "{", "    switch (check) {", messages,
+                  "    default: return \"a check of the description failed\";", "    }", "}",
+                  f"static const char *const M_COORDINATES[] = {{{coordinates}}};",
+                  f"static const double M_LENGTHS[] = {{{lengths}}};", ""]
+        dynamics = [
+            "    double q[3], J[9], cold[3], F[12];",
+            "    guess((double *)a, cold);",
+            f"    for (int k = 0; k < 3; k++) q[k] = S[{W}] == 1.0 ? S[{G} + k] : cold[k];",
+            f"    int code = {dk};",
+            f"    if (code && code != MAST_SINGULARITY_ERROR && S[{W}] == 1.0) {{   /* never restarted after a SingularityError */",
+            "        for (int k = 0; k < 3; k++) q[k] = cold[k];",
+            f"        code = {dk};", "    }",
+            "    if (code) return code;",
+            "    code = m_dynamics(q[0], q[1], q[2], J[0], J[1], J[2], J[3], J[4], J[5], J[6], J[7], J[8], "
+            "a[3], a[4], a[5], a[6], a[7], a[8], F);",
+            "    if (code) {", "        snprintf(msg, size, \"%s\", why_model(-code));", "        return MAST_KINEMATICS_ERROR;", "    }",
+            f"    for (int k = 0; k < 3; k++) S[{G} + k] = q[k];", f"    S[{W}] = 1.0;"]
+    parts += [
+        "/* InverseModel.currents at a = (rho, rho_dot, rho_ddot); 0, or an error code with msg */",
+        "static int model_eval(const double *a, double *S, double *out, char *msg, size_t size)", "{",
+        *dynamics,
+        f"    for (int j = 0; j < 3; j++) out[j] = motor_torque(a[3 + j], a[6 + j], F[j], {torque}) / "
+        f"{float(model.k_T)!r};",
+        "    return 0;", "}", "",
+        "static int currents(double r0, double r1, double r2, double v0, double v1, double v2, double a0, double a1, "
+        "double a2, double *S, double *out)", "{",
+        "    double a[9] = {r0, r1, r2, v0, v1, v2, a0, a1, a2};", "    char text[1024];",
+        "    return model_eval(a, S, out, text, sizeof text);", "}", "",
+        "static int model_error(double *S, char *msg, size_t size)", "{",
+        "    double out[3], a[9];", "    char text[1024], r0[40], r1[40], r2[40];",
+        f"    for (int k = 0; k < 9; k++) a[k] = S[{A} + k];",
+        "    model_eval(a, S, out, text, sizeof text);",
+        "    snprintf(msg, size, \"inverse dynamic model at rho = (%s, %s, %s) m: %s\", mast_repr(a[0], r0, sizeof r0), "
+        "mast_repr(a[1], r1, sizeof r1), mast_repr(a[2], r2, sizeof r2), text);",
+        "    return MAST_KINEMATICS_ERROR;", "}", ""]
+    return "\n".join(parts)
 
 
 # ----------------------------------------------------------------------------------- trajectory
@@ -491,7 +601,8 @@ def generated_parameters(block_class: type, parameters: Mapping[str, object]) ->
     if kind == "trajectory":
         return {}
     if kind == "controller":
-        return {k: v for k, v in parameters.items() if k not in CONTROLLER_TUNABLE}
+        tunable = CONTROLLER_TUNABLE if block_class.__name__ == "ControllerBlock" else FEEDFORWARD_TUNABLE
+        return {k: v for k, v in parameters.items() if k not in tunable}
     if kind == "mechanism":
         return {k: v for k, v in parameters.items() if k not in MECHANISM_TUNABLE}
     return dict(parameters)

@@ -16,8 +16,10 @@ A generated Python function becomes ``static int NAME(...)``:
 
 - arguments named in ``arrays`` are ``double *`` (read by index, written by slice
   assignment ``x[:] = (...)`` or ``values[k:] = (...)``); the other arguments are doubles;
-- ``return (a, b, ...)`` (the engine's functions) writes ``out[0..]`` and returns 0, as does
-  ``return <computed number>`` (``out[0]``; ``float(x)`` and ``math.pi`` are understood); ``return
+- ``return (a, b, ...)`` (the engine's functions) writes ``out[0..]`` and returns 0; a function
+  returning one computed number is a ``static double`` value function, callable in the
+  expressions of others (``values``); ``float(x)``, ``math.pi``, ``math.exp(x)``, ``x ** y`` (libm's
+  ``pow``, as Python's float power) are understood; ``return
   k`` (the actuator's status codes) returns k, as does ``return status`` (a status another
   generated function returned: ``status = f(..., ARRAY)``, its results in ARRAY);
 - a call of a check the tracing recorded (``_checkN(...)``) becomes ``if (!(cond)) return
@@ -65,15 +67,17 @@ def c_double(value: float) -> str:
 
 class _Writer:
     def __init__(self, name: str, arrays: Sequence[str], checks: Mapping[str, object],
-                 calls: Sequence[str] = ()) -> None:
+                 calls: Sequence[str] = (), values: Sequence[str] = ()) -> None:
         self.name = name
         self.calls = set(calls)
+        self.values = set(values)
         self.arrays = set(arrays)
         self.checks = checks
         self.locals: dict[str, None] = {}
         self.lines: list[str] = []
         self.loops = 0
         self.returns_tuple = False
+        self.returns_value = False
 
     def fail(self, node: ast.AST, what: str) -> None:
         raise TranslationError(f"{self.name}: line {getattr(node, 'lineno', '?')}: {what}: "
@@ -116,9 +120,14 @@ class _Writer:
             return "(" + op.join(self.expr(v) for v in node.values) + ")"
         if isinstance(node, ast.IfExp):
             return f"({self.expr(node.test)} ? {self.expr(node.body)} : {self.expr(node.orelse)})"
-        if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id in FUNCTIONS \
-                and not node.keywords:
-            return f"{FUNCTIONS[node.func.id]}({', '.join(self.expr(a) for a in node.args)})"
+        if isinstance(node, ast.BinOp) and isinstance(node.op, ast.Pow):     # Python's float ** is libm's pow
+            return f"pow({self.expr(node.left)}, {self.expr(node.right)})"
+        if isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) and isinstance(node.func.value, ast.Name) \
+                and node.func.value.id == "math" and node.func.attr in FUNCTIONS and not node.keywords:
+            return f"{FUNCTIONS[node.func.attr]}({', '.join(self.expr(a) for a in node.args)})"
+        if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and not node.keywords \
+                and (node.func.id in FUNCTIONS or node.func.id in self.values):
+            return f"{FUNCTIONS.get(node.func.id, node.func.id)}({', '.join(self.expr(a) for a in node.args)})"
         if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id in self.calls \
                 and not node.keywords:     # another generated function: status code, results in its array argument
             args = [a.id if isinstance(a, ast.Name) and a.id in self.arrays else self.expr(a) for a in node.args]
@@ -143,8 +152,12 @@ class _Writer:
                 and sl.upper is None and sl.step is None and isinstance(value, ast.Tuple)):
             self.fail(node, "slice assignment (only ARRAY[k:] = (a, b, ...))")
         start = 0 if sl.lower is None else sl.lower.value
-        # values first, then stores: the right-hand side may read the array
+        # values first, then stores: the right-hand side may read the array (then through temporaries)
         temps = [self.expr(e) for e in value.elts]
+        if any(f"{target.value.id}[" in text for text in temps):
+            for k, text in enumerate(temps):
+                self.assign_local(f"st{k}", text, indent)
+            temps = [f"st{k}" for k in range(len(temps))]
         for k, text in enumerate(temps):
             self.lines.append(f"{indent}{target.value.id}[{start + k}] = {text};")
 
@@ -216,9 +229,9 @@ class _Writer:
                 self.lines.append(f"{indent}return {value.value};")
             elif isinstance(value, ast.Name) and value.id in self.locals:   # a status another function returned
                 self.lines.append(f"{indent}return (int){value.id};")
-            elif isinstance(value, (ast.BinOp, ast.Call, ast.Attribute)):   # one number, as a 1-tuple
-                self.returns_tuple = True
-                self.lines += [f"{indent}out[0] = {self.expr(value)};", f"{indent}return 0;"]
+            elif isinstance(value, (ast.BinOp, ast.Call, ast.Attribute, ast.IfExp)):   # a value function
+                self.returns_value = True
+                self.lines.append(f"{indent}return {self.expr(value)};")
             else:
                 self.fail(node, "return (only a tuple, an integer status or one computed number)")
         elif isinstance(node, ast.Expr) and isinstance(node.value, ast.Call) and isinstance(node.value.func, ast.Name) \
@@ -241,15 +254,16 @@ class _Writer:
 
 
 def to_c(source: str, name: str, arrays: Sequence[str] = (), checks: Mapping[str, Callable] = (),
-         static: bool = True, calls: Sequence[str] = ()) -> str:
+         static: bool = True, calls: Sequence[str] = (), values: Sequence[str] = ()) -> str:
     """C of the one generated Python function in ``source`` (module docstring), named ``name``;
-    ``calls``: other generated functions it may call (``status = f(..., ARRAY)``)."""
+    ``calls``: other generated functions it may call (``status = f(..., ARRAY)``); ``values``: value
+    functions (one computed number) it may call in an expression."""
     tree = ast.parse(textwrap.dedent(source))
     functions = [n for n in tree.body if isinstance(n, ast.FunctionDef)]
     if len(functions) != 1 or len(tree.body) != 1:
         raise TranslationError(f"{name}: expected one generated function, found {len(tree.body)} statements")
     fn = functions[0]
-    w = _Writer(name, arrays, dict(checks or {}), calls)
+    w = _Writer(name, arrays, dict(checks or {}), calls, values)
     body = fn.body
     if body and isinstance(body[0], ast.Expr) and isinstance(body[0].value, ast.Constant) \
             and isinstance(body[0].value.value, str):
@@ -259,7 +273,9 @@ def to_c(source: str, name: str, arrays: Sequence[str] = (), checks: Mapping[str
     args = [f"double *{a.arg}" if a.arg in w.arrays else f"double {a.arg}" for a in fn.args.args]
     if w.returns_tuple:
         args.append("double *out")
-    head = f"{'static ' if static else ''}int {name}({', '.join(args)})"
+    if w.returns_value and (w.returns_tuple or any(line.strip().startswith("return 0;") for line in w.lines)):
+        raise TranslationError(f"{name}: returns a number on one path and a status or tuple on another")
+    head = f"{'static ' if static else ''}{'double' if w.returns_value else 'int'} {name}({', '.join(args)})"
     decl = []
     names = [n for n in w.locals if n not in {a.arg for a in fn.args.args}]   # scalar arguments are assignable
     for k in range(0, len(names), 8):
