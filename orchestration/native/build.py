@@ -177,12 +177,11 @@ def build_native_fmu(identifier: str, python_fmu: Path, out_dir: Path, parameter
 def has_native_form(identifier: str) -> bool:
     """Whether ``mast build --native`` can make this FMU (the models of ``models.emit_model``)."""
     from ..build import block_class
-    from fmus.controller.feedforward import FeedForwardController
-    from fmus.controller.model import ControllerBlock
+    from .models import native_controllers
 
     cls = block_class(identifier)
     kind = cls.__module__.split(".")[-2]
-    return kind in ("actuator", "mechanism", "trajectory") or cls in (ControllerBlock, FeedForwardController)
+    return kind in ("actuator", "mechanism", "trajectory") or cls in native_controllers()
 
 
 def _component_sets(ssd: Path) -> dict[str, tuple[str, dict, Optional[float]]]:

@@ -331,8 +331,10 @@ _S = {"n": 0, "t0": 1, "ik": 2, "pose": 3, "x_v": 6, "x_c": 9, "u": 12, "rho_cmd
       "failed": 24, "gains": 25,
       # the feed-forward controller: JointReference's samples (newest first) and their count, i_ff, the
       # inverse model's direct-kinematics guess (valid flag, pose) and the arguments of a failed evaluation
-      "hist": 32, "k": 44, "i_ff": 45, "warm": 48, "guess": 49, "model_args": 52}
-_NS = 61
+      "hist": 32, "k": 44, "i_ff": 45, "warm": 48, "guess": 49, "model_args": 52,
+      # the computed-torque controller: the reference's rates (rho_dot_ref, rho_ddot_ref), kept between ticks
+      "rates": 61}
+_NS = 67
 #: the joint controller's parameters read at run time (the gains); the others (cycle times, kinematic
 #: model) are in the generated code
 #: the mechanism's parameters read at run time: the masses and inertias of the legs and the platform, and g
@@ -342,6 +344,8 @@ MECHANISM_TUNABLE = frozenset({GRAVITY_PARAMETER} | {name for mass, tensor in IN
 CONTROLLER_TUNABLE = ("k_v", "k_p", "k_i", "k_pc", "k_ic", "i_max", "u_max", "p", "i_r")
 #: the feed-forward controller's: the transmission (p, i_r) is also in its inlined inverse model
 FEEDFORWARD_TUNABLE = ("k_v", "k_p", "k_i", "k_pc", "k_ic", "i_max", "u_max")
+#: the computed-torque controller's: the drive's gains and limits (no cascade gains; p, i_r in its model)
+COMPUTED_TORQUE_TUNABLE = ("k_pc", "k_ic", "i_max", "u_max")
 #: a failure of the feed-forward controller's inverse model (its direct kinematics or dynamics)
 _MODEL_FAILED = 1000
 
@@ -355,24 +359,47 @@ def _pi_lines(out: str, x: str, e: str, k_p: str, k_iT: str, limit: str, indent:
             f"{i}{x} = PI[1]"]
 
 
-def _feedforward_lines(block, indent: str) -> list[str]:
-    """FeedForwardController's additions at a position tick, after the IK and the P law: the reference's
-    new sample and rates (reference.rates), the velocity feed-forward, the inverse model's currents."""
-    i, H, K = indent, _S["hist"], _S["k"]
+def _reference_lines(block, indent: str) -> list[str]:
+    """JointReference.update at a position tick (after the IK): the new sample rho_cmd, then the rates
+    rd_j, rdd_j (reference.rates, translated), kept in S[rates]."""
+    i, H, K, Q = indent, _S["hist"], _S["k"], _S["rates"]
     old = ", ".join(f"S[{H + k}]" for k in range(9))
     lines = [f"{i}S[{H + 3}:] = ({old})", f"{i}S[{H}:] = (rc0, rc1, rc2)",
              f"{i}k = S[{K}] + 1.0", f"{i}if k > 4.0: k = 4.0", f"{i}S[{K}:] = (k,)"]
     for j in range(3):
         lines += [f"{i}c = rates(k, rc{j}, S[{H + 3 + j}], S[{H + 6 + j}], S[{H + 9 + j}], {block.reference.T!r}, RT)",
-                  f"{i}rd{j} = RT[0]", f"{i}rdd{j} = RT[1]",
-                  f"{i}oc{j} = oc{j} + {block._kff_v_iR!r}*rd{j}"]
+                  f"{i}S[{Q + j}:] = (RT[0],)", f"{i}S[{Q + 3 + j}:] = (RT[1],)"]
+    return lines
+
+
+def _currents_lines(args: str, indent: str) -> list[str]:
+    """InverseModel.currents(args) into CUR; a failure ends the ticks (its message: ``model_error``)."""
+    i = indent
+    return [f"{i}c = currents({args}, S, CUR)", f"{i}if c != 0:", f"{i}    S[{_S['failed']}:] = (n,)",
+            f"{i}    S[{_S['model_args']}:] = ({args})", f"{i}    return {_MODEL_FAILED}"]
+
+
+def _feedforward_lines(block, indent: str) -> list[str]:
+    """FeedForwardController's position law after the P law: velocity feed-forward, the inverse model's
+    currents on the reference (i_ff)."""
+    i, Q = indent, _S["rates"]
+    lines = [f"{i}oc{j} = oc{j} + {block._kff_v_iR!r}*S[{Q + j}]" for j in range(3)]
     if block._kff_tau:
-        lines += [f"{i}c = currents(rc0, rc1, rc2, rd0, rd1, rd2, rdd0, rdd1, rdd2, S, CUR)",
-                  f"{i}if c != 0:",
-                  f"{i}    S[{_S['failed']}:] = (n,)",
-                  f"{i}    S[{_S['model_args']}:] = (rc0, rc1, rc2, rd0, rd1, rd2, rdd0, rdd1, rdd2)",
-                  f"{i}    return {_MODEL_FAILED}"]
+        lines += _currents_lines(", ".join([f"rc{j}" for j in range(3)] + [f"S[{Q + k}]" for k in range(6)]), i)
         lines += [f"{i}if{j} = {block._kff_tau!r}*CUR[{j}]" for j in range(3)]
+    return lines
+
+
+def _computed_torque_lines(block, indent: str) -> list[str]:
+    """ComputedTorqueController._velocity_law: the model's currents at the measured state for the
+    acceleration a = rho_ddot_ref + K_D e_dot + K_P e, limited to i_max."""
+    i, Q, i_R, i_max = indent, _S["rates"], block.i_R, f"S[{_S['gains'] + 5}]"
+    lines = [f"{i}rdm{j} = {i_R!r}*values[{6 + j}]" for j in range(3)]
+    lines += [f"{i}acc{j} = S[{Q + 3 + j}] + {block.K_D!r}*(S[{Q + j}] - rdm{j}) + {block.K_P!r}*(rc{j} - values[{3 + j}])"
+              for j in range(3)]
+    lines += _currents_lines("values[3], values[4], values[5], rdm0, rdm1, rdm2, acc0, acc1, acc2", i)
+    lines += [f"{i}ic{j} = {i_max} if CUR[{j}] > {i_max} else (-{i_max} if CUR[{j}] < -{i_max} else CUR[{j}])"
+              for j in range(3)]
     return lines
 
 
@@ -393,6 +420,7 @@ def _joint_sources(block) -> tuple[str, str]:
     """The joint cascade's start (``initialize`` after the reset) and ``m`` ticks (``do_step``), in the
     generated-code subset: ControllerBlock's laws and DriveController's schedule (controller/model.py)."""
     ff = hasattr(block, "_kff_tau")     # FeedForwardController
+    ct = hasattr(block, "K_P")          # ComputedTorqueController
     names = {k: [f"{p}{j}" for j in range(3)] for k, p in
              (("x_v", "xv"), ("x_c", "xc"), ("u", "u"), ("rho_cmd", "rc"), ("omega_cmd", "oc"), ("i_cmd", "ic"))}
     unpack = [f"    {v} = S[{_S[k] + j}]" for k, vs in names.items() for j, v in enumerate(vs)]
@@ -404,10 +432,16 @@ def _joint_sources(block) -> tuple[str, str]:
     start = ["def start(values, S, R):", "    n = 0.0", *unpack, *_ik_lines("    "), *store]
     kv_iR, kp, kiT, kpc, kicT, i_max, u_max = (f"S[{_S['gains'] + k}]" for k in range(7))
     body = [f"        if n % {float(block._N_pos)!r} == 0.0:", *_ik_lines("            ")]
-    body += [f"            oc{j} = {kv_iR}*(rc{j} - values[{3 + j}])" for j in range(3)]
+    body += _reference_lines(block, "            ") if ff or ct else []
+    if ct:              # omega_cmd reports the reference speed
+        body += [f"            oc{j} = S[{_S['rates'] + j}]/{block.i_R!r}" for j in range(3)]
+    else:
+        body += [f"            oc{j} = {kv_iR}*(rc{j} - values[{3 + j}])" for j in range(3)]
     body += _feedforward_lines(block, "            ") if ff else []
     body.append(f"        if n % {float(block._N_vel)!r} == 0.0:")
-    for j in range(3):    # velocity PI with the feed-forward current i_ff (0.0: the joint cascade has none)
+    if ct:
+        body += _computed_torque_lines(block, "            ")
+    for j in range(0 if ct else 3):    # velocity PI with the feed-forward current i_ff (0.0: the cascade has none)
         body += _pi_lines(f"ic{j}", f"xv{j}", f"oc{j} - values[{6 + j}]", kp, kiT, i_max, "            ",
                           f"if{j}" if ff else "0.0")
     for j in range(3):
@@ -422,13 +456,12 @@ def _joint_controller(block, vrs: Mapping[str, int]) -> str:
     import inspect
 
     from fmus.actuator.model import transmission_ratio
-    from fmus.controller.feedforward import FeedForwardController
     from fmus.controller.model import ControllerBlock, cascade_gains, drive_gains, pi_step
 
-    if type(block) not in (ControllerBlock, FeedForwardController):
-        raise ValueError(f"{type(block).__name__} has no native form yet (ControllerBlock and "
-                         "FeedForwardController have)")
-    ff = type(block) is FeedForwardController
+    if type(block) not in native_controllers():
+        raise ValueError(f"{type(block).__name__} has no native form yet")
+    model = hasattr(block, "model")     # the feed-forward and computed-torque controllers' inverse model
+    cascade = type(block) is not native_controllers()[2]
     ik = block.kinematics._fn("ik")
     checks = {k: v for k, v in ik.namespace.items() if k.startswith("_check")}
     start, ticks = _joint_sources(block)
@@ -447,7 +480,7 @@ def _joint_controller(block, vrs: Mapping[str, int]) -> str:
         to_c(inspect.getsource(transmission_ratio), "transmission_ratio"),
         to_c(inspect.getsource(cascade_gains), "cascade_gains"),
         to_c(inspect.getsource(drive_gains), "drive_gains"),
-        _inverse_model(block) if ff else "",
+        _inverse_model(block) if model else "",
         to_c(start, "start", arrays=("values", "S", "R"), calls=("ik",)),
         to_c(ticks, "ticks", arrays=("values", "S", "R", "PI", "RT", "CUR"), calls=("ik", "pi_step", "rates", "currents")),
         "static const char *why(int check)", "{", "    switch (check) {", messages,
@@ -471,8 +504,8 @@ def _joint_controller(block, vrs: Mapping[str, int]) -> str:
         f"    for (int k = 0; k < {_NS}; k++) s->S[k] = 0.0;",
         f"    s->S[{_S['t0']}] = t0;",
         "    /* the gains from the parameters, by the controller's own functions */",
-        f"    cascade_gains({P('k_v')}, {P('k_p')}, {P('k_i')}, {P('T_vel')}, "
-        f"transmission_ratio({P('p')}, {P('i_r')}), s->S + {_S['gains']});",
+        *([f"    cascade_gains({P('k_v')}, {P('k_p')}, {P('k_i')}, {P('T_vel')}, "
+           f"transmission_ratio({P('p')}, {P('i_r')}), s->S + {_S['gains']});"] if cascade else []),
         f"    drive_gains({P('k_pc')}, {P('k_ic')}, {P('T_cur')}, {P('i_max')}, {P('u_max')}, s->S + {_S['gains'] + 3});",
         "    if (input_error(values, t0, msg, size)) return MAST_MODEL_ERROR;",
         "    int code = start(values, s->S, R);",
@@ -494,7 +527,7 @@ def _joint_controller(block, vrs: Mapping[str, int]) -> str:
         "    for (int k = 0; k < 12; k++) sum += values[k];",
         "    if (sum - sum != 0.0 && input_error(values, t, msg, size)) return MAST_MODEL_ERROR;",
         "    int code = ticks(values, s->S, R, PI, RT, CUR, m);",
-        *([f"    if (code == {_MODEL_FAILED}) return model_error(s->S, msg, size);"] if ff else []),
+        *([f"    if (code == {_MODEL_FAILED}) return model_error(s->S, msg, size);"] if model else []),
         f"    if (code) return ik_error(values, t0 + s->S[{_S['failed']}] * {T}, -code, msg, size);",
         "    return MAST_OK;", "}", ""])
 
@@ -569,6 +602,15 @@ def _inverse_model(block) -> str:
     return "\n".join(parts)
 
 
+def native_controllers() -> tuple[type, ...]:
+    """The controllers with a native form: the joint cascade, feed-forward, computed torque."""
+    from fmus.controller.computed_torque import ComputedTorqueController
+    from fmus.controller.feedforward import FeedForwardController
+    from fmus.controller.model import ControllerBlock
+
+    return ControllerBlock, FeedForwardController, ComputedTorqueController
+
+
 # ----------------------------------------------------------------------------------- trajectory
 def _trajectory(block, vrs: Mapping[str, int]) -> str:
     """TrajectoryBlock._write, its parameters read at run time (tunable as in the Python FMU)."""
@@ -601,7 +643,8 @@ def generated_parameters(block_class: type, parameters: Mapping[str, object]) ->
     if kind == "trajectory":
         return {}
     if kind == "controller":
-        tunable = CONTROLLER_TUNABLE if block_class.__name__ == "ControllerBlock" else FEEDFORWARD_TUNABLE
+        tunable = {"ControllerBlock": CONTROLLER_TUNABLE, "FeedForwardController": FEEDFORWARD_TUNABLE,
+                   "ComputedTorqueController": COMPUTED_TORQUE_TUNABLE}[block_class.__name__]
         return {k: v for k, v in parameters.items() if k not in tunable}
     if kind == "mechanism":
         return {k: v for k, v in parameters.items() if k not in MECHANISM_TUNABLE}
