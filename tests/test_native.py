@@ -28,9 +28,9 @@ from test_fmi_behaviour import DISCARD, ERROR, OK, Instance, drive
 
 ROOT = Path(__file__).resolve().parents[1]
 NATIVE = ("MastActuator", "MastMechanism", "MastController", "MastTrajectory", "Mast3PRS120", "Mast3PRSInclined",
-          "MastActuatorsOnly", "MastFeedForwardController", "MastComputedTorqueController")
+          "MastActuatorsOnly", "MastFeedForwardController", "MastComputedTorqueController", "MastWorkspaceController")
 SYSTEMS = ("MAST", "MAST_standalone", "MAST_3PRS_120", "MAST_3PRS_inclined", "MAST_actuators_only", "MAST_feedforward",
-           "MAST_computed_torque")
+           "MAST_computed_torque", "MAST_workspace")
 #: native and Python FMUs run the same floating-point operations (mast.native.translate): the issue asks 1e-9
 TOLERANCE = 1e-9
 
@@ -227,6 +227,7 @@ def test_a_pose_within_the_singularity_margin_is_refused_by_both_routes_with_the
                               "u_max": 40.0, "p": 0.006, "i_r": 2.5}),
     ("MastFeedForwardController", 1e-4, {"k_v": 41.5, "k_i": 2.7, "k_pc": 0.3, "u_max": 40.0}),
     ("MastComputedTorqueController", 1e-4, {"k_pc": 0.3, "k_ic": 1000.0, "i_max": 0.5}),
+    ("MastWorkspaceController", 1e-4, {"k_p": 0.031, "k_i": 2.7, "k_pc": 0.3, "i_max": 3.5}),
     # the masses, inertias and g: inputs of the engine's traced forces (Engine.forces_of)
     ("MastMechanism", 1e-3, {"m_leg": 0.45, "I_leg": 0.003, "m_platform": 3.1, "I_px": 0.011, "I_py": 0.013,
                              "I_pz": 0.02, "g": 9.7})])

@@ -346,6 +346,10 @@ CONTROLLER_TUNABLE = ("k_v", "k_p", "k_i", "k_pc", "k_ic", "i_max", "u_max", "p"
 FEEDFORWARD_TUNABLE = ("k_v", "k_p", "k_i", "k_pc", "k_ic", "i_max", "u_max")
 #: the computed-torque controller's: the drive's gains and limits (no cascade gains; p, i_r in its model)
 COMPUTED_TORQUE_TUNABLE = ("k_pc", "k_ic", "i_max", "u_max")
+#: the workspace controller's: the velocity and current loops' (its pose gains k_v * k_v_scale_* and i_R inlined)
+WORKSPACE_TUNABLE = ("k_p", "k_i", "k_pc", "k_ic", "i_max", "u_max")
+#: a failure of the workspace controller's direct kinematics of the measured joints
+_DK_FAILED = 2000
 #: a failure of the feed-forward controller's inverse model (its direct kinematics or dynamics)
 _MODEL_FAILED = 1000
 
@@ -377,6 +381,56 @@ def _currents_lines(args: str, indent: str) -> list[str]:
     i = indent
     return [f"{i}c = currents({args}, S, CUR)", f"{i}if c != 0:", f"{i}    S[{_S['failed']}:] = (n,)",
             f"{i}    S[{_S['model_args']}:] = ({args})", f"{i}    return {_MODEL_FAILED}"]
+
+
+def _workspace_lines(block, indent: str) -> list[str]:
+    """WorkspaceController._position_law (pose mode): the direct kinematics of the measured joints
+    (``wsdk``, warm-started from the last), the pose-space P law, through drho/dq at that pose."""
+    i, i_R = indent, block.i_R
+    lines = [f"{i}c = wsdk(values[3], values[4], values[5], S, QM)", f"{i}if c != 0:",
+             f"{i}    S[{_S['failed']}:] = (n,)", f"{i}    S[{_S['model_args']}:] = (values[3], values[4], values[5])",
+             f"{i}    return {_DK_FAILED}"]
+    lines += [f"{i}qd{k} = {block.K[k]!r}*(values[{k}] - QM[{k}])" for k in range(3)]
+    lines.append(f"{i}c = k_ikjac(QM[0], QM[1], QM[2], JK)")
+    lines += [f"{i}oc{j} = (JK[{3 + 3 * j}]*qd0 + JK[{4 + 3 * j}]*qd1 + JK[{5 + 3 * j}]*qd2)/{i_R!r}" for j in range(3)]
+    return lines
+
+
+def _workspace_dk(block) -> str:
+    """The workspace controller's direct kinematics of the measured joints in C (Engine.dk from the last
+    solution, else from the description's guess, as WorkspaceController._dk); ``dk_error`` makes the
+    message of a failure by running it again (the guess is only updated on success)."""
+    eng = block.kinematics
+    ikjac = eng._fn("ikjac")
+    checks = {k: v for k, v in ikjac.namespace.items() if k.startswith("_check")}
+    messages = "\n".join(f"    case {int(k.replace('_check', ''))}: return {_literal(v.c_message)};"
+                         for k, v in sorted(checks.items()))
+    coordinates = ", ".join(_literal(n) for n in eng.description.coordinates)
+    lengths = ", ".join(c_double(v) for v in eng.lengths)
+    W, G, A = _S["warm"], _S["guess"], _S["model_args"]
+    return "\n".join([
+        to_c(ikjac.source, "k_ikjac", checks=checks), to_c(_guess_source(eng.description), "guess", arrays=("rho",)),
+        "static const char *why_k(int check)", "{", "    switch (check) {", messages,
+        "    default: return \"a check of the description failed\";", "    }", "}",
+        f"static const char *const K_COORDINATES[] = {{{coordinates}}};",
+        f"static const double K_LENGTHS[] = {{{lengths}}};", "",
+        "static int wsdk_eval(const double *rho, double *S, double *q, char *msg, size_t size)", "{",
+        "    double J[9];",
+        f"    if (S[{W}] == 1.0) {{ for (int k = 0; k < 3; k++) q[k] = S[{G} + k]; }} else guess((double *)rho, q);",
+        f"    int code = mast_dk3(k_ikjac, why_k, K_COORDINATES, K_LENGTHS, {c_double(eng.margin)}, rho, q, J, 1e-12, "
+        f"50, {c_double(eng.cond_limit)}, msg, size);",
+        "    if (code) return code;",
+        f"    for (int k = 0; k < 3; k++) S[{G} + k] = q[k];", f"    S[{W}] = 1.0;", "    return 0;", "}", "",
+        "static int wsdk(double r0, double r1, double r2, double *S, double *out)", "{",
+        "    double rho[3] = {r0, r1, r2};", "    char text[1024];",
+        "    return wsdk_eval(rho, S, out, text, sizeof text);", "}", "",
+        "static int dk_error(double *S, double t, char *msg, size_t size)", "{",
+        "    double q[3];", "    char text[1024], r0[40], r1[40], r2[40], ts[40];",
+        f"    wsdk_eval(S + {A}, S, q, text, sizeof text);",
+        "    snprintf(msg, size, \"direct kinematics of the measured joints rho = (%s, %s, %s) m failed at t = %s s: %s\", "
+        f"mast_repr(S[{A}], r0, sizeof r0), mast_repr(S[{A} + 1], r1, sizeof r1), mast_repr(S[{A} + 2], r2, sizeof r2), "
+        "mast_repr(t, ts, sizeof ts), text);",
+        "    return MAST_KINEMATICS_ERROR;", "}", ""])
 
 
 def _feedforward_lines(block, indent: str) -> list[str]:
@@ -421,6 +475,7 @@ def _joint_sources(block) -> tuple[str, str]:
     generated-code subset: ControllerBlock's laws and DriveController's schedule (controller/model.py)."""
     ff = hasattr(block, "_kff_tau")     # FeedForwardController
     ct = hasattr(block, "K_P")          # ComputedTorqueController
+    ws = hasattr(block, "_q_meas")      # WorkspaceController
     names = {k: [f"{p}{j}" for j in range(3)] for k, p in
              (("x_v", "xv"), ("x_c", "xc"), ("u", "u"), ("rho_cmd", "rc"), ("omega_cmd", "oc"), ("i_cmd", "ic"))}
     unpack = [f"    {v} = S[{_S[k] + j}]" for k, vs in names.items() for j, v in enumerate(vs)]
@@ -435,6 +490,8 @@ def _joint_sources(block) -> tuple[str, str]:
     body += _reference_lines(block, "            ") if ff or ct else []
     if ct:              # omega_cmd reports the reference speed
         body += [f"            oc{j} = S[{_S['rates'] + j}]/{block.i_R!r}" for j in range(3)]
+    elif ws:
+        body += _workspace_lines(block, "            ")
     else:
         body += [f"            oc{j} = {kv_iR}*(rc{j} - values[{3 + j}])" for j in range(3)]
     body += _feedforward_lines(block, "            ") if ff else []
@@ -447,7 +504,7 @@ def _joint_sources(block) -> tuple[str, str]:
     for j in range(3):
         body += _pi_lines(f"u{j}", f"xc{j}", f"ic{j} - values[{9 + j}]", kpc, kicT, u_max, "        ")
     body.append("        n = n + 1.0")
-    ticks = ["def ticks(values, S, R, PI, RT, CUR, m):", f"    n = S[{_S['n']}]", *unpack, "    for _ in range(m):", *body,
+    ticks = ["def ticks(values, S, R, PI, RT, CUR, QM, JK, m):", f"    n = S[{_S['n']}]", *unpack, "    for _ in range(m):", *body,
              "    S[0:] = (n,)", *store]
     return "\n".join(start) + "\n", "\n".join(ticks) + "\n"
 
@@ -462,6 +519,7 @@ def _joint_controller(block, vrs: Mapping[str, int]) -> str:
         raise ValueError(f"{type(block).__name__} has no native form yet")
     model = hasattr(block, "model")     # the feed-forward and computed-torque controllers' inverse model
     cascade = type(block) is not native_controllers()[2]
+    workspace = type(block) is native_controllers()[3]
     ik = block.kinematics._fn("ik")
     checks = {k: v for k, v in ik.namespace.items() if k.startswith("_check")}
     start, ticks = _joint_sources(block)
@@ -482,7 +540,9 @@ def _joint_controller(block, vrs: Mapping[str, int]) -> str:
         to_c(inspect.getsource(drive_gains), "drive_gains"),
         _inverse_model(block) if model else "",
         to_c(start, "start", arrays=("values", "S", "R"), calls=("ik",)),
-        to_c(ticks, "ticks", arrays=("values", "S", "R", "PI", "RT", "CUR"), calls=("ik", "pi_step", "rates", "currents")),
+        _workspace_dk(block) if workspace else "",
+        to_c(ticks, "ticks", arrays=("values", "S", "R", "PI", "RT", "CUR", "QM", "JK"),
+             calls=("ik", "pi_step", "rates", "currents", "wsdk", "k_ikjac")),
         "static const char *why(int check)", "{", "    switch (check) {", messages,
         "    default: return \"a check of the description failed\";", "    }", "}", "",
         f"static const char *const INPUT_NAMES[] = {{{inputs}}};", "",
@@ -511,7 +571,8 @@ def _joint_controller(block, vrs: Mapping[str, int]) -> str:
         "    int code = start(values, s->S, R);",
         "    return code ? ik_error(values, t0, -code, msg, size) : MAST_OK;", "}", "",
         "static int do_step(void *state, double *values, const mast_parameters *p, double t, double h, char *msg, size_t size)",
-        "{", "    State *s = state;", "    double R[3], PI[2], RT[2], CUR[3];", "    char a[40], b[40], c[40];",
+        "{", "    State *s = state;", "    double R[3], PI[2], RT[2], CUR[3], QM[3], JK[12];",
+        "    char a[40], b[40], c[40];",
         "    (void)p;",
         f"    double m = nearbyint(h / {T});",
         f"    if (m < 1.0 || fabs(h - m * {T}) > 1e-6 * {T}) {{",
@@ -526,8 +587,10 @@ def _joint_controller(block, vrs: Mapping[str, int]) -> str:
         "    double sum = 0.0;",
         "    for (int k = 0; k < 12; k++) sum += values[k];",
         "    if (sum - sum != 0.0 && input_error(values, t, msg, size)) return MAST_MODEL_ERROR;",
-        "    int code = ticks(values, s->S, R, PI, RT, CUR, m);",
+        "    int code = ticks(values, s->S, R, PI, RT, CUR, QM, JK, m);",
         *([f"    if (code == {_MODEL_FAILED}) return model_error(s->S, msg, size);"] if model else []),
+        *([f"    if (code == {_DK_FAILED}) return dk_error(s->S, t0 + s->S[{_S['failed']}] * {T}, msg, size);"]
+          if workspace else []),
         f"    if (code) return ik_error(values, t0 + s->S[{_S['failed']}] * {T}, -code, msg, size);",
         "    return MAST_OK;", "}", ""])
 
@@ -603,12 +666,13 @@ def _inverse_model(block) -> str:
 
 
 def native_controllers() -> tuple[type, ...]:
-    """The controllers with a native form: the joint cascade, feed-forward, computed torque."""
+    """The controllers with a native form: the joint cascade, feed-forward, computed torque, workspace."""
     from fmus.controller.computed_torque import ComputedTorqueController
     from fmus.controller.feedforward import FeedForwardController
     from fmus.controller.model import ControllerBlock
+    from fmus.controller.workspace import WorkspaceController
 
-    return ControllerBlock, FeedForwardController, ComputedTorqueController
+    return ControllerBlock, FeedForwardController, ComputedTorqueController, WorkspaceController
 
 
 # ----------------------------------------------------------------------------------- trajectory
@@ -644,7 +708,8 @@ def generated_parameters(block_class: type, parameters: Mapping[str, object]) ->
         return {}
     if kind == "controller":
         tunable = {"ControllerBlock": CONTROLLER_TUNABLE, "FeedForwardController": FEEDFORWARD_TUNABLE,
-                   "ComputedTorqueController": COMPUTED_TORQUE_TUNABLE}[block_class.__name__]
+                   "ComputedTorqueController": COMPUTED_TORQUE_TUNABLE,
+                   "WorkspaceController": WORKSPACE_TUNABLE}[block_class.__name__]
         return {k: v for k, v in parameters.items() if k not in tunable}
     if kind == "mechanism":
         return {k: v for k, v in parameters.items() if k not in MECHANISM_TUNABLE}
