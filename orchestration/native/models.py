@@ -83,6 +83,13 @@ def _literal(text: str) -> str:
 
 
 # ----------------------------------------------------------------------------------- shared parts
+def _why_function(name: str, checks: Mapping[str, object]) -> str:
+    """``static const char *name(int check)``: the message of the traced check ``_check<N>`` (its c_message)."""
+    cases = [f"    case {int(k.replace('_check', ''))}: return {_literal(v.c_message)};" for k, v in sorted(checks.items())]
+    return "\n".join([f"static const char *{name}(int check)", "{", "    switch (check) {", *cases,
+                      "    default: return \"a check of the description failed\";", "    }", "}", ""])
+
+
 def _variable_table(variables: Sequence[Variable]) -> str:
     rows = []
     for v in variables:
@@ -259,8 +266,6 @@ def _mechanism(block, vrs: Mapping[str, int]) -> str:
     ik_c = to_c(ikjac.source, "ikjac", checks=checks)
     main_c = to_c(main.source, "dynamics" if block.attached else "pose", checks=checks)
     guess_c = to_c(_guess_source(eng.description), "guess", arrays=("rho",))
-    messages = "\n".join(f"    case {int(k.replace('_check', ''))}: return {_literal(v.c_message)};"
-                         for k, v in sorted(checks.items()))
     inputs = ", ".join(_literal(n) for n in block.INPUTS)
     coordinates = ", ".join(_literal(n) for n in eng.description.coordinates)
     lengths = ", ".join(c_double(v) for v in eng.lengths)
@@ -279,8 +284,7 @@ def _mechanism(block, vrs: Mapping[str, int]) -> str:
     return "\n".join([
         "typedef struct { double q[3]; int warm; } State;", "",
         ik_c, main_c, guess_c,
-        "static const char *why(int check)", "{", "    switch (check) {", messages,
-        "    default: return \"a check of the description failed\";", "    }", "}", "",
+        _why_function("why", checks),
         f"static const char *const INPUT_NAMES[] = {{{inputs}}};",
         f"static const char *const COORDINATES[] = {{{coordinates}}};",
         f"static const double LENGTHS[] = {{{lengths}}};   /* Engine.lengths [m]: the margins compare motions */", "",
@@ -403,15 +407,12 @@ def _workspace_dk(block) -> str:
     eng = block.kinematics
     ikjac = eng._fn("ikjac")
     checks = {k: v for k, v in ikjac.namespace.items() if k.startswith("_check")}
-    messages = "\n".join(f"    case {int(k.replace('_check', ''))}: return {_literal(v.c_message)};"
-                         for k, v in sorted(checks.items()))
     coordinates = ", ".join(_literal(n) for n in eng.description.coordinates)
     lengths = ", ".join(c_double(v) for v in eng.lengths)
     W, G, A = _S["warm"], _S["guess"], _S["model_args"]
     return "\n".join([
         to_c(ikjac.source, "k_ikjac", checks=checks), to_c(_guess_source(eng.description), "guess", arrays=("rho",)),
-        "static const char *why_k(int check)", "{", "    switch (check) {", messages,
-        "    default: return \"a check of the description failed\";", "    }", "}",
+        _why_function("why_k", checks),
         f"static const char *const K_COORDINATES[] = {{{coordinates}}};",
         f"static const double K_LENGTHS[] = {{{lengths}}};", "",
         "static int wsdk_eval(const double *rho, double *S, double *q, char *msg, size_t size)", "{",
@@ -523,8 +524,6 @@ def _joint_controller(block, vrs: Mapping[str, int]) -> str:
     ik = block.kinematics._fn("ik")
     checks = {k: v for k, v in ik.namespace.items() if k.startswith("_check")}
     start, ticks = _joint_sources(block)
-    messages = "\n".join(f"    case {int(k.replace('_check', ''))}: return {_literal(v.c_message)};"
-                         for k, v in sorted(checks.items()))
     T = c_double(block.T_cur)
     inputs = ", ".join(_literal(n) for n in block.INPUTS)
 
@@ -543,8 +542,7 @@ def _joint_controller(block, vrs: Mapping[str, int]) -> str:
         _workspace_dk(block) if workspace else "",
         to_c(ticks, "ticks", arrays=("values", "S", "R", "PI", "RT", "CUR", "QM", "JK"),
              calls=("ik", "pi_step", "rates", "currents", "wsdk", "k_ikjac")),
-        "static const char *why(int check)", "{", "    switch (check) {", messages,
-        "    default: return \"a check of the description failed\";", "    }", "}", "",
+        _why_function("why", checks),
         f"static const char *const INPUT_NAMES[] = {{{inputs}}};", "",
         "static int input_error(const double *values, double t, char *msg, size_t size)", "{",
         "    char v[40], w[40];",
@@ -619,16 +617,13 @@ def _inverse_model(block) -> str:
         eng = model.engine
         ikjac, forces = eng._fn("ikjac"), eng._fn("forces")
         checks = {k: v for k, v in {**ikjac.namespace, **forces.namespace}.items() if k.startswith("_check")}
-        messages = "\n".join(f"    case {int(k.replace('_check', ''))}: return {_literal(v.c_message)};"
-                             for k, v in sorted(checks.items()))
         coordinates = ", ".join(_literal(n) for n in eng.description.coordinates)
         lengths = ", ".join(c_double(v) for v in eng.lengths)
         dk = (f"mast_dk3(m_ikjac, why_model, M_COORDINATES, M_LENGTHS, {c_double(eng.margin)}, a, q, J, 1e-12, 50, "
               f"{c_double(eng.cond_limit)}, msg, size)")
         parts += [to_c(ikjac.source, "m_ikjac", checks=checks), to_c(forces.source, "m_dynamics", checks=checks),
                   to_c(_guess_source(eng.description), "guess", arrays=("rho",)),
-                  "static const char *why_model(int check)", "{", "    switch (check) {", messages,
-                  "    default: return \"a check of the description failed\";", "    }", "}",
+                  _why_function("why_model", checks),
                   f"static const char *const M_COORDINATES[] = {{{coordinates}}};",
                   f"static const double M_LENGTHS[] = {{{lengths}}};", ""]
         dynamics = [
