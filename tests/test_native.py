@@ -247,6 +247,24 @@ def test_parameters_read_at_run_time_are_tunable_in_any_host(built, ident, h, tu
     assert np.abs(rows[0] - rows[1]).max() <= TOLERANCE * np.abs(rows[0]).max()   # measured: 0
 
 
+@pytest.mark.parametrize("ident", ["MastWorkspaceController", "MastComputedTorqueController"])
+def test_a_controller_whose_direct_kinematics_fails_is_refused_with_the_python_fmus_message(built, ident):
+    """Measured joints no pose has: the workspace law's and the inverse model's direct kinematics fail,
+    named as in Python (the traced check's own words differ: C has no values in them, docs/native.md)."""
+    from test_fmi_behaviour import _input
+
+    messages = []
+    for fmu in (built / "fmus" / f"{ident}.fmu", built / "fmus" / "native" / f"{ident}.fmu"):
+        inst = Instance(fmu, "controller")
+        assert inst.start() == OK
+        inst.set(**{**{n: _input(n, 0.0, 0.0) for n in inst.inputs}, "rho_1": 0.02, "rho_2": 0.6, "rho_3": 0.02})
+        assert inst.step(0.0, 1e-4) == DISCARD
+        messages.append(inst.log[-1][1])
+        inst.close()
+    assert "KinematicsError" in messages[1] and "exceeds the admissible tilt" in messages[1]
+    assert messages[0].split(", where:")[0] == messages[1].split(", where:")[0]
+
+
 def test_a_parameter_the_code_was_generated_for_is_refused_with_another_value(built):
     """The actuator's and the mechanism's generated code has the parameter values inlined (docs/native.md)."""
     inst = _native(built, "MastActuator", "axis")
