@@ -8,16 +8,22 @@ code, which ``translate.to_c`` writes as C:
 - mechanism (every design): the engine's traced functions (inverse kinematics with its
   Jacobian, inverse dynamics, pose), driven by the engine's Newton direct kinematics
   (``mast_native.h``);
-- joint controller (``ControllerBlock``): the engine's traced inverse kinematics, and the
-  cascade's tick;
+- controllers (``native_controllers``: the joint cascade, feed-forward, computed torque,
+  workspace): the engine's traced inverse kinematics, and the cascade's tick with each one's laws;
+  the feed-forward and computed-torque controllers' inverse model (the model engine's direct
+  kinematics and traced dynamics), the workspace controller's direct kinematics and Jacobian;
 - trajectory: the sine about the home pose (its parameters read at run time).
 
 What the models' generators do not cover is written here, in the same Python subset, and
 translated too: the outputs of the actuator at rest (``initialize``), the description's cold
-start of the direct kinematics (``guess``) and the joint cascade's tick (``DriveController``'s
-schedule with ``ControllerBlock``'s position law; the PI steps call ``pi_step``, translated from
-the model's own source). The schedule and the P law are a second statement of the controller's, held bit-identical to the Python model by tests/test_native.py until the
-Python controller runs this generated tick itself (docs/native.md).
+start of the direct kinematics (``guess``) and the controllers' tick (``DriveController``'s
+schedule with each controller's position and velocity laws; the functions they call are
+translated from the models' own source: ``pi_step``, ``drive_gains``, ``cascade_gains``,
+``transmission_ratio``, ``reference.rates``, ``inverse_model.motor_torque``, ``guide_friction``).
+The schedule and the laws are a second statement of the controllers', held bit-identical to the
+Python models by tests/test_native.py until the Python controllers run this generated tick
+themselves (docs/native.md); so is the C glue of the direct kinematics (``MechanismBlock._compute``,
+``InverseModel.torques``, ``WorkspaceController._dk``: warm start, cold restart, messages).
 
 Parameters: the trajectory's, the joint controller's gains, limits and transmission
 (``CONTROLLER_TUNABLE``: its gains computed at initialisation by the controller's own
@@ -472,8 +478,10 @@ def _ik_lines(indent: str) -> list[str]:
 
 
 def _joint_sources(block) -> tuple[str, str]:
-    """The joint cascade's start (``initialize`` after the reset) and ``m`` ticks (``do_step``), in the
-    generated-code subset: ControllerBlock's laws and DriveController's schedule (controller/model.py)."""
+    """A controller's start (``initialize`` after the reset) and ``m`` ticks (``do_step``), in the
+    generated-code subset: DriveController's schedule (controller/model.py) with the laws of the
+    joint cascade (ControllerBlock), the feed-forward (its reference and inverse model), the
+    computed-torque or the workspace controller."""
     ff = hasattr(block, "_kff_tau")     # FeedForwardController
     ct = hasattr(block, "K_P")          # ComputedTorqueController
     ws = hasattr(block, "_q_meas")      # WorkspaceController
