@@ -225,9 +225,13 @@ def test_a_pose_within_the_singularity_margin_is_refused_by_both_routes_with_the
     # the gains: computed at initialisation by the controller's own drive_gains, cascade_gains, transmission_ratio
     ("MastController", 1e-4, {"k_v": 41.5, "k_p": 0.031, "k_i": 2.7, "k_pc": 0.3, "k_ic": 1000.0, "i_max": 3.5,
                               "u_max": 40.0, "p": 0.006, "i_r": 2.5}),
-    ("MastFeedForwardController", 1e-4, {"k_v": 41.5, "k_i": 2.7, "k_pc": 0.3, "u_max": 40.0}),
-    ("MastComputedTorqueController", 1e-4, {"k_pc": 0.3, "k_ic": 1000.0, "i_max": 0.5}),
-    ("MastWorkspaceController", 1e-4, {"k_p": 0.031, "k_i": 2.7, "k_pc": 0.3, "i_max": 3.5}),
+    # and the other controllers' own gains: feedforward_gains, error_gains, pose_gains
+    ("MastFeedForwardController", 1e-4, {"k_v": 41.5, "k_i": 2.7, "k_pc": 0.3, "u_max": 40.0, "k_ff_v": 0.6,
+                                         "k_ff_tau": 0.8}),
+    ("MastComputedTorqueController", 1e-4, {"k_pc": 0.3, "k_ic": 1000.0, "i_max": 0.5, "omega_n": 90.0,
+                                            "zeta": 0.8}),
+    ("MastWorkspaceController", 1e-4, {"k_v": 41.5, "k_v_scale_z": 1.2, "k_v_scale_psi": 0.7, "k_v_scale_theta": 1.5,
+                                       "k_p": 0.031, "k_i": 2.7, "k_pc": 0.3, "i_max": 3.5}),
     # the masses, inertias and g: inputs of the engine's traced forces (Engine.forces_of)
     ("MastMechanism", 1e-3, {"m_leg": 0.45, "I_leg": 0.003, "m_platform": 3.1, "I_px": 0.011, "I_py": 0.013,
                              "I_pz": 0.02, "g": 9.7})])

@@ -343,8 +343,10 @@ _S = {"n": 0, "t0": 1, "ik": 2, "pose": 3, "x_v": 6, "x_c": 9, "u": 12, "rho_cmd
       # inverse model's direct-kinematics guess (valid flag, pose) and the arguments of a failed evaluation
       "hist": 32, "k": 44, "i_ff": 45, "warm": 48, "guess": 49, "model_args": 52,
       # the computed-torque controller: the reference's rates (rho_dot_ref, rho_ddot_ref), kept between ticks
-      "rates": 61}
-_NS = 67
+      "rates": 61,
+      # the controller's own gains computed at initialisation (feedforward_gains, error_gains, pose_gains)
+      "own": 67}
+_NS = 70
 #: the joint controller's parameters read at run time (the gains); the others (cycle times, kinematic
 #: model) are in the generated code
 #: the mechanism's parameters read at run time: the masses and inertias of the legs and the platform, and g
@@ -353,11 +355,12 @@ MECHANISM_TUNABLE = frozenset({GRAVITY_PARAMETER} | {name for mass, tensor in IN
                                                      for name in (mass, *(v for row in tensor for v in row)) if name})
 CONTROLLER_TUNABLE = ("k_v", "k_p", "k_i", "k_pc", "k_ic", "i_max", "u_max", "p", "i_r")
 #: the feed-forward controller's: the transmission (p, i_r) is also in its inlined inverse model
-FEEDFORWARD_TUNABLE = ("k_v", "k_p", "k_i", "k_pc", "k_ic", "i_max", "u_max")
+FEEDFORWARD_TUNABLE = ("k_v", "k_p", "k_i", "k_pc", "k_ic", "i_max", "u_max", "k_ff_v", "k_ff_tau")
 #: the computed-torque controller's: the drive's gains and limits (no cascade gains; p, i_r in its model)
-COMPUTED_TORQUE_TUNABLE = ("k_pc", "k_ic", "i_max", "u_max")
+COMPUTED_TORQUE_TUNABLE = ("k_pc", "k_ic", "i_max", "u_max", "omega_n", "zeta")
 #: the workspace controller's: the velocity and current loops' (its pose gains k_v * k_v_scale_* and i_R inlined)
-WORKSPACE_TUNABLE = ("k_p", "k_i", "k_pc", "k_ic", "i_max", "u_max")
+WORKSPACE_TUNABLE = ("k_v", "k_p", "k_i", "k_pc", "k_ic", "i_max", "u_max", "k_v_scale_z", "k_v_scale_psi",
+                     "k_v_scale_theta")
 #: a failure of the workspace controller's direct kinematics of the measured joints
 _DK_FAILED = 2000
 #: a failure of the feed-forward controller's inverse model (its direct kinematics or dynamics)
@@ -400,7 +403,7 @@ def _workspace_lines(block, indent: str) -> list[str]:
     lines = [f"{i}c = wsdk(values[3], values[4], values[5], S, QM)", f"{i}if c != 0:",
              f"{i}    S[{_S['failed']}:] = (n,)", f"{i}    S[{_S['model_args']}:] = (values[3], values[4], values[5])",
              f"{i}    return {_DK_FAILED}"]
-    lines += [f"{i}qd{k} = {block.K[k]!r}*(values[{k}] - QM[{k}])" for k in range(3)]
+    lines += [f"{i}qd{k} = S[{_S['own'] + k}]*(values[{k}] - QM[{k}])" for k in range(3)]
     lines.append(f"{i}c = k_ikjac(QM[0], QM[1], QM[2], JK)")
     lines += [f"{i}oc{j} = (JK[{3 + 3 * j}]*qd0 + JK[{4 + 3 * j}]*qd1 + JK[{5 + 3 * j}]*qd2)/{i_R!r}" for j in range(3)]
     return lines
@@ -444,10 +447,11 @@ def _feedforward_lines(block, indent: str) -> list[str]:
     """FeedForwardController's position law after the P law: velocity feed-forward, the inverse model's
     currents on the reference (i_ff)."""
     i, Q = indent, _S["rates"]
-    lines = [f"{i}oc{j} = oc{j} + {block._kff_v_iR!r}*S[{Q + j}]" for j in range(3)]
-    if block._kff_tau:
-        lines += _currents_lines(", ".join([f"rc{j}" for j in range(3)] + [f"S[{Q + k}]" for k in range(6)]), i)
-        lines += [f"{i}if{j} = {block._kff_tau!r}*CUR[{j}]" for j in range(3)]
+    kff_v_iR, kff_tau = f"S[{_S['own']}]", f"S[{_S['own'] + 1}]"
+    lines = [f"{i}oc{j} = oc{j} + {kff_v_iR}*S[{Q + j}]" for j in range(3)]
+    lines.append(f"{i}if {kff_tau} != 0.0:")
+    lines += _currents_lines(", ".join([f"rc{j}" for j in range(3)] + [f"S[{Q + k}]" for k in range(6)]), i + "    ")
+    lines += [f"{i}    if{j} = {kff_tau}*CUR[{j}]" for j in range(3)]
     return lines
 
 
@@ -456,7 +460,8 @@ def _computed_torque_lines(block, indent: str) -> list[str]:
     acceleration a = rho_ddot_ref + K_D e_dot + K_P e, limited to i_max."""
     i, Q, i_R, i_max = indent, _S["rates"], block.i_R, f"S[{_S['gains'] + 5}]"
     lines = [f"{i}rdm{j} = {i_R!r}*values[{6 + j}]" for j in range(3)]
-    lines += [f"{i}acc{j} = S[{Q + 3 + j}] + {block.K_D!r}*(S[{Q + j}] - rdm{j}) + {block.K_P!r}*(rc{j} - values[{3 + j}])"
+    K_P, K_D = f"S[{_S['own']}]", f"S[{_S['own'] + 1}]"
+    lines += [f"{i}acc{j} = S[{Q + 3 + j}] + {K_D}*(S[{Q + j}] - rdm{j}) + {K_P}*(rc{j} - values[{3 + j}])"
               for j in range(3)]
     lines += _currents_lines("values[3], values[4], values[5], rdm0, rdm1, rdm2, acc0, acc1, acc2", i)
     lines += [f"{i}ic{j} = {i_max} if CUR[{j}] > {i_max} else (-{i_max} if CUR[{j}] < -{i_max} else CUR[{j}])"
@@ -529,15 +534,28 @@ def _joint_controller(block, vrs: Mapping[str, int]) -> str:
     model = hasattr(block, "model")     # the feed-forward and computed-torque controllers' inverse model
     cascade = type(block) is not native_controllers()[2]
     workspace = type(block) is native_controllers()[3]
+
+    def P(name: str) -> str:
+        return f"p->real[{vrs[name]}]"
+
+    # the controller's own gains, by its own function (FeedForwardController, ComputedTorque, Workspace)
+    own, own_call = None, ""
+    if type(block) is native_controllers()[1]:
+        from fmus.controller.feedforward import feedforward_gains as own
+        own_call = (f"    feedforward_gains({P('k_ff_v')}, {P('k_ff_tau')}, transmission_ratio({P('p')}, {P('i_r')}), "
+                    f"s->S + {_S['own']});")
+    elif not cascade:
+        from fmus.controller.computed_torque import error_gains as own
+        own_call = f"    error_gains({P('omega_n')}, {P('zeta')}, s->S + {_S['own']});"
+    elif workspace:
+        from fmus.controller.workspace import pose_gains as own
+        own_call = (f"    pose_gains({P('k_v')}, {P('k_v_scale_z')}, {P('k_v_scale_psi')}, {P('k_v_scale_theta')}, "
+                    f"s->S + {_S['own']});")
     ik = block.kinematics._fn("ik")
     checks = {k: v for k, v in ik.namespace.items() if k.startswith("_check")}
     start, ticks = _joint_sources(block)
     T = c_double(block.T_cur)
     inputs = ", ".join(_literal(n) for n in block.INPUTS)
-
-    def P(name: str) -> str:
-        return f"p->real[{vrs[name]}]"
-
     return "\n".join([
         f"typedef struct {{ double S[{_NS}]; }} State;", "",
         to_c(ik.source, "ik", checks=checks),
@@ -546,6 +564,7 @@ def _joint_controller(block, vrs: Mapping[str, int]) -> str:
         to_c(inspect.getsource(cascade_gains), "cascade_gains"),
         to_c(inspect.getsource(drive_gains), "drive_gains"),
         _inverse_model(block) if model else "",
+        to_c(inspect.getsource(own), own.__name__) if own else "",
         to_c(start, "start", arrays=("values", "S", "R"), calls=("ik",)),
         _workspace_dk(block) if workspace else "",
         to_c(ticks, "ticks", arrays=("values", "S", "R", "PI", "RT", "CUR", "QM", "JK"),
@@ -573,6 +592,7 @@ def _joint_controller(block, vrs: Mapping[str, int]) -> str:
         *([f"    cascade_gains({P('k_v')}, {P('k_p')}, {P('k_i')}, {P('T_vel')}, "
            f"transmission_ratio({P('p')}, {P('i_r')}), s->S + {_S['gains']});"] if cascade else []),
         f"    drive_gains({P('k_pc')}, {P('k_ic')}, {P('T_cur')}, {P('i_max')}, {P('u_max')}, s->S + {_S['gains'] + 3});",
+        *([own_call] if own_call else []),
         "    if (input_error(values, t0, msg, size)) return MAST_MODEL_ERROR;",
         "    int code = start(values, s->S, R);",
         "    return code ? ik_error(values, t0, -code, msg, size) : MAST_OK;", "}", "",
