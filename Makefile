@@ -3,7 +3,7 @@ PY ?= python3
 VENV ?= .venv
 BIN := $(VENV)/bin
 
-.PHONY: run test build validate bench bench-batch clean
+.PHONY: run test build native validate bench bench-batch clean
 
 $(BIN)/mast: pyproject.toml
 	$(PY) -m venv $(VENV)
@@ -13,6 +13,11 @@ $(BIN)/mast: pyproject.toml
 
 build: $(BIN)/mast
 	$(BIN)/mast build
+
+# native FMUs too (compiled C, no Python in the host; needs a C compiler): docs/native.md
+native: $(BIN)/mast
+	$(BIN)/mast build --native
+	$(BIN)/mast validate
 
 validate: build
 	$(BIN)/mast validate

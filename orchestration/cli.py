@@ -109,9 +109,14 @@ class Progress:
 
 
 def cmd_build(args) -> int:
-    from .build import build_all
+    from .build import SSP_SRC, build_all
 
     build_all(Path(args.out), fmi3=args.fmi3)
+    if args.native:
+        from .native.build import build_native_all
+
+        platforms = ("linux64", "win64", "darwin64") if args.cross else ("linux64",)
+        build_native_all(Path(args.out), sorted(SSP_SRC.glob("*.ssd")), platforms=platforms)
     return 0
 
 
@@ -125,6 +130,8 @@ def validate_all(build_dir: Path) -> list[str]:
     fmus = sorted((build_dir / "fmus").glob("*.fmu"))
     ssps = sorted((build_dir / "ssp").glob("*.ssp"))
     fmus += sorted((build_dir / "fmus3").glob("*.fmu"))  # FMI 3.0 variants, if built (mast build --fmi3)
+    fmus += sorted((build_dir / "fmus" / "native").glob("*.fmu"))  # native FMUs, if built (mast build --native)
+    ssps += sorted((build_dir / "ssp" / "native").glob("*.ssp"))
     if not fmus or not ssps:
         problems.append(f"{build_dir}: nothing built yet (run `mast build`)")
     for fmu in fmus:
@@ -150,8 +157,17 @@ def cmd_run(args) -> int:
 
     motion = motion_from_cli(args.motion, args.amplitude, args.frequency)
     out = Path(args.out)
+    ssp = args.ssp
+    if args.native:
+        from .bench import native_variant
+
+        ssp = native_variant(args.ssp)
+        if ssp is None:
+            print(f"error: no native variant of {args.ssp} (build/ssp/native/...): run `mast build --native`",
+                  file=sys.stderr)
+            return 2
     try:
-        result = simulate(args.ssp, motion, args.stop_time, parameters=parse_overrides(args.set or []),
+        result = simulate(ssp, motion, args.stop_time, parameters=parse_overrides(args.set or []),
                           record=args.record, record_step=args.record_step, direct=args.direct,
                           progress=Progress("co-simulation"))
         failed = None
@@ -346,6 +362,12 @@ def main(argv=None) -> int:
     p = sub.add_parser("build", help="build build/fmus/*.fmu and build/ssp/*.ssp from fmus/ and ssp/")
     p.add_argument("--out", type=folder, default=str(REPO / "build"))
     p.add_argument("--fmi3", action="store_true", help="also build the FMI 3.0 variants into OUT/fmus3 (pythonfmu3)")
+    p.add_argument("--native", action="store_true",
+                   help="also build native FMUs (compiled C, no Python at run time) into OUT/fmus/native and the SSPs "
+                        "that bind them into OUT/ssp/native (needs a C compiler: docs/native.md)")
+    p.add_argument("--cross", action="store_true",
+                   help="with --native: Windows and macOS (x86_64) binaries too, with zig (pip install ziglang); "
+                        "built, not tested")
     p.set_defaults(func=cmd_build)
 
     p = sub.add_parser("hosts", help="run an SSP in libcosim, ecospy and the ecos CLI; compare with this master")
@@ -372,6 +394,8 @@ def main(argv=None) -> int:
                    help="signal to record (repeatable; default: every system input and declared output)")
     p.add_argument("--record-step", type=seconds, default=1e-3, help="s between recorded samples")
     p.add_argument("--direct", action="store_true", help="run the model objects directly (no FMI), same schedule")
+    p.add_argument("--native", action="store_true",
+                   help="run the SSP's native variant (build/ssp/native/, mast build --native): compiled FMUs")
     p.add_argument("--out", type=folder, default="results")
     p.set_defaults(func=cmd_run)
 

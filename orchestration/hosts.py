@@ -195,7 +195,7 @@ def show(host: str, ssp: Union[str, Path], stop_time: float, signals: Sequence[s
 # -- running ----------------------------------------------------------------------------
 def run_host(host: str, ssp: Union[str, Path], stop_time: float, signals: Sequence[str],
              sample_step: float = 1e-3, timeout: float = 600.0, fmu_log: bool = False,
-             base_step: Optional[float] = None) -> Result:
+             base_step: Optional[float] = None, python_free: bool = False) -> Result:
     """Run the built ``ssp`` in ``host`` until ``stop_time`` and return ``signals`` every ``sample_step``.
 
     ``signals`` are ``element.connector`` names (parameters too). Raises
@@ -207,8 +207,12 @@ def run_host(host: str, ssp: Union[str, Path], stop_time: float, signals: Sequen
     ``result.stats["log"]``; ``fmu_log=True`` makes the ecos CLI print the FMUs'
     messages too (it logs them at debug level only). libcosim prints them from
     warning level on, always. The ecos CLI also runs a single .fmu (its one
-    component is named ``instance``); give it ``base_step`` then.
+    component is named ``instance``); give it ``base_step`` then. ``python_free=True`` (ecos
+    only, for native FMUs: ``mast build --native``) runs the ecos CLI under ``env -i`` with
+    nothing but its own libraries' path: no Python on PATH, no LD_PRELOAD, PYTHONHOME, PYTHONPATH.
     """
+    if python_free and host != "ecos":
+        raise ValueError(f"{host}: only the ecos command line runs without Python (python_free=True)")
     reason = availability(host)
     if reason:
         raise HostUnavailable(f"{host}: {reason}")
@@ -219,6 +223,8 @@ def run_host(host: str, ssp: Union[str, Path], stop_time: float, signals: Sequen
         if host == "ecos":
             command = ecos_command(ssp, stop_time, signals, sample_step, work, base_step, fmu_log,
                                    str(_ecos_binary(work)))
+            if python_free:
+                command = ["env", "-i", f"LD_LIBRARY_PATH={_tbb_dir()}", *command]
         else:
             command = [sys.executable, "-m", "mast.hosts", host, str(ssp), "--stop-time", repr(stop_time),
                        "--sample-step", repr(sample_step), "--out", str(out)]

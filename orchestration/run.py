@@ -67,6 +67,11 @@ def simulate(ssp: Union[str, Path], stimulus: Optional[Stimulus], stop_time: flo
                 if direct:
                     components[name] = BlockComponent(name, BlockComponent.class_for(fmu.stem))
                 else:
+                    # a native FMU runs the parameter set it was generated for: another set, another FMU
+                    from .native.build import for_parameters
+
+                    fmu = for_parameters(fmu, {**spec.parameters, **(parameters or {}).get(name, {})},
+                                         (step_sizes or {}).get(name, spec.step_size))
                     if fmu not in unzipped:
                         unzipped[fmu] = safe_extract(fmu, Path(unzip_root) / f"{len(unzipped)}_{fmu.stem}",
                                                      system.fmu_label(name))

@@ -31,6 +31,12 @@ COMPUTED_TORQUE_PARAMETERS = (
 )
 
 
+def error_gains(omega_n: float, zeta: float) -> tuple[float, float]:
+    """(K_P = omega_n^2 [1/s^2], K_D = 2 zeta omega_n [1/s]). Written in the generated-code subset: the
+    native FMU computes them at initialisation with this source."""
+    return (omega_n * omega_n, 2.0 * zeta * omega_n)
+
+
 class ComputedTorqueController(DriveController):
     """Computed torque control of the three axes with the controller's own inverse dynamic model."""
 
@@ -45,8 +51,7 @@ class ComputedTorqueController(DriveController):
     def __init__(self, params: Mapping[str, Value], name: str = "") -> None:
         super().__init__(params, name)
         self.model = InverseModel(self.params, self.name)
-        w, z = float(self.params["omega_n"]), float(self.params["zeta"])
-        self.K_P, self.K_D = w * w, 2.0 * z * w
+        self.K_P, self.K_D = error_gains(float(self.params["omega_n"]), float(self.params["zeta"]))
 
     def _position_law(self, t: float) -> None:
         for j in range(3):

@@ -25,6 +25,12 @@ FEEDFORWARD_PARAMETERS = (
 )
 
 
+def feedforward_gains(k_ff_v: float, k_ff_tau: float, i_R: float) -> tuple[float, float]:
+    """(k_ff_v / i_R [rad/m], k_ff_tau [1]): the feed-forward weights as the laws use them. Written in the
+    generated-code subset: the native FMU computes them at initialisation with this source."""
+    return (k_ff_v / i_R, k_ff_tau)
+
+
 class FeedForwardController(ControllerBlock):
     """Joint-space P/PI/PI cascade with velocity and inverse-dynamics torque feed-forward."""
 
@@ -34,8 +40,8 @@ class FeedForwardController(ControllerBlock):
     def __init__(self, params: Mapping[str, Value], name: str = "") -> None:
         super().__init__(params, name)
         self.model = InverseModel(self.params, self.name)
-        self._kff_v_iR = float(self.params["k_ff_v"]) / self.i_R
-        self._kff_tau = float(self.params["k_ff_tau"])
+        self._kff_v_iR, self._kff_tau = feedforward_gains(float(self.params["k_ff_v"]), float(self.params["k_ff_tau"]),
+                                                          self.i_R)
 
     def _position_law(self, t: float) -> None:
         super()._position_law(t)

@@ -45,6 +45,14 @@ MODEL_PARAMETERS = (
 )
 
 
+def motor_torque(rho_dot: float, rho_ddot: float, F: float, J: float, i_R: float, b_v: float, weight: float,
+                 tau_c: float, omega_c: float, tau_s: float, omega_s: float) -> float:
+    """tau_m [N m] of one axis (module docstring) for its joint motion and the mechanism's force F [N].
+    Written in the generated-code subset: the native controllers run this source (mast.native.models)."""
+    w = rho_dot / i_R
+    return J * rho_ddot / i_R + b_v * w + guide_friction(w, tau_c, omega_c, tau_s, omega_s) + i_R * (weight + F)
+
+
 class InverseModel:
     """Motor torques for a joint motion (module docstring), from validated parameters."""
 
@@ -81,12 +89,8 @@ class InverseModel:
             except KinematicsError as exc:
                 raise KinematicsError(f"{self.owner}: inverse dynamic model at rho = {tuple(rho)!r} m: {exc}") from exc
             self._guess = q
-        out = []
-        for j in range(3):
-            w = rho_dot[j] / i_R
-            out.append(self.J * rho_ddot[j] / i_R + self.b_v * w + guide_friction(w, *self._friction)
-                       + i_R * (self.weight + F[j]))
-        return out
+        return [motor_torque(rho_dot[j], rho_ddot[j], F[j], self.J, i_R, self.b_v, self.weight, *self._friction)
+                for j in range(3)]
 
     def currents(self, rho: Sequence[float], rho_dot: Sequence[float], rho_ddot: Sequence[float]) -> list[float]:
         """The motor currents [A] of ``torques`` (tau_m / k_T)."""

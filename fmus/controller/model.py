@@ -77,6 +77,21 @@ def pi_step(e: float, x: float, k_p: float, k_iT: float, limit: float, offset: f
     return v, x + k_iT * e
 
 
+def drive_gains(k_pc: float, k_ic: float, T_cur: float, i_max: float, u_max: float) -> tuple[float, float, float, float]:
+    """The current loop's constants: (k_pc [V/A], k_ic T_cur [V/A], i_max [A], u_max [V]).
+
+    Written in the generated-code subset: the native FMU computes them at initialisation from
+    its parameters with this source (mast.native.models translates it)."""
+    return (k_pc, k_ic * T_cur, i_max, u_max)
+
+
+def cascade_gains(k_v: float, k_p: float, k_i: float, T_vel: float, i_R: float) -> tuple[float, float, float]:
+    """The joint cascade's outer gains: (k_v / i_R [rad/(m.s)], k_p [A.s/rad], k_i T_vel [A.s/rad]).
+
+    Written in the generated-code subset, as ``drive_gains``."""
+    return (k_v / i_R, k_p, k_i * T_vel)
+
+
 #: the servo drive under every controller (ssp/resources/drive.ssv) and the machine's transmission
 DRIVE_PARAMETERS = (
     nonnegative("k_pc", "V/A", "Current PI proportional gain: voltage per current error"),
@@ -155,10 +170,8 @@ class DriveController(Block):
         self._ik = self.kinematics.ik
         self.reference = JointReference(float(P["T_pos"]))
         # pre-multiplied gains (pure Python floats for the hot loop)
-        self._kpc = float(P["k_pc"])
-        self._kicT = float(P["k_ic"]) * T_cur
-        self._i_max = float(P["i_max"])
-        self._u_max = float(P["u_max"])
+        self._kpc, self._kicT, self._i_max, self._u_max = drive_gains(
+            float(P["k_pc"]), float(P["k_ic"]), T_cur, float(P["i_max"]), float(P["u_max"]))
         self._mode = 0
         self._t0 = 0.0
         self._reset()
@@ -335,9 +348,9 @@ class ControllerBlock(DriveController):
 
     def __init__(self, params: Mapping[str, Value], name: str = "") -> None:
         super().__init__(params, name)
-        self._kv_iR = float(self.params["k_v"]) / self.i_R
-        self._kp = float(self.params["k_p"])
-        self._kiT = float(self.params["k_i"]) * float(self.params["T_vel"])
+        P = self.params
+        self._kv_iR, self._kp, self._kiT = cascade_gains(float(P["k_v"]), float(P["k_p"]), float(P["k_i"]),
+                                                         float(P["T_vel"]), self.i_R)
 
     def _position_law(self, t: float) -> None:
         """omega_cmd = k_v (rho_cmd - rho) / i_R."""

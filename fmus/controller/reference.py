@@ -47,15 +47,18 @@ class JointReference:
         del h[4:]
         T, k = self.T, len(h)
         for j in range(self.n):
-            r = [s[j] for s in h]
-            if k == 1:
-                v, a = 0.0, 0.0
-            elif k == 2:
-                v, a = (r[0] - r[1]) / T, 0.0
-            elif k == 3:
-                v, a = (3.0 * r[0] - 4.0 * r[1] + r[2]) / (2.0 * T), (r[0] - 2.0 * r[1] + r[2]) / (T * T)
-            else:
-                v = (11.0 * r[0] - 18.0 * r[1] + 9.0 * r[2] - 2.0 * r[3]) / (6.0 * T)
-                a = (2.0 * r[0] - 5.0 * r[1] + 4.0 * r[2] - r[3]) / (T * T)
-            self.rho_dot[j] = v
-            self.rho_ddot[j] = a
+            r = [s[j] for s in h] + [0.0] * (4 - k)
+            self.rho_dot[j], self.rho_ddot[j] = rates(k, r[0], r[1], r[2], r[3], T)
+
+
+def rates(k: int, r0: float, r1: float, r2: float, r3: float, T: float) -> tuple[float, float]:
+    """(velocity, acceleration) at the newest of the ``k`` samples r0 (newest), r1, r2, r3 of period ``T``
+    (module docstring; the samples beyond k are not read). Written in the generated-code subset: the
+    native controllers run this source (mast.native.models translates it)."""
+    if k == 1:
+        return (0.0, 0.0)
+    if k == 2:
+        return ((r0 - r1) / T, 0.0)
+    if k == 3:
+        return ((3.0 * r0 - 4.0 * r1 + r2) / (2.0 * T), (r0 - 2.0 * r1 + r2) / (T * T))
+    return ((11.0 * r0 - 18.0 * r1 + 9.0 * r2 - 2.0 * r3) / (6.0 * T), (2.0 * r0 - 5.0 * r1 + 4.0 * r2 - r3) / (T * T))

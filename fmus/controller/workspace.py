@@ -29,6 +29,12 @@ WORKSPACE_PARAMETERS = (
 )
 
 
+def pose_gains(k_v: float, s_z: float, s_psi: float, s_theta: float) -> tuple[float, float, float]:
+    """K = k_v (s_z, s_psi, s_theta) [1/s]. Written in the generated-code subset: the native FMU computes
+    them at initialisation with this source."""
+    return (k_v * s_z, k_v * s_psi, k_v * s_theta)
+
+
 class WorkspaceController(ControllerBlock):
     """Position loop on the platform pose (through the direct kinematics); velocity and current PI per axis."""
 
@@ -39,9 +45,9 @@ class WorkspaceController(ControllerBlock):
 
     def __init__(self, params: Mapping[str, Value], name: str = "") -> None:
         super().__init__(params, name)
-        k_v = float(self.params["k_v"])
         #: pose-space gains [1/s] for z, psi, theta
-        self.K = tuple(k_v * float(self.params[f"k_v_scale_{c}"]) for c in ("z", "psi", "theta"))
+        self.K = pose_gains(float(self.params["k_v"]),
+                            *(float(self.params[f"k_v_scale_{c}"]) for c in ("z", "psi", "theta")))
 
     def _reset(self) -> None:
         super()._reset()

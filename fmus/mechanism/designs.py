@@ -84,12 +84,16 @@ def _fmt(v: float) -> str:
 
 # ----------------------------------------------------------------------------- admissibility checks
 # (run at the point of the evaluation where the description calls require(); messages as kinematics.py)
-# Each check also has ``admissible``: the same condition as a mask over arrays (Engine.evaluate_many).
+# Each check also has ``admissible``: the same condition as a mask over arrays (Engine.evaluate_many), and
+# ``c_condition``, ``c_message``: the condition as a C expression of its arguments a0, a1, ... and what failed,
+# for the C backend of the engine's generated code (mast.native.translate).
 def _finite(z, psi, theta) -> None:
     if not (math.isfinite(z) and math.isfinite(psi) and math.isfinite(theta)):
         raise KinematicsError(f"pose (z = {z!r} m, psi = {psi!r} rad, theta = {theta!r} rad) is not finite")
 
 
+_finite.c_condition = "isfinite(a0) && isfinite(a1) && isfinite(a2)"
+_finite.c_message = "pose (z, psi, theta) is not finite"
 _finite.admissible = lambda z, psi, theta: np.isfinite(z) & np.isfinite(psi) & np.isfinite(theta)
 
 
@@ -100,6 +104,9 @@ def _tilt(psi, theta) -> None:
             f"the admissible tilt {MAX_TILT:.6g} rad ({math.degrees(MAX_TILT):g} deg)")
 
 
+_tilt.c_condition = f"!(fabs(a0) > {MAX_TILT!r} || fabs(a1) > {MAX_TILT!r})"
+_tilt.c_message = (f"pose out of range: |psi| or |theta| exceeds the admissible tilt {MAX_TILT:.6g} rad "
+                   f"({math.degrees(MAX_TILT):g} deg)")
 _tilt.admissible = lambda psi, theta: (np.abs(psi) <= MAX_TILT) & (np.abs(theta) <= MAX_TILT)
 
 
@@ -110,6 +117,9 @@ def _pose_text(z, psi, theta) -> str:
 class _NullCheck:
     def __init__(self, r: float, alpha) -> None:
         self.r, self.alpha = r, alpha
+        self.c_condition = f"a0 > {1e-9 * r * r!r}"
+        self.c_message = ("singular configuration: the constraints S_i . t_i = 0 do not determine the parasitic "
+                          "motion (x, y, phi)")
 
     def __call__(self, norm, z, psi, theta) -> None:
         if not norm > 1e-9 * self.r * self.r:
@@ -127,6 +137,9 @@ class _InsideCheck:
 
     def __init__(self, i: int, H: float, inclined: bool) -> None:
         self.i, self.H, self.inclined = i, H, inclined
+        self.c_condition = "a0 > 0.0"
+        self.c_message = (f"pose unreachable (not the working assembly): spherical joint S_{i + 1} is on the outer "
+                          f"side of guide {i + 1}")
 
     def __call__(self, u, d, z, psi, theta) -> None:
         if not u > 0.0:
@@ -148,6 +161,8 @@ class _InsideCheck:
 class _ReachCheck:
     def __init__(self, i: int, L: float, inclined: bool) -> None:
         self.i, self.L, self.inclined = i, L, inclined
+        self.c_condition = "a0 > 0.0"
+        self.c_message = f"pose unreachable: leg {i + 1} is too short (L = {_fmt(L)} m) for the pose"
 
     def __call__(self, w2, u, z, psi, theta) -> None:
         if not w2 > 0.0:
@@ -307,6 +322,15 @@ def describe(params: Mapping[str, object], owner: str = "", masses: bool = True)
     if beta != 0.0:
         _check_inclined(desc, where)
     return desc
+
+
+#: the bodies ``describe`` builds, their masses and inertias as the parameters that set them (None: 0 by
+#: construction), and g: the engine's forces with these as inputs (``Engine.forces_of``) read them at run time
+#: in the native FMU (the payload's, which also moves its centre of mass, are not among them)
+_LEG = ("m_leg", ((None, None, None), (None, "I_leg", None), (None, None, "I_leg")))
+INERTIAL_PARAMETERS = {**{f"leg_{i + 1}": _LEG for i in range(3)},
+                       "platform": ("m_platform", (("I_px", None, None), (None, "I_py", None), (None, None, "I_pz")))}
+GRAVITY_PARAMETER = "g"
 
 
 def _check_inclined(desc: PRS3, owner: str) -> None:

@@ -52,7 +52,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Callable, Optional, Sequence
+from typing import Callable, Mapping, Optional, Sequence
 
 import numpy as np
 
@@ -577,6 +577,7 @@ def compile_function(name: str, inputs: Sequence[str], outputs: Sequence[E], gra
     lines.append(f"    return ({''.join(ref(o)[0] + ', ' for o in outputs)}{'_ok, ' if vector else ''})")
     assert not inline, "internal error: an inlined expression was never used"
     fn = compile_generated("\n".join(lines), name, f"mast engine: {label or name}", ns)
+    fn.namespace = ns   # what the source calls (the checks): for the C backend (mast.native)
     if not vector:
         return fn
 
@@ -871,8 +872,10 @@ class Engine:
         return compile_function("forces", inputs, list(t), self._graph, f"{self.description.name} forces, arrays",
                                 vector=True)
 
-    def _dynamics_graph(self, detailed: bool):
-        """Outputs of the inverse dynamics, built on the graph (inputs q, J = dq/drho, rd, rdd)."""
+    def _dynamics_graph(self, detailed: bool, inertial: Optional[Mapping[str, tuple]] = None,
+                        gravity: Optional[str] = None):
+        """Outputs of the inverse dynamics, built on the graph (inputs q, J = dq/drho, rd, rdd; with
+        ``inertial`` and ``gravity``, those bodies' masses and inertias and g as inputs too: ``forces_of``)."""
         n, g = self.n, self._graph
         Jm = [[g.input(f"J{j}{k}") for k in range(n)] for j in range(n)]
         rd = [g.input(f"rd{k}") for k in range(n)]
@@ -894,10 +897,13 @@ class Engine:
         c = [g.const(0.0)] * n
         gt = [g.const(0.0)] * n
         terms, kin = [], []
-        grav = self.g
+        grav = self.g if gravity is None else g.input(gravity)
         for body, (com, R) in zip(self.bodies, self._frames):
-            m = body.mass
-            I = body.inertia
+            m, I = body.mass, body.inertia
+            if inertial and body.name in inertial:
+                mass, tensor = inertial[body.name]
+                m = g.input(mass)
+                I = [[g.const(0.0) if name is None else g.input(name) for name in row] for row in tensor]
             Jv = [to_rho([dq[k](com[i]) for k in range(n)]) for i in range(3)]       # 3 x n
             a0 = [acc(com[i]) for i in range(3)]
             dR = [[[dq[k](R[i][j]) for j in range(3)] for i in range(3)] for k in range(n)]
@@ -940,6 +946,21 @@ class Engine:
             [f"rd{k}" for k in range(n)] + [f"rdd{k}" for k in range(n)]
         return compile_function("forces", inputs, list(t) + list(self._pose), self._graph,
                                 f"{self.description.name} forces")
+
+    def forces_of(self, inertial: Mapping[str, tuple], gravity: str) -> tuple[Callable, list[str]]:
+        """The inverse dynamics and pose (as ``forces``) with the masses and inertias of the bodies in
+        ``inertial`` ({body: (mass name, 3x3 nested names, None for an entry that is 0 by construction)})
+        and g (``gravity``) as named inputs after the others: (function, those names in argument order).
+        The same operations as ``forces`` with those values (no constant folding of them)."""
+        t = self._dynamics_graph(False, inertial, gravity)[0]
+        n = self.n
+        names = list(dict.fromkeys([gravity] + [x for mass, tensor in inertial.values()
+                                                for x in (mass, *(v for row in tensor for v in row)) if x]))
+        inputs = self._qnames() + [f"J{j}{k}" for j in range(n) for k in range(n)] + \
+            [f"rd{k}" for k in range(n)] + [f"rdd{k}" for k in range(n)] + names
+        fn = compile_function("forces", inputs, list(t) + list(self._pose), self._graph,
+                              f"{self.description.name} forces, inertia as inputs")
+        return fn, names
 
     def _build_detailed(self) -> Callable:
         n = self.n

@@ -1,0 +1,298 @@
+"""`mast build --native`: FMI 2.0 Co-Simulation FMUs with a compiled C binary, no Python at run time.
+
+A native FMU is made from the Python FMU of the same model (``mast.build``):
+
+- its modelDescription.xml is the Python FMU's (the same variables, value references, units,
+  causality, variability, start values and descriptions: they are generated in one place,
+  ``fmus/common/slave.py``), with the generation tool, the GUID and the source file list changed;
+- its C is the wrapper ``fmus/common/native/fmi2_wrapper.c`` (the FMI glue, once for all models),
+  the support header ``mast_native.h`` and one generated model file (``models.emit_model``);
+- the sources travel in ``sources/`` so a host on another platform can compile them (with the
+  FMI 2.0 headers, which every importer has); the binary is ``binaries/linux64/<id>.so``, compiled
+  here with the C compiler found as ``$CC``, ``cc`` or ``gcc`` (``-O2 -ffp-contract=off``: the
+  same floating-point operations as the Python model, no fused multiply-add).
+
+Part of the parameters are read at run time, the others have their values inlined in the
+generated code as in the Python model's (``models.generated_parameters``); so a native FMU is
+built for the inlined parameters of the component that uses it, and each native SSP carries FMUs
+built for its own bindings.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import uuid
+import zipfile
+from pathlib import Path
+from typing import Iterable, Mapping, Optional, Sequence
+
+from lxml import etree
+
+from .models import Variable, emit_model, generated_parameters
+
+__all__ = ["NativeBuildError", "compiler", "build_native_fmu", "native_sources", "read_variables", "SUPPORT"]
+
+REPO = Path(__file__).resolve().parents[2]
+SUPPORT = REPO / "fmus" / "common" / "native"
+SUPPORT_FILES = ("fmi2_wrapper.c", "mast_model.h", "mast_native.h")
+#: what a native FMU was generated for (its parameter set, the actuator's step sizes), inside the archive
+GENERATED_FOR = "resources/mast_native.json"
+CFLAGS = ("-O2", "-ffp-contract=off", "-fPIC", "-shared", "-std=c99", "-D_POSIX_C_SOURCE=200809L",
+          "-Wall", "-Wno-unused-variable", "-Wno-unused-function", "-Wno-maybe-uninitialized", "-Wno-format-truncation")
+
+
+class NativeBuildError(RuntimeError):
+    """A native FMU cannot be built here (no C compiler, a compiler error, a model without a native form)."""
+
+
+def compiler() -> str:
+    """The C compiler: ``$CC``, else ``cc`` or ``gcc`` on PATH (NativeBuildError naming what was looked for)."""
+    for name in ([os.environ["CC"]] if os.environ.get("CC") else []) + ["cc", "gcc"]:
+        found = shutil.which(name.split()[0])
+        if found:
+            return found
+    raise NativeBuildError("mast build --native needs a C compiler: none of $CC, cc, gcc is on PATH "
+                           "(install gcc or clang, or set CC)")
+
+
+def fmi_headers() -> Path:
+    """The FMI 2.0 headers (fmi2Functions.h ...): fmpy, a dependency of this project, ships them."""
+    import fmpy
+
+    folder = Path(fmpy.__file__).parent / "c-code"
+    if not (folder / "fmi2Functions.h").exists():
+        raise NativeBuildError(f"{folder}: the FMI 2.0 headers are missing from this fmpy installation")
+    return folder
+
+
+def read_variables(model_description: bytes) -> list[Variable]:
+    """The ScalarVariables of a modelDescription.xml, in document order."""
+    root = etree.fromstring(model_description)
+    out = []
+    for sv in root.iter("ScalarVariable"):
+        typed = next(iter(sv))
+        start = typed.get("start")
+        kind = typed.tag
+        value = {"Real": lambda s: float(s or 0.0), "Integer": lambda s: int(s or 0),
+                 "String": lambda s: s or ""}[kind](start)
+        out.append(Variable(sv.get("name"), int(sv.get("valueReference")), kind, sv.get("causality"), value))
+    return out
+
+
+def native_sources(identifier: str, block_class: type, parameters: Mapping[str, object],
+                   model_description: bytes, step_sizes: Sequence[float] = ()) -> tuple[dict[str, bytes], bytes]:
+    """({file name: C source}, native modelDescription.xml) for the Python FMU's ``model_description``."""
+    variables = read_variables(model_description)
+    model_file = f"{identifier}_model.c"
+    draft = emit_model(identifier, "GUID", block_class, parameters, variables, step_sizes)
+    digest = hashlib.sha256(draft.encode() + model_description)
+    for name in SUPPORT_FILES:
+        digest.update((SUPPORT / name).read_bytes())
+    guid = "{" + str(uuid.UUID(bytes=digest.digest()[:16], version=4)) + "}"
+    sources = {name: (SUPPORT / name).read_bytes() for name in SUPPORT_FILES}
+    sources[model_file] = draft.replace('"GUID"', f'"{guid}"', 1).encode()
+    root = etree.fromstring(model_description)
+    root.set("guid", guid)
+    root.set("generationTool", "MAST mast build --native (C generated from the model's code)")
+    cs = root.find("CoSimulation")
+    for old in cs.findall("SourceFiles"):
+        cs.remove(old)
+    files = etree.SubElement(cs, "SourceFiles")
+    for name in sorted(sources):
+        if name.endswith(".c"):
+            etree.SubElement(files, "File", name=name)
+    xml = etree.tostring(root, xml_declaration=True, encoding="UTF-8", pretty_print=True)
+    return sources, xml
+
+
+#: FMI 2.0 platform folder -> (zig target, library suffix); linux64 uses the C compiler found here
+PLATFORMS = {"linux64": (None, ".so"), "win64": ("x86_64-windows-gnu", ".dll"), "darwin64": ("x86_64-macos", ".dylib")}
+
+
+def _cross_compiler(platform: str) -> list[str]:
+    """zig's C compiler for another platform (PyPI package ziglang: ``pip install ziglang``)."""
+    import importlib.util
+
+    if importlib.util.find_spec("ziglang") is None:
+        raise NativeBuildError(f"binaries for {platform} need a cross compiler: pip install ziglang")
+    return [sys.executable, "-m", "ziglang", "cc", "-target", PLATFORMS[platform][0]]
+
+
+def compile_shared(sources: Mapping[str, bytes], target: Path, platform: str = "linux64") -> None:
+    """Compile the sources into the shared library ``target`` for ``platform`` (a key of PLATFORMS;
+    NativeBuildError with the compiler's output)."""
+    cc = [compiler()] if platform == "linux64" else _cross_compiler(platform)
+    with tempfile.TemporaryDirectory(prefix="mast_native_") as tmp:
+        tmp = Path(tmp)
+        for name, data in sources.items():
+            (tmp / name).write_bytes(data)
+        c_files = sorted(str(tmp / n) for n in sources if n.endswith(".c"))
+        cmd = [*cc, *CFLAGS, f"-I{fmi_headers()}", f"-I{tmp}", "-o", str(target), *c_files,
+               *(["-lm"] if platform != "win64" else [])]
+        done = subprocess.run(cmd, capture_output=True, text=True)
+        if done.returncode != 0:
+            raise NativeBuildError(f"{target.name}: the C compiler failed ({' '.join(cmd[:2])} ...):\n"
+                                   f"{done.stderr.strip()[-4000:]}")
+
+
+def build_native_fmu(identifier: str, python_fmu: Path, out_dir: Path, parameters: Mapping[str, object],
+                     step_sizes: Iterable[float] = (), platforms: Sequence[str] = ("linux64",)) -> Path:
+    """The native form of the Python FMU ``python_fmu`` (model ``identifier``) with ``parameters``, into
+    ``out_dir``; ``step_sizes`` [s]: the communication steps the actuator is built for. ``python_fmu``
+    may also be a native FMU of the same model (its modelDescription is the Python one's). ``platforms``:
+    the binaries to build (PLATFORMS; other than linux64 with zig, untested)."""
+    from ..build import block_class
+
+    with zipfile.ZipFile(python_fmu) as z:
+        md = z.read("modelDescription.xml")
+    sources, xml = native_sources(identifier, block_class(identifier), parameters, md, sorted(set(step_sizes)))
+    out_dir.mkdir(parents=True, exist_ok=True)
+    target = out_dir / f"{identifier}.fmu"
+    with tempfile.TemporaryDirectory(prefix="mast_native_") as tmp:
+        libraries = {}
+        for platform in platforms:
+            library = Path(tmp) / platform / f"{identifier}{PLATFORMS[platform][1]}"
+            library.parent.mkdir()
+            compile_shared(sources, library, platform)
+            libraries[f"binaries/{platform}/{library.name}"] = library
+        partial = Path(tmp) / target.name
+        with zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as zout:
+            zout.writestr("modelDescription.xml", xml)
+            for name, library in libraries.items():
+                zout.write(library, name)
+            zout.writestr(GENERATED_FOR, json.dumps({"identifier": identifier, "parameters": dict(parameters),
+                                                     "step_sizes": sorted(set(step_sizes))}, indent=1, sort_keys=True))
+            for name, data in sorted(sources.items()):
+                zout.writestr(f"sources/{name}", data)
+        shutil.move(str(partial), target)
+    return target
+
+
+# ----------------------------------------------------------------------------------- every FMU and SSP
+def has_native_form(identifier: str) -> bool:
+    """Whether ``mast build --native`` can make this FMU (the models of ``models.emit_model``)."""
+    from ..build import block_class
+    from .models import native_controllers
+
+    cls = block_class(identifier)
+    kind = cls.__module__.split(".")[-2]
+    return kind in ("actuator", "mechanism", "trajectory") or cls in native_controllers()
+
+
+def _component_sets(ssd: Path) -> dict[str, tuple[str, dict, Optional[float]]]:
+    """Per component of ``ssd``: (FMU identifier, its complete parameter set, its step size hint)."""
+    from ..build import block_class, default_parameters
+    from ..ssp import applicable_parameters, read_ssd
+
+    system = read_ssd(ssd)
+    names = {c: {p.name for p in block_class(Path(s.source).stem).PARAMETERS} for c, s in system.components.items()}
+    bound = applicable_parameters(system, names)
+    out = {}
+    for comp, spec in system.components.items():
+        ident = Path(spec.source).stem
+        out[comp] = (ident, {**default_parameters(ident), **bound[comp]}, spec.step_size)
+    return out
+
+
+def build_native_all(out: Path, ssds: Sequence[Path], log=print, fmus: Optional[Sequence[str]] = None,
+                     platforms: Sequence[str] = ("linux64",)) -> list[Path]:
+    """Native FMUs into ``out/fmus/native`` (each for its default parameter set; ``fmus``: only these
+    identifiers, default every FMU with a native form) and, for every SSD whose components all have a
+    native form, ``out/ssp/native/<name>.ssp`` binding native FMUs built for its own parameter sets.
+    Needs the Python FMUs of those FMUs and SSDs in ``out/fmus`` (``mast build``); ``platforms``: the
+    binaries each FMU carries (``build_native_fmu``)."""
+    from ..build import FMUS, build_ssp, default_parameters
+
+    python_dir = out / "fmus"
+    sets = {Path(ssd): _component_sets(Path(ssd)) for ssd in ssds}
+    steps: dict[str, set] = {}
+    for comps in sets.values():
+        for ident, _, h in comps.values():
+            if h is not None:
+                steps.setdefault(ident, set()).add(h)
+    written = []
+    cache: dict[str, Path] = {}
+
+    def native(ident: str, params: dict, folder: Path) -> Path:
+        key = json.dumps([ident, params, sorted(steps.get(ident, ()))], sort_keys=True, default=str)
+        if key not in cache:
+            cache[key] = build_native_fmu(ident, python_dir / f"{ident}.fmu", folder, params, steps.get(ident, ()),
+                                          platforms)
+        elif cache[key].parent != folder:
+            folder.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(cache[key], folder / cache[key].name)
+        return folder / f"{ident}.fmu"
+
+    for spec in FMUS:
+        if has_native_form(spec.model_identifier) and (fmus is None or spec.model_identifier in fmus):
+            written.append(native(spec.model_identifier, default_parameters(spec.model_identifier), out / "fmus" / "native"))
+            log(f"built {written[-1]}")
+    for ssd, comps in sets.items():
+        missing = sorted({ident for ident, _, _ in comps.values() if not has_native_form(ident)})
+        if missing:
+            log(f"skipped {ssd.name}: no native form yet for {', '.join(missing)}")
+            continue
+        by_source: dict[str, dict] = {}
+        for comp, (ident, params, _) in comps.items():
+            if by_source.setdefault(ident, params) != params:
+                raise NativeBuildError(f"{ssd}: the components using {ident}.fmu have different parameter sets; a "
+                                       "native FMU is built for one set (models.py), so this system has no native form")
+        with tempfile.TemporaryDirectory(prefix="mast_native_ssp_") as tmp:
+            for ident, params in by_source.items():
+                native(ident, params, Path(tmp))
+            written.append(build_ssp(ssd, Path(tmp), out / "ssp" / "native"))
+        log(f"built {written[-1]}")
+    return written
+
+
+# ----------------------------------------------------------------------------------- for another parameter set
+def generated_for(fmu: Path) -> Optional[dict]:
+    """What a native FMU was generated for ({identifier, parameters, step_sizes}); None for other FMUs."""
+    with zipfile.ZipFile(fmu) as z:
+        if GENERATED_FOR not in z.namelist():
+            return None
+        return json.loads(z.read(GENERATED_FOR))
+
+
+def cache_dir() -> Path:
+    """Where native FMUs made for other parameter sets are kept: $MAST_NATIVE_CACHE, else ~/.cache/mast/native."""
+    if os.environ.get("MAST_NATIVE_CACHE"):
+        return Path(os.environ["MAST_NATIVE_CACHE"])
+    return Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "mast" / "native"
+
+
+def for_parameters(fmu: Path, parameters: Mapping[str, object], step_size: Optional[float] = None) -> Path:
+    """``fmu`` itself, or, for a native FMU generated for other values than ``parameters`` (the component's
+    bindings and overrides over the FMU's own set) or without ``step_size``, the same model generated for
+    them (kept in ``cache_dir()``): how the project's master runs native FMUs with any parameter set."""
+    from ..build import block_class
+    from fmus.common.parameters import ParameterError, validate
+
+    made = generated_for(fmu)
+    if made is None:
+        return fmu
+    ident = made["identifier"]
+    specs = block_class(ident).PARAMETERS
+    try:
+        wanted = validate(specs, {**made["parameters"], **parameters}, ident)
+    except ParameterError:   # the FMU names the bad value at initialisation, as every FMU does
+        return fmu
+    steps = set(made["step_sizes"]) | ({float(step_size)} if step_size and made["step_sizes"] else set())
+    own = validate(specs, made["parameters"], ident)
+    inlined = generated_parameters(block_class(ident), wanted)    # the others are set at run time
+    if inlined == generated_parameters(block_class(ident), own) and steps == set(made["step_sizes"]):
+        return fmu
+    key = hashlib.sha256(json.dumps([ident, inlined, sorted(steps)], sort_keys=True, default=str).encode())
+    for file in sorted([*(REPO / "fmus").rglob("*.py"), *(REPO / "fmus").rglob("*.[ch]"),
+                        *Path(__file__).parent.glob("*.py")]):   # the model and generator code
+        key.update(file.read_bytes())
+    folder = cache_dir() / key.hexdigest()[:16]
+    target = folder / f"{ident}.fmu"
+    if not target.exists():
+        build_native_fmu(ident, fmu, folder, {**own, **inlined}, steps)   # start values: the FMU's own
+    return target
