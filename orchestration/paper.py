@@ -24,7 +24,9 @@ TOLERANCE_SENTENCE = ("section 4.2: 'the simulated positions present a maximum d
 #: closed-loop position response, section 4.2: frequency [Hz] -> (magnitude [-], phase [deg])
 POSITION_RESPONSE = {0.4: (0.994, -6.3), 5.0: (0.654, -62.5), 10.0: (0.432, -103.7)}
 MOTIONS = ("z", "psi", "theta")
-#: -3 dB bandwidths, section 4.1 / Fig. 10 [Hz]
+#: bandwidths, section 4.1 / Fig. 10 [Hz]; read as the -45 deg phase frequency (docs/reproduction.md: the
+#: reading under which the paper's section 4.2 numbers agree with its 3.5 Hz; they put -3 dB near 4.5 Hz)
+BANDWIDTH_PHASE_DEG = -45.0
 BANDWIDTH_WITH_MAST = 3.5
 BANDWIDTH_ACTUATORS_ALONE = 4.0
 #: "up to 2 Hz both systems behave similarly" (Fig. 10) [Hz]
@@ -102,13 +104,14 @@ CLAIMS: tuple[Claim, ...] = (
     Claim("fn_table1", "First transmission mode f_n (Table 1)", "Hz", FN_TABLE1, "magnitude", "Table 1 f_n",
           "Table 1: f_n* = 986.5 Hz, experimentally identified (modal test, section 3.1)"),
     *_position_claims(),
-    *(Claim(f"bandwidth/{m}", f"-3 dB bandwidth, {m} motion with the MAST", "Hz", BANDWIDTH_WITH_MAST, "magnitude",
-            "4.1 bandwidth with the MAST",
+    *(Claim(f"bandwidth/{m}", f"Bandwidth (phase -45 deg), {m} motion with the MAST", "Hz", BANDWIDTH_WITH_MAST,
+            "magnitude", "4.1 bandwidth with the MAST",
             "section 4.1, Figs. 8-10: 'with the mechanism the bandwidth is reduced to 3.5[Hz]' (struck-out "
-            "sentence: 'for all the motions tested')") for m in MOTIONS),
-    Claim("bandwidth/z_alone", "-3 dB bandwidth, z motion, actuators alone", "Hz", BANDWIDTH_ACTUATORS_ALONE,
-          "magnitude", "4.1 bandwidth alone",
-          "section 4.1, Fig. 10: 'the actuators without the MAST have a bandwidth about 4[Hz]'"),
+            "sentence: 'for all the motions tested'); read at -45 deg, the reading under which section 4.2's own "
+            "numbers agree (docs/reproduction.md)") for m in MOTIONS),
+    Claim("bandwidth/z_alone", "Bandwidth (phase -45 deg), z motion, actuators alone", "Hz",
+          BANDWIDTH_ACTUATORS_ALONE, "magnitude", "4.1 bandwidth alone",
+          "section 4.1, Fig. 10: 'the actuators without the MAST have a bandwidth about 4[Hz]' (read at -45 deg)"),
     Claim("bandwidth/reduction", "Bandwidth reduction by the MAST (z)", "Hz",
           BANDWIDTH_ACTUATORS_ALONE - BANDWIDTH_WITH_MAST, "magnitude", "4.1 bandwidth reduction",
           "section 4.1: 'the mechanism itself has only a 0.5[Hz] effect on the system's performance'"),
