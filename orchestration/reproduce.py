@@ -132,7 +132,7 @@ def reproduce(ssp: str, out: Path, workers: int = 2, direct: bool = False,
     (out / "paper_table.json").write_text(json.dumps([r.as_dict() for r in rows], indent=2))
     summary = _summary(rows, wall, len(flat), failures)
     _write_report(out, rows, figures, failures, summary, ssp, workers,
-                  _forensics(ssp, params, by_group), limits)
+                  _forensics(ssp, params, by_group), limits, by_group)
     return summary
 
 
@@ -217,6 +217,17 @@ def _limit_table(groups: dict, i_max: float) -> list[dict]:
             table.append({"variant": variant, "motion": r.axis, "frequency_Hz": r.frequency, "i_peak_A": peak,
                           "i_max_A": i_max, "at_limit": bool(peak >= i_max * (1 - 1e-6))})
     return table
+
+
+def _sweep_limits(groups: dict, i_max: float) -> list[str]:
+    """The sweep tests whose current command reached the drive's limit (their response is the saturated one)."""
+    hits = []
+    for name in ("sweep_z", "sweep_psi", "sweep_theta", "sweep_z_alone"):
+        freqs = [f"{r.frequency:g}" for r in groups[name]
+                 if r.current_peak and not r.error and max(r.current_peak) >= i_max * (1 - 1e-6)]
+        if freqs:
+            hits.append(f"{name.removeprefix('sweep_')} at {', '.join(freqs)} Hz")
+    return hits
 
 
 def _limit_note(limits: list[dict], motion: str, f: float) -> str:
@@ -447,7 +458,7 @@ def _forensics(ssp: str, params: dict, groups: dict) -> list[str]:
 
 
 def _write_report(out: Path, rows: list[Row], figures: list[str], failures: list[str], summary: dict,
-                  ssp: str, workers: int, forensics: list[str], limits: list[dict]) -> None:
+                  ssp: str, workers: int, forensics: list[str], limits: list[dict], sweep_groups: dict) -> None:
     s = summary
     lines = [
         "# Reproduction of the paper's results",
@@ -481,6 +492,9 @@ def _write_report(out: Path, rows: list[Row], figures: list[str], failures: list
     for t in limits:
         lines.append(f"| {t['variant']} | {t['motion']} | {t['frequency_Hz']:g} | {t['i_peak_A']:.2f} | {t['i_max_A']:g} | "
                      f"{'**yes**' if t['at_limit'] else 'no'} |")
+    sweeps = _sweep_limits(sweep_groups, limits[0]["i_max_A"]) if limits else []
+    lines += ["", "Sweep tests on the current limit (Figs. 8-10; their response is the saturated one): "
+              + ("; ".join(sweeps) if sweeps else "none") + "."]
     lines += ["", "## Forensic numbers (docs/reproduction.md explains them)", ""] + forensics
     if failures:
         lines += ["", "## Runs that failed", ""] + [f"- {f}" for f in failures]
