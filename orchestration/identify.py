@@ -51,21 +51,30 @@ ACTUATORS = ("actuator_1", "actuator_2", "actuator_3")
 READING_SET = "actuator_paper_reading"
 
 
-def reading_parameters() -> dict[str, float]:
-    """The values of ssp/resources/actuator_paper_reading.ssv (bound after actuator_manufacturer.ssv)."""
+#: Sim. Ident. of section 4.2 (J1/1.56, Coulomb friction 7.18e-2 N m), bound after the reading
+IDENTIFIED_SET = "actuator_identified"
+
+
+def resource_parameters(set_name: str) -> dict[str, float]:
+    """The values of the source parameter set ssp/resources/<set_name>.ssv."""
     from .build import SSP_SRC
     from .ssv import parse_ssv
 
-    path = SSP_SRC / "resources" / f"{READING_SET}.ssv"
+    path = SSP_SRC / "resources" / f"{set_name}.ssv"
     if not path.exists():
-        raise FileNotFoundError(f"{path}: the parameter set of the paper reading is missing (it ships in the "
-                                "repository's ssp/resources; run mast from a checkout of the project)")
+        raise FileNotFoundError(f"{path}: parameter set '{set_name}' is missing (it ships with the project's "
+                                "ssp/resources)")
     return {name: v.value for name, v in parse_ssv(path).items()}
+
+
+def reading_parameters() -> dict[str, float]:
+    """The values of ssp/resources/actuator_paper_reading.ssv (bound after actuator_manufacturer.ssv)."""
+    return resource_parameters(READING_SET)
 
 
 def identified_parameters(actuators: Sequence[str] = ACTUATORS) -> dict:
     """Sim. Ident. of section 4.2 in the reproduction's reading: per-actuator overrides."""
-    return {name: {**reading_parameters(), **paper.IDENTIFIED} for name in actuators}
+    return {name: {**reading_parameters(), **resource_parameters(IDENTIFIED_SET)} for name in actuators}
 
 
 def manufacturer_parameters(actuators: Sequence[str] = ACTUATORS) -> dict:

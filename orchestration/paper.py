@@ -41,8 +41,6 @@ TORQUE_DIFFERENCE_04HZ = 0.10       # N m ("a difference in the torque of approx
 TORQUE_ERROR_MANUFACTURER_04HZ = 0.70  # relative ("differs from the experimental torque ... by approximately 70 %")
 TORQUE_EXCESS_MANUFACTURER_10HZ = 0.10  # N m ("at 10 Hz the model estimated 0.1 Nm higher torque")
 SQUARE_WAVE_H3_H1 = 1.0 / 3.0       # "almost a square signal" at 0.4 Hz: 3rd/1st harmonic of a square wave
-#: the identified physical variant (section 4.2), as parameter overrides of each actuator
-IDENTIFIED = {"J1_scale": 1.0 / 1.56, "tau_c": 7.18e-2}
 #: test amplitudes: not in the paper (assumed, docs/reproduction.md): 5 mm in z, 0.8 deg in psi/theta
 #: (about 4.9 mm at the joints); whether a test touches the drive's current limit is reported per test
 AMPLITUDE = {"z": 0.005, "psi": math.radians(0.8), "theta": math.radians(0.8)}

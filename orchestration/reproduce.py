@@ -29,7 +29,7 @@ import numpy as np  # noqa: E402
 from . import paper  # noqa: E402
 from .build import SSP_SRC  # noqa: E402
 from .frequency import CountProgress, SineCase, SineResult, bandwidth, harmonic, run_cases  # noqa: E402
-from .identify import identified_parameters, manufacturer_parameters  # noqa: E402
+from .identify import IDENTIFIED_SET, identified_parameters, manufacturer_parameters, resource_parameters  # noqa: E402
 from .ssp import SSPArchive  # noqa: E402
 
 SWEEP_HZ = (0.4, 1.0, 1.5, 2.0, 2.5, 3.0, 3.5, 4.0, 4.5, 5.0, 6.0, 8.0, 10.0, 14.0, 20.0)
@@ -406,7 +406,8 @@ def _forensics(ssp: str, params: dict, groups: dict) -> list[str]:
     fit_file = SSP_SRC / "resources" / "controller_paper_fit.ssv"
     fit = parse_ssv(fit_file)["k_v"].source if fit_file.exists() else "no fitted gains in this SSP"
     fn, eq22 = natural_frequencies(params), natural_frequencies({**params, "M_load": 2.27})
-    ident = {**params, **paper.IDENTIFIED}
+    identified = resource_parameters(IDENTIFIED_SET)
+    ident = {**params, **identified}
     i_R = transmission_ratio(params["p"], params["i_r"])
     m_actuator = sum(two_inertia(ident)) / i_R ** 2
     rho0 = float(params["rho_0"])
@@ -443,8 +444,8 @@ def _forensics(ssp: str, params: dict, groups: dict) -> list[str]:
         f"raises the -3 dB point and barely moves the phase). The paper's own magnitudes read as a first-order lag put its -3 dB point at "
         f"{', '.join(f'{x:.2f}' for x in fc)} Hz (from 5 and 10 Hz), not 3.5 Hz.",
         f"- Torques at 0.4 Hz: the friction at the motor is {1e3 * tau_c_m:.1f} mN m (Eq. 23 through the gearbox) and "
-        f"{1e3 * paper.IDENTIFIED['tau_c']:.1f} mN m identified; the square swing of each is twice that, so the "
-        f"peak-to-peak difference is about 2 x {1e3 * (paper.IDENTIFIED['tau_c'] - tau_c_m):.1f} mN m. The peak "
+        f"{1e3 * identified['tau_c']:.1f} mN m identified; the square swing of each is twice that, so the "
+        f"peak-to-peak difference is about 2 x {1e3 * (identified['tau_c'] - tau_c_m):.1f} mN m. The peak "
         f"(offset included) reading would give {peak_i - peak_m:.3f} N m and {100 * (1 - peak_m / peak_i):.0f} %.",
         "- Torque at 10 Hz, with the drive's torque low-pass on the measured (identified) torque, manufacturer minus "
         "measured, peak-to-peak: " + ("; ".join(lp) if lp else "(no signals)") + ".",
