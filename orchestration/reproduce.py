@@ -40,7 +40,7 @@ NO_MECHANISM = {"mechanism": {"attached": 0}}
 #: the motor whose torque the time-domain figures show: one that moves in that motion (T layout)
 MOTOR_SHOWN = {"z": 1, "psi": 2, "theta": 1}
 #: forensics: extra moving mass per drive [kg] and the frequencies its z bandwidth is read from [Hz]
-EXTRA_MASS_KG = (2.27, 6.0)
+EXTRA_MASS_KG = (2.27, 6.0)  # 2.27 kg: the MAST lumped on each drive, as Eqs. 21-22 do
 MASS_HZ = (2.0, 3.0, 4.0, 5.0, 6.0)
 KEEP = ("actuator_1.tau_m", "actuator_2.tau_m", "actuator_3.tau_m", "z_cmd", "psi_cmd", "theta_cmd",
         "mechanism.z", "mechanism.psi", "mechanism.theta")
@@ -122,17 +122,18 @@ def reproduce(ssp: str, out: Path, workers: int = 2, direct: bool = False,
     failures = [f"{c.axis} {c.frequency:g} Hz ({c.label or 'sweep'}): {r.error}" for c, r in zip(flat, results) if r.error]
 
     params = _actuator_params(ssp)
+    m_eq22 = float(_component_params(ssp, "actuator_1")["M_load"])  # the SSP's own carriage: Eq. 22's M_load
     i_max = float(_component_params(ssp, "controller")["i_max"])
     ours = {**_actuator_values(params), **_sweep_values(by_group), **_time_values(by_group)}
     limits = _limit_table(by_group, i_max)
     notes = {"torque/excess_10Hz": _limit_note(limits, "z", 10.0)}
     rows = [Row(c, ours.get(c.key, float("nan")), paper.kind(c), notes.get(c.key, "")) for c in paper.CLAIMS]
-    figures = [_plot_bode(params, out), _plot_sweeps(by_group, out)] + _plot_time(by_group, out)
+    figures = [_plot_bode(params, out, m_eq22), _plot_sweeps(by_group, out)] + _plot_time(by_group, out)
     wall = time.perf_counter() - t0
     (out / "paper_table.json").write_text(json.dumps([r.as_dict() for r in rows], indent=2))
     summary = _summary(rows, wall, len(flat), failures)
     _write_report(out, rows, figures, failures, summary, ssp, workers,
-                  _forensics(ssp, params, by_group), limits, by_group)
+                  _forensics(ssp, params, by_group, m_eq22), limits, by_group)
     return summary
 
 
@@ -241,7 +242,8 @@ def _response(num: np.ndarray, den: np.ndarray, f: np.ndarray) -> np.ndarray:
     return np.polyval(num, s) / np.polyval(den, s)
 
 
-def _plot_bode(params: dict, out: Path) -> str:
+def _plot_bode(params: dict, out: Path, m_eq22: float) -> str:
+    """Fig. 7 from ``params`` (the reading), with the resonance Eq. 22's carriage ``m_eq22`` [kg] would give."""
     from fmus.actuator.model import natural_frequencies, transfer_functions
 
     f = np.geomspace(10.0, 5000.0, 2000)
@@ -250,7 +252,7 @@ def _plot_bode(params: dict, out: Path) -> str:
         resp = _response(num, den, f)
         ax_m.loglog(f, np.abs(resp), label=name)
         ax_p.semilogx(f, np.degrees(np.unwrap(np.angle(resp))), label=name)
-    eq22 = natural_frequencies({**params, "M_load": 2.27})
+    eq22 = natural_frequencies({**params, "M_load": m_eq22})
     fn = natural_frequencies(params)
     for ax in (ax_m, ax_p):
         ax.grid(True, which="both", alpha=0.3)
@@ -262,7 +264,7 @@ def _plot_bode(params: dict, out: Path) -> str:
         ax_m.text(value, ax_m.get_ylim()[0] * 10 ** y, f" {label}", color="r", fontsize=8)
     ax_m.text(fn["TF2"], ax_m.get_ylim()[1], f"TF2 {fn['TF2']:.0f} Hz, f_n {fn['TF1']:.0f} Hz (M* = "
               f"{float(params['M_load']):g} kg)  ", va="top", ha="right", fontsize=8)
-    ax_m.text(eq22["TF2"], ax_m.get_ylim()[1] / 20, f"TF2 {eq22['TF2']:.0f} Hz with Eq. 22's 2.27 kg  ",
+    ax_m.text(eq22["TF2"], ax_m.get_ylim()[1] / 20, f"TF2 {eq22['TF2']:.0f} Hz with Eq. 22's {m_eq22:g} kg  ",
               va="top", ha="right", fontsize=8, color="gray")
     ax_m.set_ylabel("magnitude [rad/(N m), rad/rad]")
     ax_p.set_ylabel("phase [deg]")
@@ -394,7 +396,7 @@ def _paper_phase_crossing() -> float:
     return float(brentq(lambda g: float(model(x, np.array([g]))[0]) - paper.BANDWIDTH_PHASE_DEG, 0.01, 20.0))
 
 
-def _forensics(ssp: str, params: dict, groups: dict) -> list[str]:
+def _forensics(ssp: str, params: dict, groups: dict, m_eq22: float) -> list[str]:
     """The numbers behind docs/reproduction.md's paper forensics, computed from this run's parameters and results."""
     from fmus.actuator.model import natural_frequencies, transmission_ratio, two_inertia
     from fmus.mechanism.dynamics import Masses, inverse_dynamics
@@ -405,7 +407,7 @@ def _forensics(ssp: str, params: dict, groups: dict) -> list[str]:
     mech, ctl = _component_params(ssp, "mechanism"), _component_params(ssp, "controller")
     fit_file = SSP_SRC / "resources" / "controller_paper_fit.ssv"
     fit = parse_ssv(fit_file)["k_v"].source if fit_file.exists() else "no fitted gains in this SSP"
-    fn, eq22 = natural_frequencies(params), natural_frequencies({**params, "M_load": 2.27})
+    fn, eq22 = natural_frequencies(params), natural_frequencies({**params, "M_load": m_eq22})
     identified = resource_parameters(IDENTIFIED_SET)
     ident = {**params, **identified}
     i_R = transmission_ratio(params["p"], params["i_r"])
@@ -432,7 +434,7 @@ def _forensics(ssp: str, params: dict, groups: dict) -> list[str]:
     return [
         f"- Resonances (Fig. 7, Table 1): with Table 1's M* = {float(params['M_load']):g} kg as the moving carriage, "
         f"TF2 = sqrt(K_t/J2) lies at {fn['TF2']:.0f} Hz and the free-free mode at {fn['TF1']:.0f} Hz; with Eq. 22's "
-        f"M_load = 2.27 kg (= platform {float(mech['m_platform']):g} kg + 3 legs x {float(mech['m_leg']):g} kg = "
+        f"M_load = {m_eq22:g} kg (platform {float(mech['m_platform']):g} kg + 3 legs x {float(mech['m_leg']):g} kg = "
         f"{m_total:.2f} kg, the MAST itself) they would lie at {eq22['TF2']:.0f} and {eq22['TF1']:.0f} Hz.",
         f"- Bandwidth: phase -45 deg at {_phase_crossing(groups['sweep_z']):.2f} Hz with the MAST and "
         f"{_phase_crossing(groups['sweep_z_alone']):.2f} Hz alone (the rows); -3 dB at {bw['sweep_z']:.2f} and "
@@ -441,8 +443,8 @@ def _forensics(ssp: str, params: dict, groups: dict) -> list[str]:
         f"Each drive moves an equivalent carriage mass (J1 + J2)/i_R^2 = {m_actuator:.1f} kg (identified set), the "
         f"MAST adds {', '.join(f'{m:.2f}' for m in m_mech)} kg along guides 1-3 at home. Extra moving mass per "
         f"drive on the z bandwidth: {mass_bw} (the P / PI cascade peaks more as the velocity loop slows: mass "
-        f"raises the -3 dB point and barely moves the phase). The paper's own magnitudes read as a first-order lag put its -3 dB point at "
-        f"{', '.join(f'{x:.2f}' for x in fc)} Hz (from 5 and 10 Hz), not 3.5 Hz.",
+        f"raises the -3 dB point and barely moves the phase). The paper's own magnitudes read as a first-order "
+        f"lag put its -3 dB point at {', '.join(f'{x:.2f}' for x in fc)} Hz (from 5 and 10 Hz), not 3.5 Hz.",
         f"- Torques at 0.4 Hz: the friction at the motor is {1e3 * tau_c_m:.1f} mN m (Eq. 23 through the gearbox) and "
         f"{1e3 * identified['tau_c']:.1f} mN m identified; the square swing of each is twice that, so the "
         f"peak-to-peak difference is about 2 x {1e3 * (identified['tau_c'] - tau_c_m):.1f} mN m. The peak "

@@ -123,7 +123,7 @@ import mast.reproduce, mast.identify, mast.frequency, mast.run, mast.cli
 from mast.ssv import parse_ssv
 params = {{k: v.value for f in ("actuator_manufacturer", "transmission", "actuator_paper_reading")
           for k, v in parse_ssv(Path({str(ROOT)!r}) / "ssp" / "resources" / (f + ".ssv")).items()}}
-print(mast.reproduce._plot_bode(params, Path({str(tmp_path)!r})))
+print(mast.reproduce._plot_bode(params, Path({str(tmp_path)!r}), 2.27))
 """
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stderr
