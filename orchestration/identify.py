@@ -53,6 +53,9 @@ READING_SET = "actuator_paper_reading"
 
 #: Sim. Ident. of section 4.2 (J1/1.56, Coulomb friction 7.18e-2 N m), bound after the reading
 IDENTIFIED_SET = "actuator_identified"
+#: the gains `mast fit-gains` fits in that reading, bound by the reproduction (the default system keeps
+#: controller_paper_fit.ssv, fitted with Eq. 22's carriage)
+GAINS_SET = "controller_paper_reading_fit"
 
 
 def resource_parameters(set_name: str) -> dict[str, float]:
@@ -75,6 +78,12 @@ def reading_parameters() -> dict[str, float]:
 def identified_parameters(actuators: Sequence[str] = ACTUATORS) -> dict:
     """Sim. Ident. of section 4.2 in the reproduction's reading: per-actuator overrides."""
     return {name: {**reading_parameters(), **resource_parameters(IDENTIFIED_SET)} for name in actuators}
+
+
+def reading_gains() -> dict[str, float]:
+    """The controller gains fitted in the paper reading (ssp/resources/controller_paper_reading_fit.ssv)."""
+    gains = resource_parameters(GAINS_SET)
+    return {g: float(gains[g]) for g in GAINS}
 
 
 def manufacturer_parameters(actuators: Sequence[str] = ACTUATORS) -> dict:
@@ -157,7 +166,8 @@ def write_ssv(fit: GainFit, path: Path, command: str) -> None:
     root = etree.Element(f"{{{ssv}}}ParameterSet", nsmap={"ssv": ssv, "ssc": ssc}, version="1.0",
                          name=path.stem)
     root.append(etree.Comment(" Controller gains identified from the paper's reported position responses "
-                              "(section 4.2); bind after controller_joint.ssv. "))
+                              f"(section 4.2) in the paper reading ({READING_SET}.ssv): bound by mast reproduce, "
+                              "not by the default system. "))
     params = etree.SubElement(root, f"{{{ssv}}}Parameters")
     for g in GAINS:
         par = etree.SubElement(params, f"{{{ssv}}}Parameter", name=g, description=provenance)

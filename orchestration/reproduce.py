@@ -5,8 +5,9 @@ number the paper reports (``paper.CLAIMS``): quantity, kind (``fit``: a fit used
 it; ``reuse``: the same paper number as a fitted row; ``prediction``), paper
 value, our value, difference, the tolerance applied (the paper's own 11 % of a
 magnitude, 13 % of a phase lag), whether it lies within, and the source. One
-parameter set serves every row: the SSP's (with the fitted controller gains), in
-the reading of ssp/resources/actuator_paper_reading.ssv, in the paper's two
+parameter set serves every row: the SSP's, in the reading of
+ssp/resources/actuator_paper_reading.ssv with the controller gains fitted in it
+(controller_paper_reading_fit.ssv, `mast fit-gains`), in the paper's two
 physical variants (manufacturer data; identified J1/1.56 and Coulomb friction).
 The drive's current limit is part of every test; the report says which tests
 touch it.
@@ -29,7 +30,8 @@ import numpy as np  # noqa: E402
 from . import paper  # noqa: E402
 from .build import SSP_SRC  # noqa: E402
 from .frequency import CountProgress, SineCase, SineResult, bandwidth, harmonic, run_cases  # noqa: E402
-from .identify import IDENTIFIED_SET, identified_parameters, manufacturer_parameters, resource_parameters  # noqa: E402
+from .identify import (GAINS_SET, IDENTIFIED_SET, identified_parameters, manufacturer_parameters,  # noqa: E402
+                       reading_gains, resource_parameters)
 from .ssp import SSPArchive  # noqa: E402
 
 SWEEP_HZ = (0.4, 1.0, 1.5, 2.0, 2.5, 3.0, 3.5, 4.0, 4.5, 5.0, 6.0, 8.0, 10.0, 14.0, 20.0)
@@ -87,7 +89,8 @@ def _merge(*sets: Optional[dict]) -> dict:
 
 def plan(ssp: str, direct: bool = False, sweep_hz: tuple[float, ...] = SWEEP_HZ) -> dict[str, list[SineCase]]:
     """Every independent co-simulation of the report, by group."""
-    ident, manuf = identified_parameters(), manufacturer_parameters()
+    gains = {"controller": reading_gains()}
+    ident, manuf = _merge(identified_parameters(), gains), _merge(manufacturer_parameters(), gains)
     # the sweeps with the MAST take their time-domain frequencies from the Sim. Ident. tests (the same runs)
     groups = {f"sweep_{m}": [SineCase(ssp, m, paper.AMPLITUDE[m], f, ident, direct) for f in sweep_hz
                              if f not in TIME_DOMAIN_HZ] for m in MOTIONS}
@@ -99,7 +102,7 @@ def plan(ssp: str, direct: bool = False, sweep_hz: tuple[float, ...] = SWEEP_HZ)
     # forensics: what extra moving mass per drive does to the z bandwidth (docs/reproduction.md)
     m_star = ident["actuator_1"]["M_load"]
     for extra in EXTRA_MASS_KG:
-        heavier = _merge(ident, {a: {"M_load": m_star + extra} for a in ident})
+        heavier = _merge(ident, {a: {"M_load": m_star + extra} for a in ident if a.startswith("actuator")})
         groups[f"mass_{extra:g}"] = [SineCase(ssp, "z", paper.AMPLITUDE["z"], f, heavier, direct) for f in MASS_HZ]
     return groups
 
@@ -404,9 +407,8 @@ def _forensics(ssp: str, params: dict, groups: dict, m_eq22: float) -> list[str]
 
     from .ssv import parse_ssv
 
-    mech, ctl = _component_params(ssp, "mechanism"), _component_params(ssp, "controller")
-    fit_file = SSP_SRC / "resources" / "controller_paper_fit.ssv"
-    fit = parse_ssv(fit_file)["k_v"].source if fit_file.exists() else "no fitted gains in this SSP"
+    mech, ctl = _component_params(ssp, "mechanism"), {**_component_params(ssp, "controller"), **reading_gains()}
+    fit = parse_ssv(SSP_SRC / "resources" / f"{GAINS_SET}.ssv")["k_v"].source
     fn, eq22 = natural_frequencies(params), natural_frequencies({**params, "M_load": m_eq22})
     identified = resource_parameters(IDENTIFIED_SET)
     ident = {**params, **identified}
@@ -478,7 +480,8 @@ def _write_report(out: Path, rows: list[Row], figures: list[str], failures: list
         "Conditions: sine amplitudes (not in the paper, assumed) "
         f"{1e3 * paper.AMPLITUDE['z']:g} mm in z and {math.degrees(paper.AMPLITUDE['psi']):g} deg in psi and theta; "
         "frequency responses from the steady-state harmonic after the settling periods; one parameter set for every "
-        "row: the SSP's, in the reading of ssp/resources/actuator_paper_reading.ssv (Table 1's M* as the carriage), "
+        "row: the SSP's, in the reading of ssp/resources/actuator_paper_reading.ssv (Table 1's M* as the carriage) "
+        "with the gains fitted in it (controller_paper_reading_fit.ssv), "
         "Sim. Ident. (J1/1.56, Coulomb friction 7.18e-2 N m) unless a row says manufacturer; the identified set stands "
         "for the measurement in the torque rows; the drive's current limit is part of every test.",
         "",
