@@ -5,30 +5,34 @@ from pathlib import Path
 
 import pytest
 
-from mast import paper
-from mast.identify import GAINS, GainFit, _scaled_residuals, write_ssv
+from mast.identify import GAINS, GainFit, _scaled_residuals, fit_targets, write_ssv
 from mast.ssp import read_ssd
 from mast.ssv import parse_ssv
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
+def test_the_fit_uses_z_at_0_4_and_5_hz_only():
+    assert fit_targets() == {0.4: (0.994, -6.3), 5.0: (0.654, -62.5)}
+
+
 def test_residuals_are_scaled_by_the_paper_tolerances():
-    exact = {f: v for f, v in paper.POSITION_RESPONSE.items()}
-    assert _scaled_residuals(exact) == pytest.approx([0.0] * 6)
-    off = {f: (mag * 1.11, ph + 13.0) for f, (mag, ph) in paper.POSITION_RESPONSE.items()}
-    assert _scaled_residuals(off) == pytest.approx([1.0, 1.0] * 3)
+    """11 % of the magnitude, 13 % of the phase lag (section 4.2)."""
+    exact = dict(fit_targets())
+    assert _scaled_residuals(exact) == pytest.approx([0.0] * 4)
+    off = {f: (mag * 1.11, ph + 0.13 * abs(ph)) for f, (mag, ph) in fit_targets().items()}
+    assert _scaled_residuals(off) == pytest.approx([1.0, 1.0] * 2)
 
 
 def test_written_parameter_set_is_valid_and_carries_provenance(tmp_path):
-    fit = GainFit({"k_v": 21.5, "k_p": 0.062, "k_i": 3.8}, [0.1] * 6,
-                  {f: v for f, v in paper.POSITION_RESPONSE.items()}, 12, 30.0)
+    fit = GainFit({"k_v": 21.5, "k_p": 0.062, "k_i": 3.8}, [0.1] * 6, dict(fit_targets()), 12, 30.0)
     path = tmp_path / "fit.ssv"
     write_ssv(fit, path, "mast fit-gains --out fit.ssv")  # '--' must not break the XML
     values = parse_ssv(path)
     assert {k: values[k].value for k in GAINS} == fit.gains
     assert values["k_v"].unit == "1/s" and "mast fit-gains --out fit.ssv" in values["k_v"].source
-    assert "0.4 Hz" in values["k_p"].source and "cost 0.060" in values["k_i"].source
+    assert "z 0.4 Hz" in values["k_p"].source and "cost 0.060" in values["k_i"].source
+    assert "10 Hz" not in values["k_p"].source
 
 
 def test_default_system_binds_the_fitted_gains_last():

@@ -1,14 +1,23 @@
-"""`mast reproduce` is complete: every number the paper reports has a row, every figure is written."""
+"""`mast reproduce`: every number the paper reports has a row, marked fit, reuse or prediction with the
+tolerance it is judged by and its source; no prediction is a number a fit used; every figure is written."""
 from __future__ import annotations
 
 import json
 import math
+from dataclasses import replace
+from pathlib import Path
 
 import pytest
 
 from mast import paper
 from mast.build import build_all
-from mast.reproduce import reproduce
+from mast.identify import fit_targets
+from mast.reproduce import plan, reproduce
+from mast.ssv import parse_ssv
+
+ROOT = Path(__file__).resolve().parents[1]
+FIELDS = {"key", "quantity", "unit", "kind", "paper", "ours", "difference", "tolerance", "tolerance_band",
+          "within_paper_deviation", "statement", "source", "note"}
 
 
 @pytest.fixture(scope="module")
@@ -16,49 +25,109 @@ def report(tmp_path_factory):
     built = tmp_path_factory.mktemp("build")
     build_all(built, log=lambda *_: None)
     out = tmp_path_factory.mktemp("reproduce")
-    # the same code path as `mast reproduce`, on a coarser sweep and without FMI (identical numbers, faster)
-    summary = reproduce(str(built / "ssp" / "MAST.ssp"), out, workers=2, direct=True, sweep_hz=(0.4, 1.0, 2.0, 4.0, 6.0, 10.0))
+    # the same code path as `mast reproduce` (which runs without FMI by default), on a coarser sweep
+    summary = reproduce(str(built / "ssp" / "MAST.ssp"), out, workers=2, direct=True,
+                        sweep_hz=(0.4, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 10.0))
     return out, summary
 
 
-def test_every_paper_number_has_a_row(report):
+def test_every_paper_number_has_a_marked_row(report):
     out, summary = report
     rows = json.loads((out / "paper_table.json").read_text())
-    names = [r["quantity"] for r in rows]
-    for motion in ("z", "psi", "theta"):
-        for f in paper.POSITION_RESPONSE:
-            assert f"Position magnitude, {motion}, {f:g} Hz" in names
-            assert f"Position phase, {motion}, {f:g} Hz" in names
-        assert f"-3 dB bandwidth, {motion} motion with the MAST" in names
-    for expected in ("-3 dB bandwidth, z motion, actuators alone", "TF2 resonance (Fig. 7)",
-                     "Torque difference identified - manufacturer, z, 0.4 Hz (peak)",
-                     "Manufacturer torque above identified, z, 10 Hz (peak)",
-                     "Torque 3rd/1st harmonic, z, 0.4 Hz, identified (square wave: 1/3)"):
-        assert expected in names
+    assert [r["key"] for r in rows] == [c.key for c in paper.CLAIMS]
     for r in rows:
-        assert set(r) == {"quantity", "unit", "paper", "ours", "difference", "within_paper_deviation", "source"}
+        assert set(r) == FIELDS
+        assert r["kind"] in ("fit", "reuse", "prediction")
+        assert r["source"] and r["statement"]
         assert math.isfinite(r["ours"]), r["quantity"]
         assert r["difference"] == pytest.approx(r["ours"] - r["paper"])
+        lo, hi = r["tolerance_band"]
+        assert r["within_paper_deviation"] == (lo <= r["ours"] <= hi)
     assert not summary["failures"]
+    assert summary["predictions"] >= 10
 
 
-def test_figures_are_written_and_linked(report):
+def test_no_prediction_is_a_number_a_fit_used(report):
+    """The fit's own targets (identify.fit_targets, what `mast fit-gains` minimises) against the table's kinds."""
     out, _ = report
+    rows = json.loads((out / "paper_table.json").read_text())
+    used = set()
+    for f, (mag, ph) in fit_targets().items():
+        used |= {paper.CLAIM[paper.position_key("magnitude", "z", f)].statement,
+                 paper.CLAIM[paper.position_key("phase", "z", f)].statement}
+        assert paper.CLAIM[paper.position_key("magnitude", "z", f)].value == mag
+    for r in rows:
+        if r["kind"] == "prediction":
+            assert r["statement"] not in used, r["quantity"]
+        if r["statement"] in used:
+            assert r["kind"] in ("fit", "reuse"), r["quantity"]
+    # the gains every run of the reproduction binds were fitted to these frequencies and nothing else
+    fitted = parse_ssv(ROOT / "ssp" / "resources" / "controller_paper_reading_fit.ssv")
+    assert f"z at {' and '.join(f'{f:g}' for f in fit_targets())} Hz only" in fitted["k_v"].source
+    for case in (c for cases in plan("MAST.ssp").values() for c in cases):
+        assert {g: case.parameters["controller"][g] for g in ("k_v", "k_p", "k_i")} == \
+            {g: fitted[g].value for g in ("k_v", "k_p", "k_i")}
+
+
+def test_kinds_follow_the_fit_targets():
+    """Fitting 10 Hz as well would turn every 10 Hz position row into a fit or a reuse."""
+    with_10 = paper.FIT_KEYS + (paper.position_key("phase", "z", 10.0),)
+    assert paper.kind(paper.CLAIM[paper.position_key("phase", "z", 10.0)], with_10) == "fit"
+    assert paper.kind(paper.CLAIM[paper.position_key("phase", "psi", 10.0)], with_10) == "reuse"
+    assert paper.kind(paper.CLAIM[paper.position_key("phase", "psi", 10.0)]) == "prediction"
+    assert paper.kind(paper.CLAIM["bandwidth/z"], with_10) == "prediction"
+
+
+def test_tolerance_is_the_papers_relative_deviation():
+    phase = paper.CLAIM[paper.position_key("phase", "z", 10.0)]          # -103.7 deg: 13 % is 13.48 deg
+    assert phase.within(-103.7 + 13.4) and not phase.within(-103.7 + 13.6)
+    low = paper.CLAIM[paper.position_key("phase", "z", 0.4)]             # -6.3 deg: 13 % is 0.82 deg
+    assert low.within(-7.1) and not low.within(-7.2)
+    mag = paper.CLAIM[paper.position_key("magnitude", "z", 5.0)]
+    assert mag.within(0.654 * 1.109) and not mag.within(0.654 * 1.111)
+    assert not replace(mag, value=float("nan")).within(0.654)
+
+
+def test_report_states_counts_limits_and_figures(report):
+    out, summary = report
     text = (out / "report.md").read_text()
+    assert f"**{summary['predictions_within']} of {summary['predictions']} predictions**" in text
+    assert "## Where a test touches a limit" in text
     for name in ("fig7_bode.png", "fig8_10_frequency_response.png", "fig11_z_time.png", "fig12_psi_time.png",
                  "fig13_theta_time.png"):
         assert (out / name).stat().st_size > 20_000
         assert f"({name})" in text
-    assert "Where and why we differ" in text
 
 
-def test_fitted_gains_reproduce_the_paper_position_response(report):
-    """The one parameter set (fitted gains, identified physics) meets section 4.2 within the paper's deviation."""
-    out, _ = report
-    rows = {r["quantity"]: r for r in json.loads((out / "paper_table.json").read_text())}
-    for motion in ("z", "psi", "theta"):
-        for f in paper.POSITION_RESPONSE:
-            assert rows[f"Position magnitude, {motion}, {f:g} Hz"]["within_paper_deviation"]
-            assert rows[f"Position phase, {motion}, {f:g} Hz"]["within_paper_deviation"]
-    # friction makes the 0.4 Hz torque square-ish (3rd/1st harmonic of a square wave: 1/3)
-    assert 0.2 < rows["Torque 3rd/1st harmonic, z, 0.4 Hz, identified (square wave: 1/3)"]["ours"] < 0.4
+def test_fits_hold_and_predictions_meet_the_goal(report):
+    """The fitted rows meet the paper's deviation; at least 8 predictions do (issue 14's goal); the 0.4 Hz
+    torque of the identified set is square-ish (friction)."""
+    out, summary = report
+    rows = {r["key"]: r for r in json.loads((out / "paper_table.json").read_text())}
+    for key in paper.FIT_KEYS:
+        assert rows[key]["within_paper_deviation"], key
+    assert summary["fits_within"] == summary["fits"] == len(paper.FIT_KEYS)
+    assert summary["predictions_within"] >= 8
+    assert 0.2 < rows["torque/square_0.4Hz"]["ours"] < 0.4
+    # Table 1's M* read as the carriage puts both resonances within 11 % (docs/reproduction.md)
+    assert rows["tf2_resonance"]["within_paper_deviation"] and rows["fn_table1"]["within_paper_deviation"]
+
+
+def test_runs_without_python_control(tmp_path):
+    """python-control is a test extra only: the reproduction's modules and its Bode figure must not need it."""
+    import subprocess
+    import sys
+
+    code = f"""
+import sys
+sys.modules["control"] = None  # any 'import control' now fails
+from pathlib import Path
+import mast.reproduce, mast.identify, mast.frequency, mast.run, mast.cli
+from mast.ssv import parse_ssv
+params = {{k: v.value for f in ("actuator_manufacturer", "transmission", "actuator_paper_reading")
+          for k, v in parse_ssv(Path({str(ROOT)!r}) / "ssp" / "resources" / (f + ".ssv")).items()}}
+print(mast.reproduce._plot_bode(params, Path({str(tmp_path)!r}), 2.27))
+"""
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert (tmp_path / "fig7_bode.png").stat().st_size > 20_000
