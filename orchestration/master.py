@@ -214,7 +214,10 @@ class Master:
         n_ticks = math.ceil((stop_time - t0) / h - 1e-9)  # a stop time between ticks ends at the next tick
         if n_ticks < 1:
             raise ValueError(f"stop time {stop_time:g} s: expected at least one base step ({h:g} s) after the start {t0:g} s")
-        record_every = max(1, round((record_step or h) / h))
+        record_every = 1 if record_step is None else round(record_step / h)
+        if record_step is not None and (record_every < 1 or abs(record_every * h - record_step) > 1e-9 * record_step):
+            raise ValueError(f"record step {record_step!r} s: expected a whole multiple of the base step {h:g} s "
+                             "(None: every base step)")
         wall0 = time.perf_counter()
         wirings, published, record = self._initialize(t0, stop_time, parameters or {}, stimulus, record)
         init_s = time.perf_counter() - wall0

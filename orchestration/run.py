@@ -42,7 +42,7 @@ def parse_overrides(items: Sequence[str]) -> dict[str, dict[str, Value]]:
 
 def simulate(ssp: Union[str, Path], stimulus: Optional[Stimulus], stop_time: float,
              parameters: Optional[Mapping[str, Mapping[str, Value]]] = None,
-             record: Optional[Sequence[str]] = None, record_step: float = 1e-3,
+             record: Optional[Sequence[str]] = None, record_step: Optional[float] = 1e-3,
              direct: bool = False, base_step: Optional[float] = None,
              step_sizes: Optional[Mapping[str, float]] = None,
              progress: Optional[Callable[[float], None]] = None) -> Result:

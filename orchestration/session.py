@@ -102,7 +102,7 @@ class Session:
     # -- runs ------------------------------------------------------------------------------
     def run(self, stimulus: Optional[Stimulus], stop_time: float,
             parameters: Optional[Mapping[str, Mapping[str, Value]]] = None,
-            record: Optional[Sequence[str]] = None, record_step: float = 1e-3,
+            record: Optional[Sequence[str]] = None, record_step: Optional[float] = 1e-3,
             progress: Optional[Callable[[float], None]] = None) -> Result:
         """Same arguments and result as ``mast.run.simulate`` (the SSP and route are the session's)."""
         if stimulus is None:

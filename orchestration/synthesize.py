@@ -105,7 +105,7 @@ def _synth_worker(args: tuple) -> dict:
     for j in AXES:
         record += [f"actuator_{j}.rho", f"actuator_{j}.tau_meas", f"actuator_{j}.tau_m"]
     res = simulate(ssp, SineMotion(spec.motion, spec.amplitude, spec.frequency), spec.stop_time(),
-                   parameters=parameters, record=record, record_step=1e-9, direct=direct)
+                   parameters=parameters, record=record, record_step=None, direct=direct)
     return {"time": res.time, **res.signals, "base_step": res.stats["base_step"]}
 
 

@@ -186,3 +186,12 @@ def test_stop_time_between_ticks_ends_at_the_next_tick():
     spec, blocks = loop_system(0.01)
     result = Master(spec, blocks).run(0.1234, Hold(), record=["int.y"])
     assert result.time[-1] == pytest.approx(0.13)
+
+
+@pytest.mark.parametrize("record_step", [0.015, 0.001, 0.0])
+def test_record_step_not_a_multiple_of_the_base_step_is_refused_not_rounded(record_step):
+    spec, blocks = loop_system(0.01)   # base step 0.01 s
+    with pytest.raises(ValueError, match=rf"record step {record_step!r} s: expected .*(whole multiple|positive)"):
+        Master(spec, blocks).run(0.1, Hold(), record=["int.y"], record_step=record_step)
+    result = Master(spec, blocks).run(0.1, Hold(), record=["int.y"], record_step=0.02)
+    np.testing.assert_allclose(np.diff(result.time), 0.02, rtol=1e-9)

@@ -75,7 +75,7 @@ def simulate_record(ssp: Union[str, Path], record: Record, parameters: Optional[
     end = record.duration if stop_time is None else min(float(stop_time), record.duration)
     time = record.time[record.time <= end + 1e-9]
     res = simulate(ssp, RecordReplay(record, inputs), float(time[-1]) + dt, parameters=params,
-                   record=sorted({s.model for s in measured} | set(extra)), record_step=1e-12, direct=direct)
+                   record=sorted({s.model for s in measured} | set(extra)), record_step=None, direct=direct)
     out = {}
     for s in measured:
         at = time + (dt if s.sampled else 0.0)

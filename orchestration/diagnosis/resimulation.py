@@ -30,7 +30,7 @@ def sim_job(args: tuple) -> dict:
     for j in AXES:
         record += [f"actuator_{j}.tau_m", f"actuator_{j}.rho", f"actuator_{j}.rho_dot", f"actuator_{j}.omega_m"]
     try:
-        res = simulate(ssp, replay, stop, parameters=parameters, record=record, record_step=1e-9, direct=direct)
+        res = simulate(ssp, replay, stop, parameters=parameters, record=record, record_step=None, direct=direct)
     except SimulationError as err:
         return {"name": name, "error": str(err)}
     except Exception as err:  # parameters the model rejects, ...
