@@ -79,6 +79,15 @@ class Row:
                 "statement": c.statement, "source": c.source, "note": self.note}
 
 
+def _strict(value):
+    """A row as strict JSON: a number that is not finite (NaN: the run failed; an open band's end) is null."""
+    if isinstance(value, dict):
+        return {k: _strict(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_strict(v) for v in value]
+    return None if isinstance(value, float) and not math.isfinite(value) else value
+
+
 def _merge(*sets: Optional[dict]) -> dict:
     out: dict = {}
     for s in sets:
@@ -135,7 +144,7 @@ def reproduce(ssp: str, out: Path, workers: int = 2, direct: bool = False,
     rows = [Row(c, ours.get(c.key, float("nan")), paper.kind(c), notes.get(c.key, "")) for c in paper.CLAIMS]
     figures = [_plot_bode(params, out, m_eq22), _plot_sweeps(by_group, out)] + _plot_time(by_group, out)
     wall = time.perf_counter() - t0
-    (out / "paper_table.json").write_text(json.dumps([r.as_dict() for r in rows], indent=2))
+    (out / "paper_table.json").write_text(json.dumps([_strict(r.as_dict()) for r in rows], indent=2, allow_nan=False))
     summary = _summary(rows, wall, len(flat), failures)
     _write_report(out, rows, figures, failures, summary, ssp, workers,
                   _forensics(ssp, params, by_group, m_eq22), limits, by_group)

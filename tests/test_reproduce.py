@@ -131,3 +131,12 @@ print(mast.reproduce._plot_bode(params, Path({str(tmp_path)!r}), 2.27))
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stderr
     assert (tmp_path / "fig7_bode.png").stat().st_size > 20_000
+
+
+def test_paper_table_is_strict_json_when_a_number_could_not_be_computed():
+    """A failed run leaves NaN: written as null (strict JSON readers refuse NaN), never as a bare NaN."""
+    from mast.reproduce import _strict
+
+    row = {"ours": float("nan"), "tolerance_band": [0.5, float("inf")], "kind": "prediction"}
+    assert json.loads(json.dumps(_strict(row), allow_nan=False)) == {"ours": None, "tolerance_band": [0.5, None],
+                                                                     "kind": "prediction"}
