@@ -347,6 +347,13 @@ def write_report(out: Path, doc: dict, figs: Mapping[str, str]) -> None:
                      f"{', '.join(st['to']) if isinstance(st['to'], list) else st['to']} | "
                      f"{'' if dbic is None else f'{dbic:+.0f}'} | | {st['accepted']} |")
     lines.append("")
+    if doc.get("failed_simulations"):
+        lines += ["## Trial simulations that failed", "",
+                  "Each is information (those values are wrong: the proposal refuted, the step shrunk), not the end "
+                  "of the diagnosis.", "", "| where | parameters | error |", "|---|---|---|"]
+        lines += [f"| {f['where']} | " + ", ".join(f"{k} = {v:.5g}" for k, v in f["parameters"].items())
+                  + f" | {f['error'][:160]} |" for f in doc["failed_simulations"]]
+        lines.append("")
     tm = doc["timing"]
     lines += ["## Timing", "", f"{tm['wall_s']} s wall ({tm['simulations']} test simulations, {tm['simulation_wall_s']} s "
               f"in simulation, {tm['workers']} workers, direct composition: {tm['direct']}).", ""]

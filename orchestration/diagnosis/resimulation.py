@@ -18,6 +18,11 @@ class DiagnosisError(RuntimeError):
     pass
 
 
+class SimulationFailed(DiagnosisError):
+    """A re-simulation failed (the loop went unstable, the carriage left the stroke, the model rejected a
+    value): in a trial, information that the parameter values are wrong, not the end of the diagnosis."""
+
+
 # --------------------------------------------------------------------------------------
 # simulation of measured tests
 # --------------------------------------------------------------------------------------
@@ -132,7 +137,7 @@ class Simulator:
         for n in names:
             v = self._cache[(key, n, realisation)]
             if isinstance(v, str):
-                raise DiagnosisError(f"simulation of test {n} with {dict(plant)} failed: {v}")
+                raise SimulationFailed(f"simulation of test {n} with {dict(plant)} failed: {v}")
             out[n] = v
         return out
 
@@ -163,6 +168,21 @@ class Model:
                  drive_delay: float) -> None:
         self.sim, self.nominal, self.tests = sim, dict(nominal), tests
         self.drive_T, self.drive_delay = drive_T, drive_delay
+        #: trial simulations that failed: where in the workflow, the parameters, the error (for the report)
+        self.failures: list[dict] = []
+
+    def trial(self, changes: Mapping[str, float], names: Sequence[str], where: str,
+              realisation: int = 0) -> Optional[Point]:
+        """``point`` for a trial value: None if a simulation fails (recorded in ``failures``, once per
+        stage and parameter set). Every stage evaluates its trial values through here; a failure tells
+        the stage the value is wrong (reject the proposal, shrink the step), never stops the diagnosis."""
+        try:
+            return self.point(changes, names, realisation)
+        except SimulationFailed as err:
+            entry = {"where": where, "parameters": {k: float(v) for k, v in changes.items()}, "error": str(err)}
+            if not any(f["where"] == where and f["parameters"] == entry["parameters"] for f in self.failures):
+                self.failures.append(entry)
+            return None
 
     def point(self, changes: Mapping[str, float], names: Sequence[str], realisation: int = 0) -> Point:
         params = {**self.nominal, **changes}

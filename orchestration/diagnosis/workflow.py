@@ -171,6 +171,7 @@ def diagnose(opt: Options, log: Callable[[str], None] = print) -> dict:
         "verdict": verdict,
         "unexplained": unexplained,
         "steps": steps,
+        "failed_simulations": model.failures,
         "augmented_model": outputs,
         "timing": {"wall_s": round(wall, 1), "simulations": n_sims, "simulation_wall_s": round(sim_seconds, 1),
                    "workers": opt.workers, "direct": opt.direct},
