@@ -54,3 +54,26 @@ def test_a_failed_trial_is_information_not_the_end(built_ssp, tmp_path):
     effects = named(doc)
     assert set(effects) == {"inertia_motor"}
     assert effects["inertia_motor"]["parameters"]["J1_scale"] == pytest.approx(1.25, rel=0.05)
+
+
+def test_a_drive_gain_below_its_documentation_gets_a_controller_name(built_ssp, tmp_path):
+    """The drive's velocity-loop gain k_p 40 % below the SSP's value (a cause outside the plant): named as
+    the controller-side effect, within 5 %, with no plant effect named; the augmented SSP binds the
+    diagnosed gain to the controller, not to the actuators."""
+    from mast.ssp import SSPArchive
+
+    with SSPArchive(built_ssp) as archive:
+        nominal_k_p = float(archive.system.components["controller"].parameters["k_p"])
+    doc = run(built_ssp, tmp_path, {"controller": {"k_p": 0.6 * nominal_k_p}}, SMALL, 41)
+    effects = named(doc)
+    assert set(effects) == {"velocity_gain"}, effects
+    assert effects["velocity_gain"]["kind"] == "controller"
+    assert effects["velocity_gain"]["parameters"]["k_p"] == pytest.approx(0.6 * nominal_k_p, rel=0.05)
+    assert doc["verdict"]["status"] == "explained"
+    am = doc["augmented_model"]
+    assert am["controller_values"] == {"k_p": effects["velocity_gain"]["parameters"]["k_p"]}
+    assert "k_p" not in am["values"]
+    with SSPArchive(am["ssp"]) as archive:
+        assert archive.system.components["controller"].parameters["k_p"] == pytest.approx(
+            effects["velocity_gain"]["parameters"]["k_p"], rel=1e-12)
+        assert "k_p" not in archive.system.components["actuator_1"].parameters

@@ -41,6 +41,8 @@ from fmus.actuator.sensor import measure
 
 #: parameters of the measurement model (no re-simulation needed when they change)
 MEASUREMENT_PARAMETERS = ("T_meas", "delay_meas", "tau_offset")
+#: parameters of the controller component (the drive's cascade gains): a cause outside the plant
+CONTROLLER_PARAMETERS = ("k_v", "k_p")
 
 
 @dataclass
@@ -150,7 +152,7 @@ class Effect:
     key: str
     title: str
     parameters: tuple[str, ...]          # FMU parameters (the first one is the regression coefficient)
-    kind: str                            # "plant" or "measurement"
+    kind: str                            # "plant", "controller" (re-simulated like the plant) or "measurement"
     signature: str
     bounds: dict[str, tuple[float, float]]
     regression: bool = True              # False: scored by re-simulation only (no linear selection)
@@ -186,6 +188,12 @@ LIBRARY: tuple[Effect, ...] = (
     Effect("carriage_mass", "carriage or payload mass", ("M_load",), "plant",
            "in phase with acceleration plus a bias (the weight) in the fixed ratio g", {"M_load": (0.01, 100.0)},
            step=0.5),
+    Effect("velocity_gain", "velocity-loop gain of the drive (controller side)", ("k_p",), "controller",
+           "the loop follows less (or more) tightly: a torque change in phase with the tracking error, "
+           "largest at the higher frequencies", {"k_p": (0.005, 0.5)}, step=-0.1 * 0.062),
+    Effect("position_gain", "position-loop gain of the drive (controller side)", ("k_v",), "controller",
+           "a slower (or faster) position loop: tracking error and torque phase change at low frequency",
+           {"k_v": (1.0, 200.0)}, step=-0.1 * 21.5),
     Effect("offset", "constant torque offset", ("tau_offset",), "measurement",
            "a bias, the same in every test", {"tau_offset": (-1.0, 1.0)}),
     Effect("lag", "measurement low-pass filter or delay", ("T_meas",), "measurement",

@@ -30,7 +30,10 @@ def jsonable(x):
 
 def write_model(opt: Options, changes: Mapping[str, float], named: Sequence[dict], nominal: Mapping,
                  model_over: Mapping) -> dict:
-    values = {**{k: v for k, v in model_over.items()}, **changes}
+    from .effects import CONTROLLER_PARAMETERS
+
+    drive = {k: v for k, v in changes.items() if k in CONTROLLER_PARAMETERS}
+    values = {**{k: v for k, v in model_over.items()}, **{k: v for k, v in changes.items() if k not in drive}}
     why = {}
     for eff in named:
         for p, v in eff["parameters"].items():
@@ -49,6 +52,14 @@ def write_model(opt: Options, changes: Mapping[str, float], named: Sequence[dict
     out = {"parameter_set": str(ssv_path), "values": dict(values),
            "use": "bind resources/actuator_diagnosed.ssv after the other parameter sets of every actuator_k "
                   "(MAST_diagnosed.ssp does that); compare the lab's torque with actuator_k.tau_meas"}
+    if drive:   # a controller-side effect: the drive's gains, a parameter set of the controller component
+        cxml = parameter_set_xml("controller_diagnosed", f" Written by mast diagnose from {Path(opt.measured).name}: "
+                                 "the drive gains the data show; bind it after the controller's other parameter sets. ",
+                                 drive, {"k_p": "A.s/rad", "k_v": "1/s"},
+                                 {name: why.get(name, "mast diagnose") for name in drive})
+        (opt.out / "controller_diagnosed.ssv").write_bytes(cxml)
+        out["controller_parameter_set"] = str(opt.out / "controller_diagnosed.ssv")
+        out["controller_values"] = dict(drive)
     src = Path(opt.ssp)
     if src.suffix == ".ssp" and src.exists():
         dst = opt.out / "MAST_diagnosed.ssp"
@@ -58,8 +69,13 @@ def write_model(opt: Options, changes: Mapping[str, float], named: Sequence[dict
                 if item.filename == "SystemStructure.ssd":
                     data = bind_parameter_set(data, "resources/actuator_diagnosed.ssv",
                                               lambda name: name.startswith("actuator_"))
+                    if drive:
+                        data = bind_parameter_set(data, "resources/controller_diagnosed.ssv",
+                                                  lambda name: name == "controller")
                 zout.writestr(item, data)
             zout.write(ssv_path, "resources/actuator_diagnosed.ssv")
+            if drive:
+                zout.write(opt.out / "controller_diagnosed.ssv", "resources/controller_diagnosed.ssv")
         out["ssp"] = str(dst)
     return out
 

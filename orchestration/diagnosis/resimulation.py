@@ -10,7 +10,7 @@ from typing import Mapping, Optional, Sequence
 import numpy as np
 
 from ..measured import AXES, CommandReplay, MeasuredTest
-from .effects import MEASUREMENT_PARAMETERS, Chain, SimSignals, chain_for, column
+from .effects import CONTROLLER_PARAMETERS, MEASUREMENT_PARAMETERS, Chain, SimSignals, chain_for, column
 from .phasefree import COMMAND_JITTER
 
 
@@ -86,9 +86,13 @@ class Simulator:
 
     def parameters(self, plant: Mapping[str, float], test: Prepared) -> dict:
         params = {k: dict(v) for k, v in self.base.items()}
+        drive = {k: v for k, v in plant.items() if k in CONTROLLER_PARAMETERS}
+        actuator = {k: v for k, v in plant.items() if k not in CONTROLLER_PARAMETERS}
         for j, name in enumerate(self.actuators):
-            params.setdefault(name, {}).update(plant)
+            params.setdefault(name, {}).update(actuator)
             params[name]["rho_0"] = float(test.test.rho_cmd[0, j])
+        if drive:
+            params.setdefault("controller", {}).update(drive)
         return params
 
     @staticmethod

@@ -15,7 +15,7 @@ from .selection import DELTA_BIC, PRACTICAL, RELATIVE, Atom, Band, Regression, a
 
 
 #: re-simulation steps (finite differences) for the parameters whose signature does not linearise well
-FD_STEP = {"tau_s": 2e-3, "omega_s": 0.3}
+FD_STEP = {"tau_s": 2e-3, "omega_s": 0.3, "k_p": 6e-4, "k_v": 0.2}
 #: effects fitted and verified by re-simulation (sample by sample) when a residual remains after the regression loop
 NONLINEAR = tuple(e.key for e in LIBRARY if not e.regression and not e.phase_free)
 #: at most this many effects at once
@@ -295,7 +295,7 @@ def _steps(ctx: Context, state: State, atoms: Sequence[Atom]) -> dict[str, tuple
     """(value, step) of the re-simulated sensitivity of each plant atom's parameter."""
     out = {}
     for a in atoms:
-        if a.effect.kind == "plant":
+        if a.effect.kind in ("plant", "controller"):
             p0 = a.effect.parameter
             v0 = float(state.changes.get(p0, ctx.nominal[p0]))
             step = a.effect.step if BOUNDS[p0][0] <= v0 + a.effect.step <= BOUNDS[p0][1] else -a.effect.step
@@ -311,6 +311,8 @@ def regression_at(ctx: Context, state: State, atoms: Sequence[Atom], sensitiviti
     effect signatures (no simulation: a screen).
     """
     model, pt, names = ctx.model, state.pt, ctx.names
+    if any(a.effect.kind == "controller" for a in tuple(atoms) + tuple(state.selected)):
+        sensitivities = True    # a controller gain has no signature: its column is the closed loop's response
     cols = {}
     steps = _steps(ctx, state, atoms) if sensitivities else {}
     if steps:
@@ -321,8 +323,12 @@ def regression_at(ctx: Context, state: State, atoms: Sequence[Atom], sensitiviti
             p0 = a.effect.parameter
             v0, step = steps[a.label]
             pt1 = model.trial({**state.changes, p0: v0 + step}, names, "sensitivity")
-            cols[a.label] = ({n: (pt1.obs[n] - pt.obs[n]) / step for n in names} if pt1 is not None else
-                             model.columns(pt, names, p0, a.grid))
+            if pt1 is not None:
+                cols[a.label] = {n: (pt1.obs[n] - pt.obs[n]) / step for n in names}
+            elif a.effect.kind == "controller":    # no signature: a zero column, which the selection skips
+                cols[a.label] = {n: np.zeros_like(pt.obs[n]) for n in names}
+            else:
+                cols[a.label] = model.columns(pt, names, p0, a.grid)
         else:
             cols[a.label] = model.columns(pt, names, a.effect.parameter, a.grid if a not in state.selected else None)
     resid = {n: model.tests[n].y - pt.obs[n] for n in names}

@@ -10,7 +10,7 @@ from typing import Callable, Optional, Sequence
 import numpy as np
 
 from ..measured import CommandReplay, MeasuredData, controller_geometry, load
-from .effects import BY_KEY, LIBRARY, noise_std
+from .effects import BY_KEY, CONTROLLER_PARAMETERS, LIBRARY, noise_std
 from .nonlinear import nonlinear_stage, phase_free_stage
 from .report import jsonable, plot_figures, write_model, write_report
 from .resimulation import DiagnosisError, Model, Prepared, Simulator
@@ -95,10 +95,13 @@ def diagnose(opt: Options, log: Callable[[str], None] = print) -> dict:
         if len(actuators) != 3:
             raise DiagnosisError(f"{opt.ssp}: expected three actuator_k components, found {', '.join(actuators)}")
         ssp_actuator = dict(system.components[actuators[0]].parameters)
+        drive = system.components.get("controller")
+        ssp_drive = {k: float(drive.parameters[k]) for k in CONTROLLER_PARAMETERS
+                     if drive is not None and k in drive.parameters}
     stroke = (float(ssp_actuator["rho_min"]), float(ssp_actuator["rho_max"]))
     data = load(opt.measured, stroke=stroke)
     model_over = _model_overrides(opt.ssp, opt.model)
-    nominal = {**ssp_actuator, **model_over}
+    nominal = {**ssp_drive, **ssp_actuator, **model_over}
     base = {a: dict(model_over) for a in actuators} if model_over else {}
     geometry = controller_geometry(opt.ssp)
     roles = _split(data, opt.holdout)
@@ -127,7 +130,9 @@ def diagnose(opt: Options, log: Callable[[str], None] = print) -> dict:
         localised = {n: localise_test(model, nominal_pt, prepared[n], sigma) for n in names}
         log("diagnose: nominal model: " + ", ".join(f"{n} {before[n]['torque_nrmse_percent']:.1f} %" for n in names))
 
-        library = [BY_KEY[k] for k in opt.library]
+        # controller-side effects need the SSP's controller (its gains k_p, k_v)
+        library = [BY_KEY[k] for k in opt.library if BY_KEY[k].kind != "controller"
+                   or all(p in ssp_drive for p in BY_KEY[k].parameters)]
         atoms = [Atom(e, g) for e in library if e.regression for g in (e.grid or (None,))]
         state = State((), {}, nominal_pt)
         steps: list = []
