@@ -77,3 +77,25 @@ def test_a_drive_gain_below_its_documentation_gets_a_controller_name(built_ssp, 
         assert archive.system.components["controller"].parameters["k_p"] == pytest.approx(
             effects["velocity_gain"]["parameters"]["k_p"], rel=1e-12)
         assert "k_p" not in archive.system.components["actuator_1"].parameters
+
+
+def test_a_worn_guide_on_one_axis_is_named_on_that_axis(built_ssp, tmp_path):
+    """Actuator 2's guide with 0.03 N m more Coulomb friction than the other two: named as the per-axis
+    effect of axis 2 (not the all-axes one, not an unexplained residual), its increment within 5 %; the
+    augmented SSP binds the value to actuator 2 only. (When the axes agree the all-axes effect wins: the
+    single-effect cases of test_diagnose.py assert exactly one effect, the all-axes one.)"""
+    from mast.ssp import SSPArchive
+
+    with SSPArchive(built_ssp) as archive:
+        tau_c = float(archive.system.components["actuator_2"].parameters["tau_c"])
+    doc = run(built_ssp, tmp_path, {"actuator_2": {"tau_c": tau_c + 0.03}}, SMALL, 51)
+    effects = named(doc)
+    assert set(effects) == {"coulomb_axis2"}, effects
+    assert effects["coulomb_axis2"]["parameters"]["tau_c_axis2"] == pytest.approx(0.03, rel=0.05)
+    assert doc["verdict"]["status"] == "explained"
+    am = doc["augmented_model"]
+    assert set(am["axis_values"]) == {"actuator_2"} and "tau_c_axis2" not in am["values"]
+    with SSPArchive(am["ssp"]) as archive:
+        p = {k: archive.system.components[f"actuator_{k}"].parameters["tau_c"] for k in (1, 2, 3)}
+    assert p[1] == p[3] == pytest.approx(tau_c, rel=1e-12)
+    assert p[2] == pytest.approx(tau_c + effects["coulomb_axis2"]["parameters"]["tau_c_axis2"], rel=1e-12)

@@ -30,10 +30,16 @@ def jsonable(x):
 
 def write_model(opt: Options, changes: Mapping[str, float], named: Sequence[dict], nominal: Mapping,
                  model_over: Mapping) -> dict:
-    from .effects import CONTROLLER_PARAMETERS
+    from .effects import AXIS_OF, CONTROLLER_PARAMETERS, axis_values
 
     drive = {k: v for k, v in changes.items() if k in CONTROLLER_PARAMETERS}
-    values = {**{k: v for k, v in model_over.items()}, **{k: v for k, v in changes.items() if k not in drive}}
+    shared = {k: v for k, v in changes.items() if k not in drive and k not in AXIS_OF}
+    values = {**{k: v for k, v in model_over.items()}, **shared}
+    # per-axis increments: the value of that actuator, in a parameter set of its own, bound after the shared one
+    axes = {j: {base: v for base, v in axis_values({**shared, **{k: v for k, v in changes.items() if k in AXIS_OF}},
+                                                   nominal, j).items() if base not in shared or v != shared[base]}
+            for j in range(3)}
+    axes = {j: a for j, a in axes.items() if a}
     why = {}
     for eff in named:
         for p, v in eff["parameters"].items():
@@ -60,6 +66,12 @@ def write_model(opt: Options, changes: Mapping[str, float], named: Sequence[dict
         (opt.out / "controller_diagnosed.ssv").write_bytes(cxml)
         out["controller_parameter_set"] = str(opt.out / "controller_diagnosed.ssv")
         out["controller_values"] = dict(drive)
+    for j, a in axes.items():
+        axml = parameter_set_xml(f"actuator_{j + 1}_diagnosed", f" Written by mast diagnose: actuator {j + 1} only "
+                                 "(an effect on one axis); bind it after actuator_diagnosed.ssv. ",
+                                 a, units, {name: f"mast diagnose: {name} of actuator {j + 1}" for name in a})
+        (opt.out / f"actuator_{j + 1}_diagnosed.ssv").write_bytes(axml)
+        out.setdefault("axis_values", {})[f"actuator_{j + 1}"] = dict(a)
     src = Path(opt.ssp)
     if src.suffix == ".ssp" and src.exists():
         dst = opt.out / "MAST_diagnosed.ssp"
@@ -72,10 +84,15 @@ def write_model(opt: Options, changes: Mapping[str, float], named: Sequence[dict
                     if drive:
                         data = bind_parameter_set(data, "resources/controller_diagnosed.ssv",
                                                   lambda name: name == "controller")
+                    for j in axes:
+                        data = bind_parameter_set(data, f"resources/actuator_{j + 1}_diagnosed.ssv",
+                                                  lambda name, j=j: name == f"actuator_{j + 1}")
                 zout.writestr(item, data)
             zout.write(ssv_path, "resources/actuator_diagnosed.ssv")
             if drive:
                 zout.write(opt.out / "controller_diagnosed.ssv", "resources/controller_diagnosed.ssv")
+            for j in axes:
+                zout.write(opt.out / f"actuator_{j + 1}_diagnosed.ssv", f"resources/actuator_{j + 1}_diagnosed.ssv")
         out["ssp"] = str(dst)
     return out
 

@@ -10,7 +10,8 @@ from typing import Mapping, Optional, Sequence
 import numpy as np
 
 from ..measured import AXES, CommandReplay, MeasuredTest
-from .effects import CONTROLLER_PARAMETERS, MEASUREMENT_PARAMETERS, Chain, SimSignals, chain_for, column
+from .effects import (CONTROLLER_PARAMETERS, MEASUREMENT_PARAMETERS, Chain, SimSignals, axis_values, chain_for,
+                      column)
 from .phasefree import COMMAND_JITTER
 
 
@@ -67,8 +68,9 @@ class Simulator:
     """Runs the measured tests on the SSP (direct composition by default), in parallel, cached."""
 
     def __init__(self, ssp: str, tests: Mapping[str, Prepared], base: Mapping[str, Mapping], actuators: Sequence[str],
-                 direct: bool = True, workers: int = 2) -> None:
+                 direct: bool = True, workers: int = 2, nominal: Optional[Mapping[str, float]] = None) -> None:
         self.ssp, self.tests, self.base, self.actuators, self.direct = ssp, tests, base, list(actuators), direct
+        self.nominal = dict(nominal or {})     # the all-axes values per-axis increments add to
         self.workers = max(1, workers)
         self._pool: Optional[ProcessPoolExecutor] = None
         self._cache: dict = {}
@@ -89,7 +91,7 @@ class Simulator:
         drive = {k: v for k, v in plant.items() if k in CONTROLLER_PARAMETERS}
         actuator = {k: v for k, v in plant.items() if k not in CONTROLLER_PARAMETERS}
         for j, name in enumerate(self.actuators):
-            params.setdefault(name, {}).update(actuator)
+            params.setdefault(name, {}).update(axis_values(actuator, self.nominal, j))
             params[name]["rho_0"] = float(test.test.rho_cmd[0, j])
         if drive:
             params.setdefault("controller", {}).update(drive)

@@ -9,7 +9,7 @@ from typing import Callable, Mapping, Optional, Sequence
 
 import numpy as np
 
-from .effects import BOUNDS, BY_PARAMETER, LIBRARY, MEASUREMENT_PARAMETERS, Chain
+from .effects import AXIS_OF, BOUNDS, BY_PARAMETER, LIBRARY, MEASUREMENT_PARAMETERS, Chain
 from .resimulation import Model, Point, resample
 from .selection import DELTA_BIC, PRACTICAL, RELATIVE, Atom, Band, Regression, atom_labels, select
 
@@ -295,7 +295,7 @@ def _steps(ctx: Context, state: State, atoms: Sequence[Atom]) -> dict[str, tuple
     """(value, step) of the re-simulated sensitivity of each plant atom's parameter."""
     out = {}
     for a in atoms:
-        if a.effect.kind in ("plant", "controller"):
+        if a.effect.kind in ("plant", "controller") and a.effect.parameter not in AXIS_OF:
             p0 = a.effect.parameter
             v0 = float(state.changes.get(p0, ctx.nominal[p0]))
             step = a.effect.step if BOUNDS[p0][0] <= v0 + a.effect.step <= BOUNDS[p0][1] else -a.effect.step

@@ -10,7 +10,7 @@ from typing import Callable, Optional, Sequence
 import numpy as np
 
 from ..measured import CommandReplay, MeasuredData, controller_geometry, load
-from .effects import BY_KEY, CONTROLLER_PARAMETERS, LIBRARY, noise_std
+from .effects import AXIS_OF, BY_KEY, CONTROLLER_PARAMETERS, LIBRARY, noise_std
 from .nonlinear import nonlinear_stage, phase_free_stage
 from .report import jsonable, plot_figures, write_model, write_report
 from .resimulation import DiagnosisError, Model, Prepared, Simulator
@@ -101,7 +101,7 @@ def diagnose(opt: Options, log: Callable[[str], None] = print) -> dict:
     stroke = (float(ssp_actuator["rho_min"]), float(ssp_actuator["rho_max"]))
     data = load(opt.measured, stroke=stroke)
     model_over = _model_overrides(opt.ssp, opt.model)
-    nominal = {**ssp_drive, **ssp_actuator, **model_over}
+    nominal = {**ssp_drive, **ssp_actuator, **model_over, **{p: 0.0 for p in AXIS_OF}}
     base = {a: dict(model_over) for a in actuators} if model_over else {}
     geometry = controller_geometry(opt.ssp)
     roles = _split(data, opt.holdout)
@@ -122,7 +122,7 @@ def diagnose(opt: Options, log: Callable[[str], None] = print) -> dict:
     log(f"diagnose: {len(names)} tests ({len(train)} training, {len(held)} held-out), torque noise floor "
         f"{1e3 * sigma:.3g} mN.m")
 
-    with Simulator(opt.ssp, prepared, base, actuators, direct=opt.direct, workers=opt.workers) as sim:
+    with Simulator(opt.ssp, prepared, base, actuators, direct=opt.direct, workers=opt.workers, nominal=nominal) as sim:
         model = Model(sim, nominal, prepared, data.torque_filter_s, data.torque_delay_s)
         ctx = Context(model, nominal, names, train, held, band, sigma, sigma_b, log)
         nominal_pt = model.point({}, names)
