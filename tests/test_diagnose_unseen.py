@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 import pytest
 
 from mast.diagnosis import Options, diagnose
@@ -99,3 +101,30 @@ def test_a_worn_guide_on_one_axis_is_named_on_that_axis(built_ssp, tmp_path):
         p = {k: archive.system.components[f"actuator_{k}"].parameters["tau_c"] for k in (1, 2, 3)}
     assert p[1] == p[3] == pytest.approx(tau_c, rel=1e-12)
     assert p[2] == pytest.approx(tau_c + effects["coulomb_axis2"]["parameters"]["tau_c_axis2"], rel=1e-12)
+
+
+def test_the_plan_says_which_effects_it_cannot_tell():
+    """Identifiability from the commanded joint motion alone (no simulation): a plan of slow z tests
+    cannot tell inertia, lag, the drive's gains or a carriage mass; backlash needs its fastest tests in
+    both roles (the issue's five-test case: rotations held out, the fast z tests all training)."""
+    from mast.diagnosis.plan import excitation, identifiability
+
+    t = np.arange(0.0, 2.0, 1e-3)
+
+    def test(name, role, f, rotation=False):
+        s = 0.004 * np.sin(2 * np.pi * f * t)
+        rho = 0.15 + np.column_stack([s, -s if rotation else s, s])
+        return excitation(name, role, t, rho)
+
+    slow = [test("z0.5", "training", 0.5), test("z0.8", "held-out", 0.8)]
+    plan = identifiability(slow, ["coulomb", "inertia_motor", "lag", "velocity_gain", "carriage_mass", "stribeck"])
+    assert plan["coulomb"]["plan_meets"] and plan["stribeck"]["plan_meets"]
+    assert not any(plan[k]["plan_meets"] for k in ("inertia_motor", "lag", "velocity_gain", "carriage_mass"))
+    assert slow[0].frequency == pytest.approx(0.5, rel=0.05) and slow[0].alike
+    issue = [test("z1", "training", 1.0), test("z4", "training", 4.5), test("z6", "training", 6.0),
+             test("psi2", "held-out", 2.0, True), test("theta3", "held-out", 3.0, True)]
+    assert not issue[3].alike
+    assert not identifiability(issue, ["backlash"])["backlash"]["plan_meets"]
+    issue[2].role = "held-out"
+    plan = identifiability(issue, ["backlash", "carriage_mass", "coulomb_axis2"])
+    assert all(p["plan_meets"] for p in plan.values())

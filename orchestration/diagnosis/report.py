@@ -380,6 +380,14 @@ def write_report(out: Path, doc: dict, figs: Mapping[str, str]) -> None:
                      f"{', '.join(st['to']) if isinstance(st['to'], list) else st['to']} | "
                      f"{'' if dbic is None else f'{dbic:+.0f}'} | | {st['accepted']} |")
     lines.append("")
+    unmet = {k: p for k, p in doc.get("identifiability", {}).items() if not p["plan_meets"]}
+    if unmet:
+        lines += ["## What this test plan cannot tell", "",
+                  "An effect below may be missed or confused with another: the plan does not excite what it needs "
+                  "(docs/diagnose.md, identifiability table).", "", "| effect | the plan must contain | here |",
+                  "|---|---|---|"]
+        lines += [f"| {k} | {p['requires']} | {p['why_not']} |" for k, p in unmet.items()]
+        lines.append("")
     if doc.get("failed_simulations"):
         lines += ["## Trial simulations that failed", "",
                   "Each is information (those values are wrong: the proposal refuted, the step shrunk), not the end "

@@ -12,6 +12,7 @@ import numpy as np
 from ..measured import CommandReplay, MeasuredData, controller_geometry, load
 from .effects import AXIS_OF, BY_KEY, CONTROLLER_PARAMETERS, LIBRARY, noise_std
 from .nonlinear import nonlinear_stage, phase_free_stage
+from .plan import excitations, identifiability
 from .report import jsonable, plot_figures, write_model, write_report
 from .resimulation import DiagnosisError, Model, Prepared, Simulator
 from .selection import Atom, Band
@@ -111,6 +112,10 @@ def diagnose(opt: Options, log: Callable[[str], None] = print) -> dict:
         prepared[t.name] = Prepared(t, roles[t.name], CommandReplay(t.time, t.rho_cmd, geometry), mask, t.time[mask],
                                     t.tau_m[mask], (t.rho - t.rho_cmd)[mask])
     names = [t.name for t in data.tests]
+    plan = identifiability(excitations(prepared, roles), list(opt.library))
+    for key, p in plan.items():
+        if not p["plan_meets"] and "_axis" not in key:
+            log(f"diagnose: this plan cannot tell {BY_KEY[key].title}: it needs {p['requires']} ({p['why_not']})")
     train = [n for n in names if roles[n] == "training"]
     held = [n for n in names if roles[n] == "held-out"]
     sigma = float(np.median([noise_std(prepared[n].y[:, j]) for n in names for j in range(3)]))
@@ -177,6 +182,7 @@ def diagnose(opt: Options, log: Callable[[str], None] = print) -> dict:
         "unexplained": unexplained,
         "steps": steps,
         "failed_simulations": model.failures,
+        "identifiability": plan,
         "augmented_model": outputs,
         "timing": {"wall_s": round(wall, 1), "simulations": n_sims, "simulation_wall_s": round(sim_seconds, 1),
                    "workers": opt.workers, "direct": opt.direct},
