@@ -41,6 +41,8 @@ from fmus.actuator.sensor import measure
 
 #: parameters of the measurement model (no re-simulation needed when they change)
 MEASUREMENT_PARAMETERS = ("T_meas", "delay_meas", "tau_offset")
+#: parameters of the controller component (the drive's cascade gains): a cause outside the plant
+CONTROLLER_PARAMETERS = ("k_v", "k_p")
 
 
 @dataclass
@@ -150,7 +152,7 @@ class Effect:
     key: str
     title: str
     parameters: tuple[str, ...]          # FMU parameters (the first one is the regression coefficient)
-    kind: str                            # "plant" or "measurement"
+    kind: str                            # "plant", "controller" (re-simulated like the plant) or "measurement"
     signature: str
     bounds: dict[str, tuple[float, float]]
     regression: bool = True              # False: scored by re-simulation only (no linear selection)
@@ -186,6 +188,12 @@ LIBRARY: tuple[Effect, ...] = (
     Effect("carriage_mass", "carriage or payload mass", ("M_load",), "plant",
            "in phase with acceleration plus a bias (the weight) in the fixed ratio g", {"M_load": (0.01, 100.0)},
            step=0.5),
+    Effect("velocity_gain", "velocity-loop gain of the drive (controller side)", ("k_p",), "controller",
+           "the loop follows less (or more) tightly: a torque change in phase with the tracking error, "
+           "largest at the higher frequencies", {"k_p": (0.005, 0.5)}, step=-0.1 * 0.062),
+    Effect("position_gain", "position-loop gain of the drive (controller side)", ("k_v",), "controller",
+           "a slower (or faster) position loop: tracking error and torque phase change at low frequency",
+           {"k_v": (1.0, 200.0)}, step=-0.1 * 21.5),
     Effect("offset", "constant torque offset", ("tau_offset",), "measurement",
            "a bias, the same in every test", {"tau_offset": (-1.0, 1.0)}),
     Effect("lag", "measurement low-pass filter or delay", ("T_meas",), "measurement",
@@ -196,9 +204,36 @@ LIBRARY: tuple[Effect, ...] = (
            {"backlash": (0.0, 0.2)}, regression=False, phase_free=True,
            scan=tuple(5e-4 * 2.0 ** k for k in range(8))),
 )
+#: effects available on one axis (a worn guide): the change of the all-axes parameter on axis j only,
+#: parameter "<name>_axis<j>" (an increment added to that actuator's value; 0 = nominal). Their
+#: regression column is the all-axes signature on that axis (no re-simulated sensitivity: three per
+#: effect would triple the cost of a round); the fit re-simulates. They cost one parameter each, so
+#: when the axes agree the all-axes effect (one parameter) wins on BIC.
+PER_AXIS = ("tau_c", "b_v")
+AXIS_OF: dict[str, tuple[str, int]] = {f"{p}_axis{j}": (p, j - 1) for p in PER_AXIS for j in (1, 2, 3)}
+
+
+def _per_axis(e: Effect, j: int) -> Effect:
+    p = e.parameter
+    hi = e.bounds[p][1]
+    return Effect(f"{e.key}_axis{j}", f"{e.title}, axis {j} only", (f"{p}_axis{j}",), e.kind,
+                  f"{e.signature}; on actuator {j} only", {f"{p}_axis{j}": (-hi, hi)}, step=e.step)
+
+
+LIBRARY = LIBRARY + tuple(_per_axis(e, j) for e in LIBRARY if e.parameter in PER_AXIS for j in (1, 2, 3))
 BY_KEY = {e.key: e for e in LIBRARY}
 BY_PARAMETER = {p: e for e in LIBRARY for p in e.parameters}
 BOUNDS = {name: b for e in LIBRARY for name, b in e.bounds.items()}
+
+
+def axis_values(plant: Mapping[str, float], nominal: Mapping, j: int) -> dict[str, float]:
+    """The parameters of actuator j (0-based): the all-axes values plus that axis's increments."""
+    out = {k: v for k, v in plant.items() if k not in AXIS_OF}
+    for k, v in plant.items():
+        if k in AXIS_OF and AXIS_OF[k][1] == j:
+            base = AXIS_OF[k][0]
+            out[base] = float(plant.get(base, nominal[base])) + float(v)
+    return out
 
 #: The library of a drive axis seen from the load, force-driven (fmus/actuator/load_axis.py: single-axis
 #: benches such as EMPS). The effort compared is the drive force; columns d F / d parameter (axis_column)
@@ -239,6 +274,11 @@ def column(effect_or_param: str, signals: SimSignals, params: Mapping, chain: Ch
     """d tau_obs / d parameter on the base grid (through the chain), for a plant or measurement parameter."""
     if effect_or_param in PLANT_COLUMNS:
         return chain.linear(PLANT_COLUMNS[effect_or_param](signals, params, grid))
+    if effect_or_param in AXIS_OF:     # the all-axes signature, on one axis
+        base, j = AXIS_OF[effect_or_param]
+        c = np.zeros_like(signals.tau_m)
+        c[:, j] = PLANT_COLUMNS[base](signals, params, grid)[:, j]
+        return chain.linear(c)
     if effect_or_param == "tau_offset":
         return np.ones_like(signals.tau_m)
     if effect_or_param in ("T_meas", "delay_meas"):

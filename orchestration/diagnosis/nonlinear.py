@@ -9,9 +9,10 @@ import numpy as np
 
 from .effects import Effect
 from .phasefree import ENSEMBLE, PhaseFreeScore, estimate, refine
-from .resimulation import DiagnosisError, Point
+from .resimulation import Point
 from .selection import DELTA_BIC, Atom, atom_labels
-from .stages import FLOOR_FACTOR, Context, State, band_rss, fit_state, residual_at_floor, selection_cost, verify
+from .stages import (FLOOR_FACTOR, Context, State, band_rss, failed_step, fit_state, residual_at_floor,
+                     selection_cost, verify)
 
 
 #: bisection levels of a phase-free value after its scan (ratio 2 -> 2^(1/32): 2.2 %) ...
@@ -45,8 +46,10 @@ def nonlinear_stage(ctx: Context, state: State, effects: Sequence[Effect], rejec
         start.update(_nonlinear_start(ctx, state, e))
         atom = Atom(e, start.get("omega_s") if e.key == "stribeck" else None)
         ctx.log(f"diagnose: trying {e.title} by re-simulation (start {', '.join(f'{p} = {start[p]:.3g}' for p in e.parameters)})")
-        cand = fit_state(ctx, tuple(state.selected) + (atom,), start)
-        if verify(ctx, state, cand, steps, "re-simulation"):
+        cand = fit_state(ctx, tuple(state.selected) + (atom,), start, anchor=state.changes)
+        if cand is None:
+            failed_step(ctx, state, tuple(state.selected) + (atom,), steps, "re-simulation")
+        if cand is not None and verify(ctx, state, cand, steps, "re-simulation"):
             rss, n = band_rss(ctx, cand.pt, ctx.train)
             bic = n * math.log(rss / n) + selection_cost(cand.selected) * math.log(n)
             if bic < best_bic:
@@ -93,9 +96,8 @@ def _nonlinear_start(ctx: Context, state: State, e: Effect) -> dict:
     ctx.model.sim.prefetch([{**state.changes, **g} for g in grid], probe)
     best, best_rss = grid[0], math.inf
     for g in grid:
-        try:
-            pt = ctx.model.point({**state.changes, **g}, probe)
-        except DiagnosisError:
+        pt = ctx.model.trial({**state.changes, **g}, probe, f"{e.key} start grid")
+        if pt is None:
             continue
         rss, _ = band_rss(ctx, pt, probe)
         if rss < best_rss:
@@ -134,11 +136,11 @@ def phase_free_stage(ctx: Context, state: State, effect: Effect, steps: list) ->
         new = [v for v in values if v not in ensembles]
         model.sim.prefetch([changes(v) for v in new], ctx.names, range(ENSEMBLE))
         for v in new:
-            try:
-                ensembles[v] = {n: np.array([score.powers(n, model.point(changes(v), [n], r).obs[n])
-                                             for r in range(ENSEMBLE)]) for n in ctx.names}
-            except DiagnosisError:
-                ensembles[v] = None
+            pts = [model.trial(changes(v), [n], f"{effect.key} phase-free ensemble", r)
+                   for n in ctx.names for r in range(ENSEMBLE)]
+            ensembles[v] = None if any(q is None for q in pts) else {
+                n: np.array([score.powers(n, pts[k * ENSEMBLE + r].obs[n]) for r in range(ENSEMBLE)])
+                for k, n in enumerate(ctx.names)}
 
     def deviance(v: float, names: Sequence[str]) -> float:
         return score.fit(ensembles[v], names).deviance if ensembles[v] is not None else math.inf
@@ -149,7 +151,11 @@ def phase_free_stage(ctx: Context, state: State, effect: Effect, steps: list) ->
     scan_tr = {v: deviance(v, ctx.train) for v in effect.scan}
     v_tr = min(scan_tr, key=scan_tr.get)
     if ensembles[current] is None or not math.isfinite(scan_tr[v_tr]):
-        raise DiagnosisError(f"the phase-free score of {effect.title}: every simulation of its scan failed")
+        steps.append({"how": "phase-free score", "from": [a.label for a in state.selected],
+                      "to": [a.label for a in state.selected] + [effect.key], "accepted": False,
+                      "note": "not tried: every simulation of its scan failed (see failed_simulations)"})
+        ctx.log(f"diagnose: {effect.title} not tried: every simulation of its scan failed")
+        return state
     before_tr, with_tr = score.fit(ensembles[current], ctx.train), score.fit(ensembles[v_tr], ctx.train)
     dbic = with_tr.deviance - before_tr.deviance + effect.cost * math.log(score.statistics(ctx.train))
     ok = dbic <= -DELTA_BIC
@@ -211,4 +217,7 @@ def phase_free_stage(ctx: Context, state: State, effect: Effect, steps: list) ->
                                  "without": (ensembles[current][n].mean(axis=0) + before.sigma ** 2 * nf[n]).tolist()}
                              for n in ctx.names},
         "profile": {v: points[v] for v in sorted(points)}}}
-    return State(tuple(state.selected) + (Atom(effect),), changes(value), model.point(changes(value), ctx.names), info)
+    pt = model.trial(changes(value), ctx.names, f"{effect.key} value on every test")
+    if pt is None:
+        return state
+    return State(tuple(state.selected) + (Atom(effect),), changes(value), pt, info)

@@ -30,7 +30,16 @@ def jsonable(x):
 
 def write_model(opt: Options, changes: Mapping[str, float], named: Sequence[dict], nominal: Mapping,
                  model_over: Mapping) -> dict:
-    values = {**{k: v for k, v in model_over.items()}, **changes}
+    from .effects import AXIS_OF, CONTROLLER_PARAMETERS, axis_values
+
+    drive = {k: v for k, v in changes.items() if k in CONTROLLER_PARAMETERS}
+    shared = {k: v for k, v in changes.items() if k not in drive and k not in AXIS_OF}
+    values = {**{k: v for k, v in model_over.items()}, **shared}
+    # per-axis increments: the value of that actuator, in a parameter set of its own, bound after the shared one
+    axes = {j: {base: v for base, v in axis_values({**shared, **{k: v for k, v in changes.items() if k in AXIS_OF}},
+                                                   nominal, j).items() if base not in shared or v != shared[base]}
+            for j in range(3)}
+    axes = {j: a for j, a in axes.items() if a}
     why = {}
     for eff in named:
         for p, v in eff["parameters"].items():
@@ -49,6 +58,20 @@ def write_model(opt: Options, changes: Mapping[str, float], named: Sequence[dict
     out = {"parameter_set": str(ssv_path), "values": dict(values),
            "use": "bind resources/actuator_diagnosed.ssv after the other parameter sets of every actuator_k "
                   "(MAST_diagnosed.ssp does that); compare the lab's torque with actuator_k.tau_meas"}
+    if drive:   # a controller-side effect: the drive's gains, a parameter set of the controller component
+        cxml = parameter_set_xml("controller_diagnosed", f" Written by mast diagnose from {Path(opt.measured).name}: "
+                                 "the drive gains the data show; bind it after the controller's other parameter sets. ",
+                                 drive, {"k_p": "A.s/rad", "k_v": "1/s"},
+                                 {name: why.get(name, "mast diagnose") for name in drive})
+        (opt.out / "controller_diagnosed.ssv").write_bytes(cxml)
+        out["controller_parameter_set"] = str(opt.out / "controller_diagnosed.ssv")
+        out["controller_values"] = dict(drive)
+    for j, a in axes.items():
+        axml = parameter_set_xml(f"actuator_{j + 1}_diagnosed", f" Written by mast diagnose: actuator {j + 1} only "
+                                 "(an effect on one axis); bind it after actuator_diagnosed.ssv. ",
+                                 a, units, {name: f"mast diagnose: {name} of actuator {j + 1}" for name in a})
+        (opt.out / f"actuator_{j + 1}_diagnosed.ssv").write_bytes(axml)
+        out.setdefault("axis_values", {})[f"actuator_{j + 1}"] = dict(a)
     src = Path(opt.ssp)
     if src.suffix == ".ssp" and src.exists():
         dst = opt.out / "MAST_diagnosed.ssp"
@@ -58,8 +81,18 @@ def write_model(opt: Options, changes: Mapping[str, float], named: Sequence[dict
                 if item.filename == "SystemStructure.ssd":
                     data = bind_parameter_set(data, "resources/actuator_diagnosed.ssv",
                                               lambda name: name.startswith("actuator_"))
+                    if drive:
+                        data = bind_parameter_set(data, "resources/controller_diagnosed.ssv",
+                                                  lambda name: name == "controller")
+                    for j in axes:
+                        data = bind_parameter_set(data, f"resources/actuator_{j + 1}_diagnosed.ssv",
+                                                  lambda name, j=j: name == f"actuator_{j + 1}")
                 zout.writestr(item, data)
             zout.write(ssv_path, "resources/actuator_diagnosed.ssv")
+            if drive:
+                zout.write(opt.out / "controller_diagnosed.ssv", "resources/controller_diagnosed.ssv")
+            for j in axes:
+                zout.write(opt.out / f"actuator_{j + 1}_diagnosed.ssv", f"resources/actuator_{j + 1}_diagnosed.ssv")
         out["ssp"] = str(dst)
     return out
 
@@ -347,6 +380,21 @@ def write_report(out: Path, doc: dict, figs: Mapping[str, str]) -> None:
                      f"{', '.join(st['to']) if isinstance(st['to'], list) else st['to']} | "
                      f"{'' if dbic is None else f'{dbic:+.0f}'} | | {st['accepted']} |")
     lines.append("")
+    unmet = {k: p for k, p in doc.get("identifiability", {}).items() if not p["plan_meets"]}
+    if unmet:
+        lines += ["## What this test plan cannot tell", "",
+                  "An effect below may be missed or confused with another: the plan does not excite what it needs "
+                  "(docs/diagnose.md, identifiability table).", "", "| effect | the plan must contain | here |",
+                  "|---|---|---|"]
+        lines += [f"| {k} | {p['requires']} | {p['why_not']} |" for k, p in unmet.items()]
+        lines.append("")
+    if doc.get("failed_simulations"):
+        lines += ["## Trial simulations that failed", "",
+                  "Each is information (those values are wrong: the proposal refuted, the step shrunk), not the end "
+                  "of the diagnosis.", "", "| where | parameters | error |", "|---|---|---|"]
+        lines += [f"| {f['where']} | " + ", ".join(f"{k} = {v:.5g}" for k, v in f["parameters"].items())
+                  + f" | {f['error'][:160]} |" for f in doc["failed_simulations"]]
+        lines.append("")
     tm = doc["timing"]
     lines += ["## Timing", "", f"{tm['wall_s']} s wall ({tm['simulations']} test simulations, {tm['simulation_wall_s']} s "
               f"in simulation, {tm['workers']} workers, direct composition: {tm['direct']}).", ""]

@@ -10,12 +10,18 @@ from typing import Mapping, Optional, Sequence
 import numpy as np
 
 from ..measured import AXES, CommandReplay, MeasuredTest
-from .effects import MEASUREMENT_PARAMETERS, Chain, SimSignals, chain_for, column
+from .effects import (CONTROLLER_PARAMETERS, MEASUREMENT_PARAMETERS, Chain, SimSignals, axis_values, chain_for,
+                      column)
 from .phasefree import COMMAND_JITTER
 
 
 class DiagnosisError(RuntimeError):
     pass
+
+
+class SimulationFailed(DiagnosisError):
+    """A re-simulation failed (the loop went unstable, the carriage left the stroke, the model rejected a
+    value): in a trial, information that the parameter values are wrong, not the end of the diagnosis."""
 
 
 # --------------------------------------------------------------------------------------
@@ -62,8 +68,9 @@ class Simulator:
     """Runs the measured tests on the SSP (direct composition by default), in parallel, cached."""
 
     def __init__(self, ssp: str, tests: Mapping[str, Prepared], base: Mapping[str, Mapping], actuators: Sequence[str],
-                 direct: bool = True, workers: int = 2) -> None:
+                 direct: bool = True, workers: int = 2, nominal: Optional[Mapping[str, float]] = None) -> None:
         self.ssp, self.tests, self.base, self.actuators, self.direct = ssp, tests, base, list(actuators), direct
+        self.nominal = dict(nominal or {})     # the all-axes values per-axis increments add to
         self.workers = max(1, workers)
         self._pool: Optional[ProcessPoolExecutor] = None
         self._cache: dict = {}
@@ -81,9 +88,13 @@ class Simulator:
 
     def parameters(self, plant: Mapping[str, float], test: Prepared) -> dict:
         params = {k: dict(v) for k, v in self.base.items()}
+        drive = {k: v for k, v in plant.items() if k in CONTROLLER_PARAMETERS}
+        actuator = {k: v for k, v in plant.items() if k not in CONTROLLER_PARAMETERS}
         for j, name in enumerate(self.actuators):
-            params.setdefault(name, {}).update(plant)
+            params.setdefault(name, {}).update(axis_values(actuator, self.nominal, j))
             params[name]["rho_0"] = float(test.test.rho_cmd[0, j])
+        if drive:
+            params.setdefault("controller", {}).update(drive)
         return params
 
     @staticmethod
@@ -132,7 +143,7 @@ class Simulator:
         for n in names:
             v = self._cache[(key, n, realisation)]
             if isinstance(v, str):
-                raise DiagnosisError(f"simulation of test {n} with {dict(plant)} failed: {v}")
+                raise SimulationFailed(f"simulation of test {n} with {dict(plant)} failed: {v}")
             out[n] = v
         return out
 
@@ -163,6 +174,21 @@ class Model:
                  drive_delay: float) -> None:
         self.sim, self.nominal, self.tests = sim, dict(nominal), tests
         self.drive_T, self.drive_delay = drive_T, drive_delay
+        #: trial simulations that failed: where in the workflow, the parameters, the error (for the report)
+        self.failures: list[dict] = []
+
+    def trial(self, changes: Mapping[str, float], names: Sequence[str], where: str,
+              realisation: int = 0) -> Optional[Point]:
+        """``point`` for a trial value: None if a simulation fails (recorded in ``failures``, once per
+        stage and parameter set). Every stage evaluates its trial values through here; a failure tells
+        the stage the value is wrong (reject the proposal, shrink the step), never stops the diagnosis."""
+        try:
+            return self.point(changes, names, realisation)
+        except SimulationFailed as err:
+            entry = {"where": where, "parameters": {k: float(v) for k, v in changes.items()}, "error": str(err)}
+            if not any(f["where"] == where and f["parameters"] == entry["parameters"] for f in self.failures):
+                self.failures.append(entry)
+            return None
 
     def point(self, changes: Mapping[str, float], names: Sequence[str], realisation: int = 0) -> Point:
         params = {**self.nominal, **changes}

@@ -206,14 +206,14 @@ def select(reg: Regression, nominal: Mapping, max_size: int, exclude: frozenset 
     # training tests cannot tell apart (a heavier carriage, or more inertia and an offset, on z motions
     # only) are told apart by how they predict the held-out tests
     best = min(admissible, key=reg.score) if admissible else reg.fit(())
-    # alternatives the data cannot separate: name the preferred member of a group
+    # alternatives of a group (inertia on either side of the transmission): the preferred member is
+    # proposed whenever it is admissible; the alias check decides between them by re-simulation (in the
+    # band their linearised columns differ by how far the secant of each extrapolates, not by physics)
     for a in list(best.atoms):
         if a.effect.group and not a.effect.preferred:
             pref = [e for e in library if e.group == a.effect.group and e.preferred][0]
             want = {x.effect.key for x in best.atoms if x is not a} | {pref.key}
             cand = [f for f in admissible if {x.effect.key for x in f.atoms} == want]
             if cand:
-                c = min(cand, key=reg.score)
-                if reg.score(c) - reg.score(best) < DELTA_BIC:
-                    best = c
+                best = min(cand, key=reg.score)
     return best, fits

@@ -9,13 +9,13 @@ from typing import Callable, Mapping, Optional, Sequence
 
 import numpy as np
 
-from .effects import BOUNDS, BY_PARAMETER, LIBRARY, MEASUREMENT_PARAMETERS, Chain
-from .resimulation import DiagnosisError, Model, Point, resample
+from .effects import AXIS_OF, BOUNDS, BY_PARAMETER, LIBRARY, MEASUREMENT_PARAMETERS, Chain
+from .resimulation import Model, Point, resample
 from .selection import DELTA_BIC, PRACTICAL, RELATIVE, Atom, Band, Regression, atom_labels, select
 
 
 #: re-simulation steps (finite differences) for the parameters whose signature does not linearise well
-FD_STEP = {"tau_s": 2e-3, "omega_s": 0.3}
+FD_STEP = {"tau_s": 2e-3, "omega_s": 0.3, "k_p": 6e-4, "k_v": 0.2}
 #: effects fitted and verified by re-simulation (sample by sample) when a residual remains after the regression loop
 NONLINEAR = tuple(e.key for e in LIBRARY if not e.regression and not e.phase_free)
 #: at most this many effects at once
@@ -84,8 +84,10 @@ def regression_loop(ctx: Context, state: State, atoms, rejected: set, steps: lis
             start[p0] = float(np.clip(float(ctx.nominal[p0]) + c, lo, hi))
             if a.grid is not None:
                 start[a.effect.parameters[1]] = a.grid
-        cand = fit_state(ctx, proposal, start, getattr(reg, "columns", {}))
-        ok = verify(ctx, state, cand, steps, "regression")
+        cand = fit_state(ctx, proposal, start, getattr(reg, "columns", {}), anchor=state.changes)
+        ok = cand is not None and verify(ctx, state, cand, steps, "regression")
+        if cand is None:
+            failed_step(ctx, state, proposal, steps, "regression")
         if ok:
             state = cand
         else:
@@ -93,12 +95,40 @@ def regression_loop(ctx: Context, state: State, atoms, rejected: set, steps: lis
     return state, last_fit
 
 
+#: a start whose simulation fails is moved back towards the current model this many times (halving the step)
+BACK_OFF = 4
+
+
 def fit_state(ctx: Context, selected: Sequence[Atom], start: Mapping[str, float],
-               columns: Optional[Mapping] = None) -> State:
+              columns: Optional[Mapping] = None, anchor: Optional[Mapping[str, float]] = None) -> Optional[State]:
+    """The selection fitted by re-simulation from ``start``; None if no value near it simulates on every test.
+
+    A start that does not simulate (a proposed value that destabilises the loop) is moved back
+    towards ``anchor`` (the current model; the nominal one by default), halving the step each time."""
     free = _free_parameters(selected)
     start = {p: start.get(p, float(ctx.nominal[p])) for p in free}
-    changes, info = polish(ctx, selected, start, columns or {})
-    return State(tuple(selected), changes, ctx.model.point(changes, ctx.names), info)
+    base = {p: float((anchor or {}).get(p, ctx.nominal[p])) for p in free}
+    for k in range(BACK_OFF + 1):
+        trial = {p: base[p] + (start[p] - base[p]) * 0.5 ** k for p in free}
+        if ctx.model.trial(trial, ctx.train, "fit start") is not None:
+            break
+    else:
+        return None
+    if k:
+        ctx.log(f"diagnose:   the proposed values do not simulate: fit started {k} halving(s) back towards the "
+                "current model")
+    changes, info = polish(ctx, selected, trial, columns or {})
+    pt = ctx.model.trial(changes, ctx.names, "fitted values on every test")
+    if pt is None:
+        return None
+    return State(tuple(selected), changes, pt, info)
+
+
+def failed_step(ctx: Context, old: State, selected: Sequence[Atom], steps: list, how: str) -> None:
+    """A proposal whose fitted model does not simulate: refuted, recorded as a step."""
+    steps.append({"how": how, "from": [a.label for a in old.selected], "to": [a.label for a in selected],
+                  "accepted": False, "note": "refuted: its re-simulation failed (see failed_simulations)"})
+    ctx.log(f"diagnose:   refuted by re-simulation: {[a.label for a in selected]} (its simulation failed)")
 
 
 def band_rss(ctx: Context, pt: Point, names: Sequence[str]) -> tuple[float, int]:
@@ -174,7 +204,19 @@ def alias_check(ctx: Context, state: State, last_fit, steps: list) -> State:
                               "note": f"the equivalent {other.parameter} = {start[other.parameter]:.3g} is outside its bounds"})
                 continue
             swapped = tuple(x for x in state.selected if x is not a) + (Atom(other),)
-            cand = fit_state(ctx, swapped, start)
+            # the equivalent value must itself reproduce the data's stable run: if it does not simulate
+            # (more inertia behind the elastic transmission destabilises the loop), the data refute it
+            cand = None
+            if ctx.model.trial(start, ctx.train, "alias check") is not None:
+                cand = fit_state(ctx, swapped, start)
+            if cand is None:
+                steps.append({"how": "alias check", "from": [x.label for x in state.selected],
+                              "to": [x.label for x in swapped], "accepted": False,
+                              "note": f"the equivalent {other.parameter} = {start[other.parameter]:.3g} does not "
+                                      "simulate (see failed_simulations): the data, which ran, refute it"})
+                ctx.log(f"diagnose:   alias check {a.effect.key} -> {other.key}: the equivalent value does not "
+                        "simulate: kept")
+                continue
             rss0, n = band_rss(ctx, state.pt, ctx.train)
             rss1, _ = band_rss(ctx, cand.pt, ctx.train)
             full0 = sum(float(np.sum((ctx.model.tests[m].y - state.pt.obs[m]) ** 2)) for m in ctx.train)
@@ -224,6 +266,9 @@ def prune(ctx: Context, state: State, steps: list) -> State:
                 break
             rest = tuple(x for x in state.selected if x is not a)
             cand = fit_state(ctx, rest, dict(state.changes))
+            if cand is None:
+                failed_step(ctx, state, rest, steps, f"backward check (removing {a.effect.key})")
+                continue
             if verify(ctx, state, cand, steps, f"backward check (removing {a.effect.key})"):
                 state, removed = cand, True
                 break
@@ -250,7 +295,7 @@ def _steps(ctx: Context, state: State, atoms: Sequence[Atom]) -> dict[str, tuple
     """(value, step) of the re-simulated sensitivity of each plant atom's parameter."""
     out = {}
     for a in atoms:
-        if a.effect.kind == "plant":
+        if a.effect.kind in ("plant", "controller") and a.effect.parameter not in AXIS_OF:
             p0 = a.effect.parameter
             v0 = float(state.changes.get(p0, ctx.nominal[p0]))
             step = a.effect.step if BOUNDS[p0][0] <= v0 + a.effect.step <= BOUNDS[p0][1] else -a.effect.step
@@ -266,6 +311,8 @@ def regression_at(ctx: Context, state: State, atoms: Sequence[Atom], sensitiviti
     effect signatures (no simulation: a screen).
     """
     model, pt, names = ctx.model, state.pt, ctx.names
+    if any(a.effect.kind == "controller" for a in tuple(atoms) + tuple(state.selected)):
+        sensitivities = True    # a controller gain has no signature: its column is the closed loop's response
     cols = {}
     steps = _steps(ctx, state, atoms) if sensitivities else {}
     if steps:
@@ -275,10 +322,12 @@ def regression_at(ctx: Context, state: State, atoms: Sequence[Atom], sensitiviti
         if a.label in steps:   # re-simulated sensitivity: the closed loop's own response
             p0 = a.effect.parameter
             v0, step = steps[a.label]
-            try:
-                pt1 = model.point({**state.changes, p0: v0 + step}, names)
+            pt1 = model.trial({**state.changes, p0: v0 + step}, names, "sensitivity")
+            if pt1 is not None:
                 cols[a.label] = {n: (pt1.obs[n] - pt.obs[n]) / step for n in names}
-            except DiagnosisError:
+            elif a.effect.kind == "controller":    # no signature: a zero column, which the selection skips
+                cols[a.label] = {n: np.zeros_like(pt.obs[n]) for n in names}
+            else:
                 cols[a.label] = model.columns(pt, names, p0, a.grid)
         else:
             cols[a.label] = model.columns(pt, names, a.effect.parameter, a.grid if a not in state.selected else None)
@@ -340,12 +389,13 @@ def polish(ctx: Context, selected: Sequence[Atom], start: Mapping[str, float],
     plant = [k for k, p in enumerate(free) if p not in MEASUREMENT_PARAMETERS]
     sensor = [k for k, p in enumerate(free) if p in MEASUREMENT_PARAMETERS]
 
-    def at(x: np.ndarray) -> Point:
+    def at(x: np.ndarray) -> Optional[Point]:
+        """The training tests at x; None where they do not simulate (least squares then shrinks its step)."""
         key = tuple(np.round(x, 15))
         if key not in points:
             if len(points) > 8:
                 points.clear()
-            points[key] = model.point(dict(zip(free, map(float, x))), train)
+            points[key] = model.trial(dict(zip(free, map(float, x))), train, "fit")
             count[0] += 1
         return points[key]
 
@@ -353,11 +403,8 @@ def polish(ctx: Context, selected: Sequence[Atom], start: Mapping[str, float],
         return np.concatenate([pt.obs[n].ravel() for n in train])
 
     def fun(x: np.ndarray) -> np.ndarray:
-        try:
-            pt = at(x)
-        except DiagnosisError:
-            return np.full(y.shape, 1e3)
-        return (y - obs(pt)) / sigma
+        pt = at(x)
+        return np.full(y.shape, 1e3) if pt is None else (y - obs(pt)) / sigma
 
     memory: dict = {}
 
@@ -381,16 +428,13 @@ def polish(ctx: Context, selected: Sequence[Atom], start: Mapping[str, float],
             fd[k] = (x1, d)
         model.sim.prefetch([dict(zip(free, map(float, x1))) for x1, _ in fd.values()], train)
         for k, (x1, d) in fd.items():
-            try:
-                J[:, k] = -(obs(at(x1)) - obs(pt)) / d / sigma
-            except DiagnosisError:
-                J[:, k] = 0.0
+            pt1 = at(x1)
+            J[:, k] = 0.0 if pt1 is None else -(obs(pt1) - obs(pt)) / d / sigma
         return J
 
     def jac(x: np.ndarray) -> np.ndarray:
-        try:
-            pt = at(x)
-        except DiagnosisError:
+        pt = at(x)
+        if pt is None:
             return np.zeros((len(y), len(free)))
         r = (y - obs(pt)) / sigma
         if "J" not in memory:
@@ -410,6 +454,8 @@ def polish(ctx: Context, selected: Sequence[Atom], start: Mapping[str, float],
     t0 = time.perf_counter()
     sol = least_squares(fun, x0, jac=jac, bounds=(lo, hi), x_scale=scale, method="trf", xtol=1e-4, ftol=1e-5,
                         max_nfev=12)
+    if at(sol.x) is None:    # never worse than the start, which simulates
+        sol.x = x0
     values = dict(zip(free, map(float, sol.x)))
     info = {"simulations_of_the_training_tests": count[0], "cost": float(sol.cost),
             "wall_s": round(time.perf_counter() - t0, 1), "status": sol.message,

@@ -69,7 +69,14 @@ def named_effects(ctx: Context, state: State, last_fit, steps: list) -> list:
     for p in free:
         if p in FD_STEP:
             d = FD_STEP[p] if state.changes[p] + FD_STEP[p] <= BOUNDS[p][1] else -FD_STEP[p]
-            pt1 = model.point({**state.changes, p: state.changes[p] + d}, names)
+            pt1 = model.trial({**state.changes, p: state.changes[p] + d}, names, "uncertainty")
+            if pt1 is None and BOUNDS[p][0] <= state.changes[p] - d:
+                d = -d
+                pt1 = model.trial({**state.changes, p: state.changes[p] + d}, names, "uncertainty")
+            if pt1 is None:
+                c = model.columns(pt, names, p)
+                cols.append(np.concatenate([c[n].ravel() for n in names]))
+                continue
             cols.append((np.concatenate([pt1.obs[n].ravel() for n in names]) - (y - r)) / d)
         else:
             c = model.columns(pt, names, p)

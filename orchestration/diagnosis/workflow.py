@@ -10,8 +10,9 @@ from typing import Callable, Optional, Sequence
 import numpy as np
 
 from ..measured import CommandReplay, MeasuredData, controller_geometry, load
-from .effects import BY_KEY, LIBRARY, noise_std
+from .effects import AXIS_OF, BY_KEY, CONTROLLER_PARAMETERS, LIBRARY, noise_std
 from .nonlinear import nonlinear_stage, phase_free_stage
+from .plan import excitations, identifiability
 from .report import jsonable, plot_figures, write_model, write_report
 from .resimulation import DiagnosisError, Model, Prepared, Simulator
 from .selection import Atom, Band
@@ -116,10 +117,13 @@ def diagnose(opt: Options, log: Callable[[str], None] = print) -> dict:
         if len(actuators) != 3:
             raise DiagnosisError(f"{opt.ssp}: expected three actuator_k components, found {', '.join(actuators)}")
         ssp_actuator = dict(system.components[actuators[0]].parameters)
+        drive = system.components.get("controller")
+        ssp_drive = {k: float(drive.parameters[k]) for k in CONTROLLER_PARAMETERS
+                     if drive is not None and k in drive.parameters}
     stroke = (float(ssp_actuator["rho_min"]), float(ssp_actuator["rho_max"]))
     data = load(opt.measured, stroke=stroke)
     model_over = _model_overrides(opt.ssp, opt.model)
-    nominal = {**ssp_actuator, **model_over}
+    nominal = {**ssp_drive, **ssp_actuator, **model_over, **{p: 0.0 for p in AXIS_OF}}
     base = {a: dict(model_over) for a in actuators} if model_over else {}
     geometry = controller_geometry(opt.ssp)
     roles = _split(data, opt.holdout)
@@ -129,6 +133,10 @@ def diagnose(opt: Options, log: Callable[[str], None] = print) -> dict:
         prepared[t.name] = Prepared(t, roles[t.name], CommandReplay(t.time, t.rho_cmd, geometry), mask, t.time[mask],
                                     t.tau_m[mask], (t.rho - t.rho_cmd)[mask])
     names = [t.name for t in data.tests]
+    plan = identifiability(excitations(prepared, roles), list(opt.library))
+    for key, p in plan.items():
+        if not p["plan_meets"] and "_axis" not in key:
+            log(f"diagnose: this plan cannot tell {BY_KEY[key].title}: it needs {p['requires']} ({p['why_not']})")
     train = [n for n in names if roles[n] == "training"]
     held = [n for n in names if roles[n] == "held-out"]
     sigma = float(np.median([noise_std(prepared[n].y[:, j]) for n in names for j in range(3)]))
@@ -140,7 +148,7 @@ def diagnose(opt: Options, log: Callable[[str], None] = print) -> dict:
     log(f"diagnose: {len(names)} tests ({len(train)} training, {len(held)} held-out), torque noise floor "
         f"{1e3 * sigma:.3g} mN.m")
 
-    with Simulator(opt.ssp, prepared, base, actuators, direct=opt.direct, workers=opt.workers) as sim:
+    with Simulator(opt.ssp, prepared, base, actuators, direct=opt.direct, workers=opt.workers, nominal=nominal) as sim:
         model = Model(sim, nominal, prepared, data.torque_filter_s, data.torque_delay_s)
         ctx = Context(model, nominal, names, train, held, band, sigma, sigma_b, log)
         nominal_pt = model.point({}, names)
@@ -149,7 +157,9 @@ def diagnose(opt: Options, log: Callable[[str], None] = print) -> dict:
         localised = {n: localise_test(model, nominal_pt, prepared[n], sigma) for n in names}
         log("diagnose: nominal model: " + ", ".join(f"{n} {before[n]['torque_nrmse_percent']:.1f} %" for n in names))
 
-        library = [BY_KEY[k] for k in opt.library]
+        # controller-side effects need the SSP's controller (its gains k_p, k_v)
+        library = [BY_KEY[k] for k in opt.library if BY_KEY[k].kind != "controller"
+                   or all(p in ssp_drive for p in BY_KEY[k].parameters)]
         atoms = [Atom(e, g) for e in library if e.regression for g in (e.grid or (None,))]
         state = State((), {}, nominal_pt)
         steps: list = []
@@ -193,6 +203,8 @@ def diagnose(opt: Options, log: Callable[[str], None] = print) -> dict:
         "verdict": verdict,
         "unexplained": unexplained,
         "steps": steps,
+        "failed_simulations": model.failures,
+        "identifiability": plan,
         "augmented_model": outputs,
         "timing": {"wall_s": round(wall, 1), "simulations": n_sims, "simulation_wall_s": round(sim_seconds, 1),
                    "workers": opt.workers, "direct": opt.direct},

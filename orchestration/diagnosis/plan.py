@@ -1,0 +1,105 @@
+"""What a test plan must excite for each effect to be identifiable, and whether the user's plan does.
+
+Read from the commanded joint motion of every test (not from its labels): its reversal frequency
+(velocity sign changes per second / 2), whether the three axes move alike (z) or differently (a
+rotation), and its role. The thresholds follow the effects' signatures (effects.py) and the
+cascade's bandwidth (about 4 Hz, ssp/resources/controller_joint.ssv); the frequencies are
+engineering judgement, stated with each requirement.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable, Mapping, Optional, Sequence
+
+import numpy as np
+
+
+@dataclass
+class Excitation:
+    """One test's motion as an identification experiment."""
+
+    name: str
+    role: str
+    frequency: float      # Hz: reversals per second / 2 (0 without reversals)
+    alike: bool           # the three axes move alike (a z motion)
+
+
+def excitation(name: str, role: str, t: np.ndarray, rho_cmd: np.ndarray) -> Excitation:
+    v = np.gradient(rho_cmd, t, axis=0)
+    scale = np.abs(v).max(axis=0)
+    moving = scale > 0
+    reversals = [int(np.count_nonzero(np.diff(np.sign(v[np.abs(v[:, j]) > 0.05 * scale[j], j])) != 0))
+                 for j in range(rho_cmd.shape[1]) if moving[j]]
+    duration = float(t[-1] - t[0]) or 1.0
+    frequency = max(reversals) / (2 * duration) if reversals else 0.0
+    spread = np.ptp(rho_cmd, axis=0)
+    d = rho_cmd - rho_cmd.mean(axis=0)
+    alike = bool(np.allclose(d, d[:, :1], atol=0.05 * float(spread.max() or 1.0)))
+    return Excitation(name, role, frequency, alike)
+
+
+def _both_roles(tests: Sequence[Excitation], ok: Callable[[Excitation], bool]) -> Optional[str]:
+    roles = {x.role for x in tests}
+    missing = [r for r in sorted(roles) if not any(ok(x) for x in tests if x.role == r)]
+    return f"no such {' or '.join(missing)} test" if missing else None
+
+
+def _fast(tests: Sequence[Excitation]) -> Optional[str]:
+    """The fastest tests of the plan (where backlash makes the loop hunt) in both roles: of the same kind of
+    motion as the fastest one (a rotation loads the axes differently from z and need not hunt alike)."""
+    fastest = max(tests, key=lambda x: x.frequency, default=None)
+    if fastest is None or fastest.frequency <= 0:
+        return "no test reverses"
+    return _both_roles(tests, lambda x: x.alike == fastest.alike and x.frequency >= 0.5 * fastest.frequency)
+
+
+def _speeds(tests: Sequence[Excitation]) -> Optional[str]:
+    f = [x.frequency for x in tests if x.frequency > 0]
+    return None if f and max(f) >= 2 * min(f) else "all tests reverse at about one rate"
+
+
+def _kinds(tests: Sequence[Excitation]) -> Optional[str]:
+    kinds = {x.alike for x in tests if x.frequency > 0}
+    return None if kinds == {True, False} else ("only motions of the axes alike (z)" if kinds == {True}
+                                                else "no motion of the axes alike (z)")
+
+
+#: effect keys -> (what the plan must excite, the check: None when met, else why not)
+REQUIREMENTS: dict[tuple[str, ...], tuple[str, Callable[[Sequence[Excitation]], Optional[str]]]] = {
+    ("coulomb", "offset"): ("velocity reversals in a training and a held-out test",
+                            lambda ts: _both_roles(ts, lambda x: x.frequency > 0)),
+    ("viscous",): ("reversal rates (speeds) differing by 2 x or more across tests: viscous grows with speed, "
+                   "Coulomb friction does not", _speeds),
+    ("stribeck",): ("a slow test (<= 1 Hz), where the motion lingers near standstill at each reversal",
+                    lambda ts: None if any(0 < x.frequency <= 1.0 for x in ts) else "no test at 1 Hz or below"),
+    ("inertia_motor", "inertia_guide"): ("a training and a held-out test at >= 2 Hz: the inertia torque grows "
+                                         "with f^2 and is small below", lambda ts: _both_roles(ts, lambda x: x.frequency >= 2.0)),
+    ("carriage_mass",): ("motions of the axes alike (z) and differently (a rotation): on z alone a heavier "
+                         "carriage and more inertia plus an offset look alike", _kinds),
+    ("lag",): ("a test at >= 3 Hz: the phase lag grows with f", lambda ts: None if any(x.frequency >= 3.0 for x in ts)
+               else "no test at 3 Hz or above"),
+    ("velocity_gain", "position_gain"): ("a training and a held-out test at >= 2 Hz, near the cascade's bandwidth "
+                                         "(about 4 Hz): well below it the loop follows whatever its gains",
+                                         lambda ts: _both_roles(ts, lambda x: x.frequency >= 2.0)),
+    ("backlash",): ("the fastest tests (of the fastest test's kind of motion, >= half its reversal rate: where "
+                    "the loop hunts) in both the training and the held-out set: it is refused when only one set "
+                    "hunts", _fast),
+    ("coulomb_axis", "viscous_axis"): ("reversals of every axis in a training and a held-out test",
+                                       lambda ts: _both_roles(ts, lambda x: x.frequency > 0)),
+}
+
+
+def identifiability(tests: Sequence[Excitation], library: Sequence[str]) -> dict[str, dict]:
+    """For every effect of ``library``: what the plan must excite, and whether this plan does."""
+    out = {}
+    for keys, (needs, check) in REQUIREMENTS.items():
+        for key in library:
+            base = key.rsplit("_axis", 1)[0] + "_axis" if "_axis" in key else key
+            if base in keys:
+                why = check(tests)
+                out[key] = {"requires": needs, "plan_meets": why is None, "why_not": why}
+    return out
+
+
+def excitations(prepared: Mapping, roles: Mapping[str, str]) -> list[Excitation]:
+    return [excitation(n, roles[n], p.test.time, p.test.rho_cmd) for n, p in prepared.items()]
