@@ -375,3 +375,13 @@ def test_the_c_backend_computes_what_the_python_computes_branch_for_branch(tmp_p
                    check=True, capture_output=True)
     x = (ctypes.c_double * 4)(1.0, 2.0, 3.0, 4.0)
     assert ctypes.CDLL(str(tmp_path / "g.so")).g(x) == 0 and list(x) == [1.0, 1.0, 2.0, 4.0]
+
+
+def test_only_the_models_a_generator_knows_claim_a_native_form():
+    """The EMPS bench's load axis lives beside the MAST actuator (fmus/actuator/) but is another model:
+    its FMU must be skipped by `mast build --native`, not generated as the MAST actuator."""
+    from mast.native.build import has_native_form
+
+    claimed = {spec.model_identifier for spec in FMUS if has_native_form(spec.model_identifier)}
+    assert {"MastActuator", "MastMechanism", "MastController", "MastTrajectory"} <= claimed
+    assert not claimed & {"MastLoadAxis", "MastEmpsController"}

@@ -177,11 +177,9 @@ def build_native_fmu(identifier: str, python_fmu: Path, out_dir: Path, parameter
 def has_native_form(identifier: str) -> bool:
     """Whether ``mast build --native`` can make this FMU (the models of ``models.emit_model``)."""
     from ..build import block_class
-    from .models import native_controllers
+    from .models import native_kind
 
-    cls = block_class(identifier)
-    kind = cls.__module__.split(".")[-2]
-    return kind in ("actuator", "mechanism", "trajectory") or cls in native_controllers()
+    return native_kind(block_class(identifier)) is not None
 
 
 def _component_sets(ssd: Path) -> dict[str, tuple[str, dict, Optional[float]]]:

@@ -688,6 +688,20 @@ def _inverse_model(block) -> str:
     return "\n".join(parts)
 
 
+def native_kind(block_class: type) -> Optional[str]:
+    """Which generator makes ``block_class``'s C ('actuator', 'mechanism', 'controller', 'trajectory'),
+    None when it has no native form yet (e.g. the EMPS bench's load axis and controller)."""
+    from fmus.actuator.model import ActuatorBlock
+    from fmus.mechanism.model import MechanismBlock
+    from fmus.trajectory.model import TrajectoryBlock
+
+    for kind, classes in (("actuator", (ActuatorBlock,)), ("mechanism", (MechanismBlock,)),
+                          ("trajectory", (TrajectoryBlock,)), ("controller", native_controllers())):
+        if block_class in classes or (kind != "controller" and issubclass(block_class, classes)):
+            return kind
+    return None
+
+
 def native_controllers() -> tuple[type, ...]:
     """The controllers with a native form: the joint cascade, feed-forward, computed torque, workspace."""
     from fmus.controller.computed_torque import ComputedTorqueController
@@ -753,7 +767,7 @@ def emit_model(identifier: str, guid: str, block_class: type, parameters: Mappin
     # parameter starts: the exact values (the XML prints 16 digits; the Python FMU starts from parameters.json)
     variables = [Variable(v.name, v.vr, v.type, v.causality, block.params[v.name]) if v.causality == "parameter"
                  else v for v in variables]
-    kind = block_class.__module__.split(".")[-2]
+    kind = native_kind(block_class)
     if kind == "actuator":
         if block._sensor is not None:
             raise ValueError(f"{identifier}: the torque measurement model (T_meas, delay_meas, tau_offset) has no "
