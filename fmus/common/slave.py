@@ -170,6 +170,7 @@ class BlockWrapper:
         defaults = load_defaults(self.resources)
         self._params = {p.name: defaults.get(p.name, _neutral(p.kind)) for p in cls.PARAMETERS}
         self._input_refs = frozenset(range(len(cls.INPUTS)))
+        self._io_refs = frozenset(range(self._n_io))   # the inputs and outputs: all Real (_register_block)
 
     def _register_block(self, units: Optional[Mapping[str, str]] = None, input_start: Optional[float] = None) -> None:
         """Register the block's inputs, outputs and parameters in value-reference order, with ``units``
@@ -222,8 +223,10 @@ class BlockWrapper:
 
     def _check_refs(self, vrs: List[int], kind: type, write: bool) -> None:
         """Refuse (IllegalCall) a value reference that is unknown, of another type, or not settable now."""
-        if write and self._phase == STEPPING and self._input_refs.issuperset(vrs) and kind is float:
-            return  # the hot path: inputs during the run
+        if kind is float:  # the hot paths: reading inputs and outputs in any state, setting inputs during the run
+            known = self._io_refs if not write else self._input_refs if self._phase == STEPPING else None
+            if known is not None and known.issuperset(vrs):
+                return
         variable_class = self.fmi.kinds.get(kind)  # None: a type none of the blocks' variables has (Boolean)
         wanted = variable_class.__name__ if variable_class is not None else "Boolean"
         causality = self.fmi.causality
