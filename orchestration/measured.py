@@ -57,8 +57,24 @@ class MeasuredDataError(ValueError):
     """The measured-data folder does not follow docs/measured-data.md."""
 
 
+class Sampled:
+    """What every test with a time column [s] (from 0) knows of its sampling."""
+
+    time: np.ndarray
+
+    @property
+    def sample_time(self) -> float:
+        """The median sample interval [s]."""
+        return float(np.median(np.diff(self.time)))
+
+    @property
+    def duration(self) -> float:
+        """The last time stamp [s]."""
+        return float(self.time[-1])
+
+
 @dataclass
-class MeasuredTest:
+class MeasuredTest(Sampled):
     """One test, in SI units, time starting at 0."""
 
     name: str
@@ -74,14 +90,6 @@ class MeasuredTest:
     settle_s: float = 1.0               # analysis starts here
     pose: dict[str, np.ndarray] = field(default_factory=dict)
     time_offset: float = 0.0            # the file's first time stamp [s]
-
-    @property
-    def sample_time(self) -> float:
-        return float(np.median(np.diff(self.time)))
-
-    @property
-    def duration(self) -> float:
-        return float(self.time[-1])
 
     def label(self) -> str:
         if self.motion and self.frequency:

@@ -26,7 +26,7 @@ from typing import Mapping, Optional, Sequence, Union
 
 import numpy as np
 
-from ..measured import FORMAT, VERSION, MeasuredDataError, _check_sampling, _finite, _read_csv
+from ..measured import FORMAT, VERSION, MeasuredDataError, Sampled, _check_sampling, _finite, _read_csv
 
 #: kinds of signals: what drives the model, and what is compared
 DRIVING = ("command", "injected")
@@ -94,7 +94,7 @@ def parse_signals(raw: object, where: str) -> dict[str, SignalSpec]:
 
 
 @dataclass
-class Record:
+class Record(Sampled):
     """One test of a record folder, SI units, time from 0."""
 
     name: str
@@ -106,14 +106,6 @@ class Record:
     settle_s: float = 0.0
     description: str = ""
     time_offset: float = 0.0
-
-    @property
-    def sample_time(self) -> float:
-        return float(np.median(np.diff(self.time)))
-
-    @property
-    def duration(self) -> float:
-        return float(self.time[-1])
 
     def of_kind(self, *kinds: str) -> list[SignalSpec]:
         return [s for s in self.specs.values() if s.kind in kinds]
