@@ -69,10 +69,10 @@ class _PhysicsClock:
 def single_run(ssp: str, stop: float, repeats: int) -> dict:
     """Real-time factor of one run on a warm session, and its split into physics and plumbing
     (physics timed inside the same run: the split does not depend on how busy the machine is)."""
-    from mast.components import FMUComponent
-    from mast.motion import SineMotion
-    from mast.run import simulate
-    from mast.session import Session
+    from mast.core.components import FMUComponent
+    from mast.core.motion import SineMotion
+    from mast.core.run import simulate
+    from mast.core.session import Session
 
     motion = lambda: SineMotion("z", 0.005, 5.0)  # noqa: E731
     best: dict[str, float] = {}
@@ -165,8 +165,8 @@ def batch_runs(ssp: str, cases: int, stop: float, repeats: int) -> dict:
 
 
 def profile(ssp: str, stop: float) -> str:
-    from mast.motion import SineMotion
-    from mast.session import Session
+    from mast.core.motion import SineMotion
+    from mast.core.session import Session
 
     with Session(ssp) as session:
         session.run(SineMotion("z", 0.005, 5.0), 0.05, record=RECORD)

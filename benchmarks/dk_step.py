@@ -13,8 +13,8 @@ import math
 import time
 
 from fmus.mechanism.model import MechanismBlock
-from mast.designs import DESIGNS
-from mast.ssp import read_ssd
+from mast.core.designs import DESIGNS
+from mast.core.ssp import read_ssd
 
 
 def trajectory(eng, steps: int) -> list[tuple]:

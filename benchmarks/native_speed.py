@@ -23,8 +23,8 @@ REPO = Path(__file__).resolve().parents[1]
 
 
 def cpu_run(ssp: Path, stop: float, direct: bool = False) -> float:
-    from mast.motion import SineMotion
-    from mast.run import simulate
+    from mast.core.motion import SineMotion
+    from mast.core.run import simulate
 
     start = time.process_time()
     simulate(ssp, SineMotion("z", 0.01, 1.0), stop, direct=direct)
@@ -34,7 +34,7 @@ def cpu_run(ssp: Path, stop: float, direct: bool = False) -> float:
 def cycles(fmu: Path, step: float, valgrind: bool) -> str:
     from lxml import etree
 
-    from mast.native.build import compiler, fmi_headers
+    from mast.core.native.build import compiler, fmi_headers
 
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)

@@ -23,8 +23,8 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 from fmus.actuator.model import ActuatorBlock  # noqa: E402
-from mast.ssp import read_ssd  # noqa: E402
-from mast.ssv import read_values  # noqa: E402
+from mast.core.ssp import read_ssd  # noqa: E402
+from mast.core.ssv import read_values  # noqa: E402
 
 
 def parameter_sets() -> dict[str, dict]:

@@ -109,11 +109,11 @@ class Progress:
 
 
 def cmd_build(args) -> int:
-    from .build import SSP_SRC, build_all
+    from .core.build import SSP_SRC, build_all
 
     build_all(Path(args.out), fmi3=args.fmi3)
     if args.native:
-        from .native.build import build_native_all
+        from .core.native.build import build_native_all
 
         platforms = ("linux64", "win64", "darwin64") if args.cross else ("linux64",)
         build_native_all(Path(args.out), sorted(SSP_SRC.glob("*.ssd")), platforms=platforms)
@@ -124,7 +124,7 @@ def validate_all(build_dir: Path) -> list[str]:
     """Problems found in the built FMUs (fmpy validation) and SSPs (SSP 1.0 schema)."""
     from fmpy.validation import validate_fmu
 
-    from .ssp import safe_extract, validate_ssd_schema
+    from .core.ssp import safe_extract, validate_ssd_schema
 
     problems = []
     fmus = sorted((build_dir / "fmus").glob("*.fmu"))
@@ -152,14 +152,14 @@ def cmd_validate(args) -> int:
 
 
 def cmd_run(args) -> int:
-    from .master import SimulationError
-    from .run import motion_from_cli, parse_overrides, simulate, write_outputs
+    from .core.master import SimulationError
+    from .core.run import motion_from_cli, parse_overrides, simulate, write_outputs
 
     motion = motion_from_cli(args.motion, args.amplitude, args.frequency)
     out = Path(args.out)
     ssp = args.ssp
     if args.native:
-        from .bench import native_variant
+        from .analyses.bench import native_variant
 
         ssp = native_variant(args.ssp)
         if ssp is None:
@@ -183,7 +183,7 @@ def cmd_run(args) -> int:
 
 
 def cmd_fit_gains(args) -> int:
-    from .identify import main as fit_main
+    from .analyses.identify import main as fit_main
 
     fit = fit_main(args.ssp, Path(args.out) if args.out else None, args.workers)
     print("gains: " + ", ".join(f"{k} = {v:.6g}" for k, v in fit.gains.items()))
@@ -194,7 +194,7 @@ def cmd_fit_gains(args) -> int:
 
 
 def cmd_reproduce(args) -> int:
-    from .reproduce import reproduce
+    from .analyses.reproduce import reproduce
 
     summary = reproduce(args.ssp, Path(args.out), workers=args.workers, direct=not args.fmi)
     print(f"{summary['predictions_within']} of {summary['predictions']} predictions within the paper's tolerance "
@@ -205,7 +205,7 @@ def cmd_reproduce(args) -> int:
 
 
 def cmd_hosts(args) -> int:
-    from .hosts import COMPARED, HOSTS, cross_check, show
+    from .hosts.cosim import COMPARED, HOSTS, cross_check, show
 
     if args.show:
         print(show(args.show, args.ssp, args.stop_time, list(COMPARED), Path.cwd()))
@@ -215,14 +215,14 @@ def cmd_hosts(args) -> int:
 
 
 def cmd_bench(args) -> int:
-    from .bench import main as bench_main
+    from .analyses.bench import main as bench_main
 
     return bench_main(args)
 
 
 def cmd_synthesize(args) -> int:
-    from .run import parse_overrides
-    from .synthesize import DEFAULT_TESTS, parse_tests, synthesize
+    from .core.run import parse_overrides
+    from .analyses.synthesize import DEFAULT_TESTS, parse_tests, synthesize
 
     def pairs(items, what):
         out = {}
@@ -266,7 +266,7 @@ def cmd_import(args) -> int:
 
 def cmd_replay(args) -> int:
     from .analyses.replay import replay
-    from .run import parse_overrides
+    from .core.run import parse_overrides
 
     doc = replay(args.model, args.measured, args.out, parse_overrides(args.set or []), direct=not args.fmu)
     for name, s in doc["signals"].items():
@@ -276,7 +276,7 @@ def cmd_replay(args) -> int:
 
 
 def cmd_check_mechanism(args) -> int:
-    from .conformance import check_mechanism
+    from .hosts.conformance import check_mechanism
 
     missing = [fmu for fmu in args.fmu if not Path(fmu).is_file()]
     if missing:
@@ -293,9 +293,9 @@ def cmd_check_mechanism(args) -> int:
 
 
 def cmd_compare(args) -> int:
-    from .compare import DEFAULT, QUICK, WORKSPACE_GRID, WORKSPACE_GRID_QUICK, TestSet, compare
-    from .frequency import CountProgress
-    from .run import parse_overrides
+    from .analyses.compare import DEFAULT, QUICK, WORKSPACE_GRID, WORKSPACE_GRID_QUICK, TestSet, compare
+    from .analyses.frequency import CountProgress
+    from .core.run import parse_overrides
 
     base = QUICK if args.quick else DEFAULT
     test_set = TestSet(tuple(args.motions) if args.motions else base.axes,
@@ -477,7 +477,7 @@ def main(argv=None) -> int:
     p.add_argument("fmu", nargs="+", help="mechanism FMU(s)")
     p.set_defaults(func=cmd_check_mechanism)
 
-    from .compare import PAYLOAD_MISMATCH_KG
+    from .analyses.compare import PAYLOAD_MISMATCH_KG
 
     p = sub.add_parser("compare", help="run one sine test set on several mechanism designs or controllers: table and "
                                        "plots (docs/designs, docs/controller.md)")

@@ -5,8 +5,8 @@ from pathlib import Path
 
 import pytest
 
-from mast.ssp import read_ssd
-from mast.ssv import read_values
+from mast.core.ssp import read_ssd
+from mast.core.ssv import read_values
 
 ROOT = Path(__file__).resolve().parents[1]
 SSD = ROOT / "ssp" / "MAST.ssd"

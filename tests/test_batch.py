@@ -14,15 +14,15 @@ import numpy as np
 import pytest
 
 from mast.batch import BatchConfig, BatchConfigError, expand, read_batch, run_batch
-from mast.build import FMUS, SSP_SRC, build_fmu, build_ssp
+from mast.core.build import FMUS, SSP_SRC, build_fmu, build_ssp
 from mast.cli import main as cli_main
-from mast.components import BlockComponent
-from mast.master import Master, Result, SimulationError
-from mast.metrics import case_metrics, sweep_metrics
-from mast.motion import SineMotion
-from mast.run import simulate
-from mast.session import Session
-from mast.ssp import ComponentSpec, Connection, SystemSpec, read_ssd
+from mast.core.components import BlockComponent
+from mast.core.master import Master, Result, SimulationError
+from mast.analyses.metrics import case_metrics, sweep_metrics
+from mast.core.motion import SineMotion
+from mast.core.run import simulate
+from mast.core.session import Session
+from mast.core.ssp import ComponentSpec, Connection, SystemSpec, read_ssd
 
 # test_master's toy blocks
 sys.path.insert(0, str(Path(__file__).parent))

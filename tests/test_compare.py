@@ -10,16 +10,16 @@ from pathlib import Path
 import pytest
 
 from mast.cli import main as cli_main
-from mast.compare import WORKSPACE_GRID_QUICK, TestSet, compare, fmu_parameters, swapped_ssd
-from mast.designs import DESIGNS
-from mast.ssp import read_ssd, validate_ssd_schema
+from mast.analyses.compare import WORKSPACE_GRID_QUICK, TestSet, compare, fmu_parameters, swapped_ssd
+from mast.core.designs import DESIGNS
+from mast.core.ssp import read_ssd, validate_ssd_schema
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
 @pytest.fixture(scope="module")
 def fmus(tmp_path_factory) -> Path:
-    from mast.build import FMUS, build_fmu
+    from mast.core.build import FMUS, build_fmu
 
     out = tmp_path_factory.mktemp("compare_fmus")
     for spec in FMUS:

@@ -11,9 +11,9 @@ from fmus.common.block import Block
 from fmus.mechanism import designs
 from fmus.mechanism.model import MechanismBlock
 from mast.cli import main as cli_main
-from mast.conformance import BlockSubject, check, check_mechanism
-from mast.designs import DESIGNS
-from mast.ssp import read_ssd
+from mast.hosts.conformance import BlockSubject, check, check_mechanism
+from mast.core.designs import DESIGNS
+from mast.core.ssp import read_ssd
 
 
 def verdicts(results) -> dict:
@@ -93,7 +93,7 @@ def test_wrong_units_and_missing_variables_are_reported(mechanism_params):
 
 
 def test_cli_checks_an_fmu(tmp_path):
-    from mast.build import FMUS, build_fmu
+    from mast.core.build import FMUS, build_fmu
 
     spec = next(s for s in FMUS if s.model_identifier == "MastActuatorsOnly")
     fmu = build_fmu(spec, tmp_path)

@@ -23,11 +23,11 @@ from fmus.common.parameters import ParameterError
 from fmus.controller.computed_torque import ComputedTorqueController
 from fmus.controller.inverse_model import InverseModel
 from fmus.controller.reference import JointReference
-from mast.build import default_parameters
-from mast.controllers import CONTROLLERS, variant_ssd
-from mast.motion import PoseStep, SineMotion
-from mast.run import simulate
-from mast.ssp import read_ssd
+from mast.core.build import default_parameters
+from mast.core.controllers import CONTROLLERS, variant_ssd
+from mast.core.motion import PoseStep, SineMotion
+from mast.core.run import simulate
+from mast.core.ssp import read_ssd
 
 JOINT = [f"controller.rho_cmd_{j}" for j in (1, 2, 3)] + [f"actuator_{j}.rho" for j in (1, 2, 3)]
 
@@ -35,7 +35,7 @@ JOINT = [f"controller.rho_cmd_{j}" for j in (1, 2, 3)] + [f"actuator_{j}.rho" fo
 @pytest.fixture(scope="module")
 def systems(tmp_path_factory):
     """The four controller systems, built (FMUs and SSPs)."""
-    from mast.build import FMUS, build_fmu, build_ssp
+    from mast.core.build import FMUS, build_fmu, build_ssp
 
     out = tmp_path_factory.mktemp("controllers")
     needed = {"MastActuator", "MastMechanism"} | {c.model_identifier for c in CONTROLLERS}
@@ -60,7 +60,7 @@ def controller_params(name: str) -> dict:
 def test_controller_systems_are_up_to_date_and_differ_only_in_the_controller():
     default = read_ssd(CONTROLLERS[0].ssd)
     for c in CONTROLLERS[1:]:
-        assert c.ssd.read_bytes() == variant_ssd(c), f"{c.ssd.name} is stale: run python -m mast.designs"
+        assert c.ssd.read_bytes() == variant_ssd(c), f"{c.ssd.name} is stale: run python -m mast.core.designs"
         system = read_ssd(c.ssd)
         assert system.connections == default.connections
         for name, comp in system.components.items():
@@ -275,7 +275,7 @@ def test_compare_controllers_tabulates_and_plots_with_an_unknown_payload(systems
 
 
 def test_compare_rejects_an_unknown_controller(tmp_path):
-    from mast.compare import compare
+    from mast.analyses.compare import compare
 
     with pytest.raises(FileNotFoundError, match="no such file or a controller name"):
         compare(controllers=["cascade_pid"], out=tmp_path)

@@ -8,12 +8,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mast.build import build_all
+from mast.core.build import build_all
 from mast.cli import main as cli_main
 from mast.cli import validate_all
-from mast.master import SimulationError
-from mast.motion import SineMotion
-from mast.run import simulate
+from mast.core.master import SimulationError
+from mast.core.motion import SineMotion
+from mast.core.run import simulate
 
 
 @pytest.fixture(scope="session")
@@ -150,8 +150,8 @@ def test_a_set_in_grams_is_built_into_the_ssp_in_kilograms(built, tmp_path):
     import shutil
     import zipfile
 
-    from mast.build import build_ssp
-    from mast.ssv import parse_ssv
+    from mast.core.build import build_ssp
+    from mast.core.ssv import parse_ssv
 
     root = Path(__file__).resolve().parents[1] / "ssp"
     shutil.copytree(root / "resources", tmp_path / "resources")

@@ -31,8 +31,8 @@ from fmus.mechanism import designs
 from fmus.mechanism.dynamics import Masses, inverse_dynamics_at_pose
 from fmus.mechanism.kinematics import Geometry, KinematicsError, jacobians
 from fmus.mechanism.model import MechanismBlock
-from mast.designs import DESIGNS, variant_ssd
-from mast.ssp import read_ssd
+from mast.core.designs import DESIGNS, variant_ssd
+from mast.core.ssp import read_ssd
 
 DEG = math.pi / 180.0
 EZ = np.array([0.0, 0.0, 1.0])
@@ -499,7 +499,7 @@ def test_bad_design_parameters_are_named(mechanism_params):
 def test_variant_systems_differ_from_the_default_only_by_the_swap():
     default = read_ssd(DESIGNS[0].ssd)
     for d in DESIGNS[1:]:
-        assert d.ssd.read_bytes() == variant_ssd(d), f"{d.ssd.name} is stale: run python -m mast.designs"
+        assert d.ssd.read_bytes() == variant_ssd(d), f"{d.ssd.name} is stale: run python -m mast.core.designs"
         system = read_ssd(d.ssd)
         assert [c.__dict__ for c in system.connections] == [c.__dict__ for c in default.connections]
         for name, comp in system.components.items():
@@ -520,7 +520,7 @@ def test_variant_systems_differ_from_the_default_only_by_the_swap():
 
 @pytest.fixture(scope="module")
 def design_systems(tmp_path_factory):
-    from mast.build import FMUS, build_fmu, build_ssp
+    from mast.core.build import FMUS, build_fmu, build_ssp
 
     out = tmp_path_factory.mktemp("designs")
     needed = {"MastActuator", "MastController"} | {d.model_identifier for d in DESIGNS[1:]}
@@ -531,8 +531,8 @@ def design_systems(tmp_path_factory):
 
 
 def test_design_fmus_reproduce_the_direct_composition(design_systems):
-    from mast.motion import SineMotion
-    from mast.run import simulate
+    from mast.core.motion import SineMotion
+    from mast.core.run import simulate
 
     for name, ssp in design_systems.items():
         motion = dict(axis="theta", amplitude=math.radians(2.0), frequency=3.0)

@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 
 from mast.diagnosis import Options, diagnose
-from mast.synthesize import TestSpec as Spec, synthesize
+from mast.analyses.synthesize import TestSpec as Spec, synthesize
 
 PLAN = (Spec("z", 0.005, 0.6, 2.0, 0.3), Spec("theta", math.radians(0.8), 1.5, 1.0, 0.3),
         Spec("z", 0.005, 3.0, 1.0, 0.3), Spec("z", 0.005, 7.0, 0.8, 0.3))
@@ -24,7 +24,7 @@ IDENTIFIED = {"tau_c": 0.0718, "J1_scale": 1 / 1.56}
 
 @pytest.fixture(scope="module")
 def built_ssp(tmp_path_factory) -> str:
-    from mast.build import build_all
+    from mast.core.build import build_all
 
     out = tmp_path_factory.mktemp("build")
     build_all(out, log=lambda *_: None)
@@ -69,7 +69,7 @@ def test_paper_case(built_ssp, tmp_path, seed):
         for fig in ("fig_time.png", "fig_residual_signals.png", "fig_residual_frequency.png"):
             assert (out / fig).stat().st_size > 10_000 and f"({fig})" in text
         assert json.loads((out / "diagnosis.json").read_text())["named_effects"][0]["effect"]
-        from mast.ssp import SSPArchive
+        from mast.core.ssp import SSPArchive
 
         with SSPArchive(out / "MAST_diagnosed.ssp") as archive:
             p = archive.system.components["actuator_2"].parameters

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from mast.diagnosis import Options, diagnose
-from mast.synthesize import TestSpec as Spec, synthesize
+from mast.analyses.synthesize import TestSpec as Spec, synthesize
 
 from test_diagnose import PLAN, built_ssp, named  # noqa: F401  (the module's fixture)
 
@@ -62,7 +62,7 @@ def test_a_drive_gain_below_its_documentation_gets_a_controller_name(built_ssp, 
     """The drive's velocity-loop gain k_p 40 % below the SSP's value (a cause outside the plant): named as
     the controller-side effect, within 5 %, with no plant effect named; the augmented SSP binds the
     diagnosed gain to the controller, not to the actuators."""
-    from mast.ssp import SSPArchive
+    from mast.core.ssp import SSPArchive
 
     with SSPArchive(built_ssp) as archive:
         nominal_k_p = float(archive.system.components["controller"].parameters["k_p"])
@@ -86,7 +86,7 @@ def test_a_worn_guide_on_one_axis_is_named_on_that_axis(built_ssp, tmp_path):
     effect of axis 2 (not the all-axes one, not an unexplained residual), its increment within 5 %; the
     augmented SSP binds the value to actuator 2 only. (When the axes agree the all-axes effect wins: the
     single-effect cases of test_diagnose.py assert exactly one effect, the all-axes one.)"""
-    from mast.ssp import SSPArchive
+    from mast.core.ssp import SSPArchive
 
     with SSPArchive(built_ssp) as archive:
         tau_c = float(archive.system.components["actuator_2"].parameters["tau_c"])

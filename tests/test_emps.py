@@ -31,7 +31,7 @@ needs_data = pytest.mark.skipif(not EMPS.exists(), reason=f"{EMPS} not present")
 @pytest.fixture(scope="module")
 def bench(tmp_path_factory) -> Path:
     """build/ssp/EMPS_bench.ssp, built from the sources into a temporary folder (its two FMUs only)."""
-    from mast.build import FMUS, SSP_SRC, build_fmu, build_ssp
+    from mast.core.build import FMUS, SSP_SRC, build_fmu, build_ssp
 
     out = tmp_path_factory.mktemp("build")
     for spec in FMUS:

@@ -14,9 +14,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mast.build import FMUS, build_all, build_ssp
-from mast.hosts import HostError, availability, run_host
-from mast.ssp import read_ssd
+from mast.core.build import FMUS, build_all, build_ssp
+from mast.hosts.cosim import HostError, availability, run_host
+from mast.core.ssp import read_ssd
 
 pytestmark = pytest.mark.skipif(importlib.util.find_spec("pythonfmu3") is None,
                                 reason="pythonfmu3 is not installed (pip install -e '.[test]' installs it)")

@@ -22,8 +22,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import mast.build as build
-from mast.build import FMU_REQUIREMENTS, FMUS, build_all, build_fmu
+import mast.core.build as build
+from mast.core.build import FMU_REQUIREMENTS, FMUS, build_all, build_fmu
 
 ROOT = Path(__file__).resolve().parents[1]
 OK, WARNING, DISCARD, ERROR, FATAL = range(5)
@@ -137,7 +137,7 @@ def _imports(package: Path) -> set[str]:
 def test_each_fmu_carries_the_requirements_of_its_code_for_pythonfmu_deploy(built):
     third_party = _imports(ROOT / "fmus") - set(sys.stdlib_module_names) - {"__future__", "pythonfmu", "pythonfmu3"}
     required = {r.split(">")[0].split("=")[0].split("<")[0].strip() for r in FMU_REQUIREMENTS}
-    assert third_party == required, "fmus/ imports and mast.build.FMU_REQUIREMENTS disagree"
+    assert third_party == required, "fmus/ imports and mast.core.build.FMU_REQUIREMENTS disagree"
     project = {r.split(";")[0].replace(" ", "") for r in importlib.metadata.requires("mast-cosim")}
     assert set(FMU_REQUIREMENTS) <= project, "an FMU requirement differs from the project's own dependency"
     for identifier in IDENTIFIERS:

@@ -10,11 +10,11 @@ import pytest
 
 from fmus.common.block import Block
 from fmus.common.parameters import Param
-from mast.components import BlockComponent
-from mast.frequency import analyse, bandwidth, harmonic, measuring_window
-from mast.master import Master
-from mast.motion import SineMotion
-from mast.ssp import ComponentSpec, Connection, SystemSpec
+from mast.core.components import BlockComponent
+from mast.analyses.frequency import analyse, bandwidth, harmonic, measuring_window
+from mast.core.master import Master
+from mast.core.motion import SineMotion
+from mast.core.ssp import ComponentSpec, Connection, SystemSpec
 
 H = 1e-3  # base step of the toy system [s]
 #: a known closed loop: 2nd order, 6 Hz, damping 0.5, with a 4 ms transport delay (Pade, 3rd order)

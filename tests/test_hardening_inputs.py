@@ -7,10 +7,10 @@ from pathlib import Path
 import pytest
 
 from fmus.common.parameters import exact_boolean, exact_integer
-from mast.build import default_parameters
+from mast.core.build import default_parameters
 from mast.cli import main as cli_main
-from mast.data.units import UnitError, convert, parse_unit
-from mast.ssv import SSPFormatError, parse_ssv
+from mast.core.units import UnitError, convert, parse_unit
+from mast.core.ssv import SSPFormatError, parse_ssv
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -146,7 +146,7 @@ def test_a_number_for_a_string_parameter_is_its_text_on_both_routes():
     """--set actuator_1.J_chain=0.001 arrives as a number: the FMU route wrote str(value), the direct
     route refused it; both now take its exact text, and both refuse a boolean."""
     from fmus.common.parameters import Param, ParameterError, exact_string
-    from mast.components import _FMI_VALUE
+    from mast.core.components import _FMI_VALUE
 
     spec = Param("J_chain", "kg.m2", "", kind=str)
     for value in (0.001, 3, "1e-3 2e-3"):

@@ -1,11 +1,11 @@
 """The built SSPs in third-party co-simulation hosts: libcosim (libcosimpy), ecos (ecospy) and ecos's C++ CLI.
 
-Each host runs in a child process (mast.hosts). What is checked:
+Each host runs in a child process (mast.hosts.cosim). What is checked:
 - the standalone SSD is the default system with its own pose command, and its home pose is the mechanism's;
 - the build flattens the parameter bindings to one set per component, values, units and sources kept;
 - our master runs the standalone SSP exactly like the default SSP driven by the Python stimulus;
 - each host runs an SSP whose bindings differ from the FMUs' built-in defaults (a file that overrides
-  another, inline values) and matches our master within the documented tolerance (mast.hosts.TOLERANCES);
+  another, inline values) and matches our master within the documented tolerance (mast.hosts.cosim.TOLERANCES);
 - the hosts step the mechanism at its 1 ms step size hint and the others at 100 us;
 - the ecos command line (a C++ program, libpython preloaded) reproduces ecospy to its printed precision;
 - a model failure and a bad parameter reach the host as the model's message, and the host is not killed.
@@ -18,12 +18,12 @@ import numpy as np
 import pytest
 
 from fmus.mechanism.kinematics import Geometry, home_pose
-from mast.build import FLAT_SET_NAME, build_all, build_ssp
-from mast.hosts import (COMPARED, TOLERANCES, HostError, availability, deviations, run_host)
-from mast.motion import SineMotion
-from mast.run import simulate
-from mast.ssp import NS, SSPArchive, read_ssd, validate_ssd_schema
-from mast.ssv import parse_ssv
+from mast.core.build import FLAT_SET_NAME, build_all, build_ssp
+from mast.hosts.cosim import (COMPARED, TOLERANCES, HostError, availability, deviations, run_host)
+from mast.core.motion import SineMotion
+from mast.core.run import simulate
+from mast.core.ssp import NS, SSPArchive, read_ssd, validate_ssd_schema
+from mast.core.ssv import parse_ssv
 
 ROOT = Path(__file__).resolve().parents[1]
 SSP_SRC = ROOT / "ssp"
@@ -247,7 +247,7 @@ def test_host_steps_each_component_at_its_step_size_hint(host, bound):
     ticks = np.rint(result.time / 1e-4).astype(int)
     changed = ticks[1:][np.diff(result["mechanism.F_1"]) != 0]
     # once every 10 base steps (1 ms); libcosim shows a new value at the end of the step (ticks 10, 20, ...),
-    # ecos one base step after the step began (ticks 1, 11, ...): see mast.hosts
+    # ecos one base step after the step began (ticks 1, 11, ...): see mast.hosts.cosim
     assert len(changed) >= 15 and len(set(changed % 10)) == 1, f"mechanism outputs changed at ticks {changed[:20]}"
     assert np.all(np.diff(result["trajectory.z_cmd"]) != 0)  # 100 us: a new command every base step
     assert np.count_nonzero(np.diff(result["actuator_1.rho"])) > 150
@@ -312,7 +312,7 @@ def test_unknown_host_is_refused_with_the_list_of_hosts():
 # -- running the hosts by hand ------------------------------------------------------------------------
 def test_the_ecos_command_writes_only_the_signals_asked_for(tmp_path):
     """Without a CSV configuration ecos writes every variable at every base step (docs/using-the-fmus.md)."""
-    from mast.hosts import ecos_command
+    from mast.hosts.cosim import ecos_command
 
     command = ecos_command(Path("x.ssp"), 0.2, ["mechanism.z", "actuator_1.rho"], 1e-3, tmp_path, base_step=1e-4)
     assert command[command.index("--csvConfig") + 1] == str(tmp_path / "csv.xml")
@@ -332,10 +332,10 @@ def test_ecospy_imports_without_ld_library_path_and_the_shown_environment_works(
     env = {k: v for k, v in os.environ.items() if k != "LD_LIBRARY_PATH"}
     plain = subprocess.run([sys.executable, "-c", "import ecospy"], env=env, capture_output=True, text=True)
     assert plain.returncode != 0 and "libtbb.so.12" in plain.stderr  # what a user meets
-    helped = subprocess.run([sys.executable, "-c", "from mast.hosts import import_ecospy; import_ecospy()"],
+    helped = subprocess.run([sys.executable, "-c", "from mast.hosts.cosim import import_ecospy; import_ecospy()"],
                             env=env, capture_output=True, text=True)
     assert helped.returncode == 0, helped.stderr[-2000:]
-    from mast.hosts import show
+    from mast.hosts.cosim import show
 
     shown = show("ecospy", "unused.ssp", 1.0, [], tmp_path)  # what `mast hosts --show ecospy` prints
     assert "export LD_LIBRARY_PATH=" in shown

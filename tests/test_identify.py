@@ -5,9 +5,9 @@ from pathlib import Path
 
 import pytest
 
-from mast.identify import GAINS, GainFit, _scaled_residuals, fit_targets, write_ssv
-from mast.ssp import read_ssd
-from mast.ssv import parse_ssv
+from mast.analyses.identify import GAINS, GainFit, _scaled_residuals, fit_targets, write_ssv
+from mast.core.ssp import read_ssd
+from mast.core.ssv import parse_ssv
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -45,8 +45,8 @@ def test_default_system_binds_the_fitted_gains_last():
 
 def test_fit_starts_from_the_loop_shaping_design_even_in_a_built_ssp(tmp_path):
     """Built SSPs carry flattened bindings; the start set is then read from the source ssp/resources."""
-    from mast.build import build_all
-    from mast.identify import start_gains
+    from mast.core.build import build_all
+    from mast.analyses.identify import start_gains
 
     build_all(tmp_path, log=lambda *_: None)
     design = parse_ssv(ROOT / "ssp" / "resources" / "controller_joint.ssv")

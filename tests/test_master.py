@@ -9,9 +9,9 @@ import pytest
 
 from fmus.common.block import Block, ModelError
 from fmus.common.parameters import Param
-from mast.components import BlockComponent
-from mast.master import Master, SimulationError
-from mast.ssp import ComponentSpec, Connection, SystemSpec
+from mast.core.components import BlockComponent
+from mast.core.master import Master, SimulationError
+from mast.core.ssp import ComponentSpec, Connection, SystemSpec
 
 
 class Integrator(Block):

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mast.measured import MeasuredDataError, load
+from mast.data.measured import MeasuredDataError, load
 
 N = 400
 DT = 1e-3
@@ -18,7 +18,7 @@ DT = 1e-3
 
 @pytest.fixture(scope="module")
 def built_ssp(tmp_path_factory) -> str:
-    from mast.build import build_all
+    from mast.core.build import build_all
 
     out = tmp_path_factory.mktemp("build")
     build_all(out, log=lambda *_: None)
@@ -152,8 +152,8 @@ def test_replay_reproduces_the_noise_free_signals(built_ssp, tmp_path):
     """Synthesize one test with a truth, reload it, simulate it driven by its recorded commands with the
     same truth: the torques before noise agree to 1e-9 N m, the positions to 1e-12 m."""
     from mast.diagnosis.resimulation import sim_job
-    from mast.measured import CommandReplay, controller_geometry
-    from mast.synthesize import TestSpec as Spec, synthesize
+    from mast.data.measured import CommandReplay, controller_geometry
+    from mast.analyses.synthesize import TestSpec as Spec, synthesize
     from fmus.actuator.sensor import measure
 
     truth = {"actuator": {"tau_c": 0.0718, "J1_scale": 0.641, "T_meas": 2e-3}}

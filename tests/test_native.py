@@ -19,11 +19,11 @@ import numpy as np
 import pytest
 from lxml import etree
 
-from mast.build import FMUS, build_fmu, build_ssp
-from mast.motion import SineMotion
-from mast.native.build import build_native_all, compiler, fmi_headers
-from mast.native.translate import TranslationError, to_c
-from mast.run import simulate
+from mast.core.build import FMUS, build_fmu, build_ssp
+from mast.core.motion import SineMotion
+from mast.core.native.build import build_native_all, compiler, fmi_headers
+from mast.core.native.translate import TranslationError, to_c
+from mast.core.run import simulate
 from test_fmi_behaviour import DISCARD, ERROR, OK, Instance, drive
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -31,7 +31,7 @@ NATIVE = ("MastActuator", "MastMechanism", "MastController", "MastTrajectory", "
           "MastActuatorsOnly", "MastFeedForwardController", "MastComputedTorqueController", "MastWorkspaceController")
 SYSTEMS = ("MAST", "MAST_standalone", "MAST_3PRS_120", "MAST_3PRS_inclined", "MAST_actuators_only", "MAST_feedforward",
            "MAST_computed_torque", "MAST_workspace")
-#: native and Python FMUs run the same floating-point operations (mast.native.translate): the issue asks 1e-9
+#: native and Python FMUs run the same floating-point operations (mast.core.native.translate): the issue asks 1e-9
 TOLERANCE = 1e-9
 
 
@@ -311,7 +311,7 @@ def test_the_c_backend_refuses_python_outside_the_generated_subset():
 
 # -- hosts with no Python ----------------------------------------------------------------------------
 def test_ecos_command_line_runs_the_native_ssp_without_python_and_libcosim_runs_it_too(built):
-    from mast.hosts import COMPARED, TOLERANCES, availability, deviations, run_host
+    from mast.hosts.cosim import COMPARED, TOLERANCES, availability, deviations, run_host
 
     ssp = built / "ssp" / "native" / "MAST_standalone.ssp"
     signals = list(COMPARED)
@@ -329,7 +329,7 @@ def test_ecos_command_line_runs_the_native_ssp_without_python_and_libcosim_runs_
 
 def test_our_master_runs_a_native_system_with_another_parameter_set_like_the_python_fmus(built, tmp_path,
                                                                                           monkeypatch):
-    """Parameters changed by the caller: the master runs the model generated for them (mast.native.build)."""
+    """Parameters changed by the caller: the master runs the model generated for them (mast.core.native.build)."""
     monkeypatch.setenv("MAST_NATIVE_CACHE", str(tmp_path))
     changed = {"actuator_2": {"R": 0.35, "tau_c": 0.03}, "mechanism": {"m_platform": 2.5},
                "controller": {"k_v": 40.0}}
@@ -343,7 +343,7 @@ def test_our_master_runs_a_native_system_with_another_parameter_set_like_the_pyt
 
 
 def test_the_c_backend_computes_what_the_python_computes_branch_for_branch(tmp_path):
-    """An independent check of mast.native.translate: Python subset -> C -> ctypes, on a grid of inputs."""
+    """An independent check of mast.core.native.translate: Python subset -> C -> ctypes, on a grid of inputs."""
     source = (
         "def f(a, b):\n"
         "    s = 0.0\n"
@@ -380,7 +380,7 @@ def test_the_c_backend_computes_what_the_python_computes_branch_for_branch(tmp_p
 def test_only_the_models_a_generator_knows_claim_a_native_form():
     """The EMPS bench's load axis lives beside the MAST actuator (fmus/actuator/) but is another model:
     its FMU must be skipped by `mast build --native`, not generated as the MAST actuator."""
-    from mast.native.build import has_native_form
+    from mast.core.native.build import has_native_form
 
     claimed = {spec.model_identifier for spec in FMUS if has_native_form(spec.model_identifier)}
     assert {"MastActuator", "MastMechanism", "MastController", "MastTrajectory"} <= claimed

@@ -9,11 +9,11 @@ from pathlib import Path
 
 import pytest
 
-from mast import paper
-from mast.build import build_all
-from mast.identify import fit_targets
-from mast.reproduce import plan, reproduce
-from mast.ssv import parse_ssv
+from mast.analyses import paper
+from mast.core.build import build_all
+from mast.analyses.identify import fit_targets
+from mast.analyses.reproduce import plan, reproduce
+from mast.core.ssv import parse_ssv
 
 ROOT = Path(__file__).resolve().parents[1]
 FIELDS = {"key", "quantity", "unit", "kind", "paper", "ours", "difference", "tolerance", "tolerance_band",
@@ -122,11 +122,11 @@ def test_runs_without_python_control(tmp_path):
 import sys
 sys.modules["control"] = None  # any 'import control' now fails
 from pathlib import Path
-import mast.reproduce, mast.identify, mast.frequency, mast.run, mast.cli
-from mast.ssv import parse_ssv
+import mast.analyses.reproduce, mast.analyses.identify, mast.analyses.frequency, mast.core.run, mast.cli
+from mast.core.ssv import parse_ssv
 params = {{k: v.value for f in ("actuator_manufacturer", "transmission", "actuator_paper_reading")
           for k, v in parse_ssv(Path({str(ROOT)!r}) / "ssp" / "resources" / (f + ".ssv")).items()}}
-print(mast.reproduce._plot_bode(params, Path({str(tmp_path)!r}), 2.27))
+print(mast.analyses.reproduce._plot_bode(params, Path({str(tmp_path)!r}), 2.27))
 """
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stderr
@@ -135,7 +135,7 @@ print(mast.reproduce._plot_bode(params, Path({str(tmp_path)!r}), 2.27))
 
 def test_paper_table_is_strict_json_when_a_number_could_not_be_computed():
     """A failed run leaves NaN: written as null (strict JSON readers refuse NaN), never as a bare NaN."""
-    from mast.reproduce import _strict
+    from mast.analyses.reproduce import _strict
 
     row = {"ours": float("nan"), "tolerance_band": [0.5, float("inf")], "kind": "prediction"}
     assert json.loads(json.dumps(_strict(row), allow_nan=False)) == {"ours": None, "tolerance_band": [0.5, None],

@@ -6,9 +6,9 @@ from pathlib import Path
 
 import pytest
 
-from mast.run import parse_overrides
-from mast.ssp import SSPArchive, read_ssd, safe_extract, validate_ssd_schema
-from mast.ssv import SSPFormatError, parse_ssv
+from mast.core.run import parse_overrides
+from mast.core.ssp import SSPArchive, read_ssd, safe_extract, validate_ssd_schema
+from mast.core.ssv import SSPFormatError, parse_ssv
 
 ROOT = Path(__file__).resolve().parents[1]
 SSD = ROOT / "ssp" / "MAST.ssd"
@@ -107,9 +107,9 @@ def test_parse_overrides():
 def test_bound_names_a_component_lacks_are_ignored_unless_no_component_of_the_set_has_them():
     """SSP 1.0: a bound name the component does not have is ignored (the plant's actuator set also
     parametrises the computed-torque controller's model); a name no component of its set has is a typo."""
-    from mast.build import block_class
-    from mast.ssp import applicable_parameters
-    from mast.ssv import SSPFormatError
+    from mast.core.build import block_class
+    from mast.core.ssp import applicable_parameters
+    from mast.core.ssv import SSPFormatError
 
     system = read_ssd(ROOT / "ssp" / "MAST_computed_torque.ssd")
     names = {c: {p.name for p in block_class(Path(s.source).stem).PARAMETERS} for c, s in system.components.items()}

@@ -10,10 +10,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import mast.ssp as ssp_module
-from mast.measured import MeasuredDataError, load
-from mast.ssp import SSPArchive, read_ssd, safe_extract
-from mast.ssv import SSPFormatError
+import mast.core.ssp as ssp_module
+from mast.data.measured import MeasuredDataError, load
+from mast.core.ssp import SSPArchive, read_ssd, safe_extract
+from mast.core.ssv import SSPFormatError
 from test_batch import ssp as built_ssp  # noqa: F401 (the fixture: the default system's SSP, built from this tree)
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -137,14 +137,14 @@ def test_a_source_folder_still_names_its_own_files(tmp_path):
 # -- nothing left behind --------------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def mechanism_fmu(tmp_path_factory) -> Path:
-    from mast.build import FMUS, build_fmu
+    from mast.core.build import FMUS, build_fmu
 
     spec = next(s for s in FMUS if s.model_identifier == "MastActuatorsOnly")
     return build_fmu(spec, tmp_path_factory.mktemp("fmus"))
 
 
 def test_check_mechanism_leaves_no_temporary_files(mechanism_fmu, tmp_path, tmpdir_watch):
-    from mast.conformance import check_mechanism
+    from mast.hosts.conformance import check_mechanism
 
     assert all(c.passed for c in check_mechanism(mechanism_fmu, isolate=False))
     assert not any(tmpdir_watch.iterdir())
@@ -159,10 +159,10 @@ def test_check_mechanism_leaves_no_temporary_files(mechanism_fmu, tmp_path, tmpd
 
 
 def test_a_run_leaves_no_temporary_files_after_success_and_after_failure(built_ssp, tmpdir_watch):
-    from mast.components import ComponentError
-    from mast.master import SimulationError
-    from mast.motion import SineMotion
-    from mast.run import simulate
+    from mast.core.components import ComponentError
+    from mast.core.master import SimulationError
+    from mast.core.motion import SineMotion
+    from mast.core.run import simulate
 
     motion = SineMotion("z", 0.001, 5.0)
     assert len(simulate(built_ssp, motion, 0.005).time) > 1
@@ -190,9 +190,9 @@ def _bomb_fmu(path: Path) -> Path:
 
 
 def test_a_zip_bomb_inside_an_ssp_or_given_as_an_fmu_is_named(tmp_path, tmpdir_watch):
-    from mast.components import fmu_parameters
-    from mast.motion import SineMotion
-    from mast.run import simulate
+    from mast.core.components import fmu_parameters
+    from mast.core.motion import SineMotion
+    from mast.core.run import simulate
 
     bomb = _bomb_fmu(tmp_path / "bomb.fmu").read_bytes()
     archive = _archive(tmp_path / "user.ssp", SSD.read_text(),

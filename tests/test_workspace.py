@@ -26,7 +26,7 @@ import pytest
 import fmus.mechanism.engine as E
 from fmus.mechanism.engine import MARGIN, Body, Description, Engine, Evaluation, KinematicsError, SingularityError
 from fmus.mechanism.model import MechanismBlock
-from mast import paper
+from mast.analyses import paper
 from mast.analyses import workspace as W
 from mast.cli import main as cli
 from test_designs import Own

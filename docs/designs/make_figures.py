@@ -1,4 +1,4 @@
-"""Draw docs/designs/<design>.png for every design of mast.designs, from the model's own code.
+"""Draw docs/designs/<design>.png for every design of mast.core.designs, from the model's own code.
 
 Run from the repository root:  python docs/designs/make_figures.py
 Each figure: left, a 3-D view at a tilted pose (body frames from the design's description,
@@ -17,8 +17,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from fmus.mechanism.designs import describe, kinematic_engine  # noqa: E402
-from mast.designs import DESIGNS  # noqa: E402
-from mast.ssp import read_ssd  # noqa: E402
+from mast.core.designs import DESIGNS  # noqa: E402
+from mast.core.ssp import read_ssd  # noqa: E402
 
 HERE = Path(__file__).parent
 RHO_HOME = 0.15

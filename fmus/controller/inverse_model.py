@@ -48,7 +48,7 @@ MODEL_PARAMETERS = (
 def motor_torque(rho_dot: float, rho_ddot: float, F: float, J: float, i_R: float, b_v: float, weight: float,
                  tau_c: float, omega_c: float, tau_s: float, omega_s: float) -> float:
     """tau_m [N m] of one axis (module docstring) for its joint motion and the mechanism's force F [N].
-    Written in the generated-code subset: the native controllers run this source (mast.native.models)."""
+    Written in the generated-code subset: the native controllers run this source (mast.core.native.models)."""
     w = rho_dot / i_R
     return J * rho_ddot / i_R + b_v * w + guide_friction(w, tau_c, omega_c, tau_s, omega_s) + i_R * (weight + F)
 

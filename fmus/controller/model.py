@@ -81,7 +81,7 @@ def drive_gains(k_pc: float, k_ic: float, T_cur: float, i_max: float, u_max: flo
     """The current loop's constants: (k_pc [V/A], k_ic T_cur [V/A], i_max [A], u_max [V]).
 
     Written in the generated-code subset: the native FMU computes them at initialisation from
-    its parameters with this source (mast.native.models translates it)."""
+    its parameters with this source (mast.core.native.models translates it)."""
     return (k_pc, k_ic * T_cur, i_max, u_max)
 
 

@@ -54,7 +54,7 @@ class JointReference:
 def rates(k: int, r0: float, r1: float, r2: float, r3: float, T: float) -> tuple[float, float]:
     """(velocity, acceleration) at the newest of the ``k`` samples r0 (newest), r1, r2, r3 of period ``T``
     (module docstring; the samples beyond k are not read). Written in the generated-code subset: the
-    native controllers run this source (mast.native.models translates it)."""
+    native controllers run this source (mast.core.native.models translates it)."""
     if k == 1:
         return (0.0, 0.0)
     if k == 2:

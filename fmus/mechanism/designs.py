@@ -86,7 +86,7 @@ def _fmt(v: float) -> str:
 # (run at the point of the evaluation where the description calls require(); messages as kinematics.py)
 # Each check also has ``admissible``: the same condition as a mask over arrays (Engine.evaluate_many), and
 # ``c_condition``, ``c_message``: the condition as a C expression of its arguments a0, a1, ... and what failed,
-# for the C backend of the engine's generated code (mast.native.translate).
+# for the C backend of the engine's generated code (mast.core.native.translate).
 def _finite(z, psi, theta) -> None:
     if not (math.isfinite(z) and math.isfinite(psi) and math.isfinite(theta)):
         raise KinematicsError(f"pose (z = {z!r} m, psi = {psi!r} rad, theta = {theta!r} rad) is not finite")

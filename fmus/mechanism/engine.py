@@ -577,7 +577,7 @@ def compile_function(name: str, inputs: Sequence[str], outputs: Sequence[E], gra
     lines.append(f"    return ({''.join(ref(o)[0] + ', ' for o in outputs)}{'_ok, ' if vector else ''})")
     assert not inline, "internal error: an inlined expression was never used"
     fn = compile_generated("\n".join(lines), name, f"mast engine: {label or name}", ns)
-    fn.namespace = ns   # what the source calls (the checks): for the C backend (mast.native)
+    fn.namespace = ns   # what the source calls (the checks): for the C backend (mast.core.native)
     if not vector:
         return fn
 

@@ -6,7 +6,7 @@ Outputs at time t (t0 is the start time given to ``initialize``):
     psi_cmd   = psi_home   + amplitude_psi   * sin(2 pi f (t - t0))
     theta_cmd = theta_home + amplitude_theta * sin(2 pi f (t - t0))
 
-the same command as the project's Python stimulus ``mast.motion.SineMotion`` (whose home
+the same command as the project's Python stimulus ``mast.core.motion.SineMotion`` (whose home
 pose is read from the mechanism at the start). ``do_step(t, h)`` leaves the values at
 t + h, so a Jacobi master hands the controller the command of the instant it samples.
 """

@@ -1,1 +1,2 @@
-"""Analyses built on the co-simulation core: what a design can reach, how a model replays a record."""
+"""Analyses built on the co-simulation core: the paper's reproduction, identification,
+frequency responses, design comparison, synthesized measurements, workspace and replay."""

@@ -42,7 +42,7 @@ def fit_pct(y: np.ndarray, y_sim: np.ndarray) -> float:
 def initial_parameters(ssp: Union[str, Path], record: Record) -> dict[str, dict[str, Value]]:
     """Start the model where the record starts: every component with a parameter ``q_0`` (initial
     position) gets the first sample of the measured position it is compared with, or of its command."""
-    from ..ssp import SSPArchive
+    from ..core.ssp import SSPArchive
 
     positions = record.of_kind("position")
     if not positions:
@@ -62,8 +62,8 @@ def simulate_record(ssp: Union[str, Path], record: Record, parameters: Optional[
     """The model's outputs named by the record's measured signals, at the record's samples (sampled outputs
     one sample later, module docstring); keys: signal names, and the ``extra`` outputs (ELEMENT.CONNECTOR)
     at the samples. ``stop_time``: simulate the record only up to there (the samples before it)."""
-    from ..run import simulate
-    from ..ssp import SSPArchive
+    from ..core.run import simulate
+    from ..core.ssp import SSPArchive
 
     with SSPArchive(ssp) as archive:
         inputs = list(archive.system.system_inputs)

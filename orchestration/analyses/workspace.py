@@ -103,11 +103,11 @@ def _from_system(label: str, system, mechanism: Optional[Mapping] = None, payloa
 
 
 def machine(design: Union[str, Path], payload: float = 0.0, mechanism: Optional[Mapping] = None) -> Machine:
-    """The machine of a design name (``mast.designs``), a system (.ssd/.ssp) or a mechanism FMU (swapped into
+    """The machine of a design name (``mast.core.designs``), a system (.ssd/.ssp) or a mechanism FMU (swapped into
     ssp/MAST.ssd with its own defaults, as ``mast compare`` does). ``mechanism``: parameters that replace
     the system's mechanism parameters (an FMU's defaults)."""
-    from ..designs import DESIGNS
-    from ..ssp import SSPArchive, read_ssd
+    from ..core.designs import DESIGNS
+    from ..core.ssp import SSPArchive, read_ssd
 
     named = {d.name: d for d in DESIGNS} | {d.model_identifier: d for d in DESIGNS}
     text = str(design)
@@ -123,7 +123,7 @@ def machine(design: Union[str, Path], payload: float = 0.0, mechanism: Optional[
         with SSPArchive(path) as archive:
             return _from_system(path.stem, archive.system, mechanism, payload)
     if path.suffix == ".fmu":
-        from ..components import fmu_parameters
+        from ..core.components import fmu_parameters
 
         return _from_system(path.stem, read_ssd(BASE_SSD), {**fmu_parameters(path), **(mechanism or {})}, payload)
     raise ValueError(f"design {text!r}: expected a design name, an .ssd/.ssp system or a mechanism .fmu")

@@ -15,7 +15,7 @@ case's result atomically the moment it arrives:
     DIR/groups.csv          per frequency sweep (same system, axis, amplitude): bandwidth, resonance
     DIR/plots/*.png         metrics against the swept parameters
 
-Workers. Each worker process keeps one :class:`mast.session.Session` per SSP: the
+Workers. Each worker process keeps one :class:`mast.core.session.Session` per SSP: the
 FMUs are extracted and instantiated once, and reset (fmi2Reset) between cases.
 A case that raises, diverges (NaN) or times out is recorded as ``failed``; a
 case that kills its worker (segmentation fault, ``os._exit``) is recorded as

@@ -13,7 +13,7 @@ from typing import Any, Mapping, Optional
 
 import numpy as np
 
-from ..frequency import _record_step, measuring_window
+from ..analyses.frequency import _record_step, measuring_window
 from .config import DISTRIBUTIONS, BatchConfig, BatchConfigError, as_list
 
 
@@ -33,8 +33,8 @@ class SystemInfo:
     def read(cls, path: Path) -> "SystemInfo":
         from fmpy import read_model_description
 
-        from ..run import default_signals
-        from ..ssp import SSPArchive, check_archive
+        from ..core.run import default_signals
+        from ..core.ssp import SSPArchive, check_archive
 
         with SSPArchive(path) as archive:
             system = archive.system

@@ -9,8 +9,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping, Optional, Union
 
-from ..metrics import FAMILIES
-from ..motion import AXES
+from ..analyses.metrics import FAMILIES
+from ..core.motion import AXES
 
 
 _DIMENSIONS = ("random", "ssp", "list", "grid", "motion", "frequency")  # outermost first

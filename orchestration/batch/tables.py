@@ -7,7 +7,7 @@ import io
 from pathlib import Path
 from typing import Mapping, Sequence
 
-from ..metrics import sweep_metrics
+from ..analyses.metrics import sweep_metrics
 from .cases import Case
 from .store import atomic_write
 

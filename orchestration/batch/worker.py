@@ -14,7 +14,7 @@ import traceback
 from pathlib import Path
 from typing import Any, Callable, Mapping, Optional
 
-from ..metrics import FAMILIES, case_metrics, signals_for
+from ..analyses.metrics import FAMILIES, case_metrics, signals_for
 from .store import atomic_write
 
 
@@ -53,7 +53,7 @@ _BLAS_LIMITED = False
 def _session(path: str, direct: bool):
     from collections import OrderedDict
 
-    from ..session import Session
+    from ..core.session import Session
 
     _one_blas_thread()
 
@@ -70,9 +70,9 @@ def _session(path: str, direct: bool):
 
 def run_case(task: Mapping) -> dict:
     """Run one case in this process (a worker): its metrics, kept signals, timings; never raises."""
-    from ..master import SimulationError
-    from ..motion import POSE_INPUTS, PoseStep, SineMotion
-    from ..run import default_signals
+    from ..core.master import SimulationError
+    from ..core.motion import POSE_INPUTS, PoseStep, SineMotion
+    from ..core.run import default_signals
 
     t_case, cpu_case = time.perf_counter(), time.process_time()
     record: dict[str, Any] = {"id": task["id"], "status": "ok", "error": None, "metrics": {},

@@ -1,1 +1,1 @@
-"""Measured data from outside the project: lab file formats read into the measured-data format."""
+"""Measured data: the measured-data format (``measured``) and lab file formats read into it."""

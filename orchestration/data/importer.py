@@ -32,7 +32,7 @@ from typing import Mapping, Union
 
 import numpy as np
 
-from ..measured import JITTER, MeasuredDataError
+from .measured import JITTER, MeasuredDataError
 from .record import KINDS, SignalSpec, parse_signals, write_records
 
 #: unit in the file -> (SI unit, factor)
@@ -80,7 +80,7 @@ def _read_file(path: Path, fmt: str) -> dict[str, np.ndarray]:
             raise LabFileError(f"{path}: cannot read as a MATLAB file: {err}") from None
         return {k: v for k, v in raw.items() if not k.startswith("__")}
     if fmt == "csv":
-        from ..measured import _read_csv
+        from .measured import _read_csv
 
         try:
             header, data = _read_csv(path)

@@ -26,7 +26,7 @@ from typing import Mapping, Optional, Sequence, Union
 
 import numpy as np
 
-from ..measured import FORMAT, VERSION, MeasuredDataError, Sampled, _check_sampling, _finite, _read_csv
+from .measured import FORMAT, VERSION, MeasuredDataError, Sampled, _check_sampling, _finite, _read_csv
 
 #: kinds of signals: what drives the model, and what is compared
 DRIVING = ("command", "injected")
@@ -214,7 +214,7 @@ def write_records(folder: Union[str, Path], specs: Mapping[str, SignalSpec], tes
 
 
 class RecordReplay:
-    """Stimulus (mast.master.Stimulus) replaying a record's driving columns on the model's system inputs.
+    """Stimulus (mast.core.master.Stimulus) replaying a record's driving columns on the model's system inputs.
 
     Sample k of the record holds on [t_k, t_k+1) (zero-order hold, as a sampled controller
     reads its reference and a lab's logger adds its injected input); system inputs of the

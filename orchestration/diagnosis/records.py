@@ -152,7 +152,7 @@ def _cases(records: RecordSet, fraction: float, holdout: Sequence[str] = ()) -> 
 
 
 def _plant(ssp: str, library: Sequence[Effect]) -> tuple[str, dict]:
-    from ..ssp import SSPArchive
+    from ..core.ssp import SSPArchive
 
     needed = {p for e in library for p in e.parameters}
     with SSPArchive(ssp) as archive:

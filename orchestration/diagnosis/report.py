@@ -101,7 +101,7 @@ def bind_parameter_set(ssd: bytes, source: str, component: Callable[[str], bool]
     """``ssd`` with the parameter set ``source`` bound last to every component whose name ``component`` accepts."""
     from lxml import etree
 
-    from ..ssp import NS
+    from ..core.ssp import NS
 
     root = etree.fromstring(ssd)
     for comp in root.iterfind(".//ssd:Component", NS):
@@ -119,7 +119,7 @@ def parameter_set_xml(name: str, comment: str, values: Mapping, units: Mapping[s
     """An SSP parameter set (.ssv): every value with its unit (declared in ssv:Units) and description."""
     from lxml import etree
 
-    from ..ssp import NS
+    from ..core.ssp import NS
 
     ssv, ssc = NS["ssv"], NS["ssc"]
     root = etree.Element(f"{{{ssv}}}ParameterSet", nsmap={"ssv": ssv, "ssc": ssc}, version="1.0", name=name)

@@ -9,7 +9,7 @@ from typing import Mapping, Optional, Sequence
 
 import numpy as np
 
-from ..measured import AXES, CommandReplay, MeasuredTest
+from ..data.measured import AXES, CommandReplay, MeasuredTest
 from .effects import (CONTROLLER_PARAMETERS, MEASUREMENT_PARAMETERS, Chain, SimSignals, axis_values, chain_for,
                       column)
 from .phasefree import COMMAND_JITTER
@@ -28,8 +28,8 @@ class SimulationFailed(DiagnosisError):
 # simulation of measured tests
 # --------------------------------------------------------------------------------------
 def sim_job(args: tuple) -> dict:
-    from ..master import SimulationError
-    from ..run import simulate
+    from ..core.master import SimulationError
+    from ..core.run import simulate
 
     ssp, name, replay, stop, parameters, direct = args
     record = []

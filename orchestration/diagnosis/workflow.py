@@ -9,7 +9,7 @@ from typing import Callable, Optional, Sequence
 
 import numpy as np
 
-from ..measured import CommandReplay, MeasuredData, controller_geometry, load
+from ..data.measured import CommandReplay, MeasuredData, controller_geometry, load
 from .effects import AXIS_OF, BY_KEY, CONTROLLER_PARAMETERS, LIBRARY, noise_std
 from .nonlinear import nonlinear_stage, phase_free_stage
 from .plan import excitations, identifiability
@@ -39,9 +39,9 @@ def _model_overrides(ssp: str, model: Optional[str]) -> dict:
     parameter set inside the SSP (resources/NAME.ssv) or of the project's sources (ssp/resources/NAME.ssv)."""
     if not model:
         return {}
-    from ..build import REPO
-    from ..ssp import SSPArchive
-    from ..ssv import parse_ssv
+    from ..core.build import REPO
+    from ..core.ssp import SSPArchive
+    from ..core.ssv import parse_ssv
 
     sources = REPO / "ssp" / "resources"
     path = Path(model)
@@ -109,7 +109,7 @@ def diagnose(opt: Options, log: Callable[[str], None] = print) -> dict:
 
         return diagnose_records(opt, log)
     t_start = time.perf_counter()
-    from ..ssp import SSPArchive
+    from ..core.ssp import SSPArchive
 
     with SSPArchive(opt.ssp) as archive:
         system = archive.system

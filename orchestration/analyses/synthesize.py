@@ -21,7 +21,7 @@ import numpy as np
 
 from fmus.actuator.sensor import measure
 
-from .measured import AXES, FORMAT, VERSION, controller_geometry, write_test_csv
+from ..data.measured import AXES, FORMAT, VERSION, controller_geometry, write_test_csv
 
 #: the drive's torque filter that every synthetic measurement goes through [s] (about 320 Hz)
 DEFAULT_TORQUE_FILTER = 5e-4
@@ -97,8 +97,8 @@ def expand_overrides(overrides: Mapping[str, Mapping], components: Sequence[str]
 
 
 def _synth_worker(args: tuple) -> dict:
-    from .motion import SineMotion
-    from .run import simulate
+    from ..core.motion import SineMotion
+    from ..core.run import simulate
 
     ssp, spec, parameters, direct = args
     record = ["z_cmd", "psi_cmd", "theta_cmd", "mechanism.z", "mechanism.psi", "mechanism.theta"]
@@ -117,7 +117,7 @@ def synthesize(ssp: str, out: Path, truth: Mapping[str, Mapping] = None, tests: 
     """Write the measured-data folder ``out`` and the truth file; return the noise-free signals too."""
     from fmus.mechanism.kinematics import inverse_kinematics
 
-    from .ssp import SSPArchive
+    from ..core.ssp import SSPArchive
 
     out = Path(out)
     noise = {**DEFAULT_NOISE, **(noise or {})}

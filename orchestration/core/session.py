@@ -1,6 +1,6 @@
 """A reusable co-simulation session: one SSP opened once, its FMU instances reset between runs.
 
-``mast.run.simulate`` opens the SSP, extracts every FMU, instantiates the
+``mast.core.run.simulate`` opens the SSP, extracts every FMU, instantiates the
 components and frees them again for each run: about 0.1 s per run on the
 default system. A :class:`Session` does that once and then, between runs,
 resets the instances (fmi2Reset) instead of freeing and loading them again.
@@ -104,7 +104,7 @@ class Session:
             parameters: Optional[Mapping[str, Mapping[str, Value]]] = None,
             record: Optional[Sequence[str]] = None, record_step: Optional[float] = 1e-3,
             progress: Optional[Callable[[float], None]] = None) -> Result:
-        """Same arguments and result as ``mast.run.simulate`` (the SSP and route are the session's)."""
+        """Same arguments and result as ``mast.core.run.simulate`` (the SSP and route are the session's)."""
         if stimulus is None:
             if self.system.system_inputs:
                 raise ValueError(f"{self.ssp}: the system has inputs ({', '.join(self.system.system_inputs)}): give a stimulus")

@@ -203,7 +203,7 @@ def load(folder: Union[str, Path], stroke: tuple[float, float] = (0.0, 0.3)) -> 
     ``stroke`` [m]: carriage positions outside it (with 10 mm margin) are reported as a
     unit problem.
     """
-    from .ssp import path_inside
+    from ..core.ssp import path_inside
 
     folder = Path(folder)
     if not folder.is_dir():
@@ -407,7 +407,7 @@ def write_test_csv(path: Path, time: np.ndarray, rho_cmd: np.ndarray, rho: np.nd
 # replay: drive the co-simulation by the recorded joint commands
 # --------------------------------------------------------------------------------------
 class CommandReplay:
-    """Stimulus (mast.master.Stimulus) replaying recorded joint commands as pose commands.
+    """Stimulus (mast.core.master.Stimulus) replaying recorded joint commands as pose commands.
 
     The controller of the SSP takes pose commands and converts them with its own inverse
     kinematics; the recorded rho_cmd are turned into poses once, with the direct
@@ -476,7 +476,7 @@ def controller_geometry(ssp: Union[str, Path], overrides: Optional[Mapping[str, 
     """The Geometry the SSP binds to its controller (with ``overrides``)."""
     from fmus.mechanism.kinematics import Geometry
 
-    from .ssp import SSPArchive
+    from ..core.ssp import SSPArchive
 
     with SSPArchive(ssp) as archive:
         params = dict(archive.system.components[controller].parameters)
@@ -485,7 +485,7 @@ def controller_geometry(ssp: Union[str, Path], overrides: Optional[Mapping[str, 
 
 
 def actuator_names(ssp: Union[str, Path]) -> list[str]:
-    from .ssp import SSPArchive
+    from ..core.ssp import SSPArchive
 
     with SSPArchive(ssp) as archive:
         return [n for n in archive.system.components if n.startswith("actuator_")]

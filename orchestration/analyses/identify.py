@@ -60,8 +60,8 @@ GAINS_SET = "controller_paper_reading_fit"
 
 def resource_parameters(set_name: str) -> dict[str, float]:
     """The values of the source parameter set ssp/resources/<set_name>.ssv."""
-    from .build import SSP_SRC
-    from .ssv import parse_ssv
+    from ..core.build import SSP_SRC
+    from ..core.ssv import parse_ssv
 
     path = SSP_SRC / "resources" / f"{set_name}.ssv"
     if not path.exists():
@@ -150,14 +150,14 @@ def write_ssv(fit: GainFit, path: Path, command: str) -> None:
     """The fitted gains as a parameter set with its provenance (bind it after controller_joint.ssv)."""
     from lxml import etree
 
-    from .ssp import NS
+    from ..core.ssp import NS
 
     rows = []
     targets = fit_targets()
     for f, (mag, ph) in fit.responses.items():
         mp, pp = targets[f]
         rows.append(f"z {f:g} Hz: {100 * mag:.1f} % / {ph:.1f} deg (paper {100 * mp:.1f} % / {pp:.1f} deg)")
-    provenance = (f"Fitted by '{command}' (orchestration/identify.py): bounded least squares on co-simulated z sine "
+    provenance = (f"Fitted by '{command}' (orchestration/analyses/identify.py): bounded least squares on co-simulated z sine "
                   f"tests ({1e3 * paper.AMPLITUDE['z']:g} mm) of the paper identified physical set ({READING_SET}.ssv "
                   f"reading) against section 4.2, z at {' and '.join(f'{f:g}' for f in targets)} Hz only (the other "
                   f"rows of mast reproduce are predictions); scaled cost {fit.cost:.3f} over {fit.evaluations} "
@@ -182,13 +182,13 @@ def write_ssv(fit: GainFit, path: Path, command: str) -> None:
 def start_gains(ssp: str, start_set: str = "controller_joint") -> dict[str, float]:
     """The start point of the fit: the gains of parameter set ``start_set`` inside the SSP
     (the loop-shaping design), whatever sets the SSP binds after it."""
-    from .ssp import SSPArchive
-    from .ssv import parse_ssv
+    from ..core.ssp import SSPArchive
+    from ..core.ssv import parse_ssv
 
     with SSPArchive(ssp) as archive:
         path = archive.ssd.parent / "resources" / f"{start_set}.ssv"
         if not path.exists():  # built SSPs carry flattened bindings: use the source set
-            path = Path(__file__).resolve().parents[1] / "ssp" / "resources" / f"{start_set}.ssv"
+            path = Path(__file__).resolve().parents[2] / "ssp" / "resources" / f"{start_set}.ssv"
         if not path.exists():
             raise FileNotFoundError(f"{ssp}: no parameter set resources/{start_set}.ssv to start the gain fit from")
         values = parse_ssv(path)

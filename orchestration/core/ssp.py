@@ -26,7 +26,7 @@ from lxml import etree
 
 from fmus.common.parameters import Value
 
-from .data.units import Unit, UnitError, convert, parse_unit
+from .units import Unit, UnitError, convert, parse_unit
 from .ssv import ParameterValue, SSPFormatError, parse_ssv
 
 NS = {

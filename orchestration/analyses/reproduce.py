@@ -28,11 +28,11 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from . import paper  # noqa: E402
-from .build import SSP_SRC  # noqa: E402
+from ..core.build import SSP_SRC  # noqa: E402
 from .frequency import CountProgress, SineCase, SineResult, bandwidth, harmonic, run_cases  # noqa: E402
 from .identify import (GAINS_SET, IDENTIFIED_SET, identified_parameters, manufacturer_parameters,  # noqa: E402
                        reading_gains, resource_parameters)
-from .ssp import SSPArchive  # noqa: E402
+from ..core.ssp import SSPArchive  # noqa: E402
 
 SWEEP_HZ = (0.4, 1.0, 1.5, 2.0, 2.5, 3.0, 3.5, 4.0, 4.5, 5.0, 6.0, 8.0, 10.0, 14.0, 20.0)
 TIME_DOMAIN_HZ = (0.4, 5.0, 10.0)
@@ -416,7 +416,7 @@ def _forensics(ssp: str, params: dict, groups: dict, m_eq22: float) -> list[str]
     from fmus.mechanism.dynamics import Masses, inverse_dynamics
     from fmus.mechanism.kinematics import Geometry
 
-    from .ssv import parse_ssv
+    from ..core.ssv import parse_ssv
 
     mech, ctl = _component_params(ssp, "mechanism"), {**_component_params(ssp, "controller"), **reading_gains()}
     fit = parse_ssv(SSP_SRC / "resources" / f"{GAINS_SET}.ssv")["k_v"].source

@@ -4,7 +4,7 @@ A Real value with a ``unit`` is converted to the coherent SI unit of its dimensi
 2.06 g is 0.00206 kg), the unit the project's models declare for every parameter; the unit
 stays with the value (``ParameterValue.unit``) so that ``ssp.applicable_parameters`` can
 refuse one whose dimension is not the parameter's. Units come from the set's own
-definitions (``ssv:Units``, SSP 1.0) or the notation of ``mast.data.units``; an unknown unit
+definitions (``ssv:Units``, SSP 1.0) or the notation of ``mast.core.units``; an unknown unit
 is an error naming the set, the parameter and the unit.
 """
 from __future__ import annotations
@@ -17,7 +17,7 @@ from lxml import etree
 
 from fmus.common.parameters import Value, exact_boolean
 
-from .data.units import BASE, Unit, UnitError, parse_unit
+from .units import BASE, Unit, UnitError, parse_unit
 
 SSV_NS = "http://ssp-standard.org/SSP1/SystemStructureParameterValues"
 SSC_NS = "http://ssp-standard.org/SSP1/SystemStructureCommon"

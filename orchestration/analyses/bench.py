@@ -15,8 +15,8 @@ import time
 from pathlib import Path
 from typing import Optional
 
-from .run import simulate
-from .motion import SineMotion
+from ..core.run import simulate
+from ..core.motion import SineMotion
 
 
 def _one(ssp: str, stop_time: float, direct: bool) -> tuple[float, float]:

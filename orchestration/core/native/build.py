@@ -1,6 +1,6 @@
 """`mast build --native`: FMI 2.0 Co-Simulation FMUs with a compiled C binary, no Python at run time.
 
-A native FMU is made from the Python FMU of the same model (``mast.build``):
+A native FMU is made from the Python FMU of the same model (``mast.core.build``):
 
 - its modelDescription.xml is the Python FMU's (the same variables, value references, units,
   causality, variability, start values and descriptions: they are generated in one place,
@@ -37,7 +37,7 @@ from .models import Variable, emit_model, generated_parameters
 
 __all__ = ["NativeBuildError", "compiler", "build_native_fmu", "native_sources", "read_variables", "SUPPORT"]
 
-REPO = Path(__file__).resolve().parents[2]
+REPO = Path(__file__).resolve().parents[3]
 SUPPORT = REPO / "fmus" / "common" / "native"
 SUPPORT_FILES = ("fmi2_wrapper.c", "mast_model.h", "mast_native.h")
 #: what a native FMU was generated for (its parameter set, the actuator's step sizes), inside the archive

@@ -22,7 +22,7 @@ libcosim and our master pass them on at the end of that component's own step.
 
 Command line (used by ``run_host``; also handy by hand)::
 
-    python -m mast.hosts libcosim build/ssp/MAST_standalone.ssp --stop-time 1 --signal mechanism.z --out z.csv
+    python -m mast.hosts.cosim libcosim build/ssp/MAST_standalone.ssp --stop-time 1 --signal mechanism.z --out z.csv
 
 By hand: ``mast hosts --show ecos`` prints the environment and the ecos command line
 ``run_host`` uses (with a CSV configuration: without one, ecos writes every variable of every
@@ -46,9 +46,9 @@ from typing import Optional, Sequence, Union
 
 import numpy as np
 
-from .build import FLAT_SET_NAME  # the one parameter set per component of a built SSP: ecos applies it by name
-from .master import Result
-from .ssp import SSPArchive
+from ..core.build import FLAT_SET_NAME  # the one parameter set per component of a built SSP: ecos applies it by name
+from ..core.master import Result
+from ..core.ssp import SSPArchive
 
 HOSTS = ("libcosim", "ecospy", "ecos")
 
@@ -188,7 +188,7 @@ def show(host: str, ssp: Union[str, Path], stop_time: float, signals: Sequence[s
         lines.append(shlex.join(ecos_command(Path(ssp).resolve(), stop_time, signals, 1e-3, workdir,
                                              executable="./ecos")))
     elif host == "ecospy":
-        lines.append("# then `import ecospy` works; or, without the export, from mast.hosts import import_ecospy")
+        lines.append("# then `import ecospy` works; or, without the export, from mast.hosts.cosim import import_ecospy")
     return "\n".join(lines)
 
 
@@ -226,7 +226,7 @@ def run_host(host: str, ssp: Union[str, Path], stop_time: float, signals: Sequen
             if python_free:
                 command = ["env", "-i", f"LD_LIBRARY_PATH={_tbb_dir()}", *command]
         else:
-            command = [sys.executable, "-m", "mast.hosts", host, str(ssp), "--stop-time", repr(stop_time),
+            command = [sys.executable, "-m", "mast.hosts.cosim", host, str(ssp), "--stop-time", repr(stop_time),
                        "--sample-step", repr(sample_step), "--out", str(out)]
             for s in signals:
                 command += ["--signal", s]
@@ -335,7 +335,7 @@ def cross_check(ssp: Union[str, Path], stop_time: float, hosts: Sequence[str] = 
     """
     import time
 
-    from .run import simulate
+    from ..core.run import simulate
 
     signals = list(COMPARED) if signals is None else list(signals)
     wall = time.perf_counter()
@@ -461,7 +461,7 @@ def _child_ecospy(ssp: Path, stop_time: float, signals: Sequence[str], sample_st
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m mast.hosts",
+    parser = argparse.ArgumentParser(prog="python -m mast.hosts.cosim",
                                      description="run a built SSP in a third-party co-simulation host")
     parser.add_argument("host", choices=("libcosim", "ecospy"))
     parser.add_argument("ssp")

@@ -47,11 +47,11 @@ from fmus.common.parameters import Value
 from fmus.mechanism.designs import KINEMATIC_PARAMETERS_NAMES
 
 from . import paper
-from .analyses.workspace import STEP_TILT_DEG, STEP_Z
-from .components import fmu_parameters
+from .workspace import STEP_TILT_DEG, STEP_Z
+from ..core.components import fmu_parameters
 from .frequency import SineCase, SineResult, bandwidth, run_cases
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 BASE_SSD = REPO / "ssp" / "MAST.ssd"
 FMU_DIR = REPO / "build" / "fmus"
 MOTIONS = ("z", "psi", "theta")
@@ -212,8 +212,8 @@ def prepare(mechanisms: Sequence[Union[str, Path]], out: Union[str, Path], base_
     out/systems/<label>.ssp with the FMUs of ``fmu_dir`` for the other components); an .ssp or
     .ssd is used as it is. ``component="controller"``: the items are controllers, and a
     controller's name (``controllers.CONTROLLERS``) stands for its system ssp/MAST_<name>.ssd."""
-    from .build import build_ssp
-    from .controllers import CONTROLLERS
+    from ..core.build import build_ssp
+    from ..core.controllers import CONTROLLERS
 
     out, base_ssd, fmu_dir = Path(out), Path(base_ssd), Path(fmu_dir)
     candidates: list[Candidate] = []
@@ -233,7 +233,7 @@ def prepare(mechanisms: Sequence[Union[str, Path]], out: Union[str, Path], base_
             raise FileNotFoundError(f"{component} {path}: no such file{known}")
         label = _label(path, taken)
         if path.suffix in (".ssp", ".ssd"):
-            from .ssp import SSPArchive
+            from ..core.ssp import SSPArchive
 
             with SSPArchive(path) as archive:      # the mechanism's bound parameters (attached, geometry ...)
                 comp = archive.system.components.get("mechanism")
@@ -353,7 +353,7 @@ def design_workspace(c: Candidate, grid: tuple[float, float]) -> dict:
     {"error": why} when the system does not define them."""
     from fmus.mechanism.kinematics import KinematicsError
 
-    from .analyses import workspace
+    from . import workspace
 
     try:
         return workspace.summarize(workspace.compute(workspace.machine(c.ssp), grid[0], grid[1]))

@@ -35,7 +35,7 @@ from lxml import etree
 
 from .ssp import NS, applicable_parameters, read_ssd
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 FMUS_SRC = REPO / "fmus"
 SSP_SRC = REPO / "ssp"
 
@@ -50,12 +50,12 @@ FMUS = (
     FmuSpec("MastActuator", "actuator"),
     FmuSpec("MastMechanism", "mechanism"),
     FmuSpec("MastController", "controller"),
-    # controllers: the same interface, defaults from their own systems ssp/MAST_<controller>.ssd (mast.controllers)
+    # controllers: the same interface, defaults from their own systems ssp/MAST_<controller>.ssd (mast.core.controllers)
     FmuSpec("MastWorkspaceController", "controller"),
     FmuSpec("MastFeedForwardController", "controller"),
     FmuSpec("MastComputedTorqueController", "controller"),
     FmuSpec("MastTrajectory", "trajectory"),
-    # mechanism designs: the same model, defaults from their own systems ssp/MAST_<design>.ssd (mast.designs)
+    # mechanism designs: the same model, defaults from their own systems ssp/MAST_<design>.ssd (mast.core.designs)
     FmuSpec("Mast3PRS120", "mechanism"),
     FmuSpec("Mast3PRSInclined", "mechanism"),
     FmuSpec("MastActuatorsOnly", "mechanism"),

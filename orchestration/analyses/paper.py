@@ -133,7 +133,7 @@ CLAIMS: tuple[Claim, ...] = (
 )
 CLAIM = {c.key: c for c in CLAIMS}
 
-#: the numbers the controller-gain fit uses (orchestration/identify.py): z at 0.4 and 5 Hz only.
+#: the numbers the controller-gain fit uses (orchestration/analyses/identify.py): z at 0.4 and 5 Hz only.
 #: Three unknowns (k_v, k_p, k_i), four numbers; everything else is predicted.
 FIT_FREQUENCIES = (0.4, 5.0)
 FIT_KEYS: tuple[str, ...] = tuple(position_key(w, "z", f) for f in FIT_FREQUENCIES for w in ("magnitude", "phase"))

@@ -19,8 +19,8 @@ import numpy as np
 
 from fmus.common.parameters import Value
 
-from .master import Result
-from .motion import SineMotion
+from ..core.master import Result
+from ..core.motion import SineMotion
 
 #: settling time before measuring: at least this long and this many periods [s, periods]
 SETTLE_S, SETTLE_PERIODS = 1.0, 1
@@ -78,7 +78,7 @@ def sine_test(ssp: str, axis: str, amplitude: float, frequency: float,
               parameters: Optional[Mapping[str, Mapping[str, Value]]] = None, direct: bool = False,
               keep: Sequence[str] = ()) -> SineResult:
     """Run one sine test (amplitude in metres for z, radians for psi/theta) and analyse it."""
-    from .run import simulate
+    from ..core.run import simulate
 
     start, stop = measuring_window(frequency)
     record = [f"{axis}_cmd", f"mechanism.{axis}", "mechanism.x", "mechanism.y", "mechanism.phi",

@@ -112,7 +112,7 @@ class FMUSubject(_Subject):
     def __init__(self, fmu: Union[str, Path]) -> None:
         from fmpy import read_model_description
 
-        from .ssp import safe_extract
+        from ..core.ssp import safe_extract
 
         self.fmu = str(fmu)
         self._tmp = tempfile.mkdtemp(prefix="mast_check_")
@@ -187,9 +187,9 @@ def _controller_ik(parameters: Mapping) -> tuple[Callable, str]:
     declares them, else the default system's geometry (what the controller would use)."""
     from fmus.mechanism.designs import KINEMATIC_PARAMETERS_NAMES, kinematic_engine
 
-    from .ssp import read_ssd
+    from ..core.ssp import read_ssd
 
-    base = read_ssd(Path(__file__).resolve().parents[1] / "ssp" / "MAST.ssd").components["controller"].parameters
+    base = read_ssd(Path(__file__).resolve().parents[2] / "ssp" / "MAST.ssd").components["controller"].parameters
     own = {k: parameters[k] for k in KINEMATIC_PARAMETERS_NAMES if k in parameters}
     geometry = {**{k: base[k] for k in KINEMATIC_PARAMETERS_NAMES}, **own}
     where = "the mechanism's own geometry parameters" if len(own) == len(KINEMATIC_PARAMETERS_NAMES) else \
@@ -336,7 +336,7 @@ def check_mechanism(target: Union[str, Path], parameters: Optional[Mapping] = No
         return check(BlockSubject(MechanismBlock, parameters), **kwargs)
     if isolate:  # the child's temporary files go to a folder removed here, even if the child crashes
         with tempfile.TemporaryDirectory(prefix="mast_check_") as tmp:
-            proc = subprocess.run([sys.executable, "-m", "mast.conformance", "--json", str(target)],
+            proc = subprocess.run([sys.executable, "-m", "mast.hosts.conformance", "--json", str(target)],
                                   capture_output=True, text=True, timeout=600, env={**os.environ, "TMPDIR": tmp})
         try:
             return [Check(**c) for c in json.loads(proc.stdout.strip().splitlines()[-1])]
@@ -351,7 +351,7 @@ def check_mechanism(target: Union[str, Path], parameters: Optional[Mapping] = No
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
-    """``python -m mast.conformance [--json] FMU``: the checks of one FMU, in this process."""
+    """``python -m mast.hosts.conformance [--json] FMU``: the checks of one FMU, in this process."""
     args = list(sys.argv[1:] if argv is None else argv)
     as_json = "--json" in args
     args = [a for a in args if a != "--json"]

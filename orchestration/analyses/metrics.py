@@ -3,7 +3,7 @@
 Every metric is a plain float in SI units, its unit in its name; a metric whose
 signals were not recorded (or do not exist in the system) is left out. The
 window is ``[start, stop]`` of the recorded run: for a sine test the batch
-takes the measuring window of :func:`mast.frequency.measuring_window`
+takes the measuring window of :func:`mast.analyses.frequency.measuring_window`
 (settling discarded, whole periods), otherwise the whole run.
 
 Families (the ``outputs.metrics`` names of a batch config):
@@ -12,7 +12,7 @@ Families (the ``outputs.metrics`` names of a batch config):
                achieved pose, per axis z [m], psi and theta [rad]
 ``sine``       ``magnitude``, ``magnitude_dB``, ``phase_deg``: closed-loop response of a sine test
                (ratio of the steady-state harmonics of achieved and commanded pose, by
-               :func:`mast.frequency.analyse`), and ``tau_m_<k>_h3_h1`` (3rd/1st harmonic of torque)
+               :func:`mast.analyses.frequency.analyse`), and ``tau_m_<k>_h3_h1`` (3rd/1st harmonic of torque)
 ``torque``     ``tau_m_<k>_peak_Nm``, ``tau_m_<k>_rms_Nm`` per actuator k
 ``current``    ``i_m_<k>_peak_A``, ``i_m_<k>_rms_A`` per actuator k
 ``saturation`` ``saturation_<k>_s``: time drive k spends at its current limit (``|i_cmd_k| = i_max``)
@@ -20,7 +20,7 @@ Families (the ``outputs.metrics`` names of a batch config):
                ``saturation_s``: time any drive is saturated; ``saturation_fraction``: that time
                over the window
 
-Across cases (:func:`sweep_metrics`): ``bandwidth_Hz`` (-3 dB, :func:`mast.frequency.bandwidth`),
+Across cases (:func:`sweep_metrics`): ``bandwidth_Hz`` (-3 dB, :func:`mast.analyses.frequency.bandwidth`),
 ``peak_magnitude_dB`` and ``peak_frequency_Hz``, ``n_frequencies``.
 """
 from __future__ import annotations
@@ -31,8 +31,8 @@ from typing import Mapping, Optional, Sequence
 import numpy as np
 
 from .frequency import analyse, bandwidth
-from .master import Result
-from .motion import AXES
+from ..core.master import Result
+from ..core.motion import AXES
 
 FAMILIES = ("tracking", "sine", "torque", "current", "saturation")
 ACTUATORS = (1, 2, 3)
