@@ -29,15 +29,21 @@ Behaviour hosts rely on:
   initialization mode, step mode, terminated), and a set against the
   variable's causality and variability: a fixed parameter only before
   exitInitializationMode, an input until terminate, an output never, an
-  unknown value reference or a value of the wrong type never. An illegal call
-  is logged (status Error, naming the call, the state or the variable) and
-  refused. pythonfmu's C layer turns every Python exception into fmi2Fatal
-  (it has no other way to report one; FMI asks for fmi2Error here), and an
-  instance that answered Fatal refuses every later call the same way: only
-  fmi2Reset (a new slave object, in pythonfmu's C layer) and fmi2FreeInstance
-  remain. More lenient than the standard, as hosts need: get is allowed in
-  every state, and doStep after a Discard tries again (and is refused again
-  while the cause stays);
+  unknown value reference, a value of the wrong type or another FMU's state
+  never. An illegal call is logged (status Error, naming the call, the state
+  or the variable), refused and changes nothing: the call returns fmi2Error
+  and the instance stays usable. pythonfmu's C layer turns every Python
+  exception into fmi2Fatal; ``mast build`` puts a small C front in front of it
+  (``pythonfmu_shim.c``: FMI 2.0 on Linux) that returns fmi2Error when the
+  model logged the failed call with status Error. Without that front (FMI 3.0,
+  other platforms, a build without a C compiler) the call says fmi2Fatal and
+  the instance treats it as one. A failure nobody foresaw (an exception other
+  than IllegalCall) is logged with status Fatal and the call says fmi2Fatal;
+  an instance that answered Fatal refuses every later call with Fatal: only
+  fmi2Reset (a new slave object, in pythonfmu's C layer) and
+  fmi2FreeInstance remain. More lenient than the standard, as hosts need: get
+  is allowed in every state, and doStep after a Discard tries again (and is
+  refused again while the cause stays);
 - several instances, and instances that failed, come and go in one process
   (``_survive_pythonfmu_cleanup``, ``_drop_repeated_path``).
 """
@@ -97,12 +103,23 @@ class IllegalCall(RuntimeError):
     """A call the FMI state machine does not allow in the instance's state, or a value reference it cannot take."""
 
 
+class _Refused(IllegalCall):
+    """A call to an instance that answered fmi2Fatal before: refused with fmi2Fatal again."""
+
+#: pythonfmu's library in an FMU with the C front (``mast build``): binaries/linux64/<modelIdentifier>.pythonfmu.so
+#: (the same suffix as INNER_SUFFIX in pythonfmu_shim.c)
+PYTHONFMU_LIBRARY_SUFFIX = ".pythonfmu"
+
+
 def fmi_call(*allowed: str) -> Callable:
     """For methods the FMU's C layer calls, allowed in the states ``allowed`` (default: every state).
 
-    An illegal call, and any exception that escapes, is logged and raised (pythonfmu: fmi2Fatal);
-    from then on the instance refuses every call it is asked (the Python side of fmi2Fatal). The
-    instance survives it for fmi2Reset and fmi2FreeInstance (``_survive_pythonfmu_cleanup``).
+    An illegal call (IllegalCall) is logged with status Error and raised: the C front
+    (``pythonfmu_shim.c``) turns pythonfmu's fmi2Fatal into fmi2Error, and the instance goes on.
+    Any other exception is logged with status Fatal and raised (fmi2Fatal); from then on the
+    instance refuses every call it is asked (the Python side of fmi2Fatal), and so it does after
+    an illegal call when no front is there to say fmi2Error. The instance survives the exception
+    for fmi2Reset and fmi2FreeInstance (``_survive_pythonfmu_cleanup``).
     """
     def decorate(method: Callable) -> Callable:
         name = _fmi_name(method.__name__)
@@ -112,16 +129,19 @@ def fmi_call(*allowed: str) -> Callable:
         def call(self, *args):
             try:
                 if self._failed is not None:
-                    raise IllegalCall(f"refused: the instance failed earlier ({self._failed}); "
-                                      "only reset or free it")
+                    raise _Refused(f"refused: the instance failed earlier ({self._failed}); only reset or free it")
                 if self._phase not in states:
                     raise IllegalCall(f"not allowed in {self._phase} (allowed in {', '.join(states)})")
                 return method(self, *args)
             except Exception as err:
-                message = f"{name}: {err}" if isinstance(err, IllegalCall) else f"{name}: {type(err).__name__}: {err}"
-                self._log_error(message)
-                if self._failed is None:
-                    self._failed = message
+                illegal = isinstance(err, IllegalCall)
+                message = f"{name}: {err}" if illegal else f"{name}: {type(err).__name__}: {err}"
+                if illegal and not isinstance(err, _Refused) and self._illegal_is_error:
+                    self._log_error(message)    # fmi2Error: nothing changed, the instance goes on
+                else:
+                    self._log_fatal(message)    # fmi2Fatal: every later call is refused
+                    if self._failed is None:
+                        self._failed = message
                 if self._native:
                     _survive_pythonfmu_cleanup(self)
                 raise
@@ -151,6 +171,7 @@ class BlockWrapper:
     fmi: ClassVar[FmiVocabulary]
     _phase = INSTANTIATED
     _failed: Optional[str] = None     # why the instance refuses every call (it answered fmi2Fatal)
+    _illegal_is_error = True          # an illegal call reaches the host as fmi2Error (see fmi_call)
     _init_error: Optional[str] = None
 
     def _wrap(self, kwargs: dict) -> None:
@@ -159,7 +180,9 @@ class BlockWrapper:
         self._native = "logger" in kwargs
         _drop_repeated_path(self.resources)
         if self._native:
-            _defuse_pythonfmu_teardown(self.resources)
+            front = _pythonfmu_behind_front(self.resources, type(self).__name__)
+            self._illegal_is_error = front is not None
+            _defuse_pythonfmu_teardown(self.resources, front)
         cls = self.block_class
         self.description = (type(self).__doc__ or cls.__doc__ or "").strip().split("\n")[0] or None
         self._n_io = len(cls.INPUTS) + len(cls.OUTPUTS)
@@ -204,6 +227,9 @@ class BlockWrapper:
 
     def _log_error(self, message: str) -> None:
         self.log(message.replace("%", "%%"), status=self.fmi.status.error, category="logStatusError")
+
+    def _log_fatal(self, message: str) -> None:
+        self.log(message.replace("%", "%%"), status=self.fmi.status.fatal, category="logStatusFatal")
 
     # -- values ----------------------------------------------------------------------
     def _set_param(self, name: str, value) -> None:
@@ -332,7 +358,7 @@ class BlockWrapper:
     @fmi_call()
     def _set_fmu_state(self, state: "SlaveState") -> None:
         if getattr(state, "owner", None) != type(self).__name__ or not hasattr(state, "block"):
-            raise TypeError(f"not an FMU state of {type(self).__name__}: {type(state).__name__} "
+            raise IllegalCall(f"not an FMU state of {type(self).__name__}: {type(state).__name__} "
                             f"{getattr(state, 'owner', '')}".rstrip())
         self._params = dict(state.params)
         if state.block is None:
@@ -371,7 +397,16 @@ def _survive_pythonfmu_cleanup(slave: Any) -> None:
         ctypes.pythonapi.Py_IncRef(ctypes.py_object(obj))
 
 
-def _defuse_pythonfmu_teardown(resources: Optional[str]) -> None:
+def _pythonfmu_behind_front(resources: Optional[str], identifier: str) -> Optional[str]:
+    """pythonfmu's library when the FMU's binary is the C front (``pythonfmu_shim.c``) on this platform, else None."""
+    if not sys.platform.startswith("linux") or not resources:
+        return None
+    library = os.path.join(os.path.dirname(os.path.abspath(resources)), "binaries", "linux64",
+                           f"{identifier}{PYTHONFMU_LIBRARY_SUFFIX}.so")
+    return library if os.path.exists(library) else None
+
+
+def _defuse_pythonfmu_teardown(resources: Optional[str], library: Optional[str] = None) -> None:
     """Release the FMU library's interpreter guard before the process exits, where that is safe.
 
     pythonfmu 0.7.0 and pythonfmu3 0.3.4 keep a static ``std::shared_ptr<PyState>``
@@ -388,14 +423,15 @@ def _defuse_pythonfmu_teardown(resources: Optional[str]) -> None:
     read is gone). In a C/C++ host the guard of the library that started the
     interpreter must live until the end: nothing is done there (valgrind shows
     the one invalid read, in that library). Linux only (on Windows pythonfmu
-    resets it from DllMain).
+    resets it from DllMain). ``library``: pythonfmu's library behind the C front, if there is one.
     """
     if not sys.platform.startswith("linux") or not resources:
         return
-    found = glob.glob(os.path.join(os.path.dirname(os.path.abspath(resources)), "binaries", "*", "*.so"))
-    if len(found) != 1:
-        return
-    library = found[0]
+    if library is None:
+        found = glob.glob(os.path.join(os.path.dirname(os.path.abspath(resources)), "binaries", "*", "*.so"))
+        if len(found) != 1:
+            return
+        library = found[0]
     if not sys.orig_argv:  # the interpreter was started by pythonfmu itself: a C/C++ host
         return
     registry = sys.modules.get("_mast_pythonfmu_process")

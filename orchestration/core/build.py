@@ -12,6 +12,13 @@ first component using the FMU: the .ssv files stay the one place where values
 live. Each FMU carries ``resources/requirements.txt`` (its Python packages, for
 ``pythonfmu deploy``) and declares canGetAndSetFMUstate.
 
+On Linux each FMU's binary is a small C front (``fmus/common/pythonfmu_shim.c``,
+compiled once per build with the C compiler the native route finds) in front of
+pythonfmu's library, shipped beside it as ``<id>.pythonfmu.so``: it returns
+fmi2Error for a call the FMI state machine does not allow, where pythonfmu can
+only say fmi2Fatal. Without a C compiler the FMUs keep pythonfmu's binary (and
+answer such a call with fmi2Fatal); the build says so once.
+
 Each built SSP gets its parameter bindings flattened: one .ssv per component
 (``resources/parameters/<component>.ssv``) holding the values of the source
 bindings merged in order, with their units and descriptions, all named
@@ -20,6 +27,7 @@ parameter set of a component, ecos applies one named set (``--parameterSet``).
 """
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import shutil
@@ -32,6 +40,8 @@ from pathlib import Path
 from typing import Iterable, Iterator, Mapping, Optional, Union
 
 from lxml import etree
+
+from fmus.common.slave import PYTHONFMU_LIBRARY_SUFFIX
 
 from .ssp import NS, applicable_parameters, read_ssd
 
@@ -71,6 +81,50 @@ FMU_REQUIREMENTS = ("numpy>=1.24", "scipy>=1.10")
 
 #: name of the one parameter set per component in a built SSP (ecos: --parameterSet default)
 FLAT_SET_NAME = "default"
+
+
+#: the C front of the Python FMUs' binary (module docstring), and the name pythonfmu's library gets behind it
+FRONT_SOURCE = FMUS_SRC / "common" / "pythonfmu_shim.c"
+PYTHONFMU_LIBRARY = "binaries/linux64/{}" + PYTHONFMU_LIBRARY_SUFFIX + ".so"
+
+
+def status_front() -> tuple[Optional[bytes], str]:
+    """(the compiled C front for linux64 binaries, "") or (None, why there is none here)."""
+    if not sys.platform.startswith("linux"):
+        return None, f"the C front is built for linux64 only (here: {sys.platform})"
+    return _compiled_front(FRONT_SOURCE.read_bytes())
+
+
+@functools.lru_cache(maxsize=4)
+def _compiled_front(source: bytes) -> tuple[Optional[bytes], str]:
+    from .native.build import NativeBuildError, compile_shared
+
+    with tempfile.TemporaryDirectory(prefix="mast_front_") as tmp:
+        target = Path(tmp) / "front.so"
+        try:
+            compile_shared({FRONT_SOURCE.name: source}, target)
+        except NativeBuildError as err:
+            return None, str(err)
+        return target.read_bytes(), ""
+
+
+def front_note() -> Optional[str]:
+    """What a build without the C front should tell its user (None: the front is built)."""
+    front, why = status_front()
+    return None if front is not None else (
+        "note: the Python FMUs keep pythonfmu's binary, which answers a call FMI does not allow with "
+        f"fmi2Fatal instead of fmi2Error ({why})")
+
+
+def _put_front(items: dict[str, bytes], identifier: str) -> bool:
+    """Make the C front the FMU's linux64 binary and move pythonfmu's beside it (False: no front here)."""
+    front, _ = status_front()
+    binary = f"binaries/linux64/{identifier}.so"
+    if front is None or binary not in items:
+        return False
+    items[PYTHONFMU_LIBRARY.format(identifier)] = items.pop(binary)
+    items[binary] = front
+    return True
 
 
 def _source_hash(extra: bytes) -> str:
@@ -148,7 +202,7 @@ def build_fmu(spec: FmuSpec, out_dir: Path, parameters: Optional[dict] = None) -
             "keep_alive(globals())\n")
         fmu = FmuBuilder.build_FMU(script, dest=out_dir / f"{spec.model_identifier}.fmu",
                                    project_files=files, needsExecutionTool=False, canGetAndSetFMUstate=True)
-    _complete_model_description(Path(fmu), spec)
+    _complete(Path(fmu), spec)
     return Path(fmu)
 
 
@@ -190,15 +244,24 @@ def build_fmu3(spec: FmuSpec, out_dir: Path, parameters: Optional[dict] = None) 
     return target
 
 
-def _complete_model_description(fmu: Path, spec: FmuSpec) -> None:
+def _complete(fmu: Path, spec: FmuSpec) -> None:
+    """The FMU pythonfmu wrote, with its model description completed and the C front as its linux64 binary."""
+    with zipfile.ZipFile(fmu) as zin:
+        items = {name: zin.read(name) for name in zin.namelist()}
+    items["modelDescription.xml"] = _complete_model_description(items["modelDescription.xml"], spec)
+    _put_front(items, spec.model_identifier)
+    with zipfile.ZipFile(fmu, "w", zipfile.ZIP_DEFLATED) as zout:
+        for name, data in items.items():
+            zout.writestr(name, data)
+
+
+def _complete_model_description(xml: bytes, spec: FmuSpec) -> bytes:
     """What pythonfmu 0.7 leaves out of modelDescription.xml: the units (from the model's declarations) and
     ModelStructure/InitialUnknowns, which FMI 2.0 requires for outputs with initial="calculated"."""
     block = block_class(spec.model_identifier)
     units = dict(block.UNITS)
     units.update({p.name: p.unit for p in block.PARAMETERS if p.kind is float and p.unit})
-    with zipfile.ZipFile(fmu) as zin:
-        items = {name: zin.read(name) for name in zin.namelist()}
-    root = etree.fromstring(items["modelDescription.xml"])
+    root = etree.fromstring(xml)
     used = []
     for var in root.iter("ScalarVariable"):
         unit = units.get(var.get("name"))
@@ -217,10 +280,7 @@ def _complete_model_description(fmu: Path, spec: FmuSpec) -> None:
         for unknown in outputs.iterfind("Unknown"):
             etree.SubElement(initial, "Unknown", index=unknown.get("index"))
         outputs.addnext(initial)
-    items["modelDescription.xml"] = etree.tostring(root, xml_declaration=True, encoding="UTF-8", pretty_print=True)
-    with zipfile.ZipFile(fmu, "w", zipfile.ZIP_DEFLATED) as zout:
-        for name, data in items.items():
-            zout.writestr(name, data)
+    return etree.tostring(root, xml_declaration=True, encoding="UTF-8", pretty_print=True)
 
 
 def build_ssp(ssd: Path, fmu_dir: Path, out_dir: Path) -> Path:
@@ -352,6 +412,8 @@ def build_all(out: Path = REPO / "build", ssds: Iterable[Path] = (), log=print, 
     ``fmi3=True`` also builds the FMI 3.0 variants into ``out/fmus3`` (needs pythonfmu3).
     """
     written = []
+    if front_note():
+        log(front_note())
     for spec in FMUS:
         written.append(build_fmu(spec, out / "fmus"))
         log(f"built {written[-1]}")

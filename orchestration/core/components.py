@@ -80,9 +80,9 @@ class FMUComponent:
 
     def _error(self, what: str, t: float | None, err: object = "") -> ComponentError:
         """The model's own logged error is the cause; pythonfmu's generic 'Fatal py exception' is not."""
-        ours = [m for m in self.messages if m.startswith("[logStatusError]")]
+        ours = [m for m in self.messages if m.startswith(("[logStatusError]", "[logStatusFatal]"))]
         if ours:  # the model's message already says when (doStep at t=...) and why
-            return ComponentError(f"{self.name}: {ours[-1].removeprefix('[logStatusError] ')}")
+            return ComponentError(f"{self.name}: {ours[-1].split('] ', 1)[1]}")
         when = f" at t={t:.6g} s" if t is not None else ""
         cause = self.messages[-1] if self.messages else str(err)
         return ComponentError(f"{self.name}{when}: {what} failed: {cause}")
