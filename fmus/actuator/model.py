@@ -60,10 +60,12 @@ The step is compiled once per step size into straight-line Python (constants inl
 for a 5-state system scalar code is several times faster than numpy calls. A host that
 varies its step brings a new step size at every step, and a compilation (about 1.5 ms)
 per step would make the step hundreds of times slower: after the first few step sizes,
-the kernel of a new one is the same source with its step-size-dependent numbers as names,
-compiled once and bound to the numbers of each step (``_bind``; exp(M h) balanced, then
-a Taylor polynomial with scaling and squaring: ``_BalancedExp``). benchmarks/variable_step.py
-measures both.
+the kernel of a new one is the same source with its step-size-dependent numbers as
+arguments, compiled once and given the numbers of each step (``_bind``). Those numbers,
+exp(M h_s) for any h_s, come from ``_ZohSeries``: exp(M h_s) = exp(M h_r) exp(M d) around
+the nearest of a few reference steps h_r (8 per octave, each exponential computed once),
+the second factor a Taylor series in d whose coefficients are precomputed, so a new step
+size costs one small matrix-vector product. benchmarks/variable_step.py measures both routes.
 """
 from __future__ import annotations
 
@@ -344,7 +346,8 @@ class ActuatorBlock(Block):
                         else TorqueSensor(p["T_meas"], p["delay_meas"], p["tau_offset"]))
         self._kernels: dict[float, tuple[Callable, int]] = {}
         self._compiled = 0                            # step sizes compiled with their numbers inlined
-        self._bound_code = None                       # the kernel source bound per step size, compiled
+        self._bound: Optional[Callable] = None        # the kernel that takes its step size's numbers first
+        self._series: Optional[list["_ZohSeries"]] = None  # exp(M h)[:n] for any h, per generator
         self._exp = _BalancedExp()
         self._h = math.nan
         self._kernel: Callable = _no_kernel
@@ -424,36 +427,53 @@ class ActuatorBlock(Block):
         self._kernel, self.substeps = entry
         self._h = h
 
-    def discretise(self, h_sub: float, exponential: Callable = expm) -> tuple[np.ndarray, np.ndarray]:
-        """Exact ZOH discretisation over h_sub [s]: (Phi, Gamma) with x+ = Phi x + Gamma [u_sat, tau_L]."""
+    def generator(self) -> np.ndarray:
+        """M = [[A B], [0 0]]: exp(M h)[:n] = [Phi Gamma], the exact ZOH discretisation over h."""
         n = self.A.shape[0]
         M = np.zeros((n + 2, n + 2))
         M[:n, :n] = self.A
         M[:n, n:] = self.B
-        E = exponential(M * h_sub)
+        return M
+
+    def _generators(self) -> tuple[np.ndarray, ...]:
+        """The generators of the step's discretisations: ``generator()``, or with backlash the contact and
+        gap ones (``_backlash_generators``)."""
+        return _backlash_generators(self) if self.params["backlash"] > 0.0 else (self.generator(),)
+
+    def discretise(self, h_sub: float, exponential: Callable = expm) -> tuple[np.ndarray, np.ndarray]:
+        """Exact ZOH discretisation over h_sub [s]: (Phi, Gamma) with x+ = Phi x + Gamma [u_sat, tau_L]."""
+        n = self.A.shape[0]
+        E = exponential(self.generator() * h_sub)
         return E[:n, :n], E[:n, n:]
 
-    def _substeps(self, h: float, exponential: Callable) -> tuple[int, np.ndarray, np.ndarray]:
-        """The number of substeps m for step h, and the discretisation over h / m."""
+    def _substeps(self, h: float, zoh: Callable[[float], list]) -> tuple[int, list]:
+        """The number of substeps m for step h, and ``zoh(h / m)``: the discretisations over a substep
+        ([Phi Gamma] of each, flattened by rows; the first one's inputs start with u_sat, tau_L)."""
         p = self.params
         m = max(1, math.ceil(self._omega_max * h / _MAX_PHASE_PER_SUBSTEP - 1e-12))
         if p["backlash"] > 0.0:
             m = max(m, math.ceil(h / _BACKLASH_SUBSTEP - 1e-9))
         # Stribeck: the friction's steepest fall is tau_s sqrt(2/e) / omega_s; keep b times it below 1/2
         fall = p["tau_s"] * math.sqrt(2.0 / math.e) / p["omega_s"] if p["tau_s"] > 0.0 else 0.0
-        while True:
-            Phi, Gam = self.discretise(h / m, exponential)
-            b = Gam[2 * self.N, 1]  # d omega_N(end) / d tau_L over a substep
+        n = 2 * self.N + 1
+        b_at = 2 * self.N * (n + 2 + (p["backlash"] > 0.0)) + n + 1  # Gamma[omega_N, tau_L]: [Phi Gamma] has n + 2
+        while True:                                                 # columns, n + 3 with backlash's input pl
+            discretisations = zoh(h / m)
+            b = discretisations[0][b_at]  # d omega_N(end) / d tau_L over a substep
             if (b > 0.0 and b * fall < 0.5) or m > 4096:
                 break
             m *= 2
         if not b > 0.0:
             raise ModelError(f"{self.name}: no substep gives a monotone friction update for h = {h} s")
-        return m, Phi, Gam
+        return m, discretisations
 
     def _compile(self, h: float) -> tuple[Callable, int]:
         """Generate the step function for step h: straight-line scalar code, constants inlined."""
-        m, Phi, Gam = self._substeps(h, expm)
+        n = 2 * self.N + 1
+        first = self._generators()[0]
+        m, (E,) = self._substeps(h, lambda h_sub: [expm(first * h_sub)[:n].ravel()])
+        E = E.reshape(n, -1)
+        Phi, Gam = E[:, :n], E[:, n:n + 2]
         if self.params["backlash"] > 0.0:
             source = _backlash_kernel_source(self, h / m, m)
         else:
@@ -464,30 +484,90 @@ class ActuatorBlock(Block):
         return kernel, m
 
     def _bind(self, h: float) -> tuple[Callable, int]:
-        """The step function for step h without compiling: the source with the step-size-dependent
-        numbers (and the number of substeps) as names, compiled once, bound to this step's numbers
-        (the same arithmetic as ``_compile``'s kernel; each number read by name, not inlined)."""
-        p = self.params
-        m, Phi, Gam = self._substeps(h, self._exp)
-        if p["backlash"] > 0.0:
-            (Pc, Gc), (Pg, Gg) = _backlash_matrices(self, h / m, self._exp)
-            numbers = {**_named_values("PC", Pc), **_named_values("GC", Gc), **_named_values("PG", Pg),
-                       **_named_values("GG", Gg)}
-            friction = {"FC_": float(Gc[4, 1]), "FG_": float(Gg[4, 1])}
-        else:
-            numbers = {**_named_values("P", Phi), **_named_values("G", Gam)}
-            friction = {"F_": float(Gam[2 * self.N, 1])}
-        for prefix, b in friction.items():
-            numbers.update({prefix + k: v for k, v in _friction_constants(p, b).items()})
-        if self._bound_code is None:
-            if p["backlash"] > 0.0:
+        """The step function for step h without compiling: one kernel, whose source has the
+        step-size-dependent numbers (and the number of substeps) as names, compiled once and called
+        with this step's numbers (the same arithmetic as ``_compile``'s kernel, each number read by
+        name, not inlined); the discretisations from ``_ZohSeries``, no exponential per step."""
+        p, n = self.params, 2 * self.N + 1
+        backlash = p["backlash"] > 0.0
+        if self._series is None:
+            self._series = [_ZohSeries(M, n, self._exp) for M in self._generators()]
+        m, discretisations = self._substeps(h, lambda h_sub: [s(h_sub) for s in self._series])
+        numbers = []
+        cols = [len(E) // n for E in discretisations]   # [Phi Gamma]: n + 2 columns, n + 3 with backlash
+        for E in discretisations:
+            numbers += E.tolist()
+        for E, c in zip(discretisations, cols):  # the friction solve of each: d omega_N(end) / d tau_L
+            numbers += _friction_constants(p, float(E[2 * self.N * c + n + 1])).values()
+        numbers.append(m)
+        if self._bound is None:
+            names = []
+            for prefix, c in zip(("PC", "PG") if backlash else ("P",), cols):
+                rows = _names(prefix, (n, c))  # P_i_j for Phi; Gamma's columns renamed G_i_k below
+                rows[:, n:] = _names("G" + prefix[1:], (n, c - n))
+                names += rows.ravel().tolist()
+            for prefix in (("FC_", "FG_") if backlash else ("F_",)):
+                names += [prefix + k for k in _friction_constants(p, 1.0)]
+            names.append("M_SUB")
+            if backlash:
                 source = _backlash_kernel_source(self, h / m, m, named=True)
             else:
-                source = _kernel_source(self, _names("P", Phi.shape), _names("G", Gam.shape), m, named=True)
-            self._bound_code = compile(source, "<actuator kernel bound per step size>", "exec")
-        namespace: dict = {"tanh": math.tanh, "exp": math.exp, "sin": math.sin, "M_SUB": m, **numbers}
-        exec(self._bound_code, namespace)
-        return namespace["kernel"], m
+                source = _kernel_source(self, _names("P", (n, n)), _names("G", (n, 2)), m, named=True)
+            source = source.replace("def kernel(values, x):\n", f"def kernel(c, values, x):\n    {', '.join(names)}, = c\n", 1)
+            namespace: dict = {"tanh": math.tanh, "exp": math.exp, "sin": math.sin}
+            exec(compile(source, "<actuator kernel bound per step size>", "exec"), namespace)
+            self._bound = namespace["kernel"]
+        return functools.partial(self._bound, numbers), m
+
+
+class _ZohSeries:
+    """exp(M h)[:rows], flattened, for any step h [s], exact to rounding, without an exponential per step.
+
+    exp(M h) = exp(M h_r) exp(M d), h_r the nearest of the reference steps (h rounded to 4 bits of
+    mantissa: 8 per octave, |d| <= h / 16), exp(M d) its Taylor series. Per reference, computed once:
+    exp(M h_r)[:rows] by ``exponential`` and the series' coefficients C_k = exp(M h_r)[:rows] (M s)^k / k!
+    (s = the largest |d| there), to the degree where the remainder is below 2^-60 in M's balanced norm
+    (M's entries mix radians, rad/s and amperes: the norm of D^-1 M D, D from LAPACK gebal, bounds the
+    series). A step size is then the product of [1, d/s, (d/s)^2, ...] with the coefficients.
+    """
+
+    REMAINDER = 2.0 ** -60
+    KEPT = 256   # reference steps kept
+
+    def __init__(self, M: np.ndarray, rows: int, exponential: Callable) -> None:
+        self._M, self._rows, self._exp = M, rows, exponential
+        d = matrix_balance(M, permute=False, separate=True)[1][0]
+        self._norm = float(np.abs(M * (d[None, :] / d[:, None])).sum(axis=0).max())
+        self._references: dict[float, tuple[float, np.ndarray, np.ndarray]] = {}
+
+    def __call__(self, h: float) -> np.ndarray:
+        mantissa, exponent = math.frexp(h)
+        h_r = math.ldexp(round(mantissa * 16.0) / 16.0, exponent)
+        reference = self._references.get(h_r)
+        if reference is None:
+            if len(self._references) >= self.KEPT:
+                self._references.pop(next(iter(self._references)))
+            reference = self._references[h_r] = self._expand(h_r, math.ldexp(1.0, exponent - 5))
+        s, powers, C = reference
+        if C is None:  # M s too large for a short series: the exponential itself
+            return self._exp(self._M * h)[:self._rows].ravel()
+        return np.dot(((h - h_r) / s) ** powers, C)
+
+    def _expand(self, h_r: float, s: float) -> tuple[float, np.ndarray, Optional[np.ndarray]]:
+        nu = self._norm * s   # the series' terms fall at least as nu^k / k!
+        if nu > 1.0:
+            return s, np.zeros(0), None
+        degree, bound = 1, nu * nu / 2.0
+        while bound > self.REMAINDER:
+            degree += 1
+            bound *= nu / (degree + 1)
+        X = self._M * s
+        term = self._exp(self._M * h_r)[:self._rows] if h_r > 0.0 else np.eye(len(X))[:self._rows]
+        terms = [term]
+        for k in range(1, degree + 1):
+            term = term.dot(X) / k
+            terms.append(term)
+        return s, np.arange(degree + 1, dtype=float), np.array([t.ravel() for t in terms])
 
 
 def _names(prefix: str, shape: tuple[int, int]) -> np.ndarray:
@@ -496,16 +576,6 @@ def _names(prefix: str, shape: tuple[int, int]) -> np.ndarray:
     for i, j in np.ndindex(shape):
         out[i, j] = f"{prefix}_{i}_{j}"
     return out
-
-
-def _named_values(prefix: str, matrix: np.ndarray) -> dict[str, float]:
-    """{``prefix_i_j``: matrix[i, j]}, the numbers for the names of ``_names(prefix, matrix.shape)``."""
-    return dict(zip(_flat_names(prefix, matrix.shape), matrix.ravel().tolist()))
-
-
-@functools.lru_cache(maxsize=None)
-def _flat_names(prefix: str, shape: tuple[int, int]) -> tuple[str, ...]:
-    return tuple(_names(prefix, shape).ravel().tolist())
 
 
 def _expm_taylor(M: np.ndarray) -> np.ndarray:
@@ -738,7 +808,16 @@ def _kernel_source(block: ActuatorBlock, Phi: np.ndarray, Gam: np.ndarray, m: in
 
 def _backlash_matrices(block: ActuatorBlock, h_sub: float, exponential: Callable = expm
                        ) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]:
-    """Exact ZOH discretisations of the two-inertia model in contact and in the gap.
+    """Exact ZOH discretisations of the two-inertia model in contact and in the gap: ((Phi, Gamma) each)."""
+    out = []
+    for M in _backlash_generators(block):
+        E = exponential(M * h_sub)
+        out.append((E[:5, :5], E[:5, 5:]))
+    return out[0], out[1]
+
+
+def _backlash_generators(block: ActuatorBlock) -> tuple[np.ndarray, np.ndarray]:
+    """[[A B], [0 0]] of the two-inertia model in contact and in the gap (``ActuatorBlock.generator``).
 
     Inputs [u_sat, tau_L, pl]: pl is the dead-zone offset K_t hb sgn (on inertia 1, and minus
     it on inertia 2) that makes the spring torque K_t (theta_1 - theta_2 -+ hb) in contact.
@@ -765,8 +844,7 @@ def _backlash_matrices(block: ActuatorBlock, h_sub: float, exponential: Callable
         M = np.zeros((8, 8))
         M[:5, :5] = mat
         M[:5, 5:] = B3
-        E = exponential(M * h_sub)
-        out.append((E[:5, :5], E[:5, 5:]))
+        out.append(M)
     return out[0], out[1]
 
 
