@@ -8,8 +8,11 @@ import sys
 import tempfile
 from pathlib import Path
 
+from .core.build import default_build_dir
+
 REPO = Path(__file__).resolve().parents[1]
-DEFAULT_SSP = REPO / "build" / "ssp" / "MAST.ssp"
+BUILD = default_build_dir()   # build/ of the checkout, or of the current directory after a plain install
+DEFAULT_SSP = BUILD / "ssp" / "MAST.ssp"
 
 
 def _positive(what: str):
@@ -362,7 +365,7 @@ def main(argv=None) -> int:
     sub = parser.add_subparsers(dest="command", required=True)
 
     p = sub.add_parser("build", help="build build/fmus/*.fmu and build/ssp/*.ssp from fmus/ and ssp/")
-    p.add_argument("--out", type=folder, default=str(REPO / "build"))
+    p.add_argument("--out", type=folder, default=str(BUILD))
     p.add_argument("--fmi3", action="store_true", help="also build the FMI 3.0 variants into OUT/fmus3 (pythonfmu3)")
     p.add_argument("--native", action="store_true",
                    help="also build native FMUs (compiled C, no Python at run time) into OUT/fmus/native and the SSPs "
@@ -373,7 +376,7 @@ def main(argv=None) -> int:
     p.set_defaults(func=cmd_build)
 
     p = sub.add_parser("hosts", help="run an SSP in libcosim, ecospy and the ecos CLI; compare with this master")
-    p.add_argument("ssp", nargs="?", default=str(REPO / "build" / "ssp" / "MAST_standalone.ssp"))
+    p.add_argument("ssp", nargs="?", default=str(BUILD / "ssp" / "MAST_standalone.ssp"))
     p.add_argument("--stop-time", type=seconds, default=1.0)
     p.add_argument("--host", action="append", choices=("libcosim", "ecospy", "ecos"), help="(repeatable; default: all)")
     p.add_argument("--show", choices=("ecospy", "ecos"),
@@ -382,7 +385,7 @@ def main(argv=None) -> int:
     p.set_defaults(func=cmd_hosts)
 
     p = sub.add_parser("validate", help="fmpy validation of every FMU and SSP 1.0 schema check of every SSD")
-    p.add_argument("--build", default=str(REPO / "build"))
+    p.add_argument("--build", default=str(BUILD))
     p.set_defaults(func=cmd_validate)
 
     p = sub.add_parser("run", help="run a co-simulation with a sine pose command around the home pose")
@@ -499,7 +502,7 @@ def main(argv=None) -> int:
     p.add_argument("--workers", type=count, help="parallel processes (default: the number of cores)")
     p.add_argument("--direct", action="store_true", help="run the model objects without FMI (this project's FMUs only)")
     p.add_argument("--ssd", default=str(REPO / "ssp" / "MAST.ssd"), help="base system the FMUs are swapped into")
-    p.add_argument("--fmus", default=str(REPO / "build" / "fmus"), help="FMUs of the base system's other components")
+    p.add_argument("--fmus", default=str(BUILD / "fmus"), help="FMUs of the base system's other components")
     p.set_defaults(func=cmd_compare)
 
     from .analyses.workspace import STEP_TILT_DEG, STEP_Z

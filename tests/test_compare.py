@@ -104,3 +104,15 @@ def test_swapping_into_a_system_without_bindings(fmus, tmp_path):
     assert system.components["controller"].parameters["beta"] == pytest.approx(math.radians(15.0))
     assert system.components["actuator_3"].parameters == {"g_guide": pytest.approx(9.81 * math.cos(math.radians(15)))}
     assert system.components["mechanism"].parameters["H"] == 0.55
+
+
+def test_a_missing_design_is_refused_before_anything_is_written(tmp_path):
+    """The items are checked first: a missing FMU after a valid one leaves no --out folder (not even empty)."""
+    out = tmp_path / "new"
+    with pytest.raises(FileNotFoundError, match="mechanism .*missing.fmu: no such file"):
+        compare([ROOT / "ssp" / "MAST.ssd", tmp_path / "missing.fmu"], out)
+    with pytest.raises(ValueError, match=r"expected an \.fmu"):
+        compare([ROOT / "README.md"], out)
+    assert not out.exists()
+    assert cli_main(["compare", "--mechanism", str(tmp_path / "missing.fmu"), "--out", str(out)]) != 0
+    assert not out.exists()

@@ -7,6 +7,7 @@ from pathlib import Path
 import pytest
 
 from fmus.common.parameters import exact_boolean, exact_integer
+import mast.core.build as build_module
 from mast.core.build import default_parameters
 from mast.cli import main as cli_main
 from mast.core.units import UnitError, convert, parse_unit
@@ -170,3 +171,15 @@ def test_cli_reproduce_names_a_missing_ssp_before_running_anything(capsys, tmp_p
     err = capsys.readouterr().err
     assert f"{tmp_path / 'none.ssp'}: no such SSP file" in err and "sine tests" not in err
     assert not (tmp_path / "r").exists()
+
+
+def test_the_default_build_folder_is_the_checkouts_or_else_the_current_directorys(tmp_path, monkeypatch):
+    """After a plain `pip install .` the package lives in site-packages: `mast build` without --out writes
+    into ./build, not there (an editable install keeps the checkout's build/)."""
+    assert build_module.default_build_dir() == ROOT / "build"
+    installed, work = tmp_path / "site-packages", tmp_path / "work"
+    installed.mkdir()
+    work.mkdir()
+    monkeypatch.setattr(build_module, "REPO", installed)
+    monkeypatch.chdir(work)
+    assert build_module.default_build_dir() == work / "build"

@@ -48,12 +48,13 @@ from fmus.mechanism.designs import KINEMATIC_PARAMETERS_NAMES
 
 from . import paper
 from .workspace import STEP_TILT_DEG, STEP_Z
+from ..core.build import default_build_dir
 from ..core.components import fmu_parameters
 from .frequency import SineCase, SineResult, bandwidth, run_cases
 
 REPO = Path(__file__).resolve().parents[2]
 BASE_SSD = REPO / "ssp" / "MAST.ssd"
-FMU_DIR = REPO / "build" / "fmus"
+FMU_DIR = default_build_dir() / "fmus"
 MOTIONS = ("z", "psi", "theta")
 #: payload [kg] the controllers do not know, for the robustness runs (assumed: about 1.5 times the
 #: 2.06 kg platform, a heavy specimen; it must stay within the drives' current at the test amplitudes)
@@ -220,6 +221,15 @@ def prepare(mechanisms: Sequence[Union[str, Path]], out: Union[str, Path], base_
     taken: set = set()
     base_text = base_ssd.read_text(encoding="utf-8")
     named = {c.name: c for c in CONTROLLERS} if component == "controller" else {}
+    for item in mechanisms:  # every item checked before anything is written
+        if str(item) not in named:
+            path = Path(item)
+            if not path.exists():
+                known = f" or a controller name ({', '.join(named)})" if named else ""
+                raise FileNotFoundError(f"{component} {path}: no such file{known}")
+            if path.suffix not in (".fmu", ".ssp", ".ssd"):
+                raise ValueError(f"{component} {path}: expected an .fmu (a {component} to swap in) or an .ssp/.ssd "
+                                 "(a system)")
     for item in mechanisms:
         if str(item) in named:
             label = _label(Path(str(item)), taken)
@@ -228,9 +238,6 @@ def prepare(mechanisms: Sequence[Union[str, Path]], out: Union[str, Path], base_
             candidates.append(Candidate(label, str(ssp), str(named[str(item)].ssd)))
             continue
         path = Path(item)
-        if not path.exists():
-            known = f" or a controller name ({', '.join(named)})" if named else ""
-            raise FileNotFoundError(f"{component} {path}: no such file{known}")
         label = _label(path, taken)
         if path.suffix in (".ssp", ".ssd"):
             from ..core.ssp import SSPArchive
@@ -240,8 +247,6 @@ def prepare(mechanisms: Sequence[Union[str, Path]], out: Union[str, Path], base_
                 params = dict(comp.parameters) if comp is not None and component == "mechanism" else {}
             candidates.append(Candidate(label, str(path), str(path), params))
             continue
-        if path.suffix != ".fmu":
-            raise ValueError(f"{component} {path}: expected an .fmu (a {component} to swap in) or an .ssp/.ssd (a system)")
         params = fmu_parameters(path)
         with tempfile.TemporaryDirectory(prefix="mast_compare_") as tmp:
             tmp = Path(tmp)
@@ -313,13 +318,14 @@ def compare(mechanisms: Sequence[Union[str, Path]] = (), out: Union[str, Path] =
         raise ValueError(f"compare: payload = {payload!r} kg: expected a finite mass >= 0")
     t0 = time.perf_counter()
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
     test_set = test_set or (QUICK if quick else DEFAULT)
     for axis in test_set.axes:
         if axis not in MOTIONS:
             raise ValueError(f"test set: motion {axis!r}: expected one of {', '.join(MOTIONS)}")
     kind = "controller" if controllers else "design"
+    # out is made once the candidates are known: a missing FMU leaves no empty folder behind
     candidates = prepare(controllers or mechanisms, out, base_ssd, fmu_dir, "controller" if controllers else "mechanism")
+    out.mkdir(parents=True, exist_ok=True)
     if controllers and payload:
         candidates += [Candidate(f"{c.label} +{payload:g} kg", c.ssp, c.source, c.parameters, payload, c.label)
                        for c in candidates]

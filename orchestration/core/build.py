@@ -50,6 +50,13 @@ FMUS_SRC = REPO / "fmus"
 SSP_SRC = REPO / "ssp"
 
 
+def default_build_dir() -> Path:
+    """Where ``mast build`` writes, and the other commands look for what it built: build/ of the source
+    checkout (an editable install), else build/ in the current directory (after a plain ``pip install .``
+    this module lives in site-packages, which is no place for build outputs)."""
+    return REPO / "build" if (REPO / "pyproject.toml").is_file() else Path.cwd() / "build"
+
+
 @dataclass(frozen=True)
 class FmuSpec:
     model_identifier: str  # class name in fmus/<package>/fmu.py and the FMU file name
@@ -92,6 +99,8 @@ def status_front() -> tuple[Optional[bytes], str]:
     """(the compiled C front for linux64 binaries, "") or (None, why there is none here)."""
     if not sys.platform.startswith("linux"):
         return None, f"the C front is built for linux64 only (here: {sys.platform})"
+    if not FRONT_SOURCE.is_file():
+        return None, f"{FRONT_SOURCE} is missing from this installation"
     return _compiled_front(FRONT_SOURCE.read_bytes())
 
 
@@ -406,11 +415,13 @@ def _parameter_set_xml(values: dict, units: dict, comment: str) -> bytes:
     return etree.tostring(root, xml_declaration=True, encoding="UTF-8", pretty_print=True)
 
 
-def build_all(out: Path = REPO / "build", ssds: Iterable[Path] = (), log=print, fmi3: bool = False) -> list[Path]:
-    """Build every FMU and every SSP of ssp/*.ssd; return the written paths.
+def build_all(out: Optional[Path] = None, ssds: Iterable[Path] = (), log=print, fmi3: bool = False) -> list[Path]:
+    """Build every FMU and every SSP of ssp/*.ssd into ``out`` (default: ``default_build_dir()``); return the
+    written paths.
 
     ``fmi3=True`` also builds the FMI 3.0 variants into ``out/fmus3`` (needs pythonfmu3).
     """
+    out = default_build_dir() if out is None else out
     written = []
     if front_note():
         log(front_note())
