@@ -183,3 +183,40 @@ def test_the_default_build_folder_is_the_checkouts_or_else_the_current_directory
     monkeypatch.setattr(build_module, "REPO", installed)
     monkeypatch.chdir(work)
     assert build_module.default_build_dir() == work / "build"
+
+
+def _system_with_inline_mass(tmp_path: Path, unit: str, units_section: str) -> Path:
+    """ssp/MAST.ssd with one more binding of the mechanism: m_platform = 2060 ``unit`` inline, and
+    ``units_section`` (an ssd:Units element, or nothing) before ssd:DefaultExperiment."""
+    shutil.copytree(ROOT / "ssp" / "resources", tmp_path / "resources")
+    text = (ROOT / "ssp" / "MAST.ssd").read_text()
+    end = text.index("</ssd:ParameterBindings>", text.index('<ssd:Component name="mechanism"'))
+    binding = ('<ssd:ParameterBinding><ssd:ParameterValues><ssv:ParameterSet version="1.0" name="inline">'
+               f'<ssv:Parameters><ssv:Parameter name="m_platform"><ssv:Real value="2060.0" unit="{unit}"/>'
+               "</ssv:Parameter></ssv:Parameters></ssv:ParameterSet></ssd:ParameterValues></ssd:ParameterBinding>")
+    text = text[:end] + binding + text[end:]
+    text = text.replace("<ssd:DefaultExperiment", units_section + "<ssd:DefaultExperiment", 1)
+    (tmp_path / "MAST.ssd").write_text(text)
+    return tmp_path / "MAST.ssd"
+
+
+def test_units_an_ssd_defines_apply_to_its_inline_values_on_every_route(tmp_path):
+    """SSP 1.0 ssd:Units: a unit the .ssd defines converts its inline values (read_ssd, and the flattened
+    set mast build writes for third-party hosts); without the definition the unit is refused by name."""
+    from lxml import etree
+
+    from mast.core.build import block_class, flatten_bindings
+    from mast.core.ssp import read_ssd
+
+    units = ('<ssd:Units><ssc:Unit name="gram_of_lab"><ssc:BaseUnit kg="1" factor="0.001"/></ssc:Unit></ssd:Units>')
+    ssd = _system_with_inline_mass(tmp_path / "defined", "gram_of_lab", units)
+    assert default_parameters("MastMechanism", ssd)["m_platform"] == pytest.approx(2.06, rel=1e-12)
+    names = {c: {p.name: p.unit for p in block_class(Path(s.source).stem).PARAMETERS}
+             for c, s in read_ssd(ssd).components.items()}
+    _, sets = flatten_bindings(ssd, names)
+    flat = parse_ssv(sets["resources/parameters/mechanism.ssv"])
+    assert flat["m_platform"].value == pytest.approx(2.06, rel=1e-12) and flat["m_platform"].unit == "kg"
+    etree.fromstring(sets["resources/parameters/mechanism.ssv"])  # well-formed
+    undefined = _system_with_inline_mass(tmp_path / "undefined", "gram_of_lab", "")
+    with pytest.raises(SSPFormatError, match=r"inline values of 'mechanism'\): parameter 'm_platform': unit 'gram_of_lab'"):
+        default_parameters("MastMechanism", undefined)

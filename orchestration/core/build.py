@@ -335,12 +335,15 @@ def flatten_bindings(ssd: Path, parameter_names: Mapping[str, Union[Iterable[str
     """
     import dataclasses
 
+    from .ssp import ssd_unit_definitions
     from .ssv import parse_ssv
 
     declared = {c: dict(n) for c, n in parameter_names.items() if isinstance(n, Mapping)}
     bound = applicable_parameters(read_ssd(ssd), parameter_names, declared)   # the typo and unit checks
     doc = etree.parse(str(ssd))
     root = doc.getroot()
+    ssd_units = ssd_unit_definitions(root, str(ssd))   # in scope for the inline values
+    ssd_unit_elements = {u.get("name"): u for u in root.iterfind("ssd:Units/ssc:Unit", NS)}
     sets: dict[str, bytes] = {}
     for comp in root.iterfind("ssd:System/ssd:Elements/ssd:Component", NS):
         bindings = comp.find("ssd:ParameterBindings", NS)
@@ -358,7 +361,8 @@ def flatten_bindings(ssd: Path, parameter_names: Mapping[str, Union[Iterable[str
                 element = binding.find("ssd:ParameterValues/ssv:ParameterSet", NS)
                 origin = f"{ssd} (inline values of '{comp.get('name')}')"
                 sources.append("inline values")
-            merged.update(parse_ssv(etree.tostring(element), origin=origin))
+                units.update(ssd_unit_elements)   # written into the flattened set if its values use them
+            merged.update(parse_ssv(etree.tostring(element), origin=origin, units=None if source else ssd_units))
             for unit in element.iterfind("ssv:Units/ssc:Unit", NS):
                 units[unit.get("name")] = unit
         own = set(parameter_names[comp.get("name")])

@@ -27,7 +27,7 @@ from lxml import etree
 from fmus.common.parameters import Value
 
 from .units import Unit, UnitError, convert, parse_unit
-from .ssv import ParameterValue, SSPFormatError, parse_ssv
+from .ssv import ParameterValue, SSPFormatError, parse_ssv, unit_definitions
 
 NS = {
     "ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription",
@@ -229,6 +229,7 @@ def read_ssd(path: Union[str, Path], root: Optional[Path] = None, archive: Optio
 
     system_inputs = [need(c, "name", "a system connector") for c in system.findall("ssd:Connectors/ssd:Connector", NS)
                      if c.get("kind") in ("input", "parameter")]
+    ssd_units = ssd_unit_definitions(doc, str(path))
     components: dict[str, ComponentSpec] = {}
     for comp in system.findall("ssd:Elements/ssd:Component", NS):
         name = need(comp, "name", "a component")
@@ -248,7 +249,7 @@ def read_ssd(path: Union[str, Path], root: Optional[Path] = None, archive: Optio
             outputs=[c.get("name") for c in connectors if c.get("kind") in ("output", "calculatedParameter")],
         )
         for binding in comp.findall("ssd:ParameterBindings/ssd:ParameterBinding", NS):
-            parsed = _binding_values(binding, root, path, name, within)
+            parsed = _binding_values(binding, root, path, name, within, ssd_units)
             source = binding.get("source") or f"inline values of '{name}'"
             values = {k: p.value for k, p in parsed.items()}
             spec.bindings.append((source, values))
@@ -323,7 +324,14 @@ def _step_size_hint(comp, path, name: str) -> Optional[float]:
     return None if hint is None else _positive(hint.get("value", ""), path, f"StepSizeHint of '{name}'")
 
 
-def _binding_values(binding, root: Path, path: "_Origin", component: str, within: str) -> dict[str, ParameterValue]:
+def ssd_unit_definitions(doc, origin: str) -> dict[str, Unit]:
+    """The units an .ssd defines (``ssd:Units``, SSP 1.0), by name: in scope for its inline parameter values."""
+    units = doc.find("ssd:Units", NS)
+    return {} if units is None else unit_definitions(units, origin)
+
+
+def _binding_values(binding, root: Path, path: "_Origin", component: str, within: str,
+                    ssd_units: Mapping[str, Unit]) -> dict[str, ParameterValue]:
     unsupported = [what for what, present in (
         (f"prefix={binding.get('prefix')!r}", binding.get("prefix")),
         ("an ssd:ParameterMapping", binding.find("ssd:ParameterMapping", NS) is not None),
@@ -341,7 +349,7 @@ def _binding_values(binding, root: Path, path: "_Origin", component: str, within
         inline = binding.find("ssd:ParameterValues/ssv:ParameterSet", NS)
         if inline is None:
             raise SSPFormatError(f"{path}: a parameter binding of '{component}' has neither a source nor values")
-        values = parse_ssv(etree.tostring(inline), origin=f"{path} (inline values of '{component}')")
+        values = parse_ssv(etree.tostring(inline), origin=f"{path} (inline values of '{component}')", units=ssd_units)
     return values
 
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Optional, Union
+from typing import Mapping, Optional, Union
 
 from lxml import etree
 
@@ -38,8 +38,12 @@ class ParameterValue:
     written: Optional[Value] = None  # the value as written in the set, in ``unit`` (None: ``value``)
 
 
-def parse_ssv(data: Union[bytes, str, Path], origin: str = "") -> dict[str, ParameterValue]:
-    """Parse an .ssv document (bytes, text or a path) into {name: ParameterValue}."""
+def parse_ssv(data: Union[bytes, str, Path], origin: str = "",
+              units: Optional[Mapping[str, Unit]] = None) -> dict[str, ParameterValue]:
+    """Parse an .ssv document (bytes, text or a path) into {name: ParameterValue}.
+
+    ``units``: unit definitions in scope besides the set's own (an inline set in an .ssd sees the
+    .ssd's ``ssd:Units``); the set's own definitions take precedence."""
     if isinstance(data, Path):
         origin = origin or str(data)
         data = data.read_bytes()
@@ -51,7 +55,7 @@ def parse_ssv(data: Union[bytes, str, Path], origin: str = "") -> dict[str, Para
         raise SSPFormatError(f"{origin}: not well-formed XML: {err}") from None
     if root.tag != f"{{{SSV_NS}}}ParameterSet":
         raise SSPFormatError(f"{origin}: root element is {root.tag}, expected ssv:ParameterSet")
-    defined = _unit_definitions(root, origin)
+    defined = {**(units or {}), **unit_definitions(root, origin)}
     values: dict[str, ParameterValue] = {}
     for par in root.iter(f"{{{SSV_NS}}}Parameter"):
         name = par.get("name")
@@ -85,8 +89,8 @@ def parse_ssv(data: Union[bytes, str, Path], origin: str = "") -> dict[str, Para
     return values
 
 
-def _unit_definitions(root, origin: str) -> dict[str, Unit]:
-    """The set's own ``ssv:Units/ssc:Unit`` definitions, by name."""
+def unit_definitions(root, origin: str) -> dict[str, Unit]:
+    """The ``ssc:Unit`` definitions under ``root`` (a set's ``ssv:Units``, an .ssd's ``ssd:Units``), by name."""
     defined = {}
     for element in root.iter(f"{{{SSC_NS}}}Unit"):
         name = element.get("name")
