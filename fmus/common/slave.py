@@ -106,6 +106,7 @@ class IllegalCall(RuntimeError):
 class _Refused(IllegalCall):
     """A call to an instance that answered fmi2Fatal before: refused with fmi2Fatal again."""
 
+
 #: pythonfmu's library in an FMU with the C front (``mast build``): binaries/linux64/<modelIdentifier>.pythonfmu.so
 #: (the same suffix as INNER_SUFFIX in pythonfmu_shim.c)
 PYTHONFMU_LIBRARY_SUFFIX = ".pythonfmu"
@@ -359,7 +360,7 @@ class BlockWrapper:
     def _set_fmu_state(self, state: "SlaveState") -> None:
         if getattr(state, "owner", None) != type(self).__name__ or not hasattr(state, "block"):
             raise IllegalCall(f"not an FMU state of {type(self).__name__}: {type(state).__name__} "
-                            f"{getattr(state, 'owner', '')}".rstrip())
+                              f"{getattr(state, 'owner', '')}".rstrip())
         self._params = dict(state.params)
         if state.block is None:
             self._block = None
