@@ -3,8 +3,11 @@
 Each emitter builds the Python block with the FMU's parameter set and takes its generated
 code, which ``translate.to_c`` writes as C:
 
-- actuator: the exact-discretisation step with the implicit friction solve
-  (``ActuatorBlock._compile``), one kernel per step size the systems use;
+- actuator: the exact-discretisation step with the implicit friction solve, bound by name
+  (``ActuatorBlock._bind``'s source, with the parameters' numbers as names too), one kernel per
+  structure the parameters select; the parameters' numbers traced through the model's relations
+  (``kernel_constants``, ``state_matrices``, ``backlash_systems``, ``_friction_constants``); the
+  discretisation of each step size computed in C (``mast_expm``);
 - mechanism (every design): the engine's traced functions (inverse kinematics with its
   Jacobian, inverse dynamics, pose), driven by the engine's Newton direct kinematics
   (``mast_native.h``);
@@ -15,7 +18,7 @@ code, which ``translate.to_c`` writes as C:
 - trajectory: the sine about the home pose (its parameters read at run time).
 
 What the models' generators do not cover is written here, in the same Python subset, and
-translated too: the outputs of the actuator at rest (``initialize``), the description's cold
+translated too: the description's cold
 start of the direct kinematics (``guess``) and the controllers' tick (``DriveController``'s
 schedule with each controller's position and velocity laws; the functions they call are
 translated from the models' own source: ``pi_step``, ``drive_gains``, ``cascade_gains``,
@@ -23,14 +26,16 @@ translated from the models' own source: ``pi_step``, ``drive_gains``, ``cascade_
 The schedule and the laws are a second statement of the controllers', held bit-identical to the
 Python models by tests/test_native.py until the Python controllers run this generated tick
 themselves (docs/native.md); so is the C glue of the direct kinematics (``MechanismBlock._compute``,
-``InverseModel.torques``, ``WorkspaceController._dk``: warm start, cold restart, messages).
+``InverseModel.torques``, ``WorkspaceController._dk``: warm start, cold restart, messages) and of
+the actuator (its outputs at rest, ``ActuatorBlock._substeps``' substep rule, ``TorqueSensor.step``'s
+delay line), held to the Python model by the same tests.
 
-Parameters: the trajectory's, the joint controller's gains, limits and transmission
-(``CONTROLLER_TUNABLE``: its gains computed at initialisation by the controller's own
-``drive_gains``/``cascade_gains``, translated) and the mechanism's masses, inertias and g
-(``MECHANISM_TUNABLE``: inputs of the engine's ``forces_of``) are read at run time. The others
-have their values inlined, as in the Python model (where the actuator's kernel is compiled at
-the first step and the engine traces with the geometry as constants): ``generated_parameters`` names
+Parameters: the trajectory's, the actuator's but its chain's structure (``ACTUATOR_STRUCTURE``),
+the joint controller's gains, limits and transmission (``CONTROLLER_TUNABLE``: its gains computed
+at initialisation by the controller's own ``drive_gains``/``cascade_gains``, translated) and the
+mechanism's masses, inertias and g (``MECHANISM_TUNABLE``: inputs of the engine's ``forces_of``)
+are read at run time. The others have their values inlined, as in the Python model (where the
+engine traces with the geometry as constants): ``generated_parameters`` names
 them, the C model checks at initialisation that each still has the value it was generated for,
 and refuses another value with a message naming it (the Python model's range checks come first,
 with the same messages). The project's master generates the model for another set of those when
