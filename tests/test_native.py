@@ -501,3 +501,20 @@ def test_the_c_matrix_exponential_agrees_with_scipy_over_the_parameter_ranges(tm
             worst = max(worst, float(np.abs((E - reference) * scaled).sum(axis=0).max()
                                      / np.abs(reference * scaled).sum(axis=0).max()))
     assert worst < 1e-11, worst        # measured: 3.4e-13
+
+
+def test_the_native_actuator_refuses_what_it_cannot_compute_with_a_message(built):
+    """Parameters beyond floating point (R / L = inf) and a measurement delay longer than its delay line
+    (models.SENSOR_SAMPLES steps): a refused step with a message, never a hang or a crash."""
+    messages = []
+    for fmu in (built / "fmus" / "MastActuator.fmu", built / "fmus" / "native" / "MastActuator.fmu"):
+        inst = Instance(fmu, "axis")
+        assert inst.start({"L": 1e-310}) == OK
+        assert inst.step(0.0, 1e-4) == DISCARD
+        messages.append(inst.log[-1][1])
+        inst.close()
+    assert messages[0] == messages[1] and "no substep gives a monotone friction update" in messages[0]
+    inst = _native(built, "MastActuator", "axis")
+    assert inst.start({"delay_meas": 1.0}) == OK and inst.step(0.0, 1e-4) == DISCARD
+    assert "parameter 'delay_meas' = 1.0 s is 10000 steps of h = 0.0001 s" in inst.log[-1][1]
+    inst.close()

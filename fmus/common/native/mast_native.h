@@ -218,7 +218,9 @@ static inline int mast_dk3(mast_ikjac3 ikjac, mast_check_message why, const char
  * route (fmus/actuator/model.py, _BalancedExp and _expm_taylor): M balanced by a diagonal similarity of
  * powers of two (D^-1 M D, exact; Parlett-Reinsch iteration as LAPACK gebal without permutation), then
  * scaling and squaring a degree-16 Taylor polynomial with ||X||_1 <= 1/2, then E = D exp(.) D^-1.
- * 0, or -1 when memory is short. tests/test_native.py checks it against scipy.linalg.expm. */
+ * A matrix with a non-finite entry (parameters beyond floating point) gives NaN everywhere, as the
+ * Python route's (the caller then refuses the step size). 0, or -1 when memory is short.
+ * tests/test_native.py checks it against scipy.linalg.expm. */
 static inline int mast_expm(int n, const double *M, double *E)
 {
     size_t nn = (size_t)n * (size_t)n;
@@ -226,6 +228,13 @@ static inline int mast_expm(int n, const double *M, double *E)
     if (!X) return -1;
     double *T = X + nn, *P = T + nn, *d = P + nn;
     memcpy(X, M, nn * sizeof(double));
+    for (size_t k = 0; k < nn; k++) {
+        if (!isfinite(X[k])) {
+            for (size_t j = 0; j < nn; j++) E[j] = NAN;
+            free(X);
+            return 0;
+        }
+    }
     for (int i = 0; i < n; i++) d[i] = 1.0;
     for (int sweep = 0, done = 0; !done && sweep < 100; sweep++) {
         done = 1;
@@ -254,6 +263,11 @@ static inline int mast_expm(int n, const double *M, double *E)
         double col = 0.0;
         for (int i = 0; i < n; i++) col += fabs(X[(size_t)i * n + j]);
         if (col > norm) norm = col;
+    }
+    if (!isfinite(norm)) {           /* balanced beyond floating point */
+        for (size_t j = 0; j < nn; j++) E[j] = NAN;
+        free(X);
+        return 0;
     }
     int squarings = norm > 0.5 ? (int)ceil(log2(norm / 0.5)) : 0;
     if (squarings < 0) squarings = 0;
