@@ -518,3 +518,29 @@ def test_the_native_actuator_refuses_what_it_cannot_compute_with_a_message(built
     assert inst.start({"delay_meas": 1.0}) == OK and inst.step(0.0, 1e-4) == DISCARD
     assert "parameter 'delay_meas' = 1.0 s is 10000 steps of h = 0.0001 s" in inst.log[-1][1]
     inst.close()
+
+
+@pytest.mark.parametrize("structure", [{"n_dof": 1}, {"n_dof": 3, "J_chain": "1.2e-4 3e-5 2.1e-4",
+                                                      "K_chain": "900 1500", "C_chain": "0.01 0.02"}])
+def test_a_native_actuator_generated_for_another_chain_reproduces_the_python_fmu(built, tmp_path, structure):
+    """The rigid axis and a three-inertia chain (the chain's structure is generated: docs/native.md), with
+    parameters set at run time on top."""
+    from mast.core.build import default_parameters
+    from mast.core.native.build import build_native_fmu
+
+    python = built / "fmus" / "MastActuator.fmu"
+    native = build_native_fmu("MastActuator", python, tmp_path, {**default_parameters("MastActuator"), **structure})
+    tuned = {"R": 0.35, "tau_s": 0.02, "T_meas": 2e-4}
+    rows = []
+    for fmu in (python, native):
+        inst = Instance(fmu, "axis")
+        inst.slave.setupExperiment(startTime=0.0)
+        inst.slave.enterInitializationMode()
+        for name, value in {**structure, **tuned}.items():
+            setter = {int: inst.slave.setInteger, str: inst.slave.setString, float: inst.slave.setReal}[type(value)]
+            setter([inst.vr[name]], [value])
+        assert inst.dll.fmi2ExitInitializationMode(inst.c) == OK and not [m for s, m in inst.log if s == ERROR]
+        rows.append(drive(inst, 0, 100, h=1e-4, seed=3.0))
+        inst.close()
+    scale = np.abs(rows[0]).max(axis=0)
+    assert (np.abs(rows[0] - rows[1]).max(axis=0) <= TOLERANCE * scale).all()
