@@ -520,14 +520,12 @@ def test_the_native_actuator_refuses_what_it_cannot_compute_with_a_message(built
     inst.close()
 
 
-@pytest.mark.parametrize("structure", [{"n_dof": 1}, {"n_dof": 3, "J_chain": "1.2e-4 3e-5 2.1e-4",
-                                                      "K_chain": "900 1500", "C_chain": "0.01 0.02"}])
-def test_a_native_actuator_generated_for_another_chain_reproduces_the_python_fmu(built, tmp_path, structure):
-    """The rigid axis and a three-inertia chain (the chain's structure is generated: docs/native.md), with
-    parameters set at run time on top."""
+def test_a_native_actuator_generated_for_the_rigid_axis_reproduces_the_python_fmu(built, tmp_path):
+    """n_dof = 1 (the chain's structure is generated: docs/native.md), with parameters set at run time on top."""
     from mast.core.build import default_parameters
     from mast.core.native.build import build_native_fmu
 
+    structure = {"n_dof": 1}
     python = built / "fmus" / "MastActuator.fmu"
     native = build_native_fmu("MastActuator", python, tmp_path, {**default_parameters("MastActuator"), **structure})
     tuned = {"R": 0.35, "tau_s": 0.02, "T_meas": 2e-4}
@@ -544,3 +542,37 @@ def test_a_native_actuator_generated_for_another_chain_reproduces_the_python_fmu
         inst.close()
     scale = np.abs(rows[0]).max(axis=0)
     assert (np.abs(rows[0] - rows[1]).max(axis=0) <= TOLERANCE * scale).all()
+
+
+def test_a_native_chain_takes_its_lists_at_run_time_and_refuses_bad_ones_as_the_python_fmu(built, tmp_path):
+    """n_dof = 3: the chain's lists parsed in the FMU, with other parameters set on top."""
+    from mast.core.build import default_parameters
+    from mast.core.native.build import build_native_fmu
+
+    python = built / "fmus" / "MastActuator.fmu"
+    structure = {"n_dof": 3, "J_chain": "1.2e-4 3e-5 2.1e-4", "K_chain": "900 1500", "C_chain": "0.01 0.02"}
+    native = build_native_fmu("MastActuator", python, tmp_path, {**default_parameters("MastActuator"), **structure})
+    for lists, expected in (({"J_chain": "1e-4, 4e-5 2e-4", "K_chain": "700 2000", "R": 0.35, "tau_s": 0.02,
+                              "T_meas": 2e-4}, None),
+                            ({"K_chain": "900"}, "expected 2 space separated numbers > 0 for n_dof = 3, got 1"),
+                            ({"C_chain": "0.01 -1"}, "item '-1' is not a finite number >= 0")):
+        rows, messages = [], []
+        for fmu in (python, native):
+            inst = Instance(fmu, "axis")
+            inst.slave.setupExperiment(startTime=0.0)
+            inst.slave.enterInitializationMode()
+            inst.slave.setInteger([inst.vr["n_dof"]], [3])
+            for name, value in {**structure, **lists}.items():
+                if name != "n_dof":
+                    setter = inst.slave.setString if isinstance(value, str) else inst.slave.setReal
+                    setter([inst.vr[name]], [value])
+            assert inst.dll.fmi2ExitInitializationMode(inst.c) == OK
+            messages += [m for s, m in inst.log if s == ERROR]
+            if expected is None:
+                rows.append(drive(inst, 0, 60, h=1e-4, seed=3.0))
+            inst.close()
+        if expected is None:
+            assert not messages
+            assert (np.abs(rows[0] - rows[1]).max(axis=0) <= TOLERANCE * np.abs(rows[0]).max(axis=0)).all()
+        else:
+            assert len(messages) == 2 and messages[0] == messages[1] and expected in messages[0], messages

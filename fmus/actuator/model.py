@@ -201,11 +201,13 @@ def _parse_list(params: Mapping[str, Value], name: str, count: int, positive: bo
     return values
 
 
-def chain(params: Mapping[str, Value]) -> tuple[list[float], list[float], list[float]]:
+def chain(params: Mapping[str, Value], lists: Optional[Mapping[str, Sequence]] = None
+          ) -> tuple[list[float], list[float], list[float]]:
     """The lumped chain selected by ``n_dof``: (J [kg m^2], K [N m/rad], C [N m s/rad]).
 
     All referred to the motor shaft, motor side first, guide side last; len(J) = n_dof
-    and len(K) = len(C) = n_dof - 1.
+    and len(K) = len(C) = n_dof - 1. ``lists``: J_chain, K_chain, C_chain as numbers (n_dof >= 3;
+    traced numbers for the native generator), by default parsed from the parameters' text.
     """
     n = int(params["n_dof"])
     if n == 1:
@@ -214,19 +216,24 @@ def chain(params: Mapping[str, Value]) -> tuple[list[float], list[float], list[f
     if n == 2:
         J1, J2 = two_inertia(params)
         return [J1, J2], [_real(params["K_t"])], [_real(params["C_t"])]
-    J = _parse_list(params, "J_chain", n, True)
+    if lists is None:
+        lists = {"J_chain": _parse_list(params, "J_chain", n, True),
+                 "K_chain": _parse_list(params, "K_chain", n - 1, True),
+                 "C_chain": _parse_list(params, "C_chain", n - 1, False)}
+    J = list(lists["J_chain"])
     J[0] *= _real(params["J1_scale"])
-    return J, _parse_list(params, "K_chain", n - 1, True), _parse_list(params, "C_chain", n - 1, False)
+    return J, list(lists["K_chain"]), list(lists["C_chain"])
 
 
-def state_matrices(params: Mapping[str, Value]) -> tuple[np.ndarray, np.ndarray, list[str]]:
+def state_matrices(params: Mapping[str, Value], lumped: Optional[tuple[Sequence, Sequence, Sequence]] = None
+                   ) -> tuple[np.ndarray, np.ndarray, list[str]]:
     """Linear part of the model: dx/dt = A x + B [u_sat, tau_L]^T.
 
     x = [i, theta_1..theta_N, omega_1..omega_N] (A, rad, rad/s); u_sat [V]; tau_L [N m] the
     torque on the last inertia (mechanism, weight, Coulomb friction; viscous b_v is in A).
-    Returns (A, B, state names).
+    ``lumped``: the chain (J, K, C), by default ``chain(params)``. Returns (A, B, state names).
     """
-    J, K, C = chain(params)
+    J, K, C = chain(params) if lumped is None else lumped
     n = len(J)
     R, L, k_T, k_E, b_v = (_real(params[k]) for k in ("R", "L", "k_T", "k_E", "b_v"))
     size = 2 * n + 1

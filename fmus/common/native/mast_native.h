@@ -335,4 +335,44 @@ static inline double mast_eig_max(int n, double *S)
     return top;
 }
 
+/* _parse_list (fmus/actuator/model.py): ``count`` numbers separated by blanks or commas, each finite and
+ * > 0 (``positive``) or >= 0, into ``out``. 0; -1 when there are not ``count`` items (*items: how many);
+ * k + 1 when item k is not a finite number of that kind (its text in ``item``, ``size`` bytes). */
+static inline int mast_parse_list(const char *text, int count, int positive, double *out, int *items, char *item,
+                                  size_t size)
+{
+    const char *blank = " ,\t\n\r\f\v";
+    const char *s = text ? text : "";
+    int n = 0;
+    for (const char *c = s; *c;) {
+        c += strspn(c, blank);
+        if (!*c) break;
+        n++;
+        c += strcspn(c, blank);
+    }
+    *items = n;
+    if (n != count) return -1;
+    int k = 0;
+    for (const char *c = s; *c && k < count; k++) {
+        c += strspn(c, blank);
+        size_t len = strcspn(c, blank);
+        char token[64];
+        char *end = NULL;
+        double v = NAN;
+        if (len < sizeof token) {
+            memcpy(token, c, len);
+            token[len] = '\0';
+            v = strtod(token, &end);
+            if (end != token + len) v = NAN;
+        }
+        if (!isfinite(v) || (positive ? v <= 0.0 : v < 0.0)) {
+            snprintf(item, size, "%.*s", (int)len, c);
+            return k + 1;
+        }
+        out[k] = v;
+        c += len;
+    }
+    return 0;
+}
+
 #endif
