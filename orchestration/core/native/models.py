@@ -330,12 +330,11 @@ def _actuator(block, vrs: Mapping[str, int]) -> str:
     # --- the torque measurement: the model's own coefficient functions, translated
     code.append(to_c(inspect.getsource(sensor.filter_coefficients), "filter_coefficients"))
     code.append(to_c(inspect.getsource(sensor._delay_split), "delay_split"))
-    return _actuator_c(block, R, vrs, code, variants, layouts, offsets, nq, nh, n_in, friction_keys)
+    return _actuator_c(block, R, vrs, code, variants, layouts, offsets, nq, nh, n_in)
 
 
 def _actuator_c(block, R: Mapping[str, str], vrs: Mapping[str, int], code: list[str], variants: Sequence,
-                layouts: Mapping, offsets: Mapping[str, int], nq: int, nh: int, n_in: int,
-                friction_keys: Mapping[str, list]) -> str:
+                layouts: Mapping, offsets: Mapping[str, int], nq: int, nh: int, n_in: int) -> str:
     """The C glue of the native actuator around the generated functions ``code``: the instance's state, the
     choice of the kernel's structure, the per-step-size discretisation (ActuatorBlock._substeps and _bind,
     restated: the substep rule, then ``mast_expm``), the delay line of the torque measurement
@@ -359,7 +358,8 @@ def _actuator_c(block, R: Mapping[str, str], vrs: Mapping[str, int], code: list[
     select = []
     for k, (name, chosen, backlash) in enumerate(variants):
         fr = 2 if chosen["tau_s"] > 0.0 else 1 if chosen["tau_c"] > 0.0 else 0
-        select.append(f"    if (fr == {fr} && rp == {int(chosen['tau_ripple'] > 0.0)} && bl == {int(backlash)}) return {k};")
+        ripple = int(chosen["tau_ripple"] > 0.0)
+        select.append(f"    if (fr == {fr} && rp == {ripple} && bl == {int(backlash)}) return {k};")
     cases = "\n".join(f"    case {k}: code = kernel_{name}(values, s->x, d->H, s->Q, d->m); break;"
                       for k, (name, _, _) in enumerate(variants))
     names = ", ".join(_literal(_ERRORS[k]) for k in sorted(_ERRORS))
@@ -457,7 +457,6 @@ def _actuator_c(block, R: Mapping[str, str], vrs: Mapping[str, int], code: list[
         "    s->s_uprev = ud;",
         f"    *out = s->s_y + {offset};",
         "    return MAST_OK;", "}", ""]
-    N_ = N
     return "\n".join([
         f"typedef struct {{ double m; double H[{nh}]; }} Disc;",
         "typedef struct {",
@@ -489,12 +488,14 @@ def _actuator_c(block, R: Mapping[str, str], vrs: Mapping[str, int], code: list[
            f"    for (int i = 0; i < {N * N}; i++) S[i] = 0.0;",
            f"    for (int k = 0; k < {N - 1}; k++) {{",
            f"        double K = s->Q[{Ko} + k];",
-           f"        S[k * {N} + k] += K; S[(k + 1) * {N} + k + 1] += K; S[k * {N} + k + 1] -= K; S[(k + 1) * {N} + k] -= K;",
+           f"        S[k * {N} + k] += K; S[(k + 1) * {N} + k + 1] += K;",
+           f"        S[k * {N} + k + 1] -= K; S[(k + 1) * {N} + k] -= K;",
            "    }",
-           f"    for (int i = 0; i < {N}; i++) for (int j = 0; j < {N}; j++) S[i * {N} + j] *= (1.0 / sqrt(s->Q[{Jo} + i])) * (1.0 / sqrt(s->Q[{Jo} + j]));",
+           f"    for (int i = 0; i < {N}; i++)",
+           f"        for (int j = 0; j < {N}; j++) S[i * {N} + j] *= (1.0 / sqrt(s->Q[{Jo} + i])) * (1.0 / sqrt(s->Q[{Jo} + j]));",
            f"    double lam = mast_eig_max({N}, S);",
            f"    return 2.0 * {c_double(math.pi)} * (sqrt(lam > 0.0 ? lam : 0.0) / (2.0 * {c_double(math.pi)}));"]
-          if N_ > 1 else ["    (void)s;", "    return 0.0;"]),
+          if N > 1 else ["    (void)s;", "    return 0.0;"]),
         "}", "",
         *discretise, *sensor,
         "static int input_error(const double *values, int code, double t, char *msg, size_t size)", "{",
