@@ -151,9 +151,16 @@ PARAMETERS: tuple[Param, ...] = (
 def transmission_ratio(p: float, i_r: float) -> float:
     """Eq. 1: i_R = p / (2 pi i_r) [m/rad], carriage travel per motor radian.
 
-    ``p`` [m] guide feed per revolution, ``i_r`` [1] gearbox ratio.
+    ``p`` [m] guide feed per revolution, ``i_r`` [1] gearbox ratio: numbers (or traced numbers: the
+    native generators translate this function and trace it).
     """
-    return float(p) / (2.0 * math.pi * float(i_r))
+    return p / (2.0 * math.pi * i_r)
+
+
+def _real(x):
+    """A parameter value as a float; a traced number (the native generator's, ``mast build --native``)
+    passes through, so the relations below also write the C that computes them from the parameters."""
+    return float(x) if isinstance(x, (int, float, str, np.number)) else x
 
 
 def two_inertia(params: Mapping[str, Value]) -> tuple[float, float]:
@@ -162,11 +169,11 @@ def two_inertia(params: Mapping[str, Value]) -> tuple[float, float]:
     J1 = J1_scale (J_motor + J_gearbox + J_coupling + J_brake) (Eq. 20 plus the brake),
     J2 = J_guide / i_r^2 + M_load i_R^2.
     """
-    f = {k: float(params[k]) for k in ("J_motor", "J_gearbox", "J_coupling", "J_brake", "J1_scale",
+    f = {k: _real(params[k]) for k in ("J_motor", "J_gearbox", "J_coupling", "J_brake", "J1_scale",
                                         "J_guide", "M_load", "i_r", "p")}
     i_R = transmission_ratio(f["p"], f["i_r"])
     J1 = f["J1_scale"] * (f["J_motor"] + f["J_gearbox"] + f["J_coupling"] + f["J_brake"])
-    J2 = f["J_guide"] / f["i_r"] ** 2 + f["M_load"] * i_R ** 2
+    J2 = f["J_guide"] / (f["i_r"] * f["i_r"]) + f["M_load"] * (i_R * i_R)   # x * x: the same float as x ** 2
     return J1, J2
 
 
@@ -196,11 +203,13 @@ def _parse_list(params: Mapping[str, Value], name: str, count: int, positive: bo
     return values
 
 
-def chain(params: Mapping[str, Value]) -> tuple[list[float], list[float], list[float]]:
+def chain(params: Mapping[str, Value], lists: Optional[Mapping[str, Sequence]] = None
+          ) -> tuple[list[float], list[float], list[float]]:
     """The lumped chain selected by ``n_dof``: (J [kg m^2], K [N m/rad], C [N m s/rad]).
 
     All referred to the motor shaft, motor side first, guide side last; len(J) = n_dof
-    and len(K) = len(C) = n_dof - 1.
+    and len(K) = len(C) = n_dof - 1. ``lists``: J_chain, K_chain, C_chain as numbers (n_dof >= 3;
+    traced numbers for the native generator), by default parsed from the parameters' text.
     """
     n = int(params["n_dof"])
     if n == 1:
@@ -208,25 +217,31 @@ def chain(params: Mapping[str, Value]) -> tuple[list[float], list[float], list[f
         return [J1 + J2], [], []
     if n == 2:
         J1, J2 = two_inertia(params)
-        return [J1, J2], [float(params["K_t"])], [float(params["C_t"])]
-    J = _parse_list(params, "J_chain", n, True)
-    J[0] *= float(params["J1_scale"])
-    return J, _parse_list(params, "K_chain", n - 1, True), _parse_list(params, "C_chain", n - 1, False)
+        return [J1, J2], [_real(params["K_t"])], [_real(params["C_t"])]
+    if lists is None:
+        lists = {"J_chain": _parse_list(params, "J_chain", n, True),
+                 "K_chain": _parse_list(params, "K_chain", n - 1, True),
+                 "C_chain": _parse_list(params, "C_chain", n - 1, False)}
+    J = list(lists["J_chain"])
+    J[0] *= _real(params["J1_scale"])
+    return J, list(lists["K_chain"]), list(lists["C_chain"])
 
 
-def state_matrices(params: Mapping[str, Value]) -> tuple[np.ndarray, np.ndarray, list[str]]:
+def state_matrices(params: Mapping[str, Value], lumped: Optional[tuple[Sequence, Sequence, Sequence]] = None
+                   ) -> tuple[np.ndarray, np.ndarray, list[str]]:
     """Linear part of the model: dx/dt = A x + B [u_sat, tau_L]^T.
 
     x = [i, theta_1..theta_N, omega_1..omega_N] (A, rad, rad/s); u_sat [V]; tau_L [N m] the
     torque on the last inertia (mechanism, weight, Coulomb friction; viscous b_v is in A).
-    Returns (A, B, state names).
+    ``lumped``: the chain (J, K, C), by default ``chain(params)``. Returns (A, B, state names).
     """
-    J, K, C = chain(params)
+    J, K, C = chain(params) if lumped is None else lumped
     n = len(J)
-    R, L, k_T, k_E, b_v = (float(params[k]) for k in ("R", "L", "k_T", "k_E", "b_v"))
+    R, L, k_T, k_E, b_v = (_real(params[k]) for k in ("R", "L", "k_T", "k_E", "b_v"))
     size = 2 * n + 1
-    A = np.zeros((size, size))
-    B = np.zeros((size, 2))
+    numbers = all(isinstance(v, float) for v in (*J, *K, *C, R, L, k_T, k_E, b_v))
+    A = np.zeros((size, size), dtype=float if numbers else object)   # object: traced numbers (native generator)
+    B = np.zeros((size, 2), dtype=A.dtype)
     th = lambda k: 1 + k  # noqa: E731  (index helpers)
     om = lambda k: 1 + n + k  # noqa: E731
     A[0, 0] = -R / L
@@ -338,6 +353,7 @@ class ActuatorBlock(Block):
         self.N = len(self.J)
         self.i_R = transmission_ratio(p["p"], p["i_r"])
         self.A, self.B, self.state_names = state_matrices(p)
+        self.constants = kernel_constants(p, self.i_R, self.A, self.B, self.J, self.K, self.C)
         self._omega_max = 2.0 * math.pi * float(chain_frequencies(self.J, self.K).max(initial=0.0))
         if p["backlash"] > 0.0 and self.N != 2:
             raise ParameterError(f"{self.name}: parameter 'backlash' = {p['backlash']!r}: backlash is modelled "
@@ -709,11 +725,13 @@ def _stribeck_source(c: Mapping[str, str], indent: str) -> list[str]:
     ]
 
 
-def _friction_constants(p: Mapping[str, Value], b: float) -> dict[str, float]:
-    """The numbers of the implicit friction solve over a substep whose d omega_N / d tau_L is ``b``."""
-    tau_c, omega_c, tau_s = float(p["tau_c"]), float(p["omega_c"]), float(p["tau_s"])
-    if tau_s > 0.0:
-        return {"b": b, "bt": b * (tau_c + tau_s), "iwc": 1.0 / omega_c, "iws2": 1.0 / float(p["omega_s"]) ** 2,
+def _friction_constants(p: Mapping[str, Value], b: float, stribeck: Optional[bool] = None) -> dict[str, float]:
+    """The numbers of the implicit friction solve over a substep whose d omega_N / d tau_L is ``b``
+    (``stribeck``: which solve, by default tau_s > 0; given when the values are traced)."""
+    tau_c, omega_c, tau_s = _real(p["tau_c"]), _real(p["omega_c"]), _real(p["tau_s"])
+    if tau_s > 0.0 if stribeck is None else stribeck:
+        omega_s = _real(p["omega_s"])
+        return {"b": b, "bt": b * (tau_c + tau_s), "iwc": 1.0 / omega_c, "iws2": 1.0 / (omega_s * omega_s),
                 "tol": 1e-10 * omega_c, "tau_c": tau_c, "tau_s": tau_s, "inv_b": 1.0 / b}
     k = b * tau_c / omega_c
     return {"btc": b * tau_c, "k": k, "inv_wc": 1.0 / omega_c, "inv_b": 1.0 / b, "lin": 1.0 / (1.0 + k),
@@ -728,62 +746,87 @@ def _friction_lines(p: Mapping[str, Value], b: float, prefix: Optional[str] = No
     return (_stribeck_source if float(p["tau_s"]) > 0.0 else _friction_source)(text, "")
 
 
-def _load_lines(block: ActuatorBlock, xs: Sequence[str]) -> list[str]:
+def kernel_constants(p: Mapping[str, Value], i_R, A: np.ndarray, B: np.ndarray, J: Sequence, K: Sequence,
+                     C: Sequence) -> dict[str, object]:
+    """The numbers the step kernel computes with that depend on the parameters only (not on the step
+    size), by name: inlined into a compiled kernel, or (``symbolic``) read by name, as the native FMU
+    does after computing them from the parameters at initialisation (these same lines, traced)."""
+    us, n = _real(p["u_supply"]), A.shape[0]
+    c = {"us": us, "nus": -us, "iR": i_R, "niR": -i_R, "weight": i_R * _real(p["M_load"]) * _real(p["g_guide"]),
+         "mg": _real(p["M_load"]) * _real(p["g_guide"]), "ripple": _real(p["tau_ripple"]),
+         "rk": 2.0 * math.pi * i_R / _real(p["ripple_period"]), "rho0": _real(p["rho_0"]),
+         "rmin": _real(p["rho_min"]), "rmax": _real(p["rho_max"]), "kT": _real(p["k_T"]),
+         "tau_c": _real(p["tau_c"]), "omega_c": _real(p["omega_c"]), "tau_s": _real(p["tau_s"]),
+         "omega_s": _real(p["omega_s"])}
+    c.update({f"aw{j}": A[n - 1, j] for j in range(n)})
+    c["bw"] = B[n - 1, 1]
+    if len(J) == 2:       # backlash (two-inertia model only)
+        hb = 0.5 * _real(p["backlash"])
+        c.update({"hb": hb, "nhb": -hb, "khb": K[0] * hb, "nkhb": -K[0] * hb, "ks": K[0], "cs": C[0],
+                  "bv": _real(p["b_v"]), "ij2": 1.0 / J[1]})
+    return c
+
+
+def _numbers(block: ActuatorBlock, symbolic: bool) -> dict[str, str]:
+    """The kernel's parameter numbers as source text: ``repr`` of the value, or (``symbolic``) ``Q_<key>``."""
+    if symbolic:
+        return {k: f"Q_{k}" for k in block.constants}
+    return {k: repr(float(v)) for k, v in block.constants.items()}
+
+
+def _load_lines(block: ActuatorBlock, xs: Sequence[str], c: Mapping[str, str], ripple: bool) -> list[str]:
     """Unpack the state and compute tl, the torque on the last inertia except friction (held over the step)."""
-    p, N, i_R = block.params, block.N, block.i_R
-    weight = i_R * float(p["M_load"]) * float(p["g_guide"])
-    if float(p["tau_ripple"]) > 0.0:
-        k = 2.0 * math.pi * i_R / float(p["ripple_period"])
+    if ripple:
         return [f"    {', '.join(xs)}, = x",
-                f"    tl = {-i_R!r}*F - {weight!r} - {float(p['tau_ripple'])!r}*sin({k}*x{N})"]
-    return [f"    tl = {-i_R!r}*F - {weight!r}", f"    {', '.join(xs)}, = x"]
+                f"    tl = {c['niR']}*F - {c['weight']} - {c['ripple']}*sin({c['rk']}*x{block.N})"]
+    return [f"    tl = {c['niR']}*F - {c['weight']}", f"    {', '.join(xs)}, = x"]
 
 
-def _kernel_head(block: ActuatorBlock) -> list[str]:
-    us = float(block.params["u_supply"])
+def _kernel_head(c: Mapping[str, str]) -> list[str]:
     return [
         "def kernel(values, x):",
         "    u = values[0]",
         "    F = values[1]",
         "    if u - u != 0.0: return 1",
         "    if F - F != 0.0: return 2",
-        f"    if u > {us!r}: u = {us!r}",
-        f"    elif u < {-us!r}: u = {-us!r}",
+        f"    if u > {c['us']}: u = {c['us']}",
+        f"    elif u < {c['nus']}: u = {c['nus']}",
     ]
 
 
-def _kernel_tail(block: ActuatorBlock, xs: Sequence[str], alpha: str) -> list[str]:
-    p, N, i_R = block.params, block.N, block.i_R
-    rho0, rmin, rmax = float(p["rho_0"]), float(p["rho_min"]), float(p["rho_max"])
-    n_in = len(block.INPUTS)
+def _kernel_tail(block: ActuatorBlock, xs: Sequence[str], alpha: str, c: Mapping[str, str]) -> list[str]:
+    N, n_in = block.N, len(block.INPUTS)
     wN = 2 * N
     return [
         f"    s = {' + '.join(xs)}",
         "    if s - s != 0.0: return 3",
-        f"    rho = {rho0!r} + {i_R!r}*x{N}",
+        f"    rho = {c['rho0']} + {c['iR']}*x{N}",
         f"    x[:] = ({', '.join(xs)},)",
-        f"    tm = {float(p['k_T'])!r}*x0",
-        f"    values[{n_in}:] = (rho, {i_R!r}*x{wN}, {i_R!r}*({alpha}), x1, x{N + 1}, x0, tm, tm)",
-        f"    if rho < {rmin!r} or rho > {rmax!r}: return 4",
+        f"    tm = {c['kT']}*x0",
+        f"    values[{n_in}:] = (rho, {c['iR']}*x{wN}, {c['iR']}*({alpha}), x1, x{N + 1}, x0, tm, tm)",
+        f"    if rho < {c['rmin']} or rho > {c['rmax']}: return 4",
         "    return 0",
     ]
 
 
-def _kernel_source(block: ActuatorBlock, Phi: np.ndarray, Gam: np.ndarray, m: int, named: bool = False) -> str:
+def _kernel_source(block: ActuatorBlock, Phi: np.ndarray, Gam: np.ndarray, m: int, named: bool = False,
+                   symbolic: bool = False) -> str:
     """Python source of ``kernel(values, x) -> int`` (0 ok, 1/2 bad input u/F, 3 diverged, 4 stroke).
 
     ``named``: Phi and Gam are arrays of names (``_names``), the friction constants and the
     number of substeps (``M_SUB``) are names too: one source for every step size, bound to the
-    numbers by ``ActuatorBlock._bind``.
+    numbers by ``ActuatorBlock._bind``. ``symbolic`` (with ``named``): the parameters' numbers
+    too (``kernel_constants`` as ``Q_<key>``): one source for every parameter set of this
+    structure (the native FMU's, mast.core.native.models).
     """
     p, N = block.params, block.N
     n = 2 * N + 1
     xs = [f"x{j}" for j in range(n)]
     wN = 2 * N  # index of omega_N
-    tau_c = float(p["tau_c"])
-    lines = _kernel_head(block) + _load_lines(block, xs)
+    c = _numbers(block, symbolic)
+    lines = _kernel_head(c) + _load_lines(block, xs, c, float(p["tau_ripple"]) > 0.0)
     body = []
-    if tau_c > 0.0 or float(p["tau_s"]) > 0.0:
+    if float(p["tau_c"]) > 0.0 or float(p["tau_s"]) > 0.0:
         a_terms = _lin(list(Phi[wN]) + [Gam[wN, 0], Gam[wN, 1]], xs + ["u", "tl"])
         body.append(f"a = {a_terms}")
         body += _friction_lines(p, 1.0, "F_") if named else _friction_lines(p, float(Gam[wN, 1]))
@@ -800,9 +843,9 @@ def _kernel_source(block: ActuatorBlock, Phi: np.ndarray, Gam: np.ndarray, m: in
         lines.append(f"    for _ in range({'M_SUB' if named else m}):")
         lines += ["        " + s for s in body]
     # end of step: checks, state, outputs
-    A, B = block.A, block.B
-    alpha = _lin(list(A[wN]) + [B[wN, 1]], xs + ["(tl - tf)"])
-    lines += _kernel_tail(block, xs, alpha)
+    coefs = [c[f"aw{j}"] for j in range(n)] + [c["bw"]] if symbolic else list(block.A[wN]) + [block.B[wN, 1]]
+    alpha = _lin(coefs, xs + ["(tl - tf)"])
+    lines += _kernel_tail(block, xs, alpha, c)
     return "\n".join(lines) + "\n"
 
 
@@ -823,22 +866,7 @@ def _backlash_generators(block: ActuatorBlock) -> tuple[np.ndarray, np.ndarray]:
     it on inertia 2) that makes the spring torque K_t (theta_1 - theta_2 -+ hb) in contact.
     In the gap the spring and the damper carry no torque.
     """
-    A, B = block.A.copy(), block.B
-    J1, J2 = block.J
-    B3 = np.zeros((5, 3))
-    B3[:, :2] = B
-    B3[3, 2] = 1.0 / J1
-    B3[4, 2] = -1.0 / J2
-    Ag = A.copy()
-    K, C = block.K[0], block.C[0]
-    Ag[3, 1] += K / J1
-    Ag[3, 2] -= K / J1
-    Ag[3, 3] += C / J1
-    Ag[3, 4] -= C / J1
-    Ag[4, 2] += K / J2
-    Ag[4, 1] -= K / J2
-    Ag[4, 4] += C / J2
-    Ag[4, 3] -= C / J2
+    A, Ag, B3 = backlash_systems(block.A, block.B, block.J, block.K, block.C)
     out = []
     for mat in (A, Ag):
         M = np.zeros((8, 8))
@@ -848,26 +876,49 @@ def _backlash_generators(block: ActuatorBlock) -> tuple[np.ndarray, np.ndarray]:
     return out[0], out[1]
 
 
-def _backlash_kernel_source(block: ActuatorBlock, h_sub: float, m: int, named: bool = False) -> str:
+def backlash_systems(A: np.ndarray, B: np.ndarray, J: Sequence, K: Sequence, C: Sequence
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The two-inertia model with backlash: (A in contact, A in the gap, B3 for [u_sat, tau_L, pl])."""
+    A = A.copy()
+    J1, J2 = J
+    B3 = np.zeros((5, 3), dtype=A.dtype)
+    B3[:, :2] = B
+    B3[3, 2] = 1.0 / J1
+    B3[4, 2] = -1.0 / J2
+    Ag = A.copy()
+    K, C = K[0], C[0]
+    Ag[3, 1] += K / J1
+    Ag[3, 2] -= K / J1
+    Ag[3, 3] += C / J1
+    Ag[3, 4] -= C / J1
+    Ag[4, 2] += K / J2
+    Ag[4, 1] -= K / J2
+    Ag[4, 4] += C / J2
+    Ag[4, 3] -= C / J2
+    return A, Ag, B3
+
+
+def _backlash_kernel_source(block: ActuatorBlock, h_sub: float, m: int, named: bool = False,
+                            symbolic: bool = False) -> str:
     """Step with backlash (n_dof = 2): substeps of h_sub, the mode from the deflection at each substep start.
 
-    ``named``: the step-size-dependent numbers are names (see ``_kernel_source``), h_sub is unused."""
+    ``named``, ``symbolic``: the step-size-dependent numbers, and the parameters' numbers, are names
+    (see ``_kernel_source``), h_sub is unused."""
     p = block.params
     xs = [f"x{j}" for j in range(5)]
-    hb = 0.5 * float(p["backlash"])
-    K, C = block.K[0], block.C[0]
+    c = _numbers(block, symbolic)
     if named:
         (Pc, Gc), (Pg, Gg) = (_names("PC", (5, 5)), _names("GC", (5, 3))), (_names("PG", (5, 5)), _names("GG", (5, 3)))
     else:
         (Pc, Gc), (Pg, Gg) = _backlash_matrices(block, h_sub)
     friction = float(p["tau_c"]) > 0.0 or float(p["tau_s"]) > 0.0
-    lines = _kernel_head(block) + _load_lines(block, xs)
+    lines = _kernel_head(c) + _load_lines(block, xs, c, float(p["tau_ripple"]) > 0.0)
     lines.append(f"    for _ in range({'M_SUB' if named else m}):")
     lines.append("        d = x1 - x2")
-    lines.append(f"        if d > {hb!r}: pl = {K * hb!r}")
-    lines.append(f"        elif d < {-hb!r}: pl = {-K * hb!r}")
-    lines.append("        else: pl = None")
-    for cond, (Phi, Gam), prefix in (("if pl is not None:", (Pc, Gc), "FC_"), ("else:", (Pg, Gg), "FG_")):
+    lines += [f"        if d > {c['hb']}:", f"            pl = {c['khb']}", "            contact = 1.0",
+              f"        elif d < {c['nhb']}:", f"            pl = {c['nkhb']}", "            contact = 1.0",
+              "        else:", "            pl = 0.0", "            contact = 0.0"]
+    for cond, (Phi, Gam), prefix in (("if contact > 0.0:", (Pc, Gc), "FC_"), ("else:", (Pg, Gg), "FG_")):
         lines.append(f"        {cond}")
         body = []
         if friction:
@@ -883,13 +934,12 @@ def _backlash_kernel_source(block: ActuatorBlock, h_sub: float, m: int, named: b
             body.append(f"n{j} = {_lin(coefs, ins)}")
         body.append(f"{', '.join(xs)} = {', '.join(f'n{j}' for j in range(5))}")
         lines += ["            " + s for s in body]
-    J2, b_v = block.J[1], float(p["b_v"])
     lines += [
         "    d = x1 - x2",
-        f"    if d > {hb!r}: ts = {K!r}*(d - {hb!r}) + {C!r}*(x3 - x4)",
-        f"    elif d < {-hb!r}: ts = {K!r}*(d + {hb!r}) + {C!r}*(x3 - x4)",
+        f"    if d > {c['hb']}: ts = {c['ks']}*(d - {c['hb']}) + {c['cs']}*(x3 - x4)",
+        f"    elif d < {c['nhb']}: ts = {c['ks']}*(d + {c['hb']}) + {c['cs']}*(x3 - x4)",
         "    else: ts = 0.0",
     ]
-    alpha = f"(ts + tl - tf - {b_v!r}*x4)*{1.0 / J2!r}"
-    lines += _kernel_tail(block, xs, alpha)
+    alpha = f"(ts + tl - tf - {c['bv']}*x4)*{c['ij2']}"
+    lines += _kernel_tail(block, xs, alpha, c)
     return "\n".join(lines) + "\n"

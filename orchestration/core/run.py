@@ -70,8 +70,7 @@ def simulate(ssp: Union[str, Path], stimulus: Optional[Stimulus], stop_time: flo
                     # a native FMU runs the parameter set it was generated for: another set, another FMU
                     from .native.build import for_parameters
 
-                    fmu = for_parameters(fmu, {**spec.parameters, **(parameters or {}).get(name, {})},
-                                         (step_sizes or {}).get(name, spec.step_size))
+                    fmu = for_parameters(fmu, {**spec.parameters, **(parameters or {}).get(name, {})})
                     if fmu not in unzipped:
                         unzipped[fmu] = safe_extract(fmu, Path(unzip_root) / f"{len(unzipped)}_{fmu.stem}",
                                                      system.fmu_label(name))

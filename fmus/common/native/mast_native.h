@@ -214,4 +214,165 @@ static inline int mast_dk3(mast_ikjac3 ikjac, mast_check_message why, const char
     return 3;
 }
 
+/* exp(M) of the n x n row-major matrix M into E, the mathematics of the Python actuator's varying-step
+ * route (fmus/actuator/model.py, _BalancedExp and _expm_taylor): M balanced by a diagonal similarity of
+ * powers of two (D^-1 M D, exact; Parlett-Reinsch iteration as LAPACK gebal without permutation), then
+ * scaling and squaring a degree-16 Taylor polynomial with ||X||_1 <= 1/2, then E = D exp(.) D^-1.
+ * A matrix with a non-finite entry (parameters beyond floating point) gives NaN everywhere, as the
+ * Python route's (the caller then refuses the step size). 0, or -1 when memory is short.
+ * tests/test_native.py checks it against scipy.linalg.expm. */
+static inline int mast_expm(int n, const double *M, double *E)
+{
+    size_t nn = (size_t)n * (size_t)n;
+    double *X = malloc(3 * nn * sizeof(double) + (size_t)n * sizeof(double));
+    if (!X) return -1;
+    double *T = X + nn, *P = T + nn, *d = P + nn;
+    memcpy(X, M, nn * sizeof(double));
+    for (size_t k = 0; k < nn; k++) {
+        if (!isfinite(X[k])) {
+            for (size_t j = 0; j < nn; j++) E[j] = NAN;
+            free(X);
+            return 0;
+        }
+    }
+    for (int i = 0; i < n; i++) d[i] = 1.0;
+    for (int sweep = 0, done = 0; !done && sweep < 100; sweep++) {
+        done = 1;
+        for (int i = 0; i < n; i++) {
+            double c = 0.0, r = 0.0;
+            for (int j = 0; j < n; j++) {
+                if (j == i) continue;
+                c += fabs(X[(size_t)j * n + i]);
+                r += fabs(X[(size_t)i * n + j]);
+            }
+            if (c == 0.0 || r == 0.0) continue;
+            double g = r / 2.0, f = 1.0, s = c + r;
+            while (c < g) { f *= 2.0; c *= 4.0; }
+            g = r * 2.0;
+            while (c > g) { f /= 2.0; c /= 4.0; }
+            if ((c + r) / f < 0.95 * s) {
+                done = 0;
+                d[i] *= f;
+                for (int j = 0; j < n; j++) X[(size_t)i * n + j] /= f;
+                for (int j = 0; j < n; j++) X[(size_t)j * n + i] *= f;
+            }
+        }
+    }
+    double norm = 0.0;
+    for (int j = 0; j < n; j++) {
+        double col = 0.0;
+        for (int i = 0; i < n; i++) col += fabs(X[(size_t)i * n + j]);
+        if (col > norm) norm = col;
+    }
+    if (!isfinite(norm)) {           /* balanced beyond floating point */
+        for (size_t j = 0; j < nn; j++) E[j] = NAN;
+        free(X);
+        return 0;
+    }
+    int squarings = norm > 0.5 ? (int)ceil(log2(norm / 0.5)) : 0;
+    if (squarings < 0) squarings = 0;
+    for (size_t k = 0; k < nn; k++) X[k] = ldexp(X[k], -squarings);
+    for (size_t k = 0; k < nn; k++) E[k] = X[k] * (1.0 / 16.0);
+    for (int i = 0; i < n; i++) E[(size_t)i * n + i] += 1.0;
+    for (int k = 15; k >= 0; k--) {       /* Horner: E = I + X E / k */
+        if (k == 0) break;
+        for (int i = 0; i < n; i++)
+            for (int j = 0; j < n; j++) {
+                double acc = 0.0;
+                for (int l = 0; l < n; l++) acc += X[(size_t)i * n + l] * E[(size_t)l * n + j];
+                T[(size_t)i * n + j] = acc * (1.0 / k);
+            }
+        for (int i = 0; i < n; i++) T[(size_t)i * n + i] += 1.0;
+        memcpy(E, T, nn * sizeof(double));
+    }
+    for (int q = 0; q < squarings; q++) {
+        for (int i = 0; i < n; i++)
+            for (int j = 0; j < n; j++) {
+                double acc = 0.0;
+                for (int l = 0; l < n; l++) acc += E[(size_t)i * n + l] * E[(size_t)l * n + j];
+                P[(size_t)i * n + j] = acc;
+            }
+        memcpy(E, P, nn * sizeof(double));
+    }
+    for (int i = 0; i < n; i++)
+        for (int j = 0; j < n; j++) E[(size_t)i * n + j] /= d[j] / d[i];
+    free(X);
+    return 0;
+}
+
+/* The largest eigenvalue of the symmetric n x n row-major matrix S (destroyed), by cyclic Jacobi rotations:
+ * chain_frequencies (fmus/actuator/model.py) takes it from LAPACK's eigvalsh. */
+static inline double mast_eig_max(int n, double *S)
+{
+    for (int sweep = 0; sweep < 100; sweep++) {
+        double off = 0.0, diag = 0.0;
+        for (int i = 0; i < n; i++) {
+            diag += S[i * n + i] * S[i * n + i];
+            for (int j = i + 1; j < n; j++) off += S[i * n + j] * S[i * n + j];
+        }
+        if (off <= 1e-36 * diag) break;
+        for (int p = 0; p < n - 1; p++)
+            for (int q = p + 1; q < n; q++) {
+                double apq = S[p * n + q];
+                if (apq == 0.0) continue;
+                double theta = (S[q * n + q] - S[p * n + p]) / (2.0 * apq);
+                double t = (theta >= 0.0 ? 1.0 : -1.0) / (fabs(theta) + sqrt(theta * theta + 1.0));
+                double c = 1.0 / sqrt(t * t + 1.0), s = t * c;
+                for (int k = 0; k < n; k++) {      /* S <- S R (columns p, q) */
+                    double kp = S[k * n + p], kq = S[k * n + q];
+                    S[k * n + p] = c * kp - s * kq;
+                    S[k * n + q] = s * kp + c * kq;
+                }
+                for (int k = 0; k < n; k++) {      /* S <- R^T S (rows p, q) */
+                    double pk = S[p * n + k], qk = S[q * n + k];
+                    S[p * n + k] = c * pk - s * qk;
+                    S[q * n + k] = s * pk + c * qk;
+                }
+            }
+    }
+    double top = n ? S[0] : 0.0;
+    for (int i = 1; i < n; i++) if (S[i * n + i] > top) top = S[i * n + i];
+    return top;
+}
+
+/* _parse_list (fmus/actuator/model.py): ``count`` numbers separated by blanks or commas, each finite and
+ * > 0 (``positive``) or >= 0, into ``out``. 0; -1 when there are not ``count`` items (*items: how many);
+ * k + 1 when item k is not a finite number of that kind (its text in ``item``, ``size`` bytes). */
+static inline int mast_parse_list(const char *text, int count, int positive, double *out, int *items, char *item,
+                                  size_t size)
+{
+    const char *blank = " ,\t\n\r\f\v";
+    const char *s = text ? text : "";
+    int n = 0;
+    for (const char *c = s; *c;) {
+        c += strspn(c, blank);
+        if (!*c) break;
+        n++;
+        c += strcspn(c, blank);
+    }
+    *items = n;
+    if (n != count) return -1;
+    int k = 0;
+    for (const char *c = s; *c && k < count; k++) {
+        c += strspn(c, blank);
+        size_t len = strcspn(c, blank);
+        char token[64];
+        char *end = NULL;
+        double v = NAN;
+        if (len < sizeof token) {
+            memcpy(token, c, len);
+            token[len] = '\0';
+            v = strtod(token, &end);
+            if (end != token + len) v = NAN;
+        }
+        if (!isfinite(v) || (positive ? v <= 0.0 : v < 0.0)) {
+            snprintf(item, size, "%.*s", (int)len, c);
+            return k + 1;
+        }
+        out[k] = v;
+        c += len;
+    }
+    return 0;
+}
+
 #endif

@@ -40,7 +40,7 @@ __all__ = ["NativeBuildError", "compiler", "build_native_fmu", "native_sources",
 REPO = Path(__file__).resolve().parents[3]
 SUPPORT = REPO / "fmus" / "common" / "native"
 SUPPORT_FILES = ("fmi2_wrapper.c", "mast_model.h", "mast_native.h")
-#: what a native FMU was generated for (its parameter set, the actuator's step sizes), inside the archive
+#: what a native FMU was generated for (its parameter set), inside the archive
 GENERATED_FOR = "resources/mast_native.json"
 CFLAGS = ("-O2", "-ffp-contract=off", "-fPIC", "-shared", "-std=c99", "-D_POSIX_C_SOURCE=200809L",
           "-Wall", "-Wno-unused-variable", "-Wno-unused-function", "-Wno-maybe-uninitialized", "-Wno-format-truncation")
@@ -85,11 +85,11 @@ def read_variables(model_description: bytes) -> list[Variable]:
 
 
 def native_sources(identifier: str, block_class: type, parameters: Mapping[str, object],
-                   model_description: bytes, step_sizes: Sequence[float] = ()) -> tuple[dict[str, bytes], bytes]:
+                   model_description: bytes) -> tuple[dict[str, bytes], bytes]:
     """({file name: C source}, native modelDescription.xml) for the Python FMU's ``model_description``."""
     variables = read_variables(model_description)
     model_file = f"{identifier}_model.c"
-    draft = emit_model(identifier, "GUID", block_class, parameters, variables, step_sizes)
+    draft = emit_model(identifier, "GUID", block_class, parameters, variables)
     digest = hashlib.sha256(draft.encode() + model_description)
     for name in SUPPORT_FILES:
         digest.update((SUPPORT / name).read_bytes())
@@ -141,16 +141,16 @@ def compile_shared(sources: Mapping[str, bytes], target: Path, platform: str = "
 
 
 def build_native_fmu(identifier: str, python_fmu: Path, out_dir: Path, parameters: Mapping[str, object],
-                     step_sizes: Iterable[float] = (), platforms: Sequence[str] = ("linux64",)) -> Path:
+                     platforms: Sequence[str] = ("linux64",)) -> Path:
     """The native form of the Python FMU ``python_fmu`` (model ``identifier``) with ``parameters``, into
-    ``out_dir``; ``step_sizes`` [s]: the communication steps the actuator is built for. ``python_fmu``
+    ``out_dir``. ``python_fmu``
     may also be a native FMU of the same model (its modelDescription is the Python one's). ``platforms``:
     the binaries to build (PLATFORMS; other than linux64 with zig, untested)."""
     from ..build import block_class
 
     with zipfile.ZipFile(python_fmu) as z:
         md = z.read("modelDescription.xml")
-    sources, xml = native_sources(identifier, block_class(identifier), parameters, md, sorted(set(step_sizes)))
+    sources, xml = native_sources(identifier, block_class(identifier), parameters, md)
     out_dir.mkdir(parents=True, exist_ok=True)
     target = out_dir / f"{identifier}.fmu"
     with tempfile.TemporaryDirectory(prefix="mast_native_") as tmp:
@@ -165,8 +165,8 @@ def build_native_fmu(identifier: str, python_fmu: Path, out_dir: Path, parameter
             zout.writestr("modelDescription.xml", xml)
             for name, library in libraries.items():
                 zout.write(library, name)
-            zout.writestr(GENERATED_FOR, json.dumps({"identifier": identifier, "parameters": dict(parameters),
-                                                     "step_sizes": sorted(set(step_sizes))}, indent=1, sort_keys=True))
+            zout.writestr(GENERATED_FOR, json.dumps({"identifier": identifier, "parameters": dict(parameters)},
+                                                    indent=1, sort_keys=True))
             for name, data in sorted(sources.items()):
                 zout.writestr(f"sources/{name}", data)
         shutil.move(str(partial), target)
@@ -182,8 +182,8 @@ def has_native_form(identifier: str) -> bool:
     return native_kind(block_class(identifier)) is not None
 
 
-def _component_sets(ssd: Path) -> dict[str, tuple[str, dict, Optional[float]]]:
-    """Per component of ``ssd``: (FMU identifier, its complete parameter set, its step size hint)."""
+def _component_sets(ssd: Path) -> dict[str, tuple[str, dict]]:
+    """Per component of ``ssd``: (FMU identifier, its complete parameter set)."""
     from ..build import block_class, default_parameters
     from ..ssp import applicable_parameters, read_ssd
 
@@ -193,7 +193,7 @@ def _component_sets(ssd: Path) -> dict[str, tuple[str, dict, Optional[float]]]:
     out = {}
     for comp, spec in system.components.items():
         ident = Path(spec.source).stem
-        out[comp] = (ident, {**default_parameters(ident), **bound[comp]}, spec.step_size)
+        out[comp] = (ident, {**default_parameters(ident), **bound[comp]})
     return out
 
 
@@ -208,19 +208,13 @@ def build_native_all(out: Path, ssds: Sequence[Path], log=print, fmus: Optional[
 
     python_dir = out / "fmus"
     sets = {Path(ssd): _component_sets(Path(ssd)) for ssd in ssds}
-    steps: dict[str, set] = {}
-    for comps in sets.values():
-        for ident, _, h in comps.values():
-            if h is not None:
-                steps.setdefault(ident, set()).add(h)
     written = []
     cache: dict[str, Path] = {}
 
     def native(ident: str, params: dict, folder: Path) -> Path:
-        key = json.dumps([ident, params, sorted(steps.get(ident, ()))], sort_keys=True, default=str)
+        key = json.dumps([ident, params], sort_keys=True, default=str)
         if key not in cache:
-            cache[key] = build_native_fmu(ident, python_dir / f"{ident}.fmu", folder, params, steps.get(ident, ()),
-                                          platforms)
+            cache[key] = build_native_fmu(ident, python_dir / f"{ident}.fmu", folder, params, platforms)
         elif cache[key].parent != folder:
             folder.mkdir(parents=True, exist_ok=True)
             shutil.copy2(cache[key], folder / cache[key].name)
@@ -231,12 +225,12 @@ def build_native_all(out: Path, ssds: Sequence[Path], log=print, fmus: Optional[
             written.append(native(spec.model_identifier, default_parameters(spec.model_identifier), out / "fmus" / "native"))
             log(f"built {written[-1]}")
     for ssd, comps in sets.items():
-        missing = sorted({ident for ident, _, _ in comps.values() if not has_native_form(ident)})
+        missing = sorted({ident for ident, _ in comps.values() if not has_native_form(ident)})
         if missing:
             log(f"skipped {ssd.name}: no native form yet for {', '.join(missing)}")
             continue
         by_source: dict[str, dict] = {}
-        for comp, (ident, params, _) in comps.items():
+        for comp, (ident, params) in comps.items():
             if by_source.setdefault(ident, params) != params:
                 raise NativeBuildError(f"{ssd}: the components using {ident}.fmu have different parameter sets; a "
                                        "native FMU is built for one set (models.py), so this system has no native form")
@@ -250,7 +244,7 @@ def build_native_all(out: Path, ssds: Sequence[Path], log=print, fmus: Optional[
 
 # ----------------------------------------------------------------------------------- for another parameter set
 def generated_for(fmu: Path) -> Optional[dict]:
-    """What a native FMU was generated for ({identifier, parameters, step_sizes}); None for other FMUs."""
+    """What a native FMU was generated for ({identifier, parameters}); None for other FMUs."""
     with zipfile.ZipFile(fmu) as z:
         if GENERATED_FOR not in z.namelist():
             return None
@@ -264,10 +258,11 @@ def cache_dir() -> Path:
     return Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "mast" / "native"
 
 
-def for_parameters(fmu: Path, parameters: Mapping[str, object], step_size: Optional[float] = None) -> Path:
+def for_parameters(fmu: Path, parameters: Mapping[str, object]) -> Path:
     """``fmu`` itself, or, for a native FMU generated for other values than ``parameters`` (the component's
-    bindings and overrides over the FMU's own set) or without ``step_size``, the same model generated for
-    them (kept in ``cache_dir()``): how the project's master runs native FMUs with any parameter set."""
+    bindings and overrides over the FMU's own set) in a parameter it holds as generated
+    (``models.generated_parameters``), the same model generated for them (kept in ``cache_dir()``): how
+    the project's master runs native FMUs with any parameter set."""
     from ..build import block_class
     from fmus.common.parameters import ParameterError, validate
 
@@ -280,17 +275,16 @@ def for_parameters(fmu: Path, parameters: Mapping[str, object], step_size: Optio
         wanted = validate(specs, {**made["parameters"], **parameters}, ident)
     except ParameterError:   # the FMU names the bad value at initialisation, as every FMU does
         return fmu
-    steps = set(made["step_sizes"]) | ({float(step_size)} if step_size and made["step_sizes"] else set())
     own = validate(specs, made["parameters"], ident)
     inlined = generated_parameters(block_class(ident), wanted)    # the others are set at run time
-    if inlined == generated_parameters(block_class(ident), own) and steps == set(made["step_sizes"]):
+    if inlined == generated_parameters(block_class(ident), own):
         return fmu
-    key = hashlib.sha256(json.dumps([ident, inlined, sorted(steps)], sort_keys=True, default=str).encode())
+    key = hashlib.sha256(json.dumps([ident, inlined], sort_keys=True, default=str).encode())
     for file in sorted([*(REPO / "fmus").rglob("*.py"), *(REPO / "fmus").rglob("*.[ch]"),
                         *Path(__file__).parent.glob("*.py")]):   # the model and generator code
         key.update(file.read_bytes())
     folder = cache_dir() / key.hexdigest()[:16]
     target = folder / f"{ident}.fmu"
     if not target.exists():
-        build_native_fmu(ident, fmu, folder, {**own, **inlined}, steps)   # start values: the FMU's own
+        build_native_fmu(ident, fmu, folder, {**own, **inlined})   # start values: the FMU's own
     return target

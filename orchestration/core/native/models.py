@@ -3,8 +3,11 @@
 Each emitter builds the Python block with the FMU's parameter set and takes its generated
 code, which ``translate.to_c`` writes as C:
 
-- actuator: the exact-discretisation step with the implicit friction solve
-  (``ActuatorBlock._compile``), one kernel per step size the systems use;
+- actuator: the exact-discretisation step with the implicit friction solve, bound by name
+  (``ActuatorBlock._bind``'s source, with the parameters' numbers as names too), one kernel per
+  structure the parameters select; the parameters' numbers traced through the model's relations
+  (``kernel_constants``, ``state_matrices``, ``backlash_systems``, ``_friction_constants``); the
+  discretisation of each step size computed in C (``mast_expm``);
 - mechanism (every design): the engine's traced functions (inverse kinematics with its
   Jacobian, inverse dynamics, pose), driven by the engine's Newton direct kinematics
   (``mast_native.h``);
@@ -15,7 +18,7 @@ code, which ``translate.to_c`` writes as C:
 - trajectory: the sine about the home pose (its parameters read at run time).
 
 What the models' generators do not cover is written here, in the same Python subset, and
-translated too: the outputs of the actuator at rest (``initialize``), the description's cold
+translated too: the description's cold
 start of the direct kinematics (``guess``) and the controllers' tick (``DriveController``'s
 schedule with each controller's position and velocity laws; the functions they call are
 translated from the models' own source: ``pi_step``, ``drive_gains``, ``cascade_gains``,
@@ -23,14 +26,16 @@ translated from the models' own source: ``pi_step``, ``drive_gains``, ``cascade_
 The schedule and the laws are a second statement of the controllers', held bit-identical to the
 Python models by tests/test_native.py until the Python controllers run this generated tick
 themselves (docs/native.md); so is the C glue of the direct kinematics (``MechanismBlock._compute``,
-``InverseModel.torques``, ``WorkspaceController._dk``: warm start, cold restart, messages).
+``InverseModel.torques``, ``WorkspaceController._dk``: warm start, cold restart, messages) and of
+the actuator (its outputs at rest, ``ActuatorBlock._substeps``' substep rule, ``TorqueSensor.step``'s
+delay line), held to the Python model by the same tests.
 
-Parameters: the trajectory's, the joint controller's gains, limits and transmission
-(``CONTROLLER_TUNABLE``: its gains computed at initialisation by the controller's own
-``drive_gains``/``cascade_gains``, translated) and the mechanism's masses, inertias and g
-(``MECHANISM_TUNABLE``: inputs of the engine's ``forces_of``) are read at run time. The others
-have their values inlined, as in the Python model (where the actuator's kernel is compiled at
-the first step and the engine traces with the geometry as constants): ``generated_parameters`` names
+Parameters: the trajectory's, the actuator's but its chain's structure (``ACTUATOR_STRUCTURE``),
+the joint controller's gains, limits and transmission (``CONTROLLER_TUNABLE``: its gains computed
+at initialisation by the controller's own ``drive_gains``/``cascade_gains``, translated) and the
+mechanism's masses, inertias and g (``MECHANISM_TUNABLE``: inputs of the engine's ``forces_of``)
+are read at run time. The others have their values inlined, as in the Python model (where the
+engine traces with the geometry as constants): ``generated_parameters`` names
 them, the C model checks at initialisation that each still has the value it was generated for,
 and refuses another value with a message naming it (the Python model's range checks come first,
 with the same messages). The project's master generates the model for another set of those when
@@ -108,9 +113,11 @@ def _variable_table(variables: Sequence[Variable]) -> str:
     return "static const mast_variable VARIABLES[] = {\n" + "\n".join(rows) + "\n};\n"
 
 
-def _check_function(params: Sequence[Param], vrs: Mapping[str, int], fixed: Mapping[str, object]) -> str:
+def _check_function(params: Sequence[Param], vrs: Mapping[str, int], fixed: Mapping[str, object],
+                    extra: Sequence[str] = ()) -> str:
     """``check``: the Python model's range checks (``Param.check``, the same messages), then, for the
-    parameters in ``fixed``, that the value is the one the code was generated for."""
+    parameters in ``fixed``, that the value is the one the code was generated for, then the C lines
+    ``extra`` (the model's own checks across parameters)."""
     lines = ["static int check(const mast_parameters *p, char *msg, size_t size)", "{",
              "    char v[40], c[40];", "    (void)v; (void)c;"]
     for spec in params:
@@ -155,7 +162,7 @@ def _check_function(params: Sequence[Param], vrs: Mapping[str, int], fixed: Mapp
                       f"        snprintf(msg, size, \"parameter '{name}' = %s: this native FMU was generated for "
                       f"{name} = %s; rebuild it (mast build --native) for another value\", v, c);",
                       "        return MAST_PARAMETER_ERROR;", "    }"]
-    lines += ["    return MAST_OK;", "}", ""]
+    lines += [*extra, "    return MAST_OK;", "}", ""]
     return "\n".join(lines)
 
 
@@ -172,78 +179,410 @@ _HEAD = """/* Generated by mast build --native from the {what} (mast.core.native
 
 
 # ----------------------------------------------------------------------------------- actuator
-def _actuator(block, step_sizes: Sequence[float]) -> str:
+#: the actuator's parameters a native FMU holds as generated: the chain's structure (the state's size)
+ACTUATOR_STRUCTURE = ("n_dof",)
+#: the chain's lists (n_dof >= 3) and whether their numbers must be > 0 (else >= 0), as ``chain`` parses them
+CHAIN_LISTS = {"J_chain": True, "K_chain": True, "C_chain": False}
+#: longest torque-measurement delay line of a native actuator, in communication steps (delay_meas / h + 2)
+SENSOR_SAMPLES = 4096
+#: step sizes whose exact discretisation a native actuator instance keeps (a varying-step host brings more:
+#: the oldest is recomputed when it comes back, about 3.4 us with the default parameters: docs/native.md)
+DISCRETISATIONS_KEPT = 8
+
+
+def _indexed(source: str, slots: Mapping[str, tuple[str, int]], extra: Sequence[str]) -> str:
+    """``source`` with each name of ``slots`` read from its array (``NAME`` -> ``ARRAY[k]``) and the
+    function's arguments extended by ``extra``: a kernel bound by name (ActuatorBlock._bind) becomes one
+    that reads its numbers from the instance."""
+    import ast
+
+    class Rewrite(ast.NodeTransformer):
+        def visit_Name(self, node: ast.Name) -> ast.AST:
+            if node.id in slots:
+                array, k = slots[node.id]
+                return ast.copy_location(ast.Subscript(ast.Name(array, ast.Load()), ast.Constant(k), ast.Load()), node)
+            return node
+
+    tree = Rewrite().visit(ast.parse(source))
+    tree.body[0].args.args += [ast.arg(a) for a in extra]
+    return ast.unparse(ast.fix_missing_locations(tree)) + "\n"
+
+
+def _chain_count(name: str, N: int) -> int:
+    """How many numbers the chain's list ``name`` holds for n_dof = N."""
+    return N if name == "J_chain" else N - 1
+
+
+def _parse_chain(vrs: Mapping[str, int], N: int, indent: str) -> list[str]:
+    """C: the chain's lists parsed into ``chain_<name>`` arrays (n_dof >= 3), refused as ``chain`` refuses them."""
+    lines = []
+    for name, positive in CHAIN_LISTS.items():
+        count, what = _chain_count(name, N), "> 0" if positive else ">= 0"
+        text = f"p->string[{vrs[name]}]"
+        lines += [
+            f"{indent}double chain_{name}[{count}];",
+            f"{indent}int {name}_code = mast_parse_list({text}, {count}, {int(positive)}, chain_{name}, &items, item, "
+            f"sizeof item);",
+            f"{indent}if ({name}_code == -1) {{",
+            f"{indent}    snprintf(msg, size, \"parameter '{name}' = '%s': expected {count} space separated numbers "
+            f"{what} for n_dof = {N}, got %d\", {text} ? {text} : \"\", items);",
+            f"{indent}    return MAST_PARAMETER_ERROR;", f"{indent}}}",
+            f"{indent}if ({name}_code > 0) {{",
+            f"{indent}    snprintf(msg, size, \"parameter '{name}' = '%s': item '%s' is not a finite number {what}\", "
+            f"{text} ? {text} : \"\", item);",
+            f"{indent}    return MAST_PARAMETER_ERROR;", f"{indent}}}"]
+    return lines
+
+
+def _actuator_variants(block) -> list[tuple[str, dict, bool]]:
+    """The structures a kernel can have for this n_dof, with a parameter set that selects each:
+    friction (none, Coulomb, Stribeck) x position ripple (off, on) x backlash (off, on; n_dof = 2 only)."""
+    out = []
+    for friction, (tau_c, tau_s) in (("none", (0.0, 0.0)), ("coulomb", (1.0, 0.0)), ("stribeck", (1.0, 1.0))):
+        for ripple in (0.0, 1.0):
+            for backlash in ((0.0, 1e-3) if block.N == 2 else (0.0,)):
+                name = f"{friction}{'_ripple' if ripple else ''}{'_backlash' if backlash else ''}"
+                out.append((name, {"tau_c": tau_c, "tau_s": tau_s, "tau_ripple": ripple, "backlash": backlash},
+                            backlash > 0.0))
+    return out
+
+
+def _actuator(block, vrs: Mapping[str, int]) -> str:
+    """ActuatorBlock in C, every parameter but the chain's structure (n_dof: the state's size) read at run
+    time: the parameters' numbers (``kernel_constants``, A, B, the chain) traced
+    from the model's own relations; the exact discretisation computed in C for each step size the host
+    uses (``mast_expm``, the mathematics of ActuatorBlock._bind); the step kernel of each structure
+    (friction, ripple, backlash) the model's own bound-by-name kernel, its numbers read from the
+    instance; the torque measurement (sensor.py): ``filter_coefficients`` and ``_delay_split`` translated,
+    the delay line restated."""
+    import inspect
+
+    from fmus.actuator import model as am
+    from fmus.actuator import sensor
+    from fmus.mechanism.engine import _Graph, _lift, compile_function
+
+    N, n_in = block.N, len(block.INPUTS)
+    nx, wN = 2 * N + 1, 2 * N
+    reals = [spec.name for spec in block.PARAMETERS if spec.kind is float]
+    R = {name: f"p->real[{vrs[name]}]" for name in reals}
+    # --- the parameters' numbers, traced through the model's relations
+    g = _Graph()
+    traced = {**block.params, **{name: g.input(name) for name in reals}}
+    lists = {name: [g.input(f"{name}_{k}") for k in range(_chain_count(name, N))] for name in CHAIN_LISTS} \
+        if N >= 3 else None
+    inputs = reals + [e.value for items in (lists or {}).values() for e in items]
+    J, K, C = am.chain(traced, lists)
+    A, B, _ = am.state_matrices(traced, (J, K, C))
+    i_R = am.transmission_ratio(traced["p"], traced["i_r"])
+    constants = am.kernel_constants(traced, i_R, A, B, J, K, C)
+    assert list(constants) == list(block.constants)
+    outputs, offsets = list(constants.values()), {}
+    parts = [("A", list(A.ravel())), ("B", list(B.ravel())), ("J", list(J)), ("K", list(K))]
+    if N == 2:
+        Ac, Ag, B3 = am.backlash_systems(A, B, J, K, C)
+        parts += [("Ag", list(Ag.ravel())), ("B3", list(B3.ravel()))]
+    for key, values in parts:
+        offsets[key] = len(outputs)
+        outputs += values
+    nq = len(outputs)
+    fn = compile_function("constants", inputs, [_lift(g, v) for v in outputs], g, label="actuator constants")
+    code = [to_c(fn.source, "constants")]
+    # --- the friction solve's numbers for a substep of d omega_N / d tau_L = b (traced _friction_constants)
+    friction_keys = {}
+    for kind, stribeck in (("coulomb", False), ("stribeck", True)):
+        g = _Graph()
+        names = ["b", "tau_c", "omega_c", "tau_s", "omega_s"]
+        ins = {n: g.input(n) for n in names}
+        fc = am._friction_constants(ins, ins["b"], stribeck)
+        friction_keys[kind] = list(fc)
+        fn = compile_function(f"friction_{kind}", names, [_lift(g, v) for v in fc.values()], g,
+                              label=f"actuator {kind} friction")
+        code.append(to_c(fn.source, f"friction_{kind}"))
+    # --- the kernels, one per structure, their numbers read from Q (parameters) and H (step size)
+    q_slots = {f"Q_{k}": ("Q", i) for i, k in enumerate(constants)}
+    variants = _actuator_variants(block)
+    layouts, sizes = {}, []
+    for name, chosen, backlash in variants:
+        vb = am.ActuatorBlock({**block.params, **chosen}, name=block.name)
+        slots, h_names = dict(q_slots), []
+        friction = "stribeck" if chosen["tau_s"] > 0.0 else "coulomb" if chosen["tau_c"] > 0.0 else None
+        if backlash:
+            source = am._backlash_kernel_source(vb, 0.0, 1, named=True, symbolic=True)
+            blocks = [("PC", (5, 5)), ("GC", (5, 3)), ("PG", (5, 5)), ("GG", (5, 3))]
+            prefixes = ("FC_", "FG_")
+        else:
+            source = am._kernel_source(vb, am._names("P", (nx, nx)), am._names("G", (nx, 2)), 1, named=True,
+                                       symbolic=True)
+            blocks = [("P", (nx, nx)), ("G", (nx, 2))]
+            prefixes = ("F_",)
+        for prefix, shape in blocks:
+            h_names += am._flat_names(prefix, shape)
+        friction_at = {}
+        for prefix in prefixes:
+            friction_at[prefix] = len(h_names)
+            h_names += [prefix + k for k in (friction_keys[friction] if friction else [])]
+        slots.update({n: ("H", k) for k, n in enumerate(h_names)})
+        code.append(to_c(_indexed(source, slots, ("H", "Q", "M_SUB")), f"kernel_{name}",
+                         arrays=("values", "x", "H", "Q")))
+        layouts[name] = (backlash, friction, friction_at)
+        sizes.append(len(h_names))
+    nh = max(sizes)
+    # --- the torque measurement: the model's own coefficient functions, translated
+    code.append(to_c(inspect.getsource(sensor.filter_coefficients), "filter_coefficients"))
+    code.append(to_c(inspect.getsource(sensor._delay_split), "delay_split"))
+    return _actuator_c(block, R, vrs, code, variants, layouts, offsets, nq, nh, n_in)
+
+
+def _actuator_c(block, R: Mapping[str, str], vrs: Mapping[str, int], code: list[str], variants: Sequence,
+                layouts: Mapping, offsets: Mapping[str, int], nq: int, nh: int, n_in: int) -> str:
+    """The C glue of the native actuator around the generated functions ``code``: the instance's state, the
+    choice of the kernel's structure, the per-step-size discretisation (ActuatorBlock._substeps and _bind,
+    restated: the substep rule, then ``mast_expm``), the delay line of the torque measurement
+    (TorqueSensor.step, restated) and the messages of ActuatorBlock."""
+    from fmus.actuator import model as am
+
     from fmus.actuator.model import _ERRORS
 
-    kernels, keys = [], []
-    for k, h in enumerate(step_sizes):
-        key = float(f"{h:.12g}")      # ActuatorBlock._select's key
-        kernel, _substeps = block._compile(key)
-        kernels.append(to_c(kernel.source, f"kernel_{k}", arrays=("values", "x")))
-        keys.append(key)
-    p, N = block.params, block.N
-    n_in = len(block.INPUTS)
-    nx = 2 * N + 1
-    tau_c, omega_c, tau_s, omega_s = (float(p[k]) for k in ("tau_c", "omega_c", "tau_s", "omega_s"))
-    # ActuatorBlock.initialize + _write_outputs at rest (x = 0), in the generated-code subset
-    rest = ["def rest(values):", "    u = values[0]", "    F = values[1]",
-            "    if u - u != 0.0: return 1", "    if F - F != 0.0: return 2",
-            "    w = 0.0", f"    tf = {tau_c!r}*tanh(w/{omega_c!r})"]
-    if tau_s > 0.0:
-        rest.append(f"    tf = tf + {tau_s!r}*exp(-((w/{omega_s!r})*(w/{omega_s!r})))*tanh(w/{omega_c!r})")
-    weight = float(p["M_load"]) * float(p["g_guide"])
-    rest.append(f"    tl = -{block.i_R!r}*(F + {weight!r}) - tf")
-    if float(p["tau_ripple"]) > 0.0:
-        rest.append("    tl = tl - 0.0")    # sin(0) at rest: tau_ripple * 0.0
-    rest += [f"    al = 0.0 + {float(block.B[2 * N, 1])!r}*tl",
-             f"    values[{n_in}:] = ({float(p['rho_0'])!r} + {block.i_R!r}*0.0, {block.i_R!r}*w, {block.i_R!r}*al, "
-             f"0.0, 0.0, 0.0, {float(p['k_T'])!r}*0.0, {float(p['k_T'])!r}*0.0)",
-             "    return 0"]
-    rest_c = to_c("\n".join(rest) + "\n", "rest", arrays=("values",))
+    N = block.N
+    nx, wN, nm = 2 * N + 1, 2 * N, 2 * N + 3
+    keys = list(block.constants)
+    Q = {k: f"s->Q[{i}]" for i, k in enumerate(keys)}
+    reals = [spec.name for spec in block.PARAMETERS if spec.kind is float]
+    chain_args = [f"chain_{name}[{k}]" for name in CHAIN_LISTS for k in range(_chain_count(name, N))] if N >= 3 else []
+    call_constants = f"constants({', '.join([R[n] for n in reals] + chain_args)}, s->Q)"
+    fr_code = {None: 0, "coulomb": 1, "stribeck": 2}
+    v_backlash = ", ".join("1" if layouts[v][0] else "0" for v, _, _ in variants)
+    v_friction = ", ".join(str(fr_code[layouts[v][1]]) for v, _, _ in variants)
+    v_f0 = ", ".join(str(list(layouts[v][2].values())[0]) for v, _, _ in variants)
+    v_f1 = ", ".join(str(list(layouts[v][2].values())[-1]) for v, _, _ in variants)
+    select = []
+    for k, (name, chosen, backlash) in enumerate(variants):
+        fr = 2 if chosen["tau_s"] > 0.0 else 1 if chosen["tau_c"] > 0.0 else 0
+        ripple = int(chosen["tau_ripple"] > 0.0)
+        select.append(f"    if (fr == {fr} && rp == {ripple} && bl == {int(backlash)}) return {k};")
+    cases = "\n".join(f"    case {k}: code = kernel_{name}(values, s->x, d->H, s->Q, d->m); break;"
+                      for k, (name, _, _) in enumerate(variants))
     names = ", ".join(_literal(_ERRORS[k]) for k in sorted(_ERRORS))
-    key_list = ", ".join(c_double(k) for k in keys)
-    cases = "\n".join(f"    case {k}: code = kernel_{k}(values, s->x); break;" for k in range(len(keys)))
-    shown = ", ".join(f"{k:g}" for k in keys)
-    rho0, iR = c_double(float(p["rho_0"])), c_double(block.i_R)
+    fargs = f"{Q['tau_c']}, {Q['omega_c']}, {Q['tau_s']}, {Q['omega_s']}"
+    A, B, Jo, Ko = offsets["A"], offsets["B"], offsets["J"], offsets["K"]
+    discretise = [
+        "/* ActuatorBlock._substeps (the substep rule) and _bind (the numbers of a step size), for the key h */",
+        "static int discretise(State *s, double h, Disc *d, char *msg, size_t size)", "{",
+        "    char v[40];",
+        "    int backlash = V_BACKLASH[s->variant], fr = V_FRICTION[s->variant];",
+        f"    double m = ceil(s->omega_max * h / {c_double(am._MAX_PHASE_PER_SUBSTEP)} - 1e-12);",
+        "    if (m < 1.0) m = 1.0;",
+        f"    if (backlash) {{ double mb = ceil(h / {c_double(am._BACKLASH_SUBSTEP)} - 1e-9); if (mb > m) m = mb; }}",
+        f"    double fall = {Q['tau_s']} > 0.0 ? {Q['tau_s']} * sqrt(2.0 / {c_double(math.e)}) / {Q['omega_s']} : 0.0;",
+        f"    double M[{nm * nm}], E[{nm * nm}], b = 0.0;",
+        "    for (;;) {",
+        "        double hs = h / m;",
+        f"        for (int i = 0; i < {nm * nm}; i++) M[i] = 0.0;",
+        f"        for (int i = 0; i < {nx}; i++) {{",
+        f"            for (int j = 0; j < {nx}; j++) M[i * {nm} + j] = s->Q[{A} + i * {nx} + j] * hs;",
+        f"            for (int j = 0; j < 2; j++) M[i * {nm} + {nx} + j] = s->Q[{B} + i * 2 + j] * hs;",
+        "        }",
+        f"        if (mast_expm({nm}, M, E)) {{ snprintf(msg, size, \"out of memory\"); return MAST_MODEL_ERROR; }}",
+        f"        b = E[{wN * nm + nx + 1}];",
+        "        if ((b > 0.0 && b * fall < 0.5) || m > 4096.0) break;",
+        "        m *= 2.0;", "    }",
+        "    if (!(b > 0.0)) {",
+        "        snprintf(msg, size, \"no substep gives a monotone friction update for h = %s s\", mast_repr(h, v, sizeof v));",
+        "        return MAST_MODEL_ERROR;", "    }",
+        "    d->m = m;",
+        "    if (!backlash) {",
+        f"        for (int i = 0; i < {nx}; i++) {{",
+        f"            for (int j = 0; j < {nx}; j++) d->H[i * {nx} + j] = E[i * {nm} + j];",
+        f"            for (int j = 0; j < 2; j++) d->H[{nx * nx} + i * 2 + j] = E[i * {nm} + {nx} + j];",
+        "        }",
+        f"        if (fr == 1) friction_coulomb(E[{wN * nm + nx + 1}], {fargs}, d->H + V_F0[s->variant]);",
+        f"        if (fr == 2) friction_stribeck(E[{wN * nm + nx + 1}], {fargs}, d->H + V_F0[s->variant]);",
+        "        return MAST_OK;", "    }",
+    ]
+    if N == 2:      # _backlash_matrices: in contact (A, B3) and in the gap (Ag, B3), 8 x 8
+        Ag, B3 = offsets["Ag"], offsets["B3"]
+        discretise += [
+            "    double hs = h / m, M8[64], E8[64];",
+            f"    const int system[2] = {{{A}, {Ag}}};",
+            "    for (int which = 0; which < 2; which++) {",
+            "        for (int i = 0; i < 64; i++) M8[i] = 0.0;",
+            "        for (int i = 0; i < 5; i++) {",
+            "            for (int j = 0; j < 5; j++) M8[i * 8 + j] = s->Q[system[which] + i * 5 + j] * hs;",
+            f"            for (int j = 0; j < 3; j++) M8[i * 8 + 5 + j] = s->Q[{B3} + i * 3 + j] * hs;",
+            "        }",
+            "        if (mast_expm(8, M8, E8)) { snprintf(msg, size, \"out of memory\"); return MAST_MODEL_ERROR; }",
+            "        double *P = d->H + which * 40, *G = P + 25;",
+            "        for (int i = 0; i < 5; i++) {",
+            "            for (int j = 0; j < 5; j++) P[i * 5 + j] = E8[i * 8 + j];",
+            "            for (int j = 0; j < 3; j++) G[i * 3 + j] = E8[i * 8 + 5 + j];",
+            "        }",
+            "        double *F = d->H + (which ? V_F1[s->variant] : V_F0[s->variant]);   /* b = G[4][1] */",
+            f"        if (fr == 1) friction_coulomb(G[13], {fargs}, F);",
+            f"        if (fr == 2) friction_stribeck(G[13], {fargs}, F);",
+            "    }",
+        ]
+    discretise += ["    return MAST_OK;", "}", ""]
+    T, delay, offset = R["T_meas"], R["delay_meas"], R["tau_offset"]
+    sensor = [
+        "/* TorqueSensor.step (sensor.py), restated: the delay line of n + 2 samples, newest at head */",
+        "static int sensor_step(State *s, double u, double h, const mast_parameters *p, double *out, char *msg, size_t size)",
+        "{",
+        "    if (h != s->s_h) {          /* TorqueSensor._configure */",
+        "        double co[3], sp[2];",
+        "        char a[40], b[40];",
+        f"        filter_coefficients({T}, h, co);",
+        f"        delay_split({delay}, h, sp);",
+        f"        if (sp[0] + 2.0 > {SENSOR_SAMPLES}.0) {{",
+        f"            snprintf(msg, size, \"parameter 'delay_meas' = %s s is %.0f steps of h = %s s: this native FMU keeps "
+        f"at most {SENSOR_SAMPLES - 2}\", mast_repr({delay}, a, sizeof a), sp[0], mast_repr(h, b, sizeof b));",
+        "            return MAST_MODEL_ERROR;", "        }",
+        "        int L = (int)sp[0] + 2, kept = s->s_count < L ? s->s_count : L;",
+        "        double fill = s->s_count ? s->hist[s->s_head] : s->s_u0;",
+        "        double *line = malloc((size_t)L * sizeof(double));",
+        "        if (!line) { snprintf(msg, size, \"out of memory\"); return MAST_MODEL_ERROR; }",
+        "        for (int i = 0; i < L - kept; i++) line[i] = fill;",
+        "        for (int i = 0; i < kept; i++)",
+        "            line[L - kept + i] = s->hist[(s->s_head - (kept - 1 - i) + 2 * s->s_len) % (s->s_len ? s->s_len : 1)];",
+        "        memcpy(s->hist, line, (size_t)L * sizeof(double));",
+        "        free(line);",
+        "        s->s_len = L; s->s_count = L; s->s_head = L - 1;",
+        "        s->s_e = co[0]; s->s_c = co[1]; s->s_d = co[2]; s->s_n = (int)sp[0]; s->s_phi = sp[1]; s->s_h = h;",
+        "    }",
+        "    s->s_head = (s->s_head + 1) % s->s_len;",
+        "    s->hist[s->s_head] = u;",
+        "    int n = s->s_n;",
+        "    double a0 = s->hist[(s->s_head - n + s->s_len) % s->s_len];",
+        "    double ud = s->s_phi == 0.0 ? a0 : (1.0 - s->s_phi) * a0 + s->s_phi * s->hist[(s->s_head - n - 1 + 2 * s->s_len) % s->s_len];",
+        "    s->s_y = s->s_e * s->s_y + s->s_c * ud + s->s_d * s->s_uprev;",
+        "    s->s_uprev = ud;",
+        f"    *out = s->s_y + {offset};",
+        "    return MAST_OK;", "}", ""]
     return "\n".join([
-        f"typedef struct {{ double x[{nx}]; }} State;", "",
-        *kernels, rest_c,
-        f"static const char *const INPUT_NAMES[] = {{{names}}};",
-        f"static const double KEYS[] = {{{key_list}}};", "",
+        f"typedef struct {{ double m; double H[{nh}]; }} Disc;",
+        "typedef struct {",
+        f"    double x[{nx}];",
+        f"    double Q[{nq}];               /* the parameters' numbers: kernel_constants, A, B, the chain */",
+        "    double omega_max;",
+        "    int variant, n_disc, next_disc;",
+        f"    double key[{DISCRETISATIONS_KEPT}];",
+        f"    Disc disc[{DISCRETISATIONS_KEPT}];",
+        "    int sensor, s_n, s_len, s_head, s_count;",
+        "    double s_h, s_e, s_c, s_d, s_phi, s_y, s_uprev, s_u0;",
+        f"    double hist[{SENSOR_SAMPLES}];",
+        "} State;", "",
+        *code,
+        f"static const int V_BACKLASH[] = {{{v_backlash}}};",
+        f"static const int V_FRICTION[] = {{{v_friction}}};",
+        f"static const int V_F0[] = {{{v_f0}}};",
+        f"static const int V_F1[] = {{{v_f1}}};",
+        f"static const char *const INPUT_NAMES[] = {{{names}}};", "",
+        "/* the kernel's structure (friction, ripple, backlash), as ActuatorBlock._kernel_source chooses it */",
+        "static int variant(const State *s)", "{",
+        f"    int fr = {Q['tau_s']} > 0.0 ? 2 : {Q['tau_c']} > 0.0 ? 1 : 0;",
+        f"    int rp = {Q['ripple']} > 0.0, bl = {'s->Q[%d] > 0.0' % keys.index('hb') if N == 2 else '0'};",
+        *select,
+        "    return 0;", "}", "",
+        "/* 2 pi times chain_frequencies(J, K).max(): the fastest chain mode [rad/s] */",
+        "static double omega_max(const State *s)", "{",
+        *([f"    double S[{N * N}];",
+           f"    for (int i = 0; i < {N * N}; i++) S[i] = 0.0;",
+           f"    for (int k = 0; k < {N - 1}; k++) {{",
+           f"        double K = s->Q[{Ko} + k];",
+           f"        S[k * {N} + k] += K; S[(k + 1) * {N} + k + 1] += K;",
+           f"        S[k * {N} + k + 1] -= K; S[(k + 1) * {N} + k] -= K;",
+           "    }",
+           f"    for (int i = 0; i < {N}; i++)",
+           f"        for (int j = 0; j < {N}; j++) S[i * {N} + j] *= (1.0 / sqrt(s->Q[{Jo} + i])) * (1.0 / sqrt(s->Q[{Jo} + j]));",
+           f"    double lam = mast_eig_max({N}, S);",
+           f"    return 2.0 * {c_double(math.pi)} * (sqrt(lam > 0.0 ? lam : 0.0) / (2.0 * {c_double(math.pi)}));"]
+          if N > 1 else ["    (void)s;", "    return 0.0;"]),
+        "}", "",
+        *discretise, *sensor,
         "static int input_error(const double *values, int code, double t, char *msg, size_t size)", "{",
         "    char v[40];",
         "    double x = values[code - 1];",
         "    mast_repr(x, v, sizeof v);",
         "    snprintf(msg, size, \"input '%s' = %s at t=%.9g s is not finite\", INPUT_NAMES[code - 1], v, t);",
         "    return MAST_MODEL_ERROR;", "}", "",
+        "/* ActuatorBlock.initialize: at rest (x = 0), the outputs from the inputs */",
         "static int initialize(void *state, double *values, const mast_parameters *p, double t0, char *msg, size_t size)",
-        "{", "    State *s = state;", "    (void)p;",
-        f"    for (int k = 0; k < {nx}; k++) s->x[k] = 0.0;",
-        "    int code = rest(values);",
-        "    return code ? input_error(values, code, t0, msg, size) : MAST_OK;", "}", "",
+        "{", "    State *s = state;",
+        "    memset(s, 0, sizeof *s);",
+        *(["    int items;", "    char item[64];", *_parse_chain(vrs, N, "    ")] if N >= 3 else []),
+        f"    {call_constants};",
+        "    s->variant = variant(s);",
+        "    s->omega_max = omega_max(s);",
+        "    double u = values[0], F = values[1];",
+        "    if (!isfinite(u)) return input_error(values, 1, t0, msg, size);",
+        "    if (!isfinite(F)) return input_error(values, 2, t0, msg, size);",
+        "    double w = 0.0;",
+        f"    double tf = {Q['tau_c']} * tanh(w / {Q['omega_c']});",
+        f"    if ({Q['tau_s']} > 0.0) tf += {Q['tau_s']} * exp(-((w / {Q['omega_s']}) * (w / {Q['omega_s']}))) * tanh(w / {Q['omega_c']});",
+        f"    double tl = -{Q['iR']} * (F + {Q['mg']}) - tf;",
+        f"    if ({Q['ripple']} > 0.0) tl -= {Q['ripple']} * sin({Q['rk']} * 0.0);",
+        f"    double al = 0.0 + {Q['bw']} * tl;",
+        f"    double tm = {Q['kT']} * 0.0;",
+        f"    values[{n_in}] = {Q['rho0']} + {Q['iR']} * 0.0;",
+        f"    values[{n_in + 1}] = {Q['iR']} * w;",
+        f"    values[{n_in + 2}] = {Q['iR']} * al;",
+        f"    values[{n_in + 3}] = 0.0; values[{n_in + 4}] = 0.0; values[{n_in + 5}] = 0.0; values[{n_in + 6}] = tm;",
+        f"    s->sensor = !({T} == 0.0 && {delay} == 0.0 && {offset} == 0.0);",
+        "    s->s_u0 = tm; s->s_y = tm; s->s_uprev = tm; s->s_h = NAN; s->s_count = 0; s->s_len = 0; s->s_head = 0;",
+        f"    values[{n_in + 7}] = s->sensor ? s->s_y + {offset} : tm;",
+        "    (void)u;",
+        "    return MAST_OK;", "}", "",
         "static int do_step(void *state, double *values, const mast_parameters *p, double t, double h, char *msg, size_t size)",
-        "{", "    State *s = state;", "    char v[40], key_text[40];", "    int code = -1;", "    (void)p;",
+        "{", "    State *s = state;", "    char v[40], key_text[40];", "    int code = -1;",
         "    if (!(h > 0.0 && isfinite(h))) {",
         "        snprintf(msg, size, \"step size h = %s s: expected a finite positive number\", mast_repr(h, v, sizeof v));",
         "        return MAST_MODEL_ERROR;", "    }",
-        "    snprintf(key_text, sizeof key_text, \"%.12g\", h);",
+        "    snprintf(key_text, sizeof key_text, \"%.12g\", h);      /* ActuatorBlock._select's key */",
         "    double key = strtod(key_text, NULL);",
-        "    int which = -1;",
-        f"    for (int k = 0; k < {len(keys)}; k++) if (KEYS[k] == key) which = k;",
-        "    switch (which) {", cases, "    default:",
-        f"        snprintf(msg, size, \"step size h = %s s: this native FMU has the exact discretisation for h in "
-        f"{{{shown}}} s (the step sizes of the systems it was built for); rebuild it (mast build --native) for another\", "
-        f"mast_repr(h, v, sizeof v));",
-        "        return MAST_MODEL_ERROR;", "    }",
+        "    Disc *d = NULL;",
+        "    for (int k = 0; k < s->n_disc; k++) if (s->key[k] == key) d = &s->disc[k];",
+        "    if (!d) {",
+        "        int slot = s->next_disc;",
+        "        code = discretise(s, key, &s->disc[slot], msg, size);",
+        "        if (code) return code;",
+        "        s->key[slot] = key;",
+        f"        s->next_disc = (slot + 1) % {DISCRETISATIONS_KEPT};",
+        f"        if (s->n_disc < {DISCRETISATIONS_KEPT}) s->n_disc++;",
+        "        d = &s->disc[slot];",
+        "    }",
+        "    switch (s->variant) {", cases, "    }",
         "    if (code == 1 || code == 2) return input_error(values, code, t, msg, size);",
         "    if (code == 3) {",
         "        snprintf(msg, size, \"diverged at t=%.9g s (non-finite state)\", t + h);",
         "        return MAST_MODEL_ERROR;", "    }",
         "    if (code == 4) {",
         f"        snprintf(msg, size, \"carriage left the stroke [%g, %g] m: rho = %.6g m at t=%.9g s\", "
-        f"{c_double(float(p['rho_min']))}, {c_double(float(p['rho_max']))}, {rho0} + {iR} * s->x[{N}], t + h);",
+        f"{Q['rmin']}, {Q['rmax']}, {Q['rho0']} + {Q['iR']} * s->x[{N}], t + h);",
         "        return MAST_MODEL_ERROR;", "    }",
+        f"    if (s->sensor) return sensor_step(s, values[{n_in + 6}], h, p, values + {n_in + 7}, msg, size);",
         "    return MAST_OK;", "}", ""])
+
+
+def _actuator_checks(block, vrs: Mapping[str, int]) -> list[str]:
+    """ActuatorBlock.__init__'s checks after the parameters' own (the same messages)."""
+    r = {k: f"p->real[{vrs[k]}]" for k in ("rho_min", "rho_max", "rho_0", "backlash")}
+    show = lambda k, buf: f"mast_repr({r[k]}, {buf}, sizeof {buf})"   # noqa: E731
+    lines = ["    {", "        char a[40], b[40], d[40];",
+             f"        if (!({r['rho_min']} < {r['rho_max']})) {{",
+             f"            snprintf(msg, size, \"parameter 'rho_max' = %s: expected a value above rho_min = %s m\", "
+             f"{show('rho_max', 'a')}, {show('rho_min', 'b')});",
+             "            return MAST_PARAMETER_ERROR;", "        }",
+             f"        if (!({r['rho_min']} < {r['rho_0']} && {r['rho_0']} < {r['rho_max']})) {{",
+             f"            snprintf(msg, size, \"parameter 'rho_0' = %s: expected a position inside the stroke (%s, %s) m\", "
+             f"{show('rho_0', 'a')}, {show('rho_min', 'b')}, {show('rho_max', 'd')});",
+             "            return MAST_PARAMETER_ERROR;", "        }"]
+    if block.N >= 3:
+        lines += ["        int items;", "        char item[64];", *_parse_chain(vrs, block.N, "        ")]
+    if block.N != 2:
+        lines += [f"        if ({r['backlash']} > 0.0) {{",
+                  f"            snprintf(msg, size, \"parameter 'backlash' = %s: backlash is modelled in the two-inertia "
+                  f"transmission only (n_dof = 2, here {block.N})\", {show('backlash', 'a')});",
+                  "            return MAST_PARAMETER_ERROR;", "        }"]
+    return lines + ["        (void)a; (void)b; (void)d;", "    }"]
 
 
 # ----------------------------------------------------------------------------------- mechanism
@@ -750,13 +1089,15 @@ def generated_parameters(block_class: type, parameters: Mapping[str, object]) ->
         return {k: v for k, v in parameters.items() if k not in tunable}
     if kind == "mechanism":
         return {k: v for k, v in parameters.items() if k not in MECHANISM_TUNABLE}
+    if kind == "actuator":     # the chain's structure: the size of the state
+        return {k: parameters[k] for k in ACTUATOR_STRUCTURE}
     return dict(parameters)
 
 
 def emit_model(identifier: str, guid: str, block_class: type, parameters: Mapping[str, object],
-               variables: Sequence[Variable], step_sizes: Optional[Sequence[float]] = None) -> str:
+               variables: Sequence[Variable]) -> str:
     """The C model file of the FMU ``identifier`` (its modelDescription ``variables``), generated from
-    ``block_class`` built with ``parameters``; ``step_sizes`` [s]: the actuator's communication steps."""
+    ``block_class`` built with ``parameters``."""
     vrs = {v.name: v.vr for v in variables}
     n_inputs, n_io = len(block_class.INPUTS), len(block_class.INPUTS) + len(block_class.OUTPUTS)
     expected = list(block_class.INPUTS + block_class.OUTPUTS) + [p.name for p in block_class.PARAMETERS]
@@ -768,13 +1109,10 @@ def emit_model(identifier: str, guid: str, block_class: type, parameters: Mappin
     variables = [Variable(v.name, v.vr, v.type, v.causality, block.params[v.name]) if v.causality == "parameter"
                  else v for v in variables]
     kind = native_kind(block_class)
+    extra: list[str] = []
     if kind == "actuator":
-        if block._sensor is not None:
-            raise ValueError(f"{identifier}: the torque measurement model (T_meas, delay_meas, tau_offset) has no "
-                             "native form yet; build the Python FMU for it")
-        if not step_sizes:
-            raise ValueError(f"{identifier}: the actuator's native form needs the step sizes it will be stepped with")
-        body = _actuator(block, step_sizes)
+        body = _actuator(block, vrs)
+        extra = _actuator_checks(block, vrs)
     elif kind == "mechanism":
         body = _mechanism(block, vrs)
     elif kind == "controller":
@@ -786,5 +1124,5 @@ def emit_model(identifier: str, guid: str, block_class: type, parameters: Mappin
     fixed = generated_parameters(block_class, block.params)
     return "".join([_HEAD.format(what=f"{block_class.__module__}.{block_class.__name__}"),
                     _variable_table(variables), "\n",
-                    _check_function(block_class.PARAMETERS, vrs, fixed), "\n", body, "\n",
+                    _check_function(block_class.PARAMETERS, vrs, fixed, extra), "\n", body, "\n",
                     _model_struct(identifier, guid, variables, n_inputs, n_io)])

@@ -40,6 +40,7 @@ FUNCTIONS = {
     "tanh": "tanh", "exp": "exp", "sin": "sin", "cos": "cos", "sqrt": "sqrt",
     "_sin": "sin", "_cos": "cos", "_sqrt": "sqrt", "_atan2": "atan2", "_hypot": "mast_hypot",
     "_sign": "mast_sign", "_sgn0": "mast_sgn0", "_abs": "fabs", "abs": "fabs", "float": "(double)",
+    "floor": "floor", "int": "trunc",     # int(x) of a float: its integer part, kept as a double
 }
 #: module constants a model's own source may use (``math.pi``)
 CONSTANTS = {("math", "pi"): math.pi, ("math", "e"): math.e}
