@@ -316,7 +316,7 @@ def _actuator(block, vrs: Mapping[str, int]) -> str:
             blocks = [("P", (nx, nx)), ("G", (nx, 2))]
             prefixes = ("F_",)
         for prefix, shape in blocks:
-            h_names += am._flat_names(prefix, shape)
+            h_names += am._names(prefix, shape).ravel().tolist()
         friction_at = {}
         for prefix in prefixes:
             friction_at[prefix] = len(h_names)
