@@ -232,7 +232,7 @@ def test_a_pose_within_the_singularity_margin_is_refused_by_both_routes_with_the
                                             "zeta": 0.8}),
     ("MastWorkspaceController", 1e-4, {"k_v": 41.5, "k_v_scale_z": 1.2, "k_v_scale_psi": 0.7, "k_v_scale_theta": 1.5,
                                        "k_p": 0.031, "k_i": 2.7, "k_pc": 0.3, "i_max": 3.5}),
-    # the masses, inertias and g: inputs of the engine's traced forces (Engine.forces_of)
+    # the masses, inertias and g: inputs of the engine's traced functions (designs.traced_engine)
     ("MastMechanism", 1e-3, {"m_leg": 0.45, "I_leg": 0.003, "m_platform": 3.1, "I_px": 0.011, "I_py": 0.013,
                              "I_pz": 0.02, "g": 9.7})])
 def test_parameters_read_at_run_time_are_tunable_in_any_host(built, ident, h, tuned):
@@ -249,6 +249,73 @@ def test_parameters_read_at_run_time_are_tunable_in_any_host(built, ident, h, tu
     default.close()
     assert np.abs(rows[0] - untuned).max() > 1e-3 * np.abs(untuned).max()     # the parameters matter
     assert np.abs(rows[0] - rows[1]).max() <= TOLERANCE * np.abs(rows[0]).max()   # measured: 0
+
+
+def _start(inst: Instance, parameters: dict) -> int:
+    """Instance.start with each parameter set by its type (Real, Integer, String)."""
+    inst.slave.setupExperiment(startTime=0.0)
+    inst.slave.enterInitializationMode()
+    for name, value in parameters.items():
+        setter = {str: inst.slave.setString, int: inst.slave.setInteger}.get(type(value), inst.slave.setReal)
+        setter([inst.vr[name]], [value])
+    return inst.dll.fmi2ExitInitializationMode(inst.c)
+
+
+def _carriages(inst: Instance, n: int, h: float) -> np.ndarray:
+    """n steps of a mechanism with each carriage on its own sine (the platform tilts); the outputs after each."""
+    rows = []
+    for k in range(n):
+        t = k * h
+        values = {}
+        for i in range(3):
+            w = 2 * math.pi * (2.0 + i)
+            values |= {f"rho_{i + 1}": 0.15 + 0.012 * math.sin(w * t + i), f"rho_dot_{i + 1}": 0.012 * w * math.cos(w * t + i),
+                       f"rho_ddot_{i + 1}": -0.012 * w * w * math.sin(w * t + i)}
+        inst.set(**values)
+        assert inst.step(t, h) == OK, inst.log[-3:]
+        rows.append(inst.get())
+    return np.array(rows)
+
+
+@pytest.mark.parametrize("ident, tuned", [
+    # geometry, bodies, payload and g of the T design: one generated code for every parameter set
+    ("MastMechanism", {"H": 0.41, "r": 0.33, "L": 0.27, "alpha_2": 1.62, "m_leg": 0.45, "I_px": 0.011, "g": 9.7,
+                       "m_payload": 4.0, "payload_x": 0.02, "payload_z": 0.08, "I_payload_xx": 0.02,
+                       "I_payload_yy": 0.03, "I_payload_zz": 0.04, "I_payload_xy": 0.002}),
+    # the inclined design made vertical (Python traces other formulas then; C computes the same floats)
+    ("Mast3PRSInclined", {"beta": 0.0, "H": 0.4}),
+    # actuators alone, attached again: the inverse dynamics instead of the kinematics only
+    ("MastActuatorsOnly", {"attached": 1, "beta": 0.1, "H": 0.45})])
+def test_every_mechanism_parameter_is_tunable_in_any_host(built, ident, tuned):
+    """Geometry, payload and bodies set through start values as on the Python FMU: the same outputs (0 measured)."""
+    rows = []
+    for fmu in (built / "fmus" / f"{ident}.fmu", built / "fmus" / "native" / f"{ident}.fmu"):
+        inst = Instance(fmu, "table")
+        assert _start(inst, tuned) == OK and not [m for s, m in inst.log if s == ERROR], inst.log[-3:]
+        rows.append(_carriages(inst, 40, 5e-3))
+        inst.close()
+    default = _native(built, ident, "table")
+    assert default.start() == OK
+    untuned = _carriages(default, 40, 5e-3)
+    default.close()
+    assert np.abs(rows[0] - untuned).max() > 1e-3 * np.abs(untuned).max()     # the parameters matter
+    assert np.abs(rows[0] - rows[1]).max() <= TOLERANCE * np.abs(rows[0]).max()   # measured: 0
+
+
+@pytest.mark.parametrize("tuned, words", [({"r": 0.45}, "parameter 'r' = 0.45: must be < H = 0.4 m"),
+                                          ({"L": 0.04}, "parameter 'L' = 0.04: must exceed H - r"),
+                                          ({"kinematics": "6UPS"}, "parameter 'kinematics' = '6UPS': expected one of"),
+                                          ({"m_payload": 1.0, "I_payload_xx": 0.01, "I_payload_xy": 0.5},
+                                           "inertia tensor is not positive semi-definite")])
+def test_a_mechanism_that_cannot_be_built_is_refused_with_the_python_fmus_message(built, tuned, words):
+    messages = []
+    for fmu in (built / "fmus" / "MastMechanism.fmu", built / "fmus" / "native" / "MastMechanism.fmu"):
+        inst = Instance(fmu, "table")
+        _start(inst, tuned)
+        messages.append(next(m for s, m in inst.log if s == ERROR and "exitInitializationMode" in m))
+        inst.close()
+    assert words in messages[1] and "ParameterError" in messages[1]
+    assert messages[0] == messages[1]
 
 
 @pytest.mark.parametrize("ident", ["MastWorkspaceController", "MastComputedTorqueController"])

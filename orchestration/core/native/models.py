@@ -43,7 +43,6 @@ from dataclasses import dataclass
 from typing import Mapping, Optional, Sequence
 
 from fmus.common.parameters import Param
-from fmus.mechanism.designs import GRAVITY_PARAMETER, INERTIAL_PARAMETERS
 
 from .translate import c_double, to_c
 
@@ -108,9 +107,11 @@ def _variable_table(variables: Sequence[Variable]) -> str:
     return "static const mast_variable VARIABLES[] = {\n" + "\n".join(rows) + "\n};\n"
 
 
-def _check_function(params: Sequence[Param], vrs: Mapping[str, int], fixed: Mapping[str, object]) -> str:
+def _check_function(params: Sequence[Param], vrs: Mapping[str, int], fixed: Mapping[str, object],
+                    model_check: bool = False) -> str:
     """``check``: the Python model's range checks (``Param.check``, the same messages), then, for the
-    parameters in ``fixed``, that the value is the one the code was generated for."""
+    parameters in ``fixed``, that the value is the one the code was generated for; ``model_check``: then
+    the model's own checks of the set (``model_check``, in the model's part of the file)."""
     lines = ["static int check(const mast_parameters *p, char *msg, size_t size)", "{",
              "    char v[40], c[40];", "    (void)v; (void)c;"]
     for spec in params:
@@ -155,8 +156,9 @@ def _check_function(params: Sequence[Param], vrs: Mapping[str, int], fixed: Mapp
                       f"        snprintf(msg, size, \"parameter '{name}' = %s: this native FMU was generated for "
                       f"{name} = %s; rebuild it (mast build --native) for another value\", v, c);",
                       "        return MAST_PARAMETER_ERROR;", "    }"]
-    lines += ["    return MAST_OK;", "}", ""]
-    return "\n".join(lines)
+    lines += ["    return model_check(p, msg, size);" if model_check else "    return MAST_OK;", "}", ""]
+    prototype = ["static int model_check(const mast_parameters *p, char *msg, size_t size);", ""] if model_check else []
+    return "\n".join(prototype + lines)
 
 
 def _model_struct(identifier: str, guid: str, variables: Sequence[Variable], n_inputs: int, n_io: int) -> str:
@@ -247,53 +249,114 @@ def _actuator(block, step_sizes: Sequence[float]) -> str:
 
 
 # ----------------------------------------------------------------------------------- mechanism
-def _guess_source(desc) -> str:
-    """PRS3.guess (the direct kinematics' cold start) in the generated-code subset."""
-    lines = ["def guess(rho):", "    mean = (rho[0] + rho[1] + rho[2]) / 3.0"]
-    if not desc.inclined:
-        lines.append(f"    return (mean + {desc.geometry.home_reach!r}, 0.0, 0.0)")
-    else:
-        lines += [f"    gap = {desc.r!r} - {desc.H!r} + mean * {desc._sb!r}",
-                  f"    w2 = {desc.L!r} * {desc.L!r} - gap * gap",
-                  "    if 0.0 > w2: w2 = 0.0",
-                  f"    return (mean * {desc._cb!r} + sqrt(w2), 0.0, 0.0)"]
-    return "\n".join(lines) + "\n"
+def _ikjac_c(eng, name: str, checks: Mapping[str, object]) -> str:
+    """The engine's traced inverse kinematics with its Jacobian as C ``name``, and ``name_p`` (``mast_ikjac3``:
+    the engine's traced parameters, ``eng.parameters``, from the array P; none for an engine traced with
+    them as constants)."""
+    args = "".join(f", P[{k}]" for k in range(len(eng.parameters)))
+    return "\n".join([to_c(eng._fn("ikjac").source, name, checks=checks),
+                      f"static int {name}_p(const double *P, double q0, double q1, double q2, double *out)", "{",
+                      "    (void)P;", f"    return {name}(q0, q1, q2{args}, out);", "}", ""])
+
+
+def _level_height_c() -> str:
+    """``designs.level_height`` (the direct kinematics' cold start), translated from its own source."""
+    import inspect
+
+    from fmus.mechanism.designs import level_height
+
+    return to_c(inspect.getsource(level_height), "level_height")
+
+
+def _guess_c(desc) -> str:
+    """``guess(rho, out)``: the description's cold start of the direct kinematics, ``PRS3.guess`` (its
+    ``level_height``, translated) with the geometry of ``desc`` as constants."""
+    args = ", ".join(c_double(v) for v in (desc.H, desc.r, desc.L, desc._cb, desc._sb))
+    return "\n".join([_level_height_c(), "static int guess(double *rho, double *out)", "{",
+                      f"    out[0] = level_height(rho[0], rho[1], rho[2], {args});",
+                      "    out[1] = 0.0;", "    out[2] = 0.0;", "    return 0;", "}", ""])
 
 
 def _mechanism(block, vrs: Mapping[str, int]) -> str:
-    eng = block.engine
-    ikjac = eng._fn("ikjac")
-    if block.attached:    # the masses, inertias and g read at run time (MECHANISM_TUNABLE)
-        main, tunable = eng.forces_of(INERTIAL_PARAMETERS, GRAVITY_PARAMETER)
-    else:
-        main, tunable = eng._fn("pose"), []
-    checks = {**ikjac.namespace, **main.namespace}
-    checks = {k: v for k, v in checks.items() if k.startswith("_check")}
-    ik_c = to_c(ikjac.source, "ikjac", checks=checks)
-    main_c = to_c(main.source, "dynamics" if block.attached else "pose", checks=checks)
-    guess_c = to_c(_guess_source(eng.description), "guess", arrays=("rho",))
+    """MechanismBlock for every parameter set: the engine traced with the geometry, the bodies, the payload
+    and g as named inputs (``designs.traced_engine``), their values read at initialisation; the geometry
+    checks of ``designs.describe`` (the same messages) at exitInitializationMode."""
+    from fmus.mechanism.designs import TRACED_PARAMETERS, traced_engine
+
+    eng = traced_engine(block.params, block.name)
+    if tuple(eng.parameters) != TRACED_PARAMETERS or len(eng.lengths) != 3 \
+            or eng.lengths != (1.0, block.params["r"], block.params["r"]):
+        raise ValueError(f"{block.name}: the native mechanism expects the 3PRS traced with {TRACED_PARAMETERS} and "
+                         "the coordinate lengths (1, r, r)")
+    ikjac, forces, pose = eng._fn("ikjac"), eng._fn("forces"), eng._fn("pose")
+    checks = {k: v for k, v in {**ikjac.namespace, **forces.namespace, **pose.namespace}.items()
+              if k.startswith("_check")}
+    NP = len(TRACED_PARAMETERS)
+    index = {name: k for k, name in enumerate(TRACED_PARAMETERS)}
+    P = {name: f"P[{k}]" for name, k in index.items()}
+    params = ", ".join(f"P[{k}]" for k in range(NP))
     inputs = ", ".join(_literal(n) for n in block.INPUTS)
     coordinates = ", ".join(_literal(n) for n in eng.description.coordinates)
-    lengths = ", ".join(c_double(v) for v in eng.lengths)
-    if len(eng.lengths) != 3:
-        raise ValueError(f"{block.name}: the native direct kinematics takes three coordinates, not {len(eng.lengths)}")
-    dk = (f"mast_dk3(ikjac, why, COORDINATES, LENGTHS, {c_double(eng.margin)}, values, q, J, 1e-12, 50, "
+    dk = (f"mast_dk3(ikjac_p, s->P, why, COORDINATES, s->lengths, {c_double(eng.margin)}, values, q, J, 1e-12, 50, "
           f"{c_double(eng.cond_limit)}, why_text, sizeof why_text)")
-    if block.attached:
-        call = "dynamics(q[0], q[1], q[2], J[0], J[1], J[2], J[3], J[4], J[5], J[6], J[7], J[8], " \
-               "values[3], values[4], values[5], values[6], values[7], values[8], " \
-               + "".join(f"p->real[{vrs[name]}], " for name in tunable) + "values + 9)"
-        write = [f"    code = {call};"]
-    else:
-        write = ["    values[9] = 0.0; values[10] = 0.0; values[11] = 0.0;",
-                 "    code = pose(q[0], q[1], q[2], values + 12);"]
+    attached = f"p->integer[{vrs['attached']}]"
+    kind = f"p->string[{vrs['kinematics']}] ? p->string[{vrs['kinematics']}] : \"\""
+    payload = [f"p->real[{vrs[n]}]" for n in ("m_payload", "I_payload_xx", "I_payload_xy", "I_payload_xz",
+                                               "I_payload_yy", "I_payload_yz", "I_payload_zz")]
+    tensor = ", ".join(payload[k] for k in (1, 2, 3, 2, 4, 5, 3, 5, 6))
+    R = {n: f"mast_repr({P[n]}, {n.lower()}, sizeof {n.lower()})" for n in ("H", "r", "L", "beta")}
     return "\n".join([
-        "typedef struct { double q[3]; int warm; } State;", "",
-        ik_c, main_c, guess_c,
+        f"typedef struct {{ double q[3]; int warm; double P[{NP}]; double lengths[3]; double cb, sb; }} State;", "",
+        _ikjac_c(eng, "ikjac", checks),
+        to_c(forces.source, "dynamics", checks=checks), to_c(pose.source, "pose", checks=checks),
+        _level_height_c(),
         _why_function("why", checks),
         f"static const char *const INPUT_NAMES[] = {{{inputs}}};",
-        f"static const char *const COORDINATES[] = {{{coordinates}}};",
-        f"static const double LENGTHS[] = {{{lengths}}};   /* Engine.lengths [m]: the margins compare motions */", "",
+        f"static const char *const COORDINATES[] = {{{coordinates}}};", "",
+        "/* the traced parameters (designs.TRACED_PARAMETERS) as the host set them */",
+        "static void traced_parameters(const mast_parameters *p, double *P)", "{",
+        *[f"    P[{k}] = p->real[{vrs[name]}];   /* {name} */" for k, name in enumerate(TRACED_PARAMETERS)], "}", "",
+        "/* designs.describe's checks of a parameter set (after the ranges), with its messages */",
+        "static int model_check(const mast_parameters *p, char *msg, size_t size)", "{",
+        f"    double P[{NP}], out[12], inv[9], det, tensor[9] = {{{tensor}}};",
+        "    char h[40], r[40], l[40], beta[40], a1[40], a2[40], a3[40];",
+        "    traced_parameters(p, P);",
+        f"    if (strcmp({kind}, \"3PRS\") != 0) {{",
+        f"        snprintf(msg, size, \"parameter 'kinematics' = '%s': expected one of 3PRS\", {kind});",
+        "        return MAST_PARAMETER_ERROR;", "    }",
+        f"    double cb = cos({P['beta']}), sb = sin({P['beta']});",
+        f"    double z = level_height(0.0, 0.0, 0.0, {P['H']}, {P['r']}, {P['L']}, cb, sb);",
+        "    int code = ikjac(z, 0.0, 0.0, " + params + ", out);",
+        f"    if ({P['beta']} == 0.0) {{   /* kinematics.Geometry.checked */",
+        f"        if (!({P['r']} < {P['H']})) {{",
+        f"            snprintf(msg, size, \"parameter 'r' = %s: must be < H = %s m (working assembly: the spherical joints "
+        f"lie inside the guide radius)\", {R['r']}, {R['H']});",
+        "            return MAST_PARAMETER_ERROR;", "        }",
+        f"        if (!({P['H']} - {P['r']} < {P['L']})) {{",
+        f"            snprintf(msg, size, \"parameter 'L' = %s: must exceed H - r = %s m, or the legs cannot reach the "
+        f"platform\", {R['L']}, mast_repr({P['H']} - {P['r']}, h, sizeof h));",
+        "            return MAST_PARAMETER_ERROR;", "        }",
+        "        if (code || !mast_inv3(out + 3, inv, &det)) {",
+        "            snprintf(msg, size, \"parameters 'alpha_1', 'alpha_2', 'alpha_3' = (%s, %s, %s) rad: the mechanism "
+        "cannot be assembled at the level pose: %s\", "
+        f"mast_repr({P['alpha_1']}, a1, sizeof a1), mast_repr({P['alpha_2']}, a2, sizeof a2), "
+        f"mast_repr({P['alpha_3']}, a3, sizeof a3), code ? why(-code) : \"singular configuration\");",
+        "            return MAST_PARAMETER_ERROR;", "        }", "    }",
+        "    /* the payload's inertia tensor (engine.Body), when there is a payload */",
+        f"    double big = 1.0;",
+        "    for (int k = 0; k < 9; k++) if (fabs(tensor[k]) > big) big = fabs(tensor[k]);",
+        f"    int any = {payload[0]} != 0.0;",
+        "    for (int k = 0; k < 9; k++) any = any || tensor[k] != 0.0;",
+        "    if (any && mast_sym3_min_eig(tensor) < -1e-12 * big) {",
+        "        snprintf(msg, size, \"parameters 'I_payload_*': body payload: inertia tensor is not positive "
+        "semi-definite\");",
+        "        return MAST_PARAMETER_ERROR;", "    }",
+        f"    if ({P['beta']} != 0.0 && code) {{   /* designs._check_inclined */",
+        "        snprintf(msg, size, \"parameters 'H', 'r', 'L', 'beta' = %s m, %s m, %s m, %s rad: the mechanism cannot be "
+        "assembled at the level pose with the sliders at the foot of their guides: %s\", "
+        f"{R['H']}, {R['r']}, {R['L']}, {R['beta']}, why(-code));",
+        "        return MAST_PARAMETER_ERROR;", "    }",
+        "    return MAST_OK;", "}", "",
         "static int kinematics_error(const double *values, double t, const char *what, char *msg, size_t size)", "{",
         "    char a[40], b[40], c[40], d[40];",
         "    snprintf(msg, size, \"at t = %s s, rho = (%s, %s, %s) m: %s\", mast_repr(t, d, sizeof d), "
@@ -301,16 +364,17 @@ def _mechanism(block, vrs: Mapping[str, int]) -> str:
         "    return MAST_KINEMATICS_ERROR;", "}", "",
         "/* MechanismBlock._compute: direct kinematics (warm start, else cold), then the forces and the pose */",
         "static int compute(State *s, double *values, const mast_parameters *p, double t, char *msg, size_t size)", "{",
-        "    (void)p;",
         "    char v[40], w[40], why_text[1024];",
         "    double q[3], J[9], cold[3];",
+        "    const double *P = s->P;",
         "    int code;",
         "    for (int k = 0; k < 9; k++) {",
         "        if (!isfinite(values[k])) {",
         "            snprintf(msg, size, \"input '%s' = %s is not finite at t = %s s\", INPUT_NAMES[k], "
         "mast_repr(values[k], v, sizeof v), mast_repr(t, w, sizeof w));",
         "            return MAST_MODEL_ERROR;", "        }", "    }",
-        "    guess(values, cold);",
+        f"    cold[0] = level_height(values[0], values[1], values[2], {P['H']}, {P['r']}, {P['L']}, s->cb, s->sb);",
+        "    cold[1] = 0.0; cold[2] = 0.0;",
         "    for (int k = 0; k < 3; k++) q[k] = s->warm ? s->q[k] : cold[k];",
         f"    code = {dk};",
         "    if (code && code != MAST_SINGULARITY_ERROR && s->warm) {   /* never restarted after a SingularityError */",
@@ -321,16 +385,26 @@ def _mechanism(block, vrs: Mapping[str, int]) -> str:
         "        kinematics_error(values, t, why_text, msg, size);",
         "        return code;          /* MAST_KINEMATICS_ERROR, or MAST_SINGULARITY_ERROR: it stays one */",
         "    }",
-        *write,
+        f"    if ({attached}) {{",
+        "        code = dynamics(q[0], q[1], q[2], J[0], J[1], J[2], J[3], J[4], J[5], J[6], J[7], J[8], "
+        f"values[3], values[4], values[5], values[6], values[7], values[8], {params}, values + 9);",
+        "    } else {   /* attached = 0: no force, the kinematics of the mechanism */",
+        "        values[9] = 0.0; values[10] = 0.0; values[11] = 0.0;",
+        f"        code = pose(q[0], q[1], q[2], {params}, values + 12);",
+        "    }",
         "    if (code) return kinematics_error(values, t, why(-code), msg, size);",
         "    for (int k = 0; k < 3; k++) s->q[k] = q[k];",
         "    s->warm = 1;",
         "    return MAST_OK;", "}", "",
         "static int initialize(void *state, double *values, const mast_parameters *p, double t0, char *msg, size_t size)",
-        "{", "    State *s = state;", "    s->warm = 0;", "    return compute(s, values, p, t0, msg, size);",
+        "{", "    State *s = state;", "    s->warm = 0;", "    traced_parameters(p, s->P);",
+        f"    s->lengths[0] = 1.0; s->lengths[1] = {P['r'].replace('P', 's->P')}; "
+        f"s->lengths[2] = {P['r'].replace('P', 's->P')};   /* Engine.lengths (1, r, r) [m] */",
+        f"    s->cb = cos(s->{P['beta']}); s->sb = sin(s->{P['beta']});",
+        "    return compute(s, values, p, t0, msg, size);",
         "}", "",
         "static int do_step(void *state, double *values, const mast_parameters *p, double t, double h, char *msg, size_t size)",
-        "{", "    return compute(state, values, p, t + h, msg, size);", "}", ""])
+        "{", "    (void)h;", "    return compute(state, values, p, t + h, msg, size);", "}", ""])
 
 
 # ----------------------------------------------------------------------------------- controller
@@ -349,10 +423,6 @@ _S = {"n": 0, "t0": 1, "ik": 2, "pose": 3, "x_v": 6, "x_c": 9, "u": 12, "rho_cmd
 _NS = 70
 #: the joint controller's parameters read at run time (the gains); the others (cycle times, kinematic
 #: model) are in the generated code
-#: the mechanism's parameters read at run time: the masses and inertias of the legs and the platform, and g
-#: (mechanism.designs.INERTIAL_PARAMETERS); the geometry and the payload are in the generated code
-MECHANISM_TUNABLE = frozenset({GRAVITY_PARAMETER} | {name for mass, tensor in INERTIAL_PARAMETERS.values()
-                                                     for name in (mass, *(v for row in tensor for v in row)) if name})
 CONTROLLER_TUNABLE = ("k_v", "k_p", "k_i", "k_pc", "k_ic", "i_max", "u_max", "p", "i_r")
 #: the feed-forward controller's: the transmission (p, i_r) is also in its inlined inverse model
 FEEDFORWARD_TUNABLE = ("k_v", "k_p", "k_i", "k_pc", "k_ic", "i_max", "u_max", "k_ff_v", "k_ff_tau")
@@ -420,14 +490,14 @@ def _workspace_dk(block) -> str:
     lengths = ", ".join(c_double(v) for v in eng.lengths)
     W, G, A = _S["warm"], _S["guess"], _S["model_args"]
     return "\n".join([
-        to_c(ikjac.source, "k_ikjac", checks=checks), to_c(_guess_source(eng.description), "guess", arrays=("rho",)),
+        _ikjac_c(eng, "k_ikjac", checks), _guess_c(eng.description),
         _why_function("why_k", checks),
         f"static const char *const K_COORDINATES[] = {{{coordinates}}};",
         f"static const double K_LENGTHS[] = {{{lengths}}};", "",
         "static int wsdk_eval(const double *rho, double *S, double *q, char *msg, size_t size)", "{",
         "    double J[9];",
         f"    if (S[{W}] == 1.0) {{ for (int k = 0; k < 3; k++) q[k] = S[{G} + k]; }} else guess((double *)rho, q);",
-        f"    int code = mast_dk3(k_ikjac, why_k, K_COORDINATES, K_LENGTHS, {c_double(eng.margin)}, rho, q, J, 1e-12, "
+        f"    int code = mast_dk3(k_ikjac_p, NULL, why_k, K_COORDINATES, K_LENGTHS, {c_double(eng.margin)}, rho, q, J, 1e-12, "
         f"50, {c_double(eng.cond_limit)}, msg, size);",
         "    if (code) return code;",
         f"    for (int k = 0; k < 3; k++) S[{G} + k] = q[k];", f"    S[{W}] = 1.0;", "    return 0;", "}", "",
@@ -647,10 +717,10 @@ def _inverse_model(block) -> str:
         checks = {k: v for k, v in {**ikjac.namespace, **forces.namespace}.items() if k.startswith("_check")}
         coordinates = ", ".join(_literal(n) for n in eng.description.coordinates)
         lengths = ", ".join(c_double(v) for v in eng.lengths)
-        dk = (f"mast_dk3(m_ikjac, why_model, M_COORDINATES, M_LENGTHS, {c_double(eng.margin)}, a, q, J, 1e-12, 50, "
+        dk = (f"mast_dk3(m_ikjac_p, NULL, why_model, M_COORDINATES, M_LENGTHS, {c_double(eng.margin)}, a, q, J, 1e-12, 50, "
               f"{c_double(eng.cond_limit)}, msg, size)")
-        parts += [to_c(ikjac.source, "m_ikjac", checks=checks), to_c(forces.source, "m_dynamics", checks=checks),
-                  to_c(_guess_source(eng.description), "guess", arrays=("rho",)),
+        parts += [_ikjac_c(eng, "m_ikjac", checks), to_c(forces.source, "m_dynamics", checks=checks),
+                  _guess_c(eng.description),
                   _why_function("why_model", checks),
                   f"static const char *const M_COORDINATES[] = {{{coordinates}}};",
                   f"static const double M_LENGTHS[] = {{{lengths}}};", ""]
@@ -748,8 +818,8 @@ def generated_parameters(block_class: type, parameters: Mapping[str, object]) ->
                    "ComputedTorqueController": COMPUTED_TORQUE_TUNABLE,
                    "WorkspaceController": WORKSPACE_TUNABLE}[block_class.__name__]
         return {k: v for k, v in parameters.items() if k not in tunable}
-    if kind == "mechanism":
-        return {k: v for k, v in parameters.items() if k not in MECHANISM_TUNABLE}
+    if kind == "mechanism":     # every parameter read at run time (designs.traced_engine)
+        return {}
     return dict(parameters)
 
 
@@ -786,5 +856,5 @@ def emit_model(identifier: str, guid: str, block_class: type, parameters: Mappin
     fixed = generated_parameters(block_class, block.params)
     return "".join([_HEAD.format(what=f"{block_class.__module__}.{block_class.__name__}"),
                     _variable_table(variables), "\n",
-                    _check_function(block_class.PARAMETERS, vrs, fixed), "\n", body, "\n",
+                    _check_function(block_class.PARAMETERS, vrs, fixed, kind == "mechanism"), "\n", body, "\n",
                     _model_struct(identifier, guid, variables, n_inputs, n_io)])
