@@ -230,14 +230,16 @@ class PRS3(Description):
         self.values = None
 
     @classmethod
-    def traced(cls, params: Mapping[str, object]) -> "PRS3":
+    def traced(cls, params: Mapping[str, object], masses: bool = True) -> "PRS3":
         """The description of ``params`` traced with every parameter of ``TRACED_PARAMETERS`` (geometry,
         bodies, payload, g) as a named input of the generated functions instead of a constant: one
         generated code for every parameter set (the native FMUs compute with what a host sets). Always
         traced with the inclined guides' formulas and the payload body, which for beta = 0 and no payload
-        give the same floats as the specialised ones (up to the sign of a zero)."""
-        desc = describe(params)
-        desc.values = {name: float(params[name]) for name in TRACED_PARAMETERS}
+        give the same floats as the specialised ones (up to the sign of a zero). ``masses=False``: a
+        kinematic model (``kinematic_engine``): its bodies' data and g are 0 (``params`` need not have them)."""
+        desc = describe(params, masses=masses)
+        desc.values = {name: float(params[name]) if masses or name in KINEMATIC_PARAMETERS_NAMES else 0.0
+                       for name in TRACED_PARAMETERS}
         return desc
 
     def key(self) -> tuple:
@@ -420,11 +422,12 @@ def kinematic_engine(params: Mapping[str, object], owner: str = "") -> Engine:
     return engine(params, owner, masses=False)
 
 
-def traced_engine(params: Mapping[str, object], owner: str = "") -> Engine:
+def traced_engine(params: Mapping[str, object], owner: str = "", masses: bool = True) -> Engine:
     """The engine of ``PRS3.traced(params)``: its generated functions take every parameter of
     ``TRACED_PARAMETERS`` as an input after their own arguments (``Engine.parameters``), the same floats as
-    ``engine(params)`` computes with them as constants (tests/test_native.py); it calls them with ``params``."""
+    ``engine(params, owner, masses)`` computes with them as constants (tests/test_native.py); it calls them
+    with ``params``."""
     try:
-        return Engine(PRS3.traced(params), g=float(params["g"]))
+        return Engine(PRS3.traced(params, masses), g=float(params["g"]) if masses else 0.0)
     except OverflowError as err:
         raise ParameterError(f"{owner}: {err}{largest_parameters(params)}") from None
