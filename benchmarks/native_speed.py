@@ -11,7 +11,10 @@ Needs `mast build --native`. The machine may be shared: every figure is the mini
 repeats (the least disturbed). Also runs `benchmarks/native_cycles.c` (a C host, no Python) over each
 native FMU and prints its memory figures, under valgrind with --cycles.
 
-``--hosts``: the same native SSP, the same stop time, in our master (this process: CPU time of the
+``--hosts``: the same native SSP (MAST_standalone.ssp: the trajectory FMU drives it; a host has no
+stimulus of ours), the same stop time (``--host-stop-time``, default 1.9 s: from t = 2 s on, libcosim
+steps by 9.99999999997669e-05 s, which the native actuator, built for 1e-4 s, refuses; the actuator's
+discretisation computed at initialisation for any step will lift that), in our master (this process: CPU time of the
 process, wall time) and in libcosim and the ecos command line (child processes: their CPU time from
 ``getrusage(RUSAGE_CHILDREN)``, wall time around them; libcosim runs in a Python child,
 ``mast.hosts.cosim``, whose interpreter start and imports are measured alone and shown; the ecos CLI
@@ -63,7 +66,6 @@ def timed_child(command: list[str], **kwargs) -> tuple[float, float]:
 
 def hosts(native: Path, stop: float, repeats: int) -> None:
     """Our master vs libcosim and the ecos CLI on the same native SSP (module docstring)."""
-    from mast.core.motion import SineMotion
     from mast.core.run import simulate
     from mast.hosts.cosim import COMPARED, availability, run_host
 
@@ -71,7 +73,7 @@ def hosts(native: Path, stop: float, repeats: int) -> None:
     best = {"our master": (float("inf"), float("inf"))}
     for _ in range(repeats):
         cpu, wall = time.process_time(), time.perf_counter()
-        simulate(native, SineMotion("z", 0.01, 1.0), stop, record=signals)
+        simulate(native, None, stop, record=signals)
         row = (time.process_time() - cpu, time.perf_counter() - wall)
         best["our master"] = min(best["our master"], row)
         for host, kwargs in (("libcosim", {}), ("ecos", {"python_free": True})):
@@ -82,8 +84,8 @@ def hosts(native: Path, stop: float, repeats: int) -> None:
             row = (_child_cpu() - cpu, time.perf_counter() - wall)
             best[host] = min(best.get(host, (float("inf"),) * 2), row)
     start = min(timed_child([sys.executable, "-c", "import mast.hosts.cosim, libcosimpy"]) for _ in range(repeats))
-    print(f"{native.name} (native FMUs), {stop:g} s simulated, z sine 10 mm at 1 Hz (default stimulus for our "
-          f"master; the hosts run the SSP's own trajectory), best of {repeats}:")
+    print(f"{native.name} (native FMUs), {stop:g} s simulated, the SSP's own trajectory, {len(signals)} signals "
+          f"recorded, best of {repeats}:")
     ours = best["our master"]
     for label, (cpu, wall) in best.items():
         ratio = "" if label == "our master" else \
@@ -152,6 +154,7 @@ def main() -> int:
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--cycles", action="store_true", help="also run the C host's cycles under valgrind")
     parser.add_argument("--hosts", action="store_true", help="also run the native SSP in libcosim and the ecos CLI")
+    parser.add_argument("--host-stop-time", type=float, default=1.9, help="stop time of the --hosts runs [s]")
     parser.add_argument("--analyses", action="store_true", help="also time mast reproduce and mast diagnose")
     parser.add_argument("--workers", type=int, default=2, help="workers of mast reproduce and diagnose")
     args = parser.parse_args()
@@ -175,7 +178,7 @@ def main() -> int:
     print(f"  native co-simulation / direct composition: "
           f"{best['native FMUs'] / best['direct composition (Python models)']:.2f}")
     if args.hosts:
-        hosts(native, stop, args.repeats)
+        hosts(native.parent / "MAST_standalone.ssp", args.host_stop_time, args.repeats)
     if args.analyses:
         analyses(python, native, args.workers)
     for ident, step in (("MastActuator", 1e-4), ("MastMechanism", 1e-3), ("MastController", 1e-4),
