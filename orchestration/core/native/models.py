@@ -18,14 +18,14 @@ code, which ``translate.to_c`` writes as C:
 
 What the models' generators do not cover is written here, in the same Python subset, and
 translated too: the outputs of the actuator at rest (``initialize``) and the controllers' tick
-(``DriveController``'s schedule with each controller's position and velocity laws; the functions
-they call are translated from the models' own source: ``pi_step``, ``drive_gains``,
-``cascade_gains``, ``transmission_ratio``, ``reference.rates``, ``inverse_model.motor_torque``,
-``guide_friction``, ``designs.level_height``). The schedule and the laws are a second statement
-of the controllers', held bit-identical to the Python models by tests/test_native.py until the
-Python controllers run this generated tick themselves (docs/native.md); so is the C glue of the
-direct kinematics (``MechanismBlock._compute``, ``InverseModel.torques``,
-``WorkspaceController._dk``: warm start, cold restart, messages).
+(``DriveController``'s schedule; what it calls is translated from the models' own source: ``pi_step``,
+``drive_gains``, ``cascade_gains``, ``transmission_ratio``, the laws ``position_p_law``,
+``velocity_feedforward``, ``commanded_acceleration``, ``limited``, ``joint_speed``, and
+``reference.rates``, ``inverse_model.motor_torque``, ``guide_friction``, ``designs.level_height``).
+The schedule is a second statement of the controllers', held bit-identical to the Python models
+by tests/test_native.py until the Python controllers run this generated tick themselves
+(docs/native.md); so is the C glue of the direct kinematics (``MechanismBlock._compute``,
+``InverseModel.torques``, ``WorkspaceController._dk``: warm start, cold restart, messages).
 
 Parameters: read at run time, with what depends on them computed at initialisation, for the
 trajectory, the mechanism (all of them) and the controllers (gains, cycle times, transmission,
@@ -493,7 +493,8 @@ def _workspace_lines(block, indent: str) -> list[str]:
              f"{i}    return {_DK_FAILED}"]
     lines += [f"{i}qd{k} = S[{_S['own'] + k}]*(values[{k}] - QM[{k}])" for k in range(3)]
     lines.append(f"{i}c = ikjac_s(S, QM[0], QM[1], QM[2], JK)")
-    lines += [f"{i}oc{j} = (JK[{3 + 3 * j}]*qd0 + JK[{4 + 3 * j}]*qd1 + JK[{5 + 3 * j}]*qd2)/{i_R}" for j in range(3)]
+    lines += [f"{i}oc{j} = joint_speed(JK[{3 + 3 * j}], JK[{4 + 3 * j}], JK[{5 + 3 * j}], qd0, qd1, qd2, {i_R})"
+              for j in range(3)]
     return lines
 
 
@@ -530,7 +531,7 @@ def _feedforward_lines(block, indent: str) -> list[str]:
     currents on the reference (i_ff)."""
     i, Q = indent, _S["rates"]
     kff_v_iR, kff_tau = f"S[{_S['own']}]", f"S[{_S['own'] + 1}]"
-    lines = [f"{i}oc{j} = oc{j} + {kff_v_iR}*S[{Q + j}]" for j in range(3)]
+    lines = [f"{i}oc{j} = velocity_feedforward(oc{j}, S[{Q + j}], {kff_v_iR})" for j in range(3)]
     lines.append(f"{i}if {kff_tau} != 0.0:")
     lines += _currents_lines(", ".join([f"rc{j}" for j in range(3)] + [f"S[{Q + k}]" for k in range(6)]), i + "    ")
     lines += [f"{i}    if{j} = {kff_tau}*CUR[{j}]" for j in range(3)]
@@ -543,11 +544,10 @@ def _computed_torque_lines(block, indent: str) -> list[str]:
     i, Q, i_R, i_max = indent, _S["rates"], f"S[{_S['i_R']}]", f"S[{_S['gains'] + 5}]"
     lines = [f"{i}rdm{j} = {i_R}*values[{6 + j}]" for j in range(3)]
     K_P, K_D = f"S[{_S['own']}]", f"S[{_S['own'] + 1}]"
-    lines += [f"{i}acc{j} = S[{Q + 3 + j}] + {K_D}*(S[{Q + j}] - rdm{j}) + {K_P}*(rc{j} - values[{3 + j}])"
-              for j in range(3)]
+    lines += [f"{i}acc{j} = commanded_acceleration(S[{Q + 3 + j}], S[{Q + j}], rdm{j}, rc{j}, values[{3 + j}], {K_P}, "
+              f"{K_D})" for j in range(3)]
     lines += _currents_lines("values[3], values[4], values[5], rdm0, rdm1, rdm2, acc0, acc1, acc2", i)
-    lines += [f"{i}ic{j} = {i_max} if CUR[{j}] > {i_max} else (-{i_max} if CUR[{j}] < -{i_max} else CUR[{j}])"
-              for j in range(3)]
+    lines += [f"{i}ic{j} = limited(CUR[{j}], {i_max})" for j in range(3)]
     return lines
 
 
@@ -589,7 +589,7 @@ def _joint_sources(block) -> tuple[str, str]:
     elif ws:
         body += _workspace_lines(block, "            ")
     else:
-        body += [f"            oc{j} = {kv_iR}*(rc{j} - values[{3 + j}])" for j in range(3)]
+        body += [f"            oc{j} = position_p_law(rc{j}, values[{3 + j}], {kv_iR})" for j in range(3)]
     body += _feedforward_lines(block, "            ") if ff else []
     body.append(f"        if n % S[{_S['N_vel']}] == 0.0:")
     if ct:
@@ -620,6 +620,15 @@ def _joint_controller(block, vrs: Mapping[str, int]) -> str:
     def P(name: str) -> str:
         return f"p->real[{vrs[name]}]"
 
+    # the laws' arithmetic, translated from the controllers' own source (the tick calls them)
+    from fmus.controller.computed_torque import commanded_acceleration, limited
+    from fmus.controller.feedforward import velocity_feedforward
+    from fmus.controller.model import position_p_law
+    from fmus.controller.workspace import joint_speed
+
+    laws = {ControllerBlock: [position_p_law], native_controllers()[1]: [position_p_law, velocity_feedforward],
+            native_controllers()[2]: [commanded_acceleration, limited],
+            native_controllers()[3]: [joint_speed]}[type(block)]
     # the controller's own gains, by its own function (FeedForwardController, ComputedTorque, Workspace)
     own, own_call = None, ""
     if type(block) is native_controllers()[1]:
@@ -685,8 +694,9 @@ def _joint_controller(block, vrs: Mapping[str, int]) -> str:
         to_c(inspect.getsource(own), own.__name__) if own else "",
         to_c(start, "start", arrays=("values", "S", "R"), calls=("ik_s",)),
         _workspace_dk(block) if workspace else "",
+        *[to_c(inspect.getsource(law), law.__name__) for law in laws],
         to_c(ticks, "ticks", arrays=("values", "S", "R", "PI", "RT", "CUR", "QM", "JK"),
-             calls=("ik_s", "pi_step", "rates", "currents", "wsdk", "ikjac_s")),
+             calls=("ik_s", "pi_step", "rates", "currents", "wsdk", "ikjac_s"), values=[law.__name__ for law in laws]),
         f"static const char *const INPUT_NAMES[] = {{{inputs}}};", "",
         "static int input_error(const double *values, double t, char *msg, size_t size)", "{",
         "    char v[40], w[40];",
