@@ -3,10 +3,26 @@ default system at the paper's cycle times, and where the time goes (the FMUs' ow
 
     python benchmarks/native_speed.py [--ssp build/ssp/MAST.ssp] [--stop-time 10] [--repeats 3]
                                       [--cycles]   # also: 200 instantiate/free cycles under valgrind
+                                      [--hosts]    # also: our master vs libcosim and the ecos CLI, native SSP
+                                      [--analyses] # also: mast reproduce and mast diagnose (paper case),
+                                                   # Python vs native FMUs, wall time (about 15 min)
 
 Needs `mast build --native`. The machine may be shared: every figure is the minimum over interleaved
 repeats (the least disturbed). Also runs `benchmarks/native_cycles.c` (a C host, no Python) over each
 native FMU and prints its memory figures, under valgrind with --cycles.
+
+``--hosts``: the same native SSP (MAST_standalone.ssp: the trajectory FMU drives it; a host has no
+stimulus of ours), the same stop time (``--host-stop-time``, default 1.9 s: from t = 2 s on, libcosim
+steps by 9.99999999997669e-05 s, which the native actuator, built for 1e-4 s, refuses; the actuator's
+discretisation computed at initialisation for any step will lift that), in our master (this process: CPU time of the
+process, wall time) and in libcosim and the ecos command line (child processes: their CPU time from
+``getrusage(RUSAGE_CHILDREN)``, wall time around them; libcosim runs in a Python child,
+``mast.hosts.cosim``, whose interpreter start and imports are measured alone and shown; the ecos CLI
+runs under ``env -i``, no Python). ``--analyses``: ``mast reproduce --fmi`` on the Python and the
+native SSP, and the paper case of ``mast diagnose --fmu`` (docs/diagnose.md: ``mast synthesize``
+with the truth tau_c = 0.0718, J1_scale = 0.641026, seed 1) on the Python and the native SSP, and
+``mast diagnose`` on the direct composition (its default), one run each, wall and CPU time of the
+child.
 """
 from __future__ import annotations
 
@@ -29,6 +45,81 @@ def cpu_run(ssp: Path, stop: float, direct: bool = False) -> float:
     start = time.process_time()
     simulate(ssp, SineMotion("z", 0.01, 1.0), stop, direct=direct)
     return time.process_time() - start
+
+
+def _child_cpu() -> float:
+    import resource
+
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
+
+
+def timed_child(command: list[str], **kwargs) -> tuple[float, float]:
+    """(CPU, wall) seconds of a child process; CalledProcessError with its output if it fails."""
+    cpu, wall = _child_cpu(), time.perf_counter()
+    done = subprocess.run(command, capture_output=True, text=True, **kwargs)
+    wall, cpu = time.perf_counter() - wall, _child_cpu() - cpu
+    if done.returncode not in (0, 3):      # mast diagnose: 3 = an unexplained residual, still a run
+        raise subprocess.CalledProcessError(done.returncode, command, done.stdout, done.stderr)
+    return cpu, wall
+
+
+def hosts(native: Path, stop: float, repeats: int) -> None:
+    """Our master vs libcosim and the ecos CLI on the same native SSP (module docstring)."""
+    from mast.core.run import simulate
+    from mast.hosts.cosim import COMPARED, availability, run_host
+
+    signals = list(COMPARED)
+    best = {"our master": (float("inf"), float("inf"))}
+    for _ in range(repeats):
+        cpu, wall = time.process_time(), time.perf_counter()
+        simulate(native, None, stop, record=signals)
+        row = (time.process_time() - cpu, time.perf_counter() - wall)
+        best["our master"] = min(best["our master"], row)
+        for host, kwargs in (("libcosim", {}), ("ecos", {"python_free": True})):
+            if availability(host):
+                continue
+            cpu, wall = _child_cpu(), time.perf_counter()
+            run_host(host, native, stop, signals, timeout=3600, **kwargs)
+            row = (_child_cpu() - cpu, time.perf_counter() - wall)
+            best[host] = min(best.get(host, (float("inf"),) * 2), row)
+    start = min(timed_child([sys.executable, "-c", "import mast.hosts.cosim, libcosimpy"]) for _ in range(repeats))
+    print(f"{native.name} (native FMUs), {stop:g} s simulated, the SSP's own trajectory, {len(signals)} signals "
+          f"recorded, best of {repeats}:")
+    ours = best["our master"]
+    for label, (cpu, wall) in best.items():
+        ratio = "" if label == "our master" else \
+            (f"   {label}/ours CPU {cpu / ours[0]:.2f}, ours/{label} {ours[0] / cpu:.2f}; wall {wall / ours[1]:.2f}, "
+             f"{ours[1] / wall:.2f}")
+        print(f"  {label:12s} {cpu:7.2f} s CPU {wall:7.2f} s wall   real-time factor (CPU) {stop / cpu:6.2f}{ratio}")
+    for host in ("libcosim", "ecos"):
+        if host not in best:
+            print(f"  {host}: not run ({availability(host)})")
+    print(f"  (of libcosim's: its Python child starting and importing libcosimpy alone: {start[0]:.2f} s CPU, "
+          f"{start[1]:.2f} s wall)")
+
+
+def analyses(python: Path, native: Path, workers: int) -> None:
+    """``mast reproduce`` and the paper case of ``mast diagnose``, Python vs native FMUs (module docstring)."""
+    mast = [sys.executable, "-m", "mast.cli"]
+    with tempfile.TemporaryDirectory(prefix="mast_bench_") as tmp:
+        tmp = Path(tmp)
+        measured = tmp / "paper_case"
+        timed_child([*mast, "synthesize", str(python), "--out", str(measured), "--set", "actuator.tau_c=0.0718",
+                     "--set", "actuator.J1_scale=0.641026", "--seed", "1"])
+        rows = []
+        for label, ssp in (("Python FMUs", python), ("native FMUs", native)):
+            rows.append((f"mast reproduce --fmi, {label}",
+                         timed_child([*mast, "reproduce", str(ssp), "--fmi", "--workers", str(workers), "--out",
+                                      str(tmp / f"reproduce_{label[:6]}")])))
+        for label, ssp, flag in (("direct composition (default)", python, []), ("Python FMUs", python, ["--fmu"]),
+                                 ("native FMUs", native, ["--fmu"])):
+            rows.append((f"mast diagnose (paper case), {label}",
+                         timed_child([*mast, "diagnose", str(ssp), "--measured", str(measured), "--workers",
+                                      str(workers), "--out", str(tmp / f"diagnose_{len(rows)}"), *flag])))
+        print(f"analyses, {workers} workers, one run each (child CPU time of every process, wall time):")
+        for label, (cpu, wall) in rows:
+            print(f"  {label:48s} {wall:7.1f} s wall {cpu:7.1f} s CPU")
 
 
 def cycles(fmu: Path, step: float, valgrind: bool) -> str:
@@ -62,6 +153,10 @@ def main() -> int:
     parser.add_argument("--stop-time", type=float, default=10.0)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--cycles", action="store_true", help="also run the C host's cycles under valgrind")
+    parser.add_argument("--hosts", action="store_true", help="also run the native SSP in libcosim and the ecos CLI")
+    parser.add_argument("--host-stop-time", type=float, default=1.9, help="stop time of the --hosts runs [s]")
+    parser.add_argument("--analyses", action="store_true", help="also time mast reproduce and mast diagnose")
+    parser.add_argument("--workers", type=int, default=2, help="workers of mast reproduce and diagnose")
     args = parser.parse_args()
     python = Path(args.ssp)
     native = python.parent / "native" / python.name
@@ -82,6 +177,10 @@ def main() -> int:
     print(f"  Python FMUs / native FMUs CPU time: {best['Python FMUs'] / best['native FMUs']:.1f}")
     print(f"  native co-simulation / direct composition: "
           f"{best['native FMUs'] / best['direct composition (Python models)']:.2f}")
+    if args.hosts:
+        hosts(native.parent / "MAST_standalone.ssp", args.host_stop_time, args.repeats)
+    if args.analyses:
+        analyses(python, native, args.workers)
     for ident, step in (("MastActuator", 1e-4), ("MastMechanism", 1e-3), ("MastController", 1e-4),
                         ("MastTrajectory", 1e-4)):
         fmu = REPO / "build" / "fmus" / "native" / f"{ident}.fmu"

@@ -236,15 +236,22 @@ def test_a_pose_within_the_singularity_margin_is_refused_by_both_routes_with_the
                                             "zeta": 0.8}),
     ("MastWorkspaceController", 1e-4, {"k_v": 41.5, "k_v_scale_z": 1.2, "k_v_scale_psi": 0.7, "k_v_scale_theta": 1.5,
                                        "k_p": 0.031, "k_i": 2.7, "k_pc": 0.3, "i_max": 3.5}),
-    # the masses, inertias and g: inputs of the engine's traced forces (Engine.forces_of)
+    # the masses, inertias and g: inputs of the engine's traced functions (designs.traced_engine)
     ("MastMechanism", 1e-3, {"m_leg": 0.45, "I_leg": 0.003, "m_platform": 3.1, "I_px": 0.011, "I_py": 0.013,
-                             "I_pz": 0.02, "g": 9.7})])
+                             "I_pz": 0.02, "g": 9.7}),
+    # the controllers' cycle times (their schedule) and kinematic model (the engine traced with the geometry
+    # as inputs), and the feed-forward and computed-torque controllers' inverse model's bodies
+    ("MastController", 1e-3, {"T_pos": 2e-3, "T_vel": 5e-4, "H": 0.41, "r": 0.34, "alpha_2": 1.6, "p": 0.006}),
+    ("MastWorkspaceController", 1e-3, {"T_vel": 4e-4, "L": 0.27, "beta": 0.05, "i_r": 2.5}),
+    ("MastFeedForwardController", 1e-3, {"T_pos": 2e-3, "H": 0.41, "m_platform": 2.5, "m_payload": 3.0,
+                                         "payload_z": 0.05}),
+    ("MastComputedTorqueController", 1e-3, {"T_vel": 5e-4, "r": 0.34, "g": 9.7, "I_py": 0.02})])
 def test_parameters_read_at_run_time_are_tunable_in_any_host(built, ident, h, tuned):
     """Set by the host as on the Python FMU (docs/native.md, Parameters): the same outputs, step for step."""
     rows = []
     for fmu in (built / "fmus" / f"{ident}.fmu", built / "fmus" / "native" / f"{ident}.fmu"):
         inst = Instance(fmu, "component")
-        assert inst.start(tuned) == OK and not [m for s, m in inst.log if s == ERROR]
+        assert _start(inst, tuned) == OK and not [m for s, m in inst.log if s == ERROR], inst.log[-3:]
         rows.append(drive(inst, 0, 40, h=h, seed=3.0))
         inst.close()
     default = _native(built, ident, "component")
@@ -253,6 +260,79 @@ def test_parameters_read_at_run_time_are_tunable_in_any_host(built, ident, h, tu
     default.close()
     assert np.abs(rows[0] - untuned).max() > 1e-3 * np.abs(untuned).max()     # the parameters matter
     assert np.abs(rows[0] - rows[1]).max() <= TOLERANCE * np.abs(rows[0]).max()   # measured: 0
+
+
+def _start(inst: Instance, parameters: dict) -> int:
+    """Instance.start with each parameter set by its type (Real, Integer, String)."""
+    inst.slave.setupExperiment(startTime=0.0)
+    inst.slave.enterInitializationMode()
+    for name, value in parameters.items():
+        setter = {str: inst.slave.setString, int: inst.slave.setInteger}.get(type(value), inst.slave.setReal)
+        setter([inst.vr[name]], [value])
+    return inst.dll.fmi2ExitInitializationMode(inst.c)
+
+
+def _carriages(inst: Instance, n: int, h: float) -> np.ndarray:
+    """n steps of a mechanism with each carriage on its own sine (the platform tilts); the outputs after each."""
+    rows = []
+    for k in range(n):
+        t = k * h
+        values = {}
+        for i in range(3):
+            w = 2 * math.pi * (2.0 + i)
+            values |= {f"rho_{i + 1}": 0.15 + 0.012 * math.sin(w * t + i), f"rho_dot_{i + 1}": 0.012 * w * math.cos(w * t + i),
+                       f"rho_ddot_{i + 1}": -0.012 * w * w * math.sin(w * t + i)}
+        inst.set(**values)
+        assert inst.step(t, h) == OK, inst.log[-3:]
+        rows.append(inst.get())
+    return np.array(rows)
+
+
+@pytest.mark.parametrize("ident, tuned", [
+    # geometry, bodies, payload and g of the T design: one generated code for every parameter set
+    ("MastMechanism", {"H": 0.41, "r": 0.33, "L": 0.27, "alpha_2": 1.62, "m_leg": 0.45, "I_px": 0.011, "g": 9.7,
+                       "m_payload": 4.0, "payload_x": 0.02, "payload_z": 0.08, "I_payload_xx": 0.02,
+                       "I_payload_yy": 0.03, "I_payload_zz": 0.04, "I_payload_xy": 0.002}),
+    # the inclined design made vertical (Python traces other formulas then; C computes the same floats)
+    ("Mast3PRSInclined", {"beta": 0.0, "H": 0.4}),
+    # actuators alone, attached again: the inverse dynamics instead of the kinematics only
+    ("MastActuatorsOnly", {"attached": 1, "beta": 0.1, "H": 0.45})])
+def test_every_mechanism_parameter_is_tunable_in_any_host(built, ident, tuned):
+    """Geometry, payload and bodies set through start values as on the Python FMU: the same outputs (0 measured)."""
+    rows = []
+    for fmu in (built / "fmus" / f"{ident}.fmu", built / "fmus" / "native" / f"{ident}.fmu"):
+        inst = Instance(fmu, "table")
+        assert _start(inst, tuned) == OK and not [m for s, m in inst.log if s == ERROR], inst.log[-3:]
+        rows.append(_carriages(inst, 40, 5e-3))
+        inst.close()
+    default = _native(built, ident, "table")
+    assert default.start() == OK
+    untuned = _carriages(default, 40, 5e-3)
+    default.close()
+    assert np.abs(rows[0] - untuned).max() > 1e-3 * np.abs(untuned).max()     # the parameters matter
+    assert np.abs(rows[0] - rows[1]).max() <= TOLERANCE * np.abs(rows[0]).max()   # measured: 0
+
+
+@pytest.mark.parametrize("ident, tuned, words", [
+    ("MastMechanism", {"r": 0.45}, "parameter 'r' = 0.45: must be < H = 0.4 m"),
+    ("MastMechanism", {"L": 0.04}, "parameter 'L' = 0.04: must exceed H - r"),
+    ("MastMechanism", {"kinematics": "6UPS"}, "parameter 'kinematics' = '6UPS': expected one of"),
+    ("MastMechanism", {"m_payload": 1.0, "I_payload_xx": 0.01, "I_payload_xy": 0.5},
+     "inertia tensor is not positive semi-definite"),
+    ("Mast3PRSInclined", {"H": 0.9}, "cannot be assembled at the level pose with the sliders at the foot"),
+    ("MastController", {"T_pos": 1.05e-3}, "parameter 'T_pos' = 0.00105 s must be an integer multiple of T_cur"),
+    ("MastWorkspaceController", {"r": 0.5}, "parameter 'r' = 0.5: must be < H")])
+def test_a_mechanism_or_controller_that_cannot_be_built_is_refused_with_the_python_fmus_message(built, ident, tuned,
+                                                                                               words):
+    messages = []
+    for fmu in (built / "fmus" / f"{ident}.fmu", built / "fmus" / "native" / f"{ident}.fmu"):
+        inst = Instance(fmu, "table")
+        _start(inst, tuned)
+        messages.append(next(m for s, m in inst.log if s == ERROR and "exitInitializationMode" in m))
+        inst.close()
+    assert words in messages[1] and "ParameterError" in messages[1]
+    # the same words, up to the failed admissibility check's, which C gives without its values (docs/native.md)
+    assert messages[0].split(" guides: ")[0] == messages[1].split(" guides: ")[0]
 
 
 @pytest.mark.parametrize("ident", ["MastWorkspaceController", "MastComputedTorqueController"])
@@ -345,13 +425,15 @@ def test_our_master_runs_a_native_system_with_another_parameter_set_like_the_pyt
     """Parameters changed by the caller: the native FMUs read them at run time, as the Python FMUs; only a
     parameter a native FMU holds as generated makes the master generate the model for it (mast.core.native.build)."""
     monkeypatch.setenv("MAST_NATIVE_CACHE", str(tmp_path))
-    changed = {"actuator_2": {"R": 0.35, "tau_c": 0.03}, "mechanism": {"m_platform": 2.5},
-               "controller": {"k_v": 40.0}}
+    changed = {"actuator_2": {"R": 0.35, "tau_c": 0.03},
+               "mechanism": {"m_platform": 2.5, "L": 0.265, "m_payload": 2.0, "payload_z": 0.05},
+               "controller": {"k_v": 40.0, "L": 0.265, "T_pos": 2e-3}}
     stimulus = SineMotion("z", 0.01, 2.0)
     python = simulate(built / "ssp" / "MAST.ssp", stimulus, 0.2, parameters=changed)
     native = simulate(built / "ssp" / "native" / "MAST.ssp", stimulus, 0.2, parameters=changed)
     assert _relative_error(python, native) <= TOLERANCE
-    assert not list(tmp_path.glob("*/*.fmu"))      # R, tau_c, m_platform and k_v are read at run time
+    # every parameter changed here is read at run time: nothing is generated for them
+    assert not list(tmp_path.glob("*/*.fmu"))
     unchanged = simulate(built / "ssp" / "MAST.ssp", stimulus, 0.2)
     assert _relative_error(python, unchanged) > 1e-3    # the change matters
 

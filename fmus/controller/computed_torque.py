@@ -37,6 +37,18 @@ def error_gains(omega_n: float, zeta: float) -> tuple[float, float]:
     return (omega_n * omega_n, 2.0 * zeta * omega_n)
 
 
+def commanded_acceleration(rho_ddot_ref: float, rho_dot_ref: float, rho_dot: float, rho_ref: float, rho: float,
+                           K_P: float, K_D: float) -> float:
+    """a = rho_ddot_ref + K_D (rho_dot_ref - rho_dot) + K_P (rho_ref - rho) [m/s^2], one axis: the joint
+    acceleration the inverse model is asked for. Written in the generated-code subset, as ``error_gains``."""
+    return rho_ddot_ref + K_D * (rho_dot_ref - rho_dot) + K_P * (rho_ref - rho)
+
+
+def limited(i: float, i_max: float) -> float:
+    """i clipped to [-i_max, i_max] [A]. Written in the generated-code subset, as ``error_gains``."""
+    return i_max if i > i_max else (-i_max if i < -i_max else i)
+
+
 class ComputedTorqueController(DriveController):
     """Computed torque control of the three axes with the controller's own inverse dynamic model."""
 
@@ -61,8 +73,8 @@ class ComputedTorqueController(DriveController):
         vals, ref, i_R = self.values, self.reference, self.i_R
         rho = (vals[3], vals[4], vals[5])
         rho_dot = (i_R * vals[6], i_R * vals[7], i_R * vals[8])
-        a = [ref.rho_ddot[j] + self.K_D * (ref.rho_dot[j] - rho_dot[j]) + self.K_P * (self._rho_cmd[j] - rho[j])
-             for j in range(3)]
+        a = [commanded_acceleration(ref.rho_ddot[j], ref.rho_dot[j], rho_dot[j], self._rho_cmd[j], rho[j], self.K_P,
+                                    self.K_D) for j in range(3)]
         i_max = self._i_max
         for j, i in enumerate(self.model.currents(rho, rho_dot, a)):
-            self._i_cmd[j] = i_max if i > i_max else (-i_max if i < -i_max else i)
+            self._i_cmd[j] = limited(i, i_max)

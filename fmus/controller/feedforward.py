@@ -31,6 +31,12 @@ def feedforward_gains(k_ff_v: float, k_ff_tau: float, i_R: float) -> tuple[float
     return (k_ff_v / i_R, k_ff_tau)
 
 
+def velocity_feedforward(omega_cmd: float, rho_dot_ref: float, kff_v_iR: float) -> float:
+    """The position law's output plus the velocity feed-forward, one axis [rad/s] (``kff_v_iR`` = k_ff_v / i_R).
+    Written in the generated-code subset, as ``feedforward_gains``."""
+    return omega_cmd + kff_v_iR * rho_dot_ref
+
+
 class FeedForwardController(ControllerBlock):
     """Joint-space P/PI/PI cascade with velocity and inverse-dynamics torque feed-forward."""
 
@@ -47,7 +53,7 @@ class FeedForwardController(ControllerBlock):
         super()._position_law(t)
         ref = self.reference
         for j in range(3):
-            self._omega_cmd[j] += self._kff_v_iR * ref.rho_dot[j]
+            self._omega_cmd[j] = velocity_feedforward(self._omega_cmd[j], ref.rho_dot[j], self._kff_v_iR)
         if self._kff_tau:
             i_ff = self.model.currents(self._rho_cmd, ref.rho_dot, ref.rho_ddot)
             for j in range(3):

@@ -85,6 +85,12 @@ def drive_gains(k_pc: float, k_ic: float, T_cur: float, i_max: float, u_max: flo
     return (k_pc, k_ic * T_cur, i_max, u_max)
 
 
+def position_p_law(rho_cmd: float, rho: float, kv_iR: float) -> float:
+    """The joint cascade's position law, one axis: omega_cmd = k_v (rho_cmd - rho) / i_R [rad/s] (``kv_iR`` =
+    k_v / i_R). Written in the generated-code subset: the native FMU's tick calls this source."""
+    return kv_iR * (rho_cmd - rho)
+
+
 def cascade_gains(k_v: float, k_p: float, k_i: float, T_vel: float, i_R: float) -> tuple[float, float, float]:
     """The joint cascade's outer gains: (k_v / i_R [rad/(m.s)], k_p [A.s/rad], k_i T_vel [A.s/rad]).
 
@@ -356,7 +362,7 @@ class ControllerBlock(DriveController):
         """omega_cmd = k_v (rho_cmd - rho) / i_R."""
         vals, omega_cmd, rho_cmd, kv_iR = self.values, self._omega_cmd, self._rho_cmd, self._kv_iR
         for j in range(3):
-            omega_cmd[j] = kv_iR * (rho_cmd[j] - vals[3 + j])
+            omega_cmd[j] = position_p_law(rho_cmd[j], vals[3 + j], kv_iR)
 
     def _velocity_law(self, t: float) -> None:
         """i_cmd = PI(omega_cmd - omega_m) + i_ff, limited to i_max."""

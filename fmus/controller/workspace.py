@@ -35,6 +35,12 @@ def pose_gains(k_v: float, s_z: float, s_psi: float, s_theta: float) -> tuple[fl
     return (k_v * s_z, k_v * s_psi, k_v * s_theta)
 
 
+def joint_speed(J_0: float, J_1: float, J_2: float, qdot_0: float, qdot_1: float, qdot_2: float, i_R: float) -> float:
+    """One axis' motor speed command [rad/s] for the pose rate qdot through its row (J_0, J_1, J_2) of drho/dq.
+    Written in the generated-code subset, as ``pose_gains``."""
+    return (J_0 * qdot_0 + J_1 * qdot_1 + J_2 * qdot_2) / i_R
+
+
 class WorkspaceController(ControllerBlock):
     """Position loop on the platform pose (through the direct kinematics); velocity and current PI per axis."""
 
@@ -72,4 +78,4 @@ class WorkspaceController(ControllerBlock):
         J_inv = self.kinematics.jacobian(q)[0]          # drho/dq, row-major
         i_R = self.i_R
         for j in range(3):
-            self._omega_cmd[j] = (J_inv[3 * j] * qdot[0] + J_inv[3 * j + 1] * qdot[1] + J_inv[3 * j + 2] * qdot[2]) / i_R
+            self._omega_cmd[j] = joint_speed(J_inv[3 * j], J_inv[3 * j + 1], J_inv[3 * j + 2], *qdot, i_R)

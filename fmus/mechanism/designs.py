@@ -30,13 +30,13 @@ import numpy as np
 
 from ..common.codegen import largest_parameters
 from ..common.parameters import Param, ParameterError, nonnegative
-from .engine import Body, Description, Engine, Evaluation, atan2, hypot, require, sign, sqrt
+from .engine import Body, Description, Engine, Evaluation, TracedBody, atan2, hypot, require, sign, sqrt
 from .engine import cos as _cos
 from .engine import sin as _sin
 from .kinematics import GEOMETRY_PARAMETERS, MAX_TILT, Geometry, KinematicsError, _det3
 
 __all__ = ["KINEMATICS", "KINEMATIC_PARAMETERS", "KINEMATIC_PARAMETERS_NAMES", "MASS_PARAMETERS", "PAYLOAD_PARAMETERS",
-           "PRS3", "describe", "engine", "kinematic_engine"]
+           "PRS3", "TRACED_PARAMETERS", "describe", "engine", "kinematic_engine", "level_height", "traced_engine"]
 
 
 #: the geometry parameter set: bound to the mechanism and to the controller (its kinematic model)
@@ -115,33 +115,34 @@ def _pose_text(z, psi, theta) -> str:
 
 
 class _NullCheck:
-    def __init__(self, r: float, alpha) -> None:
-        self.r, self.alpha = r, alpha
-        self.c_condition = f"a0 > {1e-9 * r * r!r}"
-        self.c_message = ("singular configuration: the constraints S_i . t_i = 0 do not determine the parasitic "
-                          "motion (x, y, phi)")
+    """The parasitic motion determined: |null vector| > 1e-9 r^2 (arguments: norm, z, psi, theta, r, alpha_1..3)."""
 
-    def __call__(self, norm, z, psi, theta) -> None:
-        if not norm > 1e-9 * self.r * self.r:
+    c_condition = "a0 > ((1e-09 * a4) * a4)"
+    c_message = ("singular configuration: the constraints S_i . t_i = 0 do not determine the parasitic "
+                 "motion (x, y, phi)")
+
+    def __call__(self, norm, z, psi, theta, r, *alpha) -> None:
+        if not norm > 1e-9 * r * r:
             raise KinematicsError(
                 f"singular configuration: the constraints S_i . t_i = 0 do not determine the parasitic motion "
-                f"(x, y, phi) at {_pose_text(z, psi, theta)} (guide angles {self.alpha} rad; "
+                f"(x, y, phi) at {_pose_text(z, psi, theta)} (guide angles {tuple(alpha)} rad; "
                 f"|null vector (cos, sin)| = {norm:.3g})")
 
-    def admissible(self, norm, z, psi, theta):
-        return norm > 1e-9 * self.r * self.r
+    @staticmethod
+    def admissible(norm, z, psi, theta, r, *alpha):
+        return norm > 1e-9 * r * r
 
 
 class _InsideCheck:
-    """S_i on the inner side of guide i (the working assembly)."""
+    """S_i on the inner side of guide i (the working assembly); arguments: u, d, z, psi, theta, H."""
 
-    def __init__(self, i: int, H: float, inclined: bool) -> None:
-        self.i, self.H, self.inclined = i, H, inclined
+    def __init__(self, i: int, inclined: bool) -> None:
+        self.i, self.inclined = i, inclined
         self.c_condition = "a0 > 0.0"
         self.c_message = (f"pose unreachable (not the working assembly): spherical joint S_{i + 1} is on the outer "
                           f"side of guide {i + 1}")
 
-    def __call__(self, u, d, z, psi, theta) -> None:
+    def __call__(self, u, d, z, psi, theta, H) -> None:
         if not u > 0.0:
             i = self.i + 1
             if self.inclined:
@@ -150,30 +151,50 @@ class _InsideCheck:
                     f"outer side of guide {i} ({_pose_text(z, psi, theta)})")
             raise KinematicsError(
                 f"pose unreachable (not the working assembly): spherical joint S_{i} at radial distance "
-                f"{_fmt(d)} m is outside the guide radius H = {_fmt(self.H)} m by {_fmt(-u)} m "
+                f"{_fmt(d)} m is outside the guide radius H = {_fmt(H)} m by {_fmt(-u)} m "
                 f"({_pose_text(z, psi, theta)})")
 
     @staticmethod
-    def admissible(u, d, z, psi, theta):
+    def admissible(u, d, z, psi, theta, H):
         return u > 0.0
 
 
 class _ReachCheck:
-    def __init__(self, i: int, L: float, inclined: bool) -> None:
-        self.i, self.L, self.inclined = i, L, inclined
-        self.c_condition = "a0 > 0.0"
-        self.c_message = f"pose unreachable: leg {i + 1} is too short (L = {_fmt(L)} m) for the pose"
+    """Leg i reaches S_i: w2 = L^2 - u^2 > 0; arguments: w2, u, z, psi, theta, L."""
 
-    def __call__(self, w2, u, z, psi, theta) -> None:
+    def __init__(self, i: int, inclined: bool) -> None:
+        self.i, self.inclined = i, inclined
+        self.c_condition = "a0 > 0.0"
+        self.c_message = f"pose unreachable: leg {i + 1} is too short for the pose"
+
+    def __call__(self, w2, u, z, psi, theta, L) -> None:
         if not w2 > 0.0:
             what = "a reach perpendicular to its guide" if self.inclined else "a horizontal reach"
             raise KinematicsError(
-                f"pose unreachable: leg {self.i + 1} would need {what} of {_fmt(u)} m > L = {_fmt(self.L)} m "
-                f"(short by {_fmt(u - self.L)} m) at {_pose_text(z, psi, theta)}")
+                f"pose unreachable: leg {self.i + 1} would need {what} of {_fmt(u)} m > L = {_fmt(L)} m "
+                f"(short by {_fmt(u - L)} m) at {_pose_text(z, psi, theta)}")
 
     @staticmethod
-    def admissible(w2, u, z, psi, theta):
+    def admissible(w2, u, z, psi, theta, L):
         return w2 > 0.0
+
+
+def level_height(rho_1, rho_2, rho_3, H, r, L, cb, sb):
+    """z [m] of the level pose (psi = theta = 0) for the mean slider position (guides inclined by beta:
+    cb = cos(beta), sb = sin(beta); for beta = 0 the mean plus sqrt(L^2 - (H - r)^2), the same floats):
+    the direct kinematics' cold start. In the generated-code subset: the native FMUs translate it."""
+    mean = (rho_1 + rho_2 + rho_3) / 3.0
+    gap = r - H + mean * sb
+    w2 = L * L - gap * gap
+    if 0.0 > w2:
+        w2 = 0.0
+    return mean * cb + sqrt(w2)
+
+
+#: the names of the parameters a symbolic 3PRS traces as inputs (``PRS3(symbolic=True)``), in argument order
+TRACED_PARAMETERS = ("H", "r", "L", "alpha_1", "alpha_2", "alpha_3", "beta", "m_leg", "I_leg", "m_platform",
+                     "I_px", "I_py", "I_pz", "g", "m_payload", "payload_x", "payload_y", "payload_z",
+                     "I_payload_xx", "I_payload_yy", "I_payload_zz", "I_payload_xy", "I_payload_xz", "I_payload_yz")
 
 
 # ----------------------------------------------------------------------------- the 3PRS
@@ -205,19 +226,55 @@ class PRS3(Description):
         platform = Body("platform", float(m_platform), (0.0, 0.0, 0.0), ((Ix, 0.0, 0.0), (0.0, Iy, 0.0), (0.0, 0.0, Iz)))
         self.payload = payload
         self.bodies = legs + (platform,) + ((payload,) if payload is not None else ())
+        #: the parameter values, when traced as inputs (``traced``); None: traced as constants
+        self.values = None
+
+    @classmethod
+    def traced(cls, params: Mapping[str, object], masses: bool = True) -> "PRS3":
+        """The description of ``params`` traced with every parameter of ``TRACED_PARAMETERS`` (geometry,
+        bodies, payload, g) as a named input of the generated functions instead of a constant: one
+        generated code for every parameter set (the native FMUs compute with what a host sets). Always
+        traced with the inclined guides' formulas and the payload body, which for beta = 0 and no payload
+        give the same floats as the specialised ones (up to the sign of a zero). ``masses=False``: a
+        kinematic model (``kinematic_engine``): its bodies' data and g are 0 (``params`` need not have them)."""
+        desc = describe(params, masses=masses)
+        desc.values = {name: float(params[name]) if masses or name in KINEMATIC_PARAMETERS_NAMES else 0.0
+                       for name in TRACED_PARAMETERS}
+        return desc
 
     def key(self) -> tuple:
-        return (type(self).__name__, self.H, self.r, self.L, self.alpha, self.beta, self.bodies)
+        return (type(self).__name__, self.H, self.r, self.L, self.alpha, self.beta, self.bodies,
+                None if self.values is None else tuple(self.values.items()))
+
+    def _traced_inputs(self, q: Sequence):
+        """(H, r, L, alpha, cos alpha, sin alpha, cos beta, sin beta, bodies, inclined): this description's
+        numbers, or (``traced``) the named inputs of q's graph and expressions of them."""
+        if self.values is None:
+            return (self.H, self.r, self.L, self.alpha, self._ca, self._sa, self._cb, self._sb, None,
+                    self.inclined)
+        graph = q[0].g
+        P = {name: graph.input(name) for name in TRACED_PARAMETERS}
+        alpha = tuple(P[f"alpha_{i + 1}"] for i in range(3))
+        L, I_leg = P["L"], P["I_leg"]
+        leg_inertia = ((0.0, 0.0, 0.0), (0.0, I_leg, 0.0), (0.0, 0.0, I_leg))
+        bodies = [TracedBody(f"leg_{i + 1}", P["m_leg"], (0.5 * L, 0.0, 0.0), leg_inertia) for i in range(3)]
+        bodies.append(TracedBody("platform", P["m_platform"], (0.0, 0.0, 0.0),
+                                 ((P["I_px"], 0.0, 0.0), (0.0, P["I_py"], 0.0), (0.0, 0.0, P["I_pz"]))))
+        xy, xz, yz = P["I_payload_xy"], P["I_payload_xz"], P["I_payload_yz"]
+        bodies.append(TracedBody("payload", P["m_payload"], (P["payload_x"], P["payload_y"], P["payload_z"]),
+                                 ((P["I_payload_xx"], xy, xz), (xy, P["I_payload_yy"], yz),
+                                  (xz, yz, P["I_payload_zz"]))))
+        return (P["H"], P["r"], L, alpha, tuple(_cos(a) for a in alpha), tuple(_sin(a) for a in alpha),
+                _cos(P["beta"]), _sin(P["beta"]), bodies, True)
 
     # ---------------------------------------------------------------- positions (the closed form)
     def evaluate(self, q: Sequence) -> Evaluation:
         z, psi, theta = q
         require(_finite, z, psi, theta)
         require(_tilt, psi, theta)
-        r = self.r
+        H, r, L, alpha, ca, sa, cb, sb, bodies, inclined = self._traced_inputs(q)
         cp, sp = _cos(psi), _sin(psi)
         ct, st = _cos(theta), _sin(theta)
-        ca, sa = self._ca, self._sa
         # v_i = Ry(theta) Rx(psi) s_i ; constraint i: -sa x + ca y + cos(phi) A_i + sin(phi) B_i = 0
         v = []
         rows = []
@@ -234,14 +291,12 @@ class PRS3(Description):
         n2 = _det3(m00, m01, m03, m10, m11, m13, m20, m21, m23)
         n3 = -_det3(m00, m01, m02, m10, m11, m12, m20, m21, m22)
         norm = hypot(n2, n3)
-        require(_NullCheck(r, self.alpha), norm, z, psi, theta)
+        require(_NullCheck(), norm, z, psi, theta, r, *alpha)
         k = sign(n2) / norm       # choose cos(phi) > 0
         x, y, c, s = n0 * k, n1 * k, n2 * k, n3 * k
         R = ((c * ct, c * st * sp - s * cp, c * st * cp + s * sp),
              (s * ct, s * st * sp + c * cp, s * st * cp - c * sp),
              (-st, ct * sp, ct * cp))
-        H, L = self.H, self.L
-        cb, sb = self._cb, self._sb
         rho, frames = [], []
         for i in range(3):
             vx, vy, vz = v[i]
@@ -249,16 +304,16 @@ class PRS3(Description):
             Sx, Sy, Sz = x + ax, y + ay, z + vz
             d = ca[i] * Sx + sa[i] * Sy
             h = Sz
-            if self.inclined:
+            if inclined:
                 dr = d - H                           # S_i relative to the foot of guide i, in its plane
                 u = -(cb * dr + sb * h)              # distance of S_i inside the guide line
                 a = cb * h - sb * dr                 # position of S_i's projection along the guide
             else:
                 u = H - d
                 a = h
-            require(_InsideCheck(i, H, self.inclined), u, d, z, psi, theta)
+            require(_InsideCheck(i, inclined), u, d, z, psi, theta, H)
             w2 = L * L - u * u
-            require(_ReachCheck(i, L, self.inclined), w2, u, z, psi, theta)
+            require(_ReachCheck(i, inclined), w2, u, z, psi, theta, L)
             w = sqrt(w2)
             rho_i = a - w
             rho.append(rho_i)
@@ -269,24 +324,23 @@ class PRS3(Description):
             tx, ty = -sa[i], ca[i]
             frames.append(((Bx, By, Bz), ((lx, tx, -lz * ty), (ly, ty, lz * tx), (lz, 0.0, lx * ty - ly * tx))))
         frames.append(((x, y, z), R))
-        if self.payload is not None:
+        if bodies is not None or self.payload is not None:
             frames.append(((x, y, z), R))
-        return Evaluation(rho, (x, y, z, psi, theta, atan2(s, c)), frames)
+        pose = (x, y, z, psi, theta, atan2(s, c))
+        if self.values is None:
+            return Evaluation(rho, pose, frames)
+        return Evaluation(rho, pose, frames, bodies, self.values, q[0].g.input("g"))
 
     def guess(self, rho: Sequence[float]) -> tuple[float, float, float]:
         """Level pose for the mean slider position (the direct kinematics' cold start)."""
-        mean = (rho[0] + rho[1] + rho[2]) / 3.0
-        if not self.inclined:
-            return (mean + self.geometry.home_reach, 0.0, 0.0)
-        gap = self.r - self.H + mean * self._sb
-        return (mean * self._cb + math.sqrt(max(self.L * self.L - gap * gap, 0.0)), 0.0, 0.0)
+        return (level_height(rho[0], rho[1], rho[2], self.H, self.r, self.L, self._cb, self._sb), 0.0, 0.0)
 
 
 # ----------------------------------------------------------------------------- from parameters
 KINEMATICS = {"3PRS": PRS3}
 
 
-def _payload(params: Mapping[str, object]) -> "Body | None":
+def _payload(params: Mapping[str, object], owner: str) -> "Body | None":
     m = float(params.get("m_payload", 0.0))
     I = ((float(params.get("I_payload_xx", 0.0)), float(params.get("I_payload_xy", 0.0)), float(params.get("I_payload_xz", 0.0))),
          (float(params.get("I_payload_xy", 0.0)), float(params.get("I_payload_yy", 0.0)), float(params.get("I_payload_yz", 0.0))),
@@ -297,7 +351,7 @@ def _payload(params: Mapping[str, object]) -> "Body | None":
     try:
         return Body("payload", m, com, I)
     except ValueError as exc:
-        raise ParameterError(f"parameters 'I_payload_*': {exc}") from None
+        raise ParameterError(f"{owner}: parameters 'I_payload_*': {exc}") from None
 
 
 def describe(params: Mapping[str, object], owner: str = "", masses: bool = True) -> Description:
@@ -317,7 +371,7 @@ def describe(params: Mapping[str, object], owner: str = "", masses: bool = True)
         args.update(m_leg=float(params["m_leg"]), I_leg=float(params["I_leg"]),
                     m_platform=float(params["m_platform"]),
                     I_p=(float(params["I_px"]), float(params["I_py"]), float(params["I_pz"])),
-                    payload=_payload(params))
+                    payload=_payload(params, where))
     desc = KINEMATICS[kind](**args)
     if beta != 0.0:
         _check_inclined(desc, where)
@@ -366,3 +420,14 @@ def engine(params: Mapping[str, object], owner: str = "", masses: bool = True) -
 def kinematic_engine(params: Mapping[str, object], owner: str = "") -> Engine:
     """Kinematics only (the controller's model): the same description with massless bodies."""
     return engine(params, owner, masses=False)
+
+
+def traced_engine(params: Mapping[str, object], owner: str = "", masses: bool = True) -> Engine:
+    """The engine of ``PRS3.traced(params)``: its generated functions take every parameter of
+    ``TRACED_PARAMETERS`` as an input after their own arguments (``Engine.parameters``), the same floats as
+    ``engine(params, owner, masses)`` computes with them as constants (tests/test_native.py); it calls them
+    with ``params``."""
+    try:
+        return Engine(PRS3.traced(params, masses), g=float(params["g"]) if masses else 0.0)
+    except OverflowError as err:
+        raise ParameterError(f"{owner}: {err}{largest_parameters(params)}") from None

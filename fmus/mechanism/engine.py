@@ -60,7 +60,7 @@ from ..common.codegen import compile_generated
 from .kinematics import COND_LIMIT, KinematicsError, _inv3
 
 __all__ = [
-    "Body", "Description", "Evaluation", "Engine", "EngineIDP", "EngineJacobians", "KinematicsError", "MARGIN",
+    "Body", "Description", "Evaluation", "Engine", "TracedBody", "EngineIDP", "EngineJacobians", "KinematicsError", "MARGIN",
     "Margins", "SingularityError", "sin", "cos", "sqrt", "atan2", "hypot", "sign", "require", "traced",
 ]
 
@@ -314,7 +314,8 @@ def require(check: Callable[..., None], *args) -> None:
     if g is None:
         check(*args)
         return
-    node = E(g, len(g.nodes), "check", tuple(_lift(g, a) for a in args), check)
+    lifted = tuple(_lift(g, a) for a in args)        # constants first: the check's id follows them
+    node = E(g, len(g.nodes), "check", lifted, check)
     g.nodes.append(node)
     g.checks.append(node)
 
@@ -621,12 +622,32 @@ class Evaluation:
 
     rho: n joint coordinates; pose: (x, y, z, psi, theta, phi) of the platform;
     frames: one (origin (3,), rotation (3, 3) as nested sequences, world <- body) per body,
-    in the order of ``Description.bodies``.
+    in the order of ``Description.bodies`` (of ``bodies`` when given).
+
+    A description traced with its parameters as named inputs of the generated functions (the
+    native FMUs compute with the values a host sets, mast.core.native) also gives ``parameters``
+    ({input name: the value this description has}, in argument order, after the engine's own
+    arguments), ``bodies`` (``TracedBody``: inertial data as expressions of those inputs) and
+    ``gravity`` (g as one of them, [m/s^2]).
     """
 
     rho: Sequence
     pose: Sequence
     frames: Sequence
+    bodies: Optional[Sequence] = None
+    parameters: Mapping[str, float] = field(default_factory=dict)
+    gravity: object = None
+
+
+@dataclass(frozen=True)
+class TracedBody:
+    """A body whose inertial data are traced expressions (``Evaluation.bodies``): as ``Body``, unchecked
+    (the parameters they come from are checked where they are set)."""
+
+    name: str
+    mass: object
+    com: tuple
+    inertia: tuple
 
 
 class Description:
@@ -811,10 +832,17 @@ class Engine:
         self._graph = graph
         q = [graph.input(f"q{j}") for j in range(n)]
         ev = description.evaluate(q)
-        if len(ev.rho) != n or len(ev.pose) != 6 or len(ev.frames) != len(self.bodies):
+        if len(ev.rho) != n or len(ev.pose) != 6 or len(ev.frames) != len(ev.bodies or self.bodies):
             raise ValueError(f"{description.name}: evaluate() must give {n} joint coordinates, a 6-value pose "
-                             f"and one frame per body ({len(self.bodies)})")
+                             f"and one frame per body ({len(ev.bodies or self.bodies)})")
         lift = lambda x: _lift(graph, x)  # noqa: E731
+        if ev.bodies is not None:
+            self.bodies = tuple(ev.bodies)
+        #: names and values of the description's parameters traced as inputs (Evaluation.parameters): the
+        #: generated functions take them after their own arguments; this engine calls them with the values
+        self.parameters = tuple(ev.parameters)
+        self._pv = tuple(float(v) for v in ev.parameters.values())
+        self._gravity = self.g if ev.gravity is None else ev.gravity
         self._q = q
         self._rho = [lift(r) for r in ev.rho]
         self._pose = [lift(p) for p in ev.pose]
@@ -847,21 +875,25 @@ class Engine:
     def _qnames(self) -> list[str]:
         return [f"q{j}" for j in range(self.n)]
 
+    def _args(self, names: list[str]) -> list[str]:
+        """A generated function's arguments: ``names``, then the traced parameters (``parameters``)."""
+        return names + list(self.parameters)
+
     def _build_ik(self) -> Callable:
-        return compile_function("ik", self._qnames(), self._rho, self._graph, f"{self.description.name} ik")
+        return compile_function("ik", self._args(self._qnames()), self._rho, self._graph, f"{self.description.name} ik")
 
     def _build_ikjac(self) -> Callable:
         n = self.n
         outs = list(self._rho) + [self._dq[k](self._rho[i]) for i in range(n) for k in range(n)]
-        return compile_function("ikjac", self._qnames(), outs, self._graph, f"{self.description.name} ik+jacobian")
+        return compile_function("ikjac", self._args(self._qnames()), outs, self._graph, f"{self.description.name} ik+jacobian")
 
     def _build_pose(self) -> Callable:
-        return compile_function("pose", self._qnames(), self._pose, self._graph, f"{self.description.name} pose")
+        return compile_function("pose", self._args(self._qnames()), self._pose, self._graph, f"{self.description.name} pose")
 
     def _build_ikjac_many(self) -> Callable:
         n = self.n
         outs = list(self._rho) + [self._dq[k](self._rho[i]) for i in range(n) for k in range(n)]
-        return compile_function("ikjac", self._qnames(), outs, self._graph, f"{self.description.name} ik+jacobian, "
+        return compile_function("ikjac", self._args(self._qnames()), outs, self._graph, f"{self.description.name} ik+jacobian, "
                                 "arrays", vector=True)
 
     def _build_forces_many(self) -> Callable:
@@ -869,13 +901,11 @@ class Engine:
         n = self.n
         inputs = self._qnames() + [f"J{j}{k}" for j in range(n) for k in range(n)] + \
             [f"rd{k}" for k in range(n)] + [f"rdd{k}" for k in range(n)]
-        return compile_function("forces", inputs, list(t), self._graph, f"{self.description.name} forces, arrays",
+        return compile_function("forces", self._args(inputs), list(t), self._graph, f"{self.description.name} forces, arrays",
                                 vector=True)
 
-    def _dynamics_graph(self, detailed: bool, inertial: Optional[Mapping[str, tuple]] = None,
-                        gravity: Optional[str] = None):
-        """Outputs of the inverse dynamics, built on the graph (inputs q, J = dq/drho, rd, rdd; with
-        ``inertial`` and ``gravity``, those bodies' masses and inertias and g as inputs too: ``forces_of``)."""
+    def _dynamics_graph(self, detailed: bool):
+        """Outputs of the inverse dynamics, built on the graph (inputs q, J = dq/drho, rd, rdd)."""
         n, g = self.n, self._graph
         Jm = [[g.input(f"J{j}{k}") for k in range(n)] for j in range(n)]
         rd = [g.input(f"rd{k}") for k in range(n)]
@@ -897,13 +927,9 @@ class Engine:
         c = [g.const(0.0)] * n
         gt = [g.const(0.0)] * n
         terms, kin = [], []
-        grav = self.g if gravity is None else g.input(gravity)
+        grav = self._gravity
         for body, (com, R) in zip(self.bodies, self._frames):
             m, I = body.mass, body.inertia
-            if inertial and body.name in inertial:
-                mass, tensor = inertial[body.name]
-                m = g.input(mass)
-                I = [[g.const(0.0) if name is None else g.input(name) for name in row] for row in tensor]
             Jv = [to_rho([dq[k](com[i]) for k in range(n)]) for i in range(3)]       # 3 x n
             a0 = [acc(com[i]) for i in range(3)]
             dR = [[[dq[k](R[i][j]) for j in range(3)] for i in range(3)] for k in range(n)]
@@ -944,23 +970,8 @@ class Engine:
         n = self.n
         inputs = self._qnames() + [f"J{j}{k}" for j in range(n) for k in range(n)] + \
             [f"rd{k}" for k in range(n)] + [f"rdd{k}" for k in range(n)]
-        return compile_function("forces", inputs, list(t) + list(self._pose), self._graph,
+        return compile_function("forces", self._args(inputs), list(t) + list(self._pose), self._graph,
                                 f"{self.description.name} forces")
-
-    def forces_of(self, inertial: Mapping[str, tuple], gravity: str) -> tuple[Callable, list[str]]:
-        """The inverse dynamics and pose (as ``forces``) with the masses and inertias of the bodies in
-        ``inertial`` ({body: (mass name, 3x3 nested names, None for an entry that is 0 by construction)})
-        and g (``gravity``) as named inputs after the others: (function, those names in argument order).
-        The same operations as ``forces`` with those values (no constant folding of them)."""
-        t = self._dynamics_graph(False, inertial, gravity)[0]
-        n = self.n
-        names = list(dict.fromkeys([gravity] + [x for mass, tensor in inertial.values()
-                                                for x in (mass, *(v for row in tensor for v in row)) if x]))
-        inputs = self._qnames() + [f"J{j}{k}" for j in range(n) for k in range(n)] + \
-            [f"rd{k}" for k in range(n)] + [f"rdd{k}" for k in range(n)] + names
-        fn = compile_function("forces", inputs, list(t) + list(self._pose), self._graph,
-                              f"{self.description.name} forces, inertia as inputs")
-        return fn, names
 
     def _build_detailed(self) -> Callable:
         n = self.n
@@ -973,21 +984,21 @@ class Engine:
             outs += list(v) + list(w)
         inputs = self._qnames() + [f"J{j}{k}" for j in range(n) for k in range(n)] + \
             [f"rd{k}" for k in range(n)] + [f"rdd{k}" for k in range(n)]
-        return compile_function("detailed", inputs, outs, self._graph, f"{self.description.name} detailed")
+        return compile_function("detailed", self._args(inputs), outs, self._graph, f"{self.description.name} detailed")
 
     # -------------------------------------------------------------------------- kinematics
     def ik(self, q: Sequence[float]) -> tuple[float, ...]:
         """Joint coordinates rho(q) (inverse kinematics); KinematicsError if unreachable."""
-        return self._fn("ik")(*q)
+        return self._fn("ik")(*q, *self._pv)
 
     def pose(self, q: Sequence[float]) -> tuple[float, ...]:
         """(x, y, z, psi, theta, phi) of the platform at q."""
-        return self._fn("pose")(*q)
+        return self._fn("pose")(*q, *self._pv)
 
     def jacobian(self, q: Sequence[float], check: bool = True) -> tuple[list[float], list[float], float]:
         """(J_inv = drho/dq, J = dq/drho, cond) at q, row-major flat lists; KinematicsError if singular."""
         n = self.n
-        out = self._fn("ikjac")(*q)
+        out = self._fn("ikjac")(*q, *self._pv)
         Jinv = list(out[n:])
         J, _ = self._inverse(Jinv, q)
         cond = _cond(Jinv, J)
@@ -1009,7 +1020,7 @@ class Engine:
     def margins(self, q: Sequence[float]) -> Margins:
         """Singularity margins and dexterity at q (``Margins``; KinematicsError if q is not admissible)."""
         n = self.n
-        Jinv = np.array(self._fn("ikjac")(*q)[n:], dtype=float).reshape(n, n)
+        Jinv = np.array(self._fn("ikjac")(*q, *self._pv)[n:], dtype=float).reshape(n, n)
         return Margins(*(float(v) for v in margins_of(Jinv, self.lengths)))
 
     def _fmt_q(self, q) -> str:
@@ -1044,7 +1055,7 @@ class Engine:
         start, det0 = None, 0.0
         for it in range(max_iter + 1):
             try:
-                out = ikjac(*q)
+                out = ikjac(*q, *self._pv)
                 e = [out[i] - r[i] for i in range(n)]
                 res = max(abs(v) for v in e)
                 Jinv = list(out[n:])
@@ -1098,7 +1109,7 @@ class Engine:
         (rho (n, ...), drho/dq (..., n, n), admissible (...) bool). Values where not admissible are meaningless."""
         n = self.n
         arrays = np.broadcast_arrays(*(np.asarray(v, dtype=float) for v in q))
-        out = self._fn("ikjac_many")(*arrays)
+        out = self._fn("ikjac_many")(*arrays, *self._pv)
         shape = arrays[0].shape
         full = [np.broadcast_to(np.asarray(v, dtype=float), shape) for v in out[:-1]]
         rho = np.stack(full[:n])
@@ -1112,7 +1123,7 @@ class Engine:
         n = self.n
         J = np.asarray(J, dtype=float)
         args = list(q) + [J[..., j, k] for j in range(n) for k in range(n)] + list(rho_dot) + list(rho_ddot)
-        out = self._fn("forces_many")(*args)
+        out = self._fn("forces_many")(*args, *self._pv)
         shape = J.shape[:-2]
         return np.stack([np.broadcast_to(np.asarray(v, dtype=float), shape) for v in out[:n]])
 
@@ -1120,10 +1131,10 @@ class Engine:
     def forces(self, q: Sequence[float], J: Sequence[float], rho_dot: Sequence[float],
                rho_ddot: Sequence[float]) -> tuple[float, ...]:
         """Hot path: (t_rho..., x, y, z, psi, theta, phi) at q with J = dq/drho (from ``dk``)."""
-        return self._fn("forces")(*q, *J, *rho_dot, *rho_ddot)
+        return self._fn("forces")(*q, *J, *rho_dot, *rho_ddot, *self._pv)
 
     def _detailed(self, q, J, rd, rdd):
-        return self._fn("detailed")(*q, *J, *rd, *rdd)
+        return self._fn("detailed")(*q, *J, *rd, *rdd, *self._pv)
 
     def _unpack(self, q, J, cond, rd, rdd) -> tuple[EngineIDP, EngineJacobians]:
         n = self.n

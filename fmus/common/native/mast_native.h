@@ -63,8 +63,10 @@ static inline double mast_cond(const double *m, const double *minv, int n2)
     return sqrt(s) * sqrt(t);
 }
 
-/* generated: rho (3) and drho/dq (9, row-major) at q; 0, or -N when the description's check N failed */
-typedef int (*mast_ikjac3)(double q0, double q1, double q2, double *out);
+/* generated: rho (3) and drho/dq (9, row-major) at q for the traced parameters P (Engine.parameters, in
+ * order; unused by an engine traced with its parameters as constants); 0, or -N when the description's
+ * check N failed */
+typedef int (*mast_ikjac3)(const double *P, double q0, double q1, double q2, double *out);
 /* generated: the message of a failed check */
 typedef const char *(*mast_check_message)(int check);
 
@@ -147,11 +149,31 @@ static inline int mast_check_margin(const double *Jinv, const double *J, double 
     return 4;
 }
 
+/* The smallest eigenvalue of the symmetric 3x3 matrix a (row-major), by the trigonometric closed form
+ * (engine.Body's check of an inertia tensor: numpy's eigvalsh there; they agree to rounding) */
+static inline double mast_sym3_min_eig(const double *a)
+{
+    double p1 = a[1] * a[1] + a[2] * a[2] + a[5] * a[5];
+    double tr = (a[0] + a[4] + a[8]) / 3.0;
+    if (p1 == 0.0) {
+        double lo = a[0] < a[4] ? a[0] : a[4];
+        return lo < a[8] ? lo : a[8];
+    }
+    double d0 = a[0] - tr, d1 = a[4] - tr, d2 = a[8] - tr;
+    double p = sqrt((d0 * d0 + d1 * d1 + d2 * d2 + 2.0 * p1) / 6.0);
+    double b[9];
+    for (int k = 0; k < 9; k++) b[k] = (a[k] - (k % 4 == 0 ? tr : 0.0)) / p;
+    double r = (b[0] * (b[4] * b[8] - b[5] * b[7]) - b[1] * (b[3] * b[8] - b[5] * b[6])
+                + b[2] * (b[3] * b[7] - b[4] * b[6])) / 2.0;
+    double phi = r <= -1.0 ? 3.141592653589793 / 3.0 : (r >= 1.0 ? 0.0 : acos(r) / 3.0);
+    return tr + 2.0 * p * cos(phi + 2.0 * 3.141592653589793 / 3.0);
+}
+
 /* Engine.dk for three coordinates ``names``: Newton on the inverse kinematics from ``q`` (the guess) until
  * max|rho(q) - rho| < tol; J = dq/drho. 0, MAST_KINEMATICS_ERROR (3) or, for a solution on another
  * assembly branch than the start or within ``margin`` of a singularity, MAST_SINGULARITY_ERROR (4),
  * with ``msg`` filled (Engine.dk's messages). */
-static inline int mast_dk3(mast_ikjac3 ikjac, mast_check_message why, const char *const *names,
+static inline int mast_dk3(mast_ikjac3 ikjac, const double *P, mast_check_message why, const char *const *names,
                            const double *lengths, double margin, const double *rho, double *q, double *J,
                            double tol, int max_iter, double cond_limit, char *msg, size_t size)
 {
@@ -159,7 +181,7 @@ static inline int mast_dk3(mast_ikjac3 ikjac, mast_check_message why, const char
     char shown[96], qs[160], q0s[160];
     snprintf(shown, sizeof shown, "%.9g, %.9g, %.9g", rho[0], rho[1], rho[2]);
     for (int it = 0; it <= max_iter; it++) {
-        int check = ikjac(q[0], q[1], q[2], out);
+        int check = ikjac(P, q[0], q[1], q[2], out);
         if (check) {
             snprintf(msg, size, "direct kinematics did not converge for rho = (%s) m: iteration %d reached %s, where: %s",
                      shown, it, mast_fmt_q(names, q, qs, sizeof qs), why(-check));

@@ -10,36 +10,38 @@ code, which ``translate.to_c`` writes as C:
   discretisation of each step size computed in C (``mast_expm``);
 - mechanism (every design): the engine's traced functions (inverse kinematics with its
   Jacobian, inverse dynamics, pose), driven by the engine's Newton direct kinematics
-  (``mast_native.h``);
+  (``mast_native.h``); the engine traces the description with every parameter (geometry,
+  bodies, payload, g) as a named input (``designs.traced_engine``), so one C file serves every
+  parameter set;
 - controllers (``native_controllers``: the joint cascade, feed-forward, computed torque,
-  workspace): the engine's traced inverse kinematics, and the cascade's tick with each one's laws;
-  the feed-forward and computed-torque controllers' inverse model (the model engine's direct
-  kinematics and traced dynamics), the workspace controller's direct kinematics and Jacobian;
+  workspace): the same traced engine of their own geometry (inverse kinematics; the feed-forward
+  and computed-torque controllers' inverse model: direct kinematics and dynamics; the workspace
+  controller's direct kinematics and Jacobian), and the cascade's tick with each one's laws;
 - trajectory: the sine about the home pose (its parameters read at run time).
 
 What the models' generators do not cover is written here, in the same Python subset, and
-translated too: the description's cold
-start of the direct kinematics (``guess``) and the controllers' tick (``DriveController``'s
-schedule with each controller's position and velocity laws; the functions they call are
-translated from the models' own source: ``pi_step``, ``drive_gains``, ``cascade_gains``,
-``transmission_ratio``, ``reference.rates``, ``inverse_model.motor_torque``, ``guide_friction``).
-The schedule and the laws are a second statement of the controllers', held bit-identical to the
-Python models by tests/test_native.py until the Python controllers run this generated tick
-themselves (docs/native.md); so is the C glue of the direct kinematics (``MechanismBlock._compute``,
+translated too: the outputs of the actuator at rest (``initialize``) and the controllers' tick
+(``DriveController``'s schedule; what it calls is translated from the models' own source: ``pi_step``,
+``drive_gains``, ``cascade_gains``, ``transmission_ratio``, the laws ``position_p_law``,
+``velocity_feedforward``, ``commanded_acceleration``, ``limited``, ``joint_speed``, and
+``reference.rates``, ``inverse_model.motor_torque``, ``guide_friction``, ``designs.level_height``).
+The schedule is a second statement of the controllers', held bit-identical to the Python models
+by tests/test_native.py until the Python controllers run this generated tick themselves
+(docs/native.md); so is the C glue of the direct kinematics (``MechanismBlock._compute``,
 ``InverseModel.torques``, ``WorkspaceController._dk``: warm start, cold restart, messages) and of
-the actuator (its outputs at rest, ``ActuatorBlock._substeps``' substep rule, ``TorqueSensor.step``'s
-delay line), held to the Python model by the same tests.
+the actuator (``ActuatorBlock._substeps``' substep rule, ``TorqueSensor.step``'s delay line), held
+to the Python model by the same tests.
 
-Parameters: the trajectory's, the actuator's but its chain's structure (``ACTUATOR_STRUCTURE``),
-the joint controller's gains, limits and transmission (``CONTROLLER_TUNABLE``: its gains computed
-at initialisation by the controller's own ``drive_gains``/``cascade_gains``, translated) and the
-mechanism's masses, inertias and g (``MECHANISM_TUNABLE``: inputs of the engine's ``forces_of``)
-are read at run time. The others have their values inlined, as in the Python model (where the
-engine traces with the geometry as constants): ``generated_parameters`` names
-them, the C model checks at initialisation that each still has the value it was generated for,
-and refuses another value with a message naming it (the Python model's range checks come first,
-with the same messages). The project's master generates the model for another set of those when
-it needs one (``build.for_parameters``).
+Parameters: read at run time, with what depends on them computed at initialisation, for the
+trajectory, the actuator (all but its chain's structure, ``ACTUATOR_STRUCTURE``: the size of its
+state), the mechanism (all of them) and the controllers (gains, cycle times, transmission,
+geometry, the inverse model's bodies); the checks the Python model makes of a parameter set
+(ranges, ``DriveController._ratio``, ``designs.describe``) run at exitInitializationMode with its
+messages. Inlined: the actuator's chain structure and the feed-forward and computed-torque
+controllers' inverse model's actuator constants (``MODEL_INLINED``). ``generated_parameters``
+names them, the C model checks at initialisation that each still has the value it was generated
+for, and refuses another value with a message naming it. The project's master generates the model for another set of those
+when it needs one (``build.for_parameters``).
 """
 from __future__ import annotations
 
@@ -48,7 +50,6 @@ from dataclasses import dataclass
 from typing import Mapping, Optional, Sequence
 
 from fmus.common.parameters import Param
-from fmus.mechanism.designs import GRAVITY_PARAMETER, INERTIAL_PARAMETERS
 
 from .translate import c_double, to_c
 
@@ -114,10 +115,11 @@ def _variable_table(variables: Sequence[Variable]) -> str:
 
 
 def _check_function(params: Sequence[Param], vrs: Mapping[str, int], fixed: Mapping[str, object],
-                    extra: Sequence[str] = ()) -> str:
+                    extra: Sequence[str] = (), model_check: bool = False) -> str:
     """``check``: the Python model's range checks (``Param.check``, the same messages), then, for the
     parameters in ``fixed``, that the value is the one the code was generated for, then the C lines
-    ``extra`` (the model's own checks across parameters)."""
+    ``extra`` (the model's own checks across parameters); ``model_check``: then the model's own checks
+    of the set (``model_check``, in the model's part of the file)."""
     lines = ["static int check(const mast_parameters *p, char *msg, size_t size)", "{",
              "    char v[40], c[40];", "    (void)v; (void)c;"]
     for spec in params:
@@ -162,8 +164,9 @@ def _check_function(params: Sequence[Param], vrs: Mapping[str, int], fixed: Mapp
                       f"        snprintf(msg, size, \"parameter '{name}' = %s: this native FMU was generated for "
                       f"{name} = %s; rebuild it (mast build --native) for another value\", v, c);",
                       "        return MAST_PARAMETER_ERROR;", "    }"]
-    lines += [*extra, "    return MAST_OK;", "}", ""]
-    return "\n".join(lines)
+    lines += [*extra, "    return model_check(p, msg, size);" if model_check else "    return MAST_OK;", "}", ""]
+    prototype = ["static int model_check(const mast_parameters *p, char *msg, size_t size);", ""] if model_check else []
+    return "\n".join(prototype + lines)
 
 
 def _model_struct(identifier: str, guid: str, variables: Sequence[Variable], n_inputs: int, n_io: int) -> str:
@@ -586,53 +589,128 @@ def _actuator_checks(block, vrs: Mapping[str, int]) -> list[str]:
 
 
 # ----------------------------------------------------------------------------------- mechanism
-def _guess_source(desc) -> str:
-    """PRS3.guess (the direct kinematics' cold start) in the generated-code subset."""
-    lines = ["def guess(rho):", "    mean = (rho[0] + rho[1] + rho[2]) / 3.0"]
-    if not desc.inclined:
-        lines.append(f"    return (mean + {desc.geometry.home_reach!r}, 0.0, 0.0)")
-    else:
-        lines += [f"    gap = {desc.r!r} - {desc.H!r} + mean * {desc._sb!r}",
-                  f"    w2 = {desc.L!r} * {desc.L!r} - gap * gap",
-                  "    if 0.0 > w2: w2 = 0.0",
-                  f"    return (mean * {desc._cb!r} + sqrt(w2), 0.0, 0.0)"]
-    return "\n".join(lines) + "\n"
+def _ikjac_c(eng, name: str, checks: Mapping[str, object]) -> str:
+    """The engine's traced inverse kinematics with its Jacobian as C ``name``, and ``name_p`` (``mast_ikjac3``:
+    the engine's traced parameters, ``eng.parameters``, from the array P; none for an engine traced with
+    them as constants)."""
+    args = "".join(f", P[{k}]" for k in range(len(eng.parameters)))
+    return "\n".join([to_c(eng._fn("ikjac").source, name, checks=checks),
+                      f"static int {name}_p(const double *P, double q0, double q1, double q2, double *out)", "{",
+                      "    (void)P;", f"    return {name}(q0, q1, q2{args}, out);", "}", ""])
+
+
+def _traced_parameters_c(vrs: Mapping[str, int]) -> str:
+    """``traced_parameters(p, P)``: the values of ``designs.TRACED_PARAMETERS`` as the host set them (0 for those
+    the FMU does not have: a kinematic model's masses and g, ``PRS3.traced(masses=False)``)."""
+    from fmus.mechanism.designs import TRACED_PARAMETERS
+
+    return "\n".join(["static void traced_parameters(const mast_parameters *p, double *P)", "{",
+                      *[f"    P[{k}] = {f'p->real[{vrs[n]}]' if n in vrs else '0.0'};   /* {n} */"
+                        for k, n in enumerate(TRACED_PARAMETERS)], "}", ""])
+
+
+def _describe_checks_c(vrs: Mapping[str, int], payload: bool) -> list[str]:
+    """C lines (in a function with ``p``, ``msg``, ``size``) of ``designs.describe``'s checks of a parameter set
+    after its ranges, with its messages: the kinematics, kinematics.Geometry.checked (beta = 0), the payload's
+    inertia tensor (``payload``: engine.Body), designs._check_inclined (beta != 0). Needs ``ikjac`` (traced)."""
+    from fmus.mechanism.designs import TRACED_PARAMETERS
+
+    P = {name: f"P[{k}]" for k, name in enumerate(TRACED_PARAMETERS)}
+    params = ", ".join(f"P[{k}]" for k in range(len(TRACED_PARAMETERS)))
+    kind = f"p->string[{vrs['kinematics']}] ? p->string[{vrs['kinematics']}] : \"\""
+    R = {n: f"mast_repr({P[n]}, {n.lower()}, sizeof {n.lower()})" for n in ("H", "r", "L", "beta")}
+    lines = [
+        f"    double P[{len(TRACED_PARAMETERS)}], out[12], inv[9], det;",
+        "    char h[40], r[40], l[40], beta[40], a1[40], a2[40], a3[40];",
+        "    traced_parameters(p, P);",
+        f"    if (strcmp({kind}, \"3PRS\") != 0) {{",
+        f"        snprintf(msg, size, \"parameter 'kinematics' = '%s': expected one of 3PRS\", {kind});",
+        "        return MAST_PARAMETER_ERROR;", "    }",
+        f"    double cb = cos({P['beta']}), sb = sin({P['beta']});",
+        f"    double z = level_height(0.0, 0.0, 0.0, {P['H']}, {P['r']}, {P['L']}, cb, sb);",
+        "    int code = ikjac(z, 0.0, 0.0, " + params + ", out);",
+        f"    if ({P['beta']} == 0.0) {{   /* kinematics.Geometry.checked */",
+        f"        if (!({P['r']} < {P['H']})) {{",
+        f"            snprintf(msg, size, \"parameter 'r' = %s: must be < H = %s m (working assembly: the spherical joints "
+        f"lie inside the guide radius)\", {R['r']}, {R['H']});",
+        "            return MAST_PARAMETER_ERROR;", "        }",
+        f"        if (!({P['H']} - {P['r']} < {P['L']})) {{",
+        f"            snprintf(msg, size, \"parameter 'L' = %s: must exceed H - r = %s m, or the legs cannot reach the "
+        f"platform\", {R['L']}, mast_repr({P['H']} - {P['r']}, h, sizeof h));",
+        "            return MAST_PARAMETER_ERROR;", "        }",
+        "        if (code || !mast_inv3(out + 3, inv, &det)) {",
+        "            snprintf(msg, size, \"parameters 'alpha_1', 'alpha_2', 'alpha_3' = (%s, %s, %s) rad: the mechanism "
+        "cannot be assembled at the level pose: %s\", "
+        f"mast_repr({P['alpha_1']}, a1, sizeof a1), mast_repr({P['alpha_2']}, a2, sizeof a2), "
+        f"mast_repr({P['alpha_3']}, a3, sizeof a3), code ? why(-code) : \"singular configuration\");",
+        "            return MAST_PARAMETER_ERROR;", "        }", "    }"]
+    if payload:
+        names = ("I_payload_xx", "I_payload_xy", "I_payload_xz", "I_payload_yy", "I_payload_yz", "I_payload_zz")
+        I = [P[n] for n in names]
+        tensor = ", ".join(I[k] for k in (0, 1, 2, 1, 3, 4, 2, 4, 5))
+        lines += [
+            "    /* the payload's inertia tensor (engine.Body), when there is a payload */",
+            f"    double tensor[9] = {{{tensor}}}, big = 1.0;",
+            "    for (int k = 0; k < 9; k++) if (fabs(tensor[k]) > big) big = fabs(tensor[k]);",
+            f"    int any = {P['m_payload']} != 0.0;",
+            "    for (int k = 0; k < 9; k++) any = any || tensor[k] != 0.0;",
+            "    if (any && mast_sym3_min_eig(tensor) < -1e-12 * big) {",
+            "        snprintf(msg, size, \"parameters 'I_payload_*': body payload: inertia tensor is not positive "
+            "semi-definite\");",
+            "        return MAST_PARAMETER_ERROR;", "    }"]
+    lines += [
+        f"    if ({P['beta']} != 0.0 && code) {{   /* designs._check_inclined */",
+        "        snprintf(msg, size, \"parameters 'H', 'r', 'L', 'beta' = %s m, %s m, %s m, %s rad: the mechanism cannot be "
+        "assembled at the level pose with the sliders at the foot of their guides: %s\", "
+        f"{R['H']}, {R['r']}, {R['L']}, {R['beta']}, why(-code));",
+        "        return MAST_PARAMETER_ERROR;", "    }"]
+    return lines
+
+
+def _level_height_c() -> str:
+    """``designs.level_height`` (the direct kinematics' cold start), translated from its own source."""
+    import inspect
+
+    from fmus.mechanism.designs import level_height
+
+    return to_c(inspect.getsource(level_height), "level_height")
 
 
 def _mechanism(block, vrs: Mapping[str, int]) -> str:
-    eng = block.engine
-    ikjac = eng._fn("ikjac")
-    if block.attached:    # the masses, inertias and g read at run time (MECHANISM_TUNABLE)
-        main, tunable = eng.forces_of(INERTIAL_PARAMETERS, GRAVITY_PARAMETER)
-    else:
-        main, tunable = eng._fn("pose"), []
-    checks = {**ikjac.namespace, **main.namespace}
-    checks = {k: v for k, v in checks.items() if k.startswith("_check")}
-    ik_c = to_c(ikjac.source, "ikjac", checks=checks)
-    main_c = to_c(main.source, "dynamics" if block.attached else "pose", checks=checks)
-    guess_c = to_c(_guess_source(eng.description), "guess", arrays=("rho",))
+    """MechanismBlock for every parameter set: the engine traced with the geometry, the bodies, the payload
+    and g as named inputs (``designs.traced_engine``), their values read at initialisation; the geometry
+    checks of ``designs.describe`` (the same messages) at exitInitializationMode."""
+    from fmus.mechanism.designs import TRACED_PARAMETERS, traced_engine
+
+    eng = traced_engine(block.params, block.name)
+    if tuple(eng.parameters) != TRACED_PARAMETERS or len(eng.lengths) != 3 \
+            or eng.lengths != (1.0, block.params["r"], block.params["r"]):
+        raise ValueError(f"{block.name}: the native mechanism expects the 3PRS traced with {TRACED_PARAMETERS} and "
+                         "the coordinate lengths (1, r, r)")
+    ikjac, forces, pose = eng._fn("ikjac"), eng._fn("forces"), eng._fn("pose")
+    checks = {k: v for k, v in {**ikjac.namespace, **forces.namespace, **pose.namespace}.items()
+              if k.startswith("_check")}
+    NP = len(TRACED_PARAMETERS)
+    P = {name: f"P[{k}]" for k, name in enumerate(TRACED_PARAMETERS)}
+    params = ", ".join(f"P[{k}]" for k in range(NP))
     inputs = ", ".join(_literal(n) for n in block.INPUTS)
     coordinates = ", ".join(_literal(n) for n in eng.description.coordinates)
-    lengths = ", ".join(c_double(v) for v in eng.lengths)
-    if len(eng.lengths) != 3:
-        raise ValueError(f"{block.name}: the native direct kinematics takes three coordinates, not {len(eng.lengths)}")
-    dk = (f"mast_dk3(ikjac, why, COORDINATES, LENGTHS, {c_double(eng.margin)}, values, q, J, 1e-12, 50, "
+    dk = (f"mast_dk3(ikjac_p, s->P, why, COORDINATES, s->lengths, {c_double(eng.margin)}, values, q, J, 1e-12, 50, "
           f"{c_double(eng.cond_limit)}, why_text, sizeof why_text)")
-    if block.attached:
-        call = "dynamics(q[0], q[1], q[2], J[0], J[1], J[2], J[3], J[4], J[5], J[6], J[7], J[8], " \
-               "values[3], values[4], values[5], values[6], values[7], values[8], " \
-               + "".join(f"p->real[{vrs[name]}], " for name in tunable) + "values + 9)"
-        write = [f"    code = {call};"]
-    else:
-        write = ["    values[9] = 0.0; values[10] = 0.0; values[11] = 0.0;",
-                 "    code = pose(q[0], q[1], q[2], values + 12);"]
+    attached = f"p->integer[{vrs['attached']}]"
     return "\n".join([
-        "typedef struct { double q[3]; int warm; } State;", "",
-        ik_c, main_c, guess_c,
+        f"typedef struct {{ double q[3]; int warm; double P[{NP}]; double lengths[3]; double cb, sb; }} State;", "",
+        _ikjac_c(eng, "ikjac", checks),
+        to_c(forces.source, "dynamics", checks=checks), to_c(pose.source, "pose", checks=checks),
+        _level_height_c(),
         _why_function("why", checks),
         f"static const char *const INPUT_NAMES[] = {{{inputs}}};",
-        f"static const char *const COORDINATES[] = {{{coordinates}}};",
-        f"static const double LENGTHS[] = {{{lengths}}};   /* Engine.lengths [m]: the margins compare motions */", "",
+        f"static const char *const COORDINATES[] = {{{coordinates}}};", "",
+        _traced_parameters_c(vrs),
+        "/* designs.describe's checks of a parameter set (after the ranges), with its messages */",
+        "static int model_check(const mast_parameters *p, char *msg, size_t size)", "{",
+        *_describe_checks_c(vrs, payload=True),
+        "    return MAST_OK;", "}", "",
         "static int kinematics_error(const double *values, double t, const char *what, char *msg, size_t size)", "{",
         "    char a[40], b[40], c[40], d[40];",
         "    snprintf(msg, size, \"at t = %s s, rho = (%s, %s, %s) m: %s\", mast_repr(t, d, sizeof d), "
@@ -640,16 +718,17 @@ def _mechanism(block, vrs: Mapping[str, int]) -> str:
         "    return MAST_KINEMATICS_ERROR;", "}", "",
         "/* MechanismBlock._compute: direct kinematics (warm start, else cold), then the forces and the pose */",
         "static int compute(State *s, double *values, const mast_parameters *p, double t, char *msg, size_t size)", "{",
-        "    (void)p;",
         "    char v[40], w[40], why_text[1024];",
         "    double q[3], J[9], cold[3];",
+        "    const double *P = s->P;",
         "    int code;",
         "    for (int k = 0; k < 9; k++) {",
         "        if (!isfinite(values[k])) {",
         "            snprintf(msg, size, \"input '%s' = %s is not finite at t = %s s\", INPUT_NAMES[k], "
         "mast_repr(values[k], v, sizeof v), mast_repr(t, w, sizeof w));",
         "            return MAST_MODEL_ERROR;", "        }", "    }",
-        "    guess(values, cold);",
+        f"    cold[0] = level_height(values[0], values[1], values[2], {P['H']}, {P['r']}, {P['L']}, s->cb, s->sb);",
+        "    cold[1] = 0.0; cold[2] = 0.0;",
         "    for (int k = 0; k < 3; k++) q[k] = s->warm ? s->q[k] : cold[k];",
         f"    code = {dk};",
         "    if (code && code != MAST_SINGULARITY_ERROR && s->warm) {   /* never restarted after a SingularityError */",
@@ -660,16 +739,26 @@ def _mechanism(block, vrs: Mapping[str, int]) -> str:
         "        kinematics_error(values, t, why_text, msg, size);",
         "        return code;          /* MAST_KINEMATICS_ERROR, or MAST_SINGULARITY_ERROR: it stays one */",
         "    }",
-        *write,
+        f"    if ({attached}) {{",
+        "        code = dynamics(q[0], q[1], q[2], J[0], J[1], J[2], J[3], J[4], J[5], J[6], J[7], J[8], "
+        f"values[3], values[4], values[5], values[6], values[7], values[8], {params}, values + 9);",
+        "    } else {   /* attached = 0: no force, the kinematics of the mechanism */",
+        "        values[9] = 0.0; values[10] = 0.0; values[11] = 0.0;",
+        f"        code = pose(q[0], q[1], q[2], {params}, values + 12);",
+        "    }",
         "    if (code) return kinematics_error(values, t, why(-code), msg, size);",
         "    for (int k = 0; k < 3; k++) s->q[k] = q[k];",
         "    s->warm = 1;",
         "    return MAST_OK;", "}", "",
         "static int initialize(void *state, double *values, const mast_parameters *p, double t0, char *msg, size_t size)",
-        "{", "    State *s = state;", "    s->warm = 0;", "    return compute(s, values, p, t0, msg, size);",
+        "{", "    State *s = state;", "    s->warm = 0;", "    traced_parameters(p, s->P);",
+        f"    s->lengths[0] = 1.0; s->lengths[1] = {P['r'].replace('P', 's->P')}; "
+        f"s->lengths[2] = {P['r'].replace('P', 's->P')};   /* Engine.lengths (1, r, r) [m] */",
+        f"    s->cb = cos(s->{P['beta']}); s->sb = sin(s->{P['beta']});",
+        "    return compute(s, values, p, t0, msg, size);",
         "}", "",
         "static int do_step(void *state, double *values, const mast_parameters *p, double t, double h, char *msg, size_t size)",
-        "{", "    return compute(state, values, p, t + h, msg, size);", "}", ""])
+        "{", "    (void)h;", "    return compute(state, values, p, t + h, msg, size);", "}", ""])
 
 
 # ----------------------------------------------------------------------------------- controller
@@ -684,22 +773,20 @@ _S = {"n": 0, "t0": 1, "ik": 2, "pose": 3, "x_v": 6, "x_c": 9, "u": 12, "rho_cmd
       # the computed-torque controller: the reference's rates (rho_dot_ref, rho_ddot_ref), kept between ticks
       "rates": 61,
       # the controller's own gains computed at initialisation (feedforward_gains, error_gains, pose_gains)
-      "own": 67}
-_NS = 70
+      "own": 67,
+      # from the parameters at initialisation: the schedule (T_pos / T_cur, T_vel / T_cur, T_cur, T_pos), the
+      # transmission i_R, cos and sin of beta (the cold start), attached (the inverse model's) and the kinematic
+      # model's traced parameters (designs.TRACED_PARAMETERS: the arguments of its generated functions)
+      "N_pos": 70, "N_vel": 71, "T_cur": 72, "T_pos": 73, "i_R": 74, "cb": 75, "sb": 76, "attached": 77, "P": 78}
+_NS = 105     # and the coordinate lengths (LENGTHS: the last three)
 #: the joint controller's parameters read at run time (the gains); the others (cycle times, kinematic
 #: model) are in the generated code
-#: the mechanism's parameters read at run time: the masses and inertias of the legs and the platform, and g
-#: (mechanism.designs.INERTIAL_PARAMETERS); the geometry and the payload are in the generated code
-MECHANISM_TUNABLE = frozenset({GRAVITY_PARAMETER} | {name for mass, tensor in INERTIAL_PARAMETERS.values()
-                                                     for name in (mass, *(v for row in tensor for v in row)) if name})
-CONTROLLER_TUNABLE = ("k_v", "k_p", "k_i", "k_pc", "k_ic", "i_max", "u_max", "p", "i_r")
-#: the feed-forward controller's: the transmission (p, i_r) is also in its inlined inverse model
-FEEDFORWARD_TUNABLE = ("k_v", "k_p", "k_i", "k_pc", "k_ic", "i_max", "u_max", "k_ff_v", "k_ff_tau")
-#: the computed-torque controller's: the drive's gains and limits (no cascade gains; p, i_r in its model)
-COMPUTED_TORQUE_TUNABLE = ("k_pc", "k_ic", "i_max", "u_max", "omega_n", "zeta")
-#: the workspace controller's: the velocity and current loops' (its pose gains k_v * k_v_scale_* and i_R inlined)
-WORKSPACE_TUNABLE = ("k_v", "k_p", "k_i", "k_pc", "k_ic", "i_max", "u_max", "k_v_scale_z", "k_v_scale_psi",
-                     "k_v_scale_theta")
+#: the parameters the controllers' generated code holds (the others are read at run time): the feed-forward and
+#: computed-torque controllers' inverse model's actuator constants (its rigid inertia, viscous and guide friction,
+#: weight, k_T, and its transmission p, i_r), computed at generation by ``InverseModel`` (``two_inertia`` is no
+#: function of the generated-code subset)
+MODEL_INLINED = ("k_T", "J_motor", "J_gearbox", "J_coupling", "J_brake", "J1_scale", "J_guide", "M_load", "tau_c",
+                 "omega_c", "b_v", "tau_s", "omega_s", "g_guide", "p", "i_r")
 #: a failure of the workspace controller's direct kinematics of the measured joints
 _DK_FAILED = 2000
 #: a failure of the feed-forward controller's inverse model (its direct kinematics or dynamics)
@@ -723,7 +810,7 @@ def _reference_lines(block, indent: str) -> list[str]:
     lines = [f"{i}S[{H + 3}:] = ({old})", f"{i}S[{H}:] = (rc0, rc1, rc2)",
              f"{i}k = S[{K}] + 1.0", f"{i}if k > 4.0: k = 4.0", f"{i}S[{K}:] = (k,)"]
     for j in range(3):
-        lines += [f"{i}c = rates(k, rc{j}, S[{H + 3 + j}], S[{H + 6 + j}], S[{H + 9 + j}], {block.reference.T!r}, RT)",
+        lines += [f"{i}c = rates(k, rc{j}, S[{H + 3 + j}], S[{H + 6 + j}], S[{H + 9 + j}], S[{_S['T_pos']}], RT)",
                   f"{i}S[{Q + j}:] = (RT[0],)", f"{i}S[{Q + 3 + j}:] = (RT[1],)"]
     return lines
 
@@ -738,13 +825,14 @@ def _currents_lines(args: str, indent: str) -> list[str]:
 def _workspace_lines(block, indent: str) -> list[str]:
     """WorkspaceController._position_law (pose mode): the direct kinematics of the measured joints
     (``wsdk``, warm-started from the last), the pose-space P law, through drho/dq at that pose."""
-    i, i_R = indent, block.i_R
+    i, i_R = indent, f"S[{_S['i_R']}]"
     lines = [f"{i}c = wsdk(values[3], values[4], values[5], S, QM)", f"{i}if c != 0:",
              f"{i}    S[{_S['failed']}:] = (n,)", f"{i}    S[{_S['model_args']}:] = (values[3], values[4], values[5])",
              f"{i}    return {_DK_FAILED}"]
     lines += [f"{i}qd{k} = S[{_S['own'] + k}]*(values[{k}] - QM[{k}])" for k in range(3)]
-    lines.append(f"{i}c = k_ikjac(QM[0], QM[1], QM[2], JK)")
-    lines += [f"{i}oc{j} = (JK[{3 + 3 * j}]*qd0 + JK[{4 + 3 * j}]*qd1 + JK[{5 + 3 * j}]*qd2)/{i_R!r}" for j in range(3)]
+    lines.append(f"{i}c = ikjac_s(S, QM[0], QM[1], QM[2], JK)")
+    lines += [f"{i}oc{j} = joint_speed(JK[{3 + 3 * j}], JK[{4 + 3 * j}], JK[{5 + 3 * j}], qd0, qd1, qd2, {i_R})"
+              for j in range(3)]
     return lines
 
 
@@ -753,21 +841,15 @@ def _workspace_dk(block) -> str:
     solution, else from the description's guess, as WorkspaceController._dk); ``dk_error`` makes the
     message of a failure by running it again (the guess is only updated on success)."""
     eng = block.kinematics
-    ikjac = eng._fn("ikjac")
-    checks = {k: v for k, v in ikjac.namespace.items() if k.startswith("_check")}
     coordinates = ", ".join(_literal(n) for n in eng.description.coordinates)
-    lengths = ", ".join(c_double(v) for v in eng.lengths)
     W, G, A = _S["warm"], _S["guess"], _S["model_args"]
     return "\n".join([
-        to_c(ikjac.source, "k_ikjac", checks=checks), to_c(_guess_source(eng.description), "guess", arrays=("rho",)),
-        _why_function("why_k", checks),
-        f"static const char *const K_COORDINATES[] = {{{coordinates}}};",
-        f"static const double K_LENGTHS[] = {{{lengths}}};", "",
+        f"static const char *const K_COORDINATES[] = {{{coordinates}}};", "",
         "static int wsdk_eval(const double *rho, double *S, double *q, char *msg, size_t size)", "{",
         "    double J[9];",
-        f"    if (S[{W}] == 1.0) {{ for (int k = 0; k < 3; k++) q[k] = S[{G} + k]; }} else guess((double *)rho, q);",
-        f"    int code = mast_dk3(k_ikjac, why_k, K_COORDINATES, K_LENGTHS, {c_double(eng.margin)}, rho, q, J, 1e-12, "
-        f"50, {c_double(eng.cond_limit)}, msg, size);",
+        f"    if (S[{W}] == 1.0) {{ for (int k = 0; k < 3; k++) q[k] = S[{G} + k]; }} else guess(S, rho, q);",
+        f"    int code = mast_dk3(ikjac_p, S + {_S['P']}, why, K_COORDINATES, LENGTHS(S), {c_double(eng.margin)}, rho, "
+        f"q, J, 1e-12, 50, {c_double(eng.cond_limit)}, msg, size);",
         "    if (code) return code;",
         f"    for (int k = 0; k < 3; k++) S[{G} + k] = q[k];", f"    S[{W}] = 1.0;", "    return 0;", "}", "",
         "static int wsdk(double r0, double r1, double r2, double *S, double *out)", "{",
@@ -787,7 +869,7 @@ def _feedforward_lines(block, indent: str) -> list[str]:
     currents on the reference (i_ff)."""
     i, Q = indent, _S["rates"]
     kff_v_iR, kff_tau = f"S[{_S['own']}]", f"S[{_S['own'] + 1}]"
-    lines = [f"{i}oc{j} = oc{j} + {kff_v_iR}*S[{Q + j}]" for j in range(3)]
+    lines = [f"{i}oc{j} = velocity_feedforward(oc{j}, S[{Q + j}], {kff_v_iR})" for j in range(3)]
     lines.append(f"{i}if {kff_tau} != 0.0:")
     lines += _currents_lines(", ".join([f"rc{j}" for j in range(3)] + [f"S[{Q + k}]" for k in range(6)]), i + "    ")
     lines += [f"{i}    if{j} = {kff_tau}*CUR[{j}]" for j in range(3)]
@@ -797,14 +879,13 @@ def _feedforward_lines(block, indent: str) -> list[str]:
 def _computed_torque_lines(block, indent: str) -> list[str]:
     """ComputedTorqueController._velocity_law: the model's currents at the measured state for the
     acceleration a = rho_ddot_ref + K_D e_dot + K_P e, limited to i_max."""
-    i, Q, i_R, i_max = indent, _S["rates"], block.i_R, f"S[{_S['gains'] + 5}]"
-    lines = [f"{i}rdm{j} = {i_R!r}*values[{6 + j}]" for j in range(3)]
+    i, Q, i_R, i_max = indent, _S["rates"], f"S[{_S['i_R']}]", f"S[{_S['gains'] + 5}]"
+    lines = [f"{i}rdm{j} = {i_R}*values[{6 + j}]" for j in range(3)]
     K_P, K_D = f"S[{_S['own']}]", f"S[{_S['own'] + 1}]"
-    lines += [f"{i}acc{j} = S[{Q + 3 + j}] + {K_D}*(S[{Q + j}] - rdm{j}) + {K_P}*(rc{j} - values[{3 + j}])"
-              for j in range(3)]
+    lines += [f"{i}acc{j} = commanded_acceleration(S[{Q + 3 + j}], S[{Q + j}], rdm{j}, rc{j}, values[{3 + j}], {K_P}, "
+              f"{K_D})" for j in range(3)]
     lines += _currents_lines("values[3], values[4], values[5], rdm0, rdm1, rdm2, acc0, acc1, acc2", i)
-    lines += [f"{i}ic{j} = {i_max} if CUR[{j}] > {i_max} else (-{i_max} if CUR[{j}] < -{i_max} else CUR[{j}])"
-              for j in range(3)]
+    lines += [f"{i}ic{j} = limited(CUR[{j}], {i_max})" for j in range(3)]
     return lines
 
 
@@ -813,7 +894,7 @@ def _ik_lines(indent: str) -> list[str]:
     i, P = indent, _S["pose"]
     return [f"{i}if not (S[{_S['ik']}] == 1.0 and values[0] == S[{P}] and values[1] == S[{P + 1}] "
             f"and values[2] == S[{P + 2}]):",
-            f"{i}    c = ik(values[0], values[1], values[2], R)",
+            f"{i}    c = ik_s(S, values[0], values[1], values[2], R)",
             f"{i}    if c != 0:",
             f"{i}        S[{_S['failed']}:] = (n,)",
             f"{i}        return c",
@@ -839,16 +920,16 @@ def _joint_sources(block) -> tuple[str, str]:
              "    return 0"]
     start = ["def start(values, S, R):", "    n = 0.0", *unpack, *_ik_lines("    "), *store]
     kv_iR, kp, kiT, kpc, kicT, i_max, u_max = (f"S[{_S['gains'] + k}]" for k in range(7))
-    body = [f"        if n % {float(block._N_pos)!r} == 0.0:", *_ik_lines("            ")]
+    body = [f"        if n % S[{_S['N_pos']}] == 0.0:", *_ik_lines("            ")]
     body += _reference_lines(block, "            ") if ff or ct else []
     if ct:              # omega_cmd reports the reference speed
-        body += [f"            oc{j} = S[{_S['rates'] + j}]/{block.i_R!r}" for j in range(3)]
+        body += [f"            oc{j} = S[{_S['rates'] + j}]/S[{_S['i_R']}]" for j in range(3)]
     elif ws:
         body += _workspace_lines(block, "            ")
     else:
-        body += [f"            oc{j} = {kv_iR}*(rc{j} - values[{3 + j}])" for j in range(3)]
+        body += [f"            oc{j} = position_p_law(rc{j}, values[{3 + j}], {kv_iR})" for j in range(3)]
     body += _feedforward_lines(block, "            ") if ff else []
-    body.append(f"        if n % {float(block._N_vel)!r} == 0.0:")
+    body.append(f"        if n % S[{_S['N_vel']}] == 0.0:")
     if ct:
         body += _computed_torque_lines(block, "            ")
     for j in range(0 if ct else 3):    # velocity PI with the feed-forward current i_ff (0.0: the cascade has none)
@@ -877,6 +958,15 @@ def _joint_controller(block, vrs: Mapping[str, int]) -> str:
     def P(name: str) -> str:
         return f"p->real[{vrs[name]}]"
 
+    # the laws' arithmetic, translated from the controllers' own source (the tick calls them)
+    from fmus.controller.computed_torque import commanded_acceleration, limited
+    from fmus.controller.feedforward import velocity_feedforward
+    from fmus.controller.model import position_p_law
+    from fmus.controller.workspace import joint_speed
+
+    laws = {ControllerBlock: [position_p_law], native_controllers()[1]: [position_p_law, velocity_feedforward],
+            native_controllers()[2]: [commanded_acceleration, limited],
+            native_controllers()[3]: [joint_speed]}[type(block)]
     # the controller's own gains, by its own function (FeedForwardController, ComputedTorque, Workspace)
     own, own_call = None, ""
     if type(block) is native_controllers()[1]:
@@ -890,25 +980,61 @@ def _joint_controller(block, vrs: Mapping[str, int]) -> str:
         from fmus.controller.workspace import pose_gains as own
         own_call = (f"    pose_gains({P('k_v')}, {P('k_v_scale_z')}, {P('k_v_scale_psi')}, {P('k_v_scale_theta')}, "
                     f"s->S + {_S['own']});")
-    ik = block.kinematics._fn("ik")
-    checks = {k: v for k, v in ik.namespace.items() if k.startswith("_check")}
+    # the kinematic model (and the inverse model's dynamics): the engine traced with the controller's
+    # geometry (and bodies) as inputs, read at initialisation (designs.traced_engine)
+    from fmus.mechanism.designs import TRACED_PARAMETERS, traced_engine
+
+    eng = traced_engine(block.params, block.name, masses=model)
+    if tuple(eng.parameters) != TRACED_PARAMETERS:
+        raise ValueError(f"{block.name}: the native controller expects the 3PRS traced with {TRACED_PARAMETERS}")
+    ik, fns = eng._fn("ik"), [eng._fn("ik"), eng._fn("ikjac")] + ([eng._fn("forces")] if model else [])
+    checks = {k: v for fn in fns for k, v in fn.namespace.items() if k.startswith("_check")}
+    PO = _S["P"]
+    args = ", ".join(f"S[{PO + k}]" for k in range(len(TRACED_PARAMETERS)))
     start, ticks = _joint_sources(block)
-    T = c_double(block.T_cur)
     inputs = ", ".join(_literal(n) for n in block.INPUTS)
+    ratios = "".join(f"    if (ratio_check({_literal(name)}, {P(name)}, {P('T_cur')}, msg, size)) return MAST_PARAMETER_ERROR;\n"
+                     for name in ("T_pos", "T_vel"))
     return "\n".join([
         f"typedef struct {{ double S[{_NS}]; }} State;", "",
+        f"#define LENGTHS(S) ((S) + {_NS - 3})   /* Engine.lengths (1, r, r) [m]: the margins compare motions */", "",
+        _traced_parameters_c(vrs),
         to_c(ik.source, "ik", checks=checks),
+        "static int ik_s(double *S, double q0, double q1, double q2, double *out)", "{",
+        f"    return ik(q0, q1, q2, {args}, out);", "}", "",
+        _ikjac_c(eng, "ikjac", checks),
+        "static int ikjac_s(double *S, double q0, double q1, double q2, double *out)", "{",
+        f"    return ikjac_p(S + {PO}, q0, q1, q2, out);", "}", "",
+        _level_height_c(),
+        "/* PRS3.guess: the level pose for the mean carriage position (the direct kinematics' cold start) */",
+        "static void guess(const double *S, const double *rho, double *out)", "{",
+        f"    out[0] = level_height(rho[0], rho[1], rho[2], S[{PO}], S[{PO + 1}], S[{PO + 2}], S[{_S['cb']}], "
+        f"S[{_S['sb']}]);",
+        "    out[1] = 0.0;", "    out[2] = 0.0;", "}", "",
+        _why_function("why", checks),
+        "/* DriveController._ratio: a loop's cycle time an integer multiple of T_cur */",
+        "static int ratio_check(const char *name, double T, double T_cur, char *msg, size_t size)", "{",
+        "    char a[40], b[40];",
+        "    double ratio = T / T_cur, n = nearbyint(ratio);",
+        "    if (n < 1.0 || fabs(ratio - n) > 1e-6 * n) {",
+        "        snprintf(msg, size, \"parameter '%s' = %s s must be an integer multiple of T_cur = %s s (ratio %.9g)\", "
+        "name, mast_repr(T, a, sizeof a), mast_repr(T_cur, b, sizeof b), ratio);",
+        "        return 1;", "    }", "    return 0;", "}", "",
+        "/* the controller's checks of its parameter set after the ranges (DriveController, designs.describe) */",
+        "static int model_check(const mast_parameters *p, char *msg, size_t size)", "{",
+        ratios + "\n".join(_describe_checks_c(vrs, payload=model)),
+        "    return MAST_OK;", "}", "",
         to_c(inspect.getsource(pi_step), "pi_step"),
         to_c(inspect.getsource(transmission_ratio), "transmission_ratio"),
         to_c(inspect.getsource(cascade_gains), "cascade_gains"),
         to_c(inspect.getsource(drive_gains), "drive_gains"),
-        _inverse_model(block) if model else "",
+        _inverse_model(block, eng) if model else "",
         to_c(inspect.getsource(own), own.__name__) if own else "",
-        to_c(start, "start", arrays=("values", "S", "R"), calls=("ik",)),
+        to_c(start, "start", arrays=("values", "S", "R"), calls=("ik_s",)),
         _workspace_dk(block) if workspace else "",
+        *[to_c(inspect.getsource(law), law.__name__) for law in laws],
         to_c(ticks, "ticks", arrays=("values", "S", "R", "PI", "RT", "CUR", "QM", "JK"),
-             calls=("ik", "pi_step", "rates", "currents", "wsdk", "k_ikjac")),
-        _why_function("why", checks),
+             calls=("ik_s", "pi_step", "rates", "currents", "wsdk", "ikjac_s"), values=[law.__name__ for law in laws]),
         f"static const char *const INPUT_NAMES[] = {{{inputs}}};", "",
         "static int input_error(const double *values, double t, char *msg, size_t size)", "{",
         "    char v[40], w[40];",
@@ -927,6 +1053,16 @@ def _joint_controller(block, vrs: Mapping[str, int]) -> str:
         "{", "    State *s = state;", "    double R[3];",
         f"    for (int k = 0; k < {_NS}; k++) s->S[k] = 0.0;",
         f"    s->S[{_S['t0']}] = t0;",
+        "    /* the schedule, the transmission and the kinematic model from the parameters (checked by model_check) */",
+        f"    s->S[{_S['T_cur']}] = {P('T_cur')};", f"    s->S[{_S['T_pos']}] = {P('T_pos')};",
+        f"    s->S[{_S['N_pos']}] = nearbyint({P('T_pos')} / {P('T_cur')});",
+        f"    s->S[{_S['N_vel']}] = nearbyint({P('T_vel')} / {P('T_cur')});",
+        f"    s->S[{_S['i_R']}] = transmission_ratio({P('p')}, {P('i_r')});",
+        f"    traced_parameters(p, s->S + {PO});",
+        f"    s->S[{_S['cb']}] = cos(s->S[{PO + TRACED_PARAMETERS.index('beta')}]);",
+        f"    s->S[{_S['sb']}] = sin(s->S[{PO + TRACED_PARAMETERS.index('beta')}]);",
+        *([f"    s->S[{_S['attached']}] = p->integer[{vrs['attached']}];"] if model else []),
+        f"    LENGTHS(s->S)[0] = 1.0; LENGTHS(s->S)[1] = s->S[{PO + 1}]; LENGTHS(s->S)[2] = s->S[{PO + 1}];",
         "    /* the gains from the parameters, by the controller's own functions */",
         *([f"    cascade_gains({P('k_v')}, {P('k_p')}, {P('k_i')}, {P('T_vel')}, "
            f"transmission_ratio({P('p')}, {P('i_r')}), s->S + {_S['gains']});"] if cascade else []),
@@ -939,33 +1075,36 @@ def _joint_controller(block, vrs: Mapping[str, int]) -> str:
         "{", "    State *s = state;", "    double R[3], PI[2], RT[2], CUR[3], QM[3], JK[12];",
         "    char a[40], b[40], c[40];",
         "    (void)p;",
-        f"    double m = nearbyint(h / {T});",
-        f"    if (m < 1.0 || fabs(h - m * {T}) > 1e-6 * {T}) {{",
+        f"    double T = s->S[{_S['T_cur']}];",
+        "    double m = nearbyint(h / T);",
+        f"    if (m < 1.0 || fabs(h - m * T) > 1e-6 * T) {{",
         "        snprintf(msg, size, \"step size h = %s s is not a positive integer multiple of T_cur = %s s\", "
-        f"mast_repr(h, a, sizeof a), mast_repr({T}, b, sizeof b));",
+        f"mast_repr(h, a, sizeof a), mast_repr(T, b, sizeof b));",
         "        return MAST_MODEL_ERROR;", "    }",
         f"    double n = s->S[{_S['n']}], t0 = s->S[{_S['t0']}];",
-        f"    if (fabs(t - (t0 + n * {T})) > 0.5 * {T}) {{",
+        f"    if (fabs(t - (t0 + n * T)) > 0.5 * T) {{",
         "        snprintf(msg, size, \"do_step at t = %s s, but tick %.0f belongs to t = %s s (steps must be contiguous "
-        f"from initialize)\", mast_repr(t, a, sizeof a), n, mast_repr(t0 + n * {T}, c, sizeof c));",
+        f"from initialize)\", mast_repr(t, a, sizeof a), n, mast_repr(t0 + n * T, c, sizeof c));",
         "        return MAST_MODEL_ERROR;", "    }",
         "    double sum = 0.0;",
         "    for (int k = 0; k < 12; k++) sum += values[k];",
         "    if (sum - sum != 0.0 && input_error(values, t, msg, size)) return MAST_MODEL_ERROR;",
         "    int code = ticks(values, s->S, R, PI, RT, CUR, QM, JK, m);",
         *([f"    if (code == {_MODEL_FAILED}) return model_error(s->S, msg, size);"] if model else []),
-        *([f"    if (code == {_DK_FAILED}) return dk_error(s->S, t0 + s->S[{_S['failed']}] * {T}, msg, size);"]
+        *([f"    if (code == {_DK_FAILED}) return dk_error(s->S, t0 + s->S[{_S['failed']}] * T, msg, size);"]
           if workspace else []),
-        f"    if (code) return ik_error(values, t0 + s->S[{_S['failed']}] * {T}, -code, msg, size);",
+        f"    if (code) return ik_error(values, t0 + s->S[{_S['failed']}] * T, -code, msg, size);",
         "    return MAST_OK;", "}", ""])
 
 
-def _inverse_model(block) -> str:
+def _inverse_model(block, eng) -> str:
     """FeedForwardController's inverse model (InverseModel.currents) in C: the engine's direct
-    kinematics (warm start, else cold, as InverseModel.torques) and traced dynamics, then
-    ``motor_torque`` and ``guide_friction`` translated from their own source. ``currents`` is what the
-    tick calls; ``model_error`` makes the message of a failed evaluation by running it again (the
-    guess is only updated on success, so it fails the same way)."""
+    kinematics (warm start, else cold, as InverseModel.torques) and traced dynamics (``eng``, the traced
+    engine of the controller's parameters: ``ikjac_p`` and ``forces`` with them read at initialisation;
+    no forces when ``attached`` = 0), then ``motor_torque`` and ``guide_friction`` translated from their
+    own source (the actuator's constants inlined). ``currents`` is what the tick calls; ``model_error``
+    makes the message of a failed evaluation by running it again (the guess is only updated on success,
+    so it fails the same way)."""
     import inspect
 
     from fmus.actuator.model import guide_friction
@@ -973,43 +1112,35 @@ def _inverse_model(block) -> str:
     from fmus.controller.reference import rates
 
     model = block.model
-    parts = [to_c(inspect.getsource(rates), "rates"),
-             to_c(inspect.getsource(guide_friction), "guide_friction"),
-             to_c(inspect.getsource(motor_torque), "motor_torque", values=("guide_friction",))]
     torque = ", ".join(f"{float(v)!r}" for v in (model.J, model.i_R, model.b_v, model.weight, *model._friction))
-    W, G, A = _S["warm"], _S["guess"], _S["model_args"]
-    if model.engine is None:    # attached = 0: no mechanism forces
-        dynamics = ["    double F[3] = {0.0, 0.0, 0.0};", "    (void)S; (void)msg; (void)size;"]
-    else:
-        eng = model.engine
-        ikjac, forces = eng._fn("ikjac"), eng._fn("forces")
-        checks = {k: v for k, v in {**ikjac.namespace, **forces.namespace}.items() if k.startswith("_check")}
-        coordinates = ", ".join(_literal(n) for n in eng.description.coordinates)
-        lengths = ", ".join(c_double(v) for v in eng.lengths)
-        dk = (f"mast_dk3(m_ikjac, why_model, M_COORDINATES, M_LENGTHS, {c_double(eng.margin)}, a, q, J, 1e-12, 50, "
-              f"{c_double(eng.cond_limit)}, msg, size)")
-        parts += [to_c(ikjac.source, "m_ikjac", checks=checks), to_c(forces.source, "m_dynamics", checks=checks),
-                  to_c(_guess_source(eng.description), "guess", arrays=("rho",)),
-                  _why_function("why_model", checks),
-                  f"static const char *const M_COORDINATES[] = {{{coordinates}}};",
-                  f"static const double M_LENGTHS[] = {{{lengths}}};", ""]
-        dynamics = [
-            "    double q[3], J[9], cold[3], F[12];",
-            "    guess((double *)a, cold);",
-            f"    for (int k = 0; k < 3; k++) q[k] = S[{W}] == 1.0 ? S[{G} + k] : cold[k];",
-            f"    int code = {dk};",
-            f"    if (code && code != MAST_SINGULARITY_ERROR && S[{W}] == 1.0) {{   /* never restarted after a SingularityError */",
-            "        for (int k = 0; k < 3; k++) q[k] = cold[k];",
-            f"        code = {dk};", "    }",
-            "    if (code) return code;",
-            "    code = m_dynamics(q[0], q[1], q[2], J[0], J[1], J[2], J[3], J[4], J[5], J[6], J[7], J[8], "
-            "a[3], a[4], a[5], a[6], a[7], a[8], F);",
-            "    if (code) {", "        snprintf(msg, size, \"%s\", why_model(-code));", "        return MAST_KINEMATICS_ERROR;", "    }",
-            f"    for (int k = 0; k < 3; k++) S[{G} + k] = q[k];", f"    S[{W}] = 1.0;"]
-    parts += [
+    W, G, A, PO = _S["warm"], _S["guess"], _S["model_args"], _S["P"]
+    params = ", ".join(f"S[{PO + k}]" for k in range(len(eng.parameters)))
+    dk = (f"mast_dk3(ikjac_p, S + {PO}, why, M_COORDINATES, LENGTHS(S), {c_double(eng.margin)}, a, q, J, 1e-12, 50, "
+          f"{c_double(eng.cond_limit)}, msg, size)")
+    coordinates = ", ".join(_literal(n) for n in eng.description.coordinates)
+    checks = {k: v for k, v in eng._fn("forces").namespace.items() if k.startswith("_check")}
+    return "\n".join([
+        to_c(eng._fn("forces").source, "forces", checks=checks),
+        to_c(inspect.getsource(rates), "rates"),
+        to_c(inspect.getsource(guide_friction), "guide_friction"),
+        to_c(inspect.getsource(motor_torque), "motor_torque", values=("guide_friction",)),
+        f"static const char *const M_COORDINATES[] = {{{coordinates}}};", "",
         "/* InverseModel.currents at a = (rho, rho_dot, rho_ddot); 0, or an error code with msg */",
         "static int model_eval(const double *a, double *S, double *out, char *msg, size_t size)", "{",
-        *dynamics,
+        "    double q[3], J[9], cold[3], F[12] = {0.0, 0.0, 0.0};",
+        f"    if (S[{_S['attached']}] != 0.0) {{",
+        "        guess(S, a, cold);",
+        f"        for (int k = 0; k < 3; k++) q[k] = S[{W}] == 1.0 ? S[{G} + k] : cold[k];",
+        f"        int code = {dk};",
+        f"        if (code && code != MAST_SINGULARITY_ERROR && S[{W}] == 1.0) {{   /* never restarted after a SingularityError */",
+        "            for (int k = 0; k < 3; k++) q[k] = cold[k];",
+        f"            code = {dk};", "        }",
+        "        if (code) return code;",
+        "        code = forces(q[0], q[1], q[2], J[0], J[1], J[2], J[3], J[4], J[5], J[6], J[7], J[8], "
+        f"a[3], a[4], a[5], a[6], a[7], a[8], {params}, F);",
+        "        if (code) {", "            snprintf(msg, size, \"%s\", why(-code));",
+        "            return MAST_KINEMATICS_ERROR;", "        }",
+        f"        for (int k = 0; k < 3; k++) S[{G} + k] = q[k];", f"        S[{W}] = 1.0;", "    }",
         f"    for (int j = 0; j < 3; j++) out[j] = motor_torque(a[3 + j], a[6 + j], F[j], {torque}) / "
         f"{float(model.k_T)!r};",
         "    return 0;", "}", "",
@@ -1023,8 +1154,7 @@ def _inverse_model(block) -> str:
         "    model_eval(a, S, out, text, sizeof text);",
         "    snprintf(msg, size, \"inverse dynamic model at rho = (%s, %s, %s) m: %s\", mast_repr(a[0], r0, sizeof r0), "
         "mast_repr(a[1], r1, sizeof r1), mast_repr(a[2], r2, sizeof r2), text);",
-        "    return MAST_KINEMATICS_ERROR;", "}", ""]
-    return "\n".join(parts)
+        "    return MAST_KINEMATICS_ERROR;", "}", ""])
 
 
 def native_kind(block_class: type) -> Optional[str]:
@@ -1083,12 +1213,10 @@ def generated_parameters(block_class: type, parameters: Mapping[str, object]) ->
     if kind == "trajectory":
         return {}
     if kind == "controller":
-        tunable = {"ControllerBlock": CONTROLLER_TUNABLE, "FeedForwardController": FEEDFORWARD_TUNABLE,
-                   "ComputedTorqueController": COMPUTED_TORQUE_TUNABLE,
-                   "WorkspaceController": WORKSPACE_TUNABLE}[block_class.__name__]
-        return {k: v for k, v in parameters.items() if k not in tunable}
-    if kind == "mechanism":
-        return {k: v for k, v in parameters.items() if k not in MECHANISM_TUNABLE}
+        model = block_class.__name__ in ("FeedForwardController", "ComputedTorqueController")
+        return {k: v for k, v in parameters.items() if model and k in MODEL_INLINED}
+    if kind == "mechanism":     # every parameter read at run time (designs.traced_engine)
+        return {}
     if kind == "actuator":     # the chain's structure: the size of the state
         return {k: parameters[k] for k in ACTUATOR_STRUCTURE}
     return dict(parameters)
@@ -1124,5 +1252,6 @@ def emit_model(identifier: str, guid: str, block_class: type, parameters: Mappin
     fixed = generated_parameters(block_class, block.params)
     return "".join([_HEAD.format(what=f"{block_class.__module__}.{block_class.__name__}"),
                     _variable_table(variables), "\n",
-                    _check_function(block_class.PARAMETERS, vrs, fixed, extra), "\n", body, "\n",
+                    _check_function(block_class.PARAMETERS, vrs, fixed, extra, kind in ("mechanism", "controller")),
+                    "\n", body, "\n",
                     _model_struct(identifier, guid, variables, n_inputs, n_io)])
