@@ -20,6 +20,8 @@ PRACTICAL = 0.05
 RELATIVE = 0.1
 #: ... and at least this share of the whole gap of the current model (above the noise)
 SHARE_OF_GAP = 0.01
+#: at most this many effects on one axis only in a subset (two worn axes at once, not a per-axis refit of all)
+MAX_PER_AXIS = 2
 
 
 @dataclass(frozen=True)
@@ -177,7 +179,8 @@ def select(reg: Regression, nominal: Mapping, max_size: int, exclude: frozenset 
     for size in range(0, max_size + 1):
         for combo in itertools.combinations(keys, size):
             groups = [by_key[k].group for k in combo if by_key[k].group]
-            if len(groups) != len(set(groups)) or tuple(sorted(combo)) in exclude:
+            if len(groups) != len(set(groups)) or tuple(sorted(combo)) in exclude \
+                    or sum("_axis" in k for k in combo) > MAX_PER_AXIS:
                 continue
             for idx in itertools.product(*[by_effect[k] for k in combo]):
                 fit = reg.fit(idx)
