@@ -105,3 +105,15 @@ def test_a_cycle_time_lives_on_its_grid():
     assert _snap(ctx, {"T_vel": 1e-6})["T_vel"] == pytest.approx(1e-4)   # at least one current-loop cycle
     assert BY_KEY["velocity_cycle"].kind == BY_KEY["current_limit"].kind == "controller"
     assert math.isclose(BY_KEY["velocity_cycle"].step / 1e-4, 10)
+
+
+def test_per_axis_subsets_stay_small():
+    """At most two effects on one axis only in a subset, and never an all-axes effect with its per-axis
+    versions on two axes (that is the third axis alone, which the plan may not be able to tell: a psi rotation
+    moves actuator 2 alone, so on a plan of z tests and psi rotations held out it is not offered)."""
+    from mast.diagnosis.selection import _per_axis_excess
+
+    assert _per_axis_excess(("carriage_mass", "carriage_mass_axis1", "carriage_mass_axis3"))
+    assert _per_axis_excess(("coulomb_axis1", "viscous_axis2", "offset_axis3"))
+    assert not _per_axis_excess(("carriage_mass", "carriage_mass_axis1", "offset_axis3"))
+    assert not _per_axis_excess(("coulomb_axis1", "coulomb_axis2", "inertia_motor"))
