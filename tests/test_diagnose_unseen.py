@@ -136,6 +136,7 @@ ONE_AXIS_AND_DRIVE = {
     "inertia-up-axis2": ({"actuator_2": {"J1_scale": 1.3}}, SMALL, 62, "inertia_motor_axis2", "J1_scale_axis2", 0.3),
     "mass-down-axis1": ({"actuator_1": {"M_load": 1.7}}, PLAN, 63, "carriage_mass_axis1", "M_load_axis1", 1.7 - 2.27),
     "offset-axis3": ({"actuator_3": {"tau_offset": -0.006}}, PLAN, 92, "offset_axis3", "tau_offset_axis3", -0.006),
+    "integral-gain": ({"controller": {"k_i": 2.27}}, SMALL, 93, "velocity_integral", "k_i", 2.27),
     "cycle-time": ({"controller": {"T_vel": 0.002}}, SMALL, 81, "velocity_cycle", "T_vel", 0.002),
     "current-limit": ({"controller": {"i_max": 3.3}}, PLAN, 71, "current_limit", "i_max", 3.3),
 }
@@ -144,8 +145,9 @@ ONE_AXIS_AND_DRIVE = {
 @pytest.mark.parametrize("case", list(ONE_AXIS_AND_DRIVE))
 def test_effects_on_one_axis_and_in_the_drive_are_named(built_ssp, tmp_path, case):
     """One actuator heavier on its motor side or lighter on its carriage, one drive reading its torque with an
-    offset, a drive running its velocity loop at half the documented rate or limiting the current below its
-    documentation: each named as itself (the per-axis effect on that axis, the controller-side effect: never a
+    offset, a drive whose velocity-loop integral gain is 40 % low (before k_i was in the library: named as
+    motor-side inertia plus k_p and k_v), that runs its velocity loop at half the documented rate or limits the
+    current below its documentation: each named as itself (the per-axis effect on that axis, the controller-side effect: never a
     plant name), its value within 5 %, the augmented model binding it to that actuator or to the controller.
     (When the axes agree the all-axes effect is named: the all-axes cases above and in test_diagnose.py.)"""
     from mast.core.ssp import SSPArchive

@@ -17,7 +17,7 @@ motor torque per unit change of its first parameter, computed from a simulation
 | torque offset | tau_offset | 1: a bias |
 | measurement lag | T_meas (or delay_meas) | d tau_obs / d T: phase lag growing with f |
 | backlash | backlash | none: the loop hunts, scored phase-free (band powers against re-simulated ensembles, phasefree.py) |
-| drive gains (controller) | k_p, k_v | none: the closed loop's re-simulated sensitivity |
+| drive gains (controller) | k_p, k_v, k_i | none: the closed loop's re-simulated sensitivity |
 | velocity-loop cycle time (controller) | T_vel | none: re-simulated secant to the next cycle; fitted on its grid (multiples of T_cur) |
 | current limit (controller) | i_max | none: re-simulated only (no trace below the limit), tried when the data's torque peak stays below the model's |
 
@@ -50,7 +50,7 @@ from fmus.actuator.sensor import measure
 MEASUREMENT_PARAMETERS = ("T_meas", "delay_meas", "tau_offset")
 #: parameters of the controller component (the drive's cascade gains, velocity-loop cycle time, current
 #: limit): a cause outside the plant
-CONTROLLER_PARAMETERS = ("k_v", "k_p", "T_vel", "i_max")
+CONTROLLER_PARAMETERS = ("k_v", "k_p", "k_i", "T_vel", "i_max")
 
 
 @dataclass
@@ -224,6 +224,9 @@ LIBRARY: tuple[Effect, ...] = (
     Effect("position_gain", "position-loop gain of the drive (controller side)", ("k_v",), "controller",
            "a slower (or faster) position loop: tracking error and torque phase change at low frequency",
            {"k_v": (1.0, 200.0)}, step=-0.1 * 21.5),
+    Effect("velocity_integral", "velocity-loop integral gain of the drive (controller side)", ("k_i",), "controller",
+           "the loop recovers its speed error more slowly (or faster): a torque change lagging the tracking "
+           "error, largest around the cascade's bandwidth", {"k_i": (0.01, 200.0)}, step=-0.1 * 3.79),
     Effect("velocity_cycle", "velocity-loop cycle time of the drive (controller side)", ("T_vel",), "controller",
            "more (or less) delay inside the velocity loop: its phase margin changes, a torque change growing "
            "with f (a multiple of the current-loop cycle T_cur)", {"T_vel": (1e-4, 0.02)}, step=1e-3,

@@ -83,7 +83,7 @@ REQUIREMENTS: dict[tuple[str, ...], tuple[str, Callable[[Sequence[Excitation]], 
                          "carriage and more inertia plus an offset look alike", _kinds),
     ("lag",): ("a test at >= 3 Hz: the phase lag grows with f", lambda ts: None if any(x.frequency >= 3.0 for x in ts)
                else "no test at 3 Hz or above"),
-    ("velocity_gain", "position_gain"): ("a training and a held-out test at >= 2 Hz, near the cascade's bandwidth "
+    ("velocity_gain", "position_gain", "velocity_integral"): ("a training and a held-out test at >= 2 Hz, near the cascade's bandwidth "
                                          "(about 4 Hz): well below it the loop follows whatever its gains",
                                          lambda ts: _both_roles(ts, lambda x: x.frequency >= 2.0)),
     ("velocity_cycle",): ("a training and a held-out test at >= 2 Hz: a longer cycle is a delay inside the velocity "

@@ -15,7 +15,7 @@ from .selection import DELTA_BIC, PRACTICAL, RELATIVE, Atom, Band, Regression, a
 
 
 #: re-simulation steps (finite differences) for the parameters whose signature does not linearise well
-FD_STEP = {"tau_s": 2e-3, "omega_s": 0.3, "k_p": 6e-4, "k_v": 0.2, "i_max": 0.05}
+FD_STEP = {"tau_s": 2e-3, "omega_s": 0.3, "k_p": 6e-4, "k_v": 0.2, "k_i": 0.04, "i_max": 0.05}
 #: effects fitted and verified by re-simulation (sample by sample) when a residual remains after the regression loop
 NONLINEAR = tuple(e.key for e in LIBRARY if not e.regression and not e.phase_free)
 #: at most this many effects at once
