@@ -1,6 +1,7 @@
 """The library of candidate effects a diagnosis can name, and their residual signatures.
 
-Each effect maps to named parameters of the actuator FMU (applied to every axis) and,
+Each effect maps to named parameters of the actuator FMU (applied to every axis, or on one axis), or of
+the controller FMU (the drive: a cause outside the plant) and,
 where the effect is smooth enough, to a regression column: the change of the observed
 motor torque per unit change of its first parameter, computed from a simulation
 (reference.md section 6):
@@ -16,6 +17,12 @@ motor torque per unit change of its first parameter, computed from a simulation
 | torque offset | tau_offset | 1: a bias |
 | measurement lag | T_meas (or delay_meas) | d tau_obs / d T: phase lag growing with f |
 | backlash | backlash | none: the loop hunts, scored phase-free (band powers against re-simulated ensembles, phasefree.py) |
+| drive gains (controller) | k_p, k_v, k_i | none: the closed loop's re-simulated sensitivity |
+| velocity-loop cycle time (controller) | T_vel | none: re-simulated secant to the next cycle; fitted on its grid (multiples of T_cur) |
+| current limit (controller) | i_max | none: re-simulated only (no trace below the limit), tried when the data's torque peak stays below the model's |
+
+Plant and measurement effects also exist on one axis only ("<parameter>_axis<j>", an increment on
+actuator j; ``PER_AXIS``).
 
 In the selection, plant effects use re-simulated sensitivities (a simulation with the
 parameter stepped by ``Effect.step``: the exact linearisation of the closed loop, which
@@ -41,8 +48,9 @@ from fmus.actuator.sensor import measure
 
 #: parameters of the measurement model (no re-simulation needed when they change)
 MEASUREMENT_PARAMETERS = ("T_meas", "delay_meas", "tau_offset")
-#: parameters of the controller component (the drive's cascade gains): a cause outside the plant
-CONTROLLER_PARAMETERS = ("k_v", "k_p")
+#: parameters of the controller component (the drive's cascade gains, velocity-loop cycle time, current
+#: limit): a cause outside the plant
+CONTROLLER_PARAMETERS = ("k_v", "k_p", "k_i", "T_vel", "i_max")
 
 
 @dataclass
@@ -73,24 +81,43 @@ class SimSignals:
         return self._cache[key]
 
 
+def per_axis(value) -> tuple[float, float, float]:
+    """A measurement parameter as three per-axis values (a scalar applies to every axis)."""
+    v = tuple(float(x) for x in np.broadcast_to(np.asarray(value, dtype=float), (3,)))
+    return v  # type: ignore[return-value]
+
+
 @dataclass
 class Chain:
-    """The observation chain: FMU measurement model, then the documented drive filter, then sampling."""
+    """The observation chain: FMU measurement model (per axis), then the documented drive filter, then sampling."""
 
     h: float
     drive_T: float
     drive_delay: float
-    T_meas: float = 0.0
-    delay_meas: float = 0.0
-    tau_offset: float = 0.0
+    T_meas: tuple = (0.0, 0.0, 0.0)
+    delay_meas: tuple = (0.0, 0.0, 0.0)
+    tau_offset: tuple = (0.0, 0.0, 0.0)
+
+    def __post_init__(self) -> None:
+        for name in MEASUREMENT_PARAMETERS:
+            setattr(self, name, per_axis(getattr(self, name)))
+        for name in ("T_meas", "delay_meas"):
+            bad = [j + 1 for j, v in enumerate(getattr(self, name)) if not v >= 0.0]
+            if bad:
+                raise ValueError(f"{name} of actuator(s) {bad}: {getattr(self, name)} s; expected >= 0")
 
     def linear(self, u: np.ndarray) -> np.ndarray:
-        """The linear part (no offset) on the base grid."""
-        y = measure(u, self.h, self.T_meas, self.delay_meas, 0.0, axis=0)
-        return measure(y, self.h, self.drive_T, self.drive_delay, 0.0, axis=0)
+        """The linear part (no offset) on the base grid; u (m, 3), one column per actuator."""
+        out = np.empty_like(np.asarray(u, dtype=float))
+        groups: dict = {}
+        for j, key in enumerate(zip(self.T_meas, self.delay_meas)):
+            groups.setdefault(key, []).append(j)
+        for (T, d), cols in groups.items():
+            out[:, cols] = measure(u[:, cols], self.h, T, d, 0.0, axis=0)
+        return measure(out, self.h, self.drive_T, self.drive_delay, 0.0, axis=0)
 
     def observe(self, tau_m: np.ndarray) -> np.ndarray:
-        return self.linear(tau_m) + self.tau_offset
+        return self.linear(tau_m) + np.asarray(self.tau_offset)
 
     def with_(self, **changes) -> "Chain":
         d = dict(self.__dict__)
@@ -99,8 +126,10 @@ class Chain:
 
 
 def chain_for(params: Mapping, h: float, drive_T: float, drive_delay: float) -> Chain:
-    return Chain(h, drive_T, drive_delay, float(params["T_meas"]), float(params["delay_meas"]),
-                 float(params["tau_offset"]))
+    """The chain of a parameter set: the all-axes measurement values plus each axis's increments."""
+    values = {p: tuple(float(params[p]) + float(params.get(f"{p}_axis{j}", 0.0)) for j in (1, 2, 3))
+              for p in MEASUREMENT_PARAMETERS}
+    return Chain(h, drive_T, drive_delay, **values)
 
 
 # --------------------------------------------------------------------------------------
@@ -164,6 +193,7 @@ class Effect:
     grid: tuple[float, ...] = ()         # values of the second (nonlinear) parameter tried in the regression
     cost: int = 1                        # parameters counted by the information criterion
     refines: Optional[str] = None        # an asymmetry of this effect: tried only once it is named
+    quantum: Optional[str] = None        # a discrete parameter: integer multiples (>= 1) of this one (a cycle time)
 
     @property
     def parameter(self) -> str:
@@ -194,6 +224,16 @@ LIBRARY: tuple[Effect, ...] = (
     Effect("position_gain", "position-loop gain of the drive (controller side)", ("k_v",), "controller",
            "a slower (or faster) position loop: tracking error and torque phase change at low frequency",
            {"k_v": (1.0, 200.0)}, step=-0.1 * 21.5),
+    Effect("velocity_integral", "velocity-loop integral gain of the drive (controller side)", ("k_i",), "controller",
+           "the loop recovers its speed error more slowly (or faster): a torque change lagging the tracking "
+           "error, largest around the cascade's bandwidth", {"k_i": (0.01, 200.0)}, step=-0.1 * 3.79),
+    Effect("velocity_cycle", "velocity-loop cycle time of the drive (controller side)", ("T_vel",), "controller",
+           "more (or less) delay inside the velocity loop: its phase margin changes, a torque change growing "
+           "with f (a multiple of the current-loop cycle T_cur)", {"T_vel": (1e-4, 0.02)}, step=1e-3,
+           quantum="T_cur"),
+    Effect("current_limit", "current limit of the drive (controller side)", ("i_max",), "controller",
+           "the torque is flat-topped at k_T i_max wherever the model's exceeds it (the peaks of the fastest "
+           "tests); no effect below the limit", {"i_max": (0.05, 100.0)}, regression=False),
     Effect("offset", "constant torque offset", ("tau_offset",), "measurement",
            "a bias, the same in every test", {"tau_offset": (-1.0, 1.0)}),
     Effect("lag", "measurement low-pass filter or delay", ("T_meas",), "measurement",
@@ -204,26 +244,34 @@ LIBRARY: tuple[Effect, ...] = (
            {"backlash": (0.0, 0.2)}, regression=False, phase_free=True,
            scan=tuple(5e-4 * 2.0 ** k for k in range(8))),
 )
-#: effects available on one axis (a worn guide): the change of the all-axes parameter on axis j only,
-#: parameter "<name>_axis<j>" (an increment added to that actuator's value; 0 = nominal). Their
-#: regression column is the all-axes signature on that axis (no re-simulated sensitivity: three per
-#: effect would triple the cost of a round); the fit re-simulates. They cost one parameter each, so
-#: when the axes agree the all-axes effect (one parameter) wins on BIC.
-PER_AXIS = ("tau_c", "b_v")
-AXIS_OF: dict[str, tuple[str, int]] = {f"{p}_axis{j}": (p, j - 1) for p in PER_AXIS for j in (1, 2, 3)}
+#: effects available on one axis (a worn guide, one heavier carriage, one drive's torque reading): the
+#: change of the all-axes parameter on axis j only, parameter "<name>_axis<j>" (an increment added to that
+#: actuator's value; 0 = nominal). Their regression column is the all-axes effect's re-simulated
+#: sensitivity restricted to axis j where that is computed (the axis's own closed-loop reaction; the
+#: mechanism's coupling to the other axes is second order), else the signature on axis j; the fit
+#: re-simulates. They cost one parameter each, so when the axes agree the all-axes effect (one
+#: parameter) wins on BIC. Inertia on the two sides of one axis's transmission are alternatives, as
+#: for all axes (group "inertia_axis<j>"). The platform payload is not in this list: under rotation it
+#: loads the three actuators through the mechanism, not as a mass on one carriage.
+PER_AXIS = ("tau_c", "b_v", "J1_scale", "J_guide", "M_load", "tau_offset", "T_meas")
 
 
 def _per_axis(e: Effect, j: int) -> Effect:
-    p = e.parameter
-    hi = e.bounds[p][1]
-    return Effect(f"{e.key}_axis{j}", f"{e.title}, axis {j} only", (f"{p}_axis{j}",), e.kind,
-                  f"{e.signature}; on actuator {j} only", {f"{p}_axis{j}": (-hi, hi)}, step=e.step)
+    bounds = {f"{p}_axis{j}": (-hi, hi) for p, (lo, hi) in e.bounds.items()}
+    return Effect(f"{e.key}_axis{j}", f"{e.title}, axis {j} only", tuple(f"{p}_axis{j}" for p in e.parameters),
+                  e.kind, f"{e.signature}; on actuator {j} only", bounds, step=e.step,
+                  group=f"{e.group}_axis{j}" if e.group else None, preferred=e.preferred)
 
 
 LIBRARY = LIBRARY + tuple(_per_axis(e, j) for e in LIBRARY if e.parameter in PER_AXIS for j in (1, 2, 3))
 BY_KEY = {e.key: e for e in LIBRARY}
 BY_PARAMETER = {p: e for e in LIBRARY for p in e.parameters}
 BOUNDS = {name: b for e in LIBRARY for name, b in e.bounds.items()}
+#: per-axis parameter -> (the all-axes parameter, 0-based axis)
+AXIS_OF: dict[str, tuple[str, int]] = {name: (name.rsplit("_axis", 1)[0], int(name[-1]) - 1)
+                                       for name in BOUNDS if "_axis" in name}
+#: every parameter of the measurement model, all-axes and per axis (no re-simulation when they change)
+MEASUREMENT = frozenset(MEASUREMENT_PARAMETERS) | {k for k, (p, _) in AXIS_OF.items() if p in MEASUREMENT_PARAMETERS}
 
 
 def axis_values(plant: Mapping[str, float], nominal: Mapping, j: int) -> dict[str, float]:
@@ -271,23 +319,29 @@ def axis_column(param: str, q_dot: np.ndarray, q_ddot: np.ndarray) -> np.ndarray
 
 def column(effect_or_param: str, signals: SimSignals, params: Mapping, chain: Chain,
            grid: Optional[float] = None, eps: float = 2e-4) -> np.ndarray:
-    """d tau_obs / d parameter on the base grid (through the chain), for a plant or measurement parameter."""
-    if effect_or_param in PLANT_COLUMNS:
-        return chain.linear(PLANT_COLUMNS[effect_or_param](signals, params, grid))
-    if effect_or_param in AXIS_OF:     # the all-axes signature, on one axis
-        base, j = AXIS_OF[effect_or_param]
-        c = np.zeros_like(signals.tau_m)
-        c[:, j] = PLANT_COLUMNS[base](signals, params, grid)[:, j]
-        return chain.linear(c)
-    if effect_or_param == "tau_offset":
-        return np.ones_like(signals.tau_m)
-    if effect_or_param in ("T_meas", "delay_meas"):
-        v = getattr(chain, effect_or_param)
-        lo = max(0.0, v - eps)
-        hi = lo + 2 * eps if v - eps < 0 else v + eps
-        return (chain.with_(**{effect_or_param: hi}).linear(signals.tau_m)
-                - chain.with_(**{effect_or_param: lo}).linear(signals.tau_m)) / (hi - lo)
-    raise KeyError(f"no regression column for parameter {effect_or_param!r}")
+    """d tau_obs / d parameter on the base grid (through the chain), for a plant or measurement parameter
+    (all axes, or "<name>_axis<j>": that axis's column, zero on the others)."""
+    base, axes = (AXIS_OF[effect_or_param][0], [AXIS_OF[effect_or_param][1]]) if effect_or_param in AXIS_OF \
+        else (effect_or_param, [0, 1, 2])
+    if base in PLANT_COLUMNS:
+        c = PLANT_COLUMNS[base](signals, params, grid)
+    elif base == "tau_offset":
+        c = np.ones_like(signals.tau_m)
+    elif base in ("T_meas", "delay_meas"):
+        v = np.array(getattr(chain, base))
+        lo = v.copy()
+        lo[axes] = np.maximum(0.0, v[axes] - eps)
+        hi = v.copy()
+        hi[axes] = lo[axes] + 2 * eps
+        c = (chain.with_(**{base: tuple(hi)}).linear(signals.tau_m)
+             - chain.with_(**{base: tuple(lo)}).linear(signals.tau_m)) / (2 * eps)
+    else:
+        raise KeyError(f"no regression column for parameter {effect_or_param!r}")
+    if len(axes) < 3:
+        only = np.zeros_like(c)
+        only[:, axes] = c[:, axes]
+        c = only
+    return chain.linear(c) if base in PLANT_COLUMNS else c
 
 
 # --------------------------------------------------------------------------------------

@@ -23,19 +23,20 @@ PARABOLA_LEVEL = 3
 
 def nonlinear_stage(ctx: Context, state: State, effects: Sequence[Effect], rejected: set, steps: list
                      ) -> Optional[State]:
-    """Effects whose signature does not linearise (Stribeck friction): fitted and scored by re-simulation."""
+    """Effects whose signature does not linearise (Stribeck friction, the drive's current limit): fitted and
+    scored by re-simulation, each tried only where the residual shows its trace (``GATES``)."""
     best: Optional[State] = None
     best_bic = math.inf
-    where = _reversal_concentration(ctx, state.pt)
-    if where < REVERSAL_GATE:
-        steps.append({"how": "re-simulation candidates", "from": [a.label for a in state.selected],
-                      "to": [e.key for e in effects], "accepted": False,
-                      "note": f"not tried: the residual does not concentrate at velocity reversals "
-                              f"({where:.2f} x its share of time < {REVERSAL_GATE:g}), where "
-                              + ", ".join(e.title for e in effects) + " act"})
-        ctx.log(f"diagnose: {', '.join(e.title for e in effects)} not tried: the residual does not concentrate at "
-                f"velocity reversals ({where:.2f} x its share of time)")
-        return None
+    tried = []
+    for e in effects:
+        shows, why = GATES[e.key](ctx, state.pt)
+        if shows:
+            tried.append(e)
+            continue
+        steps.append({"how": "re-simulation candidates", "from": [a.label for a in state.selected], "to": [e.key],
+                      "accepted": False, "note": f"not tried: {why}"})
+        ctx.log(f"diagnose: {e.title} not tried: {why}")
+    effects = tried
     for e in effects:
         if any(a.effect.key == e.key for a in state.selected):
             continue
@@ -69,8 +70,34 @@ START_GRIDS = {
 }
 
 
-#: the re-simulation candidates are tried when the residual concentrates at velocity reversals this much
+#: Stribeck friction is tried when the residual concentrates at velocity reversals this much
 REVERSAL_GATE = 2.0
+#: the current limit is tried when the model's torque peak exceeds the data's by this many noise deviations
+CLIP_GATE = 5.0
+
+
+def _reversal_gate(ctx: Context, pt: Point) -> tuple[bool, str]:
+    where = _reversal_concentration(ctx, pt)
+    return where >= REVERSAL_GATE, (f"the residual does not concentrate at velocity reversals ({where:.2f} x its "
+                                    f"share of time < {REVERSAL_GATE:g}), where it acts")
+
+
+def _peaks(ctx: Context, pt: Point) -> tuple[float, float]:
+    """The largest |torque| over every test and axis, measured (99.9th percentile: robust to the noise's
+    extremes) and simulated."""
+    y = np.concatenate([np.abs(ctx.model.tests[n].y).ravel() for n in ctx.names])
+    yh = np.concatenate([np.abs(pt.obs[n]).ravel() for n in ctx.names])
+    return float(np.percentile(y, 99.9)), float(yh.max())
+
+
+def _clip_gate(ctx: Context, pt: Point) -> tuple[bool, str]:
+    measured, model = _peaks(ctx, pt)
+    return model - measured >= CLIP_GATE * ctx.sigma, (
+        f"the model's torque peak ({model:.4g} N.m) does not exceed the data's ({measured:.4g} N.m) by "
+        f"{CLIP_GATE:g} noise deviations: nothing is clipped")
+
+
+GATES = {"stribeck": _reversal_gate, "current_limit": _clip_gate}
 
 
 def _reversal_concentration(ctx: Context, pt: Point) -> float:
@@ -89,8 +116,12 @@ def _reversal_concentration(ctx: Context, pt: Point) -> float:
 
 
 def _nonlinear_start(ctx: Context, state: State, e: Effect) -> dict:
-    """A start for the fit: the best point of a grid, each simulated on the lowest-frequency training test
-    (the one friction dominates), all in one parallel batch."""
+    """A start for the fit. The current limit: the data's torque peak over the motor constant (where the
+    drive limits the current, the torque stays at k_T i_max). Stribeck friction: the best point of a grid,
+    each simulated on the lowest-frequency training test (the one friction dominates), all in one parallel
+    batch."""
+    if e.key == "current_limit":
+        return {"i_max": _peaks(ctx, state.pt)[0] / float(ctx.nominal["k_T"])}
     grid = START_GRIDS[e.key]
     probe = [min(ctx.train, key=lambda n: (ctx.model.tests[n].test.frequency or 0.0, n))]
     ctx.model.sim.prefetch([{**state.changes, **g} for g in grid], probe)

@@ -22,12 +22,17 @@ class Excitation:
     role: str
     frequency: float      # Hz: reversals per second / 2 (0 without reversals)
     alike: bool           # the three axes move alike (a z motion)
+    moving: tuple = (True, True, True)   # which axes move
+
+    def on_axis(self, j: int) -> "Excitation":
+        """The test as seen by axis j (0-based): no reversals if that axis stands still."""
+        return Excitation(self.name, self.role, self.frequency if self.moving[j] else 0.0, self.alike, self.moving)
 
 
 def excitation(name: str, role: str, t: np.ndarray, rho_cmd: np.ndarray) -> Excitation:
     v = np.gradient(rho_cmd, t, axis=0)
     scale = np.abs(v).max(axis=0)
-    moving = scale > 0
+    moving = scale > 1e-3 * float(scale.max())    # an axis that stands still (its commands' rounding is no motion)
     reversals = [int(np.count_nonzero(np.diff(np.sign(v[np.abs(v[:, j]) > 0.05 * scale[j], j])) != 0))
                  for j in range(rho_cmd.shape[1]) if moving[j]]
     duration = float(t[-1] - t[0]) or 1.0
@@ -35,7 +40,7 @@ def excitation(name: str, role: str, t: np.ndarray, rho_cmd: np.ndarray) -> Exci
     spread = np.ptp(rho_cmd, axis=0)
     d = rho_cmd - rho_cmd.mean(axis=0)
     alike = bool(np.allclose(d, d[:, :1], atol=0.05 * float(spread.max() or 1.0)))
-    return Excitation(name, role, frequency, alike)
+    return Excitation(name, role, frequency, alike, tuple(bool(m) for m in moving))
 
 
 def _both_roles(tests: Sequence[Excitation], ok: Callable[[Excitation], bool]) -> Optional[str]:
@@ -78,25 +83,36 @@ REQUIREMENTS: dict[tuple[str, ...], tuple[str, Callable[[Sequence[Excitation]], 
                          "carriage and more inertia plus an offset look alike", _kinds),
     ("lag",): ("a test at >= 3 Hz: the phase lag grows with f", lambda ts: None if any(x.frequency >= 3.0 for x in ts)
                else "no test at 3 Hz or above"),
-    ("velocity_gain", "position_gain"): ("a training and a held-out test at >= 2 Hz, near the cascade's bandwidth "
+    ("velocity_gain", "position_gain", "velocity_integral"): ("a training and a held-out test at >= 2 Hz, near the cascade's bandwidth "
                                          "(about 4 Hz): well below it the loop follows whatever its gains",
                                          lambda ts: _both_roles(ts, lambda x: x.frequency >= 2.0)),
+    ("velocity_cycle",): ("a training and a held-out test at >= 2 Hz: a longer cycle is a delay inside the velocity "
+                          "loop, which grows as the tests approach the cascade's bandwidth (about 4 Hz)",
+                          lambda ts: _both_roles(ts, lambda x: x.frequency >= 2.0)),
+    ("current_limit",): ("tests whose torque reaches the limit (the fastest, largest motions): below it the limit "
+                         "leaves no trace (and does no harm to that plan); the commands alone cannot tell whether a "
+                         "test reaches it, the diagnosis tries it when the data's torque peak stays below the "
+                         "model's", lambda ts: None),
     ("backlash",): ("the fastest tests (of the fastest test's kind of motion, >= half its reversal rate: where "
                     "the loop hunts) in both the training and the held-out set: it is refused when only one set "
                     "hunts", _fast),
-    ("coulomb_axis", "viscous_axis"): ("reversals of every axis in a training and a held-out test",
-                                       lambda ts: _both_roles(ts, lambda x: x.frequency > 0)),
 }
+#: effects on one axis only ("<key>_axis<j>") need what the all-axes effect needs, in tests where that axis moves
+PER_AXIS_NOTE = "; in tests where that axis moves"
 
 
 def identifiability(tests: Sequence[Excitation], library: Sequence[str]) -> dict[str, dict]:
     """For every effect of ``library``: what the plan must excite, and whether this plan does."""
     out = {}
-    for keys, (needs, check) in REQUIREMENTS.items():
-        for key in library:
-            base = key.rsplit("_axis", 1)[0] + "_axis" if "_axis" in key else key
+    for key in library:
+        base, _, axis = key.partition("_axis")
+        for keys, (needs, check) in REQUIREMENTS.items():
             if base in keys:
-                why = check(tests)
+                if axis:
+                    why = check([x.on_axis(int(axis) - 1) for x in tests])
+                    needs = needs + PER_AXIS_NOTE
+                else:
+                    why = check(tests)
                 out[key] = {"requires": needs, "plan_meets": why is None, "why_not": why}
     return out
 

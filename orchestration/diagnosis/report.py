@@ -47,6 +47,7 @@ def write_model(opt: Options, changes: Mapping[str, float], named: Sequence[dict
             why[p] = (f"mast diagnose: {eff['effect']}; fitted {v:.6g} (std {u:.2g})" if u is not None
                       else f"mast diagnose: {eff['effect']}; fitted {v:.6g}")
     from fmus.actuator.model import PARAMETERS
+    from fmus.controller.model import CASCADE_PARAMETERS, DRIVE_PARAMETERS
 
     units = {p.name: p.unit for p in PARAMETERS}
     xml = parameter_set_xml("actuator_diagnosed", f" Written by mast diagnose from {Path(opt.measured).name}: the nominal "
@@ -60,8 +61,8 @@ def write_model(opt: Options, changes: Mapping[str, float], named: Sequence[dict
                   "(MAST_diagnosed.ssp does that); compare the lab's torque with actuator_k.tau_meas"}
     if drive:   # a controller-side effect: the drive's gains, a parameter set of the controller component
         cxml = parameter_set_xml("controller_diagnosed", f" Written by mast diagnose from {Path(opt.measured).name}: "
-                                 "the drive gains the data show; bind it after the controller's other parameter sets. ",
-                                 drive, {"k_p": "A.s/rad", "k_v": "1/s"},
+                                 "the drive parameters the data show; bind it after the controller's other parameter sets. ",
+                                 drive, {p.name: p.unit for p in DRIVE_PARAMETERS + CASCADE_PARAMETERS},
                                  {name: why.get(name, "mast diagnose") for name in drive})
         (opt.out / "controller_diagnosed.ssv").write_bytes(cxml)
         out["controller_parameter_set"] = str(opt.out / "controller_diagnosed.ssv")

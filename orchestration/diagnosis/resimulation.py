@@ -10,7 +10,7 @@ from typing import Mapping, Optional, Sequence
 import numpy as np
 
 from ..data.measured import AXES, CommandReplay, MeasuredTest
-from .effects import (CONTROLLER_PARAMETERS, MEASUREMENT_PARAMETERS, Chain, SimSignals, axis_values, chain_for,
+from .effects import (CONTROLLER_PARAMETERS, MEASUREMENT, Chain, SimSignals, axis_values, chain_for,
                       column)
 from .phasefree import COMMAND_JITTER
 
@@ -99,7 +99,7 @@ class Simulator:
 
     @staticmethod
     def _key(plant: Mapping[str, float]) -> tuple:
-        return tuple(sorted((k, float(v)) for k, v in plant.items() if k not in MEASUREMENT_PARAMETERS))
+        return tuple(sorted((k, float(v)) for k, v in plant.items() if k not in MEASUREMENT))
 
     def prefetch(self, plants: Sequence[Mapping[str, float]], names: Sequence[str],
                  realisations: Sequence[int] = (0,)) -> None:
@@ -192,10 +192,13 @@ class Model:
 
     def point(self, changes: Mapping[str, float], names: Sequence[str], realisation: int = 0) -> Point:
         params = {**self.nominal, **changes}
-        changed_plant = {k: v for k, v in changes.items() if k not in MEASUREMENT_PARAMETERS}
+        changed_plant = {k: v for k, v in changes.items() if k not in MEASUREMENT}
         sims = self.sim.run(changed_plant, names, realisation)
         h = next(iter(sims.values())).h
-        chain = chain_for(params, h, self.drive_T, self.drive_delay)
+        try:
+            chain = chain_for(params, h, self.drive_T, self.drive_delay)
+        except ValueError as err:     # a measurement value the model rejects (a negative lag)
+            raise SimulationFailed(f"measurement model with {dict(changes)}: {err}") from None
         pt = Point(params, sims, chain)
         for n in names:
             prep, s = self.tests[n], sims[n]

@@ -20,6 +20,8 @@ PRACTICAL = 0.05
 RELATIVE = 0.1
 #: ... and at least this share of the whole gap of the current model (above the noise)
 SHARE_OF_GAP = 0.01
+#: at most this many effects on one axis only in a subset (two worn axes at once, not a per-axis refit of all)
+MAX_PER_AXIS = 2
 
 
 @dataclass(frozen=True)
@@ -148,6 +150,13 @@ def _in_bounds(effect: Effect, nominal: Mapping, change: float) -> bool:
     return lo - 1e-12 <= value <= hi + 1e-12
 
 
+def _per_axis_excess(combo: Sequence[str]) -> bool:
+    """More than MAX_PER_AXIS per-axis effects, or an all-axes effect with its per-axis versions on two axes
+    (three values for three axes: the third axis's effect alone, which the plan may not be able to tell)."""
+    per_axis = [k.rsplit("_axis", 1)[0] for k in combo if "_axis" in k]
+    return len(per_axis) > MAX_PER_AXIS or any(k in combo and per_axis.count(k) >= 2 for k in set(per_axis))
+
+
 def atom_labels(atoms: Sequence[Atom]) -> tuple[str, ...]:
     return tuple(sorted(a.effect.key for a in atoms))
 
@@ -177,7 +186,7 @@ def select(reg: Regression, nominal: Mapping, max_size: int, exclude: frozenset 
     for size in range(0, max_size + 1):
         for combo in itertools.combinations(keys, size):
             groups = [by_key[k].group for k in combo if by_key[k].group]
-            if len(groups) != len(set(groups)) or tuple(sorted(combo)) in exclude:
+            if len(groups) != len(set(groups)) or tuple(sorted(combo)) in exclude or _per_axis_excess(combo):
                 continue
             for idx in itertools.product(*[by_effect[k] for k in combo]):
                 fit = reg.fit(idx)

@@ -9,13 +9,13 @@ from typing import Callable, Mapping, Optional, Sequence
 
 import numpy as np
 
-from .effects import AXIS_OF, BOUNDS, BY_PARAMETER, LIBRARY, MEASUREMENT_PARAMETERS, Chain
+from .effects import AXIS_OF, BOUNDS, BY_PARAMETER, LIBRARY, MEASUREMENT, Chain
 from .resimulation import Model, Point, resample
 from .selection import DELTA_BIC, PRACTICAL, RELATIVE, Atom, Band, Regression, atom_labels, select
 
 
 #: re-simulation steps (finite differences) for the parameters whose signature does not linearise well
-FD_STEP = {"tau_s": 2e-3, "omega_s": 0.3, "k_p": 6e-4, "k_v": 0.2}
+FD_STEP = {"tau_s": 2e-3, "omega_s": 0.3, "k_p": 6e-4, "k_v": 0.2, "k_i": 0.04, "i_max": 0.05}
 #: effects fitted and verified by re-simulation (sample by sample) when a residual remains after the regression loop
 NONLINEAR = tuple(e.key for e in LIBRARY if not e.regression and not e.phase_free)
 #: at most this many effects at once
@@ -109,7 +109,7 @@ def fit_state(ctx: Context, selected: Sequence[Atom], start: Mapping[str, float]
     start = {p: start.get(p, float(ctx.nominal[p])) for p in free}
     base = {p: float((anchor or {}).get(p, ctx.nominal[p])) for p in free}
     for k in range(BACK_OFF + 1):
-        trial = {p: base[p] + (start[p] - base[p]) * 0.5 ** k for p in free}
+        trial = _snap(ctx, {p: base[p] + (start[p] - base[p]) * 0.5 ** k for p in free})
         if ctx.model.trial(trial, ctx.train, "fit start") is not None:
             break
     else:
@@ -117,11 +117,45 @@ def fit_state(ctx: Context, selected: Sequence[Atom], start: Mapping[str, float]
     if k:
         ctx.log(f"diagnose:   the proposed values do not simulate: fit started {k} halving(s) back towards the "
                 "current model")
-    changes, info = polish(ctx, selected, trial, columns or {})
+    fixed = _discrete_fit(ctx, trial)
+    changes, info = polish(ctx, selected, {**trial, **fixed}, columns or {}, fixed)
     pt = ctx.model.trial(changes, ctx.names, "fitted values on every test")
     if pt is None:
         return None
     return State(tuple(selected), changes, pt, info)
+
+
+def _snap(ctx: Context, values: Mapping[str, float]) -> dict[str, float]:
+    """Discrete parameters (cycle times) on their grid: the nearest multiple (>= 1) of their quantum."""
+    out = dict(values)
+    for p, v in values.items():
+        e = BY_PARAMETER.get(p)
+        if e is not None and e.quantum:
+            q = float(ctx.nominal[e.quantum])
+            out[p] = max(1, round(v / q)) * q
+    return out
+
+
+def _discrete_fit(ctx: Context, trial: Mapping[str, float]) -> dict[str, float]:
+    """The discrete parameters of ``trial`` fitted on their grid: the start and its neighbours (one quantum
+    either side, the others at their start values) simulated on the training tests, the lowest RSS in the
+    band kept. The continuous parameters are then fitted with these fixed (polish)."""
+    fixed: dict[str, float] = {}
+    for p, v in trial.items():
+        e = BY_PARAMETER.get(p)
+        if e is None or not e.quantum:
+            continue
+        q = float(ctx.nominal[e.quantum])
+        n0 = round(v / q)
+        values = [n * q for n in (n0 - 1, n0, n0 + 1) if n >= 1 and BOUNDS[p][0] <= n * q <= BOUNDS[p][1]]
+        ctx.model.sim.prefetch([{**trial, **fixed, p: x} for x in values], ctx.train)
+        best, best_rss = v, math.inf
+        for x in values:
+            pt = ctx.model.trial({**trial, **fixed, p: x}, ctx.train, f"{p} grid")
+            if pt is not None and band_rss(ctx, pt, ctx.train)[0] < best_rss:
+                best, best_rss = x, band_rss(ctx, pt, ctx.train)[0]
+        fixed[p] = best
+    return fixed
 
 
 def failed_step(ctx: Context, old: State, selected: Sequence[Atom], steps: list, how: str) -> None:
@@ -248,7 +282,27 @@ PRUNE_DBIC = 200.0
 
 def prune(ctx: Context, state: State, steps: list) -> State:
     """Backward check: an effect that the others (refitted) can stand in for is removed if re-simulation
-    does not show it strongly needed (e.g. a mass change and an offset cancelling each other's weight)."""
+    does not show it strongly needed (e.g. a mass change and an offset cancelling each other's weight).
+    Effects found by re-simulation (Stribeck friction, a current limit) are re-checked too: one that entered
+    while another effect was still misfitted (far from the data) and no longer explains anything once the
+    others are right is not named."""
+    state = _prune_linear(ctx, state, steps)
+    for a in [a for a in state.selected if a.effect.key in NONLINEAR]:
+        rest = tuple(x for x in state.selected if x is not a)
+        how = f"backward check (removing {a.effect.key})"
+        if rest:
+            cand = fit_state(ctx, rest, dict(state.changes))
+        else:
+            pt = ctx.model.trial({}, ctx.names, how)
+            cand = State((), {}, pt) if pt is not None else None
+        if cand is None:
+            failed_step(ctx, state, rest, steps, how)
+        elif verify(ctx, state, cand, steps, how):
+            state = cand
+    return state
+
+
+def _prune_linear(ctx: Context, state: State, steps: list) -> State:
     while len(state.selected) > 1:
         linear = [a for a in state.selected if a.effect.key not in NONLINEAR]
         if len(linear) < 2:
@@ -278,16 +332,21 @@ def prune(ctx: Context, state: State, steps: list) -> State:
 
 
 def _equivalent(nominal: Mapping, param: str, value: float, other: str) -> float:
-    """The value of ``other`` giving the same total reflected inertia as ``param`` = value."""
+    """The value of ``other`` giving the same total reflected inertia as ``param`` = value (both all-axes
+    parameters, or both increments on one axis: J1_scale_axis<j>, J_guide_axis<j>)."""
     from fmus.actuator.model import two_inertia
 
+    base, _ = AXIS_OF.get(param, (param, None))
+    other_base, _ = AXIS_OF.get(other, (other, None))
+    increment = param in AXIS_OF
     J1, J2 = two_inertia(nominal)
-    J = two_inertia({**nominal, param: value})
+    J = two_inertia({**nominal, base: float(nominal[base]) + value if increment else value})
     delta = (J[0] + J[1]) - (J1 + J2)
-    if other == "J_guide":
-        return float(nominal["J_guide"]) + delta * float(nominal["i_r"]) ** 2
-    if other == "J1_scale":
-        return float(nominal["J1_scale"]) + delta / (J1 / float(nominal["J1_scale"]))
+    start = 0.0 if increment else float(nominal[other_base])
+    if other_base == "J_guide":
+        return start + delta * float(nominal["i_r"]) ** 2
+    if other_base == "J1_scale":
+        return start + delta / (J1 / float(nominal["J1_scale"]))
     raise KeyError(other)
 
 
@@ -329,8 +388,17 @@ def regression_at(ctx: Context, state: State, atoms: Sequence[Atom], sensitiviti
                 cols[a.label] = {n: np.zeros_like(pt.obs[n]) for n in names}
             else:
                 cols[a.label] = model.columns(pt, names, p0, a.grid)
-        else:
+        elif a.effect.parameter not in AXIS_OF:
             cols[a.label] = model.columns(pt, names, a.effect.parameter, a.grid if a not in state.selected else None)
+    sensitivity = {atom.effect.parameter: atom.label for atom in atoms if atom.label in steps}
+    for a in atoms:   # per-axis effects: the all-axes sensitivity on that axis where it was re-simulated
+        if a.effect.parameter in AXIS_OF:
+            base, j = AXIS_OF[a.effect.parameter]
+            if base in sensitivity and sensitivity[base] in cols:
+                cols[a.label] = {n: _on_axis(c, j) for n, c in cols[sensitivity[base]].items()}
+                steps[a.label] = steps[sensitivity[base]]
+            else:
+                cols[a.label] = model.columns(pt, names, a.effect.parameter)
     resid = {n: model.tests[n].y - pt.obs[n] for n in names}
     for a in state.selected:
         if a.effect.key in NONLINEAR:
@@ -358,6 +426,12 @@ def regression_at(ctx: Context, state: State, atoms: Sequence[Atom], sensitiviti
     return reg
 
 
+def _on_axis(c: np.ndarray, j: int) -> np.ndarray:
+    out = np.zeros_like(c)
+    out[:, j] = c[:, j]
+    return out
+
+
 def _free_parameters(selected: Sequence[Atom]) -> list[str]:
     out = []
     for a in selected:
@@ -366,7 +440,8 @@ def _free_parameters(selected: Sequence[Atom]) -> list[str]:
 
 
 def polish(ctx: Context, selected: Sequence[Atom], start: Mapping[str, float],
-            columns: Mapping[str, Mapping[str, np.ndarray]]) -> tuple[dict, dict]:
+            columns: Mapping[str, Mapping[str, np.ndarray]], fixed: Optional[Mapping[str, float]] = None
+            ) -> tuple[dict, dict]:
     """Bounded least squares of the selected parameters on the training tests, re-simulating.
 
     Jacobian: the measurement parameters' columns are exact (no simulation); plant
@@ -377,7 +452,10 @@ def polish(ctx: Context, selected: Sequence[Atom], start: Mapping[str, float],
     from scipy.optimize import least_squares
 
     model, train, sigma = ctx.model, ctx.train, ctx.sigma
-    free = _free_parameters(selected)
+    fixed = dict(fixed or {})     # discrete parameters, fitted on their grid (_discrete_fit)
+    free = [p for p in _free_parameters(selected) if p not in fixed]
+    if not free:
+        return fixed, {"simulations_of_the_training_tests": 0, "note": "only discrete parameters: fitted on their grid"}
     x0 = np.array([start[p] for p in free], dtype=float)
     lo = np.array([BOUNDS[p][0] for p in free])
     hi = np.array([BOUNDS[p][1] for p in free])
@@ -386,8 +464,8 @@ def polish(ctx: Context, selected: Sequence[Atom], start: Mapping[str, float],
     y = np.concatenate([model.tests[n].y.ravel() for n in train])
     count = [0]
     points: dict = {}
-    plant = [k for k, p in enumerate(free) if p not in MEASUREMENT_PARAMETERS]
-    sensor = [k for k, p in enumerate(free) if p in MEASUREMENT_PARAMETERS]
+    plant = [k for k, p in enumerate(free) if p not in MEASUREMENT]
+    sensor = [k for k, p in enumerate(free) if p in MEASUREMENT]
 
     def at(x: np.ndarray) -> Optional[Point]:
         """The training tests at x; None where they do not simulate (least squares then shrinks its step)."""
@@ -395,7 +473,7 @@ def polish(ctx: Context, selected: Sequence[Atom], start: Mapping[str, float],
         if key not in points:
             if len(points) > 8:
                 points.clear()
-            points[key] = model.trial(dict(zip(free, map(float, x))), train, "fit")
+            points[key] = model.trial({**fixed, **dict(zip(free, map(float, x)))}, train, "fit")
             count[0] += 1
         return points[key]
 
@@ -426,7 +504,7 @@ def polish(ctx: Context, selected: Sequence[Atom], start: Mapping[str, float],
             x1 = x.copy()
             x1[k] += d
             fd[k] = (x1, d)
-        model.sim.prefetch([dict(zip(free, map(float, x1))) for x1, _ in fd.values()], train)
+        model.sim.prefetch([{**fixed, **dict(zip(free, map(float, x1)))} for x1, _ in fd.values()], train)
         for k, (x1, d) in fd.items():
             pt1 = at(x1)
             J[:, k] = 0.0 if pt1 is None else -(obs(pt1) - obs(pt)) / d / sigma
@@ -456,36 +534,51 @@ def polish(ctx: Context, selected: Sequence[Atom], start: Mapping[str, float],
                         max_nfev=12)
     if at(sol.x) is None:    # never worse than the start, which simulates
         sol.x = x0
-    values = dict(zip(free, map(float, sol.x)))
+    values = {**fixed, **dict(zip(free, map(float, sol.x)))}
     info = {"simulations_of_the_training_tests": count[0], "cost": float(sol.cost),
             "wall_s": round(time.perf_counter() - t0, 1), "status": sol.message,
             "jacobian": "exact columns (measurement), re-simulated sensitivities with Broyden updates (plant)"}
-    if "T_meas" in values:   # a filter or a delay? (measurement only: no re-simulation)
-        info["lag"] = _filter_or_delay(model, at(sol.x), values, train)
-        if info["lag"]["choice"] == "delay_meas":
-            values.pop("T_meas")
-            values["delay_meas"] = info["lag"]["delay_meas"]
+    for p in [p for p in values if AXIS_OF.get(p, (p,))[0] == "T_meas"]:   # a filter or a delay? (no re-simulation)
+        key = BY_PARAMETER[p].key
+        info[key] = _filter_or_delay(model, at(sol.x), p, values[p], train)
+        if info[key]["choice"] == "delay_meas":
+            values.pop(p)
+            values[info[key]["delay_parameter"]] = info[key]["delay_meas"]
     ctx.log("diagnose:   fit " + ", ".join(f"{k} = {v:.5g}" for k, v in values.items())
             + f" ({count[0]} simulations of the training tests, {info['wall_s']:.0f} s)")
     return values, info
 
 
-def _filter_or_delay(model: Model, pt: Point, values: Mapping, train: Sequence[str]) -> dict:
+def _filter_or_delay(model: Model, pt: Point, param: str, value: float, train: Sequence[str]) -> dict:
+    """The fitted low-pass ``param`` (T_meas, or T_meas_axis<j> on one axis) against a pure delay on the same
+    axes (delay_meas, delay_meas_axis<j>): a 1-D fit of the delay, BIC decides."""
     from scipy.optimize import minimize_scalar
 
     y = np.concatenate([model.tests[n].y.ravel() for n in train])
+    axes = [AXIS_OF[param][1]] if param in AXIS_OF else [0, 1, 2]
+    delay_param = param.replace("T_meas", "delay_meas")
 
     def rss(chain: Chain) -> float:
         yh = np.concatenate([resample(pt.sims[n], chain.observe(pt.sims[n].tau_m), model.tests[n].t).ravel()
                              for n in train])
         return float(np.sum((y - yh) ** 2))
 
+    T = np.array(pt.chain.T_meas)
+    T[axes] -= value                               # the filter removed ...
+    D = np.array(pt.chain.delay_meas)
+    D[axes] -= float(pt.params.get(delay_param, 0.0))
+
+    def delayed(d: float) -> Chain:                # ... and a delay d on the same axes
+        Dd = D.copy()
+        Dd[axes] += d
+        return pt.chain.with_(T_meas=tuple(np.maximum(T, 0.0)), delay_meas=tuple(Dd))
+
     rss_filter = rss(pt.chain)
-    base = pt.chain.with_(T_meas=0.0)
-    res = minimize_scalar(lambda d: rss(base.with_(delay_meas=d)), bounds=(0.0, 4 * values["T_meas"] + 1e-4),
-                          method="bounded", options={"xatol": 1e-6})
+    res = minimize_scalar(lambda d: rss(delayed(d)), bounds=(0.0, 4 * value + 1e-4), method="bounded",
+                          options={"xatol": 1e-6})
     n = len(y)
     dbic = n * math.log(res.fun / rss_filter)
     choice = "delay_meas" if dbic < -DELTA_BIC else "T_meas"
-    return {"T_meas": values["T_meas"], "rss_filter": rss_filter, "delay_meas": float(res.x), "rss_delay": float(res.fun),
-            "delta_bic_delay_vs_filter": dbic, "choice": choice, "separable": abs(dbic) >= DELTA_BIC}
+    return {"T_meas": value, "rss_filter": rss_filter, "delay_meas": float(res.x), "rss_delay": float(res.fun),
+            "delta_bic_delay_vs_filter": dbic, "choice": choice, "separable": abs(dbic) >= DELTA_BIC,
+            "filter_parameter": param, "delay_parameter": delay_param}

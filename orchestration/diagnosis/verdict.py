@@ -62,7 +62,8 @@ def named_effects(ctx: Context, state: State, last_fit, steps: list) -> list:
         return []
     model, names, nominal, pt = ctx.model, ctx.train, ctx.nominal, state.pt
     # the phase-free effects' uncertainty comes from their score (phasefree.estimate)
-    free = [p for p in state.changes if not (p in BY_PARAMETER and BY_PARAMETER[p].phase_free)]
+    # discrete parameters (cycle times) have a grid, not a covariance: their neighbours were simulated and refuted
+    free = [p for p in state.changes if not (p in BY_PARAMETER and (BY_PARAMETER[p].phase_free or BY_PARAMETER[p].quantum))]
     y = np.concatenate([model.tests[n].y.ravel() for n in names])
     r = y - np.concatenate([pt.obs[n].ravel() for n in names])
     cols = []
@@ -99,8 +100,9 @@ def named_effects(ctx: Context, state: State, last_fit, steps: list) -> list:
     for a in state.selected:
         e = a.effect
         params = {p: state.changes[p] for p in e.parameters if p in state.changes}
-        if e.key == "lag" and "delay_meas" in state.changes:
-            params = {"delay_meas": state.changes["delay_meas"]}
+        delay = e.parameter.replace("T_meas", "delay_meas")
+        if e.parameter.startswith("T_meas") and delay in state.changes:   # the lag is a delay
+            params = {delay: state.changes[delay]}
         added = next((st for st in steps if st.get("accepted") and "delta_bic_training" in st
                       and a.label in st["to"] and a.label not in st["from"]), None)
         ev: dict = {"signature": e.signature}
@@ -117,8 +119,8 @@ def named_effects(ctx: Context, state: State, last_fit, steps: list) -> list:
                                 "note": "re-simulated: the model before and after adding it (band below "
                                         f"{ctx.band.fc:g} Hz)"}
         ev.update(_evidence(reg, best, a))
-        if e.key == "lag" and "lag" in state.info:
-            ev["filter_or_delay"] = state.info["lag"]
+        if e.parameter.startswith("T_meas") and e.key in state.info:
+            ev["filter_or_delay"] = state.info[e.key]
         if e.group:
             ev["alternatives"] = _alternatives(reg, best, a, nominal) + [
                 {"effect": BY_KEY[x["effect"]].title, "parameters": x["parameters"],

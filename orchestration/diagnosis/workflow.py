@@ -118,8 +118,9 @@ def diagnose(opt: Options, log: Callable[[str], None] = print) -> dict:
             raise DiagnosisError(f"{opt.ssp}: expected three actuator_k components, found {', '.join(actuators)}")
         ssp_actuator = dict(system.components[actuators[0]].parameters)
         drive = system.components.get("controller")
-        ssp_drive = {k: float(drive.parameters[k]) for k in CONTROLLER_PARAMETERS
-                     if drive is not None and k in drive.parameters}
+        # the drive's parameters the library can change, and the quanta of the discrete ones (T_cur)
+        wanted = set(CONTROLLER_PARAMETERS) | {e.quantum for e in LIBRARY if e.kind == "controller" and e.quantum}
+        ssp_drive = {k: float(drive.parameters[k]) for k in wanted if drive is not None and k in drive.parameters}
     stroke = (float(ssp_actuator["rho_min"]), float(ssp_actuator["rho_max"]))
     data = load(opt.measured, stroke=stroke)
     model_over = _model_overrides(opt.ssp, opt.model)
@@ -137,6 +138,11 @@ def diagnose(opt: Options, log: Callable[[str], None] = print) -> dict:
     for key, p in plan.items():
         if not p["plan_meets"] and "_axis" not in key:
             log(f"diagnose: this plan cannot tell {BY_KEY[key].title}: it needs {p['requires']} ({p['why_not']})")
+    for j in (1, 2, 3):     # effects on one axis: one line per axis
+        blind = [k.rsplit("_axis", 1)[0] for k, p in plan.items() if k.endswith(f"_axis{j}") and not p["plan_meets"]]
+        if blind:
+            log(f"diagnose: this plan cannot tell effects on axis {j} alone ({', '.join(blind)}): they need "
+                "what the all-axes effect needs, in tests where that axis moves")
     train = [n for n in names if roles[n] == "training"]
     held = [n for n in names if roles[n] == "held-out"]
     sigma = float(np.median([noise_std(prepared[n].y[:, j]) for n in names for j in range(3)]))
@@ -158,8 +164,11 @@ def diagnose(opt: Options, log: Callable[[str], None] = print) -> dict:
         log("diagnose: nominal model: " + ", ".join(f"{n} {before[n]['torque_nrmse_percent']:.1f} %" for n in names))
 
         # controller-side effects need the SSP's controller (its gains k_p, k_v)
-        library = [BY_KEY[k] for k in opt.library if BY_KEY[k].kind != "controller"
-                   or all(p in ssp_drive for p in BY_KEY[k].parameters)]
+        # per-axis effects the plan cannot tell (an axis that does not move in both roles) are not offered:
+        # the held-out check would refuse them, and each costs the subset search a column
+        library = [BY_KEY[k] for k in opt.library if (BY_KEY[k].kind != "controller"
+                   or all(p in ssp_drive for p in BY_KEY[k].parameters + ((BY_KEY[k].quantum,) if BY_KEY[k].quantum else ())))
+                   and ("_axis" not in k or plan.get(k, {}).get("plan_meets", True))]
         atoms = [Atom(e, g) for e in library if e.regression for g in (e.grid or (None,))]
         state = State((), {}, nominal_pt)
         steps: list = []
