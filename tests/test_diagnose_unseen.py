@@ -2,24 +2,20 @@
 the default plan and on a plan of other frequencies, amplitudes and axes; a failed trial simulation is
 information, never the end of the run.
 
-SMALL: z 1.2 Hz 4 mm, psi 2.5 Hz 0.6 deg, z 5 Hz 3 mm (0.6 to 1.1 s each; psi held out). Values
-and seeds differ from those of tests/test_diagnose.py.
+SMALL (test_diagnose.py): z 1.2 Hz 4 mm, psi 2.5 Hz 0.6 deg, z 5 Hz 3 mm (0.6 to 1.1 s each; psi held
+out). Values and seeds differ from those of tests/test_diagnose.py.
 """
 from __future__ import annotations
-
-import math
 
 import numpy as np
 
 import pytest
 
 from mast.diagnosis import Options, diagnose
-from mast.analyses.synthesize import TestSpec as Spec, synthesize
+from mast.analyses.synthesize import synthesize
 
-from test_diagnose import PLAN, built_ssp, named  # noqa: F401  (the module's fixture)
+from test_diagnose import PLAN, SMALL, built_ssp, named  # noqa: F401  (the module's fixture)
 
-SMALL = (Spec("z", 0.004, 1.2, 1.1, 0.3), Spec("psi", math.radians(0.6), 2.5, 0.8, 0.3),
-         Spec("z", 0.003, 5.0, 0.6, 0.2))
 
 
 def run(ssp: str, tmp, truth: dict, plan, seed: int, **options) -> dict:
