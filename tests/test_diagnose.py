@@ -143,7 +143,7 @@ def test_effect_outside_the_library_is_reported_unexplained(built_ssp, tmp_path)
     assert "Unexplained residual" in (out / "report.md").read_text()
 
 
-@pytest.mark.parametrize("backlash, seed", [(0.01, 7)])
+@pytest.mark.parametrize("backlash, seed", [(0.01, 7), (0.003, 8)])
 def test_backlash_hidden_alone_is_named_on_the_phase_free_score(built_ssp, tmp_path, backlash, seed):
     """Backlash hidden: the axes hunt (chaotically: even the exact truth does not reproduce the data sample by
     sample), so it is named and fitted on the band powers of the residual against ensembles of re-simulations
@@ -168,35 +168,11 @@ def test_backlash_hidden_alone_is_named_on_the_phase_free_score(built_ssp, tmp_p
         assert "Phase-free score" in (out / "report.md").read_text()
 
 
-#: the issue's plan (issue 18): z, psi and theta at other frequencies and amplitudes than PLAN; the default split
-#: holds out the rotations (psi 1.8 Hz, theta 4 Hz), so the fast z tests, where backlash makes the loop hunt, are
-#: all training
+#: the issue's kind of plan (issue 18): z, psi and theta at other frequencies and amplitudes than PLAN; the
+#: default split holds out the rotations (psi 1.8 Hz, theta 4 Hz), so the fast z tests are all training
 ISSUE_PLAN = (Spec("z", 0.004, 0.7, 1.2, 0.3), Spec("psi", math.radians(0.7), 1.8, 0.9, 0.3),
               Spec("z", 0.003, 3.5, 0.8, 0.2), Spec("theta", math.radians(0.5), 4.0, 0.7, 0.2),
               Spec("z", 0.0025, 6.0, 0.7, 0.2))
-HUNTING = {"z_3.5Hz", "theta_4Hz", "z_6Hz"}
-
-
-@pytest.mark.parametrize("backlash, seed, holdout", [(0.004, 61, None), (0.005, 62, ("z_6Hz",))],
-                         ids=["default-split-hunting-tests-all-training", "a-hunting-test-held-out"])
-def test_backlash_is_named_whichever_tests_are_held_out(built_ssp, tmp_path, backlash, seed, holdout):
-    """A few mrad of backlash make the fast tests hunt, z 6 Hz most. With the default split every z test is
-    training (a training/held-out check refused it: the held-out rotations hardly hunt); with z 6 Hz held out
-    the hunting test is held out. Leave-one-test-out (each test predicted at the scan value best on the others)
-    decides the same both ways, and the value is within 5 %."""
-    data = tmp_path / "data"
-    synthesize(built_ssp, data, {"actuator": {"backlash": backlash}}, tests=ISSUE_PLAN, direct=True, seed=seed,
-               log=lambda *_: None)
-    doc = diagnose(Options(data, tmp_path / "out", built_ssp, holdout=holdout, figures=False), log=lambda *_: None)
-    roles = {n: g["role"] for n, g in doc["gap"].items()}
-    assert set(held_out(doc)) == ({"psi_1.8Hz", "theta_4Hz"} if holdout is None else set(holdout)), roles
-    assert set(named(doc)) == {"backlash"}, named(doc)
-    assert named(doc)["backlash"]["parameters"]["backlash"] == pytest.approx(backlash, rel=0.05)
-    assert doc["verdict"]["status"] == "explained"
-    assert set(doc["verdict"]["judged_by_band_powers"]) <= HUNTING
-    pf = named(doc)["backlash"]["evidence"]["phase_free"]
-    assert pf["cross_validated_deviance_change"] < -10 and pf["delta_bic"] < -10
-    assert pf["leave_one_out"]["z_6Hz"]["deviance_change"] < -10     # predicted from the other tests
 
 
 def test_nothing_hidden_on_the_issue_plan_names_nothing(built_ssp, tmp_path):
