@@ -196,7 +196,7 @@ def phase_free_stage(ctx: Context, state: State, effect: Effect, steps: list) ->
     above = [n for n, d in final.per_test.items() if d > floors[n]]
     steps.append({"how": "phase-free score: value on all tests", "from": labels, "to": labels + [effect.key],
                   "parameters": {p: value}, "delta_bic": dbic, "deviance_per_test": final.per_test,
-                  "floor_per_test": floors, "accepted": not above,
+                  "floor_per_test": floors, "profile": {v: points[v] for v in sorted(points)}, "accepted": not above,
                   "note": ("every test's band powers at the floor with it" if not above else
                            f"not named: with it the band powers of {', '.join(above)} stay above the floor "
                            "(it would explain only part of the residual)")})
