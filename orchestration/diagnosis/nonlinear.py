@@ -189,7 +189,9 @@ def phase_free_stage(ctx: Context, state: State, effect: Effect, steps: list) ->
     points = refine(on_all, on_all(effect.scan), ratio, REFINE_LEVELS, effect.bounds[p])
     value, s_log = estimate(points, ratio ** (0.5 ** PARABOLA_LEVEL))
     simulate([value])
-    if ensembles[value] is None:    # the estimate's simulation failed: the best value simulated instead
+    if ensembles[value] is None or deviance(value, ctx.names) > min(points.values()):
+        # the estimate's simulation failed, or it fits worse than a value simulated (the parabola assumes a
+        # smooth deviance; where the hunting is periodic rather than chaotic it is rough): the best value simulated
         value = min(points, key=points.get)
     final, before = score.fit(ensembles[value], ctx.names), score.fit(ensembles[current], ctx.names)
     floors = {n: score.floor(n) for n in ctx.names}
