@@ -2,24 +2,20 @@
 the default plan and on a plan of other frequencies, amplitudes and axes; a failed trial simulation is
 information, never the end of the run.
 
-SMALL: z 1.2 Hz 4 mm, psi 2.5 Hz 0.6 deg, z 5 Hz 3 mm (0.6 to 1.1 s each; psi held out). Values
-and seeds differ from those of tests/test_diagnose.py.
+SMALL (test_diagnose.py): z 1.2 Hz 4 mm, psi 2.5 Hz 0.6 deg, z 5 Hz 3 mm (0.6 to 1.1 s each; psi held
+out). Values and seeds differ from those of tests/test_diagnose.py.
 """
 from __future__ import annotations
-
-import math
 
 import numpy as np
 
 import pytest
 
 from mast.diagnosis import Options, diagnose
-from mast.analyses.synthesize import TestSpec as Spec, synthesize
+from mast.analyses.synthesize import synthesize
 
-from test_diagnose import PLAN, built_ssp, named  # noqa: F401  (the module's fixture)
+from test_diagnose import PLAN, SMALL, built_ssp, named  # noqa: F401  (the module's fixture)
 
-SMALL = (Spec("z", 0.004, 1.2, 1.1, 0.3), Spec("psi", math.radians(0.6), 2.5, 0.8, 0.3),
-         Spec("z", 0.003, 5.0, 0.6, 0.2))
 
 
 def run(ssp: str, tmp, truth: dict, plan, seed: int, **options) -> dict:
@@ -105,8 +101,9 @@ def test_a_worn_guide_on_one_axis_is_named_on_that_axis(built_ssp, tmp_path):
 
 def test_the_plan_says_which_effects_it_cannot_tell():
     """Identifiability from the commanded joint motion alone (no simulation): a plan of slow z tests
-    cannot tell inertia, lag, the drive's gains or a carriage mass; backlash needs its fastest tests in
-    both roles (the issue's five-test case: rotations held out, the fast z tests all training)."""
+    cannot tell inertia, lag, the drive's gains, a carriage mass or backlash; backlash needs two fast tests
+    of one kind of motion, whatever their roles (the issue's five-test case: its fast z tests all training
+    or one held out, the plan meets it either way; one fast z test, or one z and one rotation, do not)."""
     from mast.diagnosis.plan import excitation, identifiability
 
     t = np.arange(0.0, 2.0, 1e-3)
@@ -117,17 +114,23 @@ def test_the_plan_says_which_effects_it_cannot_tell():
         return excitation(name, role, t, rho)
 
     slow = [test("z0.5", "training", 0.5), test("z0.8", "held-out", 0.8)]
-    plan = identifiability(slow, ["coulomb", "inertia_motor", "lag", "velocity_gain", "carriage_mass", "stribeck"])
+    plan = identifiability(slow, ["coulomb", "inertia_motor", "lag", "velocity_gain", "carriage_mass", "stribeck",
+                                  "backlash"])
     assert plan["coulomb"]["plan_meets"] and plan["stribeck"]["plan_meets"]
-    assert not any(plan[k]["plan_meets"] for k in ("inertia_motor", "lag", "velocity_gain", "carriage_mass"))
+    assert not any(plan[k]["plan_meets"] for k in ("inertia_motor", "lag", "velocity_gain", "carriage_mass",
+                                                    "backlash"))
     assert slow[0].frequency == pytest.approx(0.5, rel=0.05) and slow[0].alike
     issue = [test("z1", "training", 1.0), test("z4", "training", 4.5), test("z6", "training", 6.0),
              test("psi2", "held-out", 2.0, True), test("theta3", "held-out", 3.0, True)]
     assert not issue[3].alike
-    assert not identifiability(issue, ["backlash"])["backlash"]["plan_meets"]
-    issue[2].role = "held-out"
-    plan = identifiability(issue, ["backlash", "carriage_mass", "coulomb_axis2"])
-    assert all(p["plan_meets"] for p in plan.values())
+    for roles in (("training", "training"), ("training", "held-out"), ("held-out", "training")):
+        issue[1].role, issue[2].role = roles
+        plan = identifiability(issue, ["backlash", "carriage_mass", "coulomb_axis2"])
+        assert all(p["plan_meets"] for p in plan.values()), (roles, plan)
+    one_fast = identifiability(issue[:2] + issue[3:4], ["backlash"])["backlash"]
+    assert not one_fast["plan_meets"] and "only one test" in one_fast["why_not"]
+    mixed = [issue[0], issue[1], test("theta5", "held-out", 5.0, True)]
+    assert not identifiability(mixed, ["backlash"])["backlash"]["plan_meets"]
 
 
 #: effects on one axis and on the drive (issue 18), values, plans and seeds away from those above and in docs/:

@@ -290,8 +290,8 @@ def write_report(out: Path, doc: dict, figs: Mapping[str, str]) -> None:
             wa = ev.get("when_added")
             text = (f"dBIC {wa['delta_bic_training']:+.0f}, held-out RSS {wa['held_out_rss_change_percent']:+.0f} %"
                     if wa and wa.get("held_out_rss_change_percent") is not None else
-                    f"phase-free dBIC {wa['delta_bic_training']:+.0f}, held-out deviance "
-                    f"{wa['held_out_deviance_change']:+.0f}" if wa and wa.get("held_out_deviance_change") is not None
+                    f"phase-free dBIC {wa['delta_bic']:+.0f}, leave-one-test-out deviance "
+                    f"{wa['cross_validated_deviance_change']:+.0f}" if wa and "cross_validated_deviance_change" in wa
                     else f"dBIC {wa['delta_bic_training']:+.0f}" if wa else "")
             for p, val in e["parameters"].items():
                 std = e["uncertainty"][p]["std"]
@@ -322,9 +322,10 @@ def write_report(out: Path, doc: dict, figs: Mapping[str, str]) -> None:
                   f"{e['effect']} makes the loop hunt, which no simulation reproduces sample by sample; it was scored by "
                   f"the band powers of the torque residual against ensembles of {pf['ensemble']} re-simulations "
                   f"(commands perturbed far below their precision), noise {1e3 * pf['noise_std_Nm']:.3g} mN m "
-                  f"(profiled). `{pf['parameter']}` = {pf['value']:.4g} (95 %: {lo:.4g} to {hi:.4g}); the training "
-                  f"scan chose {pf['training_scan_value']:.4g} (dBIC {pf['delta_bic_training']:+.0f}, held-out "
-                  f"deviance {pf['held_out_deviance_change'] or 0:+.0f}).", "",
+                  f"(profiled). `{pf['parameter']}` = {pf['value']:.4g} (95 %: {lo:.4g} to {hi:.4g}); the scan on all "
+                  f"tests chose {pf['scan_value']:.4g} (dBIC {pf['delta_bic']:+.0f}), and leave-one-test-out "
+                  f"confirmed it (deviance {pf['cross_validated_deviance_change']:+.0f}: every test predicted at the "
+                  "scan value best on the others).", "",
                   "| test | deviance without it | with it | floor |", "|---|---|---|---|"]
         dev = pf["deviance_per_test"]
         lines += [f"| {n} | {dev['before'][n]:.1f} | {dev['after'][n]:.1f} | {pf['floor_per_test'][n]:.1f} |"
@@ -372,7 +373,7 @@ def write_report(out: Path, doc: dict, figs: Mapping[str, str]) -> None:
         lines += [f"Ready to run: `mast run {Path(am['ssp']).name} ...` (records `actuator_k.tau_meas`).", ""]
     lines += ["## Steps", "", "| how | from | to | dBIC training | held-out RSS % | accepted |", "|---|---|---|---|---|---|"]
     for st in doc["steps"]:
-        dbic = st.get("delta_bic_training", st.get("delta_bic_full_band"))
+        dbic = st.get("delta_bic_training", st.get("delta_bic", st.get("delta_bic_full_band")))
         ho = st.get("held_out_rss_change_percent")
         lines.append(f"| {st['how']} | {', '.join(st['from']) or 'nominal'} | "
                      f"{', '.join(st['to']) if isinstance(st['to'], list) else st['to']} | "

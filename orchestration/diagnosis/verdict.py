@@ -103,15 +103,16 @@ def named_effects(ctx: Context, state: State, last_fit, steps: list) -> list:
         delay = e.parameter.replace("T_meas", "delay_meas")
         if e.parameter.startswith("T_meas") and delay in state.changes:   # the lag is a delay
             params = {delay: state.changes[delay]}
-        added = next((st for st in steps if st.get("accepted") and "delta_bic_training" in st
+        added = next((st for st in steps if st.get("accepted") and ("delta_bic_training" in st or "delta_bic" in st)
                       and a.label in st["to"] and a.label not in st["from"]), None)
         ev: dict = {"signature": e.signature}
         if added and e.phase_free:
-            ev["when_added"] = {"how": added["how"], "delta_bic_training": added["delta_bic_training"],
+            ev["when_added"] = {"how": added["how"], "delta_bic": added["delta_bic"],
                                 "held_out_rss_change_percent": None,
-                                "held_out_deviance_change": added["held_out_deviance_change"],
+                                "cross_validated_deviance_change": added["cross_validated_deviance_change"],
                                 "note": "phase-free score: band powers of the residual against ensembles of "
-                                        "re-simulations, the model before and after adding it"}
+                                        "re-simulations, the model before and after adding it, on all tests; "
+                                        "leave-one-test-out for the cross-validated change"}
             ev["phase_free"] = state.info["phase_free"]
         elif added:
             ev["when_added"] = {"how": added["how"], "delta_bic_training": added["delta_bic_training"],
@@ -250,7 +251,7 @@ def judge(ctx: Context, state: State, after: dict, last_fit, steps: list) -> tup
         for st in steps:    # the phase-free candidates: not tried, not confirmed, or not explaining all
             if st["how"].startswith("phase-free score") and not st["accepted"]:
                 tried.append({"candidate": f"{st['to'][-1]} (phase-free score)",
-                              "delta_bic": st.get("delta_bic_training"), "held_out_rss_change_percent": None,
+                              "delta_bic": st.get("delta_bic"), "held_out_rss_change_percent": None,
                               "rejected_because": st["note"]})
         unexplained = {
             "text": "The residual is above the noise floor and no candidate of the library reduces it on the "
