@@ -140,8 +140,20 @@ class FMUComponent:
         proto = ctypes.PYFUNCTYPE(ctypes.c_int, *argtypes) if argtypes else ctypes.PYFUNCTYPE(ctypes.c_int)
         return proto(ctypes.cast(func, ctypes.c_void_p).value), ctypes.c_void_p(self._component)
 
+    def c_functions(self) -> tuple[int, int, int, int]:
+        """(instance, fmi2SetReal, fmi2GetReal, fmi2DoStep) as C addresses, for the compiled exchange loop."""
+        dll = self._slave.dll
+        return (self._component, *(ctypes.cast(getattr(dll, name), ctypes.c_void_p).value
+                                   for name in ("fmi2SetReal", "fmi2GetReal", "fmi2DoStep")))
+
+    def input_references(self, names: Sequence[str]) -> list[int]:
+        return self._refs(names, ("input", "parameter"))
+
+    def output_references(self, names: Sequence[str]) -> list[int]:
+        return self._refs(names, ("output", "input", "parameter", "calculatedParameter", "local"))
+
     def setter(self, names: Sequence[str]) -> Callable[[Sequence[float]], None]:
-        refs = self._refs(names, ("input", "parameter"))
+        refs = self.input_references(names)
         n = len(refs)
         vr = (ctypes.c_uint * n)(*refs)
         buf = (ctypes.c_double * n)()
@@ -154,7 +166,7 @@ class FMUComponent:
         return set_values
 
     def getter(self, names: Sequence[str]) -> Callable[[], list[float]]:
-        refs = self._refs(names, ("output", "input", "parameter", "calculatedParameter", "local"))
+        refs = self.output_references(names)
         n = len(refs)
         vr = (ctypes.c_uint * n)(*refs)
         buf = (ctypes.c_double * n)()

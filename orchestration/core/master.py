@@ -89,6 +89,7 @@ class _Wiring:
     step: float
     sources: list[tuple[int, int]]  # (source slot, index in its published list); slot -1: system inputs
     feedthrough: bool  # outputs follow the inputs at a communication point: read them again after setting
+    input_names: list[str]
     set_inputs: Callable
     get_outputs: Callable
     do_step: Callable
@@ -189,7 +190,7 @@ class Master:
                        for c in incoming]
             m = self.multiples[name]
             feedthrough = bool(set(getattr(comp, "feedthrough", {})) & set(published_names[name]))
-            wirings.append(_Wiring(name, m, m * self.base_step, sources, feedthrough,
+            wirings.append(_Wiring(name, m, m * self.base_step, sources, feedthrough, [c.end_connector for c in incoming],
                                    comp.setter([c.end_connector for c in incoming]),
                                    comp.getter(published_names[name]), comp.stepper(), published_names[name]))
 
@@ -233,6 +234,26 @@ class Master:
                 return
         raise RuntimeError(f"initialization: the initial values of {', '.join(changed)} did not settle in {passes} passes "
                            "(an algebraic loop that does not converge)")
+
+    def _compiled_loop(self, wirings: Sequence[_Wiring], flat: Sequence[float], n_out: int, sources: Sequence[int],
+                       offsets: Sequence[int]):
+        """The exchange loop in C (exchange.py) when every component is an FMU and the library is there; else None."""
+        from .components import FMUComponent
+        from .exchange import CompiledLoop, library
+
+        comps = [self.components[w.name] for w in wirings]
+        if not all(isinstance(c, FMUComponent) for c in comps):
+            return None
+        lib = library()
+        if lib is None:
+            return None
+        units, at = [], 0
+        for k, (w, comp) in enumerate(zip(wirings, comps)):
+            src = list(sources[at:at + len(w.sources)])
+            at += len(w.sources)
+            units.append((comp.c_functions(), w.multiple, w.step, w.feedthrough, comp.input_references(w.input_names),
+                          src, comp.output_references(w.output_names), offsets[k]))
+        return CompiledLoop(lib, units, flat, n_out)
 
     # -- run ----------------------------------------------------------------------
     def run(self, stop_time: float, stimulus: Stimulus, record: Sequence[str] = (), record_step: Optional[float] = None,
@@ -284,8 +305,38 @@ class Master:
         report_every = max(1, n_ticks // 100)
         error = None
         n = 0
+        compiled = self._compiled_loop(wirings, flat, n_out, [index(s, j) for w in wirings for s, j in w.sources],
+                                       offsets)
+
+        def record_tick(values) -> None:
+            nonlocal rows
+            times[rows] = t
+            data[rows] = recorded(values)
+            rows += 1
+            total = sum(values[:n_out])  # NaN and inf propagate through the sum: details only on a hit
+            if total - total != 0.0:
+                for k, w in enumerate(wirings):
+                    bad = [name for name, v in zip(w.output_names, values[offsets[k]:]) if not math.isfinite(v)]
+                    if bad:
+                        raise RuntimeError(f"{w.name} at t={t:.6g} s: the run diverged: non-finite {', '.join(bad)}")
+            if progress and n % report_every == 0:
+                progress(n / n_ticks)
+
         try:
-            for n in range(n_ticks + 1):
+            if compiled is not None:  # the same schedule in C between recorded ticks (exchange.py)
+                while True:
+                    t = t0 + n * h
+                    record_tick(compiled.flat)
+                    if n == n_ticks:
+                        break
+                    n_next = min(n - n % record_every + record_every, n_ticks)
+                    failed = compiled.run(n, n_next, t0, h, stimulus)
+                    if failed is not None:
+                        n, k, call = failed
+                        component = self.components[wirings[k].name]
+                        raise component._error(call, t0 + n * h if call == "doStep" else None)
+                    n = n_next
+            for n in range(n_ticks + 1) if compiled is None else ():
                 t = t0 + n * h
                 now = due[n % cycle]
                 recording = n % record_every == 0
@@ -294,17 +345,7 @@ class Master:
                         flat[item[1]:item[2]] = pending[item[0]]
                     flat[n_out:] = stimulus(t)
                 if recording:
-                    times[rows] = t
-                    data[rows] = recorded(flat)
-                    rows += 1
-                    total = sum(flat[:n_out])  # NaN and inf propagate through the sum: details only on a hit
-                    if total - total != 0.0:
-                        for k, w in enumerate(wirings):
-                            bad = [name for name, v in zip(w.output_names, flat[offsets[k]:]) if not math.isfinite(v)]
-                            if bad:
-                                raise RuntimeError(f"{w.name} at t={t:.6g} s: the run diverged: non-finite {', '.join(bad)}")
-                    if progress and n % report_every == 0:
-                        progress(n / n_ticks)
+                    record_tick(flat)
                 if n == n_ticks:
                     break
                 for k, lo, hi, gather, set_inputs, do_step, get_outputs, step, feedthrough in now:
