@@ -430,3 +430,17 @@ def test_the_compiled_exchange_loop_is_the_python_loop_call_for_call(built, rout
         assert len(c_fail.result.time) == len(p_fail.result.time) == 34
         for name in p_fail.result.signals:
             np.testing.assert_array_equal(c_fail.result[name], p_fail.result[name], err_msg=name)
+
+
+def test_a_step_size_a_rounding_off_the_built_one_uses_its_kernel(built):
+    """libcosim adds its steps: at t = 2.0001 s it asks h = 9.99999999997669e-05 s. The native actuator
+    steps it with the 100 us kernel (one rounding off); another step size is still refused by name."""
+    results = []
+    for h in (1e-4, 9.99999999997669e-05, 2e-4):
+        inst = _native(built, "MastActuator", "axis")
+        assert inst.start() == OK
+        inst.set(u=3.0, F=50.0)
+        results.append((inst.step(0.0, h), inst.get(["i_m", "omega_m"]), inst.log[-1][1] if inst.log else ""))
+        inst.close()
+    assert results[0][0] == results[1][0] == OK and results[1][1] == results[0][1] and results[0][1][0] > 0.0
+    assert results[2][0] == DISCARD and "exact discretisation for h in {0.0001} s" in results[2][2]

@@ -229,7 +229,8 @@ def _actuator(block, step_sizes: Sequence[float]) -> str:
         "    snprintf(key_text, sizeof key_text, \"%.12g\", h);",
         "    double key = strtod(key_text, NULL);",
         "    int which = -1;",
-        f"    for (int k = 0; k < {len(keys)}; k++) if (KEYS[k] == key) which = k;",
+        # a host that adds steps (libcosim: t = 2.0001 s, h = 9.99999999997669e-05 s) is a rounding off a key
+        f"    for (int k = 0; k < {len(keys)}; k++) if (KEYS[k] == key || fabs(KEYS[k] - h) <= 1e-9 * KEYS[k]) which = k;",
         "    switch (which) {", cases, "    default:",
         f"        snprintf(msg, size, \"step size h = %s s: this native FMU has the exact discretisation for h in "
         f"{{{shown}}} s (the step sizes of the systems it was built for); rebuild it (mast build --native) for another\", "
