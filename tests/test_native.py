@@ -403,7 +403,7 @@ class _Climb:
 @pytest.mark.parametrize("route", ["native", "python"])
 def test_the_compiled_exchange_loop_is_the_python_loop_call_for_call(built, route, monkeypatch):
     """mast.core.exchange against the master's Python loop on the same FMUs: the same floats (a 10 Hz sine,
-    recorded every base step), and (native) a run that fails stops with the same message and keeps the same
+    recorded every base step; native: also every third), and (native) a run that fails stops with the same message and keeps the same
     partial results."""
     from mast.core.exchange import library
     from mast.core.master import SimulationError
@@ -416,7 +416,9 @@ def test_the_compiled_exchange_loop_is_the_python_loop_call_for_call(built, rout
         monkeypatch.setenv("MAST_PYTHON_EXCHANGE", loop)
         every_tick = simulate(ssp, SineMotion("z", 0.002, 10.0), stop, record_step=None)
         failed = None
-        if route == "native":
+        if route == "native":   # and a record step that does not divide the run: 500 ticks, every third
+            thirds = simulate(ssp, SineMotion("z", 0.002, 10.0), stop, record_step=3e-4)
+            every_tick.signals.update({f"{name} (every 0.3 ms)": v for name, v in thirds.signals.items()})
             with pytest.raises(SimulationError) as failed:   # a carriage leaves its stroke
                 simulate(ssp, _Climb(), 0.2, parameters={f"actuator_{k}": {"rho_max": 0.152} for k in (1, 2, 3)})
         runs[loop] = every_tick, failed

@@ -326,7 +326,8 @@ class Master:
             if compiled is not None:  # the same schedule in C between recorded ticks (exchange.py)
                 while True:
                     t = t0 + n * h
-                    record_tick(compiled.flat)
+                    if n % record_every == 0:
+                        record_tick(compiled.flat)
                     if n == n_ticks:
                         break
                     n_next = min(n - n % record_every + record_every, n_ticks)
