@@ -1,5 +1,6 @@
 """Native vs Python FMUs on the project's master, side by side in one process: CPU time of 10 s of the
-default system at the paper's cycle times, and where the time goes (the FMUs' own time per call).
+default system at the paper's cycle times, and where the time goes (the FMUs' own time per call); the FMU
+routes with the master's exchange loop compiled (the default, mast.core.exchange) and in Python.
 
     python benchmarks/native_speed.py [--ssp build/ssp/MAST.ssp] [--stop-time 10] [--repeats 3]
                                       [--cycles]   # also: 200 instantiate/free cycles under valgrind
@@ -27,6 +28,7 @@ child.
 from __future__ import annotations
 
 import argparse
+import os
 import shutil
 import subprocess
 import sys
@@ -38,10 +40,12 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 
 
-def cpu_run(ssp: Path, stop: float, direct: bool = False) -> float:
+def cpu_run(ssp: Path, stop: float, direct: bool = False, python_loop: bool = False) -> float:
+    """CPU time of one run; ``python_loop``: the master's exchange loop in Python, not compiled (exchange.py)."""
     from mast.core.motion import SineMotion
     from mast.core.run import simulate
 
+    os.environ["MAST_PYTHON_EXCHANGE"] = "1" if python_loop else "0"
     start = time.process_time()
     simulate(ssp, SineMotion("z", 0.01, 1.0), stop, direct=direct)
     return time.process_time() - start
@@ -164,12 +168,13 @@ def main() -> int:
         print(f"{native} is missing: run `mast build --native` first", file=sys.stderr)
         return 2
     stop = args.stop_time
-    rows = {"direct composition (Python models)": (python, True), "Python FMUs": (python, False),
-            "native FMUs": (native, False)}
+    rows = {"direct composition (Python models)": (python, True, True),
+            "Python FMUs, exchange loop in Python": (python, False, True), "Python FMUs": (python, False, False),
+            "native FMUs, exchange loop in Python": (native, False, True), "native FMUs": (native, False, False)}
     best = {label: float("inf") for label in rows}
     for _ in range(args.repeats):
-        for label, (ssp, direct) in rows.items():
-            best[label] = min(best[label], cpu_run(ssp, stop, direct))
+        for label, (ssp, direct, python_loop) in rows.items():
+            best[label] = min(best[label], cpu_run(ssp, stop, direct, python_loop))
     print(f"{python.name}: {stop:g} s simulated, z sine 10 mm at 1 Hz, CPU time of this process, "
           f"best of {args.repeats}")
     for label, cpu in best.items():
@@ -177,6 +182,9 @@ def main() -> int:
     print(f"  Python FMUs / native FMUs CPU time: {best['Python FMUs'] / best['native FMUs']:.1f}")
     print(f"  native co-simulation / direct composition: "
           f"{best['native FMUs'] / best['direct composition (Python models)']:.2f}")
+    print(f"  compiled / Python exchange loop CPU time: Python FMUs "
+          f"{best['Python FMUs'] / best['Python FMUs, exchange loop in Python']:.2f}, native FMUs "
+          f"{best['native FMUs'] / best['native FMUs, exchange loop in Python']:.2f}")
     if args.hosts:
         hosts(native.parent / "MAST_standalone.ssp", args.host_stop_time, args.repeats)
     if args.analyses:

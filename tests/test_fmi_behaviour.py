@@ -558,3 +558,49 @@ def test_legal_sets_in_each_state(built):
     assert _real(inst, "fmi2GetReal", "tau_m") == OK                    # terminated: gets still answer
     assert not [m for st, m in inst.log if st >= ERROR], inst.log
     inst.slave.freeInstance()
+
+
+def test_a_feedthrough_output_follows_its_input_and_is_declared_in_the_model_structure():
+    """Block.FEEDTHROUGH through the FMI 2.0 wrapper, in process: after setReal of the input in step mode
+    the output is the model's evaluation of it (no doStep); the modelDescription lists the dependency; a
+    failed evaluation is logged and refuses the next step."""
+    from fmus.common.block import Block
+    from fmus.common.fmi import BlockSlave
+    from fmus.common.parameters import Param
+
+    class Halver(Block):
+        INPUTS = ("a", "b")
+        OUTPUTS = ("y", "z")
+        PARAMETERS = (Param("k", "1", "gain"),)
+        FEEDTHROUGH = {"y": ("b",)}
+
+        def initialize(self, t0):
+            self.evaluate()
+
+        def evaluate(self):
+            if self.values[1] > 100.0:
+                raise ValueError("b above 100")
+            self.values[2] = self.params["k"] * self.values[1]
+
+        def do_step(self, t, h):
+            self.values[3] += h
+
+    class HalverSlave(BlockSlave):
+        block_class = Halver
+
+    slave = HalverSlave(instance_name="halver")
+    structure = {u.get("index"): u.get("dependencies") for u in slave.to_xml().iterfind("ModelStructure/Outputs/Unknown")}
+    names = [v.name for v in slave.vars.values()]
+    assert {names[int(i) - 1]: dep for i, dep in structure.items()} == {"y": str(names.index("b") + 1), "z": ""}
+    slave.setup_experiment(0.0, None, None)
+    slave.enter_initialization_mode()
+    slave.set_real([names.index("k")], [0.5])
+    slave.exit_initialization_mode()
+    slave.set_real([1], [8.0])
+    assert slave.get_real([2, 3]) == [4.0, 0.0]
+    assert slave.do_step(0.0, 0.1)
+    slave.set_real([1], [300.0])
+    assert not slave.do_step(0.1, 0.1)
+    logged = [m.msg for m in slave.log_queue]
+    assert "setReal: evaluating the outputs: ValueError: b above 100" in logged[-2]
+    assert logged[-1].startswith("doStep at t=0.1 s:") and "b above 100" in logged[-1]

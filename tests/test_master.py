@@ -195,3 +195,73 @@ def test_record_step_not_a_multiple_of_the_base_step_is_refused_not_rounded(reco
         Master(spec, blocks).run(0.1, Hold(), record=["int.y"], record_step=record_step)
     result = Master(spec, blocks).run(0.1, Hold(), record=["int.y"], record_step=0.02)
     np.testing.assert_allclose(np.diff(result.time), 0.02, rtol=1e-9)
+
+
+class SampledGain(Block):
+    """y = k u with direct feedthrough: after its input is set at a communication point, y follows it."""
+
+    INPUTS = ("u",)
+    OUTPUTS = ("y",)
+    PARAMETERS = (Param("k", "1", "gain"),)
+    FEEDTHROUGH = {"y": ("u",)}
+
+    def initialize(self, t0):
+        self.evaluate()
+
+    def evaluate(self):
+        self.values[1] = self.params["k"] * self.values[0]
+
+    def do_step(self, t, h):
+        self.evaluate()
+
+
+def feedthrough_loop(gain_class, m_gain: int = 1, k: float = -2.0):
+    """The integrator and a gain in a loop; the gain listed last, so only the dependency order puts it first."""
+    spec, _ = loop_system(0.01 * m_gain, k)
+    spec.components = {"int": spec.components["int"], "gain": spec.components["gain"]}
+    return spec, {"int": BlockComponent("int", Integrator), "gain": BlockComponent("gain", gain_class)}
+
+
+@pytest.mark.parametrize("m_gain", [1, 2])
+def test_feedthrough_output_reaches_the_next_component_in_the_same_exchange(m_gain):
+    """Independent route, a hand-written sampled loop: the gain samples x at its communication points and
+    the integrator applies k x(t_n) from t_n on. A command one exchange late (Jacobi) is another sequence."""
+    h, k, n = 0.01, -2.0, 100
+    spec, blocks = feedthrough_loop(SampledGain, m_gain, k)
+    master = Master(spec, blocks)
+    assert master.exchange_order == ["gain", "int"]
+    result = master.run(1.0, Hold(), record=["int.y"])
+    x, command = [1.0], None
+    for i in range(n):
+        if i % m_gain == 0:
+            command = k * x[-1]
+        x.append(x[-1] + h * command)
+    np.testing.assert_allclose(result["int.y"], x, rtol=0, atol=1e-15)
+    late = Master(*feedthrough_loop(Gain, m_gain, k)).run(1.0, Hold(), record=["int.y"])
+    assert np.max(np.abs(late["int.y"] - np.array(x))) > 1e-3
+
+
+def test_a_loop_through_feedthrough_outputs_alone_is_refused():
+    spec, _ = loop_system(0.01)
+    blocks = {"int": BlockComponent("int", SampledGain), "gain": BlockComponent("gain", SampledGain)}
+    with pytest.raises(ValueError, match="algebraic loop through the direct feedthrough of int, gain"):
+        Master(spec, blocks)
+
+
+def test_fmu_feedthrough_is_read_from_the_model_structure(tmp_path):
+    """ModelStructure dependencies: an explicit list of inputs is feedthrough; an empty or absent one is none."""
+    from fmpy import read_model_description
+
+    from mast.core.components import feedthrough_of
+
+    start = {"input": ' start="0"', "output": ""}
+    variables = "".join(f'<ScalarVariable name="{n}" valueReference="{i}" causality="{c}"><Real{start[c]}/></ScalarVariable>'
+                        for i, (n, c) in enumerate([("a", "input"), ("b", "input"), ("y", "output"), ("z", "output"),
+                                                    ("w", "output")]))
+    (tmp_path / "modelDescription.xml").write_text(
+        '<?xml version="1.0" encoding="UTF-8"?><fmiModelDescription fmiVersion="2.0" modelName="m" guid="{g}">'
+        '<CoSimulation modelIdentifier="m"/>'
+        f'<ModelVariables>{variables}</ModelVariables><ModelStructure><Outputs>'
+        '<Unknown index="3" dependencies="2"/><Unknown index="4" dependencies=""/><Unknown index="5"/>'
+        '</Outputs></ModelStructure></fmiModelDescription>')
+    assert feedthrough_of(read_model_description(str(tmp_path / "modelDescription.xml"))) == {"y": frozenset({"b"})}

@@ -652,3 +652,50 @@ def test_a_native_chain_takes_its_lists_at_run_time_and_refuses_bad_ones_as_the_
             assert (np.abs(rows[0] - rows[1]).max(axis=0) <= TOLERANCE * np.abs(rows[0]).max(axis=0)).all()
         else:
             assert len(messages) == 2 and messages[0] == messages[1] and expected in messages[0], messages
+
+
+class _Climb:
+    """The home pose, then 20 mm higher every 10 ms (no ``extremes``: no workspace check), until a carriage
+    leaves its stroke (0.152 m: at 0.033 s)."""
+
+    reads = ("mechanism.z", "mechanism.psi", "mechanism.theta")
+
+    def start(self, t0, read):
+        self.home = [read(s) for s in self.reads]
+
+    def __call__(self, t):
+        return [self.home[0] + 0.02 * int(t / 0.01), self.home[1], self.home[2]]
+
+
+@pytest.mark.parametrize("route", ["native", "python"])
+def test_the_compiled_exchange_loop_is_the_python_loop_call_for_call(built, route, monkeypatch):
+    """mast.core.exchange against the master's Python loop on the same FMUs: the same floats (a 10 Hz sine,
+    recorded every base step; native: also every third), and (native) a run that fails stops with the same message and keeps the same
+    partial results."""
+    from mast.core.exchange import library
+    from mast.core.master import SimulationError
+
+    assert library() is not None, "no compiled exchange loop (no C compiler?)"
+    ssp = built / "ssp" / ("native" if route == "native" else "") / "MAST.ssp"
+    stop = 0.05 if route == "native" else 0.02
+    runs = {}
+    for loop in ("1", "0"):   # MAST_PYTHON_EXCHANGE: 1 the Python loop, 0 the compiled one
+        monkeypatch.setenv("MAST_PYTHON_EXCHANGE", loop)
+        every_tick = simulate(ssp, SineMotion("z", 0.002, 10.0), stop, record_step=None)
+        failed = None
+        if route == "native":   # and a record step that does not divide the run: 500 ticks, every third
+            thirds = simulate(ssp, SineMotion("z", 0.002, 10.0), stop, record_step=3e-4)
+            every_tick.signals.update({f"{name} (every 0.3 ms)": v for name, v in thirds.signals.items()})
+            with pytest.raises(SimulationError) as failed:   # a carriage leaves its stroke
+                simulate(ssp, _Climb(), 0.2, parameters={f"actuator_{k}": {"rho_max": 0.152} for k in (1, 2, 3)})
+        runs[loop] = every_tick, failed
+    (python, p_fail), (compiled, c_fail) = runs["1"], runs["0"]
+    assert len(python.time) == round(stop / 1e-4) + 1 and list(python.signals) == list(compiled.signals)
+    for name in python.signals:
+        np.testing.assert_array_equal(compiled[name], python[name], err_msg=name)
+    if route == "native":
+        p_fail, c_fail = p_fail.value, c_fail.value
+        assert "carriage left the stroke" in str(p_fail) and str(c_fail) == str(p_fail)
+        assert len(c_fail.result.time) == len(p_fail.result.time) == 34
+        for name in p_fail.result.signals:
+            np.testing.assert_array_equal(c_fail.result[name], p_fail.result[name], err_msg=name)

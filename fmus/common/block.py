@@ -10,6 +10,13 @@ computes the outputs at the start time from the initial state and the current
 inputs; ``do_step(t, h)`` advances from ``t`` to ``t + h`` with the inputs held
 (zero-order hold) and leaves the outputs valid at ``t + h``.
 
+Direct feedthrough: an output listed in ``FEEDTHROUGH`` follows the inputs it names at a
+communication point, without a step (a controller's command computed from the samples just
+taken). ``evaluate()`` computes those outputs from the inputs as they are, changing no state;
+the FMU declares the dependencies in its ModelStructure and the master sets the inputs of a
+component, evaluates it and passes its feedthrough outputs on before the components they feed
+read theirs (master.py). Every other output changes only in ``do_step``.
+
 State: ``get_state()`` returns a snapshot of everything the block holds and
 ``set_state(snapshot)`` puts the block back there, so a host can roll back
 (FMI get/set FMU state). The default copies the block's attributes deeply;
@@ -35,6 +42,8 @@ class Block:
     UNITS: ClassVar[Mapping[str, str]] = {}
     #: one-line descriptions of inputs and outputs, by name
     DESCRIPTIONS: ClassVar[Mapping[str, str]] = {}
+    #: direct feedthrough: output -> the inputs it depends on at a communication point (module docstring)
+    FEEDTHROUGH: ClassVar[Mapping[str, tuple[str, ...]]] = {}
 
     def __init__(self, params: Mapping[str, Value], name: str = "") -> None:
         self.name = name or type(self).__name__
@@ -83,3 +92,6 @@ class Block:
 
     def do_step(self, t: float, h: float) -> None:
         raise NotImplementedError
+
+    def evaluate(self) -> None:
+        """The ``FEEDTHROUGH`` outputs from the inputs as they are now (no state change); nothing without any."""

@@ -26,6 +26,18 @@ class BlockSlave(BlockWrapper, Fmi2Slave):
         self._wrap(kwargs)
         self._register_block()
 
+    def to_xml(self, model_options=dict()):
+        """pythonfmu's modelDescription, with the direct feedthrough (``Block.FEEDTHROUGH``) declared in
+        ModelStructure/Outputs: each output lists the inputs it depends on (none: an empty list)."""
+        root = super().to_xml(model_options)
+        feedthrough = self.block_class.FEEDTHROUGH
+        if feedthrough:
+            names = [v.name for v in self.vars.values()]
+            for unknown in root.iterfind("ModelStructure/Outputs/Unknown"):
+                inputs = feedthrough.get(names[int(unknown.get("index")) - 1], ())
+                unknown.set("dependencies", " ".join(str(names.index(name) + 1) for name in inputs))
+        return root
+
     # -- the calls pythonfmu's C layer makes ---------------------------------------------
     @fmi_call()
     def get_real(self, vrs: List[int]) -> List[float]:

@@ -174,6 +174,7 @@ class BlockWrapper:
     _failed: Optional[str] = None     # why the instance refuses every call (it answered fmi2Fatal)
     _illegal_is_error = True          # an illegal call reaches the host as fmi2Error (see fmi_call)
     _init_error: Optional[str] = None
+    _eval_error: Optional[str] = None  # a failed evaluation of the feedthrough outputs (``_evaluate``)
 
     def _wrap(self, kwargs: dict) -> None:
         """Called by the subclass's __init__ after the pythonfmu base class's."""
@@ -295,6 +296,18 @@ class BlockWrapper:
                 self.vars[vr].setter(value)
         if self._phase == INITIALIZATION:
             self._dirty = True
+        elif self._phase == STEPPING and self.block_class.FEEDTHROUGH and self._init_error is None:
+            self._evaluate()
+
+    def _evaluate(self) -> None:
+        """Direct feedthrough (``Block.FEEDTHROUGH``): the outputs follow the inputs just set. A model
+        failure is logged and the next doStep refuses with it, as a failure in doStep would."""
+        try:
+            self._block.evaluate()
+            self._eval_error = None
+        except Exception as err:
+            self._eval_error = f"{type(err).__name__}: {err}"
+            self._log_error(f"setReal: evaluating the outputs: {self._eval_error}")
 
     def _tentative_outputs(self) -> None:
         """Outputs read during initialization: a failure may be an input the host has not set yet."""
@@ -342,6 +355,8 @@ class BlockWrapper:
         try:
             if self._init_error is not None:
                 raise RuntimeError(f"the instance did not initialise: {self._init_error}")
+            if self._eval_error is not None:
+                raise RuntimeError(f"the outputs of the inputs set at this communication point failed: {self._eval_error}")
             self._block.do_step(current_time, step_size)
         except Exception as err:  # the host decides what to do; the instance stays usable for terminate/free
             self._log_error(f"doStep at t={current_time:.6g} s: {type(err).__name__}: {err}")

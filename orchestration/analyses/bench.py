@@ -35,7 +35,11 @@ def native_variant(ssp: str) -> Optional[Path]:
 
 def main(args) -> int:
     stop = args.stop_time
-    print(f"default system, {stop:g} s simulated, z sine 10 mm at 1 Hz, default cycle times, one process")
+    from ..core.exchange import library
+
+    print(f"default system, {stop:g} s simulated, z sine 10 mm at 1 Hz, default cycle times, one process; "
+          f"the master's exchange loop between FMUs {'compiled' if library() else 'in Python'} "
+          "(MAST_PYTHON_EXCHANGE=1: in Python)")
     rows = [("direct composition", args.ssp, True), ("Python FMUs", args.ssp, False)]
     native = native_variant(args.ssp)
     if native is not None:

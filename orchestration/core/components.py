@@ -70,6 +70,7 @@ class FMUComponent:
         self._callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
         self._call("instantiate", lambda: self._slave.instantiate(callbacks=self._callbacks, loggingOn=True))
         self._component = self._slave.component
+        self.feedthrough = feedthrough_of(self.md)
 
     # -- helpers -----------------------------------------------------------------
     def _call(self, what: str, func: Callable, t: float | None = None):
@@ -139,8 +140,20 @@ class FMUComponent:
         proto = ctypes.PYFUNCTYPE(ctypes.c_int, *argtypes) if argtypes else ctypes.PYFUNCTYPE(ctypes.c_int)
         return proto(ctypes.cast(func, ctypes.c_void_p).value), ctypes.c_void_p(self._component)
 
+    def c_functions(self) -> tuple[int, int, int, int]:
+        """(instance, fmi2SetReal, fmi2GetReal, fmi2DoStep) as C addresses, for the compiled exchange loop."""
+        dll = self._slave.dll
+        return (self._component, *(ctypes.cast(getattr(dll, name), ctypes.c_void_p).value
+                                   for name in ("fmi2SetReal", "fmi2GetReal", "fmi2DoStep")))
+
+    def input_references(self, names: Sequence[str]) -> list[int]:
+        return self._refs(names, ("input", "parameter"))
+
+    def output_references(self, names: Sequence[str]) -> list[int]:
+        return self._refs(names, ("output", "input", "parameter", "calculatedParameter", "local"))
+
     def setter(self, names: Sequence[str]) -> Callable[[Sequence[float]], None]:
-        refs = self._refs(names, ("input", "parameter"))
+        refs = self.input_references(names)
         n = len(refs)
         vr = (ctypes.c_uint * n)(*refs)
         buf = (ctypes.c_double * n)()
@@ -153,7 +166,7 @@ class FMUComponent:
         return set_values
 
     def getter(self, names: Sequence[str]) -> Callable[[], list[float]]:
-        refs = self._refs(names, ("output", "input", "parameter", "calculatedParameter", "local"))
+        refs = self.output_references(names)
         n = len(refs)
         vr = (ctypes.c_uint * n)(*refs)
         buf = (ctypes.c_double * n)()
@@ -191,12 +204,28 @@ class FMUComponent:
         self._slave.freeInstance()
 
 
+def feedthrough_of(md) -> dict[str, frozenset[str]]:
+    """Direct feedthrough an FMI 2.0 modelDescription declares: output -> the inputs it depends on
+    (ModelStructure/Outputs/Unknown ``dependencies``, those that are inputs).
+
+    An output without a ``dependencies`` attribute counts as having none: the standard reads it as
+    "depends on everything", but the usual co-simulation FMU (pythonfmu writes no attribute) changes
+    its outputs only in doStep, and every co-simulation master treats it so."""
+    out: dict[str, frozenset[str]] = {}
+    for unknown in md.outputs:
+        inputs = frozenset(v.name for v in unknown.dependencies or () if v.causality == "input")
+        if inputs:
+            out[unknown.variable.name] = inputs
+    return out
+
+
 class BlockComponent:
     """The same model object as inside the FMU, called directly (no FMI)."""
 
     def __init__(self, name: str, block_class: type[Block]) -> None:
         self.name = name
         self.block_class = block_class
+        self.feedthrough = {out: frozenset(ins) for out, ins in block_class.FEEDTHROUGH.items() if ins}
         self.parameter_names = frozenset(p.name for p in block_class.PARAMETERS)
         self.parameter_units = {p.name: p.unit for p in block_class.PARAMETERS}
         self.block: Block | None = None
@@ -244,12 +273,18 @@ class BlockComponent:
     def setter(self, names: Sequence[str]) -> Callable[[Sequence[float]], None]:
         idx = self._indices(names)
         values = self.block.values
+        evaluate = self.block.evaluate if self.feedthrough else None
 
         def set_values(new: Sequence[float]) -> None:
             for i, v in zip(idx, new):
                 values[i] = v
             if self._in_init:
                 self._dirty = True
+            elif evaluate is not None:  # the feedthrough outputs follow the inputs, as the FMU's do
+                try:
+                    evaluate()
+                except Exception as err:
+                    raise ComponentError(f"{self.name}: evaluating the outputs: {type(err).__name__}: {err}") from None
         return set_values
 
     def getter(self, names: Sequence[str]) -> Callable[[], list[float]]:

@@ -9,6 +9,17 @@ last communication point) and calls doStep(t_n, h_c). This is a Jacobi scheme:
 within one tick the order of the components does not matter, and the FMU
 co-simulation and the direct composition are bit-for-bit the same computation.
 
+Direct feedthrough. An output a component declares to depend directly on its inputs
+(FMI 2.0 ModelStructure ``dependencies``; ``Block.FEEDTHROUGH`` in the direct composition)
+follows them at a communication point, without a step. At each tick the master sets the due
+components' inputs in dependency order (a component whose feedthrough output feeds another
+comes first), reads a feedthrough component's outputs right after setting its inputs and
+passes them on in the same tick; then it steps the due components. Without declared
+feedthrough (every component of this project today, and most FMUs) this is the Jacobi scheme
+above. A loop through feedthrough outputs alone is an algebraic loop: refused when the master
+is built. Recorded values at t are those before the exchange at t (a feedthrough output as
+its last step left it).
+
 Initialization. All components enter initialization mode and get their
 parameters (bindings in SSD order, then the caller's overrides). Components
 fed by no system input are brought to a consistent initial point first
@@ -77,6 +88,8 @@ class _Wiring:
     multiple: int
     step: float
     sources: list[tuple[int, int]]  # (source slot, index in its published list); slot -1: system inputs
+    feedthrough: bool  # outputs follow the inputs at a communication point: read them again after setting
+    input_names: list[str]
     set_inputs: Callable
     get_outputs: Callable
     do_step: Callable
@@ -114,6 +127,27 @@ class Master:
             if m < 1 or abs(m * self.base_step - h) > 1e-9 * h:
                 raise ValueError(f"component '{name}': step size {h:g} s is not a whole multiple of the base step {self.base_step:g} s")
             self.multiples[name] = m
+        self.exchange_order = self._exchange_order()
+
+    def _exchange_order(self) -> list[str]:
+        """The components in the order their inputs are set at a communication point: one whose
+        feedthrough output feeds another comes before it, SSD order otherwise (Kahn's algorithm)."""
+        names = list(self.system.components)
+        after: dict[str, set[str]] = {name: set() for name in names}
+        for con in self.system.connections:
+            source = self.components.get(con.start_element) if con.start_element else None
+            if source is not None and con.start_connector in getattr(source, "feedthrough", {}):
+                after[con.end_element].add(con.start_element)
+        order: list[str] = []
+        while len(order) < len(names):
+            ready = [name for name in names if name not in order and after[name] <= set(order)]
+            if not ready:
+                rest = [name for name in names if name not in order]
+                raise ValueError(f"system '{self.system.name}': an algebraic loop through the direct feedthrough of "
+                                 f"{', '.join(rest)} (each waits for another's feedthrough output at the same "
+                                 "communication point)")
+            order.append(ready[0])
+        return order
 
     # -- initialization -----------------------------------------------------------
     def _initialize(self, t0: float, t1: float, parameters: Mapping[str, Mapping[str, Value]], stimulus: Stimulus,
@@ -145,6 +179,7 @@ class Master:
             if connector not in published_names[element]:
                 published_names[element].append(connector)
 
+        order = self.exchange_order  # the wirings, and the hot loop, in exchange order
         slots = {name: k for k, name in enumerate(order)}
         wirings: list[_Wiring] = []
         for name in order:
@@ -154,7 +189,8 @@ class Master:
                        else (slots[c.start_element], published_names[c.start_element].index(c.start_connector))
                        for c in incoming]
             m = self.multiples[name]
-            wirings.append(_Wiring(name, m, m * self.base_step, sources,
+            feedthrough = bool(set(getattr(comp, "feedthrough", {})) & set(published_names[name]))
+            wirings.append(_Wiring(name, m, m * self.base_step, sources, feedthrough, [c.end_connector for c in incoming],
                                    comp.setter([c.end_connector for c in incoming]),
                                    comp.getter(published_names[name]), comp.stepper(), published_names[name]))
 
@@ -199,6 +235,26 @@ class Master:
         raise RuntimeError(f"initialization: the initial values of {', '.join(changed)} did not settle in {passes} passes "
                            "(an algebraic loop that does not converge)")
 
+    def _compiled_loop(self, wirings: Sequence[_Wiring], flat: Sequence[float], n_out: int, sources: Sequence[int],
+                       offsets: Sequence[int]):
+        """The exchange loop in C (exchange.py) when every component is an FMU and the library is there; else None."""
+        from .components import FMUComponent
+        from .exchange import CompiledLoop, library
+
+        comps = [self.components[w.name] for w in wirings]
+        if not all(isinstance(c, FMUComponent) for c in comps):
+            return None
+        lib = library()
+        if lib is None:
+            return None
+        units, at = [], 0
+        for k, (w, comp) in enumerate(zip(wirings, comps)):
+            src = list(sources[at:at + len(w.sources)])
+            at += len(w.sources)
+            units.append((comp.c_functions(), w.multiple, w.step, w.feedthrough, comp.input_references(w.input_names),
+                          src, comp.output_references(w.output_names), offsets[k]))
+        return CompiledLoop(lib, units, flat, n_out)
+
     # -- run ----------------------------------------------------------------------
     def run(self, stop_time: float, stimulus: Stimulus, record: Sequence[str] = (), record_step: Optional[float] = None,
             parameters: Optional[Mapping[str, Mapping[str, Value]]] = None, start_time: Optional[float] = None,
@@ -238,7 +294,7 @@ class Master:
         flat.extend(stimulus(t0))
         index = lambda s, j: n_out + j if s < 0 else offsets[s] + j  # noqa: E731
         due = [[(k, offsets[k], offsets[k] + len(w.output_names), _gather([index(s, j) for s, j in w.sources]),
-                 w.set_inputs, w.do_step, w.get_outputs, w.step)
+                 w.set_inputs, w.do_step, w.get_outputs, w.step, w.feedthrough)
                 for k, w in enumerate(wirings) if phase % w.multiple == 0] for phase in range(cycle)]
         recorded = _gather([index(s, j) for s, j in rec_paths])
         pending = [list(p) for p in published]
@@ -249,31 +305,55 @@ class Master:
         report_every = max(1, n_ticks // 100)
         error = None
         n = 0
+        compiled = self._compiled_loop(wirings, flat, n_out, [index(s, j) for w in wirings for s, j in w.sources],
+                                       offsets)
+
+        def record_tick(values) -> None:
+            nonlocal rows
+            times[rows] = t
+            data[rows] = recorded(values)
+            rows += 1
+            total = sum(values[:n_out])  # NaN and inf propagate through the sum: details only on a hit
+            if total - total != 0.0:
+                for k, w in enumerate(wirings):
+                    bad = [name for name, v in zip(w.output_names, values[offsets[k]:]) if not math.isfinite(v)]
+                    if bad:
+                        raise RuntimeError(f"{w.name} at t={t:.6g} s: the run diverged: non-finite {', '.join(bad)}")
+            if progress and n % report_every == 0:
+                progress(n / n_ticks)
+
         try:
-            for n in range(n_ticks + 1):
+            if compiled is not None:  # the same schedule in C between recorded ticks (exchange.py)
+                while True:
+                    t = t0 + n * h
+                    if n % record_every == 0:
+                        record_tick(compiled.flat)
+                    if n == n_ticks:
+                        break
+                    n_next = min(n - n % record_every + record_every, n_ticks)
+                    failed = compiled.run(n, n_next, t0, h, stimulus)
+                    if failed is not None:
+                        n, k, call = failed
+                        component = self.components[wirings[k].name]
+                        raise component._error(call, t0 + n * h if call == "doStep" else None)
+                    n = n_next
+            for n in range(n_ticks + 1) if compiled is None else ():
                 t = t0 + n * h
                 now = due[n % cycle]
-                if n:
+                recording = n % record_every == 0
+                if n and (now or recording):  # a tick where nothing is due and nothing recorded costs nothing
                     for item in now:
                         flat[item[1]:item[2]] = pending[item[0]]
                     flat[n_out:] = stimulus(t)
-                if n % record_every == 0:
-                    times[rows] = t
-                    data[rows] = recorded(flat)
-                    rows += 1
-                    total = sum(flat[:n_out])  # NaN and inf propagate through the sum: details only on a hit
-                    if total - total != 0.0:
-                        for k, w in enumerate(wirings):
-                            bad = [name for name, v in zip(w.output_names, flat[offsets[k]:]) if not math.isfinite(v)]
-                            if bad:
-                                raise RuntimeError(f"{w.name} at t={t:.6g} s: the run diverged: non-finite {', '.join(bad)}")
-                    if progress and n % report_every == 0:
-                        progress(n / n_ticks)
+                if recording:
+                    record_tick(flat)
                 if n == n_ticks:
                     break
-                for k, lo, hi, gather, set_inputs, do_step, get_outputs, step in now:
+                for k, lo, hi, gather, set_inputs, do_step, get_outputs, step, feedthrough in now:
                     set_inputs(gather(flat))
-                for k, lo, hi, gather, set_inputs, do_step, get_outputs, step in now:
+                    if feedthrough:  # its outputs at t, from the inputs just set, for the components after it
+                        flat[lo:hi] = get_outputs()
+                for k, lo, hi, gather, set_inputs, do_step, get_outputs, step, feedthrough in now:
                     do_step(t, step)
                     pending[k] = get_outputs()
         except Exception as err:  # keep what was computed, then report the failure
