@@ -50,6 +50,7 @@ from . import paper
 from .workspace import STEP_TILT_DEG, STEP_Z
 from ..core.build import default_build_dir
 from ..core.components import fmu_parameters
+from ..core.ssv import typed_value
 from .frequency import SineCase, SineResult, bandwidth, run_cases
 
 REPO = Path(__file__).resolve().parents[2]
@@ -128,14 +129,8 @@ def _parameter_set_xml(values: Mapping[str, Value], name: str, why: str, indent:
     """An inline ssd:ParameterBinding holding ``values``."""
     rows = []
     for key, value in values.items():
-        if isinstance(value, bool):
-            kind, text = "Boolean", "true" if value else "false"
-        elif isinstance(value, int):
-            kind, text = "Integer", str(value)
-        elif isinstance(value, float):
-            kind, text = "Real", repr(value)
-        else:
-            kind, text = "String", str(value).replace("&", "&amp;").replace('"', "&quot;").replace("<", "&lt;")
+        kind, text = typed_value(value)
+        text = text.replace("&", "&amp;").replace('"', "&quot;").replace("<", "&lt;")
         rows.append(f'{indent}        <ssv:Parameter name="{key}" description="{why}"><ssv:{kind} value="{text}"/>'
                     f'</ssv:Parameter>')
     body = "\n".join(rows)

@@ -44,6 +44,7 @@ from lxml import etree
 from fmus.common.slave import PYTHONFMU_LIBRARY_SUFFIX
 
 from .ssp import NS, applicable_parameters, read_ssd
+from .ssv import typed_value
 
 REPO = Path(__file__).resolve().parents[2]
 FMUS_SRC = REPO / "fmus"
@@ -399,14 +400,7 @@ def _parameter_set_xml(values: dict, units: dict, comment: str) -> bytes:
         if p.source:
             par.set("description", p.source)
         value = p.value if p.written is None else p.written  # in p.unit, as the source set wrote it
-        if isinstance(value, bool):
-            kind, text = "Boolean", "true" if value else "false"
-        elif isinstance(value, int):
-            kind, text = "Integer", str(value)
-        elif isinstance(value, float):
-            kind, text = "Real", repr(value)
-        else:
-            kind, text = "String", str(value)
+        kind, text = typed_value(value)
         typed = etree.SubElement(par, f"{{{ssv}}}{kind}", value=text)
         if p.unit and kind == "Real":
             typed.set("unit", p.unit)

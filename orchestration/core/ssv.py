@@ -38,6 +38,17 @@ class ParameterValue:
     written: Optional[Value] = None  # the value as written in the set, in ``unit`` (None: ``value``)
 
 
+def typed_value(value: Value) -> tuple[str, str]:
+    """(SSV element, attribute text) of a parameter value: ("Real", repr) and so on; the text unescaped."""
+    if isinstance(value, bool):
+        return "Boolean", "true" if value else "false"
+    if isinstance(value, int):
+        return "Integer", str(value)
+    if isinstance(value, float):
+        return "Real", repr(value)
+    return "String", str(value)
+
+
 def parse_ssv(data: Union[bytes, str, Path], origin: str = "",
               units: Optional[Mapping[str, Unit]] = None) -> dict[str, ParameterValue]:
     """Parse an .ssv document (bytes, text or a path) into {name: ParameterValue}.
