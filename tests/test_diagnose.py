@@ -17,6 +17,8 @@ import pytest
 from mast.diagnosis import Options, diagnose
 from mast.analyses.synthesize import TestSpec as Spec, synthesize
 
+ROOT = Path(__file__).resolve().parents[1]
+
 PLAN = (Spec("z", 0.005, 0.6, 2.0, 0.3), Spec("theta", math.radians(0.8), 1.5, 1.0, 0.3),
         Spec("z", 0.005, 3.0, 1.0, 0.3), Spec("z", 0.005, 7.0, 0.8, 0.3))
 IDENTIFIED = {"tau_c": 0.0718, "J1_scale": 1 / 1.56}
@@ -27,17 +29,27 @@ SMALL = (Spec("z", 0.004, 1.2, 1.1, 0.3), Spec("psi", math.radians(0.6), 2.5, 0.
 
 @pytest.fixture(scope="module")
 def built_ssp(tmp_path_factory) -> str:
+    """The Python FMUs' MAST.ssp, which synthesizes the measured data (the reference models), and beside it
+    its native form (``compiled``), which the diagnoses re-simulate: the same models to 1e-9 relative
+    (tests/test_native.py), cheaper through the compiled exchange loop."""
     from mast.core.build import build_all
+    from mast.core.native.build import build_native_all
 
     out = tmp_path_factory.mktemp("build")
     build_all(out, log=lambda *_: None)
+    build_native_all(out, [ROOT / "ssp" / "MAST.ssd"], log=lambda *_: None)
     return str(out / "ssp" / "MAST.ssp")
+
+
+def compiled(ssp: str) -> str:
+    """The native form of the fixture's SSP (``built_ssp``)."""
+    return str(Path(ssp).parent / "native" / Path(ssp).name)
 
 
 def run_case(ssp: str, tmp: Path, truth: dict, seed: int, figures: bool = False, plan=PLAN) -> dict:
     data = tmp / "data"
     synthesize(ssp, data, {"actuator": truth}, tests=plan, direct=True, seed=seed, log=lambda *_: None)
-    return diagnose(Options(data, tmp / "out", ssp, figures=figures), log=lambda *_: None)
+    return diagnose(Options(data, tmp / "out", compiled(ssp), figures=figures, direct=False), log=lambda *_: None)
 
 
 def named(doc: dict) -> dict:

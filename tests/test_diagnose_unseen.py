@@ -14,14 +14,15 @@ import pytest
 from mast.diagnosis import Options, diagnose
 from mast.analyses.synthesize import synthesize
 
-from test_diagnose import PLAN, SMALL, built_ssp, named  # noqa: F401  (the module's fixture)
+from test_diagnose import PLAN, SMALL, built_ssp, compiled, named  # noqa: F401  (the module's fixture)
 
 
 
 def run(ssp: str, tmp, truth: dict, plan, seed: int, **options) -> dict:
     data = tmp / "data"
     synthesize(ssp, data, truth, tests=plan, direct=True, seed=seed, log=lambda *_: None)
-    return diagnose(Options(data, tmp / "out", ssp, figures=False, **options), log=lambda *_: None)
+    return diagnose(Options(data, tmp / "out", compiled(ssp), figures=False, direct=False, **options),
+                    log=lambda *_: None)
 
 
 @pytest.mark.parametrize("parameter, value, plan, seed", [
