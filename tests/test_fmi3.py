@@ -9,12 +9,15 @@ from __future__ import annotations
 
 import ctypes
 import importlib.util
+import zipfile
 from pathlib import Path
 
 import numpy as np
 import pytest
+from lxml import etree
 
-from mast.core.build import FMUS, build_all, build_ssp
+import mast.core.build as build
+from mast.core.build import FMUS, block_class, build_all, build_fmu3, build_ssp
 from mast.hosts.cosim import HostError, availability, run_host
 from mast.core.ssp import read_ssd
 
@@ -37,16 +40,17 @@ def built(tmp_path_factory) -> Path:
 class Instance3:
     """An FMI 3.0 co-simulation instance through fmpy's FMU3Slave, with its log and raw statuses."""
 
-    def __init__(self, fmu: Path, name: str) -> None:
+    def __init__(self, fmu: Path, name: str, unzip: Path | None = None) -> None:
         from fmpy import extract, read_model_description
         from fmpy.fmi3 import FMU3Slave
 
         self.md = read_model_description(str(fmu))
+        self.unzip = unzip or Path(extract(str(fmu)))
         self.vr = {v.name: v.valueReference for v in self.md.modelVariables}
         self.inputs = [v.name for v in self.md.modelVariables if v.causality == "input"]
         self.outputs = [v.name for v in self.md.modelVariables if v.causality == "output"]
         self.log: list[tuple[int, str]] = []
-        self.slave = FMU3Slave(guid=self.md.guid, unzipDirectory=extract(str(fmu)),
+        self.slave = FMU3Slave(guid=self.md.guid, unzipDirectory=str(self.unzip),
                                modelIdentifier=self.md.coSimulation.modelIdentifier, instanceName=name)
 
         def log(_env, status, _category, message):
@@ -77,11 +81,15 @@ class Instance3:
         self.slave.freeInstance()
 
 
-def test_fmi3_fmus_validate_and_declare_state_units_and_time(built):
-    from fmpy import read_model_description
+def test_fmi3_fmus_validate_declare_state_units_time_and_feedthrough_and_fmpy_simulates_them(built):
+    """Every FMI 3.0 variant: fmpy validate clean, fmpy's simulate_fmu runs it (inputs at their start
+    values), and its ModelStructure declares each output's direct feedthrough as the block does
+    (Block.FEEDTHROUGH; none: an empty list), the same as the FMI 2.0 FMU of the model."""
+    from fmpy import read_model_description, simulate_fmu
     from fmpy.validation import validate_fmu
 
-    for identifier in IDENTIFIERS:
+    for spec in FMUS:
+        identifier = spec.model_identifier
         fmu = built / "fmus3" / f"{identifier}.fmu"
         assert validate_fmu(str(fmu)) == [], identifier
         md = read_model_description(str(fmu))
@@ -92,6 +100,14 @@ def test_fmi3_fmus_validate_and_declare_state_units_and_time(built):
         outputs = [v for v in md.modelVariables if v.causality == "output"]
         assert outputs and all(v.unit for v in outputs)
         assert {u.name for u in md.unitDefinitions} >= {v.unit for v in outputs}
+        feedthrough = block_class(identifier).FEEDTHROUGH
+        expected = {v.name: sorted(feedthrough.get(v.name, ())) for v in outputs}
+        for md_version in (md, read_model_description(str(built / "fmus" / f"{identifier}.fmu"))):
+            declared = {u.variable.name: sorted(d.name for d in u.dependencies) for u in md_version.outputs}
+            assert declared == expected, (md_version.fmiVersion, identifier)
+        result = simulate_fmu(str(fmu), stop_time=0.005, step_size=1e-3, output_interval=1e-3)
+        assert result["time"][-1] == pytest.approx(0.005), identifier
+        assert all(np.isfinite(result[v.name]).all() for v in outputs), identifier
 
 
 @pytest.mark.parametrize("identifier", IDENTIFIERS)
@@ -195,25 +211,184 @@ def test_outputs_are_calculated_in_initialization_and_declare_no_start_value(bui
         assert {u.variable.name for u in md.initialUnknowns} == {v.name for v in outputs}, fmu.name
 
 
-def test_fmi3_illegal_calls_are_refused_and_the_instance_stays_refused(built):
-    """The FMI state machine of fmus/common/slave.py in the FMI 3.0 variant: a fixed parameter set in step
-    mode, or exitInitializationMode without enterInitializationMode, is logged and refused: pythonfmu3
-    reports fmi3Fatal (the FMI 3.0 variants have no C front), so the message says Fatal too and every later
-    call is refused."""
-    def float64(inst: Instance3, function: str, name: str, value: float = 0.0) -> int:
-        vr, buf = (ctypes.c_uint32 * 1)(inst.vr[name]), (ctypes.c_double * 1)(value)
-        return getattr(inst.slave.dll, function)(inst.slave.component, vr, ctypes.c_size_t(1), buf, ctypes.c_size_t(1))
+# -- the FMI state machine, as in FMI 2.0 (test_fmi_behaviour.py) --------------------------------------------
+def _values(inst: Instance3, function: str, name_or_vr, value=0.0, ctype=ctypes.c_double) -> int:
+    """The raw status of fmi3Set<T> or fmi3Get<T> on one variable (a name, or a bare value reference)."""
+    vr = (ctypes.c_uint32 * 1)(inst.vr[name_or_vr] if isinstance(name_or_vr, str) else name_or_vr)
+    buf = (ctype * 1)(value)
+    return getattr(inst.slave.dll, function)(inst.slave.component, vr, ctypes.c_size_t(1), buf, ctypes.c_size_t(1))
 
-    inst = Instance3(built / "fmus3" / "MastActuator.fmu", "axis")
+
+def _enter(inst: Instance3) -> int:
+    return inst.slave.dll.fmi3EnterInitializationMode(inst.slave.component, ctypes.c_bool(False), ctypes.c_double(0.0),
+                                                      ctypes.c_double(0.0), ctypes.c_bool(False), ctypes.c_double(0.0))
+
+
+def _drive(inst: Instance3, first: int, n: int, h: float = 1e-4) -> np.ndarray:
+    rows = []
+    for k in range(first, first + n):
+        inst.set(u=4.0 * np.sin(2 * np.pi * 3.0 * k * h), F=6.0)
+        assert inst.step(k * h, h) == OK, inst.log[-3:]
+        rows.append(inst.get())
+    return np.array(rows)
+
+
+CASES = ("exit before enter", "step before initialization", "enter twice", "parameter after initialization",
+         "output", "unknown reference", "wrong type", "boolean", "foreign state", "step after terminate")
+
+
+def test_fmi3_illegal_calls_return_error_name_the_fault_and_change_nothing(built):
+    """The FMI 3.0 variants behind the C front (fmus/common/pythonfmu_shim.c, FMI_VERSION 3): a call the
+    state does not allow, a set the variable does not allow, an unknown value reference, another FMU's
+    state: fmi3Error with one message (status Error) naming the fault, no Fatal, and the instance runs on
+    as one that never saw the call."""
+    fmu = built / "fmus3" / "MastActuator.fmu"
+    unzip = Instance3(fmu, "unzip").unzip
+    trajectory = Instance3(built / "fmus3" / "MastTrajectory.fmu", "trajectory")
+    trajectory.start()
+    foreign = trajectory.slave.getFMUState()
+    for case in CASES:
+        inst, fresh = Instance3(fmu, "axis", unzip), Instance3(fmu, "fresh", unzip)
+
+        def refused(status: int, *words: str) -> None:
+            assert status == ERROR, (case, inst.log[-2:])
+            assert inst.log[-1][0] == ERROR and all(w in inst.log[-1][1] for w in words), (case, inst.log[-2:])
+            assert not [m for s, m in inst.log if s == FATAL], case   # pythonfmu3's own Fatal report is not passed on
+
+        if case == "exit before enter":
+            refused(inst.slave.dll.fmi3ExitInitializationMode(inst.slave.component), "exitInitializationMode",
+                    "not allowed in instantiated")
+        elif case == "step before initialization":
+            refused(inst.step(0.0, 1e-4), "doStep", "not allowed in instantiated")
+        elif case == "enter twice":
+            assert _enter(inst) == OK
+            refused(_enter(inst), "enterInitializationMode", "not allowed in initialization mode")
+        if case == "enter twice":
+            inst.set(tau_c=0.0718)
+            assert inst.slave.dll.fmi3ExitInitializationMode(inst.slave.component) == OK
+        else:
+            inst.start({"tau_c": 0.0718})
+        fresh.start({"tau_c": 0.0718})
+        np.testing.assert_array_equal(_drive(inst, 0, 3), _drive(fresh, 0, 3))
+        first = 3
+        if case == "parameter after initialization":   # was: Fatal, and every later call refused
+            refused(_values(inst, "fmi3SetFloat64", "tau_c", 0.05), "setFloat64", "parameter 'tau_c' is fixed",
+                    "before exitInitializationMode", "step mode")
+            assert inst.get(["tau_c"]) == [0.0718]
+        elif case == "output":
+            refused(_values(inst, "fmi3SetFloat64", "tau_m", 1.0), "'tau_m' is output", "only inputs and parameters")
+        elif case == "unknown reference":
+            refused(_values(inst, "fmi3GetFloat64", 4711), "getFloat64", "value reference 4711 is not a variable of")
+        elif case == "wrong type":
+            refused(_values(inst, "fmi3SetInt32", "tau_c", 1, ctypes.c_int32), "setInt32", "'tau_c'",
+                    "is of type Float64, not Int32")
+        elif case == "boolean":
+            refused(_values(inst, "fmi3GetBoolean", "rho", False, ctypes.c_bool), "getBoolean", "not Boolean")
+        elif case == "foreign state":
+            refused(inst.slave.dll.fmi3SetFMUState(inst.slave.component, foreign), "not an FMU state of MastActuator")
+        elif case == "step after terminate":
+            assert inst.slave.dll.fmi3Terminate(inst.slave.component) == OK
+            refused(inst.step(3e-4, 1e-4), "doStep", "not allowed in terminated")
+            assert _values(inst, "fmi3GetFloat64", "rho") == OK   # a legal call after it
+            fresh.slave.terminate()
+            for i in (inst, fresh):   # and a reset, to run again
+                assert i.slave.dll.fmi3Reset(i.slave.component) == OK
+                i.start({"tau_c": 0.0718})
+            first = 0
+        np.testing.assert_array_equal(_drive(inst, first, 10), _drive(fresh, first, 10))
+        for i in (inst, fresh):
+            i.close()
+    trajectory.slave.freeFMUState(foreign)
+    trajectory.close()
+
+
+def test_fmi3_without_the_c_front_an_illegal_call_is_fatal_and_the_instance_refuses_what_follows(built, tmp_path):
+    """An FMI 3.0 variant with pythonfmu3's own binary (a build without a C compiler) cannot say fmi3Error: it
+    says fmi3Fatal, the message says Fatal too, and every later call is refused, as FMI requires after Fatal."""
+    from fmpy import extract
+
+    unzip = Path(extract(str(built / "fmus3" / "MastActuator.fmu"), str(tmp_path / "fmu")))
+    folder = unzip / "binaries" / "x86_64-linux"
+    (folder / "MastActuator.pythonfmu.so").replace(folder / "MastActuator.so")
+    inst = Instance3(built / "fmus3" / "MastActuator.fmu", "plain", unzip)
     inst.start()
     assert inst.step(0.0, 1e-4) == OK
-    assert float64(inst, "fmi3SetFloat64", "R", 1.0) > ERROR
+    assert _values(inst, "fmi3SetFloat64", "R", 1.0) == FATAL
     assert any(s == FATAL and "parameter 'R' is fixed" in m for s, m in inst.log), inst.log[-3:]
-    assert inst.step(1e-4, 1e-4) > ERROR and any("failed earlier" in m for s, m in inst.log[-2:])
-    assert float64(inst, "fmi3GetFloat64", "rho") > ERROR
+    assert inst.step(1e-4, 1e-4) == FATAL and any("failed earlier" in m for s, m in inst.log[-2:])
     inst.slave.freeInstance()
 
-    early = Instance3(built / "fmus3" / "MastActuator.fmu", "early")
-    assert early.slave.dll.fmi3ExitInitializationMode(early.slave.component) > ERROR
-    assert any("exitInitializationMode: not allowed in instantiated" in m for s, m in early.log), early.log[-3:]
-    early.slave.freeInstance()
+
+def test_the_fmi3_build_falls_back_to_pythonfmu3s_binary_without_a_c_compiler(monkeypatch, tmp_path):
+    import mast.core.native.build as native
+
+    def no_compiler():
+        raise native.NativeBuildError("no C compiler here (test)")
+
+    monkeypatch.setattr(native, "compiler", no_compiler)
+    build._compiled_front.cache_clear()
+    try:
+        assert "fmi3Fatal instead of fmi3Error (no C compiler here (test))" in build.front_note(3)
+        fmu = build_fmu3(next(s for s in FMUS if s.model_identifier == "MastTrajectory"), tmp_path)
+    finally:
+        build._compiled_front.cache_clear()
+    with zipfile.ZipFile(fmu) as z:
+        names = z.namelist()
+    assert "binaries/x86_64-linux/MastTrajectory.so" in names
+    assert "binaries/x86_64-linux/MastTrajectory.pythonfmu.so" not in names
+    from fmpy import simulate_fmu
+
+    result = simulate_fmu(str(fmu), stop_time=0.01, output_interval=0.01)   # pythonfmu3's binary runs it
+    assert result["z_cmd"][-1] > 0.4
+
+
+# -- direct feedthrough ------------------------------------------------------------------------------------
+HALVER_SCRIPT = """
+from pythonfmu3 import Fmi3Slave
+
+from fmus.common.fmi3 import BlockSlave3
+from test_fmi_behaviour import Halver
+
+
+class HalverFmu(BlockSlave3, Fmi3Slave):
+    '''y = k b at the communication point, z advances with the steps.'''
+
+    block_class = Halver
+"""
+
+
+def test_fmi3_feedthrough_output_follows_its_input_and_is_declared_in_the_model_structure(tmp_path):
+    """Block.FEEDTHROUGH through the FMI 3.0 wrapper and the C front, on a block of its own (test_fmi_behaviour's
+    Halver: y = k b, z only in doStep): ModelStructure declares y's dependency on b (value reference, kind
+    'dependent') and none for z; fmpy validates the FMU; after fmi3SetFloat64 of b in step mode y is k b
+    without a doStep, while z waits for the step; a failed evaluation is logged and refuses the next step."""
+    from fmpy import read_model_description
+    from fmpy.validation import validate_fmu
+    from pythonfmu3.builder import FmuBuilder as Fmu3Builder
+
+    script = tmp_path / "halver_fmi3.py"
+    script.write_text(HALVER_SCRIPT)
+    fmu = Path(Fmu3Builder.build_FMU(script, dest=tmp_path, needsExecutionTool=False, canGetAndSetFMUState=True))
+    build._rewrite(fmu, lambda items: build._put_front(items, "HalverFmu", 3))
+    assert validate_fmu(str(fmu)) == []
+    md = read_model_description(str(fmu))
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    with zipfile.ZipFile(fmu) as z:
+        structure = etree.fromstring(z.read("modelDescription.xml")).find("ModelStructure")
+    assert {o.get("valueReference"): (o.get("dependencies"), o.get("dependenciesKind"))
+            for o in structure.iterfind("Output")} == {str(vr["y"]): (str(vr["b"]), "dependent"),
+                                                       str(vr["z"]): ("", None)}
+    inst = Instance3(fmu, "halver")
+    inst.start({"k": 0.5})
+    inst.set(a=3.0, b=8.0)
+    assert inst.get(["y", "z"]) == [4.0, 0.0]          # y follows b at once; z has not stepped
+    assert inst.step(0.0, 0.1) == OK and inst.get(["y", "z"]) == [4.0, 0.1]
+    inst.set(b=-2.0)
+    assert inst.get(["y"]) == [-1.0]
+    inst.set(b=300.0)
+    assert inst.log[-1] == (ERROR, "setFloat64: evaluating the outputs: ValueError: b above 100 (the '%' in this "
+                                   "message reaches an FMI 3.0 host as it is)"), inst.log[-2:]   # not a format
+    assert inst.step(0.1, 0.1) == DISCARD and "b above 100" in inst.log[-1][1]
+    inst.set(b=10.0)
+    assert inst.step(0.1, 0.1) == OK and inst.get(["y", "z"]) == [5.0, pytest.approx(0.2)]
+    inst.close()

@@ -19,7 +19,7 @@ class BlockSlave(BlockWrapper, Fmi2Slave):
     """FMI 2.0 slave exposing one Block; subclasses set ``block_class``."""
 
     fmi = FmiVocabulary({float: Real, int: Integer, str: String}, Fmi2Causality, Fmi2Variability, Fmi2Initial,
-                        Fmi2Status)
+                        Fmi2Status, message_is_format=True, set_real="setReal")
 
     def __init__(self, **kwargs) -> None:
         super().__init__(**kwargs)
@@ -30,12 +30,10 @@ class BlockSlave(BlockWrapper, Fmi2Slave):
         """pythonfmu's modelDescription, with the direct feedthrough (``Block.FEEDTHROUGH``) declared in
         ModelStructure/Outputs: each output lists the inputs it depends on (none: an empty list)."""
         root = super().to_xml(model_options)
-        feedthrough = self.block_class.FEEDTHROUGH
-        if feedthrough:
-            names = [v.name for v in self.vars.values()]
-            for unknown in root.iterfind("ModelStructure/Outputs/Unknown"):
-                inputs = feedthrough.get(names[int(unknown.get("index")) - 1], ())
-                unknown.set("dependencies", " ".join(str(names.index(name) + 1) for name in inputs))
+        index = {vr: k + 1 for k, vr in enumerate(self.vars)}   # FMI 2.0 names variables by their position
+        dependencies = {index[out]: ins for out, ins in self._output_dependencies().items()}
+        for unknown in root.iterfind("ModelStructure/Outputs/Unknown"):
+            unknown.set("dependencies", " ".join(str(index[vr]) for vr in dependencies[int(unknown.get("index"))]))
         return root
 
     # -- the calls pythonfmu's C layer makes ---------------------------------------------

@@ -1,9 +1,11 @@
 """Generic FMI 3.0 Co-Simulation wrapper (pythonfmu3) around a :class:`Block`.
 
 The FMI 3.0 variants of the MAST FMUs (``mast build --fmi3``): the same blocks,
-the same behaviour (``slave.py``), FMI 3.0 types (Float64, Int32, String), the
-independent variable ``time`` and unit definitions. Only the build imports this
-module outside an FMU; inside one, pythonfmu3 travels with it.
+the same behaviour (``slave.py``: state machine, illegal calls as fmi3Error behind
+the C front, feedthrough outputs evaluated when their inputs are set), FMI 3.0
+types (Float64, Int32, String), the independent variable ``time``, unit
+definitions and the direct feedthrough in ModelStructure. Only the build imports
+this module outside an FMU; inside one, pythonfmu3 travels with it.
 """
 from __future__ import annotations
 
@@ -20,7 +22,7 @@ class BlockSlave3(BlockWrapper, Fmi3Slave):
     """FMI 3.0 slave exposing one Block; subclasses set ``block_class``."""
 
     fmi = FmiVocabulary({float: Float64, int: Int32, str: String}, Fmi3Causality, Fmi3Variability, Fmi3Initial,
-                        Fmi3Status)
+                        Fmi3Status, message_is_format=False, set_real="setFloat64")
 
     def __init__(self, **kwargs) -> None:
         super().__init__(**kwargs)
@@ -33,6 +35,19 @@ class BlockSlave3(BlockWrapper, Fmi3Slave):
         self._register_block(units, input_start=0.0)
         self.register_variable(Float64("time", causality=Fmi3Causality.independent,
                                        variability=Fmi3Variability.continuous, getter=lambda: self._time))
+
+    def to_xml(self, model_options=dict()):
+        """pythonfmu3's modelDescription, with the direct feedthrough (``Block.FEEDTHROUGH``) declared in
+        ModelStructure: each Output lists the inputs it depends on by value reference (none: an empty list;
+        an absent list would claim every input)."""
+        root = super().to_xml(model_options)
+        dependencies = self._output_dependencies()
+        for output in root.iterfind("ModelStructure/Output"):
+            inputs = dependencies[int(output.get("valueReference"))]
+            output.set("dependencies", " ".join(map(str, inputs)))
+            if inputs:
+                output.set("dependenciesKind", " ".join("dependent" for _ in inputs))
+        return root
 
     # -- the calls pythonfmu3's C layer makes --------------------------------------------
     @fmi_call()
@@ -52,6 +67,37 @@ class BlockSlave3(BlockWrapper, Fmi3Slave):
     def set_int32(self, vrs: List[int], values: List[int]) -> None:
         self._check_refs(vrs, int, write=True)
         super().set_int32(vrs, values)
+
+    # types none of the blocks' variables has: every value reference is refused with a message (fmi3Error)
+    @fmi_call()
+    def get_boolean(self, vrs: List[int]) -> List[bool]:
+        self._check_refs(vrs, bool, write=False)
+        return super().get_boolean(vrs)
+
+    @fmi_call()
+    def set_boolean(self, vrs: List[int], values: List[bool]) -> None:
+        self._check_refs(vrs, bool, write=True)
+        super().set_boolean(vrs, values)
+
+    @fmi_call()
+    def get_int64(self, vrs: List[int]) -> List[int]:
+        self._check_refs(vrs, "Int64", write=False)
+        return super().get_int64(vrs)
+
+    @fmi_call()
+    def set_int64(self, vrs: List[int], values: List[int]) -> None:
+        self._check_refs(vrs, "Int64", write=True)
+        super().set_int64(vrs, values)
+
+    @fmi_call()
+    def get_uint64(self, vrs: List[int]) -> List[int]:
+        self._check_refs(vrs, "UInt64", write=False)
+        return super().get_uint64(vrs)
+
+    @fmi_call()
+    def set_uint64(self, vrs: List[int], values: List[int]) -> None:
+        self._check_refs(vrs, "UInt64", write=True)
+        super().set_uint64(vrs, values)
 
     @fmi_call(INSTANTIATED)
     def setup_experiment(self, start_time: float) -> None:

@@ -1,73 +1,205 @@
-/* The binary of every Python FMU (FMI 2.0, Linux): a thin front to pythonfmu's export library.
+/* The binary of every Python FMU (Linux), FMI 2.0 and FMI 3.0: a thin front to pythonfmu's export library.
  *
- * pythonfmu 0.7.0's C++ layer answers every Python exception with fmi2Fatal; FMI 2.0 (section
- * 2.1.3, 4.3) asks for fmi2Error when a call is not allowed in the instance's state or names a
- * variable the call cannot take, and the instance stays usable. `mast build` ships pythonfmu's
- * library beside this one as `<modelIdentifier>.pythonfmu.so` and this file, compiled, as
- * `<modelIdentifier>.so`. Every fmi2 call is forwarded; the inner instance logs through the relay
- * below, and when a call ends in fmi2Fatal its status is settled by what the model logged:
+ * One source for both versions: `mast build` compiles it with FMI_VERSION defined as 2 (pythonfmu 0.7.0,
+ * the FMI 2.0 FMUs) or 3 (pythonfmu3 0.3.4, the FMI 3.0 variants). Both libraries answer every Python
+ * exception with Fatal; FMI (2.0 sections 2.1.3 and 4.3, 3.0 sections 2.2.3 and 4.2) asks for Error when a
+ * call is not allowed in the instance's state or names a variable the call cannot take, and the instance
+ * stays usable. `mast build` ships pythonfmu's library beside this one as `<modelIdentifier>.pythonfmu.so`
+ * and this file, compiled, as `<modelIdentifier>.so`. Every call is forwarded; the inner instance logs
+ * through the relay below, and when a call ends in Fatal its status is settled by what the model logged:
  *
  * - the Python glue (fmus/common/slave.py, `fmi_call`) logs an illegal call with status Error
  *   just before raising, a failure it did not foresee (and every call after one) with status
- *   Fatal; pythonfmu then logs its own report of the exception (no category) and says fmi2Fatal;
- * - after a model message with status Error, the call returns fmi2Error; otherwise fmi2Fatal stays
- *   fmi2Fatal. pythonfmu's report is passed on only when the model logged nothing itself (after a
+ *   Fatal; pythonfmu then logs its own report of the exception (no category) and says Fatal;
+ * - after a model message with status Error, the call returns Error; otherwise Fatal stays
+ *   Fatal. pythonfmu's report is passed on only when the model logged nothing itself (after a
  *   model message it repeats it, or says "unknown error").
  *
  * The inner instance is created with logging on, so the relay sees every message; the host's
  * logger gets errors and warnings always and the other messages while logging is on (the host's
- * loggingOn and fmi2SetDebugLogging), as the native FMUs do (native/fmi2_wrapper.c).
+ * loggingOn and SetDebugLogging), as the native FMUs do (native/fmi2_wrapper.c).
  * Nothing else changes: values, states and the other statuses pass through untouched.
  */
 #define _GNU_SOURCE
 #include <dlfcn.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
-#include "fmi2Functions.h"
-
 #define INNER_SUFFIX ".pythonfmu"   /* <modelIdentifier>.so -> <modelIdentifier>.pythonfmu.so */
+#define UNPAREN(...) __VA_ARGS__
+#define TEXT_(x) #x
+#define TEXT(x) TEXT_(x)
 
-/* the functions pythonfmu's library exports (Co-Simulation), resolved per instance */
-#define FORWARDED(X) X(Instantiate) X(FreeInstance) X(SetupExperiment) X(EnterInitializationMode) \
-    X(ExitInitializationMode) X(Terminate) X(Reset) X(GetReal) X(GetInteger) X(GetBoolean) X(GetString) \
-    X(SetReal) X(SetInteger) X(SetBoolean) X(SetString) X(GetFMUstate) X(SetFMUstate) X(FreeFMUstate) \
-    X(SerializedFMUstateSize) X(SerializeFMUstate) X(DeSerializeFMUstate) X(GetDirectionalDerivative) \
-    X(SetRealInputDerivatives) X(GetRealOutputDerivatives) X(DoStep) X(CancelStep) X(GetStatus) \
-    X(GetRealStatus) X(GetIntegerStatus) X(GetBooleanStatus) X(GetStringStatus)
+#if FMI_VERSION == 2
+#include "fmi2Functions.h"
+#define FMI(name) fmi2##name
+typedef fmi2Status Status;
+typedef fmi2Component Instance;
+/* the functions forwarded as they are (Co-Simulation): X(name, (parameters after the instance), (their names)) */
+#define FORWARDED0(X) X(EnterInitializationMode) X(ExitInitializationMode) X(Terminate) X(Reset) X(CancelStep)
+#define FORWARDED(X) \
+    X(SetupExperiment, (fmi2Boolean toleranceDefined, fmi2Real tolerance, fmi2Real startTime, \
+                        fmi2Boolean stopTimeDefined, fmi2Real stopTime), \
+      (toleranceDefined, tolerance, startTime, stopTimeDefined, stopTime)) \
+    X(GetReal, (const fmi2ValueReference vr[], size_t nvr, fmi2Real value[]), (vr, nvr, value)) \
+    X(GetInteger, (const fmi2ValueReference vr[], size_t nvr, fmi2Integer value[]), (vr, nvr, value)) \
+    X(GetBoolean, (const fmi2ValueReference vr[], size_t nvr, fmi2Boolean value[]), (vr, nvr, value)) \
+    X(GetString, (const fmi2ValueReference vr[], size_t nvr, fmi2String value[]), (vr, nvr, value)) \
+    X(SetReal, (const fmi2ValueReference vr[], size_t nvr, const fmi2Real value[]), (vr, nvr, value)) \
+    X(SetInteger, (const fmi2ValueReference vr[], size_t nvr, const fmi2Integer value[]), (vr, nvr, value)) \
+    X(SetBoolean, (const fmi2ValueReference vr[], size_t nvr, const fmi2Boolean value[]), (vr, nvr, value)) \
+    X(SetString, (const fmi2ValueReference vr[], size_t nvr, const fmi2String value[]), (vr, nvr, value)) \
+    X(GetFMUstate, (fmi2FMUstate *state), (state)) \
+    X(SetFMUstate, (fmi2FMUstate state), (state)) \
+    X(FreeFMUstate, (fmi2FMUstate *state), (state)) \
+    X(SerializedFMUstateSize, (fmi2FMUstate state, size_t *size), (state, size)) \
+    X(SerializeFMUstate, (fmi2FMUstate state, fmi2Byte bytes[], size_t size), (state, bytes, size)) \
+    X(DeSerializeFMUstate, (const fmi2Byte bytes[], size_t size, fmi2FMUstate *state), (bytes, size, state)) \
+    X(GetDirectionalDerivative, (const fmi2ValueReference vUnknown[], size_t nUnknown, \
+                                 const fmi2ValueReference vKnown[], size_t nKnown, const fmi2Real dvKnown[], \
+                                 fmi2Real dvUnknown[]), (vUnknown, nUnknown, vKnown, nKnown, dvKnown, dvUnknown)) \
+    X(SetRealInputDerivatives, (const fmi2ValueReference vr[], size_t nvr, const fmi2Integer order[], \
+                                const fmi2Real value[]), (vr, nvr, order, value)) \
+    X(GetRealOutputDerivatives, (const fmi2ValueReference vr[], size_t nvr, const fmi2Integer order[], \
+                                 fmi2Real value[]), (vr, nvr, order, value)) \
+    X(DoStep, (fmi2Real t, fmi2Real h, fmi2Boolean noSetFMUStatePriorToCurrentPoint), \
+      (t, h, noSetFMUStatePriorToCurrentPoint)) \
+    X(GetStatus, (const fmi2StatusKind kind, fmi2Status *value), (kind, value)) \
+    X(GetRealStatus, (const fmi2StatusKind kind, fmi2Real *value), (kind, value)) \
+    X(GetIntegerStatus, (const fmi2StatusKind kind, fmi2Integer *value), (kind, value)) \
+    X(GetBooleanStatus, (const fmi2StatusKind kind, fmi2Boolean *value), (kind, value)) \
+    X(GetStringStatus, (const fmi2StatusKind kind, fmi2String *value), (kind, value))
+#define STATUS_OK fmi2OK
+#define STATUS_ERROR fmi2Error
+#define STATUS_FATAL fmi2Fatal
 
+#elif FMI_VERSION == 3
+#include "fmi3Functions.h"
+#define FMI(name) fmi3##name
+typedef fmi3Status Status;
+typedef fmi3Instance Instance;
+#define FORWARDED0(X) X(ExitInitializationMode) X(EnterEventMode) X(Terminate) X(Reset) \
+    X(EnterConfigurationMode) X(ExitConfigurationMode) X(EvaluateDiscreteStates) X(EnterContinuousTimeMode) \
+    X(EnterStepMode)
+#define VALUES(X, T) \
+    X(Get##T, (const fmi3ValueReference vr[], size_t nvr, fmi3##T values[], size_t n), (vr, nvr, values, n)) \
+    X(Set##T, (const fmi3ValueReference vr[], size_t nvr, const fmi3##T values[], size_t n), (vr, nvr, values, n))
+#define DERIVATIVE(X, name) \
+    X(name, (const fmi3ValueReference unknowns[], size_t nUnknowns, const fmi3ValueReference knowns[], \
+             size_t nKnowns, const fmi3Float64 seed[], size_t nSeed, fmi3Float64 sensitivity[], size_t nSensitivity), \
+      (unknowns, nUnknowns, knowns, nKnowns, seed, nSeed, sensitivity, nSensitivity))
+#define FORWARDED(X) \
+    X(EnterInitializationMode, (fmi3Boolean toleranceDefined, fmi3Float64 tolerance, fmi3Float64 startTime, \
+                                fmi3Boolean stopTimeDefined, fmi3Float64 stopTime), \
+      (toleranceDefined, tolerance, startTime, stopTimeDefined, stopTime)) \
+    VALUES(X, Float32) VALUES(X, Float64) VALUES(X, Int8) VALUES(X, UInt8) VALUES(X, Int16) VALUES(X, UInt16) \
+    VALUES(X, Int32) VALUES(X, UInt32) VALUES(X, Int64) VALUES(X, UInt64) VALUES(X, Boolean) VALUES(X, String) \
+    X(GetBinary, (const fmi3ValueReference vr[], size_t nvr, size_t sizes[], fmi3Binary values[], size_t n), \
+      (vr, nvr, sizes, values, n)) \
+    X(SetBinary, (const fmi3ValueReference vr[], size_t nvr, const size_t sizes[], const fmi3Binary values[], \
+                  size_t n), (vr, nvr, sizes, values, n)) \
+    X(GetClock, (const fmi3ValueReference vr[], size_t nvr, fmi3Clock values[]), (vr, nvr, values)) \
+    X(SetClock, (const fmi3ValueReference vr[], size_t nvr, const fmi3Clock values[]), (vr, nvr, values)) \
+    X(GetNumberOfVariableDependencies, (fmi3ValueReference vr, size_t *n), (vr, n)) \
+    X(GetVariableDependencies, (fmi3ValueReference dependent, size_t elementsOfDependent[], \
+                                fmi3ValueReference independents[], size_t elementsOfIndependents[], \
+                                fmi3DependencyKind kinds[], size_t n), \
+      (dependent, elementsOfDependent, independents, elementsOfIndependents, kinds, n)) \
+    X(GetFMUState, (fmi3FMUState *state), (state)) \
+    X(SetFMUState, (fmi3FMUState state), (state)) \
+    X(FreeFMUState, (fmi3FMUState *state), (state)) \
+    X(SerializedFMUStateSize, (fmi3FMUState state, size_t *size), (state, size)) \
+    X(SerializeFMUState, (fmi3FMUState state, fmi3Byte bytes[], size_t size), (state, bytes, size)) \
+    X(DeserializeFMUState, (const fmi3Byte bytes[], size_t size, fmi3FMUState *state), (bytes, size, state)) \
+    DERIVATIVE(X, GetDirectionalDerivative) DERIVATIVE(X, GetAdjointDerivative) \
+    X(GetIntervalDecimal, (const fmi3ValueReference vr[], size_t nvr, fmi3Float64 intervals[], \
+                           fmi3IntervalQualifier qualifiers[]), (vr, nvr, intervals, qualifiers)) \
+    X(GetIntervalFraction, (const fmi3ValueReference vr[], size_t nvr, fmi3UInt64 counters[], \
+                            fmi3UInt64 resolutions[], fmi3IntervalQualifier qualifiers[]), \
+      (vr, nvr, counters, resolutions, qualifiers)) \
+    X(GetShiftDecimal, (const fmi3ValueReference vr[], size_t nvr, fmi3Float64 shifts[]), (vr, nvr, shifts)) \
+    X(GetShiftFraction, (const fmi3ValueReference vr[], size_t nvr, fmi3UInt64 counters[], \
+                         fmi3UInt64 resolutions[]), (vr, nvr, counters, resolutions)) \
+    X(SetIntervalDecimal, (const fmi3ValueReference vr[], size_t nvr, const fmi3Float64 intervals[]), \
+      (vr, nvr, intervals)) \
+    X(SetIntervalFraction, (const fmi3ValueReference vr[], size_t nvr, const fmi3UInt64 counters[], \
+                            const fmi3UInt64 resolutions[]), (vr, nvr, counters, resolutions)) \
+    X(SetShiftDecimal, (const fmi3ValueReference vr[], size_t nvr, const fmi3Float64 shifts[]), (vr, nvr, shifts)) \
+    X(SetShiftFraction, (const fmi3ValueReference vr[], size_t nvr, const fmi3UInt64 counters[], \
+                         const fmi3UInt64 resolutions[]), (vr, nvr, counters, resolutions)) \
+    X(UpdateDiscreteStates, (fmi3Boolean *discreteStatesNeedUpdate, fmi3Boolean *terminateSimulation, \
+                             fmi3Boolean *nominalsChanged, fmi3Boolean *valuesChanged, \
+                             fmi3Boolean *nextEventTimeDefined, fmi3Float64 *nextEventTime), \
+      (discreteStatesNeedUpdate, terminateSimulation, nominalsChanged, valuesChanged, nextEventTimeDefined, \
+       nextEventTime)) \
+    X(CompletedIntegratorStep, (fmi3Boolean noSetFMUStatePriorToCurrentPoint, fmi3Boolean *enterEventMode, \
+                                fmi3Boolean *terminateSimulation), \
+      (noSetFMUStatePriorToCurrentPoint, enterEventMode, terminateSimulation)) \
+    X(SetTime, (fmi3Float64 time), (time)) \
+    X(SetContinuousStates, (const fmi3Float64 x[], size_t n), (x, n)) \
+    X(GetContinuousStateDerivatives, (fmi3Float64 dx[], size_t n), (dx, n)) \
+    X(GetEventIndicators, (fmi3Float64 z[], size_t n), (z, n)) \
+    X(GetContinuousStates, (fmi3Float64 x[], size_t n), (x, n)) \
+    X(GetNominalsOfContinuousStates, (fmi3Float64 nominals[], size_t n), (nominals, n)) \
+    X(GetNumberOfEventIndicators, (size_t *n), (n)) \
+    X(GetNumberOfContinuousStates, (size_t *n), (n)) \
+    X(GetOutputDerivatives, (const fmi3ValueReference vr[], size_t nvr, const fmi3Int32 orders[], \
+                             fmi3Float64 values[], size_t n), (vr, nvr, orders, values, n)) \
+    X(DoStep, (fmi3Float64 t, fmi3Float64 h, fmi3Boolean noSetFMUStatePriorToCurrentPoint, \
+               fmi3Boolean *eventHandlingNeeded, fmi3Boolean *terminateSimulation, fmi3Boolean *earlyReturn, \
+               fmi3Float64 *lastSuccessfulTime), \
+      (t, h, noSetFMUStatePriorToCurrentPoint, eventHandlingNeeded, terminateSimulation, earlyReturn, \
+       lastSuccessfulTime)) \
+    X(ActivateModelPartition, (fmi3ValueReference clock, fmi3Float64 activationTime), (clock, activationTime))
+#define STATUS_OK fmi3OK
+#define STATUS_ERROR fmi3Error
+#define STATUS_FATAL fmi3Fatal
+
+#else
+#error "compile with FMI_VERSION defined as 2 or 3 (mast build does)"
+#endif
+
+/* the functions of pythonfmu's library this front calls, resolved per instance */
 typedef struct {
-#define MEMBER(name) fmi2##name##TYPE *name;
+#define MEMBER0(name) FMI(name##TYPE) *name;
+#define MEMBER(name, params, args) FMI(name##TYPE) *name;
+    FORWARDED0(MEMBER0)
     FORWARDED(MEMBER)
+    MEMBER0(FreeInstance)
+#if FMI_VERSION == 2
+    MEMBER0(Instantiate)
+#else
+    MEMBER0(InstantiateCoSimulation)
+#endif
 #undef MEMBER
+#undef MEMBER0
 } Api;
 
 typedef struct {
     void *library;                    /* pythonfmu's export library (dlopen handle) */
     Api api;
-    fmi2Component inner;
+    Instance inner;
+#if FMI_VERSION == 2
     fmi2CallbackFunctions host;       /* the host's callbacks, as given to fmi2Instantiate */
     fmi2CallbackFunctions relayed;    /* what the inner instance gets: the relay as its logger */
+#else
+    fmi3LogMessageCallback host_logger;
+    fmi3InstanceEnvironment host_environment;
+#endif
     int logging_on;
     int model_status;                 /* status of the model's last message in the current call, -1: none */
 } Shim;
 
-static void relay(fmi2ComponentEnvironment env, fmi2String name, fmi2Status status, fmi2String category,
-                  fmi2String message, ...)
+#if FMI_VERSION == 2
+/* FMI 2.0's logger expands the message as a printf format: pythonfmu's text (not the model's, which has
+ * '%' written '%%') gets its '%' doubled, so hosts that expand it and hosts that do not both show it */
+static void pass_on(Shim *s, const char *name, int status, const char *category, const char *message, int escape)
 {
-    Shim *s = env;
-    int from_model = category && *category;  /* pythonfmu's own messages carry no category */
-    if (from_model) {
-        s->model_status = status;
-    } else if (status == fmi2Fatal && s->model_status >= fmi2Error) {
-        return;  /* pythonfmu's report of an exception the model has logged already */
-    }
-    if (!s->host.logger || (status == fmi2OK && !s->logging_on)) return;
-    if (from_model || !message || !strchr(message, '%')) {  /* the model's messages have '%' written '%%' */
-        s->host.logger(s->host.componentEnvironment, name, status, category, message);
+    if (!escape || !message || !strchr(message, '%')) {
+        s->host.logger(s->host.componentEnvironment, name, (fmi2Status)status, category, message);
         return;
     }
-    /* pythonfmu's text, used as a format by hosts that expand it and as it is by the others: '%' -> '%%' */
     char *escaped = malloc(2 * strlen(message) + 1), *out = escaped;
     if (!escaped) return;
     for (const char *in = message; *in; in++) {
@@ -75,16 +207,45 @@ static void relay(fmi2ComponentEnvironment env, fmi2String name, fmi2Status stat
         *out++ = *in;
     }
     *out = '\0';
-    s->host.logger(s->host.componentEnvironment, name, status, category, escaped);
+    s->host.logger(s->host.componentEnvironment, name, (fmi2Status)status, category, escaped);
     free(escaped);
 }
-
-static void report(const fmi2CallbackFunctions *functions, fmi2String name, const char *what, const char *detail)
+#define HOST_LOGGER(s) ((s)->host.logger)
+#else
+/* FMI 3.0's logger takes the message as it is */
+static void pass_on(Shim *s, const char *name, int status, const char *category, const char *message, int escape)
 {
-    if (functions && functions->logger)
-        functions->logger(functions->componentEnvironment, name, fmi2Error, "logStatusError",
-                          "fmi2Instantiate: %s: %s", what, detail ? detail : "unknown reason");
+    (void)name; (void)escape;
+    s->host_logger(s->host_environment, (fmi3Status)status, category, message);
 }
+#define HOST_LOGGER(s) ((s)->host_logger)
+#endif
+
+/* every message of the inner instance: the model's status is noted, pythonfmu's repeat of it dropped */
+static void relay_message(Shim *s, const char *name, int status, const char *category, const char *message)
+{
+    int from_model = category && *category;  /* pythonfmu's own messages carry no category */
+    if (from_model) {
+        s->model_status = status;
+    } else if (status == STATUS_FATAL && s->model_status >= STATUS_ERROR) {
+        return;  /* pythonfmu's report of an exception the model has logged already */
+    }
+    if (!HOST_LOGGER(s) || (status == STATUS_OK && !s->logging_on)) return;
+    pass_on(s, name, status, category, message, !from_model);
+}
+
+#if FMI_VERSION == 2
+static void relay(fmi2ComponentEnvironment env, fmi2String name, fmi2Status status, fmi2String category,
+                  fmi2String message, ...)
+{
+    relay_message(env, name, status, category, message);
+}
+#else
+static void relay(fmi3InstanceEnvironment env, fmi3Status status, fmi3String category, fmi3String message)
+{
+    relay_message(env, NULL, status, category, message);
+}
+#endif
 
 /* the path of pythonfmu's library: this library's own path with INNER_SUFFIX before the extension */
 static char *inner_path(void)
@@ -107,38 +268,88 @@ static void release(Shim *s)
     free(s);
 }
 
-const char *fmi2GetTypesPlatform(void) { return fmi2TypesPlatform; }
-const char *fmi2GetVersion(void) { return fmi2Version; }
-
-fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String guid, fmi2String resources,
-                              const fmi2CallbackFunctions *functions, fmi2Boolean visible, fmi2Boolean loggingOn)
+/* a new front with pythonfmu's library loaded and resolved, or NULL with the reason in *why (static text,
+ * or dlerror's) and the failing path in *what */
+static Shim *load(const char **what, const char **why)
 {
     Shim *s = calloc(1, sizeof *s);
     char *path = inner_path();
+    *what = "out of memory, or this library cannot find its own path";
+    *why = NULL;
     if (!s || !path) {
-        report(functions, name, "out of memory, or this library cannot find its own path", NULL);
         free(path);
         free(s);
         return NULL;
     }
     s->library = dlopen(path, RTLD_NOW | RTLD_LOCAL);
     if (!s->library) {
-        report(functions, name, "cannot load the model's library", dlerror());
+        *what = "cannot load the model's library";
+        *why = dlerror();
         free(path);
         release(s);
         return NULL;
     }
-#define RESOLVE(fn) s->api.fn = (fmi2##fn##TYPE *)dlsym(s->library, "fmi2" #fn); \
-    if (!s->api.fn) { report(functions, name, path, "fmi2" #fn " is missing"); free(path); release(s); return NULL; }
-    FORWARDED(RESOLVE)
-#undef RESOLVE
     free(path);
+#define RESOLVE0(fn) s->api.fn = (FMI(fn##TYPE) *)dlsym(s->library, TEXT(FMI(fn))); \
+    if (!s->api.fn) { *what = "the model's library lacks a function"; *why = #fn; release(s); return NULL; }
+#define RESOLVE(fn, params, args) RESOLVE0(fn)
+    FORWARDED0(RESOLVE0)
+    FORWARDED(RESOLVE)
+    RESOLVE0(FreeInstance)
+#if FMI_VERSION == 2
+    RESOLVE0(Instantiate)
+#else
+    RESOLVE0(InstantiateCoSimulation)
+#endif
+#undef RESOLVE
+#undef RESOLVE0
+    s->model_status = -1;
+    return s;
+}
+
+/* the status a forwarded call returns (see the top of this file) */
+static Status settled(const Shim *s, Status status)
+{
+    return status == STATUS_FATAL && s->model_status == STATUS_ERROR ? STATUS_ERROR : status;
+}
+
+#define FORWARD0(fn) Status FMI(fn)(Instance c) { Shim *s = c; if (!s) { return STATUS_ERROR; } \
+    s->model_status = -1; return settled(s, s->api.fn(s->inner)); }
+#define FORWARD(fn, params, args) Status FMI(fn)(Instance c, UNPAREN params) { Shim *s = c; \
+    if (!s) { return STATUS_ERROR; } s->model_status = -1; return settled(s, s->api.fn(s->inner, UNPAREN args)); }
+FORWARDED0(FORWARD0)
+FORWARDED(FORWARD)
+#undef FORWARD
+#undef FORWARD0
+
+void FMI(FreeInstance)(Instance c)
+{
+    Shim *s = c;
+    if (!s) return;
+    s->api.FreeInstance(s->inner);
+    release(s);
+}
+
+#if FMI_VERSION == 2
+const char *fmi2GetTypesPlatform(void) { return fmi2TypesPlatform; }
+const char *fmi2GetVersion(void) { return fmi2Version; }
+
+fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String guid, fmi2String resources,
+                              const fmi2CallbackFunctions *functions, fmi2Boolean visible, fmi2Boolean loggingOn)
+{
+    const char *what, *why;
+    Shim *s = load(&what, &why);
+    if (!s) {
+        if (functions && functions->logger)
+            functions->logger(functions->componentEnvironment, name, fmi2Error, "logStatusError",
+                              "fmi2Instantiate: %s: %s", what, why ? why : "unknown reason");
+        return NULL;
+    }
     if (functions) s->host = *functions;
     s->relayed = s->host;
     s->relayed.logger = relay;
     s->relayed.componentEnvironment = s;
     s->logging_on = loggingOn;
-    s->model_status = -1;
     s->inner = s->api.Instantiate(name, type, guid, resources, &s->relayed, visible, fmi2True);
     if (!s->inner) {
         release(s);
@@ -147,91 +358,75 @@ fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String guid, f
     return s;
 }
 
-void fmi2FreeInstance(fmi2Component c)
+fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean loggingOn, size_t n, const fmi2String categories[])
+#else
+const char *fmi3GetVersion(void) { return fmi3Version; }
+
+static void refuse_instantiation(fmi3InstanceEnvironment env, fmi3LogMessageCallback logger, const char *what,
+                                 const char *why)
 {
-    Shim *s = c;
-    if (!s) return;
-    s->api.FreeInstance(s->inner);
-    release(s);
+    if (!logger) return;
+    size_t size = strlen(what) + (why ? strlen(why) : 0) + 32;
+    char *message = malloc(size);
+    if (!message) return;
+    snprintf(message, size, "fmi3Instantiate: %s: %s", what, why ? why : "unknown reason");
+    logger(env, fmi3Error, "logStatusError", message);
+    free(message);
 }
 
-fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean loggingOn, size_t n, const fmi2String categories[])
+fmi3Instance fmi3InstantiateCoSimulation(fmi3String name, fmi3String token, fmi3String resources,
+                                         fmi3Boolean visible, fmi3Boolean loggingOn, fmi3Boolean eventModeUsed,
+                                         fmi3Boolean earlyReturnAllowed, const fmi3ValueReference required[],
+                                         size_t nRequired, fmi3InstanceEnvironment env,
+                                         fmi3LogMessageCallback logMessage, fmi3IntermediateUpdateCallback update)
+{
+    const char *what, *why;
+    Shim *s = load(&what, &why);
+    if (!s) {
+        refuse_instantiation(env, logMessage, what, why);
+        return NULL;
+    }
+    s->host_logger = logMessage;
+    s->host_environment = env;
+    s->logging_on = loggingOn;
+    s->inner = s->api.InstantiateCoSimulation(name, token, resources, visible, fmi3True, eventModeUsed,
+                                              earlyReturnAllowed, required, nRequired, s, relay, update);
+    if (!s->inner) {
+        release(s);
+        return NULL;
+    }
+    return s;
+}
+
+/* the MAST FMUs are Co-Simulation FMUs only (modelDescription.xml declares nothing else) */
+fmi3Instance fmi3InstantiateModelExchange(fmi3String name, fmi3String token, fmi3String resources,
+                                          fmi3Boolean visible, fmi3Boolean loggingOn, fmi3InstanceEnvironment env,
+                                          fmi3LogMessageCallback logMessage)
+{
+    (void)name; (void)token; (void)resources; (void)visible; (void)loggingOn;
+    refuse_instantiation(env, logMessage, "Model Exchange", "this FMU is for Co-Simulation only");
+    return NULL;
+}
+
+fmi3Instance fmi3InstantiateScheduledExecution(fmi3String name, fmi3String token, fmi3String resources,
+                                               fmi3Boolean visible, fmi3Boolean loggingOn,
+                                               fmi3InstanceEnvironment env, fmi3LogMessageCallback logMessage,
+                                               fmi3ClockUpdateCallback clockUpdate,
+                                               fmi3LockPreemptionCallback lockPreemption,
+                                               fmi3UnlockPreemptionCallback unlockPreemption)
+{
+    (void)name; (void)token; (void)resources; (void)visible; (void)loggingOn;
+    (void)clockUpdate; (void)lockPreemption; (void)unlockPreemption;
+    refuse_instantiation(env, logMessage, "Scheduled Execution", "this FMU is for Co-Simulation only");
+    return NULL;
+}
+
+fmi3Status fmi3SetDebugLogging(fmi3Instance c, fmi3Boolean loggingOn, size_t n, const fmi3String categories[])
+#endif
 {
     Shim *s = c;
     (void)n; (void)categories;
-    if (!s) return fmi2Error;
+    if (!s) return STATUS_ERROR;
     s->logging_on = loggingOn;  /* the inner instance keeps logging on: the relay filters */
-    return fmi2OK;
+    return STATUS_OK;
 }
-
-/* the status a forwarded call returns (see the top of this file) */
-static fmi2Status settled(const Shim *s, fmi2Status status)
-{
-    return status == fmi2Fatal && s->model_status == fmi2Error ? fmi2Error : status;
-}
-
-#define FORWARD(fn, ...) { Shim *s = c; if (!s) return fmi2Error; s->model_status = -1; \
-    return settled(s, s->api.fn(s->inner, __VA_ARGS__)); }
-#define FORWARD0(fn) { Shim *s = c; if (!s) return fmi2Error; s->model_status = -1; \
-    return settled(s, s->api.fn(s->inner)); }
-
-fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined, fmi2Real tolerance,
-                               fmi2Real startTime, fmi2Boolean stopTimeDefined, fmi2Real stopTime)
-    FORWARD(SetupExperiment, toleranceDefined, tolerance, startTime, stopTimeDefined, stopTime)
-fmi2Status fmi2EnterInitializationMode(fmi2Component c) FORWARD0(EnterInitializationMode)
-fmi2Status fmi2ExitInitializationMode(fmi2Component c) FORWARD0(ExitInitializationMode)
-fmi2Status fmi2Terminate(fmi2Component c) FORWARD0(Terminate)
-fmi2Status fmi2Reset(fmi2Component c) FORWARD0(Reset)
-fmi2Status fmi2CancelStep(fmi2Component c) FORWARD0(CancelStep)
-
-fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Real value[])
-    FORWARD(GetReal, vr, nvr, value)
-fmi2Status fmi2GetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Integer value[])
-    FORWARD(GetInteger, vr, nvr, value)
-fmi2Status fmi2GetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Boolean value[])
-    FORWARD(GetBoolean, vr, nvr, value)
-fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2String value[])
-    FORWARD(GetString, vr, nvr, value)
-fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Real value[])
-    FORWARD(SetReal, vr, nvr, value)
-fmi2Status fmi2SetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Integer value[])
-    FORWARD(SetInteger, vr, nvr, value)
-fmi2Status fmi2SetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Boolean value[])
-    FORWARD(SetBoolean, vr, nvr, value)
-fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2String value[])
-    FORWARD(SetString, vr, nvr, value)
-
-fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *state) FORWARD(GetFMUstate, state)
-fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate state) FORWARD(SetFMUstate, state)
-fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *state) FORWARD(FreeFMUstate, state)
-fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate state, size_t *size)
-    FORWARD(SerializedFMUstateSize, state, size)
-fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate state, fmi2Byte bytes[], size_t size)
-    FORWARD(SerializeFMUstate, state, bytes, size)
-fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte bytes[], size_t size, fmi2FMUstate *state)
-    FORWARD(DeSerializeFMUstate, bytes, size, state)
-
-fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReference vUnknown[], size_t nUnknown,
-                                        const fmi2ValueReference vKnown[], size_t nKnown,
-                                        const fmi2Real dvKnown[], fmi2Real dvUnknown[])
-    FORWARD(GetDirectionalDerivative, vUnknown, nUnknown, vKnown, nKnown, dvKnown, dvUnknown)
-fmi2Status fmi2SetRealInputDerivatives(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
-                                       const fmi2Integer order[], const fmi2Real value[])
-    FORWARD(SetRealInputDerivatives, vr, nvr, order, value)
-fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
-                                        const fmi2Integer order[], fmi2Real value[])
-    FORWARD(GetRealOutputDerivatives, vr, nvr, order, value)
-
-fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean noSetFMUStatePriorToCurrentPoint)
-    FORWARD(DoStep, t, h, noSetFMUStatePriorToCurrentPoint)
-
-fmi2Status fmi2GetStatus(fmi2Component c, const fmi2StatusKind kind, fmi2Status *value)
-    FORWARD(GetStatus, kind, value)
-fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind kind, fmi2Real *value)
-    FORWARD(GetRealStatus, kind, value)
-fmi2Status fmi2GetIntegerStatus(fmi2Component c, const fmi2StatusKind kind, fmi2Integer *value)
-    FORWARD(GetIntegerStatus, kind, value)
-fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind kind, fmi2Boolean *value)
-    FORWARD(GetBooleanStatus, kind, value)
-fmi2Status fmi2GetStringStatus(fmi2Component c, const fmi2StatusKind kind, fmi2String *value)
-    FORWARD(GetStringStatus, kind, value)

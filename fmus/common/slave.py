@@ -32,12 +32,11 @@ Behaviour hosts rely on:
   unknown value reference, a value of the wrong type or another FMU's state
   never. An illegal call is logged (status Error, naming the call, the state
   or the variable), refused and changes nothing: the call returns fmi2Error
-  and the instance stays usable. pythonfmu's C layer turns every Python
-  exception into fmi2Fatal; ``mast build`` puts a small C front in front of it
-  (``pythonfmu_shim.c``: FMI 2.0 on Linux) that returns fmi2Error when the
-  model logged the failed call with status Error. Without that front (FMI 3.0,
-  other platforms, a build without a C compiler) the call says fmi2Fatal and
-  the instance treats it as one. A failure nobody foresaw (an exception other
+  and the instance stays usable. pythonfmu's (and pythonfmu3's) C layer turns every Python
+  exception into Fatal; ``mast build`` puts a small C front in front of it
+  (``pythonfmu_shim.c``: FMI 2.0 and 3.0 on Linux) that returns fmi2Error (fmi3Error) when the
+  model logged the failed call with status Error. Without that front (other platforms, a
+  build without a C compiler) the call says Fatal and the instance treats it as one. A failure nobody foresaw (an exception other
   than IllegalCall) is logged with status Fatal and the call says fmi2Fatal;
   an instance that answered Fatal refuses every later call with Fatal: only
   fmi2Reset (a new slave object, in pythonfmu's C layer) and
@@ -58,7 +57,7 @@ import os
 import sys
 import types
 from dataclasses import dataclass
-from typing import Any, Callable, ClassVar, List, Mapping, Optional
+from typing import Any, Callable, ClassVar, List, Mapping, Optional, Union
 
 from .block import Block
 
@@ -92,6 +91,8 @@ class FmiVocabulary:
     variability: Any
     initial: Any
     status: Any
+    message_is_format: bool          # the host's logger expands the message as a printf format (FMI 2.0, not 3.0)
+    set_real: str                    # the call that sets floating-point values: setReal / setFloat64
 
 
 # the states of an instance (FMI 2.0 co-simulation; FMI 3.0's step mode is "step mode" here too)
@@ -108,7 +109,7 @@ class _Refused(IllegalCall):
 
 
 #: pythonfmu's library in an FMU with the C front (``mast build``): binaries/linux64/<modelIdentifier>.pythonfmu.so
-#: (the same suffix as INNER_SUFFIX in pythonfmu_shim.c)
+#: (FMI 3.0: binaries/x86_64-linux/...; the same suffix as INNER_SUFFIX in pythonfmu_shim.c)
 PYTHONFMU_LIBRARY_SUFFIX = ".pythonfmu"
 
 
@@ -223,15 +224,27 @@ class BlockWrapper:
                 getter=lambda n=spec.name: self._params[n],
                 setter=lambda v, n=spec.name: self._set_param(n, v), **unit(spec.name)))
 
-    # the host's logger takes the message as a printf format (FMI): a '%' in it must be written '%%'
+    def _output_dependencies(self) -> dict[int, list[int]]:
+        """ModelStructure's direct feedthrough (``Block.FEEDTHROUGH``), by value reference: every output -> the
+        inputs it depends on at a communication point (empty: none, the output changes only in doStep)."""
+        refs = {var.name: vr for vr, var in self.vars.items()}
+        feedthrough = self.block_class.FEEDTHROUGH
+        return {refs[out]: [refs[name] for name in feedthrough.get(out, ())] for out in self.block_class.OUTPUTS}
+
+    # FMI 2.0's logger takes the message as a printf format: a '%' in it must be written '%%' there;
+    # FMI 3.0's takes the text as it is (FmiVocabulary.message_is_format)
+    def _logged(self, message: str, status, category: str) -> None:
+        self.log(message.replace("%", "%%") if self.fmi.message_is_format else message, status=status,
+                 category=category)
+
     def _log_warning(self, message: str) -> None:
-        self.log(message.replace("%", "%%"), status=self.fmi.status.warning, category="logStatusWarning")
+        self._logged(message, self.fmi.status.warning, "logStatusWarning")
 
     def _log_error(self, message: str) -> None:
-        self.log(message.replace("%", "%%"), status=self.fmi.status.error, category="logStatusError")
+        self._logged(message, self.fmi.status.error, "logStatusError")
 
     def _log_fatal(self, message: str) -> None:
-        self.log(message.replace("%", "%%"), status=self.fmi.status.fatal, category="logStatusFatal")
+        self._logged(message, self.fmi.status.fatal, "logStatusFatal")
 
     # -- values ----------------------------------------------------------------------
     def _set_param(self, name: str, value) -> None:
@@ -249,14 +262,15 @@ class BlockWrapper:
             self._block.initialize(self._t0)
             self._dirty = False
 
-    def _check_refs(self, vrs: List[int], kind: type, write: bool) -> None:
-        """Refuse (IllegalCall) a value reference that is unknown, of another type, or not settable now."""
+    def _check_refs(self, vrs: List[int], kind: Union[type, str], write: bool) -> None:
+        """Refuse (IllegalCall) a value reference that is unknown, of another type, or not settable now.
+        ``kind``: the Python type of the values, or the name of an FMI type no variable of a block has."""
         if kind is float:  # the hot paths: reading inputs and outputs in any state, setting inputs during the run
             known = self._io_refs if not write else self._input_refs if self._phase == STEPPING else None
             if known is not None and known.issuperset(vrs):
                 return
-        variable_class = self.fmi.kinds.get(kind)  # None: a type none of the blocks' variables has (Boolean)
-        wanted = variable_class.__name__ if variable_class is not None else "Boolean"
+        variable_class = self.fmi.kinds.get(kind)  # None: a type none of the blocks' variables has (Boolean, ...)
+        wanted = variable_class.__name__ if variable_class is not None else "Boolean" if kind is bool else kind
         causality = self.fmi.causality
         for vr in vrs:
             var = self.vars.get(vr)
@@ -307,7 +321,7 @@ class BlockWrapper:
             self._eval_error = None
         except Exception as err:
             self._eval_error = f"{type(err).__name__}: {err}"
-            self._log_error(f"setReal: evaluating the outputs: {self._eval_error}")
+            self._log_error(f"{self.fmi.set_real}: evaluating the outputs: {self._eval_error}")
 
     def _tentative_outputs(self) -> None:
         """Outputs read during initialization: a failure may be an input the host has not set yet."""
@@ -417,9 +431,12 @@ def _pythonfmu_behind_front(resources: Optional[str], identifier: str) -> Option
     """pythonfmu's library when the FMU's binary is the C front (``pythonfmu_shim.c``) on this platform, else None."""
     if not sys.platform.startswith("linux") or not resources:
         return None
-    library = os.path.join(os.path.dirname(os.path.abspath(resources)), "binaries", "linux64",
-                           f"{identifier}{PYTHONFMU_LIBRARY_SUFFIX}.so")
-    return library if os.path.exists(library) else None
+    for platform in ("linux64", "x86_64-linux"):   # FMI 2.0, FMI 3.0
+        library = os.path.join(os.path.dirname(os.path.abspath(resources)), "binaries", platform,
+                               f"{identifier}{PYTHONFMU_LIBRARY_SUFFIX}.so")
+        if os.path.exists(library):
+            return library
+    return None
 
 
 def _defuse_pythonfmu_teardown(resources: Optional[str], library: Optional[str] = None) -> None:

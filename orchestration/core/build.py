@@ -12,12 +12,12 @@ first component using the FMU: the .ssv files stay the one place where values
 live. Each FMU carries ``resources/requirements.txt`` (its Python packages, for
 ``pythonfmu deploy``) and declares canGetAndSetFMUstate.
 
-On Linux each FMU's binary is a small C front (``fmus/common/pythonfmu_shim.c``,
-compiled once per build with the C compiler the native route finds) in front of
-pythonfmu's library, shipped beside it as ``<id>.pythonfmu.so``: it returns
-fmi2Error for a call the FMI state machine does not allow, where pythonfmu can
-only say fmi2Fatal. Without a C compiler the FMUs keep pythonfmu's binary (and
-answer such a call with fmi2Fatal); the build says so once.
+On Linux each FMU's binary is a small C front (``fmus/common/pythonfmu_shim.c``, one
+source compiled once per build and FMI version with the C compiler the native route finds)
+in front of pythonfmu's (or pythonfmu3's) library, shipped beside it as ``<id>.pythonfmu.so``:
+it returns fmi2Error (fmi3Error) for a call the FMI state machine does not allow, where
+pythonfmu can only say Fatal. Without a C compiler the FMUs keep pythonfmu's binary (and
+answer such a call with Fatal); the build says so once per FMI version.
 
 Each built SSP gets its parameter bindings flattened: one .ssv per component
 (``resources/parameters/<component>.ssv``) holding the values of the source
@@ -37,7 +37,7 @@ import zipfile
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Iterable, Iterator, Mapping, Optional, Union
+from typing import Callable, Iterable, Iterator, Mapping, Optional, Union
 
 from lxml import etree
 
@@ -91,48 +91,50 @@ FMU_REQUIREMENTS = ("numpy>=1.24", "scipy>=1.10")
 FLAT_SET_NAME = "default"
 
 
-#: the C front of the Python FMUs' binary (module docstring), and the name pythonfmu's library gets behind it
+#: the C front of the Python FMUs' binary (module docstring): one source for FMI 2.0 and 3.0 (FMI_VERSION),
+#: and where each version's Linux binary lives in the FMU (pythonfmu's library goes beside it)
 FRONT_SOURCE = FMUS_SRC / "common" / "pythonfmu_shim.c"
-PYTHONFMU_LIBRARY = "binaries/linux64/{}" + PYTHONFMU_LIBRARY_SUFFIX + ".so"
+FRONT_BINARY = {2: "binaries/linux64/{}.so", 3: "binaries/x86_64-linux/{}.so"}
 
 
-def status_front() -> tuple[Optional[bytes], str]:
-    """(the compiled C front for linux64 binaries, "") or (None, why there is none here)."""
+def status_front(fmi_version: int = 2) -> tuple[Optional[bytes], str]:
+    """(the compiled C front of an FMI ``fmi_version`` FMU's Linux binary, "") or (None, why there is none here)."""
     if not sys.platform.startswith("linux"):
-        return None, f"the C front is built for linux64 only (here: {sys.platform})"
+        return None, f"the C front is built for Linux x86_64 only (here: {sys.platform})"
     if not FRONT_SOURCE.is_file():
         return None, f"{FRONT_SOURCE} is missing from this installation"
-    return _compiled_front(FRONT_SOURCE.read_bytes())
+    return _compiled_front(FRONT_SOURCE.read_bytes(), fmi_version)
 
 
 @functools.lru_cache(maxsize=4)
-def _compiled_front(source: bytes) -> tuple[Optional[bytes], str]:
+def _compiled_front(source: bytes, fmi_version: int) -> tuple[Optional[bytes], str]:
     from .native.build import NativeBuildError, compile_shared
 
     with tempfile.TemporaryDirectory(prefix="mast_front_") as tmp:
         target = Path(tmp) / "front.so"
-        try:
-            compile_shared({FRONT_SOURCE.name: source}, target)
+        try:   # the version first; #line keeps the compiler's line numbers those of the file
+            compile_shared({FRONT_SOURCE.name: f"#define FMI_VERSION {fmi_version}\n#line 1\n".encode() + source},
+                           target)
         except NativeBuildError as err:
             return None, str(err)
         return target.read_bytes(), ""
 
 
-def front_note() -> Optional[str]:
+def front_note(fmi_version: int = 2) -> Optional[str]:
     """What a build without the C front should tell its user (None: the front is built)."""
-    front, why = status_front()
+    front, why = status_front(fmi_version)
     return None if front is not None else (
-        "note: the Python FMUs keep pythonfmu's binary, which answers a call FMI does not allow with "
-        f"fmi2Fatal instead of fmi2Error ({why})")
+        f"note: the Python FMUs (FMI {fmi_version}.0) keep pythonfmu's binary, which answers a call FMI does not "
+        f"allow with fmi{fmi_version}Fatal instead of fmi{fmi_version}Error ({why})")
 
 
-def _put_front(items: dict[str, bytes], identifier: str) -> bool:
-    """Make the C front the FMU's linux64 binary and move pythonfmu's beside it (False: no front here)."""
-    front, _ = status_front()
-    binary = f"binaries/linux64/{identifier}.so"
+def _put_front(items: dict[str, bytes], identifier: str, fmi_version: int = 2) -> bool:
+    """Make the C front the FMU's Linux binary and move pythonfmu's beside it (False: no front here)."""
+    front, _ = status_front(fmi_version)
+    binary = FRONT_BINARY[fmi_version].format(identifier)
     if front is None or binary not in items:
         return False
-    items[PYTHONFMU_LIBRARY.format(identifier)] = items.pop(binary)
+    items[binary.removesuffix(".so") + PYTHONFMU_LIBRARY_SUFFIX + ".so"] = items.pop(binary)
     items[binary] = front
     return True
 
@@ -172,17 +174,19 @@ def default_parameters(model_identifier: str, ssd: Optional[Path] = None) -> dic
 
 
 @contextmanager
-def _staged(spec: FmuSpec, parameters: Optional[dict]) -> Iterator[tuple[Path, str, list[Path]]]:
+def _staged(spec: FmuSpec, parameters: Optional[dict], fmi_version: int = 2) -> Iterator[tuple[Path, str, list[Path]]]:
     """A temporary folder holding what every FMU of ``spec`` bundles: (folder, unique module name, files).
 
     The model package under the unique name, parameters.json (``parameters``, default: the
-    SSD bindings) and requirements.txt; the module name hashes the sources and the defaults.
+    SSD bindings) and requirements.txt; the module name hashes the sources, the defaults and the FMI version.
     Afterwards the bundled copy (and the entry script, named after it) leave ``sys.modules``:
     the build imported them, and they must not shadow anything.
     """
     parameters = default_parameters(spec.model_identifier) if parameters is None else parameters
     defaults = json.dumps(parameters, indent=1, sort_keys=True)
-    module = f"mast_{spec.package}_{_source_hash(defaults.encode())}"
+    # the FMI 3.0 variant's copy gets a name of its own: a process that loads both variants of a model must not
+    # import one's modules from the other's folder (which its host may delete while the modules live on)
+    module = f"mast_{spec.package}_{_source_hash(defaults.encode() + (b'' if fmi_version == 2 else b' fmi3'))}"
     with tempfile.TemporaryDirectory(prefix="mast_build_") as tmp:
         tmp = Path(tmp)
         shutil.copytree(FMUS_SRC, tmp / module, ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
@@ -233,7 +237,7 @@ def build_fmu3(spec: FmuSpec, out_dir: Path, parameters: Optional[dict] = None) 
     block = wrapper.block_class
     doc = (wrapper.__doc__ or block.__doc__ or "").strip().split("\n")[0].replace('"""', "'")
     out_dir.mkdir(parents=True, exist_ok=True)
-    with _staged(spec, parameters) as (tmp, module, files):
+    with _staged(spec, parameters, fmi_version=3) as (tmp, module, files):
         block_module = block.__module__.replace("fmus.", f"{module}.", 1)
         script = tmp / f"{module}_fmi3_entry.py"
         script.write_text(
@@ -251,15 +255,24 @@ def build_fmu3(spec: FmuSpec, out_dir: Path, parameters: Optional[dict] = None) 
                                     canHandleVariableCommunicationStepSize=True)
         target = out_dir / f"{spec.model_identifier}.fmu"
         shutil.move(str(fmu), target)
+    _rewrite(target, lambda items: _put_front(items, spec.model_identifier, 3))
     return target
 
 
 def _complete(fmu: Path, spec: FmuSpec) -> None:
     """The FMU pythonfmu wrote, with its model description completed and the C front as its linux64 binary."""
+    def complete(items: dict[str, bytes]) -> None:
+        items["modelDescription.xml"] = _complete_model_description(items["modelDescription.xml"], spec)
+        _put_front(items, spec.model_identifier)
+
+    _rewrite(fmu, complete)
+
+
+def _rewrite(fmu: Path, change: Callable[[dict[str, bytes]], object]) -> None:
+    """Rewrite the archive ``fmu`` with ``change`` applied to its entries ({name: bytes}, changed in place)."""
     with zipfile.ZipFile(fmu) as zin:
         items = {name: zin.read(name) for name in zin.namelist()}
-    items["modelDescription.xml"] = _complete_model_description(items["modelDescription.xml"], spec)
-    _put_front(items, spec.model_identifier)
+    change(items)
     with zipfile.ZipFile(fmu, "w", zipfile.ZIP_DEFLATED) as zout:
         for name, data in items.items():
             zout.writestr(name, data)
@@ -421,8 +434,9 @@ def build_all(out: Optional[Path] = None, ssds: Iterable[Path] = (), log=print, 
     """
     out = default_build_dir() if out is None else out
     written = []
-    if front_note():
-        log(front_note())
+    for version in (2, 3) if fmi3 else (2,):
+        if front_note(version):
+            log(front_note(version))
     for spec in FMUS:
         written.append(build_fmu(spec, out / "fmus"))
         log(f"built {written[-1]}")
