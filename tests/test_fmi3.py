@@ -167,6 +167,21 @@ def test_fmi3_state_rollback_failures_and_bad_parameters(built):
     bad.close()
 
 
+def test_fmi3_variant_starts_at_the_hosts_start_time(built):
+    """pythonfmu3 0.3.4 drops fmi3EnterInitializationMode's start time; the C front hands it to the model
+    (fmi3.START_TIME_REFERENCE). Started at t0 = 0.1 s, the trajectory's sine starts there, as in the FMI 2.0
+    FMU and in its closed form z_home + amplitude_z sin(2 pi f (t - t0)); it started at 0 before."""
+    from fmpy import simulate_fmu
+
+    traj = read_ssd(ROOT / "ssp" / "MAST_standalone.ssd").components["trajectory"].parameters
+    runs = [simulate_fmu(str(built / folder / "MastTrajectory.fmu"), start_time=0.1, stop_time=0.105,
+                         step_size=1e-3, output_interval=1e-3) for folder in ("fmus", "fmus3")]
+    expected = traj["z_home"] + traj["amplitude_z"] * np.sin(2 * np.pi * traj["frequency"] * (runs[1]["time"] - 0.1))
+    np.testing.assert_allclose(runs[1]["z_cmd"], expected, rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(runs[1]["z_cmd"], runs[0]["z_cmd"])
+    assert np.ptp(runs[1]["z_cmd"]) > 1e-5
+
+
 @pytest.fixture(scope="module")
 def ssps(built) -> tuple[Path, Path]:
     ssd = ROOT / "ssp" / "MAST_standalone.ssd"

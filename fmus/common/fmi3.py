@@ -17,6 +17,13 @@ from pythonfmu3.unit import Unit
 
 from .slave import INSTANTIATED, STEPPING, BlockWrapper, FmiVocabulary, fmi_call
 
+#: pythonfmu3 0.3.4 does not pass fmi3EnterInitializationMode's start time on to Python (it calls
+#: enter_initialization_mode without it, and never setup_experiment), so the model would start at t = 0
+#: whatever the host says. The C front (pythonfmu_shim.c, START_TIME_REFERENCE) sets the start time at this
+#: value reference, which no variable has, right before it forwards fmi3EnterInitializationMode. Without the
+#: front (a build without a C compiler) the start time is 0.
+START_TIME_REFERENCE = 0x7FFFFFFF   # the largest that pythonfmu3 passes to Python unchanged (a C int)
+
 
 class BlockSlave3(BlockWrapper, Fmi3Slave):
     """FMI 3.0 slave exposing one Block; subclasses set ``block_class``."""
@@ -56,6 +63,11 @@ class BlockSlave3(BlockWrapper, Fmi3Slave):
 
     @fmi_call()
     def set_float64(self, vrs: List[int], values: List[float]) -> None:
+        if len(vrs) == 1 and vrs[0] == START_TIME_REFERENCE:   # the C front's, before enterInitializationMode
+            if self._phase == INSTANTIATED:   # else enterInitializationMode, next, is refused and changes nothing
+                self._setup(values[0])
+                self._time = values[0]
+            return
         self._set_values(vrs, values)
 
     @fmi_call()

@@ -70,6 +70,8 @@ typedef fmi2Component Instance;
     X(GetIntegerStatus, (const fmi2StatusKind kind, fmi2Integer *value), (kind, value)) \
     X(GetBooleanStatus, (const fmi2StatusKind kind, fmi2Boolean *value), (kind, value)) \
     X(GetStringStatus, (const fmi2StatusKind kind, fmi2String *value), (kind, value))
+/* the functions of pythonfmu's library this front calls from functions written by hand, below */
+#define HANDWRITTEN(X) X(Instantiate) X(FreeInstance)
 #define STATUS_OK fmi2OK
 #define STATUS_ERROR fmi2Error
 #define STATUS_FATAL fmi2Fatal
@@ -90,9 +92,6 @@ typedef fmi3Instance Instance;
              size_t nKnowns, const fmi3Float64 seed[], size_t nSeed, fmi3Float64 sensitivity[], size_t nSensitivity), \
       (unknowns, nUnknowns, knowns, nKnowns, seed, nSeed, sensitivity, nSensitivity))
 #define FORWARDED(X) \
-    X(EnterInitializationMode, (fmi3Boolean toleranceDefined, fmi3Float64 tolerance, fmi3Float64 startTime, \
-                                fmi3Boolean stopTimeDefined, fmi3Float64 stopTime), \
-      (toleranceDefined, tolerance, startTime, stopTimeDefined, stopTime)) \
     VALUES(X, Float32) VALUES(X, Float64) VALUES(X, Int8) VALUES(X, UInt8) VALUES(X, Int16) VALUES(X, UInt16) \
     VALUES(X, Int32) VALUES(X, UInt32) VALUES(X, Int64) VALUES(X, UInt64) VALUES(X, Boolean) VALUES(X, String) \
     X(GetBinary, (const fmi3ValueReference vr[], size_t nvr, size_t sizes[], fmi3Binary values[], size_t n), \
@@ -152,6 +151,7 @@ typedef fmi3Instance Instance;
       (t, h, noSetFMUStatePriorToCurrentPoint, eventHandlingNeeded, terminateSimulation, earlyReturn, \
        lastSuccessfulTime)) \
     X(ActivateModelPartition, (fmi3ValueReference clock, fmi3Float64 activationTime), (clock, activationTime))
+#define HANDWRITTEN(X) X(InstantiateCoSimulation) X(FreeInstance) X(EnterInitializationMode)
 #define STATUS_OK fmi3OK
 #define STATUS_ERROR fmi3Error
 #define STATUS_FATAL fmi3Fatal
@@ -166,12 +166,7 @@ typedef struct {
 #define MEMBER(name, params, args) FMI(name##TYPE) *name;
     FORWARDED0(MEMBER0)
     FORWARDED(MEMBER)
-    MEMBER0(FreeInstance)
-#if FMI_VERSION == 2
-    MEMBER0(Instantiate)
-#else
-    MEMBER0(InstantiateCoSimulation)
-#endif
+    HANDWRITTEN(MEMBER0)
 #undef MEMBER
 #undef MEMBER0
 } Api;
@@ -295,12 +290,7 @@ static Shim *load(const char **what, const char **why)
 #define RESOLVE(fn, params, args) RESOLVE0(fn)
     FORWARDED0(RESOLVE0)
     FORWARDED(RESOLVE)
-    RESOLVE0(FreeInstance)
-#if FMI_VERSION == 2
-    RESOLVE0(Instantiate)
-#else
-    RESOLVE0(InstantiateCoSimulation)
-#endif
+    HANDWRITTEN(RESOLVE0)
 #undef RESOLVE
 #undef RESOLVE0
     s->model_status = -1;
@@ -321,6 +311,27 @@ FORWARDED0(FORWARD0)
 FORWARDED(FORWARD)
 #undef FORWARD
 #undef FORWARD0
+
+#if FMI_VERSION == 3
+/* pythonfmu3 0.3.4 drops fmi3EnterInitializationMode's start time (the model would start at t = 0): the
+ * front hands it over first, as a set of the value reference the Python glue reserves for it
+ * (START_TIME_REFERENCE in fmus/common/fmi3.py; it takes effect only before initialization) */
+#define START_TIME_REFERENCE 0x7FFFFFFFu   /* pythonfmu3 passes value references to Python as signed 32-bit integers */
+
+fmi3Status fmi3EnterInitializationMode(fmi3Instance c, fmi3Boolean toleranceDefined, fmi3Float64 tolerance,
+                                       fmi3Float64 startTime, fmi3Boolean stopTimeDefined, fmi3Float64 stopTime)
+{
+    Shim *s = c;
+    const fmi3ValueReference start = START_TIME_REFERENCE;
+    if (!s) return fmi3Error;
+    s->model_status = -1;
+    fmi3Status status = settled(s, s->api.SetFloat64(s->inner, &start, 1, &startTime, 1));
+    if (status > fmi3Warning) return status;
+    s->model_status = -1;
+    return settled(s, s->api.EnterInitializationMode(s->inner, toleranceDefined, tolerance, startTime,
+                                                     stopTimeDefined, stopTime));
+}
+#endif
 
 void FMI(FreeInstance)(Instance c)
 {
