@@ -17,7 +17,7 @@ import pytest
 from lxml import etree
 
 import mast.core.build as build
-from mast.core.build import FMUS, block_class, build_all, build_fmu3, build_ssp
+from mast.core.build import FMUS, block_class, build_all, build_ssp
 from mast.hosts.cosim import HostError, availability, run_host
 from mast.core.ssp import read_ssd
 
@@ -332,29 +332,6 @@ def test_fmi3_without_the_c_front_an_illegal_call_is_fatal_and_the_instance_refu
     assert any(s == FATAL and "parameter 'R' is fixed" in m for s, m in inst.log), inst.log[-3:]
     assert inst.step(1e-4, 1e-4) == FATAL and any("failed earlier" in m for s, m in inst.log[-2:])
     inst.slave.freeInstance()
-
-
-def test_the_fmi3_build_falls_back_to_pythonfmu3s_binary_without_a_c_compiler(monkeypatch, tmp_path):
-    import mast.core.native.build as native
-
-    def no_compiler():
-        raise native.NativeBuildError("no C compiler here (test)")
-
-    monkeypatch.setattr(native, "compiler", no_compiler)
-    build._compiled_front.cache_clear()
-    try:
-        assert "fmi3Fatal instead of fmi3Error (no C compiler here (test))" in build.front_note(3)
-        fmu = build_fmu3(next(s for s in FMUS if s.model_identifier == "MastTrajectory"), tmp_path)
-    finally:
-        build._compiled_front.cache_clear()
-    with zipfile.ZipFile(fmu) as z:
-        names = z.namelist()
-    assert "binaries/x86_64-linux/MastTrajectory.so" in names
-    assert "binaries/x86_64-linux/MastTrajectory.pythonfmu.so" not in names
-    from fmpy import simulate_fmu
-
-    result = simulate_fmu(str(fmu), stop_time=0.01, output_interval=0.01)   # pythonfmu3's binary runs it
-    assert result["z_cmd"][-1] > 0.4
 
 
 # -- direct feedthrough ------------------------------------------------------------------------------------

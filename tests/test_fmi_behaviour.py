@@ -523,8 +523,12 @@ def test_without_the_c_front_an_illegal_call_is_fatal_and_the_instance_refuses_w
     inst.slave.freeInstance()
 
 
-def test_the_build_falls_back_to_pythonfmus_binary_without_a_c_compiler(monkeypatch, tmp_path):
+@pytest.mark.parametrize("fmi_version", [2, 3])
+def test_the_build_falls_back_to_pythonfmus_binary_without_a_c_compiler(monkeypatch, tmp_path, fmi_version):
     import mast.core.native.build as native
+
+    if fmi_version == 3:
+        pytest.importorskip("pythonfmu3")
 
     def no_compiler():
         raise native.NativeBuildError("no C compiler here (test)")
@@ -532,13 +536,16 @@ def test_the_build_falls_back_to_pythonfmus_binary_without_a_c_compiler(monkeypa
     monkeypatch.setattr(native, "compiler", no_compiler)
     build._compiled_front.cache_clear()
     try:
-        assert "fmi2Fatal instead of fmi2Error (no C compiler here (test))" in build.front_note()
-        fmu = build_fmu(next(s for s in FMUS if s.model_identifier == "MastTrajectory"), tmp_path)
+        assert (f"fmi{fmi_version}Fatal instead of fmi{fmi_version}Error (no C compiler here (test))"
+                in build.front_note(fmi_version))
+        spec = next(s for s in FMUS if s.model_identifier == "MastTrajectory")
+        fmu = (build_fmu if fmi_version == 2 else build.build_fmu3)(spec, tmp_path)
     finally:
         build._compiled_front.cache_clear()
+    binary = build.FRONT_BINARY[fmi_version].format("MastTrajectory")
     with zipfile.ZipFile(fmu) as z:
         names = z.namelist()
-    assert "binaries/linux64/MastTrajectory.so" in names and "binaries/linux64/MastTrajectory.pythonfmu.so" not in names
+    assert binary in names and binary.replace(".so", ".pythonfmu.so") not in names
     from fmpy import simulate_fmu
 
     result = simulate_fmu(str(fmu), stop_time=0.01, output_interval=0.01)  # pythonfmu's binary runs it

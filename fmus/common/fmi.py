@@ -55,16 +55,6 @@ class BlockSlave(BlockWrapper, Fmi2Slave):
         self._check_refs(vrs, int, write=True)
         super().set_integer(vrs, values)
 
-    @fmi_call()
-    def get_boolean(self, vrs: List[int]) -> List[bool]:
-        self._check_refs(vrs, bool, write=False)
-        return super().get_boolean(vrs)
-
-    @fmi_call()
-    def set_boolean(self, vrs: List[int], values: List[bool]) -> None:
-        self._check_refs(vrs, bool, write=True)
-        super().set_boolean(vrs, values)
-
     @fmi_call(INSTANTIATED)
     def setup_experiment(self, start_time: float, stop_time, tolerance) -> None:
         self._setup(start_time)

@@ -80,17 +80,8 @@ class BlockSlave3(BlockWrapper, Fmi3Slave):
         self._check_refs(vrs, int, write=True)
         super().set_int32(vrs, values)
 
-    # types none of the blocks' variables has: every value reference is refused with a message (fmi3Error)
-    @fmi_call()
-    def get_boolean(self, vrs: List[int]) -> List[bool]:
-        self._check_refs(vrs, bool, write=False)
-        return super().get_boolean(vrs)
-
-    @fmi_call()
-    def set_boolean(self, vrs: List[int], values: List[bool]) -> None:
-        self._check_refs(vrs, bool, write=True)
-        super().set_boolean(vrs, values)
-
+    # types none of the blocks' variables has: every value reference is refused with a message (fmi3Error;
+    # Boolean: slave.py)
     @fmi_call()
     def get_int64(self, vrs: List[int]) -> List[int]:
         self._check_refs(vrs, "Int64", write=False)

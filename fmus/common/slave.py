@@ -345,6 +345,16 @@ class BlockWrapper:
         self._check_refs(vrs, str, write=True)
         super().set_string(vrs, values)
 
+    @fmi_call()
+    def get_boolean(self, vrs: List[int]) -> List[bool]:
+        self._check_refs(vrs, bool, write=False)
+        return super().get_boolean(vrs)
+
+    @fmi_call()
+    def set_boolean(self, vrs: List[int], values: List[bool]) -> None:
+        self._check_refs(vrs, bool, write=True)
+        super().set_boolean(vrs, values)
+
     @fmi_call(INSTANTIATED)
     def enter_initialization_mode(self) -> None:
         self._phase = INITIALIZATION
