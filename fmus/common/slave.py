@@ -32,15 +32,16 @@ Behaviour hosts rely on:
   unknown value reference, a value of the wrong type or another FMU's state
   never. An illegal call is logged (status Error, naming the call, the state
   or the variable), refused and changes nothing: the call returns fmi2Error
-  and the instance stays usable. pythonfmu's (and pythonfmu3's) C layer turns every Python
-  exception into Fatal; ``mast build`` puts a small C front in front of it
-  (``pythonfmu_shim.c``: FMI 2.0 and 3.0 on Linux) that returns fmi2Error (fmi3Error) when the
-  model logged the failed call with status Error. Without that front (other platforms, a
-  build without a C compiler) the call says Fatal and the instance treats it as one. A failure nobody foresaw (an exception other
-  than IllegalCall) is logged with status Fatal and the call says fmi2Fatal;
-  an instance that answered Fatal refuses every later call with Fatal: only
-  fmi2Reset (a new slave object, in pythonfmu's C layer) and
-  fmi2FreeInstance remain. More lenient than the standard, as hosts need: get
+  and the instance stays usable. pythonfmu's (and pythonfmu3's) C layer
+  turns every Python exception into Fatal; ``mast build`` puts a small C front
+  in front of it (``pythonfmu_shim.c``: FMI 2.0 and 3.0 on Linux) that returns
+  fmi2Error (fmi3Error) when the model logged the failed call with status
+  Error. Without that front (other platforms, a build without a C compiler)
+  the call says Fatal and the instance treats it as one. A failure nobody
+  foresaw (an exception other than IllegalCall) is logged with status Fatal
+  and the call says Fatal; an instance that answered Fatal refuses every
+  later call with Fatal: only reset (a new slave object, in pythonfmu's C
+  layer) and freeInstance remain. More lenient than the standard, as hosts need: get
   is allowed in every state, and doStep after a Discard tries again (and is
   refused again while the cause stays);
 - several instances, and instances that failed, come and go in one process
