@@ -30,6 +30,15 @@ IDENTIFIERS = [s.model_identifier for s in FMUS
                if s.model_identifier in ("MastActuator", "MastMechanism", "MastController", "MastTrajectory")]
 
 
+@pytest.fixture(scope="module", autouse=True)
+def _extractions(tmp_path_factory):
+    """The FMUs the tests open are extracted into a temporary folder pytest removes (Instance3)."""
+    Instance3.folder = tmp_path_factory.mktemp("unzipped")
+    yield
+    Instance3.folder = None
+    Instance3.extracted.clear()
+
+
 @pytest.fixture(scope="module")
 def built(tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp("build")
@@ -38,13 +47,24 @@ def built(tmp_path_factory) -> Path:
 
 
 class Instance3:
-    """An FMI 3.0 co-simulation instance through fmpy's FMU3Slave, with its log and raw statuses."""
+    """An FMI 3.0 co-simulation instance through fmpy's FMU3Slave, with its log and raw statuses.
+
+    Instances of one FMU share one extraction (``unzip``, default: the FMU's extraction in ``folder``, set for
+    this module's tests to a pytest temporary folder, which pytest removes)."""
+
+    folder: Path | None = None
+    extracted: dict[Path, Path] = {}
 
     def __init__(self, fmu: Path, name: str, unzip: Path | None = None) -> None:
         from fmpy import extract, read_model_description
         from fmpy.fmi3 import FMU3Slave
 
         self.md = read_model_description(str(fmu))
+        if unzip is None and self.folder is not None:
+            key = Path(fmu).resolve()
+            if key not in self.extracted:
+                self.extracted[key] = Path(extract(str(fmu), str(self.folder / str(len(self.extracted)))))
+            unzip = self.extracted[key]
         self.unzip = unzip or Path(extract(str(fmu)))
         self.vr = {v.name: v.valueReference for v in self.md.modelVariables}
         self.inputs = [v.name for v in self.md.modelVariables if v.causality == "input"]
@@ -111,10 +131,12 @@ def test_fmi3_fmus_validate_declare_state_units_time_and_feedthrough_and_fmpy_si
 
 
 @pytest.mark.parametrize("identifier", IDENTIFIERS)
-def test_fmi3_variant_computes_what_the_fmi2_fmu_computes(built, identifier):
+def test_fmi3_variant_computes_what_the_fmi2_fmu_computes(built, identifier, tmp_path):
+    from fmpy import extract
     from test_fmi_behaviour import Instance, _input
 
-    two = Instance(built / "fmus" / f"{identifier}.fmu", "two")
+    fmu2 = built / "fmus" / f"{identifier}.fmu"
+    two = Instance(fmu2, "two", Path(extract(str(fmu2), str(tmp_path / "two"))))
     three = Instance3(built / "fmus3" / f"{identifier}.fmu", "three")
     assert two.outputs == three.outputs and two.inputs == three.inputs
     assert two.start() == OK
@@ -261,12 +283,11 @@ def test_fmi3_illegal_calls_return_error_name_the_fault_and_change_nothing(built
     state: fmi3Error with one message (status Error) naming the fault, no Fatal, and the instance runs on
     as one that never saw the call."""
     fmu = built / "fmus3" / "MastActuator.fmu"
-    unzip = Instance3(fmu, "unzip").unzip
     trajectory = Instance3(built / "fmus3" / "MastTrajectory.fmu", "trajectory")
     trajectory.start()
     foreign = trajectory.slave.getFMUState()
     for case in CASES:
-        inst, fresh = Instance3(fmu, "axis", unzip), Instance3(fmu, "fresh", unzip)
+        inst, fresh = Instance3(fmu, "axis"), Instance3(fmu, "fresh")
 
         def refused(status: int, *words: str) -> None:
             assert status == ERROR, (case, inst.log[-2:])
