@@ -21,7 +21,7 @@ from lxml import etree
 
 from mast.core.build import FMUS, build_fmu, build_ssp
 from mast.core.motion import SineMotion
-from mast.core.native.build import build_native_all, compiler, fmi_headers
+from mast.core.native.build import SUPPORT, build_native_all, compiler, fmi_headers
 from mast.core.native.translate import TranslationError, to_c
 from mast.core.run import simulate
 from test_fmi_behaviour import DISCARD, ERROR, OK, Instance, drive
@@ -447,9 +447,10 @@ def test_the_c_backend_computes_what_the_python_computes_branch_for_branch(tmp_p
         "    return (s, a, b, a % 2.0 if a > 0.0 else -1.0)\n")
     namespace = {"tanh": math.tanh}
     exec(source, namespace)  # noqa: S102 (the test's own source)
-    (tmp_path / "f.c").write_text("#include <math.h>\n" + to_c(source, "f", static=False))
-    subprocess.run([compiler(), "-O2", "-ffp-contract=off", "-shared", "-fPIC", "-o", str(tmp_path / "f.so"),
-                    str(tmp_path / "f.c"), "-lm"], check=True, capture_output=True)
+    (tmp_path / "f.c").write_text('#include "mast_native.h"\n' + to_c(source, "f", static=False)
+                                  + "double m(double x, double y) { return mast_mod(x, y); }\n")
+    subprocess.run([compiler(), "-O2", "-ffp-contract=off", "-shared", "-fPIC", f"-I{SUPPORT}", "-o",
+                    str(tmp_path / "f.so"), str(tmp_path / "f.c"), "-lm"], check=True, capture_output=True)
     f = ctypes.CDLL(str(tmp_path / "f.so")).f
     f.argtypes = [ctypes.c_double, ctypes.c_double, ctypes.POINTER(ctypes.c_double)]
     out = (ctypes.c_double * 4)()
@@ -458,6 +459,12 @@ def test_the_c_backend_computes_what_the_python_computes_branch_for_branch(tmp_p
         for b in grid:
             assert f(a, b, out) == 0
             assert list(out) == list(namespace["f"](a, b)), (a, b)
+    # % of the tick counters: integer remainder where exact, fmod elsewhere; always Python's (x >= 0) bit for bit
+    m = ctypes.CDLL(str(tmp_path / "f.so")).m
+    m.restype, m.argtypes = ctypes.c_double, [ctypes.c_double, ctypes.c_double]
+    for x in (0.0, 1.0, 9.0, 10.0, 12345.0, 2.0 ** 31 - 1, 2.0 ** 31, 2.0 ** 40 + 7, 0.5, 7.25, 1e300):
+        for y in (1.0, 3.0, 10.0, 2.0 ** 31 + 1, 0.3, 2.5):
+            assert math.copysign(1.0, m(x, y)) == 1.0 and m(x, y) == x % y, (x, y)
     # a slice store that reads the array it writes (a shift register): every value before any store
     (tmp_path / "g.c").write_text(to_c("def g(x):\n    x[1:] = (x[0], x[1], x[2] + 1.0)\n    return 0\n", "g",
                                        arrays=("x",), static=False))

@@ -14,6 +14,7 @@ found, never guessed.
 
 A generated Python function becomes ``static int NAME(...)``:
 
+- ``%`` (the non-negative tick counters' only) is ``mast_mod`` (mast_native.h: fmod, exact);
 - arguments named in ``arrays`` are ``double *`` (read by index, written by slice
   assignment ``x[:] = (...)`` or ``values[k:] = (...)``); the other arguments are doubles;
 - ``return (a, b, ...)`` (the engine's functions) writes ``out[0..]`` and returns 0; a function
@@ -98,7 +99,7 @@ class _Writer:
                 and (node.value.id, node.attr) in CONSTANTS:
             return c_double(CONSTANTS[node.value.id, node.attr])
         if isinstance(node, ast.BinOp) and isinstance(node.op, ast.Mod):   # tick counters (>= 0): as Python
-            return f"fmod({self.expr(node.left)}, {self.expr(node.right)})"
+            return f"mast_mod({self.expr(node.left)}, {self.expr(node.right)})"
         if isinstance(node, ast.BinOp) and type(node.op) in _BINOPS:
             return f"({self.expr(node.left)} {_BINOPS[type(node.op)]} {self.expr(node.right)})"
         if isinstance(node, ast.UnaryOp):
