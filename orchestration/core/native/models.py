@@ -683,7 +683,8 @@ def _level_height_c() -> str:
 
 def _mechanism(block, vrs: Mapping[str, int]) -> str:
     """MechanismBlock for every parameter set: the engine traced with the geometry, the bodies, the payload
-    and g as named inputs (``designs.traced_engine``), their values read at initialisation; the geometry
+    and g as named inputs (``designs.traced_engine``), their values read at initialisation, with what the
+    traced functions compute from them alone (``split_invariants``: once, not at every step); the geometry
     checks of ``designs.describe`` (the same messages) at exitInitializationMode."""
     from fmus.mechanism.designs import TRACED_PARAMETERS, traced_engine
 
