@@ -715,7 +715,7 @@ def _mechanism(block, vrs: Mapping[str, int]) -> str:
     return "\n".join([
         f"typedef struct {{ double q[3]; int warm; double P[{NP + sizes['ikjac']}]; double K_dynamics[{sizes['dynamics']}];",
         f"                 double K_pose[{sizes['pose']}]; double lengths[3]; double cb, sb; }} State;",
-        f"/* P: the traced parameters (TRACED_PARAMETERS), then ikjac's invariants; K_*: the other functions' */", "",
+        "/* P: the traced parameters (TRACED_PARAMETERS), then ikjac's invariants; K_*: the other functions' */", "",
         _ikjac_c(eng, "ikjac", checks),
         *invariant_code, *hot_code,
         "/* mast_ikjac3 of the hoisted ikjac: the parameters and its invariants from P */",

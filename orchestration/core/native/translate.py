@@ -300,7 +300,7 @@ def split_invariants(source: str, invariant: Sequence[str]) -> tuple[str, str, i
     for node in ast.walk(fn):
         if isinstance(node, ast.Name) and isinstance(node.ctx, ast.Store):
             assigned[node.id] = assigned.get(node.id, 0) + 1
-    known = set(invariant)
+    known = {a for a in invariant if a not in assigned}   # an argument the function reassigns varies
     hoisted: list[ast.Assign] = []
     for stmt in fn.body:
         if not (isinstance(stmt, ast.Assign) and len(stmt.targets) == 1 and isinstance(stmt.targets[0], ast.Name)
