@@ -3,6 +3,8 @@ default system at the paper's cycle times, and where the time goes (the FMUs' ow
 routes with the master's exchange loop compiled (the default, mast.core.exchange) and in Python.
 
     python benchmarks/native_speed.py [--ssp build/ssp/MAST.ssp] [--stop-time 10] [--repeats 3]
+                                      [--before DIR] # also: the native SSP of another build, e.g. main's
+                                      [--profile]  # also: instructions per FMU and call (callgrind)
                                       [--cycles]   # also: 200 instantiate/free cycles under valgrind
                                       [--hosts]    # also: our master vs libcosim and the ecos CLI, native SSP
                                       [--analyses] # also: mast reproduce and mast diagnose (paper case),
@@ -11,6 +13,14 @@ routes with the master's exchange loop compiled (the default, mast.core.exchange
 Needs `mast build --native`. The machine may be shared: every figure is the minimum over interleaved
 repeats (the least disturbed). Also runs `benchmarks/native_cycles.c` (a C host, no Python) over each
 native FMU and prints its memory figures, under valgrind with --cycles.
+
+``--before DIR``: ``DIR/<ssp name>``, the same system's native SSP of another build (copy main's
+``build/ssp/native`` aside before building this branch), timed interleaved with this build's in the
+same repeats, both printed: the before/after figure of a change to the native FMUs.
+
+``--profile``: 1 s of the native SSP under callgrind (valgrind) in a child: per FMU binary and FMI
+call, the calls and the instructions they execute (inclusive: the model's code, libm, the FMI
+wrapper; counted, so the same on a loaded machine).
 
 ``--hosts``: the same native SSP (MAST_standalone.ssp: the trajectory FMU drives it; a host has no
 stimulus of ours), the same stop time (``--host-stop-time``, default 1.9 s: from t = 2 s on, libcosim
@@ -29,6 +39,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -49,6 +60,72 @@ def cpu_run(ssp: Path, stop: float, direct: bool = False, python_loop: bool = Fa
     start = time.process_time()
     simulate(ssp, SineMotion("z", 0.01, 1.0), stop, direct=direct)
     return time.process_time() - start
+
+
+PROFILED = ("fmi2SetReal", "fmi2GetReal", "fmi2DoStep")
+
+
+def call_costs(callgrind_out: Path) -> dict[tuple[str, str], list[int]]:
+    """From a callgrind output file: (object, function) -> [calls, inclusive instructions], summed over every
+    call arc into it (the format's ``calls=`` lines, the cost line after each being the call's inclusive cost),
+    for the functions PROFILED."""
+    names: dict[str, dict[str, str]] = {"ob": {}, "fn": {}}
+    current = {"ob": "", "cob": None, "cfn": None}
+    out: dict[tuple[str, str], list[int]] = {}
+    pending = None
+
+    def name(kind: str, text: str) -> str:      # "(id) name" defines an id, "(id)" reuses it (compressed strings)
+        m = re.match(r"\((\d+)\)\s*(.*)", text)
+        if not m:
+            return text
+        if m.group(2):
+            names[kind][m.group(1)] = m.group(2)
+        return names[kind].get(m.group(1), text)
+
+    with open(callgrind_out) as f:
+        for line in f:
+            if pending is not None:
+                key, calls = pending
+                pending = None
+                fields = line.split()
+                if len(fields) >= 2:
+                    row = out.setdefault(key, [0, 0])
+                    row[0] += calls
+                    row[1] += int(fields[1])
+                continue
+            if line.startswith("ob="):
+                current["ob"] = name("ob", line[3:].strip())
+            elif line.startswith("cob="):
+                current["cob"] = name("ob", line[4:].strip())
+            elif line.startswith("cfn="):
+                current["cfn"] = name("fn", line[4:].strip())
+            elif line.startswith("fn="):
+                name("fn", line[3:].strip())
+            elif line.startswith("calls="):
+                fn, ob = current["cfn"], current["cob"] or current["ob"]
+                current["cob"] = current["cfn"] = None
+                pending = ((ob, fn), int(line[6:].split()[0]))
+    return {key: row for key, row in out.items() if key[1] in PROFILED}
+
+
+def profile(ssp: Path, stop: float) -> None:
+    """Where the native run's work goes, per component and FMI call: instructions counted by callgrind
+    (deterministic: a loaded machine does not change them) in a child simulating ``stop`` s of ``ssp``."""
+    if not shutil.which("valgrind"):
+        print("  --profile: valgrind is not on PATH")
+        return
+    with tempfile.TemporaryDirectory(prefix="mast_profile_") as tmp:
+        out = Path(tmp) / "callgrind.out"
+        code = (f"from mast.core.motion import SineMotion\nfrom mast.core.run import simulate\n"
+                f"simulate({str(ssp)!r}, SineMotion('z', 0.01, 1.0), {stop!r})\n")
+        subprocess.run(["valgrind", "--tool=callgrind", f"--callgrind-out-file={out}", sys.executable, "-c", code],
+                       check=True, capture_output=True, env={**os.environ, "MAST_PYTHON_EXCHANGE": "0"})
+        costs = call_costs(out)
+    print(f"{ssp.name} (native FMUs), {stop:g} s simulated under callgrind: instructions per call, by FMU binary")
+    print(f"  {'binary':22s} {'call':12s} {'calls':>8s} {'instr/call':>11s} {'instr in all':>13s}")
+    for (obj, fn), (calls, cost) in sorted(costs.items(), key=lambda kv: -kv[1][1]):
+        print(f"  {Path(obj).name:22s} {fn:12s} {calls:8d} {cost / max(calls, 1):11.0f} {cost:13d}")
+    print(f"  FMI calls, all: {sum(cost for calls, cost in costs.values())} instructions")
 
 
 def _child_cpu() -> float:
@@ -156,6 +233,8 @@ def main() -> int:
     parser.add_argument("--ssp", default=str(REPO / "build" / "ssp" / "MAST.ssp"))
     parser.add_argument("--stop-time", type=float, default=10.0)
     parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--before", metavar="DIR", help="also time DIR/<ssp name>: another build's native SSP")
+    parser.add_argument("--profile", action="store_true", help="also: the native run's instructions per FMU and call")
     parser.add_argument("--cycles", action="store_true", help="also run the C host's cycles under valgrind")
     parser.add_argument("--hosts", action="store_true", help="also run the native SSP in libcosim and the ecos CLI")
     parser.add_argument("--host-stop-time", type=float, default=1.9, help="stop time of the --hosts runs [s]")
@@ -171,6 +250,13 @@ def main() -> int:
     rows = {"direct composition (Python models)": (python, True, True),
             "Python FMUs, exchange loop in Python": (python, False, True), "Python FMUs": (python, False, False),
             "native FMUs, exchange loop in Python": (native, False, True), "native FMUs": (native, False, False)}
+    if args.before:
+        before = Path(args.before) / python.name
+        if not before.exists():
+            print(f"{before} is missing (--before: a folder holding another build's native {python.name})",
+                  file=sys.stderr)
+            return 2
+        rows["native FMUs, before (--before)"] = (before, False, False)
     best = {label: float("inf") for label in rows}
     for _ in range(args.repeats):
         for label, (ssp, direct, python_loop) in rows.items():
@@ -185,6 +271,12 @@ def main() -> int:
     print(f"  compiled / Python exchange loop CPU time: Python FMUs "
           f"{best['Python FMUs'] / best['Python FMUs, exchange loop in Python']:.2f}, native FMUs "
           f"{best['native FMUs'] / best['native FMUs, exchange loop in Python']:.2f}")
+    if args.before:
+        print(f"  native FMUs after / before ({args.before}) CPU time: "
+              f"{best['native FMUs'] / best['native FMUs, before (--before)']:.2f}")
+    if args.profile:
+        for ssp in [native] + ([Path(args.before) / python.name] if args.before else []):
+            profile(ssp, 1.0)
     if args.hosts:
         hosts(native.parent / "MAST_standalone.ssp", args.host_stop_time, args.repeats)
     if args.analyses:

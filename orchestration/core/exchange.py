@@ -43,6 +43,7 @@ typedef struct {
     const unsigned int *vr_out;
     int offset;                  /* its outputs in flat */
     double *pending;             /* its outputs after its last step, published at its next communication point */
+    long phase;                  /* n % multiple at the current tick: counted, not divided, at every tick */
 } mast_unit;
 
 /* Ticks n0 .. n1-1 of the master's loop (set in order, step, read), each followed by the publication of
@@ -51,11 +52,12 @@ typedef struct {
 int mast_ticks(mast_unit *units, int n_units, double *flat, int n_out, const double *stim, int n_stim,
                long n0, long n1, double t0, double h, long *at, int *which, int *call)
 {
+    for (int k = 0; k < n_units; k++) units[k].phase = n0 % units[k].multiple;
     for (long n = n0; n < n1; n++) {
         double t = t0 + (double)n * h;
         for (int k = 0; k < n_units; k++) {
             mast_unit *u = units + k;
-            if (n % u->multiple) continue;
+            if (u->phase) continue;
             for (int i = 0; i < u->n_in; i++) u->in_buf[i] = flat[u->src[i]];
             if (u->set(u->comp, u->vr_in, (size_t)u->n_in, u->in_buf) > 1) { *at = n; *which = k; *call = 0; return 1; }
             if (u->feedthrough && u->get(u->comp, u->vr_out, (size_t)u->n_out, flat + u->offset) > 1) {
@@ -64,14 +66,15 @@ int mast_ticks(mast_unit *units, int n_units, double *flat, int n_out, const dou
         }
         for (int k = 0; k < n_units; k++) {
             mast_unit *u = units + k;
-            if (n % u->multiple) continue;
+            if (u->phase) continue;
             if (u->step(u->comp, t, u->h, 1) > 1) { *at = n; *which = k; *call = 2; return 1; }
             if (u->get(u->comp, u->vr_out, (size_t)u->n_out, u->pending) > 1) { *at = n; *which = k; *call = 1; return 1; }
         }
         long m = n + 1;
-        for (int k = 0; k < n_units; k++) {
+        for (int k = 0; k < n_units; k++) {          /* phase of tick m; due then: publish its last step */
             mast_unit *u = units + k;
-            if (m % u->multiple == 0) memcpy(flat + u->offset, u->pending, sizeof(double) * (size_t)u->n_out);
+            if (++u->phase == u->multiple) u->phase = 0;
+            if (u->phase == 0) memcpy(flat + u->offset, u->pending, sizeof(double) * (size_t)u->n_out);
         }
         memcpy(flat + n_out, stim + (size_t)(m - n0) * (size_t)n_stim, sizeof(double) * (size_t)n_stim);
     }
@@ -87,7 +90,8 @@ class _Unit(ctypes.Structure):
                 ("step", ctypes.c_void_p), ("multiple", ctypes.c_long), ("h", ctypes.c_double),
                 ("feedthrough", ctypes.c_int), ("n_in", ctypes.c_int), ("vr_in", ctypes.c_void_p),
                 ("src", ctypes.c_void_p), ("in_buf", ctypes.c_void_p), ("n_out", ctypes.c_int),
-                ("vr_out", ctypes.c_void_p), ("offset", ctypes.c_int), ("pending", ctypes.c_void_p)]
+                ("vr_out", ctypes.c_void_p), ("offset", ctypes.c_int), ("pending", ctypes.c_void_p),
+                ("phase", ctypes.c_long)]
 
 
 def cache_dir() -> Path:

@@ -297,6 +297,7 @@ class Master:
                  w.set_inputs, w.do_step, w.get_outputs, w.step, w.feedthrough)
                 for k, w in enumerate(wirings) if phase % w.multiple == 0] for phase in range(cycle)]
         recorded = _gather([index(s, j) for s, j in rec_paths])
+        recorded_at = np.array([index(s, j) for s, j in rec_paths], dtype=np.intp)
         pending = [list(p) for p in published]
         n_rec = n_ticks // record_every + 1
         times = np.empty(n_rec)
@@ -311,9 +312,13 @@ class Master:
         def record_tick(values) -> None:
             nonlocal rows
             times[rows] = t
-            data[rows] = recorded(values)
+            if isinstance(values, np.ndarray):   # the compiled loop's vector: gathered and summed by numpy
+                data[rows] = values[recorded_at]
+                total = values[:n_out].sum()
+            else:
+                data[rows] = recorded(values)
+                total = sum(values[:n_out])  # NaN and inf propagate through the sum: details only on a hit
             rows += 1
-            total = sum(values[:n_out])  # NaN and inf propagate through the sum: details only on a hit
             if total - total != 0.0:
                 for k, w in enumerate(wirings):
                     bad = [name for name, v in zip(w.output_names, values[offsets[k]:]) if not math.isfinite(v)]
@@ -324,10 +329,11 @@ class Master:
 
         try:
             if compiled is not None:  # the same schedule in C between recorded ticks (exchange.py)
+                shared = np.frombuffer(compiled.flat, dtype=float)   # the C loop's vector itself, not a copy
                 while True:
                     t = t0 + n * h
                     if n % record_every == 0:
-                        record_tick(compiled.flat)
+                        record_tick(shared)
                     if n == n_ticks:
                         break
                     n_next = min(n - n % record_every + record_every, n_ticks)

@@ -91,12 +91,17 @@ static mast_parameters parameters_of(Instance *c)
     return p;
 }
 
-static int allowed(Instance *c, const char *call, int mask)
+/* a call refused in this phase (0, logged) */
+static int refused(Instance *c, const char *call)
 {
     static const char *names[] = {"instantiated", "initialization mode", "step mode", "terminated"};
-    if (mask & (1 << c->s.phase)) return 1;
     LOG_ERROR(c, "%s: not allowed in %s", call, names[c->s.phase]);
     return 0;
+}
+
+static inline int allowed(Instance *c, const char *call, int mask)
+{
+    return (mask & (1 << c->s.phase)) ? 1 : refused(c, call);
 }
 #define IN_INSTANTIATED (1 << INSTANTIATED)
 #define IN_INIT (1 << INITIALIZATION)
@@ -104,7 +109,8 @@ static int allowed(Instance *c, const char *call, int mask)
 #define IN_TERMINATED (1 << TERMINATED)
 #define ANY_PHASE (IN_INSTANTIATED | IN_INIT | IN_STEP | IN_TERMINATED)
 
-static int known(Instance *c, const char *call, fmi2ValueReference vr, mast_type type)
+/* why a value reference is refused (0); ``known``'s failures, out of its inlined common case */
+static int unknown(Instance *c, const char *call, fmi2ValueReference vr, mast_type type)
 {
     static const char *types[] = {"Real", "Integer", "String"};
     if (vr >= (fmi2ValueReference)M->n_variables) {
@@ -117,6 +123,13 @@ static int known(Instance *c, const char *call, fmi2ValueReference vr, mast_type
         return 0;
     }
     return 1;
+}
+
+/* a variable of this type? (1; else 0, logged): the check of every get and set, per value reference */
+static inline int known(Instance *c, const char *call, fmi2ValueReference vr, mast_type type)
+{
+    if (vr < (fmi2ValueReference)M->n_variables && M->variables[vr].type == type) return 1;
+    return unknown(c, call, vr, type);
 }
 
 static void set_starts(Instance *c)
@@ -304,8 +317,9 @@ fmi2Status fmi2GetReal(fmi2Component comp, const fmi2ValueReference vr[], size_t
     if (nvr && (!vr || !value)) { LOG_ERROR(c, "fmi2GetReal: null argument"); return fmi2Error; }
     for (size_t k = 0; k < nvr; k++)
         if (!known(c, "fmi2GetReal", vr[k], MAST_REAL)) return fmi2Error;
-    for (size_t k = 0; k < nvr; k++)
-        if ((int)vr[k] >= M->n_inputs && (int)vr[k] < M->n_io) { tentative_outputs(c); break; }
+    if (c->s.phase == INITIALIZATION && c->s.dirty)   /* tentative_outputs' own condition, checked once */
+        for (size_t k = 0; k < nvr; k++)
+            if ((int)vr[k] >= M->n_inputs && (int)vr[k] < M->n_io) { tentative_outputs(c); break; }
     for (size_t k = 0; k < nvr; k++) value[k] = c->s.real[vr[k]];
     return fmi2OK;
 }
@@ -343,7 +357,7 @@ fmi2Status fmi2GetString(fmi2Component comp, const fmi2ValueReference vr[], size
 
 /* may the host set this variable now? inputs: always before terminate; parameters: before
  * exitInitializationMode (variability fixed); outputs: never */
-static int settable(Instance *c, const char *call, fmi2ValueReference vr)
+static int settable_checked(Instance *c, const char *call, fmi2ValueReference vr)
 {
     const mast_variable *v = &M->variables[vr];
     if (v->causality == MAST_OUTPUT) {
@@ -359,6 +373,13 @@ static int settable(Instance *c, const char *call, fmi2ValueReference vr)
         return 0;
     }
     return 1;
+}
+
+/* ``settable_checked`` with its common case inlined: an input before terminate */
+static inline int settable(Instance *c, const char *call, fmi2ValueReference vr)
+{
+    if (M->variables[vr].causality == MAST_INPUT && c->s.phase != TERMINATED) return 1;
+    return settable_checked(c, call, vr);
 }
 
 static fmi2Status after_set(Instance *c)

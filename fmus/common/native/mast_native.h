@@ -15,6 +15,18 @@ static inline double mast_sign(double x) { return x > 0.0 ? 1.0 : -1.0; }   /* e
 static inline double mast_sgn0(double x) { return x >= 0.0 ? 1.0 : -1.0; }  /* engine._sgn0 */
 static inline double mast_hypot(double a, double b) { return hypot(a, b); }
 
+/* x % y of the generated code (tick counters, >= 0): fmod, exact, computed as the integer remainder when
+ * both are whole numbers in [0, 2^31) (then the same number: fmod is exact; 0 is +0.0 as fmod's), which
+ * costs a few instructions instead of libm's general fmod (a tenth of a controller's step) */
+static inline double mast_mod(double x, double y)
+{
+    if (x >= 0.0 && x < 2147483648.0 && y >= 1.0 && y < 2147483648.0) {
+        long a = (long)x, b = (long)y;
+        if ((double)a == x && (double)b == y) return (double)(a % b);
+    }
+    return fmod(x, y);
+}
+
 /* Python's repr of a float (shortest round-trip digits, the same layout), for messages */
 static inline const char *mast_repr(double x, char *buf, size_t size)
 {
@@ -87,6 +99,13 @@ static inline const char *mast_fmt_q(const char *const *names, const double *q, 
     return buf;
 }
 
+/* rho as the direct kinematics' messages show it */
+static inline const char *mast_fmt_rho(const double *rho, char *buf, size_t size)
+{
+    snprintf(buf, size, "%.9g, %.9g, %.9g", rho[0], rho[1], rho[2]);
+    return buf;
+}
+
 /* Singular values of the 3x3 matrix a (row-major) by one-sided Jacobi rotations: smallest and largest */
 static inline void mast_sv3(const double *a, double *smin, double *smax)
 {
@@ -127,11 +146,14 @@ static inline void mast_sv3(const double *a, double *smin, double *smax)
 }
 
 /* Engine._check_branch's margin: 0 when the solution is at least ``margin`` [m/m] from a singularity
- * (margins of drho/dq with the coordinates scaled by ``lengths``, engine.margins_of), else 4 with ``msg`` */
+ * (margins of drho/dq with the coordinates scaled by ``lengths``, engine.margins_of), else 4 with ``msg``
+ * (rho and q written only then: formatting them costs more than the Newton iteration) */
 static inline int mast_check_margin(const double *Jinv, const double *J, double det, const double *lengths,
-                                    double margin, const char *rho_shown, const char *q_shown, char *msg, size_t size)
+                                    double margin, const double *rho, const char *const *names, const double *q,
+                                    char *msg, size_t size)
 {
     double fa = 0.0, fb = 0.0, a[9], par, big;
+    char shown[96], qs[160];
     for (int k = 0; k < 9; k++) {
         fa += Jinv[k] * Jinv[k] * (1.0 / (lengths[k % 3] * lengths[k % 3]));
         fb += J[k] * J[k] * (lengths[k / 3] * lengths[k / 3]);
@@ -143,7 +165,8 @@ static inline int mast_check_margin(const double *Jinv, const double *J, double 
     if ((par < inv ? par : inv) >= margin) return 0;
     snprintf(msg, size, "direct kinematics for rho = (%s) m: the solution %s is within the margin of a %s singularity: "
              "margins parallel %.3g, inverse %.3g < %g m/m (det(drho/dq) = %+.3g; docs/mechanism.md, "
-             "'Singularities and the assembly branch')", rho_shown, q_shown,
+             "'Singularities and the assembly branch')", mast_fmt_rho(rho, shown, sizeof shown),
+             mast_fmt_q(names, q, qs, sizeof qs),
              par < margin ? "parallel (the platform could move with the joints locked)"
                           : "inverse (a joint could move without moving the platform)", par, inv, margin, det);
     return 4;
@@ -178,13 +201,12 @@ static inline int mast_dk3(mast_ikjac3 ikjac, const double *P, mast_check_messag
                            double tol, int max_iter, double cond_limit, char *msg, size_t size)
 {
     double out[12], e[3], res = INFINITY, det = 0.0, det0 = 0.0, cond, start[3] = {q[0], q[1], q[2]};
-    char shown[96], qs[160], q0s[160];
-    snprintf(shown, sizeof shown, "%.9g, %.9g, %.9g", rho[0], rho[1], rho[2]);
+    char shown[96], qs[160], q0s[160];   /* the messages' texts, written only on a failure */
     for (int it = 0; it <= max_iter; it++) {
         int check = ikjac(P, q[0], q[1], q[2], out);
         if (check) {
             snprintf(msg, size, "direct kinematics did not converge for rho = (%s) m: iteration %d reached %s, where: %s",
-                     shown, it, mast_fmt_q(names, q, qs, sizeof qs), why(-check));
+                     mast_fmt_rho(rho, shown, sizeof shown), it, mast_fmt_q(names, q, qs, sizeof qs), why(-check));
             return 3;
         }
         for (int i = 0; i < 3; i++) e[i] = out[i] - rho[i];
@@ -193,8 +215,8 @@ static inline int mast_dk3(mast_ikjac3 ikjac, const double *P, mast_check_messag
         if (fabs(e[2]) > res) res = fabs(e[2]);
         if (!mast_inv3(out + 3, J, &det)) {
             snprintf(msg, size, "direct kinematics did not converge for rho = (%s) m: iteration %d reached %s, where: "
-                     "singular configuration: drho/dq is singular at %s", shown, it, mast_fmt_q(names, q, qs, sizeof qs),
-                     qs);
+                     "singular configuration: drho/dq is singular at %s", mast_fmt_rho(rho, shown, sizeof shown), it,
+                     mast_fmt_q(names, q, qs, sizeof qs), qs);
             return 3;
         }
         if (res < tol) {
@@ -202,27 +224,28 @@ static inline int mast_dk3(mast_ikjac3 ikjac, const double *P, mast_check_messag
             if (!(cond < cond_limit)) {
                 mast_fmt_q(names, q, qs, sizeof qs);
                 snprintf(msg, size, "direct kinematics did not converge for rho = (%s) m: iteration %d reached %s, "
-                         "where: singular configuration: drho/dq has condition number %.3g (limit %.0e) at %s", shown,
-                         it, qs, cond, cond_limit, qs);
+                         "where: singular configuration: drho/dq has condition number %.3g (limit %.0e) at %s",
+                         mast_fmt_rho(rho, shown, sizeof shown), it, qs, cond, cond_limit, qs);
                 return 3;
             }
         }
         if (!isfinite(res)) {
             snprintf(msg, size, "direct kinematics did not converge for rho = (%s) m: non-finite residual at iteration "
-                     "%d (%s)", shown, it, mast_fmt_q(names, q, qs, sizeof qs));
+                     "%d (%s)", mast_fmt_rho(rho, shown, sizeof shown), it, mast_fmt_q(names, q, qs, sizeof qs));
             return 3;
         }
         if (it == 0) det0 = det;
         if (res < tol) {        /* Engine._check_branch: on the start's assembly branch, at least margin from a singularity */
-            mast_fmt_q(names, q, qs, sizeof qs);
             if ((det > 0.0) != (det0 > 0.0)) {
+                mast_fmt_q(names, q, qs, sizeof qs);
                 snprintf(msg, size, "direct kinematics for rho = (%s) m: the solution %s lies on another assembly "
                          "branch than the start %s (det(drho/dq) = %+.3g there, %+.3g at the start): the joints crossed "
-                         "a parallel singularity; refused rather than jump to the other branch", shown, qs,
+                         "a parallel singularity; refused rather than jump to the other branch",
+                         mast_fmt_rho(rho, shown, sizeof shown), qs,
                          mast_fmt_q(names, start, q0s, sizeof q0s), det, det0);
                 return 4;
             }
-            return mast_check_margin(out + 3, J, det, lengths, margin, shown, qs, msg, size);
+            return mast_check_margin(out + 3, J, det, lengths, margin, rho, names, q, msg, size);
         }
         if (it == max_iter) break;
         for (int j = 0; j < 3; j++) {
@@ -232,7 +255,8 @@ static inline int mast_dk3(mast_ikjac3 ikjac, const double *P, mast_check_messag
         }
     }
     snprintf(msg, size, "direct kinematics did not converge for rho = (%s) m: %d iterations, residual max|rho(q) - rho| "
-             "= %.3g m > tol = %.3g m (last %s)", shown, max_iter, res, tol, mast_fmt_q(names, q, qs, sizeof qs));
+             "= %.3g m > tol = %.3g m (last %s)", mast_fmt_rho(rho, shown, sizeof shown), max_iter, res, tol,
+             mast_fmt_q(names, q, qs, sizeof qs));
     return 3;
 }
 

@@ -51,7 +51,7 @@ from typing import Mapping, Optional, Sequence
 
 from fmus.common.parameters import Param
 
-from .translate import c_double, to_c
+from .translate import c_double, split_invariants, to_c
 
 __all__ = ["Variable", "emit_model", "c_string", "generated_parameters"]
 
@@ -468,6 +468,7 @@ def _actuator_c(block, R: Mapping[str, str], vrs: Mapping[str, int], code: list[
         "    double omega_max;",
         "    int variant, n_disc, next_disc;",
         f"    double key[{DISCRETISATIONS_KEPT}];",
+        "    double h_seen, key_seen;     /* the last step size and its key (0 after initialize: h > 0) */",
         f"    Disc disc[{DISCRETISATIONS_KEPT}];",
         "    int sensor, s_n, s_len, s_head, s_count;",
         "    double s_h, s_e, s_c, s_d, s_phi, s_y, s_uprev, s_u0;",
@@ -539,8 +540,12 @@ def _actuator_c(block, R: Mapping[str, str], vrs: Mapping[str, int], code: list[
         "    if (!(h > 0.0 && isfinite(h))) {",
         "        snprintf(msg, size, \"step size h = %s s: expected a finite positive number\", mast_repr(h, v, sizeof v));",
         "        return MAST_MODEL_ERROR;", "    }",
-        "    snprintf(key_text, sizeof key_text, \"%.12g\", h);      /* ActuatorBlock._select's key */",
-        "    double key = strtod(key_text, NULL);",
+        "    if (h != s->h_seen) {     /* ActuatorBlock._select's key, written once per step size (not per step) */",
+        "        snprintf(key_text, sizeof key_text, \"%.12g\", h);",
+        "        s->h_seen = h;",
+        "        s->key_seen = strtod(key_text, NULL);",
+        "    }",
+        "    double key = s->key_seen;",
         "    Disc *d = NULL;",
         "    for (int k = 0; k < s->n_disc; k++) if (s->key[k] == key) d = &s->disc[k];",
         "    if (!d) {",
@@ -678,7 +683,8 @@ def _level_height_c() -> str:
 
 def _mechanism(block, vrs: Mapping[str, int]) -> str:
     """MechanismBlock for every parameter set: the engine traced with the geometry, the bodies, the payload
-    and g as named inputs (``designs.traced_engine``), their values read at initialisation; the geometry
+    and g as named inputs (``designs.traced_engine``), their values read at initialisation, with what the
+    traced functions compute from them alone (``split_invariants``: once, not at every step); the geometry
     checks of ``designs.describe`` (the same messages) at exitInitializationMode."""
     from fmus.mechanism.designs import TRACED_PARAMETERS, traced_engine
 
@@ -695,13 +701,26 @@ def _mechanism(block, vrs: Mapping[str, int]) -> str:
     params = ", ".join(f"P[{k}]" for k in range(NP))
     inputs = ", ".join(_literal(n) for n in block.INPUTS)
     coordinates = ", ".join(_literal(n) for n in eng.description.coordinates)
-    dk = (f"mast_dk3(ikjac_p, s->P, why, COORDINATES, s->lengths, {c_double(eng.margin)}, values, q, J, 1e-12, 50, "
+    dk = (f"mast_dk3(ikjac_k_p, s->P, why, COORDINATES, s->lengths, {c_double(eng.margin)}, values, q, J, 1e-12, 50, "
           f"{c_double(eng.cond_limit)}, why_text, sizeof why_text)")
     attached = f"p->integer[{vrs['attached']}]"
+    # the parts of the traced functions that depend on the parameters alone, computed at initialisation
+    hoisted = {name: split_invariants(fn.source, TRACED_PARAMETERS) for name, fn in
+               (("ikjac", ikjac), ("dynamics", forces), ("pose", pose))}
+    sizes = {name: max(1, n) for name, (_, _, n) in hoisted.items()}
+    invariant_code = [to_c(hoisted[name][0], f"{name}_invariants") for name in hoisted]
+    hot_code = [to_c(hoisted[name][1], f"{name}_k", arrays=("K",), checks=checks) for name in hoisted]
+    cold = [f"        q[0] = level_height(values[0], values[1], values[2], {P['H']}, {P['r']}, {P['L']}, s->cb, s->sb);",
+            "        q[1] = 0.0; q[2] = 0.0;"]
     return "\n".join([
-        f"typedef struct {{ double q[3]; int warm; double P[{NP}]; double lengths[3]; double cb, sb; }} State;", "",
+        f"typedef struct {{ double q[3]; int warm; double P[{NP + sizes['ikjac']}]; double K_dynamics[{sizes['dynamics']}];",
+        f"                 double K_pose[{sizes['pose']}]; double lengths[3]; double cb, sb; }} State;",
+        "/* P: the traced parameters (TRACED_PARAMETERS), then ikjac's invariants; K_*: the other functions' */", "",
         _ikjac_c(eng, "ikjac", checks),
-        to_c(forces.source, "dynamics", checks=checks), to_c(pose.source, "pose", checks=checks),
+        *invariant_code, *hot_code,
+        "/* mast_ikjac3 of the hoisted ikjac: the parameters and its invariants from P */",
+        "static int ikjac_k_p(const double *P, double q0, double q1, double q2, double *out)", "{",
+        f"    return ikjac_k(q0, q1, q2, {params}, (double *)P + {NP}, out);", "}", "",
         _level_height_c(),
         _why_function("why", checks),
         f"static const char *const INPUT_NAMES[] = {{{inputs}}};",
@@ -719,7 +738,7 @@ def _mechanism(block, vrs: Mapping[str, int]) -> str:
         "/* MechanismBlock._compute: direct kinematics (warm start, else cold), then the forces and the pose */",
         "static int compute(State *s, double *values, const mast_parameters *p, double t, char *msg, size_t size)", "{",
         "    char v[40], w[40], why_text[1024];",
-        "    double q[3], J[9], cold[3];",
+        "    double q[3], J[9];",
         "    const double *P = s->P;",
         "    int code;",
         "    for (int k = 0; k < 9; k++) {",
@@ -727,12 +746,14 @@ def _mechanism(block, vrs: Mapping[str, int]) -> str:
         "            snprintf(msg, size, \"input '%s' = %s is not finite at t = %s s\", INPUT_NAMES[k], "
         "mast_repr(values[k], v, sizeof v), mast_repr(t, w, sizeof w));",
         "            return MAST_MODEL_ERROR;", "        }", "    }",
-        f"    cold[0] = level_height(values[0], values[1], values[2], {P['H']}, {P['r']}, {P['L']}, s->cb, s->sb);",
-        "    cold[1] = 0.0; cold[2] = 0.0;",
-        "    for (int k = 0; k < 3; k++) q[k] = s->warm ? s->q[k] : cold[k];",
+        "    if (s->warm) {",
+        "        for (int k = 0; k < 3; k++) q[k] = s->q[k];",
+        "    } else {   /* the cold start */",
+        *cold,
+        "    }",
         f"    code = {dk};",
         "    if (code && code != MAST_SINGULARITY_ERROR && s->warm) {   /* never restarted after a SingularityError */",
-        "        for (int k = 0; k < 3; k++) q[k] = cold[k];",
+        *cold,
         f"        code = {dk};",
         "    }",
         "    if (code) {",
@@ -740,11 +761,11 @@ def _mechanism(block, vrs: Mapping[str, int]) -> str:
         "        return code;          /* MAST_KINEMATICS_ERROR, or MAST_SINGULARITY_ERROR: it stays one */",
         "    }",
         f"    if ({attached}) {{",
-        "        code = dynamics(q[0], q[1], q[2], J[0], J[1], J[2], J[3], J[4], J[5], J[6], J[7], J[8], "
-        f"values[3], values[4], values[5], values[6], values[7], values[8], {params}, values + 9);",
+        "        code = dynamics_k(q[0], q[1], q[2], J[0], J[1], J[2], J[3], J[4], J[5], J[6], J[7], J[8], "
+        f"values[3], values[4], values[5], values[6], values[7], values[8], {params}, s->K_dynamics, values + 9);",
         "    } else {   /* attached = 0: no force, the kinematics of the mechanism */",
         "        values[9] = 0.0; values[10] = 0.0; values[11] = 0.0;",
-        f"        code = pose(q[0], q[1], q[2], {params}, values + 12);",
+        f"        code = pose_k(q[0], q[1], q[2], {params}, s->K_pose, values + 12);",
         "    }",
         "    if (code) return kinematics_error(values, t, why(-code), msg, size);",
         "    for (int k = 0; k < 3; k++) s->q[k] = q[k];",
@@ -752,6 +773,9 @@ def _mechanism(block, vrs: Mapping[str, int]) -> str:
         "    return MAST_OK;", "}", "",
         "static int initialize(void *state, double *values, const mast_parameters *p, double t0, char *msg, size_t size)",
         "{", "    State *s = state;", "    s->warm = 0;", "    traced_parameters(p, s->P);",
+        f"    ikjac_invariants({params.replace('P[', 's->P[')}, s->P + {NP});",
+        f"    dynamics_invariants({params.replace('P[', 's->P[')}, s->K_dynamics);",
+        f"    pose_invariants({params.replace('P[', 's->P[')}, s->K_pose);",
         f"    s->lengths[0] = 1.0; s->lengths[1] = {P['r'].replace('P', 's->P')}; "
         f"s->lengths[2] = {P['r'].replace('P', 's->P')};   /* Engine.lengths (1, r, r) [m] */",
         f"    s->cb = cos(s->{P['beta']}); s->sb = sin(s->{P['beta']});",

@@ -14,6 +14,7 @@ found, never guessed.
 
 A generated Python function becomes ``static int NAME(...)``:
 
+- ``%`` (the non-negative tick counters' only) is ``mast_mod`` (mast_native.h: fmod, exact);
 - arguments named in ``arrays`` are ``double *`` (read by index, written by slice
   assignment ``x[:] = (...)`` or ``values[k:] = (...)``); the other arguments are doubles;
 - ``return (a, b, ...)`` (the engine's functions) writes ``out[0..]`` and returns 0; a function
@@ -33,7 +34,7 @@ import math
 import textwrap
 from typing import Callable, Mapping, Optional, Sequence
 
-__all__ = ["TranslationError", "to_c", "c_double"]
+__all__ = ["TranslationError", "to_c", "c_double", "split_invariants"]
 
 #: Python names of the scalar functions the generators call -> C (libm or support/mast_native.h)
 FUNCTIONS = {
@@ -98,7 +99,7 @@ class _Writer:
                 and (node.value.id, node.attr) in CONSTANTS:
             return c_double(CONSTANTS[node.value.id, node.attr])
         if isinstance(node, ast.BinOp) and isinstance(node.op, ast.Mod):   # tick counters (>= 0): as Python
-            return f"fmod({self.expr(node.left)}, {self.expr(node.right)})"
+            return f"mast_mod({self.expr(node.left)}, {self.expr(node.right)})"
         if isinstance(node, ast.BinOp) and type(node.op) in _BINOPS:
             return f"({self.expr(node.left)} {_BINOPS[type(node.op)]} {self.expr(node.right)})"
         if isinstance(node, ast.UnaryOp):
@@ -282,3 +283,43 @@ def to_c(source: str, name: str, arrays: Sequence[str] = (), checks: Mapping[str
     for k in range(0, len(names), 8):
         decl.append("    double " + ", ".join(names[k:k + 8]) + ";")
     return "\n".join([head, "{"] + decl + w.lines + ["}", ""])
+
+
+def split_invariants(source: str, invariant: Sequence[str]) -> tuple[str, str, int]:
+    """A generated straight-line function split in two, for a caller that calls it many times with the same
+    ``invariant`` arguments (the mechanism's parameters): ``(invariants, main, n)``. ``invariants`` is the Python
+    source of ``NAME_invariants(<the invariant arguments>)``, the function's top-level assignments whose values
+    depend on those arguments and constants alone (through the scalar functions of FUNCTIONS), in their order,
+    returning the ``n`` the rest reads; ``main`` is the function with those assignments replaced by reads of an
+    added last argument ``K`` (``tN = K[k]``: an array for ``to_c``). The same operations on the same values:
+    the floats do not change, they are computed once."""
+    fn = ast.parse(textwrap.dedent(source)).body[0]
+    if not isinstance(fn, ast.FunctionDef):
+        raise TranslationError(f"split_invariants: expected one generated function, found {ast.dump(fn)[:60]}")
+    assigned: dict[str, int] = {}
+    for node in ast.walk(fn):
+        if isinstance(node, ast.Name) and isinstance(node.ctx, ast.Store):
+            assigned[node.id] = assigned.get(node.id, 0) + 1
+    known = {a for a in invariant if a not in assigned}   # an argument the function reassigns varies
+    hoisted: list[ast.Assign] = []
+    for stmt in fn.body:
+        if not (isinstance(stmt, ast.Assign) and len(stmt.targets) == 1 and isinstance(stmt.targets[0], ast.Name)
+                and assigned[stmt.targets[0].id] == 1):
+            continue
+        calls = [n for n in ast.walk(stmt.value) if isinstance(n, ast.Call)]
+        pure = all(isinstance(c.func, ast.Name) and c.func.id in FUNCTIONS and not c.keywords for c in calls)
+        names = {n.id for n in ast.walk(stmt.value) if isinstance(n, ast.Name)} - {c.func.id for c in calls}
+        if pure and names <= known and not any(isinstance(n, (ast.Subscript, ast.Attribute)) for n in ast.walk(stmt.value)):
+            hoisted.append(stmt)
+            known.add(stmt.targets[0].id)
+    moved = {id(s) for s in hoisted}
+    rest = [s for s in fn.body if id(s) not in moved]
+    read = {n.id for s in rest for n in ast.walk(s) if isinstance(n, ast.Name) and isinstance(n.ctx, ast.Load)}
+    kept = [s.targets[0].id for s in hoisted if s.targets[0].id in read]
+    args = [a.arg for a in fn.args.args]
+    invariants = "\n".join([f"def {fn.name}_invariants({', '.join(a for a in args if a in invariant)}):",
+                            *(f"    {ast.unparse(s)}" for s in hoisted),
+                            f"    return ({''.join(f'{k}, ' for k in kept)})"])
+    body = [f"    {k} = K[{j}]" for j, k in enumerate(kept)] + [textwrap.indent(ast.unparse(s), "    ") for s in rest]
+    main = "\n".join([f"def {fn.name}({', '.join(args + ['K'])}):", *body])
+    return invariants, main, len(kept)
