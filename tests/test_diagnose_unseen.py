@@ -29,7 +29,11 @@ def run(ssp: str, tmp, truth: dict, plan, seed: int, **options) -> dict:
     ("J1_scale", 1.2, SMALL, 31),       # heavier motor side: the guide-side equivalent destabilises the loop
     ("M_load", 2.9, PLAN, 32),          # heavier carriage (nominal 2.27 kg)
     ("M_load", 1.6, SMALL, 33),         # lighter carriage
-], ids=["inertia-up-small-plan", "mass-up-default-plan", "mass-down-small-plan"])
+    ("J1_scale", 1.15, PLAN, 35),       # heavier motor side, the default plan
+    ("M_load", 3.1, SMALL, 36),         # heavier carriage, the small plan
+    ("J1_scale", 0.85, SMALL, 37),      # lighter motor side, the small plan
+], ids=["inertia-up-small-plan", "mass-up-default-plan", "mass-down-small-plan", "inertia-up-default-plan",
+        "mass-up-small-plan", "inertia-down-small-plan"])
 def test_heavier_and_lighter_machines_are_named(built_ssp, tmp_path, parameter, value, plan, seed):
     doc = run(built_ssp, tmp_path, {"actuator": {parameter: value}}, plan, seed)
     effects = named(doc)
@@ -143,6 +147,8 @@ ONE_AXIS_AND_DRIVE = {
     "integral-gain": ({"controller": {"k_i": 2.27}}, SMALL, 93, "velocity_integral", "k_i", 2.27),
     "cycle-time": ({"controller": {"T_vel": 0.002}}, SMALL, 81, "velocity_cycle", "T_vel", 0.002),
     "current-limit": ({"controller": {"i_max": 3.3}}, PLAN, 71, "current_limit", "i_max", 3.3),
+    # the position-loop gain 39 % above its documentation (21.52 1/s), the default plan
+    "position-gain-up": ({"controller": {"k_v": 30.0}}, PLAN, 94, "position_gain", "k_v", 30.0),
 }
 
 
