@@ -251,9 +251,18 @@ def cmd_synthesize(args) -> int:
 def cmd_diagnose(args) -> int:
     from .diagnosis import Options, diagnose
 
+    from .analyses.bench import native_variant
+    from .data.record import is_record_folder
+
+    if sum(map(bool, (args.fmu, args.direct, args.native))) > 1:
+        print("error: --fmu, --direct and --native are alternatives: give one", file=sys.stderr)
+        return 2
+    # default: the native variant where it is built (a MAST measured-data folder), else the direct composition
+    native = args.native or (not args.fmu and not args.direct and not is_record_folder(Path(args.measured))
+                             and native_variant(args.ssp) is not None)
     doc = diagnose(Options(Path(args.measured), Path(args.out), args.ssp, model=args.model,
                            holdout=args.holdout.split(",") if args.holdout else None, workers=args.workers,
-                           direct=not args.fmu, holdout_fraction=args.holdout_fraction))
+                           direct=not args.fmu, native=native, holdout_fraction=args.holdout_fraction))
     return 0 if doc["verdict"]["status"] != "unexplained residual" else 3
 
 
@@ -456,8 +465,13 @@ def main(argv=None) -> int:
                    help="records of any machine (mast import) with no held-out test: hold out this last share of "
                         "every test (default 1/3; docs/emps.md)")
     p.add_argument("--workers", type=count, default=2)
-    p.add_argument("--fmu", action="store_true", help="simulate through the FMUs (default: the direct composition, "
-                                                      "the same numbers to 1e-12, about twice as fast)")
+    p.add_argument("--fmu", action="store_true", help="re-simulate through the SSP's (Python) FMUs")
+    p.add_argument("--direct", action="store_true",
+                   help="re-simulate on the direct composition of the Python models (the reference: the FMUs' own model "
+                        "objects, equal to 1e-12); the default when the SSP has no native variant")
+    p.add_argument("--native", action="store_true",
+                   help="re-simulate on the SSP's native variant (build/ssp/native/, mast build --native: compiled FMUs, "
+                        "the Python models to 1e-9); the default when it is built (docs/diagnose.md)")
     p.set_defaults(func=cmd_diagnose)
 
     p = sub.add_parser("import", help="a lab's log (.mat or CSV) through a column map into a record folder "

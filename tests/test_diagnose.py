@@ -129,9 +129,10 @@ def test_each_library_effect_hidden_alone_is_named(built_ssp, tmp_path, case):
         assert error <= max(0.05 * abs(truth[p]), 3 * std) and error <= 0.1 * abs(truth[p]), (p, effect)
 
 
-@pytest.mark.parametrize("seed", [3, 4])
-def test_nothing_hidden_names_nothing(built_ssp, tmp_path, seed):
-    doc = run_case(built_ssp, tmp_path, {}, seed)
+@pytest.mark.parametrize("plan, seed", [(PLAN, 3), (PLAN, 4), (SMALL, 95), (SMALL, 96)],
+                         ids=["plan-3", "plan-4", "small-95", "small-96"])
+def test_nothing_hidden_names_nothing(built_ssp, tmp_path, plan, seed):
+    doc = run_case(built_ssp, tmp_path, {}, seed, plan=plan)
     assert doc["named_effects"] == []
     assert doc["verdict"]["status"] == "nothing missing"
     assert doc["unexplained"] is None
@@ -190,9 +191,10 @@ ISSUE_PLAN = (Spec("z", 0.004, 0.7, 1.2, 0.3), Spec("psi", math.radians(0.7), 1.
 def test_nothing_hidden_on_the_issue_plan_names_nothing(built_ssp, tmp_path):
     data = tmp_path / "data"
     synthesize(built_ssp, data, {}, tests=ISSUE_PLAN, direct=True, seed=63, log=lambda *_: None)
-    doc = diagnose(Options(data, tmp_path / "out", built_ssp, figures=False), log=lambda *_: None)
+    doc = diagnose(Options(data, tmp_path / "out", built_ssp, figures=False, native=True), log=lambda *_: None)
     assert doc["named_effects"] == [] and doc["verdict"]["status"] == "nothing missing"
     assert doc["identifiability"]["backlash"]["plan_meets"]
+    assert doc["timing"]["simulated_ssp"] == compiled(built_ssp)     # Options.native: the variant beside the SSP
 
 
 def test_cli_and_errors(built_ssp, tmp_path, capsys):
@@ -217,6 +219,14 @@ def test_cli_and_errors(built_ssp, tmp_path, capsys):
     assert not ident["carriage_mass"]["plan_meets"] and ident["lag"]["plan_meets"]
     assert doc["model"] == "actuator_identified" and doc["verdict"]["status"] == "nothing missing"
     assert doc["augmented_model"]["values"]["tau_c"] == 0.0718
+    # the SSP's native variant is built beside it (the fixture): the CLI re-simulates on it by default
+    assert doc["timing"]["simulator"].startswith("the native FMUs") and doc["ssp"] == built_ssp
+    assert main(["diagnose", built_ssp, "--measured", str(data), "--out", str(tmp_path / "x"), "--fmu", "--direct"]) == 2
+    import shutil
+
+    alone = shutil.copy(built_ssp, tmp_path / "alone.ssp")     # no native variant beside it
+    assert main(["diagnose", str(alone), "--measured", str(data), "--out", str(tmp_path / "x"), "--native"]) == 2
+    assert "no native variant" in capsys.readouterr().err and not (tmp_path / "x").exists()
     assert main(["diagnose", built_ssp, "--measured", str(tmp_path / "nowhere"), "--out", str(tmp_path / "x")]) == 2
     assert main(["diagnose", built_ssp, "--measured", str(data), "--out", str(tmp_path / "x"),
                  "--model", "no_such_set"]) == 2

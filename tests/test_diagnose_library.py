@@ -49,6 +49,23 @@ def test_a_negative_lag_on_one_axis_is_refused_by_name():
         chain_for({**NOMINAL, "T_meas_axis2": -1e-3}, H, 0.0, 0.0)
 
 
+def test_a_per_axis_increment_that_makes_its_axis_unphysical_is_out_of_bounds():
+    """The selection and the fit keep each axis's value physical: a per-axis lag or friction never below 0, a
+    mass never below its floor, whatever the increment's own symmetric bounds (before: a drive's position gain
+    39 % high, default plan, seed 94, drew proposals with a negative lag on one axis, none of which simulated,
+    and the true effect was never proposed alone)."""
+    from mast.diagnosis.effects import BOUNDS, physical_bounds
+    from mast.diagnosis.selection import _in_bounds
+
+    assert physical_bounds("T_meas_axis1", NOMINAL) == (0.0, BOUNDS["T_meas"][1])
+    assert physical_bounds("tau_c_axis2", NOMINAL)[0] == pytest.approx(-0.02)
+    assert physical_bounds("M_load_axis3", NOMINAL)[0] == pytest.approx(BOUNDS["M_load"][0] - 2.27)
+    assert physical_bounds("tau_c", NOMINAL) == BOUNDS["tau_c"]
+    lag1 = BY_KEY["lag_axis1"]
+    assert not _in_bounds(lag1, NOMINAL, -1e-4) and _in_bounds(lag1, NOMINAL, 1e-4)
+    assert not _in_bounds(BY_KEY["coulomb_axis2"], NOMINAL, -0.021) and _in_bounds(BY_KEY["coulomb_axis2"], NOMINAL, -0.019)
+
+
 @pytest.mark.parametrize("param", ["tau_c", "J1_scale", "M_load", "tau_offset", "T_meas"])
 def test_per_axis_columns_are_the_all_axes_column_on_that_axis(param):
     s = signals()

@@ -29,7 +29,11 @@ def run(ssp: str, tmp, truth: dict, plan, seed: int, **options) -> dict:
     ("J1_scale", 1.2, SMALL, 31),       # heavier motor side: the guide-side equivalent destabilises the loop
     ("M_load", 2.9, PLAN, 32),          # heavier carriage (nominal 2.27 kg)
     ("M_load", 1.6, SMALL, 33),         # lighter carriage
-], ids=["inertia-up-small-plan", "mass-up-default-plan", "mass-down-small-plan"])
+    ("J1_scale", 1.15, PLAN, 35),       # heavier motor side, the default plan
+    ("M_load", 3.1, SMALL, 36),         # heavier carriage, the small plan
+    ("J1_scale", 0.85, SMALL, 37),      # lighter motor side, the small plan
+], ids=["inertia-up-small-plan", "mass-up-default-plan", "mass-down-small-plan", "inertia-up-default-plan",
+        "mass-up-small-plan", "inertia-down-small-plan"])
 def test_heavier_and_lighter_machines_are_named(built_ssp, tmp_path, parameter, value, plan, seed):
     doc = run(built_ssp, tmp_path, {"actuator": {parameter: value}}, plan, seed)
     effects = named(doc)
@@ -143,6 +147,8 @@ ONE_AXIS_AND_DRIVE = {
     "integral-gain": ({"controller": {"k_i": 2.27}}, SMALL, 93, "velocity_integral", "k_i", 2.27),
     "cycle-time": ({"controller": {"T_vel": 0.002}}, SMALL, 81, "velocity_cycle", "T_vel", 0.002),
     "current-limit": ({"controller": {"i_max": 3.3}}, PLAN, 71, "current_limit", "i_max", 3.3),
+    # the position-loop gain 39 % above its documentation (21.52 1/s), the default plan
+    "position-gain-up": ({"controller": {"k_v": 30.0}}, PLAN, 94, "position_gain", "k_v", 30.0),
 }
 
 
@@ -174,3 +180,40 @@ def test_effects_on_one_axis_and_in_the_drive_are_named(built_ssp, tmp_path, cas
         assert set(am["axis_values"]) == {component} and parameter not in am["values"]
         assert am["axis_values"][component][base] == pytest.approx(
             truth[component][base], rel=0.05, abs=0.05 * abs(value))
+
+
+#: causes outside the library (issue 18): (truth, plan, seed, what may be named)
+OUTSIDE = {
+    # the drive's position loop at 4 ms instead of 1 ms (T_pos is not in the library): before the guard, named
+    # motor-side inertia (J1_scale 1.025) and a measurement lag beside an unexplained residual
+    "position-cycle": ({"controller": {"T_pos": 0.004}}, SMALL, 201, {}),
+    # a true Coulomb friction with a guide torque ripple the library lacks: before the guard, Coulomb friction and
+    # a viscous friction (a stand-in for part of the ripple) named; the ripple's residual stays
+    "coulomb-and-ripple": ({"actuator": {"tau_c": 0.045, "tau_ripple": 0.002}}, SMALL, 204, {"coulomb": ("tau_c", 0.045)}),
+}
+
+
+@pytest.mark.parametrize("case", list(OUTSIDE))
+def test_a_cause_outside_the_library_gets_no_plant_name(built_ssp, tmp_path, case):
+    """A residual is left that no candidate explains: an effect accepted by the search is named only if each test
+    alone agrees on its value and the selection removes most of the gap (diagnosis/consistency.py); the
+    others are hints in unexplained.hints and report.md, never names. The true effect beside an unknown one is
+    still named, within 5 %."""
+    from mast.diagnosis.effects import LIBRARY
+
+    truth, plan, seed, expected = OUTSIDE[case]
+    # backlash left out (its phase-free scan, half the cost here, is refused on such residuals: the ripple test of
+    # test_diagnose.py covers that)
+    doc = run(built_ssp, tmp_path, truth, plan, seed, library=tuple(e.key for e in LIBRARY if e.key != "backlash"))
+    effects = named(doc)
+    assert set(effects) == set(expected), effects
+    for key, (parameter, value) in expected.items():
+        assert effects[key]["parameters"][parameter] == pytest.approx(value, rel=0.05)
+        assert effects[key]["evidence"]["per_test"][parameter]["consistent"]
+    assert doc["verdict"]["status"] == "unexplained residual"
+    hints = doc["unexplained"]["hints"]
+    assert hints and not {h["key"] for h in hints} & set(expected)
+    assert all(h["why_not_named"] for h in hints)
+    assert "Hints, not names" in (tmp_path / "out" / "report.md").read_text()
+    if not expected:    # nothing named: the augmented model is the nominal one
+        assert doc["augmented_model"]["values"] == {} and "controller_values" not in doc["augmented_model"]

@@ -9,7 +9,7 @@ from typing import Mapping, Optional, Sequence
 
 import numpy as np
 
-from .effects import LIBRARY, Effect
+from .effects import LIBRARY, Effect, physical_bounds
 
 
 #: a member of a selection must lower BIC by at least this much ("very strong" evidence)
@@ -145,7 +145,7 @@ class Regression:
 
 def _in_bounds(effect: Effect, nominal: Mapping, change: float) -> bool:
     name = effect.parameter
-    lo, hi = effect.bounds[name]
+    lo, hi = physical_bounds(name, nominal)
     value = float(nominal[name]) + change
     return lo - 1e-12 <= value <= hi + 1e-12
 

@@ -9,7 +9,7 @@ from typing import Callable, Mapping, Optional, Sequence
 
 import numpy as np
 
-from .effects import AXIS_OF, BOUNDS, BY_PARAMETER, LIBRARY, MEASUREMENT, Chain
+from .effects import AXIS_OF, BOUNDS, BY_PARAMETER, LIBRARY, MEASUREMENT, Chain, physical_bounds
 from .resimulation import Model, Point, resample
 from .selection import DELTA_BIC, PRACTICAL, RELATIVE, Atom, Band, Regression, atom_labels, select
 
@@ -80,7 +80,7 @@ def regression_loop(ctx: Context, state: State, atoms, rejected: set, steps: lis
         start = dict(state.changes)
         for a, c in zip(best.atoms, best.coef):
             p0 = a.effect.parameter
-            lo, hi = BOUNDS[p0]
+            lo, hi = physical_bounds(p0, ctx.nominal)
             start[p0] = float(np.clip(float(ctx.nominal[p0]) + c, lo, hi))
             if a.grid is not None:
                 start[a.effect.parameters[1]] = a.grid
@@ -457,8 +457,8 @@ def polish(ctx: Context, selected: Sequence[Atom], start: Mapping[str, float],
     if not free:
         return fixed, {"simulations_of_the_training_tests": 0, "note": "only discrete parameters: fitted on their grid"}
     x0 = np.array([start[p] for p in free], dtype=float)
-    lo = np.array([BOUNDS[p][0] for p in free])
-    hi = np.array([BOUNDS[p][1] for p in free])
+    lo = np.array([physical_bounds(p, ctx.nominal)[0] for p in free])
+    hi = np.array([physical_bounds(p, ctx.nominal)[1] for p in free])
     x0 = np.clip(x0, lo + 1e-9 * (hi - lo), hi - 1e-9 * (hi - lo))
     scale = np.array([max(abs(v), 0.01 * (h - l), 1e-9) for v, l, h in zip(x0, lo, hi)])
     y = np.concatenate([model.tests[n].y.ravel() for n in train])

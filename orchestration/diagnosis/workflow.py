@@ -16,6 +16,7 @@ from .plan import excitations, identifiability
 from .report import jsonable, plot_figures, write_model, write_report
 from .resimulation import DiagnosisError, Model, Prepared, Simulator
 from .selection import Atom, Band
+from .consistency import only_consistent
 from .stages import MAX_EFFECTS, NONLINEAR, Context, State, alias_check, prune, regression_loop, residual_at_floor
 from .verdict import gap_table, gap_trend, judge, localise_test, named_effects
 
@@ -30,6 +31,7 @@ class Options:
     holdout_fraction: Optional[float] = None   # records (mast import) without held-out tests: the share held out
     workers: int = 2
     direct: bool = True
+    native: bool = False                  # re-simulate on the SSP's native variant (compiled FMUs, mast build --native)
     library: Sequence[str] = tuple(e.key for e in LIBRARY)
     figures: bool = True
 
@@ -77,6 +79,27 @@ def _split(data: MeasuredData, holdout: Optional[Sequence[str]]) -> dict[str, st
     return roles
 
 
+#: how the re-simulations run: (on the native variant, direct composition) -> words
+_SIMULATORS = {(True, False): "the native FMUs (compiled C; the Python models to 1e-9, tests/test_native.py)",
+               (False, True): "the direct composition of the Python models (the reference)",
+               (False, False): "the FMUs"}
+
+
+def _simulated_ssp(opt: Options) -> tuple[str, bool]:
+    """(the SSP whose components re-simulate the tests, direct composition?): ``opt.native`` takes the SSP's
+    native variant (build/ssp/native/X.ssp beside build/ssp/X.ssp), run through its FMUs; the parameters,
+    the nominal model and the augmented SSP stay those of ``opt.ssp``."""
+    if not opt.native:
+        return str(opt.ssp), opt.direct
+    from ..analyses.bench import native_variant
+
+    native = native_variant(str(opt.ssp))
+    if native is None:
+        raise DiagnosisError(f"{opt.ssp}: no native variant beside it ({Path(opt.ssp).parent / 'native'}): "
+                             "build it with `mast build --native`, or re-simulate without --native")
+    return str(native), False
+
+
 #: measured / simulated torque (rms) beyond which the nominal model is not what is off, the unit is
 TORQUE_SCALE_LIMIT = 10.0
 
@@ -109,6 +132,7 @@ def diagnose(opt: Options, log: Callable[[str], None] = print) -> dict:
 
         return diagnose_records(opt, log)
     t_start = time.perf_counter()
+    sim_ssp, direct = _simulated_ssp(opt)
     from ..core.ssp import SSPArchive
 
     with SSPArchive(opt.ssp) as archive:
@@ -154,7 +178,8 @@ def diagnose(opt: Options, log: Callable[[str], None] = print) -> dict:
     log(f"diagnose: {len(names)} tests ({len(train)} training, {len(held)} held-out), torque noise floor "
         f"{1e3 * sigma:.3g} mN.m")
 
-    with Simulator(opt.ssp, prepared, base, actuators, direct=opt.direct, workers=opt.workers, nominal=nominal) as sim:
+    log(f"diagnose: re-simulating on {_SIMULATORS[(sim_ssp != opt.ssp, direct)]} ({sim_ssp})")
+    with Simulator(sim_ssp, prepared, base, actuators, direct=direct, workers=opt.workers, nominal=nominal) as sim:
         model = Model(sim, nominal, prepared, data.torque_filter_s, data.torque_delay_s)
         ctx = Context(model, nominal, names, train, held, band, sigma, sigma_b, log)
         nominal_pt = model.point({}, names)
@@ -190,6 +215,21 @@ def diagnose(opt: Options, log: Callable[[str], None] = print) -> dict:
         after = gap_table(prepared, final_pt, names, sigma, resolution)
         named = named_effects(ctx, state, last_fit, steps)
         verdict, unexplained = judge(ctx, state, after, last_fit, steps)
+        if verdict["status"] == "unexplained residual" and state.selected:
+            # a residual is left: only effects that are one value whatever the test keep their name
+            state, hints = only_consistent(ctx, state, named, steps, nominal_pt)
+            if hints:
+                final_pt = state.pt
+                after = gap_table(prepared, final_pt, names, sigma, resolution)
+                named = named_effects(ctx, state, last_fit, steps)
+                verdict, unexplained = judge(ctx, state, after, last_fit, steps)
+                unexplained["hints"] = hints
+                verdict["text"] += ("; hints, not named (they may only stand in for a cause outside the library: "
+                                    "unexplained.hints): " + ", ".join(h["effect"] for h in hints))
+            for e in named:     # named with a residual left: the checks that allowed it
+                e["evidence"]["per_test"] = {p: state.info["consistency"][p] for p in e["parameters"]
+                                             if p in state.info["consistency"]}
+                e["evidence"]["excess_explained"] = state.info["excess_explained"]
         final_local = {n: localise_test(model, final_pt, prepared[n], sigma) for n in names}
         n_sims, sim_seconds = sim.count, sim.seconds
 
@@ -216,7 +256,8 @@ def diagnose(opt: Options, log: Callable[[str], None] = print) -> dict:
         "identifiability": plan,
         "augmented_model": outputs,
         "timing": {"wall_s": round(wall, 1), "simulations": n_sims, "simulation_wall_s": round(sim_seconds, 1),
-                   "workers": opt.workers, "direct": opt.direct},
+                   "workers": opt.workers, "direct": direct,
+                   "simulator": _SIMULATORS[(sim_ssp != opt.ssp, direct)], "simulated_ssp": str(sim_ssp)},
     }
     (opt.out / "diagnosis.json").write_text(json.dumps(jsonable(doc), indent=2))
     if opt.figures:
