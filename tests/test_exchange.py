@@ -4,8 +4,9 @@ master, every component at 1 ms. It must give today's trajectories (current loop
 10 kHz Jacobi exchange) to rounding: the command computed from the samples at t reaches the current
 loop at t, and the voltage it computes is applied one T_cur later, as today.
 
-The two blocks here are the prototype of that pattern, built from the models' own code (the actuator's
-kernel, ``pi_step``, the cascade's laws); they are not FMUs yet (docs/interfaces.md, Timing)."""
+The actuator is the model's own ``DriveActuatorBlock`` (fmus/actuator/drive.py); the controller here is the
+prototype of the feedthrough controller, built from the cascade's laws; it is no FMU yet
+(docs/interfaces.md, Timing)."""
 from __future__ import annotations
 
 import math
@@ -13,9 +14,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from fmus.actuator.model import ActuatorBlock
-from fmus.common.block import Block
-from fmus.controller.model import DRIVE_PARAMETERS, ControllerBlock, pi_step
+from fmus.actuator.drive import CURRENT_LOOP_PARAMETERS, DriveActuatorBlock
+from fmus.controller.model import ControllerBlock
 from mast.core.components import BlockComponent
 from mast.core.master import Master
 from mast.core.motion import SineMotion
@@ -24,43 +24,7 @@ from mast.core.ssv import read_values
 
 from conftest import ROOT as REPO
 
-_LOOP = {"k_pc", "k_ic", "T_cur", "u_max"}
-
-
-class DriveAxis(Block):
-    """An actuator with the drive's current PI inside: i_cmd in, the voltage applied out (``u``); every
-    T_cur the PI samples the current, and its voltage is applied from the next tick (one T_cur delay)."""
-
-    INPUTS = ("i_cmd", "F")
-    OUTPUTS = (*ActuatorBlock.OUTPUTS, "u")
-    PARAMETERS = (*ActuatorBlock.PARAMETERS, *(p for p in DRIVE_PARAMETERS if p.name in _LOOP))
-
-    def __init__(self, params, name=""):
-        super().__init__(params, name)
-        self.axis = ActuatorBlock({k: v for k, v in self.params.items() if k not in _LOOP}, self.name)
-        P = self.params
-        self.T = float(P["T_cur"])
-        self.gains = (float(P["k_pc"]), float(P["k_ic"]) * self.T, float(P["u_max"]))
-
-    def initialize(self, t0):
-        self.x_c, self.u = 0.0, 0.0
-        self.axis.values[:2] = [0.0, self.values[1]]
-        self.axis.initialize(t0)
-        self._publish()
-
-    def _publish(self):
-        self.values[2:] = [*self.axis.values[2:], self.u]
-
-    def do_step(self, t, h):
-        m = round(h / self.T)
-        axis, values = self.axis.values, self.values
-        kp, kiT, u_max = self.gains
-        for k in range(m):
-            u_next, self.x_c = pi_step(values[0] - axis[7], self.x_c, kp, kiT, u_max)  # axis[7]: i_m at this tick
-            axis[0], axis[1] = self.u, values[1]
-            self.axis.do_step(t + k * self.T, self.T)
-            self.u = u_next
-        self._publish()
+_LOOP = {p.name for p in CURRENT_LOOP_PARAMETERS}
 
 
 class CurrentCommand(ControllerBlock):
@@ -111,7 +75,7 @@ def test_the_1khz_drive_pattern_gives_todays_trajectories_to_rounding():
     blocks = {name: BlockComponent(name, blocks[name].block_class) for name in system.components}
     blocks["controller"] = BlockComponent("controller", CurrentCommand)
     for k in (1, 2, 3):
-        blocks[f"actuator_{k}"] = BlockComponent(f"actuator_{k}", DriveAxis)
+        blocks[f"actuator_{k}"] = BlockComponent(f"actuator_{k}", DriveActuatorBlock)
     master = Master(system, blocks)
     assert master.exchange_order.index("controller") < master.exchange_order.index("actuator_1")
     new = master.run(stop, motion(), record=signals + ["actuator_1.u"], record_step=1e-3,

@@ -48,6 +48,7 @@ from typing import Mapping, Sequence
 
 from ..common.block import Block, ModelError
 from ..common.parameters import ParameterError, Value, nonnegative, positive
+from ..actuator.drive import CURRENT_LOOP_PARAMETERS, pi_step
 from ..actuator.model import transmission_ratio
 from ..mechanism.designs import KINEMATIC_PARAMETERS, kinematic_engine
 from ..mechanism.kinematics import KinematicsError
@@ -57,24 +58,6 @@ from .reference import JointReference
 #: operating modes, outermost first; the value is the first loop that runs
 MODES = ("pose", "joint", "velocity", "current")
 _MODE_COMMAND = {"joint": "rho_cmd", "velocity": "omega_cmd", "current": "i_cmd"}
-
-
-def pi_step(e: float, x: float, k_p: float, k_iT: float, limit: float, offset: float = 0.0) -> tuple[float, float]:
-    """One forward-Euler PI update with output limit and conditional integration.
-
-    ``e`` error, ``x`` integrator state (in output units), ``k_p`` proportional
-    gain, ``k_iT`` integral gain times the loop's cycle time, ``limit`` the
-    symmetric output limit, ``offset`` a feed-forward added to the output before
-    the limit. Returns (output, new state): while the output is saturated, the
-    integrator only moves when the error drives it back out of the limit
-    (anti-windup).
-    """
-    v = k_p * e + x + offset
-    if v > limit:
-        return limit, (x + k_iT * e if e < 0.0 else x)
-    if v < -limit:
-        return -limit, (x + k_iT * e if e > 0.0 else x)
-    return v, x + k_iT * e
 
 
 def drive_gains(k_pc: float, k_ic: float, T_cur: float, i_max: float, u_max: float) -> tuple[float, float, float, float]:
@@ -99,14 +82,14 @@ def cascade_gains(k_v: float, k_p: float, k_i: float, T_vel: float, i_R: float) 
 
 
 #: the servo drive under every controller (ssp/resources/drive.ssv) and the machine's transmission
+_K_PC, _K_IC, _T_CUR, _U_MAX = CURRENT_LOOP_PARAMETERS
 DRIVE_PARAMETERS = (
-    nonnegative("k_pc", "V/A", "Current PI proportional gain: voltage per current error"),
-    nonnegative("k_ic", "V/(A.s)", "Current PI integral gain"),
+    _K_PC, _K_IC,
     positive("T_pos", "s", "Position loop cycle time (integer multiple of T_cur)"),
     positive("T_vel", "s", "Velocity loop cycle time (integer multiple of T_cur)"),
-    positive("T_cur", "s", "Current loop cycle time (the block's tick)"),
+    _T_CUR,
     positive("i_max", "A", "Current command limit (symmetric)"),
-    positive("u_max", "V", "Voltage command limit (symmetric)"),
+    _U_MAX,
     positive("i_r", "1", "Gear ratio (motor turns per output turn)"),
     positive("p", "m", "Linear guide feed per output revolution"),
     *KINEMATIC_PARAMETERS,  # the controller's own kinematic model of the machine (designs.py)
