@@ -2,6 +2,7 @@
 workers, cached per parameter set; the model's observed torque and the effect signatures at a point."""
 from __future__ import annotations
 
+import math
 import time
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
@@ -31,12 +32,13 @@ def sim_job(args: tuple) -> dict:
     from ..core.master import SimulationError
     from ..core.run import simulate
 
-    ssp, name, replay, stop, parameters, direct = args
+    ssp, name, replay, stop, parameters, direct, steps = args
     record = []
     for j in AXES:
         record += [f"actuator_{j}.tau_m", f"actuator_{j}.rho", f"actuator_{j}.rho_dot", f"actuator_{j}.omega_m"]
     try:
-        res = simulate(ssp, replay, stop, parameters=parameters, record=record, record_step=None, direct=direct)
+        res = simulate(ssp, replay, stop, parameters=parameters, record=record, record_step=None, direct=direct,
+                       base_step=steps and steps[0], step_sizes=steps and steps[1])
     except SimulationError as err:
         return {"name": name, "error": str(err)}
     except Exception as err:  # parameters the model rejects, ...
@@ -76,6 +78,11 @@ class Simulator:
         self._cache: dict = {}
         self.count = 0
         self.seconds = 0.0
+        from ..core.ssp import SSPArchive
+
+        with SSPArchive(ssp) as archive:     # the controller's exchange step (``_steps``)
+            controller = archive.system.components.get("controller")
+            self.exchange = controller.step_size if controller is not None else None
 
     def __enter__(self) -> "Simulator":
         if self.workers > 1:
@@ -115,8 +122,11 @@ class Simulator:
         if not todo:
             return
         t0 = time.perf_counter()
-        jobs = [(self.ssp, n, self._replay(n, r), self.tests[n].test.duration + 1e-12,
-                 self.parameters(dict(key), self.tests[n]), self.direct) for key, n, r in todo]
+        jobs = []
+        for key, n, r in todo:
+            params = self.parameters(dict(key), self.tests[n])
+            jobs.append((self.ssp, n, self._replay(n, r), self.tests[n].test.duration + 1e-12, params, self.direct,
+                         self._steps(params)))
         order = sorted(range(len(jobs)), key=lambda k: -jobs[k][3])   # longest first keeps the workers busy
         if self._pool and len(jobs) > 1:
             results = dict(zip(order, self._pool.map(sim_job, [jobs[k] for k in order])))
@@ -131,6 +141,20 @@ class Simulator:
             r = results[k]
             self._cache[entry] = r["error"] if "error" in r else SimSignals(
                 r["time"], r["h"], r["tau_m"], r["rho"], r["rho_dot"], r["omega_m"])
+
+    def _steps(self, params: Mapping[str, Mapping]) -> Optional[tuple[float, dict[str, float]]]:
+        """(base step, step sizes) when the controller's velocity-loop cycle is no divisor of the system's exchange
+        step: the controller and the actuators then exchange at every loop tick (the largest common divisor, in
+        current-loop cycles), so each velocity tick samples the measurements of its own instant, as the drive
+        does; None: the system's steps."""
+        T_vel, T_cur = params.get("controller", {}).get("T_vel"), self.nominal.get("T_cur")
+        if T_vel is None or not T_cur or not self.exchange:
+            return None
+        ticks = math.gcd(round(float(T_vel) / T_cur), round(self.exchange / T_cur))
+        if abs(ticks * T_cur - self.exchange) <= 1e-9 * self.exchange:
+            return None
+        h = ticks * T_cur
+        return h, {name: h for name in ("controller", *self.actuators)}
 
     def _replay(self, name: str, realisation: int) -> CommandReplay:
         replay = self.tests[name].replay
