@@ -24,7 +24,7 @@ from mast.core.motion import SineMotion
 from mast.core.native.build import build_native_all, compiler, fmi_headers
 from mast.core.native.translate import TranslationError, to_c
 from mast.core.run import simulate
-from test_fmi_behaviour import DISCARD, ERROR, OK, Instance, drive
+from test_fmi_behaviour import DISCARD, ERROR, OK, Instance, _input, drive
 
 ROOT = Path(__file__).resolve().parents[1]
 NATIVE = ("MastActuator", "MastMechanism", "MastController", "MastTrajectory", "Mast3PRS120", "Mast3PRSInclined",
@@ -145,6 +145,41 @@ def test_instances_are_independent_and_a_restored_state_reproduces_the_continuat
     a.slave.freeFMUstate(state)
     for inst in (alone, a, b):
         inst.close()
+
+
+@pytest.mark.parametrize("ident", ["MastController", "MastFeedForwardController"])
+def test_the_controllers_commands_follow_the_inputs_set_once_per_communication_point(built, ident):
+    """Direct feedthrough (docs/interfaces.md, Timing), Python and native FMUs alike: the commands read right
+    after setting the inputs are those of the samples just set (before doStep); setting them again at the same
+    point, first wrong and then right and one by one, gives what one set gives (the laws of a tick run once,
+    from the state before them); a step with no input set runs the laws on the held inputs."""
+    runs = []
+    for fmu in (built / "fmus" / f"{ident}.fmu", built / "fmus" / "native" / f"{ident}.fmu"):
+        rows = {}
+        for how in ("once", "again", "held"):
+            inst = Instance(fmu, "controller")
+            assert inst.start() == OK
+            out = []
+            for k in range(30):
+                t = k * 1e-3
+                real = {name: _input(name, t, 1.0) for name in inst.inputs}
+                if how == "again":
+                    inst.set(**{name: v + 0.01 for name, v in real.items()})
+                    for name, v in real.items():
+                        inst.set(**{name: v})
+                elif how == "once" or k % 2 == 0:
+                    inst.set(**real)
+                out.append(inst.get())                     # the commands at t, before the step
+                assert inst.step(t, 1e-3) == OK, inst.log[-2:]
+            rows[how] = np.array(out)
+            inst.close()
+        assert np.array_equal(rows["again"], rows["once"])
+        assert np.abs(rows["once"][1:] - rows["once"][:-1]).max() > 0.0
+        # held: at the odd points the commands read before the step are the last tick's; the step's laws
+        # then run on the held inputs, so the next point (inputs set) differs from the once run
+        assert not np.array_equal(rows["held"], rows["once"])
+        runs.append(rows["once"])
+    assert np.abs(runs[0] - runs[1]).max() <= TOLERANCE * np.abs(runs[0]).max()
 
 
 def test_calls_out_of_order_return_error_with_a_logged_message_and_the_instance_survives(built):
