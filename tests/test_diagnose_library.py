@@ -118,16 +118,3 @@ def test_per_axis_subsets_stay_small():
     assert not _per_axis_excess(("carriage_mass", "carriage_mass_axis1", "offset_axis3"))
     assert not _per_axis_excess(("coulomb_axis1", "coulomb_axis2", "inertia_motor"))
 
-
-def test_a_velocity_cycle_off_the_exchange_grid_is_resimulated_at_the_loops_common_step():
-    """The controller and the actuators exchange at every velocity tick when T_vel is no multiple of the
-    system's 1 ms step (docs/interfaces.md, Timing: a tick inside a step would see held samples)."""
-    from mast.diagnosis.resimulation import Simulator
-
-    sim = Simulator.__new__(Simulator)     # only what _steps reads: no SSP, no tests
-    sim.nominal, sim.exchange, sim.actuators = {"T_cur": 1e-4}, 1e-3, ["actuator_1", "actuator_2", "actuator_3"]
-    assert sim._steps({"controller": {"T_vel": 2e-3}}) is None and sim._steps({"actuator_1": {}}) is None
-    for T_vel, h in ((1.9e-3, 1e-4), (1.5e-3, 5e-4), (5e-4, 5e-4)):
-        step, sizes = sim._steps({"controller": {"T_vel": T_vel}})
-        assert step == pytest.approx(h, rel=1e-12)
-        assert sizes == {name: step for name in ("controller", "actuator_1", "actuator_2", "actuator_3")}

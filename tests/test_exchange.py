@@ -127,3 +127,16 @@ def test_a_current_command_one_exchange_late_is_detected(former):
     late_by = largest_difference(new, former)
     print(f"one exchange late: {late_by:.3g}")
     assert late_by > 1e-3
+
+
+def test_exchanging_at_every_current_loop_tick_gives_the_same_trajectories(former):
+    """mast.core.run.drive_tick_steps (synthesize and the diagnosis record the torque at T_cur): controller and
+    actuators exchanged every 100 us, the laws still sampled at their 1 ms ticks, the same run to rounding."""
+    from mast.core.run import drive_tick_steps
+
+    system = read_ssd(REPO / "ssp" / "MAST.ssd")
+    base, sizes = drive_tick_steps(system)
+    assert base == 1e-4 and set(sizes) == {"controller", "actuator_1", "actuator_2", "actuator_3"}
+    fine = Master(system, blocks_of(system), base_step=base, step_sizes=sizes)
+    new = fine.run(0.3, SineMotion("z", 0.01, 10.0), record=SIGNALS, record_step=1e-3)
+    assert largest_difference(new, former) <= 1e-9

@@ -155,6 +155,8 @@ def test_replay_reproduces_the_noise_free_signals(built_ssp, tmp_path):
     from mast.data.measured import CommandReplay, controller_geometry
     from mast.analyses.synthesize import TestSpec as Spec, synthesize
     from fmus.actuator.sensor import measure
+    from mast.core.run import drive_tick_steps
+    from mast.core.ssp import SSPArchive
 
     truth = {"actuator": {"tau_c": 0.0718, "J1_scale": 0.641, "T_meas": 2e-3}}
     res = synthesize(built_ssp, tmp_path / "data", truth, tests=[Spec("theta", math.radians(0.8), 3.0, 1.0)],
@@ -165,16 +167,16 @@ def test_replay_reproduces_the_noise_free_signals(built_ssp, tmp_path):
     t = data.tests[0]
     replay = CommandReplay(t.time, t.rho_cmd, controller_geometry(built_ssp))
     params = {f"actuator_{j}": {**truth["actuator"], "rho_0": float(t.rho_cmd[0, j - 1])} for j in (1, 2, 3)}
-    # exchanged every 100 us (the same physics: docs/interfaces.md, Timing), so that the torque sensor restated
-    # here runs at its own step in the actuator (T_cur); the drive's filter then on the 1 ms record, as synthesize
-    steps = (1e-4, {name: 1e-4 for name in ("controller", "actuator_1", "actuator_2", "actuator_3")})
+    # exchanged every T_cur as synthesize and the diagnosis do (mast.core.run.drive_tick_steps)
+    with SSPArchive(built_ssp) as archive:
+        steps = drive_tick_steps(archive.system)
+    assert steps[0] == 1e-4
     run = sim_job((built_ssp, t.name, replay, t.duration + 1e-12, params, True, steps))
-    sensed = measure(run["tau_m"], run["h"], T=2e-3, axis=0)[::10]
-    obs = measure(sensed, 10 * run["h"], T=data.torque_filter_s, axis=0)
-    idx = np.round(t.time / (10 * run["h"])).astype(int)
+    obs = measure(measure(run["tau_m"], run["h"], T=2e-3, axis=0), run["h"], T=data.torque_filter_s, axis=0)
+    idx = np.round(t.time / run["h"]).astype(int)
     clean = res["clean"][t.name]
     assert np.abs(obs[idx] - clean["tau_m"]).max() < 1e-9
-    assert np.abs(run["rho"][::10][idx] - clean["rho"]).max() < 1e-12
+    assert np.abs(run["rho"][idx] - clean["rho"]).max() < 1e-12
     # the measured data: the drive's filter, the noise (2 mN m) and the 1 um encoder steps
     assert np.std(t.tau_m - clean["tau_m"]) == pytest.approx(2e-3, rel=0.1)
     np.testing.assert_allclose(t.rho / 1e-6, np.round(t.rho / 1e-6), atol=1e-6)

@@ -2,7 +2,6 @@
 workers, cached per parameter set; the model's observed torque and the effect signatures at a point."""
 from __future__ import annotations
 
-import math
 import time
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
@@ -78,11 +77,11 @@ class Simulator:
         self._cache: dict = {}
         self.count = 0
         self.seconds = 0.0
+        from ..core.run import drive_tick_steps
         from ..core.ssp import SSPArchive
 
-        with SSPArchive(ssp) as archive:     # the controller's exchange step (``_steps``)
-            controller = archive.system.components.get("controller")
-            self.exchange = controller.step_size if controller is not None else None
+        with SSPArchive(ssp) as archive:   # exchanged every T_cur: the torque chain restated at that record step
+            self.steps = drive_tick_steps(archive.system)
 
     def __enter__(self) -> "Simulator":
         if self.workers > 1:
@@ -126,7 +125,7 @@ class Simulator:
         for key, n, r in todo:
             params = self.parameters(dict(key), self.tests[n])
             jobs.append((self.ssp, n, self._replay(n, r), self.tests[n].test.duration + 1e-12, params, self.direct,
-                         self._steps(params)))
+                         self.steps))
         order = sorted(range(len(jobs)), key=lambda k: -jobs[k][3])   # longest first keeps the workers busy
         if self._pool and len(jobs) > 1:
             results = dict(zip(order, self._pool.map(sim_job, [jobs[k] for k in order])))
@@ -141,20 +140,6 @@ class Simulator:
             r = results[k]
             self._cache[entry] = r["error"] if "error" in r else SimSignals(
                 r["time"], r["h"], r["tau_m"], r["rho"], r["rho_dot"], r["omega_m"])
-
-    def _steps(self, params: Mapping[str, Mapping]) -> Optional[tuple[float, dict[str, float]]]:
-        """(base step, step sizes) when the controller's velocity-loop cycle is no divisor of the system's exchange
-        step: the controller and the actuators then exchange at every loop tick (the largest common divisor, in
-        current-loop cycles), so each velocity tick samples the measurements of its own instant, as the drive
-        does; None: the system's steps."""
-        T_vel, T_cur = params.get("controller", {}).get("T_vel"), self.nominal.get("T_cur")
-        if T_vel is None or not T_cur or not self.exchange:
-            return None
-        ticks = math.gcd(round(float(T_vel) / T_cur), round(self.exchange / T_cur))
-        if abs(ticks * T_cur - self.exchange) <= 1e-9 * self.exchange:
-            return None
-        h = ticks * T_cur
-        return h, {name: h for name in ("controller", *self.actuators)}
 
     def _replay(self, name: str, realisation: int) -> CommandReplay:
         replay = self.tests[name].replay
