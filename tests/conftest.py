@@ -5,6 +5,9 @@ from pathlib import Path
 
 import pytest
 
+from fmus.actuator.model import ActuatorBlock
+from fmus.controller.model import ControllerBlock
+from fmus.mechanism.model import MechanismBlock
 from mast.core.ssp import read_ssd
 from mast.core.ssv import read_values
 
@@ -14,16 +17,22 @@ RESOURCES = ROOT / "ssp" / "resources"
 
 
 def load_params(component: str) -> dict:
-    """Merged parameter bindings of a component of the default system.
+    """Merged parameter bindings of a component of the default system, those of its model (the actuator: the
+    voltage-driven ActuatorBlock).
 
     ``component`` is "actuator" (actuator_1), "mechanism", "controller", or
     "actuator_identified" (actuator_1 with the paper's identified set bound last).
     """
     system = read_ssd(SSD)
     if component == "actuator_identified":
-        return {**system.components["actuator_1"].parameters, **read_values(RESOURCES / "actuator_identified.ssv")}
-    name = "actuator_1" if component == "actuator" else component
-    return dict(system.components[name].parameters)
+        values = {**system.components["actuator_1"].parameters, **read_values(RESOURCES / "actuator_identified.ssv")}
+    else:
+        values = dict(system.components["actuator_1" if component == "actuator" else component].parameters)
+    # a set bound to several components gives each the names it has (SSP; mast.core.ssp.applicable_parameters):
+    # drive.ssv, the current loop's parameters for the actuators and the cycle times for the controller
+    block = {"mechanism": MechanismBlock, "controller": ControllerBlock}.get(component, ActuatorBlock)
+    names = {p.name for p in block.PARAMETERS}
+    return {k: v for k, v in values.items() if k in names}
 
 
 @pytest.fixture

@@ -100,7 +100,7 @@ def test_metrics_of_a_known_signal():
     i_cmd = np.where(t >= 1.5, 10.0, 1.0)  # at the 10 A limit from 1.5 s on
     signals = {"z_cmd": cmd, "mechanism.z": got, "psi_cmd": 0 * t, "mechanism.psi": 0 * t,
                "actuator_1.tau_m": 0.3 * np.sin(2 * np.pi * f * t), "actuator_1.i_m": 2.0 * np.ones_like(t),
-               "controller.i_cmd_1": i_cmd, "controller.u_1": 0 * t}
+               "controller.i_cmd_1": i_cmd, "actuator_1.u": 0 * t}
     m = case_metrics(Result(t, signals), motion={"axis": "z", "amplitude": amp, "frequency": f},
                      start=1.0, stop=2.0, limits={"i_max": 10.0, "u_max": 24.0})
     assert m["magnitude"] == pytest.approx(0.5, rel=1e-9)

@@ -21,6 +21,9 @@ from fmus.common.block import ModelError
 from fmus.common.parameters import ParameterError
 from fmus.controller.model import ControllerBlock
 from fmus.mechanism.kinematics import Geometry, KinematicsError, home_pose, inverse_kinematics
+from mast.core.ssv import read_values
+
+from conftest import RESOURCES
 
 # Plant data for the test loops only (Maxon RE 40 24 V catalogue, reference.md section 2);
 # the controller under test never sees them.
@@ -31,6 +34,8 @@ K_E = 30.2e-3        # V s / rad (SI: equal to k_T)
 J_M = 2.44e-5        # kg m^2, motor + reflected load, about what the velocity gains were designed for
 
 AXES = (1, 2, 3)
+#: the drive's current loop, which runs in the actuators (restated in the full-cascade test)
+DRIVE = read_values(RESOURCES / "drive.ssv")
 # Home: all carriages at mid-stroke rho_0 = 0.15 m (actuator_manufacturer.ssv). With psi = theta = 0
 # every leg spans the horizontal gap H - r, so z = rho_0 + sqrt(L^2 - (H - r)^2); default geometry
 # H = 0.4, r = 0.35, L = 0.26 m (checked against the parameter set in test_home_pose...).
@@ -79,39 +84,6 @@ def assert_close(simulated: np.ndarray, expected: np.ndarray, rtol: float = 1e-9
 
 # --------------------------------------------------------------------------- linear loops
 
-def test_current_loop_step_matches_discrete_closed_loop(controller_params):
-    """Current PI + RL plant (no back-EMF), stepped at T_cur: i and u against python-control."""
-    P = controller_params
-    T = P["T_cur"]
-    blk = block(P)
-    r = np.array([1.0, -0.5, 0.25])            # A, small enough to stay off the voltage limit
-    blk.set_mode("current", r)
-    blk.initialize(0.0)
-    a = math.exp(-R_M * T / L_M)               # exact ZOH of L di/dt = u - R i
-    b = (1.0 - a) / R_M
-    n = 120
-    i = np.zeros(3)
-    i_log, u_log = np.zeros((n, 3)), np.zeros((n, 3))
-    for k in range(n):
-        u_now = get_axes(blk, "u")             # command valid at t_k (computed at tick k-1)
-        i_log[k], u_log[k] = i, u_now
-        set_axes(blk, "i_m", i)
-        blk.do_step(k * T, T)
-        i = a * i + b * u_now
-    plant = ct.c2d(ct.tf([1.0], [L_M, R_M]), T, method="zoh")
-    C = pi_tf(P["k_pc"], P["k_ic"], T)
-    loop_i = ct.feedback(C * delay(T) * plant, 1)       # i_cmd -> i
-    loop_u = ct.feedback(C, delay(T) * plant)           # i_cmd -> u (applied, i.e. delayed output)
-    y_i = sampled_step(loop_i, n)
-    y_u = sampled_step(delay(T) * loop_u, n)
-    assert np.max(np.abs(u_log)) < P["u_max"]           # linear regime
-    for j in range(3):
-        assert_close(i_log[:, j], r[j] * y_i)
-        assert_close(u_log[:, j], r[j] * y_u)
-    # the loop works: the current settles on the command
-    np.testing.assert_allclose(i_log[-1], r, rtol=1e-3)
-
-
 def test_velocity_loop_step_matches_discrete_closed_loop(controller_params):
     """Velocity PI at T_vel = 10 T_cur, ideal current loop, inertia plant; block stepped with h = T_vel."""
     P = controller_params
@@ -128,7 +100,6 @@ def test_velocity_loop_step_matches_discrete_closed_loop(controller_params):
         i_now = get_axes(blk, "i_cmd")         # ideal current loop: i_m = i_cmd
         w_log[k], i_log[k] = w, i_now
         set_axes(blk, "omega_m", w)
-        set_axes(blk, "i_m", i_now)
         blk.do_step(k * T_vel, T_vel)          # 10 ticks, inputs held
         w = w + K_T / J_M * T_vel * i_now
     assert blk.ticks == 10 * n
@@ -187,12 +158,15 @@ def motor_plant(T: float, i_R: float):
 
 
 def test_full_cascade_single_rate_matches_interconnection(controller_params):
-    """All three loops at one rate (T_pos = T_vel = T_cur), motor with back-EMF, joint step.
+    """All three loops at one rate (T_pos = T_vel = T_cur), motor with back-EMF, joint step; the current
+    PI (the actuator's, fmus/actuator/drive.py) written out here.
 
     Checks that within one tick the cascade runs position -> velocity -> current with no
-    extra delay between the loops and one cycle of delay to the plant.
+    extra delay between the loops (the controller's commands are direct feedthrough of the samples)
+    and one cycle of delay to the plant.
     """
     P = controller_params
+    k_pc, k_ic, u_max = (DRIVE[k] for k in ("k_pc", "k_ic", "u_max"))
     T = P["T_cur"]
     i_R = i_R_of(P)
     blk = block(P, T_pos=T, T_vel=T)
@@ -203,22 +177,25 @@ def test_full_cascade_single_rate_matches_interconnection(controller_params):
     n = 2500
     x = np.zeros((3, 3))                       # axis x state
     rho_log, u_log = np.zeros((n, 3)), np.zeros((n, 3))
+    u_now, x_c = np.zeros(3), np.zeros(3)       # the voltage applied, the current PI's integrator
     for k in range(n):
-        u_now = get_axes(blk, "u")
         rho_log[k], u_log[k] = x[:, 2], u_now
-        set_axes(blk, "i_m", x[:, 0])
         set_axes(blk, "omega_m", x[:, 1])
         set_axes(blk, "rho", x[:, 2])
+        blk.evaluate()                         # i_cmd from the samples at t_k
+        e = get_axes(blk, "i_cmd") - x[:, 0]
+        u_next, x_c = k_pc * e + x_c, x_c + k_ic * T * e
         blk.do_step(k * T, T)
         x = x @ Ad.T + np.outer(u_now, Bd)
-    assert np.max(np.abs(u_log)) < P["u_max"]
+        u_now = u_next                         # applied from the next tick: one cycle of computation delay
+    assert np.max(np.abs(u_log)) < u_max
     # python-control: plant c2d, controller blocks, interconnect by signal names
     plant = ct.c2d(ct.ss(A, B, np.eye(3), np.zeros((3, 1))), T, method="zoh")
     plant = ct.ss(plant.A, plant.B, plant.C, plant.D, T, inputs=["u_applied"], outputs=["i", "w", "rho"])
     dly = ct.ss(delay(T), inputs="u", outputs="u_applied", name="delay")
     cp = ct.ss(ct.tf([P["k_v"] / i_R], [1.0], T), inputs="e_p", outputs="w_cmd", name="cp")
     cv = ct.ss(pi_tf(P["k_p"], P["k_i"], T), inputs="e_w", outputs="i_cmd", name="cv")
-    cc = ct.ss(pi_tf(P["k_pc"], P["k_ic"], T), inputs="e_i", outputs="u", name="cc")
+    cc = ct.ss(pi_tf(k_pc, k_ic, T), inputs="e_i", outputs="u", name="cc")
     sp = ct.summing_junction(inputs=["r", "-rho"], output="e_p", dt=T)
     sv = ct.summing_junction(inputs=["w_cmd", "-w"], output="e_w", dt=T)
     sc = ct.summing_junction(inputs=["i_cmd", "-i"], output="e_i", dt=T)
@@ -235,7 +212,7 @@ def test_full_cascade_single_rate_matches_interconnection(controller_params):
 # --------------------------------------------------------------------------- timing
 
 def test_multirate_outer_loops_hold_between_their_ticks(controller_params):
-    """h = T_cur: omega_cmd changes only every N_pos ticks, i_cmd every N_vel ticks, u every tick."""
+    """h = T_cur: omega_cmd changes only every N_pos ticks, i_cmd every N_vel ticks."""
     P = controller_params
     T = P["T_cur"]
     N_pos, N_vel = 20, 5
@@ -246,14 +223,12 @@ def test_multirate_outer_loops_hold_between_their_ticks(controller_params):
     blk.set_mode("joint", r)
     blk.initialize(0.0)
     i_R = i_R_of(P)
-    prev = {k: get_axes(blk, k) for k in ("omega_cmd", "i_cmd", "u")}
+    prev = {k: get_axes(blk, k) for k in ("omega_cmd", "i_cmd")}
     for n in range(100):
         rho = rng.normal(0, 1e-5, 3)
         w = rng.normal(0, 0.1, 3)
-        i = rng.normal(0, 0.01, 3)
         set_axes(blk, "rho", rho)
         set_axes(blk, "omega_m", w)
-        set_axes(blk, "i_m", i)
         blk.do_step(n * T, T)
         now = {k: get_axes(blk, k) for k in prev}
         if n % N_pos == 0:
@@ -265,8 +240,6 @@ def test_multirate_outer_loops_hold_between_their_ticks(controller_params):
             assert np.all(now["i_cmd"] != prev["i_cmd"])
         else:
             np.testing.assert_array_equal(now["i_cmd"], prev["i_cmd"])
-        assert np.all(now["u"] != prev["u"])
-        assert np.max(np.abs(now["u"])) < P["u_max"]
         prev = now
 
 
@@ -282,7 +255,6 @@ def test_long_steps_equal_ticks_with_held_inputs(controller_params):
     for s in range(40):
         inputs = {f"rho_{j}": rng.normal(0, 1e-3) for j in AXES}
         inputs |= {f"omega_m_{j}": rng.normal(0, 2.0) for j in AXES}
-        inputs |= {f"i_m_{j}": rng.normal(0, 0.3) for j in AXES}
         a.set(**inputs)
         b.set(**inputs)
         a.do_step(5 * s * T, 5 * T)
@@ -294,19 +266,19 @@ def test_long_steps_equal_ticks_with_held_inputs(controller_params):
 def test_initialize_resets_state_and_outputs(controller_params):
     P = controller_params
     blk = block(P)
-    blk.set_mode("current", (3.0, 3.0, 3.0))
+    blk.set_mode("velocity", (3.0, 3.0, 3.0))
     blk.initialize(0.0)
     for k in range(50):
         blk.do_step(k * P["T_cur"], P["T_cur"])
-    assert np.all(get_axes(blk, "u") != 0.0)
+    assert np.all(get_axes(blk, "i_cmd") != 0.0)
     blk.set_mode("joint", (0.0, 0.0, 0.0))
     blk.initialize(1.0)
     assert blk.ticks == 0
-    for name in ("u", "omega_cmd", "i_cmd", "rho_cmd"):
+    for name in ("omega_cmd", "i_cmd", "rho_cmd"):
         np.testing.assert_array_equal(get_axes(blk, name), 0.0)
-    # integrators were reset: with zero errors the first tick gives u = 0
+    # integrators were reset: with zero errors the first tick gives i_cmd = 0
     blk.do_step(1.0, P["T_cur"])
-    np.testing.assert_array_equal(get_axes(blk, "u"), 0.0)
+    np.testing.assert_array_equal(get_axes(blk, "i_cmd"), 0.0)
 
 
 # --------------------------------------------------------------------------- limits and anti-windup
@@ -339,7 +311,6 @@ def test_velocity_limit_and_anti_windup(controller_params):
         i_now = get_axes(blk, "i_cmd")
         i_log[k], w_log[k], wn_log[k] = i_now, w, w_naive
         set_axes(blk, "omega_m", w)
-        set_axes(blk, "i_m", i_now)
         blk.do_step(k * T_vel, T_vel)
         w = w + K_T / J_M * T_vel * i_now
         w_naive, i_naive = w_naive + K_T / J_M * T_vel * i_naive, naive(target - w_naive)
@@ -351,44 +322,6 @@ def test_velocity_limit_and_anti_windup(controller_params):
     assert overshoot < 0.05                               # ... and not with the block's
     np.testing.assert_allclose(w_log[-1, :2], (target, -target), rtol=1e-3)
     np.testing.assert_array_equal(w_log[:, 2], 0.0)
-
-
-def test_current_limit_and_anti_windup(controller_params):
-    """RL plant, voltage limit 1 V: a current command beyond reach (4 A > u_max / R) holds u at u_max,
-    then a reachable one (3 A): the block recovers at once, a naive PI stays wound up."""
-    P = controller_params
-    T = P["T_cur"]
-    u_max = 1.0                                 # reachable current u_max / R = 3.34 A
-    blk = block(P, u_max=u_max)
-    a = math.exp(-R_M * T / L_M)
-    b = (1.0 - a) / R_M
-    naive = naive_pi(P["k_pc"], P["k_ic"], T, u_max)
-    n_sat, n = 100, 400
-    i, i_naive, u_naive = np.zeros(3), 0.0, 0.0
-    i_log, u_log, in_log = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros(n)
-    blk.set_mode("current", (4.0, -4.0, 0.0))
-    blk.initialize(0.0)
-    target = 4.0
-    for k in range(n):
-        if k == n_sat:
-            target = 3.0
-            blk.set_mode("current", (3.0, -3.0, 0.0))
-        u_now = get_axes(blk, "u")
-        i_log[k], u_log[k], in_log[k] = i, u_now, i_naive
-        set_axes(blk, "i_m", i)
-        blk.do_step(k * T, T)
-        i = a * i + b * u_now
-        i_naive, u_naive = a * i_naive + b * u_naive, naive(target - i_naive)
-    assert np.max(np.abs(u_log)) == u_max
-    np.testing.assert_array_equal(u_log[20:n_sat + 1, 0], u_max)   # saturated while out of reach
-    np.testing.assert_array_equal(u_log[20:n_sat + 1, 1], -u_max)
-    np.testing.assert_array_equal(u_log[:, 2], 0.0)
-    after = slice(n_sat + 30, n)
-    # naive PI: still wound up 30 cycles after the command came back into reach
-    assert np.max(in_log[after]) > 1.1 * 3.0
-    # block: settled
-    np.testing.assert_allclose(i_log[after, 0], 3.0, rtol=1e-3)
-    np.testing.assert_allclose(i_log[after, 1], -3.0, rtol=1e-3)
 
 
 # --------------------------------------------------------------------------- inverse kinematics
@@ -417,7 +350,7 @@ def test_pose_command_maps_through_the_inverse_kinematics(controller_params):
         rho_cmd = get_axes(blk, "rho_cmd")
         np.testing.assert_array_equal(rho_cmd, inverse_kinematics(geom, *pose))
         assert np.ptp(rho_cmd) > 1e-3                   # a tilt really moves the joints differently
-        for name in ("u", "omega_cmd", "i_cmd"):
+        for name in ("omega_cmd", "i_cmd"):
             np.testing.assert_array_equal(get_axes(blk, name), 0.0)
 
 
@@ -481,10 +414,8 @@ def test_controller_geometry_is_its_own_binding(controller_params):
     ("T_vel", 0.00105, "T_vel"),
     ("T_pos", 0.00015, "T_pos"),
     ("k_p", -0.1, "k_p"),
-    ("k_ic", -1.0, "k_ic"),
     ("T_cur", 0.0, "T_cur"),
     ("i_max", 0.0, "i_max"),
-    ("u_max", -24.0, "u_max"),
     ("p", 0.0, "'p'"),
 ])
 def test_bad_parameters(controller_params, name, value, match):
@@ -501,7 +432,7 @@ def test_missing_and_unknown_parameters(controller_params):
         ControllerBlock({**controller_params, "k_x": 1.0})
 
 
-@pytest.mark.parametrize("name", ["omega_m_2", "z_cmd", "i_m_3", "rho_1"])
+@pytest.mark.parametrize("name", ["omega_m_2", "z_cmd", "omega_m_3", "rho_1"])
 @pytest.mark.parametrize("value", [math.nan, math.inf, -math.inf])
 def test_non_finite_input(controller_params, name, value):
     blk = block(controller_params)

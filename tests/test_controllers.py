@@ -153,7 +153,7 @@ def test_computed_torque_error_follows_the_chosen_poles(systems):
     """Exact model: each joint error obeys e'' + 2 zeta w e' + w^2 e = 0 from its own initial value, however
     the step couples the joints, for two pole choices (critically damped and underdamped)."""
     for omega_n, zeta in ((2 * math.pi * 10.0, 1.0), (2 * math.pi * 6.0, 0.5)):
-        res = simulate(systems["computed_torque"], PoseStep(STEP), 0.5, record=JOINT, direct=True, record_step=1e-4,
+        res = simulate(systems["computed_torque"], PoseStep(STEP), 0.5, record=JOINT, direct=True, record_step=1e-3,
                        parameters={"controller": {"omega_n": omega_n, "zeta": zeta}})
         e, t = joint_errors(res), res.time
         wd = omega_n * math.sqrt(1.0 - zeta ** 2) if zeta < 1 else 0.0

@@ -42,8 +42,12 @@ PAYLOAD = {"m_payload": 1.7, "payload_x": 0.04, "payload_y": -0.03, "payload_z":
 
 
 def system_params(design_name: str, component: str = "mechanism") -> dict:
+    """The component's parameters as the design's system binds them (each its own names of a shared set)."""
+    from mast.core.build import default_parameters
+
     d = next(d for d in DESIGNS if d.name == design_name)
-    return dict(read_ssd(d.ssd).components[component].parameters)
+    source = read_ssd(d.ssd).components[component].source
+    return default_parameters(Path(source).stem, d.ssd)
 
 
 CASES = {

@@ -134,3 +134,4 @@ def test_per_axis_subsets_stay_small():
     assert _per_axis_excess(("coulomb_axis1", "viscous_axis2", "offset_axis3"))
     assert not _per_axis_excess(("carriage_mass", "carriage_mass_axis1", "offset_axis3"))
     assert not _per_axis_excess(("coulomb_axis1", "coulomb_axis2", "inertia_motor"))
+

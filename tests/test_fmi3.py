@@ -161,18 +161,18 @@ def test_fmi3_state_rollback_failures_and_bad_parameters(built):
     inst = Instance3(built / "fmus3" / "MastActuator.fmu", "axis")
     inst.start()
     for k in range(20):
-        inst.set(u=2.0, F=6.0)
+        inst.set(i_cmd=2.0, F=6.0)
         assert inst.step(k * 1e-4, 1e-4) == OK
     state = inst.slave.getFMUState()
     ahead = []
     for k in range(20, 60):
-        inst.set(u=3.0, F=6.0)
+        inst.set(i_cmd=3.0, F=6.0)
         assert inst.step(k * 1e-4, 1e-4) == OK
         ahead.append(inst.get())
     inst.slave.setFMUState(state)
     again = []
     for k in range(20, 60):
-        inst.set(u=3.0, F=6.0)
+        inst.set(i_cmd=3.0, F=6.0)
         assert inst.step(k * 1e-4, 1e-4) == OK
         again.append(inst.get())
     np.testing.assert_array_equal(again, ahead)

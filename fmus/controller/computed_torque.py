@@ -65,6 +65,13 @@ class ComputedTorqueController(DriveController):
         self.model = InverseModel(self.params, self.name)
         self.K_P, self.K_D = error_gains(float(self.params["omega_n"]), float(self.params["zeta"]))
 
+    def _law_state(self) -> tuple:
+        return (*super()._law_state(), self.model.warm_start)
+
+    def _set_law_state(self, state: tuple) -> None:
+        super()._set_law_state(state)
+        self.model.warm_start = state[-1]
+
     def _position_law(self, t: float) -> None:
         for j in range(3):
             self._omega_cmd[j] = self.reference.rho_dot[j] / self.i_R

@@ -49,6 +49,13 @@ class FeedForwardController(ControllerBlock):
         self._kff_v_iR, self._kff_tau = feedforward_gains(float(self.params["k_ff_v"]), float(self.params["k_ff_tau"]),
                                                           self.i_R)
 
+    def _law_state(self) -> tuple:
+        return (*super()._law_state(), self.model.warm_start)
+
+    def _set_law_state(self, state: tuple) -> None:
+        super()._set_law_state(state)
+        self.model.warm_start = state[-1]
+
     def _position_law(self, t: float) -> None:
         super()._position_law(t)
         ref = self.reference

@@ -15,7 +15,7 @@ from .workspace import WorkspaceController
 
 
 class MastController(BlockSlave):
-    """Joint-space cascade control of the three MAST axes: P position, PI velocity, PI current (paper Fig. 2 and 6)."""
+    """Joint-space cascade control of the three MAST axes: P position, PI velocity; current commands to the actuators' current loops (paper Fig. 2 and 6)."""
 
     block_class = ControllerBlock
     author = "MAST co-simulation project"
@@ -23,7 +23,7 @@ class MastController(BlockSlave):
 
 
 class MastWorkspaceController(MastController):
-    """Workspace position control of the MAST (paper Fig. 3a): pose error through the direct kinematics, velocity command through the inverse Jacobian, PI velocity and current loops per axis."""
+    """Workspace position control of the MAST (paper Fig. 3a): pose error through the direct kinematics, velocity command through the inverse Jacobian, PI velocity loop per axis."""
 
     block_class = WorkspaceController
 
@@ -35,7 +35,7 @@ class MastFeedForwardController(MastController):
 
 
 class MastComputedTorqueController(MastController):
-    """Computed torque control of the MAST (paper Fig. 3b): PD error dynamics through the controller's own inverse dynamic model, PI current loop per axis."""
+    """Computed torque control of the MAST (paper Fig. 3b): PD error dynamics through the controller's own inverse dynamic model; current commands to the actuators' current loops."""
 
     block_class = ComputedTorqueController
 

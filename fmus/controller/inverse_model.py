@@ -70,6 +70,15 @@ class InverseModel:
         self.engine = engine(P, self.owner) if int(P["attached"]) else None
         self._guess = None
 
+    @property
+    def warm_start(self):
+        """The direct kinematics' last solution (the next one starts from it; None: a cold start)."""
+        return self._guess
+
+    @warm_start.setter
+    def warm_start(self, q) -> None:
+        self._guess = q
+
     def torques(self, rho: Sequence[float], rho_dot: Sequence[float], rho_ddot: Sequence[float]) -> list[float]:
         """tau_m [N m] of the three motors; KinematicsError (naming the controller) if rho is unreachable."""
         i_R = self.i_R

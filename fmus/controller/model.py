@@ -1,8 +1,10 @@
 """The drive under every MAST controller, and the joint-space cascade (paper Fig. 2 and 6).
 
 ``DriveController`` is what all controllers share: the interface (pose commands and the
-three axes' measurements in, voltages and the loop commands out), the drive's multi-rate
-schedule, the PI current loop, the joint reference and the operating modes. The outer
+three axes' position and speed measurements in, the loop commands out), the drive's
+multi-rate schedule of the position and velocity loops, the joint reference and the operating
+modes. The drive's current loop runs inside each actuator (fmus/actuator/drive.py): the
+current command ``i_cmd_k`` is its input. The outer
 law is the subclass's: ``ControllerBlock`` here (the paper's joint-space cascade),
 ``WorkspaceController`` (workspace.py), ``FeedForwardController`` (feedforward.py) and
 ``ComputedTorqueController`` (computed_torque.py).
@@ -17,24 +19,25 @@ velocity (every T_vel = N_vel T_cur, PI, limit i_max):
     v = k_p e + x_v + i_ff_j                            i_ff: a feed-forward current (0 here)
     i_cmd_j = sat(v, i_max)
     x_v <- x_v + k_i T_vel e      unless saturated and e pushes further into the limit
-current (every T_cur, PI, limit u_max):
-    e = i_cmd_j - i_m_j
-    v = k_pc e + x_c
-    u_j = sat(v, u_max)
-    x_c <- x_c + k_ic T_cur e     unless saturated and e pushes further into the limit
+current (every T_cur, PI, limit u_max): in the actuator (fmus/actuator/drive.py)
 
 So each PI is C(z) = K_P + K_I T / (z - 1) while it does not saturate, and the
 anti-windup is conditional integration (clamping).
 
-Timing: the block counts current-loop ticks n = 0, 1, 2, ... from ``initialize``
-(tick n belongs to t0 + n T_cur). ``do_step(t, h)`` with h = m T_cur runs the m
-ticks n .. n+m-1 with the inputs held at their values at t; tick n runs the
-position loop if n % N_pos == 0, then the velocity loop if n % N_vel == 0, then
-the current loop, each using the command just computed by the outer loop. The
-outputs after the step are the commands of the last tick, so a master that
-applies them over the next step sees one current cycle (h) of computation delay,
-as a real drive does. For the laws that use them (``REFERENCE_RATES``), every position
-tick also updates the velocity and acceleration of the joint reference (reference.py).
+Timing: the block counts ticks of T_cur n = 0, 1, 2, ... from ``initialize``
+(tick n belongs to t0 + n T_cur); tick n runs the position loop if n % N_pos == 0,
+then the velocity loop if n % N_vel == 0, each using the command just computed by the
+outer loop. The outputs are direct feedthrough (``FEEDTHROUGH``): at a communication
+point, ``evaluate()`` runs the laws of its tick from the samples just set, so the current
+command computed from the samples at t reaches the actuator's current loop at t (which
+applies its voltage one T_cur later, as a real drive does). ``evaluate`` runs once per
+tick: called again at the same point (a host that sets the inputs again, or one by one)
+it starts over from the state before the tick's laws. ``do_step(t, h)`` with h = m T_cur
+runs the laws of the tick at t if no input was set there (``evaluate``), then those of the
+ticks inside the step with the inputs held; the outputs after it are the commands of
+the last tick until the inputs at t + h are set. For the laws that use them
+(``REFERENCE_RATES``), every position tick also updates the velocity and acceleration of
+the joint reference (reference.py).
 
 For commissioning and for tests, ``set_mode`` switches the drive's operating
 mode: "pose" (default), "joint" (rho_cmd given, the IK bypassed), "velocity"
@@ -48,6 +51,7 @@ from typing import Mapping, Sequence
 
 from ..common.block import Block, ModelError
 from ..common.parameters import ParameterError, Value, nonnegative, positive
+from ..actuator.drive import pi_step
 from ..actuator.model import transmission_ratio
 from ..mechanism.designs import KINEMATIC_PARAMETERS, kinematic_engine
 from ..mechanism.kinematics import KinematicsError
@@ -57,32 +61,6 @@ from .reference import JointReference
 #: operating modes, outermost first; the value is the first loop that runs
 MODES = ("pose", "joint", "velocity", "current")
 _MODE_COMMAND = {"joint": "rho_cmd", "velocity": "omega_cmd", "current": "i_cmd"}
-
-
-def pi_step(e: float, x: float, k_p: float, k_iT: float, limit: float, offset: float = 0.0) -> tuple[float, float]:
-    """One forward-Euler PI update with output limit and conditional integration.
-
-    ``e`` error, ``x`` integrator state (in output units), ``k_p`` proportional
-    gain, ``k_iT`` integral gain times the loop's cycle time, ``limit`` the
-    symmetric output limit, ``offset`` a feed-forward added to the output before
-    the limit. Returns (output, new state): while the output is saturated, the
-    integrator only moves when the error drives it back out of the limit
-    (anti-windup).
-    """
-    v = k_p * e + x + offset
-    if v > limit:
-        return limit, (x + k_iT * e if e < 0.0 else x)
-    if v < -limit:
-        return -limit, (x + k_iT * e if e > 0.0 else x)
-    return v, x + k_iT * e
-
-
-def drive_gains(k_pc: float, k_ic: float, T_cur: float, i_max: float, u_max: float) -> tuple[float, float, float, float]:
-    """The current loop's constants: (k_pc [V/A], k_ic T_cur [V/A], i_max [A], u_max [V]).
-
-    Written in the generated-code subset: the native FMU computes them at initialisation from
-    its parameters with this source (mast.core.native.models translates it)."""
-    return (k_pc, k_ic * T_cur, i_max, u_max)
 
 
 def position_p_law(rho_cmd: float, rho: float, kv_iR: float) -> float:
@@ -98,15 +76,13 @@ def cascade_gains(k_v: float, k_p: float, k_i: float, T_vel: float, i_R: float) 
     return (k_v / i_R, k_p, k_i * T_vel)
 
 
-#: the servo drive under every controller (ssp/resources/drive.ssv) and the machine's transmission
+#: the servo drive's loops in the controller (ssp/resources/drive.ssv: the actuators take the current loop's
+#: parameters from the same set) and the machine's transmission
 DRIVE_PARAMETERS = (
-    nonnegative("k_pc", "V/A", "Current PI proportional gain: voltage per current error"),
-    nonnegative("k_ic", "V/(A.s)", "Current PI integral gain"),
     positive("T_pos", "s", "Position loop cycle time (integer multiple of T_cur)"),
     positive("T_vel", "s", "Velocity loop cycle time (integer multiple of T_cur)"),
-    positive("T_cur", "s", "Current loop cycle time (the block's tick)"),
+    positive("T_cur", "s", "Current loop cycle time: the controller's tick (the actuators run the current loop)"),
     positive("i_max", "A", "Current command limit (symmetric)"),
-    positive("u_max", "V", "Voltage command limit (symmetric)"),
     positive("i_r", "1", "Gear ratio (motor turns per output turn)"),
     positive("p", "m", "Linear guide feed per output revolution"),
     *KINEMATIC_PARAMETERS,  # the controller's own kinematic model of the machine (designs.py)
@@ -126,10 +102,8 @@ class DriveController(Block):
 
     INPUTS = ("z_cmd", "psi_cmd", "theta_cmd",
               "rho_1", "rho_2", "rho_3",
-              "omega_m_1", "omega_m_2", "omega_m_3",
-              "i_m_1", "i_m_2", "i_m_3")
-    OUTPUTS = ("u_1", "u_2", "u_3",
-               "rho_cmd_1", "rho_cmd_2", "rho_cmd_3",
+              "omega_m_1", "omega_m_2", "omega_m_3")
+    OUTPUTS = ("rho_cmd_1", "rho_cmd_2", "rho_cmd_3",
                "omega_cmd_1", "omega_cmd_2", "omega_cmd_3",
                "i_cmd_1", "i_cmd_2", "i_cmd_3")
     PARAMETERS = DRIVE_PARAMETERS
@@ -137,8 +111,6 @@ class DriveController(Block):
         "z_cmd": "m", "psi_cmd": "rad", "theta_cmd": "rad",
         **{f"rho_{j}": "m" for j in (1, 2, 3)},
         **{f"omega_m_{j}": "rad/s" for j in (1, 2, 3)},
-        **{f"i_m_{j}": "A" for j in (1, 2, 3)},
-        **{f"u_{j}": "V" for j in (1, 2, 3)},
         **{f"rho_cmd_{j}": "m" for j in (1, 2, 3)},
         **{f"omega_cmd_{j}": "rad/s" for j in (1, 2, 3)},
         **{f"i_cmd_{j}": "A" for j in (1, 2, 3)},
@@ -149,12 +121,12 @@ class DriveController(Block):
         "theta_cmd": "Platform rotation command theta",
         **{f"rho_{j}": f"Measured position of guide {j} (linear encoder)" for j in (1, 2, 3)},
         **{f"omega_m_{j}": f"Measured speed of motor {j} (motor encoder)" for j in (1, 2, 3)},
-        **{f"i_m_{j}": f"Measured current of motor {j}" for j in (1, 2, 3)},
-        **{f"u_{j}": f"Voltage command to actuator {j}" for j in (1, 2, 3)},
         **{f"rho_cmd_{j}": f"Joint position command of axis {j} (inverse kinematics)" for j in (1, 2, 3)},
         **{f"omega_cmd_{j}": f"Motor speed command of axis {j} (position loop output)" for j in (1, 2, 3)},
         **{f"i_cmd_{j}": f"Current command of axis {j} (velocity loop output)" for j in (1, 2, 3)},
     }
+    #: every command follows the samples at a communication point (the laws of its tick, ``evaluate``)
+    FEEDTHROUGH = dict.fromkeys(OUTPUTS, INPUTS)
     #: operating modes this controller offers (one without a velocity loop has no "velocity" mode)
     MODES: tuple[str, ...] = MODES
     #: whether the laws use the reference velocity and acceleration (``reference``, updated every position tick)
@@ -175,9 +147,7 @@ class DriveController(Block):
         self.geometry = self.kinematics.description.geometry
         self._ik = self.kinematics.ik
         self.reference = JointReference(float(P["T_pos"]))
-        # pre-multiplied gains (pure Python floats for the hot loop)
-        self._kpc, self._kicT, self._i_max, self._u_max = drive_gains(
-            float(P["k_pc"]), float(P["k_ic"]), T_cur, float(P["i_max"]), float(P["u_max"]))
+        self._i_max = float(P["i_max"])
         self._mode = 0
         self._t0 = 0.0
         self._reset()
@@ -194,14 +164,14 @@ class DriveController(Block):
     def _reset(self) -> None:
         self._n = 0
         self._x_v = [0.0, 0.0, 0.0]      # velocity PI integrator states [A]
-        self._x_c = [0.0, 0.0, 0.0]      # current PI integrator states [V]
-        self._u = [0.0, 0.0, 0.0]
         self._rho_cmd = [0.0, 0.0, 0.0]
         self._omega_cmd = [0.0, 0.0, 0.0]
         self._i_cmd = [0.0, 0.0, 0.0]
         self._i_ff = [0.0, 0.0, 0.0]     # feed-forward current added to the velocity PI output [A]
         self._pose_ik: tuple[float, float, float] | None = None   # pose of the cached IK
         self._override: tuple[float, float, float] | None = None
+        self._evaluated = -1                      # the tick whose laws ran at its communication point
+        self._before: tuple = ()                  # the law state before them (``_law_state``)
 
     # -- properties -----------------------------------------------------------
     @property
@@ -278,6 +248,22 @@ class DriveController(Block):
         self.reference.reset()
         self._write_outputs()
 
+    def evaluate(self) -> None:
+        """The laws of the communication point's tick from the inputs as they are (module docstring): once
+        per tick; called again at the same tick, from the state before its laws."""
+        n = self._n
+        if self._evaluated == n:
+            self._set_law_state(self._before)
+        else:
+            self._before = self._law_state()
+            self._evaluated = n
+        t = self._t0 + n * self.T_cur
+        s = sum(self.values[:9])
+        if s - s != 0.0:   # NaN or inf among the inputs
+            self._check_inputs(t)
+        self._laws(n, t)
+        self._write_outputs()
+
     def do_step(self, t: float, h: float) -> None:
         T = self.T_cur
         m = round(h / T)
@@ -288,29 +274,40 @@ class DriveController(Block):
             raise ModelError(
                 f"{self.name}: do_step at t = {t!r} s, but tick {n} belongs to t = {self._t0 + n * T!r} s "
                 "(steps must be contiguous from initialize)")
-        vals = self.values
-        s = sum(vals[:12])
-        if s - s != 0.0:   # NaN or inf among the inputs
-            self._check_inputs(t)
-
-        N_pos, N_vel, mode = self._N_pos, self._N_vel, self._mode
-        i_cmd, u, x_c = self._i_cmd, self._u, self._x_c
-        kpc, kicT, u_max = self._kpc, self._kicT, self._u_max
-        for _ in range(m):
-            if mode <= 1 and n % N_pos == 0:
-                t_n = self._t0 + n * T
-                if mode == 0:
-                    self._update_ik(t_n)
-                if self.REFERENCE_RATES:
-                    self.reference.update(self._rho_cmd)
-                self._position_law(t_n)
-            if mode <= 2 and n % N_vel == 0:
-                self._velocity_law(self._t0 + n * T)
-            for j in range(3):
-                u[j], x_c[j] = pi_step(i_cmd[j] - vals[9 + j], x_c[j], kpc, kicT, u_max)
-            n += 1
-        self._n = n
+        if self._evaluated != n:   # no input set at this communication point: the inputs held
+            self.evaluate()
+        N_pos, N_vel = self._N_pos, self._N_vel
+        for k in range(n + 1, n + m):    # the ticks inside the step, with the inputs held
+            if k % N_pos == 0 or k % N_vel == 0:
+                self._laws(k, self._t0 + k * T)
+        self._n = n + m
+        self._before = ()
         self._write_outputs()
+
+    def _laws(self, n: int, t: float) -> None:
+        """Tick n (at t): the position loop if n % N_pos == 0, then the velocity loop if n % N_vel == 0."""
+        mode = self._mode
+        if mode <= 1 and n % self._N_pos == 0:
+            if mode == 0:
+                self._update_ik(t)
+            if self.REFERENCE_RATES:
+                self.reference.update(self._rho_cmd)
+            self._position_law(t)
+        if mode <= 2 and n % self._N_vel == 0:
+            self._velocity_law(t)
+
+    def _law_state(self) -> tuple:
+        """What the laws change, copied (``evaluate`` starts a tick over from it); subclasses add theirs."""
+        ref = self.reference
+        return ([*self._x_v], [*self._rho_cmd], [*self._omega_cmd], [*self._i_cmd], [*self._i_ff], self._pose_ik,
+                [[*r] for r in ref._history], [*ref.rho_dot], [*ref.rho_ddot])
+
+    def _set_law_state(self, state: tuple) -> None:
+        ref = self.reference
+        (x_v, rho_cmd, omega_cmd, i_cmd, i_ff, self._pose_ik, history, rho_dot, rho_ddot) = state[:9]
+        self._x_v[:], self._rho_cmd[:], self._omega_cmd[:], self._i_cmd[:], self._i_ff[:] = x_v, rho_cmd, omega_cmd, i_cmd, i_ff
+        ref._history = [[*r] for r in history]
+        ref.rho_dot[:], ref.rho_ddot[:] = rho_dot, rho_ddot
 
     # -- the laws (subclasses) ------------------------------------------------------
     def _position_law(self, t: float) -> None:
@@ -323,7 +320,7 @@ class DriveController(Block):
 
     # -- helpers ------------------------------------------------------------------
     def _write_outputs(self) -> None:
-        self.values[12:24] = self._u + self._rho_cmd + self._omega_cmd + self._i_cmd
+        self.values[9:18] = self._rho_cmd + self._omega_cmd + self._i_cmd
 
     def _check_inputs(self, t: float) -> None:
         for name, value in zip(self.INPUTS, self.values):

@@ -7,7 +7,7 @@ Per position tick (T_pos), with q = (z, psi, theta) the platform coordinates:
     rho_dot_cmd = J_inv(q_meas) qdot_cmd         J_inv = drho/dq, the inverse Jacobian
     omega_cmd_j = rho_dot_cmd_j / i_R
 
-and the velocity PI and current PI loops of the joint-space cascade underneath (model.py).
+and the velocity PI loop of the joint-space cascade underneath (model.py; the current loop runs in the actuators).
 With s = 1 and small errors J_inv (q_cmd - q) = rho_cmd - rho to first order, so the loop
 behaves as the joint cascade with the same k_v; what the workspace form adds is a gain per
 pose direction (the scales s), so that, say, the rotations can be stiffer than the height,
@@ -42,7 +42,7 @@ def joint_speed(J_0: float, J_1: float, J_2: float, qdot_0: float, qdot_1: float
 
 
 class WorkspaceController(ControllerBlock):
-    """Position loop on the platform pose (through the direct kinematics); velocity and current PI per axis."""
+    """Position loop on the platform pose (through the direct kinematics); velocity PI per axis."""
 
     PARAMETERS = (*ControllerBlock.PARAMETERS, *WORKSPACE_PARAMETERS)
     DESCRIPTIONS = {**ControllerBlock.DESCRIPTIONS,
@@ -59,6 +59,13 @@ class WorkspaceController(ControllerBlock):
         super()._reset()
         self._q_meas = None       # last direct kinematics of the measured joints (its warm start)
         self._q_target = None     # last direct kinematics of rho_cmd (joint mode)
+
+    def _law_state(self) -> tuple:
+        return (*super()._law_state(), self._q_meas, self._q_target)
+
+    def _set_law_state(self, state: tuple) -> None:
+        super()._set_law_state(state)
+        self._q_meas, self._q_target = state[-2:]
 
     def _dk(self, rho, guess, what: str, t: float):
         try:

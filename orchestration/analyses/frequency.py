@@ -118,8 +118,9 @@ def analyse(result: Result, axis: str, amplitude: float, frequency: float, start
 
 
 def _record_step(frequency: float) -> float:
-    """At least 200 samples a period, at most one per millisecond."""
-    return max(1e-4, min(1e-3, round(1.0 / (200.0 * frequency), 4)))
+    """One sample per millisecond, the MAST systems' exchange step (docs/interfaces.md): the outputs change only
+    there, so a finer record adds no information (at 50 Hz, 20 samples a period for the harmonics)."""
+    return 1e-3
 
 
 @dataclass(frozen=True)

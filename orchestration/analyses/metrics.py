@@ -16,7 +16,7 @@ Families (the ``outputs.metrics`` names of a batch config):
 ``torque``     ``tau_m_<k>_peak_Nm``, ``tau_m_<k>_rms_Nm`` per actuator k
 ``current``    ``i_m_<k>_peak_A``, ``i_m_<k>_rms_A`` per actuator k
 ``saturation`` ``saturation_<k>_s``: time drive k spends at its current limit (``|i_cmd_k| = i_max``)
-               or voltage limit (``|u_k| = u_max``), sampled at the record step;
+               or voltage limit (``|u| = u_max`` of ``actuator_<k>``, the drive's current loop), sampled at the record step;
                ``saturation_s``: time any drive is saturated; ``saturation_fraction``: that time
                over the window
 
@@ -69,8 +69,8 @@ def case_metrics(result: Result, families: Sequence[str] = FAMILIES, motion: Opt
     """Metrics of one run over ``[start, stop]``.
 
     ``motion``: ``{"axis", "amplitude" (m or rad), "frequency" (Hz)}`` of a sine test (needed by
-    ``sine``); ``limits``: ``{"i_max": A, "u_max": V}``, the controller's limits (needed by
-    ``saturation``).
+    ``sine``); ``limits``: ``{"i_max": A, "u_max": V}``, the drive's limits: the controller's current
+    command and the actuators' current loop (needed by ``saturation``).
     """
     w = window(result, start, stop)
     sig = w.signals
@@ -108,7 +108,7 @@ def case_metrics(result: Result, families: Sequence[str] = FAMILIES, motion: Opt
         found = False
         for k in ACTUATORS:
             sat = np.zeros(len(w.time), dtype=bool)
-            for name, limit in ((f"controller.i_cmd_{k}", limits.get("i_max")), (f"controller.u_{k}", limits.get("u_max"))):
+            for name, limit in ((f"controller.i_cmd_{k}", limits.get("i_max")), (f"actuator_{k}.u", limits.get("u_max"))):
                 if name in sig and limit:
                     sat |= np.abs(sig[name]) >= float(limit) * (1.0 - 1e-9)
                     found = True

@@ -419,6 +419,7 @@ def _forensics(ssp: str, params: dict, groups: dict, m_eq22: float) -> list[str]
     from ..core.ssv import parse_ssv
 
     mech, ctl = _component_params(ssp, "mechanism"), {**_component_params(ssp, "controller"), **reading_gains()}
+    loop = _component_params(ssp, "actuator_1")        # the drive's current loop runs in the actuators
     fit = parse_ssv(SSP_SRC / "resources" / f"{GAINS_SET}.ssv")["k_v"].source
     fn, eq22 = natural_frequencies(params), natural_frequencies({**params, "M_load": m_eq22})
     identified = resource_parameters(IDENTIFIED_SET)
@@ -465,10 +466,10 @@ def _forensics(ssp: str, params: dict, groups: dict, m_eq22: float) -> list[str]
         "- Torque at 10 Hz, with the drive's torque low-pass on the measured (identified) torque, manufacturer minus "
         "measured, peak-to-peak: " + ("; ".join(lp) if lp else "(no signals)") + ".",
         f"- Controller: k_v = {float(ctl['k_v']):.4g} 1/s, k_p = {float(ctl['k_p']):.4g} A s/rad, k_i = "
-        f"{float(ctl['k_i']):.4g} A/rad (fitted), k_pc = {float(ctl['k_pc']):.4g} V/A, k_ic = {float(ctl['k_ic']):.4g} "
+        f"{float(ctl['k_i']):.4g} A/rad (fitted), k_pc = {float(loop['k_pc']):.4g} V/A, k_ic = {float(loop['k_ic']):.4g} "
         f"V/(A s), cycle times {1e6 * float(ctl['T_cur']):.0f} us / {1e3 * float(ctl['T_vel']):g} ms / "
         f"{1e3 * float(ctl['T_pos']):g} ms (current / velocity / position); limits {float(ctl['i_max']):g} A, "
-        f"{float(ctl['u_max']):g} V.",
+        f"{float(loop['u_max']):g} V.",
         f"- Gain fit and its residual: {fit}.",
     ]
 

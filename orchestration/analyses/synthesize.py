@@ -100,12 +100,13 @@ def _synth_worker(args: tuple) -> dict:
     from ..core.motion import SineMotion
     from ..core.run import simulate
 
-    ssp, spec, parameters, direct = args
+    ssp, spec, parameters, direct, steps = args
     record = ["z_cmd", "psi_cmd", "theta_cmd", "mechanism.z", "mechanism.psi", "mechanism.theta"]
     for j in AXES:
         record += [f"actuator_{j}.rho", f"actuator_{j}.tau_meas", f"actuator_{j}.tau_m"]
     res = simulate(ssp, SineMotion(spec.motion, spec.amplitude, spec.frequency), spec.stop_time(),
-                   parameters=parameters, record=record, record_step=None, direct=direct)
+                   parameters=parameters, record=record, record_step=None, direct=direct,
+                   base_step=steps and steps[0], step_sizes=steps and steps[1])
     return {"time": res.time, **res.signals, "base_step": res.stats["base_step"]}
 
 
@@ -125,9 +126,13 @@ def synthesize(ssp: str, out: Path, truth: Mapping[str, Mapping] = None, tests: 
     for key in noise:
         if key not in ("tau_m", "rho"):
             raise ValueError(f"--noise {key}: expected tau_m or rho")
+    from ..core.run import drive_tick_steps
+
     with SSPArchive(ssp) as archive:
         components = list(archive.system.components)
-        base = archive.system.base_step
+        # every T_cur: the torque measured at the resolution of the drive's sensor (the diagnosis restates its chain)
+        steps = drive_tick_steps(archive.system)
+        base = steps[0] if steps else archive.system.base_step
     truth = expand_overrides(truth or {}, components)
     geometry = controller_geometry(ssp, truth)
     every = round(sample_time / base)
@@ -136,7 +141,7 @@ def synthesize(ssp: str, out: Path, truth: Mapping[str, Mapping] = None, tests: 
     out.mkdir(parents=True, exist_ok=True)
     for old in out.glob("*.csv"):
         old.unlink()
-    jobs = [(str(ssp), spec, truth, direct) for spec in tests]
+    jobs = [(str(ssp), spec, truth, direct, steps) for spec in tests]
     names = [spec.name for spec in tests]
     if len(set(names)) != len(names):
         raise ValueError("two tests with the same motion and frequency")

@@ -137,11 +137,17 @@ def _motion_si(motion: Optional[Mapping]) -> Optional[dict]:
 
 
 def _limits(system, flat: Mapping[str, Any]) -> dict[str, float]:
-    if "controller" not in system.components:
-        return {}
-    merged = {**system.components["controller"].parameters,
-              **{k.split(".", 1)[1]: v for k, v in flat.items() if k.startswith("controller.")}}
-    return {k: float(merged[k]) for k in ("i_max", "u_max") if isinstance(merged.get(k), (int, float))}
+    """The drive's limits: i_max of the controller's current command, u_max of the current loop in the actuators
+    (actuator_1's: one drive type for the three axes)."""
+    out = {}
+    for component, name in (("controller", "i_max"), ("actuator_1", "u_max")):
+        if component not in system.components:
+            continue
+        merged = {**system.components[component].parameters,
+                  **{k.split(".", 1)[1]: v for k, v in flat.items() if k.startswith(f"{component}.")}}
+        if isinstance(merged.get(name), (int, float)):
+            out[name] = float(merged[name])
+    return out
 
 
 def _nest(flat: Mapping[str, Any]) -> dict[str, dict[str, Any]]:

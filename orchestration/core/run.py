@@ -23,6 +23,20 @@ def default_signals(system) -> list[str]:
     return signals
 
 
+def drive_tick_steps(system) -> Optional[tuple[float, dict[str, float]]]:
+    """(base step, step sizes) that exchange the controller and the actuators at every tick of the drive's
+    current loop (the actuators' ``T_cur``), the mechanism at its own step: the same trajectories as the
+    system's 1 ms exchange (docs/interfaces.md, Timing), recorded at the resolution of the drive's torque
+    measurement, for an analysis that restates that measurement on the record (synthesize, diagnose), and
+    with every loop tick of any cycle time on the ``T_cur`` grid sampling its own instant. None for a system
+    without actuators that have a current loop."""
+    actuators = [n for n, c in system.components.items() if n.startswith("actuator_") and "T_cur" in c.parameters]
+    if not actuators:
+        return None
+    T = float(system.components[actuators[0]].parameters["T_cur"])
+    return T, {name: T for name in ("controller", *actuators) if name in system.components}
+
+
 def parse_overrides(items: Sequence[str]) -> dict[str, dict[str, Value]]:
     """``ELEMENT.PARAMETER=VALUE`` strings to {element: {parameter: value}}."""
     overrides: dict[str, dict[str, Value]] = {}

@@ -31,12 +31,13 @@ def sim_job(args: tuple) -> dict:
     from ..core.master import SimulationError
     from ..core.run import simulate
 
-    ssp, name, replay, stop, parameters, direct = args
+    ssp, name, replay, stop, parameters, direct, steps = args
     record = []
     for j in AXES:
         record += [f"actuator_{j}.tau_m", f"actuator_{j}.rho", f"actuator_{j}.rho_dot", f"actuator_{j}.omega_m"]
     try:
-        res = simulate(ssp, replay, stop, parameters=parameters, record=record, record_step=None, direct=direct)
+        res = simulate(ssp, replay, stop, parameters=parameters, record=record, record_step=None, direct=direct,
+                       base_step=steps and steps[0], step_sizes=steps and steps[1])
     except SimulationError as err:
         return {"name": name, "error": str(err)}
     except Exception as err:  # parameters the model rejects, ...
@@ -76,6 +77,11 @@ class Simulator:
         self._cache: dict = {}
         self.count = 0
         self.seconds = 0.0
+        from ..core.run import drive_tick_steps
+        from ..core.ssp import SSPArchive
+
+        with SSPArchive(ssp) as archive:   # exchanged every T_cur: the torque chain restated at that record step
+            self.steps = drive_tick_steps(archive.system)
 
     def __enter__(self) -> "Simulator":
         if self.workers > 1:
@@ -115,8 +121,11 @@ class Simulator:
         if not todo:
             return
         t0 = time.perf_counter()
-        jobs = [(self.ssp, n, self._replay(n, r), self.tests[n].test.duration + 1e-12,
-                 self.parameters(dict(key), self.tests[n]), self.direct) for key, n, r in todo]
+        jobs = []
+        for key, n, r in todo:
+            params = self.parameters(dict(key), self.tests[n])
+            jobs.append((self.ssp, n, self._replay(n, r), self.tests[n].test.duration + 1e-12, params, self.direct,
+                         self.steps))
         order = sorted(range(len(jobs)), key=lambda k: -jobs[k][3])   # longest first keeps the workers busy
         if self._pool and len(jobs) > 1:
             results = dict(zip(order, self._pool.map(sim_job, [jobs[k] for k in order])))

@@ -133,6 +133,7 @@ def diagnose(opt: Options, log: Callable[[str], None] = print) -> dict:
         return diagnose_records(opt, log)
     t_start = time.perf_counter()
     sim_ssp, direct = _simulated_ssp(opt)
+    from ..core.build import block_class
     from ..core.ssp import SSPArchive
 
     with SSPArchive(opt.ssp) as archive:
@@ -140,7 +141,9 @@ def diagnose(opt: Options, log: Callable[[str], None] = print) -> dict:
         actuators = [n for n in system.components if n.startswith("actuator_")]
         if len(actuators) != 3:
             raise DiagnosisError(f"{opt.ssp}: expected three actuator_k components, found {', '.join(actuators)}")
-        ssp_actuator = dict(system.components[actuators[0]].parameters)
+        # its own parameters: a set bound to the actuators and the controller (drive.ssv) holds both's
+        own = {p.name for p in block_class(Path(system.components[actuators[0]].source).stem).PARAMETERS}
+        ssp_actuator = {k: v for k, v in system.components[actuators[0]].parameters.items() if k in own}
         drive = system.components.get("controller")
         # the drive's parameters the library can change, and the quanta of the discrete ones (T_cur)
         wanted = set(CONTROLLER_PARAMETERS) | {e.quantum for e in LIBRARY if e.kind == "controller" and e.quantum}

@@ -305,15 +305,18 @@ COMPARED = {
     **{f"mechanism.F_{k}": "N" for k in (1, 2, 3)},
 }
 #: largest |host - master| accepted over a run, by unit (docs/using-the-fmus.md gives the measured values).
-#: libcosim runs the schedule of the project's master; the allowance is for its initialization, which
-#: stops after one pass per component where our master iterates to convergence (initial forces differ
-#: by ~0.02 N, decaying within 10 ms). ecos hands a component's outputs on at the next base step rather
-#: than at the end of the component's step: the mechanism's forces reach the actuators 0.9 ms earlier.
-#: The ecos command line prints 6 decimals: half a unit of the last one more.
+#: Neither libcosim nor ecos orders the exchange by direct feedthrough: the controller's current command
+#: (a feedthrough output of the samples at t, docs/interfaces.md) reaches the actuators' current loop one
+#: exchange (1 ms) late there, a velocity-loop delay our master does not have. Measured on the bound
+#: standalone system of tests/test_hosts.py (2 Hz, 4 mm on z, 0.02 rad on theta, 1 s), both hosts alike:
+#: 1.5e-5 m on z, 3.9e-5 m on rho, 6.9e-5 rad on theta, 0.29 A on i_m, 0.93 N on F; the tolerances are
+#: about twice that. libcosim's initialization stops after one pass per component where our master
+#: iterates to convergence (initial forces differ by ~0.02 N, decaying within 10 ms). The ecos command
+#: line prints 6 decimals: half a unit of the last one more.
 TOLERANCES = {
-    "libcosim": {"m": 1e-8, "rad": 5e-8, "A": 2e-4, "N": 0.1},
-    "ecospy": {"m": 2e-6, "rad": 4e-6, "A": 2e-2, "N": 2.0},
-    "ecos": {"m": 2.5e-6, "rad": 4.5e-6, "A": 2e-2, "N": 2.0},
+    "libcosim": {"m": 1e-4, "rad": 1.5e-4, "A": 0.6, "N": 2.0},
+    "ecospy": {"m": 1e-4, "rad": 1.5e-4, "A": 0.6, "N": 2.0},
+    "ecos": {"m": 1e-4, "rad": 1.5e-4, "A": 0.6, "N": 2.0},
 }
 
 

@@ -41,6 +41,8 @@ typedef struct {
     int failed;            /* the instance did not initialise: every doStep is refused */
     int refused;           /* the last doStep was refused: the FMU asks the host to stop (fmi2Terminated) */
     char cause[MSG_SIZE];
+    int eval_failed;       /* the outputs of the inputs set at this communication point failed (evaluate) */
+    char eval_cause[MSG_SIZE];
 } Snapshot;
 
 typedef struct {
@@ -152,6 +154,8 @@ static void set_starts(Instance *c)
     c->s.failed = 0;
     c->s.refused = 0;
     c->s.cause[0] = '\0';
+    c->s.eval_failed = 0;
+    c->s.eval_cause[0] = '\0';
 }
 
 /* parameters, then the outputs at t0 from the inputs: 0, or the model's error code with ``msg`` */
@@ -396,6 +400,20 @@ fmi2Status fmi2SetReal(fmi2Component comp, const fmi2ValueReference vr[], size_t
     for (size_t k = 0; k < nvr; k++)
         if (!known(c, "fmi2SetReal", vr[k], MAST_REAL) || !settable(c, "fmi2SetReal", vr[k])) return fmi2Error;
     for (size_t k = 0; k < nvr; k++) c->s.real[vr[k]] = value[k];
+    if (c->s.phase == STEPPING && M->evaluate && !c->s.failed) {   /* direct feedthrough: the outputs follow */
+        int input = 0;
+        for (size_t k = 0; k < nvr; k++) input |= (int)vr[k] < M->n_inputs;
+        if (input) {
+            char msg[MSG_SIZE];
+            mast_parameters p = parameters_of(c);
+            int code = M->evaluate(c->s.state, c->s.real, &p, msg, MSG_SIZE);
+            c->s.eval_failed = code != 0;
+            if (code) {
+                snprintf(c->s.eval_cause, MSG_SIZE, "%s: %s: %s", error_class(code), c->name, msg);
+                LOG_ERROR(c, "setReal: evaluating the outputs: %s", c->s.eval_cause);
+            }
+        }
+    }
     return after_set(c);
 }
 
@@ -452,6 +470,12 @@ fmi2Status fmi2DoStep(fmi2Component comp, fmi2Real t, fmi2Real h, fmi2Boolean no
     }
     if (c->s.failed) {
         LOG_ERROR(c, "doStep at t=%.6g s: RuntimeError: the instance did not initialise: %s", t, c->s.cause);
+        c->s.refused = 1;
+        return fmi2Discard;
+    }
+    if (c->s.eval_failed) {
+        LOG_ERROR(c, "doStep at t=%.6g s: RuntimeError: the outputs of the inputs set at this communication point "
+                  "failed: %s", t, c->s.eval_cause);
         c->s.refused = 1;
         return fmi2Discard;
     }
@@ -547,6 +571,8 @@ static int copy_snapshot(Snapshot *to, const Snapshot *from)
     to->failed = from->failed;
     to->refused = from->refused;
     memcpy(to->cause, from->cause, sizeof to->cause);
+    to->eval_failed = from->eval_failed;
+    memcpy(to->eval_cause, from->eval_cause, sizeof to->eval_cause);
     return 1;
 }
 

@@ -46,6 +46,9 @@ typedef struct {
     int (*initialize)(void *state, double *values, const mast_parameters *p, double t0, char *msg, size_t size);
     /* advance from t to t + h with the inputs held; outputs at t + h */
     int (*do_step)(void *state, double *values, const mast_parameters *p, double t, double h, char *msg, size_t size);
+    /* NULL, or direct feedthrough (Block.evaluate): the outputs at the communication point from the inputs
+       just set in step mode, once per point (called again there, it starts over from the state before) */
+    int (*evaluate)(void *state, double *values, const mast_parameters *p, char *msg, size_t size);
 } mast_model;
 
 extern const mast_model MAST_MODEL;

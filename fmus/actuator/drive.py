@@ -1,0 +1,124 @@
+"""The drive's current loop around one axis (paper Fig. 2 draws it inside the actuator).
+
+``DriveActuatorBlock`` is ``ActuatorBlock`` (model.py, voltage in) with the servo drive's sampled PI
+current loop in front of it: current command ``i_cmd`` [A] and force ``F`` [N] in, the axis' outputs
+and the voltage ``u`` [V] the loop applies out. Every ``T_cur`` (tick k at t_k = t0 + k T_cur):
+
+    e   = i_cmd - i_m(t_k)
+    v   = k_pc e + x_c
+    u_k = sat(v, u_max)
+    x_c <- x_c + k_ic T_cur e     unless saturated and e pushes further into the limit
+
+and u_k is applied over [t_(k+1), t_(k+2)]: one ``T_cur`` of computation delay, as in a real drive
+(and as when the loop ran in the controller FMU with a 100 us exchange). A communication step
+h = m T_cur runs m ticks with ``i_cmd`` and ``F`` held; the axis steps T_cur at a time, so the
+voltage is a 100 us zero-order hold whatever h is. ``u`` after a step is the voltage applied from
+that communication point on (computed at the last tick), before the power stage's clip to
++-u_supply (ActuatorBlock).
+"""
+from __future__ import annotations
+
+import math
+from typing import Mapping
+
+from ..common.block import Block, ModelError
+from ..common.parameters import Value, nonnegative, positive
+from .model import ActuatorBlock
+
+
+def pi_step(e: float, x: float, k_p: float, k_iT: float, limit: float, offset: float = 0.0) -> tuple[float, float]:
+    """One forward-Euler PI update with output limit and conditional integration.
+
+    ``e`` error, ``x`` integrator state (in output units), ``k_p`` proportional
+    gain, ``k_iT`` integral gain times the loop's cycle time, ``limit`` the
+    symmetric output limit, ``offset`` a feed-forward added to the output before
+    the limit. Returns (output, new state): while the output is saturated, the
+    integrator only moves when the error drives it back out of the limit
+    (anti-windup).
+    """
+    v = k_p * e + x + offset
+    if v > limit:
+        return limit, (x + k_iT * e if e < 0.0 else x)
+    if v < -limit:
+        return -limit, (x + k_iT * e if e > 0.0 else x)
+    return v, x + k_iT * e
+
+
+def current_gains(k_pc: float, k_ic: float, T_cur: float, u_max: float) -> tuple[float, float, float]:
+    """The current loop's constants: (k_pc [V/A], k_ic T_cur [V/A], u_max [V]).
+
+    Written in the generated-code subset: the native FMU computes them at initialisation from its
+    parameters with this source (mast.core.native.models translates it)."""
+    return (k_pc, k_ic * T_cur, u_max)
+
+
+#: the drive's current loop (ssp/resources/drive.ssv)
+CURRENT_LOOP_PARAMETERS = (
+    nonnegative("k_pc", "V/A", "Current PI proportional gain: voltage per current error"),
+    nonnegative("k_ic", "V/(A.s)", "Current PI integral gain"),
+    positive("T_cur", "s", "Current loop cycle time (the block's tick)"),
+    positive("u_max", "V", "Voltage command limit (symmetric)"),
+)
+_LOOP = tuple(p.name for p in CURRENT_LOOP_PARAMETERS)
+
+
+class DriveActuatorBlock(Block):
+    """One MAST linear axis with its drive's PI current loop: current command in (module docstring)."""
+
+    INPUTS = ("i_cmd", "F")
+    OUTPUTS = (*ActuatorBlock.OUTPUTS, "u")
+    PARAMETERS = (*ActuatorBlock.PARAMETERS, *CURRENT_LOOP_PARAMETERS)
+    UNITS = {**{k: v for k, v in ActuatorBlock.UNITS.items() if k != "u"}, "i_cmd": "A", "u": "V"}
+    DESCRIPTIONS = {
+        **{k: v for k, v in ActuatorBlock.DESCRIPTIONS.items() if k != "u"},
+        "i_cmd": "current command from the controller (the drive's current loop follows it every T_cur)",
+        "u": "voltage the current loop applies from this communication point on (computed at the last "
+             "T_cur tick; before the power stage's clip to +-u_supply)",
+    }
+
+    def __init__(self, params: Mapping[str, Value], name: str = "") -> None:
+        super().__init__(params, name)
+        P = self.params
+        #: the voltage-driven axis the loop drives (its values: u, F, then the outputs)
+        self.axis = ActuatorBlock({k: v for k, v in P.items() if k not in _LOOP}, self.name)
+        self.T_cur = float(P["T_cur"])
+        self._gains = current_gains(float(P["k_pc"]), float(P["k_ic"]), self.T_cur, float(P["u_max"]))
+        self._x_c = 0.0   # integrator state [V]
+        self._u = 0.0     # voltage applied over the next T_cur [V]
+
+    def initialize(self, t0: float) -> None:
+        """At rest, no voltage applied yet; the outputs from the axis' state and the inputs."""
+        self._check(t0)
+        self._x_c, self._u = 0.0, 0.0
+        axis = self.axis.values
+        axis[0], axis[1] = 0.0, self.values[1]
+        self.axis.initialize(t0)
+        self._publish()
+
+    def do_step(self, t: float, h: float) -> None:
+        """m = h / T_cur ticks of the current loop, each followed by the axis' step over T_cur."""
+        T = self.T_cur
+        m = round(h / T)
+        if m < 1 or abs(h - m * T) > 1e-6 * T:
+            raise ModelError(f"{self.name}: step size h = {h!r} s is not a positive integer multiple of "
+                             f"T_cur = {T!r} s")
+        self._check(t)
+        values, axis = self.values, self.axis.values
+        i_cmd, F = values[0], values[1]
+        kp, kiT, u_max = self._gains
+        x_c, u = self._x_c, self._u
+        for k in range(m):
+            u_next, x_c = pi_step(i_cmd - axis[7], x_c, kp, kiT, u_max)   # axis[7]: i_m at this tick
+            axis[0], axis[1] = u, F
+            self.axis.do_step(t + k * T, T)
+            u = u_next
+        self._x_c, self._u = x_c, u
+        self._publish()
+
+    def _check(self, t: float) -> None:
+        i_cmd = self.values[0]
+        if not math.isfinite(i_cmd):
+            raise ModelError(f"{self.name}: input 'i_cmd' = {i_cmd} at t={t:.9g} s is not finite")
+
+    def _publish(self) -> None:
+        self.values[2:] = [*self.axis.values[2:], self._u]

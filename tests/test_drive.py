@@ -1,0 +1,69 @@
+"""The actuator with its drive's current loop (fmus/actuator/drive.py), against python-control.
+
+Independent route: the rigid axis (n_dof = 1, no friction, no weight, no viscous drag) seen from the
+voltage is i/u = J s / (L J s^2 + R J s + k_E k_T) (written out here from the motor's equations, not
+taken from the model), sampled with an exact zero-order hold at T_cur; the loop is the forward-Euler
+PI, one sample of computation delay, unity feedback (python-control's c2d and feedback)."""
+from __future__ import annotations
+
+import math
+
+import control as ct
+import numpy as np
+import pytest
+
+from conftest import load_params
+from fmus.actuator.drive import DriveActuatorBlock
+from fmus.common.block import ModelError
+
+LOOP = {"k_pc": 0.2586, "k_ic": 939.3, "T_cur": 1e-4, "u_max": 24.0}
+
+
+def drive(**changes) -> DriveActuatorBlock:
+    p = {**load_params("actuator"), **LOOP, "n_dof": 1, "tau_c": 0.0, "g_guide": 0.0, "b_v": 0.0}
+    return DriveActuatorBlock({**p, **changes})
+
+
+def steps(block: DriveActuatorBlock, i_cmd: float, n: int, m: int = 1) -> np.ndarray:
+    """(i_m, u) at t = 0, m T_cur, 2 m T_cur, ... for a current command step at t = 0."""
+    block.set(i_cmd=i_cmd, F=0.0)
+    block.initialize(0.0)
+    h = m * block.T_cur
+    rows = [(block.get("i_m"), block.get("u"))]
+    for k in range(n):
+        block.do_step(k * h, h)
+        rows.append((block.get("i_m"), block.get("u")))
+    return np.array(rows)
+
+
+def test_the_current_loop_is_the_sampled_pi_with_one_tick_of_delay_around_the_motor():
+    blk = drive()
+    p, T = blk.params, LOOP["T_cur"]
+    J = p["J1_scale"] * (p["J_motor"] + p["J_gearbox"] + p["J_coupling"] + p["J_brake"]) + \
+        p["J_guide"] / p["i_r"] ** 2 + p["M_load"] * (p["p"] / (2 * math.pi * p["i_r"])) ** 2
+    plant = ct.c2d(ct.tf([J, 0.0], [p["L"] * J, p["R"] * J, p["k_E"] * p["k_T"]]), T, method="zoh")
+    C = ct.tf([LOOP["k_pc"], LOOP["k_ic"] * T - LOOP["k_pc"]], [1.0, -1.0], T)
+    z1 = ct.tf([1.0], [1.0, 0.0], T)
+    n, r = 150, 2.0
+    t = np.arange(n + 1) * T
+    y_i = np.asarray(ct.step_response(ct.feedback(C * z1 * plant, 1), T=t).outputs).reshape(-1)
+    y_u = np.asarray(ct.step_response(z1 * ct.feedback(C, z1 * plant), T=t).outputs).reshape(-1)
+    got = steps(blk, r, n)
+    assert np.max(np.abs(got[:, 1])) < LOOP["u_max"]          # linear regime
+    np.testing.assert_allclose(got[:, 0], r * y_i, rtol=0, atol=1e-9 * r)
+    np.testing.assert_allclose(got[:, 1], r * y_u, rtol=0, atol=1e-9 * np.abs(r * y_u).max())
+    # the current follows the command (lagging the back-EMF ramp of the accelerating, unloaded motor a little)
+    assert abs(got[-1, 0] - r) < 0.05 * r
+    # a communication step of 10 T_cur runs the same 10 ticks: the same numbers at its end
+    np.testing.assert_array_equal(steps(drive(), r, n // 10, m=10), got[::10])
+
+
+def test_a_bad_command_or_step_is_refused_by_name():
+    blk = drive()
+    blk.set(i_cmd=float("nan"), F=0.0)
+    with pytest.raises(ModelError, match="input 'i_cmd' = nan at t=0 s is not finite"):
+        blk.initialize(0.0)
+    blk.set(i_cmd=0.0)
+    blk.initialize(0.0)
+    with pytest.raises(ModelError, match="not a positive integer multiple of T_cur"):
+        blk.do_step(0.0, 1.5e-4)
