@@ -387,10 +387,20 @@ class ActuatorBlock(Block):
             self._select(h)
         code = self._kernel(self.values, self._x)
         if code:
-            self._fail(code, t, h)
+            self.fail(code, t, h)
         if self._sensor is not None:
             values = self.values
             values[-1] = self._sensor.step(values[-2], h)
+
+    def stepper(self, h: float) -> tuple[Callable, list, Optional[TorqueSensor]]:
+        """What ``do_step(t, h)`` runs, for a caller that steps by h many times in a row (the drive's
+        current loop): (kernel, x, sensor). ``kernel(values, x)`` advances the state ``x`` in place over h
+        and writes the outputs into ``values``, returning 0 or a failure code for ``fail(code, t, h)``;
+        then, unless ``sensor`` is None, ``values[-1] = sensor.step(values[-2], h)``. Valid until the next
+        ``initialize``, ``set_state`` or step of another size."""
+        if h != self._h:
+            self._select(h)
+        return self._kernel, self._x, self._sensor
 
     # -- helpers ---------------------------------------------------------------------
     def state(self) -> dict[str, float]:
@@ -414,7 +424,8 @@ class ActuatorBlock(Block):
         self.values[n_in:] = [p["rho_0"] + self.i_R * x[N], self.i_R * w, self.i_R * alpha,
                               x[1], x[N + 1], x[0], tau_m, tau_meas]
 
-    def _fail(self, code: int, t: float, h: float) -> None:
+    def fail(self, code: int, t: float, h: float) -> None:
+        """Raise the ModelError of the kernel's failure ``code`` in the step from t over h [s]."""
         if code in _ERRORS:
             name = _ERRORS[code]
             raise ModelError(f"{self.name}: input '{name}' = {self.values[code - 1]} at t={t:.9g} s "
