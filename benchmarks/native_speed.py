@@ -3,6 +3,7 @@ default system at the paper's cycle times, and where the time goes (the FMUs' ow
 routes with the master's exchange loop compiled (the default, mast.core.exchange) and in Python.
 
     python benchmarks/native_speed.py [--ssp build/ssp/MAST.ssp] [--stop-time 10] [--repeats 3]
+                                      [--baseline OTHER.ssp]  # also: the Python FMUs of OTHER.ssp (before/after)
                                       [--cycles]   # also: 200 instantiate/free cycles under valgrind
                                       [--hosts]    # also: our master vs libcosim and the ecos CLI, native SSP
                                       [--analyses] # also: mast reproduce and mast diagnose (paper case),
@@ -161,6 +162,9 @@ def main() -> int:
     parser.add_argument("--host-stop-time", type=float, default=1.9, help="stop time of the --hosts runs [s]")
     parser.add_argument("--analyses", action="store_true", help="also time mast reproduce and mast diagnose")
     parser.add_argument("--workers", type=int, default=2, help="workers of mast reproduce and diagnose")
+    parser.add_argument("--baseline", action="append", default=[], metavar="SSP",
+                        help="also time the Python FMUs of this SSP (built from another commit: before/after in "
+                             "one run; repeatable)")
     args = parser.parse_args()
     python = Path(args.ssp)
     native = python.parent / "native" / python.name
@@ -171,6 +175,7 @@ def main() -> int:
     rows = {"direct composition (Python models)": (python, True, True),
             "Python FMUs, exchange loop in Python": (python, False, True), "Python FMUs": (python, False, False),
             "native FMUs, exchange loop in Python": (native, False, True), "native FMUs": (native, False, False)}
+    rows.update({f"Python FMUs of {Path(b).resolve()}": (Path(b), False, False) for b in args.baseline})
     best = {label: float("inf") for label in rows}
     for _ in range(args.repeats):
         for label, (ssp, direct, python_loop) in rows.items():
@@ -179,6 +184,8 @@ def main() -> int:
           f"best of {args.repeats}")
     for label, cpu in best.items():
         print(f"  {label:36s} {cpu:7.2f} s CPU   real-time factor {stop / cpu:7.2f}")
+    for b in args.baseline:
+        print(f"  Python FMUs / those of {b}: CPU time {best['Python FMUs'] / best[f'Python FMUs of {Path(b).resolve()}']:.2f}")
     print(f"  Python FMUs / native FMUs CPU time: {best['Python FMUs'] / best['native FMUs']:.1f}")
     print(f"  native co-simulation / direct composition: "
           f"{best['native FMUs'] / best['direct composition (Python models)']:.2f}")

@@ -362,6 +362,7 @@ class ActuatorBlock(Block):
                         else TorqueSensor(p["T_meas"], p["delay_meas"], p["tau_offset"]))
         self._kernels: dict[float, tuple[Callable, int]] = {}
         self._ticks: dict[float, Callable] = {}       # the drive's loop over steps of h (``ticks``), by h
+        self._ticks_h, self._ticks_fn = math.nan, None   # the last h asked and its loop
         self._compiled = 0                            # step sizes compiled with their numbers inlined
         self._bound: Optional[Callable] = None        # the kernel that takes its step size's numbers first
         self._series: Optional[list["_ZohSeries"]] = None  # exp(M h)[:n] for any h, per generator
@@ -407,6 +408,8 @@ class ActuatorBlock(Block):
         """The drive's current loop and this axis over several steps of h in one generated function
         (``_ticks_source``; ``pi_step``: the drive's PI), or None where the drive steps the axis tick by tick
         (backlash, a torque sensor). The same discretisation as ``do_step(t, h)``'s, compiled once per h."""
+        if h == self._ticks_h:
+            return self._ticks_fn
         if self.params["backlash"] > 0.0 or self._sensor is not None:
             return None
         key = float(f"{h:.12g}")
@@ -420,6 +423,7 @@ class ActuatorBlock(Block):
             found = self._ticks[key] = compile_generated(
                 _ticks_source(self, E[:, :n], E[:, n:n + 2], m), "ticks", f"{self.name}: drive ticks h={key!r} m={m}",
                 namespace, largest_parameters(self.params))
+        self._ticks_h, self._ticks_fn = h, found
         return found
 
     # -- helpers ---------------------------------------------------------------------
