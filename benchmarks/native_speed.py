@@ -5,6 +5,7 @@ routes with the master's exchange loop compiled (the default, mast.core.exchange
     python benchmarks/native_speed.py [--ssp build/ssp/MAST.ssp] [--stop-time 10] [--repeats 3]
                                       [--before DIR] # also: the native SSP of another build, e.g. main's
                                       [--profile]  # also: instructions per FMU and call (callgrind)
+                                      [--baseline OTHER.ssp]  # also: the Python FMUs of OTHER.ssp (before/after)
                                       [--cycles]   # also: 200 instantiate/free cycles under valgrind
                                       [--hosts]    # also: our master vs libcosim and the ecos CLI, native SSP
                                       [--analyses] # also: mast reproduce and mast diagnose (paper case),
@@ -240,6 +241,9 @@ def main() -> int:
     parser.add_argument("--host-stop-time", type=float, default=1.9, help="stop time of the --hosts runs [s]")
     parser.add_argument("--analyses", action="store_true", help="also time mast reproduce and mast diagnose")
     parser.add_argument("--workers", type=int, default=2, help="workers of mast reproduce and diagnose")
+    parser.add_argument("--baseline", action="append", default=[], metavar="SSP",
+                        help="also time the Python FMUs of this SSP (built from another commit: before/after in "
+                             "one run; repeatable)")
     args = parser.parse_args()
     python = Path(args.ssp)
     native = python.parent / "native" / python.name
@@ -257,6 +261,7 @@ def main() -> int:
                   file=sys.stderr)
             return 2
         rows["native FMUs, before (--before)"] = (before, False, False)
+    rows.update({f"Python FMUs of {Path(b).resolve()}": (Path(b), False, False) for b in args.baseline})
     best = {label: float("inf") for label in rows}
     for _ in range(args.repeats):
         for label, (ssp, direct, python_loop) in rows.items():
@@ -265,6 +270,8 @@ def main() -> int:
           f"best of {args.repeats}")
     for label, cpu in best.items():
         print(f"  {label:36s} {cpu:7.2f} s CPU   real-time factor {stop / cpu:7.2f}")
+    for b in args.baseline:
+        print(f"  Python FMUs / those of {b}: CPU time {best['Python FMUs'] / best[f'Python FMUs of {Path(b).resolve()}']:.2f}")
     print(f"  Python FMUs / native FMUs CPU time: {best['Python FMUs'] / best['native FMUs']:.1f}")
     print(f"  native co-simulation / direct composition: "
           f"{best['native FMUs'] / best['direct composition (Python models)']:.2f}")

@@ -67,3 +67,42 @@ def test_a_bad_command_or_step_is_refused_by_name():
     blk.initialize(0.0)
     with pytest.raises(ModelError, match="not a positive integer multiple of T_cur"):
         blk.do_step(0.0, 1.5e-4)
+
+
+def _run_both(monkeypatch, changes: dict, n: int, i_cmd=lambda k: 3.0 * math.sin(0.05 * k) ** 3
+              ) -> tuple[tuple, tuple]:
+    """(values after each 1 ms step, error) of the drive with its generated loop over the ticks
+    (``ActuatorBlock.ticks``) and with the axis stepped tick by tick, on the same inputs."""
+    from fmus.actuator.model import ActuatorBlock
+
+    runs = []
+    for batched in (True, False):
+        if not batched:
+            monkeypatch.setattr(ActuatorBlock, "ticks", lambda self, h, pi_step: None)
+        blk = DriveActuatorBlock({**load_params("actuator"), **LOOP, **changes})
+        blk.set(i_cmd=0.0, F=-40.0)
+        blk.initialize(0.0)
+        rows, error = [], None
+        try:
+            for k in range(n):
+                blk.set(i_cmd=i_cmd(k), F=-40.0 + 15.0 * math.cos(0.03 * k))
+                blk.do_step(k * 1e-3, 1e-3)
+                rows.append(list(blk.values))
+        except ModelError as err:
+            error = str(err)
+        runs.append((rows, error, list(blk.axis.values), list(blk.axis._x)))
+    return runs[0], runs[1]
+
+
+@pytest.mark.parametrize("changes", [{}, {"tau_ripple": 0.01, "tau_s": 0.05}, {"u_supply": 0.3}, {"T_meas": 1e-3}],
+                         ids=["default", "ripple+stribeck", "power stage clips", "torque sensor"])
+def test_the_generated_loop_over_the_ticks_gives_the_tick_by_tick_numbers(monkeypatch, changes):
+    batched, ticked = _run_both(monkeypatch, changes, 120)
+    assert batched == ticked                         # bit-identical, not close
+    assert batched[1] is None and len(batched[0]) == 120
+
+
+def test_a_failing_tick_fails_as_tick_by_tick(monkeypatch):
+    batched, ticked = _run_both(monkeypatch, {"u_supply": 12.0}, 2000, i_cmd=lambda k: 20.0)
+    assert batched[1] is not None and "carriage left the stroke" in batched[1]
+    assert batched == ticked                         # the same message, tick, state and outputs

@@ -104,13 +104,27 @@ class DriveActuatorBlock(Block):
                              f"T_cur = {T!r} s")
         self._check(t)
         values, axis = self.values, self.axis.values
-        i_cmd, F = values[0], values[1]
+        i_cmd = values[0]
+        axis[1] = values[1]                    # F, held over the ticks (the kernel only reads it)
         kp, kiT, u_max = self._gains
         x_c, u = self._x_c, self._u
+        kernel, x, sensor = self.axis.stepper(T)   # the axis' do_step(t_k, T), without a call per tick
+        ticks = self.axis.ticks(T, pi_step)
+        if ticks is not None:   # the loop below in one generated function (the same arithmetic)
+            code, _, x_c_end, u_end = ticks(axis, x, m, i_cmd, x_c, u, kp, kiT, u_max)
+            if not code:
+                self._x_c, self._u = x_c_end, u_end
+                self._publish()
+                return
+            # it failed and wrote nothing: the loop below fails at the same tick, with the model's message
         for k in range(m):
             u_next, x_c = pi_step(i_cmd - axis[7], x_c, kp, kiT, u_max)   # axis[7]: i_m at this tick
-            axis[0], axis[1] = u, F
-            self.axis.do_step(t + k * T, T)
+            axis[0] = u
+            code = kernel(axis, x)
+            if code:
+                self.axis.fail(code, t + k * T, T)
+            if sensor is not None:
+                axis[-1] = sensor.step(axis[-2], T)
             u = u_next
         self._x_c, self._u = x_c, u
         self._publish()

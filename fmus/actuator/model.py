@@ -361,6 +361,8 @@ class ActuatorBlock(Block):
         self._sensor = (None if is_neutral(p["T_meas"], p["delay_meas"], p["tau_offset"])
                         else TorqueSensor(p["T_meas"], p["delay_meas"], p["tau_offset"]))
         self._kernels: dict[float, tuple[Callable, int]] = {}
+        self._ticks: dict[float, Callable] = {}       # the drive's loop over steps of h (``ticks``), by h
+        self._ticks_h, self._ticks_fn = math.nan, None   # the last h asked and its loop
         self._compiled = 0                            # step sizes compiled with their numbers inlined
         self._bound: Optional[Callable] = None        # the kernel that takes its step size's numbers first
         self._series: Optional[list["_ZohSeries"]] = None  # exp(M h)[:n] for any h, per generator
@@ -387,10 +389,42 @@ class ActuatorBlock(Block):
             self._select(h)
         code = self._kernel(self.values, self._x)
         if code:
-            self._fail(code, t, h)
+            self.fail(code, t, h)
         if self._sensor is not None:
             values = self.values
             values[-1] = self._sensor.step(values[-2], h)
+
+    def stepper(self, h: float) -> tuple[Callable, list, Optional[TorqueSensor]]:
+        """What ``do_step(t, h)`` runs, for a caller that steps by h many times in a row (the drive's
+        current loop): (kernel, x, sensor). ``kernel(values, x)`` advances the state ``x`` in place over h
+        and writes the outputs into ``values``, returning 0 or a failure code for ``fail(code, t, h)``;
+        then, unless ``sensor`` is None, ``values[-1] = sensor.step(values[-2], h)``. Valid until the next
+        ``initialize``, ``set_state`` or step of another size."""
+        if h != self._h:
+            self._select(h)
+        return self._kernel, self._x, self._sensor
+
+    def ticks(self, h: float, pi_step: Callable) -> Optional[Callable]:
+        """The drive's current loop and this axis over several steps of h in one generated function
+        (``_ticks_source``; ``pi_step``: the drive's PI), or None where the drive steps the axis tick by tick
+        (backlash, a torque sensor). The same discretisation as ``do_step(t, h)``'s, compiled once per h."""
+        if h == self._ticks_h:
+            return self._ticks_fn
+        if self.params["backlash"] > 0.0 or self._sensor is not None:
+            return None
+        key = float(f"{h:.12g}")
+        found = self._ticks.get(key)
+        if found is None:
+            n = 2 * self.N + 1
+            first = self._generators()[0]
+            m, (E,) = self._substeps(key, lambda h_sub: [expm(first * h_sub)[:n].ravel()])
+            E = E.reshape(n, -1)
+            namespace: dict = {"tanh": math.tanh, "exp": math.exp, "sin": math.sin, "pi_step": pi_step}
+            found = self._ticks[key] = compile_generated(
+                _ticks_source(self, E[:, :n], E[:, n:n + 2], m), "ticks", f"{self.name}: drive ticks h={key!r} m={m}",
+                namespace, largest_parameters(self.params))
+        self._ticks_h, self._ticks_fn = h, found
+        return found
 
     # -- helpers ---------------------------------------------------------------------
     def state(self) -> dict[str, float]:
@@ -414,7 +448,8 @@ class ActuatorBlock(Block):
         self.values[n_in:] = [p["rho_0"] + self.i_R * x[N], self.i_R * w, self.i_R * alpha,
                               x[1], x[N + 1], x[0], tau_m, tau_meas]
 
-    def _fail(self, code: int, t: float, h: float) -> None:
+    def fail(self, code: int, t: float, h: float) -> None:
+        """Raise the ModelError of the kernel's failure ``code`` in the step from t over h [s]."""
         if code in _ERRORS:
             name = _ERRORS[code]
             raise ModelError(f"{self.name}: input '{name}' = {self.values[code - 1]} at t={t:.9g} s "
@@ -819,12 +854,25 @@ def _kernel_source(block: ActuatorBlock, Phi: np.ndarray, Gam: np.ndarray, m: in
     too (``kernel_constants`` as ``Q_<key>``): one source for every parameter set of this
     structure (the native FMU's, mast.core.native.models).
     """
+    xs = [f"x{j}" for j in range(2 * block.N + 1)]
+    c = _numbers(block, symbolic)
+    lines = _kernel_head(c) + _load_lines(block, xs, c, float(block.params["tau_ripple"]) > 0.0)
+    body = _substep_lines(block, Phi, Gam, named)
+    if m == 1 and not named:
+        lines += ["    " + s for s in body]
+    else:
+        lines.append(f"    for _ in range({'M_SUB' if named else m}):")
+        lines += ["        " + s for s in body]
+    lines += _kernel_tail(block, xs, _alpha(block, c, symbolic), c)
+    return "\n".join(lines) + "\n"
+
+
+def _substep_lines(block: ActuatorBlock, Phi: np.ndarray, Gam: np.ndarray, named: bool) -> list[str]:
+    """One substep (u, tl and the state x0.. given): the implicit friction torque tf, then the state."""
     p, N = block.params, block.N
     n = 2 * N + 1
     xs = [f"x{j}" for j in range(n)]
     wN = 2 * N  # index of omega_N
-    c = _numbers(block, symbolic)
-    lines = _kernel_head(c) + _load_lines(block, xs, c, float(p["tau_ripple"]) > 0.0)
     body = []
     if float(p["tau_c"]) > 0.0 or float(p["tau_s"]) > 0.0:
         a_terms = _lin(list(Phi[wN]) + [Gam[wN, 0], Gam[wN, 1]], xs + ["u", "tl"])
@@ -837,15 +885,59 @@ def _kernel_source(block: ActuatorBlock, Phi: np.ndarray, Gam: np.ndarray, m: in
     for j in range(n):
         body.append(f"{news[j]} = {_lin(list(Phi[j]) + [Gam[j, 0], Gam[j, 1]], xs + ['u', 'w'])}")
     body.append(f"{', '.join(xs)} = {', '.join(news)}")
-    if m == 1 and not named:
-        lines += ["    " + s for s in body]
-    else:
-        lines.append(f"    for _ in range({'M_SUB' if named else m}):")
-        lines += ["        " + s for s in body]
-    # end of step: checks, state, outputs
+    return body
+
+
+def _alpha(block: ActuatorBlock, c: Mapping[str, str], symbolic: bool) -> str:
+    """The last inertia's acceleration at the end of the step (the output rho_ddot / i_R), as source."""
+    n, wN = 2 * block.N + 1, 2 * block.N
     coefs = [c[f"aw{j}"] for j in range(n)] + [c["bw"]] if symbolic else list(block.A[wN]) + [block.B[wN, 1]]
-    alpha = _lin(coefs, xs + ["(tl - tf)"])
-    lines += _kernel_tail(block, xs, alpha, c)
+    return _lin(coefs, [f"x{j}" for j in range(n)] + ["(tl - tf)"])
+
+
+def _ticks_source(block: ActuatorBlock, Phi: np.ndarray, Gam: np.ndarray, m: int) -> str:
+    """Python source of the drive's current loop over ``ticks`` steps of T_cur in one function (drive.py):
+
+        ticks(values, x, ticks, i_cmd, x_c, u_c, k_p, k_iT, u_max) -> (code, tick, x_c, u_c)
+
+    each tick ``pi_step`` (drive.py) on i_m = x0, then the step over T_cur of ``_kernel_source`` (the same
+    lines: the same arithmetic) with the voltage u_c of the tick before; ``values`` and ``x`` are written
+    once, after the last tick (the last u_c applied in values[0]). ``code``: 0, or the kernel's failure code at
+    ``tick`` (then nothing is written). No backlash, no torque sensor (``ActuatorBlock.ticks``)."""
+    N = block.N
+    xs = [f"x{j}" for j in range(2 * N + 1)]
+    c = _numbers(block, False)
+    ripple = float(block.params["tau_ripple"]) > 0.0
+    lines = ["def ticks(values, x, ticks, i_cmd, x_c, u_c, k_p, k_iT, u_max):",
+             "    F = values[1]",
+             "    if F - F != 0.0: return 2, 0, x_c, u_c",
+             f"    tl = {c['niR']}*F - {c['weight']}",
+             f"    {', '.join(xs)}, = x",
+             "    for k in range(ticks):",
+             "        u_n, x_c = pi_step(i_cmd - x0, x_c, k_p, k_iT, u_max)",
+             "        u = u_a = u_c",
+             "        if u - u != 0.0: return 1, k, x_c, u_c",
+             f"        if u > {c['us']}: u = {c['us']}",
+             f"        elif u < {c['nus']}: u = {c['nus']}"]
+    if ripple:
+        lines.append(f"        tl = {c['niR']}*F - {c['weight']} - {c['ripple']}*sin({c['rk']}*x{N})")
+    body = _substep_lines(block, Phi, Gam, False)
+    if m == 1:
+        lines += ["        " + s for s in body]
+    else:
+        lines.append(f"        for _ in range({m}):")
+        lines += ["            " + s for s in body]
+    lines += [f"        s = {' + '.join(xs)}",
+              "        if s - s != 0.0: return 3, k, x_c, u_c",
+              f"        rho = {c['rho0']} + {c['iR']}*x{N}",
+              f"        if rho < {c['rmin']} or rho > {c['rmax']}: return 4, k, x_c, u_c",
+              "        u_c = u_n",
+              f"    x[:] = ({', '.join(xs)},)",
+              f"    tm = {c['kT']}*x0",
+              "    values[0] = u_a",
+              f"    values[{len(block.INPUTS)}:] = (rho, {c['iR']}*x{2 * N}, {c['iR']}*({_alpha(block, c, False)}), "
+              f"x1, x{N + 1}, x0, tm, tm)",
+              "    return 0, ticks, x_c, u_c"]
     return "\n".join(lines) + "\n"
 
 

@@ -792,7 +792,12 @@ def _inv(m: list[float], n: int) -> tuple[list[float], float]:
 
 
 def _cond(m: Sequence[float], minv: Sequence[float]) -> float:
-    return math.sqrt(sum(v * v for v in m)) * math.sqrt(sum(v * v for v in minv))
+    return math.sqrt(sum([v * v for v in m])) * math.sqrt(sum([v * v for v in minv]))
+
+
+def _shown(rho: Sequence[float]) -> str:
+    """Joint coordinates as error messages print them."""
+    return ", ".join(f"{v:.9g}" for v in rho)
 
 
 def _vee_RtX(R, X):
@@ -1049,50 +1054,49 @@ class Engine:
             q = list(self.description.guess(r))
         else:
             q = [float(v) for v in guess]
-        ikjac = self._fn("ikjac")
+        ikjac, pv = self._fn("ikjac"), self._pv
         res = math.inf
-        shown = ", ".join(f"{v:.9g}" for v in r)
         start, det0 = None, 0.0
         for it in range(max_iter + 1):
             try:
-                out = ikjac(*q, *self._pv)
+                out = ikjac(*q, *pv)
                 e = [out[i] - r[i] for i in range(n)]
-                res = max(abs(v) for v in e)
+                res = max([abs(v) for v in e])
                 Jinv = list(out[n:])
                 J, det = self._inverse(Jinv, q)
                 if res < tol:
                     cond = _cond(Jinv, J)
                     self._check_cond(cond, q)
             except KinematicsError as exc:
-                raise KinematicsError(f"direct kinematics did not converge for rho = ({shown}) m: iteration {it} "
-                                      f"reached {self._fmt_q(q)}, where: {exc}") from exc
+                raise KinematicsError(f"direct kinematics did not converge for rho = ({_shown(r)}) m: iteration "
+                                      f"{it} reached {self._fmt_q(q)}, where: {exc}") from exc
             if not math.isfinite(res):
-                raise KinematicsError(f"direct kinematics did not converge for rho = ({shown}) m: non-finite "
+                raise KinematicsError(f"direct kinematics did not converge for rho = ({_shown(r)}) m: non-finite "
                                       f"residual at iteration {it} ({self._fmt_q(q)})")
             if it == 0:
                 start, det0 = tuple(q), det
             if res < tol:
-                self._check_branch(q, Jinv, J, det, start, det0, shown)
+                self._check_branch(q, Jinv, J, det, start, det0, r)
                 return tuple(q), J, cond
             if it == max_iter:
                 break
             for j in range(n):
-                q[j] -= sum(J[j * n + k] * e[k] for k in range(n))
-        raise KinematicsError(f"direct kinematics did not converge for rho = ({shown}) m: {max_iter} iterations, "
+                q[j] -= sum([J[j * n + k] * e[k] for k in range(n)])
+        raise KinematicsError(f"direct kinematics did not converge for rho = ({_shown(r)}) m: {max_iter} iterations, "
                               f"residual max|rho(q) - rho| = {res:.3g} m > tol = {tol:.3g} m "
                               f"(last {self._fmt_q(q)})")
 
-    def _check_branch(self, q, Jinv, J, det, start, det0, shown) -> None:
+    def _check_branch(self, q, Jinv, J, det, start, det0, rho) -> None:
         """The solution on the start's branch and at least ``margin`` from a singularity (SingularityError)."""
         if (det > 0.0) != (det0 > 0.0):
             raise SingularityError(
-                f"direct kinematics for rho = ({shown}) m: the solution {self._fmt_q(q)} lies on another assembly "
+                f"direct kinematics for rho = ({_shown(rho)}) m: the solution {self._fmt_q(q)} lies on another assembly "
                 f"branch than the start {self._fmt_q(start)} (det(drho/dq) = {det:+.3g} there, {det0:+.3g} at the "
                 f"start): the joints crossed a parallel singularity; refused rather than jump to the other branch")
         m = self.margin
         # cheap lower bounds first: sigma_min(A) >= 1 / |A^-1|_F (exact singular values only near the limit)
-        fa = sum(v * v * w for v, w in zip(Jinv, self._wa))
-        fb = sum(v * v * w for v, w in zip(J, self._wb))
+        fa = sum([v * v * w for v, w in zip(Jinv, self._wa)])
+        fb = sum([v * v * w for v, w in zip(J, self._wb)])
         if fa * m * m <= 1.0 and fb * m * m <= 1.0:
             return
         mg = self.margins(q)
@@ -1100,7 +1104,7 @@ class Engine:
             kind = "parallel (the platform could move with the joints locked)" if mg.parallel < m else \
                 "inverse (a joint could move without moving the platform)"
             raise SingularityError(
-                f"direct kinematics for rho = ({shown}) m: the solution {self._fmt_q(q)} is within the margin of a "
+                f"direct kinematics for rho = ({_shown(rho)}) m: the solution {self._fmt_q(q)} is within the margin of a "
                 f"{kind} singularity: margins parallel {mg.parallel:.3g}, inverse {mg.inverse:.3g} < {m:g} m/m "
                 f"(det(drho/dq) = {det:+.3g}; docs/mechanism.md, 'Singularities and the assembly branch')")
 
