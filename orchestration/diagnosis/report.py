@@ -320,8 +320,9 @@ def write_report(out: Path, doc: dict, figs: Mapping[str, str]) -> None:
         lo, hi = pf["ci95"]
         lines += ["## Phase-free score", "",
                   f"{e['effect']} makes the loop hunt, which no simulation reproduces sample by sample; it was scored by "
-                  f"the band powers of the torque residual against ensembles of {pf['ensemble']} re-simulations "
-                  f"(commands perturbed far below their precision), noise {1e3 * pf['noise_std_Nm']:.3g} mN m "
+                  f"the band powers of the torque residual against ensembles of {pf['ensemble']} re-simulations per value "
+                  f"(commands perturbed far below their precision; the value's score pools the "
+                  f"{pf['pooled_realisations']} of the values within {100 * (pf['pool_ratio'] - 1):.0f} % of it), noise {1e3 * pf['noise_std_Nm']:.3g} mN m "
                   f"(profiled). `{pf['parameter']}` = {pf['value']:.4g} (95 %: {lo:.4g} to {hi:.4g}); the scan on all "
                   f"tests chose {pf['scan_value']:.4g} (dBIC {pf['delta_bic']:+.0f}), and leave-one-test-out "
                   f"confirmed it (deviance {pf['cross_validated_deviance_change']:+.0f}: every test predicted at the "
