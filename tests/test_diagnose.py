@@ -190,7 +190,7 @@ ISSUE_PLAN = (Spec("z", 0.004, 0.7, 1.2, 0.3), Spec("psi", math.radians(0.7), 1.
 def test_nothing_hidden_on_the_issue_plan_names_nothing(built_ssp, tmp_path):
     data = tmp_path / "data"
     synthesize(built_ssp, data, {}, tests=ISSUE_PLAN, direct=True, seed=63, log=lambda *_: None)
-    doc = diagnose(Options(data, tmp_path / "out", built_ssp, figures=False), log=lambda *_: None)
+    doc = diagnose(Options(data, tmp_path / "out", compiled(built_ssp), figures=False, direct=False), log=lambda *_: None)
     assert doc["named_effects"] == [] and doc["verdict"]["status"] == "nothing missing"
     assert doc["identifiability"]["backlash"]["plan_meets"]
 

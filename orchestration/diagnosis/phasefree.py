@@ -18,6 +18,10 @@ realisations (a mixture: where the loop sometimes hunts and sometimes not, both 
 The deviance -2 ln L (0 for a perfect match) is summed over tests; the noise variance
 s^2 is profiled, between a quarter of the noise floor's variance and the floor (the
 floor from third differences also sees fast content of the signal: an upper estimate).
+
+The value: where the hunting is periodic (short records) a value's band powers jump between neighbours a few
+percent apart, and so does its deviance; the value is the minimum of the deviance pooled over the values within
+POOL_RATIO (``pooled``), found on a grid (``search``) and by a parabola (``estimate``).
 """
 from __future__ import annotations
 
