@@ -29,9 +29,9 @@ def run(ssp: str, tmp, truth: dict, plan, seed: int) -> dict:
 @pytest.mark.parametrize("backlash, plan, seed", [(0.0045, ISSUE_PLAN, 72), (0.0065, PLAN, 73)],
                          ids=["issue-plan-4.5mrad", "default-plan-6.5mrad"])
 def test_backlash_is_named_within_5_percent(built_ssp, tmp_path, backlash, plan, seed):
-    """Backlash alone: named (nothing else), its value within 5 % with a 95 % interval that holds it, confirmed by
-    leave-one-test-out, every test's band powers at the floor with it; the value is the minimum of the smoothed
-    deviance on the fine grid (ratio 2^(1/16)) that brackets it."""
+    """Backlash alone: named (nothing else), its value within 5 % with a 95 % interval that holds it (determined on
+    the plan), confirmed by leave-one-test-out, every test's band powers at the floor with it; the value is the
+    minimum of the smoothed deviance on the fine grid (ratio 2^(1/16)) that brackets it."""
     doc = run(built_ssp, tmp_path, {"actuator": {"backlash": backlash}}, plan, seed)
     effects = named(doc)
     assert set(effects) == {"backlash"}, effects
@@ -45,3 +45,11 @@ def test_backlash_is_named_within_5_percent(built_ssp, tmp_path, backlash, plan,
     assert all(pf["deviance_per_test"]["after"][n] <= pf["floor_per_test"][n] for n in doc["gap"])
     grid = sorted(pf["profile"])
     assert grid[0] < value < grid[-1]
+    assert pf["value_determined"]
+    if plan is ISSUE_PLAN:   # where the deviance had no curvature, the report would say the plan does not pin the value
+        from mast.diagnosis.report import write_report
+
+        assert "not determined on this plan" not in (tmp_path / "out" / "report.md").read_text()
+        pf["value_determined"] = False
+        write_report(tmp_path / "out", doc, {})
+        assert "Its value is not determined on this plan" in (tmp_path / "out" / "report.md").read_text()

@@ -92,7 +92,7 @@ def test_smoothed_search_finds_a_value_whose_hunting_is_rough_in_the_value():
 def test_search_grows_the_fine_grid_towards_its_minimum():
     """A smoothed deviance whose minimum on the fine grid lies beyond its end (at 2^(0.6) x the mid grid's best
     value, the fine grid reaching 2^(1/4)): the fine grid grows that way, two steps at a time, until the minimum
-    is inside; values outside the bounds are never asked for."""
+    has a full pooling window (2^(1/8): two steps) on either side; values outside the bounds are never asked for."""
     asked = []
 
     def smoothed(v, ratio):
@@ -102,7 +102,7 @@ def test_search_grows_the_fine_grid_towards_its_minimum():
     mid, fine = search(asked.extend, smoothed, 4e-3, (0.0, 0.2))
     best = min(fine, key=fine.get)
     assert best == pytest.approx(4e-3 * 2 ** 0.625, rel=1e-9)       # the grid value nearest 2^0.6
-    assert min(fine) < best < max(fine)
+    assert 2 <= sorted(fine).index(best) <= len(fine) - 3
     mid, fine = search(asked.extend, smoothed, 4e-3, (0.0, 5e-3))
     assert max(asked[-len(fine):]) <= 5e-3 and max(fine) <= 5e-3
 

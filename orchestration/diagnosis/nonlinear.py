@@ -18,6 +18,9 @@ from .stages import (FLOOR_FACTOR, Context, State, band_rss, failed_step, fit_st
 #: the phase-free value: the minimum of a parabola through the smoothed deviances on the fine grid within this
 #: ratio of the best one (phasefree.search)
 PARABOLA_SPAN = 2.0 ** 0.25
+#: a phase-free value whose 95 % interval reaches beyond this ratio either side is named with its value "not
+#: determined on this plan" (the deviance has no curvature there: the parabola fell back to the grid's best value)
+DETERMINED_RATIO = 1.25
 
 
 def nonlinear_stage(ctx: Context, state: State, effects: Sequence[Effect], rejected: set, steps: list
@@ -242,9 +245,13 @@ def phase_free_stage(ctx: Context, state: State, effect: Effect, steps: list) ->
             + (f": above the floor on {', '.join(above)}, not named" if above else ": named"))
     if above:
         return state
+    determined = 1.96 * s_log <= math.log(DETERMINED_RATIO)
+    if not determined:
+        ctx.log(f"diagnose:   {effect.key}: its value is not determined on this plan (95 % interval "
+                f"{value * math.exp(-1.96 * s_log):.3g} to {value * math.exp(1.96 * s_log):.3g})")
     nf = {n: score.bands[n].noise_fraction for n in ctx.names}
     info = {**state.info, "phase_free": {
-        "parameter": p, "value": value, "std": value * s_log,
+        "parameter": p, "value": value, "std": value * s_log, "value_determined": determined,
         "ci95": [value * math.exp(-1.96 * s_log), value * math.exp(1.96 * s_log)],
         "scan_value": v_all, "delta_bic": dbic, "cross_validated_deviance_change": dcv, "leave_one_out": folds,
         "deviance_per_test": {"before": before.per_test, "after": final.per_test}, "floor_per_test": floors,

@@ -164,7 +164,8 @@ GRID_REALISATIONS = 2
 #: the smoothed deviance of a value pools the realisations of every value simulated within this ratio of it on the
 #: fine grid (on the mid grid: within one mid step); see ``pooled``
 POOL_RATIO = 2.0 ** (1.0 / 8.0)
-#: the fine grid is extended by two steps at an end where its smoothed minimum lies, at most this many times
+#: the fine grid is extended by two steps at an end its smoothed minimum lies within a pooling window of (so that the
+#: window about the minimum is full on both sides), at most this many times
 MAX_EXTENSIONS = 4
 
 
@@ -188,28 +189,30 @@ def search(simulate: Callable[[Sequence[float]], None], smoothed: Callable[[floa
     """A bounded 1-D search for the minimum of the smoothed deviance ``smoothed(value, pooling ratio)`` around
     ``best`` (the scan's best value, ratio 2 from its neighbours): the grid at MID_RATIO between the
     neighbours, smoothed over one mid step, picks the centre of a grid at FINE_RATIO (FINE_STEPS either side),
-    smoothed over POOL_RATIO; that grid grows towards an end where its minimum lies. ``simulate`` makes the
-    ensembles of values not simulated yet. Returns the smoothed deviances on the mid and on the fine grid."""
+    smoothed over POOL_RATIO; that grid grows towards an end its minimum lies within POOL_RATIO of. ``simulate``
+    makes the ensembles of values not simulated yet. Returns the smoothed deviances on the mid and on the fine
+    grid."""
     lo, hi = bounds
+    margin = round(math.log(POOL_RATIO) / math.log(FINE_RATIO))
 
     def grid(centre: float, ratio: float, steps: Sequence[int]) -> list[float]:
         return [v for v in (centre * ratio ** k for k in steps) if lo <= v <= hi]
 
     mid_values = grid(best, MID_RATIO, range(-4, 5))
     simulate(mid_values)
-    mid = {v: smoothed(v, MID_RATIO * (1 + 1e-9)) for v in mid_values}
+    mid = {v: smoothed(v, MID_RATIO) for v in mid_values}
     centre = min(mid, key=mid.get)
     steps = list(range(-FINE_STEPS, FINE_STEPS + 1))
     for _ in range(MAX_EXTENSIONS + 1):
         values = grid(centre, FINE_RATIO, steps)
         simulate(values)
         fine = {v: smoothed(v, POOL_RATIO) for v in values}
-        at = min(fine, key=fine.get)
-        end = values.index(at)
-        if 0 < end < len(values) - 1 or (end == 0 and values[0] / FINE_RATIO < lo) or (
-                end == len(values) - 1 and values[-1] * FINE_RATIO > hi):
+        k = values.index(min(fine, key=fine.get))
+        low = k < margin and values[0] / FINE_RATIO >= lo           # the window about the minimum is cut short
+        high = k > len(values) - 1 - margin and values[-1] * FINE_RATIO <= hi
+        if not (low or high):
             break
-        steps += [steps[0] - 1, steps[0] - 2] if end == 0 else [steps[-1] + 1, steps[-1] + 2]
+        steps += [steps[0] - 1, steps[0] - 2] if low else [steps[-1] + 1, steps[-1] + 2]
         steps.sort()
     return mid, fine
 
