@@ -18,8 +18,10 @@ from .stages import (FLOOR_FACTOR, Context, State, band_rss, failed_step, fit_st
 #: the phase-free value: the minimum of a parabola through the smoothed deviances on the fine grid within this
 #: ratio of the best one (phasefree.search)
 PARABOLA_SPAN = 2.0 ** 0.25
-#: a phase-free value whose 95 % interval reaches beyond this ratio either side is named with its value "not
-#: determined on this plan" (the deviance has no curvature there: the parabola fell back to the grid's best value)
+#: a phase-free value is named with its value "not determined on this plan" when its 95 % interval reaches beyond
+#: this ratio either side (the deviance has no curvature there: the parabola fell back to the grid's best value), or
+#: when a test predicted at the value best on the others (leave-one-test-out) fits worse than without the effect by
+#: DELTA_BIC: the tests disagree on the value (a test in a regime of the hunting the ensembles do not visit)
 DETERMINED_RATIO = 1.25
 
 
@@ -245,13 +247,17 @@ def phase_free_stage(ctx: Context, state: State, effect: Effect, steps: list) ->
             + (f": above the floor on {', '.join(above)}, not named" if above else ": named"))
     if above:
         return state
-    determined = 1.96 * s_log <= math.log(DETERMINED_RATIO)
-    if not determined:
-        ctx.log(f"diagnose:   {effect.key}: its value is not determined on this plan (95 % interval "
-                f"{value * math.exp(-1.96 * s_log):.3g} to {value * math.exp(1.96 * s_log):.3g})")
+    disagree = [n for n, f in folds.items() if f["deviance_change"] > DELTA_BIC]
+    why_not = ([f"95 % interval {value * math.exp(-1.96 * s_log):.3g} to {value * math.exp(1.96 * s_log):.3g}"]
+               if 1.96 * s_log > math.log(DETERMINED_RATIO) else []) + [
+        f"{n} predicted at {folds[n]['value']:.3g} (best on the others) fits worse than without it "
+        f"({folds[n]['deviance_change']:+.0f})" for n in disagree]
+    if why_not:
+        ctx.log(f"diagnose:   {effect.key}: its value is not determined on this plan: {'; '.join(why_not)}")
     nf = {n: score.bands[n].noise_fraction for n in ctx.names}
     info = {**state.info, "phase_free": {
-        "parameter": p, "value": value, "std": value * s_log, "value_determined": determined,
+        "parameter": p, "value": value, "std": value * s_log, "value_determined": not why_not,
+        "value_not_determined_because": why_not,
         "ci95": [value * math.exp(-1.96 * s_log), value * math.exp(1.96 * s_log)],
         "scan_value": v_all, "delta_bic": dbic, "cross_validated_deviance_change": dcv, "leave_one_out": folds,
         "deviance_per_test": {"before": before.per_test, "after": final.per_test}, "floor_per_test": floors,

@@ -327,8 +327,8 @@ def write_report(out: Path, doc: dict, figs: Mapping[str, str]) -> None:
                   f"tests chose {pf['scan_value']:.4g} (dBIC {pf['delta_bic']:+.0f}), and leave-one-test-out "
                   f"confirmed it (deviance {pf['cross_validated_deviance_change']:+.0f}: every test predicted at the "
                   "scan value best on the others)." + ("" if pf["value_determined"] else
-                  f" Its value is not determined on this plan: the deviance has no minimum narrower than its 95 % "
-                  f"interval ({lo:.4g} to {hi:.4g}); faster or longer tests of the kind that hunts would pin it."), "",
+                  f" Its value is not determined on this plan ({'; '.join(pf['value_not_determined_because'])}): "
+                  "longer tests of the kind that hunts would pin it."), "",
                   "| test | deviance without it | with it | floor |", "|---|---|---|---|"]
         dev = pf["deviance_per_test"]
         lines += [f"| {n} | {dev['before'][n]:.1f} | {dev['after'][n]:.1f} | {pf['floor_per_test'][n]:.1f} |"
