@@ -8,17 +8,21 @@ from typing import Mapping, Optional, Sequence
 import numpy as np
 
 from .effects import Effect
-from .phasefree import ENSEMBLE, PhaseFreeScore, estimate, refine
+from .phasefree import ENSEMBLE, GRID_REALISATIONS, POOL_RATIO, PhaseFreeScore, estimate, pooled, search
 from .resimulation import Point
 from .selection import DELTA_BIC, Atom, atom_labels
 from .stages import (FLOOR_FACTOR, Context, State, band_rss, failed_step, fit_state, residual_at_floor,
                      selection_cost, verify)
 
 
-#: bisection levels of a phase-free value after its scan (ratio 2 -> 2^(1/32): 2.2 %) ...
-REFINE_LEVELS = 5
-#: ... and the parabola through the deviances within the ratio of this level (2^(1/8)) of the best value
-PARABOLA_LEVEL = 3
+#: the phase-free value: the minimum of a parabola through the smoothed deviances on the fine grid within this
+#: ratio of the best one (phasefree.search)
+PARABOLA_SPAN = 2.0 ** 0.25
+#: a phase-free value is named with its value "not determined on this plan" when its 95 % interval reaches beyond
+#: this ratio either side (the deviance has no curvature there: the parabola fell back to the grid's best value), or
+#: when a test predicted at the value best on the others (leave-one-test-out) fits worse than without the effect by
+#: DELTA_BIC: the tests disagree on the value (a test in a regime of the hunting the ensembles do not visit)
+DETERMINED_RATIO = 1.25
 
 
 def nonlinear_stage(ctx: Context, state: State, effects: Sequence[Effect], rejected: set, steps: list
@@ -145,8 +149,9 @@ def phase_free_stage(ctx: Context, state: State, effect: Effect, steps: list) ->
     ln(statistics) per parameter) by DELTA_BIC, and leave-one-test-out must confirm it: every test in
     turn is predicted at the scan value best on the others, and these predictions' deviances must sum to
     DELTA_BIC below the current model's. The scan already simulates every test, so the cross-validation
-    costs no simulation. The value: refined on all tests (log-scale bisection around the best scan
-    value, then a parabola). It is named only if with it every test's score is at the floor: the
+    costs no simulation. The value: on all tests, the minimum of the smoothed deviance (the ensembles of
+    the values within a few percent pooled, phasefree.pooled) by a grid search around the best scan value
+    (phasefree.search), then a parabola. It is named only if with it every test's score is at the floor: the
     hunting's band powers can stand in for part of almost any excess (a position ripple, say), so the
     effect must explain all of what is left (this also refuses a value that leaves any test, made worse
     or not, above its floor).
@@ -167,14 +172,14 @@ def phase_free_stage(ctx: Context, state: State, effect: Effect, steps: list) ->
     def changes(v: float) -> dict:   # the current model as it is (its simulations are cached)
         return dict(state.changes) if v == current else {**state.changes, p: v}
 
-    def simulate(values: Sequence[float]) -> None:
-        new = [v for v in values if v not in ensembles]
-        model.sim.prefetch([changes(v) for v in new], ctx.names, range(ENSEMBLE))
+    def simulate(values: Sequence[float], realisations: int = ENSEMBLE) -> None:
+        new = [v for v in values if not any(abs(v - u) <= 1e-9 * abs(u) for u in ensembles)]
+        model.sim.prefetch([changes(v) for v in new], ctx.names, range(realisations))
         for v in new:
             pts = [model.trial(changes(v), [n], f"{effect.key} phase-free ensemble", r)
-                   for n in ctx.names for r in range(ENSEMBLE)]
+                   for n in ctx.names for r in range(realisations)]
             ensembles[v] = None if any(q is None for q in pts) else {
-                n: np.array([score.powers(n, pts[k * ENSEMBLE + r].obs[n]) for r in range(ENSEMBLE)])
+                n: np.array([score.powers(n, pts[k * realisations + r].obs[n]) for r in range(realisations)])
                 for k, n in enumerate(ctx.names)}
 
     def deviance(v: float, names: Sequence[str]) -> float:
@@ -211,25 +216,29 @@ def phase_free_stage(ctx: Context, state: State, effect: Effect, steps: list) ->
     if not ok:
         return state
 
-    ratio = effect.scan[1] / effect.scan[0]
+    def smoothed(v: float, ratio: float) -> float:
+        ensemble = pooled(ensembles, v, ratio)
+        return score.fit(ensemble, ctx.names).deviance if ensemble is not None else math.inf
 
-    def on_all(values: Sequence[float]) -> dict[float, float]:
-        simulate(values)
-        return {v: deviance(v, ctx.names) for v in values}
-
-    points = refine(on_all, on_all(effect.scan), ratio, REFINE_LEVELS, effect.bounds[p])
-    value, s_log = estimate(points, ratio ** (0.5 ** PARABOLA_LEVEL))
-    simulate([value])
-    if ensembles[value] is None or deviance(value, ctx.names) > min(points.values()):
-        # the estimate's simulation failed, or it fits worse than a value simulated (the parabola assumes a
-        # smooth deviance; where the hunting is periodic rather than chaotic it is rough): the best value simulated
+    mid, points = search(lambda values: simulate(values, GRID_REALISATIONS), smoothed, v_all, effect.bounds[p])
+    value, s_log = estimate(points, PARABOLA_SPAN)
+    if smoothed(value, POOL_RATIO) > min(points.values()):
+        # the parabola's minimum fits worse than a value of the grid (its window pools other values): that value
         value = min(points, key=points.get)
-    final, before = score.fit(ensembles[value], ctx.names), score.fit(ensembles[current], ctx.names)
+    ensemble = pooled(ensembles, value, POOL_RATIO)
+    if ensemble is None:
+        steps.append({"how": "phase-free score: value on all tests", "from": labels, "to": labels + [effect.key],
+                      "accepted": False, "profile": {v: points[v] for v in sorted(points)},
+                      "note": "not named: the simulations around its best value failed (see failed_simulations)"})
+        ctx.log(f"diagnose:   {effect.key}: the simulations around its best value failed, not named")
+        return state
+    final, before = score.fit(ensemble, ctx.names), score.fit(ensembles[current], ctx.names)
     floors = {n: score.floor(n) for n in ctx.names}
     above = [n for n, d in final.per_test.items() if d > floors[n]]
     steps.append({"how": "phase-free score: value on all tests", "from": labels, "to": labels + [effect.key],
                   "parameters": {p: value}, "delta_bic": dbic, "deviance_per_test": final.per_test,
-                  "floor_per_test": floors, "profile": {v: points[v] for v in sorted(points)}, "accepted": not above,
+                  "floor_per_test": floors, "profile": {v: points[v] for v in sorted(points)},
+                  "profile_mid_grid": {v: mid[v] for v in sorted(mid)}, "accepted": not above,
                   "note": ("every test's band powers at the floor with it" if not above else
                            f"not named: with it the band powers of {', '.join(above)} stay above the floor "
                            "(it would explain only part of the residual)")})
@@ -238,19 +247,28 @@ def phase_free_stage(ctx: Context, state: State, effect: Effect, steps: list) ->
             + (f": above the floor on {', '.join(above)}, not named" if above else ": named"))
     if above:
         return state
+    disagree = [n for n, f in folds.items() if f["deviance_change"] > DELTA_BIC]
+    why_not = ([f"95 % interval {value * math.exp(-1.96 * s_log):.3g} to {value * math.exp(1.96 * s_log):.3g}"]
+               if 1.96 * s_log > math.log(DETERMINED_RATIO) else []) + [
+        f"{n} predicted at {folds[n]['value']:.3g} (best on the others) fits worse than without it "
+        f"({folds[n]['deviance_change']:+.0f})" for n in disagree]
+    if why_not:
+        ctx.log(f"diagnose:   {effect.key}: its value is not determined on this plan: {'; '.join(why_not)}")
     nf = {n: score.bands[n].noise_fraction for n in ctx.names}
     info = {**state.info, "phase_free": {
-        "parameter": p, "value": value, "std": value * s_log,
+        "parameter": p, "value": value, "std": value * s_log, "value_determined": not why_not,
+        "value_not_determined_because": why_not,
         "ci95": [value * math.exp(-1.96 * s_log), value * math.exp(1.96 * s_log)],
         "scan_value": v_all, "delta_bic": dbic, "cross_validated_deviance_change": dcv, "leave_one_out": folds,
         "deviance_per_test": {"before": before.per_test, "after": final.per_test}, "floor_per_test": floors,
         "noise_std_Nm": final.sigma, "bands_Hz": {n: score.bands[n].bands for n in ctx.names},
-        "ensemble": ENSEMBLE,
+        "ensemble": ENSEMBLE, "pooled_realisations": len(next(iter(ensemble.values()))),
+        "pool_ratio": POOL_RATIO,
         "band_powers_Nm_squared": {n: {"measured": score.measured[n].tolist(),
-                                 "with": (ensembles[value][n].mean(axis=0) + final.sigma ** 2 * nf[n]).tolist(),
+                                 "with": (ensemble[n].mean(axis=0) + final.sigma ** 2 * nf[n]).tolist(),
                                  "without": (ensembles[current][n].mean(axis=0) + before.sigma ** 2 * nf[n]).tolist()}
                              for n in ctx.names},
-        "profile": {v: points[v] for v in sorted(points)}}}
+        "profile": {v: points[v] for v in sorted(points)}, "profile_mid_grid": {v: mid[v] for v in sorted(mid)}}}
     pt = model.trial(changes(value), ctx.names, f"{effect.key} value on every test")
     if pt is None:
         return state

@@ -18,12 +18,16 @@ realisations (a mixture: where the loop sometimes hunts and sometimes not, both 
 The deviance -2 ln L (0 for a perfect match) is summed over tests; the noise variance
 s^2 is profiled, between a quarter of the noise floor's variance and the floor (the
 floor from third differences also sees fast content of the signal: an upper estimate).
+
+The value: where the hunting is periodic (short records) a value's band powers jump between neighbours a few
+percent apart, and so does its deviance; the value is the minimum of the deviance pooled over the values within
+POOL_RATIO (``pooled``), found on a grid (``search``) and by a parabola (``estimate``).
 """
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Callable, Mapping, Sequence
+from typing import Callable, Mapping, Optional, Sequence
 
 import numpy as np
 
@@ -149,15 +153,68 @@ class PhaseFreeScore:
         return Fit(sum(per.values()), per, math.sqrt(s2))
 
 
-def refine(deviance: Callable[[Sequence[float]], Mapping[float, float]], points: dict[float, float],
-           ratio: float, levels: int, bounds: tuple[float, float]) -> dict[float, float]:
-    """Log-scale bisection around the best point: at level l its neighbours at ratio^(1/2^l)."""
+#: the value's search after the scan (ratio 2): a grid at ratio 2^(1/4) between the scan's best value's neighbours,
+#: then one at 2^(1/16) (4.4 %) around the best of those, 2^(1/4) either side
+MID_RATIO = 2.0 ** 0.25
+FINE_RATIO = 2.0 ** (1.0 / 16.0)
+FINE_STEPS = 4
+#: realisations of every value of the mid and fine grids (the scan's have ENSEMBLE): the pooling window holds five
+#: or more values, neighbours at 4.4 % differ as much as the commands' last digits do, so two per value suffice
+GRID_REALISATIONS = 2
+#: the smoothed deviance of a value pools the realisations of every value simulated within this ratio of it on the
+#: fine grid (on the mid grid: within one mid step); see ``pooled``
+POOL_RATIO = 2.0 ** (1.0 / 8.0)
+#: the fine grid is extended by two steps at an end its smoothed minimum lies within a pooling window of (so that the
+#: window about the minimum is full on both sides), at most this many times
+MAX_EXTENSIONS = 4
+
+
+def pooled(ensembles: Mapping[float, Optional[Mapping[str, np.ndarray]]], value: float, ratio: float
+           ) -> Optional[dict[str, np.ndarray]]:
+    """The realisations of every value simulated within ``ratio`` of ``value`` (positive values only), as one
+    ensemble per test: a mixture over the value's last few percent, as the ensemble is one over the commands'
+    last digits. Where the hunting is periodic its band powers jump between neighbouring values (2 % more
+    backlash: from no hunting to 2.4 x the noise), so one value's few realisations make a rough deviance whose
+    minimum wanders; the pooled one is smooth at the scale of the window and its minimum stays centred.
+    None if no simulated value (or a failed one) lies in the window."""
+    near = [u for u in ensembles if u > 0 and abs(math.log(u / value)) <= math.log(ratio) + 1e-9]
+    if not near or any(ensembles[u] is None for u in near):
+        return None
+    names = list(ensembles[near[0]])
+    return {n: np.concatenate([ensembles[u][n] for u in near]) for n in names}
+
+
+def search(simulate: Callable[[Sequence[float]], None], smoothed: Callable[[float, float], float], best: float,
+           bounds: tuple[float, float]) -> tuple[dict[float, float], dict[float, float]]:
+    """A bounded 1-D search for the minimum of the smoothed deviance ``smoothed(value, pooling ratio)`` around
+    ``best`` (the scan's best value, ratio 2 from its neighbours): the grid at MID_RATIO between the
+    neighbours, smoothed over one mid step, picks the centre of a grid at FINE_RATIO (FINE_STEPS either side),
+    smoothed over POOL_RATIO; that grid grows towards an end its minimum lies within POOL_RATIO of. ``simulate``
+    makes the ensembles of values not simulated yet. Returns the smoothed deviances on the mid and on the fine
+    grid."""
     lo, hi = bounds
-    for level in range(1, levels + 1):
-        best = min(points, key=points.get)
-        r = ratio ** (0.5 ** level)
-        points.update(deviance([v for v in (best / r, best * r) if lo <= v <= hi and v not in points]))
-    return points
+    margin = round(math.log(POOL_RATIO) / math.log(FINE_RATIO))
+
+    def grid(centre: float, ratio: float, steps: Sequence[int]) -> list[float]:
+        return [v for v in (centre * ratio ** k for k in steps) if lo <= v <= hi]
+
+    mid_values = grid(best, MID_RATIO, range(-4, 5))
+    simulate(mid_values)
+    mid = {v: smoothed(v, MID_RATIO) for v in mid_values}
+    centre = min(mid, key=mid.get)
+    steps = list(range(-FINE_STEPS, FINE_STEPS + 1))
+    for _ in range(MAX_EXTENSIONS + 1):
+        values = grid(centre, FINE_RATIO, steps)
+        simulate(values)
+        fine = {v: smoothed(v, POOL_RATIO) for v in values}
+        k = values.index(min(fine, key=fine.get))
+        low = k < margin and values[0] / FINE_RATIO >= lo           # the window about the minimum is cut short
+        high = k > len(values) - 1 - margin and values[-1] * FINE_RATIO <= hi
+        if not (low or high):
+            break
+        steps += [steps[0] - 1, steps[0] - 2] if low else [steps[-1] + 1, steps[-1] + 2]
+        steps.sort()
+    return mid, fine
 
 
 def estimate(points: Mapping[float, float], span: float) -> tuple[float, float]:

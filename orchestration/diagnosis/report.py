@@ -320,12 +320,15 @@ def write_report(out: Path, doc: dict, figs: Mapping[str, str]) -> None:
         lo, hi = pf["ci95"]
         lines += ["## Phase-free score", "",
                   f"{e['effect']} makes the loop hunt, which no simulation reproduces sample by sample; it was scored by "
-                  f"the band powers of the torque residual against ensembles of {pf['ensemble']} re-simulations "
-                  f"(commands perturbed far below their precision), noise {1e3 * pf['noise_std_Nm']:.3g} mN m "
+                  f"the band powers of the torque residual against ensembles of re-simulations (commands perturbed far "
+                  f"below their precision; the value's score pools the {pf['pooled_realisations']} realisations of the "
+                  f"values within {100 * (pf['pool_ratio'] - 1):.0f} % of it), noise {1e3 * pf['noise_std_Nm']:.3g} mN m "
                   f"(profiled). `{pf['parameter']}` = {pf['value']:.4g} (95 %: {lo:.4g} to {hi:.4g}); the scan on all "
                   f"tests chose {pf['scan_value']:.4g} (dBIC {pf['delta_bic']:+.0f}), and leave-one-test-out "
                   f"confirmed it (deviance {pf['cross_validated_deviance_change']:+.0f}: every test predicted at the "
-                  "scan value best on the others).", "",
+                  "scan value best on the others)." + ("" if pf["value_determined"] else
+                  f" Its value is not determined on this plan ({'; '.join(pf['value_not_determined_because'])}): "
+                  "longer tests of the kind that hunts would pin it."), "",
                   "| test | deviance without it | with it | floor |", "|---|---|---|---|"]
         dev = pf["deviance_per_test"]
         lines += [f"| {n} | {dev['before'][n]:.1f} | {dev['after'][n]:.1f} | {pf['floor_per_test'][n]:.1f} |"
