@@ -63,10 +63,17 @@ def test_a_bad_command_or_step_is_refused_by_name():
     blk.set(i_cmd=float("nan"), F=0.0)
     with pytest.raises(ModelError, match="input 'i_cmd' = nan at t=0 s is not finite"):
         blk.initialize(0.0)
-    blk.set(i_cmd=0.0)
+    blk.set(i_cmd=2.0)
     blk.initialize(0.0)
-    with pytest.raises(ModelError, match="not a positive integer multiple of T_cur"):
-        blk.do_step(0.0, 1.5e-4)
+    blk.do_step(0.0, 1e-4)
+    before = list(blk.values)
+    for h in (1.5e-4, 5e-5, 0.0):
+        with pytest.raises(ModelError, match=rf"step size h = {h!r} s is not a positive integer multiple of "
+                                             r"T_cur = 0\.0001 s"):
+            blk.do_step(1e-4, h)
+        assert blk.values == before                       # refused before anything moved
+    blk.do_step(1e-4, 1e-4)                               # and the run goes on as if nothing had been asked
+    np.testing.assert_array_equal((blk.get("i_m"), blk.get("u")), steps(drive(), 2.0, 2)[-1])
 
 
 def test_the_voltage_limit_holds_and_the_integrator_does_not_wind_up():

@@ -574,20 +574,56 @@ def test_the_native_actuator_reads_its_parameters_at_run_time_as_the_python_fmu(
     assert (np.abs(rows[0] - rows[1]).max(axis=0) <= TOLERANCE * scale).all()
 
 
-def test_the_native_actuator_follows_a_host_that_varies_its_step(built):
-    """Ten step sizes (multiples of T_cur: the axis behind the current loop steps T_cur), back and forth."""
-    sizes = [1e-4 * (1 + k) for k in range(10)]
-    rows = []
+def test_the_native_actuator_follows_a_host_that_varies_its_step_and_refuses_a_step_off_the_tick(built):
+    """More step sizes than DISCRETISATIONS_KEPT, back and forth (multiples of T_cur: the axis behind the
+    current loop steps T_cur), and between them steps that are not whole multiples of T_cur: refused
+    (fmi2Discard) with the same message naming h and T_cur, the state untouched (the run goes on equal)."""
+    from mast.core.native.models import DISCRETISATIONS_KEPT
+
+    sizes = [1e-4 * (1 + k) for k in range(DISCRETISATIONS_KEPT + 3)]
+    order = [sizes[(3 * k) % len(sizes) if k % 22 < 11 else k % len(sizes)] for k in range(44)]
+    off_tick = {5: 1.5e-4, 17: 5e-5, 30: 3.3e-4}
+    rows, refused = [], []
     for fmu in (built / "fmus" / "MastActuator.fmu", built / "fmus" / "native" / "MastActuator.fmu"):
         inst = Instance(fmu, "axis")
         assert inst.start({"tau_s": 0.02}) == OK
-        t, out = 0.0, []
-        for k in range(60):
-            h = sizes[(3 * k) % 10 if k % 20 < 10 else k % 10]
+        t, out, messages = 0.0, [], []
+        for k, h in enumerate(order):
             inst.set(i_cmd=4.0 * math.sin(40.0 * t), F=6.0)
+            if k in off_tick:
+                assert inst.step(t, off_tick[k]) == DISCARD
+                messages.append(inst.log[-1][1])
             assert inst.step(t, h) == OK, inst.log[-2:]
             out.append(inst.get())
             t += h
+        rows.append(np.array(out))
+        refused.append(messages)
+        inst.close()
+    assert len(set(order)) > DISCRETISATIONS_KEPT
+    assert refused[0] == refused[1]
+    for message, h in zip(refused[0], off_tick.values()):
+        assert f"step size h = {h!r} s is not a positive integer multiple of T_cur = 0.0001 s" in message
+    scale = np.abs(rows[0]).max(axis=0)
+    assert (np.abs(rows[0] - rows[1]).max(axis=0) <= TOLERANCE * scale).all()
+
+
+def test_the_native_drive_holds_its_voltage_limit_without_winding_up_as_the_python_fmu(built):
+    """u_max = 1 V, a 6 A command out of reach for 40 ticks then 0 A (test_drive.py checks the Python model
+    against a hand-written loop): u saturates, never exceeds u_max, and leaves the limit at the first tick
+    with the new command (measured: an unclamped integrator holds it there 55 of the remaining 60 ticks);
+    native = Python FMU."""
+    rows = []
+    for fmu in (built / "fmus" / "MastActuator.fmu", built / "fmus" / "native" / "MastActuator.fmu"):
+        inst = Instance(fmu, "axis")
+        assert inst.start({"u_max": 1.0}) == OK
+        out = []
+        for k in range(100):
+            inst.set(i_cmd=6.0 if k < 40 else 0.0, F=0.0)
+            assert inst.step(k * 1e-4, 1e-4) == OK, inst.log[-2:]
+            out.append(inst.get())
+        u = np.array(out)[:, inst.outputs.index("u")]
+        assert np.abs(u).max() == 1.0 and (u[:40] == 1.0).sum() >= 38
+        assert (u[40:] < 1.0).all()
         rows.append(np.array(out))
         inst.close()
     scale = np.abs(rows[0]).max(axis=0)
