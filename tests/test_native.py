@@ -607,6 +607,66 @@ def test_the_native_actuator_follows_a_host_that_varies_its_step_and_refuses_a_s
     assert (np.abs(rows[0] - rows[1]).max(axis=0) <= TOLERANCE * scale).all()
 
 
+def test_the_native_axis_keeps_and_evicts_its_discretisations_as_the_python_model_steps(built, tmp_path):
+    """The cache of DISCRETISATIONS_KEPT step sizes (the slot of the last h, the oldest recomputed when it
+    comes back) is unreachable through MastActuator: its axis steps T_cur whatever the host's step. So the
+    voltage-in axis alone (ActuatorBlock, which the generator also emits) is compiled here and stepped with
+    DISCRETISATIONS_KEPT + 3 sizes, most of them not multiples of 100 us, all of them first and then again
+    in another order (slots evicted and recomputed), against ActuatorBlock in Python (measured: 5e-12)."""
+    from fmpy.fmi2 import FMU2Slave
+
+    from fmus.actuator.model import ActuatorBlock
+    from mast.core.build import default_parameters
+    from mast.core.native.build import compile_shared, native_sources
+    from mast.core.native.models import DISCRETISATIONS_KEPT
+
+    # the drive's modelDescription made the axis': u in for i_cmd, no u out, no loop parameters
+    root = etree.fromstring(zipfile.ZipFile(built / "fmus" / "MastActuator.fmu").read("modelDescription.xml"))
+    order = [*ActuatorBlock.INPUTS, *ActuatorBlock.OUTPUTS, *(p.name for p in ActuatorBlock.PARAMETERS)]
+    variables = root.find("ModelVariables")
+    for sv in list(variables):
+        if sv.get("name") == "i_cmd":
+            sv.set("name", "u")
+        elif sv.get("name") == "u" or sv.get("name") not in order:
+            variables.remove(sv)
+    assert [sv.get("name") for sv in variables] == order
+    for vr, sv in enumerate(variables):
+        sv.set("valueReference", str(vr))
+    params = {k: v for k, v in {**default_parameters("MastActuator"), "tau_s": 0.02}.items() if k in order}
+    sources, xml = native_sources("MastActuator", ActuatorBlock, params, etree.tostring(root))
+    library = tmp_path / "binaries" / "linux64" / "MastActuator.so"
+    library.parent.mkdir(parents=True)
+    compile_shared(sources, library)
+    native = FMU2Slave(guid=etree.fromstring(xml).get("guid"), unzipDirectory=str(tmp_path),
+                       modelIdentifier="MastActuator", instanceName="axis")
+    native.instantiate()
+    native.setupExperiment(startTime=0.0)
+    native.enterInitializationMode()
+    native.setReal([order.index("tau_s")], [0.02])
+    native.exitInitializationMode()
+    python = ActuatorBlock(params, "axis")
+    python.set(u=0.0, F=6.0)
+    python.initialize(0.0)
+    sizes = [1e-4, 2.5e-5, 7e-5, 1.3e-4, 3e-4, 5e-5, 1e-3, 4.1e-4, 2e-4, 6.7e-5, 9e-4][:DISCRETISATIONS_KEPT + 3]
+    assert len(set(sizes)) == DISCRETISATIONS_KEPT + 3
+    outputs = [order.index(name) for name in ActuatorBlock.OUTPUTS]
+    t, rows = 0.0, []
+    for k in range(4 * len(sizes) + 20):                # each size twice in a row: the last slot's reuse too
+        h = sizes[3 * (k // 2) % len(sizes) if k < 2 * len(sizes) else k // 2 % len(sizes)]
+        u = 3.0 * math.sin(40.0 * t)
+        native.setReal([0, 1], [u, 6.0])
+        native.doStep(t, h)
+        python.set(u=u, F=6.0)
+        python.do_step(t, h)
+        rows.append((native.getReal(outputs), [python.get(name) for name in ActuatorBlock.OUTPUTS]))
+        t += h
+    native.terminate()
+    native.freeInstance()
+    got, expected = np.array(rows).transpose(1, 0, 2)
+    scale = np.abs(expected).max(axis=0)
+    assert (np.abs(got - expected).max(axis=0) <= TOLERANCE * scale).all()
+
+
 def test_the_native_drive_holds_its_voltage_limit_without_winding_up_as_the_python_fmu(built):
     """u_max = 1 V, a 6 A command out of reach for 40 ticks then 0 A (test_drive.py checks the Python model
     against a hand-written loop): u saturates, never exceeds u_max, and leaves the limit at the first tick
