@@ -63,10 +63,17 @@ def test_a_bad_command_or_step_is_refused_by_name():
     blk.set(i_cmd=float("nan"), F=0.0)
     with pytest.raises(ModelError, match="input 'i_cmd' = nan at t=0 s is not finite"):
         blk.initialize(0.0)
-    blk.set(i_cmd=0.0)
+    blk.set(i_cmd=2.0)
     blk.initialize(0.0)
-    with pytest.raises(ModelError, match="not a positive integer multiple of T_cur"):
-        blk.do_step(0.0, 1.5e-4)
+    blk.do_step(0.0, 1e-4)
+    before = list(blk.values)
+    for h in (1.5e-4, 5e-5, 0.0):
+        with pytest.raises(ModelError, match=rf"step size h = {h!r} s is not a positive integer multiple of "
+                                             r"T_cur = 0\.0001 s"):
+            blk.do_step(1e-4, h)
+        assert blk.values == before                       # refused before anything moved
+    blk.do_step(1e-4, 1e-4)                               # and the run goes on as if nothing had been asked
+    np.testing.assert_array_equal((blk.get("i_m"), blk.get("u")), steps(drive(), 2.0, 2)[-1])
 
 
 def _run_both(monkeypatch, changes: dict, n: int, i_cmd=lambda k: 3.0 * math.sin(0.05 * k) ** 3
@@ -106,3 +113,58 @@ def test_a_failing_tick_fails_as_tick_by_tick(monkeypatch):
     batched, ticked = _run_both(monkeypatch, {"u_supply": 12.0}, 2000, i_cmd=lambda k: 20.0)
     assert batched[1] is not None and "carriage left the stroke" in batched[1]
     assert batched == ticked                         # the same message, tick, state and outputs
+
+
+def test_the_voltage_limit_holds_and_the_integrator_does_not_wind_up():
+    """u_max = 1 V and a 6 A command (R 6 A = 1.8 V: out of reach) for 40 ticks, then 0 A for 60.
+
+    Independent route: a hand-written loop around the motor's exact zero-order-hold discretisation
+    (expm of its equations, written out here) with the integrator held while the output is saturated
+    and the error pushes further in. The same loop with an unclamped integrator is still saturated
+    long after the command dropped: the block must not be."""
+    from scipy.linalg import expm
+
+    u_max, T, n1, n = 1.0, LOOP["T_cur"], 40, 100
+    blk = drive(u_max=u_max)
+    p = blk.params
+    J = p["J1_scale"] * (p["J_motor"] + p["J_gearbox"] + p["J_coupling"] + p["J_brake"]) + \
+        p["J_guide"] / p["i_r"] ** 2 + p["M_load"] * (p["p"] / (2 * math.pi * p["i_r"])) ** 2
+    # x = (i, omega): L di/dt = u - R i - k_E omega, J domega/dt = k_T i
+    M = np.zeros((3, 3))
+    M[:2, :2] = [[-p["R"] / p["L"], -p["k_E"] / p["L"]], [p["k_T"] / J, 0.0]]
+    M[0, 2] = 1.0 / p["L"]
+    E = expm(M * T)
+    Ad, Bd = E[:2, :2], E[:2, 2]
+    kp, kiT = LOOP["k_pc"], LOOP["k_ic"] * T
+
+    def loop(clamped: bool) -> np.ndarray:
+        x, xc, u, rows = np.zeros(2), 0.0, 0.0, []
+        for k in range(n):
+            e = (6.0 if k < n1 else 0.0) - x[0]
+            v = kp * e + xc
+            u_next = min(max(v, -u_max), u_max)
+            if not clamped or abs(v) <= u_max or v * e < 0.0:
+                xc += kiT * e
+            x = Ad @ x + Bd * u
+            u = u_next
+            rows.append((x[0], u))
+        return np.array(rows)
+
+    blk.set(i_cmd=6.0, F=0.0)
+    blk.initialize(0.0)
+    got = []
+    for k in range(n):
+        if k == n1:
+            blk.set(i_cmd=0.0)
+        blk.do_step(k * T, T)
+        got.append((blk.get("i_m"), blk.get("u")))
+    got, clamped, naive = np.array(got), loop(True), loop(False)
+
+    assert np.abs(got[:, 1]).max() == u_max                   # the limit is reached and never exceeded
+    assert (got[:n1, 1] == u_max).sum() >= n1 - 2              # saturated while the command is out of reach
+    np.testing.assert_allclose(got[:, 0], clamped[:, 0], rtol=0, atol=1e-9 * np.abs(clamped[:, 0]).max())
+    np.testing.assert_allclose(got[:, 1], clamped[:, 1], rtol=0, atol=1e-9 * u_max)
+    # after the drop: the block's current is back at zero within 15 ticks; the wound-up loop still drives it
+    settled = slice(n1 + 15, n)
+    assert np.abs(got[settled, 0]).max() < 0.05
+    assert naive[n1 + 15, 0] > 1.0 and (naive[n1:n1 + 15, 1] == u_max).all()

@@ -574,20 +574,116 @@ def test_the_native_actuator_reads_its_parameters_at_run_time_as_the_python_fmu(
     assert (np.abs(rows[0] - rows[1]).max(axis=0) <= TOLERANCE * scale).all()
 
 
-def test_the_native_actuator_follows_a_host_that_varies_its_step(built):
-    """Ten step sizes (multiples of T_cur: the axis behind the current loop steps T_cur), back and forth."""
-    sizes = [1e-4 * (1 + k) for k in range(10)]
-    rows = []
+def test_the_native_actuator_follows_a_host_that_varies_its_step_and_refuses_a_step_off_the_tick(built):
+    """More step sizes than DISCRETISATIONS_KEPT, back and forth (multiples of T_cur: the axis behind the
+    current loop steps T_cur), and between them steps that are not whole multiples of T_cur: refused
+    (fmi2Discard) with the same message naming h and T_cur, the state untouched (the run goes on equal)."""
+    from mast.core.native.models import DISCRETISATIONS_KEPT
+
+    sizes = [1e-4 * (1 + k) for k in range(DISCRETISATIONS_KEPT + 3)]
+    order = [sizes[(3 * k) % len(sizes) if k % 22 < 11 else k % len(sizes)] for k in range(44)]
+    off_tick = {5: 1.5e-4, 17: 5e-5, 30: 3.3e-4}
+    rows, refused = [], []
     for fmu in (built / "fmus" / "MastActuator.fmu", built / "fmus" / "native" / "MastActuator.fmu"):
         inst = Instance(fmu, "axis")
         assert inst.start({"tau_s": 0.02}) == OK
-        t, out = 0.0, []
-        for k in range(60):
-            h = sizes[(3 * k) % 10 if k % 20 < 10 else k % 10]
+        t, out, messages = 0.0, [], []
+        for k, h in enumerate(order):
             inst.set(i_cmd=4.0 * math.sin(40.0 * t), F=6.0)
+            if k in off_tick:
+                assert inst.step(t, off_tick[k]) == DISCARD
+                messages.append(inst.log[-1][1])
             assert inst.step(t, h) == OK, inst.log[-2:]
             out.append(inst.get())
             t += h
+        rows.append(np.array(out))
+        refused.append(messages)
+        inst.close()
+    assert len(set(order)) > DISCRETISATIONS_KEPT
+    assert refused[0] == refused[1]
+    for message, h in zip(refused[0], off_tick.values()):
+        assert f"step size h = {h!r} s is not a positive integer multiple of T_cur = 0.0001 s" in message
+    scale = np.abs(rows[0]).max(axis=0)
+    assert (np.abs(rows[0] - rows[1]).max(axis=0) <= TOLERANCE * scale).all()
+
+
+def test_the_native_axis_keeps_and_evicts_its_discretisations_as_the_python_model_steps(built, tmp_path):
+    """The cache of DISCRETISATIONS_KEPT step sizes (the slot of the last h, the oldest recomputed when it
+    comes back) is unreachable through MastActuator: its axis steps T_cur whatever the host's step. So the
+    voltage-in axis alone (ActuatorBlock, which the generator also emits) is compiled here and stepped with
+    DISCRETISATIONS_KEPT + 3 sizes, most of them not multiples of 100 us, all of them first and then again
+    in another order (slots evicted and recomputed), against ActuatorBlock in Python (measured: 7.4e-12)."""
+    from fmpy.fmi2 import FMU2Slave
+
+    from fmus.actuator.model import ActuatorBlock
+    from mast.core.build import default_parameters
+    from mast.core.native.build import compile_shared, native_sources
+    from mast.core.native.models import DISCRETISATIONS_KEPT
+
+    # the drive's modelDescription made the axis': u in for i_cmd, no u out, no loop parameters
+    root = etree.fromstring(zipfile.ZipFile(built / "fmus" / "MastActuator.fmu").read("modelDescription.xml"))
+    order = [*ActuatorBlock.INPUTS, *ActuatorBlock.OUTPUTS, *(p.name for p in ActuatorBlock.PARAMETERS)]
+    variables = root.find("ModelVariables")
+    for sv in list(variables):
+        if sv.get("name") == "i_cmd":
+            sv.set("name", "u")
+        elif sv.get("name") == "u" or sv.get("name") not in order:
+            variables.remove(sv)
+    assert [sv.get("name") for sv in variables] == order
+    for vr, sv in enumerate(variables):
+        sv.set("valueReference", str(vr))
+    params = {k: v for k, v in {**default_parameters("MastActuator"), "tau_s": 0.02}.items() if k in order}
+    sources, xml = native_sources("MastActuator", ActuatorBlock, params, etree.tostring(root))
+    library = tmp_path / "binaries" / "linux64" / "MastActuator.so"
+    library.parent.mkdir(parents=True)
+    compile_shared(sources, library)
+    native = FMU2Slave(guid=etree.fromstring(xml).get("guid"), unzipDirectory=str(tmp_path),
+                       modelIdentifier="MastActuator", instanceName="axis")
+    native.instantiate()
+    native.setupExperiment(startTime=0.0)
+    native.enterInitializationMode()
+    native.setReal([order.index("tau_s")], [0.02])
+    native.exitInitializationMode()
+    python = ActuatorBlock(params, "axis")
+    python.set(u=0.0, F=6.0)
+    python.initialize(0.0)
+    sizes = [1e-4, 2.5e-5, 7e-5, 1.3e-4, 3e-4, 5e-5, 1e-3, 4.1e-4, 2e-4, 6.7e-5, 9e-4][:DISCRETISATIONS_KEPT + 3]
+    assert len(set(sizes)) == DISCRETISATIONS_KEPT + 3
+    outputs = [order.index(name) for name in ActuatorBlock.OUTPUTS]
+    t, rows = 0.0, []
+    for k in range(4 * len(sizes) + 20):                # each size twice in a row: the last slot's reuse too
+        h = sizes[3 * (k // 2) % len(sizes) if k < 2 * len(sizes) else k // 2 % len(sizes)]
+        u = 3.0 * math.sin(40.0 * t)
+        native.setReal([0, 1], [u, 6.0])
+        native.doStep(t, h)
+        python.set(u=u, F=6.0)
+        python.do_step(t, h)
+        rows.append((native.getReal(outputs), [python.get(name) for name in ActuatorBlock.OUTPUTS]))
+        t += h
+    native.terminate()
+    native.freeInstance()
+    got, expected = np.array(rows).transpose(1, 0, 2)
+    scale = np.abs(expected).max(axis=0)
+    assert (np.abs(got - expected).max(axis=0) <= TOLERANCE * scale).all()
+
+
+def test_the_native_drive_holds_its_voltage_limit_without_winding_up_as_the_python_fmu(built):
+    """u_max = 1 V, a 6 A command out of reach for 40 ticks then 0 A (test_drive.py checks the Python model
+    against a hand-written loop): u saturates, never exceeds u_max, and leaves the limit at the first tick
+    with the new command (measured: an unclamped integrator holds it there 55 of the remaining 60 ticks);
+    native = Python FMU."""
+    rows = []
+    for fmu in (built / "fmus" / "MastActuator.fmu", built / "fmus" / "native" / "MastActuator.fmu"):
+        inst = Instance(fmu, "axis")
+        assert inst.start({"u_max": 1.0}) == OK
+        out = []
+        for k in range(100):
+            inst.set(i_cmd=6.0 if k < 40 else 0.0, F=0.0)
+            assert inst.step(k * 1e-4, 1e-4) == OK, inst.log[-2:]
+            out.append(inst.get())
+        u = np.array(out)[:, inst.outputs.index("u")]
+        assert np.abs(u).max() == 1.0 and (u[:40] == 1.0).sum() >= 38
+        assert (u[40:] < 1.0).all()
         rows.append(np.array(out))
         inst.close()
     scale = np.abs(rows[0]).max(axis=0)

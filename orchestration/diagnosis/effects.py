@@ -274,11 +274,11 @@ AXIS_OF: dict[str, tuple[str, int]] = {name: (name.rsplit("_axis", 1)[0], int(na
 MEASUREMENT = frozenset(MEASUREMENT_PARAMETERS) | {k for k, (p, _) in AXIS_OF.items() if p in MEASUREMENT_PARAMETERS}
 
 
-def physical_bounds(name: str, nominal: Mapping) -> tuple[float, float]:
-    """Bounds of a parameter of the library: its own, and for a per-axis increment also those that keep the
-    axis's value physical (the all-axes parameter's bounds about its nominal value: a lag or a friction never
-    below 0 on one axis, an inertia or a mass never below its floor)."""
-    lo, hi = BOUNDS[name]
+def physical_bounds(name: str, nominal: Mapping, own: Optional[tuple[float, float]] = None) -> tuple[float, float]:
+    """Bounds of a parameter: ``own`` (its effect's; default: the library's), and for a per-axis increment
+    also those that keep the axis's value physical (the all-axes parameter's bounds about its nominal
+    value: a lag or a friction never below 0 on one axis, an inertia or a mass never below its floor)."""
+    lo, hi = own if own is not None else BOUNDS[name]
     if name in AXIS_OF:
         base = AXIS_OF[name][0]
         v0 = float(nominal[base])

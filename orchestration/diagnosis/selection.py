@@ -145,7 +145,7 @@ class Regression:
 
 def _in_bounds(effect: Effect, nominal: Mapping, change: float) -> bool:
     name = effect.parameter
-    lo, hi = physical_bounds(name, nominal)
+    lo, hi = physical_bounds(name, nominal, effect.bounds[name])   # a records library's effects have their own
     value = float(nominal[name]) + change
     return lo - 1e-12 <= value <= hi + 1e-12
 
