@@ -204,7 +204,9 @@ def test_calls_out_of_order_return_error_with_a_logged_message_and_the_instance_
 
 @pytest.mark.parametrize("ident, parameter, value", [("MastMechanism", "m_platform", -1.0),
                                                      ("MastActuator", "R", 0.0),
-                                                     ("MastController", "k_v", -2.5)])
+                                                     ("MastController", "k_v", -2.5),
+                                                     ("MastFeedForwardController", "M_load", 0.0),
+                                                     ("MastComputedTorqueController", "k_T", -0.3)])
 def test_bad_parameters_get_the_python_fmus_message(built, ident, parameter, value):
     messages = []
     for fmu in (built / "fmus" / f"{ident}.fmu", built / "fmus" / "native" / f"{ident}.fmu"):
@@ -277,7 +279,13 @@ def test_a_pose_within_the_singularity_margin_is_refused_by_both_routes_with_the
     ("MastWorkspaceController", 1e-3, {"T_vel": 4e-4, "L": 0.27, "beta": 0.05, "i_r": 2.5}),
     ("MastFeedForwardController", 1e-3, {"T_pos": 2e-3, "H": 0.41, "m_platform": 2.5, "m_payload": 3.0,
                                          "payload_z": 0.05}),
-    ("MastComputedTorqueController", 1e-3, {"T_vel": 5e-4, "r": 0.34, "g": 9.7, "I_py": 0.02})])
+    ("MastComputedTorqueController", 1e-3, {"T_vel": 5e-4, "r": 0.34, "g": 9.7, "I_py": 0.02}),
+    # and their inverse model's actuator constants (inverse_model.model_constants at initialisation)
+    ("MastFeedForwardController", 1e-3, {"M_load": 3.1, "J1_scale": 1.3, "J_motor": 2e-5, "tau_c": 0.05,
+                                         "omega_c": 0.7, "b_v": 3e-4, "tau_s": 0.02, "omega_s": 4.0, "k_T": 0.3,
+                                         "g_guide": 5.0, "i_r": 2.5}),
+    ("MastComputedTorqueController", 1e-3, {"M_load": 3.1, "J1_scale": 1.3, "J_guide": 2e-6, "tau_c": 0.05,
+                                            "b_v": 3e-4, "k_T": 0.3, "g_guide": 5.0, "p": 0.006})])
 def test_parameters_read_at_run_time_are_tunable_in_any_host(built, ident, h, tuned):
     """Set by the host as on the Python FMU (docs/native.md, Parameters): the same outputs, step for step."""
     rows = []
@@ -446,21 +454,29 @@ def test_ecos_command_line_runs_the_native_ssp_without_python_and_libcosim_runs_
         assert np.ptp(result["mechanism.z"]) > 0.005      # the 10 mm sine ran
 
 
+#: the feed-forward and computed-torque controllers' inverse model: another actuator than the plant's
+_INVERSE_MODEL = {"M_load": 3.1, "J1_scale": 1.3, "tau_c": 0.05, "b_v": 3e-4, "k_T": 0.3, "g_guide": 5.0}
+
+
+@pytest.mark.parametrize("system, changed, stop", [
+    ("MAST", {"actuator_2": {"R": 0.35, "tau_c": 0.03},
+              "mechanism": {"m_platform": 2.5, "L": 0.265, "m_payload": 2.0, "payload_z": 0.05},
+              "controller": {"k_v": 40.0, "L": 0.265, "T_pos": 2e-3}}, 0.2),
+    ("MAST_feedforward", {"controller": _INVERSE_MODEL}, 0.05),
+    ("MAST_computed_torque", {"controller": _INVERSE_MODEL}, 0.05)])
 def test_our_master_runs_a_native_system_with_another_parameter_set_like_the_python_fmus(built, tmp_path,
-                                                                                          monkeypatch):
+                                                                                          monkeypatch, system,
+                                                                                          changed, stop):
     """Parameters changed by the caller: the native FMUs read them at run time, as the Python FMUs; only a
     parameter a native FMU holds as generated makes the master generate the model for it (mast.core.native.build)."""
     monkeypatch.setenv("MAST_NATIVE_CACHE", str(tmp_path))
-    changed = {"actuator_2": {"R": 0.35, "tau_c": 0.03},
-               "mechanism": {"m_platform": 2.5, "L": 0.265, "m_payload": 2.0, "payload_z": 0.05},
-               "controller": {"k_v": 40.0, "L": 0.265, "T_pos": 2e-3}}
     stimulus = SineMotion("z", 0.01, 2.0)
-    python = simulate(built / "ssp" / "MAST.ssp", stimulus, 0.2, parameters=changed)
-    native = simulate(built / "ssp" / "native" / "MAST.ssp", stimulus, 0.2, parameters=changed)
+    python = simulate(built / "ssp" / f"{system}.ssp", stimulus, stop, parameters=changed)
+    native = simulate(built / "ssp" / "native" / f"{system}.ssp", stimulus, stop, parameters=changed)
     assert _relative_error(python, native) <= TOLERANCE
     # every parameter changed here is read at run time: nothing is generated for them
     assert not list(tmp_path.glob("*/*.fmu"))
-    unchanged = simulate(built / "ssp" / "MAST.ssp", stimulus, 0.2)
+    unchanged = simulate(built / "ssp" / f"{system}.ssp", stimulus, stop)
     assert _relative_error(python, unchanged) > 1e-3    # the change matters
 
 

@@ -28,7 +28,7 @@ from __future__ import annotations
 from typing import Mapping, Sequence
 
 from ..actuator.model import PARAMETERS as ACTUATOR_PARAMETERS
-from ..actuator.model import guide_friction, transmission_ratio, two_inertia
+from ..actuator.model import _real, guide_friction, transmission_ratio, two_inertia
 from ..common.parameters import Value
 from ..mechanism.designs import MASS_PARAMETERS, PAYLOAD_PARAMETERS, engine
 from ..mechanism.engine import SingularityError
@@ -53,20 +53,38 @@ def motor_torque(rho_dot: float, rho_ddot: float, F: float, J: float, i_R: float
     return J * rho_ddot / i_R + b_v * w + guide_friction(w, tau_c, omega_c, tau_s, omega_s) + i_R * (weight + F)
 
 
+#: the numbers ``motor_torque`` takes from the actuator's parameters (``model_constants``), in its argument order
+#: after F, and k_T
+CONSTANTS = ("J", "i_R", "b_v", "weight", "tau_c", "omega_c", "tau_s", "omega_s", "k_T")
+
+
+def model_constants(params: Mapping[str, Value]) -> dict[str, float]:
+    """The model's actuator constants (``CONSTANTS``) from the actuator's parameters: J = J1 + J2 [kg m^2]
+    (``two_inertia``, Eqs. 20-22), i_R [m/rad], b_v [N m s/rad], weight = M_load g_guide [N], the guide
+    friction's tau_c, omega_c, tau_s, omega_s and k_T [N m/A]. A traced number passes through (``_real``):
+    the native feed-forward and computed-torque controllers compute them at initialisation with this code."""
+    J1, J2 = two_inertia(params)
+    f = {k: _real(params[k]) for k in ("p", "i_r", "b_v", "M_load", "g_guide", "tau_c", "omega_c", "tau_s",
+                                       "omega_s", "k_T")}
+    return {"J": J1 + J2, "i_R": transmission_ratio(f["p"], f["i_r"]), "b_v": f["b_v"],
+            "weight": f["M_load"] * f["g_guide"], "tau_c": f["tau_c"], "omega_c": f["omega_c"],
+            "tau_s": f["tau_s"], "omega_s": f["omega_s"], "k_T": f["k_T"]}
+
+
 class InverseModel:
     """Motor torques for a joint motion (module docstring), from validated parameters."""
 
     def __init__(self, params: Mapping[str, Value], owner: str = "") -> None:
         P = params
         self.owner = owner or "controller"
-        self.i_R = transmission_ratio(P["p"], P["i_r"])
-        J1, J2 = two_inertia(P)
+        c = model_constants(P)
+        self.i_R = c["i_R"]
         #: rigid actuator inertia at the motor shaft [kg m^2]
-        self.J = J1 + J2
-        self.k_T = float(P["k_T"])
-        self.b_v = float(P["b_v"])
-        self._friction = tuple(float(P[n]) for n in ("tau_c", "omega_c", "tau_s", "omega_s"))
-        self.weight = float(P["M_load"]) * float(P["g_guide"])       # [N] along the guide
+        self.J = c["J"]
+        self.k_T = c["k_T"]
+        self.b_v = c["b_v"]
+        self._friction = tuple(c[n] for n in ("tau_c", "omega_c", "tau_s", "omega_s"))
+        self.weight = c["weight"]       # [N] along the guide
         self.engine = engine(P, self.owner) if int(P["attached"]) else None
         self._guess = None
 

@@ -12,10 +12,10 @@ A native FMU is made from the Python FMU of the same model (``mast.core.build``)
   here with the C compiler found as ``$CC``, ``cc`` or ``gcc`` (``-O2 -ffp-contract=off``: the
   same floating-point operations as the Python model, no fused multiply-add).
 
-Part of the parameters are read at run time, the others have their values inlined in the
-generated code as in the Python model's (``models.generated_parameters``); so a native FMU is
-built for the inlined parameters of the component that uses it, and each native SSP carries FMUs
-built for its own bindings.
+Every parameter is read at run time but the actuator's ``n_dof`` (the size of its state), whose value
+is inlined in the generated code as in the Python model's (``models.generated_parameters``); so a
+native actuator is built for the ``n_dof`` of the component that uses it, and each native SSP
+carries FMUs built for its own bindings.
 """
 from __future__ import annotations
 

@@ -34,14 +34,14 @@ to the Python model by the same tests.
 
 Parameters: read at run time, with what depends on them computed at initialisation, for the
 trajectory, the actuator (all but its chain's structure, ``ACTUATOR_STRUCTURE``: the size of its
-state), the mechanism (all of them) and the controllers (gains, cycle times, transmission,
-geometry, the inverse model's bodies); the checks the Python model makes of a parameter set
+state), the mechanism (all of them) and the controllers (all of them: gains, cycle times,
+transmission, geometry, the inverse model's bodies and its actuator constants, by
+``inverse_model.model_constants`` traced); the checks the Python model makes of a parameter set
 (ranges, ``DriveController._ratio``, ``designs.describe``) run at exitInitializationMode with its
-messages. Inlined: the actuator's chain structure and the feed-forward and computed-torque
-controllers' inverse model's actuator constants (``MODEL_INLINED``). ``generated_parameters``
-names them, the C model checks at initialisation that each still has the value it was generated
-for, and refuses another value with a message naming it. The project's master generates the model for another set of those
-when it needs one (``build.for_parameters``).
+messages. Inlined: the actuator's chain structure. ``generated_parameters`` names it, the C model
+checks at initialisation that it still has the value it was generated for, and refuses another
+value with a message naming it. The project's master generates the model for another one when it
+needs one (``build.for_parameters``).
 """
 from __future__ import annotations
 
@@ -54,11 +54,6 @@ from fmus.common.parameters import Param
 from .translate import c_double, split_invariants, to_c
 
 __all__ = ["Variable", "emit_model", "c_string", "generated_parameters"]
-
-#: relative difference below which a Real parameter counts as the value a model was generated for
-#: (a host that applies a modelDescription start value, printed with 16 digits, gets the same model)
-SAME_VALUE = 1e-13
-
 
 @dataclass(frozen=True)
 class Variable:
@@ -126,13 +121,6 @@ def _check_function(params: Sequence[Param], vrs: Mapping[str, int], fixed: Mapp
         vr = vrs[spec.name]
         name = spec.name
         if spec.kind is str:
-            if name in fixed:
-                lines += [
-                    f"    if (strcmp(p->string[{vr}] ? p->string[{vr}] : \"\", {_literal(str(fixed[name]))}) != 0) {{",
-                    f"        snprintf(msg, size, \"parameter '{name}' = '%s': this native FMU was generated for "
-                    f"{name} = '%s'; rebuild it (mast build --native) for another value\", p->string[{vr}] ? "
-                    f"p->string[{vr}] : \"\", {_literal(str(fixed[name]))});",
-                    "        return MAST_PARAMETER_ERROR;", "    }"]
             continue
         expected = c_string(spec.expected())
         if spec.kind is int:
@@ -153,13 +141,10 @@ def _check_function(params: Sequence[Param], vrs: Mapping[str, int], fixed: Mapp
                       f"        snprintf(msg, size, \"parameter '{name}' = %s: expected \" {expected}, v);",
                       "        return MAST_PARAMETER_ERROR;", "    }"]
         if name in fixed:
-            if spec.kind is int:
-                same = f"p->integer[{vr}] == {int(fixed[name])}"
-                shown = f"snprintf(c, sizeof c, \"%d\", {int(fixed[name])})"
-            else:
-                ref = c_double(float(fixed[name]))
-                same = f"fabs(p->real[{vr}] - {ref}) <= {c_double(SAME_VALUE)} * fabs({ref})"
-                shown = f"mast_repr({ref}, c, sizeof c)"
+            if spec.kind is not int:
+                raise ValueError(f"parameter '{name}': only an Integer parameter can be held as generated")
+            same = f"p->integer[{vr}] == {int(fixed[name])}"
+            shown = f"snprintf(c, sizeof c, \"%d\", {int(fixed[name])})"
             lines += [f"    if (!({same})) {{", f"        {show};", f"        {shown};",
                       f"        snprintf(msg, size, \"parameter '{name}' = %s: this native FMU was generated for "
                       f"{name} = %s; rebuild it (mast build --native) for another value\", v, c);",
@@ -856,17 +841,11 @@ _S = {"n": 0, "t0": 1, "ik": 2, "pose": 3, "x_v": 6, "rho_cmd": 15, "omega_cmd":
       "own": 67,
       # from the parameters at initialisation: the schedule (T_pos / T_cur, T_vel / T_cur, T_cur, T_pos), the
       # transmission i_R, cos and sin of beta (the cold start), attached (the inverse model's) and the kinematic
-      # model's traced parameters (designs.TRACED_PARAMETERS: the arguments of its generated functions)
-      "N_pos": 70, "N_vel": 71, "T_cur": 72, "T_pos": 73, "i_R": 74, "cb": 75, "sb": 76, "attached": 77, "P": 78}
-_NS = 105     # and the coordinate lengths (LENGTHS: the last three)
-#: the joint controller's parameters read at run time (the gains); the others (cycle times, kinematic
-#: model) are in the generated code
-#: the parameters the controllers' generated code holds (the others are read at run time): the feed-forward and
-#: computed-torque controllers' inverse model's actuator constants (its rigid inertia, viscous and guide friction,
-#: weight, k_T, and its transmission p, i_r), computed at generation by ``InverseModel`` (``two_inertia`` is no
-#: function of the generated-code subset)
-MODEL_INLINED = ("k_T", "J_motor", "J_gearbox", "J_coupling", "J_brake", "J1_scale", "J_guide", "M_load", "tau_c",
-                 "omega_c", "b_v", "tau_s", "omega_s", "g_guide", "p", "i_r")
+      # model's traced parameters (designs.TRACED_PARAMETERS: the arguments of its generated functions),
+      # then the inverse model's actuator constants (inverse_model.CONSTANTS, by its model_constants)
+      "N_pos": 70, "N_vel": 71, "T_cur": 72, "T_pos": 73, "i_R": 74, "cb": 75, "sb": 76, "attached": 77, "P": 78,
+      "model": 102}
+_NS = 114     # and the coordinate lengths (LENGTHS: the last three)
 #: a failure of the workspace controller's direct kinematics of the measured joints
 _DK_FAILED = 2000
 #: a failure of the feed-forward controller's inverse model (its direct kinematics or dynamics)
@@ -1105,7 +1084,7 @@ def _joint_controller(block, vrs: Mapping[str, int]) -> str:
         to_c(inspect.getsource(pi_step), "pi_step"),
         to_c(inspect.getsource(transmission_ratio), "transmission_ratio"),
         to_c(inspect.getsource(cascade_gains), "cascade_gains"),
-        _inverse_model(block, eng) if model else "",
+        _inverse_model(eng, vrs) if model else "",
         to_c(inspect.getsource(own), own.__name__) if own else "",
         to_c(start, "start", arrays=("values", "S", "R"), calls=("ik_s",)),
         _workspace_dk(block) if workspace else "",
@@ -1139,7 +1118,8 @@ def _joint_controller(block, vrs: Mapping[str, int]) -> str:
         f"    traced_parameters(p, s->S + {PO});",
         f"    s->S[{_S['cb']}] = cos(s->S[{PO + TRACED_PARAMETERS.index('beta')}]);",
         f"    s->S[{_S['sb']}] = sin(s->S[{PO + TRACED_PARAMETERS.index('beta')}]);",
-        *([f"    s->S[{_S['attached']}] = p->integer[{vrs['attached']}];"] if model else []),
+        *([f"    s->S[{_S['attached']}] = p->integer[{vrs['attached']}];",
+           f"    model_constants(p, s->S + {_S['model']});"] if model else []),
         f"    LENGTHS(s->S)[0] = 1.0; LENGTHS(s->S)[1] = s->S[{PO + 1}]; LENGTHS(s->S)[2] = s->S[{PO + 1}];",
         "    /* the gains from the parameters, by the controller's own functions */",
         *([f"    cascade_gains({P('k_v')}, {P('k_p')}, {P('k_i')}, {P('T_vel')}, "
@@ -1193,22 +1173,42 @@ def _joint_controller(block, vrs: Mapping[str, int]) -> str:
         "    return MAST_OK;", "}", ""])
 
 
-def _inverse_model(block, eng) -> str:
+def _model_constants_c(vrs: Mapping[str, int]) -> str:
+    """``model_constants(p, out)``: the inverse model's actuator constants (``inverse_model.CONSTANTS``) from
+    the parameters, by ``inverse_model.model_constants`` traced (``two_inertia``, ``transmission_ratio``)."""
+    from fmus.controller.inverse_model import CONSTANTS, model_constants
+    from fmus.mechanism.engine import _Graph, _lift, compile_function
+
+    g = _Graph()
+    names = ("J_motor", "J_gearbox", "J_coupling", "J_brake", "J1_scale", "J_guide", "M_load", "i_r", "p", "b_v",
+             "g_guide", "tau_c", "omega_c", "tau_s", "omega_s", "k_T")
+    constants = model_constants({n: g.input(n) for n in names})
+    assert tuple(constants) == CONSTANTS
+    fn = compile_function("traced_model_constants", names, [_lift(g, v) for v in constants.values()], g,
+                          label="inverse model constants")
+    args = ", ".join(f"p->real[{vrs[n]}]" for n in names)
+    return "\n".join([to_c(fn.source, "traced_model_constants"),
+                      "/* InverseModel's actuator constants (inverse_model.CONSTANTS) at initialisation */",
+                      "static void model_constants(const mast_parameters *p, double *out)", "{",
+                      f"    traced_model_constants({args}, out);", "}", ""])
+
+
+def _inverse_model(eng, vrs: Mapping[str, int]) -> str:
     """FeedForwardController's inverse model (InverseModel.currents) in C: the engine's direct
     kinematics (warm start, else cold, as InverseModel.torques) and traced dynamics (``eng``, the traced
     engine of the controller's parameters: ``ikjac_p`` and ``forces`` with them read at initialisation;
     no forces when ``attached`` = 0), then ``motor_torque`` and ``guide_friction`` translated from their
-    own source (the actuator's constants inlined). ``currents`` is what the tick calls; ``model_error``
-    makes the message of a failed evaluation by running it again (the guess is only updated on success,
-    so it fails the same way)."""
+    own source, with the actuator's constants computed at initialisation (``model_constants``, into
+    S[model]). ``currents`` is what the tick calls; ``model_error`` makes the message of a failed
+    evaluation by running it again (the guess is only updated on success, so it fails the same way)."""
     import inspect
 
     from fmus.actuator.model import guide_friction
-    from fmus.controller.inverse_model import motor_torque
+    from fmus.controller.inverse_model import CONSTANTS, motor_torque
     from fmus.controller.reference import rates
 
-    model = block.model
-    torque = ", ".join(f"{float(v)!r}" for v in (model.J, model.i_R, model.b_v, model.weight, *model._friction))
+    MC = _S["model"]
+    torque = ", ".join(f"S[{MC + k}]" for k in range(CONSTANTS.index("k_T")))
     W, G, A, PO = _S["warm"], _S["guess"], _S["model_args"], _S["P"]
     params = ", ".join(f"S[{PO + k}]" for k in range(len(eng.parameters)))
     dk = (f"mast_dk3(ikjac_p, S + {PO}, why, M_COORDINATES, LENGTHS(S), {c_double(eng.margin)}, a, q, J, 1e-12, 50, "
@@ -1216,6 +1216,7 @@ def _inverse_model(block, eng) -> str:
     coordinates = ", ".join(_literal(n) for n in eng.description.coordinates)
     checks = {k: v for k, v in eng._fn("forces").namespace.items() if k.startswith("_check")}
     return "\n".join([
+        _model_constants_c(vrs),
         to_c(eng._fn("forces").source, "forces", checks=checks),
         to_c(inspect.getsource(rates), "rates"),
         to_c(inspect.getsource(guide_friction), "guide_friction"),
@@ -1238,7 +1239,7 @@ def _inverse_model(block, eng) -> str:
         "            return MAST_KINEMATICS_ERROR;", "        }",
         f"        for (int k = 0; k < 3; k++) S[{G} + k] = q[k];", f"        S[{W}] = 1.0;", "    }",
         f"    for (int j = 0; j < 3; j++) out[j] = motor_torque(a[3 + j], a[6 + j], F[j], {torque}) / "
-        f"{float(model.k_T)!r};",
+        f"S[{MC + CONSTANTS.index('k_T')}];",
         "    return 0;", "}", "",
         "static int currents(double r0, double r1, double r2, double v0, double v1, double v2, double a0, double a1, "
         "double a2, double *S, double *out)", "{",
@@ -1307,12 +1308,7 @@ def generated_parameters(block_class: type, parameters: Mapping[str, object]) ->
     """The parameters whose values the generated code of ``block_class`` holds (the others are read
     at run time): another value needs another build."""
     kind = block_class.__module__.split(".")[-2]
-    if kind == "trajectory":
-        return {}
-    if kind == "controller":
-        model = block_class.__name__ in ("FeedForwardController", "ComputedTorqueController")
-        return {k: v for k, v in parameters.items() if model and k in MODEL_INLINED}
-    if kind == "mechanism":     # every parameter read at run time (designs.traced_engine)
+    if kind in ("trajectory", "controller", "mechanism"):     # every parameter read at run time
         return {}
     if kind == "actuator":     # the chain's structure: the size of the state
         return {k: parameters[k] for k in ACTUATOR_STRUCTURE}
