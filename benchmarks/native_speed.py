@@ -31,10 +31,10 @@ process, wall time) and in libcosim and the ecos command line (child processes: 
 ``getrusage(RUSAGE_CHILDREN)``, wall time around them; libcosim runs in a Python child,
 ``mast.hosts.cosim``, whose interpreter start and imports are measured alone and shown; the ecos CLI
 runs under ``env -i``, no Python). ``--analyses``: ``mast reproduce --fmi`` on the Python and the
-native SSP, and the paper case of ``mast diagnose --fmu`` (docs/diagnose.md: ``mast synthesize``
-with the truth tau_c = 0.0718, J1_scale = 0.641026, seed 1) on the Python and the native SSP, and
-``mast diagnose`` on the direct composition (its default), one run each, wall and CPU time of the
-child.
+native SSP, and the paper case of ``mast diagnose`` (docs/diagnose.md: ``mast synthesize``
+with the truth tau_c = 0.0718, J1_scale = 0.641026, seed 1) re-simulating on the direct composition
+(``--direct``), the Python FMUs (``--fmu``) and the native variant (its default when built), one run
+each, wall and CPU time of the child.
 """
 from __future__ import annotations
 
@@ -194,8 +194,8 @@ def analyses(python: Path, native: Path, workers: int) -> None:
             rows.append((f"mast reproduce --fmi, {label}",
                          timed_child([*mast, "reproduce", str(ssp), "--fmi", "--workers", str(workers), "--out",
                                       str(tmp / f"reproduce_{label[:6]}")])))
-        for label, ssp, flag in (("direct composition (default)", python, []), ("Python FMUs", python, ["--fmu"]),
-                                 ("native FMUs", native, ["--fmu"])):
+        for label, ssp, flag in (("direct composition", python, ["--direct"]), ("Python FMUs", python, ["--fmu"]),
+                                 ("native FMUs (the default when built)", python, [])):
             rows.append((f"mast diagnose (paper case), {label}",
                          timed_child([*mast, "diagnose", str(ssp), "--measured", str(measured), "--workers",
                                       str(workers), "--out", str(tmp / f"diagnose_{len(rows)}"), *flag])))
