@@ -3,9 +3,8 @@ default system at the paper's cycle times, and where the time goes (the FMUs' ow
 routes with the master's exchange loop compiled (the default, mast.core.exchange) and in Python.
 
     python benchmarks/native_speed.py [--ssp build/ssp/MAST.ssp] [--stop-time 10] [--repeats 3]
-                                      [--before DIR] # also: the native SSP of another build, e.g. main's
+                                      [--before DIR] # also: another build's SSPs (DIR = its build/ssp)
                                       [--profile]  # also: instructions per FMU and call (callgrind)
-                                      [--baseline OTHER.ssp]  # also: the Python FMUs of OTHER.ssp (before/after)
                                       [--cycles]   # also: 200 instantiate/free cycles under valgrind
                                       [--hosts]    # also: our master vs libcosim and the ecos CLI, native SSP
                                       [--analyses] # also: mast reproduce and mast diagnose (paper case),
@@ -15,9 +14,10 @@ Needs `mast build --native`. The machine may be shared: every figure is the mini
 repeats (the least disturbed). Also runs `benchmarks/native_cycles.c` (a C host, no Python) over each
 native FMU and prints its memory figures, under valgrind with --cycles.
 
-``--before DIR``: ``DIR/<ssp name>``, the same system's native SSP of another build (copy main's
-``build/ssp/native`` aside before building this branch), timed interleaved with this build's in the
-same repeats, both printed: the before/after figure of a change to the native FMUs.
+``--before DIR``: another build's SSPs of the same system (DIR: its ``build/ssp``, e.g. of a clone of
+main built with ``make build && mast build --native``): its Python FMUs ``DIR/<ssp name>`` and native
+FMUs ``DIR/native/<ssp name>``, timed interleaved with this build's in the same repeats, both printed:
+the before/after figures of a change.
 
 ``--profile``: 1 s of the native SSP under callgrind (valgrind) in a child: per FMU binary and FMI
 call, the calls and the instructions they execute (inclusive: the model's code, libm, the FMI
@@ -234,16 +234,14 @@ def main() -> int:
     parser.add_argument("--ssp", default=str(REPO / "build" / "ssp" / "MAST.ssp"))
     parser.add_argument("--stop-time", type=float, default=10.0)
     parser.add_argument("--repeats", type=int, default=3)
-    parser.add_argument("--before", metavar="DIR", help="also time DIR/<ssp name>: another build's native SSP")
+    parser.add_argument("--before", metavar="DIR", help="also time another build's SSPs: DIR/<ssp name> (Python "
+                                                        "FMUs) and DIR/native/<ssp name> (native FMUs)")
     parser.add_argument("--profile", action="store_true", help="also: the native run's instructions per FMU and call")
     parser.add_argument("--cycles", action="store_true", help="also run the C host's cycles under valgrind")
     parser.add_argument("--hosts", action="store_true", help="also run the native SSP in libcosim and the ecos CLI")
     parser.add_argument("--host-stop-time", type=float, default=1.9, help="stop time of the --hosts runs [s]")
     parser.add_argument("--analyses", action="store_true", help="also time mast reproduce and mast diagnose")
     parser.add_argument("--workers", type=int, default=2, help="workers of mast reproduce and diagnose")
-    parser.add_argument("--baseline", action="append", default=[], metavar="SSP",
-                        help="also time the Python FMUs of this SSP (built from another commit: before/after in "
-                             "one run; repeatable)")
     args = parser.parse_args()
     python = Path(args.ssp)
     native = python.parent / "native" / python.name
@@ -254,14 +252,13 @@ def main() -> int:
     rows = {"direct composition (Python models)": (python, True, True),
             "Python FMUs, exchange loop in Python": (python, False, True), "Python FMUs": (python, False, False),
             "native FMUs, exchange loop in Python": (native, False, True), "native FMUs": (native, False, False)}
-    if args.before:
-        before = Path(args.before) / python.name
-        if not before.exists():
-            print(f"{before} is missing (--before: a folder holding another build's native {python.name})",
-                  file=sys.stderr)
-            return 2
-        rows["native FMUs, before (--before)"] = (before, False, False)
-    rows.update({f"Python FMUs of {Path(b).resolve()}": (Path(b), False, False) for b in args.baseline})
+    before = {"Python FMUs": Path(args.before) / python.name,
+              "native FMUs": Path(args.before) / "native" / python.name} if args.before else {}
+    missing = [str(p) for p in before.values() if not p.exists()]
+    if missing:
+        print(f"{', '.join(missing)} missing (--before: another build's build/ssp folder)", file=sys.stderr)
+        return 2
+    rows.update({f"{route}, before (--before)": (ssp, False, False) for route, ssp in before.items()})
     best = {label: float("inf") for label in rows}
     for _ in range(args.repeats):
         for label, (ssp, direct, python_loop) in rows.items():
@@ -270,19 +267,16 @@ def main() -> int:
           f"best of {args.repeats}")
     for label, cpu in best.items():
         print(f"  {label:36s} {cpu:7.2f} s CPU   real-time factor {stop / cpu:7.2f}")
-    for b in args.baseline:
-        print(f"  Python FMUs / those of {b}: CPU time {best['Python FMUs'] / best[f'Python FMUs of {Path(b).resolve()}']:.2f}")
     print(f"  Python FMUs / native FMUs CPU time: {best['Python FMUs'] / best['native FMUs']:.1f}")
     print(f"  native co-simulation / direct composition: "
           f"{best['native FMUs'] / best['direct composition (Python models)']:.2f}")
     print(f"  compiled / Python exchange loop CPU time: Python FMUs "
           f"{best['Python FMUs'] / best['Python FMUs, exchange loop in Python']:.2f}, native FMUs "
           f"{best['native FMUs'] / best['native FMUs, exchange loop in Python']:.2f}")
-    if args.before:
-        print(f"  native FMUs after / before ({args.before}) CPU time: "
-              f"{best['native FMUs'] / best['native FMUs, before (--before)']:.2f}")
+    for route in before:
+        print(f"  {route} after / before ({args.before}) CPU time: {best[route] / best[f'{route}, before (--before)']:.2f}")
     if args.profile:
-        for ssp in [native] + ([Path(args.before) / python.name] if args.before else []):
+        for ssp in [native] + ([before["native FMUs"]] if before else []):
             profile(ssp, 1.0)
     if args.hosts:
         hosts(native.parent / "MAST_standalone.ssp", args.host_stop_time, args.repeats)
