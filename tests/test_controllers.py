@@ -22,7 +22,7 @@ import pytest
 from fmus.common.parameters import ParameterError
 from fmus.controller.computed_torque import ComputedTorqueController
 from fmus.controller.inverse_model import InverseModel
-from fmus.controller.reference import JointReference
+from fmus.controller.reference import rates
 from mast.core.build import default_parameters
 from mast.core.controllers import CONTROLLERS, variant_ssd
 from mast.core.motion import PoseStep, SineMotion
@@ -93,10 +93,21 @@ def test_fmus_reproduce_the_direct_composition(systems):
 
 
 # ----------------------------------------------------------------------------- the reference
+class Reference:
+    """The last four samples of one axis' reference, newest first, and their rates (``rates``), as the
+    controllers' tick keeps them."""
+
+    def __init__(self, T: float) -> None:
+        self.T, self.samples = T, []
+
+    def update(self, r: float) -> tuple[float, float]:
+        self.samples = [r, *self.samples][:4]
+        return rates(len(self.samples), *(self.samples + [0.0] * 4)[:4], self.T)
+
+
 def test_reference_derivatives_are_exact_for_cubics():
     T = 1e-3
-    ref = JointReference(T)
-    ref.reset()
+    refs = [Reference(T) for _ in range(3)]
     coef = [(0.1, 0.02, -3.0, 40.0), (0.2, -0.05, 1.5, 0.0), (0.15, 0.0, 0.0, -7.0)]    # c0 + c1 t + c2 t^2 + c3 t^3
 
     def at(t, c, d=0):
@@ -105,12 +116,12 @@ def test_reference_derivatives_are_exact_for_cubics():
 
     for k in range(8):
         t = 0.01 + k * T
-        ref.update([at(t, c) for c in coef])
+        rho_dot, rho_ddot = zip(*(ref.update(at(t, c)) for ref, c in zip(refs, coef)))
         if k == 0:
-            assert ref.rho_dot == [0.0] * 3 and ref.rho_ddot == [0.0] * 3
+            assert rho_dot == (0.0,) * 3 and rho_ddot == (0.0,) * 3
         if k >= 3:
-            np.testing.assert_allclose(ref.rho_dot, [at(t, c, 1) for c in coef], rtol=1e-6, atol=1e-9)
-            np.testing.assert_allclose(ref.rho_ddot, [at(t, c, 2) for c in coef], rtol=1e-5, atol=1e-4)
+            np.testing.assert_allclose(rho_dot, [at(t, c, 1) for c in coef], rtol=1e-6, atol=1e-9)
+            np.testing.assert_allclose(rho_ddot, [at(t, c, 2) for c in coef], rtol=1e-5, atol=1e-4)
 
 
 def test_reference_error_on_a_sine_is_second_order_in_the_step():
@@ -118,11 +129,10 @@ def test_reference_error_on_a_sine_is_second_order_in_the_step():
     w, t = 2 * math.pi * 10.0, 0.0123
     errors = []
     for T in (1e-3, 5e-4):
-        ref = JointReference(T, n=1)
-        ref.reset()
+        ref = Reference(T)
         for k in range(4):
-            ref.update([math.sin(w * (t - (3 - k) * T))])
-        errors.append(ref.rho_ddot[0] + w * w * math.sin(w * t))
+            rho_ddot = ref.update(math.sin(w * (t - (3 - k) * T)))[1]
+        errors.append(rho_ddot + w * w * math.sin(w * t))
         assert errors[-1] == pytest.approx(-11 / 12 * T * T * w ** 4 * math.sin(w * t), rel=0.1)
     assert abs(errors[0]) < 0.01 * w * w
 

@@ -520,6 +520,19 @@ def test_the_c_backend_computes_what_the_python_computes_branch_for_branch(tmp_p
                    check=True, capture_output=True)
     x = (ctypes.c_double * 4)(1.0, 2.0, 3.0, 4.0)
     assert ctypes.CDLL(str(tmp_path / "g.so")).g(x) == 0 and list(x) == [1.0, 1.0, 2.0, 4.0]
+    # the controllers' tick (fmus/controller/tick.py), which Python runs too: a call returning a tuple, stores by
+    # index and into a bounded slice, with Python's meaning (the list keeps its length)
+    pair = "def pair(u, v):\n    return (u*v, u - v)\n"
+    tick = "def tick(x):\n    a, b = pair(x[0], x[1])\n    x[0] = b\n    x[2:4] = (a, x[0] + a)\n    return 0\n"
+    (tmp_path / "t.c").write_text(to_c(pair, "pair") + to_c(tick, "tick", arrays=("x",), calls=("pair",), static=False))
+    subprocess.run([compiler(), "-O2", "-ffp-contract=off", "-shared", "-fPIC", "-o", str(tmp_path / "t.so"),
+                    str(tmp_path / "t.c")], check=True, capture_output=True)
+    exec(pair + tick, namespace)  # noqa: S102 (the test's own source)
+    x, y = (ctypes.c_double * 5)(0.3, 1.7, 0.0, 0.0, 9.0), [0.3, 1.7, 0.0, 0.0, 9.0]
+    assert ctypes.CDLL(str(tmp_path / "t.so")).tick(x) == 0 and namespace["tick"](y) == 0
+    assert list(x) == y and y[4] == 9.0 and y[0] == 0.3 - 1.7
+    with pytest.raises(TranslationError, match="length"):
+        to_c("def f(x):\n    x[1:2] = (1.0, 2.0)\n    return 0\n", "f", arrays=("x",))
 
 
 def test_what_the_parameters_alone_fix_is_computed_once_and_the_floats_do_not_change():

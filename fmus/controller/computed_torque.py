@@ -24,6 +24,7 @@ from typing import Mapping
 from ..common.parameters import Value, nonnegative, positive
 from .inverse_model import MODEL_PARAMETERS, InverseModel
 from .model import DRIVE_PARAMETERS, DriveController
+from .tick import LAYOUT, MODEL_FAILED, failed_call
 
 COMPUTED_TORQUE_PARAMETERS = (
     positive("omega_n", "rad/s", "Natural frequency of the joint error dynamics"),
@@ -60,10 +61,19 @@ class ComputedTorqueController(DriveController):
                        for j in (1, 2, 3)},
                     **{f"i_cmd_{j}": f"Current command of axis {j} (computed torque / k_T)" for j in (1, 2, 3)}}
 
+    LAWS = (commanded_acceleration, limited)
+
     def __init__(self, params: Mapping[str, Value], name: str = "") -> None:
         super().__init__(params, name)
         self.model = InverseModel(self.params, self.name)
-        self.K_P, self.K_D = error_gains(float(self.params["omega_n"]), float(self.params["zeta"]))
+
+    def _constants(self, S: list[float]) -> None:
+        super()._constants(S)
+        at = LAYOUT["own"]
+        self.K_P, self.K_D = S[at:at + 2] = error_gains(float(self.params["omega_n"]), float(self.params["zeta"]))
+
+    def _calls(self) -> dict:
+        return {**super()._calls(), "currents": self._currents}
 
     def _law_state(self) -> tuple:
         return (*super()._law_state(), self.model.warm_start)
@@ -72,16 +82,20 @@ class ComputedTorqueController(DriveController):
         super()._set_law_state(state)
         self.model.warm_start = state[-1]
 
-    def _position_law(self, t: float) -> None:
-        for j in range(3):
-            self._omega_cmd[j] = self.reference.rho_dot[j] / self.i_R
+    @classmethod
+    def position_lines(cls, moded: bool) -> list[str]:
+        """omega_cmd reports the reference speed rho_dot_ref / i_R."""
+        return [f"oc{j} = S[{LAYOUT['rates'] + j}]/S[{LAYOUT['i_R']}]" for j in range(3)]
 
-    def _velocity_law(self, t: float) -> None:
-        vals, ref, i_R = self.values, self.reference, self.i_R
-        rho = (vals[3], vals[4], vals[5])
-        rho_dot = (i_R * vals[6], i_R * vals[7], i_R * vals[8])
-        a = [commanded_acceleration(ref.rho_ddot[j], ref.rho_dot[j], rho_dot[j], self._rho_cmd[j], rho[j], self.K_P,
-                                    self.K_D) for j in range(3)]
-        i_max = self._i_max
-        for j, i in enumerate(self.model.currents(rho, rho_dot, a)):
-            self._i_cmd[j] = limited(i, i_max)
+    @classmethod
+    def velocity_lines(cls) -> list[str]:
+        """The model's currents at the measured state (rho, rho_dot = i_R omega_m) for the acceleration
+        a = rho_ddot_ref + K_D e_dot + K_P e, limited to i_max."""
+        Q, i_R, i_max = LAYOUT["rates"], f"S[{LAYOUT['i_R']}]", f"S[{LAYOUT['gains'] + 3}]"
+        K_P, K_D = f"S[{LAYOUT['own']}]", f"S[{LAYOUT['own'] + 1}]"
+        state = "values[3], values[4], values[5], rdm0, rdm1, rdm2, acc0, acc1, acc2"
+        return [*(f"rdm{j} = {i_R}*values[{6 + j}]" for j in range(3)),
+                *(f"acc{j} = commanded_acceleration(S[{Q + 3 + j}], S[{Q + j}], rdm{j}, rc{j}, values[{3 + j}], {K_P}, "
+                  f"{K_D})" for j in range(3)),
+                *failed_call(f"currents({state}, S, CUR)", state, MODEL_FAILED),
+                *(f"ic{j} = limited(CUR[{j}], {i_max})" for j in range(3))]

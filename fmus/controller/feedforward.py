@@ -17,7 +17,8 @@ from typing import Mapping
 
 from ..common.parameters import Param, Value
 from .inverse_model import MODEL_PARAMETERS, InverseModel
-from .model import ControllerBlock
+from .model import ControllerBlock, position_p_law
+from .tick import LAYOUT, MODEL_FAILED, failed_call
 
 FEEDFORWARD_PARAMETERS = (
     Param("k_ff_v", "1", "Weight of the velocity feed-forward (0: none, 1: full)", 0.0, 1.5),
@@ -42,12 +43,20 @@ class FeedForwardController(ControllerBlock):
 
     PARAMETERS = (*ControllerBlock.PARAMETERS, *MODEL_PARAMETERS, *FEEDFORWARD_PARAMETERS)
     REFERENCE_RATES = True
+    FEEDFORWARD_CURRENT = True
+    LAWS = (position_p_law, velocity_feedforward)
 
     def __init__(self, params: Mapping[str, Value], name: str = "") -> None:
         super().__init__(params, name)
         self.model = InverseModel(self.params, self.name)
-        self._kff_v_iR, self._kff_tau = feedforward_gains(float(self.params["k_ff_v"]), float(self.params["k_ff_tau"]),
-                                                          self.i_R)
+
+    def _constants(self, S: list[float]) -> None:
+        super()._constants(S)
+        at = LAYOUT["own"]
+        S[at:at + 2] = feedforward_gains(float(self.params["k_ff_v"]), float(self.params["k_ff_tau"]), self.i_R)
+
+    def _calls(self) -> dict:
+        return {**super()._calls(), "currents": self._currents}
 
     def _law_state(self) -> tuple:
         return (*super()._law_state(), self.model.warm_start)
@@ -56,12 +65,13 @@ class FeedForwardController(ControllerBlock):
         super()._set_law_state(state)
         self.model.warm_start = state[-1]
 
-    def _position_law(self, t: float) -> None:
-        super()._position_law(t)
-        ref = self.reference
-        for j in range(3):
-            self._omega_cmd[j] = velocity_feedforward(self._omega_cmd[j], ref.rho_dot[j], self._kff_v_iR)
-        if self._kff_tau:
-            i_ff = self.model.currents(self._rho_cmd, ref.rho_dot, ref.rho_ddot)
-            for j in range(3):
-                self._i_ff[j] = self._kff_tau * i_ff[j]
+    @classmethod
+    def position_lines(cls, moded: bool) -> list[str]:
+        """The P law, plus the velocity feed-forward and the inverse model's currents on the reference (i_ff)."""
+        Q, kff_v_iR, kff_tau = LAYOUT["rates"], f"S[{LAYOUT['own']}]", f"S[{LAYOUT['own'] + 1}]"
+        reference = ", ".join([f"rc{j}" for j in range(3)] + [f"S[{Q + k}]" for k in range(6)])
+        return [*super().position_lines(moded),
+                *(f"oc{j} = velocity_feedforward(oc{j}, S[{Q + j}], {kff_v_iR})" for j in range(3)),
+                f"if {kff_tau} != 0.0:",
+                *("    " + line for line in failed_call(f"currents({reference}, S, CUR)", reference, MODEL_FAILED)),
+                *(f"    if{j} = {kff_tau}*CUR[{j}]" for j in range(3))]

@@ -39,6 +39,11 @@ the last tick until the inputs at t + h are set. For the laws that use them
 (``REFERENCE_RATES``), every position tick also updates the velocity and acceleration of
 the joint reference (reference.py).
 
+The laws of a tick are stated once, as source in the generated-code subset (tick.py: the
+schedule above with each controller's ``position_lines`` and ``velocity_lines``): the block
+compiles it once per class and runs it on its state ``S`` (a list of floats, ``tick.LAYOUT``);
+the native FMUs translate the same source to C (mast.core.native.models).
+
 For commissioning and for tests, ``set_mode`` switches the drive's operating
 mode: "pose" (default), "joint" (rho_cmd given, the IK bypassed), "velocity"
 (omega_cmd given, the position loop off) or "current" (i_cmd given, position and
@@ -55,7 +60,8 @@ from ..actuator.drive import pi_step
 from ..actuator.model import transmission_ratio
 from ..mechanism.designs import KINEMATIC_PARAMETERS, kinematic_engine
 from ..mechanism.kinematics import KinematicsError
-from .reference import JointReference
+from .reference import rates
+from .tick import LAYOUT, MODEL_FAILED, SIZE, compiled, pi_lines
 
 
 #: operating modes, outermost first; the value is the first loop that runs
@@ -97,8 +103,8 @@ CASCADE_PARAMETERS = (
 
 
 class DriveController(Block):
-    """The shared part of every MAST controller (module docstring); subclasses give the laws
-    ``_position_law`` and ``_velocity_law``."""
+    """The shared part of every MAST controller (module docstring); subclasses give their laws as lines of the
+    tick (``position_lines``, ``velocity_lines``: tick.py) and the constants they read (``_constants``)."""
 
     INPUTS = ("z_cmd", "psi_cmd", "theta_cmd",
               "rho_1", "rho_2", "rho_3",
@@ -129,8 +135,12 @@ class DriveController(Block):
     FEEDTHROUGH = dict.fromkeys(OUTPUTS, INPUTS)
     #: operating modes this controller offers (one without a velocity loop has no "velocity" mode)
     MODES: tuple[str, ...] = MODES
-    #: whether the laws use the reference velocity and acceleration (``reference``, updated every position tick)
+    #: whether the laws use the reference velocity and acceleration (S[rates], updated every position tick)
     REFERENCE_RATES = False
+    #: whether the velocity PI adds the feed-forward current i_ff (S[i_ff], set by the position law)
+    FEEDFORWARD_CURRENT = False
+    #: the laws' arithmetic the tick calls (value functions in the generated-code subset)
+    LAWS: tuple = ()
 
     def __init__(self, params: Mapping[str, Value], name: str = "") -> None:
         super().__init__(params, name)
@@ -146,10 +156,15 @@ class DriveController(Block):
         self.kinematics = kinematic_engine(P, self.name)
         self.geometry = self.kinematics.description.geometry
         self._ik = self.kinematics.ik
-        self.reference = JointReference(float(P["T_pos"]))
         self._i_max = float(P["i_max"])
         self._mode = 0
+        self._override: tuple[float, float, float] | None = None
         self._t0 = 0.0
+        #: the state the tick runs on (tick.LAYOUT), its scratch arrays, and the exception of a failed call
+        self._S = [0.0] * SIZE
+        self._R, self._CUR, self._QM, self._JK = [0.0] * 3, [0.0] * 3, [0.0] * 3, [0.0] * 12
+        self._failure: Exception | None = None
+        self._bind_tick()
         self._reset()
 
     def _ratio(self, name: str, T: float, T_cur: float) -> int:
@@ -161,17 +176,38 @@ class DriveController(Block):
                 f"T_cur = {T_cur!r} s (ratio {ratio:.9g})")
         return int(n)
 
+    def _bind_tick(self) -> None:
+        """The tick (tick.py), compiled once per class, its calls bound to this controller (``_calls``)."""
+        namespace = self._calls()
+        for code in compiled(type(self), self.MODES):
+            exec(code, namespace)
+        self._start, self._tick = namespace["start"], namespace["laws"]
+
+    def _calls(self) -> dict:
+        """What the tick calls (tick.py): the laws' functions and this controller's kinematics."""
+        return {"pi_step": pi_step, "rates": rates, "ik_s": self._ik_s, **{f.__name__: f for f in self.LAWS}}
+
     def _reset(self) -> None:
+        """Tick 0, every state and command 0 (the IK cache and the reference empty), the constants in S."""
         self._n = 0
-        self._x_v = [0.0, 0.0, 0.0]      # velocity PI integrator states [A]
-        self._rho_cmd = [0.0, 0.0, 0.0]
-        self._omega_cmd = [0.0, 0.0, 0.0]
-        self._i_cmd = [0.0, 0.0, 0.0]
-        self._i_ff = [0.0, 0.0, 0.0]     # feed-forward current added to the velocity PI output [A]
-        self._pose_ik: tuple[float, float, float] | None = None   # pose of the cached IK
-        self._override: tuple[float, float, float] | None = None
         self._evaluated = -1                      # the tick whose laws ran at its communication point
         self._before: tuple = ()                  # the law state before them (``_law_state``)
+        S = self._S
+        S[:] = [0.0] * SIZE
+        self._constants(S)
+        S[LAYOUT["mode"]] = float(self._mode)
+
+    def _constants(self, S: list[float]) -> None:
+        """The numbers the tick reads from S that the parameters fix (tick.LAYOUT)."""
+        L = LAYOUT
+        S[L["N_pos"]], S[L["N_vel"]] = float(self._N_pos), float(self._N_vel)
+        S[L["T_cur"]], S[L["T_pos"]] = self.T_cur, float(self.params["T_pos"])
+        S[L["i_R"]] = self.i_R
+        S[L["gains"] + 3] = self._i_max
+
+    def set_state(self, state: object) -> None:
+        super().set_state(state)
+        self._bind_tick()          # the tick's calls bound to this controller, not to the snapshot's
 
     # -- properties -----------------------------------------------------------
     @property
@@ -211,7 +247,8 @@ class DriveController(Block):
                 raise ValueError(f"{self.name}: mode 'pose' takes its commands from the inputs")
             self._mode = 0
             self._override = None
-            self._pose_ik = None
+            self._S[LAYOUT["mode"]] = 0.0
+            self._S[LAYOUT["ik"]] = 0.0       # the IK cache forgotten
             return
         if commands is None or len(commands) != 3:
             raise ValueError(f"{self.name}: mode {mode!r} needs three {_MODE_COMMAND[mode]} values")
@@ -221,32 +258,25 @@ class DriveController(Block):
                 raise ModelError(f"{self.name}: {_MODE_COMMAND[mode]}_{j} = {c!r} is not finite")
         self._mode = MODES.index(mode)
         self._override = values  # type: ignore[assignment]
+        self._S[LAYOUT["mode"]] = float(self._mode)
         self._apply_override()
         self._write_outputs()
 
     def _apply_override(self) -> None:
-        values = list(self._override)
-        if self._mode == 1:
-            self._rho_cmd = values
-        elif self._mode == 2:
-            self._omega_cmd = values
-        else:
-            self._i_cmd = values
+        at = LAYOUT[("rho_cmd", "omega_cmd", "i_cmd")[self._mode - 1]]
+        self._S[at:at + 3] = self._override
 
     # -- life cycle -------------------------------------------------------------
     def initialize(self, t0: float) -> None:
         """Reset the integrators and the tick counter; rho_cmd = IK(pose) at t0, other commands 0."""
-        override, mode = self._override, self._mode
         self._reset()
         self._t0 = float(t0)
         self._check_inputs(t0)
-        if mode == 0:
-            self._update_ik(t0)
-        elif override is not None:
-            self._override = override
+        if self._mode and self._override is not None:
             self._apply_override()
-        self.reference.reset()
-        self._write_outputs()
+        code = self._start(self.values, self._S, self._R)
+        if code:
+            raise self._failed(code, t0)
 
     def evaluate(self) -> None:
         """The laws of the communication point's tick from the inputs as they are (module docstring): once
@@ -262,7 +292,6 @@ class DriveController(Block):
         if s - s != 0.0:   # NaN or inf among the inputs
             self._check_inputs(t)
         self._laws(n, t)
-        self._write_outputs()
 
     def do_step(self, t: float, h: float) -> None:
         T = self.T_cur
@@ -282,88 +311,95 @@ class DriveController(Block):
                 self._laws(k, self._t0 + k * T)
         self._n = n + m
         self._before = ()
-        self._write_outputs()
 
     def _laws(self, n: int, t: float) -> None:
-        """Tick n (at t): the position loop if n % N_pos == 0, then the velocity loop if n % N_vel == 0."""
-        mode = self._mode
-        if mode <= 1 and n % self._N_pos == 0:
-            if mode == 0:
-                self._update_ik(t)
-            if self.REFERENCE_RATES:
-                self.reference.update(self._rho_cmd)
-            self._position_law(t)
-        if mode <= 2 and n % self._N_vel == 0:
-            self._velocity_law(t)
+        """Tick n (at t): the tick's laws (tick.py: the position loop if n % N_pos == 0, then the velocity loop
+        if n % N_vel == 0), the outputs too."""
+        code = self._tick(self.values, self._S, self._R, self._CUR, self._QM, self._JK, n)
+        if code:
+            raise self._failed(code, t)
 
     def _law_state(self) -> tuple:
         """What the laws change, copied (``evaluate`` starts a tick over from it); subclasses add theirs."""
-        ref = self.reference
-        return ([*self._x_v], [*self._rho_cmd], [*self._omega_cmd], [*self._i_cmd], [*self._i_ff], self._pose_ik,
-                [[*r] for r in ref._history], [*ref.rho_dot], [*ref.rho_ddot])
+        return (self._S[:],)
 
     def _set_law_state(self, state: tuple) -> None:
-        ref = self.reference
-        (x_v, rho_cmd, omega_cmd, i_cmd, i_ff, self._pose_ik, history, rho_dot, rho_ddot) = state[:9]
-        self._x_v[:], self._rho_cmd[:], self._omega_cmd[:], self._i_cmd[:], self._i_ff[:] = x_v, rho_cmd, omega_cmd, i_cmd, i_ff
-        ref._history = [[*r] for r in history]
-        ref.rho_dot[:], ref.rho_ddot[:] = rho_dot, rho_ddot
+        self._S[:] = state[0]
+        self._S[LAYOUT["mode"]] = float(self._mode)
 
-    # -- the laws (subclasses) ------------------------------------------------------
-    def _position_law(self, t: float) -> None:
-        """At a position tick, with rho_cmd and ``reference`` up to date: set omega_cmd (and i_ff)."""
+    # -- the laws (subclasses): lines of the tick (tick.py), the commands rc_j, oc_j, ic_j as locals ----------
+    @classmethod
+    def position_lines(cls, moded: bool) -> list[str]:
+        """At a position tick, with rho_cmd (rc_j) and the reference's rates up to date: set omega_cmd (oc_j)
+        and i_ff (if_j); ``moded``: the tick has operating modes (its local ``mode``)."""
         raise NotImplementedError
 
-    def _velocity_law(self, t: float) -> None:
-        """At a velocity tick (or in velocity mode): set i_cmd."""
+    @classmethod
+    def velocity_lines(cls) -> list[str]:
+        """At a velocity tick (or in velocity mode): set i_cmd (ic_j)."""
         raise NotImplementedError
+
+    # -- what the tick calls, and the messages of its failures -------------------------
+    def _ik_s(self, S: list[float], z: float, psi: float, theta: float, out: list[float]) -> int:
+        """The inverse kinematics of the pose command into ``out``; 1 if it fails (``_failure``)."""
+        try:
+            rho = self._ik((z, psi, theta))
+        except KinematicsError as exc:
+            self._failure = exc
+            return 1
+        out[0], out[1], out[2] = float(rho[0]), float(rho[1]), float(rho[2])
+        return 0
+
+    def _currents(self, r0: float, r1: float, r2: float, v0: float, v1: float, v2: float, a0: float, a1: float,
+                  a2: float, S: list[float], out: list[float]) -> int:
+        """The inverse model's currents (``model``: the feed-forward and computed-torque controllers) into ``out``;
+        1 if it fails (``_failure``)."""
+        try:
+            out[:] = self.model.currents((r0, r1, r2), (v0, v1, v2), (a0, a1, a2))
+        except KinematicsError as exc:
+            self._failure = exc
+            return 1
+        return 0
+
+    def _failed(self, code: int, t: float) -> Exception:
+        """The exception of the tick's failure ``code`` at t [s]."""
+        exc = self._failure
+        if code == MODEL_FAILED:
+            return exc
+        vals = self.values
+        error = KinematicsError(
+            f"{self.name}: inverse kinematics of the pose command z = {vals[0]!r} m, psi = {vals[1]!r} rad, "
+            f"theta = {vals[2]!r} rad failed at t = {t!r} s: {exc}")
+        error.__cause__ = exc
+        return error
 
     # -- helpers ------------------------------------------------------------------
     def _write_outputs(self) -> None:
-        self.values[9:18] = self._rho_cmd + self._omega_cmd + self._i_cmd
+        self.values[9:18] = self._S[LAYOUT["rho_cmd"]:LAYOUT["rho_cmd"] + 9]
 
     def _check_inputs(self, t: float) -> None:
         for name, value in zip(self.INPUTS, self.values):
             if not math.isfinite(value):
                 raise ModelError(f"{self.name}: input '{name}' = {value!r} is not finite at t = {t!r} s")
 
-    def _update_ik(self, t: float) -> None:
-        vals = self.values
-        pose = (vals[0], vals[1], vals[2])
-        if pose == self._pose_ik:
-            return
-        try:
-            rho = self._ik(pose)
-        except KinematicsError as exc:
-            raise KinematicsError(
-                f"{self.name}: inverse kinematics of the pose command z = {pose[0]!r} m, psi = {pose[1]!r} rad, "
-                f"theta = {pose[2]!r} rad failed at t = {t!r} s: {exc}") from exc
-        self._rho_cmd[0] = float(rho[0])
-        self._rho_cmd[1] = float(rho[1])
-        self._rho_cmd[2] = float(rho[2])
-        self._pose_ik = pose
-
 
 class ControllerBlock(DriveController):
     """Joint-space P/PI/PI cascade for the three axes (paper Fig. 2 and 6), with its own inverse kinematics."""
 
     PARAMETERS = (*CASCADE_PARAMETERS, *DRIVE_PARAMETERS)
+    LAWS = (position_p_law,)
 
-    def __init__(self, params: Mapping[str, Value], name: str = "") -> None:
-        super().__init__(params, name)
-        P = self.params
-        self._kv_iR, self._kp, self._kiT = cascade_gains(float(P["k_v"]), float(P["k_p"]), float(P["k_i"]),
-                                                         float(P["T_vel"]), self.i_R)
+    def _constants(self, S: list[float]) -> None:
+        super()._constants(S)
+        P, at = self.params, LAYOUT["gains"]
+        S[at:at + 3] = cascade_gains(float(P["k_v"]), float(P["k_p"]), float(P["k_i"]), float(P["T_vel"]), self.i_R)
 
-    def _position_law(self, t: float) -> None:
+    @classmethod
+    def position_lines(cls, moded: bool) -> list[str]:
         """omega_cmd = k_v (rho_cmd - rho) / i_R."""
-        vals, omega_cmd, rho_cmd, kv_iR = self.values, self._omega_cmd, self._rho_cmd, self._kv_iR
-        for j in range(3):
-            omega_cmd[j] = position_p_law(rho_cmd[j], vals[3 + j], kv_iR)
+        return [f"oc{j} = position_p_law(rc{j}, values[{3 + j}], S[{LAYOUT['gains']}])" for j in range(3)]
 
-    def _velocity_law(self, t: float) -> None:
+    @classmethod
+    def velocity_lines(cls) -> list[str]:
         """i_cmd = PI(omega_cmd - omega_m) + i_ff, limited to i_max."""
-        vals, omega_cmd, i_cmd, x_v, i_ff = self.values, self._omega_cmd, self._i_cmd, self._x_v, self._i_ff
-        kp, kiT, i_max = self._kp, self._kiT, self._i_max
-        for j in range(3):
-            i_cmd[j], x_v[j] = pi_step(omega_cmd[j] - vals[6 + j], x_v[j], kp, kiT, i_max, i_ff[j])
+        return pi_lines([f"if{j}" for j in range(3)] if cls.FEEDFORWARD_CURRENT else ["0.0"] * 3)

@@ -12,49 +12,18 @@ the backward differences of the cubic through the last four samples:
 
 exact for every cubic in time. For a sine of frequency f sampled at T = 1 ms the
 relative errors are about (2 pi f T)^3 / 4 and 11/12 (2 pi f T)^2: 0.2 % of the
-acceleration at 10 Hz. While fewer samples exist (after ``reset``) the order drops:
+acceleration at 10 Hz. While fewer samples exist (after ``initialize``) the order drops:
 one sample gives zero derivatives, two a first difference and zero acceleration, three
 the quadratic's. Commands with steps (a reference jump) give a burst of large values for
 three samples, as any differentiator does: shape references before differentiating them.
 """
 from __future__ import annotations
 
-from typing import Sequence
-
-
-class JointReference:
-    """Last four samples of the joint reference and its derivative estimates (module docstring).
-
-    ``T`` [s] sampling period; ``rho_dot`` [m/s] and ``rho_ddot`` [m/s^2] hold the estimates
-    at the newest sample after each ``update``.
-    """
-
-    def __init__(self, T: float, n: int = 3) -> None:
-        self.T = float(T)
-        self.n = n
-        self.reset()
-
-    def reset(self) -> None:
-        """Forget every sample (the next ``update`` gives zero velocity and acceleration)."""
-        self._history: list[list[float]] = []
-        self.rho_dot = [0.0] * self.n
-        self.rho_ddot = [0.0] * self.n
-
-    def update(self, rho: Sequence[float]) -> None:
-        """Add the newest sample and update ``rho_dot`` and ``rho_ddot``."""
-        h = self._history
-        h.insert(0, [float(v) for v in rho])
-        del h[4:]
-        T, k = self.T, len(h)
-        for j in range(self.n):
-            r = [s[j] for s in h] + [0.0] * (4 - k)
-            self.rho_dot[j], self.rho_ddot[j] = rates(k, r[0], r[1], r[2], r[3], T)
-
 
 def rates(k: int, r0: float, r1: float, r2: float, r3: float, T: float) -> tuple[float, float]:
     """(velocity, acceleration) at the newest of the ``k`` samples r0 (newest), r1, r2, r3 of period ``T``
-    (module docstring; the samples beyond k are not read). Written in the generated-code subset: the
-    native controllers run this source (mast.core.native.models translates it)."""
+    (module docstring; the samples beyond k are not read). Written in the generated-code subset: every
+    position tick of the controllers calls it on the last four samples of rho_cmd (tick.py)."""
     if k == 1:
         return (0.0, 0.0)
     if k == 2:

@@ -21,6 +21,7 @@ from typing import Mapping
 from ..common.parameters import Value, nonnegative
 from ..mechanism.kinematics import KinematicsError
 from .model import ControllerBlock
+from .tick import DK_FAILED, LAYOUT, TARGET_FAILED, failed_call
 
 WORKSPACE_PARAMETERS = (
     nonnegative("k_v_scale_z", "1", "Workspace position gain in z, as a multiple of k_v"),
@@ -49,11 +50,14 @@ class WorkspaceController(ControllerBlock):
                     **{f"omega_cmd_{j}": f"Motor speed command of axis {j} (workspace position loop through the "
                                          f"inverse Jacobian)" for j in (1, 2, 3)}}
 
-    def __init__(self, params: Mapping[str, Value], name: str = "") -> None:
-        super().__init__(params, name)
+    LAWS = (joint_speed,)
+
+    def _constants(self, S: list[float]) -> None:
+        super()._constants(S)
+        at = LAYOUT["own"]
         #: pose-space gains [1/s] for z, psi, theta
-        self.K = pose_gains(float(self.params["k_v"]),
-                            *(float(self.params[f"k_v_scale_{c}"]) for c in ("z", "psi", "theta")))
+        self.K = S[at:at + 3] = pose_gains(float(self.params["k_v"]),
+                                           *(float(self.params[f"k_v_scale_{c}"]) for c in ("z", "psi", "theta")))
 
     def _reset(self) -> None:
         super()._reset()
@@ -67,22 +71,60 @@ class WorkspaceController(ControllerBlock):
         super()._set_law_state(state)
         self._q_meas, self._q_target = state[-2:]
 
-    def _dk(self, rho, guess, what: str, t: float):
-        try:
-            return self.kinematics.dk(rho, guess)[0]
-        except KinematicsError as exc:
-            raise KinematicsError(f"{self.name}: direct kinematics of the {what} rho = {tuple(rho)!r} m failed at "
-                                  f"t = {t!r} s: {exc}") from exc
+    def _calls(self) -> dict:
+        return {**super()._calls(), "wsdk": self._wsdk, "wsdk_target": self._wsdk_target, "ikjac_s": self._ikjac_s}
 
-    def _position_law(self, t: float) -> None:
-        vals = self.values
-        q = self._q_meas = self._dk((vals[3], vals[4], vals[5]), self._q_meas, "measured joints", t)
-        if self._mode == 0:
-            target = (vals[0], vals[1], vals[2])
-        else:
-            target = self._q_target = self._dk(self._rho_cmd, self._q_target or q, "joint command", t)
-        qdot = [self.K[k] * (target[k] - q[k]) for k in range(3)]
-        J_inv = self.kinematics.jacobian(q)[0]          # drho/dq, row-major
-        i_R = self.i_R
-        for j in range(3):
-            self._omega_cmd[j] = joint_speed(J_inv[3 * j], J_inv[3 * j + 1], J_inv[3 * j + 2], *qdot, i_R)
+    def _wsdk(self, r0: float, r1: float, r2: float, S: list[float], out: list[float]) -> int:
+        """The direct kinematics of the measured joints (warm-started from the last) into ``out``; 1 if it fails."""
+        try:
+            q = self._q_meas = self.kinematics.dk((r0, r1, r2), self._q_meas)[0]
+        except KinematicsError as exc:
+            self._failure = exc
+            return 1
+        out[0], out[1], out[2] = q
+        return 0
+
+    def _wsdk_target(self, r0: float, r1: float, r2: float, S: list[float], out: list[float]) -> int:
+        """The direct kinematics of the joint command ("joint" mode; from the last, else from the measured
+        joints' pose) into ``out``; 1 if it fails."""
+        try:
+            q = self._q_target = self.kinematics.dk((r0, r1, r2), self._q_target or self._q_meas)[0]
+        except KinematicsError as exc:
+            self._failure = exc
+            return 1
+        out[0], out[1], out[2] = q
+        return 0
+
+    def _ikjac_s(self, S: list[float], q0: float, q1: float, q2: float, out: list[float]) -> int:
+        """drho/dq at q (row-major) into out[3:12]."""
+        out[3:12] = self.kinematics.jacobian((q0, q1, q2))[0]
+        return 0
+
+    def _failed(self, code: int, t: float) -> Exception:
+        if code not in (DK_FAILED, TARGET_FAILED):
+            return super()._failed(code, t)
+        at = LAYOUT["model_args"]
+        what = "measured joints" if code == DK_FAILED else "joint command"
+        error = KinematicsError(f"{self.name}: direct kinematics of the {what} rho = {tuple(self._S[at:at + 3])!r} m "
+                                f"failed at t = {t!r} s: {self._failure}")
+        error.__cause__ = self._failure
+        return error
+
+    @classmethod
+    def position_lines(cls, moded: bool) -> list[str]:
+        """The direct kinematics of the measured joints, the pose-space P law (towards the pose command, or in
+        "joint" mode the direct kinematics of rho_cmd), through drho/dq at the measured pose."""
+        own, i_R = LAYOUT["own"], f"S[{LAYOUT['i_R']}]"
+        measured = "values[3], values[4], values[5]"
+        lines = failed_call(f"wsdk({measured}, S, QM)", measured, DK_FAILED)
+        if moded:
+            lines += ["if mode == 0.0:", *(f"    tq{k} = values[{k}]" for k in range(3)), "else:",
+                      *("    " + line for line in failed_call("wsdk_target(rc0, rc1, rc2, S, JK)", "rc0, rc1, rc2",
+                                                               TARGET_FAILED)),
+                      *(f"    tq{k} = JK[{k}]" for k in range(3))]
+        target = [f"tq{k}" if moded else f"values[{k}]" for k in range(3)]
+        lines += [f"qd{k} = S[{own + k}]*({target[k]} - QM[{k}])" for k in range(3)]
+        lines.append("c = ikjac_s(S, QM[0], QM[1], QM[2], JK)")
+        lines += [f"oc{j} = joint_speed(JK[{3 + 3 * j}], JK[{4 + 3 * j}], JK[{5 + 3 * j}], qd0, qd1, qd2, {i_R})"
+                  for j in range(3)]
+        return lines

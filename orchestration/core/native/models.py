@@ -16,21 +16,21 @@ code, which ``translate.to_c`` writes as C:
 - controllers (``native_controllers``: the joint cascade, feed-forward, computed torque,
   workspace): the same traced engine of their own geometry (inverse kinematics; the feed-forward
   and computed-torque controllers' inverse model: direct kinematics and dynamics; the workspace
-  controller's direct kinematics and Jacobian), and the cascade's tick with each one's laws;
+  controller's direct kinematics and Jacobian), and the tick the Python controllers run
+  (``fmus.controller.tick.tick_sources``: ``DriveController``'s schedule, the IK cache, the
+  reference's rates, each controller's own law lines, ``position_lines`` and ``velocity_lines``),
+  translated; what it calls is translated from the models' own source (``pi_step``,
+  ``drive_gains``, ``cascade_gains``, ``transmission_ratio``, the controllers' ``LAWS``,
+  ``reference.rates``, ``inverse_model.motor_torque``, ``guide_friction``,
+  ``designs.level_height``);
 - trajectory: the sine about the home pose (its parameters read at run time).
 
-What the models' generators do not cover is written here, in the same Python subset, and
-translated too: the outputs of the actuator at rest (``initialize``) and the controllers' tick
-(``DriveController``'s schedule; what it calls is translated from the models' own source: ``pi_step``,
-``drive_gains``, ``cascade_gains``, ``transmission_ratio``, the laws ``position_p_law``,
-``velocity_feedforward``, ``commanded_acceleration``, ``limited``, ``joint_speed``, and
-``reference.rates``, ``inverse_model.motor_torque``, ``guide_friction``, ``designs.level_height``).
-The schedule is a second statement of the controllers', held bit-identical to the Python models
-by tests/test_native.py until the Python controllers run this generated tick themselves
-(docs/native.md); so is the C glue of the direct kinematics (``MechanismBlock._compute``,
-``InverseModel.torques``, ``WorkspaceController._dk``: warm start, cold restart, messages) and of
-the actuator (``ActuatorBlock._substeps``' substep rule, ``TorqueSensor.step``'s delay line), held
-to the Python model by the same tests.
+What the models' generators do not cover is restated here in C, held to the Python model by
+tests/test_native.py: the outputs of the actuator at rest (``initialize``), the glue of the direct
+kinematics (``MechanismBlock._compute``, ``InverseModel.torques``, ``WorkspaceController._wsdk``: warm
+start, cold restart, messages), the actuator's substep rule (``ActuatorBlock._substeps``) and the
+delay line of its torque measurement (``TorqueSensor.step``), and the controllers' ``evaluate`` and
+``do_step`` around the tick (once per communication point, the ticks inside a step).
 
 Parameters: read at run time, with what depends on them computed at initialisation, for the
 trajectory, the actuator (all but its chain's structure, ``ACTUATOR_STRUCTURE``: the size of its
@@ -50,6 +50,7 @@ from dataclasses import dataclass
 from typing import Mapping, Optional, Sequence
 
 from fmus.common.parameters import Param
+from fmus.controller.tick import DK_FAILED, LAYOUT, MODEL_FAILED, SIZE, tick_sources
 
 from .translate import c_double, split_invariants, to_c
 
@@ -827,87 +828,19 @@ def _mechanism(block, vrs: Mapping[str, int]) -> str:
 
 
 # ----------------------------------------------------------------------------------- controller
-#: layout of the joint cascade's state (doubles): tick count, t0, IK cache (valid, pose), the velocity PI's states,
-#: commands ("failed": the tick whose inverse kinematics failed, for the message), then the gains computed at
-#: initialisation from the parameters (``gains``: cascade_gains, then i_max); 9..14 and 29..31 free
-_S = {"n": 0, "t0": 1, "ik": 2, "pose": 3, "x_v": 6, "rho_cmd": 15, "omega_cmd": 18, "i_cmd": 21,
-      "failed": 24, "gains": 25,
-      # the feed-forward controller: JointReference's samples (newest first) and their count, i_ff, the
-      # inverse model's direct-kinematics guess (valid flag, pose) and the arguments of a failed evaluation
-      "hist": 32, "k": 44, "i_ff": 45, "warm": 48, "guess": 49, "model_args": 52,
-      # the computed-torque controller: the reference's rates (rho_dot_ref, rho_ddot_ref), kept between ticks
-      "rates": 61,
-      # the controller's own gains computed at initialisation (feedforward_gains, error_gains, pose_gains)
-      "own": 67,
-      # from the parameters at initialisation: the schedule (T_pos / T_cur, T_vel / T_cur, T_cur, T_pos), the
-      # transmission i_R, cos and sin of beta (the cold start), attached (the inverse model's) and the kinematic
-      # model's traced parameters (designs.TRACED_PARAMETERS: the arguments of its generated functions),
-      # then the inverse model's actuator constants (inverse_model.CONSTANTS, by its model_constants)
-      "N_pos": 70, "N_vel": 71, "T_cur": 72, "T_pos": 73, "i_R": 74, "cb": 75, "sb": 76, "attached": 77, "P": 78,
-      "model": 102}
-_NS = 114     # and the coordinate lengths (LENGTHS: the last three)
-#: a failure of the workspace controller's direct kinematics of the measured joints
-_DK_FAILED = 2000
-#: a failure of the feed-forward controller's inverse model (its direct kinematics or dynamics)
-_MODEL_FAILED = 1000
-
-
-def _pi_lines(out: str, x: str, e: str, k_p: str, k_iT: str, limit: str, indent: str,
-              offset: str = "0.0") -> list[str]:
-    """A call of ``controller.model.pi_step`` (translated from its own source); its results land in
-    the scratch array PI."""
-    i = indent
-    return [f"{i}c = pi_step({e}, {x}, {k_p}, {k_iT}, {limit}, {offset}, PI)", f"{i}{out} = PI[0]",
-            f"{i}{x} = PI[1]"]
-
-
-def _reference_lines(block, indent: str) -> list[str]:
-    """JointReference.update at a position tick (after the IK): the new sample rho_cmd, then the rates
-    rd_j, rdd_j (reference.rates, translated), kept in S[rates]."""
-    i, H, K, Q = indent, _S["hist"], _S["k"], _S["rates"]
-    old = ", ".join(f"S[{H + k}]" for k in range(9))
-    lines = [f"{i}S[{H + 3}:] = ({old})", f"{i}S[{H}:] = (rc0, rc1, rc2)",
-             f"{i}k = S[{K}] + 1.0", f"{i}if k > 4.0: k = 4.0", f"{i}S[{K}:] = (k,)"]
-    for j in range(3):
-        lines += [f"{i}c = rates(k, rc{j}, S[{H + 3 + j}], S[{H + 6 + j}], S[{H + 9 + j}], S[{_S['T_pos']}], RT)",
-                  f"{i}S[{Q + j}:] = (RT[0],)", f"{i}S[{Q + 3 + j}:] = (RT[1],)"]
-    return lines
-
-
-def _currents_lines(args: str, indent: str) -> list[str]:
-    """InverseModel.currents(args) into CUR; a failure ends the ticks (its message: ``model_error``)."""
-    i = indent
-    return [f"{i}c = currents({args}, S, CUR)", f"{i}if c != 0:", f"{i}    S[{_S['failed']}:] = (n,)",
-            f"{i}    S[{_S['model_args']}:] = ({args})", f"{i}    return {_MODEL_FAILED}"]
-
-
-def _workspace_lines(block, indent: str) -> list[str]:
-    """WorkspaceController._position_law (pose mode): the direct kinematics of the measured joints
-    (``wsdk``, warm-started from the last), the pose-space P law, through drho/dq at that pose."""
-    i, i_R = indent, f"S[{_S['i_R']}]"
-    lines = [f"{i}c = wsdk(values[3], values[4], values[5], S, QM)", f"{i}if c != 0:",
-             f"{i}    S[{_S['failed']}:] = (n,)", f"{i}    S[{_S['model_args']}:] = (values[3], values[4], values[5])",
-             f"{i}    return {_DK_FAILED}"]
-    lines += [f"{i}qd{k} = S[{_S['own'] + k}]*(values[{k}] - QM[{k}])" for k in range(3)]
-    lines.append(f"{i}c = ikjac_s(S, QM[0], QM[1], QM[2], JK)")
-    lines += [f"{i}oc{j} = joint_speed(JK[{3 + 3 * j}], JK[{4 + 3 * j}], JK[{5 + 3 * j}], qd0, qd1, qd2, {i_R})"
-              for j in range(3)]
-    return lines
-
-
 def _workspace_dk(block) -> str:
     """The workspace controller's direct kinematics of the measured joints in C (Engine.dk from the last
-    solution, else from the description's guess, as WorkspaceController._dk); ``dk_error`` makes the
+    solution, else from the description's guess, as WorkspaceController._wsdk); ``dk_error`` makes the
     message of a failure by running it again (the guess is only updated on success)."""
     eng = block.kinematics
     coordinates = ", ".join(_literal(n) for n in eng.description.coordinates)
-    W, G, A = _S["warm"], _S["guess"], _S["model_args"]
+    W, G, A = LAYOUT["warm"], LAYOUT["guess"], LAYOUT["model_args"]
     return "\n".join([
         f"static const char *const K_COORDINATES[] = {{{coordinates}}};", "",
         "static int wsdk_eval(const double *rho, double *S, double *q, char *msg, size_t size)", "{",
         "    double J[9];",
         f"    if (S[{W}] == 1.0) {{ for (int k = 0; k < 3; k++) q[k] = S[{G} + k]; }} else guess(S, rho, q);",
-        f"    int code = mast_dk3(ikjac_p, S + {_S['P']}, why, K_COORDINATES, LENGTHS(S), {c_double(eng.margin)}, rho, "
+        f"    int code = mast_dk3(ikjac_p, S + {LAYOUT['P']}, why, K_COORDINATES, LENGTHS(S), {c_double(eng.margin)}, rho, "
         f"q, J, 1e-12, 50, {c_double(eng.cond_limit)}, msg, size);",
         "    if (code) return code;",
         f"    for (int k = 0; k < 3; k++) S[{G} + k] = q[k];", f"    S[{W}] = 1.0;", "    return 0;", "}", "",
@@ -923,87 +856,11 @@ def _workspace_dk(block) -> str:
         "    return MAST_KINEMATICS_ERROR;", "}", ""])
 
 
-def _feedforward_lines(block, indent: str) -> list[str]:
-    """FeedForwardController's position law after the P law: velocity feed-forward, the inverse model's
-    currents on the reference (i_ff)."""
-    i, Q = indent, _S["rates"]
-    kff_v_iR, kff_tau = f"S[{_S['own']}]", f"S[{_S['own'] + 1}]"
-    lines = [f"{i}oc{j} = velocity_feedforward(oc{j}, S[{Q + j}], {kff_v_iR})" for j in range(3)]
-    lines.append(f"{i}if {kff_tau} != 0.0:")
-    lines += _currents_lines(", ".join([f"rc{j}" for j in range(3)] + [f"S[{Q + k}]" for k in range(6)]), i + "    ")
-    lines += [f"{i}    if{j} = {kff_tau}*CUR[{j}]" for j in range(3)]
-    return lines
-
-
-def _computed_torque_lines(block, indent: str) -> list[str]:
-    """ComputedTorqueController._velocity_law: the model's currents at the measured state for the
-    acceleration a = rho_ddot_ref + K_D e_dot + K_P e, limited to i_max."""
-    i, Q, i_R, i_max = indent, _S["rates"], f"S[{_S['i_R']}]", f"S[{_S['gains'] + 3}]"
-    lines = [f"{i}rdm{j} = {i_R}*values[{6 + j}]" for j in range(3)]
-    K_P, K_D = f"S[{_S['own']}]", f"S[{_S['own'] + 1}]"
-    lines += [f"{i}acc{j} = commanded_acceleration(S[{Q + 3 + j}], S[{Q + j}], rdm{j}, rc{j}, values[{3 + j}], {K_P}, "
-              f"{K_D})" for j in range(3)]
-    lines += _currents_lines("values[3], values[4], values[5], rdm0, rdm1, rdm2, acc0, acc1, acc2", i)
-    lines += [f"{i}ic{j} = limited(CUR[{j}], {i_max})" for j in range(3)]
-    return lines
-
-
-def _ik_lines(indent: str) -> list[str]:
-    """DriveController._update_ik: the engine's inverse kinematics of the pose inputs, cached by pose."""
-    i, P = indent, _S["pose"]
-    return [f"{i}if not (S[{_S['ik']}] == 1.0 and values[0] == S[{P}] and values[1] == S[{P + 1}] "
-            f"and values[2] == S[{P + 2}]):",
-            f"{i}    c = ik_s(S, values[0], values[1], values[2], R)",
-            f"{i}    if c != 0:",
-            f"{i}        S[{_S['failed']}:] = (n,)",
-            f"{i}        return c",
-            f"{i}    rc0 = R[0]", f"{i}    rc1 = R[1]", f"{i}    rc2 = R[2]",
-            f"{i}    S[{_S['ik']}:] = (1.0, values[0], values[1], values[2])"]
-
-
-def _joint_sources(block) -> tuple[str, str]:
-    """A controller's start (``initialize`` after the reset) and the laws of tick ``n`` (``DriveController._laws``,
-    called by ``evaluate`` and ``do_step``), in the generated-code subset: DriveController's schedule
-    (controller/model.py) with the laws of the joint cascade (ControllerBlock), the feed-forward (its reference
-    and inverse model), the computed-torque or the workspace controller; they write the commands to the outputs."""
-    ff = hasattr(block, "_kff_tau")     # FeedForwardController
-    ct = hasattr(block, "K_P")          # ComputedTorqueController
-    ws = hasattr(block, "_q_meas")      # WorkspaceController
-    names = {k: [f"{p}{j}" for j in range(3)] for k, p in (("x_v", "xv"), ("rho_cmd", "rc"), ("omega_cmd", "oc"),
-                                                          ("i_cmd", "ic"))}
-    unpack = [f"    {v} = S[{_S[k] + j}]" for k, vs in names.items() for j, v in enumerate(vs)]
-    unpack += [f"    if{j} = S[{_S['i_ff'] + j}]" for j in range(3)] if ff else []
-    store = [f"    S[{_S['x_v']}:] = ({', '.join(names['x_v'])})",
-             f"    S[{_S['rho_cmd']}:] = ({', '.join(names['rho_cmd'] + names['omega_cmd'] + names['i_cmd'])})",
-             *([f"    S[{_S['i_ff']}:] = (if0, if1, if2)"] if ff else []),
-             f"    values[9:] = ({', '.join(names['rho_cmd'] + names['omega_cmd'] + names['i_cmd'])})",
-             "    return 0"]
-    start = ["def start(values, S, R):", "    n = 0.0", *unpack, *_ik_lines("    "), *store]
-    kv_iR, kp, kiT, i_max = (f"S[{_S['gains'] + k}]" for k in range(4))
-    body = [f"        if n % S[{_S['N_pos']}] == 0.0:", *_ik_lines("            ")]
-    body += _reference_lines(block, "            ") if ff or ct else []
-    if ct:              # omega_cmd reports the reference speed
-        body += [f"            oc{j} = S[{_S['rates'] + j}]/S[{_S['i_R']}]" for j in range(3)]
-    elif ws:
-        body += _workspace_lines(block, "            ")
-    else:
-        body += [f"            oc{j} = position_p_law(rc{j}, values[{3 + j}], {kv_iR})" for j in range(3)]
-    body += _feedforward_lines(block, "            ") if ff else []
-    body.append(f"        if n % S[{_S['N_vel']}] == 0.0:")
-    if ct:
-        body += _computed_torque_lines(block, "            ")
-    for j in range(0 if ct else 3):    # velocity PI with the feed-forward current i_ff (0.0: the cascade has none)
-        body += _pi_lines(f"ic{j}", f"xv{j}", f"oc{j} - values[{6 + j}]", kp, kiT, i_max, "            ",
-                          f"if{j}" if ff else "0.0")
-    laws = ["def laws(values, S, R, PI, RT, CUR, QM, JK, n):", *unpack, *(line[4:] for line in body), *store]
-    return "\n".join(start) + "\n", "\n".join(laws) + "\n"
-
-
 def _joint_controller(block, vrs: Mapping[str, int]) -> str:
     import inspect
 
     from fmus.actuator.model import transmission_ratio
-    from fmus.controller.model import ControllerBlock, cascade_gains, pi_step
+    from fmus.controller.model import cascade_gains, pi_step
 
     if type(block) not in native_controllers():
         raise ValueError(f"{type(block).__name__} has no native form yet")
@@ -1014,28 +871,20 @@ def _joint_controller(block, vrs: Mapping[str, int]) -> str:
     def P(name: str) -> str:
         return f"p->real[{vrs[name]}]"
 
-    # the laws' arithmetic, translated from the controllers' own source (the tick calls them)
-    from fmus.controller.computed_torque import commanded_acceleration, limited
-    from fmus.controller.feedforward import velocity_feedforward
-    from fmus.controller.model import position_p_law
-    from fmus.controller.workspace import joint_speed
-
-    laws = {ControllerBlock: [position_p_law], native_controllers()[1]: [position_p_law, velocity_feedforward],
-            native_controllers()[2]: [commanded_acceleration, limited],
-            native_controllers()[3]: [joint_speed]}[type(block)]
+    laws = type(block).LAWS     # the laws' arithmetic the tick calls, translated from their own source
     # the controller's own gains, by its own function (FeedForwardController, ComputedTorque, Workspace)
     own, own_call = None, ""
     if type(block) is native_controllers()[1]:
         from fmus.controller.feedforward import feedforward_gains as own
         own_call = (f"    feedforward_gains({P('k_ff_v')}, {P('k_ff_tau')}, transmission_ratio({P('p')}, {P('i_r')}), "
-                    f"s->S + {_S['own']});")
+                    f"s->S + {LAYOUT['own']});")
     elif not cascade:
         from fmus.controller.computed_torque import error_gains as own
-        own_call = f"    error_gains({P('omega_n')}, {P('zeta')}, s->S + {_S['own']});"
+        own_call = f"    error_gains({P('omega_n')}, {P('zeta')}, s->S + {LAYOUT['own']});"
     elif workspace:
         from fmus.controller.workspace import pose_gains as own
         own_call = (f"    pose_gains({P('k_v')}, {P('k_v_scale_z')}, {P('k_v_scale_psi')}, {P('k_v_scale_theta')}, "
-                    f"s->S + {_S['own']});")
+                    f"s->S + {LAYOUT['own']});")
     # the kinematic model (and the inverse model's dynamics): the engine traced with the controller's
     # geometry (and bodies) as inputs, read at initialisation (designs.traced_engine)
     from fmus.mechanism.designs import TRACED_PARAMETERS, traced_engine
@@ -1045,16 +894,16 @@ def _joint_controller(block, vrs: Mapping[str, int]) -> str:
         raise ValueError(f"{block.name}: the native controller expects the 3PRS traced with {TRACED_PARAMETERS}")
     ik, fns = eng._fn("ik"), [eng._fn("ik"), eng._fn("ikjac")] + ([eng._fn("forces")] if model else [])
     checks = {k: v for fn in fns for k, v in fn.namespace.items() if k.startswith("_check")}
-    PO = _S["P"]
+    PO = LAYOUT["P"]
     args = ", ".join(f"S[{PO + k}]" for k in range(len(TRACED_PARAMETERS)))
-    start, laws_source = _joint_sources(block)
+    start, laws_source = tick_sources(type(block))     # pose mode only: the modes are no FMU variables
     inputs = ", ".join(_literal(n) for n in block.INPUTS)
     ratios = "".join(f"    if (ratio_check({_literal(name)}, {P(name)}, {P('T_cur')}, msg, size)) return MAST_PARAMETER_ERROR;\n"
                      for name in ("T_pos", "T_vel"))
     return "\n".join([
-        f"typedef struct {{ double S[{_NS}]; double before[{_NS}]; double evaluated; }} State;   "
+        f"typedef struct {{ double S[{SIZE}]; double before[{SIZE}]; double evaluated; }} State;   "
         "/* before: S before the laws of the tick evaluated */", "",
-        f"#define LENGTHS(S) ((S) + {_NS - 3})   /* Engine.lengths (1, r, r) [m]: the margins compare motions */", "",
+        f"#define LENGTHS(S) ((S) + {SIZE - 3})   /* Engine.lengths (1, r, r) [m]: the margins compare motions */", "",
         _traced_parameters_c(vrs),
         to_c(ik.source, "ik", checks=checks),
         "static int ik_s(double *S, double q0, double q1, double q2, double *out)", "{",
@@ -1065,8 +914,8 @@ def _joint_controller(block, vrs: Mapping[str, int]) -> str:
         _level_height_c(),
         "/* PRS3.guess: the level pose for the mean carriage position (the direct kinematics' cold start) */",
         "static void guess(const double *S, const double *rho, double *out)", "{",
-        f"    out[0] = level_height(rho[0], rho[1], rho[2], S[{PO}], S[{PO + 1}], S[{PO + 2}], S[{_S['cb']}], "
-        f"S[{_S['sb']}]);",
+        f"    out[0] = level_height(rho[0], rho[1], rho[2], S[{PO}], S[{PO + 1}], S[{PO + 2}], S[{LAYOUT['cb']}], "
+        f"S[{LAYOUT['sb']}]);",
         "    out[1] = 0.0;", "    out[2] = 0.0;", "}", "",
         _why_function("why", checks),
         "/* DriveController._ratio: a loop's cycle time an integer multiple of T_cur */",
@@ -1089,7 +938,7 @@ def _joint_controller(block, vrs: Mapping[str, int]) -> str:
         to_c(start, "start", arrays=("values", "S", "R"), calls=("ik_s",)),
         _workspace_dk(block) if workspace else "",
         *[to_c(inspect.getsource(law), law.__name__) for law in laws],
-        to_c(laws_source, "laws", arrays=("values", "S", "R", "PI", "RT", "CUR", "QM", "JK"),
+        to_c(laws_source, "laws", arrays=("values", "S", "R", "CUR", "QM", "JK"),
              calls=("ik_s", "pi_step", "rates", "currents", "wsdk", "ikjac_s"), values=[law.__name__ for law in laws]),
         f"static const char *const INPUT_NAMES[] = {{{inputs}}};", "",
         "static int input_error(const double *values, double t, char *msg, size_t size)", "{",
@@ -1107,45 +956,45 @@ def _joint_controller(block, vrs: Mapping[str, int]) -> str:
         "    return MAST_KINEMATICS_ERROR;", "}", "",
         "static int initialize(void *state, double *values, const mast_parameters *p, double t0, char *msg, size_t size)",
         "{", "    State *s = state;", "    double R[3];",
-        f"    for (int k = 0; k < {_NS}; k++) s->S[k] = 0.0;",
+        f"    for (int k = 0; k < {SIZE}; k++) s->S[k] = 0.0;",
         "    s->evaluated = -1.0;",
-        f"    s->S[{_S['t0']}] = t0;",
+        f"    s->S[{LAYOUT['t0']}] = t0;",
         "    /* the schedule, the transmission and the kinematic model from the parameters (checked by model_check) */",
-        f"    s->S[{_S['T_cur']}] = {P('T_cur')};", f"    s->S[{_S['T_pos']}] = {P('T_pos')};",
-        f"    s->S[{_S['N_pos']}] = nearbyint({P('T_pos')} / {P('T_cur')});",
-        f"    s->S[{_S['N_vel']}] = nearbyint({P('T_vel')} / {P('T_cur')});",
-        f"    s->S[{_S['i_R']}] = transmission_ratio({P('p')}, {P('i_r')});",
+        f"    s->S[{LAYOUT['T_cur']}] = {P('T_cur')};", f"    s->S[{LAYOUT['T_pos']}] = {P('T_pos')};",
+        f"    s->S[{LAYOUT['N_pos']}] = nearbyint({P('T_pos')} / {P('T_cur')});",
+        f"    s->S[{LAYOUT['N_vel']}] = nearbyint({P('T_vel')} / {P('T_cur')});",
+        f"    s->S[{LAYOUT['i_R']}] = transmission_ratio({P('p')}, {P('i_r')});",
         f"    traced_parameters(p, s->S + {PO});",
-        f"    s->S[{_S['cb']}] = cos(s->S[{PO + TRACED_PARAMETERS.index('beta')}]);",
-        f"    s->S[{_S['sb']}] = sin(s->S[{PO + TRACED_PARAMETERS.index('beta')}]);",
-        *([f"    s->S[{_S['attached']}] = p->integer[{vrs['attached']}];",
-           f"    model_constants(p, s->S + {_S['model']});"] if model else []),
+        f"    s->S[{LAYOUT['cb']}] = cos(s->S[{PO + TRACED_PARAMETERS.index('beta')}]);",
+        f"    s->S[{LAYOUT['sb']}] = sin(s->S[{PO + TRACED_PARAMETERS.index('beta')}]);",
+        *([f"    s->S[{LAYOUT['attached']}] = p->integer[{vrs['attached']}];",
+           f"    model_constants(p, s->S + {LAYOUT['model']});"] if model else []),
         f"    LENGTHS(s->S)[0] = 1.0; LENGTHS(s->S)[1] = s->S[{PO + 1}]; LENGTHS(s->S)[2] = s->S[{PO + 1}];",
         "    /* the gains from the parameters, by the controller's own functions */",
         *([f"    cascade_gains({P('k_v')}, {P('k_p')}, {P('k_i')}, {P('T_vel')}, "
-           f"transmission_ratio({P('p')}, {P('i_r')}), s->S + {_S['gains']});"] if cascade else []),
-        f"    s->S[{_S['gains'] + 3}] = {P('i_max')};",
+           f"transmission_ratio({P('p')}, {P('i_r')}), s->S + {LAYOUT['gains']});"] if cascade else []),
+        f"    s->S[{LAYOUT['gains'] + 3}] = {P('i_max')};",
         *([own_call] if own_call else []),
         "    if (input_error(values, t0, msg, size)) return MAST_MODEL_ERROR;",
         "    int code = start(values, s->S, R);",
         "    return code ? ik_error(values, t0, -code, msg, size) : MAST_OK;", "}", "",
         "/* DriveController._laws of tick n (the outputs too); 0, or an error code with msg */",
         "static int run_laws(State *s, double *values, double n, char *msg, size_t size)", "{",
-        "    double R[3], PI[2], RT[2], CUR[3], QM[3], JK[12];",
-        f"    double T = s->S[{_S['T_cur']}], t0 = s->S[{_S['t0']}];",
-        "    int code = laws(values, s->S, R, PI, RT, CUR, QM, JK, n);",
-        *([f"    if (code == {_MODEL_FAILED}) return model_error(s->S, msg, size);"] if model else []),
-        *([f"    if (code == {_DK_FAILED}) return dk_error(s->S, t0 + s->S[{_S['failed']}] * T, msg, size);"]
+        "    double R[3], CUR[3], QM[3], JK[12];",
+        f"    double T = s->S[{LAYOUT['T_cur']}], t0 = s->S[{LAYOUT['t0']}];",
+        "    int code = laws(values, s->S, R, CUR, QM, JK, n);",
+        *([f"    if (code == {MODEL_FAILED}) return model_error(s->S, msg, size);"] if model else []),
+        *([f"    if (code == {DK_FAILED}) return dk_error(s->S, t0 + s->S[{LAYOUT['failed']}] * T, msg, size);"]
           if workspace else []),
-        f"    if (code) return ik_error(values, t0 + s->S[{_S['failed']}] * T, -code, msg, size);",
+        f"    if (code) return ik_error(values, t0 + s->S[{LAYOUT['failed']}] * T, -code, msg, size);",
         "    return MAST_OK;", "}", "",
         "/* DriveController.evaluate: the laws of the communication point's tick, once per tick */",
         "static int evaluate(void *state, double *values, const mast_parameters *p, char *msg, size_t size)", "{",
         "    State *s = state;", "    (void)p;",
-        f"    double n = s->S[{_S['n']}];",
+        f"    double n = s->S[{LAYOUT['n']}];",
         "    if (s->evaluated == n) memcpy(s->S, s->before, sizeof s->S);",
         "    else { memcpy(s->before, s->S, sizeof s->S); s->evaluated = n; }",
-        f"    double t = s->S[{_S['t0']}] + n * s->S[{_S['T_cur']}];",
+        f"    double t = s->S[{LAYOUT['t0']}] + n * s->S[{LAYOUT['T_cur']}];",
         "    double sum = 0.0;",
         "    for (int k = 0; k < 9; k++) sum += values[k];",
         "    if (sum - sum != 0.0 && input_error(values, t, msg, size)) return MAST_MODEL_ERROR;",
@@ -1153,13 +1002,13 @@ def _joint_controller(block, vrs: Mapping[str, int]) -> str:
         "static int do_step(void *state, double *values, const mast_parameters *p, double t, double h, char *msg, size_t size)",
         "{", "    State *s = state;",
         "    char a[40], b[40], c[40];",
-        f"    double T = s->S[{_S['T_cur']}];",
+        f"    double T = s->S[{LAYOUT['T_cur']}];",
         "    double m = nearbyint(h / T);",
         f"    if (m < 1.0 || fabs(h - m * T) > 1e-6 * T) {{",
         "        snprintf(msg, size, \"step size h = %s s is not a positive integer multiple of T_cur = %s s\", "
         f"mast_repr(h, a, sizeof a), mast_repr(T, b, sizeof b));",
         "        return MAST_MODEL_ERROR;", "    }",
-        f"    double n = s->S[{_S['n']}], t0 = s->S[{_S['t0']}];",
+        f"    double n = s->S[{LAYOUT['n']}], t0 = s->S[{LAYOUT['t0']}];",
         f"    if (fabs(t - (t0 + n * T)) > 0.5 * T) {{",
         "        snprintf(msg, size, \"do_step at t = %s s, but tick %.0f belongs to t = %s s (steps must be contiguous "
         f"from initialize)\", mast_repr(t, a, sizeof a), n, mast_repr(t0 + n * T, c, sizeof c));",
@@ -1167,9 +1016,9 @@ def _joint_controller(block, vrs: Mapping[str, int]) -> str:
         "    int code;",
         "    if (s->evaluated != n && (code = evaluate(s, values, p, msg, size))) return code;",
         f"    for (double k = n + 1.0; k < n + m; k += 1.0) {{   /* the ticks inside the step, the inputs held */",
-        f"        if (fmod(k, s->S[{_S['N_pos']}]) == 0.0 || fmod(k, s->S[{_S['N_vel']}]) == 0.0) {{",
+        f"        if (fmod(k, s->S[{LAYOUT['N_pos']}]) == 0.0 || fmod(k, s->S[{LAYOUT['N_vel']}]) == 0.0) {{",
         "            if ((code = run_laws(s, values, k, msg, size))) return code;", "        }", "    }",
-        f"    s->S[{_S['n']}] = n + m;",
+        f"    s->S[{LAYOUT['n']}] = n + m;",
         "    return MAST_OK;", "}", ""])
 
 
@@ -1207,9 +1056,9 @@ def _inverse_model(eng, vrs: Mapping[str, int]) -> str:
     from fmus.controller.inverse_model import CONSTANTS, motor_torque
     from fmus.controller.reference import rates
 
-    MC = _S["model"]
+    MC = LAYOUT["model"]
     torque = ", ".join(f"S[{MC + k}]" for k in range(CONSTANTS.index("k_T")))
-    W, G, A, PO = _S["warm"], _S["guess"], _S["model_args"], _S["P"]
+    W, G, A, PO = LAYOUT["warm"], LAYOUT["guess"], LAYOUT["model_args"], LAYOUT["P"]
     params = ", ".join(f"S[{PO + k}]" for k in range(len(eng.parameters)))
     dk = (f"mast_dk3(ikjac_p, S + {PO}, why, M_COORDINATES, LENGTHS(S), {c_double(eng.margin)}, a, q, J, 1e-12, 50, "
           f"{c_double(eng.cond_limit)}, msg, size)")
@@ -1225,7 +1074,7 @@ def _inverse_model(eng, vrs: Mapping[str, int]) -> str:
         "/* InverseModel.currents at a = (rho, rho_dot, rho_ddot); 0, or an error code with msg */",
         "static int model_eval(const double *a, double *S, double *out, char *msg, size_t size)", "{",
         "    double q[3], J[9], cold[3], F[12] = {0.0, 0.0, 0.0};",
-        f"    if (S[{_S['attached']}] != 0.0) {{",
+        f"    if (S[{LAYOUT['attached']}] != 0.0) {{",
         "        guess(S, a, cold);",
         f"        for (int k = 0; k < 3; k++) q[k] = S[{W}] == 1.0 ? S[{G} + k] : cold[k];",
         f"        int code = {dk};",

@@ -15,14 +15,16 @@ found, never guessed.
 A generated Python function becomes ``static int NAME(...)``:
 
 - ``%`` (the non-negative tick counters' only) is ``mast_mod`` (mast_native.h: fmod, exact);
-- arguments named in ``arrays`` are ``double *`` (read by index, written by slice
-  assignment ``x[:] = (...)`` or ``values[k:] = (...)``); the other arguments are doubles;
+- arguments named in ``arrays`` are ``double *`` (read by index, written by index ``S[k] = x`` or by
+  slice assignment ``x[:] = (...)``, ``values[k:] = (...)`` or ``S[k:k + 2] = (a, b)``: the same
+  stores in Python); the other arguments are doubles;
 - ``return (a, b, ...)`` (the engine's functions) writes ``out[0..]`` and returns 0; a function
   returning one computed number is a ``static double`` value function, callable in the
   expressions of others (``values``); ``float(x)``, ``math.pi``, ``math.exp(x)``, ``x ** y`` (libm's
   ``pow``, as Python's float power) are understood; ``return
   k`` (the actuator's status codes) returns k, as does ``return status`` (a status another
-  generated function returned: ``status = f(..., ARRAY)``, its results in ARRAY);
+  generated function returned: ``status = f(..., ARRAY)``, its results in ARRAY); ``a, b = f(...)``
+  calls another generated function that returns a tuple (its ``out`` a scratch array of the caller);
 - a call of a check the tracing recorded (``_checkN(...)``) becomes ``if (!(cond)) return
   -N;`` with ``cond`` the check's ``c_condition`` (a C expression of ``a0, a1, ...``); the
   caller reports which check failed, with the message the check's ``c_message`` gives.
@@ -76,6 +78,7 @@ class _Writer:
         self.arrays = set(arrays)
         self.checks = checks
         self.locals: dict[str, None] = {}
+        self.scratch: dict[str, int] = {}      # the arrays that receive a called function's tuple, and their sizes
         self.lines: list[str] = []
         self.loops = 0
         self.returns_tuple = False
@@ -151,9 +154,11 @@ class _Writer:
     def store_slice(self, target: ast.Subscript, value: ast.AST, indent: str, node: ast.AST) -> None:
         sl = target.slice
         if not (isinstance(target.value, ast.Name) and target.value.id in self.arrays and isinstance(sl, ast.Slice)
-                and sl.upper is None and sl.step is None and isinstance(value, ast.Tuple)):
-            self.fail(node, "slice assignment (only ARRAY[k:] = (a, b, ...))")
+                and sl.step is None and isinstance(value, ast.Tuple)):
+            self.fail(node, "slice assignment (only ARRAY[k:] = (a, b, ...) or ARRAY[k:k + n] = (n numbers))")
         start = 0 if sl.lower is None else sl.lower.value
+        if sl.upper is not None and not (isinstance(sl.upper, ast.Constant) and sl.upper.value == start + len(value.elts)):
+            self.fail(node, "slice assignment whose length is not the tuple's")
         # values first, then stores: the right-hand side may read the array (then through temporaries)
         temps = [self.expr(e) for e in value.elts]
         if any(f"{target.value.id}[" in text for text in temps):
@@ -168,6 +173,20 @@ class _Writer:
             target, value = node.targets[0], node.value
             if isinstance(target, ast.Name):
                 self.assign_local(target.id, self.expr(value), indent)
+            elif isinstance(target, ast.Tuple) and isinstance(value, ast.Call) and isinstance(value.func, ast.Name) \
+                    and value.func.id in self.calls and all(isinstance(e, ast.Name) for e in target.elts):
+                # a, b = f(...): another generated function returning a tuple, its results through a scratch array
+                scratch = f"ret{len(self.scratch)}"
+                self.scratch[scratch] = len(target.elts)
+                self.arrays.add(scratch)
+                call = self.expr(value)
+                self.lines.append(f"{indent}{call[:-1]}{', ' if value.args else ''}{scratch});")
+                for k, elt in enumerate(target.elts):
+                    self.assign_local(elt.id, f"{scratch}[{k}]", indent)
+            elif isinstance(target, ast.Subscript) and isinstance(target.value, ast.Name) \
+                    and target.value.id in self.arrays and isinstance(target.slice, ast.Constant) \
+                    and isinstance(target.slice.value, int):      # ARRAY[k] = x
+                self.lines.append(f"{indent}{target.value.id}[{target.slice.value}] = {self.expr(value)};")
             elif isinstance(target, ast.Tuple) and isinstance(value, ast.Name) and value.id in self.arrays:
                 for k, elt in enumerate(target.elts):      # x0, x1, ..., = x
                     self.assign_local(elt.id, f"{value.id}[{k}]", indent)
@@ -278,7 +297,7 @@ def to_c(source: str, name: str, arrays: Sequence[str] = (), checks: Mapping[str
     if w.returns_value and (w.returns_tuple or any(line.strip().startswith("return 0;") for line in w.lines)):
         raise TranslationError(f"{name}: returns a number on one path and a status or tuple on another")
     head = f"{'static ' if static else ''}{'double' if w.returns_value else 'int'} {name}({', '.join(args)})"
-    decl = []
+    decl = [f"    double {a}[{n}];" for a, n in w.scratch.items()]
     names = [n for n in w.locals if n not in {a.arg for a in fn.args.args}]   # scalar arguments are assignable
     for k in range(0, len(names), 8):
         decl.append("    double " + ", ".join(names[k:k + 8]) + ";")
