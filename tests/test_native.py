@@ -641,7 +641,8 @@ def test_the_native_axis_keeps_and_evicts_its_discretisations_as_the_python_mode
     comes back) is unreachable through MastActuator: its axis steps T_cur whatever the host's step. So the
     voltage-in axis alone (ActuatorBlock, which the generator also emits) is compiled here and stepped with
     DISCRETISATIONS_KEPT + 3 sizes, most of them not multiples of 100 us, all of them first and then again
-    in another order (slots evicted and recomputed), against ActuatorBlock in Python (measured: 7.4e-12)."""
+    in another order (slots evicted and recomputed), against ActuatorBlock in Python (measured: 7.4e-12); the
+    torque measurement's delay line laid out again for every new size (TorqueSensor's relayout)."""
     from fmpy.fmi2 import FMU2Slave
 
     from fmus.actuator.model import ActuatorBlock
@@ -661,7 +662,8 @@ def test_the_native_axis_keeps_and_evicts_its_discretisations_as_the_python_mode
     assert [sv.get("name") for sv in variables] == order
     for vr, sv in enumerate(variables):
         sv.set("valueReference", str(vr))
-    params = {k: v for k, v in {**default_parameters("MastActuator"), "tau_s": 0.02}.items() if k in order}
+    tuned = {"tau_s": 0.02, "T_meas": 2e-4, "delay_meas": 3.3e-4, "tau_offset": 0.01}
+    params = {k: v for k, v in {**default_parameters("MastActuator"), **tuned}.items() if k in order}
     sources, xml = native_sources("MastActuator", ActuatorBlock, params, etree.tostring(root))
     library = tmp_path / "binaries" / "linux64" / "MastActuator.so"
     library.parent.mkdir(parents=True)
@@ -671,7 +673,7 @@ def test_the_native_axis_keeps_and_evicts_its_discretisations_as_the_python_mode
     native.instantiate()
     native.setupExperiment(startTime=0.0)
     native.enterInitializationMode()
-    native.setReal([order.index("tau_s")], [0.02])
+    native.setReal([order.index(name) for name in tuned], list(tuned.values()))
     native.exitInitializationMode()
     python = ActuatorBlock(params, "axis")
     python.set(u=0.0, F=6.0)

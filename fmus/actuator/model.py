@@ -99,6 +99,29 @@ _KERNELS_KEPT = 32        # step functions kept, by step size
 _COMPILED_STEP_SIZES = 4  # a fixed-step host needs one or two; beyond, the host varies its step (see _bind)
 
 
+def substep_rule(omega_max: float, h: float, backlash: float, tau_s: float, omega_s: float) -> tuple[int, float]:
+    """(m, fall) of a step h [s] (``ActuatorBlock._substeps``): the substeps to try first, so that the fastest
+    chain mode omega_max [rad/s] turns at most _MAX_PHASE_PER_SUBSTEP per substep and, with backlash (> 0 [m]),
+    a substep lasts at most _BACKLASH_SUBSTEP; and the Stribeck friction's steepest fall tau_s sqrt(2/e) /
+    omega_s [N m s/rad] (0 without). Written in the generated-code subset: the native actuator runs this source."""
+    m = math.ceil(omega_max * h / _MAX_PHASE_PER_SUBSTEP - 1e-12)
+    if m < 1:
+        m = 1
+    if backlash > 0.0:
+        mb = math.ceil(h / _BACKLASH_SUBSTEP - 1e-9)
+        if mb > m:
+            m = mb
+    fall = tau_s * math.sqrt(2.0 / math.e) / omega_s if tau_s > 0.0 else 0.0
+    return (m, fall)
+
+
+def substeps_enough(b: float, fall: float, m: float) -> float:
+    """1.0 when m substeps do: the friction update over a substep (b = d omega_N / d tau_L) monotone, b > 0 and
+    b fall < 1/2, or no more are tried (m > 4096); else 0.0. Written in the generated-code subset, as
+    ``substep_rule``."""
+    return 1.0 if (b > 0.0 and b * fall < 0.5) or m > 4096 else 0.0
+
+
 PARAMETERS: tuple[Param, ...] = (
     positive("R", "ohm", "winding terminal resistance"),
     positive("L", "H", "winding terminal inductance"),
@@ -501,17 +524,13 @@ class ActuatorBlock(Block):
         """The number of substeps m for step h, and ``zoh(h / m)``: the discretisations over a substep
         ([Phi Gamma] of each, flattened by rows; the first one's inputs start with u_sat, tau_L)."""
         p = self.params
-        m = max(1, math.ceil(self._omega_max * h / _MAX_PHASE_PER_SUBSTEP - 1e-12))
-        if p["backlash"] > 0.0:
-            m = max(m, math.ceil(h / _BACKLASH_SUBSTEP - 1e-9))
-        # Stribeck: the friction's steepest fall is tau_s sqrt(2/e) / omega_s; keep b times it below 1/2
-        fall = p["tau_s"] * math.sqrt(2.0 / math.e) / p["omega_s"] if p["tau_s"] > 0.0 else 0.0
+        m, fall = substep_rule(self._omega_max, h, p["backlash"], p["tau_s"], p["omega_s"])
         n = 2 * self.N + 1
         b_at = 2 * self.N * (n + 2 + (p["backlash"] > 0.0)) + n + 1  # Gamma[omega_N, tau_L]: [Phi Gamma] has n + 2
         while True:                                                 # columns, n + 3 with backlash's input pl
             discretisations = zoh(h / m)
             b = discretisations[0][b_at]  # d omega_N(end) / d tau_L over a substep
-            if (b > 0.0 and b * fall < 0.5) or m > 4096:
+            if substeps_enough(b, fall, m):
                 break
             m *= 2
         if not b > 0.0:

@@ -19,11 +19,10 @@ arrays in the analysis (``measure``): equal to rounding on the same step grid.
 from __future__ import annotations
 
 import math
-from collections import deque
 
 import numpy as np
 
-__all__ = ["TorqueSensor", "measure", "filter_coefficients", "is_neutral"]
+__all__ = ["TorqueSensor", "measure", "filter_coefficients", "is_neutral", "measurement_step", "relayout"]
 
 
 def is_neutral(T: float, delay: float, offset: float) -> bool:
@@ -50,15 +49,47 @@ def _delay_split(delay: float, h: float) -> tuple[int, float]:
     return n, phi
 
 
+def measurement_step(u: float, line, head: int, L: int, n: int, phi: float, e: float, c: float, d: float, y: float,
+                     u_prev: float) -> tuple[int, float, float]:
+    """One step of the measurement with the new sample u (at the end of the step): the delay line ``line``, a
+    ring of L = n + 2 samples (the newest at ``head``), then the filter (y_k = e y_{k-1} + c ud_k + d ud_{k-1}).
+    Returns (head, y, ud): the newest sample's place, the filter's output (tau_meas - tau_offset) and the
+    delayed sample (the next step's ud_{k-1}). Written in the generated-code subset: the native actuator runs
+    this source."""
+    head = (head + 1) % L
+    line[head] = u
+    a = line[(head - n + L) % L]               # u_{k-n}
+    ud = a if phi == 0.0 else (1.0 - phi) * a + phi * line[(head - n - 1 + L) % L]
+    y = e * y + c * ud + d * u_prev
+    return (head, y, ud)
+
+
+def relayout(old, size: int, head: int, line, L: int, u0: float) -> int:
+    """The delay line for another step size: into ``line`` (L samples, the oldest first) the newest
+    min(size, L) samples of ``old`` (a ring of ``size``, the newest at ``head``; none before the first step), the
+    places before them filled with the newest (u0 when there is none: the steady past). Written in the
+    generated-code subset, as ``measurement_step``."""
+    kept = size if size < L else L
+    fill = old[head] if size > 0 else u0
+    gap = L - kept
+    i = 0
+    for _ in range(gap):
+        line[i] = fill
+        i += 1
+    j = head - kept + 1 + size
+    for _ in range(kept):
+        line[i] = old[j % size]
+        i += 1
+        j += 1
+    return 0
+
+
 class TorqueSensor:
     """Sample-by-sample measurement model (used inside the actuator FMU)."""
 
     def __init__(self, T: float, delay: float, offset: float) -> None:
         self.T, self.delay, self.offset = float(T), float(delay), float(offset)
-        self._h = math.nan
-        self._y = 0.0
-        self._u_prev = 0.0
-        self._hist: deque = deque()
+        self.reset(0.0)
 
     def reset(self, u0: float) -> float:
         """Steady state at input u0 (an infinite past of u0); returns the measurement."""
@@ -66,28 +97,26 @@ class TorqueSensor:
         self._h = math.nan
         self._y = self._u0
         self._u_prev = self._u0
-        self._hist = deque()
+        self._line: list[float] = []     # the delay line (``measurement_step``), none before the first step
+        self._head = 0
         return self._y + self.offset
 
     def _configure(self, h: float) -> None:
         self._h = h
         self._e, self._c, self._d = filter_coefficients(self.T, h)
         self._n, self._phi = _delay_split(self.delay, h)
-        fill = self._hist[-1] if self._hist else self._u0
-        old = list(self._hist)
-        self._hist = deque([fill] * (self._n + 2), maxlen=self._n + 2)
-        self._hist.extend(old[-(self._n + 2):])
+        L = self._n + 2
+        line = [0.0] * L
+        relayout(self._line, len(self._line), self._head, line, L, self._u0)
+        self._line, self._head = line, L - 1
 
     def step(self, u: float, h: float) -> float:
         """Advance by h with the new torque sample u (at the end of the step); returns tau_meas."""
         if h != self._h:
             self._configure(h)
-        hist = self._hist
-        hist.append(u)                       # hist[-1] = u_k, hist[-1-j] = u_{k-j}
-        n, phi = self._n, self._phi
-        ud = hist[-1 - n] if phi == 0.0 else (1.0 - phi) * hist[-1 - n] + phi * hist[-2 - n]
-        self._y = self._e * self._y + self._c * ud + self._d * self._u_prev
-        self._u_prev = ud
+        self._head, self._y, self._u_prev = measurement_step(u, self._line, self._head, self._n + 2, self._n,
+                                                             self._phi, self._e, self._c, self._d, self._y,
+                                                             self._u_prev)
         return self._y + self.offset
 
 

@@ -7,7 +7,9 @@ code, which ``translate.to_c`` writes as C:
   (``ActuatorBlock._bind``'s source, with the parameters' numbers as names too), one kernel per
   structure the parameters select; the parameters' numbers traced through the model's relations
   (``kernel_constants``, ``state_matrices``, ``backlash_systems``, ``_friction_constants``); the
-  discretisation of each step size computed in C (``mast_expm``);
+  discretisation of each step size computed in C (``mast_expm``) with the model's substep rule
+  (``substep_rule``, ``substeps_enough``); the torque measurement's filter and delay line
+  (sensor.py: ``filter_coefficients``, ``_delay_split``, ``measurement_step``, ``relayout``);
 - mechanism (every design): the engine's traced functions (inverse kinematics with its
   Jacobian, inverse dynamics, pose), driven by the engine's Newton direct kinematics
   (``mast_native.h``); the engine traces the description with every parameter (geometry,
@@ -28,9 +30,9 @@ code, which ``translate.to_c`` writes as C:
 What the models' generators do not cover is restated here in C, held to the Python model by
 tests/test_native.py: the outputs of the actuator at rest (``initialize``), the glue of the direct
 kinematics (``MechanismBlock._compute``, ``InverseModel.torques``, ``WorkspaceController._wsdk``: warm
-start, cold restart, messages), the actuator's substep rule (``ActuatorBlock._substeps``) and the
-delay line of its torque measurement (``TorqueSensor.step``), and the controllers' ``evaluate`` and
-``do_step`` around the tick (once per communication point, the ticks inside a step).
+start, cold restart, messages), the actuator's doubling of its substeps around ``mast_expm`` and the
+allocation of its delay line, and the controllers' ``evaluate`` and ``do_step`` around the tick (once
+per communication point, the ticks inside a step).
 
 Parameters: read at run time, with what depends on them computed at initialisation, for the
 trajectory, the actuator (all but its chain's structure, ``ACTUATOR_STRUCTURE``: the size of its
@@ -243,8 +245,8 @@ def _actuator(block, vrs: Mapping[str, int]) -> str:
     from the model's own relations; the exact discretisation computed in C for each step size the host
     uses (``mast_expm``, the mathematics of ActuatorBlock._bind); the step kernel of each structure
     (friction, ripple, backlash) the model's own bound-by-name kernel, its numbers read from the
-    instance; the torque measurement (sensor.py): ``filter_coefficients`` and ``_delay_split`` translated,
-    the delay line restated."""
+    instance; the torque measurement (sensor.py): ``filter_coefficients``, ``_delay_split`` and the delay
+    line's ``relayout`` and ``measurement_step`` translated."""
     import inspect
 
     from fmus.actuator import model as am
@@ -320,17 +322,22 @@ def _actuator(block, vrs: Mapping[str, int]) -> str:
     # --- the torque measurement: the model's own coefficient functions, translated
     code.append(to_c(inspect.getsource(sensor.filter_coefficients), "filter_coefficients"))
     code.append(to_c(inspect.getsource(sensor._delay_split), "delay_split"))
+    code.append(to_c(inspect.getsource(sensor.relayout), "relayout", arrays=("old", "line")))
+    code.append(to_c(inspect.getsource(sensor.measurement_step), "measurement_step", arrays=("line",)))
+    # --- the substep rule (ActuatorBlock._substeps): the model's own functions, translated
+    limits = {"_MAX_PHASE_PER_SUBSTEP": am._MAX_PHASE_PER_SUBSTEP, "_BACKLASH_SUBSTEP": am._BACKLASH_SUBSTEP}
+    code += [to_c(inspect.getsource(am.substep_rule), "substep_rule", constants=limits),
+             to_c(inspect.getsource(am.substeps_enough), "substeps_enough")]
     return _actuator_c(block, R, vrs, code, variants, layouts, offsets, nq, nh, n_in)
 
 
 def _actuator_c(block, R: Mapping[str, str], vrs: Mapping[str, int], code: list[str], variants: Sequence,
                 layouts: Mapping, offsets: Mapping[str, int], nq: int, nh: int, n_in: int) -> str:
     """The C glue of the native actuator around the generated functions ``code``: the instance's state, the
-    choice of the kernel's structure, the per-step-size discretisation (ActuatorBlock._substeps and _bind,
-    restated: the substep rule, then ``mast_expm``), the delay line of the torque measurement
-    (TorqueSensor.step, restated) and the messages of ActuatorBlock."""
-    from fmus.actuator import model as am
-
+    choice of the kernel's structure, the per-step-size discretisation (ActuatorBlock._substeps and _bind: the
+    substep rule by ``substep_rule`` and ``substeps_enough``, translated, then ``mast_expm``), the torque
+    measurement's delay line (its allocation around TorqueSensor's ``relayout`` and ``measurement_step``,
+    translated) and the messages of ActuatorBlock."""
     from fmus.actuator.model import _ERRORS
 
     N = block.N
@@ -360,10 +367,9 @@ def _actuator_c(block, R: Mapping[str, str], vrs: Mapping[str, int], code: list[
         "static int discretise(State *s, double h, Disc *d, char *msg, size_t size)", "{",
         "    char v[40];",
         "    int backlash = V_BACKLASH[s->variant], fr = V_FRICTION[s->variant];",
-        f"    double m = ceil(s->omega_max * h / {c_double(am._MAX_PHASE_PER_SUBSTEP)} - 1e-12);",
-        "    if (m < 1.0) m = 1.0;",
-        f"    if (backlash) {{ double mb = ceil(h / {c_double(am._BACKLASH_SUBSTEP)} - 1e-9); if (mb > m) m = mb; }}",
-        f"    double fall = {Q['tau_s']} > 0.0 ? {Q['tau_s']} * sqrt(2.0 / {c_double(math.e)}) / {Q['omega_s']} : 0.0;",
+        "    double rule[2];",
+        f"    substep_rule(s->omega_max, h, (double)backlash, {Q['tau_s']}, {Q['omega_s']}, rule);",
+        "    double m = rule[0], fall = rule[1];",
         f"    double M[{nm * nm}], E[{nm * nm}], b = 0.0;",
         "    for (;;) {",
         "        double hs = h / m;",
@@ -374,7 +380,7 @@ def _actuator_c(block, R: Mapping[str, str], vrs: Mapping[str, int], code: list[
         "        }",
         f"        if (mast_expm({nm}, M, E)) {{ snprintf(msg, size, \"out of memory\"); return MAST_MODEL_ERROR; }}",
         f"        b = E[{wN * nm + nx + 1}];",
-        "        if ((b > 0.0 && b * fall < 0.5) || m > 4096.0) break;",
+        "        if (substeps_enough(b, fall, m)) break;",
         "        m *= 2.0;", "    }",
         "    if (!(b > 0.0)) {",
         "        snprintf(msg, size, \"no substep gives a monotone friction update for h = %s s\", mast_repr(h, v, sizeof v));",
@@ -414,7 +420,8 @@ def _actuator_c(block, R: Mapping[str, str], vrs: Mapping[str, int], code: list[
     discretise += ["    return MAST_OK;", "}", ""]
     T, delay, offset = R["T_meas"], R["delay_meas"], R["tau_offset"]
     sensor = [
-        "/* TorqueSensor.step (sensor.py), restated: the delay line of n + 2 samples, newest at head */",
+        "/* TorqueSensor.step (sensor.py): the delay line of n + 2 samples, newest at head (relayout and",
+        "   measurement_step, translated; the line's allocation, its longest length and its message here) */",
         "static int sensor_step(State *s, double u, double h, const mast_parameters *p, double *out, char *msg, size_t size)",
         "{",
         "    if (h != s->s_h) {          /* TorqueSensor._configure */",
@@ -426,25 +433,19 @@ def _actuator_c(block, R: Mapping[str, str], vrs: Mapping[str, int], code: list[
         f"            snprintf(msg, size, \"parameter 'delay_meas' = %s s is %.0f steps of h = %s s: this native FMU keeps "
         f"at most {SENSOR_SAMPLES - 2}\", mast_repr({delay}, a, sizeof a), sp[0], mast_repr(h, b, sizeof b));",
         "            return MAST_MODEL_ERROR;", "        }",
-        "        int L = (int)sp[0] + 2, kept = s->s_count < L ? s->s_count : L;",
-        "        double fill = s->s_count ? s->hist[s->s_head] : s->s_u0;",
+        "        int L = (int)sp[0] + 2;",
         "        double *line = malloc((size_t)L * sizeof(double));",
         "        if (!line) { snprintf(msg, size, \"out of memory\"); return MAST_MODEL_ERROR; }",
-        "        for (int i = 0; i < L - kept; i++) line[i] = fill;",
-        "        for (int i = 0; i < kept; i++)",
-        "            line[L - kept + i] = s->hist[(s->s_head - (kept - 1 - i) + 2 * s->s_len) % (s->s_len ? s->s_len : 1)];",
+        "        relayout(s->hist, s->s_len, s->s_head, line, L, s->s_u0);",
         "        memcpy(s->hist, line, (size_t)L * sizeof(double));",
         "        free(line);",
-        "        s->s_len = L; s->s_count = L; s->s_head = L - 1;",
+        "        s->s_len = L; s->s_head = L - 1;",
         "        s->s_e = co[0]; s->s_c = co[1]; s->s_d = co[2]; s->s_n = (int)sp[0]; s->s_phi = sp[1]; s->s_h = h;",
         "    }",
-        "    s->s_head = (s->s_head + 1) % s->s_len;",
-        "    s->hist[s->s_head] = u;",
-        "    int n = s->s_n;",
-        "    double a0 = s->hist[(s->s_head - n + s->s_len) % s->s_len];",
-        "    double ud = s->s_phi == 0.0 ? a0 : (1.0 - s->s_phi) * a0 + s->s_phi * s->hist[(s->s_head - n - 1 + 2 * s->s_len) % s->s_len];",
-        "    s->s_y = s->s_e * s->s_y + s->s_c * ud + s->s_d * s->s_uprev;",
-        "    s->s_uprev = ud;",
+        "    double r[3];",
+        "    measurement_step(u, s->hist, s->s_head, s->s_len, s->s_n, s->s_phi, s->s_e, s->s_c, s->s_d, s->s_y, "
+        "s->s_uprev, r);",
+        "    s->s_head = (int)r[0]; s->s_y = r[1]; s->s_uprev = r[2];",
         f"    *out = s->s_y + {offset};",
         "    return MAST_OK;", "}", ""]
     return "\n".join([
@@ -457,7 +458,7 @@ def _actuator_c(block, R: Mapping[str, str], vrs: Mapping[str, int], code: list[
         "    double h_last;",
         f"    double key[{DISCRETISATIONS_KEPT}];",
         f"    Disc disc[{DISCRETISATIONS_KEPT}];",
-        "    int sensor, s_n, s_len, s_head, s_count;",
+        "    int sensor, s_n, s_len, s_head;",
         "    double s_h, s_e, s_c, s_d, s_phi, s_y, s_uprev, s_u0;",
         f"    double hist[{SENSOR_SAMPLES}];",
         "} State;", "",
@@ -518,7 +519,7 @@ def _actuator_c(block, R: Mapping[str, str], vrs: Mapping[str, int], code: list[
         f"    values[{n_in + 2}] = {Q['iR']} * al;",
         f"    values[{n_in + 3}] = 0.0; values[{n_in + 4}] = 0.0; values[{n_in + 5}] = 0.0; values[{n_in + 6}] = tm;",
         f"    s->sensor = !({T} == 0.0 && {delay} == 0.0 && {offset} == 0.0);",
-        "    s->s_u0 = tm; s->s_y = tm; s->s_uprev = tm; s->s_h = NAN; s->s_count = 0; s->s_len = 0; s->s_head = 0;",
+        "    s->s_u0 = tm; s->s_y = tm; s->s_uprev = tm; s->s_h = NAN; s->s_len = 0; s->s_head = 0;",
         f"    values[{n_in + 7}] = s->sensor ? s->s_y + {offset} : tm;",
         "    (void)u;",
         "    return MAST_OK;", "}", "",

@@ -15,8 +15,8 @@ found, never guessed.
 A generated Python function becomes ``static int NAME(...)``:
 
 - ``%`` (the non-negative tick counters' only) is ``mast_mod`` (mast_native.h: fmod, exact);
-- arguments named in ``arrays`` are ``double *`` (read by index, written by index ``S[k] = x`` or by
-  slice assignment ``x[:] = (...)``, ``values[k:] = (...)`` or ``S[k:k + 2] = (a, b)``: the same
+- arguments named in ``arrays`` are ``double *`` (read by index, written by index ``S[k] = x``, the
+  index a constant or a computed whole number, ``(int)`` in C, or by slice assignment ``x[:] = (...)``, ``values[k:] = (...)`` or ``S[k:k + 2] = (a, b)``: the same
   stores in Python); the other arguments are doubles;
 - ``return (a, b, ...)`` (the engine's functions) writes ``out[0..]`` and returns 0; a function
   returning one computed number is a ``static double`` value function, callable in the
@@ -43,7 +43,7 @@ FUNCTIONS = {
     "tanh": "tanh", "exp": "exp", "sin": "sin", "cos": "cos", "sqrt": "sqrt",
     "_sin": "sin", "_cos": "cos", "_sqrt": "sqrt", "_atan2": "atan2", "_hypot": "mast_hypot",
     "_sign": "mast_sign", "_sgn0": "mast_sgn0", "_abs": "fabs", "abs": "fabs", "float": "(double)",
-    "floor": "floor", "int": "trunc",     # int(x) of a float: its integer part, kept as a double
+    "floor": "floor", "ceil": "ceil", "int": "trunc",     # int(x) of a float: its integer part, kept as a double
 }
 #: module constants a model's own source may use (``math.pi``)
 CONSTANTS = {("math", "pi"): math.pi, ("math", "e"): math.e}
@@ -71,8 +71,9 @@ def c_double(value: float) -> str:
 
 class _Writer:
     def __init__(self, name: str, arrays: Sequence[str], checks: Mapping[str, object],
-                 calls: Sequence[str] = (), values: Sequence[str] = ()) -> None:
+                 calls: Sequence[str] = (), values: Sequence[str] = (), constants: Mapping[str, float] = ()) -> None:
         self.name = name
+        self.constants = dict(constants)
         self.calls = set(calls)
         self.values = set(values)
         self.arrays = set(arrays)
@@ -97,7 +98,7 @@ class _Writer:
         if isinstance(node, ast.Name):
             if node.id in self.arrays:
                 self.fail(node, "an array used as a number")
-            return node.id
+            return c_double(self.constants[node.id]) if node.id in self.constants else node.id
         if isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name) \
                 and (node.value.id, node.attr) in CONSTANTS:
             return c_double(CONSTANTS[node.value.id, node.attr])
@@ -138,11 +139,17 @@ class _Writer:
             args = [a.id if isinstance(a, ast.Name) and a.id in self.arrays else self.expr(a) for a in node.args]
             return f"{node.func.id}({', '.join(args)})"
         if isinstance(node, ast.Subscript) and isinstance(node.value, ast.Name) and node.value.id in self.arrays:
-            index = node.slice
-            if isinstance(index, ast.Constant) and isinstance(index.value, int):
-                return f"{node.value.id}[{index.value}]"
+            return f"{node.value.id}[{self.index(node.slice)}]"
         self.fail(node, "expression")
         return ""  # unreachable
+
+    def index(self, node: ast.AST) -> str:
+        """An array index: a constant, or a computed number (a whole one: Python indexes by its int)."""
+        if isinstance(node, ast.Constant) and isinstance(node.value, int) and not isinstance(node.value, bool):
+            return str(node.value)
+        if isinstance(node, ast.Slice):
+            self.fail(node, "slice read")
+        return f"(int)({self.expr(node)})"
 
     # -------------------------------------------------------------------------- statements
     def assign_local(self, name: str, value: str, indent: str) -> None:
@@ -184,9 +191,8 @@ class _Writer:
                 for k, elt in enumerate(target.elts):
                     self.assign_local(elt.id, f"{scratch}[{k}]", indent)
             elif isinstance(target, ast.Subscript) and isinstance(target.value, ast.Name) \
-                    and target.value.id in self.arrays and isinstance(target.slice, ast.Constant) \
-                    and isinstance(target.slice.value, int):      # ARRAY[k] = x
-                self.lines.append(f"{indent}{target.value.id}[{target.slice.value}] = {self.expr(value)};")
+                    and target.value.id in self.arrays and not isinstance(target.slice, ast.Slice):   # ARRAY[k] = x
+                self.lines.append(f"{indent}{target.value.id}[{self.index(target.slice)}] = {self.expr(value)};")
             elif isinstance(target, ast.Tuple) and isinstance(value, ast.Name) and value.id in self.arrays:
                 for k, elt in enumerate(target.elts):      # x0, x1, ..., = x
                     self.assign_local(elt.id, f"{value.id}[{k}]", indent)
@@ -275,16 +281,18 @@ class _Writer:
 
 
 def to_c(source: str, name: str, arrays: Sequence[str] = (), checks: Mapping[str, Callable] = (),
-         static: bool = True, calls: Sequence[str] = (), values: Sequence[str] = ()) -> str:
+         static: bool = True, calls: Sequence[str] = (), values: Sequence[str] = (),
+         constants: Mapping[str, float] = ()) -> str:
     """C of the one generated Python function in ``source`` (module docstring), named ``name``;
     ``calls``: other generated functions it may call (``status = f(..., ARRAY)``); ``values``: value
-    functions (one computed number) it may call in an expression."""
+    functions (one computed number) it may call in an expression; ``constants``: the module's named numbers
+    it reads (written as their values)."""
     tree = ast.parse(textwrap.dedent(source))
     functions = [n for n in tree.body if isinstance(n, ast.FunctionDef)]
     if len(functions) != 1 or len(tree.body) != 1:
         raise TranslationError(f"{name}: expected one generated function, found {len(tree.body)} statements")
     fn = functions[0]
-    w = _Writer(name, arrays, dict(checks or {}), calls, values)
+    w = _Writer(name, arrays, dict(checks or {}), calls, values, constants)
     body = fn.body
     if body and isinstance(body[0], ast.Expr) and isinstance(body[0].value, ast.Constant) \
             and isinstance(body[0].value.value, str):
