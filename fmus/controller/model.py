@@ -181,7 +181,7 @@ class DriveController(Block):
         namespace = self._calls()
         for code in compiled(type(self), self.MODES):
             exec(code, namespace)
-        self._start, self._tick = namespace["start"], namespace["laws"]
+        self._start, self._tick, self._steps = namespace["start"], namespace["laws"], namespace["steps"]
 
     def _calls(self) -> dict:
         """What the tick calls (tick.py): the laws' functions and this controller's kinematics."""
@@ -305,10 +305,10 @@ class DriveController(Block):
                 "(steps must be contiguous from initialize)")
         if self._evaluated != n:   # no input set at this communication point: the inputs held
             self.evaluate()
-        N_pos, N_vel = self._N_pos, self._N_vel
-        for k in range(n + 1, n + m):    # the ticks inside the step, with the inputs held
-            if k % N_pos == 0 or k % N_vel == 0:
-                self._laws(k, self._t0 + k * T)
+        S = self._S
+        code = self._steps(self.values, S, self._R, self._CUR, self._QM, self._JK, n, m)   # the ticks inside
+        if code:
+            raise self._failed(code, self._t0 + S[LAYOUT["failed"]] * T)
         self._n = n + m
         self._before = ()
 

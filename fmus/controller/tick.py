@@ -1,7 +1,8 @@
 """The controllers' tick, stated once: the source the Python controllers run and the native FMUs compile.
 
-``tick_sources(cls, modes)`` writes a controller's ``start`` (``initialize``, after the reset) and ``laws``
-(the laws of tick n: ``DriveController``'s schedule, model.py) in the generated-code subset
+``tick_sources(cls, modes)`` writes a controller's ``start`` (``initialize``, after the reset), ``laws``
+(the laws of tick n: ``DriveController``'s schedule, model.py) and ``steps`` (the ticks inside a step of m
+ticks from tick n, the inputs held: those that run a loop) in the generated-code subset
 (mast.core.native.translate: float arithmetic, ``if``, indexing, calls): which loop runs at which tick, the
 pose command's inverse kinematics cached by pose, the joint reference's samples and rates (``REFERENCE_RATES``),
 then the controller's own laws, which each controller class states as lines of the same subset
@@ -104,9 +105,9 @@ def pi_lines(offset: Sequence[str]) -> list[str]:
             for j in range(3)]
 
 
-def tick_sources(cls: type, modes: Sequence[str] = ("pose",)) -> tuple[str, str]:
-    """``(start, laws)`` of the controller class ``cls`` (module docstring) for its operating ``modes``: with
-    "pose" alone (the native FMUs: the modes are no FMU variables) the tick has no mode test."""
+def tick_sources(cls: type, modes: Sequence[str] = ("pose",)) -> tuple[str, str, str]:
+    """``(start, laws, steps)`` of the controller class ``cls`` (module docstring) for its operating ``modes``:
+    with "pose" alone (the native FMUs: the modes are no FMU variables) the tick has no mode test."""
     S, ff = LAYOUT, cls.FEEDFORWARD_CURRENT
     moded = tuple(modes) != ("pose",)
     unpack = [f"{v} = S[{S[k] + j}]" for k, vs in _COMMANDS.items() for j, v in enumerate(vs)]
@@ -131,12 +132,19 @@ def tick_sources(cls: type, modes: Sequence[str] = ("pose",)) -> tuple[str, str]
         body = [f"if n % S[{S['N_pos']}] == 0.0:", *_indented(position, "    "),
                 f"if n % S[{S['N_vel']}] == 0.0:", *_indented(velocity, "    ")]
     laws = ["def laws(values, S, R, CUR, QM, JK, n):", *_indented([*unpack, *body, *store], "    ")]
-    return "\n".join(start) + "\n", "\n".join(laws) + "\n"
+    steps = ["def steps(values, S, R, CUR, QM, JK, n, m):",
+             "    k = n + 1", "    inner = m - 1",
+             "    for _ in range(inner):",
+             f"        if k % S[{S['N_pos']}] == 0.0 or k % S[{S['N_vel']}] == 0.0:",
+             "            c = laws(values, S, R, CUR, QM, JK, k)",
+             "            if c != 0:", "                return c",
+             "        k += 1",
+             "    return 0"]
+    return tuple("\n".join(lines) + "\n" for lines in (start, laws, steps))
 
 
 @lru_cache(maxsize=None)
 def compiled(cls: type, modes: tuple[str, ...]) -> tuple:
     """The code objects of ``tick_sources(cls, modes)`` for Python (compiled once per class)."""
-    start, laws = tick_sources(cls, modes)
-    return (compile(start, f"<{cls.__name__} tick: start>", "exec"),
-            compile(laws, f"<{cls.__name__} tick: laws>", "exec"))
+    return tuple(compile(source, f"<{cls.__name__} tick: {name}>", "exec")
+                 for name, source in zip(("start", "laws", "steps"), tick_sources(cls, modes)))

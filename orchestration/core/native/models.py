@@ -20,7 +20,8 @@ code, which ``translate.to_c`` writes as C:
   and computed-torque controllers' inverse model: direct kinematics and dynamics; the workspace
   controller's direct kinematics and Jacobian), and the tick the Python controllers run
   (``fmus.controller.tick.tick_sources``: ``DriveController``'s schedule, the IK cache, the
-  reference's rates, each controller's own law lines, ``position_lines`` and ``velocity_lines``),
+  reference's rates, each controller's own law lines, ``position_lines`` and ``velocity_lines``, the
+  ticks inside a step),
   translated; what it calls is translated from the models' own source (``pi_step``,
   ``drive_gains``, ``cascade_gains``, ``transmission_ratio``, the controllers' ``LAWS``,
   ``reference.rates``, ``inverse_model.motor_torque``, ``guide_friction``,
@@ -32,7 +33,7 @@ tests/test_native.py: the outputs of the actuator at rest (``initialize``), the 
 kinematics (``MechanismBlock._compute``, ``InverseModel.torques``, ``WorkspaceController._wsdk``: warm
 start, cold restart, messages), the actuator's doubling of its substeps around ``mast_expm`` and the
 allocation of its delay line, and the controllers' ``evaluate`` and ``do_step`` around the tick (once
-per communication point, the ticks inside a step).
+per communication point, the step's checks and messages).
 
 Parameters: read at run time, with what depends on them computed at initialisation, for the
 trajectory, the actuator (all but its chain's structure, ``ACTUATOR_STRUCTURE``: the size of its
@@ -897,7 +898,7 @@ def _joint_controller(block, vrs: Mapping[str, int]) -> str:
     checks = {k: v for fn in fns for k, v in fn.namespace.items() if k.startswith("_check")}
     PO = LAYOUT["P"]
     args = ", ".join(f"S[{PO + k}]" for k in range(len(TRACED_PARAMETERS)))
-    start, laws_source = tick_sources(type(block))     # pose mode only: the modes are no FMU variables
+    start, laws_source, steps = tick_sources(type(block))     # pose mode only: the modes are no FMU variables
     inputs = ", ".join(_literal(n) for n in block.INPUTS)
     ratios = "".join(f"    if (ratio_check({_literal(name)}, {P(name)}, {P('T_cur')}, msg, size)) return MAST_PARAMETER_ERROR;\n"
                      for name in ("T_pos", "T_vel"))
@@ -941,6 +942,7 @@ def _joint_controller(block, vrs: Mapping[str, int]) -> str:
         *[to_c(inspect.getsource(law), law.__name__) for law in laws],
         to_c(laws_source, "laws", arrays=("values", "S", "R", "CUR", "QM", "JK"),
              calls=("ik_s", "pi_step", "rates", "currents", "wsdk", "ikjac_s"), values=[law.__name__ for law in laws]),
+        to_c(steps, "steps", arrays=("values", "S", "R", "CUR", "QM", "JK"), calls=("laws",)),
         f"static const char *const INPUT_NAMES[] = {{{inputs}}};", "",
         "static int input_error(const double *values, double t, char *msg, size_t size)", "{",
         "    char v[40], w[40];",
@@ -979,16 +981,18 @@ def _joint_controller(block, vrs: Mapping[str, int]) -> str:
         "    if (input_error(values, t0, msg, size)) return MAST_MODEL_ERROR;",
         "    int code = start(values, s->S, R);",
         "    return code ? ik_error(values, t0, -code, msg, size) : MAST_OK;", "}", "",
-        "/* DriveController._laws of tick n (the outputs too); 0, or an error code with msg */",
-        "static int run_laws(State *s, double *values, double n, char *msg, size_t size)", "{",
-        "    double R[3], CUR[3], QM[3], JK[12];",
+        "/* the message of the tick's failure code (DriveController._failed) */",
+        "static int tick_error(State *s, double *values, int code, char *msg, size_t size)", "{",
         f"    double T = s->S[{LAYOUT['T_cur']}], t0 = s->S[{LAYOUT['t0']}];",
-        "    int code = laws(values, s->S, R, CUR, QM, JK, n);",
         *([f"    if (code == {MODEL_FAILED}) return model_error(s->S, msg, size);"] if model else []),
         *([f"    if (code == {DK_FAILED}) return dk_error(s->S, t0 + s->S[{LAYOUT['failed']}] * T, msg, size);"]
           if workspace else []),
-        f"    if (code) return ik_error(values, t0 + s->S[{LAYOUT['failed']}] * T, -code, msg, size);",
-        "    return MAST_OK;", "}", "",
+        f"    return ik_error(values, t0 + s->S[{LAYOUT['failed']}] * T, -code, msg, size);", "}", "",
+        "/* DriveController._laws of tick n (the outputs too); 0, or an error code with msg */",
+        "static int run_laws(State *s, double *values, double n, char *msg, size_t size)", "{",
+        "    double R[3], CUR[3], QM[3], JK[12];",
+        "    int code = laws(values, s->S, R, CUR, QM, JK, n);",
+        "    return code ? tick_error(s, values, code, msg, size) : MAST_OK;", "}", "",
         "/* DriveController.evaluate: the laws of the communication point's tick, once per tick */",
         "static int evaluate(void *state, double *values, const mast_parameters *p, char *msg, size_t size)", "{",
         "    State *s = state;", "    (void)p;",
@@ -1016,9 +1020,8 @@ def _joint_controller(block, vrs: Mapping[str, int]) -> str:
         "        return MAST_MODEL_ERROR;", "    }",
         "    int code;",
         "    if (s->evaluated != n && (code = evaluate(s, values, p, msg, size))) return code;",
-        f"    for (double k = n + 1.0; k < n + m; k += 1.0) {{   /* the ticks inside the step, the inputs held */",
-        f"        if (fmod(k, s->S[{LAYOUT['N_pos']}]) == 0.0 || fmod(k, s->S[{LAYOUT['N_vel']}]) == 0.0) {{",
-        "            if ((code = run_laws(s, values, k, msg, size))) return code;", "        }", "    }",
+        "    double R[3], CUR[3], QM[3], JK[12];",
+        "    if ((code = steps(values, s->S, R, CUR, QM, JK, n, m))) return tick_error(s, values, code, msg, size);",
         f"    s->S[{LAYOUT['n']}] = n + m;",
         "    return MAST_OK;", "}", ""])
 
