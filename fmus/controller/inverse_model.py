@@ -31,8 +31,8 @@ from ..actuator.model import PARAMETERS as ACTUATOR_PARAMETERS
 from ..actuator.model import _real, guide_friction, transmission_ratio, two_inertia
 from ..common.parameters import Value
 from ..mechanism.designs import MASS_PARAMETERS, PAYLOAD_PARAMETERS, engine
-from ..mechanism.engine import SingularityError
 from ..mechanism.kinematics import KinematicsError
+from ..mechanism.model import restarted_dk
 
 _ACTUATOR = {p.name: p for p in ACTUATOR_PARAMETERS}
 
@@ -87,6 +87,7 @@ class InverseModel:
         self.weight = c["weight"]       # [N] along the guide
         self.engine = engine(P, self.owner) if int(P["attached"]) else None
         self._guess = None
+        self._found = self._failure = None      # the last direct kinematics' solution, or failure (mechanism.model.dk)
 
     @property
     def warm_start(self):
@@ -103,15 +104,10 @@ class InverseModel:
         if self.engine is None:
             F = (0.0, 0.0, 0.0)
         else:
-            try:
-                try:
-                    q, Jq, _ = self.engine.dk(rho, self._guess)
-                except SingularityError:
-                    raise                     # as the mechanism block: no cold restart across a singularity
-                except KinematicsError:
-                    if self._guess is None:
-                        raise
-                    q, Jq, _ = self.engine.dk(rho, None)
+            try:     # as the mechanism block: warm start, else cold; no cold restart across a singularity
+                if restarted_dk(rho[0], rho[1], rho[2], 0.0 if self._guess is None else 1.0, self, None):
+                    raise self._failure
+                q, Jq = self._found
                 F = self.engine.forces(q, Jq, rho_dot, rho_ddot)
             except KinematicsError as exc:
                 raise KinematicsError(f"{self.owner}: inverse dynamic model at rho = {tuple(rho)!r} m: {exc}") from exc

@@ -24,6 +24,37 @@ from .designs import KINEMATIC_PARAMETERS, MASS_PARAMETERS, PAYLOAD_PARAMETERS, 
 from .engine import SingularityError
 from .kinematics import KinematicsError
 
+#: the code of a direct kinematics refused at (or near) a singularity (mast_model.h: MAST_SINGULARITY_ERROR)
+SINGULAR = 4
+
+
+def dk(r0: float, r1: float, r2: float, warm: float, S, out) -> int:
+    """One attempt of the direct kinematics of rho = (r0, r1, r2) [m] by ``S`` (a MechanismBlock or an
+    InverseModel: its ``engine``), from its last solution ``S._guess`` when ``warm`` (1.0), else from the
+    description's guess: 0 (the solution in ``S._found``: q and dq/drho), SINGULAR or 1 (the exception in
+    ``S._failure``). ``restarted_dk`` calls it; the native models' C has its own (``mast_dk3``)."""
+    try:
+        q, J, _ = S.engine.dk((r0, r1, r2), S._guess if warm == 1.0 else None)
+    except SingularityError as exc:
+        S._failure = exc
+        return SINGULAR
+    except KinematicsError as exc:
+        S._failure = exc
+        return 1
+    S._found = (q, J)
+    return 0
+
+
+def restarted_dk(r0: float, r1: float, r2: float, warm: float, S, out) -> int:
+    """The direct kinematics of rho = (r0, r1, r2) [m] (``dk``, its solution in ``out``), from the last solution
+    when ``warm`` (1.0), else from the description's guess; a warm start that fails starts again from the guess,
+    but never after a singularity (a cold start could jump to another pose). 0, or the last attempt's code.
+    Written in the generated-code subset: the native mechanism and controllers run this source."""
+    c = dk(r0, r1, r2, warm, S, out)
+    if c != 0 and c != SINGULAR and warm == 1.0:
+        c = dk(r0, r1, r2, 0.0, S, out)
+    return c
+
 
 class MechanismBlock(Block):
     """3PRS mechanism: DK and IDP; outputs the actuator forces and the platform pose."""
@@ -60,6 +91,7 @@ class MechanismBlock(Block):
         self.engine = engine(self.params, self.name)
         self.attached = bool(self.params["attached"])
         self._guess = None
+        self._found = self._failure = None      # the last direct kinematics' solution, or failure (``dk``)
 
     # -------------------------------------------------------------------------------------
     def _compute(self, t: float) -> None:
@@ -71,14 +103,9 @@ class MechanismBlock(Block):
         rho = (vals[0], vals[1], vals[2])
         eng = self.engine
         try:
-            try:
-                q, J, _ = eng.dk(rho, self._guess)
-            except SingularityError:
-                raise                         # never restarted: a cold start could jump to another pose
-            except KinematicsError:
-                if self._guess is None:
-                    raise
-                q, J, _ = eng.dk(rho, None)   # did not converge: cold start from the level pose
+            if restarted_dk(vals[0], vals[1], vals[2], 0.0 if self._guess is None else 1.0, self, None):
+                raise self._failure
+            q, J = self._found
             if self.attached:
                 out = eng.forces(q, J, (vals[3], vals[4], vals[5]), (vals[6], vals[7], vals[8]))
             else:

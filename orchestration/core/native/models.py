@@ -28,10 +28,14 @@ code, which ``translate.to_c`` writes as C:
   ``designs.level_height``);
 - trajectory: the sine about the home pose (its parameters read at run time).
 
+The direct kinematics' restart policy (warm start, else cold; a cold restart after a failed warm
+start, never after a singularity) is ``mechanism.model.restarted_dk``, which ``MechanismBlock`` and
+``InverseModel`` run and the mechanism and the feed-forward and computed-torque controllers translate.
+
 What the models' generators do not cover is restated here in C, held to the Python model by
-tests/test_native.py: the outputs of the actuator at rest (``initialize``), the glue of the direct
-kinematics (``MechanismBlock._compute``, ``InverseModel.torques``, ``WorkspaceController._wsdk``: warm
-start, cold restart, messages), the actuator's doubling of its substeps around ``mast_expm`` and the
+tests/test_native.py: the outputs of the actuator at rest (``initialize``), the one attempt of the
+direct kinematics each C file makes (``dk``: ``mast_dk3`` from its guess) and the messages around it
+(``MechanismBlock._compute``, ``InverseModel.torques``, ``WorkspaceController._wsdk``), the actuator's doubling of its substeps around ``mast_expm`` and the
 allocation of its delay line, and the controllers' ``evaluate`` and ``do_step`` around the tick (once
 per communication point, the step's checks and messages).
 
@@ -730,7 +734,10 @@ def _mechanism(block, vrs: Mapping[str, int]) -> str:
     and g as named inputs (``designs.traced_engine``), their values read at initialisation, with what the
     traced functions compute from them alone (``split_invariants``: once, not at every step); the geometry
     checks of ``designs.describe`` (the same messages) at exitInitializationMode."""
+    import inspect
+
     from fmus.mechanism.designs import TRACED_PARAMETERS, traced_engine
+    from fmus.mechanism.model import SINGULAR, restarted_dk
 
     eng = traced_engine(block.params, block.name)
     if tuple(eng.parameters) != TRACED_PARAMETERS or len(eng.lengths) != 3 \
@@ -745,8 +752,8 @@ def _mechanism(block, vrs: Mapping[str, int]) -> str:
     params = ", ".join(f"P[{k}]" for k in range(NP))
     inputs = ", ".join(_literal(n) for n in block.INPUTS)
     coordinates = ", ".join(_literal(n) for n in eng.description.coordinates)
-    dk = (f"mast_dk3(ikjac_k_p, s->P, why, COORDINATES, s->lengths, {c_double(eng.margin)}, values, q, J, 1e-12, 50, "
-          f"{c_double(eng.cond_limit)}, why_text, sizeof why_text)")
+    dk = (f"mast_dk3(ikjac_k_p, s->P, why, COORDINATES, s->lengths, {c_double(eng.margin)}, rho, out, out + 3, "
+          f"1e-12, 50, {c_double(eng.cond_limit)}, s->why_text, sizeof s->why_text)")
     attached = f"p->integer[{vrs['attached']}]"
     # the parts of the traced functions that depend on the parameters alone, computed at initialisation
     hoisted = {name: split_invariants(fn.source, TRACED_PARAMETERS) for name, fn in
@@ -754,11 +761,9 @@ def _mechanism(block, vrs: Mapping[str, int]) -> str:
     sizes = {name: max(1, n) for name, (_, _, n) in hoisted.items()}
     invariant_code = [to_c(hoisted[name][0], f"{name}_invariants") for name in hoisted]
     hot_code = [to_c(hoisted[name][1], f"{name}_k", arrays=("K",), checks=checks) for name in hoisted]
-    cold = [f"        q[0] = level_height(values[0], values[1], values[2], {P['H']}, {P['r']}, {P['L']}, s->cb, s->sb);",
-            "        q[1] = 0.0; q[2] = 0.0;"]
     return "\n".join([
         f"typedef struct {{ double q[3]; int warm; double P[{NP + sizes['ikjac']}]; double K_dynamics[{sizes['dynamics']}];",
-        f"                 double K_pose[{sizes['pose']}]; double lengths[3]; double cb, sb; }} State;",
+        f"                 double K_pose[{sizes['pose']}]; double lengths[3]; double cb, sb; char why_text[1024]; }} State;",
         "/* P: the traced parameters (TRACED_PARAMETERS), then ikjac's invariants; K_*: the other functions' */", "",
         _ikjac_c(eng, "ikjac", checks),
         *invariant_code, *hot_code,
@@ -779,10 +784,24 @@ def _mechanism(block, vrs: Mapping[str, int]) -> str:
         "    snprintf(msg, size, \"at t = %s s, rho = (%s, %s, %s) m: %s\", mast_repr(t, d, sizeof d), "
         "mast_repr(values[0], a, sizeof a), mast_repr(values[1], b, sizeof b), mast_repr(values[2], c, sizeof c), what);",
         "    return MAST_KINEMATICS_ERROR;", "}", "",
-        "/* MechanismBlock._compute: direct kinematics (warm start, else cold), then the forces and the pose */",
+        "/* mechanism.model.dk: one attempt from the last solution (warm), else from the level pose (the cold start);",
+        "   S: the instance (State's first member), out: q, then J = dq/drho; a failure's message in s->why_text */",
+        "static int dk(double r0, double r1, double r2, double warm, double *S, double *out)", "{",
+        "    State *s = (State *)S;",
+        "    const double *P = s->P;",
+        "    double rho[3] = {r0, r1, r2};",
+        "    if (warm == 1.0) {",
+        "        for (int k = 0; k < 3; k++) out[k] = s->q[k];",
+        "    } else {",
+        f"        out[0] = level_height(r0, r1, r2, {P['H']}, {P['r']}, {P['L']}, s->cb, s->sb);",
+        "        out[1] = 0.0; out[2] = 0.0;", "    }",
+        f"    return {dk};", "}", "",
+        to_c(inspect.getsource(restarted_dk), "restarted_dk", arrays=("S", "out"), calls=("dk",),
+             constants={"SINGULAR": SINGULAR}),
+        "/* MechanismBlock._compute: direct kinematics (restarted_dk), then the forces and the pose */",
         "static int compute(State *s, double *values, const mast_parameters *p, double t, char *msg, size_t size)", "{",
-        "    char v[40], w[40], why_text[1024];",
-        "    double q[3], J[9];",
+        "    char v[40], w[40];",
+        "    double qJ[12], *q = qJ, *J = qJ + 3;",
         "    const double *P = s->P;",
         "    int code;",
         "    for (int k = 0; k < 9; k++) {",
@@ -790,18 +809,9 @@ def _mechanism(block, vrs: Mapping[str, int]) -> str:
         "            snprintf(msg, size, \"input '%s' = %s is not finite at t = %s s\", INPUT_NAMES[k], "
         "mast_repr(values[k], v, sizeof v), mast_repr(t, w, sizeof w));",
         "            return MAST_MODEL_ERROR;", "        }", "    }",
-        "    if (s->warm) {",
-        "        for (int k = 0; k < 3; k++) q[k] = s->q[k];",
-        "    } else {   /* the cold start */",
-        *cold,
-        "    }",
-        f"    code = {dk};",
-        "    if (code && code != MAST_SINGULARITY_ERROR && s->warm) {   /* never restarted after a SingularityError */",
-        *cold,
-        f"        code = {dk};",
-        "    }",
+        "    code = restarted_dk(values[0], values[1], values[2], s->warm ? 1.0 : 0.0, (double *)s, qJ);",
         "    if (code) {",
-        "        kinematics_error(values, t, why_text, msg, size);",
+        "        kinematics_error(values, t, s->why_text, msg, size);",
         "        return code;          /* MAST_KINEMATICS_ERROR, or MAST_SINGULARITY_ERROR: it stays one */",
         "    }",
         f"    if ({attached}) {{",
@@ -903,8 +913,8 @@ def _joint_controller(block, vrs: Mapping[str, int]) -> str:
     ratios = "".join(f"    if (ratio_check({_literal(name)}, {P(name)}, {P('T_cur')}, msg, size)) return MAST_PARAMETER_ERROR;\n"
                      for name in ("T_pos", "T_vel"))
     return "\n".join([
-        f"typedef struct {{ double S[{SIZE}]; double before[{SIZE}]; double evaluated; }} State;   "
-        "/* before: S before the laws of the tick evaluated */", "",
+        f"typedef struct {{ double S[{SIZE}]; double before[{SIZE}]; double evaluated; char text[1024]; }} State;",
+        "/* before: S before the laws of the tick evaluated; text: the message of a failed direct kinematics */", "",
         f"#define LENGTHS(S) ((S) + {SIZE - 3})   /* Engine.lengths (1, r, r) [m]: the margins compare motions */", "",
         _traced_parameters_c(vrs),
         to_c(ik.source, "ik", checks=checks),
@@ -1048,7 +1058,7 @@ def _model_constants_c(vrs: Mapping[str, int]) -> str:
 
 def _inverse_model(eng, vrs: Mapping[str, int]) -> str:
     """FeedForwardController's inverse model (InverseModel.currents) in C: the engine's direct
-    kinematics (warm start, else cold, as InverseModel.torques) and traced dynamics (``eng``, the traced
+    kinematics (``mechanism.model.restarted_dk``, translated, as InverseModel.torques runs it) and traced dynamics (``eng``, the traced
     engine of the controller's parameters: ``ikjac_p`` and ``forces`` with them read at initialisation;
     no forces when ``attached`` = 0), then ``motor_torque`` and ``guide_friction`` translated from their
     own source, with the actuator's constants computed at initialisation (``model_constants``, into
@@ -1059,13 +1069,14 @@ def _inverse_model(eng, vrs: Mapping[str, int]) -> str:
     from fmus.actuator.model import guide_friction
     from fmus.controller.inverse_model import CONSTANTS, motor_torque
     from fmus.controller.reference import rates
+    from fmus.mechanism.model import SINGULAR, restarted_dk
 
     MC = LAYOUT["model"]
     torque = ", ".join(f"S[{MC + k}]" for k in range(CONSTANTS.index("k_T")))
     W, G, A, PO = LAYOUT["warm"], LAYOUT["guess"], LAYOUT["model_args"], LAYOUT["P"]
     params = ", ".join(f"S[{PO + k}]" for k in range(len(eng.parameters)))
-    dk = (f"mast_dk3(ikjac_p, S + {PO}, why, M_COORDINATES, LENGTHS(S), {c_double(eng.margin)}, a, q, J, 1e-12, 50, "
-          f"{c_double(eng.cond_limit)}, msg, size)")
+    dk = (f"mast_dk3(ikjac_p, S + {PO}, why, M_COORDINATES, LENGTHS(S), {c_double(eng.margin)}, rho, out, out + 3, "
+          f"1e-12, 50, {c_double(eng.cond_limit)}, s->text, sizeof s->text)")
     coordinates = ", ".join(_literal(n) for n in eng.description.coordinates)
     checks = {k: v for k, v in eng._fn("forces").namespace.items() if k.startswith("_check")}
     return "\n".join([
@@ -1075,17 +1086,22 @@ def _inverse_model(eng, vrs: Mapping[str, int]) -> str:
         to_c(inspect.getsource(guide_friction), "guide_friction"),
         to_c(inspect.getsource(motor_torque), "motor_torque", values=("guide_friction",)),
         f"static const char *const M_COORDINATES[] = {{{coordinates}}};", "",
+        "/* mechanism.model.dk for the inverse model: one attempt from its last solution (warm), else from the",
+        "   description's guess; S: the instance's state (State's first member), out: q, then J = dq/drho */",
+        "static int dk(double r0, double r1, double r2, double warm, double *S, double *out)", "{",
+        "    State *s = (State *)S;",
+        "    double rho[3] = {r0, r1, r2};",
+        f"    if (warm == 1.0) {{ for (int k = 0; k < 3; k++) out[k] = S[{G} + k]; }} else guess(S, rho, out);",
+        f"    return {dk};", "}", "",
+        to_c(inspect.getsource(restarted_dk), "restarted_dk", arrays=("S", "out"), calls=("dk",),
+             constants={"SINGULAR": SINGULAR}),
         "/* InverseModel.currents at a = (rho, rho_dot, rho_ddot); 0, or an error code with msg */",
         "static int model_eval(const double *a, double *S, double *out, char *msg, size_t size)", "{",
-        "    double q[3], J[9], cold[3], F[12] = {0.0, 0.0, 0.0};",
+        "    double qJ[12], *q = qJ, *J = qJ + 3, F[12] = {0.0, 0.0, 0.0};",
         f"    if (S[{LAYOUT['attached']}] != 0.0) {{",
-        "        guess(S, a, cold);",
-        f"        for (int k = 0; k < 3; k++) q[k] = S[{W}] == 1.0 ? S[{G} + k] : cold[k];",
-        f"        int code = {dk};",
-        f"        if (code && code != MAST_SINGULARITY_ERROR && S[{W}] == 1.0) {{   /* never restarted after a SingularityError */",
-        "            for (int k = 0; k < 3; k++) q[k] = cold[k];",
-        f"            code = {dk};", "        }",
-        "        if (code) return code;",
+        f"        int code = restarted_dk(a[0], a[1], a[2], S[{W}], S, qJ);",
+        "        if (code) {", "            snprintf(msg, size, \"%s\", ((State *)S)->text);", "            return code;",
+        "        }",
         "        code = forces(q[0], q[1], q[2], J[0], J[1], J[2], J[3], J[4], J[5], J[6], J[7], J[8], "
         f"a[3], a[4], a[5], a[6], a[7], a[8], {params}, F);",
         "        if (code) {", "            snprintf(msg, size, \"%s\", why(-code));",
