@@ -35,9 +35,10 @@ start, never after a singularity) is ``mechanism.model.restarted_dk``, which ``M
 What the models' generators do not cover is restated here in C, held to the Python model by
 tests/test_native.py: the outputs of the actuator at rest (``initialize``), the one attempt of the
 direct kinematics each C file makes (``dk``: ``mast_dk3`` from its guess) and the messages around it
-(``MechanismBlock._compute``, ``InverseModel.torques``, ``WorkspaceController._wsdk``), the actuator's doubling of its substeps around ``mast_expm`` and the
-allocation of its delay line, and the controllers' ``evaluate`` and ``do_step`` around the tick (once
-per communication point, the step's checks and messages).
+(``MechanismBlock._compute``, ``InverseModel.torques``, ``WorkspaceController._wsdk``), the actuator's
+doubling of its substeps around ``mast_expm`` and the allocation of its delay line, and the
+controllers' ``evaluate`` and ``do_step`` around the tick (once per communication point, the step's
+checks and messages).
 
 Parameters: read at run time, with what depends on them computed at initialisation, for the
 trajectory, the actuator (all but its chain's structure, ``ACTUATOR_STRUCTURE``: the size of its
@@ -1058,8 +1059,8 @@ def _model_constants_c(vrs: Mapping[str, int]) -> str:
 
 def _inverse_model(eng, vrs: Mapping[str, int]) -> str:
     """FeedForwardController's inverse model (InverseModel.currents) in C: the engine's direct
-    kinematics (``mechanism.model.restarted_dk``, translated, as InverseModel.torques runs it) and traced dynamics (``eng``, the traced
-    engine of the controller's parameters: ``ikjac_p`` and ``forces`` with them read at initialisation;
+    kinematics (``mechanism.model.restarted_dk``, translated, as InverseModel.torques runs it) and traced
+    dynamics (``eng``, the traced engine of the controller's parameters: ``ikjac_p`` and ``forces`` with them read at initialisation;
     no forces when ``attached`` = 0), then ``motor_torque`` and ``guide_friction`` translated from their
     own source, with the actuator's constants computed at initialisation (``model_constants``, into
     S[model]). ``currents`` is what the tick calls; ``model_error`` makes the message of a failed

@@ -6,7 +6,11 @@ actuator writes its exact-discretisation step with the implicit friction solve
 (``actuator.model._kernel_source``). That generated code uses a small, fixed subset of
 Python: float arithmetic (``%`` on the non-negative tick counters), comparisons,
 ``if``/``elif``/``else``, ``for _ in range(N)`` with ``break``, (tuple) assignments, indexing of
-the argument lists, calls of a few scalar functions and of other generated functions. This module writes that subset as C, operation for operation and in the same
+the argument lists, calls of a few scalar functions and of other generated functions. Some model
+code is written in the subset by hand and run by Python as it is (the controllers' tick,
+fmus/controller/tick.py; the actuator's substep rule and its torque measurement's delay line; the
+direct kinematics' restart, ``mechanism.model.restarted_dk``), so that C and Python share one source.
+This module writes that subset as C, operation for operation and in the same
 order (every binary operation parenthesised, no reassociation; compile without
 ``-ffast-math`` and with ``-ffp-contract=off``), so the C computes the same floats as the
 Python the tests compare against. Anything outside the subset is refused with the line it
@@ -16,8 +20,9 @@ A generated Python function becomes ``static int NAME(...)``:
 
 - ``%`` (the non-negative tick counters' only) is ``mast_mod`` (mast_native.h: fmod, exact);
 - arguments named in ``arrays`` are ``double *`` (read by index, written by index ``S[k] = x``, the
-  index a constant or a computed whole number, ``(int)`` in C, or by slice assignment ``x[:] = (...)``, ``values[k:] = (...)`` or ``S[k:k + 2] = (a, b)``: the same
-  stores in Python); the other arguments are doubles;
+  index a constant or a computed whole number, ``(int)`` in C, or by slice assignment ``x[:] = (...)``,
+  ``values[k:] = (...)`` or ``S[k:k + 2] = (a, b)``: the same stores in Python); the other arguments are
+  doubles;
 - ``return (a, b, ...)`` (the engine's functions) writes ``out[0..]`` and returns 0; a function
   returning one computed number is a ``static double`` value function, callable in the
   expressions of others (``values``); ``float(x)``, ``math.pi``, ``math.exp(x)``, ``x ** y`` (libm's
