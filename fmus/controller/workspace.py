@@ -16,9 +16,7 @@ pose command is the direct kinematics of the given rho_cmd.
 """
 from __future__ import annotations
 
-from typing import Mapping
-
-from ..common.parameters import Value, nonnegative
+from ..common.parameters import nonnegative
 from ..mechanism.kinematics import KinematicsError
 from .model import ControllerBlock
 from .tick import DK_FAILED, LAYOUT, TARGET_FAILED, failed_call
