@@ -23,6 +23,8 @@ from fmus.common.parameters import ParameterError
 from fmus.controller.computed_torque import ComputedTorqueController
 from fmus.controller.inverse_model import InverseModel
 from fmus.controller.reference import rates
+from fmus.controller.workspace import WorkspaceController
+from fmus.mechanism.kinematics import KinematicsError
 from mast.core.build import default_parameters
 from mast.core.controllers import CONTROLLERS, variant_ssd
 from mast.core.motion import PoseStep, SineMotion
@@ -220,6 +222,21 @@ def test_workspace_gains_shape_each_pose_direction(systems):
         assert np.max(np.abs(e_work - e_joint)) < 0.01 * steps[axis], axis
     theta = work.signals["mechanism.theta"] - work.signals["mechanism.theta"][0]
     assert np.max(np.abs(theta)) < 0.01 * steps["psi"]          # decoupled: no theta motion
+
+
+def test_workspace_controller_in_joint_mode_refuses_a_joint_command_it_cannot_reach():
+    """In "joint" mode the pose target is the direct kinematics of rho_cmd (the tick's joint-mode branch, which
+    only Python runs): an unreachable rho_cmd stops the tick with the message naming it and the tick's time."""
+    ctl = WorkspaceController(controller_params("workspace"), "ws")
+    ctl.set(z_cmd=0.40, rho_1=0.15, rho_2=0.15, rho_3=0.15)
+    ctl.set_mode("joint", (0.15, 0.15, 0.15))
+    ctl.initialize(0.0)
+    ctl.do_step(0.0, 1e-3)
+    assert [ctl.get(f"rho_cmd_{j}") for j in (1, 2, 3)] == [0.15, 0.15, 0.15]
+    ctl.set_mode("joint", (0.15, 0.9, 0.15))
+    with pytest.raises(KinematicsError, match=r"^ws: direct kinematics of the joint command rho = \(0\.15, 0\.9, 0\.15\) m "
+                                              r"failed at t = 0\.001 s: direct kinematics did not converge"):
+        ctl.do_step(1e-3, 1e-3)
 
 
 def test_workspace_control_with_unit_gains_is_the_joint_cascade_for_small_motions(systems):
