@@ -611,20 +611,23 @@ def test_the_native_actuator_follows_a_host_that_varies_its_step_and_refuses_a_s
     assert (np.abs(rows[0] - rows[1]).max(axis=0) <= TOLERANCE * scale).all()
 
 
-def test_the_native_axis_keeps_and_evicts_its_discretisations_as_the_python_model_steps(built, tmp_path):
+def test_the_native_axis_keeps_and_evicts_its_discretisations_as_the_python_model_steps(built, tmp_path,
+                                                                                       monkeypatch):
     """The cache of DISCRETISATIONS_KEPT step sizes (the slot of the last h, the oldest recomputed when it
     comes back) is unreachable through MastActuator: its axis steps T_cur whatever the host's step. So the
     voltage-in axis alone (ActuatorBlock, which the generator also emits) is compiled here and stepped with
     DISCRETISATIONS_KEPT + 3 sizes, most of them not multiples of 100 us, all of them first and then again
     in another order (slots evicted and recomputed), against ActuatorBlock in Python (measured: 7.4e-12); then
-    the chain n_dof = 3 of the same binary, set at run time."""
+    the chain n_dof = 3 of the same binary, set at run time (generated with N_MAX = 3: a third of the compile)."""
     from fmpy.fmi2 import FMU2Slave
 
     from fmus.actuator.model import ActuatorBlock
     from mast.core.build import default_parameters
     from mast.core.native.build import compile_shared, native_sources
+    from mast.core.native import models
     from mast.core.native.models import DISCRETISATIONS_KEPT
 
+    monkeypatch.setattr(models, "N_MAX", 3)
     # the drive's modelDescription made the axis': u in for i_cmd, no u out, no loop parameters
     root = etree.fromstring(zipfile.ZipFile(built / "fmus" / "MastActuator.fmu").read("modelDescription.xml"))
     order = [*ActuatorBlock.INPUTS, *ActuatorBlock.OUTPUTS, *(p.name for p in ActuatorBlock.PARAMETERS)]
@@ -792,7 +795,7 @@ def _start_with(inst: Instance, parameters: dict) -> int:
 def test_one_native_actuator_runs_every_n_dof_up_to_n_max_set_at_run_time_as_the_python_fmu(built):
     """n_dof is read at run time (docs/native.md): the one native MastActuator set to 1, 2, 3 and N_MAX before
     initialisation, with other parameters on top, against the Python FMU with the same settings (measured: at
-    most 4e-15 relative); bad chain lists get the Python FMU's messages; N_MAX + 1 is refused with a message
+    most 1.4e-11 relative, at n_dof = N_MAX: the expm, docs/native.md); bad chain lists get the Python FMU's messages; N_MAX + 1 is refused with a message
     naming it, N_MAX and what to do."""
     from mast.core.native.models import N_MAX
 

@@ -5,7 +5,8 @@ code, which ``translate.to_c`` writes as C:
 
 - actuator: the exact-discretisation step with the implicit friction solve, bound by name
   (``ActuatorBlock._bind``'s source, with the parameters' numbers as names too), one kernel per
-  structure the parameters select; the parameters' numbers traced through the model's relations
+  structure the parameters select, for each chain n_dof = 1..``N_MAX`` (one binary, the chain chosen
+  by n_dof at initialisation); the parameters' numbers traced through the model's relations
   (``kernel_constants``, ``state_matrices``, ``backlash_systems``, ``_friction_constants``); the
   discretisation of each step size computed in C (``mast_expm``);
 - mechanism (every design): the engine's traced functions (inverse kinematics with its
@@ -32,16 +33,14 @@ by tests/test_native.py until the Python controllers run this generated tick the
 the actuator (``ActuatorBlock._substeps``' substep rule, ``TorqueSensor.step``'s delay line), held
 to the Python model by the same tests.
 
-Parameters: read at run time, with what depends on them computed at initialisation, for the
-trajectory, the actuator (all but its chain's structure, ``ACTUATOR_STRUCTURE``: the size of its
-state), the mechanism (all of them) and the controllers (all of them: gains, cycle times,
-transmission, geometry, the inverse model's bodies and its actuator constants, by
-``inverse_model.model_constants`` traced); the checks the Python model makes of a parameter set
-(ranges, ``DriveController._ratio``, ``designs.describe``) run at exitInitializationMode with its
-messages. Inlined: the actuator's chain structure. ``generated_parameters`` names it, the C model
-checks at initialisation that it still has the value it was generated for, and refuses another
-value with a message naming it. The project's master generates the model for another one when it
-needs one (``build.for_parameters``).
+Parameters: all read at run time, with what depends on them computed at initialisation: the
+trajectory's, the actuator's (n_dof too: the chains 1..``N_MAX`` are all in the binary; a parameter set with
+a larger n_dof adds its own, ``actuator_structures``), the mechanism's and the controllers' (gains, cycle
+times, transmission, geometry, the inverse model's bodies and its actuator constants, by
+``inverse_model.model_constants`` traced); the checks the Python model makes of a parameter set (ranges,
+``DriveController._ratio``, ``designs.describe``) run at exitInitializationMode with its messages. An n_dof
+above the chains an actuator carries is refused there with a message naming it and ``N_MAX``; the project's
+master generates the model with that chain when it needs one (``to_generate``, ``build.for_parameters``).
 """
 from __future__ import annotations
 
