@@ -277,15 +277,15 @@ def for_parameters(fmu: Path, parameters: Mapping[str, object]) -> Path:
     except ParameterError:   # the FMU names the bad value at initialisation, as every FMU does
         return fmu
     own = validate(specs, made["parameters"], ident)
-    inlined = to_generate(block_class(ident), own, wanted)    # the others are set at run time
-    if not inlined:
+    structure = to_generate(block_class(ident), own, wanted)    # the others are set at run time
+    if not structure:
         return fmu
-    key = hashlib.sha256(json.dumps([ident, inlined], sort_keys=True, default=str).encode())
+    key = hashlib.sha256(json.dumps([ident, own, structure], sort_keys=True, default=str).encode())
     for file in sorted([*(REPO / "fmus").rglob("*.py"), *(REPO / "fmus").rglob("*.[ch]"),
                         *Path(__file__).parent.glob("*.py")]):   # the model and generator code
         key.update(file.read_bytes())
     folder = cache_dir() / key.hexdigest()[:16]
     target = folder / f"{ident}.fmu"
     if not target.exists():
-        build_native_fmu(ident, fmu, folder, {**own, **inlined})   # start values: the FMU's own
+        build_native_fmu(ident, fmu, folder, {**own, **structure})   # start values: the FMU's own
     return target
