@@ -393,18 +393,6 @@ def test_a_controller_whose_direct_kinematics_fails_is_refused_with_the_python_f
     assert messages[0].split(", where:")[0] == messages[1].split(", where:")[0]
 
 
-def test_a_parameter_the_code_was_generated_for_is_refused_with_another_value(built):
-    """The actuator's chain structure (the size of its state) is inlined in the generated code (docs/native.md)."""
-    inst = _native(built, "MastActuator", "axis")
-    inst.slave.setupExperiment(startTime=0.0)
-    inst.slave.enterInitializationMode()
-    inst.slave.setInteger([inst.vr["n_dof"]], [1])
-    assert inst.dll.fmi2ExitInitializationMode(inst.c) == OK
-    message = next(m for s, m in inst.log if s == ERROR)
-    assert "parameter 'n_dof' = 1: this native FMU was generated for n_dof = 2" in message
-    inst.close()
-
-
 def test_200_instantiate_free_cycles_of_a_c_host_are_clean_under_valgrind_and_5000_keep_memory_flat(built, tmp_path):
     valgrind = shutil.which("valgrind")
     host = tmp_path / "cycles"
@@ -636,20 +624,24 @@ def test_the_native_actuator_follows_a_host_that_varies_its_step_and_refuses_a_s
     assert (np.abs(rows[0] - rows[1]).max(axis=0) <= TOLERANCE * scale).all()
 
 
-def test_the_native_axis_keeps_and_evicts_its_discretisations_as_the_python_model_steps(built, tmp_path):
+def test_the_native_axis_keeps_and_evicts_its_discretisations_as_the_python_model_steps(built, tmp_path,
+                                                                                       monkeypatch):
     """The cache of DISCRETISATIONS_KEPT step sizes (the slot of the last h, the oldest recomputed when it
     comes back) is unreachable through MastActuator: its axis steps T_cur whatever the host's step. So the
     voltage-in axis alone (ActuatorBlock, which the generator also emits) is compiled here and stepped with
     DISCRETISATIONS_KEPT + 3 sizes, most of them not multiples of 100 us, all of them first and then again
     in another order (slots evicted and recomputed), against ActuatorBlock in Python (measured: 7.4e-12); the
-    torque measurement's delay line laid out again for every new size (TorqueSensor's relayout)."""
+    torque measurement's delay line laid out again for every new size (TorqueSensor's relayout); then the chain
+    n_dof = 3 of the same binary, set at run time (generated with N_MAX = 3: a third of the compile)."""
     from fmpy.fmi2 import FMU2Slave
 
     from fmus.actuator.model import ActuatorBlock
     from mast.core.build import default_parameters
     from mast.core.native.build import compile_shared, native_sources
+    from mast.core.native import models
     from mast.core.native.models import DISCRETISATIONS_KEPT
 
+    monkeypatch.setattr(models, "N_MAX", 3)
     # the drive's modelDescription made the axis': u in for i_cmd, no u out, no loop parameters
     root = etree.fromstring(zipfile.ZipFile(built / "fmus" / "MastActuator.fmu").read("modelDescription.xml"))
     order = [*ActuatorBlock.INPUTS, *ActuatorBlock.OUTPUTS, *(p.name for p in ActuatorBlock.PARAMETERS)]
@@ -662,40 +654,46 @@ def test_the_native_axis_keeps_and_evicts_its_discretisations_as_the_python_mode
     assert [sv.get("name") for sv in variables] == order
     for vr, sv in enumerate(variables):
         sv.set("valueReference", str(vr))
-    tuned = {"tau_s": 0.02, "T_meas": 2e-4, "delay_meas": 3.3e-4, "tau_offset": 0.01}
-    params = {k: v for k, v in {**default_parameters("MastActuator"), **tuned}.items() if k in order}
+    measured = {"T_meas": 2e-4, "delay_meas": 3.3e-4, "tau_offset": 0.01}
+    params = {k: v for k, v in {**default_parameters("MastActuator"), "tau_s": 0.02, **measured}.items()
+              if k in order}
     sources, xml = native_sources("MastActuator", ActuatorBlock, params, etree.tostring(root))
     library = tmp_path / "binaries" / "linux64" / "MastActuator.so"
     library.parent.mkdir(parents=True)
     compile_shared(sources, library)
-    native = FMU2Slave(guid=etree.fromstring(xml).get("guid"), unzipDirectory=str(tmp_path),
-                       modelIdentifier="MastActuator", instanceName="axis")
-    native.instantiate()
-    native.setupExperiment(startTime=0.0)
-    native.enterInitializationMode()
-    native.setReal([order.index(name) for name in tuned], list(tuned.values()))
-    native.exitInitializationMode()
-    python = ActuatorBlock(params, "axis")
-    python.set(u=0.0, F=6.0)
-    python.initialize(0.0)
     sizes = [1e-4, 2.5e-5, 7e-5, 1.3e-4, 3e-4, 5e-5, 1e-3, 4.1e-4, 2e-4, 6.7e-5, 9e-4][:DISCRETISATIONS_KEPT + 3]
     assert len(set(sizes)) == DISCRETISATIONS_KEPT + 3
     outputs = [order.index(name) for name in ActuatorBlock.OUTPUTS]
-    t, rows = 0.0, []
-    for k in range(4 * len(sizes) + 20):                # each size twice in a row: the last slot's reuse too
-        h = sizes[3 * (k // 2) % len(sizes) if k < 2 * len(sizes) else k // 2 % len(sizes)]
-        u = 3.0 * math.sin(40.0 * t)
-        native.setReal([0, 1], [u, 6.0])
-        native.doStep(t, h)
-        python.set(u=u, F=6.0)
-        python.do_step(t, h)
-        rows.append((native.getReal(outputs), [python.get(name) for name in ActuatorBlock.OUTPUTS]))
-        t += h
-    native.terminate()
-    native.freeInstance()
-    got, expected = np.array(rows).transpose(1, 0, 2)
-    scale = np.abs(expected).max(axis=0)
-    assert (np.abs(got - expected).max(axis=0) <= TOLERANCE * scale).all()
+    # and the chain n_dof = 3 in the same binary, set at run time (a few steps of each size)
+    for tuned, steps in (({"tau_s": 0.02, **measured}, 4 * len(sizes) + 20),
+                         ({"tau_s": 0.02, **measured, "n_dof": 3, **_chain_lists(3)}, 30)):
+        native = FMU2Slave(guid=etree.fromstring(xml).get("guid"), unzipDirectory=str(tmp_path),
+                           modelIdentifier="MastActuator", instanceName="axis")
+        native.instantiate()
+        native.setupExperiment(startTime=0.0)
+        native.enterInitializationMode()
+        for name, value in tuned.items():
+            setter = {int: native.setInteger, str: native.setString, float: native.setReal}[type(value)]
+            setter([order.index(name)], [value])
+        native.exitInitializationMode()
+        python = ActuatorBlock({**params, **tuned}, "axis")
+        python.set(u=0.0, F=6.0)
+        python.initialize(0.0)
+        t, rows = 0.0, []
+        for k in range(steps):                # each size twice in a row: the last slot's reuse too
+            h = sizes[3 * (k // 2) % len(sizes) if k < 2 * len(sizes) else k // 2 % len(sizes)]
+            u = 3.0 * math.sin(40.0 * t)
+            native.setReal([0, 1], [u, 6.0])
+            native.doStep(t, h)
+            python.set(u=u, F=6.0)
+            python.do_step(t, h)
+            rows.append((native.getReal(outputs), [python.get(name) for name in ActuatorBlock.OUTPUTS]))
+            t += h
+        native.terminate()
+        native.freeInstance()
+        got, expected = np.array(rows).transpose(1, 0, 2)
+        scale = np.abs(expected).max(axis=0)
+        assert (np.abs(got - expected).max(axis=0) <= TOLERANCE * scale).all(), tuned
 
 
 def test_the_native_drive_holds_its_voltage_limit_without_winding_up_as_the_python_fmu(built):
@@ -795,62 +793,92 @@ def test_the_native_actuator_refuses_what_it_cannot_compute_with_a_message(built
     inst.close()
 
 
-def test_a_native_actuator_generated_for_the_rigid_axis_reproduces_the_python_fmu(built, tmp_path):
-    """n_dof = 1 (the chain's structure is generated: docs/native.md), with parameters set at run time on top."""
-    from mast.core.build import default_parameters
-    from mast.core.native.build import build_native_fmu
-
-    structure = {"n_dof": 1}
-    python = built / "fmus" / "MastActuator.fmu"
-    native = build_native_fmu("MastActuator", python, tmp_path, {**default_parameters("MastActuator"), **structure})
-    tuned = {"R": 0.35, "tau_s": 0.02, "T_meas": 2e-4}
-    rows = []
-    for fmu in (python, native):
-        inst = Instance(fmu, "axis")
-        inst.slave.setupExperiment(startTime=0.0)
-        inst.slave.enterInitializationMode()
-        for name, value in {**structure, **tuned}.items():
-            setter = {int: inst.slave.setInteger, str: inst.slave.setString, float: inst.slave.setReal}[type(value)]
-            setter([inst.vr[name]], [value])
-        assert inst.dll.fmi2ExitInitializationMode(inst.c) == OK and not [m for s, m in inst.log if s == ERROR]
-        rows.append(drive(inst, 0, 100, h=1e-4, seed=3.0))
-        inst.close()
-    scale = np.abs(rows[0]).max(axis=0)
-    assert (np.abs(rows[0] - rows[1]).max(axis=0) <= TOLERANCE * scale).all()
+def _chain_lists(n: int) -> dict:
+    """A chain of n_dof = n >= 3 (the two-inertia model's guide side split in n - 1 bodies and springs)."""
+    return {"J_chain": " ".join(["1.2e-4"] + [repr(2.1e-4 / (n - 1))] * (n - 1)),
+            "K_chain": " ".join([repr(1500.0 * (n - 1))] * (n - 1)), "C_chain": " ".join(["0.01"] * (n - 1))}
 
 
-def test_a_native_chain_takes_its_lists_at_run_time_and_refuses_bad_ones_as_the_python_fmu(built, tmp_path):
-    """n_dof = 3: the chain's lists parsed in the FMU, with other parameters set on top."""
-    from mast.core.build import default_parameters
-    from mast.core.native.build import build_native_fmu
+def _start_with(inst: Instance, parameters: dict) -> int:
+    """setupExperiment, enterInitializationMode, the parameters by type (Integer, String, Real), exitInitializationMode."""
+    inst.slave.setupExperiment(startTime=0.0)
+    inst.slave.enterInitializationMode()
+    for name, value in parameters.items():
+        setter = {int: inst.slave.setInteger, str: inst.slave.setString, float: inst.slave.setReal}[type(value)]
+        setter([inst.vr[name]], [value])
+    return inst.dll.fmi2ExitInitializationMode(inst.c)
 
-    python = built / "fmus" / "MastActuator.fmu"
-    structure = {"n_dof": 3, "J_chain": "1.2e-4 3e-5 2.1e-4", "K_chain": "900 1500", "C_chain": "0.01 0.02"}
-    native = build_native_fmu("MastActuator", python, tmp_path, {**default_parameters("MastActuator"), **structure})
-    for lists, expected in (({"J_chain": "1e-4, 4e-5 2e-4", "K_chain": "700 2000", "R": 0.35, "tau_s": 0.02,
-                              "T_meas": 2e-4}, None),
-                            ({"K_chain": "900"}, "expected 2 space separated numbers > 0 for n_dof = 3, got 1"),
-                            ({"C_chain": "0.01 -1"}, "item '-1' is not a finite number >= 0")):
+
+def test_one_native_actuator_runs_every_n_dof_up_to_n_max_set_at_run_time_as_the_python_fmu(built):
+    """n_dof is read at run time (docs/native.md): the one native MastActuator set to 1, 2, 3 and N_MAX before
+    initialisation, with other parameters on top, against the Python FMU with the same settings (measured: at
+    most 1.4e-11 relative, at n_dof = N_MAX: the expm, docs/native.md); bad chain lists get the Python FMU's messages; N_MAX + 1 is refused with a message
+    naming it, N_MAX and what to do."""
+    from mast.core.native.models import N_MAX
+
+    python, native = built / "fmus" / "MastActuator.fmu", built / "fmus" / "native" / "MastActuator.fmu"
+    cases = [({"n_dof": 1, "R": 0.35, "tau_s": 0.02, "T_meas": 2e-4}, None),
+             ({"n_dof": 2, "backlash": 0.002}, None),
+             ({"n_dof": 3, "J_chain": "1e-4, 4e-5 2e-4", "K_chain": "700 2000", "C_chain": "0.01 0.02", "R": 0.35,
+               "tau_s": 0.02, "T_meas": 2e-4}, None),
+             ({"n_dof": N_MAX, **_chain_lists(N_MAX), "tau_ripple": 0.01}, None),
+             ({"n_dof": 3, **_chain_lists(3), "K_chain": "900"}, "expected 2 space separated numbers > 0 for n_dof = 3, got 1"),
+             ({"n_dof": 4, **_chain_lists(4), "C_chain": "0.01 -1 0"}, "item '-1' is not a finite number >= 0"),
+             ({"n_dof": 1, "backlash": 0.002}, "backlash is modelled in the two-inertia transmission only (n_dof = 2, here 1)")]
+    runs = []
+    for parameters, expected in cases:
         rows, messages = [], []
         for fmu in (python, native):
             inst = Instance(fmu, "axis")
-            inst.slave.setupExperiment(startTime=0.0)
-            inst.slave.enterInitializationMode()
-            inst.slave.setInteger([inst.vr["n_dof"]], [3])
-            for name, value in {**structure, **lists}.items():
-                if name != "n_dof":
-                    setter = inst.slave.setString if isinstance(value, str) else inst.slave.setReal
-                    setter([inst.vr[name]], [value])
-            assert inst.dll.fmi2ExitInitializationMode(inst.c) == OK
+            assert _start_with(inst, parameters) == OK
             messages += [m for s, m in inst.log if s == ERROR]
             if expected is None:
-                rows.append(drive(inst, 0, 60, h=1e-4, seed=3.0))
+                rows.append(drive(inst, 0, 30, h=1e-3, seed=3.0))
             inst.close()
         if expected is None:
             assert not messages
-            assert (np.abs(rows[0] - rows[1]).max(axis=0) <= TOLERANCE * np.abs(rows[0]).max(axis=0)).all()
+            scale = np.abs(rows[0]).max(axis=0)
+            assert (np.abs(rows[0] - rows[1]).max(axis=0) <= TOLERANCE * scale).all(), parameters
+            runs.append(rows[0])
         else:
             assert len(messages) == 2 and messages[0] == messages[1] and expected in messages[0], messages
+    for a, b in zip(runs, runs[1:]):       # each n_dof another model
+        assert np.abs(a - b).max() > 1e-6 * np.abs(a).max()
+    inst = _native(built, "MastActuator", "axis")
+    assert _start_with(inst, {"n_dof": N_MAX + 1, **_chain_lists(N_MAX + 1)}) == OK
+    message = next(m for s, m in inst.log if s == ERROR)
+    assert (f"parameter 'n_dof' = {N_MAX + 1}: this native FMU has the chains n_dof = 1..{N_MAX} (N_MAX = {N_MAX})"
+            in message and "mast build --native" in message)
+    assert inst.step(0.0, 1e-3) == DISCARD
+    inst.close()
+
+
+def test_our_master_generates_the_native_actuator_for_an_n_dof_above_its_chains(built, tmp_path, monkeypatch):
+    """The route for n_dof > N_MAX (mast.core.native.build.for_parameters), made cheap with N_MAX = 1: the
+    fixture's FMU (chains 1..N_MAX) runs n_dof = 3 itself; with N_MAX = 1 an FMU generated for n_dof = 2 (chains
+    1, 2) does not, and the master generates one with the chain 3, which runs as the Python FMU."""
+    from mast.core.build import default_parameters
+    from mast.core.native import models
+    from mast.core.native.build import build_native_fmu, for_parameters, generated_for
+
+    monkeypatch.setenv("MAST_NATIVE_CACHE", str(tmp_path / "cache"))
+    wanted = {"n_dof": 3, **_chain_lists(3)}
+    native = built / "fmus" / "native" / "MastActuator.fmu"
+    assert for_parameters(native, wanted) == native and not (tmp_path / "cache").exists()
+    monkeypatch.setattr(models, "N_MAX", 1)
+    small = build_native_fmu("MastActuator", built / "fmus" / "MastActuator.fmu", tmp_path / "small",
+                             default_parameters("MastActuator"))     # chains 1 and 2 (its own n_dof)
+    assert for_parameters(small, {"n_dof": 2}) == small
+    made = for_parameters(small, wanted)
+    assert made.parent.parent == tmp_path / "cache" and generated_for(made)["parameters"]["n_dof"] == 3
+    assert for_parameters(small, wanted) == made                     # kept
+    rows = []
+    for fmu in (built / "fmus" / "MastActuator.fmu", made):
+        inst = Instance(fmu, "axis")
+        assert _start_with(inst, {**wanted, "tau_c": 0.03}) == OK and not [m for s, m in inst.log if s == ERROR]
+        rows.append(drive(inst, 0, 30, h=1e-3, seed=3.0))
+        inst.close()
+    assert (np.abs(rows[0] - rows[1]).max(axis=0) <= TOLERANCE * np.abs(rows[0]).max(axis=0)).all()
 
 
 class _Climb:

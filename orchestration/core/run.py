@@ -81,7 +81,7 @@ def simulate(ssp: Union[str, Path], stimulus: Optional[Stimulus], stop_time: flo
                 if direct:
                     components[name] = BlockComponent(name, BlockComponent.class_for(fmu.stem))
                 else:
-                    # a native FMU runs the parameter set it was generated for: another set, another FMU
+                    # a native actuator with an n_dof above the chains it carries: the model generated with it
                     from .native.build import for_parameters
 
                     fmu = for_parameters(fmu, {**spec.parameters, **(parameters or {}).get(name, {})})

@@ -12,10 +12,11 @@ A native FMU is made from the Python FMU of the same model (``mast.core.build``)
   here with the C compiler found as ``$CC``, ``cc`` or ``gcc`` (``-O2 -ffp-contract=off``: the
   same floating-point operations as the Python model, no fused multiply-add).
 
-Every parameter is read at run time but the actuator's ``n_dof`` (the size of its state), whose value
-is inlined in the generated code as in the Python model's (``models.generated_parameters``); so a
-native actuator is built for the ``n_dof`` of the component that uses it, and each native SSP
-carries FMUs built for its own bindings.
+Every parameter is read at run time, the actuator's ``n_dof`` (the size of its state) too: a native actuator
+carries the chains n_dof = 1..``models.N_MAX`` and runs the one the host sets; one built for a parameter set
+with a larger n_dof carries that chain too (``models.actuator_structures``), which is how the project's master
+runs a larger one (``for_parameters``). Each native SSP carries FMUs built for its own bindings (their start
+values).
 """
 from __future__ import annotations
 
@@ -33,7 +34,7 @@ from typing import Iterable, Mapping, Optional, Sequence
 
 from lxml import etree
 
-from .models import Variable, emit_model, generated_parameters
+from .models import Variable, emit_model, to_generate
 
 __all__ = ["NativeBuildError", "compiler", "build_native_fmu", "native_sources", "read_variables", "SUPPORT"]
 
@@ -259,10 +260,10 @@ def cache_dir() -> Path:
 
 
 def for_parameters(fmu: Path, parameters: Mapping[str, object]) -> Path:
-    """``fmu`` itself, or, for a native FMU generated for other values than ``parameters`` (the component's
-    bindings and overrides over the FMU's own set) in a parameter it holds as generated
-    (``models.generated_parameters``), the same model generated for them (kept in ``cache_dir()``): how
-    the project's master runs native FMUs with any parameter set."""
+    """``fmu`` itself, or, for a native FMU whose generated code cannot run ``parameters`` (the component's bindings
+    and overrides over the FMU's own set) as they are (``models.to_generate``: an actuator's n_dof above the chains
+    it carries, ``models.N_MAX``), the same model generated for them too (kept in ``cache_dir()``): how the
+    project's master runs native FMUs with any parameter set."""
     from ..build import block_class
     from fmus.common.parameters import ParameterError, validate
 
@@ -276,15 +277,15 @@ def for_parameters(fmu: Path, parameters: Mapping[str, object]) -> Path:
     except ParameterError:   # the FMU names the bad value at initialisation, as every FMU does
         return fmu
     own = validate(specs, made["parameters"], ident)
-    inlined = generated_parameters(block_class(ident), wanted)    # the others are set at run time
-    if inlined == generated_parameters(block_class(ident), own):
+    structure = to_generate(block_class(ident), own, wanted)    # the others are set at run time
+    if not structure:
         return fmu
-    key = hashlib.sha256(json.dumps([ident, inlined], sort_keys=True, default=str).encode())
+    key = hashlib.sha256(json.dumps([ident, own, structure], sort_keys=True, default=str).encode())
     for file in sorted([*(REPO / "fmus").rglob("*.py"), *(REPO / "fmus").rglob("*.[ch]"),
                         *Path(__file__).parent.glob("*.py")]):   # the model and generator code
         key.update(file.read_bytes())
     folder = cache_dir() / key.hexdigest()[:16]
     target = folder / f"{ident}.fmu"
     if not target.exists():
-        build_native_fmu(ident, fmu, folder, {**own, **inlined})   # start values: the FMU's own
+        build_native_fmu(ident, fmu, folder, {**own, **structure})   # start values: the FMU's own
     return target

@@ -5,7 +5,8 @@ code, which ``translate.to_c`` writes as C:
 
 - actuator: the exact-discretisation step with the implicit friction solve, bound by name
   (``ActuatorBlock._bind``'s source, with the parameters' numbers as names too), one kernel per
-  structure the parameters select; the parameters' numbers traced through the model's relations
+  structure the parameters select, for each chain n_dof = 1..``N_MAX`` (one binary, the chain chosen
+  by n_dof at initialisation); the parameters' numbers traced through the model's relations
   (``kernel_constants``, ``state_matrices``, ``backlash_systems``, ``_friction_constants``); the
   discretisation of each step size computed in C (``mast_expm``) with the model's substep rule
   (``substep_rule``, ``substeps_enough``); the torque measurement's filter and delay line
@@ -40,16 +41,14 @@ doubling of its substeps around ``mast_expm`` and the allocation of its delay li
 controllers' ``evaluate`` and ``do_step`` around the tick (once per communication point, the step's
 checks and messages).
 
-Parameters: read at run time, with what depends on them computed at initialisation, for the
-trajectory, the actuator (all but its chain's structure, ``ACTUATOR_STRUCTURE``: the size of its
-state), the mechanism (all of them) and the controllers (all of them: gains, cycle times,
-transmission, geometry, the inverse model's bodies and its actuator constants, by
-``inverse_model.model_constants`` traced); the checks the Python model makes of a parameter set
-(ranges, ``DriveController._ratio``, ``designs.describe``) run at exitInitializationMode with its
-messages. Inlined: the actuator's chain structure. ``generated_parameters`` names it, the C model
-checks at initialisation that it still has the value it was generated for, and refuses another
-value with a message naming it. The project's master generates the model for another one when it
-needs one (``build.for_parameters``).
+Parameters: all read at run time, with what depends on them computed at initialisation: the
+trajectory's, the actuator's (n_dof too: the chains 1..``N_MAX`` are all in the binary; a parameter set with
+a larger n_dof adds its own, ``actuator_structures``), the mechanism's and the controllers' (gains, cycle
+times, transmission, geometry, the inverse model's bodies and its actuator constants, by
+``inverse_model.model_constants`` traced); the checks the Python model makes of a parameter set (ranges,
+``DriveController._ratio``, ``designs.describe``) run at exitInitializationMode with its messages. An n_dof
+above the chains an actuator carries is refused there with a message naming it and ``N_MAX``; the project's
+master generates the model with that chain when it needs one (``to_generate``, ``build.for_parameters``).
 """
 from __future__ import annotations
 
@@ -62,7 +61,7 @@ from fmus.controller.tick import DK_FAILED, LAYOUT, MODEL_FAILED, SIZE, tick_sou
 
 from .translate import c_double, split_invariants, to_c
 
-__all__ = ["Variable", "emit_model", "c_string", "generated_parameters"]
+__all__ = ["Variable", "emit_model", "c_string", "to_generate", "actuator_structures", "N_MAX"]
 
 @dataclass(frozen=True)
 class Variable:
@@ -118,14 +117,13 @@ def _variable_table(variables: Sequence[Variable]) -> str:
     return "static const mast_variable VARIABLES[] = {\n" + "\n".join(rows) + "\n};\n"
 
 
-def _check_function(params: Sequence[Param], vrs: Mapping[str, int], fixed: Mapping[str, object],
-                    extra: Sequence[str] = (), model_check: bool = False) -> str:
-    """``check``: the Python model's range checks (``Param.check``, the same messages), then, for the
-    parameters in ``fixed``, that the value is the one the code was generated for, then the C lines
+def _check_function(params: Sequence[Param], vrs: Mapping[str, int], extra: Sequence[str] = (),
+                    model_check: bool = False) -> str:
+    """``check``: the Python model's range checks (``Param.check``, the same messages), then the C lines
     ``extra`` (the model's own checks across parameters); ``model_check``: then the model's own checks
     of the set (``model_check``, in the model's part of the file)."""
     lines = ["static int check(const mast_parameters *p, char *msg, size_t size)", "{",
-             "    char v[40], c[40];", "    (void)v; (void)c;"]
+             "    char v[40];", "    (void)v;"]
     for spec in params:
         vr = vrs[spec.name]
         name = spec.name
@@ -149,15 +147,6 @@ def _check_function(params: Sequence[Param], vrs: Mapping[str, int], fixed: Mapp
             lines += [f"    if ({' || '.join(bad)}) {{", f"        {show};",
                       f"        snprintf(msg, size, \"parameter '{name}' = %s: expected \" {expected}, v);",
                       "        return MAST_PARAMETER_ERROR;", "    }"]
-        if name in fixed:
-            if spec.kind is not int:
-                raise ValueError(f"parameter '{name}': only an Integer parameter can be held as generated")
-            same = f"p->integer[{vr}] == {int(fixed[name])}"
-            shown = f"snprintf(c, sizeof c, \"%d\", {int(fixed[name])})"
-            lines += [f"    if (!({same})) {{", f"        {show};", f"        {shown};",
-                      f"        snprintf(msg, size, \"parameter '{name}' = %s: this native FMU was generated for "
-                      f"{name} = %s; rebuild it (mast build --native) for another value\", v, c);",
-                      "        return MAST_PARAMETER_ERROR;", "    }"]
     lines += [*extra, "    return model_check(p, msg, size);" if model_check else "    return MAST_OK;", "}", ""]
     prototype = ["static int model_check(const mast_parameters *p, char *msg, size_t size);", ""] if model_check else []
     return "\n".join(prototype + lines)
@@ -177,8 +166,11 @@ _HEAD = """/* Generated by mast build --native from the {what} (mast.core.native
 
 
 # ----------------------------------------------------------------------------------- actuator
-#: the actuator's parameters a native FMU holds as generated: the chain's structure (the state's size)
-ACTUATOR_STRUCTURE = ("n_dof",)
+#: the chains every native actuator carries, n_dof = 1..N_MAX, one chosen by n_dof at initialisation (a parameter
+#: set with a larger n_dof adds its own: ``actuator_structures``; docs/native.md: why 8)
+N_MAX = 8
+#: the actuator's parameters that make the chain: its size (n_dof: the state's) and its lists (n_dof >= 3)
+ACTUATOR_STRUCTURE = ("n_dof", "J_chain", "K_chain", "C_chain")
 #: the chain's lists (n_dof >= 3) and whether their numbers must be > 0 (else >= 0), as ``chain`` parses them
 CHAIN_LISTS = {"J_chain": True, "K_chain": True, "C_chain": False}
 #: longest torque-measurement delay line of a native actuator, in communication steps (delay_meas / h + 2)
@@ -186,6 +178,15 @@ SENSOR_SAMPLES = 4096
 #: step sizes whose exact discretisation a native actuator instance keeps (a varying-step host brings more:
 #: the oldest is recomputed when it comes back, about 3.4 us with the default parameters: docs/native.md)
 DISCRETISATIONS_KEPT = 8
+#: the kernel_constants a native actuator's code shared by its chains reads (the same slot in every chain's Q)
+_SHARED_CONSTANTS = ("tau_c", "omega_c", "tau_s", "omega_s", "ripple", "rk", "iR", "mg", "kT", "rho0", "rmin", "rmax")
+
+
+def actuator_structures(parameters: Mapping[str, object]) -> tuple[int, ...]:
+    """The n_dof values a native actuator generated for ``parameters`` runs (its chains): 1..N_MAX, and the set's
+    own n_dof when it is larger."""
+    n = int(parameters["n_dof"])
+    return (*range(1, N_MAX + 1), *((n,) if n > N_MAX else ()))
 
 
 def _indexed(source: str, slots: Mapping[str, tuple[str, int]], extra: Sequence[str]) -> str:
@@ -211,25 +212,36 @@ def _chain_count(name: str, N: int) -> int:
     return N if name == "J_chain" else N - 1
 
 
-def _parse_chain(vrs: Mapping[str, int], N: int, indent: str) -> list[str]:
-    """C: the chain's lists parsed into ``chain_<name>`` arrays (n_dof >= 3), refused as ``chain`` refuses them."""
+def _parse_chain(vrs: Mapping[str, int], n: str, longest: int, indent: str) -> list[str]:
+    """C: the chain's lists for n_dof = ``n`` (a C expression, at most ``longest``) parsed into ``chain_<name>``
+    arrays (n_dof >= 3), refused as ``chain`` refuses them."""
     lines = []
     for name, positive in CHAIN_LISTS.items():
-        count, what = _chain_count(name, N), "> 0" if positive else ">= 0"
+        count, what = n if name == "J_chain" else f"{n} - 1", "> 0" if positive else ">= 0"
         text = f"p->string[{vrs[name]}]"
         lines += [
-            f"{indent}double chain_{name}[{count}];",
+            f"{indent}double chain_{name}[{_chain_count(name, longest)}];",
             f"{indent}int {name}_code = mast_parse_list({text}, {count}, {int(positive)}, chain_{name}, &items, item, "
             f"sizeof item);",
             f"{indent}if ({name}_code == -1) {{",
-            f"{indent}    snprintf(msg, size, \"parameter '{name}' = '%s': expected {count} space separated numbers "
-            f"{what} for n_dof = {N}, got %d\", {text} ? {text} : \"\", items);",
+            f"{indent}    snprintf(msg, size, \"parameter '{name}' = '%s': expected %d space separated numbers "
+            f"{what} for n_dof = %d, got %d\", {text} ? {text} : \"\", {count}, {n}, items);",
             f"{indent}    return MAST_PARAMETER_ERROR;", f"{indent}}}",
             f"{indent}if ({name}_code > 0) {{",
             f"{indent}    snprintf(msg, size, \"parameter '{name}' = '%s': item '%s' is not a finite number {what}\", "
             f"{text} ? {text} : \"\", item);",
             f"{indent}    return MAST_PARAMETER_ERROR;", f"{indent}}}"]
     return lines
+
+
+def _structure_block(block, N: int):
+    """The ActuatorBlock of the chain n_dof = ``N`` with ``block``'s other parameters: what the generator takes
+    from it is the structure (the sizes, the names of the kernel's numbers), every number being read at run time,
+    so the lists of a chain are placeholders."""
+    from fmus.actuator.model import ActuatorBlock
+
+    lists = {name: " ".join(["1.0"] * _chain_count(name, N)) for name in CHAIN_LISTS} if N >= 3 else {}
+    return ActuatorBlock({**block.params, **lists, "n_dof": N, "backlash": 0.0}, name=block.name)
 
 
 def _actuator_variants(block) -> list[tuple[str, dict, bool]]:
@@ -246,21 +258,73 @@ def _actuator_variants(block) -> list[tuple[str, dict, bool]]:
 
 
 def _actuator(block, vrs: Mapping[str, int]) -> str:
-    """ActuatorBlock in C, every parameter but the chain's structure (n_dof: the state's size) read at run
-    time: the parameters' numbers (``kernel_constants``, A, B, the chain) traced
-    from the model's own relations; the exact discretisation computed in C for each step size the host
-    uses (``mast_expm``, the mathematics of ActuatorBlock._bind); the step kernel of each structure
-    (friction, ripple, backlash) the model's own bound-by-name kernel, its numbers read from the
-    instance; the torque measurement (sensor.py): ``filter_coefficients``, ``_delay_split`` and the delay
-    line's ``relayout`` and ``measurement_step`` translated."""
+    """ActuatorBlock in C, every parameter read at run time, n_dof too: one chain per n_dof of
+    ``actuator_structures`` (``_actuator_chain``), chosen at initialisation; what no chain changes once: the friction
+    solve's numbers (``_friction_constants`` traced), the torque measurement (sensor.py: ``filter_coefficients``,
+    ``_delay_split`` and the delay line's ``relayout`` and ``measurement_step`` translated), the substep rule
+    (``substep_rule``, ``substeps_enough``, translated)."""
     import inspect
 
     from fmus.actuator import model as am
     from fmus.actuator import sensor
     from fmus.mechanism.engine import _Graph, _lift, compile_function
 
-    N, n_in = block.N, len(block.INPUTS)
-    nx, wN = 2 * N + 1, 2 * N
+    # --- the friction solve's numbers for a substep of d omega_N / d tau_L = b (traced _friction_constants)
+    code, friction_keys = [], {}
+    for kind, stribeck in (("coulomb", False), ("stribeck", True)):
+        g = _Graph()
+        names = ["b", "tau_c", "omega_c", "tau_s", "omega_s"]
+        ins = {n: g.input(n) for n in names}
+        fc = am._friction_constants(ins, ins["b"], stribeck)
+        friction_keys[kind] = list(fc)
+        fn = compile_function(f"friction_{kind}", names, [_lift(g, v) for v in fc.values()], g,
+                              label=f"actuator {kind} friction")
+        code.append(to_c(fn.source, f"friction_{kind}"))
+    # --- the torque measurement: the model's own coefficient functions, translated
+    code.append(to_c(inspect.getsource(sensor.filter_coefficients), "filter_coefficients"))
+    code.append(to_c(inspect.getsource(sensor._delay_split), "delay_split"))
+    code.append(to_c(inspect.getsource(sensor.relayout), "relayout", arrays=("old", "line")))
+    code.append(to_c(inspect.getsource(sensor.measurement_step), "measurement_step", arrays=("line",)))
+    # --- the substep rule (ActuatorBlock._substeps): the model's own functions, translated
+    limits = {"_MAX_PHASE_PER_SUBSTEP": am._MAX_PHASE_PER_SUBSTEP, "_BACKLASH_SUBSTEP": am._BACKLASH_SUBSTEP}
+    code += [to_c(inspect.getsource(am.substep_rule), "substep_rule", constants=limits),
+             to_c(inspect.getsource(am.substeps_enough), "substeps_enough")]
+    chains, rows, sizes, shared = [], [], [], None
+    for N in actuator_structures(block.params):
+        chain = _structure_block(block, N)
+        keys = list(chain.constants)
+        slots = {k: keys.index(k) for k in _SHARED_CONSTANTS}
+        assert shared in (None, slots), "kernel_constants: the chains' shared numbers must keep their slots"
+        shared = slots
+        chain_code, chain_rows, nq, nh = _actuator_chain(chain, vrs, friction_keys, len(rows))
+        chains += chain_code
+        rows += chain_rows
+        sizes.append((2 * N + 1, nq, nh))
+    return _actuator_c(block, vrs, code, chains, rows, shared, [max(s) for s in zip(*sizes)])
+
+
+def _actuator_chain(block, vrs: Mapping[str, int], friction_keys: Mapping[str, list], first: int
+                    ) -> tuple[list[str], list[tuple], int, int]:
+    """The C of the chain n_dof = ``block.N``, each part from the model's own code:
+
+    - ``constants_n<N>``: the parameters' numbers (``kernel_constants``, the state matrices A, B of
+      ``state_matrices`` with ``two_inertia`` and ``transmission_ratio``, the backlash's two systems of
+      ``backlash_systems``, J and K; for n_dof >= 3 from the numbers of J_chain, K_chain, C_chain), traced with the
+      parameters as named inputs by the mechanism engine's tracer (``engine.compile_function``) and translated;
+    - ``kernel_n<N>_<structure>``: the step kernel of each structure (friction, ripple, backlash: the kernels
+      numbered from ``first`` in the whole file), the model's own bound-by-name kernel (ActuatorBlock._bind's
+      source, ``symbolic``), its names read from the instance's arrays;
+    - ``setup_n<N>`` (the numbers, the kernel's structure as ActuatorBlock._kernel_source chooses it, the fastest
+      chain mode) and ``discretise_n<N>`` (ActuatorBlock._substeps and _bind restated: the substep rule, then
+      ``mast_expm``).
+
+    Returns (the code, each kernel's row of the tables: (name, friction 0/1/2, ripple, backlash, offsets of its
+    friction numbers in H), the sizes of Q and H)."""
+    from fmus.actuator import model as am
+    from fmus.mechanism.engine import _Graph, _lift, compile_function
+
+    N = block.N
+    nx, wN, nm = 2 * N + 1, 2 * N, 2 * N + 3
     reals = [spec.name for spec in block.PARAMETERS if spec.kind is float]
     R = {name: f"p->real[{vrs[name]}]" for name in reals}
     # --- the parameters' numbers, traced through the model's relations
@@ -284,23 +348,13 @@ def _actuator(block, vrs: Mapping[str, int]) -> str:
         outputs += values
     nq = len(outputs)
     fn = compile_function("constants", inputs, [_lift(g, v) for v in outputs], g, label="actuator constants")
-    code = [to_c(fn.source, "constants")]
-    # --- the friction solve's numbers for a substep of d omega_N / d tau_L = b (traced _friction_constants)
-    friction_keys = {}
-    for kind, stribeck in (("coulomb", False), ("stribeck", True)):
-        g = _Graph()
-        names = ["b", "tau_c", "omega_c", "tau_s", "omega_s"]
-        ins = {n: g.input(n) for n in names}
-        fc = am._friction_constants(ins, ins["b"], stribeck)
-        friction_keys[kind] = list(fc)
-        fn = compile_function(f"friction_{kind}", names, [_lift(g, v) for v in fc.values()], g,
-                              label=f"actuator {kind} friction")
-        code.append(to_c(fn.source, f"friction_{kind}"))
+    code = [to_c(fn.source, f"constants_n{N}")]
     # --- the kernels, one per structure, their numbers read from Q (parameters) and H (step size)
     q_slots = {f"Q_{k}": ("Q", i) for i, k in enumerate(constants)}
     variants = _actuator_variants(block)
-    layouts, sizes = {}, []
-    for name, chosen, backlash in variants:
+    rows, sizes, select = [], [], []
+    fr_code = {None: 0, "coulomb": 1, "stribeck": 2}
+    for k, (name, chosen, backlash) in enumerate(variants):
         vb = am.ActuatorBlock({**block.params, **chosen}, name=block.name)
         slots, h_names = dict(q_slots), []
         friction = "stribeck" if chosen["tau_s"] > 0.0 else "coulomb" if chosen["tau_c"] > 0.0 else None
@@ -315,62 +369,24 @@ def _actuator(block, vrs: Mapping[str, int]) -> str:
             prefixes = ("F_",)
         for prefix, shape in blocks:
             h_names += am._names(prefix, shape).ravel().tolist()
-        friction_at = {}
+        friction_at = []
         for prefix in prefixes:
-            friction_at[prefix] = len(h_names)
+            friction_at.append(len(h_names))
             h_names += [prefix + k for k in (friction_keys[friction] if friction else [])]
         slots.update({n: ("H", k) for k, n in enumerate(h_names)})
-        code.append(to_c(_indexed(source, slots, ("H", "Q", "M_SUB")), f"kernel_{name}",
+        code.append(to_c(_indexed(source, slots, ("H", "Q", "M_SUB")), f"kernel_n{N}_{name}",
                          arrays=("values", "x", "H", "Q")))
-        layouts[name] = (backlash, friction, friction_at)
-        sizes.append(len(h_names))
-    nh = max(sizes)
-    # --- the torque measurement: the model's own coefficient functions, translated
-    code.append(to_c(inspect.getsource(sensor.filter_coefficients), "filter_coefficients"))
-    code.append(to_c(inspect.getsource(sensor._delay_split), "delay_split"))
-    code.append(to_c(inspect.getsource(sensor.relayout), "relayout", arrays=("old", "line")))
-    code.append(to_c(inspect.getsource(sensor.measurement_step), "measurement_step", arrays=("line",)))
-    # --- the substep rule (ActuatorBlock._substeps): the model's own functions, translated
-    limits = {"_MAX_PHASE_PER_SUBSTEP": am._MAX_PHASE_PER_SUBSTEP, "_BACKLASH_SUBSTEP": am._BACKLASH_SUBSTEP}
-    code += [to_c(inspect.getsource(am.substep_rule), "substep_rule", constants=limits),
-             to_c(inspect.getsource(am.substeps_enough), "substeps_enough")]
-    return _actuator_c(block, R, vrs, code, variants, layouts, offsets, nq, nh, n_in)
-
-
-def _actuator_c(block, R: Mapping[str, str], vrs: Mapping[str, int], code: list[str], variants: Sequence,
-                layouts: Mapping, offsets: Mapping[str, int], nq: int, nh: int, n_in: int) -> str:
-    """The C glue of the native actuator around the generated functions ``code``: the instance's state, the
-    choice of the kernel's structure, the per-step-size discretisation (ActuatorBlock._substeps and _bind: the
-    substep rule by ``substep_rule`` and ``substeps_enough``, translated, then ``mast_expm``), the torque
-    measurement's delay line (its allocation around TorqueSensor's ``relayout`` and ``measurement_step``,
-    translated) and the messages of ActuatorBlock."""
-    from fmus.actuator.model import _ERRORS
-
-    N = block.N
-    nx, wN, nm = 2 * N + 1, 2 * N, 2 * N + 3
-    keys = list(block.constants)
-    Q = {k: f"s->Q[{i}]" for i, k in enumerate(keys)}
-    reals = [spec.name for spec in block.PARAMETERS if spec.kind is float]
-    chain_args = [f"chain_{name}[{k}]" for name in CHAIN_LISTS for k in range(_chain_count(name, N))] if N >= 3 else []
-    call_constants = f"constants({', '.join([R[n] for n in reals] + chain_args)}, s->Q)"
-    fr_code = {None: 0, "coulomb": 1, "stribeck": 2}
-    v_backlash = ", ".join("1" if layouts[v][0] else "0" for v, _, _ in variants)
-    v_friction = ", ".join(str(fr_code[layouts[v][1]]) for v, _, _ in variants)
-    v_f0 = ", ".join(str(list(layouts[v][2].values())[0]) for v, _, _ in variants)
-    v_f1 = ", ".join(str(list(layouts[v][2].values())[-1]) for v, _, _ in variants)
-    select = []
-    for k, (name, chosen, backlash) in enumerate(variants):
-        fr = 2 if chosen["tau_s"] > 0.0 else 1 if chosen["tau_c"] > 0.0 else 0
         ripple = int(chosen["tau_ripple"] > 0.0)
-        select.append(f"    if (fr == {fr} && rp == {ripple} && bl == {int(backlash)}) return {k};")
-    cases = "\n".join(f"    case {k}: code = kernel_{name}(values, s->x, d->H, s->Q, d->m); break;"
-                      for k, (name, _, _) in enumerate(variants))
-    names = ", ".join(_literal(_ERRORS[k]) for k in sorted(_ERRORS))
+        rows.append((f"n{N}_{name}", fr_code[friction], ripple, int(backlash), friction_at[0], friction_at[-1]))
+        select.append(f"    if (fr == {fr_code[friction]} && rp == {ripple} && bl == {int(backlash)}) return {first + k};")
+        sizes.append(len(h_names))
+    Q = {k: f"s->Q[{i}]" for i, k in enumerate(constants)}
+    chain_args = [f"chain_{name}[{k}]" for name in CHAIN_LISTS for k in range(_chain_count(name, N))] if N >= 3 else []
     fargs = f"{Q['tau_c']}, {Q['omega_c']}, {Q['tau_s']}, {Q['omega_s']}"
     A, B, Jo, Ko = offsets["A"], offsets["B"], offsets["J"], offsets["K"]
     discretise = [
         "/* ActuatorBlock._substeps (the substep rule) and _bind (the numbers of a step size), for the key h */",
-        "static int discretise(State *s, double h, Disc *d, char *msg, size_t size)", "{",
+        f"static int discretise_n{N}(State *s, double h, Disc *d, char *msg, size_t size)", "{",
         "    char v[40];",
         "    int backlash = V_BACKLASH[s->variant], fr = V_FRICTION[s->variant];",
         "    double rule[2];",
@@ -424,6 +440,63 @@ def _actuator_c(block, R: Mapping[str, str], vrs: Mapping[str, int], code: list[
             "    }",
         ]
     discretise += ["    return MAST_OK;", "}", ""]
+    setup = [
+        f"/* the chain n_dof = {N}: the kernel's structure (friction, ripple, backlash), as ActuatorBlock._kernel_source "
+        "chooses it */",
+        f"static int variant_n{N}(const State *s)", "{",
+        f"    int fr = {Q['tau_s']} > 0.0 ? 2 : {Q['tau_c']} > 0.0 ? 1 : 0;",
+        f"    int rp = {Q['ripple']} > 0.0, bl = {Q['hb'] + ' > 0.0' if N == 2 else '0'};",
+        *select,
+        f"    return {first};", "}", "",
+        "/* 2 pi times chain_frequencies(J, K).max(): the fastest chain mode [rad/s] */",
+        f"static double omega_max_n{N}(const State *s)", "{",
+        *([f"    double S[{N * N}];",
+           f"    for (int i = 0; i < {N * N}; i++) S[i] = 0.0;",
+           f"    for (int k = 0; k < {N - 1}; k++) {{",
+           f"        double K = s->Q[{Ko} + k];",
+           f"        S[k * {N} + k] += K; S[(k + 1) * {N} + k + 1] += K;",
+           f"        S[k * {N} + k + 1] -= K; S[(k + 1) * {N} + k] -= K;",
+           "    }",
+           f"    for (int i = 0; i < {N}; i++)",
+           f"        for (int j = 0; j < {N}; j++) S[i * {N} + j] *= (1.0 / sqrt(s->Q[{Jo} + i])) * (1.0 / sqrt(s->Q[{Jo} + j]));",
+           f"    double lam = mast_eig_max({N}, S);",
+           f"    return 2.0 * {c_double(math.pi)} * (sqrt(lam > 0.0 ? lam : 0.0) / (2.0 * {c_double(math.pi)}));"]
+          if N > 1 else ["    (void)s;", "    return 0.0;"]),
+        "}", "",
+        f"/* the chain n_dof = {N} from the parameters (ActuatorBlock.__init__) */",
+        f"static int setup_n{N}(State *s, const mast_parameters *p, char *msg, size_t size)", "{",
+        *(["    int items;", "    char item[64];", *_parse_chain(vrs, str(N), N, "    ")] if N >= 3 else []),
+        f"    constants_n{N}({', '.join([R[n] for n in reals] + chain_args)}, s->Q);",
+        f"    s->N = {N};",
+        f"    s->bw = {list(constants).index('bw')};",
+        f"    s->variant = variant_n{N}(s);",
+        f"    s->omega_max = omega_max_n{N}(s);",
+        "    (void)msg; (void)size;",
+        "    return MAST_OK;", "}", ""]
+    return code + discretise + setup, rows, nq, max(sizes)
+
+
+def _actuator_c(block, vrs: Mapping[str, int], code: list[str], chains: list[str], rows: Sequence[tuple],
+                shared: Mapping[str, int], largest: Sequence[int]) -> str:
+    """The C glue of the native actuator around the generated functions (``code``: shared by the chains;
+    ``chains``: each chain's, ``_actuator_chain``, with the tables' ``rows``): the instance's state, sized for the
+    largest chain (``largest``: the sizes of x, Q, H), the chain n_dof selects at initialisation, the
+    discretisation of each step size (the chain's ``discretise_n<N>``), the delay line of the torque measurement
+    (its allocation around TorqueSensor's ``relayout`` and ``measurement_step``, translated) and the messages of
+    ActuatorBlock; ``shared``: the slots in Q of the numbers this
+    glue reads (the same in every chain)."""
+    from fmus.actuator.model import _ERRORS
+
+    n_in = len(block.INPUTS)
+    nx, nq, nh = largest
+    Q = {k: f"s->Q[{i}]" for k, i in shared.items()}
+    R = {name: f"p->real[{vrs[name]}]" for name in (spec.name for spec in block.PARAMETERS if spec.kind is float)}
+    structures = actuator_structures(block.params)
+    n_dof = f"p->integer[{vrs['n_dof']}]"
+    cases = "\n".join(f"    case {k}: code = kernel_{name}(values, s->x, d->H, s->Q, d->m); break;"
+                      for k, (name, *_) in enumerate(rows))
+    table = lambda column: ", ".join(str(row[column]) for row in rows)   # noqa: E731
+    names = ", ".join(_literal(_ERRORS[k]) for k in sorted(_ERRORS))
     T, delay, offset = R["T_meas"], R["delay_meas"], R["tau_offset"]
     sensor = [
         "/* TorqueSensor.step (sensor.py): the delay line of n + 2 samples, newest at head (relayout and",
@@ -457,6 +530,7 @@ def _actuator_c(block, R: Mapping[str, str], vrs: Mapping[str, int], code: list[
     return "\n".join([
         f"typedef struct {{ double m; double H[{nh}]; }} Disc;",
         "typedef struct {",
+        "    int N, bw;                    /* the chain (n_dof) and the slot in Q of its B[omega_N, tau_L] */",
         f"    double x[{nx}];",
         f"    double Q[{nq}];               /* the parameters' numbers: kernel_constants, A, B, the chain */",
         "    double omega_max;",
@@ -469,47 +543,39 @@ def _actuator_c(block, R: Mapping[str, str], vrs: Mapping[str, int], code: list[
         f"    double hist[{SENSOR_SAMPLES}];",
         "} State;", "",
         *code,
-        f"static const int V_BACKLASH[] = {{{v_backlash}}};",
-        f"static const int V_FRICTION[] = {{{v_friction}}};",
-        f"static const int V_F0[] = {{{v_f0}}};",
-        f"static const int V_F1[] = {{{v_f1}}};",
+        "/* each kernel of every chain: its backlash, its friction (0 none, 1 Coulomb, 2 Stribeck), where its friction "
+        "numbers start in H */",
+        f"static const int V_BACKLASH[] = {{{table(3)}}};",
+        f"static const int V_FRICTION[] = {{{table(1)}}};",
+        f"static const int V_F0[] = {{{table(4)}}};",
+        f"static const int V_F1[] = {{{table(5)}}};",
         f"static const char *const INPUT_NAMES[] = {{{names}}};", "",
-        "/* the kernel's structure (friction, ripple, backlash), as ActuatorBlock._kernel_source chooses it */",
-        "static int variant(const State *s)", "{",
-        f"    int fr = {Q['tau_s']} > 0.0 ? 2 : {Q['tau_c']} > 0.0 ? 1 : 0;",
-        f"    int rp = {Q['ripple']} > 0.0, bl = {'s->Q[%d] > 0.0' % keys.index('hb') if N == 2 else '0'};",
-        *select,
-        "    return 0;", "}", "",
-        "/* 2 pi times chain_frequencies(J, K).max(): the fastest chain mode [rad/s] */",
-        "static double omega_max(const State *s)", "{",
-        *([f"    double S[{N * N}];",
-           f"    for (int i = 0; i < {N * N}; i++) S[i] = 0.0;",
-           f"    for (int k = 0; k < {N - 1}; k++) {{",
-           f"        double K = s->Q[{Ko} + k];",
-           f"        S[k * {N} + k] += K; S[(k + 1) * {N} + k + 1] += K;",
-           f"        S[k * {N} + k + 1] -= K; S[(k + 1) * {N} + k] -= K;",
-           "    }",
-           f"    for (int i = 0; i < {N}; i++)",
-           f"        for (int j = 0; j < {N}; j++) S[i * {N} + j] *= (1.0 / sqrt(s->Q[{Jo} + i])) * (1.0 / sqrt(s->Q[{Jo} + j]));",
-           f"    double lam = mast_eig_max({N}, S);",
-           f"    return 2.0 * {c_double(math.pi)} * (sqrt(lam > 0.0 ? lam : 0.0) / (2.0 * {c_double(math.pi)}));"]
-          if N > 1 else ["    (void)s;", "    return 0.0;"]),
-        "}", "",
-        *discretise, *sensor,
+        *chains,
+        "/* the discretisation of step h by the instance's chain */",
+        "static int discretise(State *s, double h, Disc *d, char *msg, size_t size)", "{",
+        "    switch (s->N) {",
+        *[f"    case {N}: return discretise_n{N}(s, h, d, msg, size);" for N in structures[:-1]],
+        f"    default: return discretise_n{structures[-1]}(s, h, d, msg, size);",
+        "    }", "}", "",
+        *sensor,
         "static int input_error(const double *values, int code, double t, char *msg, size_t size)", "{",
         "    char v[40];",
         "    double x = values[code - 1];",
         "    mast_repr(x, v, sizeof v);",
         "    snprintf(msg, size, \"input '%s' = %s at t=%.9g s is not finite\", INPUT_NAMES[code - 1], v, t);",
         "    return MAST_MODEL_ERROR;", "}", "",
-        "/* ActuatorBlock.initialize: at rest (x = 0), the outputs from the inputs */",
+        "/* ActuatorBlock.initialize: the chain n_dof selects, at rest (x = 0), the outputs from the inputs */",
         "static int initialize(void *state, double *values, const mast_parameters *p, double t0, char *msg, size_t size)",
         "{", "    State *s = state;",
         "    memset(s, 0, sizeof *s);",
-        *(["    int items;", "    char item[64];", *_parse_chain(vrs, N, "    ")] if N >= 3 else []),
-        f"    {call_constants};",
-        "    s->variant = variant(s);",
-        "    s->omega_max = omega_max(s);",
+        "    int code;",
+        f"    switch ({n_dof}) {{",
+        *[f"    case {N}: code = setup_n{N}(s, p, msg, size); break;" for N in structures],
+        "    default:    /* refused by check (exitInitializationMode runs it first), with its message */",
+        "        code = check(p, msg, size);",
+        "        return code ? code : MAST_PARAMETER_ERROR;",
+        "    }",
+        "    if (code) return code;",
         "    double u = values[0], F = values[1];",
         "    if (!isfinite(u)) return input_error(values, 1, t0, msg, size);",
         "    if (!isfinite(F)) return input_error(values, 2, t0, msg, size);",
@@ -518,7 +584,7 @@ def _actuator_c(block, R: Mapping[str, str], vrs: Mapping[str, int], code: list[
         f"    if ({Q['tau_s']} > 0.0) tf += {Q['tau_s']} * exp(-((w / {Q['omega_s']}) * (w / {Q['omega_s']}))) * tanh(w / {Q['omega_c']});",
         f"    double tl = -{Q['iR']} * (F + {Q['mg']}) - tf;",
         f"    if ({Q['ripple']} > 0.0) tl -= {Q['ripple']} * sin({Q['rk']} * 0.0);",
-        f"    double al = 0.0 + {Q['bw']} * tl;",
+        "    double al = 0.0 + s->Q[s->bw] * tl;",
         f"    double tm = {Q['kT']} * 0.0;",
         f"    values[{n_in}] = {Q['rho0']} + {Q['iR']} * 0.0;",
         f"    values[{n_in + 1}] = {Q['iR']} * w;",
@@ -559,7 +625,7 @@ def _actuator_c(block, R: Mapping[str, str], vrs: Mapping[str, int], code: list[
         "        return MAST_MODEL_ERROR;", "    }",
         "    if (code == 4) {",
         f"        snprintf(msg, size, \"carriage left the stroke [%g, %g] m: rho = %.6g m at t=%.9g s\", "
-        f"{Q['rmin']}, {Q['rmax']}, {Q['rho0']} + {Q['iR']} * s->x[{N}], t + h);",
+        f"{Q['rmin']}, {Q['rmax']}, {Q['rho0']} + {Q['iR']} * s->x[s->N], t + h);",
         "        return MAST_MODEL_ERROR;", "    }",
         f"    if (s->sensor) return sensor_step(s, values[{n_in + 6}], h, p, values + {n_in + 7}, msg, size);",
         "    return MAST_OK;", "}", ""])
@@ -632,13 +698,21 @@ def _actuator_checks(block, vrs: Mapping[str, int]) -> list[str]:
              f"            snprintf(msg, size, \"parameter 'rho_0' = %s: expected a position inside the stroke (%s, %s) m\", "
              f"{show('rho_0', 'a')}, {show('rho_min', 'b')}, {show('rho_max', 'd')});",
              "            return MAST_PARAMETER_ERROR;", "        }"]
-    if block.N >= 3:
-        lines += ["        int items;", "        char item[64];", *_parse_chain(vrs, block.N, "        ")]
-    if block.N != 2:
-        lines += [f"        if ({r['backlash']} > 0.0) {{",
-                  f"            snprintf(msg, size, \"parameter 'backlash' = %s: backlash is modelled in the two-inertia "
-                  f"transmission only (n_dof = 2, here {block.N})\", {show('backlash', 'a')});",
-                  "            return MAST_PARAMETER_ERROR;", "        }"]
+    structures = actuator_structures(block.params)
+    n = f"p->integer[{vrs['n_dof']}]"
+    runs = f"1..{N_MAX}" + "".join(f" and {N}" for N in structures[N_MAX:])
+    lines += [f"        if (({n} < 1 || {n} > {N_MAX}){''.join(f' && {n} != {N}' for N in structures[N_MAX:])}) {{",
+              f"            snprintf(msg, size, \"parameter 'n_dof' = %d: this native FMU has the chains n_dof = {runs} "
+              f"(N_MAX = {N_MAX}); the project's master (mast run, mast batch, ...) generates one for a larger n_dof "
+              f"itself; for another host set n_dof in the actuator's parameter set (.ssv) and rebuild: mast build --native\", "
+              f"{n});",
+              "            return MAST_PARAMETER_ERROR;", "        }",
+              f"        if ({n} >= 3) {{", "            int items;", "            char item[64];",
+              *_parse_chain(vrs, n, max(structures), "            "), "        }",
+              f"        if ({n} != 2 && {r['backlash']} > 0.0) {{",
+              f"            snprintf(msg, size, \"parameter 'backlash' = %s: backlash is modelled in the two-inertia "
+              f"transmission only (n_dof = 2, here %d)\", {show('backlash', 'a')}, {n});",
+              "            return MAST_PARAMETER_ERROR;", "        }"]
     return lines + ["        (void)a; (void)b; (void)d;", "    }"]
 
 
@@ -1174,15 +1248,13 @@ def _trajectory(block, vrs: Mapping[str, int]) -> str:
 
 
 # ----------------------------------------------------------------------------------- entry point
-def generated_parameters(block_class: type, parameters: Mapping[str, object]) -> dict[str, object]:
-    """The parameters whose values the generated code of ``block_class`` holds (the others are read
-    at run time): another value needs another build."""
-    kind = block_class.__module__.split(".")[-2]
-    if kind in ("trajectory", "controller", "mechanism"):     # every parameter read at run time
-        return {}
-    if kind == "actuator":     # the chain's structure: the size of the state
-        return {k: parameters[k] for k in ACTUATOR_STRUCTURE}
-    return dict(parameters)
+def to_generate(block_class: type, generated: Mapping[str, object], wanted: Mapping[str, object]) -> dict[str, object]:
+    """What the C generated for the parameter set ``generated`` cannot take at run time from ``wanted``: {} when it
+    runs ``wanted`` as it is (every parameter read at run time), else the parameters to generate it for: an
+    actuator's chain (``ACTUATOR_STRUCTURE``) when its n_dof is not one of the chains of ``actuator_structures``."""
+    if native_kind(block_class) == "actuator" and int(wanted["n_dof"]) not in actuator_structures(generated):
+        return {k: wanted[k] for k in ACTUATOR_STRUCTURE}
+    return {}
 
 
 def emit_model(identifier: str, guid: str, block_class: type, parameters: Mapping[str, object],
@@ -1213,9 +1285,8 @@ def emit_model(identifier: str, guid: str, block_class: type, parameters: Mappin
         body = _trajectory(block, vrs)
     else:
         raise ValueError(f"{identifier}: {block_class.__name__} has no native form yet")
-    fixed = generated_parameters(block_class, block.params)
     return "".join([_HEAD.format(what=f"{block_class.__module__}.{block_class.__name__}"),
                     _variable_table(variables), "\n",
-                    _check_function(block_class.PARAMETERS, vrs, fixed, extra, kind in ("mechanism", "controller")),
+                    _check_function(block_class.PARAMETERS, vrs, extra, kind in ("mechanism", "controller")),
                     "\n", body, "\n",
                     _model_struct(identifier, guid, variables, n_inputs, n_io, bool(block_class.FEEDTHROUGH))])
