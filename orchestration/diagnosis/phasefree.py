@@ -144,7 +144,8 @@ class PhaseFreeScore:
 
     def quieter(self, name: str, ensemble: np.ndarray, sigma: float, z: float = 3.0) -> bool:
         """Whether the measured band powers of test ``name`` are nowhere above what the ensemble's loudest
-        realisation plus the noise gives (within ``z`` standard deviations of a band power, sqrt(2 / nu)): the
+        realisation in that band plus the noise gives (within ``z`` standard deviations of a band power,
+        sqrt(2 / nu)): the
         record hunts less than, or as much as, the re-simulations, never more in any band. A cause the effect
         does not make adds power somewhere; a regime of the hunting the ensemble did not visit (fewer or weaker
         episodes in the record's window) only takes it away."""
