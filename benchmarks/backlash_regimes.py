@@ -13,7 +13,7 @@ phase-free score's band powers (orchestration/diagnosis/phasefree.py). Then:
     as the record below 20 Hz (within 3 x of its power).
 Usage:
     .venv/bin/python benchmarks/backlash_regimes.py [--backlash 0.004] [--runs 60] [--duration 0.8]
-Costs about 0.4 s of CPU per native run and 5 s per Python run (0.8 s tests).
+Costs about 0.15 s of CPU per native run and a few seconds per Python run (0.8 s tests).
 """
 from __future__ import annotations
 

@@ -218,9 +218,12 @@ def judge(ctx: Context, state: State, after: dict, last_fit, steps: list) -> tup
                                            f"noise on training, {rh_text} x on held-out tests) and no candidate "
                                            "effect improves it: nothing is missing")
     elif at_floor and pf and not pf["value_determined"]:
+        hunting = next(a.effect.title for a in state.selected if a.effect.phase_free)
+        others = ", ".join(a.effect.title for a in state.selected if not a.effect.phase_free)
         status, text = "present, value not determined", (
-            f"{titles}: present, its value not determined on this plan ({'; '.join(pf['value_not_determined_because'])}"
-            f"); the residual is at the noise floor sample by sample on "
+            (f"with {others} named, " if others else "")
+            + f"{hunting} is present, its value not determined on this plan "
+            f"({'; '.join(pf['value_not_determined_because'])}); the residual is at the noise floor sample by sample on "
             f"{', '.join(n for n in names if n not in by_bands and n not in unreproduced) or 'no test'}"
             + (f", in the band powers of the hunting on {', '.join(by_bands)}" if by_bands else "")
             + f"; `{pf['parameter']}` is left out of the augmented model")
