@@ -20,10 +20,11 @@ from mast.analyses.synthesize import synthesize
 from test_diagnose import ISSUE_PLAN, PLAN, built_ssp, compiled, named  # noqa: F401  (the module's fixture)
 
 
-def run(ssp: str, tmp, truth: dict, plan, seed: int) -> dict:
+def run(ssp: str, tmp, truth: dict, plan, seed: int, **options) -> dict:
     data = tmp / "data"
     synthesize(ssp, data, truth, tests=plan, direct=True, seed=seed, log=lambda *_: None)
-    return diagnose(Options(data, tmp / "out", compiled(ssp), figures=False, direct=False), log=lambda *_: None)
+    return diagnose(Options(data, tmp / "out", compiled(ssp), figures=False, direct=False, **options),
+                    log=lambda *_: None)
 
 
 @pytest.mark.parametrize("backlash, plan, seed", [(0.0045, ISSUE_PLAN, 72), (0.0065, PLAN, 73)],
@@ -54,3 +55,29 @@ def test_backlash_is_named_within_5_percent(built_ssp, tmp_path, backlash, plan,
         write_report(tmp_path / "out", doc, {})
         assert "Its value is not determined on this plan (z_3.5Hz predicted at 0.008" in (
             tmp_path / "out" / "report.md").read_text()
+
+
+def test_backlash_whose_value_the_plan_does_not_pin(built_ssp, tmp_path):
+    """4 mrad on the issue's plan (seed 61; the seed draws only the noise, the record's hunting is the truth's one
+    run on the exact commands): z 3.5 Hz's record is in a quieter regime of the hunting than the re-simulations
+    near 4 mrad (about 1 in 60 of them visit it, docs/diagnose.md), which no ensemble of a few realisations covers;
+    the pooled deviance on all tests then followed a lucky member to 4.967 mrad (+24 %). The value is fitted on the
+    tests that agree (leave-one-test-out) and z 3.5 Hz is checked at it: not reproduced, with less power in every
+    band than the loudest re-simulation, so backlash is named present, its value not determined, and left out of
+    the augmented model; the interval from the other tests holds the truth. The library is backlash alone (the
+    case's other candidates are refused, docs/diagnose.md): the phase-free stage is what is tested."""
+    doc = run(built_ssp, tmp_path, {"actuator": {"backlash": 0.004}}, ISSUE_PLAN, 61, library=("backlash",))
+    effects = named(doc)
+    assert set(effects) == {"backlash"}, effects
+    pf = effects["backlash"]["evidence"]["phase_free"]
+    assert not pf["value_determined"] and pf["not_reproduced"] == ["z_3.5Hz"]
+    assert "z_3.5Hz" not in pf["fitted_on"] and len(pf["fitted_on"]) == 4
+    assert pf["ci95"][0] < 0.004 < pf["ci95"][1] and pf["ci95"][1] / pf["ci95"][0] < 1.25
+    dev, floors = pf["deviance_per_test"]["after"], pf["floor_per_test"]
+    assert all(dev[n] <= floors[n] for n in pf["fitted_on"]) and dev["z_3.5Hz"] > floors["z_3.5Hz"]
+    assert doc["verdict"]["status"] == "present, value not determined"
+    am = doc["augmented_model"]
+    assert "backlash" not in am["values"] and set(am["not_determined"]) == {"backlash"}
+    assert "backlash" not in (tmp_path / "out" / "actuator_diagnosed.ssv").read_text()
+    report = (tmp_path / "out" / "report.md").read_text()
+    assert "not determined on this plan" in report and "not in the augmented model" in report

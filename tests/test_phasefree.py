@@ -134,3 +134,23 @@ def test_leave_one_out_confirms_a_hunting_seen_on_two_tests_whatever_the_split()
     held = ["z1", "psi2"]            # the split that holds out the quiet tests only
     change = score.fit(ensembles[truth], held).deviance - score.fit(ensembles[0.0], held).deviance
     assert abs(change) < 10
+
+
+def test_quieter_tells_a_quieter_regime_from_power_the_effect_does_not_make():
+    """A record whose band powers stay below the loudest realisation plus the noise in every band is quieter than
+    the ensemble (a regime of the hunting it did not visit); one band 3 x above the loudest is not, and neither is
+    a record just above it by more than 3 standard deviations of its band power (sqrt(2 / nu)), while one within
+    them is."""
+    rng = np.random.default_rng(4)
+    sigma = 2e-3
+    measured = {"t": sigma * rng.standard_normal((700, 3))}
+    score = PhaseFreeScore(measured, {"t": np.zeros((700, 3))}, {"t": DT}, sigma_floor=sigma)
+    noise = sigma ** 2 * score.bands["t"].noise_fraction
+    ensemble = np.array([[4e-5, 5e-6, 3e-7, 5e-6], [6e-5, 6e-6, 4e-7, 4e-6]])
+    loudest = ensemble.max(axis=0) + noise
+    rel = np.sqrt(2.0 / score.dof["t"])
+    for k, factor, expected in [(None, 0.5, True), (1, 3.0, False), (0, 1.0 + 4 * rel[0], False),
+                                (0, 1.0 + 2 * rel[0], True)]:
+        m = 0.5 * loudest if k is None else np.where(np.arange(4) == k, factor * loudest, 0.5 * loudest)
+        score.measured["t"] = m
+        assert score.quieter("t", ensemble, sigma) is expected, (k, factor)

@@ -18,10 +18,12 @@ from .stages import (FLOOR_FACTOR, Context, State, band_rss, failed_step, fit_st
 #: the phase-free value: the minimum of a parabola through the smoothed deviances on the fine grid within this
 #: ratio of the best one (phasefree.search)
 PARABOLA_SPAN = 2.0 ** 0.25
-#: a phase-free value is named with its value "not determined on this plan" when its 95 % interval reaches beyond
-#: this ratio either side (the deviance has no curvature there: the parabola fell back to the grid's best value), or
-#: when a test predicted at the value best on the others (leave-one-test-out) fits worse than without the effect by
-#: DELTA_BIC: the tests disagree on the value (a test in a regime of the hunting the ensembles do not visit)
+#: a phase-free effect is named present with its value "not determined on this plan" (and left out of the augmented
+#: model) when its 95 % interval reaches beyond this ratio either side (the deviance has no curvature there: the
+#: parabola fell back to the grid's best value), or when a test the value is not fitted on (predicted at the value best
+#: on the others, leave-one-test-out, it fits worse than without the effect by DELTA_BIC; or one left above its floor
+#: and quieter than the re-simulations) stays above its floor at the value: a test in a regime of the hunting the
+#: ensembles do not visit
 DETERMINED_RATIO = 1.25
 
 
@@ -149,12 +151,18 @@ def phase_free_stage(ctx: Context, state: State, effect: Effect, steps: list) ->
     ln(statistics) per parameter) by DELTA_BIC, and leave-one-test-out must confirm it: every test in
     turn is predicted at the scan value best on the others, and these predictions' deviances must sum to
     DELTA_BIC below the current model's. The scan already simulates every test, so the cross-validation
-    costs no simulation. The value: on all tests, the minimum of the smoothed deviance (the ensembles of
-    the values within a few percent pooled, phasefree.pooled) by a grid search around the best scan value
+    costs no simulation. The value: on the tests that agree (all, unless a test predicted at the scan value
+    best on the others fits worse than without the effect: a record in a regime of the hunting the ensembles
+    near the others' value do not visit), the minimum of the smoothed deviance (the ensembles of the values
+    within a few percent pooled, phasefree.pooled) by a grid search around their best scan value
     (phasefree.search), then a parabola. It is named only if with it every test's score is at the floor: the
     hunting's band powers can stand in for part of almost any excess (a position ripple, say), so the
     effect must explain all of what is left (this also refuses a value that leaves any test, made worse
-    or not, above its floor).
+    or not, above its floor). The one exception: a test that stays above its floor with less power in every
+    band than the loudest re-simulation (a quieter regime, never a cause the effect does not make) is taken
+    out of the value's fit (the value searched again on the others, which must keep a test the effect is
+    needed for): the effect is named present, its value "not determined on this plan", and it is left out of
+    the augmented model (report.write_model).
     """
     model, p = ctx.model, effect.parameter
     try:
@@ -215,54 +223,97 @@ def phase_free_stage(ctx: Context, state: State, effect: Effect, steps: list) ->
             + (": confirmed" if ok else ": refused"))
     if not ok:
         return state
-
-    def smoothed(v: float, ratio: float) -> float:
-        ensemble = pooled(ensembles, v, ratio)
-        return score.fit(ensemble, ctx.names).deviance if ensemble is not None else math.inf
-
-    mid, points = search(lambda values: simulate(values, GRID_REALISATIONS), smoothed, v_all, effect.bounds[p])
-    value, s_log = estimate(points, PARABOLA_SPAN)
-    if smoothed(value, POOL_RATIO) > min(points.values()):
-        # the parabola's minimum fits worse than a value of the grid (its window pools other values): that value
-        value = min(points, key=points.get)
-    ensemble = pooled(ensembles, value, POOL_RATIO)
-    if ensemble is None:
-        steps.append({"how": "phase-free score: value on all tests", "from": labels, "to": labels + [effect.key],
-                      "accepted": False, "profile": {v: points[v] for v in sorted(points)},
-                      "note": "not named: the simulations around its best value failed (see failed_simulations)"})
-        ctx.log(f"diagnose:   {effect.key}: the simulations around its best value failed, not named")
-        return state
-    final, before = score.fit(ensemble, ctx.names), score.fit(ensembles[current], ctx.names)
+    # the tests that disagree: each predicted at the scan value best on the others fits worse than without the effect.
+    # Such a test's record is in a regime of the hunting the ensembles near the others' value do not visit (on short
+    # records the hunting has regimes a few percent of the realisations fall into: the axes hunting in step, a
+    # quieter torque); its mixture likelihood is then decided by whichever value's pooled window happens to hold such
+    # a member, not by the value. The value is fitted on the tests that agree (two or more), the others are checked
+    # at it; a fitted test left above its floor and quieter than every re-simulation is such a test too: it leaves
+    # the fit (the worst first) and the value is searched again (the grids' simulations are reused).
+    disagree = [n for n, f in folds.items() if f["deviance_change"] > DELTA_BIC]
+    fitted = [n for n in ctx.names if n not in disagree]
+    if len(fitted) < 2:
+        fitted = list(ctx.names)
+    before = score.fit(ensembles[current], ctx.names)
     floors = {n: score.floor(n) for n in ctx.names}
-    above = [n for n, d in final.per_test.items() if d > floors[n]]
+    while True:
+        on_tests = list(fitted)
+        start = min(effect.scan, key=lambda v: deviance(v, on_tests)) if on_tests != list(ctx.names) else v_all
+
+        def smoothed(v: float, ratio: float) -> float:
+            ensemble = pooled(ensembles, v, ratio)
+            return score.fit(ensemble, on_tests).deviance if ensemble is not None else math.inf
+
+        mid, points = search(lambda values: simulate(values, GRID_REALISATIONS), smoothed, start, effect.bounds[p])
+        value, s_log = estimate(points, PARABOLA_SPAN)
+        if smoothed(value, POOL_RATIO) > min(points.values()):
+            # the parabola's minimum fits worse than a value of the grid (its window pools other values): that value
+            value = min(points, key=points.get)
+        ensemble = pooled(ensembles, value, POOL_RATIO)
+        if ensemble is None:
+            steps.append({"how": "phase-free score: value on all tests", "from": labels, "to": labels + [effect.key],
+                          "accepted": False, "profile": {v: points[v] for v in sorted(points)},
+                          "note": "not named: the simulations around its best value failed (see failed_simulations)"})
+            ctx.log(f"diagnose:   {effect.key}: the simulations around its best value failed, not named")
+            return state
+        final = score.fit(ensemble, fitted)
+        per_test = {**score.deviances(ensemble, ctx.names, final.sigma), **final.per_test}
+
+        def quieter_regime(n: str) -> bool:
+            """Test n's record shows the effect (above its floor without it) but hunts less than every realisation
+            with it, in every band: a regime of the hunting the ensemble did not visit. A record with no trace of
+            it, or with more power in a band than the effect makes, is evidence against the effect."""
+            return before.per_test[n] > floors[n] and score.quieter(n, ensemble[n], final.sigma)
+
+        quiet = [n for n in sorted(fitted, key=lambda m: -per_test[m]) if per_test[n] > floors[n] and quieter_regime(n)]
+        # the tests left must hold one the effect is needed for (above its floor without it), and one more
+        rest = [n for n in fitted if not quiet or n != quiet[0]]
+        if not quiet or len(rest) < 2 or not any(before.per_test[n] > floors[n] for n in rest):
+            break
+        ctx.log(f"diagnose:   {effect.key} = {value:.4g}: {quiet[0]} stays above its floor ({per_test[quiet[0]]:.0f}) "
+                "with less power than the re-simulations: fitted again without it")
+        fitted = rest
+    # a test outside the fit at the floor with the value agrees after all (its disagreement was the scan's coarse
+    # grid); one above it is not reproduced, which only a quieter regime of the hunting may explain
+    unreproduced = [n for n in ctx.names if n not in fitted and per_test[n] > floors[n]]
+    unlike = [n for n in unreproduced if not quieter_regime(n)]
+    above = [n for n in fitted if per_test[n] > floors[n]] + unlike
+    realisations = len(next(iter(ensemble.values())))
+    on = "all tests" if fitted == list(ctx.names) else ", ".join(fitted)
     steps.append({"how": "phase-free score: value on all tests", "from": labels, "to": labels + [effect.key],
-                  "parameters": {p: value}, "delta_bic": dbic, "deviance_per_test": final.per_test,
+                  "parameters": {p: value}, "delta_bic": dbic, "deviance_per_test": per_test, "fitted_on": fitted,
                   "floor_per_test": floors, "profile": {v: points[v] for v in sorted(points)},
                   "profile_mid_grid": {v: mid[v] for v in sorted(mid)}, "accepted": not above,
-                  "note": ("every test's band powers at the floor with it" if not above else
+                  "note": ("every test's band powers at the floor with it" if not above and not unreproduced else
+                           f"the band powers of the tests it is fitted on at the floor with it; {', '.join(unreproduced)} "
+                           f"in a quieter regime of the hunting than its {realisations} re-simulations"
+                           if not above else
                            f"not named: with it the band powers of {', '.join(above)} stay above the floor "
-                           "(it would explain only part of the residual)")})
-    ctx.log(f"diagnose:   {effect.key} = {value:.4g} on all tests (deviance per test "
-            + ", ".join(f"{n} {d:.1f}" for n, d in final.per_test.items()) + ")"
+                           + ("(it would explain only part of the residual)" if not unlike else
+                              f"({', '.join(unlike)}: more power in a band than every re-simulation with it, or no "
+                              "trace of the effect at all: at its floor without it)"))})
+    ctx.log(f"diagnose:   {effect.key} = {value:.4g} on {on} (deviance per test "
+            + ", ".join(f"{n} {d:.1f}" for n, d in per_test.items()) + ")"
             + (f": above the floor on {', '.join(above)}, not named" if above else ": named"))
     if above:
         return state
-    disagree = [n for n, f in folds.items() if f["deviance_change"] > DELTA_BIC]
     why_not = ([f"95 % interval {value * math.exp(-1.96 * s_log):.3g} to {value * math.exp(1.96 * s_log):.3g}"]
                if 1.96 * s_log > math.log(DETERMINED_RATIO) else []) + [
-        f"{n} predicted at {folds[n]['value']:.3g} (best on the others) fits worse than without it "
-        f"({folds[n]['deviance_change']:+.0f})" for n in disagree]
+        f"{n} is in a regime of the hunting that none of the {realisations} re-simulations within "
+        f"{100 * (POOL_RATIO - 1):.0f} % of the value visits (deviance {per_test[n]:.0f} > {floors[n]:.1f}, with less "
+        f"power in every band than the loudest of them); the value is fitted on {on}" for n in unreproduced]
     if why_not:
-        ctx.log(f"diagnose:   {effect.key}: its value is not determined on this plan: {'; '.join(why_not)}")
+        ctx.log(f"diagnose:   {effect.key}: present, its value is not determined on this plan (not written into the "
+                f"augmented model): {'; '.join(why_not)}")
     nf = {n: score.bands[n].noise_fraction for n in ctx.names}
     info = {**state.info, "phase_free": {
         "parameter": p, "value": value, "std": value * s_log, "value_determined": not why_not,
-        "value_not_determined_because": why_not,
+        "value_not_determined_because": why_not, "fitted_on": fitted, "not_reproduced": unreproduced,
         "ci95": [value * math.exp(-1.96 * s_log), value * math.exp(1.96 * s_log)],
         "scan_value": v_all, "delta_bic": dbic, "cross_validated_deviance_change": dcv, "leave_one_out": folds,
-        "deviance_per_test": {"before": before.per_test, "after": final.per_test}, "floor_per_test": floors,
+        "deviance_per_test": {"before": before.per_test, "after": per_test}, "floor_per_test": floors,
         "noise_std_Nm": final.sigma, "bands_Hz": {n: score.bands[n].bands for n in ctx.names},
-        "ensemble": ENSEMBLE, "pooled_realisations": len(next(iter(ensemble.values()))),
+        "ensemble": ENSEMBLE, "pooled_realisations": realisations,
         "pool_ratio": POOL_RATIO,
         "band_powers_Nm_squared": {n: {"measured": score.measured[n].tolist(),
                                  "with": (ensemble[n].mean(axis=0) + final.sigma ** 2 * nf[n]).tolist(),

@@ -138,6 +138,20 @@ class PhaseFreeScore:
         loglik = -0.5 * (nu * (q - 1.0 - np.log(q))).sum(axis=1)
         return float(-2.0 * (logsumexp(loglik) - math.log(len(loglik))))
 
+    def deviances(self, ensembles: Mapping[str, np.ndarray], names: Sequence[str], sigma: float) -> dict[str, float]:
+        """Deviance of every test ``names`` at a given noise standard deviation (one profiled on other tests)."""
+        return {n: self._test_deviance(n, ensembles[n], sigma ** 2) for n in names}
+
+    def quieter(self, name: str, ensemble: np.ndarray, sigma: float, z: float = 3.0) -> bool:
+        """Whether the measured band powers of test ``name`` are nowhere above what the ensemble's loudest
+        realisation in that band plus the noise gives (within ``z`` standard deviations of a band power,
+        sqrt(2 / nu)): the
+        record hunts less than, or as much as, the re-simulations, never more in any band. A cause the effect
+        does not make adds power somewhere; a regime of the hunting the ensemble did not visit (fewer or weaker
+        episodes in the record's window) only takes it away."""
+        loudest = ensemble.max(axis=0) + sigma ** 2 * self.bands[name].noise_fraction
+        return bool(np.all(self.measured[name] <= loudest * (1.0 + z * np.sqrt(2.0 / self.dof[name]))))
+
     def fit(self, ensembles: Mapping[str, np.ndarray], names: Sequence[str]) -> Fit:
         """Deviance of the ensembles (per test: realisations x bands, from ``powers``) on the tests
         ``names``, with the noise variance profiled."""

@@ -32,6 +32,13 @@ def write_model(opt: Options, changes: Mapping[str, float], named: Sequence[dict
                  model_over: Mapping) -> dict:
     from .effects import AXIS_OF, CONTROLLER_PARAMETERS, axis_values
 
+    # a value the plan does not determine (a phase-free effect named present, phase_free.value_determined) is not
+    # written as a number: the augmented model leaves that parameter at its nominal value
+    undetermined = {p: {"named_value": float(v), "ci95": eff["evidence"]["phase_free"]["ci95"],
+                        "why": eff["evidence"]["phase_free"]["value_not_determined_because"]}
+                    for eff in named if not eff["evidence"].get("phase_free", {}).get("value_determined", True)
+                    for p, v in eff["parameters"].items()}
+    changes = {k: v for k, v in changes.items() if k not in undetermined}
     drive = {k: v for k, v in changes.items() if k in CONTROLLER_PARAMETERS}
     shared = {k: v for k, v in changes.items() if k not in drive and k not in AXIS_OF}
     values = {**{k: v for k, v in model_over.items()}, **shared}
@@ -59,6 +66,8 @@ def write_model(opt: Options, changes: Mapping[str, float], named: Sequence[dict
     out = {"parameter_set": str(ssv_path), "values": dict(values),
            "use": "bind resources/actuator_diagnosed.ssv after the other parameter sets of every actuator_k "
                   "(MAST_diagnosed.ssp does that); compare the lab's torque with actuator_k.tau_meas"}
+    if undetermined:
+        out["not_determined"] = undetermined     # named present, left at the nominal value: the plan does not pin it
     if drive:   # a controller-side effect: the drive's gains, a parameter set of the controller component
         cxml = parameter_set_xml("controller_diagnosed", f" Written by mast diagnose from {Path(opt.measured).name}: "
                                  "the drive parameters the data show; bind it after the controller's other parameter sets. ",
@@ -296,7 +305,10 @@ def write_report(out: Path, doc: dict, figs: Mapping[str, str]) -> None:
             for p, val in e["parameters"].items():
                 std = e["uncertainty"][p]["std"]
                 std_text = f"{std:.2g}" if std is not None and math.isfinite(std) else "-"
-                lines.append(f"| {e['effect']} | `{p}` | {e['nominal'][p]:.5g} | {val:.5g} | {std_text} | {text} |")
+                pf = ev.get("phase_free")
+                val_text = (f"{val:.5g}" if not pf or pf["value_determined"] else
+                            f"not determined ({pf['ci95'][0]:.3g} to {pf['ci95'][1]:.3g}; not in the augmented model)")
+                lines.append(f"| {e['effect']} | `{p}` | {e['nominal'][p]:.5g} | {val_text} | {std_text} | {text} |")
             for alt in ev.get("alternatives", []):
                 if "equivalent_value" in alt and alt["equivalent_value"] is not None:
                     lines.append(f"| (or) {alt['effect']} | `{alt['parameter']}` | | {alt['equivalent_value']:.5g} | | "
@@ -328,7 +340,12 @@ def write_report(out: Path, doc: dict, figs: Mapping[str, str]) -> None:
                   f"confirmed it (deviance {pf['cross_validated_deviance_change']:+.0f}: every test predicted at the "
                   "scan value best on the others)." + ("" if pf["value_determined"] else
                   f" Its value is not determined on this plan ({'; '.join(pf['value_not_determined_because'])}): "
-                  "longer tests of the kind that hunts would pin it."), "",
+                  f"it is present, `{pf['parameter']}` is not written into the augmented model (it keeps the nominal "
+                  f"value), and {lo:.4g} to {hi:.4g} is its interval on the tests it is fitted on"
+                  + (f" ({', '.join(pf['fitted_on'])})" if pf.get("not_reproduced") else "") + "."
+                  + (f" To pin it, repeat {', '.join(pf['not_reproduced'])} or add another test of its kind: a run of a "
+                     "loop that hunts is one realisation, and most runs visit the common regime of the hunting (a "
+                     "longer test alone need not: docs/diagnose.md)." if pf.get("not_reproduced") else "")), "",
                   "| test | deviance without it | with it | floor |", "|---|---|---|---|"]
         dev = pf["deviance_per_test"]
         lines += [f"| {n} | {dev['before'][n]:.1f} | {dev['after'][n]:.1f} | {pf['floor_per_test'][n]:.1f} |"

@@ -419,8 +419,9 @@ def regression_at(ctx: Context, state: State, atoms: Sequence[Atom], sensitiviti
     A_tr = np.column_stack([banded(cols[a.label], ctx.train) for a in atoms]) if atoms else np.zeros((0, 0))
     A_ho = np.column_stack([banded(cols[a.label], ctx.held) for a in atoms]) if ctx.held and atoms else \
         np.zeros((0, len(atoms)))
-    if not atoms:
+    if not atoms:    # a library without regression effects (--library backlash): nothing to propose
         A_tr = np.zeros((len(banded(resid, ctx.train)), 0))
+        A_ho = np.zeros((len(banded(resid, ctx.held)), 0))
     reg = Regression(atoms, A_tr, banded(resid, ctx.train), A_ho, banded(resid, ctx.held), ctx.sigma_b)
     reg.columns = {a.effect.parameter: cols[a.label] for a in atoms if a.label in steps}
     return reg

@@ -207,13 +207,26 @@ def judge(ctx: Context, state: State, after: dict, last_fit, steps: list) -> tup
     pf = state.info.get("phase_free")
     by_bands = [n for n in names if per_test[n] > FLOOR_FACTOR and pf
                 and pf["deviance_per_test"]["after"][n] <= pf["floor_per_test"][n]]
-    at_floor = all(per_test[n] <= FLOOR_FACTOR or n in by_bands for n in names)
+    # a named phase-free effect whose value is not determined: tests in a regime of the hunting its re-simulations do
+    # not visit (quieter than all of them, phasefree.PhaseFreeScore.quieter) are its trace, not an unknown cause
+    unreproduced = [n for n in (pf or {}).get("not_reproduced", ()) if per_test[n] > FLOOR_FACTOR]
+    at_floor = all(per_test[n] <= FLOOR_FACTOR or n in by_bands or n in unreproduced for n in names)
     titles = ", ".join(a.effect.title for a in state.selected)
     rh_text = f"{rh:.2f}" if rh is not None else "-"
     if at_floor and not state.selected:
         status, text = "nothing missing", (f"the nominal model's residual is at the noise floor (RMS {rt:.2f} x the "
                                            f"noise on training, {rh_text} x on held-out tests) and no candidate "
                                            "effect improves it: nothing is missing")
+    elif at_floor and pf and not pf["value_determined"]:
+        hunting = next(a.effect.title for a in state.selected if a.effect.phase_free)
+        others = ", ".join(a.effect.title for a in state.selected if not a.effect.phase_free)
+        status, text = "present, value not determined", (
+            (f"with {others} named, " if others else "")
+            + f"{hunting} is present, its value not determined on this plan "
+            f"({'; '.join(pf['value_not_determined_because'])}); the residual is at the noise floor sample by sample on "
+            f"{', '.join(n for n in names if n not in by_bands and n not in unreproduced) or 'no test'}"
+            + (f", in the band powers of the hunting on {', '.join(by_bands)}" if by_bands else "")
+            + f"; `{pf['parameter']}` is left out of the augmented model")
     elif at_floor and by_bands:
         status, text = "explained", (f"with {titles} the residual is at the noise floor: sample by sample on "
                                      f"{', '.join(n for n in names if n not in by_bands) or 'no test'}; on "
