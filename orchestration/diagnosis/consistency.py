@@ -17,7 +17,7 @@ from typing import Sequence
 import numpy as np
 
 from .effects import BOUNDS, BY_PARAMETER, MEASUREMENT
-from .stages import FD_STEP, Context, State
+from .stages import FD_STEP, Context, State, band_rss, selection_cost
 
 #: a per-test estimate agrees with the fitted change if within this many of its standard deviations ...
 Z_AGREE = 3.0
@@ -106,6 +106,46 @@ def excess_explained(ctx: Context, before, after) -> float:
 EXPLAINED_SHARE = 0.5
 
 
+def _moved(ctx: Context, before: State, after: State, checks: dict, keep: Sequence) -> dict[str, str]:
+    """Members of ``keep`` whose fitted change from the nominal value moves, between the selection ``before``
+    and its refit without the members taken out (``after``), by more than max(Z_AGREE std, REL_AGREE of the
+    change): a value that depends on whether a stand-in is in the model shares what that stand-in absorbed
+    (the std: the per-test estimates' combined, inverse-variance). {effect key: how far it moved}."""
+    if not after.selected:
+        return {}
+    out = {}
+    for a in keep:
+        for p in a.effect.parameters:
+            if p not in before.changes or p not in after.changes:
+                continue
+            c0 = float(before.changes[p]) - float(ctx.nominal[p])
+            c1 = float(after.changes[p]) - float(ctx.nominal[p])
+            w = [1.0 / v["std"] ** 2 for v in checks.get(p, {}).get("per_test", {}).values() if v["std"] > 0]
+            std = 1.0 / math.sqrt(sum(w)) if w else 0.0
+            if abs(c1 - c0) > max(Z_AGREE * std, REL_AGREE * abs(c0)):
+                out[a.effect.key] = f"{c1 - c0:+.4g} ({p}: change {c0:+.4g} -> {c1:+.4g})"
+    return out
+
+
+def structure_left(ctx: Context, accepted: State, kept: State) -> float:
+    """Training BIC (in the band) of the selection kept against the one the search accepted: DELTA_BIC or more
+    means the data hold structure that the accepted selection reproduced and the kept one does not, i.e. what
+    the members not named absorbed (a residual left, even where its RMS is within the floor factor)."""
+    rss0, n = band_rss(ctx, accepted.pt, ctx.train)
+    rss1, _ = band_rss(ctx, kept.pt, ctx.train)
+    return (n * math.log(rss1 / n) + selection_cost(kept.selected) * math.log(n)
+            - n * math.log(rss0 / n) - selection_cost(accepted.selected) * math.log(n))
+
+
+def needs_check(state: State, status: str) -> bool:
+    """Whether the accepted selection must pass the check before it is named: always when a residual is left
+    above the floor; at the floor when several sample-by-sample effects share the gap (a cause outside the
+    library can be reproduced to the floor by a combination of small stand-ins; one effect alone at the floor
+    is what the held-out check already confirmed)."""
+    members = [a for a in state.selected if not a.effect.phase_free]
+    return bool(members) and (status == "unexplained residual" or len(members) >= 2)
+
+
 def only_consistent(ctx: Context, state: State, named: Sequence[dict], steps: list, nominal_pt) -> tuple[State, list]:
     """With a residual left above the noise floor, a member of the selection is named only if it cannot be a
     stand-in for a cause outside the library: two or more tests inform it and their per-test estimates agree
@@ -135,8 +175,17 @@ def only_consistent(ctx: Context, state: State, named: Sequence[dict], steps: li
                         "parameter is one value whatever the test" if c["disagreeing_tests"] else
                         f"{'only one test tells' if c['informative_tests'] else 'no test alone tells'} it from "
                         "zero: its value cannot be checked across tests") for k, c in bad.items()})
-        keep = tuple(a for a in kept.selected if a.effect.key not in bad)
-        kept = (fit_state(ctx, keep, dict(kept.changes)) if keep else None) or State((), {}, nominal_pt)
+        before, keep = kept, tuple(a for a in kept.selected if a.effect.key not in bad)
+        while keep:
+            kept = fit_state(ctx, keep, dict(before.changes)) or State((), {}, nominal_pt)
+            moved = _moved(ctx, before, kept, latest, keep)
+            if not moved:
+                break
+            why.update({k: f"its value moves by {m} when {', '.join(bad)} (not named) is taken out: it was fitted "
+                           "together with a stand-in, and shares what that one absorbed" for k, m in moved.items()})
+            keep = tuple(a for a in keep if a.effect.key not in moved)
+        if not keep:
+            kept = State((), {}, nominal_pt)
     share = excess_explained(ctx, nominal_pt, kept.pt)
     if kept.selected:
         ctx.log(f"diagnose:   the selection kept ({', '.join(a.label for a in kept.selected)}) removes "
@@ -149,6 +198,7 @@ def only_consistent(ctx: Context, state: State, named: Sequence[dict], steps: li
         kept = State((), {}, nominal_pt)
     kept.info["consistency"] = {p: c for p, c in checks.items() if p in kept.changes}
     kept.info["excess_explained"] = share
+    kept.info["structure_left"] = structure_left(ctx, state, kept)
     if not why:
         return kept, []
     hints = [{**e, "consistency": {p: checks[p] for p in e["parameters"] if p in checks},

@@ -16,7 +16,7 @@ from .plan import excitations, identifiability
 from .report import jsonable, plot_figures, write_model, write_report
 from .resimulation import DiagnosisError, Model, Prepared, Simulator
 from .selection import Atom, Band
-from .consistency import only_consistent
+from .consistency import needs_check, only_consistent
 from .stages import MAX_EFFECTS, NONLINEAR, Context, State, alias_check, prune, regression_loop, residual_at_floor
 from .verdict import gap_table, gap_trend, judge, localise_test, named_effects
 
@@ -218,17 +218,19 @@ def diagnose(opt: Options, log: Callable[[str], None] = print) -> dict:
         after = gap_table(prepared, final_pt, names, sigma, resolution)
         named = named_effects(ctx, state, last_fit, steps)
         verdict, unexplained = judge(ctx, state, after, last_fit, steps)
-        if verdict["status"] == "unexplained residual" and state.selected:
-            # a residual is left: only effects that are one value whatever the test keep their name
+        if needs_check(state, verdict["status"]):
+            # a residual is left, or several effects share the gap: only effects that are one value whatever the
+            # test keep their name
             state, hints = only_consistent(ctx, state, named, steps, nominal_pt)
             if hints:
                 final_pt = state.pt
                 after = gap_table(prepared, final_pt, names, sigma, resolution)
                 named = named_effects(ctx, state, last_fit, steps)
-                verdict, unexplained = judge(ctx, state, after, last_fit, steps)
-                unexplained["hints"] = hints
+                verdict, unexplained = judge(ctx, state, after, last_fit, steps, state.info["structure_left"])
+                where = "unexplained" if unexplained is not None else "verdict"
+                (unexplained if unexplained is not None else verdict)["hints"] = hints
                 verdict["text"] += ("; hints, not named (they may only stand in for a cause outside the library: "
-                                    "unexplained.hints): " + ", ".join(h["effect"] for h in hints))
+                                    f"{where}.hints): " + ", ".join(h["effect"] for h in hints))
             for e in named:     # named with a residual left: the checks that allowed it
                 e["evidence"]["per_test"] = {p: state.info["consistency"][p] for p in e["parameters"]
                                              if p in state.info["consistency"]}
