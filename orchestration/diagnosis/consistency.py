@@ -1,13 +1,17 @@
 """Named only if explained: the guard that keeps a plant name off a cause outside the library.
 
-When a residual is left above the noise floor, an accepted selection may only stand in for what the library
-lacks (a position loop running at another cycle time projects onto the inertia's signature in the band). It is
-named only if (1) each member is one value whatever the test: the data of each test alone, regressed on the
-members' re-simulated sensitivities at the fitted model, agree with the values fitted on the training tests
-(a stand-in absorbs a different share of the unknown cause at each frequency and kind of motion, so its
-per-test estimates scatter), and (2) together they remove at least half of the residual power above the
+When a residual is left above the noise floor, or when several effects share the gap (at the floor too: a
+combination of small stand-ins can reproduce an unknown cause down to the noise), an accepted selection may
+only stand in for what the library lacks (a position loop running at another cycle time projects onto the
+inertia's signature in the band; a softer transmission onto the drive's gains, its cycle time and the guide's
+inertia). It is named only if (1) each member is one value whatever the test: the data of each test alone,
+regressed on the members' re-simulated sensitivities at the fitted model, agree with the values fitted on the
+training tests (a stand-in absorbs a different share of the unknown cause at each frequency and kind of motion,
+so its per-test estimates scatter), and a member's value does not move when a stand-in is taken out (then it
+shared what the stand-in absorbed), and (2) together they remove at least half of the residual power above the
 noise floor (full band, every test). Otherwise nothing is named and the members are reported as hints
-(``unexplained.hints`` of diagnosis.json, report.md), never as names (workflow.diagnose).
+(``unexplained.hints`` of diagnosis.json, report.md), never as names; the structure they absorbed is a residual
+left (``structure_left``), whatever its RMS (workflow._named_only_if_explained).
 """
 from __future__ import annotations
 
@@ -147,9 +151,10 @@ def needs_check(state: State, status: str) -> bool:
 
 
 def only_consistent(ctx: Context, state: State, named: Sequence[dict], steps: list, nominal_pt) -> tuple[State, list]:
-    """With a residual left above the noise floor, a member of the selection is named only if it cannot be a
-    stand-in for a cause outside the library: two or more tests inform it and their per-test estimates agree
-    (members that fail are taken out, the rest refitted and checked again), and what is kept removes at least
+    """With a residual left above the noise floor, or several effects sharing the gap (``needs_check``), a member
+    of the selection is named only if it cannot be a stand-in for a cause outside the library: two or more tests
+    inform it and their per-test estimates agree (members that fail are taken out, the rest refitted; a member
+    whose value then moves is taken out too; what is left is checked again), and what is kept removes at least
     EXPLAINED_SHARE of the residual power above the floor (else the gap is mostly the unknown cause, whose
     projection onto a signature is no evidence of an effect: nothing is named). Returns the state of what is
     named and the hints (the members not named, with their checks)."""
@@ -206,7 +211,8 @@ def only_consistent(ctx: Context, state: State, named: Sequence[dict], steps: li
              for e in named if e["key"] in why]
     steps.append({"how": "named only if explained", "from": [a.label for a in state.selected],
                   "to": [a.label for a in kept.selected], "accepted": True,
-                  "note": "a residual is left above the noise floor; not named: "
+                  "structure_left_delta_bic": kept.info["structure_left"],
+                  "note": "a residual is left above the noise floor, or several effects share the gap; not named: "
                           + "; ".join(f"{k} ({w})" for k, w in why.items())})
     ctx.log(f"diagnose:   not named (hints only): {', '.join(why)}")
     return kept, hints

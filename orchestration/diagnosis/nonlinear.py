@@ -134,7 +134,7 @@ def _nonlinear_start(ctx: Context, state: State, e: Effect) -> dict:
         return {"i_max": _peaks(ctx, state.pt)[0] / float(ctx.nominal["k_T"])}
     if e.key == "stiffness":   # the spring's compliance is what the loop feels: a log grid, on every training test
         k0 = float(state.changes.get("K_t", ctx.nominal["K_t"]))
-        grid = [{"K_t": k0 * 2.0 ** (k / 2)} for k in range(2, -11, -1)]
+        grid = [{"K_t": k0 * 2.0 ** k} for k in (1, -1, -2, -3, -4, -5)]
         probe = list(ctx.train)
     else:
         grid = START_GRIDS[e.key]

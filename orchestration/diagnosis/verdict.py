@@ -242,6 +242,8 @@ def judge(ctx: Context, state: State, after: dict, last_fit, steps: list,
     verdict = {"status": status, "text": text, "residual_over_noise_training": rt, "residual_over_noise_held_out": rh,
                "residual_over_noise_per_test": per_test, "floor_factor": FLOOR_FACTOR, "whiteness": white,
                "judged_by_band_powers": by_bands}
+    if structure_left is not None:
+        verdict["structure_left_delta_bic"] = structure_left
     unexplained = None
     if not at_floor:
         loc = {n: localise_test(model, pt, prepared[n], sigma) for n in names}

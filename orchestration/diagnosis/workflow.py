@@ -121,41 +121,36 @@ def _check_torque_scale(prepared: dict[str, Prepared], simulated: dict[str, np.n
                     + (" and k_T" if key == "i_m" else ""))
 
 
-def _named_only_if_explained(ctx: Context, state: State, last_fit, steps: list, nominal_pt, library, atoms,
+def _named_only_if_explained(ctx: Context, state: State, last_fit, steps: list, nominal_pt, library,
                              rejected: set) -> tuple:
     """The verdict on the search's selection, and what of it is named (consistency.py): when a residual is left,
     or several effects share the gap, only effects that are one value whatever the test keep their name. When
     members were refused as stand-ins and the structure they absorbed is left (training BIC +DELTA_BIC without
     them), the effects whose trace the linear ones mimic (``after_stand_ins``: the transmission stiffness) are
-    tried by re-simulation from the model kept, and the search goes on around them. Returns (state, last_fit,
+    tried by re-simulation from the model kept (the members kept refitted with them), and what is accepted is
+    checked again. Returns (state, last_fit,
     named effects, verdict, unexplained)."""
     named = named_effects(ctx, state, last_fit, steps)
-    verdict, unexplained = judge(ctx, state, gap_table(ctx.model.tests, state.pt, ctx.names, ctx.sigma, 0.0),
-                                 last_fit, steps)
-    hints: list = []
-    for _ in range(2):
-        if not needs_check(state, verdict["status"]):
-            break
-        state, hints = only_consistent(ctx, state, named, steps, nominal_pt)
-        later = [e for e in library if e.after_stand_ins and not any(a.effect.key == e.key for a in state.selected)]
-        if not (hints and later and state.info["structure_left"] >= DELTA_BIC and len(state.selected) < MAX_EFFECTS):
-            break
-        ctx.log("diagnose: stand-ins refused, structure left: trying " + ", ".join(e.title for e in later))
-        tried = nonlinear_stage(ctx, state, later, rejected, steps)
-        if tried is None:
-            break
-        state, last_fit = regression_loop(ctx, tried, atoms, rejected, steps)
-        state = prune(ctx, state, steps)
-        named = named_effects(ctx, state, last_fit, steps)
-        verdict, unexplained = judge(ctx, state, gap_table(ctx.model.tests, state.pt, ctx.names, ctx.sigma, 0.0),
-                                     last_fit, steps)
-        hints = []
-    if "consistency" not in state.info:
+    verdict, unexplained = judge(ctx, state, {}, last_fit, steps)
+    if not needs_check(state, verdict["status"]):
         return state, last_fit, named, verdict, unexplained
+    state, hints = only_consistent(ctx, state, named, steps, nominal_pt)
+    later = [e for e in library if e.after_stand_ins and not any(a.effect.key == e.key for a in state.selected)]
+    if hints and later and state.info["structure_left"] >= DELTA_BIC and len(state.selected) < MAX_EFFECTS:
+        ctx.log("diagnose: stand-ins refused, their structure left: trying " + ", ".join(e.title for e in later))
+        tried = nonlinear_stage(ctx, state, later, rejected, steps)
+        if tried is not None:   # accepted beside the members kept (refitted with it): checked again, once
+            state = tried
+            named = named_effects(ctx, state, last_fit, steps)
+            verdict, unexplained = judge(ctx, state, {}, last_fit, steps)
+            if not needs_check(state, verdict["status"]):
+                return state, last_fit, named, verdict, unexplained
+            earlier = hints
+            state, hints = only_consistent(ctx, state, named, steps, nominal_pt)
+            hints += [h for h in earlier if h["key"] not in {x["key"] for x in hints} | {a.effect.key for a in state.selected}]
     if hints:
         named = named_effects(ctx, state, last_fit, steps)
-        verdict, unexplained = judge(ctx, state, gap_table(ctx.model.tests, state.pt, ctx.names, ctx.sigma, 0.0),
-                                     last_fit, steps, state.info["structure_left"])
+        verdict, unexplained = judge(ctx, state, {}, last_fit, steps, state.info["structure_left"])
         where = "unexplained" if unexplained is not None else "verdict"
         (unexplained if unexplained is not None else verdict)["hints"] = hints
         verdict["text"] += ("; hints, not named (they may only stand in for a cause outside the library: "
@@ -261,7 +256,7 @@ def diagnose(opt: Options, log: Callable[[str], None] = print) -> dict:
             if e.phase_free and not residual_at_floor(ctx, state.pt) and len(state.selected) < MAX_EFFECTS:
                 state = phase_free_stage(ctx, state, e, steps)
         state, last_fit, named, verdict, unexplained = _named_only_if_explained(
-            ctx, state, last_fit, steps, nominal_pt, library, atoms, rejected)
+            ctx, state, last_fit, steps, nominal_pt, library, rejected)
         final_pt = state.pt
         after = gap_table(prepared, final_pt, names, sigma, resolution)
         final_local = {n: localise_test(model, final_pt, prepared[n], sigma) for n in names}
