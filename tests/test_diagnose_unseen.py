@@ -189,8 +189,8 @@ OUTSIDE = {
     "position-cycle": ({"controller": {"T_pos": 0.004}}, SMALL, 201, {}, ()),
     # a true Coulomb friction with a guide torque ripple the library lacks: before the guard, Coulomb friction and
     # a viscous friction (a stand-in for part of the ripple) named; the ripple's residual stays
-    "coulomb-and-ripple": ({"actuator": {"tau_c": 0.045, "tau_ripple": 0.002}}, SMALL, 204, {"coulomb": ("tau_c", 0.045)},
-                           ()),
+    "coulomb-and-ripple": ({"actuator": {"tau_c": 0.045, "tau_ripple": 0.002}}, SMALL, 204,
+                           {"coulomb": ("tau_c", 0.045)}, ()),
     # a transmission 17 x softer (K_t 4 N m/rad, documented 67.7) with the stiffness left out of the library: three
     # small changes (J1_scale -2 %, k_i -6 %, T_vel 2 ms) reproduce its trace to the noise floor; before the check
     # ran at the floor, all three were named ("explained")

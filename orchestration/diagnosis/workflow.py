@@ -128,8 +128,7 @@ def _named_only_if_explained(ctx: Context, state: State, last_fit, steps: list, 
     members were refused as stand-ins and the structure they absorbed is left (training BIC +DELTA_BIC without
     them), the effects whose trace the linear ones mimic (``after_stand_ins``: the transmission stiffness) are
     tried by re-simulation from the model kept (the members kept refitted with them), and what is accepted is
-    checked again. Returns (state, last_fit,
-    named effects, verdict, unexplained)."""
+    checked again. Returns (state, last_fit, named effects, verdict, unexplained)."""
     named = named_effects(ctx, state, last_fit, steps)
     verdict, unexplained = judge(ctx, state, {}, last_fit, steps)
     if not needs_check(state, verdict["status"]):
@@ -147,7 +146,8 @@ def _named_only_if_explained(ctx: Context, state: State, last_fit, steps: list, 
                 return state, last_fit, named, verdict, unexplained
             earlier = hints
             state, hints = only_consistent(ctx, state, named, steps, nominal_pt)
-            hints += [h for h in earlier if h["key"] not in {x["key"] for x in hints} | {a.effect.key for a in state.selected}]
+            known = {x["key"] for x in hints} | {a.effect.key for a in state.selected}
+            hints += [h for h in earlier if h["key"] not in known]
     if hints:
         named = named_effects(ctx, state, last_fit, steps)
         verdict, unexplained = judge(ctx, state, {}, last_fit, steps, state.info["structure_left"])
