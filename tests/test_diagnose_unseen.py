@@ -200,10 +200,11 @@ OUTSIDE = {
 
 @pytest.mark.parametrize("case", list(OUTSIDE))
 def test_a_cause_outside_the_library_gets_no_plant_name(built_ssp, tmp_path, case):
-    """A residual is left that no candidate explains: an effect accepted by the search is named only if each test
-    alone agrees on its value and the selection removes most of the gap (diagnosis/consistency.py); the
-    others are hints in unexplained.hints and report.md, never names. The true effect beside an unknown one is
-    still named, within 5 %."""
+    """A residual is left that no candidate explains, or several stand-ins reproduce it down to the noise floor: an
+    effect accepted by the search is named only if each test alone agrees on its value, its value does not move when
+    a stand-in is taken out, and the selection removes most of the gap (diagnosis/consistency.py); the others are
+    hints in unexplained.hints and report.md, never names, and stand-ins refused at the floor leave an unexplained
+    (structured) residual, not "explained". The true effect beside an unknown one is still named, within 5 %."""
     from mast.diagnosis.effects import LIBRARY
 
     truth, plan, seed, expected, left_out = OUTSIDE[case]
