@@ -182,19 +182,18 @@ def test_effects_on_one_axis_and_in_the_drive_are_named(built_ssp, tmp_path, cas
             truth[component][base], rel=0.05, abs=0.05 * abs(value))
 
 
-#: causes outside the library (issue 18): (truth, plan, seed, what may be named, effects left out of the library)
+#: causes outside the library (issue 18): (truth, plan, seed, what may be named)
 OUTSIDE = {
     # the drive's position loop at 4 ms instead of 1 ms (T_pos is not in the library): before the guard, named
     # motor-side inertia (J1_scale 1.025) and a measurement lag beside an unexplained residual
-    "position-cycle": ({"controller": {"T_pos": 0.004}}, SMALL, 201, {}, ()),
+    "position-cycle": ({"controller": {"T_pos": 0.004}}, SMALL, 201, {}),
     # a true Coulomb friction with a guide torque ripple the library lacks: before the guard, Coulomb friction and
     # a viscous friction (a stand-in for part of the ripple) named; the ripple's residual stays
     "coulomb-and-ripple": ({"actuator": {"tau_c": 0.045, "tau_ripple": 0.002}}, SMALL, 204,
-                           {"coulomb": ("tau_c", 0.045)}, ()),
-    # a transmission 17 x softer (K_t 4 N m/rad, documented 67.7) with the stiffness left out of the library: three
-    # small changes (J1_scale -2 %, k_i -6 %, T_vel 2 ms) reproduce its trace to the noise floor; before the check
-    # ran at the floor, all three were named ("explained")
-    "softer-transmission-not-in-the-library": ({"actuator": {"K_t": 4.0}}, SMALL, 207, {}, ("stiffness",)),
+                           {"coulomb": ("tau_c", 0.045)}),
+    # the position loop at 2 ms: motor-side inertia (J1_scale 1.008) and a measurement lag (0.32 ms) reproduce its
+    # trace down to the noise floor; before the check ran at the floor, both were named ("explained")
+    "position-cycle-at-the-floor": ({"controller": {"T_pos": 0.002}}, SMALL, 209, {}),
 }
 
 
@@ -207,11 +206,10 @@ def test_a_cause_outside_the_library_gets_no_plant_name(built_ssp, tmp_path, cas
     (structured) residual, not "explained". The true effect beside an unknown one is still named, within 5 %."""
     from mast.diagnosis.effects import LIBRARY
 
-    truth, plan, seed, expected, left_out = OUTSIDE[case]
+    truth, plan, seed, expected = OUTSIDE[case]
     # backlash left out (its phase-free scan, half the cost here, is refused on such residuals: the ripple test of
     # test_diagnose.py covers that)
-    doc = run(built_ssp, tmp_path, truth, plan, seed,
-              library=tuple(e.key for e in LIBRARY if e.key not in ("backlash",) + left_out))
+    doc = run(built_ssp, tmp_path, truth, plan, seed, library=tuple(e.key for e in LIBRARY if e.key != "backlash"))
     effects = named(doc)
     assert set(effects) == set(expected), effects
     for key, (parameter, value) in expected.items():
@@ -224,7 +222,7 @@ def test_a_cause_outside_the_library_gets_no_plant_name(built_ssp, tmp_path, cas
     assert "Hints, not names" in (tmp_path / "out" / "report.md").read_text()
     if not expected:    # nothing named: the augmented model is the nominal one
         assert doc["augmented_model"]["values"] == {} and "controller_values" not in doc["augmented_model"]
-    if left_out:        # stand-ins that reach the noise floor together: refused there too, the structure reported
+    if case.endswith("at-the-floor"):   # stand-ins that reach the noise floor together: refused there too
         assert all(r <= 1.2 for r in doc["verdict"]["residual_over_noise_per_test"].values())
         assert len(hints) >= 2 and "structured" in doc["verdict"]["text"]
 
