@@ -1,13 +1,17 @@
 """Named only if explained: the guard that keeps a plant name off a cause outside the library.
 
-When a residual is left above the noise floor, an accepted selection may only stand in for what the library
-lacks (a position loop running at another cycle time projects onto the inertia's signature in the band). It is
-named only if (1) each member is one value whatever the test: the data of each test alone, regressed on the
-members' re-simulated sensitivities at the fitted model, agree with the values fitted on the training tests
-(a stand-in absorbs a different share of the unknown cause at each frequency and kind of motion, so its
-per-test estimates scatter), and (2) together they remove at least half of the residual power above the
+When a residual is left above the noise floor, or when several effects share the gap (at the floor too: a
+combination of small stand-ins can reproduce an unknown cause down to the noise), an accepted selection may
+only stand in for what the library lacks (a position loop running at another cycle time projects onto the
+inertia's signature in the band; a softer transmission onto the drive's gains, its cycle time and the guide's
+inertia). It is named only if (1) each member is one value whatever the test: the data of each test alone,
+regressed on the members' re-simulated sensitivities at the fitted model, agree with the values fitted on the
+training tests (a stand-in absorbs a different share of the unknown cause at each frequency and kind of motion,
+so its per-test estimates scatter), and a member's value does not move when a stand-in is taken out (then it
+shared what the stand-in absorbed), and (2) together they remove at least half of the residual power above the
 noise floor (full band, every test). Otherwise nothing is named and the members are reported as hints
-(``unexplained.hints`` of diagnosis.json, report.md), never as names (workflow.diagnose).
+(``unexplained.hints`` of diagnosis.json, report.md), never as names; the structure they absorbed is a residual
+left (``structure_left``), whatever its RMS (workflow._named_only_if_explained).
 """
 from __future__ import annotations
 
@@ -17,7 +21,7 @@ from typing import Sequence
 import numpy as np
 
 from .effects import BOUNDS, BY_PARAMETER, MEASUREMENT
-from .stages import FD_STEP, Context, State
+from .stages import FD_STEP, Context, State, band_rss, selection_cost
 
 #: a per-test estimate agrees with the fitted change if within this many of its standard deviations ...
 Z_AGREE = 3.0
@@ -106,10 +110,51 @@ def excess_explained(ctx: Context, before, after) -> float:
 EXPLAINED_SHARE = 0.5
 
 
+def _moved(ctx: Context, before: State, after: State, checks: dict, keep: Sequence) -> dict[str, str]:
+    """Members of ``keep`` whose fitted change from the nominal value moves, between the selection ``before``
+    and its refit without the members taken out (``after``), by more than max(Z_AGREE std, REL_AGREE of the
+    change): a value that depends on whether a stand-in is in the model shares what that stand-in absorbed
+    (the std: the per-test estimates' combined, inverse-variance). {effect key: how far it moved}."""
+    if not after.selected:
+        return {}
+    out = {}
+    for a in keep:
+        for p in a.effect.parameters:
+            if p not in before.changes or p not in after.changes:
+                continue
+            c0 = float(before.changes[p]) - float(ctx.nominal[p])
+            c1 = float(after.changes[p]) - float(ctx.nominal[p])
+            w = [1.0 / v["std"] ** 2 for v in checks.get(p, {}).get("per_test", {}).values() if v["std"] > 0]
+            std = 1.0 / math.sqrt(sum(w)) if w else 0.0
+            if abs(c1 - c0) > max(Z_AGREE * std, REL_AGREE * abs(c0)):
+                out[a.effect.key] = f"{c1 - c0:+.4g} ({p}: change {c0:+.4g} -> {c1:+.4g})"
+    return out
+
+
+def structure_left(ctx: Context, accepted: State, kept: State) -> float:
+    """Training BIC (in the band) of the selection kept against the one the search accepted: DELTA_BIC or more
+    means the data hold structure that the accepted selection reproduced and the kept one does not, i.e. what
+    the members not named absorbed (a residual left, even where its RMS is within the floor factor)."""
+    rss0, n = band_rss(ctx, accepted.pt, ctx.train)
+    rss1, _ = band_rss(ctx, kept.pt, ctx.train)
+    return (n * math.log(rss1 / n) + selection_cost(kept.selected) * math.log(n)
+            - n * math.log(rss0 / n) - selection_cost(accepted.selected) * math.log(n))
+
+
+def needs_check(state: State, status: str) -> bool:
+    """Whether the accepted selection must pass the check before it is named: always when a residual is left
+    above the floor; at the floor when several sample-by-sample effects share the gap (a cause outside the
+    library can be reproduced to the floor by a combination of small stand-ins; one effect alone at the floor
+    is what the held-out check already confirmed)."""
+    members = [a for a in state.selected if not a.effect.phase_free]
+    return bool(members) and (status == "unexplained residual" or len(members) >= 2)
+
+
 def only_consistent(ctx: Context, state: State, named: Sequence[dict], steps: list, nominal_pt) -> tuple[State, list]:
-    """With a residual left above the noise floor, a member of the selection is named only if it cannot be a
-    stand-in for a cause outside the library: two or more tests inform it and their per-test estimates agree
-    (members that fail are taken out, the rest refitted and checked again), and what is kept removes at least
+    """With a residual left above the noise floor, or several effects sharing the gap (``needs_check``), a member
+    of the selection is named only if it cannot be a stand-in for a cause outside the library: two or more tests
+    inform it and their per-test estimates agree (members that fail are taken out, the rest refitted; a member
+    whose value then moves is taken out too; what is left is checked again), and what is kept removes at least
     EXPLAINED_SHARE of the residual power above the floor (else the gap is mostly the unknown cause, whose
     projection onto a signature is no evidence of an effect: nothing is named). Returns the state of what is
     named and the hints (the members not named, with their checks)."""
@@ -135,8 +180,17 @@ def only_consistent(ctx: Context, state: State, named: Sequence[dict], steps: li
                         "parameter is one value whatever the test" if c["disagreeing_tests"] else
                         f"{'only one test tells' if c['informative_tests'] else 'no test alone tells'} it from "
                         "zero: its value cannot be checked across tests") for k, c in bad.items()})
-        keep = tuple(a for a in kept.selected if a.effect.key not in bad)
-        kept = (fit_state(ctx, keep, dict(kept.changes)) if keep else None) or State((), {}, nominal_pt)
+        before, keep = kept, tuple(a for a in kept.selected if a.effect.key not in bad)
+        while keep:
+            kept = fit_state(ctx, keep, dict(before.changes)) or State((), {}, nominal_pt)
+            moved = _moved(ctx, before, kept, latest, keep)
+            if not moved:
+                break
+            why.update({k: f"its value moves by {m} when {', '.join(bad)} (not named) is taken out: it was fitted "
+                           "together with a stand-in, and shares what that one absorbed" for k, m in moved.items()})
+            keep = tuple(a for a in keep if a.effect.key not in moved)
+        if not keep:
+            kept = State((), {}, nominal_pt)
     share = excess_explained(ctx, nominal_pt, kept.pt)
     if kept.selected:
         ctx.log(f"diagnose:   the selection kept ({', '.join(a.label for a in kept.selected)}) removes "
@@ -149,6 +203,7 @@ def only_consistent(ctx: Context, state: State, named: Sequence[dict], steps: li
         kept = State((), {}, nominal_pt)
     kept.info["consistency"] = {p: c for p, c in checks.items() if p in kept.changes}
     kept.info["excess_explained"] = share
+    kept.info["structure_left"] = structure_left(ctx, state, kept)
     if not why:
         return kept, []
     hints = [{**e, "consistency": {p: checks[p] for p in e["parameters"] if p in checks},
@@ -156,7 +211,8 @@ def only_consistent(ctx: Context, state: State, named: Sequence[dict], steps: li
              for e in named if e["key"] in why]
     steps.append({"how": "named only if explained", "from": [a.label for a in state.selected],
                   "to": [a.label for a in kept.selected], "accepted": True,
-                  "note": "a residual is left above the noise floor; not named: "
+                  "structure_left_delta_bic": kept.info["structure_left"],
+                  "note": "a residual is left above the noise floor, or several effects share the gap; not named: "
                           + "; ".join(f"{k} ({w})" for k, w in why.items())})
     ctx.log(f"diagnose:   not named (hints only): {', '.join(why)}")
     return kept, hints

@@ -20,6 +20,7 @@ motor torque per unit change of its first parameter, computed from a simulation
 | drive gains (controller) | k_p, k_v, k_i | none: the closed loop's re-simulated sensitivity |
 | velocity-loop cycle time (controller) | T_vel | none: re-simulated secant to the next cycle; fitted on its grid (multiples of T_cur) |
 | current limit (controller) | i_max | none: re-simulated only (no trace below the limit), tried when the data's torque peak stays below the model's |
+| transmission stiffness | K_t | none: re-simulated only, from a log scan (1/K_t, not K_t, is what the loop feels), tried when stand-ins were refused |
 
 Plant and measurement effects also exist on one axis only ("<parameter>_axis<j>", an increment on
 actuator j; ``PER_AXIS``).
@@ -194,6 +195,8 @@ class Effect:
     cost: int = 1                        # parameters counted by the information criterion
     refines: Optional[str] = None        # an asymmetry of this effect: tried only once it is named
     quantum: Optional[str] = None        # a discrete parameter: integer multiples (>= 1) of this one (a cycle time)
+    after_stand_ins: bool = False        # re-simulation only, tried when the check "named only if explained" has
+    #                                      refused stand-ins: its trace in the band is what the linear effects mimic
 
     @property
     def parameter(self) -> str:
@@ -234,6 +237,11 @@ LIBRARY: tuple[Effect, ...] = (
     Effect("current_limit", "current limit of the drive (controller side)", ("i_max",), "controller",
            "the torque is flat-topped at k_T i_max wherever the model's exceeds it (the peaks of the fastest "
            "tests); no effect below the limit", {"i_max": (0.05, 100.0)}, regression=False),
+    Effect("stiffness", "transmission stiffness (two-inertia spring)", ("K_t",), "plant",
+           "a softer (or stiffer) transmission: the guide lags the motor by the spring's deflection (a phase lag "
+           "inside the position loop, growing with f, which gains, cycle times and inertia mimic in the band), and "
+           "the transmission mode sqrt(K_t (J1 + J2) / (J1 J2)) moves", {"K_t": (1.0, 1000.0)}, regression=False,
+           after_stand_ins=True),
     Effect("offset", "constant torque offset", ("tau_offset",), "measurement",
            "a bias, the same in every test", {"tau_offset": (-1.0, 1.0)}),
     Effect("lag", "measurement low-pass filter or delay", ("T_meas",), "measurement",

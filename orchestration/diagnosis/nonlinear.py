@@ -103,7 +103,13 @@ def _clip_gate(ctx: Context, pt: Point) -> tuple[bool, str]:
         f"{CLIP_GATE:g} noise deviations: nothing is clipped")
 
 
-GATES = {"stribeck": _reversal_gate, "current_limit": _clip_gate}
+def _stand_in_gate(ctx: Context, pt: Point) -> tuple[bool, str]:
+    """The transmission stiffness is offered only once stand-ins were refused (workflow): its trace in the band is
+    the one gains, cycle times and inertia mimic, so nothing cheaper tells it."""
+    return True, ""
+
+
+GATES = {"stribeck": _reversal_gate, "current_limit": _clip_gate, "stiffness": _stand_in_gate}
 
 
 def _reversal_concentration(ctx: Context, pt: Point) -> float:
@@ -128,8 +134,13 @@ def _nonlinear_start(ctx: Context, state: State, e: Effect) -> dict:
     batch."""
     if e.key == "current_limit":
         return {"i_max": _peaks(ctx, state.pt)[0] / float(ctx.nominal["k_T"])}
-    grid = START_GRIDS[e.key]
-    probe = [min(ctx.train, key=lambda n: (ctx.model.tests[n].test.frequency or 0.0, n))]
+    if e.key == "stiffness":   # the spring's compliance is what the loop feels: a log grid, on every training test
+        k0 = float(state.changes.get("K_t", ctx.nominal["K_t"]))
+        grid = [{"K_t": k0 * 2.0 ** k} for k in (1, -1, -2, -3, -4, -5)]
+        probe = list(ctx.train)
+    else:
+        grid = START_GRIDS[e.key]
+        probe = [min(ctx.train, key=lambda n: (ctx.model.tests[n].test.frequency or 0.0, n))]
     ctx.model.sim.prefetch([{**state.changes, **g} for g in grid], probe)
     best, best_rss = grid[0], math.inf
     for g in grid:

@@ -97,6 +97,9 @@ REQUIREMENTS: dict[tuple[str, ...], tuple[str, Callable[[Sequence[Excitation]], 
     ("velocity_cycle",): ("a training and a held-out test at >= 2 Hz: a longer cycle is a delay inside the velocity "
                           "loop, which grows as the tests approach the cascade's bandwidth (about 4 Hz)",
                           lambda ts: _both_roles(ts, lambda x: x.frequency >= 2.0)),
+    ("stiffness",): ("a training and a held-out test at >= 2 Hz: the spring's deflection (a phase lag inside the "
+                     "position loop) grows as the tests approach the cascade's bandwidth (about 4 Hz)",
+                     lambda ts: _both_roles(ts, lambda x: x.frequency >= 2.0)),
     ("current_limit",): ("tests whose torque reaches the limit (the fastest, largest motions): below it the limit "
                          "leaves no trace (and does no harm to that plan); the commands alone cannot tell whether a "
                          "test reaches it, the diagnosis tries it when the data's torque peak stays below the "

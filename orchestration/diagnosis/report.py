@@ -379,12 +379,14 @@ def write_report(out: Path, doc: dict, figs: Mapping[str, str]) -> None:
             lines.append(f"| {c['candidate']} | {'-' if dbic is None else f'{dbic:+.1f}'} | "
                          f"{'-' if ho is None else f'{ho:+.1f}'} | {c['rejected_because']} |")
         lines.append("")
-        if u.get("hints"):
-            lines += ["Hints, not names (accepted by the search, but a residual is left that they do not explain):", ""]
-            lines += [f"- {h['effect']} ("
-                      + ", ".join(f"{p} = {v:.5g}, nominal {h['nominal'][p]:.5g}" for p, v in h["parameters"].items())
-                      + f"): {h['why_not_named']}" for h in u["hints"]]
-            lines.append("")
+    hints = (doc["unexplained"] or {}).get("hints") or doc["verdict"].get("hints")
+    if hints:
+        lines += ["Hints, not names (accepted by the search, but they may only stand in for a cause outside the "
+                  "library):", ""]
+        lines += [f"- {h['effect']} ("
+                  + ", ".join(f"{p} = {v:.5g}, nominal {h['nominal'][p]:.5g}" for p, v in h["parameters"].items())
+                  + f"): {h['why_not_named']}" for h in hints]
+        lines.append("")
     lines += ["## Figures", ""]
     captions = {"time": "Measured and simulated motor torque, before and after",
                 "residual_signals": "Residual against velocity and acceleration",

@@ -15,9 +15,11 @@ from .selection import DELTA_BIC, PRACTICAL, RELATIVE, Atom, Band, Regression, a
 
 
 #: re-simulation steps (finite differences) for the parameters whose signature does not linearise well
-FD_STEP = {"tau_s": 2e-3, "omega_s": 0.3, "k_p": 6e-4, "k_v": 0.2, "k_i": 0.04, "i_max": 0.05}
-#: effects fitted and verified by re-simulation (sample by sample) when a residual remains after the regression loop
+FD_STEP = {"tau_s": 2e-3, "omega_s": 0.3, "k_p": 6e-4, "k_v": 0.2, "k_i": 0.04, "i_max": 0.05, "K_t": 0.05}
+#: effects fitted and verified by re-simulation (sample by sample): kept at their fitted values by the regression loop
 NONLINEAR = tuple(e.key for e in LIBRARY if not e.regression and not e.phase_free)
+#: ... of which these are tried when a residual remains after the regression loop (the others: after stand-ins)
+NONLINEAR_FIRST = tuple(e.key for e in LIBRARY if not e.regression and not e.phase_free and not e.after_stand_ins)
 #: at most this many effects at once
 MAX_EFFECTS = 4
 #: residual RMS within this factor of the noise floor: nothing left to explain

@@ -189,7 +189,12 @@ def _alternatives(reg: Regression, best: SubsetFit, a: Atom, nominal) -> list:
     return out
 
 
-def judge(ctx: Context, state: State, after: dict, last_fit, steps: list) -> tuple[dict, Optional[dict]]:
+def judge(ctx: Context, state: State, after: dict, last_fit, steps: list,
+          structure_left: Optional[float] = None) -> tuple[dict, Optional[dict]]:
+    """The verdict on the model ``state``. ``structure_left``: the training BIC of ``state`` against a selection
+    the search accepted and the check "named only if explained" took members out of (consistency.py); from
+    DELTA_BIC up the residual holds structure those members absorbed, so it is not at the floor whatever its
+    RMS (they stood in for a cause outside the library)."""
     model, pt, names, sigma = ctx.model, state.pt, ctx.names, ctx.sigma
     prepared = model.tests
 
@@ -210,7 +215,9 @@ def judge(ctx: Context, state: State, after: dict, last_fit, steps: list) -> tup
     # a named phase-free effect whose value is not determined: tests in a regime of the hunting its re-simulations do
     # not visit (quieter than all of them, phasefree.PhaseFreeScore.quieter) are its trace, not an unknown cause
     unreproduced = [n for n in (pf or {}).get("not_reproduced", ()) if per_test[n] > FLOOR_FACTOR]
-    at_floor = all(per_test[n] <= FLOOR_FACTOR or n in by_bands or n in unreproduced for n in names)
+    rms_at_floor = all(per_test[n] <= FLOOR_FACTOR or n in by_bands or n in unreproduced for n in names)
+    structured = structure_left is not None and structure_left >= DELTA_BIC
+    at_floor = rms_at_floor and not structured
     titles = ", ".join(a.effect.title for a in state.selected)
     rh_text = f"{rh:.2f}" if rh is not None else "-"
     if at_floor and not state.selected:
@@ -241,11 +248,15 @@ def judge(ctx: Context, state: State, after: dict, last_fit, steps: list) -> tup
     else:
         status = "unexplained residual"
         text = (f"a residual remains that no candidate effect explains: RMS {rt:.2f} x the noise floor on training, "
-                f"{rh_text} x on held-out tests (worst test {worst:.2f} x); "
-                + (f"named: {titles}" if state.selected else "nothing named"))
+                f"{rh_text} x on held-out tests (worst test {worst:.2f} x)"
+                + (f", within {FLOOR_FACTOR:g} x in RMS but structured: the effects the search accepted reproduce "
+                   f"it (training BIC {structure_left:+.0f} without them) only as stand-ins" if rms_at_floor else "")
+                + "; " + (f"named: {titles}" if state.selected else "nothing named"))
     verdict = {"status": status, "text": text, "residual_over_noise_training": rt, "residual_over_noise_held_out": rh,
                "residual_over_noise_per_test": per_test, "floor_factor": FLOOR_FACTOR, "whiteness": white,
                "judged_by_band_powers": by_bands}
+    if structure_left is not None:
+        verdict["structure_left_delta_bic"] = structure_left
     unexplained = None
     if not at_floor:
         loc = {n: localise_test(model, pt, prepared[n], sigma) for n in names}
@@ -267,9 +278,12 @@ def judge(ctx: Context, state: State, after: dict, last_fit, steps: list) -> tup
                               "delta_bic": st.get("delta_bic"), "held_out_rss_change_percent": None,
                               "rejected_because": st["note"]})
         unexplained = {
-            "text": "The residual is above the noise floor and no candidate of the library reduces it on the "
-                    "held-out tests (by regression, for the nonlinear candidates by re-simulation, for backlash by "
-                    "the phase-free score) or explains all of it; it is shown, not named.",
+            "text": ("The residual is within the noise floor's RMS, but structured: the search reproduced it only "
+                     "with effects whose values the tests do not agree on (hints); it is shown, not named."
+                     if rms_at_floor else
+                     "The residual is above the noise floor and no candidate of the library reduces it on the "
+                     "held-out tests (by regression, for the nonlinear candidates by re-simulation, for backlash by "
+                     "the phase-free score) or explains all of it; it is shown, not named."),
             "where": {n: loc[n]["summary"] for n in names},
             "candidates_tried": tried,
             "figure": "fig_unexplained.png",

@@ -15,9 +15,9 @@ from .nonlinear import nonlinear_stage, phase_free_stage
 from .plan import excitations, identifiability
 from .report import jsonable, plot_figures, write_model, write_report
 from .resimulation import DiagnosisError, Model, Prepared, Simulator
-from .selection import Atom, Band
-from .consistency import only_consistent
-from .stages import MAX_EFFECTS, NONLINEAR, Context, State, alias_check, prune, regression_loop, residual_at_floor
+from .selection import DELTA_BIC, Atom, Band
+from .consistency import needs_check, only_consistent
+from .stages import MAX_EFFECTS, NONLINEAR_FIRST, Context, State, alias_check, prune, regression_loop, residual_at_floor
 from .verdict import gap_table, gap_trend, judge, localise_test, named_effects
 
 
@@ -121,6 +121,47 @@ def _check_torque_scale(prepared: dict[str, Prepared], simulated: dict[str, np.n
                     + (" and k_T" if key == "i_m" else ""))
 
 
+def _named_only_if_explained(ctx: Context, state: State, last_fit, steps: list, nominal_pt, library,
+                             rejected: set) -> tuple:
+    """The verdict on the search's selection, and what of it is named (consistency.py): when a residual is left,
+    or several effects share the gap, only effects that are one value whatever the test keep their name. When
+    members were refused as stand-ins and the structure they absorbed is left (training BIC +DELTA_BIC without
+    them), the effects whose trace the linear ones mimic (``after_stand_ins``: the transmission stiffness) are
+    tried by re-simulation from the model kept (the members kept refitted with them), and what is accepted is
+    checked again. Returns (state, last_fit, named effects, verdict, unexplained)."""
+    named = named_effects(ctx, state, last_fit, steps)
+    verdict, unexplained = judge(ctx, state, {}, last_fit, steps)
+    if not needs_check(state, verdict["status"]):
+        return state, last_fit, named, verdict, unexplained
+    state, hints = only_consistent(ctx, state, named, steps, nominal_pt)
+    later = [e for e in library if e.after_stand_ins and not any(a.effect.key == e.key for a in state.selected)]
+    if hints and later and state.info["structure_left"] >= DELTA_BIC and len(state.selected) < MAX_EFFECTS:
+        ctx.log("diagnose: stand-ins refused, their structure left: trying " + ", ".join(e.title for e in later))
+        tried = nonlinear_stage(ctx, state, later, rejected, steps)
+        if tried is not None:   # accepted beside the members kept (refitted with it): checked again, once
+            state = tried
+            named = named_effects(ctx, state, last_fit, steps)
+            verdict, unexplained = judge(ctx, state, {}, last_fit, steps)
+            if not needs_check(state, verdict["status"]):
+                return state, last_fit, named, verdict, unexplained
+            earlier = hints
+            state, hints = only_consistent(ctx, state, named, steps, nominal_pt)
+            known = {x["key"] for x in hints} | {a.effect.key for a in state.selected}
+            hints += [h for h in earlier if h["key"] not in known]
+    if hints:
+        named = named_effects(ctx, state, last_fit, steps)
+        verdict, unexplained = judge(ctx, state, {}, last_fit, steps, state.info["structure_left"])
+        where = "unexplained" if unexplained is not None else "verdict"
+        (unexplained if unexplained is not None else verdict)["hints"] = hints
+        verdict["text"] += ("; hints, not named (they may only stand in for a cause outside the library: "
+                            f"{where}.hints): " + ", ".join(h["effect"] for h in hints))
+    for e in named:     # named after the check: the evidence that allowed it
+        e["evidence"]["per_test"] = {p: state.info["consistency"][p] for p in e["parameters"]
+                                     if p in state.info["consistency"]}
+        e["evidence"]["excess_explained"] = state.info["excess_explained"]
+    return state, last_fit, named, verdict, unexplained
+
+
 def diagnose(opt: Options, log: Callable[[str], None] = print) -> dict:
     """The five steps of the package docstring on the measured-data folder ``opt.measured``; writes
     diagnosis.json, report.md, the figures and the augmented model to ``opt.out`` and returns the
@@ -205,7 +246,7 @@ def diagnose(opt: Options, log: Callable[[str], None] = print) -> dict:
         for _ in range(2):   # nonlinear candidates, then the regression loop again around the new model
             if residual_at_floor(ctx, state.pt) or len(state.selected) >= MAX_EFFECTS:
                 break
-            tried = nonlinear_stage(ctx, state, [e for e in library if e.key in NONLINEAR], rejected, steps)
+            tried = nonlinear_stage(ctx, state, [e for e in library if e.key in NONLINEAR_FIRST], rejected, steps)
             if tried is None:
                 break
             state, last_fit = regression_loop(ctx, tried, atoms, rejected, steps)
@@ -214,25 +255,10 @@ def diagnose(opt: Options, log: Callable[[str], None] = print) -> dict:
         for e in library:   # effects that make the loop hunt: last, on the phase-free score
             if e.phase_free and not residual_at_floor(ctx, state.pt) and len(state.selected) < MAX_EFFECTS:
                 state = phase_free_stage(ctx, state, e, steps)
+        state, last_fit, named, verdict, unexplained = _named_only_if_explained(
+            ctx, state, last_fit, steps, nominal_pt, library, rejected)
         final_pt = state.pt
         after = gap_table(prepared, final_pt, names, sigma, resolution)
-        named = named_effects(ctx, state, last_fit, steps)
-        verdict, unexplained = judge(ctx, state, after, last_fit, steps)
-        if verdict["status"] == "unexplained residual" and state.selected:
-            # a residual is left: only effects that are one value whatever the test keep their name
-            state, hints = only_consistent(ctx, state, named, steps, nominal_pt)
-            if hints:
-                final_pt = state.pt
-                after = gap_table(prepared, final_pt, names, sigma, resolution)
-                named = named_effects(ctx, state, last_fit, steps)
-                verdict, unexplained = judge(ctx, state, after, last_fit, steps)
-                unexplained["hints"] = hints
-                verdict["text"] += ("; hints, not named (they may only stand in for a cause outside the library: "
-                                    "unexplained.hints): " + ", ".join(h["effect"] for h in hints))
-            for e in named:     # named with a residual left: the checks that allowed it
-                e["evidence"]["per_test"] = {p: state.info["consistency"][p] for p in e["parameters"]
-                                             if p in state.info["consistency"]}
-                e["evidence"]["excess_explained"] = state.info["excess_explained"]
         final_local = {n: localise_test(model, final_pt, prepared[n], sigma) for n in names}
         n_sims, sim_seconds = sim.count, sim.seconds
 
