@@ -72,15 +72,15 @@ class MechanismBlock(Block):
         eng = self.engine
         try:
             try:
-                q, J, _ = eng.dk(rho, self._guess)
+                q, J, _, kept = eng.dk_kept(rho, self._guess)
             except SingularityError:
                 raise                         # never restarted: a cold start could jump to another pose
             except KinematicsError:
                 if self._guess is None:
                     raise
-                q, J, _ = eng.dk(rho, None)   # did not converge: cold start from the level pose
-            if self.attached:
-                out = eng.forces(q, J, (vals[3], vals[4], vals[5]), (vals[6], vals[7], vals[8]))
+                q, J, _, kept = eng.dk_kept(rho, None)   # did not converge: cold start from the level pose
+            if self.attached:   # the forces reuse the pose's geometry the direct kinematics computed at q
+                out = eng.forces_kept(kept, q, J, (vals[3], vals[4], vals[5]), (vals[6], vals[7], vals[8]))
             else:
                 out = (0.0, 0.0, 0.0) + eng.pose(q)
         except KinematicsError as exc:
