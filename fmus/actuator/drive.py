@@ -18,7 +18,6 @@ that communication point on (computed at the last tick), before the power stage'
 """
 from __future__ import annotations
 
-import inspect
 import math
 from typing import Mapping
 
@@ -43,11 +42,6 @@ def pi_step(e: float, x: float, k_p: float, k_iT: float, limit: float, offset: f
     if v < -limit:
         return -limit, (x + k_iT * e if e > 0.0 else x)
     return v, x + k_iT * e
-
-
-#: read at import, while an FMU's files are there for certain: the generated tick loop writes the body out
-#: (ActuatorBlock.ticks, codegen.inlined), maybe after the host has removed them
-pi_step.source = inspect.getsource(pi_step)
 
 
 def current_gains(k_pc: float, k_ic: float, T_cur: float, u_max: float) -> tuple[float, float, float]:

@@ -77,7 +77,7 @@ import numpy as np
 from scipy.linalg import expm, matrix_balance
 
 from ..common.block import Block, ModelError
-from ..common.codegen import compile_generated, inlined, largest_parameters
+from ..common.codegen import compile_generated, largest_parameters
 from ..common.parameters import Param, ParameterError, Value, nonnegative, positive
 from .sensor import TorqueSensor, is_neutral
 
@@ -419,10 +419,9 @@ class ActuatorBlock(Block):
             first = self._generators()[0]
             m, (E,) = self._substeps(key, lambda h_sub: [expm(first * h_sub)[:n].ravel()])
             E = E.reshape(n, -1)
-            namespace: dict = {"tanh": math.tanh, "exp": math.exp, "sin": math.sin}
+            namespace: dict = {"tanh": math.tanh, "exp": math.exp, "sin": math.sin, "pi_step": pi_step}
             found = self._ticks[key] = compile_generated(
-                _ticks_source(self, E[:, :n], E[:, n:n + 2], m, pi_step), "ticks",
-                f"{self.name}: drive ticks h={key!r} m={m}",
+                _ticks_source(self, E[:, :n], E[:, n:n + 2], m), "ticks", f"{self.name}: drive ticks h={key!r} m={m}",
                 namespace, largest_parameters(self.params))
         self._ticks_h, self._ticks_fn = h, found
         return found
@@ -908,12 +907,12 @@ def _alpha(block: ActuatorBlock, c: Mapping[str, str], symbolic: bool) -> str:
     return _lin(coefs, [f"x{j}" for j in range(n)] + ["(tl - tf)"])
 
 
-def _ticks_source(block: ActuatorBlock, Phi: np.ndarray, Gam: np.ndarray, m: int, pi_step: Callable) -> str:
+def _ticks_source(block: ActuatorBlock, Phi: np.ndarray, Gam: np.ndarray, m: int) -> str:
     """Python source of the drive's current loop over ``ticks`` steps of T_cur in one function (drive.py):
 
         ticks(values, x, ticks, i_cmd, x_c, u_c, k_p, k_iT, u_max) -> (code, tick, x_c, u_c)
 
-    each tick ``pi_step`` (drive.py; its body written out, ``codegen.inlined``) on i_m = x0, then the step over T_cur of ``_kernel_source`` (the same
+    each tick ``pi_step`` (drive.py) on i_m = x0, then the step over T_cur of ``_kernel_source`` (the same
     lines: the same arithmetic) with the voltage u_c of the tick before; ``values`` and ``x`` are written
     once, after the last tick (the last u_c applied in values[0]). ``code``: 0, or the kernel's failure code at
     ``tick`` (then nothing is written). No backlash, no torque sensor (``ActuatorBlock.ticks``)."""
@@ -927,8 +926,7 @@ def _ticks_source(block: ActuatorBlock, Phi: np.ndarray, Gam: np.ndarray, m: int
              f"    tl = {c['niR']}*F - {c['weight']}",
              f"    {', '.join(xs)}, = x",
              "    for k in range(ticks):",
-             *("        " + line for line in inlined(pi_step, {"e": "i_cmd - x0", "x": "x_c", "k_p": "k_p", "k_iT": "k_iT",
-                                                         "limit": "u_max"}, ("u_n", "x_c"), "_pi_")),
+             "        u_n, x_c = pi_step(i_cmd - x0, x_c, k_p, k_iT, u_max)",
              "        u = u_a = u_c",
              "        if u - u != 0.0: return 1, k, x_c, u_c",
              f"        if u > {c['us']}: u = {c['us']}",
