@@ -916,12 +916,15 @@ class Engine:
         """What ``forces`` shares with ``ikjac`` at the same q (the pose's geometry, its checks): (the nodes of
         that part ``forces`` reads, the part's nodes). ``ikjac_kept`` returns the former after ikjac's outputs,
         ``forces_kept`` takes that tuple and computes only the rest (``compile_function``'s ``prior``)."""
-        graph, n = self._graph, self.n
-        done = _needed(self._ikjac_outputs(), graph.checks) & _needed(self._forces_outputs(), graph.checks)
-        rest = _needed(self._forces_outputs(), graph.checks) - done
-        read = {a.id for i in rest for a in graph.nodes[i].args} | {o.id for o in self._forces_outputs()}
-        shared = [graph.nodes[i] for i in sorted(read & done) if graph.nodes[i].op not in ("input", "const")]
-        return shared, done
+        found = getattr(self, "_kept_split", None)
+        if found is None:
+            graph, forces = self._graph, self._forces_outputs()
+            needed = _needed(forces, graph.checks)
+            done = _needed(self._ikjac_outputs(), graph.checks) & needed
+            read = {a.id for i in needed - done for a in graph.nodes[i].args} | {o.id for o in forces}
+            shared = [graph.nodes[i] for i in sorted(read & done) if graph.nodes[i].op not in ("input", "const")]
+            found = self._kept_split = (shared, done)
+        return found
 
     def _ikjac_outputs(self) -> list[E]:
         n = self.n
