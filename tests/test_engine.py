@@ -242,6 +242,28 @@ def test_engines_are_shared_and_survive_deep_copies(mechanism_params):
     assert blk.get("F_1") == pytest.approx(10.791, abs=1e-9)
 
 
+@pytest.mark.parametrize("sets", [(), ("geometry_3prs_inclined.ssv",), ("geometry_3prs_120.ssv",)])
+def test_forces_after_the_direct_kinematics_reuse_its_pose_bit_for_bit(mechanism_params, sets):
+    """dk_kept + forces_kept (the mechanism block's hot path: the forces read the pose's geometry the direct
+    kinematics computed at q) give the very floats of dk + forces, which compute everything themselves."""
+    from conftest import RESOURCES, read_values
+    from fmus.mechanism.designs import engine
+
+    params = dict(mechanism_params)
+    for name in sets:
+        params.update(read_values(RESOURCES / name))
+    eng = engine({**params, "m_payload": 3.0, "payload_x": 0.02})
+    assert eng._kept()[0] and len(eng._fn("forces_kept").source) < len(eng._fn("forces").source)
+    q = None
+    for k in range(6):
+        rho = eng.ik((0.4 + 0.005 * k, 0.01 * k, -0.008 * k))
+        rd, rdd = (0.1 * k, -0.05, 0.02 * k), (1.0, -2.0 * k, 0.5)
+        *plain, = eng.dk(rho, q)
+        q, J, cond, kept = eng.dk_kept(rho, q)
+        assert [q, J, cond] == plain
+        assert eng.forces_kept(kept, q, J, rd, rdd) == eng.forces(q, J, rd, rdd)
+
+
 def test_engine_rejects_inconsistent_descriptions():
     class Wrong(Description):
         bodies = (Body("b", 1.0),)

@@ -886,15 +886,27 @@ def _kernel_source(block: ActuatorBlock, Phi: np.ndarray, Gam: np.ndarray, m: in
     return "\n".join(lines) + "\n"
 
 
-def _substep_lines(block: ActuatorBlock, Phi: np.ndarray, Gam: np.ndarray, named: bool) -> list[str]:
-    """One substep (u, tl and the state x0.. given): the implicit friction torque tf, then the state."""
+def _substep_lines(block: ActuatorBlock, Phi: np.ndarray, Gam: np.ndarray, named: bool,
+                   shared: bool = False) -> list[str]:
+    """One substep (u, tl and the state x0.. given): the implicit friction torque tf, then the state.
+
+    ``shared`` (numbers inlined): the friction's ``a`` and the new omega_N have the same terms but the
+    last (tl, w), summed left to right: their common partial sum ``s_a`` is computed once, the same floats."""
     p, N = block.params, block.N
     n = 2 * N + 1
     xs = [f"x{j}" for j in range(n)]
     wN = 2 * N  # index of omega_N
     body = []
+    rows = [_lin(list(Phi[j]) + [Gam[j, 0], Gam[j, 1]], xs + ["u", "w"]) for j in range(n)]
     if float(p["tau_c"]) > 0.0 or float(p["tau_s"]) > 0.0:
         a_terms = _lin(list(Phi[wN]) + [Gam[wN, 0], Gam[wN, 1]], xs + ["u", "tl"])
+        head = _lin(list(Phi[wN]) + [Gam[wN, 0]], xs + ["u"])
+        last = _lin([Gam[wN, 1]], ["w"])
+        to_tl = _lin([Gam[wN, 1]], ["tl"])
+        if shared and not named and head != "0.0" and last != "0.0" and rows[wN] == f"{head} + {last}" \
+                and a_terms == f"{head} + {to_tl}":
+            body.append(f"s_a = {head}")
+            a_terms, rows[wN] = f"s_a + {to_tl}", f"s_a + {last}"
         body.append(f"a = {a_terms}")
         body += _friction_lines(p, 1.0, "F_") if named else _friction_lines(p, float(Gam[wN, 1]))
         body.append("w = tl - tf")
@@ -902,7 +914,7 @@ def _substep_lines(block: ActuatorBlock, Phi: np.ndarray, Gam: np.ndarray, named
         body += ["tf = 0.0", "w = tl"]
     news = [f"n{j}" for j in range(n)]
     for j in range(n):
-        body.append(f"{news[j]} = {_lin(list(Phi[j]) + [Gam[j, 0], Gam[j, 1]], xs + ['u', 'w'])}")
+        body.append(f"{news[j]} = {rows[j]}")
     body.append(f"{', '.join(xs)} = {', '.join(news)}")
     return body
 
@@ -940,7 +952,7 @@ def _ticks_source(block: ActuatorBlock, Phi: np.ndarray, Gam: np.ndarray, m: int
              f"        elif u < {c['nus']}: u = {c['nus']}"]
     if ripple:
         lines.append(f"        tl = {c['niR']}*F - {c['weight']} - {c['ripple']}*sin({c['rk']}*x{N})")
-    body = _substep_lines(block, Phi, Gam, False)
+    body = _substep_lines(block, Phi, Gam, False, shared=True)
     if m == 1:
         lines += ["        " + s for s in body]
     else:

@@ -11,8 +11,8 @@ from typing import List
 from pythonfmu import Fmi2Causality, Fmi2Initial, Fmi2Slave, Fmi2Variability, Integer, Real, String
 from pythonfmu.enums import Fmi2Status
 
-from .slave import (INSTANTIATED, PARAMETERS_FILE, STEPPING, BlockWrapper, FmiVocabulary, fmi_call,  # noqa: F401
-                    keep_alive, load_defaults)  # PARAMETERS_FILE, keep_alive, load_defaults: re-exported
+from .slave import (INSTANTIATED, PARAMETERS_FILE, STEPPING, BlockWrapper, FmiVocabulary, fast_get,  # noqa: F401
+                    fast_set, fmi_call, keep_alive, load_defaults)  # PARAMETERS_FILE, keep_alive, load_defaults: re-exported
 
 
 class BlockSlave(BlockWrapper, Fmi2Slave):
@@ -37,10 +37,12 @@ class BlockSlave(BlockWrapper, Fmi2Slave):
         return root
 
     # -- the calls pythonfmu's C layer makes ---------------------------------------------
+    @fast_get
     @fmi_call()
     def get_real(self, vrs: List[int]) -> List[float]:
         return self._get_values(vrs)
 
+    @fast_set
     @fmi_call()
     def set_real(self, vrs: List[int], values: List[float]) -> None:
         self._set_values(vrs, values)

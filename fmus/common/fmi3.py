@@ -15,7 +15,7 @@ from pythonfmu3 import Fmi3Causality, Fmi3Initial, Fmi3Slave, Fmi3Variability, F
 from pythonfmu3.enums import Fmi3Status
 from pythonfmu3.unit import Unit
 
-from .slave import INSTANTIATED, STEPPING, BlockWrapper, FmiVocabulary, fmi_call
+from .slave import INSTANTIATED, STEPPING, BlockWrapper, FmiVocabulary, fast_get, fast_set, fmi_call
 
 #: pythonfmu3 0.3.4 does not pass fmi3EnterInitializationMode's start time on to Python (it calls
 #: enter_initialization_mode without it, and never setup_experiment), so the model would start at t = 0
@@ -57,10 +57,12 @@ class BlockSlave3(BlockWrapper, Fmi3Slave):
         return root
 
     # -- the calls pythonfmu3's C layer makes --------------------------------------------
+    @fast_get
     @fmi_call()
     def get_float64(self, vrs: List[int]) -> List[float]:
         return self._get_values(vrs)
 
+    @fast_set
     @fmi_call()
     def set_float64(self, vrs: List[int], values: List[float]) -> None:
         if len(vrs) == 1 and vrs[0] == START_TIME_REFERENCE:   # the C front's, before enterInitializationMode

@@ -514,7 +514,8 @@ def _admissible(check: Callable) -> Callable:
 
 
 def compile_function(name: str, inputs: Sequence[str], outputs: Sequence[E], graph: _Graph,
-                     label: str = "", vector: bool = False) -> Callable:
+                     label: str = "", vector: bool = False,
+                     prior: Optional[tuple[Sequence[E], set[int]]] = None) -> Callable:
     """Straight-line Python computing ``outputs`` (a flat tuple) from the named inputs.
 
     Nodes in creation order (checks where the description called ``require``); a node used
@@ -524,8 +525,26 @@ def compile_function(name: str, inputs: Sequence[str], outputs: Sequence[E], gra
     ``vector``: the same code on numpy arrays (inputs broadcast together); a check does not
     raise but clears its points from a mask, returned as one more output (True: admissible;
     the other outputs are meaningless where it is False).
+
+    ``prior = (values, done)``: the nodes ``done`` (and their checks) were computed, at the same inputs, by
+    another generated function whose output tuple, its nodes ``values`` in order, this one takes as its first
+    argument ``_prior``: they are not computed again, those this one reads are unpacked from it (``values``
+    must hold every such node: ``Engine._kept``).
     """
     ids = _needed(outputs, graph.checks)
+    unpack = []
+    if prior is not None:
+        values, done = prior
+        ids -= done
+        read = {a.id for i in ids for a in graph.nodes[i].args} | {o.id for o in outputs}
+        first = {}
+        for k, v in enumerate(values):
+            first.setdefault(v.id, k)
+        unpack = [f"t{v.id}" if v.id in done and v.id in read and v.op not in ("input", "const") and first[v.id] == k
+                  else "_" for k, v in enumerate(values)]
+        missing = {i for i in read & done if graph.nodes[i].op not in ("input", "const")} - set(first)
+        assert not missing, f"internal error: {name} reads nodes the prior function does not give: {sorted(missing)}"
+        inputs = ["_prior", *inputs]
     ns: dict = {"_sin": math.sin, "_cos": math.cos, "_sqrt": math.sqrt, "_atan2": math.atan2,
                 "_hypot": math.hypot, "_sign": _sign, "_sgn0": _sgn0, "_abs": abs}
     if vector:
@@ -558,6 +577,8 @@ def compile_function(name: str, inputs: Sequence[str], outputs: Sequence[E], gra
         return f"{_FUNCS[n.op]}({', '.join(p for p, _ in parts)})", depth
 
     lines = [f"def {name}({', '.join(inputs)}):"]
+    if unpack:
+        lines.append(f"    {', '.join(unpack)}, = _prior")
     if vector:
         lines.append("    _ok = True")
     for i in sorted(ids):
@@ -888,9 +909,43 @@ class Engine:
         return compile_function("ik", self._args(self._qnames()), self._rho, self._graph, f"{self.description.name} ik")
 
     def _build_ikjac(self) -> Callable:
+        return compile_function("ikjac", self._args(self._qnames()), self._ikjac_outputs(), self._graph,
+                                f"{self.description.name} ik+jacobian")
+
+    def _kept(self) -> tuple[list[E], set[int]]:
+        """What ``forces`` shares with ``ikjac`` at the same q (the pose's geometry, its checks): (the nodes of
+        that part ``forces`` reads, the part's nodes). ``ikjac_kept`` returns the former after ikjac's outputs,
+        ``forces_kept`` takes that tuple and computes only the rest (``compile_function``'s ``prior``)."""
+        found = getattr(self, "_kept_split", None)
+        if found is None:
+            graph, forces = self._graph, self._forces_outputs()
+            needed = _needed(forces, graph.checks)
+            done = _needed(self._ikjac_outputs(), graph.checks) & needed
+            read = {a.id for i in needed - done for a in graph.nodes[i].args} | {o.id for o in forces}
+            shared = [graph.nodes[i] for i in sorted(read & done) if graph.nodes[i].op not in ("input", "const")]
+            found = self._kept_split = (shared, done)
+        return found
+
+    def _ikjac_outputs(self) -> list[E]:
         n = self.n
-        outs = list(self._rho) + [self._dq[k](self._rho[i]) for i in range(n) for k in range(n)]
-        return compile_function("ikjac", self._args(self._qnames()), outs, self._graph, f"{self.description.name} ik+jacobian")
+        return list(self._rho) + [self._dq[k](self._rho[i]) for i in range(n) for k in range(n)]
+
+    def _forces_outputs(self) -> list[E]:
+        return list(self._dynamics_graph(False)[0]) + list(self._pose)
+
+    def _build_ikjac_kept(self) -> Callable:
+        outs = self._ikjac_outputs() + self._kept()[0]
+        return compile_function("ikjac_kept", self._args(self._qnames()), outs, self._graph,
+                                f"{self.description.name} ik+jacobian, kept for the forces")
+
+    def _build_forces_kept(self) -> Callable:
+        n = self.n
+        shared, done = self._kept()
+        inputs = self._qnames() + [f"J{j}{k}" for j in range(n) for k in range(n)] + \
+            [f"rd{k}" for k in range(n)] + [f"rdd{k}" for k in range(n)]
+        return compile_function("forces_kept", self._args(inputs), self._forces_outputs(), self._graph,
+                                f"{self.description.name} forces after ikjac_kept",
+                                prior=(self._ikjac_outputs() + shared, done))
 
     def _build_pose(self) -> Callable:
         return compile_function("pose", self._args(self._qnames()), self._pose, self._graph, f"{self.description.name} pose")
@@ -971,11 +1026,10 @@ class Engine:
         return t, It, c, gt, M, terms, kin, qd, qdd0
 
     def _build_forces(self) -> Callable:
-        t = self._dynamics_graph(False)[0]
         n = self.n
         inputs = self._qnames() + [f"J{j}{k}" for j in range(n) for k in range(n)] + \
             [f"rd{k}" for k in range(n)] + [f"rdd{k}" for k in range(n)]
-        return compile_function("forces", self._args(inputs), list(t) + list(self._pose), self._graph,
+        return compile_function("forces", self._args(inputs), self._forces_outputs(), self._graph,
                                 f"{self.description.name} forces")
 
     def _build_detailed(self) -> Callable:
@@ -1044,6 +1098,17 @@ class Engine:
         SingularityError if the solution's det(drho/dq) has another sign than at the start
         (another assembly branch) or its singularity margin is below ``margin``.
         """
+        return self._newton(rho, guess, tol, max_iter, self._fn("ikjac"))[:3]
+
+    def dk_kept(self, rho: Sequence[float], guess: Optional[Sequence[float]] = None
+                ) -> tuple[tuple[float, ...], list[float], float, tuple]:
+        """``dk`` for the forces that follow at its solution: (q, J, cond, kept), ``kept`` what ``forces_kept``
+        reuses of the last evaluation at q (the same Newton steps: the same q, J, cond)."""
+        return self._newton(rho, guess, 1e-12, 50, self._fn("ikjac_kept"))
+
+    def _newton(self, rho: Sequence[float], guess: Optional[Sequence[float]], tol: float, max_iter: int,
+                ikjac: Callable) -> tuple[tuple[float, ...], list[float], float, tuple]:
+        """``dk``'s Newton iteration with ``ikjac`` (``ikjac``, or ``ikjac_kept``): (q, J, cond, its output at q)."""
         n = self.n
         r = [float(v) for v in rho]
         if len(r) != n:
@@ -1054,7 +1119,7 @@ class Engine:
             q = list(self.description.guess(r))
         else:
             q = [float(v) for v in guess]
-        ikjac, pv = self._fn("ikjac"), self._pv
+        pv = self._pv
         res = math.inf
         start, det0 = None, 0.0
         for it in range(max_iter + 1):
@@ -1062,7 +1127,7 @@ class Engine:
                 out = ikjac(*q, *pv)
                 e = [out[i] - r[i] for i in range(n)]
                 res = max([abs(v) for v in e])
-                Jinv = list(out[n:])
+                Jinv = list(out[n:n + n * n])
                 J, det = self._inverse(Jinv, q)
                 if res < tol:
                     cond = _cond(Jinv, J)
@@ -1077,7 +1142,7 @@ class Engine:
                 start, det0 = tuple(q), det
             if res < tol:
                 self._check_branch(q, Jinv, J, det, start, det0, r)
-                return tuple(q), J, cond
+                return tuple(q), J, cond, out
             if it == max_iter:
                 break
             for j in range(n):
@@ -1136,6 +1201,11 @@ class Engine:
                rho_ddot: Sequence[float]) -> tuple[float, ...]:
         """Hot path: (t_rho..., x, y, z, psi, theta, phi) at q with J = dq/drho (from ``dk``)."""
         return self._fn("forces")(*q, *J, *rho_dot, *rho_ddot, *self._pv)
+
+    def forces_kept(self, kept: tuple, q: Sequence[float], J: Sequence[float], rho_dot: Sequence[float],
+                    rho_ddot: Sequence[float]) -> tuple[float, ...]:
+        """``forces`` after ``dk_kept``: what it computed at q is not computed again (the same floats)."""
+        return self._fn("forces_kept")(kept, *q, *J, *rho_dot, *rho_ddot, *self._pv)
 
     def _detailed(self, q, J, rd, rdd):
         return self._fn("detailed")(*q, *J, *rd, *rdd, *self._pv)

@@ -31,17 +31,18 @@ SINGULAR = 4
 def dk(r0: float, r1: float, r2: float, warm: float, S, out) -> int:
     """One attempt of the direct kinematics of rho = (r0, r1, r2) [m] by ``S`` (a MechanismBlock or an
     InverseModel: its ``engine``), from its last solution ``S._guess`` when ``warm`` (1.0), else from the
-    description's guess: 0 (the solution in ``S._found``: q and dq/drho), SINGULAR or 1 (the exception in
-    ``S._failure``). ``restarted_dk`` calls it; the native models' C has its own (``mast_dk3``)."""
+    description's guess: 0 (the solution in ``S._found``: q, dq/drho and what ``Engine.forces_kept`` reuses of
+    the pose, ``Engine.dk_kept``), SINGULAR or 1 (the exception in ``S._failure``). ``restarted_dk`` calls it;
+    the native models' C has its own (``mast_dk3``)."""
     try:
-        q, J, _ = S.engine.dk((r0, r1, r2), S._guess if warm == 1.0 else None)
+        q, J, _, kept = S.engine.dk_kept((r0, r1, r2), S._guess if warm == 1.0 else None)
     except SingularityError as exc:
         S._failure = exc
         return SINGULAR
     except KinematicsError as exc:
         S._failure = exc
         return 1
-    S._found = (q, J)
+    S._found = (q, J, kept)
     return 0
 
 
@@ -105,9 +106,9 @@ class MechanismBlock(Block):
         try:
             if restarted_dk(vals[0], vals[1], vals[2], 0.0 if self._guess is None else 1.0, self, None):
                 raise self._failure
-            q, J = self._found
-            if self.attached:
-                out = eng.forces(q, J, (vals[3], vals[4], vals[5]), (vals[6], vals[7], vals[8]))
+            q, J, kept = self._found
+            if self.attached:   # the forces reuse the pose's geometry the direct kinematics computed at q
+                out = eng.forces_kept(kept, q, J, (vals[3], vals[4], vals[5]), (vals[6], vals[7], vals[8]))
             else:
                 out = (0.0, 0.0, 0.0) + eng.pose(q)
         except KinematicsError as exc:

@@ -132,10 +132,15 @@ class FMUComponent:
     #: about 0.3 us less per call (docs/batch.md, benchmark). False: fmpy's prototypes for every FMU.
     fast_calls = True
 
+    @property
+    def runs_python(self) -> bool:
+        """A pythonfmu FMU (its calls take the GIL to run Python), called through the fast prototypes."""
+        return self.fast_calls and (self.md.generationTool or "").startswith("PythonFMU")
+
     def _hot(self, name: str, *argtypes):
         """The library function ``name`` for the hot loop, and how to pass the component pointer."""
         func = getattr(self._slave.dll, name)
-        if not (self.fast_calls and (self.md.generationTool or "").startswith("PythonFMU")):
+        if not self.runs_python:
             return func, self._component
         proto = ctypes.PYFUNCTYPE(ctypes.c_int, *argtypes) if argtypes else ctypes.PYFUNCTYPE(ctypes.c_int)
         return proto(ctypes.cast(func, ctypes.c_void_p).value), ctypes.c_void_p(self._component)

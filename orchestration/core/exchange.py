@@ -143,10 +143,16 @@ class CompiledLoop:
 
     ``units``: per component, in exchange order, (functions, multiple, step, feedthrough, input value
     references, input positions in the flat vector, output value references, output offset); ``flat``:
-    the master's flat vector (outputs, then the system inputs), which this object now holds in C memory."""
+    the master's flat vector (outputs, then the system inputs), which this object now holds in C memory.
+    ``hold_gil``: the loop keeps the GIL (a pythonfmu FMU among the units: each of its calls takes the GIL
+    to run Python, an uncontended re-entry instead of a take and release per call); else it releases it."""
 
-    def __init__(self, lib: ctypes.CDLL, units: Sequence[tuple], flat: Sequence[float], n_out: int) -> None:
-        self._lib = lib
+    def __init__(self, lib: ctypes.CDLL, units: Sequence[tuple], flat: Sequence[float], n_out: int,
+                 hold_gil: bool = False) -> None:
+        self._ticks = lib.mast_ticks
+        if hold_gil:
+            fn = lib.mast_ticks
+            self._ticks = ctypes.PYFUNCTYPE(fn.restype, *fn.argtypes)(ctypes.cast(fn, ctypes.c_void_p).value)
         self.n_out, self.n_stim = n_out, len(flat) - n_out
         self.flat = (ctypes.c_double * len(flat))(*flat)
         self._keep = []  # the arrays the C structures point into
@@ -183,7 +189,7 @@ class CompiledLoop:
             for n in range(n0, n1 + 1):
                 stim.extend(stimulus(t0 + n * h) if n > n0 else self.flat[self.n_out:])
             self._stim[:size] = stim
-        code = self._lib.mast_ticks(self._units, len(self._units), self.flat, self.n_out, self._stim, self.n_stim,
+        code = self._ticks(self._units, len(self._units), self.flat, self.n_out, self._stim, self.n_stim,
                                     n0, n1, t0, h, ctypes.byref(self._at), ctypes.byref(self._which),
                                     ctypes.byref(self._call))
         return None if code == 0 else (self._at.value, self._which.value, CALLS[self._call.value])

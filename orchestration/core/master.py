@@ -253,7 +253,7 @@ class Master:
             at += len(w.sources)
             units.append((comp.c_functions(), w.multiple, w.step, w.feedthrough, comp.input_references(w.input_names),
                           src, comp.output_references(w.output_names), offsets[k]))
-        return CompiledLoop(lib, units, flat, n_out)
+        return CompiledLoop(lib, units, flat, n_out, hold_gil=any(c.runs_python for c in comps))
 
     # -- run ----------------------------------------------------------------------
     def run(self, stop_time: float, stimulus: Stimulus, record: Sequence[str] = (), record_step: Optional[float] = None,
