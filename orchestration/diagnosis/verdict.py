@@ -189,7 +189,7 @@ def _alternatives(reg: Regression, best: SubsetFit, a: Atom, nominal) -> list:
     return out
 
 
-def judge(ctx: Context, state: State, after: dict, last_fit, steps: list,
+def judge(ctx: Context, state: State, last_fit, steps: list,
           structure_left: Optional[float] = None) -> tuple[dict, Optional[dict]]:
     """The verdict on the model ``state``. ``structure_left``: the training BIC of ``state`` against a selection
     the search accepted and the check "named only if explained" took members out of (consistency.py); from

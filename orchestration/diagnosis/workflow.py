@@ -130,7 +130,7 @@ def _named_only_if_explained(ctx: Context, state: State, last_fit, steps: list, 
     tried by re-simulation from the model kept (the members kept refitted with them), and what is accepted is
     checked again. Returns (state, last_fit, named effects, verdict, unexplained)."""
     named = named_effects(ctx, state, last_fit, steps)
-    verdict, unexplained = judge(ctx, state, {}, last_fit, steps)
+    verdict, unexplained = judge(ctx, state, last_fit, steps)
     if not needs_check(state, verdict["status"]):
         return state, last_fit, named, verdict, unexplained
     state, hints = only_consistent(ctx, state, named, steps, nominal_pt)
@@ -141,7 +141,7 @@ def _named_only_if_explained(ctx: Context, state: State, last_fit, steps: list, 
         if tried is not None:   # accepted beside the members kept (refitted with it): checked again, once
             state = tried
             named = named_effects(ctx, state, last_fit, steps)
-            verdict, unexplained = judge(ctx, state, {}, last_fit, steps)
+            verdict, unexplained = judge(ctx, state, last_fit, steps)
             if not needs_check(state, verdict["status"]):
                 return state, last_fit, named, verdict, unexplained
             earlier = hints
@@ -150,7 +150,7 @@ def _named_only_if_explained(ctx: Context, state: State, last_fit, steps: list, 
             hints += [h for h in earlier if h["key"] not in known]
     if hints:
         named = named_effects(ctx, state, last_fit, steps)
-        verdict, unexplained = judge(ctx, state, {}, last_fit, steps, state.info["structure_left"])
+        verdict, unexplained = judge(ctx, state, last_fit, steps, state.info["structure_left"])
         where = "unexplained" if unexplained is not None else "verdict"
         (unexplained if unexplained is not None else verdict)["hints"] = hints
         verdict["text"] += ("; hints, not named (they may only stand in for a cause outside the library: "

@@ -30,7 +30,7 @@ import tempfile
 import uuid
 import zipfile
 from pathlib import Path
-from typing import Iterable, Mapping, Optional, Sequence
+from typing import Mapping, Optional, Sequence
 
 from lxml import etree
 
