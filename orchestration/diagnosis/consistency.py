@@ -21,7 +21,7 @@ from typing import Sequence
 import numpy as np
 
 from .effects import BOUNDS, BY_PARAMETER, MEASUREMENT
-from .stages import FD_STEP, Context, State, band_rss, selection_cost
+from .stages import FD_STEP, Context, State, training_bic
 
 #: a per-test estimate agrees with the fitted change if within this many of its standard deviations ...
 Z_AGREE = 3.0
@@ -135,10 +135,7 @@ def structure_left(ctx: Context, accepted: State, kept: State) -> float:
     """Training BIC (in the band) of the selection kept against the one the search accepted: DELTA_BIC or more
     means the data hold structure that the accepted selection reproduced and the kept one does not, i.e. what
     the members not named absorbed (a residual left, even where its RMS is within the floor factor)."""
-    rss0, n = band_rss(ctx, accepted.pt, ctx.train)
-    rss1, _ = band_rss(ctx, kept.pt, ctx.train)
-    return (n * math.log(rss1 / n) + selection_cost(kept.selected) * math.log(n)
-            - n * math.log(rss0 / n) - selection_cost(accepted.selected) * math.log(n))
+    return training_bic(ctx, kept) - training_bic(ctx, accepted)
 
 
 def needs_check(state: State, status: str) -> bool:

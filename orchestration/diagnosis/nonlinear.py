@@ -12,7 +12,7 @@ from .phasefree import ENSEMBLE, GRID_REALISATIONS, POOL_RATIO, PhaseFreeScore, 
 from .resimulation import Point
 from .selection import DELTA_BIC, Atom, atom_labels
 from .stages import (FLOOR_FACTOR, Context, State, band_rss, failed_step, fit_state, residual_at_floor,
-                     selection_cost, verify)
+                     training_bic, verify)
 
 
 #: the phase-free value: the minimum of a parabola through the smoothed deviances on the fine grid within this
@@ -57,8 +57,7 @@ def nonlinear_stage(ctx: Context, state: State, effects: Sequence[Effect], rejec
         if cand is None:
             failed_step(ctx, state, tuple(state.selected) + (atom,), steps, "re-simulation")
         if cand is not None and verify(ctx, state, cand, steps, "re-simulation"):
-            rss, n = band_rss(ctx, cand.pt, ctx.train)
-            bic = n * math.log(rss / n) + selection_cost(cand.selected) * math.log(n)
+            bic = training_bic(ctx, cand)
             if bic < best_bic:
                 best, best_bic = cand, bic
             if residual_at_floor(ctx, cand.pt):

@@ -181,13 +181,16 @@ def selection_cost(selected: Sequence[Atom]) -> int:
     return sum(a.effect.cost for a in selected)
 
 
+def training_bic(ctx: Context, state: State) -> float:
+    """BIC of ``state`` on the training tests, in the band: n ln(RSS/n) + (its selection's cost) ln n."""
+    rss, n = band_rss(ctx, state.pt, ctx.train)
+    return n * math.log(rss / n) + selection_cost(state.selected) * math.log(n)
+
+
 def verify(ctx: Context, old: State, new: State, steps: list, how: str) -> bool:
     """Accept a new selection only if re-simulation confirms it: training BIC and held-out residual."""
-    rss0, n = band_rss(ctx, old.pt, ctx.train)
-    rss1, _ = band_rss(ctx, new.pt, ctx.train)
+    bic0, bic1 = training_bic(ctx, old), training_bic(ctx, new)
     k0, k1 = selection_cost(old.selected), selection_cost(new.selected)
-    bic0 = n * math.log(rss0 / n) + k0 * math.log(n)
-    bic1 = n * math.log(rss1 / n) + k1 * math.log(n)
     ho0, nh = band_rss(ctx, old.pt, ctx.held) if ctx.held else (0.0, 0)
     ho1, _ = band_rss(ctx, new.pt, ctx.held) if ctx.held else (0.0, 0)
     noise = ctx.sigma_b ** 2 * nh

@@ -128,11 +128,11 @@ def _named_only_if_explained(ctx: Context, state: State, last_fit, steps: list, 
     members were refused as stand-ins and the structure they absorbed is left (training BIC +DELTA_BIC without
     them), the effects whose trace the linear ones mimic (``after_stand_ins``: the transmission stiffness) are
     tried by re-simulation from the model kept (the members kept refitted with them), and what is accepted is
-    checked again. Returns (state, last_fit, named effects, verdict, unexplained)."""
+    checked again. Returns (state, named effects, verdict, unexplained)."""
     named = named_effects(ctx, state, last_fit, steps)
     verdict, unexplained = judge(ctx, state, last_fit, steps)
     if not needs_check(state, verdict["status"]):
-        return state, last_fit, named, verdict, unexplained
+        return state, named, verdict, unexplained
     state, hints = only_consistent(ctx, state, named, steps, nominal_pt)
     later = [e for e in library if e.after_stand_ins and not any(a.effect.key == e.key for a in state.selected)]
     if hints and later and state.info["structure_left"] >= DELTA_BIC and len(state.selected) < MAX_EFFECTS:
@@ -143,7 +143,7 @@ def _named_only_if_explained(ctx: Context, state: State, last_fit, steps: list, 
             named = named_effects(ctx, state, last_fit, steps)
             verdict, unexplained = judge(ctx, state, last_fit, steps)
             if not needs_check(state, verdict["status"]):
-                return state, last_fit, named, verdict, unexplained
+                return state, named, verdict, unexplained
             earlier = hints
             state, hints = only_consistent(ctx, state, named, steps, nominal_pt)
             known = {x["key"] for x in hints} | {a.effect.key for a in state.selected}
@@ -159,7 +159,7 @@ def _named_only_if_explained(ctx: Context, state: State, last_fit, steps: list, 
         e["evidence"]["per_test"] = {p: state.info["consistency"][p] for p in e["parameters"]
                                      if p in state.info["consistency"]}
         e["evidence"]["excess_explained"] = state.info["excess_explained"]
-    return state, last_fit, named, verdict, unexplained
+    return state, named, verdict, unexplained
 
 
 def diagnose(opt: Options, log: Callable[[str], None] = print) -> dict:
@@ -255,7 +255,7 @@ def diagnose(opt: Options, log: Callable[[str], None] = print) -> dict:
         for e in library:   # effects that make the loop hunt: last, on the phase-free score
             if e.phase_free and not residual_at_floor(ctx, state.pt) and len(state.selected) < MAX_EFFECTS:
                 state = phase_free_stage(ctx, state, e, steps)
-        state, last_fit, named, verdict, unexplained = _named_only_if_explained(
+        state, named, verdict, unexplained = _named_only_if_explained(
             ctx, state, last_fit, steps, nominal_pt, library, rejected)
         final_pt = state.pt
         after = gap_table(prepared, final_pt, names, sigma, resolution)
