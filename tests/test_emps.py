@@ -398,6 +398,24 @@ def test_import_warns_when_the_effort_contradicts_its_tap(tmp_path, logged, decl
     assert load_records(tmp_path / "rec").tests[0].specs["force"].tap == declared
 
 
+def test_diagnosis_compares_the_effort_at_its_tap(tmp_path, bench):
+    """mast diagnose re-simulates through the same route: on a record logged before the injection, the
+    truth's effort residual is nil at the declared tap and carries the pulses at the other."""
+    from mast.diagnosis.records import AxisModel, _cases
+
+    log, truth = pulse_lab_file(tmp_path, "before_injection")
+    import_file(log, pulse_map(tmp_path, "before_injection"), tmp_path / "rec")
+    cases, _ = _cases(load_records(tmp_path / "rec"), 1 / 3)
+    residual = AxisModel(str(bench), cases, "axis", {}).point(PLANT).residual(cases[0], "force")
+    assert np.abs(residual).max() < 1e-9 * np.abs(truth["force"]).max()
+    meta = json.loads((tmp_path / "rec" / "meta.json").read_text())
+    del meta["signals"]["force"]["tap"]
+    (tmp_path / "rec" / "meta.json").write_text(json.dumps(meta))
+    cases, _ = _cases(load_records(tmp_path / "rec"), 1 / 3)
+    residual = AxisModel(str(bench), cases, "axis", {}).point(PLANT).residual(cases[0], "force")
+    assert np.abs(residual).max() == pytest.approx(5 * G_TAU, rel=1e-9)
+
+
 def test_edge_steps_against_noise(tmp_path):
     """The steps test on a noisy effort: a step of 3 noise std at 80 edges is found, a step of 0 is not;
     an effort whose own large changes fall on a few edges is undecided, not a step."""
