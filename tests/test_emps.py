@@ -295,7 +295,8 @@ def emps_pulse_loop(q_ref: np.ndarray, pulse: np.ndarray, M: float, F_v: float, 
         for tick in range(10):
             F = G_TAU * (applied_old if tick == 0 else u_s[k] + pulse[k])
             a = v + b * (F - F_offset)
-            v1 = (a - b * F_c) / (1 + b * F_v) if a > b * F_c else (a + b * F_c) / (1 + b * F_v) if a < -b * F_c else 0.0
+            v1 = ((a - b * F_c) / (1 + b * F_v) if a > b * F_c else
+                  (a + b * F_c) / (1 + b * F_v) if a < -b * F_c else 0.0)
             x += 0.5e-4 * (v + v1)
             v = v1
         applied_old = u_s[k] + pulse[k]
@@ -434,12 +435,13 @@ def test_edge_steps_against_noise(tmp_path):
     assert edge_steps(noise, np.sin(np.arange(4000) * 0.01)) is None   # a smooth input has no edges
 
 
-@pytest.mark.parametrize("unit_line", ["", 'unit = ""'])
+@pytest.mark.parametrize("unit_line", ["", 'unit = " "'])
 def test_injected_input_without_a_unit_is_refused(tmp_path, unit_line):
+    """The pulse variable's name ends in _N but it acts in volts: without a declared unit it is refused, naming
+    the signal and the variable, and nothing is written."""
     log, _ = pulse_lab_file(tmp_path, "applied")
-    match = (r"map_applied\.toml: \[signals\.u_inj\]: the injected input \(variable 'pulse_N'\) has no unit"
-             if not unit_line else r"map_applied\.toml: \[signals\.u_inj\]: unit '' is not known")
-    with pytest.raises(LabFileError, match=match):
+    with pytest.raises(LabFileError, match=r"map_applied\.toml: \[signals\.u_inj\]: the injected input \(variable "
+                                           r"'pulse_N'\) has no unit: declare the unit it acts in"):
         import_file(log, pulse_map(tmp_path, "applied", unit_line), tmp_path / "rec")
     assert not (tmp_path / "rec").exists()
 

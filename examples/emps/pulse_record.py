@@ -62,7 +62,8 @@ def make(source: Path, out: Path, bench: Path = BENCH) -> dict:
     scipy.io.savemat(str(out), {"t": t[:, None], "qg": qg[:, None], "qm": sim["q_m"][:, None],
                                 "vir": sim["u"][:, None], "pulse_N": pulse[:, None], "gtau": d["gtau"],
                                 "kp": d["kp"], "kv": d["kv"]})
-    return {"samples": len(t), "edges": int(np.count_nonzero(np.diff(pulse))), "vir_max_V": float(np.abs(sim["u"]).max())}
+    return {"samples": len(t), "edges": int(np.count_nonzero(np.diff(pulse))),
+            "vir_max_V": float(np.abs(sim["u"]).max())}
 
 
 if __name__ == "__main__":

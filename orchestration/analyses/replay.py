@@ -66,7 +66,7 @@ def _check_taps(components: Mapping, measured: Sequence, record: Record, ssp: Un
         element, _, connector = s.model_output.rpartition(".")
         comp = components.get(element)
         if s.tap == "applied" or comp is None or connector in comp.outputs:
-            continue                              # an unknown component or output of the applied tap: the master names it
+            continue                              # an unknown component, or the applied tap: the master names it
         raise RecordError(f"{record.file.name}: signal {s.name} is logged at tap {s.tap!r}: it is compared with the "
                           f"model output {s.model_output} ({s.model} at that tap), which {Path(ssp).name} does not "
                           f"have; the outputs of {element}: {', '.join(comp.outputs)}")
@@ -109,7 +109,8 @@ def compare(record: Record, simulated: Mapping[str, np.ndarray]) -> dict:
     out = {}
     for s in record.of_kind(*MEASURED):
         y, ys = record.values[s.name][keep], simulated[s.name][keep]
-        out[s.name] = {"kind": s.kind, "unit": s.unit, "model": s.model_output, **({"tap": s.tap} if s.kind == "effort" else {}),
+        out[s.name] = {"kind": s.kind, "unit": s.unit, "model": s.model_output,
+                       **({"tap": s.tap} if s.kind == "effort" else {}),
                        "relative_error_pct": relative_error_pct(y, ys), "fit_pct": fit_pct(y, ys),
                        "rms_error": float(np.sqrt(np.mean((y - ys) ** 2)))}
     return out

@@ -182,11 +182,11 @@ def import_file(file: Union[str, Path], map_path: Union[str, Path], out: Union[s
         kind = entry.get("kind")
         if kind not in KINDS:
             raise LabFileError(f"{map_path}: [signals.{name}]: kind {kind!r}, expected one of {', '.join(KINDS)}")
-        if kind == "injected" and "unit" not in entry:
+        if kind == "injected" and not str(entry.get("unit", "")).strip():
             what = f"variable '{entry['variable']}'" if "variable" in entry else "its value"
             raise LabFileError(f"{map_path}: [signals.{name}]: the injected input ({what}) has no unit: declare the "
-                               "unit it acts in, e.g. unit = \"V\" for a voltage added to the drive command (it is never "
-                               "read from the variable's name)")
+                               "unit it acts in, e.g. unit = \"V\" for a voltage added to the drive command (it is "
+                               "never read from the variable's name)")
         si, factor = _unit(map_path, entry.get("unit"), f"[signals.{name}]")
         if "variable" in entry:
             v = _vector(file, variables, str(entry["variable"]), f"signal {name}", n)
@@ -199,7 +199,8 @@ def import_file(file: Union[str, Path], map_path: Union[str, Path], out: Union[s
                                "(a constant, for an input absent from this file)")
         columns[name] = v
         meta_signals[name] = {"kind": kind, "unit": si,
-                              **{k: entry[k] for k in ("input", "model", "sampled", "description", "tap") if k in entry}}
+                              **{k: entry[k] for k in ("input", "model", "sampled", "description", "tap")
+                                 if k in entry}}
     specs: dict[str, SignalSpec] = parse_signals(meta_signals, str(map_path))
     warnings = tap_warnings(file, spec["signals"], specs, columns)
     test = dict(spec.get("test", {}))
