@@ -446,6 +446,21 @@ def test_injected_input_without_a_unit_is_refused(tmp_path, unit_line):
     assert not (tmp_path / "rec").exists()
 
 
+def test_tap_is_applied_or_before_injection_and_only_on_an_effort():
+    from mast.data.record import parse_signals
+
+    base = {"q_ref": {"kind": "command", "unit": "m", "input": "q_ref"}}
+    effort = {"kind": "effort", "unit": "N", "model": "controller.F"}
+    assert parse_signals({**base, "force": effort}, "m")["force"].model_output == "controller.F"
+    before = parse_signals({**base, "force": {**effort, "tap": "before_injection"}}, "m")["force"]
+    assert before.model_output == "controller.F_before_injection" and before.to_json()["tap"] == "before_injection"
+    with pytest.raises(RecordError, match="m: signal force: tap 'after', expected one of applied, before_injection"):
+        parse_signals({**base, "force": {**effort, "tap": "after"}}, "m")
+    with pytest.raises(RecordError, match="signal q: tap 'before_injection' on a position signal"):
+        parse_signals({**base, "q": {"kind": "position", "unit": "m", "model": "axis.q", "tap": "before_injection"}},
+                      "m")
+
+
 def test_replay_refuses_a_tap_the_model_does_not_have(tmp_path, bench):
     """A record logged before the injection of an effort whose model output has no such tap: refused, naming
     the signal, the tap and the outputs the component has."""
