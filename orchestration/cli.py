@@ -270,6 +270,8 @@ def cmd_import(args) -> int:
     from .data.importer import import_file
 
     summary = import_file(args.file, args.map, args.out)
+    for warning in summary["warnings"]:
+        print(f"import: warning: {warning}", file=sys.stderr)
     print(f"import: {summary['samples']} samples every {summary['sample_time_s']:.6g} s "
           f"({summary['duration_s']:.6g} s), signals {', '.join(f'{k} ({v})' for k, v in summary['signals'].items())} "
           f"-> {summary['folder']}")

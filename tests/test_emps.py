@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -102,7 +103,7 @@ def test_controller_reproduces_the_logged_drive_command():
             block.do_step(k * 1e-3 + tick * 1e-4, 1e-4)
             if tick == 0:
                 u[k] = block.get("u")
-    assert block.get("F_cmd") == pytest.approx(float(d["gtau"].item()) * u[-1])
+    assert block.get("F") == block.get("F_before_injection") == pytest.approx(float(d["gtau"].item()) * u[-1])
     err = u[5:] - vir[5:n]                        # the first samples: the filter's unknown history
     assert np.sqrt(np.mean(err ** 2)) < 0.01 * np.sqrt(np.mean(vir[:n] ** 2))
 
@@ -119,7 +120,8 @@ def test_import_emps_record(tmp_path):
     assert np.allclose(rec.values["force"], d["gtau"].item() * d["vir"].ravel(), rtol=1e-11, atol=1e-9)
     assert np.array_equal(rec.values["u_inj"], np.zeros(24841))
     assert {s.kind for s in rec.specs.values()} == {"command", "position", "effort", "injected"}
-    assert rec.specs["force"].sampled and rec.specs["force"].model == "controller.F_cmd"
+    assert rec.specs["force"].sampled and rec.specs["force"].model == "controller.F"
+    assert rec.specs["force"].tap == "applied" and summary["warnings"] == []
 
 
 def _mat(path: Path, **variables) -> Path:
@@ -168,7 +170,7 @@ variable = "cmd_V"
 scale = 35.0
 unit = "N"
 kind = "effort"
-model = "controller.F_cmd"
+model = "controller.F"
 [signals.u_inj]
 variable = "pulse_V"
 unit = "V"
@@ -267,52 +269,224 @@ def test_diagnose_names_friction_offset_and_asymmetry_on_the_emps_record(tmp_pat
         force["after"]["whole"]["relative_error_pct"], rel=1e-6)
 
 
-def test_replay_drives_the_injected_input_after_the_saturation(tmp_path, bench):
-    """A record with an injected pulse (the benchmark's held-out kind of record) runs unchanged: the bench's
-    response equals a plain loop written here from the EMPS law and the axis equations (a second formulation:
-    sample k of the record holds over [t_k, t_k+1), controller and injection act one 0.1 ms tick later)."""
-    from mast.analyses.replay import simulate_record
-    from mast.data.record import SignalSpec, write_records
+#: the EMPS law's gains (the .mat's scalars), and a plant for the synthetic pulse records
+G_TAU, K_P, K_V, U_MAX, T_S = 35.15065188, 160.18, 243.45, 10.0, 1e-3
+PLANT = {"M": 95.0, "F_v": 200.0, "F_c": 20.0, "F_offset": -3.0}
 
-    n, T, g, kp, kv = 400, 1e-3, 35.15065188, 160.18, 243.45
-    t = np.arange(n) * T
-    q_ref = np.where(t > 0.2, 1e-3, 0.0)
-    pulse = np.where((t >= 0.05) & (t < 0.1), 8.0, 0.0)        # V, added after the +-10 V saturation
-    M, Fv, Fc, off = 95.0, 200.0, 20.0, -3.0
-    # the reference loop
+
+def emps_pulse_loop(q_ref: np.ndarray, pulse: np.ndarray, M: float, F_v: float, F_c: float, F_offset: float
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """The EMPS closed loop written here from the law (../shared/data/emps/README.md) and the axis equations, a
+    second formulation of the bench: returns the position at the samples and the controller's output after the
+    saturation u_s(k) [V]. The pulse [V] is added after the saturation; sample k of the record holds over
+    [t_k, t_k+1); the command and the injection act one 0.1 ms tick after the sample (the computation delay);
+    the axis: implicit Euler in the velocity with the set-valued friction, trapezoidal position, 0.1 ms."""
     x = v = 0.0
     q_prev = qf_prev = 0.0
-    u_old = inj_old = 0.0
-    q_m, f_cmd = np.empty(n), np.empty(n)
+    applied_old = 0.0
+    q_m, u_s = np.empty(len(q_ref)), np.empty(len(q_ref))
     b = 1e-4 / M
-    for k in range(n):
+    for k in range(len(q_ref)):
         q_m[k] = x
         qf = 0.5 * x + 0.5 * q_prev
-        qd = (qf - qf_prev) / T
+        qd = (qf - qf_prev) / T_S
         q_prev, qf_prev = x, qf
-        u = min(10.0, max(-10.0, kp * kv * (q_ref[k] - x) - kv * qd))
-        f_cmd[k] = g * u
-        for s in range(10):
-            F = g * ((u_old + inj_old) if s == 0 else (u + pulse[k]))
-            a = v + b * (F - off)
-            v1 = (a - b * Fc) / (1 + b * Fv) if a > b * Fc else (a + b * Fc) / (1 + b * Fv) if a < -b * Fc else 0.0
+        u_s[k] = min(U_MAX, max(-U_MAX, K_P * K_V * (q_ref[k] - x) - K_V * qd))
+        for tick in range(10):
+            F = G_TAU * (applied_old if tick == 0 else u_s[k] + pulse[k])
+            a = v + b * (F - F_offset)
+            v1 = ((a - b * F_c) / (1 + b * F_v) if a > b * F_c else
+                  (a + b * F_c) / (1 + b * F_v) if a < -b * F_c else 0.0)
             x += 0.5e-4 * (v + v1)
             v = v1
-        u_old, inj_old = u, pulse[k]
-    specs = {"q_ref": SignalSpec("q_ref", "command", "m", input="q_ref"),
-             "q_m": SignalSpec("q_m", "position", "m", model="axis.q"),
-             "force": SignalSpec("force", "effort", "N", model="controller.F_cmd", sampled=True),
-             "u_inj": SignalSpec("u_inj", "injected", "V", input="u_inj")}
-    write_records(tmp_path / "rec", specs, [{"name": "pulse", "time": t,
-                                             "values": {"q_ref": q_ref, "q_m": q_m, "force": f_cmd, "u_inj": pulse}}])
+        applied_old = u_s[k] + pulse[k]
+    return q_m, u_s
+
+
+def pulse_lab_file(folder: Path, tap: str) -> tuple[Path, dict]:
+    """A lab's CSV log of the EMPS loop with a 5 V pulse train added after the saturation (edges at 50, 70,
+    150, 170, ... ms; a 1 mm reference step at 0.345 s saturates the controller under a pulse); the drive command
+    logged applied (u_s + pulse) or before the injection (u_s), in V; the pulse variable named like the
+    benchmark's, with an _N that is not its unit. Returns the file and the truth."""
+    n = 600
+    t = np.arange(n) * T_S
+    q_ref = np.where(t >= 0.345, 1e-3, 0.0)
+    pulse = np.where((t % 0.1 >= 0.05) & (t % 0.1 < 0.07), 5.0, 0.0)
+    q_m, u_s = emps_pulse_loop(q_ref, pulse, **PLANT)
+    vir = u_s + pulse if tap == "applied" else u_s
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / f"pulses_{tap}.csv"
+    np.savetxt(path, np.column_stack([t, q_ref, q_m, vir, pulse]), delimiter=",", fmt="%.17g",
+               header="t,qg,qm,vir,pulse_N", comments="")
+    return path, {"q_m": q_m, "force": G_TAU * vir, "u_s": u_s, "pulse": pulse}
+
+
+def pulse_map(folder: Path, tap: str, inj_unit: str = 'unit = "V"') -> Path:
+    """The column map of pulse_lab_file's log, declaring the drive command's ``tap``."""
+    path = folder / f"map_{tap}.toml"
+    path.write_text(f"""
+[source]
+time = {{ variable = "t", unit = "s" }}
+[signals.q_ref]
+variable = "qg"
+unit = "m"
+kind = "command"
+input = "q_ref"
+[signals.q_m]
+variable = "qm"
+unit = "m"
+kind = "position"
+model = "axis.q"
+[signals.force]
+variable = "vir"
+scale = {G_TAU!r}
+unit = "N"
+kind = "effort"
+model = "controller.F"
+sampled = true
+tap = "{tap}"
+[signals.u_inj]
+variable = "pulse_N"
+{inj_unit}
+kind = "injected"
+input = "u_inj"
+""")
+    return path
+
+
+@pytest.mark.parametrize("tap", ["applied", "before_injection"])
+def test_pulse_record_replays_at_the_declared_tap(tmp_path, bench, tap):
+    """A record with a pulse train injected after the saturation, logged where the map says (applied: the
+    controller's output plus the pulse; before the injection: the controller's output): the import does not
+    warn, and the bench's replay equals the loop written here to 1e-9, position and force. The force compared
+    at the other tap misses by the pulses."""
+    from mast.analyses.replay import compare, simulate_record
+
+    log, truth = pulse_lab_file(tmp_path, tap)
+    assert np.abs(truth["u_s"]).max() == U_MAX and np.abs(truth["u_s"] + truth["pulse"]).max() > U_MAX
+    summary = import_file(log, pulse_map(tmp_path, tap), tmp_path / "rec")
+    assert summary["warnings"] == []
     rec = load_records(tmp_path / "rec").tests[0]
-    sim = simulate_record(bench, rec, {"axis": {"M": M, "F_v": Fv, "F_c": Fc, "F_offset": off}})
-    assert np.abs(q_m).max() > 1e-4                              # the pulse moved the axis
-    assert np.abs(sim["q_m"] - q_m).max() < 1e-9 * np.abs(q_m).max() + 1e-12
-    assert np.abs(sim["force"] - f_cmd).max() < 1e-6 * np.abs(f_cmd).max()
-    part = simulate_record(bench, rec, {"axis": {"M": M, "F_v": Fv, "F_c": Fc, "F_offset": off}}, stop_time=0.1)
+    assert rec.specs["force"].tap == tap
+    sim = simulate_record(bench, rec, {"axis": PLANT})
+    assert np.abs(truth["q_m"]).max() > 5e-4                      # the pulses and the step moved the axis
+    assert np.abs(sim["q_m"] - truth["q_m"]).max() < 1e-9 * np.abs(truth["q_m"]).max()
+    assert np.abs(sim["force"] - truth["force"]).max() < 1e-9 * np.abs(truth["force"]).max()
+    assert compare(rec, sim)["force"]["relative_error_pct"] < 1e-7
+    other = "before_injection" if tap == "applied" else "applied"
+    meta = json.loads((tmp_path / "rec" / "meta.json").read_text())
+    meta["signals"]["force"]["tap"] = other
+    (tmp_path / "rec" / "meta.json").write_text(json.dumps(meta))
+    rec = load_records(tmp_path / "rec").tests[0]
+    assert compare(rec, simulate_record(bench, rec, {"axis": PLANT}))["force"]["relative_error_pct"] > 20
+
+
+@pytest.mark.parametrize("logged, declared", [("applied", "before_injection"), ("before_injection", "applied")])
+def test_import_warns_when_the_effort_contradicts_its_tap(tmp_path, logged, declared):
+    """The drive command logged at one tap, the map declaring the other: mast import warns, naming the column
+    (a step of 5 V x g_tau at every edge while the map says before the injection; none while it says applied);
+    the record is written all the same."""
+    log, _ = pulse_lab_file(tmp_path, logged)
+    summary = import_file(log, pulse_map(tmp_path, declared), tmp_path / "rec")
+    assert len(summary["warnings"]) == 1
+    warning = summary["warnings"][0]
+    assert "pulses_" in warning and "signal force (variable 'vir')" in warning and "u_inj" in warning
+    if logged == "applied":
+        step = float(re.search(r"steps by (\S+) N", warning).group(1))
+        assert step == pytest.approx(5 * G_TAU, rel=0.02) and 'tap = "before_injection"' in warning
+    else:
+        assert "shows no step" in warning and 'say tap = "before_injection"' in warning
+    assert load_records(tmp_path / "rec").tests[0].specs["force"].tap == declared
+
+
+def test_diagnosis_compares_the_effort_at_its_tap(tmp_path, bench):
+    """mast diagnose re-simulates through the same route: on a record logged before the injection, the
+    truth's effort residual is nil at the declared tap and carries the pulses at the other."""
+    from mast.diagnosis.records import AxisModel, _cases
+
+    log, truth = pulse_lab_file(tmp_path, "before_injection")
+    import_file(log, pulse_map(tmp_path, "before_injection"), tmp_path / "rec")
+    cases, _ = _cases(load_records(tmp_path / "rec"), 1 / 3)
+    residual = AxisModel(str(bench), cases, "axis", {}).point(PLANT).residual(cases[0], "force")
+    assert np.abs(residual).max() < 1e-9 * np.abs(truth["force"]).max()
+    meta = json.loads((tmp_path / "rec" / "meta.json").read_text())
+    del meta["signals"]["force"]["tap"]
+    (tmp_path / "rec" / "meta.json").write_text(json.dumps(meta))
+    cases, _ = _cases(load_records(tmp_path / "rec"), 1 / 3)
+    residual = AxisModel(str(bench), cases, "axis", {}).point(PLANT).residual(cases[0], "force")
+    assert np.abs(residual).max() == pytest.approx(5 * G_TAU, rel=1e-9)
+
+
+def test_edge_steps_against_noise(tmp_path):
+    """The steps test on a noisy effort: a step of 3 noise std at 80 edges is found, a step of 0 is not;
+    an effort whose own large changes fall on a few edges is undecided, not a step."""
+    from mast.data.injection import edge_steps
+
+    rng = np.random.default_rng(1)
+    k = np.arange(4000)
+    pulse = np.where(k % 100 >= 50, 2.0, 0.0) * (k % 100 < 70)   # edges at 50, 70, 150, 170, ...
+    noise = rng.normal(0.0, 1.0, 4000).cumsum()                   # one-sample changes of std 1
+    found = edge_steps(noise + 1.5 * pulse, pulse)
+    assert found.edges == 80 and found.steps and found.step == pytest.approx(3.0, abs=0.5)
+    assert edge_steps(noise, pulse).no_steps
+    own = np.where(np.isin(k, (50, 150, 250, 350)), 50.0, 0.0)   # four large changes of its own on rising edges:
+    few = edge_steps(noise + own.cumsum(), pulse)                  # significant, but they are not steps at every edge
+    assert abs(few.t) > 10 and few.share < 0.5 and not few.steps and not few.no_steps
+    assert edge_steps(noise, np.sin(np.arange(4000) * 0.01)) is None   # a smooth input has no edges
+
+
+@pytest.mark.parametrize("unit_line", ["", 'unit = " "'])
+def test_injected_input_without_a_unit_is_refused(tmp_path, unit_line):
+    """The pulse variable's name ends in _N but it acts in volts: without a declared unit it is refused, naming
+    the signal and the variable, and nothing is written."""
+    log, _ = pulse_lab_file(tmp_path, "applied")
+    with pytest.raises(LabFileError, match=r"map_applied\.toml: \[signals\.u_inj\]: the injected input \(variable "
+                                           r"'pulse_N'\) has no unit: declare the unit it acts in"):
+        import_file(log, pulse_map(tmp_path, "applied", unit_line), tmp_path / "rec")
+    assert not (tmp_path / "rec").exists()
+
+
+def test_tap_is_applied_or_before_injection_and_only_on_an_effort():
+    from mast.data.record import parse_signals
+
+    base = {"q_ref": {"kind": "command", "unit": "m", "input": "q_ref"}}
+    effort = {"kind": "effort", "unit": "N", "model": "controller.F"}
+    assert parse_signals({**base, "force": effort}, "m")["force"].model_output == "controller.F"
+    before = parse_signals({**base, "force": {**effort, "tap": "before_injection"}}, "m")["force"]
+    assert before.model_output == "controller.F_before_injection" and before.to_json()["tap"] == "before_injection"
+    with pytest.raises(RecordError, match="m: signal force: tap 'after', expected one of applied, before_injection"):
+        parse_signals({**base, "force": {**effort, "tap": "after"}}, "m")
+    with pytest.raises(RecordError, match="signal q: tap 'before_injection' on a position signal"):
+        parse_signals({**base, "q": {"kind": "position", "unit": "m", "model": "axis.q", "tap": "before_injection"}},
+                      "m")
+
+
+def test_replay_refuses_a_tap_the_model_does_not_have(tmp_path, bench):
+    """A record logged before the injection of an effort whose model output has no such tap: refused, naming
+    the signal, the tap and the outputs the component has."""
+    from mast.analyses.replay import simulate_record
+
+    log, _ = pulse_lab_file(tmp_path, "before_injection")
+    import_file(log, pulse_map(tmp_path, "before_injection"), tmp_path / "rec")
+    meta = json.loads((tmp_path / "rec" / "meta.json").read_text())
+    meta["signals"]["force"]["model"] = "controller.u_before_injection"
+    (tmp_path / "rec" / "meta.json").write_text(json.dumps(meta))
+    rec = load_records(tmp_path / "rec").tests[0]
+    with pytest.raises(RecordError, match=r"signal force is logged at tap 'before_injection': .* model output "
+                                          r"controller\.u_before_injection_before_injection .* the outputs of "
+                                          r"controller: u, F, u_before_injection"):
+        simulate_record(bench, rec)
+
+
+def test_replay_stops_at_the_stop_time_with_the_same_values(tmp_path, bench):
+    from mast.analyses.replay import simulate_record
+
+    log, truth = pulse_lab_file(tmp_path, "applied")
+    import_file(log, pulse_map(tmp_path, "applied"), tmp_path / "rec")
+    rec = load_records(tmp_path / "rec").tests[0]
+    part = simulate_record(bench, rec, {"axis": PLANT}, stop_time=0.1)
     assert len(part["q_m"]) == 101                                # the samples up to the stop time, the same values
-    assert np.abs(part["q_m"] - q_m[:101]).max() < 1e-12 + 1e-9 * np.abs(q_m).max()
+    assert np.abs(part["q_m"] - truth["q_m"][:101]).max() < 1e-12 + 1e-9 * np.abs(truth["q_m"]).max()
 
 
 def test_held_out_samples_last_third_or_named_tests(tmp_path):
@@ -322,7 +496,7 @@ def test_held_out_samples_last_third_or_named_tests(tmp_path):
 
     t = np.arange(300) * 1e-3
     specs = {"q_ref": SignalSpec("q_ref", "command", "m", input="q_ref"),
-             "force": SignalSpec("force", "effort", "N", model="controller.F_cmd")}
+             "force": SignalSpec("force", "effort", "N", model="controller.F")}
     tests = [{"name": n, "time": t, "values": {"q_ref": np.sin(t), "force": np.cos(t)}} for n in ("a", "b")]
     records = load_records(write_records(tmp_path / "rec", specs, tests))
     cases, how = _cases(records, 1 / 3)

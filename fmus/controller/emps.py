@@ -5,11 +5,15 @@ At every sample k (period T_s, 1 ms on the EMPS dSPACE system):
     qf(k)   = 0.5 q_m(k) + 0.5 q_m(k-1)                      FIR filter of the encoder position
     qd(k)   = (qf(k) - qf(k-1)) / T_s                        velocity estimate
     v(k)    = k_p k_v (q_ref(k) - q_m(k)) - k_v qd(k)        P position loop into a P velocity loop
-    u(k)    = clip(v(k), -u_max, u_max)                      the logged drive command (vir)
-    F       = g_tau (u(k) + u_inj)                           the drive force on the load
+    u_s(k)  = clip(v(k), -u_max, u_max)                      the controller's output after the saturation
+    u       = u_s(k) + u_inj                                 the drive command applied (vir in the EMPS logs)
+    F       = g_tau u                                        the drive force on the load
 
 u_inj [V] is a known input a lab adds to the drive command after the saturation
-(excitation pulses); 0 in normal operation. The filter starts at rest at ``q_0``.
+(excitation pulses); 0 in normal operation. A drive logs what it applies, u and F (the
+"applied" tap of a record, docs/measured-data.md); the controller's output before the
+injection is published too, as u_before_injection = u_s and F_before_injection = g_tau u_s,
+for a lab that logs it there. The filter starts at rest at ``q_0``.
 
 Timing: the block ticks with its step h (T_s a whole multiple of h); at the first tick of a
 sample it reads q_ref, q_m and computes u(k), which is its output after that tick. A master
@@ -39,16 +43,18 @@ class EmpsController(Block):
     """Sampled P-P cascade of a single drive axis with FIR velocity estimate and saturation (module docstring)."""
 
     INPUTS = ("q_ref", "q_m", "u_inj")
-    OUTPUTS = ("u", "F", "F_cmd", "q_dot_est")
+    OUTPUTS = ("u", "F", "u_before_injection", "F_before_injection", "q_dot_est")
     PARAMETERS = EMPS_PARAMETERS
-    UNITS = {"q_ref": "m", "q_m": "m", "u_inj": "V", "u": "V", "F": "N", "F_cmd": "N", "q_dot_est": "m/s"}
+    UNITS = {"q_ref": "m", "q_m": "m", "u_inj": "V", "u": "V", "F": "N", "u_before_injection": "V",
+             "F_before_injection": "N", "q_dot_est": "m/s"}
     DESCRIPTIONS = {
         "q_ref": "reference position",
         "q_m": "measured position (encoder, load side)",
         "u_inj": "known input added to the drive command after the saturation (excitation pulses; 0: none)",
-        "u": "drive command after the saturation (what the EMPS logs as vir)",
-        "F": "drive force on the load, g_tau (u + u_inj)",
-        "F_cmd": "the controller's force command g_tau u (the logged effort)",
+        "u": "drive command applied: the controller's output after the saturation plus u_inj (the EMPS logs it as vir)",
+        "F": "drive force on the load, g_tau u (the logged effort: gtau vir)",
+        "u_before_injection": "the controller's output after the saturation, before u_inj is added",
+        "F_before_injection": "the controller's force command before u_inj is added, g_tau u_before_injection",
         "q_dot_est": "velocity estimate from the filtered encoder difference",
     }
 
@@ -71,7 +77,8 @@ class EmpsController(Block):
         u_inj = self.values[2]
         if not math.isfinite(u_inj):
             raise ModelError(f"{self.name}: non-finite input u_inj={u_inj!r}")
-        self.values[3:] = [self._u, g * (self._u + u_inj), g * self._u, self._qd]
+        u = self._u + u_inj
+        self.values[3:] = [u, g * u, self._u, g * self._u, self._qd]
 
     def _ticks(self, h: float) -> int:
         """Block steps per sample (T_s a whole multiple of the step ``h``)."""
@@ -103,7 +110,8 @@ class EmpsController(Block):
         u_inj = values[2]
         if not math.isfinite(u_inj):
             raise ModelError(f"{self.name} at t={t:.6g} s: non-finite input u_inj={u_inj!r}")
-        values[4] = self.params["g_tau"] * (self._u + u_inj)
+        u = self._u + u_inj
+        values[3], values[4] = u, self.params["g_tau"] * u
 
     def get_state(self) -> object:
         return (list(self.values), self._tick, self._q_prev, self._qf_prev, self._u, self._qd)

@@ -11,8 +11,11 @@ measured column (position, velocity, effort) is compared with the model output i
 Sampled outputs (``sampled``: the value a controller computes at sample t_k from the
 measurements at t_k) are read from the co-simulation where it publishes that sample's
 value: one sample later (a master steps the controller at t_k and publishes after the
-step). Writes OUT/replay.json, OUT/replay.csv (time, measured and simulated columns) and
-OUT/replay_<test>.png.
+step). An effort is compared with what the drive applies (``model``: the controller's
+output after its saturation plus the injected inputs), or, when the record says it was
+logged before the injection (``tap = "before_injection"``), with the model output
+``model`` + "_before_injection" (mast.data.record). Writes OUT/replay.json, OUT/replay.csv
+(time, measured and simulated columns) and OUT/replay_<test>.png.
 """
 from __future__ import annotations
 
@@ -24,7 +27,7 @@ import numpy as np
 
 from fmus.common.parameters import Value
 
-from ..data.record import MEASURED, Record, RecordReplay, RecordSet, load_records
+from ..data.record import MEASURED, Record, RecordError, RecordReplay, RecordSet, load_records
 
 
 def relative_error_pct(y: np.ndarray, y_sim: np.ndarray) -> float:
@@ -56,6 +59,19 @@ def initial_parameters(ssp: Union[str, Path], record: Record) -> dict[str, dict[
     return out
 
 
+def _check_taps(components: Mapping, measured: Sequence, record: Record, ssp: Union[str, Path]) -> None:
+    """An effort logged before the injection is compared with the model's output of that tap: a RecordError
+    names the signal, the tap and the component's declared outputs when the system structure has none."""
+    for s in measured:
+        element, _, connector = s.model_output.rpartition(".")
+        comp = components.get(element)
+        if s.tap == "applied" or comp is None or connector in comp.outputs:
+            continue                              # an unknown component, or the applied tap: the master names it
+        raise RecordError(f"{record.file.name}: signal {s.name} is logged at tap {s.tap!r}: it is compared with the "
+                          f"model output {s.model_output} ({s.model} at that tap), which {Path(ssp).name} does not "
+                          f"have; the outputs of {element}: {', '.join(comp.outputs)}")
+
+
 def simulate_record(ssp: Union[str, Path], record: Record, parameters: Optional[Mapping[str, Mapping]] = None,
                     direct: bool = True, extra: Sequence[str] = (), stop_time: Optional[float] = None
                     ) -> dict[str, np.ndarray]:
@@ -65,21 +81,22 @@ def simulate_record(ssp: Union[str, Path], record: Record, parameters: Optional[
     from ..core.run import simulate
     from ..core.ssp import SSPArchive
 
+    measured = record.of_kind(*MEASURED)
     with SSPArchive(ssp) as archive:
         inputs = list(archive.system.system_inputs)
+        _check_taps(archive.system.components, measured, record, ssp)
     params = initial_parameters(ssp, record)
     for comp, values in (parameters or {}).items():
         params.setdefault(comp, {}).update(values)
-    measured = record.of_kind(*MEASURED)
     dt = record.sample_time
     end = record.duration if stop_time is None else min(float(stop_time), record.duration)
     time = record.time[record.time <= end + 1e-9]
     res = simulate(ssp, RecordReplay(record, inputs), float(time[-1]) + dt, parameters=params,
-                   record=sorted({s.model for s in measured} | set(extra)), record_step=None, direct=direct)
+                   record=sorted({s.model_output for s in measured} | set(extra)), record_step=None, direct=direct)
     out = {}
     for s in measured:
         at = time + (dt if s.sampled else 0.0)
-        out[s.name] = np.interp(at, res.time, res[s.model])
+        out[s.name] = np.interp(at, res.time, res[s.model_output])
     for name in extra:
         out[name] = np.interp(time, res.time, res[name])
     return out
@@ -92,7 +109,8 @@ def compare(record: Record, simulated: Mapping[str, np.ndarray]) -> dict:
     out = {}
     for s in record.of_kind(*MEASURED):
         y, ys = record.values[s.name][keep], simulated[s.name][keep]
-        out[s.name] = {"kind": s.kind, "unit": s.unit, "model": s.model,
+        out[s.name] = {"kind": s.kind, "unit": s.unit, "model": s.model_output,
+                       **({"tap": s.tap} if s.kind == "effort" else {}),
                        "relative_error_pct": relative_error_pct(y, ys), "fit_pct": fit_pct(y, ys),
                        "rms_error": float(np.sqrt(np.mean((y - ys) ** 2)))}
     return out

@@ -22,7 +22,15 @@ gain) and the signal's kind and place in the model:
     input = "u_inj"
 
 Every problem names the file and the variable: a missing variable, a variable that is not a
-vector of the time's length, time that does not increase (or is irregular), NaN or inf.
+vector of the time's length, time that does not increase (or is irregular), NaN or inf, an
+injected input without a declared unit (the unit it acts in is never guessed from its name).
+
+An effort is logged where the drive applies it (the default tap, "applied": the controller's
+output plus the injected inputs) or, as the map may say, before the injection (tap =
+"before_injection"). When an injected input has edges (a pulse train), the effort's steps at
+them (mast.data.injection) are checked against the declared tap: a warning names the column
+when it steps by the input's jump while the map says before the injection, or shows no step
+while the map says applied. Warnings are returned in the summary (``warnings``), not raised.
 """
 from __future__ import annotations
 
@@ -32,6 +40,7 @@ from typing import Mapping, Union
 
 import numpy as np
 
+from .injection import edge_steps
 from .measured import JITTER, MeasuredDataError
 from .record import KINDS, SignalSpec, parse_signals, write_records
 
@@ -173,6 +182,11 @@ def import_file(file: Union[str, Path], map_path: Union[str, Path], out: Union[s
         kind = entry.get("kind")
         if kind not in KINDS:
             raise LabFileError(f"{map_path}: [signals.{name}]: kind {kind!r}, expected one of {', '.join(KINDS)}")
+        if kind == "injected" and not str(entry.get("unit", "")).strip():
+            what = f"variable '{entry['variable']}'" if "variable" in entry else "its value"
+            raise LabFileError(f"{map_path}: [signals.{name}]: the injected input ({what}) has no unit: declare the "
+                               "unit it acts in, e.g. unit = \"V\" for a voltage added to the drive command (it is "
+                               "never read from the variable's name)")
         si, factor = _unit(map_path, entry.get("unit"), f"[signals.{name}]")
         if "variable" in entry:
             v = _vector(file, variables, str(entry["variable"]), f"signal {name}", n)
@@ -185,12 +199,41 @@ def import_file(file: Union[str, Path], map_path: Union[str, Path], out: Union[s
                                "(a constant, for an input absent from this file)")
         columns[name] = v
         meta_signals[name] = {"kind": kind, "unit": si,
-                              **{k: entry[k] for k in ("input", "model", "sampled", "description") if k in entry}}
+                              **{k: entry[k] for k in ("input", "model", "sampled", "description", "tap")
+                                 if k in entry}}
     specs: dict[str, SignalSpec] = parse_signals(meta_signals, str(map_path))
+    warnings = tap_warnings(file, spec["signals"], specs, columns)
     test = dict(spec.get("test", {}))
     name = str(test.pop("name", file.stem))
     meta_extra = {"machine": str(source.get("machine", "")), "source": {"file": file.name, "map": map_path.name},
                   "description": str(source.get("description", ""))}
     write_records(out, specs, [{"name": name, "time": t - t[0], "values": columns, **test}], meta_extra)
     return {"folder": str(out), "test": name, "samples": n, "sample_time_s": step, "duration_s": float(t[-1] - t[0]),
-            "signals": {s: specs[s].kind for s in specs}}
+            "signals": {s: specs[s].kind for s in specs}, "warnings": warnings}
+
+
+def tap_warnings(file: Path, entries: Mapping[str, Mapping], specs: Mapping[str, SignalSpec],
+                 columns: Mapping[str, np.ndarray]) -> list[str]:
+    """Warnings for every effort column whose steps at an injected input's edges contradict its declared tap
+    (module docstring; the columns in SI units)."""
+    out = []
+    for e in (s for s in specs.values() if s.kind == "effort"):
+        for inj in (s for s in specs.values() if s.kind == "injected"):
+            found = edge_steps(columns[e.name], columns[inj.name])
+            if found is None:
+                continue
+            column = f"{file.name}: signal {e.name} (variable '{entries[e.name].get('variable', e.name)}')"
+            edges = (f"the {found.edges} edges of the injected input {inj.name} (jumps of {found.amplitude:.4g} "
+                     f"{inj.unit})")
+            if e.tap == "before_injection" and found.steps:
+                out.append(f"{column} steps by {found.step:.4g} {e.unit} ({found.gain:.4g} {e.unit}/{inj.unit}) at "
+                           f"{edges}, at exactly the edge samples, as a log taken after the injection does; the map "
+                           f"says tap = \"before_injection\": if the log is the command applied, remove the tap (the "
+                           f"default, \"applied\")")
+            elif e.tap == "applied" and found.no_steps:
+                out.append(f"{column} shows no step at {edges}: {found.step:.4g} {e.unit} there against "
+                           f"{found.spread:.4g} {e.unit} of change from one sample to the next elsewhere, as a log "
+                           f"taken before the injection does; the map says it is the command applied (tap "
+                           f"\"applied\", the default): if the lab logs the controller's output before the "
+                           f"injected input is added, say tap = \"before_injection\"")
+    return out

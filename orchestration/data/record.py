@@ -11,6 +11,10 @@ says, for each CSV column, what it is
     sampled   (effort, command outputs of a sampled controller) true: sample k of the log is the
               value the controller computed at t_k (compared with the model's output published
               for that sample, one sample later in the co-simulation)
+    tap       (effort) where the drive command is logged: "applied" (the default: what the drive
+              applies, the controller's output after its saturation plus the injected inputs,
+              compared with ``model``) or "before_injection" (the controller's output before the
+              injected inputs are added, compared with the model output ``model`` + "_before_injection")
 
 and one CSV per test (``time`` then the signals, SI units). The simulation of a record is
 driven by its command and injected columns (``RecordReplay``); the other kinds are compared.
@@ -35,6 +39,9 @@ KINDS = DRIVING + MEASURED
 #: SI units a column of each kind may carry
 SI_UNITS = {"command": ("m", "rad", "V", "N", "N.m", "A"), "injected": ("V", "N", "N.m", "A"),
             "position": ("m", "rad"), "velocity": ("m/s", "rad/s"), "effort": ("N", "N.m", "V", "A")}
+#: where an effort is logged: what the drive applies (the default), or the controller's output before the
+#: injected inputs are added (compared with the model output named ``model`` + "_before_injection")
+TAPS = ("applied", "before_injection")
 
 
 class RecordError(MeasuredDataError):
@@ -52,6 +59,7 @@ class SignalSpec:
     model: Optional[str] = None       # model output ELEMENT.CONNECTOR (position, velocity, effort)
     sampled: bool = False             # a sampled controller's output (docstring)
     description: str = ""
+    tap: str = "applied"              # effort: where the drive command is logged (TAPS, docstring)
 
     def to_json(self) -> dict:
         out = {"kind": self.kind, "unit": self.unit}
@@ -60,7 +68,15 @@ class SignalSpec:
                 out[key] = getattr(self, key)
         if self.sampled:
             out["sampled"] = True
+        if self.tap != "applied":
+            out["tap"] = self.tap
         return out
+
+    @property
+    def model_output(self) -> Optional[str]:
+        """The model output this signal is compared with: ``model`` for the applied effort and the other kinds,
+        ``model`` + "_" + tap for an effort logged at another tap (before the injection)."""
+        return self.model if self.tap == "applied" or not self.model else f"{self.model}_{self.tap}"
 
 
 def parse_signals(raw: object, where: str) -> dict[str, SignalSpec]:
@@ -80,8 +96,14 @@ def parse_signals(raw: object, where: str) -> dict[str, SignalSpec]:
         if unit not in SI_UNITS[kind]:
             raise RecordError(f"{where}: signal {name}: unit {unit!r} for a {kind} signal, expected one of "
                               f"{', '.join(SI_UNITS[kind])} (SI: `mast import` converts)")
+        tap = entry.get("tap", "applied")
+        if tap not in TAPS:
+            raise RecordError(f"{where}: signal {name}: tap {tap!r}, expected one of {', '.join(TAPS)} (where the "
+                              "drive command is logged: after the injected inputs are added, or before)")
+        if tap != "applied" and kind != "effort":
+            raise RecordError(f"{where}: signal {name}: tap {tap!r} on a {kind} signal: only an effort has a tap")
         spec = SignalSpec(name, kind, unit, entry.get("input"), entry.get("model"), bool(entry.get("sampled", False)),
-                          str(entry.get("description", "")))
+                          str(entry.get("description", "")), tap)
         if kind in DRIVING and not spec.input:
             raise RecordError(f"{where}: signal {name}: a {kind} signal needs 'input', the model's system input it drives")
         if kind in MEASURED and (not spec.model or "." not in spec.model):
