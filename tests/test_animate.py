@@ -12,8 +12,6 @@ from __future__ import annotations
 import json
 import math
 import shutil
-import subprocess
-import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -221,33 +219,26 @@ def test_a_failed_write_leaves_the_old_page_and_no_temporary_file(runs, tmp_path
 
 
 # ----------------------------------------------------------------------------- in a browser
-CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
-#: the drawing's colours (animate.COLOURS) as RGB
-LINK = np.array([0xd6, 0x27, 0x28]) / 255.0
-CARRIAGE = np.array([0xff, 0x7f, 0x0e]) / 255.0
+def rgb(hex_colour: str) -> np.ndarray:
+    return np.array([int(hex_colour[k:k + 2], 16) for k in (1, 3, 5)]) / 255.0
+
+
+#: the drawing's colours of the legs and the carriages
+LINK, CARRIAGE = rgb(animate.COLOURS["link"]), rgb(animate.COLOURS["carriage"])
 
 
 def screenshot(page: Path, at: float, into: Path) -> np.ndarray:
-    """The page opened at the frame nearest ``at`` s in headless Chromium (a fresh profile, removed after)."""
+    """The page opened at the frame nearest ``at`` s in headless Chromium, as RGB in [0, 1]."""
     import matplotlib.image
 
-    png = into / f"t{at:g}.png"
-    with tempfile.TemporaryDirectory(prefix="mast_chromium_") as profile:
-        run = subprocess.run(
-            [CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--enable-unsafe-swiftshader", "--disable-quic",
-             "--no-first-run", "--disable-background-networking", "--disable-component-update", "--disable-sync",
-             f"--user-data-dir={profile}", "--window-size=1000,760", "--virtual-time-budget=10000",
-             f"--screenshot={png}", f"{page.resolve().as_uri()}#t={at}"],
-            capture_output=True, text=True, timeout=180)
-    assert png.exists(), f"no screenshot: {run.stderr[-2000:]}"
-    return matplotlib.image.imread(str(png))[:, :, :3]
+    return matplotlib.image.imread(str(animate.screenshot(page, into / f"t{at:g}.png", at)))[:, :, :3]
 
 
 def near(image: np.ndarray, colour: np.ndarray) -> np.ndarray:
     return np.abs(image - colour).max(axis=2) < 0.06
 
 
-@pytest.mark.skipif(CHROMIUM is None, reason="Chromium is not installed (Debian: apt-get install chromium); "
+@pytest.mark.skipif(animate.chromium() is None, reason="Chromium is not installed (Debian: apt-get install chromium); "
                                              ".ci/run installs it where it can")
 def test_the_page_draws_and_animates_the_mechanism_in_a_browser(pages, tmp_path):
     rest = screenshot(pages["3PRS_T"], 0.0, tmp_path)

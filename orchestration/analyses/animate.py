@@ -82,6 +82,8 @@ def load(run_dir: Union[str, Path]) -> tuple[Result, dict]:
         raise AnimateError(f"{csv_path}: not a results table (header time,SIGNAL,... then numbers): {exc}") from None
     if len(result.time) == 0:
         raise AnimateError(f"{csv_path}: no rows (the run recorded nothing)")
+    if not np.all(np.diff(result.time) > 0):
+        raise AnimateError(f"{csv_path}: the column 'time' does not increase from row to row")
     try:
         summary = json.loads(summary_path.read_text(encoding="utf-8"))
     except (ValueError, UnicodeDecodeError) as exc:
@@ -108,7 +110,7 @@ def mechanism_parameters(summary: Mapping, where: str) -> dict:
 def description_of(params: Mapping, where: str) -> Description:
     """The kinematic description of the mechanism's parameters, with its sketch; AnimateError naming what is
     missing (a geometry parameter, a detached mechanism, a description without a drawing)."""
-    if int(params.get("attached", 1)) == 0:
+    if params.get("attached", 1) == 0:
         raise AnimateError(f"{where}: the mechanism is not attached (parameter 'attached' = 0: the actuators "
                            "alone, paper Fig. 10): no mechanism geometry to draw")
     try:
@@ -122,11 +124,10 @@ def description_of(params: Mapping, where: str) -> Description:
     return desc
 
 
-def _column(result: Result, names: Sequence[str], what: str, where: str) -> np.ndarray:
-    for name in names:
-        if name in result.signals:
-            return result[name]
-    raise AnimateError(f"{where}: results.csv has no column {' or '.join(repr(n) for n in names)} ({what})")
+def _column(result: Result, name: str, what: str, where: str) -> np.ndarray:
+    if name not in result.signals:
+        raise AnimateError(f"{where}: no column {name!r} ({what})")
+    return result[name]
 
 
 def frame_indices(time_s: np.ndarray, fps: float) -> np.ndarray:
@@ -166,9 +167,9 @@ def replay(run_dir: Union[str, Path], fps: float = FPS) -> Replay:
     desc = description_of(params, where)
     parts = desc.sketch()
     where_csv = str(Path(run_dir) / "results.csv")
-    achieved_q = np.column_stack([_column(result, [f"{MECHANISM}.{c}"], "the achieved pose", where_csv)
+    achieved_q = np.column_stack([_column(result, f"{MECHANISM}.{c}", "the achieved pose", where_csv)
                                   for c in desc.coordinates])
-    commanded_q = np.column_stack([_column(result, [f"{c}_cmd"], "the commanded pose", where_csv)
+    commanded_q = np.column_stack([_column(result, f"{c}_cmd", "the commanded pose", where_csv)
                                    for c in desc.coordinates])
     index = frame_indices(result.time, fps)
     achieved, commanded, top = [], [], np.full(len(desc.joints), -math.inf)
@@ -194,8 +195,10 @@ def replay(run_dir: Union[str, Path], fps: float = FPS) -> Replay:
     label = f"{Path(ssp).stem if ssp else Path(run_dir).name}: {desc.name}"
     motion = summary.get("motion")
     if isinstance(motion, Mapping) and {"axis", "amplitude", "frequency_Hz"} <= set(motion):
-        unit = "m" if motion["axis"] == "z" else "rad"
-        label += f", {motion['axis']} sine {motion['amplitude']:.4g} {unit} at {motion['frequency_Hz']:g} Hz"
+        amplitude = f"{motion['amplitude']:.4g} m" if motion["axis"] == "z" else f"{math.degrees(motion['amplitude']):.4g} deg"
+        label += f", {motion['axis']} sine {amplitude} at {motion['frequency_Hz']:g} Hz"
+    if summary.get("error"):
+        label += f" (the run stopped at {result.time[-1]:g} s: {summary['error']})"
     return Replay(label, parts, result.time[index], achieved, commanded, guides)
 
 
@@ -291,7 +294,7 @@ def figure(replay: Replay, fps: float = FPS) -> dict:
                 showactive=False, buttons=[dict(label="play", method="animate", args=[None, play]),
                                            dict(label="pause", method="animate", args=[[None], instant])])
     layout = dict(title=dict(text=f"{replay.label}; ghost: the commanded pose", x=0.02),
-                  height=680, margin=dict(l=0, r=0, t=50, b=90), showlegend=True,
+                  height=660, margin=dict(l=0, r=0, t=50, b=90), showlegend=True,
                   legend=dict(x=0.99, xanchor="right", y=0.98),
                   scene=dict(aspectmode="manual", aspectratio={a: float(span[k] / half) for k, a in enumerate("xyz")},
                              camera=dict(eye=dict(x=1.05, y=-1.15, z=0.45), center=dict(x=0, y=0, z=-0.1)), **axes),
@@ -334,4 +337,41 @@ def write(run_dir: Union[str, Path], out: Union[str, Path], fps: float = FPS) ->
             "simulated_s": float(rep.times[-1] - rep.times[0]), "seconds": time.perf_counter() - start}
 
 
-__all__ = ["AnimateError", "FPS", "Replay", "figure", "frame_indices", "load", "page", "place", "replay", "write"]
+# ----------------------------------------------------------------------------- a picture of the page
+#: headless Chromium, offline and with a software WebGL (no GPU): what tests/test_animate.py and
+#: docs/figures/make_animate.py open the page with
+CHROMIUM_FLAGS = ("--headless", "--no-sandbox", "--disable-gpu", "--enable-unsafe-swiftshader", "--disable-quic",
+                  "--no-first-run", "--disable-background-networking", "--disable-component-update",
+                  "--disable-sync", "--virtual-time-budget=10000")
+
+
+def chromium() -> Optional[str]:
+    """The Chromium executable on the PATH (Debian's ``chromium``), or None."""
+    import shutil
+
+    return shutil.which("chromium") or shutil.which("chromium-browser")
+
+
+def screenshot(page_path: Union[str, Path], png: Union[str, Path], at: Optional[float] = None,
+               size: tuple[int, int] = (1000, 760)) -> Path:
+    """A PNG of the page (at the frame nearest ``at`` s: ``#t=``) by headless Chromium, with a fresh profile
+    removed after; RuntimeError when Chromium is absent or writes no picture."""
+    import subprocess
+    import tempfile
+
+    browser = chromium()
+    if browser is None:
+        raise RuntimeError("Chromium is not installed (Debian: apt-get install chromium)")
+    png = Path(png)
+    address = Path(page_path).resolve().as_uri() + ("" if at is None else f"#t={at:g}")
+    with tempfile.TemporaryDirectory(prefix="mast_chromium_") as profile:
+        run = subprocess.run([browser, *CHROMIUM_FLAGS, f"--user-data-dir={profile}",
+                              f"--window-size={size[0]},{size[1]}", f"--screenshot={png}", address],
+                             capture_output=True, text=True, timeout=300)
+    if not png.is_file():
+        raise RuntimeError(f"Chromium wrote no screenshot of {address} (exit {run.returncode}): {run.stderr[-2000:]}")
+    return png
+
+
+__all__ = ["AnimateError", "CHROMIUM_FLAGS", "FPS", "Replay", "chromium", "figure", "frame_indices", "load", "page",
+           "place", "replay", "screenshot", "write"]
