@@ -59,13 +59,12 @@ def pages(runs, tmp_path_factory) -> dict[str, Path]:
 
 
 def plotly_figure(html: str) -> tuple[list, list]:
-    """(the first frame's traces, the frames) as the page hands them to plotly.js."""
+    """(the first frame's traces, the frames) as the page's last script hands them to plotly.js (after the
+    inlined library)."""
     decoder = json.JSONDecoder()
-    start = html.index("Plotly.newPlot(")
-    data_at = html.index("[", html.index(",", start))
-    data, _ = decoder.raw_decode(html, data_at)
-    frames_at = html.index("[", html.index("Plotly.addFrames("))
-    frames, _ = decoder.raw_decode(html, frames_at)
+    start = html.rindex("Plotly.newPlot(")
+    data, _ = decoder.raw_decode(html, html.index("[", html.index(",", start)))
+    frames, _ = decoder.raw_decode(html, html.index("[", html.index("Plotly.addFrames(", start)))
     return data, frames
 
 
@@ -156,6 +155,17 @@ def test_frames_are_the_samples_nearest_each_frame_time():
     assert len(k) == 41 and np.all(np.abs(t[k] - np.arange(41) / 40.0) < 1e-9)
     uneven = np.array([0.0, 0.012, 0.03, 0.052, 0.1])     # 0.025 -> 0.03, 0.05 and 0.075 -> 0.052, 0.1
     assert list(animate.frame_indices(uneven, 40.0)) == [0, 2, 3, 4]
+
+
+def test_a_part_is_checked_when_described():
+    from fmus.mechanism.engine import Part
+
+    with pytest.raises(ValueError, match="part kind 'wing'"):
+        Part("wing", "platform", [(0.0, 0.0, 0.0)])
+    with pytest.raises(ValueError, match="a guide is a part of the base"):
+        Part("guide", None, [(0.0, 0.0, 0.0), (0.0, 0.0, 1.0)])
+    with pytest.raises(ValueError, match="points must be finite"):
+        Part("link", "leg_1", [(0.0, 0.0, math.nan), (0.26, 0.0, 0.0)])
 
 
 # ----------------------------------------------------------------------------- bad input
