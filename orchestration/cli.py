@@ -176,7 +176,7 @@ def cmd_run(args) -> int:
         failed = None
     except SimulationError as err:
         result, failed = err.result, str(err)
-    summary = write_outputs(result, out, args.stop_time, motion)
+    summary = write_outputs(result, out, args.stop_time, motion, ssp)
     print(json.dumps({k: summary[k] for k in ("wall_time_s", "real_time_factor") if k in summary}))
     if failed:
         print(f"error: {failed} (results up to the failure are in {out})", file=sys.stderr)
@@ -365,6 +365,15 @@ def cmd_workspace(args) -> int:
     return 0 if answer["inside"] else 1
 
 
+def cmd_animate(args) -> int:
+    from .analyses.animate import write
+
+    done = write(args.run_dir, args.out, args.fps)
+    print(f"wrote {done['out']}: {done['frames']} frames ({done['fps']:g} per simulated second over "
+          f"{done['simulated_s']:.3g} s), {done['bytes'] / 1e6:.2f} MB, in {done['seconds']:.2f} s")
+    return 0
+
+
 def cmd_batch(args) -> int:
     from .batch.cli import main as batch_main
 
@@ -537,6 +546,16 @@ def main(argv=None) -> int:
                    help=f"grid step in psi and theta (default {STEP_TILT_DEG:g} deg)")
     p.add_argument("--no-plots", action="store_true", help="write no figure")
     p.set_defaults(func=cmd_workspace)
+
+    p = sub.add_parser("animate", help="a run replayed in 3-D: one self-contained HTML page, play/pause, time slider, "
+                                       "the commanded pose as a ghost (docs/animate.md)")
+    p.add_argument("run_dir", help="a `mast run` output folder (results.csv, summary.json)")
+    p.add_argument("--out", type=output_file, required=True, help="the HTML page to write")
+    from .analyses.animate import FPS
+
+    p.add_argument("--fps", type=_positive("frames per second"), default=FPS,
+                   help=f"frames per second of simulated time (default {FPS:g})")
+    p.set_defaults(func=cmd_animate)
 
     p = sub.add_parser("batch", help="run the cases of a batch config (TOML/YAML) in parallel: docs/batch.md")
     p.add_argument("config", help="batch config: .toml, .yaml or .json")

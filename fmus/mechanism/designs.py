@@ -30,7 +30,7 @@ import numpy as np
 
 from ..common.codegen import largest_parameters
 from ..common.parameters import Param, ParameterError, nonnegative
-from .engine import Body, Description, Engine, Evaluation, TracedBody, atan2, hypot, require, sign, sqrt
+from .engine import Body, Description, Engine, Evaluation, Part, TracedBody, atan2, hypot, require, sign, sqrt
 from .engine import cos as _cos
 from .engine import sin as _sin
 from .kinematics import GEOMETRY_PARAMETERS, MAX_TILT, Geometry, KinematicsError, _det3
@@ -198,6 +198,10 @@ TRACED_PARAMETERS = ("H", "r", "L", "alpha_1", "alpha_2", "alpha_3", "beta", "m_
 
 
 # ----------------------------------------------------------------------------- the 3PRS
+#: points on the outline of the base and of the platform in the drawing (``PRS3.sketch``)
+_RIM_POINTS = 48
+
+
 class PRS3(Description):
     """3-PRS with guides at angles alpha around the centre axis, inclined by beta (module docstring).
 
@@ -330,6 +334,23 @@ class PRS3(Description):
         if self.values is None:
             return Evaluation(rho, pose, frames)
         return Evaluation(rho, pose, frames, bodies, self.values, q[0].g.input("g"))
+
+    def sketch(self) -> tuple[Part, ...]:
+        """The base (a disc of radius H through the guides' feet), per guide its axis (``evaluate``'s slider
+        origin at rho = 0 and 1 m), the carriage and the leg (origins of the leg frames; x along the leg, length
+        L), the platform (a disc of radius r) and its spherical joints s_i = r (cos alpha_i, sin alpha_i, 0)."""
+        H, r, L, ca, sa, cb, sb = self.H, self.r, self.L, self._ca, self._sa, self._cb, self._sb
+        rim = [2.0 * math.pi * k / _RIM_POINTS for k in range(_RIM_POINTS)]
+        parts = [Part("plate", None, [(H * math.cos(a), H * math.sin(a), 0.0) for a in rim])]
+        for i in range(3):
+            leg = f"leg_{i + 1}"
+            parts += [Part("guide", None, [(ca[i] * H, sa[i] * H, 0.0), (ca[i] * (H - sb), sa[i] * (H - sb), cb)],
+                           joint=i),
+                      Part("carriage", leg, [(0.0, 0.0, 0.0)]),
+                      Part("link", leg, [(0.0, 0.0, 0.0), (L, 0.0, 0.0)])]
+        parts += [Part("plate", "platform", [(r * math.cos(a), r * math.sin(a), 0.0) for a in rim]),
+                  Part("joint", "platform", [(r * ca[i], r * sa[i], 0.0) for i in range(3)])]
+        return tuple(parts)
 
     def guess(self, rho: Sequence[float]) -> tuple[float, float, float]:
         """Level pose for the mean slider position (the direct kinematics' cold start)."""

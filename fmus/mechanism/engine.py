@@ -60,7 +60,7 @@ from ..common.codegen import compile_generated
 from .kinematics import COND_LIMIT, KinematicsError, _inv3
 
 __all__ = [
-    "Body", "Description", "Evaluation", "Engine", "TracedBody", "EngineIDP", "EngineJacobians", "KinematicsError", "MARGIN",
+    "Body", "Description", "Evaluation", "Engine", "Part", "TracedBody", "EngineIDP", "EngineJacobians", "KinematicsError", "MARGIN",
     "Margins", "SingularityError", "sin", "cos", "sqrt", "atan2", "hypot", "sign", "require", "traced",
 ]
 
@@ -671,9 +671,39 @@ class TracedBody:
     inertia: tuple
 
 
+@dataclass(frozen=True)
+class Part:
+    """A piece of a mechanism's drawing (``Description.sketch``), placed at a pose by the frame of its body.
+
+    kind: ``"link"`` (a bar through ``points``, in order), ``"plate"`` (a closed outline through ``points``,
+    filled), ``"joint"`` (a joint at each point), ``"carriage"`` (an actuated carriage or piston at each point)
+    or ``"guide"`` (the fixed axis of joint coordinate ``joint`` (0-based): ``points`` are where its carriage
+    is at rho = 0 and at rho = 1 m, the axis being linear in rho).
+    body: the name of the body (``Description.bodies``) whose frame ``points`` [m] are given in, moving with
+    it; None: the fixed base (world frame).
+    """
+
+    kind: str
+    body: Optional[str]
+    points: tuple
+    joint: Optional[int] = None
+
+    KINDS = ("link", "plate", "joint", "carriage", "guide")
+
+    def __post_init__(self) -> None:
+        if self.kind not in self.KINDS:
+            raise ValueError(f"part kind {self.kind!r}: expected one of {', '.join(self.KINDS)}")
+        if (self.kind == "guide") != (self.joint is not None) or (self.kind == "guide" and self.body is not None):
+            raise ValueError("a guide is a part of the base (body None) with its joint; other parts have no joint")
+        points = tuple(tuple(float(c) for c in p) for p in self.points)
+        if not points or any(len(p) != 3 or not all(math.isfinite(c) for c in p) for p in points):
+            raise ValueError(f"{self.kind} of {self.body or 'the base'}: points must be finite (x, y, z) [m]")
+        object.__setattr__(self, "points", points)
+
+
 class Description:
     """A mechanism for the engine. Subclasses set ``name``, ``coordinates``, ``joints``, ``bodies``
-    and implement ``evaluate`` (with this module's functions) and ``guess``."""
+    and implement ``evaluate`` (with this module's functions) and ``guess``; ``sketch`` for a drawing."""
 
     name: str = "mechanism"
     coordinates: tuple[str, ...] = ("z", "psi", "theta")
@@ -693,6 +723,11 @@ class Description:
     def key(self) -> tuple:
         """Everything that defines the description (used to share compiled code)."""
         raise NotImplementedError
+
+    def sketch(self) -> tuple[Part, ...]:
+        """The parts a drawing of the mechanism shows (``Part``: its base, bodies, joints and carriages),
+        in body frames: placed at a pose by the frames ``evaluate`` gives (mast animate). Empty: no drawing."""
+        return ()
 
     def __deepcopy__(self, memo):
         return self

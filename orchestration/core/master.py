@@ -63,7 +63,11 @@ class Stimulus(Protocol):
 
 @dataclass
 class Result:
-    """Recorded signals: ``time`` and one array per ``element.connector`` (system inputs by name)."""
+    """Recorded signals: ``time`` and one array per ``element.connector`` (system inputs by name).
+
+    ``stats`` (from ``Master.run``): base_step [s], ticks, multiples, init_s [s] and ``parameters``, per
+    component the values the master set (the SSP's bindings, then the caller's overrides; any other parameter
+    has its FMU's default)."""
 
     time: np.ndarray
     signals: dict[str, np.ndarray]
@@ -78,6 +82,14 @@ class Result:
         names = list(self.signals)
         table = np.column_stack([self.time] + [self.signals[n] for n in names]) if len(self.time) else np.zeros((0, len(names) + 1))
         np.savetxt(path, table, delimiter=",", header=",".join(["time"] + names), comments="", fmt="%.12g")
+
+    @classmethod
+    def read_csv(cls, path) -> "Result":
+        """The signals of a CSV ``write_csv`` wrote (a header line ``time,NAME,...``, then one row per time)."""
+        with open(path, encoding="utf-8") as handle:
+            names = handle.readline().strip().split(",")
+        table = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+        return cls(table[:, 0].copy(), {n: table[:, j + 1].copy() for j, n in enumerate(names[1:])})
 
 
 @dataclass
@@ -160,6 +172,7 @@ class Master:
         bound = applicable_parameters(system, {name: self.components[name].parameter_names for name in order},
                                       {name: getattr(self.components[name], "parameter_units", {}) for name in order})
         merged = {name: {**bound[name], **parameters.get(name, {})} for name in order}
+        self.parameters_set = merged
         for name in order:
             self.components[name].enter_initialization(t0, t1, merged[name])
 
@@ -370,7 +383,8 @@ class Master:
                     self.components[name].close()
         result = Result(times[:rows].copy(), {name: data[:rows, j].copy() for j, name in enumerate(record)},
                         wall_time_s=time.perf_counter() - wall0, error=error,
-                        stats={"base_step": h, "ticks": n, "multiples": dict(self.multiples), "init_s": init_s})
+                        stats={"base_step": h, "ticks": n, "multiples": dict(self.multiples), "init_s": init_s,
+                               "parameters": self.parameters_set})
         if error:
             raise SimulationError(error, result)
         return result

@@ -103,7 +103,9 @@ def motion_from_cli(axis: str, amplitude: float, frequency: float) -> SineMotion
     return SineMotion(axis, amplitude if axis == "z" else math.radians(amplitude), frequency)
 
 
-def summarize(result: Result, stop_time: float, motion: SineMotion) -> dict:
+def summarize(result: Result, stop_time: float, motion: SineMotion, ssp: Optional[Union[str, Path]] = None) -> dict:
+    """The figures of a run, and what ran: ``system``, the SSP (absolute path) and per component the parameter
+    values the master set (``Result.stats``; what ``mast animate`` draws the mechanism from)."""
     summary = {
         "wall_time_s": round(result.wall_time_s, 4),
         "simulated_time_s": stop_time,
@@ -113,6 +115,8 @@ def summarize(result: Result, stop_time: float, motion: SineMotion) -> dict:
         "base_step_s": result.stats.get("base_step"),
         "step_multiples": result.stats.get("multiples"),
         "error": result.error,
+        "system": {"ssp": None if ssp is None else str(Path(ssp).resolve()),
+                   "parameters": result.stats.get("parameters")},
     }
     k = AXES.index(motion.axis)
     cmd, got = f"{motion.axis}_cmd", f"mechanism.{motion.axis}"
@@ -129,13 +133,14 @@ def summarize(result: Result, stop_time: float, motion: SineMotion) -> dict:
     return summary
 
 
-def write_outputs(result: Result, out: Path, stop_time: float, motion: SineMotion) -> dict:
-    """results.csv, summary.json and plot.png into ``out``."""
+def write_outputs(result: Result, out: Path, stop_time: float, motion: SineMotion,
+                  ssp: Optional[Union[str, Path]] = None) -> dict:
+    """results.csv, summary.json and plot.png into ``out`` (``ssp``: the system run, recorded in the summary)."""
     from .plots import plot_run
 
     out.mkdir(parents=True, exist_ok=True)
     result.write_csv(out / "results.csv")
-    summary = summarize(result, stop_time, motion)
+    summary = summarize(result, stop_time, motion, ssp)
     (out / "summary.json").write_text(json.dumps(summary, indent=2))
     if len(result.time) > 1:
         plot_run(result, motion.axis, out / "motion.png")

@@ -243,7 +243,7 @@ def run_host(host: str, ssp: Union[str, Path], stop_time: float, signals: Sequen
         result = None
         if proc.returncode <= 0 and out.exists():  # our child writes its CSV as its last act
             try:
-                result = _read_ecos_csv(out, signals) if host == "ecos" else read_csv(out)
+                result = _read_ecos_csv(out, signals) if host == "ecos" else Result.read_csv(out)
             except ValueError:  # a line cut short: the host died while writing
                 result = None
         if result is None or proc.returncode > 0 or not len(result.time) or \
@@ -286,14 +286,6 @@ def write_csv(result: Result, path: Path) -> None:
     names = list(result.signals)
     table = np.column_stack([result.time] + [result.signals[n] for n in names])
     np.savetxt(path, table, delimiter=",", header=",".join(["time"] + names), comments="", fmt="%.17g")
-
-
-def read_csv(path: Path) -> Result:
-    """A CSV written by write_csv (or Result.write_csv)."""
-    with open(path, encoding="utf-8") as handle:
-        names = handle.readline().strip().split(",")
-    table = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
-    return Result(table[:, 0].copy(), {n: table[:, j + 1].copy() for j, n in enumerate(names[1:])})
 
 
 # -- agreement with the project's master ------------------------------------------------------
