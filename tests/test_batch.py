@@ -130,10 +130,11 @@ def test_sweep_metrics_bandwidth_by_the_frequency_module():
 
 def test_atomic_write_leaves_the_old_file_or_the_new_one(tmp_path, monkeypatch):
     from mast.batch import store
+    from mast.core import atomic
 
     target = tmp_path / "case.json"
     store.atomic_write(target, b"old")
-    monkeypatch.setattr(store.os, "replace", lambda *a: (_ for _ in ()).throw(OSError("disk full")))
+    monkeypatch.setattr(atomic.os, "replace", lambda *a: (_ for _ in ()).throw(OSError("disk full")))
     with pytest.raises(OSError):
         store.atomic_write(target, b"new")
     assert target.read_bytes() == b"old" and [p.name for p in tmp_path.iterdir()] == ["case.json"]

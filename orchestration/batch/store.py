@@ -5,41 +5,19 @@ from __future__ import annotations
 import io
 import json
 import math
-import os
-import threading
 import time
 from pathlib import Path
 from typing import Mapping, Sequence, Union
 
 import numpy as np
 
+from ..core.atomic import atomic_write
 from .cases import Case, SystemInfo
 from .config import BatchConfig
 
 
 FORMAT_VERSION = 1
 STATUSES = ("ok", "failed", "crashed")
-
-
-def atomic_write(path: Path, data: bytes, sync: bool = True) -> None:
-    """Write ``data`` to ``path`` all or nothing: temp file in the same folder, fsync, rename."""
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.{threading.get_ident()}.tmp")
-    try:
-        with open(tmp, "wb") as handle:
-            handle.write(data)
-            handle.flush()
-            if sync:
-                os.fsync(handle.fileno())
-        os.replace(tmp, path)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
-    if sync and hasattr(os, "O_DIRECTORY"):
-        fd = os.open(path.parent, os.O_RDONLY | os.O_DIRECTORY)
-        try:
-            os.fsync(fd)
-        finally:
-            os.close(fd)
 
 
 def _json_safe(value):

@@ -330,6 +330,8 @@ def build_ssp(ssd: Path, fmu_dir: Path, out_dir: Path) -> Path:
             zout.write(fmu, source)
         for source, data in parameter_sets.items():
             zout.writestr(source, data)
+        for source in sorted({c.ratings for c in system.components.values() if c.ratings} - set(parameter_sets)):
+            zout.write(ssd.parent / source, source)    # the ratings (mast sizing), as the system names them
     return target
 
 
