@@ -42,7 +42,7 @@ import numpy as np
 from fmus.common.parameters import Value
 
 from ..core.atomic import atomic_write
-from ..core.ssp import SSPArchive, SystemSpec
+from ..core.ssp import SSPArchive, SystemSpec, read_ssd
 from ..core.ssv import SSPFormatError, parse_ssv
 from ..core.units import UnitError, parse_unit
 from . import thermal
@@ -325,9 +325,14 @@ def size_run(run_dir: Union[str, Path], ssp: Optional[Union[str, Path]] = None,
         raise SizingError(f"{run_dir}: summary.json names no system (runs before `mast sizing` existed): give --ssp")
     parameters = parameters if parameters is not None else summary.get("parameters") or {}
     frequency = float((summary.get("motion") or {}).get("frequency_Hz") or 0.0)
+    if not Path(ssp).exists():
+        raise SizingError(f"{ssp}: no such system (.ssp or .ssd)")
     try:
-        with SSPArchive(ssp) as archive:
-            drive_set = drives(archive.system, parameters)
+        if Path(ssp).suffix == ".ssd":         # the structure is enough: its FMUs need not be built
+            drive_set = drives(read_ssd(ssp), parameters)
+        else:
+            with SSPArchive(ssp) as archive:
+                drive_set = drives(archive.system, parameters)
     except UnitError as err:
         raise SizingError(f"{ssp}: {err}") from None
     sized = size_signals(drive_set, t, signals, frequency)
