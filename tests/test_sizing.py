@@ -223,3 +223,33 @@ def test_the_built_system_carries_its_ratings(tmp_path):
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["sizing"]["verdict"] == "pass" and summary["ssp"] == str(built)
     assert (tmp_path / "sizing.md").is_file()
+
+
+def test_batch_metrics_and_compare_columns_carry_the_verdict(tmp_path):
+    """mast batch's metric family `sizing` and mast compare's columns: the verdict of the same signals."""
+    from mast.analyses.compare import Candidate, sizing_columns
+    from mast.analyses.frequency import SineResult
+    from mast.analyses.metrics import case_metrics
+    from mast.core.master import Result
+    from mast.core.ssp import read_ssd
+
+    drive_set = sizing.drives(read_ssd(SSD))
+    results = []
+    for frequency, scale in ((1.0, 1.0), (2.0, 3.0)):      # a gentle test and a hard one
+        columns = write_run(tmp_path / f"run{frequency:g}", frequency=frequency, scale=scale)
+        t = columns.pop("time")
+        expected = sizing.verdict(sizing.size_signals(drive_set, t, columns, frequency))
+        motion = {"axis": "z", "amplitude": 0.01, "frequency": frequency}
+        metrics = case_metrics(Result(t, columns), ["sizing"], motion, drives=drive_set)
+        assert metrics["sizing_margin"] == pytest.approx(expected["limiting"]["margin"], rel=1e-12)
+        assert metrics["sizing_fail"] == float(expected["verdict"] == "fail")
+        assert "sizing_margin" not in case_metrics(Result(t, columns), ["sizing"], motion, drives=None)
+        results.append((expected, SineResult("z", 0.01, frequency, 1.0 + 0j, [0.0], [0.0], [0.0], 0.0, {},
+                                             signals={"time": t, **columns})))
+    assert results[0][0]["verdict"] == "pass" and results[1][0]["verdict"] == "fail"
+    row = sizing_columns(Candidate("MAST", str(SSD), str(SSD)), [r for _, r in results], None)
+    worst = results[1][0]["limiting"]
+    assert row["sizing_verdict"] == "fail" and row["sizing_margin"] == pytest.approx(worst["margin"], rel=1e-12)
+    assert row["sizing_limiting"] == f"{worst['drive']} {worst['component']} {worst['item']} at 2 Hz"
+    no_ratings = sizing_columns(Candidate("X", str(tmp_path / "none.ssd"), ""), [results[0][1]], None)
+    assert no_ratings["sizing_verdict"] is None and "none.ssd" in no_ratings["sizing_note"]

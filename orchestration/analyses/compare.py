@@ -351,7 +351,8 @@ def compare(mechanisms: Sequence[Union[str, Path]] = (), out: Union[str, Path] =
 
 
 #: what the drive sizing of each test needs, kept in its steady state
-SIZING_SIGNALS = tuple(f"actuator_{k}.{s}" for k in (1, 2, 3) for s in sizing.SIGNALS)
+SIZING_SIGNALS = tuple(f"actuator_{k}.{s}" for k in (1, 2, 3) for s in sizing.SIGNALS) + tuple(
+    f"controller.i_cmd_{k}" for k in (1, 2, 3))
 
 
 def sizing_columns(c: Candidate, results: Sequence[SineResult],

@@ -56,7 +56,8 @@ def signals_for(families: Sequence[str], available: Sequence[str]) -> list[str]:
     if "saturation" in families:
         want += [s for k in ACTUATORS for s in (f"controller.i_cmd_{k}", f"controller.u_{k}")]
     if "sizing" in families:
-        want += [f"actuator_{k}.{s}" for k in ACTUATORS for s in sizing.SIGNALS]
+        want += [f"actuator_{k}.{s}" for k in ACTUATORS for s in sizing.SIGNALS] + [
+            f"controller.i_cmd_{k}" for k in ACTUATORS]
     have = set(available)
     return [s for s in dict.fromkeys(want) if s in have]
 

@@ -16,7 +16,8 @@ gearhead   output torque tau_out = i_r (tau_m - J_in domega_m/dt), J_in = J1_sca
 guide      the belt's axial force 2 pi tau_out / p (the gearhead's output torque at the toothed-belt
            axis's pulley) against its maximum; the carriage speed omega_m p / (2 pi i_r) against its maximum
            (a belt axis has no screw whirling speed)
-amplifier  RMS current against its continuous current, peak current against its peak current
+amplifier  RMS current against its continuous current, peak current (and the controller's current
+           command, where recorded) against its peak current
 
 Margin = 1 - figure / limit (the temperature's: of the rise above ambient). An item passes below its limit, is "at limit" on it (a drive that
 holds its current at the amplifier's peak: the motion asked for more than the drive gives), and
@@ -215,9 +216,11 @@ def duty_cycle(t: np.ndarray, frequency: float) -> Optional[slice]:
 
 # ----------------------------------------------------------------------------- the analysis
 def size_drive(drive: Drive, t: np.ndarray, tau_m: np.ndarray, omega_m: np.ndarray, i_m: np.ndarray,
-               cycle: Optional[slice] = None) -> DriveSizing:
+               cycle: Optional[slice] = None, i_cmd: Optional[np.ndarray] = None) -> DriveSizing:
     """The items of one drive from its signals over the run (``cycle``: the duty cycle's samples, repeated to
-    steady state for the temperature; None: the run as it is, from ambient)."""
+    steady state for the temperature; None: the run as it is, from ambient). ``i_cmd``: the controller's
+    current command, if recorded: its peak against the amplifier's peak current (at limit where the
+    controller asks for all the drive gives)."""
     r, a = drive.ratings, drive.actuator
     J_in = a["J1_scale"] * (a["J_motor"] + a["J_brake"] + a["J_gearbox"])
     alpha = np.gradient(omega_m, t)
@@ -258,6 +261,8 @@ def size_drive(drive: Drive, t: np.ndarray, tau_m: np.ndarray, omega_m: np.ndarr
         Item("amplifier", "RMS current", rms(cur), r["i_amp_cont"], "A"),
         Item("amplifier", "peak current", peak(cur), r["i_amp_peak"], "A"),
     ]
+    if i_cmd is not None:
+        items.append(Item("amplifier", "peak current command", peak(i_cmd[window]), r["i_amp_peak"], "A"))
     return DriveSizing(drive, items, cycle is not None, (float(tw[0]), float(tw[-1])),
                        {"tau": np.abs(tau), "omega": np.abs(om), "tau_rms": rms(tau), "omega_rms": rms(om)},
                        heat, heat_run)
@@ -266,12 +271,13 @@ def size_drive(drive: Drive, t: np.ndarray, tau_m: np.ndarray, omega_m: np.ndarr
 def size_signals(drive_set: Mapping[str, Drive], t: np.ndarray, signals: Mapping[str, np.ndarray],
                  frequency: float = 0.0) -> list[DriveSizing]:
     """Every drive of ``drive_set`` from the recorded ``actuator_<k>.tau_m/omega_m/i_m`` (SizingError naming
-    the signals not recorded)."""
+    the signals not recorded), and ``controller.i_cmd_<k>`` where recorded."""
     missing = [f"{name}.{s}" for name in drive_set for s in SIGNALS if f"{name}.{s}" not in signals]
     if missing:
         raise SizingError(f"the run did not record {', '.join(missing)}, which sizing needs")
     cycle = duty_cycle(t, frequency)
-    return [size_drive(d, t, *(signals[f"{name}.{s}"] for s in SIGNALS), cycle) for name, d in drive_set.items()]
+    return [size_drive(d, t, *(signals[f"{name}.{s}"] for s in SIGNALS), cycle,
+                       signals.get(f"controller.i_cmd_{name.rsplit('_', 1)[-1]}")) for name, d in drive_set.items()]
 
 
 def verdict(sized: Sequence[DriveSizing]) -> dict:

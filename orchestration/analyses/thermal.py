@@ -18,6 +18,7 @@ warm-up from ambient is the map iterated, cycle by cycle.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -124,7 +125,7 @@ class Periodic:
     T_s: np.ndarray
     warmup_t: np.ndarray           # [s] the starts of the cycles from ambient
     warmup_T_w: np.ndarray         # [K] the winding's temperature at those starts
-    cycles_to_settle: int          # cycles until within 0.1 K of the steady state
+    cycles_to_settle: int          # cycles until within the tolerance (0.1 K) of the steady state
 
 
 def periodic(model: TwoNode, t: np.ndarray, i: np.ndarray, tolerance_K: float = 0.1) -> Periodic:
@@ -139,12 +140,14 @@ def periodic(model: TwoNode, t: np.ndarray, i: np.ndarray, tolerance_K: float = 
         raise ValueError("thermal model: thermal runaway: the copper losses grow with the winding's temperature "
                          "faster than the motor sheds them; there is no steady state")
     x_star = np.linalg.solve(np.eye(2) - M, c)
-    starts, x = [np.zeros(2)], np.zeros(2)
-    while abs(x[0] - x_star[0]) > tolerance_K and len(starts) < 1_000_000:
-        x = M @ x + c
-        starts.append(x)
-    starts = np.array(starts)
+    # from ambient, x_k = x* - M^k x* = x* - V diag(mu^k) V^-1 x*: every cycle's start at once
+    mu, V = np.linalg.eig(M)
+    weights = np.linalg.solve(V, x_star)
+    size = float(np.max(np.abs(V[0] * weights)))
+    k_max = 0 if size <= tolerance_K else math.ceil(math.log(tolerance_K / size) / math.log(max(abs(mu)))) + 1
+    k = np.arange(k_max + 1)
+    rise_w = np.real(x_star[0] - (np.power.outer(mu, k).T * (V[0] * weights)).sum(axis=1))
+    settled = np.nonzero(np.abs(rise_w - x_star[0]) <= tolerance_K)[0]
     T_w, T_s = run(model, t, i, tuple(x_star))
     cycle = h * len(t)
-    return Periodic(cycle, x_star, T_w, T_s, np.arange(len(starts)) * cycle, starts[:, 0] + model.T_ambient,
-                    len(starts) - 1)
+    return Periodic(cycle, x_star, T_w, T_s, k * cycle, rise_w + model.T_ambient, int(settled[0]))
