@@ -296,8 +296,16 @@ def document(sized: Sequence[DriveSizing], run: str = "", ssp: str = "") -> dict
                 "window_s": list(s.window), "verdict": verdict([s])["verdict"],
                 "limiting": s.limiting.row(), "items": [item.row() for item in s.items],
                 **({"cycles_to_thermal_steady_state": s.heat.cycles_to_settle,
-                    "time_to_thermal_steady_state_s": s.heat.cycles_to_settle * s.heat.cycle_s} if s.heat else {}),
+                    "time_to_thermal_steady_state_s": s.heat.cycles_to_settle * s.heat.cycle_s,
+                    "time_to_max_winding_temperature_s": _time_to(s.heat, s.drive.ratings["T_w_max"])} if s.heat else {}),
             } for s in sized}}
+
+
+def _time_to(heat: thermal.Periodic, T_max: float) -> Optional[float]:
+    """When the winding, the duty cycle repeated from ambient, first reaches ``T_max`` [K] at a cycle's start [s]
+    (None: never). A cycle's peak comes earlier by less than a cycle."""
+    above = np.nonzero(heat.warmup_T_w >= T_max)[0]
+    return float(heat.warmup_t[above[0]]) if len(above) else None
 
 
 def table(doc: Mapping) -> str:
@@ -365,13 +373,16 @@ def envelope_png(sized: Sequence[DriveSizing]) -> bytes:
         ax.axhline(r["n_max"] * RPM, color="k", label=f"max. speed {r['n_max'] * RPM:.0f} rpm")
         ax.axhline(r["n_gear_max"] * RPM, color="k", ls="--", label=f"gearhead max. input {r['n_gear_max'] * RPM:.0f} rpm")
         ax.plot(torque, voltage, color="m", label=f"speed-torque line at {a['u_supply']:g} V")
+        ax.axvline(a["k_T"] * r["i_amp_peak"], color="c", ls="-.",
+                   label=f"amplifier peak current x k_T {a['k_T'] * r['i_amp_peak']:.3g} N m")
         if r["tau_stall"] <= tau_top:
             ax.axvline(r["tau_stall"], color="r", ls=":", label="stall torque")
         ax.set_xlim(0, tau_top)
         ax.set_ylim(0, 1.1 * r["n_max"] * RPM)
         ax.set_xlabel("|motor torque| [N m]")
         ax.set_ylabel("|motor speed| [rpm]")
-        ax.set_title(f"{s.drive.name}: {verdict([s])['verdict']} ({s.limiting.name}, {100 * s.limiting.margin:.0f} %)")
+        ax.set_title(f"{s.drive.name}: {verdict([s])['verdict']}\nlimiting: {s.limiting.component} {s.limiting.name}, "
+                     f"{100 * s.limiting.margin:.0f} %", fontsize=9)
         ax.legend(fontsize=7, loc="upper right")
     fig.tight_layout()
     return _png(fig)
