@@ -181,6 +181,9 @@ def test_ratings_missing_for_a_drive_are_named_and_nothing_is_written(tmp_path):
     with pytest.raises(sizing.SizingError, match=r"drive actuator_1: its ratings resources/drive_ratings.ssv lack R_th2 "
                                                  r"\(thermal resistance housing-ambient, K/W\)"):
         sizing.size_run(tmp_path / "run")
+    ratings.unlink()
+    with pytest.raises(sizing.SizingError, match=r"drive actuator_1: its ratings resources/drive_ratings.ssv cannot be read"):
+        sizing.size_run(tmp_path / "run")
     assert sorted(p.name for p in (tmp_path / "run").iterdir()) == before
 
 

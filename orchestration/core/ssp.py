@@ -341,8 +341,7 @@ def _ratings_source(comp, root: Path, path, name: str, within: str) -> Optional[
     if len(found) > 1 or not source:
         raise SSPFormatError(f"{path}: component '{name}' needs one mast:Ratings with a 'source' in its "
                              f"'{RATINGS_ANNOTATION}' annotation (line {found[0].sourceline})")
-    if not _inside(root, source, str(path), f"component '{name}' ratings", within).is_file():
-        raise SSPFormatError(f"{path}: component '{name}' names ratings '{source}', which does not exist")
+    _inside(root, source, str(path), f"component '{name}' ratings", within)   # read by mast sizing, which names it if absent
     return source
 
 
