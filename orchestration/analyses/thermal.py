@@ -18,6 +18,7 @@ warm-up from ambient is the map iterated, cycle by cycle.
 """
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -59,8 +60,10 @@ class TwoNode:
         A = np.array([[-g1 / C_w, g1 / C_w], [g1 / C_s, -(g1 + g2) / C_s]])
         return A, np.array([1.0 / C_w, 0.0])
 
+    @functools.lru_cache(maxsize=16)
     def discrete(self, h: float) -> tuple[np.ndarray, np.ndarray]:
-        """(Phi, Gamma) over a step of h [s], the loss held: the exact ZOH discretisation."""
+        """(Phi, Gamma) over a step of h [s], the loss held: the exact ZOH discretisation (kept per model and
+        step: the drives of a system share one)."""
         A, B = self.system()
         block = np.zeros((3, 3))
         block[:2, :2], block[:2, 2] = A * h, B * h
@@ -91,28 +94,33 @@ def run(model: TwoNode, t: np.ndarray, i: np.ndarray, start: tuple[float, float]
     """(T_w, T_s) [K] at the samples ``t`` [s] with the current ``i`` [A] held over each, starting at the
     rises ``start`` [K] above ambient at ``t[0]``."""
     t = np.asarray(t, dtype=float)
-    h = _sample_steps(t)
-    Phi, Gamma = model.discrete(h)
-    p0, p1 = model.loss_coefficients(i)
-    x = np.array(start, dtype=float)
-    out = np.empty((len(t), 2))
-    for j in range(len(t)):
-        out[j] = x
-        x = Phi @ x + Gamma * (p0[j] + p1[j] * x[0])
-    return out[:, 0] + model.T_ambient, out[:, 1] + model.T_ambient
+    Phi, Gamma = model.discrete(_sample_steps(t))
+    (f11, f12), (f21, f22) = Phi.tolist()
+    g1, g2 = Gamma.tolist()
+    p0, p1 = (p.tolist() for p in model.loss_coefficients(i))
+    xw, xs = float(start[0]), float(start[1])
+    out_w, out_s = [], []
+    for a, b in zip(p0, p1):          # scalar arithmetic: a 2-state step is faster than numpy's small arrays
+        out_w.append(xw)
+        out_s.append(xs)
+        loss = a + b * xw
+        xw, xs = f11 * xw + f12 * xs + g1 * loss, f21 * xw + f22 * xs + g2 * loss
+    return np.array(out_w) + model.T_ambient, np.array(out_s) + model.T_ambient
 
 
 def cycle_map(model: TwoNode, t: np.ndarray, i: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(M, c): one pass over the duty cycle (the samples ``t``, each held one step) maps the rises
     x [K] at its start to M x + c at its end."""
-    h = _sample_steps(np.asarray(t, dtype=float))
-    Phi, Gamma = model.discrete(h)
-    p0, p1 = model.loss_coefficients(i)
-    M, c = np.eye(2), np.zeros(2)
-    for a, b in zip(p0, p1):
-        step = Phi + np.outer(Gamma, [b, 0.0])
-        M, c = step @ M, step @ c + Gamma * a
-    return M, c
+    Phi, Gamma = model.discrete(_sample_steps(np.asarray(t, dtype=float)))
+    (f11, f12), (f21, f22) = Phi.tolist()
+    g1, g2 = Gamma.tolist()
+    p0, p1 = (p.tolist() for p in model.loss_coefficients(i))
+    m11, m12, m21, m22, c1, c2 = 1.0, 0.0, 0.0, 1.0, 0.0, 0.0
+    for a, b in zip(p0, p1):          # the step x -> S x + Gamma a, S = Phi + Gamma b e_w^T, composed
+        s11, s21 = f11 + g1 * b, f21 + g2 * b
+        m11, m12, m21, m22 = s11 * m11 + f12 * m21, s11 * m12 + f12 * m22, s21 * m11 + f22 * m21, s21 * m12 + f22 * m22
+        c1, c2 = s11 * c1 + f12 * c2 + g1 * a, s21 * c1 + f22 * c2 + g2 * a
+    return np.array([[m11, m12], [m21, m22]]), np.array([c1, c2])
 
 
 @dataclass
