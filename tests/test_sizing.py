@@ -254,5 +254,6 @@ def test_batch_metrics_and_compare_columns_carry_the_verdict(tmp_path):
     worst = results[1][0]["limiting"]
     assert row["sizing_verdict"] == "fail" and row["sizing_margin"] == pytest.approx(worst["margin"], rel=1e-12)
     assert row["sizing_limiting"] == f"{worst['drive']} {worst['component']} {worst['item']} at 2 Hz"
+    assert row["sizing_holds_up_to_Hz"] == 1.0
     no_ratings = sizing_columns(Candidate("X", str(tmp_path / "none.ssd"), ""), [results[0][1]], None)
     assert no_ratings["sizing_verdict"] is None and "none.ssd" in no_ratings["sizing_note"]

@@ -357,8 +357,9 @@ SIZING_SIGNALS = tuple(f"actuator_{k}.{s}" for k in (1, 2, 3) for s in sizing.SI
 
 def sizing_columns(c: Candidate, results: Sequence[SineResult],
                    parameters: Optional[Mapping[str, Mapping[str, Value]]]) -> dict:
-    """The drives of a design over its tests of one motion (``mast sizing`` of each test's steady cycle): the
-    verdict, the limiting item (drive, item and test) and its margin; ``sizing_note`` says why there is none."""
+    """The drives of a design over its tests of one motion (``mast sizing`` of each test's steady cycle, run
+    continuously): the verdict, the limiting item (drive, item and test) and its margin, the highest test
+    frequency up to which no test fails; ``sizing_note`` says why there is none."""
     from ..core.ssp import SSPArchive, read_ssd
 
     try:
@@ -380,9 +381,14 @@ def sizing_columns(c: Candidate, results: Sequence[SineResult],
     order = {"pass": 0, "at limit": 1, "fail": 2}
     worst, f = min(verdicts, key=lambda vf: vf[0]["limiting"]["margin"])
     lim = worst["limiting"]
+    held = None                               # the highest test frequency up to which no test fails
+    for v, freq in sorted(verdicts, key=lambda vf: vf[1]):
+        if v["verdict"] == "fail":
+            break
+        held = freq
     return {"sizing_verdict": max((v["verdict"] for v, _ in verdicts), key=order.get),
             "sizing_limiting": f"{lim['drive']} {lim['component']} {lim['item']} at {f:g} Hz",
-            "sizing_margin": lim["margin"], "sizing_note": ""}
+            "sizing_margin": lim["margin"], "sizing_holds_up_to_Hz": held, "sizing_note": ""}
 
 
 def design_workspace(c: Candidate, grid: tuple[float, float]) -> dict:
@@ -434,7 +440,8 @@ def fig10(comp: Comparison) -> Optional[dict]:
 SUMMARY_COLUMNS = ("design", "motion", "amplitude", "payload_kg", "bandwidth_Hz", "bandwidth_note", "torque_peak_Nm", "torque_rms_Nm",
                    "current_peak_A",
                    "tracking_peak", "tracking_peak_rel", "tracking_peak_f_min", "parasitic_x_m", "parasitic_y_m", "parasitic_phi_rad",
-                   "tests", "failed", "sizing_verdict", "sizing_limiting", "sizing_margin", "sizing_note") + WORKSPACE_COLUMNS
+                   "tests", "failed", "sizing_verdict", "sizing_limiting", "sizing_margin", "sizing_holds_up_to_Hz",
+                   "sizing_note") + WORKSPACE_COLUMNS
 RUN_COLUMNS = ("design", "motion", "frequency_Hz", "amplitude", "magnitude", "magnitude_dB", "phase_deg",
                "torque_peak_Nm", "torque_rms_Nm", "current_peak_A", "tracking_peak", "parasitic_x_m", "parasitic_y_m",
                "parasitic_phi_rad", "error")
@@ -512,8 +519,8 @@ def write(comp: Comparison, out: Path, plots: bool = True) -> list[Path]:
     files.append(out / "comparison.json")
     lines = [f"| {kind} | motion | bandwidth [Hz] | peak torque [N m] | RMS torque [N m] | peak current [A] "
              "| peak tracking error | parasitic x [m] | parasitic y [m] | parasitic phi [rad] | failed "
-             "| drives (mast sizing) | limiting item | margin |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             "| drives (mast sizing) | limiting item | margin | drives hold up to [Hz] |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in comp.summary:
         unit = "m" if r["motion"] == "z" else "rad"
         bw = _fmt(r["bandwidth_Hz"]) if r["bandwidth_Hz"] is not None else r["bandwidth_note"]
@@ -522,7 +529,8 @@ def write(comp: Comparison, out: Path, plots: bool = True) -> list[Path]:
                      f"| {_fmt(r['tracking_peak'])} {unit} | {_fmt(r['parasitic_x_m'])} | {_fmt(r['parasitic_y_m'])} "
                      f"| {_fmt(r['parasitic_phi_rad'])} | {r['failed']}/{r['tests']} "
                      f"| {r.get('sizing_verdict') or '-'} | {r.get('sizing_limiting') or r.get('sizing_note') or '-'} "
-                     f"| {_fmt(100 * r['sizing_margin']) + ' %' if r.get('sizing_margin') is not None else '-'} |")
+                     f"| {_fmt(100 * r['sizing_margin']) + ' %' if r.get('sizing_margin') is not None else '-'} "
+                     f"| {_fmt(r.get('sizing_holds_up_to_Hz'))} |")
     spaces = [c for c in comp.candidates if c.workspace]
     if spaces:
         lines += ["", "Workspace (`mast workspace`: within the strokes, on the home branch, at least "
