@@ -257,3 +257,12 @@ def test_batch_metrics_and_compare_columns_carry_the_verdict(tmp_path):
     assert row["sizing_holds_up_to_Hz"] == 1.0
     no_ratings = sizing_columns(Candidate("X", str(tmp_path / "none.ssd"), ""), [results[0][1]], None)
     assert no_ratings["sizing_verdict"] is None and "none.ssd" in no_ratings["sizing_note"]
+
+
+def test_the_duty_cycle_is_whole_periods_at_the_end_of_the_run():
+    t = np.round(np.arange(0.0, 3.0005, 1e-3), 9)            # 3 s at 1 ms, as `make run` records
+    for frequency, samples in ((10.0, 2900), (1.0, 2000), (3.0, 2000), (7.0, 2000), (0.5, 2000)):
+        cycle = sizing.duty_cycle(t, frequency)
+        assert (cycle.start, cycle.stop) == (len(t) - samples, len(t)), frequency
+        assert (samples * 1e-3 * frequency) == pytest.approx(round(samples * 1e-3 * frequency))   # whole periods
+    assert sizing.duty_cycle(t, 0.0) is None and sizing.duty_cycle(t, 0.2) is None   # not periodic, too short

@@ -198,8 +198,9 @@ def read_results(path: Path) -> tuple[np.ndarray, dict[str, np.ndarray]]:
 
 def duty_cycle(t: np.ndarray, frequency: float) -> Optional[slice]:
     """The samples of the run's last whole periods of a sine at ``frequency`` [Hz] (the first period dropped as
-    the start's transient when the run holds two or more), or None when the run is not periodic (f = 0) or
-    shorter than a period."""
+    the start's transient when the run holds two or more; as many periods as make a whole number of samples,
+    3 at 3 Hz and 1 ms, else the nearest sample), or None when the run is not periodic (f = 0) or shorter than
+    a period."""
     if not frequency or frequency <= 0:
         return None
     h = float(np.median(np.diff(t)))
@@ -208,10 +209,9 @@ def duty_cycle(t: np.ndarray, frequency: float) -> Optional[slice]:
     if periods < 1:
         return None
     keep = max(1, periods - 1)
-    n = round(keep * per_period)
-    if abs(n - keep * per_period) > 1e-6 * per_period:    # a period is not a whole number of samples
-        return None
-    return slice(len(t) - n, len(t))
+    whole = [m for m in range(keep, 0, -1) if abs(m * per_period - round(m * per_period)) <= 1e-6 * per_period]
+    n = round((whole[0] if whole else keep) * per_period)
+    return slice(len(t) - n, len(t)) if n >= 1 else None
 
 
 # ----------------------------------------------------------------------------- the analysis
