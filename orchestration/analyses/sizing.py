@@ -99,6 +99,8 @@ class Drive:
 
 @dataclass
 class Item:
+    """One line of the margin table: a figure of the run against its rating, both in ``unit``."""
+
     component: str
     name: str
     figure: float       # in the display unit
@@ -123,6 +125,8 @@ class Item:
 
 @dataclass
 class DriveSizing:
+    """One drive sized: its items, the window they were taken over, what the plots draw."""
+
     drive: Drive
     items: list[Item]
     periodic: bool
@@ -242,29 +246,27 @@ def size_drive(drive: Drive, t: np.ndarray, tau_m: np.ndarray, omega_m: np.ndarr
         T_w, T_s = thermal.run(model, t, i_m)
         heat_run = (t, T_w, T_s)
         T_w_peak = float(T_w.max())
-    rms = lambda y: float(np.sqrt(np.mean(np.square(y))))          # noqa: E731
-    peak = lambda y: float(np.max(np.abs(y)))                       # noqa: E731
     C = 273.15
     items = [
-        Item("motor", "RMS torque", rms(tau), r["tau_N"], "N m"),
-        Item("motor", "RMS torque, gearhead losses", rms(tau_lossy), r["tau_N"], "N m"),
-        Item("motor", "RMS current", rms(cur), r["i_N"], "A"),
-        Item("motor", "peak torque", peak(tau), r["tau_stall"], "N m"),
-        Item("motor", "peak speed", peak(om) * RPM, r["n_max"] * RPM, "rpm"),
+        Item("motor", "RMS torque", _rms(tau), r["tau_N"], "N m"),
+        Item("motor", "RMS torque, gearhead losses", _rms(tau_lossy), r["tau_N"], "N m"),
+        Item("motor", "RMS current", _rms(cur), r["i_N"], "A"),
+        Item("motor", "peak torque", _peak(tau), r["tau_stall"], "N m"),
+        Item("motor", "peak speed", _peak(om) * RPM, r["n_max"] * RPM, "rpm"),
         Item("motor", "winding temperature" + (", steady cycle" if cycle is not None else ", over the run"),
              T_w_peak - C, r["T_w_max"] - C, "degC", r["T_ambient"] - C),
-        Item("gearhead", "RMS output torque", rms(tau_out), r["tau_gear_cont"], "N m"),
-        Item("gearhead", "peak output torque", peak(tau_out), r["tau_gear_int"], "N m"),
-        Item("gearhead", "peak input speed", peak(om) * RPM, r["n_gear_max"] * RPM, "rpm"),
-        Item("guide", "peak axial force", peak(F_belt), r["F_guide_max"], "N"),
-        Item("guide", "peak carriage speed", peak(v), r["v_guide_max"], "m/s"),
-        Item("amplifier", "RMS current", rms(cur), r["i_amp_cont"], "A"),
-        Item("amplifier", "peak current", peak(cur), r["i_amp_peak"], "A"),
+        Item("gearhead", "RMS output torque", _rms(tau_out), r["tau_gear_cont"], "N m"),
+        Item("gearhead", "peak output torque", _peak(tau_out), r["tau_gear_int"], "N m"),
+        Item("gearhead", "peak input speed", _peak(om) * RPM, r["n_gear_max"] * RPM, "rpm"),
+        Item("guide", "peak axial force", _peak(F_belt), r["F_guide_max"], "N"),
+        Item("guide", "peak carriage speed", _peak(v), r["v_guide_max"], "m/s"),
+        Item("amplifier", "RMS current", _rms(cur), r["i_amp_cont"], "A"),
+        Item("amplifier", "peak current", _peak(cur), r["i_amp_peak"], "A"),
     ]
     if i_cmd is not None:
-        items.append(Item("amplifier", "peak current command", peak(i_cmd[window]), r["i_amp_peak"], "A"))
+        items.append(Item("amplifier", "peak current command", _peak(i_cmd[window]), r["i_amp_peak"], "A"))
     return DriveSizing(drive, items, cycle is not None, (float(tw[0]), float(tw[-1])),
-                       {"tau": np.abs(tau), "omega": np.abs(om), "tau_rms": rms(tau), "omega_rms": rms(om)},
+                       {"tau": np.abs(tau), "omega": np.abs(om), "tau_rms": _rms(tau), "omega_rms": _rms(om)},
                        heat, heat_run)
 
 
@@ -278,6 +280,14 @@ def size_signals(drive_set: Mapping[str, Drive], t: np.ndarray, signals: Mapping
     cycle = duty_cycle(t, frequency)
     return [size_drive(d, t, *(signals[f"{name}.{s}"] for s in SIGNALS), cycle,
                        signals.get(f"controller.i_cmd_{name.rsplit('_', 1)[-1]}")) for name, d in drive_set.items()]
+
+
+def _rms(y: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(np.square(y))))
+
+
+def _peak(y: np.ndarray) -> float:
+    return float(np.max(np.abs(y)))
 
 
 def verdict(sized: Sequence[DriveSizing]) -> dict:
