@@ -266,3 +266,14 @@ def test_the_duty_cycle_is_whole_periods_at_the_end_of_the_run():
         assert (cycle.start, cycle.stop) == (len(t) - samples, len(t)), frequency
         assert (samples * 1e-3 * frequency) == pytest.approx(round(samples * 1e-3 * frequency))   # whole periods
     assert sizing.duty_cycle(t, 0.0) is None and sizing.duty_cycle(t, 0.2) is None   # not periodic, too short
+
+
+def test_a_ratings_source_outside_the_system_is_refused(tmp_path):
+    from mast.core.ssp import read_ssd
+    from mast.core.ssv import SSPFormatError
+
+    ssd = copy_system(tmp_path)
+    ssd.write_text(ssd.read_text().replace('source="resources/drive_ratings.ssv"', 'source="../../drive_ratings.ssv"', 1))
+    with pytest.raises(SSPFormatError, match="component 'actuator_1' ratings '../../drive_ratings.ssv' is not a "
+                                             "relative path inside"):
+        read_ssd(ssd)
