@@ -181,8 +181,29 @@ def cmd_run(args) -> int:
     if failed:
         print(f"error: {failed} (results up to the failure are in {out})", file=sys.stderr)
         return 2
-    print(f"wrote {out / 'results.csv'}, {out / 'summary.json'}, {out / 'motion.png'}")
+    sized = _size_in_summary(out, summary)
+    print(f"wrote {out / 'results.csv'}, {out / 'summary.json'}, {out / 'motion.png'}{sized}")
     return 0
+
+
+def _size_in_summary(out: Path, summary: dict) -> str:
+    """The run's drive sizing (mast sizing) beside it and its verdict in summary.json; what was written, for the
+    message. A system without ratings is run all the same: the summary then says why it has no verdict."""
+    from .analyses.sizing import SizingError, size_run, write as write_sizing
+    from .core.atomic import atomic_write
+
+    try:
+        doc, sized = size_run(out)
+    except SizingError as err:
+        summary["sizing"] = {"verdict": None, "why": str(err)}
+        atomic_write(out / "summary.json", json.dumps(summary, indent=2).encode())
+        return ""
+    files = write_sizing(doc, sized, out)
+    summary["sizing"] = {"verdict": doc["verdict"], "limiting": doc["limiting"]}
+    atomic_write(out / "summary.json", json.dumps(summary, indent=2).encode())
+    print(f"sizing: {doc['verdict']}; limiting {doc['limiting']['drive']} {doc['limiting']['component']} "
+          f"{doc['limiting']['item']}, margin {100 * doc['limiting']['margin']:.1f} %")
+    return ", " + ", ".join(str(f) for f in files)
 
 
 def cmd_fit_gains(args) -> int:
@@ -374,6 +395,17 @@ def cmd_animate(args) -> int:
     return 0
 
 
+def cmd_sizing(args) -> int:
+    from .analyses.sizing import size_run, table, write
+    from .core.run import parse_overrides
+
+    doc, sized = size_run(args.run_dir, args.ssp, parse_overrides(args.set) if args.set else None)
+    files = write(doc, sized, Path(args.out or args.run_dir), plots=not args.no_plots)
+    print(table(doc), end="")
+    print(f"wrote {', '.join(str(f) for f in files)}")
+    return {"pass": 0, "at limit": 0}.get(doc["verdict"], 1)
+
+
 def cmd_batch(args) -> int:
     from .batch.cli import main as batch_main
 
@@ -556,6 +588,17 @@ def main(argv=None) -> int:
     p.add_argument("--fps", type=_positive("frames per second"), default=FPS,
                    help=f"frames per second of simulated time (default {FPS:g})")
     p.set_defaults(func=cmd_animate)
+
+
+    p = sub.add_parser("sizing", help="the drives of a run against their datasheet ratings: margin table, verdict, "
+                                      "torque-speed envelope and winding temperature (docs/sizing.md)")
+    p.add_argument("run_dir", metavar="RUN_DIR", help="a run folder of `mast run` (results.csv, summary.json)")
+    p.add_argument("--ssp", help="the system whose ratings apply (default: the one summary.json names)")
+    p.add_argument("--set", action="append", metavar="ELEMENT.PARAMETER=VALUE",
+                   help="the run's parameter overrides (default: those summary.json records)")
+    p.add_argument("--out", type=folder, help="folder for sizing.json, sizing.md and the plots (default: RUN_DIR)")
+    p.add_argument("--no-plots", action="store_true", help="write no figures")
+    p.set_defaults(func=cmd_sizing)
 
     p = sub.add_parser("batch", help="run the cases of a batch config (TOML/YAML) in parallel: docs/batch.md")
     p.add_argument("config", help="batch config: .toml, .yaml or .json")

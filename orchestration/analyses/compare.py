@@ -46,7 +46,7 @@ from typing import Callable, Mapping, Optional, Sequence, Union
 from fmus.common.parameters import Value
 from fmus.mechanism.designs import KINEMATIC_PARAMETERS_NAMES
 
-from . import paper
+from . import paper, sizing
 from .workspace import STEP_TILT_DEG, STEP_Z
 from ..core.build import default_build_dir
 from ..core.components import fmu_parameters
@@ -329,7 +329,7 @@ def compare(mechanisms: Sequence[Union[str, Path]] = (), out: Union[str, Path] =
         for axis in test_set.axes:
             for f in test_set.frequencies:
                 cases.append(SineCase(c.ssp, axis, test_set.amplitudes[axis], f, c.overrides(parameters), direct,
-                                      label=c.label))
+                                      SIZING_SIGNALS, label=c.label))
                 keys.append((c.label, axis))
     results_flat = run_cases(cases, workers=workers, progress=progress)
     if kind == "design" and workspace_grid is not None:
@@ -339,7 +339,8 @@ def compare(mechanisms: Sequence[Union[str, Path]] = (), out: Union[str, Path] =
     for key, res in zip(keys, results_flat):
         results.setdefault(key, []).append(res)
     summary = [summarize(c.label, axis, test_set.amplitudes[axis], results[(c.label, axis)], c.payload_kg)
-               | workspace_columns(c.workspace) for c in candidates for axis in test_set.axes]
+               | workspace_columns(c.workspace) | sizing_columns(c, results[(c.label, axis)], parameters)
+               for c in candidates for axis in test_set.axes]
     comp = Comparison(candidates, test_set, results, summary, 0.0, [], kind)
     comp.files = write(comp, out, plots=plots)
     comp.wall_time_s = time.perf_counter() - t0
@@ -347,6 +348,47 @@ def compare(mechanisms: Sequence[Union[str, Path]] = (), out: Union[str, Path] =
     meta["wall_time_s"] = round(comp.wall_time_s, 2)
     (out / "comparison.json").write_text(json.dumps(meta, indent=2))
     return comp
+
+
+#: what the drive sizing of each test needs, kept in its steady state
+SIZING_SIGNALS = tuple(f"actuator_{k}.{s}" for k in (1, 2, 3) for s in sizing.SIGNALS) + tuple(
+    f"controller.i_cmd_{k}" for k in (1, 2, 3))
+
+
+def sizing_columns(c: Candidate, results: Sequence[SineResult],
+                   parameters: Optional[Mapping[str, Mapping[str, Value]]]) -> dict:
+    """The drives of a design over its tests of one motion (``mast sizing`` of each test's steady cycle, run
+    continuously): the verdict, the limiting item (drive, item and test) and its margin, the highest test
+    frequency up to which no test fails; ``sizing_note`` says why there is none."""
+    from ..core.ssp import SSPArchive, read_ssd
+
+    try:
+        if Path(c.ssp).suffix == ".ssd":
+            drive_set = sizing.drives(read_ssd(c.ssp), c.overrides(parameters))
+        else:
+            with SSPArchive(c.ssp) as archive:
+                drive_set = sizing.drives(archive.system, c.overrides(parameters))
+    except ValueError as err:
+        return {"sizing_verdict": None, "sizing_note": str(err)}
+    verdicts = []
+    for r in results:
+        if r.error or "time" not in r.signals:
+            continue
+        v = sizing.verdict(sizing.size_signals(drive_set, r.signals["time"], r.signals, r.frequency))
+        verdicts.append((v, r.frequency))
+    if not verdicts:
+        return {"sizing_verdict": None, "sizing_note": "no test to size"}
+    order = {"pass": 0, "at limit": 1, "fail": 2}
+    worst, f = min(verdicts, key=lambda vf: vf[0]["limiting"]["margin"])
+    lim = worst["limiting"]
+    held = None                               # the highest test frequency up to which no test fails
+    for v, freq in sorted(verdicts, key=lambda vf: vf[1]):
+        if v["verdict"] == "fail":
+            break
+        held = freq
+    return {"sizing_verdict": max((v["verdict"] for v, _ in verdicts), key=order.get),
+            "sizing_limiting": f"{lim['drive']} {lim['component']} {lim['item']} at {f:g} Hz",
+            "sizing_margin": lim["margin"], "sizing_holds_up_to_Hz": held, "sizing_note": ""}
 
 
 def design_workspace(c: Candidate, grid: tuple[float, float]) -> dict:
@@ -398,7 +440,8 @@ def fig10(comp: Comparison) -> Optional[dict]:
 SUMMARY_COLUMNS = ("design", "motion", "amplitude", "payload_kg", "bandwidth_Hz", "bandwidth_note", "torque_peak_Nm", "torque_rms_Nm",
                    "current_peak_A",
                    "tracking_peak", "tracking_peak_rel", "tracking_peak_f_min", "parasitic_x_m", "parasitic_y_m", "parasitic_phi_rad",
-                   "tests", "failed") + WORKSPACE_COLUMNS
+                   "tests", "failed", "sizing_verdict", "sizing_limiting", "sizing_margin", "sizing_holds_up_to_Hz",
+                   "sizing_note") + WORKSPACE_COLUMNS
 RUN_COLUMNS = ("design", "motion", "frequency_Hz", "amplitude", "magnitude", "magnitude_dB", "phase_deg",
                "torque_peak_Nm", "torque_rms_Nm", "current_peak_A", "tracking_peak", "parasitic_x_m", "parasitic_y_m",
                "parasitic_phi_rad", "error")
@@ -475,15 +518,19 @@ def write(comp: Comparison, out: Path, plots: bool = True) -> list[Path]:
     (out / "comparison.json").write_text(json.dumps(data, indent=2))
     files.append(out / "comparison.json")
     lines = [f"| {kind} | motion | bandwidth [Hz] | peak torque [N m] | RMS torque [N m] | peak current [A] "
-             "| peak tracking error | parasitic x [m] | parasitic y [m] | parasitic phi [rad] | failed |",
-             "|---|---|---|---|---|---|---|---|---|---|---|"]
+             "| peak tracking error | parasitic x [m] | parasitic y [m] | parasitic phi [rad] | failed "
+             "| drives (mast sizing) | limiting item | margin | drives hold up to [Hz] |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in comp.summary:
         unit = "m" if r["motion"] == "z" else "rad"
         bw = _fmt(r["bandwidth_Hz"]) if r["bandwidth_Hz"] is not None else r["bandwidth_note"]
         lines.append(f"| {r['design']} | {r['motion']} | {bw} | {_fmt(r['torque_peak_Nm'])} | {_fmt(r['torque_rms_Nm'])} "
                      f"| {_fmt(r['current_peak_A'])} "
                      f"| {_fmt(r['tracking_peak'])} {unit} | {_fmt(r['parasitic_x_m'])} | {_fmt(r['parasitic_y_m'])} "
-                     f"| {_fmt(r['parasitic_phi_rad'])} | {r['failed']}/{r['tests']} |")
+                     f"| {_fmt(r['parasitic_phi_rad'])} | {r['failed']}/{r['tests']} "
+                     f"| {r.get('sizing_verdict') or '-'} | {r.get('sizing_limiting') or r.get('sizing_note') or '-'} "
+                     f"| {_fmt(100 * r['sizing_margin']) + ' %' if r.get('sizing_margin') is not None else '-'} "
+                     f"| {_fmt(r.get('sizing_holds_up_to_Hz'))} |")
     spaces = [c for c in comp.candidates if c.workspace]
     if spaces:
         lines += ["", "Workspace (`mast workspace`: within the strokes, on the home branch, at least "

@@ -15,6 +15,10 @@ Families (the ``outputs.metrics`` names of a batch config):
                :func:`mast.analyses.frequency.analyse`), and ``tau_m_<k>_h3_h1`` (3rd/1st harmonic of torque)
 ``torque``     ``tau_m_<k>_peak_Nm``, ``tau_m_<k>_rms_Nm`` per actuator k
 ``current``    ``i_m_<k>_peak_A``, ``i_m_<k>_rms_A`` per actuator k
+``sizing``     ``sizing_margin``: the smallest margin of the drives against their ratings (``mast sizing``,
+               docs/sizing.md; the window as the duty cycle, repeated to steady state for the winding
+               temperature), ``sizing_<k>_margin`` per drive, ``sizing_fail`` and ``sizing_at_limit`` (1 or 0);
+               left out for a system that names no ratings
 ``saturation`` ``saturation_<k>_s``: time drive k spends at its current limit (``|i_cmd_k| = i_max``)
                or voltage limit (``|u| = u_max`` of ``actuator_<k>``, the drive's current loop), sampled at the record step;
                ``saturation_s``: time any drive is saturated; ``saturation_fraction``: that time
@@ -30,11 +34,12 @@ from typing import Mapping, Optional, Sequence
 
 import numpy as np
 
+from . import sizing
 from .frequency import analyse, bandwidth
 from ..core.master import Result
 from ..core.motion import AXES
 
-FAMILIES = ("tracking", "sine", "torque", "current", "saturation")
+FAMILIES = ("tracking", "sine", "torque", "current", "saturation", "sizing")
 ACTUATORS = (1, 2, 3)
 UNITS = {"z": "m", "psi": "rad", "theta": "rad"}
 
@@ -50,6 +55,9 @@ def signals_for(families: Sequence[str], available: Sequence[str]) -> list[str]:
         want += [f"actuator_{k}.i_m" for k in ACTUATORS]
     if "saturation" in families:
         want += [s for k in ACTUATORS for s in (f"controller.i_cmd_{k}", f"controller.u_{k}")]
+    if "sizing" in families:
+        want += [f"actuator_{k}.{s}" for k in ACTUATORS for s in sizing.SIGNALS] + [
+            f"controller.i_cmd_{k}" for k in ACTUATORS]
     have = set(available)
     return [s for s in dict.fromkeys(want) if s in have]
 
@@ -65,12 +73,14 @@ def window(result: Result, start: float, stop: Optional[float] = None) -> Result
 
 def case_metrics(result: Result, families: Sequence[str] = FAMILIES, motion: Optional[Mapping] = None,
                  start: float = 0.0, stop: Optional[float] = None,
-                 limits: Optional[Mapping[str, float]] = None) -> dict[str, float]:
+                 limits: Optional[Mapping[str, float]] = None,
+                 drives: Optional[Mapping[str, "sizing.Drive"]] = None) -> dict[str, float]:
     """Metrics of one run over ``[start, stop]``.
 
     ``motion``: ``{"axis", "amplitude" (m or rad), "frequency" (Hz)}`` of a sine test (needed by
     ``sine``); ``limits``: ``{"i_max": A, "u_max": V}``, the drive's limits: the controller's current
-    command and the actuators' current loop (needed by ``saturation``).
+    command and the actuators' current loop (needed by ``saturation``); ``drives``: the system's drives with
+    their ratings (``sizing.drives``, needed by ``sizing``).
     """
     w = window(result, start, stop)
     sig = w.signals
@@ -102,6 +112,15 @@ def case_metrics(result: Result, families: Sequence[str] = FAMILIES, motion: Opt
                 if y is not None:
                     out[f"{signal}_{k}_peak_{unit}"] = float(np.max(np.abs(y)))
                     out[f"{signal}_{k}_rms_{unit}"] = _rms(y)
+    if "sizing" in families and drives and len(w.time) > 1:
+        frequency = float(motion.get("frequency", 0.0)) if motion else 0.0
+        sized = sizing.size_signals(drives, w.time, sig, frequency)
+        v = sizing.verdict(sized)
+        out["sizing_margin"] = float(v["limiting"]["margin"])
+        out["sizing_fail"] = float(v["verdict"] == "fail")
+        out["sizing_at_limit"] = float(v["verdict"] == "at limit")
+        for s in sized:
+            out[f"sizing_{s.drive.name.rsplit('_', 1)[-1]}_margin"] = float(s.limiting.margin)
     if "saturation" in families and limits and len(w.time) > 1:
         dt = float(np.median(np.diff(w.time)))
         any_sat = np.zeros(len(w.time), dtype=bool)

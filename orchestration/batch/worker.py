@@ -108,7 +108,8 @@ def run_case(task: Mapping) -> dict:
                 timing["step_s"] = max(0.0, result.wall_time_s - timing["init_s"])
         t_m = time.perf_counter()
         limits = _limits(session.system, task["parameters"])
-        metrics = case_metrics(result, families, _motion_si(motion), task["window"][0], task["window"][1], limits)
+        metrics = case_metrics(result, families, _motion_si(motion), task["window"][0], task["window"][1], limits,
+                               _drives(session.system, task["parameters"]) if "sizing" in families else None)
         custom = task.get("custom")
         if custom:
             func = _import_function(custom) if isinstance(custom, str) else custom
@@ -148,6 +149,16 @@ def _limits(system, flat: Mapping[str, Any]) -> dict[str, float]:
         if isinstance(merged.get(name), (int, float)):
             out[name] = float(merged[name])
     return out
+
+
+def _drives(system, flat: Mapping[str, Any]) -> Optional[dict]:
+    """The system's drives with their ratings (mast sizing), or None if it names none."""
+    from ..analyses.sizing import SizingError, drives
+
+    try:
+        return drives(system, _nest(flat))
+    except SizingError:
+        return None
 
 
 def _nest(flat: Mapping[str, Any]) -> dict[str, dict[str, Any]]:

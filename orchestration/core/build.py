@@ -319,6 +319,10 @@ def build_ssp(ssd: Path, fmu_dir: Path, out_dir: Path) -> Path:
         names[comp] = {v.name: v.unit or "" for v in read_model_description(str(fmu)).modelVariables
                        if v.causality == "parameter"}
     structure, parameter_sets = flatten_bindings(ssd, names)
+    ratings = sorted({c.ratings for c in system.components.values() if c.ratings} - set(parameter_sets))
+    for source in ratings:   # the ratings (mast sizing) the system names, packed as they are
+        if not (ssd.parent / source).is_file():
+            raise FileNotFoundError(f"{ssd}: its drives name the ratings {source}, which does not exist")
     out_dir.mkdir(parents=True, exist_ok=True)
     target = out_dir / f"{ssd.stem}.ssp"
     with zipfile.ZipFile(target, "w", zipfile.ZIP_DEFLATED) as zout:
@@ -330,6 +334,8 @@ def build_ssp(ssd: Path, fmu_dir: Path, out_dir: Path) -> Path:
             zout.write(fmu, source)
         for source, data in parameter_sets.items():
             zout.writestr(source, data)
+        for source in ratings:
+            zout.write(ssd.parent / source, source)
     return target
 
 

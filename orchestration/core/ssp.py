@@ -10,7 +10,11 @@ What the project's master needs from an SSP, and nothing else:
   model-based controller's copy of the actuator). Against typos, ``applicable_parameters``
   refuses a name that matches a parameter of *no* component the set is bound to;
 - step sizes from the Open Simulation Platform annotations: the base step of
-  ``osp:FixedStepAlgorithm`` and each component's ``osp:StepSizeHint``.
+  ``osp:FixedStepAlgorithm`` and each component's ``osp:StepSizeHint``;
+- the parameter set of a component's ratings (``mast sizing``, docs/sizing.md): an annotation of
+  type ``mast.sizing`` holding ``<mast:Ratings source="resources/....ssv"/>``. The ratings are not
+  parameters of the FMU (no host applies them; an annotation of a type a tool does not know is
+  ignored, SSP 1.0), so they live in their own set, named by the system per component.
 """
 from __future__ import annotations
 
@@ -34,8 +38,10 @@ NS = {
     "ssc": "http://ssp-standard.org/SSP1/SystemStructureCommon",
     "ssv": "http://ssp-standard.org/SSP1/SystemStructureParameterValues",
     "osp": "http://opensimulationplatform.com/SSP/OSPAnnotations",
+    "mast": "urn:mast:sizing",
 }
 OSP_ANNOTATION = "com.opensimulationplatform"
+RATINGS_ANNOTATION = "mast.sizing"
 SSV_TYPE = "application/x-ssp-parameter-set"
 FMU_TYPE = "application/x-fmu-sharedlibrary"
 
@@ -51,6 +57,8 @@ class ComponentSpec:
     bindings: list[tuple[str, dict[str, Value]]] = field(default_factory=list)  # (source, values) in order
     #: per binding source, the unit each Real value was given in (values are in its coherent SI unit)
     units: dict[str, dict[str, tuple[str, Unit]]] = field(default_factory=dict)
+    #: the parameter set of the component's ratings (relative source), if the system names one (docs/sizing.md)
+    ratings: Optional[str] = None
 
 
 @dataclass(frozen=True)
@@ -245,6 +253,7 @@ def read_ssd(path: Union[str, Path], root: Optional[Path] = None, archive: Optio
             name=name,
             source=source,
             step_size=_step_size_hint(comp, path, name),
+            ratings=_ratings_source(comp, root, path, name, within),
             inputs=[c.get("name") for c in connectors if c.get("kind") in ("input", "parameter")],
             outputs=[c.get("name") for c in connectors if c.get("kind") in ("output", "calculatedParameter")],
         )
@@ -322,6 +331,18 @@ def _positive(text: str, path, what: str) -> float:
 def _step_size_hint(comp, path, name: str) -> Optional[float]:
     hint = comp.find(f"ssd:Annotations/ssc:Annotation[@type='{OSP_ANNOTATION}']/osp:StepSizeHint", NS)
     return None if hint is None else _positive(hint.get("value", ""), path, f"StepSizeHint of '{name}'")
+
+
+def _ratings_source(comp, root: Path, path, name: str, within: str) -> Optional[str]:
+    found = comp.findall(f"ssd:Annotations/ssc:Annotation[@type='{RATINGS_ANNOTATION}']/mast:Ratings", NS)
+    if not found:
+        return None
+    source = found[0].get("source")
+    if len(found) > 1 or not source:
+        raise SSPFormatError(f"{path}: component '{name}' needs one mast:Ratings with a 'source' in its "
+                             f"'{RATINGS_ANNOTATION}' annotation (line {found[0].sourceline})")
+    _inside(root, source, str(path), f"component '{name}' ratings", within)   # read by mast sizing, which names it if absent
+    return source
 
 
 def ssd_unit_definitions(doc, origin: str) -> dict[str, Unit]:
