@@ -41,6 +41,7 @@ class EmpsController(Block):
     INPUTS = ("q_ref", "q_m", "u_inj")
     OUTPUTS = ("u", "F", "F_cmd", "q_dot_est")
     PARAMETERS = EMPS_PARAMETERS
+    CYCLE_TIME = "T_s"
     UNITS = {"q_ref": "m", "q_m": "m", "u_inj": "V", "u": "V", "F": "N", "F_cmd": "N", "q_dot_est": "m/s"}
     DESCRIPTIONS = {
         "q_ref": "reference position",
