@@ -6,7 +6,8 @@
   compute what the system's C compiler's binaries compute; an aarch64-linux binary is made by the same toolchain;
 - a C host (orchestration/hosts/mast_host.c) that runs the master's own exchange loop runs the native FMUs
   as our master does, on Linux and, cross-compiled for Windows, under Wine: 200 life cycles of each FMU with the
-  expected statuses, then the standalone system to 1e-9 of our master's trajectories;
+  expected statuses, then the standalone system to 1e-9 of our master's trajectories; the aarch64-linux binaries
+  too, under qemu-user where it is installed;
 - libcosim stepping the FMUs in several worker threads computes what it computes in one, native and Python FMUs.
 """
 from __future__ import annotations
@@ -22,7 +23,7 @@ from fmpy import read_model_description
 from mast.core.build import FMUS, block_class, build_fmu, build_fmu3, build_ssp, default_experiment
 from mast.core.native import models
 from mast.core.native.build import GLIBC_FLOOR, build_native_all, compile_shared, has_zig
-from mast.hosts.c_host import build_host, master_run, run_c_host, wine
+from mast.hosts.c_host import build_host, launcher, master_run, run_c_host
 from mast.hosts.cosim import COMPARED, availability, run_host
 from mast.core.native.elf import glibc_versions, machine
 
@@ -154,7 +155,7 @@ def test_the_c_host_on_linux_runs_the_fmus_as_our_master(reference, tmp_path):
     assert all(np.array_equal(run.outputs[n], x) for n, x in reference.outputs.items())
 
 
-@pytest.mark.skipif(wine() is None, reason="Wine is not installed (Debian: apt-get install wine64; .ci/run "
+@pytest.mark.skipif(launcher("win64") is None, reason="Wine is not installed (Debian: apt-get install wine64; .ci/run "
                                            "installs it where it can): the Windows binaries are compiled, not run")
 @pytest.mark.skipif(not has_zig(), reason="the Windows binaries and host are compiled by zig: pip install ziglang")
 def test_the_windows_binaries_run_under_wine_as_on_linux(reference, tmp_path):
@@ -163,6 +164,21 @@ def test_the_windows_binaries_run_under_wine_as_on_linux(reference, tmp_path):
     different C libraries' last bits, amplified by the closed loop)."""
     host = build_host("win64", tmp_path)
     run = run_c_host(reference, host, "win64", cycles=CYCLES)
+    assert run.cycles == {name: (CYCLES, 0) for name in reference.names}, run.log[-2000:]
+    assert run.status == 0, run.log[-2000:]
+    assert _relative_error(reference.outputs, run.outputs) <= TOLERANCE
+
+
+@pytest.mark.skipif(launcher("aarch64-linux") is None,
+                    reason="qemu-user and Debian's aarch64 C library are not installed (apt-get install qemu-user "
+                           "libc6-arm64-cross; .ci/run installs them where it can): the aarch64-linux binaries are "
+                           "compiled, not run")
+@pytest.mark.skipif(not has_zig(), reason="the aarch64 binaries and host are compiled by zig: pip install ziglang")
+def test_the_aarch64_binaries_run_under_qemu_as_on_x86_64(reference, tmp_path):
+    """The same on aarch64-linux (binaries compiled from the FMUs' sources, glibc 2.17), under qemu-user with
+    Debian's aarch64 glibc (measured: the same floats as x86_64; the test allows 1e-9: another CPU's libm)."""
+    host = build_host("aarch64-linux", tmp_path)
+    run = run_c_host(reference, host, "aarch64-linux", cycles=CYCLES)
     assert run.cycles == {name: (CYCLES, 0) for name in reference.names}, run.log[-2000:]
     assert run.status == 0, run.log[-2000:]
     assert _relative_error(reference.outputs, run.outputs) <= TOLERANCE

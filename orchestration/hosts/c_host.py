@@ -29,11 +29,13 @@ from ..core.motion import NoStimulus
 from ..core.native.build import NativeBuildError, PLATFORMS, c_compiler, cache_dir, compile_shared, fmi_headers
 from ..core.ssp import SSPArchive, applicable_parameters, safe_extract
 
-__all__ = ["HOST_SOURCE", "MasterRun", "master_run", "build_host", "wine", "run_c_host", "HostRun"]
+__all__ = ["HOST_SOURCE", "MasterRun", "master_run", "build_host", "wine", "launcher", "run_c_host", "HostRun"]
 
 HOST_SOURCE = Path(__file__).with_name("mast_host.c")
 #: the executable's suffix per platform (PLATFORMS' keys)
-EXE = {"linux64": "", "win64": ".exe"}
+EXE = {"linux64": "", "aarch64-linux": "", "win64": ".exe"}
+#: where Debian's libc6-arm64-cross puts the aarch64 C library qemu-user runs the aarch64 host with
+ARM64_SYSROOT = Path("/usr/aarch64-linux-gnu")
 
 
 @dataclass
@@ -136,8 +138,9 @@ def build_host(platform: str, out_dir: Path) -> Path:
     target = out_dir / f"mast_host{EXE[platform]}"
     with tempfile.TemporaryDirectory(prefix="mast_c_host_") as tmp:
         (Path(tmp) / "mast_exchange.c").write_text(EXCHANGE_SOURCE)
-        cmd = [*c_compiler(platform), "-O2", "-std=c99", "-D_POSIX_C_SOURCE=200809L", f"-I{fmi_headers()}",
-               f"-I{tmp}", "-o", str(target), str(HOST_SOURCE), *(["-ldl"] if platform == "linux64" else [])]
+        cmd = [*c_compiler(platform), "-O2", "-ffp-contract=off", "-std=c99", "-D_POSIX_C_SOURCE=200809L",
+               f"-I{fmi_headers()}", f"-I{tmp}", "-o", str(target), str(HOST_SOURCE),
+               *(["-ldl"] if platform != "win64" else [])]
         done = subprocess.run(cmd, capture_output=True, text=True)
     if done.returncode != 0:
         raise NativeBuildError(f"{HOST_SOURCE.name}: the C compiler failed ({' '.join(cmd[:4])} ...):\n"
@@ -153,6 +156,21 @@ def wine() -> Optional[str]:
         if found:
             return found
     return None
+
+
+def launcher(platform: str) -> Optional[list[str]]:
+    """The command that runs a ``platform`` program here: [] for linux64, Wine for win64 (``wine()``), qemu-user
+    with Debian's aarch64 C library for aarch64-linux (packages qemu-user, libc6-arm64-cross); None when it is
+    missing."""
+    if platform == "linux64":
+        return []
+    if platform == "win64":
+        found = wine()
+        return None if found is None else [found]
+    qemu = shutil.which("qemu-aarch64") or shutil.which("qemu-aarch64-static")
+    if qemu is None or not (ARM64_SYSROOT / "lib").is_dir():
+        return None
+    return [qemu, "-L", str(ARM64_SYSROOT)]
 
 
 def _library(folder: Path, identifier: str, platform: str, recompile: bool) -> Path:
@@ -231,19 +249,20 @@ class HostRun:
 
 def run_c_host(run: MasterRun, host: Path, platform: str, cycles: int = 200, recompile: bool = False,
                timeout: float = 600.0) -> HostRun:
-    """Run ``host`` (``build_host``) on ``run``'s system and FMUs for ``platform`` (win64: under ``wine()``, prefix
-    $WINEPREFIX, else ~/.cache/mast/wine); ``recompile``: the FMUs' binaries compiled from their sources here
-    (``write_plan``). RuntimeError with the host's output when it fails."""
+    """Run ``host`` (``build_host``) on ``run``'s system and FMUs for ``platform`` (``launcher``; win64: Wine's
+    prefix $WINEPREFIX, else ~/.cache/mast/wine); ``recompile``: the FMUs' binaries compiled from their sources
+    here (``write_plan``). RuntimeError with the host's output when it fails or cannot run here."""
     with tempfile.TemporaryDirectory(prefix="mast_c_host_") as tmp:
         folder = Path(tmp)
         plan = write_plan(run, platform, folder, cycles, recompile)
         result = folder / "result.bin"
         cmd, env = [str(host), _host_path(plan, platform), _host_path(result, platform)], dict(os.environ)
+        prefix = launcher(platform)
+        if prefix is None:
+            raise RuntimeError(f"{platform} programs do not run here (Debian: apt-get install "
+                               f"{'wine64' if platform == 'win64' else 'qemu-user libc6-arm64-cross'})")
+        cmd = prefix + cmd
         if platform == "win64":
-            launcher = wine()
-            if launcher is None:
-                raise RuntimeError("no Wine here (Debian: apt-get install wine64)")
-            cmd.insert(0, launcher)
             env.setdefault("WINEPREFIX", str(Path.home() / ".cache" / "mast" / "wine"))
             env.setdefault("WINEDEBUG", "-all")
         done = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=timeout)
