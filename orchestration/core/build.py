@@ -182,15 +182,16 @@ def default_parameters(model_identifier: str, ssd: Optional[Path] = None) -> dic
 
 def default_experiment(model_identifier: str) -> tuple[float, float, float]:
     """(start time, stop time, step size) [s] for the FMU's DefaultExperiment: those of the first system that uses
-    it (``_first_use``; its DefaultExperiment, stop time 1 s where it has none) and the step size that system gives
-    the component (its StepSizeHint, else the base step). A block with a cycle time proposes that instead
-    (``Block.CYCLE_TIME``, fmus/common/slave.py)."""
+    it (``_first_use``: its DefaultExperiment) and the step size that system gives the component (its
+    StepSizeHint, else the base step). A block with a cycle time proposes that instead (``Block.CYCLE_TIME``,
+    fmus/common/slave.py). ValueError naming the system when it lacks a stop time or a step size."""
     system, name = _first_use(model_identifier)
     step = system.components[name].step_size or system.base_step
-    if step is None:
-        raise ValueError(f"system '{system.name}': no step size for '{name}' (osp:StepSizeHint or baseStepSize), "
-                         f"which {model_identifier}.fmu's DefaultExperiment takes")
-    return (system.start_time, system.stop_time if system.stop_time is not None else system.start_time + 1.0, step)
+    if step is None or system.stop_time is None:
+        raise ValueError(f"system '{system.name}': no {'step size' if step is None else 'stop time'} for '{name}' "
+                         f"(osp:StepSizeHint or baseStepSize; ssd:DefaultExperiment stopTime), which "
+                         f"{model_identifier}.fmu's DefaultExperiment takes")
+    return (system.start_time, system.stop_time, step)
 
 
 @contextmanager
