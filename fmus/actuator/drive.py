@@ -68,6 +68,7 @@ class DriveActuatorBlock(Block):
     INPUTS = ("i_cmd", "F")
     OUTPUTS = (*ActuatorBlock.OUTPUTS, "u")
     PARAMETERS = (*ActuatorBlock.PARAMETERS, *CURRENT_LOOP_PARAMETERS)
+    CYCLE_TIME = "T_cur"
     UNITS = {**{k: v for k, v in ActuatorBlock.UNITS.items() if k != "u"}, "i_cmd": "A", "u": "V"}
     DESCRIPTIONS = {
         **{k: v for k, v in ActuatorBlock.DESCRIPTIONS.items() if k != "u"},

@@ -25,7 +25,7 @@ a block whose state is cheaper to describe may override both.
 from __future__ import annotations
 
 import copy
-from typing import ClassVar, Mapping
+from typing import ClassVar, Mapping, Optional
 
 from .parameters import Param, Value, validate
 
@@ -44,6 +44,9 @@ class Block:
     DESCRIPTIONS: ClassVar[Mapping[str, str]] = {}
     #: direct feedthrough: output -> the inputs it depends on at a communication point (module docstring)
     FEEDTHROUGH: ClassVar[Mapping[str, tuple[str, ...]]] = {}
+    #: the parameter that is the block's cycle time (its tick, s), the step size its FMU's DefaultExperiment
+    #: proposes; None: a block without one (its FMU proposes the step the project's systems give it)
+    CYCLE_TIME: ClassVar[Optional[str]] = None
 
     def __init__(self, params: Mapping[str, Value], name: str = "") -> None:
         self.name = name or type(self).__name__

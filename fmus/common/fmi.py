@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from typing import List
 
-from pythonfmu import Fmi2Causality, Fmi2Initial, Fmi2Slave, Fmi2Variability, Integer, Real, String
+from pythonfmu import DefaultExperiment, Fmi2Causality, Fmi2Initial, Fmi2Slave, Fmi2Variability, Integer, Real, String
 from pythonfmu.enums import Fmi2Status
 
 from .slave import (INSTANTIATED, PARAMETERS_FILE, STEPPING, BlockWrapper, FmiVocabulary, fast_get,  # noqa: F401
@@ -19,7 +19,8 @@ class BlockSlave(BlockWrapper, Fmi2Slave):
     """FMI 2.0 slave exposing one Block; subclasses set ``block_class``."""
 
     fmi = FmiVocabulary({float: Real, int: Integer, str: String}, Fmi2Causality, Fmi2Variability, Fmi2Initial,
-                        Fmi2Status, message_is_format=True, set_real="setReal")
+                        Fmi2Status, message_is_format=True, set_real="setReal",
+                        default_experiment=DefaultExperiment)
 
     def __init__(self, **kwargs) -> None:
         super().__init__(**kwargs)

@@ -11,7 +11,8 @@ from __future__ import annotations
 
 from typing import List
 
-from pythonfmu3 import Fmi3Causality, Fmi3Initial, Fmi3Slave, Fmi3Variability, Float64, Int32, String
+from pythonfmu3 import (DefaultExperiment, Fmi3Causality, Fmi3Initial, Fmi3Slave, Fmi3Variability, Float64, Int32,
+                        String)
 from pythonfmu3.enums import Fmi3Status
 from pythonfmu3.unit import Unit
 
@@ -29,7 +30,8 @@ class BlockSlave3(BlockWrapper, Fmi3Slave):
     """FMI 3.0 slave exposing one Block; subclasses set ``block_class``."""
 
     fmi = FmiVocabulary({float: Float64, int: Int32, str: String}, Fmi3Causality, Fmi3Variability, Fmi3Initial,
-                        Fmi3Status, message_is_format=False, set_real="setFloat64")
+                        Fmi3Status, message_is_format=False, set_real="setFloat64",
+                        default_experiment=DefaultExperiment)
 
     def __init__(self, **kwargs) -> None:
         super().__init__(**kwargs)

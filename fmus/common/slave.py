@@ -94,6 +94,7 @@ class FmiVocabulary:
     status: Any
     message_is_format: bool          # the host's logger expands the message as a printf format (FMI 2.0, not 3.0)
     set_real: str                    # the call that sets floating-point values: setReal / setFloat64
+    default_experiment: Callable     # DefaultExperiment(start_time, stop_time, step_size) of the version's package
 
 
 # the states of an instance (FMI 2.0 co-simulation; FMI 3.0's step mode is "step mode" here too)
@@ -215,6 +216,10 @@ class BlockWrapper:
     _illegal_is_error = True          # an illegal call reaches the host as fmi2Error (see fmi_call)
     _init_error: Optional[str] = None
     _eval_error: Optional[str] = None  # a failed evaluation of the feedthrough outputs (``_evaluate``)
+    #: (start time, stop time, step size) [s] of the modelDescription's DefaultExperiment, set by the build (the
+    #: first system that uses the FMU: its DefaultExperiment and the step it gives the component); a block with a
+    #: cycle time (``Block.CYCLE_TIME``) proposes that parameter's value as the step size instead
+    experiment: ClassVar[Optional[tuple[float, float, float]]] = None
 
     def _wrap(self, kwargs: dict) -> None:
         """Called by the subclass's __init__ after the pythonfmu base class's."""
@@ -234,8 +239,19 @@ class BlockWrapper:
         self._t0 = 0.0
         defaults = load_defaults(self.resources)
         self._params = {p.name: defaults.get(p.name, _neutral(p.kind)) for p in cls.PARAMETERS}
+        self.default_experiment = self._default_experiment()
         self._input_refs = frozenset(range(len(cls.INPUTS)))
         self._io_refs = frozenset(range(self._n_io))   # the inputs and outputs: all Real (_register_block)
+
+    def _default_experiment(self):
+        """The DefaultExperiment the FMU declares (``experiment``, the step size the block's cycle time); None
+        when the build set none."""
+        if self.experiment is None:
+            return None
+        start, stop, step = self.experiment
+        if self.block_class.CYCLE_TIME is not None:
+            step = float(self._params[self.block_class.CYCLE_TIME])
+        return self.fmi.default_experiment(start_time=start, stop_time=stop, step_size=step)
 
     def _register_block(self, units: Optional[Mapping[str, str]] = None, input_start: Optional[float] = None) -> None:
         """Register the block's inputs, outputs and parameters in value-reference order, with ``units``

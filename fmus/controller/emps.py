@@ -45,6 +45,7 @@ class EmpsController(Block):
     INPUTS = ("q_ref", "q_m", "u_inj")
     OUTPUTS = ("u", "F", "u_before_injection", "F_before_injection", "q_dot_est")
     PARAMETERS = EMPS_PARAMETERS
+    CYCLE_TIME = "T_s"
     UNITS = {"q_ref": "m", "q_m": "m", "u_inj": "V", "u": "V", "F": "N", "u_before_injection": "V",
              "F_before_injection": "N", "q_dot_est": "m/s"}
     DESCRIPTIONS = {

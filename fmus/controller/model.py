@@ -133,6 +133,7 @@ class DriveController(Block):
     }
     #: every command follows the samples at a communication point (the laws of its tick, ``evaluate``)
     FEEDTHROUGH = dict.fromkeys(OUTPUTS, INPUTS)
+    CYCLE_TIME = "T_cur"
     #: operating modes this controller offers (one without a velocity loop has no "velocity" mode)
     MODES: tuple[str, ...] = MODES
     #: whether the laws use the reference velocity and acceleration (S[rates], updated every position tick)

@@ -154,6 +154,9 @@ class CompiledLoop:
             fn = lib.mast_ticks
             self._ticks = ctypes.PYFUNCTYPE(fn.restype, *fn.argtypes)(ctypes.cast(fn, ctypes.c_void_p).value)
         self.n_out, self.n_stim = n_out, len(flat) - n_out
+        #: what a host that follows this schedule needs (hosts/c_host.py): per unit (multiple, step, feedthrough,
+        #: input value references, input positions in the flat vector, output value references, output offset)
+        self.units = [tuple(u[1:]) for u in units]
         self.flat = (ctypes.c_double * len(flat))(*flat)
         self._keep = []  # the arrays the C structures point into
 

@@ -321,6 +321,7 @@ class Master:
         n = 0
         compiled = self._compiled_loop(wirings, flat, n_out, [index(s, j) for w in wirings for s, j in w.sources],
                                        offsets)
+        self.exchange = compiled   # the last run's compiled loop (None: the Python loop), for hosts/c_host.py
 
         def record_tick(values) -> None:
             nonlocal rows

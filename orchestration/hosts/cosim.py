@@ -195,7 +195,8 @@ def show(host: str, ssp: Union[str, Path], stop_time: float, signals: Sequence[s
 # -- running ----------------------------------------------------------------------------
 def run_host(host: str, ssp: Union[str, Path], stop_time: float, signals: Sequence[str],
              sample_step: float = 1e-3, timeout: float = 600.0, fmu_log: bool = False,
-             base_step: Optional[float] = None, python_free: bool = False) -> Result:
+             base_step: Optional[float] = None, python_free: bool = False,
+             worker_threads: Optional[int] = None) -> Result:
     """Run the built ``ssp`` in ``host`` until ``stop_time`` and return ``signals`` every ``sample_step``.
 
     ``signals`` are ``element.connector`` names (parameters too). Raises
@@ -210,9 +211,14 @@ def run_host(host: str, ssp: Union[str, Path], stop_time: float, signals: Sequen
     component is named ``instance``); give it ``base_step`` then. ``python_free=True`` (ecos
     only, for native FMUs: ``mast build --native``) runs the ecos CLI under ``env -i`` with
     nothing but its own libraries' path: no Python on PATH, no LD_PRELOAD, PYTHONHOME, PYTHONPATH.
+    ``worker_threads`` (libcosim only): the threads libcosim steps the FMUs in (default: its own choice, the
+    machine's hardware threads less one), set through ``hardware_concurrency.c``; ``result.stats["threads"]``
+    is the number of threads the child process had at the end of the run.
     """
     if python_free and host != "ecos":
         raise ValueError(f"{host}: only the ecos command line runs without Python (python_free=True)")
+    if worker_threads is not None and (host != "libcosim" or worker_threads < 1):
+        raise ValueError(f"{host}: worker_threads={worker_threads!r}: libcosim only, and a whole number >= 1")
     reason = availability(host)
     if reason:
         raise HostUnavailable(f"{host}: {reason}")
@@ -231,6 +237,9 @@ def run_host(host: str, ssp: Union[str, Path], stop_time: float, signals: Sequen
             for s in signals:
                 command += ["--signal", s]
         env = _environment(host)
+        if worker_threads is not None:
+            env["LD_PRELOAD"] = " ".join(p for p in (str(_concurrency_library()), env.get("LD_PRELOAD")) if p)
+            env["MAST_HARDWARE_CONCURRENCY"] = str(worker_threads + 1)
         env["TMPDIR"] = str(work / "tmp")  # ecos leaves its extracted SSP behind: in a folder removed here
         (work / "tmp").mkdir()
         try:
@@ -250,9 +259,37 @@ def run_host(host: str, ssp: Union[str, Path], stop_time: float, signals: Sequen
                 result.time[-1] < stop_time - 0.5 * sample_step:  # ecos writes its CSV as it goes
             raise HostError(f"{host} failed on {ssp.name} ({_describe(proc.returncode)}):\n{_tail(log)}")
         result.stats["log"] = log
+        threads = [line.split()[-1] for line in log.splitlines() if line.startswith(THREADS_LINE)]
+        if threads:
+            result.stats["threads"] = int(threads[-1])
         if proc.returncode < 0:  # killed after the run: pythonfmu's teardown in a C/C++ host (docs/using-the-fmus.md)
             result.stats["exit_signal"] = _describe(proc.returncode)
         return result
+
+
+#: what the libcosim child prints after its run: the number of threads of its process
+THREADS_LINE = "libcosim child threads:"
+
+
+def _concurrency_library() -> Path:
+    """hardware_concurrency.c compiled (once per machine and source, into the exchange loop's cache folder)."""
+    import hashlib
+
+    from ..core.exchange import cache_dir
+    from ..core.native.build import NativeBuildError, compiler
+
+    source = Path(__file__).with_name("hardware_concurrency.c")
+    target = cache_dir() / f"hardware_concurrency_{hashlib.sha256(source.read_bytes()).hexdigest()[:16]}.so"
+    if not target.exists():
+        target.parent.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryDirectory(prefix="mast_concurrency_", dir=target.parent) as tmp:
+            built = Path(tmp) / target.name
+            done = subprocess.run([compiler(), "-O2", "-shared", "-fPIC", "-o", str(built), str(source)],
+                                  capture_output=True, text=True)
+            if done.returncode != 0:
+                raise NativeBuildError(f"{source.name}: the C compiler failed:\n{done.stderr[-2000:]}")
+            os.replace(built, target)   # whole or absent for a concurrent process
+    return target
 
 
 def _describe(code: int) -> str:
@@ -424,6 +461,7 @@ def _child_libcosim(ssp: Path, stop_time: float, signals: Sequence[str], sample_
         times.append(execution.status().current_time * 1e-9)
         rows.append([observer.last_real_values(index, [ref])[0] for index, ref in paths])
     data = np.array(rows).reshape(len(rows), len(paths))
+    print(THREADS_LINE, len(os.listdir("/proc/self/task")), file=sys.stderr)
     return Result(np.array(times), {s: data[:, j].copy() for j, s in enumerate(signals)})
 
 

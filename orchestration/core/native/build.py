@@ -3,14 +3,15 @@
 A native FMU is made from the Python FMU of the same model (``mast.core.build``):
 
 - its modelDescription.xml is the Python FMU's (the same variables, value references, units,
-  causality, variability, start values and descriptions: they are generated in one place,
+  causality, variability, start values, descriptions and DefaultExperiment: they are generated in one place,
   ``fmus/common/slave.py``), with the generation tool, the GUID and the source file list changed;
 - its C is the wrapper ``fmus/common/native/fmi2_wrapper.c`` (the FMI glue, once for all models),
   the support header ``mast_native.h`` and one generated model file (``models.emit_model``);
 - the sources travel in ``sources/`` so a host on another platform can compile them (with the
   FMI 2.0 headers, which every importer has); the binary is ``binaries/linux64/<id>.so``, compiled
-  here with the C compiler found as ``$CC``, ``cc`` or ``gcc`` (``-O2 -ffp-contract=off``: the
-  same floating-point operations as the Python model, no fused multiply-add).
+  here with zig's C compiler against glibc 2.17 (``c_compiler``; ``$CC`` when set, and without zig ``cc`` or
+  ``gcc``), ``-O2 -ffp-contract=off``: the same floating-point operations as the Python model, no fused
+  multiply-add.
 
 Every parameter is read at run time, the actuator's ``n_dof`` (the size of its state) too: a native actuator
 carries the chains n_dof = 1..``models.N_MAX`` and runs the one the host sets; one built for a parameter set
@@ -36,7 +37,7 @@ from lxml import etree
 
 from .models import Variable, emit_model, to_generate
 
-__all__ = ["NativeBuildError", "compiler", "build_native_fmu", "native_sources", "read_variables", "SUPPORT"]
+__all__ = ["NativeBuildError", "compiler", "c_compiler", "has_zig", "build_native_fmu", "native_sources", "read_variables", "SUPPORT"]
 
 REPO = Path(__file__).resolve().parents[3]
 SUPPORT = REPO / "fmus" / "common" / "native"
@@ -111,23 +112,39 @@ def native_sources(identifier: str, block_class: type, parameters: Mapping[str, 
     return sources, xml
 
 
-#: FMI 2.0 platform folder -> (zig target, library suffix); linux64 uses the C compiler found here
-PLATFORMS = {"linux64": (None, ".so"), "win64": ("x86_64-windows-gnu", ".dll"), "darwin64": ("x86_64-macos", ".dylib")}
+#: the oldest glibc the Linux binaries load on (zig links against that version's symbols: CentOS 7, RHEL 8 ...)
+GLIBC_FLOOR = (2, 17)
+#: binaries/ folder -> (zig target, library suffix); "aarch64-linux" is FMI 3.0's name, which fmpy also reads
+#: for FMI 2.0 (FMI 2.0 names no ARM platform)
+PLATFORMS = {"linux64": ("x86_64-linux-gnu.2.17", ".so"), "aarch64-linux": ("aarch64-linux-gnu.2.17", ".so"),
+             "win64": ("x86_64-windows-gnu", ".dll"), "darwin64": ("x86_64-macos", ".dylib")}
 
 
-def _cross_compiler(platform: str) -> list[str]:
-    """zig's C compiler for another platform (PyPI package ziglang: ``pip install ziglang``)."""
+def has_zig() -> bool:
+    """Whether zig's C compiler is installed (PyPI package ziglang: ``pip install ziglang``)."""
     import importlib.util
 
-    if importlib.util.find_spec("ziglang") is None:
-        raise NativeBuildError(f"binaries for {platform} need a cross compiler: pip install ziglang")
-    return [sys.executable, "-m", "ziglang", "cc", "-target", PLATFORMS[platform][0]]
+    return importlib.util.find_spec("ziglang") is not None
+
+
+def c_compiler(platform: str = "linux64") -> list[str]:
+    """The compiler command for ``platform`` (a key of PLATFORMS): for linux64 ``$CC`` when set (the user's
+    choice), else zig's C compiler for the platform's target (Linux binaries against glibc ``GLIBC_FLOOR``);
+    without zig, for linux64 only, ``cc`` or ``gcc`` (``compiler()``). A binary of ``$CC``, ``cc`` or ``gcc``
+    needs this machine's glibc or newer."""
+    if platform == "linux64" and os.environ.get("CC"):
+        return [compiler()]
+    if has_zig():
+        return [sys.executable, "-m", "ziglang", "cc", "-target", PLATFORMS[platform][0]]
+    if platform == "linux64":
+        return [compiler()]
+    raise NativeBuildError(f"binaries for {platform} need a cross compiler: pip install ziglang")
 
 
 def compile_shared(sources: Mapping[str, bytes], target: Path, platform: str = "linux64") -> None:
     """Compile the sources into the shared library ``target`` for ``platform`` (a key of PLATFORMS;
     NativeBuildError with the compiler's output)."""
-    cc = [compiler()] if platform == "linux64" else _cross_compiler(platform)
+    cc = c_compiler(platform)
     with tempfile.TemporaryDirectory(prefix="mast_native_") as tmp:
         tmp = Path(tmp)
         for name, data in sources.items():
@@ -146,7 +163,7 @@ def build_native_fmu(identifier: str, python_fmu: Path, out_dir: Path, parameter
     """The native form of the Python FMU ``python_fmu`` (model ``identifier``) with ``parameters``, into
     ``out_dir``. ``python_fmu``
     may also be a native FMU of the same model (its modelDescription is the Python one's). ``platforms``:
-    the binaries to build (PLATFORMS; other than linux64 with zig, untested)."""
+    the binaries to build (PLATFORMS; which of them are run by the tests: docs/native.md)."""
     from ..build import block_class
 
     with zipfile.ZipFile(python_fmu) as z:
