@@ -4,8 +4,8 @@
   its fence (invisible in the rendered page):
 
   ``<!-- run -->``: the test suite runs the block as written (in a scratch folder where ``build/`` is a
-  build of the tests' own, ``examples/``, ``docs/``, ``ssp/`` are the checkout's, ``../shared`` the
-  measured data when present);
+  build of the tests' own, ``examples/``, ``docs/``, ``ssp/`` are the checkout's, ``.venv`` the tests'
+  environment, ``../shared`` the measured data when present; a block that needs it is skipped without);
   ``<!-- run: OLD => NEW; OLD2 => NEW2 -->``: runs it with these text replacements (a short variant of
   a long run: fewer tests, a shorter stop time), each of which must apply;
   ``<!-- not run: REASON -->``: not run (a cluster, a run of many minutes, ``make test`` itself); its
@@ -314,6 +314,8 @@ def scratch(built_native, tmp_path_factory) -> Path:
     (work / "build").symlink_to(built_native, target_is_directory=True)
     for name in ("examples", "docs", "ssp", "tests", "benchmarks"):
         (work / name).symlink_to(ROOT / name, target_is_directory=True)
+    if (Path(sys.prefix) / "bin" / "activate").exists():   # `source .venv/bin/activate` (README "First results")
+        (work / ".venv").symlink_to(Path(sys.prefix), target_is_directory=True)
     if (ROOT.parent / "shared").is_dir():
         (top / "shared").symlink_to(ROOT.parent / "shared", target_is_directory=True)
     return work
