@@ -24,7 +24,7 @@ from pathlib import Path
 from typing import Callable, Iterator, Mapping
 
 ROOT = Path(__file__).resolve().parents[1]
-MARKER = re.compile(r"<!-- figure (?P<key>[\w.\-]+) -->(?P<value>.*?)<!-- /figure -->")
+MARKER = re.compile(r"<!-- figure (?P<key>[\w\-]+(?:\.[\w\-]+)+) -->(?P<value>.*?)<!-- /figure -->")
 REGENERATE = "python docs/figures.py"
 
 

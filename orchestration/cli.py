@@ -484,7 +484,9 @@ def main(argv=None) -> int:
     p.set_defaults(func=cmd_synthesize)
 
     p = sub.add_parser("diagnose", help="name the effects missing from the model by comparing it with measured data "
-                                        "(docs/diagnose.md)")
+                                        "(docs/diagnose.md)",
+                       epilog="exit status: 0 when the verdict explains the data (or nothing is missing), 3 when a "
+                              "residual stays unexplained (the results are written all the same), 2 on bad input")
     p.add_argument("ssp", nargs="?", default=str(DEFAULT_SSP), help=SSP_HELP)
     p.add_argument("--measured", required=True, help="measured-data folder, or a record folder from mast import "
                                                      "(docs/measured-data.md)")
