@@ -195,7 +195,7 @@ def show(host: str, ssp: Union[str, Path], stop_time: float, signals: Sequence[s
 # -- running ----------------------------------------------------------------------------
 def run_host(host: str, ssp: Union[str, Path], stop_time: float, signals: Sequence[str],
              sample_step: float = 1e-3, timeout: float = 600.0, fmu_log: bool = False,
-             base_step: Optional[float] = None, python_free: bool = False) -> Result:
+             base_step: Optional[float] = None, python_free: bool = False, wrapper: Sequence[str] = ()) -> Result:
     """Run the built ``ssp`` in ``host`` until ``stop_time`` and return ``signals`` every ``sample_step``.
 
     ``signals`` are ``element.connector`` names (parameters too). Raises
@@ -210,7 +210,10 @@ def run_host(host: str, ssp: Union[str, Path], stop_time: float, signals: Sequen
     component is named ``instance``); give it ``base_step`` then. ``python_free=True`` (ecos
     only, for native FMUs: ``mast build --native``) runs the ecos CLI under ``env -i`` with
     nothing but its own libraries' path: no Python on PATH, no LD_PRELOAD, PYTHONHOME, PYTHONPATH.
+    ``wrapper`` (ecos only): a command the ecos CLI runs under, e.g. ``("valgrind", "--error-exitcode=99")``.
     """
+    if wrapper and host != "ecos":
+        raise ValueError(f"{host}: only the ecos command line runs under a wrapper command")
     if python_free and host != "ecos":
         raise ValueError(f"{host}: only the ecos command line runs without Python (python_free=True)")
     reason = availability(host)
@@ -223,6 +226,7 @@ def run_host(host: str, ssp: Union[str, Path], stop_time: float, signals: Sequen
         if host == "ecos":
             command = ecos_command(ssp, stop_time, signals, sample_step, work, base_step, fmu_log,
                                    str(_ecos_binary(work)))
+            command = [*wrapper, *command]
             if python_free:
                 command = ["env", "-i", f"LD_LIBRARY_PATH={_tbb_dir()}", *command]
         else:
