@@ -61,6 +61,14 @@ FIGURES: dict[str, Figure] = {
     # the default system's controller gains (ssp/MAST.ssd, docs/controller.md)
     **{f"ssd.controller.{g}": Figure("ssd", (lambda g: lambda v: v["controller"][g])(g), "{:.4g}")
        for g in ("k_v", "k_p", "k_i")},
+    # the designs' workspaces (`mast workspace DESIGN`, docs/workspace.md; the --quick grid of `mast compare`, README)
+    **{f"{grid}.{d}.{what}": Figure(grid, (lambda d, w: lambda v: v[d][w])(d, what), fmt, tol)
+       # a volume may differ by a grid node or two between machines (a node on the margin's edge): 0.005 m deg^2
+       # each on the default grid, 0.4 on the quick one
+       for grid, fmt_volume, cells in (("workspace", "{:.0f}", 0.5), ("workspace_quick", "{:.1f}", 0.8))
+       for d in ("3PRS_T", "3PRS_120", "3PRS_inclined")
+       for what, fmt, tol in (("volume_m_deg2", fmt_volume, cells), ("smallest_margin", "{:.3f}", 0.0),
+                              ("worst_dexterity", "{:.1f}", 0.0))},
     # the designs' singularity margins at home (docs/mechanism.md)
     **{f"designs.{d}.{what}": Figure("designs", (lambda d, w: lambda v: v[d][w])(d, what), fmt, 0.005)
        for d in ("3PRS_T", "3PRS_120", "3PRS_inclined")
@@ -103,7 +111,22 @@ def source_designs() -> dict:
     return out
 
 
-SOURCES: dict[str, Callable[[], dict]] = {"reproduce": source_reproduce, "ssd": source_ssd, "designs": source_designs}
+def source_workspace(quick: bool = False) -> dict:
+    """The designs' `mast workspace` summaries on its default grid, or on `mast compare --quick`'s."""
+    from mast.analyses.compare import WORKSPACE_GRID, WORKSPACE_GRID_QUICK
+    from mast.analyses.workspace import compute, machine, summarize
+
+    out = {}
+    for name in ("3PRS_T", "3PRS_120", "3PRS_inclined"):
+        s = summarize(compute(machine(name), *(WORKSPACE_GRID_QUICK if quick else WORKSPACE_GRID)))
+        out[name] = {"volume_m_deg2": s["volume_m_deg2"], "smallest_margin": s["smallest_margin"]["value"],
+                     "worst_dexterity": s["worst_dexterity"]["value"]}
+    return out
+
+
+SOURCES: dict[str, Callable[[], dict]] = {"reproduce": source_reproduce, "ssd": source_ssd, "designs": source_designs,
+                                          "workspace": source_workspace,
+                                          "workspace_quick": lambda: source_workspace(quick=True)}
 
 
 def pages() -> list[Path]:

@@ -283,6 +283,19 @@ def test_marked_figures_of_the_system_files_and_designs_agree():
     assert not problems, "\n".join(problems)
 
 
+def test_marked_workspace_figures_agree():
+    """The designs' workspaces: docs/workspace.md (default grid), README "First results" (compare's quick grid)."""
+    problems = figures.check({"workspace": figures.source_workspace(),
+                              "workspace_quick": figures.source_workspace(quick=True)})
+    assert not problems, "\n".join(problems)
+
+
+def test_every_figure_source_is_checked_by_a_test():
+    """A source added to docs/figures.py is compared with the pages somewhere (here or tests/test_reproduce.py)."""
+    checked = {"ssd", "designs", "workspace", "workspace_quick", "reproduce"}
+    assert set(figures.SOURCES) == checked, f"sources no test compares: {set(figures.SOURCES) - checked}"
+
+
 def test_the_headline_figures_are_marked():
     """The figures a change most likely moves are generated into the pages, not typed."""
     text = (ROOT / "docs" / "reproduction.md").read_text()
