@@ -25,8 +25,8 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
 RECORD = ["z_cmd", "mechanism.z", "psi_cmd", "mechanism.psi", "theta_cmd", "mechanism.theta"] + \
-         [f"actuator_{k}.{s}" for k in (1, 2, 3) for s in ("tau_m", "i_m")] + \
-         [f"controller.{s}_{k}" for k in (1, 2, 3) for s in ("i_cmd", "u")]
+         [f"actuator_{k}.{s}" for k in (1, 2, 3) for s in ("tau_m", "i_m", "u")] + \
+         [f"controller.i_cmd_{k}" for k in (1, 2, 3)]  # the voltage u is the actuator's (its drive's current loop)
 
 
 class _PhysicsClock:

@@ -31,9 +31,13 @@ from mast.core.ssv import read_values  # noqa: E402
 
 
 def parameter_sets() -> dict[str, dict]:
+    """The default system's actuator_1 bindings and the identified set over them, restricted to the voltage-driven
+    ActuatorBlock's parameters (actuator_1 is the drive: drive.ssv also binds the current loop's, e.g. T_cur)."""
     base = dict(read_ssd(REPO / "ssp" / "MAST.ssd").components["actuator_1"].parameters)
     identified = {**base, **read_values(REPO / "ssp" / "resources" / "actuator_identified.ssv")}
-    return {"manufacturer": base, "identified (friction)": identified}
+    names = {p.name for p in ActuatorBlock.PARAMETERS}
+    return {label: {k: v for k, v in values.items() if k in names}
+            for label, values in (("manufacturer", base), ("identified (friction)", identified))}
 
 
 def per_step(params: dict, steps: np.ndarray) -> tuple[float, float]:

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import math
 import sys
@@ -303,7 +304,7 @@ def cmd_replay(args) -> int:
     from .analyses.replay import replay
     from .core.run import parse_overrides
 
-    doc = replay(args.model, args.measured, args.out, parse_overrides(args.set or []), direct=not args.fmu)
+    doc = replay(args.ssp, args.measured, args.out, parse_overrides(args.set or []), direct=not args.fmu)
     for name, s in doc["signals"].items():
         print(f"replay: {name} ({s['kind']}): relative error {s['relative_error_pct']:.4g} %, fit {s['fit_pct']:.4g} %")
     print(f"replay: wrote {Path(args.out) / 'replay.json'}")
@@ -412,12 +413,39 @@ def cmd_batch(args) -> int:
     return batch_main(args)
 
 
+class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
+    """``--help`` with every default shown: appended as "(default: ...)" unless the help text states it already
+    (it says "default"), or the default is None or False (an option that is off unless given)."""
+
+    def _get_help_string(self, action: argparse.Action) -> str:
+        text = action.help or ""
+        if "default" in text or action.default in (None, False, argparse.SUPPRESS):
+            return text
+        return super()._get_help_string(action)
+
+
+class Renamed(argparse.Action):
+    """An option spelling that was renamed: refused at once (exit 2), with a message that names the new one."""
+
+    def __init__(self, option_strings, dest, instead: str, **kwargs) -> None:
+        super().__init__(option_strings, dest, nargs="?", help=argparse.SUPPRESS, **kwargs)
+        self.instead = instead
+
+    def __call__(self, parser, namespace, values, option_string=None) -> None:
+        parser.error(f"{option_string} was renamed: {self.instead}")
+
+
+SSP_HELP = "the built system (.ssp) to run"
+
+
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="mast", description="MAST co-simulation: FMUs, SSP and master")
-    sub = parser.add_subparsers(dest="command", required=True)
+    parser = argparse.ArgumentParser(prog="mast", description="MAST co-simulation: FMUs, SSP and master",
+                                     formatter_class=HelpFormatter)
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    sub.add_parser = functools.partial(sub.add_parser, formatter_class=HelpFormatter)
 
     p = sub.add_parser("build", help="build build/fmus/*.fmu and build/ssp/*.ssp from fmus/ and ssp/")
-    p.add_argument("--out", type=folder, default=str(BUILD))
+    p.add_argument("--out", type=folder, default=str(BUILD), help="build folder")
     p.add_argument("--fmi3", action="store_true", help="also build the FMI 3.0 variants into OUT/fmus3 (pythonfmu3)")
     p.add_argument("--native", action="store_true",
                    help="also build native FMUs (compiled C, no Python at run time) into OUT/fmus/native and the SSPs "
@@ -429,21 +457,24 @@ def main(argv=None) -> int:
     p.set_defaults(func=cmd_build)
 
     p = sub.add_parser("hosts", help="run an SSP in libcosim, ecospy and the ecos CLI; compare with this master")
-    p.add_argument("ssp", nargs="?", default=str(BUILD / "ssp" / "MAST_standalone.ssp"))
-    p.add_argument("--stop-time", type=seconds, default=1.0)
-    p.add_argument("--host", action="append", choices=("libcosim", "ecospy", "ecos"), help="(repeatable; default: all)")
+    p.add_argument("ssp", nargs="?", default=str(BUILD / "ssp" / "MAST_standalone.ssp"),
+                   help="the built system (.ssp) to run; it must drive itself (a trajectory FMU: the hosts have no "
+                        "stimulus of ours)")
+    p.add_argument("--stop-time", type=seconds, default=1.0, help="s")
+    p.add_argument("--host", action="append", choices=("libcosim", "ecospy", "ecos"),
+                   help="host to run (repeatable; default: all)")
     p.add_argument("--show", choices=("ecospy", "ecos"),
                    help="run nothing: print the environment (and the ecos command line, its csv.xml written here) "
                         "to run the host by hand")
     p.set_defaults(func=cmd_hosts)
 
     p = sub.add_parser("validate", help="fmpy validation of every FMU and SSP 1.0 schema check of every SSD")
-    p.add_argument("--build", default=str(BUILD))
+    p.add_argument("--build", default=str(BUILD), help="build folder (mast build --out)")
     p.set_defaults(func=cmd_validate)
 
     p = sub.add_parser("run", help="run a co-simulation with a sine pose command around the home pose")
-    p.add_argument("ssp", nargs="?", default=str(DEFAULT_SSP))
-    p.add_argument("--motion", choices=("z", "psi", "theta"), default="z")
+    p.add_argument("ssp", nargs="?", default=str(DEFAULT_SSP), help=SSP_HELP)
+    p.add_argument("--motion", choices=("z", "psi", "theta"), default="z", help="the axis of the sine")
     p.add_argument("--amplitude", type=finite, default=0.01, help="metres for z, degrees for psi and theta")
     p.add_argument("--frequency", type=nonnegative, default=1.0, help="Hz")
     p.add_argument("--stop-time", type=seconds, default=2.0, help="s")
@@ -454,32 +485,33 @@ def main(argv=None) -> int:
     p.add_argument("--direct", action="store_true", help="run the model objects directly (no FMI), same schedule")
     p.add_argument("--native", action="store_true",
                    help="run the SSP's native variant (build/ssp/native/, mast build --native): compiled FMUs")
-    p.add_argument("--out", type=folder, default="results")
+    p.add_argument("--out", type=folder, default="results", help="folder for results.csv, summary.json, motion.png")
     p.set_defaults(func=cmd_run)
 
     p = sub.add_parser("fit-gains", help="identify k_v, k_p, k_i from the paper's reported position responses")
-    p.add_argument("ssp", nargs="?", default=str(DEFAULT_SSP))
+    p.add_argument("ssp", nargs="?", default=str(DEFAULT_SSP), help=SSP_HELP)
     p.add_argument("--out", type=output_file, help="write the fitted gains as an .ssv parameter set")
-    p.add_argument("--workers", type=count, default=2)
+    p.add_argument("--workers", type=count, default=2, help="parallel processes")
     p.set_defaults(func=cmd_fit_gains)
 
     p = sub.add_parser("reproduce", help="regenerate the paper's analyses: DIR/report.md, figures, paper_table.json")
-    p.add_argument("ssp", nargs="?", default=str(DEFAULT_SSP))
-    p.add_argument("--out", type=folder, default="results/reproduce")
-    p.add_argument("--workers", type=count, default=2)
+    p.add_argument("ssp", nargs="?", default=str(DEFAULT_SSP), help=SSP_HELP)
+    p.add_argument("--out", type=folder, default="results/reproduce", help="folder for report.md, the figures, "
+                                                                          "paper_table.json")
+    p.add_argument("--workers", type=count, default=2, help="parallel processes")
     p.add_argument("--fmi", action="store_true",
                    help="run the SSP's FMUs through FMI (the same numbers to 1e-12, tests/test_cosim.py; about "
                         "twice the CPU time); the default runs the same components and schedule without FMI")
     p.set_defaults(func=cmd_reproduce)
 
     p = sub.add_parser("bench", help="real-time factor of the default system, FMU co-simulation vs direct composition")
-    p.add_argument("ssp", nargs="?", default=str(DEFAULT_SSP))
-    p.add_argument("--stop-time", type=seconds, default=10.0)
+    p.add_argument("ssp", nargs="?", default=str(DEFAULT_SSP), help=SSP_HELP)
+    p.add_argument("--stop-time", type=seconds, default=10.0, help="s simulated")
     p.add_argument("--profile", action="store_true", help="print where the time goes (cProfile of the direct run)")
     p.set_defaults(func=cmd_bench)
 
     p = sub.add_parser("synthesize", help="synthetic measured data with a hidden effect (docs/measured-data.md)")
-    p.add_argument("ssp", nargs="?", default=str(DEFAULT_SSP))
+    p.add_argument("ssp", nargs="?", default=str(DEFAULT_SSP), help=SSP_HELP)
     p.add_argument("--out", type=folder, required=True, help="measured-data folder to write (CSV per test + meta.json)")
     p.add_argument("--set", action="append", metavar="ELEMENT.PARAMETER=VALUE",
                    help="the truth: override a parameter (repeatable; 'actuator.X' sets X on every actuator)")
@@ -489,15 +521,17 @@ def main(argv=None) -> int:
     p.add_argument("--torque-filter", type=nonnegative, default=5e-4, help="the drive's torque low-pass time constant [s]")
     p.add_argument("--sample-time", type=seconds, default=1e-3, help="log sampling step [s]")
     p.add_argument("--tests", help="MOTION:AMPLITUDE:FREQUENCY[,...] (m for z, degrees for psi/theta; default: 7 tests)")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=int, default=0, help="seed of the noise")
     p.add_argument("--truth", type=output_file, help="where to write the truth (default: next to the folder, DIR.truth.json)")
     p.add_argument("--direct", action="store_true", help="run the model objects without FMI (same numbers, faster)")
-    p.add_argument("--workers", type=count, default=2)
+    p.add_argument("--workers", type=count, default=2, help="parallel processes")
     p.set_defaults(func=cmd_synthesize)
 
     p = sub.add_parser("diagnose", help="name the effects missing from the model by comparing it with measured data "
-                                        "(docs/diagnose.md)")
-    p.add_argument("ssp", nargs="?", default=str(DEFAULT_SSP))
+                                        "(docs/diagnose.md)",
+                       epilog="exit status: 0 when the verdict explains the data (or nothing is missing), 3 when a "
+                              "residual stays unexplained (the results are written all the same), 2 on bad input")
+    p.add_argument("ssp", nargs="?", default=str(DEFAULT_SSP), help=SSP_HELP)
     p.add_argument("--measured", required=True, help="measured-data folder, or a record folder from mast import "
                                                      "(docs/measured-data.md)")
     p.add_argument("--out", type=folder, required=True, help="folder for diagnosis.json, report.md, figures, the augmented model")
@@ -508,7 +542,7 @@ def main(argv=None) -> int:
     p.add_argument("--holdout-fraction", type=share, metavar="SHARE",
                    help="records of any machine (mast import) with no held-out test: hold out this last share of "
                         "every test (default 1/3; docs/emps.md)")
-    p.add_argument("--workers", type=count, default=2)
+    p.add_argument("--workers", type=count, default=2, help="parallel processes")
     p.add_argument("--fmu", action="store_true", help="re-simulate through the SSP's (Python) FMUs")
     p.add_argument("--direct", action="store_true",
                    help="re-simulate on the direct composition of the Python models (the reference: the FMUs' own model "
@@ -527,7 +561,10 @@ def main(argv=None) -> int:
 
     p = sub.add_parser("replay", help="drive a model with a record's commands and inputs; relative error and fit "
                                       "per signal, plots (docs/measured-data.md)")
-    p.add_argument("--model", required=True, help="the model: a built .ssp, e.g. build/ssp/EMPS_bench.ssp")
+    p.add_argument("ssp", help="the model: a built .ssp, e.g. build/ssp/EMPS_bench.ssp")
+    p.add_argument("--model", action=Renamed, instead="give the model's SSP as the first argument: "
+                                                        "mast replay SSP --measured DIR --out OUT (--model is "
+                                                        "diagnose's nominal parameter set)")
     p.add_argument("--measured", required=True, help="record folder (mast import)")
     p.add_argument("--out", type=folder, required=True, help="folder for replay.json, replay.csv and the plots")
     p.add_argument("--set", action="append", metavar="ELEMENT.PARAMETER=VALUE", help="override a parameter")

@@ -48,3 +48,16 @@ def mechanism_params() -> dict:
 @pytest.fixture
 def controller_params() -> dict:
     return load_params("controller")
+
+
+@pytest.fixture(scope="session")
+def built_native(tmp_path_factory) -> Path:
+    """A build folder with the Python FMUs and SSPs and their native variants (``mast build --native``),
+    shared by the tests that run documented commands and benchmarks (tests/test_docs.py, test_benchmarks.py)."""
+    from mast.core.build import SSP_SRC, build_all
+    from mast.core.native.build import build_native_all
+
+    out = tmp_path_factory.mktemp("build_native")
+    build_all(out, log=lambda *_: None)
+    build_native_all(out, sorted(SSP_SRC.glob("*.ssd")), log=lambda *_: None)
+    return out

@@ -117,7 +117,7 @@ def test_cli_refuses_non_finite_and_non_positive_numbers(capsys, argv, named):
     ["batch", "config.toml", "--out", "{file}"], ["compare", "--mechanism", "a.fmu", "--out", "{file}"],
     ["synthesize", "--out", "{file}"], ["diagnose", "--measured", "m", "--out", "{file}"],
     ["fit-gains", "--out", "{dir}"], ["import", "f.mat", "--map", "m.toml", "--out", "{file}"],
-    ["replay", "--model", "a.ssp", "--measured", "m", "--out", "{file}"], ["workspace", "3PRS_T", "--out", "{file}"],
+    ["replay", "a.ssp", "--measured", "m", "--out", "{file}"], ["workspace", "3PRS_T", "--out", "{file}"],
 ])
 def test_cli_refuses_an_output_that_is_a_file_before_running(capsys, a_file, argv):
     named = a_file.parent if "{dir}" in argv else a_file

@@ -220,3 +220,21 @@ def test_arrays_give_the_scalar_floats(inclined):
 
     rho, _, ok = Engine(Plain()).evaluate_many([np.zeros(3), np.array([0.5, 1.5, -0.2]), np.zeros(3)])
     assert list(ok) == [True, False, True] and rho[1, 0] == math.sqrt(0.75)
+
+
+def test_a_mechanism_without_body_masses_gets_a_kinematic_workspace():
+    """A user's own mechanism (docs/interfaces.md's lumped FMU gives the geometry, not the legs' and platform's
+    masses): the workspace and its margins are computed from the geometry, the static forces are said to be
+    unknown, not filled with a zero-mass answer or a bare KeyError."""
+    from mast.analyses.workspace import BODY_MASSES, compute, machine, summarize
+    from mast.core.designs import DESIGNS
+    from mast.core.ssp import read_ssd
+
+    full = dict(read_ssd(DESIGNS[0].ssd).components["mechanism"].parameters)
+    lumped = {k: v for k, v in full.items() if k not in BODY_MASSES}
+    kinematic = summarize(compute(machine("3PRS_T", mechanism=lumped), 0.025, math.radians(4)))
+    reference = summarize(compute(machine("3PRS_T"), 0.025, math.radians(4)))
+    assert kinematic["volume_m_deg2"] == reference["volume_m_deg2"]   # the same geometry, the same poses
+    assert kinematic["smallest_margin"]["value"] == pytest.approx(reference["smallest_margin"]["value"])
+    assert "m_leg" in kinematic["static_forces"]["not_computed"] and "home_N" not in kinematic["static_forces"]
+    assert "home_N" in reference["static_forces"]

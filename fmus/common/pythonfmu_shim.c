@@ -257,6 +257,38 @@ static char *inner_path(void)
     return path;
 }
 
+/* pythonfmu's library keeps its interpreter guard in a static std::shared_ptr, which the C++ exit handlers
+ * destroy, and resets it again from its destructor function finalizePythonInterpreter (run later, by
+ * _dl_fini): a second release through freed memory that now and then aborts a C/C++ host at exit ("corrupted
+ * double-linked list", SIGABRT; docs/using-the-fmus.md). An exit handler registered after the library was
+ * loaded runs before those: it resets the guard first (the interpreter is finalized there when pythonfmu
+ * started it, as the destructor would), and both later releases find it empty. In a Python host the
+ * interpreter has been finalized and the guard released already (fmus/common/slave.py): nothing is left to
+ * do. This library stays loaded until exit (NODELETE): the handler of a library unloaded earlier would run at
+ * its dlclose, with the interpreter still in use. */
+static void (*reset_guard)(void);
+
+static void reset_guard_at_exit(void)
+{
+    if (reset_guard) reset_guard();
+}
+
+static void defuse_teardown(void *library, const char *path)
+{
+    static int registered;
+    Dl_info self;
+    if (registered) return;
+    registered = 1;
+    reset_guard = (void (*)(void))dlsym(library, "finalizePythonInterpreter");
+    if (!reset_guard || !dladdr((void *)&defuse_teardown, &self) || !self.dli_fname ||
+        !dlopen(self.dli_fname, RTLD_NOW | RTLD_NOLOAD | RTLD_NODELETE) ||
+        !dlopen(path, RTLD_NOW | RTLD_NOLOAD | RTLD_NODELETE)) {
+        reset_guard = NULL;
+        return;
+    }
+    atexit(reset_guard_at_exit);
+}
+
 static void release(Shim *s)
 {
     if (s->library) dlclose(s->library);
@@ -284,6 +316,7 @@ static Shim *load(const char **what, const char **why)
         release(s);
         return NULL;
     }
+    defuse_teardown(s->library, path);
     free(path);
 #define RESOLVE0(fn) s->api.fn = (FMI(fn##TYPE) *)dlsym(s->library, TEXT(FMI(fn))); \
     if (!s->api.fn) { *what = "the model's library lacks a function"; *why = #fn; release(s); return NULL; }

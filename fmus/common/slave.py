@@ -519,8 +519,9 @@ def _defuse_pythonfmu_teardown(resources: Optional[str], library: Optional[str] 
     an atexit hook releases every library's guard before the C exit handlers
     run, and the late reset finds nothing to release (valgrind: the invalid
     read is gone). In a C/C++ host the guard of the library that started the
-    interpreter must live until the end: nothing is done there (valgrind shows
-    the one invalid read, in that library). Linux only (on Windows pythonfmu
+    interpreter must live until the end: the FMU's C front (pythonfmu_shim.c)
+    resets it in an exit handler that runs before the C++ exit handlers
+    (valgrind: no invalid read; without a C front, one). Linux only (on Windows pythonfmu
     resets it from DllMain). ``library``: pythonfmu's library behind the C front, if there is one.
     """
     if not sys.platform.startswith("linux") or not resources:

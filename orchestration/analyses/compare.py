@@ -400,8 +400,11 @@ def design_workspace(c: Candidate, grid: tuple[float, float]) -> dict:
 
     try:
         return workspace.summarize(workspace.compute(workspace.machine(c.ssp), grid[0], grid[1]))
-    except (ValueError, KeyError, KinematicsError) as exc:
-        return {"error": str(exc)}
+    except KeyError as exc:
+        return {"error": f"no workspace: the mechanism's parameters do not describe a 3PRS (no {exc.args[0]!r}; "
+                         "`mast workspace` needs the geometry H, r, L, alpha_1..3: docs/workspace.md)"}
+    except (ValueError, KinematicsError) as exc:
+        return {"error": f"no workspace: {exc}"}
 
 
 WORKSPACE_COLUMNS = ("workspace_m_deg2", "margin_min", "margin_home", "singularity_distance_home_m")

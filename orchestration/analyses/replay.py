@@ -1,4 +1,4 @@
-"""`mast replay --model SSP --measured DIR --out OUT`: a model driven by a record's commands and inputs.
+"""`mast replay SSP --measured DIR --out OUT`: a model driven by a record's commands and inputs.
 
 Every test of the record folder (mast.data.record) is simulated with its command and
 injected columns on the model's system inputs (zero-order hold of the samples); each

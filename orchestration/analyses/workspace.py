@@ -36,13 +36,15 @@ from typing import Callable, Mapping, Optional, Sequence, Union
 
 import numpy as np
 
-from fmus.mechanism.designs import engine as design_engine
+from fmus.mechanism.designs import MASS_PARAMETERS, engine as design_engine
 from fmus.mechanism.engine import MARGIN, Engine, margins_of
 from fmus.mechanism.kinematics import KinematicsError
 
 REPO = Path(__file__).resolve().parents[2]
 BASE_SSD = REPO / "ssp" / "MAST.ssd"
 DEG = math.pi / 180.0
+#: the bodies' mass parameters (fmus.mechanism.designs.MASS_PARAMETERS): without them the workspace is kinematic
+BODY_MASSES = ("m_leg", "I_leg", "m_platform", "I_px", "I_py", "I_pz")
 
 #: node status codes (``Workspace.status``)
 INSIDE, UNASSEMBLABLE, STROKE, SINGULAR, BRANCH, DISCONNECTED = range(6)
@@ -73,11 +75,17 @@ class Machine:
     drive: Mapping = field(default_factory=dict)
     payload_kg: float = 0.0
 
+    @property
+    def missing_masses(self) -> tuple[str, ...]:
+        """The mass parameters the mechanism's parameters do not give (a user's own mechanism FMU, e.g. the
+        lumped one of docs/interfaces.md): its workspace is then kinematic only, with no static forces."""
+        return tuple(p.name for p in MASS_PARAMETERS if p.name in BODY_MASSES and p.name not in self.params)
+
     def engine(self) -> Engine:
         params = dict(self.params)
         if self.payload_kg:
             params["m_payload"] = float(params.get("m_payload", 0.0)) + self.payload_kg
-        return design_engine(params, self.label)
+        return design_engine(params, self.label, masses=not self.missing_masses)
 
 
 def _from_system(label: str, system, mechanism: Optional[Mapping] = None, payload: float = 0.0) -> Machine:
@@ -327,7 +335,7 @@ def compute(m: Machine, step_z: float = STEP_Z, step_tilt: float = STEP_TILT_DEG
     distance = (distance_transform_edt(~singular, sampling=steps) if singular.any()
                 else np.full(status.shape, np.inf))
     forces = None
-    if inside.any():
+    if inside.any() and not m.missing_masses:
         forces = np.full((3,) + status.shape, np.nan)
         Jq = np.linalg.inv(nodes.Jinv[inside])
         grids = np.meshgrid(*axes, indexing="ij")
@@ -489,6 +497,9 @@ def summarize(ws: Workspace) -> dict:
         "limited_by": _boundary(ws),
         "wall_time_s": round(ws.wall_time_s, 2),
     }
+    if ws.machine.missing_masses:
+        out["static_forces"] = {"not_computed": f"the mechanism's parameters give no {', '.join(ws.machine.missing_masses)}: "
+                                                "the workspace and its margins are kinematic, the static forces unknown"}
     if ws.forces is not None:
         F = ws.forces.reshape(3, -1)[:, flat]
         peak = np.abs(F).max(axis=0)

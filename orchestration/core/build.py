@@ -30,6 +30,7 @@ from __future__ import annotations
 import functools
 import hashlib
 import json
+import os
 import shutil
 import sys
 import tempfile
@@ -52,9 +53,12 @@ SSP_SRC = REPO / "ssp"
 
 
 def default_build_dir() -> Path:
-    """Where ``mast build`` writes, and the other commands look for what it built: build/ of the source
+    """Where ``mast build`` writes, and the other commands look for what it built: ``$MAST_BUILD`` when set
+    (tests/test_docs.py runs the documented commands on a build of its own), else build/ of the source
     checkout (an editable install), else build/ in the current directory (after a plain ``pip install .``
     this module lives in site-packages, which is no place for build outputs)."""
+    if os.environ.get("MAST_BUILD"):
+        return Path(os.environ["MAST_BUILD"])
     return REPO / "build" if (REPO / "pyproject.toml").is_file() else Path.cwd() / "build"
 
 

@@ -196,7 +196,7 @@ def show(host: str, ssp: Union[str, Path], stop_time: float, signals: Sequence[s
 def run_host(host: str, ssp: Union[str, Path], stop_time: float, signals: Sequence[str],
              sample_step: float = 1e-3, timeout: float = 600.0, fmu_log: bool = False,
              base_step: Optional[float] = None, python_free: bool = False,
-             worker_threads: Optional[int] = None) -> Result:
+             worker_threads: Optional[int] = None, wrapper: Sequence[str] = ()) -> Result:
     """Run the built ``ssp`` in ``host`` until ``stop_time`` and return ``signals`` every ``sample_step``.
 
     ``signals`` are ``element.connector`` names (parameters too). Raises
@@ -214,7 +214,10 @@ def run_host(host: str, ssp: Union[str, Path], stop_time: float, signals: Sequen
     ``worker_threads`` (libcosim only): the threads libcosim steps the FMUs in (default: its own choice, the
     machine's hardware threads less one), set through ``hardware_concurrency.c``; ``result.stats["threads"]``
     is the number of threads the child process had at the end of the run.
+    ``wrapper`` (ecos only): a command the ecos CLI runs under, e.g. ``("valgrind", "--error-exitcode=99")``.
     """
+    if wrapper and host != "ecos":
+        raise ValueError(f"{host}: only the ecos command line runs under a wrapper command")
     if python_free and host != "ecos":
         raise ValueError(f"{host}: only the ecos command line runs without Python (python_free=True)")
     if worker_threads is not None and (host != "libcosim" or worker_threads < 1):
@@ -229,6 +232,7 @@ def run_host(host: str, ssp: Union[str, Path], stop_time: float, signals: Sequen
         if host == "ecos":
             command = ecos_command(ssp, stop_time, signals, sample_step, work, base_step, fmu_log,
                                    str(_ecos_binary(work)))
+            command = [*wrapper, *command]
             if python_free:
                 command = ["env", "-i", f"LD_LIBRARY_PATH={_tbb_dir()}", *command]
         else:

@@ -1,0 +1,217 @@
+"""The result figures the documentation states, generated into the pages: ``python docs/figures.py``.
+
+A figure in a page (README.md, docs/**/*.md) is marked where it stands, invisible in the rendered page::
+
+    **<!-- figure reproduce.predictions_within -->10<!-- /figure --> of 18 predictions**
+
+``KEY`` names an entry of ``FIGURES`` below: the source that computes it, its format and the tolerance a
+test compares the page with. ``python docs/figures.py`` computes every source the pages use (``--source
+NAME`` only those; ``reproduce`` runs ``mast reproduce``: minutes) and writes the values into the pages;
+``--check`` writes nothing and lists the figures that differ (exit 1). The tests compare the pages with
+the code too (tests/test_docs.py for the cheap sources, tests/test_reproduce.py for ``reproduce`` on the
+run it makes anyway) and fail with the page, the line, both values and this command.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import re
+import sys
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable, Iterator, Mapping
+
+ROOT = Path(__file__).resolve().parents[1]
+MARKER = re.compile(r"<!-- figure (?P<key>[\w\-]+(?:\.[\w\-]+)+) -->(?P<value>.*?)<!-- /figure -->")
+REGENERATE = "python docs/figures.py"
+
+
+@dataclass(frozen=True)
+class Figure:
+    """One stated figure: ``source`` computes a dict of named values, ``pick`` takes this one from it, ``fmt``
+    writes it, and a page agrees with the code when it states the value so written, or one within ``tolerance``
+    (absolute, in the figure's unit: what may differ between machines)."""
+    source: str
+    pick: Callable[[Mapping], float]
+    fmt: str
+    tolerance: float = 0.0
+
+
+def _row(key: str) -> Callable[[Mapping], float]:
+    return lambda values: values["rows"][key]["ours"]
+
+
+def _phase(motion: str) -> Callable[[Mapping], float]:
+    return _row(f"position_phase/{motion}/10Hz")
+
+
+def _magnitude_pct(motion: str) -> Callable[[Mapping], float]:
+    return lambda values: 100 * values["rows"][f"position_magnitude/{motion}/10Hz"]["ours"]
+
+
+FIGURES: dict[str, Figure] = {
+    # mast reproduce (docs/reproduction.md): the headline counts and the 10 Hz positions
+    **{f"reproduce.{name}": Figure("reproduce", (lambda n: lambda v: v["summary"][n])(name), "{:d}")
+       for name in ("predictions_within", "predictions", "fits_within", "fits", "reuses_within", "reuses", "runs")},
+    **{f"reproduce.phase_10Hz_{m}": Figure("reproduce", _phase(m), "{:.2f}", 0.02) for m in ("z", "psi", "theta")},
+    **{f"reproduce.magnitude_10Hz_{m}": Figure("reproduce", _magnitude_pct(m), "{:.1f}", 0.05)
+       for m in ("z", "psi", "theta")},
+    # the default system's controller gains (ssp/MAST.ssd, docs/controller.md)
+    **{f"ssd.controller.{g}": Figure("ssd", (lambda g: lambda v: v["controller"][g])(g), "{:.4g}")
+       for g in ("k_v", "k_p", "k_i")},
+    # the designs' workspaces (`mast workspace DESIGN`, docs/workspace.md; the --quick grid of `mast compare`, README)
+    **{f"{grid}.{d}.{what}": Figure(grid, (lambda d, w: lambda v: v[d][w])(d, what), fmt, tol)
+       # a volume may differ by a grid node or two between machines (a node on the margin's edge): 0.005 m deg^2
+       # each on the default grid, 0.4 on the quick one
+       for grid, fmt_volume, cells in (("workspace", "{:.0f}", 0.5), ("workspace_quick", "{:.1f}", 0.8))
+       for d in ("3PRS_T", "3PRS_120", "3PRS_inclined")
+       for what, fmt, tol in (("volume_m_deg2", fmt_volume, cells), ("smallest_margin", "{:.3f}", 0.0),
+                              ("worst_dexterity", "{:.1f}", 0.0))},
+    # the designs' singularity margins at home (docs/mechanism.md)
+    **{f"designs.{d}.{what}": Figure("designs", (lambda d, w: lambda v: v[d][w])(d, what), fmt, 0.005)
+       for d in ("3PRS_T", "3PRS_120", "3PRS_inclined")
+       for what, fmt in (("parallel", "{:.3g}"), ("inverse", "{:.3g}"), ("dexterity", "{:.3g}"))},
+}
+
+
+def source_reproduce() -> dict:
+    """``mast reproduce`` as the command runs it (direct composition, the full sweep, 2 workers)."""
+    from mast.analyses.reproduce import reproduce
+    from mast.core.build import build_all
+
+    with tempfile.TemporaryDirectory(prefix="mast_figures_") as tmp:
+        build_all(Path(tmp) / "build", log=lambda *_: None)
+        summary = reproduce(str(Path(tmp) / "build" / "ssp" / "MAST.ssp"), Path(tmp) / "out", workers=2, direct=True)
+        rows = json.loads((Path(tmp) / "out" / "paper_table.json").read_text())
+    return reproduce_values(summary, rows)
+
+
+def reproduce_values(summary: Mapping, rows: list) -> dict:
+    """The ``reproduce`` source from a run's summary and its paper_table.json rows (tests/test_reproduce.py)."""
+    return {"summary": dict(summary), "rows": {r["key"]: r for r in rows}}
+
+
+def source_ssd() -> dict:
+    from mast.core.ssp import read_ssd
+
+    return {"controller": dict(read_ssd(ROOT / "ssp" / "MAST.ssd").components["controller"].parameters)}
+
+
+def source_designs() -> dict:
+    from mast.analyses.workspace import machine
+
+    out = {}
+    for name in ("3PRS_T", "3PRS_120", "3PRS_inclined"):
+        m = machine(name, 0.0)
+        eng = m.engine()
+        margins = eng.margins(eng.dk(m.rho_home)[0])
+        out[name] = {"parallel": margins.parallel, "inverse": margins.inverse, "dexterity": margins.dexterity}
+    return out
+
+
+def source_workspace(quick: bool = False) -> dict:
+    """The designs' `mast workspace` summaries on its default grid, or on `mast compare --quick`'s."""
+    from mast.analyses.compare import WORKSPACE_GRID, WORKSPACE_GRID_QUICK
+    from mast.analyses.workspace import compute, machine, summarize
+
+    out = {}
+    for name in ("3PRS_T", "3PRS_120", "3PRS_inclined"):
+        s = summarize(compute(machine(name), *(WORKSPACE_GRID_QUICK if quick else WORKSPACE_GRID)))
+        out[name] = {"volume_m_deg2": s["volume_m_deg2"], "smallest_margin": s["smallest_margin"]["value"],
+                     "worst_dexterity": s["worst_dexterity"]["value"]}
+    return out
+
+
+SOURCES: dict[str, Callable[[], dict]] = {"reproduce": source_reproduce, "ssd": source_ssd, "designs": source_designs,
+                                          "workspace": source_workspace,
+                                          "workspace_quick": lambda: source_workspace(quick=True)}
+
+
+def pages() -> list[Path]:
+    return [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md"))]
+
+
+def marks(path: Path) -> Iterator[tuple[int, re.Match]]:
+    """(line number, match) of every figure marker in ``path``."""
+    for number, line in enumerate(path.read_text().splitlines(), 1):
+        for match in MARKER.finditer(line):
+            yield number, match
+
+
+def _number(text: str) -> float:
+    try:
+        return float(text.replace("\u2212", "-").replace(",", ""))
+    except ValueError:
+        return math.nan
+
+
+def check(values: Mapping[str, dict], paths: list[Path] | None = None) -> list[str]:
+    """Every marked figure whose source is in ``values`` against the computed value: the disagreements, each
+    naming the page, the line, both values and the command that regenerates the page. Unknown keys too."""
+    problems = []
+    for path in paths or pages():
+        where = path.relative_to(ROOT) if path.is_relative_to(ROOT) else path
+        for line, match in marks(path):
+            key, stated = match["key"], match["value"]
+            figure = FIGURES.get(key)
+            if figure is None:
+                problems.append(f"{where}:{line}: figure {key!r} is not in docs/figures.py FIGURES (known: "
+                                f"{', '.join(sorted(FIGURES))})")
+                continue
+            if figure.source not in values:
+                continue
+            computed = figure.pick(values[figure.source])
+            if figure.fmt.format(computed) != stated and not abs(_number(stated) - computed) <= figure.tolerance:
+                problems.append(f"{where}:{line}: the page states {key} = {stated}, the code gives "
+                                f"{figure.fmt.format(computed)} (tolerance {figure.tolerance:g}): run `{REGENERATE} "
+                                f"--source {figure.source}` and say in the text why the figure moved")
+    return problems
+
+
+def used_sources(paths: list[Path] | None = None) -> set[str]:
+    return {FIGURES[m["key"]].source for path in paths or pages() for _, m in marks(path) if m["key"] in FIGURES}
+
+
+def write(values: Mapping[str, dict], paths: list[Path] | None = None) -> list[str]:
+    """Write the computed values into the pages' markers; returns the changes ("page:line key old -> new")."""
+    changes = []
+    for path in paths or pages():
+        text = path.read_text()
+
+        def replace(match: re.Match) -> str:
+            figure = FIGURES.get(match["key"])
+            if figure is None or figure.source not in values:
+                return match[0]
+            new = figure.fmt.format(figure.pick(values[figure.source]))
+            if new != match["value"]:
+                line = text.count("\n", 0, match.start()) + 1
+                changes.append(f"{path.relative_to(ROOT)}:{line} {match['key']}: {match['value']} -> {new}")
+            return f"<!-- figure {match['key']} -->{new}<!-- /figure -->"
+        updated = MARKER.sub(replace, text)
+        if updated != text:
+            path.write_text(updated)
+    return changes
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0],
+                                     formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    parser.add_argument("--source", action="append", choices=sorted(SOURCES),
+                        help="compute only these sources (repeatable; default: every source a page uses)")
+    parser.add_argument("--check", action="store_true", help="write nothing; list the figures that differ (exit 1)")
+    args = parser.parse_args(argv)
+    values = {name: SOURCES[name]() for name in sorted(args.source or used_sources())}
+    if args.check:
+        problems = check(values)
+        print("\n".join(problems) or f"every figure of {', '.join(values)} agrees")
+        return 1 if problems else 0
+    changes = write(values)
+    print("\n".join(changes) or "no figure changed")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.path.insert(0, str(ROOT))
+    sys.exit(main())
