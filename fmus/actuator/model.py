@@ -65,7 +65,9 @@ arguments, compiled once and given the numbers of each step (``_bind``). Those n
 exp(M h_s) for any h_s, come from ``_ZohSeries``: exp(M h_s) = exp(M h_r) exp(M d) around
 the nearest of a few reference steps h_r (8 per octave, each exponential computed once),
 the second factor a Taylor series in d whose coefficients are precomputed, so a new step
-size costs one small matrix-vector product. benchmarks/variable_step.py measures both routes.
+size costs one weighted sum of them. benchmarks/variable_step.py measures both routes. Every
+exponential, balancing and product here is ``fmus.common.fixed_order``'s (no BLAS or LAPACK: the
+same floats on every machine, and the native actuator's, docs/native.md).
 """
 from __future__ import annotations
 
