@@ -582,7 +582,7 @@ def test_the_discretisation_for_any_step_size_equals_scipys_exponential(variant)
     n = 2 * block.N + 1
     steps = np.exp(np.random.default_rng(7).uniform(np.log(1e-6), np.log(2e-3), 25))
     for M in block._generators():
-        series = model._ZohSeries(M, n, model._BalancedExp())
+        series = model._ZohSeries(M, n)
         for h in steps:
             exact = expm(M * h)[:n]
             error = np.abs(series(h).reshape(n, -1) - exact).max(axis=1) / np.abs(exact).max(axis=1)

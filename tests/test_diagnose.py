@@ -156,6 +156,7 @@ def test_effect_outside_the_library_is_reported_unexplained(built_ssp, tmp_path)
     assert "Unexplained residual" in (out / "report.md").read_text()
 
 
+@pytest.mark.regime
 @pytest.mark.parametrize("backlash, seed", [(0.01, 7), (0.003, 8)])
 def test_backlash_hidden_alone_is_named_on_the_phase_free_score(built_ssp, tmp_path, backlash, seed):
     """Backlash hidden: the axes hunt (chaotically: even the exact truth does not reproduce the data sample by

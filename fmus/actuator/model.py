@@ -65,7 +65,9 @@ arguments, compiled once and given the numbers of each step (``_bind``). Those n
 exp(M h_s) for any h_s, come from ``_ZohSeries``: exp(M h_s) = exp(M h_r) exp(M d) around
 the nearest of a few reference steps h_r (8 per octave, each exponential computed once),
 the second factor a Taylor series in d whose coefficients are precomputed, so a new step
-size costs one small matrix-vector product. benchmarks/variable_step.py measures both routes.
+size costs one weighted sum of them. benchmarks/variable_step.py measures both routes. Every
+exponential, balancing and product here is ``fmus.common.fixed_order``'s (no BLAS or LAPACK: the
+same floats on every machine, and the native actuator's, docs/native.md).
 """
 from __future__ import annotations
 
@@ -74,10 +76,9 @@ import math
 from typing import Callable, Mapping, Optional, Sequence
 
 import numpy as np
-from scipy.linalg import expm, matrix_balance
-
 from ..common.block import Block, ModelError
 from ..common.codegen import compile_generated, largest_parameters
+from ..common.fixed_order import balance, eig_max, expm, matmul
 from ..common.parameters import Param, ParameterError, Value, nonnegative, positive
 from .sensor import TorqueSensor, is_neutral
 
@@ -91,6 +92,7 @@ __all__ = [
     "transfer_functions",
     "natural_frequencies",
     "chain_frequencies",
+    "fastest_mode",
 ]
 
 _MAX_PHASE_PER_SUBSTEP = 2.0  # rad: fastest chain mode x substep (keeps the friction equation monotone)
@@ -333,6 +335,25 @@ def chain_frequencies(J: Sequence[float], K: Sequence[float]) -> np.ndarray:
     return np.sqrt(np.clip(np.sort(lam)[1:], 0.0, None)) / (2.0 * math.pi)
 
 
+def fastest_mode(J: Sequence[float], K: Sequence[float]) -> float:
+    """2 pi times ``chain_frequencies(J, K).max()`` [rad/s] (0 for a rigid chain), in a fixed order of operations
+    (``fixed_order.eig_max``, no LAPACK): the substep rule's omega_max, the same float as the native actuator's."""
+    n = len(J)
+    if n < 2:
+        return 0.0
+    S = [[0.0] * n for _ in range(n)]
+    for k, stiff in enumerate(K):
+        S[k][k] += stiff
+        S[k + 1][k + 1] += stiff
+        S[k][k + 1] -= stiff
+        S[k + 1][k] -= stiff
+    for i in range(n):
+        for j in range(n):
+            S[i][j] *= (1.0 / math.sqrt(J[i])) * (1.0 / math.sqrt(J[j]))
+    lam = eig_max(S)
+    return 2.0 * math.pi * (math.sqrt(lam if lam > 0.0 else 0.0) / (2.0 * math.pi))
+
+
 # --------------------------------------------------------------------------------------
 # The block
 # --------------------------------------------------------------------------------------
@@ -377,7 +398,7 @@ class ActuatorBlock(Block):
         self.i_R = transmission_ratio(p["p"], p["i_r"])
         self.A, self.B, self.state_names = state_matrices(p)
         self.constants = kernel_constants(p, self.i_R, self.A, self.B, self.J, self.K, self.C)
-        self._omega_max = 2.0 * math.pi * float(chain_frequencies(self.J, self.K).max(initial=0.0))
+        self._omega_max = fastest_mode(self.J, self.K)
         if p["backlash"] > 0.0 and self.N != 2:
             raise ParameterError(f"{self.name}: parameter 'backlash' = {p['backlash']!r}: backlash is modelled "
                                  f"in the two-inertia transmission only (n_dof = 2, here {self.N})")
@@ -389,7 +410,6 @@ class ActuatorBlock(Block):
         self._compiled = 0                            # step sizes compiled with their numbers inlined
         self._bound: Optional[Callable] = None        # the kernel that takes its step size's numbers first
         self._series: Optional[list["_ZohSeries"]] = None  # exp(M h)[:n] for any h, per generator
-        self._exp = _BalancedExp()
         self._h = math.nan
         self._kernel: Callable = _no_kernel
         self.substeps = 0
@@ -464,7 +484,10 @@ class ActuatorBlock(Block):
         tau_L = -self.i_R * (F + p["M_load"] * p["g_guide"]) - tau_f
         if p["tau_ripple"] > 0.0:
             tau_L -= p["tau_ripple"] * math.sin(2.0 * math.pi * self.i_R * x[N] / p["ripple_period"])
-        alpha = float(self.A[2 * N] @ np.asarray(x) + self.B[2 * N, 1] * tau_L)  # springs undeflected here
+        alpha = 0.0   # springs undeflected here; summed in the kernel's order (``_alpha``), no BLAS
+        for a_k, x_k in zip(self.A[2 * N].tolist(), x):
+            alpha += a_k * x_k
+        alpha += float(self.B[2 * N, 1]) * tau_L
         n_in = len(self.INPUTS)
         tau_m = p["k_T"] * x[0]
         tau_meas = tau_m if self._sensor is None else self._sensor.reset(tau_m)
@@ -561,7 +584,7 @@ class ActuatorBlock(Block):
         p, n = self.params, 2 * self.N + 1
         backlash = p["backlash"] > 0.0
         if self._series is None:
-            self._series = [_ZohSeries(M, n, self._exp) for M in self._generators()]
+            self._series = [_ZohSeries(M, n) for M in self._generators()]
         m, discretisations = self._substeps(h, lambda h_sub: [s(h_sub) for s in self._series])
         numbers = []
         cols = [len(E) // n for E in discretisations]   # [Phi Gamma]: n + 2 columns, n + 3 with backlash
@@ -595,18 +618,19 @@ class _ZohSeries:
 
     exp(M h) = exp(M h_r) exp(M d), h_r the nearest of the reference steps (h rounded to 4 bits of
     mantissa: 8 per octave, |d| <= h / 16), exp(M d) its Taylor series. Per reference, computed once:
-    exp(M h_r)[:rows] by ``exponential`` and the series' coefficients C_k = exp(M h_r)[:rows] (M s)^k / k!
+    exp(M h_r)[:rows] by ``fixed_order.expm`` and the series' coefficients C_k = exp(M h_r)[:rows] (M s)^k / k!
     (s = the largest |d| there), to the degree where the remainder is below 2^-60 in M's balanced norm
-    (M's entries mix radians, rad/s and amperes: the norm of D^-1 M D, D from LAPACK gebal, bounds the
-    series). A step size is then the product of [1, d/s, (d/s)^2, ...] with the coefficients.
+    (M's entries mix radians, rad/s and amperes: the norm of D^-1 M D, D from ``fixed_order.balance``, bounds
+    the series). A step size is then the sum of the coefficients weighted by [1, d/s, (d/s)^2, ...], in that
+    order (no BLAS: the same floats on every machine, ``fmus.common.fixed_order``).
     """
 
     REMAINDER = 2.0 ** -60
     KEPT = 256   # reference steps kept
 
-    def __init__(self, M: np.ndarray, rows: int, exponential: Callable) -> None:
-        self._M, self._rows, self._exp = M, rows, exponential
-        d = matrix_balance(M, permute=False, separate=True)[1][0]
+    def __init__(self, M: np.ndarray, rows: int) -> None:
+        self._M, self._rows = M, rows
+        d = balance(M)
         self._norm = float(np.abs(M * (d[None, :] / d[:, None])).sum(axis=0).max())
         self._references: dict[float, tuple[float, np.ndarray, np.ndarray]] = {}
 
@@ -618,26 +642,29 @@ class _ZohSeries:
             if len(self._references) >= self.KEPT:
                 self._references.pop(next(iter(self._references)))
             reference = self._references[h_r] = self._expand(h_r, math.ldexp(1.0, exponent - 5))
-        s, powers, C = reference
+        s, degree, C = reference
         if C is None:  # M s too large for a short series: the exponential itself
-            return self._exp(self._M * h)[:self._rows].ravel()
-        return np.dot(((h - h_r) / s) ** powers, C)
+            return expm(self._M * h)[:self._rows].ravel()
+        x, weights = (h - h_r) / s, [1.0]
+        for _ in range(degree):
+            weights.append(weights[-1] * x)
+        return (np.array(weights)[:, None] * C).sum(axis=0)
 
-    def _expand(self, h_r: float, s: float) -> tuple[float, np.ndarray, Optional[np.ndarray]]:
+    def _expand(self, h_r: float, s: float) -> tuple[float, int, Optional[np.ndarray]]:
         nu = self._norm * s   # the series' terms fall at least as nu^k / k!
         if nu > 1.0:
-            return s, np.zeros(0), None
+            return s, 0, None
         degree, bound = 1, nu * nu / 2.0
         while bound > self.REMAINDER:
             degree += 1
             bound *= nu / (degree + 1)
         X = self._M * s
-        term = self._exp(self._M * h_r)[:self._rows] if h_r > 0.0 else np.eye(len(X))[:self._rows]
+        term = expm(self._M * h_r)[:self._rows] if h_r > 0.0 else np.eye(len(X))[:self._rows]
         terms = [term]
         for k in range(1, degree + 1):
-            term = term.dot(X) / k
+            term = matmul(term, X) / k
             terms.append(term)
-        return s, np.arange(degree + 1, dtype=float), np.array([t.ravel() for t in terms])
+        return s, degree, np.array([t.ravel() for t in terms])
 
 
 def _names(prefix: str, shape: tuple[int, int]) -> np.ndarray:
@@ -646,47 +673,6 @@ def _names(prefix: str, shape: tuple[int, int]) -> np.ndarray:
     for i, j in np.ndindex(shape):
         out[i, j] = f"{prefix}_{i}_{j}"
     return out
-
-
-def _expm_taylor(M: np.ndarray) -> np.ndarray:
-    """exp(M) by scaling and squaring a degree-16 Taylor polynomial (matrix products only).
-
-    With ||M / 2^s||_1 <= 1/2 the truncation is below 0.5^17 / 17! ~ 2e-20; the squarings bring
-    the error to the level of scipy's expm (measured: 1e-13 relative on the actuator's matrices).
-    Used for the step sizes a varying-step host brings: scipy's Pade route solves a linear system,
-    which multi-threaded BLAS makes take milliseconds on a busy machine.
-    """
-    norm = float(np.abs(M).sum(axis=0).max())
-    s = max(0, math.ceil(math.log2(norm / 0.5))) if norm > 0.5 else 0
-    X = M * 2.0 ** -s
-    eye = np.eye(len(M))
-    E = X * (1.0 / 16.0)
-    E += eye
-    for k in range(15, 0, -1):  # Horner: E = I + X E / k (ndarray.dot: the least overhead for small matrices)
-        E = X.dot(E)
-        E *= 1.0 / k
-        E += eye
-    for _ in range(s):
-        E = E.dot(E)
-    return E
-
-
-class _BalancedExp:
-    """exp(M) for the few matrix patterns of one block: balanced by a diagonal similarity
-    D^-1 M D (LAPACK gebal, found once per pattern of non-zeros: it does not change with the
-    step size), then ``_expm_taylor``. The actuator's matrices mix radians, rad/s and amperes:
-    balanced, ||M h||_1 falls from about 3000 to about 1 at 100 us (2 squarings instead of 13)."""
-
-    def __init__(self) -> None:
-        self._scales: dict[bytes, np.ndarray] = {}
-
-    def __call__(self, M: np.ndarray) -> np.ndarray:
-        key = (M != 0.0).tobytes()
-        d = self._scales.get(key)
-        if d is None:
-            d = self._scales[key] = matrix_balance(M, permute=False, separate=True)[1][0]
-        ratio = d[None, :] / d[:, None]
-        return _expm_taylor(M * ratio) / ratio
 
 
 def _no_kernel(values: list, x: list) -> int:  # pragma: no cover - replaced before use

@@ -20,10 +20,10 @@ from .stages import (FLOOR_FACTOR, Context, State, band_rss, failed_step, fit_st
 PARABOLA_SPAN = 2.0 ** 0.25
 #: a phase-free effect is named present with its value "not determined on this plan" (and left out of the augmented
 #: model) when its 95 % interval reaches beyond this ratio either side (the deviance has no curvature there: the
-#: parabola fell back to the grid's best value), or when a test the value is not fitted on (predicted at the value best
-#: on the others, leave-one-test-out, it fits worse than without the effect by DELTA_BIC; or one left above its floor
-#: and quieter than the re-simulations) stays above its floor at the value: a test in a regime of the hunting the
-#: ensembles do not visit
+#: parabola fell back to the grid's best value). A test in a quieter regime of the hunting than the re-simulations
+#: (not reproduced, quieter in every band) does not decide it: the record is one realisation of a chaotic process as
+#: each re-simulation is, and which regime it fell into depends on the commands' last bits (issue 24); the value is
+#: fitted on the other tests and its interval is theirs
 DETERMINED_RATIO = 1.25
 
 
@@ -171,8 +171,10 @@ def phase_free_stage(ctx: Context, state: State, effect: Effect, steps: list) ->
     or not, above its floor). The one exception: a test that stays above its floor with less power in every
     band than the loudest re-simulation (a quieter regime, never a cause the effect does not make) is taken
     out of the value's fit (the value searched again on the others, which must keep a test the effect is
-    needed for): the effect is named present, its value "not determined on this plan", and it is left out of
-    the augmented model (report.write_model).
+    needed for) and reported as not reproduced; it does not change the verdict, since which regime a record
+    falls into depends on its commands' last bits, not on the value. Where the smoothed deviance has no
+    curvature (95 % interval wider than DETERMINED_RATIO either side) the effect is named present, its value
+    "not determined on this plan", and it is left out of the augmented model (report.write_model).
     """
     model, p = ctx.model, effect.parameter
     try:
@@ -308,10 +310,13 @@ def phase_free_stage(ctx: Context, state: State, effect: Effect, steps: list) ->
     if above:
         return state
     why_not = ([f"95 % interval {value * math.exp(-1.96 * s_log):.3g} to {value * math.exp(1.96 * s_log):.3g}"]
-               if 1.96 * s_log > math.log(DETERMINED_RATIO) else []) + [
-        f"{n} is in a regime of the hunting that none of the {realisations} re-simulations within "
-        f"{100 * (POOL_RATIO - 1):.0f} % of the value visits (deviance {per_test[n]:.0f} > {floors[n]:.1f}, with less "
-        f"power in every band than the loudest of them); the value is fitted on {on}" for n in unreproduced]
+               if 1.96 * s_log > math.log(DETERMINED_RATIO) else [])
+    quieter = [f"{n} is in a regime of the hunting that none of the {realisations} re-simulations within "
+               f"{100 * (POOL_RATIO - 1):.0f} % of the value visits (deviance {per_test[n]:.0f} > {floors[n]:.1f}, with "
+               f"less power in every band than the loudest of them): one realisation of the hunting, not fitted; the "
+               f"value is fitted on {on}" for n in unreproduced]
+    if quieter:
+        ctx.log(f"diagnose:   {effect.key}: {'; '.join(quieter)}")
     if why_not:
         ctx.log(f"diagnose:   {effect.key}: present, its value is not determined on this plan (not written into the "
                 f"augmented model): {'; '.join(why_not)}")
@@ -319,6 +324,7 @@ def phase_free_stage(ctx: Context, state: State, effect: Effect, steps: list) ->
     info = {**state.info, "phase_free": {
         "parameter": p, "value": value, "std": value * s_log, "value_determined": not why_not,
         "value_not_determined_because": why_not, "fitted_on": fitted, "not_reproduced": unreproduced,
+        "not_reproduced_because": quieter,
         "ci95": [value * math.exp(-1.96 * s_log), value * math.exp(1.96 * s_log)],
         "scan_value": v_all, "delta_bic": dbic, "cross_validated_deviance_change": dcv, "leave_one_out": folds,
         "deviance_per_test": {"before": before.per_test, "after": per_test}, "floor_per_test": floors,

@@ -212,9 +212,11 @@ def judge(ctx: Context, state: State, last_fit, steps: list,
     pf = state.info.get("phase_free")
     by_bands = [n for n in names if per_test[n] > FLOOR_FACTOR and pf
                 and pf["deviance_per_test"]["after"][n] <= pf["floor_per_test"][n]]
-    # a named phase-free effect whose value is not determined: tests in a regime of the hunting its re-simulations do
-    # not visit (quieter than all of them, phasefree.PhaseFreeScore.quieter) are its trace, not an unknown cause
+    # a named phase-free effect: tests in a regime of the hunting its re-simulations do not visit (quieter than all of
+    # them, phasefree.PhaseFreeScore.quieter) are its trace, not an unknown cause, whichever regime a record fell into
     unreproduced = [n for n in (pf or {}).get("not_reproduced", ()) if per_test[n] > FLOOR_FACTOR]
+    quiet = (f"; {', '.join(unreproduced)} hunts in a quieter regime than the re-simulations visit (one realisation of "
+             "the hunting, not fitted)" if unreproduced else "")
     rms_at_floor = all(per_test[n] <= FLOOR_FACTOR or n in by_bands or n in unreproduced for n in names)
     structured = structure_left is not None and structure_left >= DELTA_BIC
     at_floor = rms_at_floor and not structured
@@ -241,10 +243,12 @@ def judge(ctx: Context, state: State, last_fit, steps: list,
                                      + ", ".join(f"{per_test[n]:.1f}" for n in by_bands)
                                      + " x noise, not predictable sample by sample), in its band powers (phase-free "
                                      "deviance " + ", ".join(f"{pf['deviance_per_test']['after'][n]:.1f}" for n in by_bands)
-                                     + f" <= {max(pf['floor_per_test'][n] for n in by_bands):.1f})")
+                                     + f" <= {max(pf['floor_per_test'][n] for n in by_bands):.1f})"
+                                     + quiet)
     elif at_floor:
         status, text = "explained", (f"with {titles} the residual is at the noise floor (RMS {rt:.2f} x noise on "
-                                     f"training, {rh_text} x on held-out)")
+                                     f"training, {rh_text} x on held-out)"
+                                     + quiet)
     else:
         status = "unexplained residual"
         text = (f"a residual remains that no candidate effect explains: RMS {rt:.2f} x the noise floor on training, "
