@@ -4,7 +4,7 @@ Runs the default system's `make run` motion (z sine, 0.01 m at 1 Hz, 3 s; the mo
 schedule, the same numbers as through FMI) into a temporary run folder, or takes a run folder given, then
 writes the page REPEAT times and prints the frames, the page's size (and how much of it is plotly.js) and
 the best wall time. Usage:
-    .venv/bin/python benchmarks/animate_page.py [RUN_DIR] [--fps F] [--repeat R]
+    .venv/bin/python benchmarks/animate_page.py [RUN_DIR] [--ssp SSP] [--stop-time T] [--fps F] [--repeat R]
 """
 from __future__ import annotations
 
@@ -22,6 +22,8 @@ SSP = Path(__file__).resolve().parents[1] / "build" / "ssp" / "MAST.ssp"
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("run_dir", nargs="?", help="a `mast run` folder (default: run the default system for 3 s)")
+    parser.add_argument("--ssp", type=Path, default=SSP, help="the system run when no RUN_DIR is given")
+    parser.add_argument("--stop-time", type=float, default=3.0, help="seconds of motion run when no RUN_DIR is given")
     parser.add_argument("--fps", type=float, default=animate.FPS)
     parser.add_argument("--repeat", type=int, default=3)
     args = parser.parse_args()
@@ -29,7 +31,8 @@ def main() -> None:
         run_dir = Path(args.run_dir) if args.run_dir else Path(tmp) / "z_1Hz"
         if not args.run_dir:
             motion = motion_from_cli("z", 0.01, 1.0)
-            write_outputs(simulate(SSP, motion, 3.0, direct=True), run_dir, 3.0, motion, SSP)
+            result = simulate(args.ssp, motion, args.stop_time, direct=True)
+            write_outputs(result, run_dir, args.stop_time, motion, args.ssp)
         best = None
         for _ in range(args.repeat):
             start = time.perf_counter()

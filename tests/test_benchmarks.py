@@ -20,6 +20,7 @@ SMOKE = {
     "dk_step.py": ["--steps", "20", "--repeat", "1"],
     "batch_throughput.py": ["--ssp", "{ssp}", "--cases", "2", "--stop-time", "0.02", "--repeats", "1"],
     "native_speed.py": ["--ssp", "{ssp}", "--stop-time", "0.02", "--repeats", "1"],
+    "animate_page.py": ["--ssp", "{ssp}", "--stop-time", "0.2", "--repeat", "1"],
     "backlash_regimes.py": ["--ssp", "{ssp}", "--runs", "1", "--duration", "0.3", "--settle", "0.1"],
 }
 

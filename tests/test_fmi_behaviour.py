@@ -531,10 +531,10 @@ def test_the_build_falls_back_to_pythonfmus_binary_without_a_c_compiler(monkeypa
     if fmi_version == 3:
         pytest.importorskip("pythonfmu3")
 
-    def no_compiler():
+    def no_compiler(platform: str = "linux64"):
         raise native.NativeBuildError("no C compiler here (test)")
 
-    monkeypatch.setattr(native, "compiler", no_compiler)
+    monkeypatch.setattr(native, "c_compiler", no_compiler)
     build._compiled_front.cache_clear()
     try:
         assert (f"fmi{fmi_version}Fatal instead of fmi{fmi_version}Error (no C compiler here (test))"
