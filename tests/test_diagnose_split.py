@@ -143,17 +143,19 @@ def test_a_lag_among_other_effects_is_named_a_delay_or_a_filter_as_it_is(built_s
     decided = effects["lag"]["evidence"]["filter_or_delay"]
     assert decided["choice"] == form and decided["kept"] == form
     assert set(effects["lag"]["parameters"]) == {form}
-    assert decided["delta_bic_delay_vs_filter"] * (1 if form == "T_meas" else -1) >= 10
+    sign = 1 if form == "T_meas" else -1
+    assert sign * decided["delta_bic_delay_vs_filter"] >= 0 and sign * decided["held_out_deviance_delay_vs_filter"] >= 0
     assert doc["verdict"]["status"] == "explained"
     assert ("a delay" if form == "delay_meas" else "a first-order filter") in doc["verdict"]["text"]
 
 
 def test_delay_or_filter_not_distinguishable_is_said_not_picked():
-    """The rule of stages.lag_form_check: a form is named only if the training BIC (by DELTA_BIC) and the held-out
-    deviance agree on it; otherwise "not distinguishable on this plan"."""
+    """The rule of stages.lag_form_check: a form is named only if the training BIC and the held-out deviance both
+    prefer it and together by DELTA_BIC (the selection's score); otherwise "not distinguishable on this plan"."""
     from mast.diagnosis.stages import lag_form
 
     assert lag_form(-25.0, -3.0) == "delay_meas" and lag_form(25.0, 0.5) == "T_meas"
-    assert lag_form(-6.0, -40.0) == "not distinguishable"      # the training cannot tell
-    assert lag_form(-25.0, 12.0) == "not distinguishable"      # the held-out tests disagree
+    assert lag_form(-3.0, -22.0) == "delay_meas"                # SMALL, seed 332: the held-out z 5 Hz tells
+    assert lag_form(-4.0, -5.0) == "not distinguishable"        # neither tells
+    assert lag_form(-25.0, 12.0) == "not distinguishable"       # the held-out tests disagree
     assert lag_form(30.0, -1.0) == "not distinguishable"

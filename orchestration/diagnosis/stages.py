@@ -297,11 +297,12 @@ LAG_TABLE_HZ = (1.0, 3.0, 10.0, 30.0, 100.0)
 
 
 def lag_form(dbic: float, dho: float) -> str:
-    """The form of a lag from dbic = training BIC (delay - filter) and dho = held-out deviance (delay - filter):
-    "delay_meas" or "T_meas" where both prefer it, the training by DELTA_BIC or more; else "not distinguishable"."""
-    if dbic <= -DELTA_BIC and dho <= 0:
+    """The form of a lag from dbic = training BIC (delay - filter) and dho = held-out deviance (delay - filter), the
+    two parts of the selection's score (selection.Regression.score): "delay_meas" or "T_meas" where both prefer it
+    and together by DELTA_BIC or more; else "not distinguishable"."""
+    if dbic <= 0 and dho <= 0 and dbic + dho <= -DELTA_BIC:
         return "delay_meas"
-    if dbic >= DELTA_BIC and dho >= 0:
+    if dbic >= 0 and dho >= 0 and dbic + dho >= DELTA_BIC:
         return "T_meas"
     return "not distinguishable"
 
@@ -312,8 +313,8 @@ def lag_form_check(ctx: Context, state: State, steps: list) -> State:
     low frequency; the selection is fitted again by re-simulation with the lag in the other form (every
     parameter of the selection free: the others had adapted to the first), and the two are compared by the same
     information criterion (training BIC, full band: the same number of parameters) and held-out test (held-out
-    deviance n ln(RSS_delay / RSS_filter), full band). The delay is named if both prefer it, the training by
-    DELTA_BIC or more, the filter likewise; otherwise the lag is named with its value and "delay or filter: not
+    deviance n ln(RSS_delay / RSS_filter), full band). The delay is named if both prefer it and their sum (the
+    selection's score) by DELTA_BIC or more, the filter likewise (``lag_form``); otherwise the lag is named with its value and "delay or filter: not
     distinguishable on this plan", the form fitting the training tests better kept in the model. The decision is
     a step ``how: delay or filter`` (named_effects reads it)."""
     for a in state.selected:
@@ -352,8 +353,8 @@ def lag_form_check(ctx: Context, state: State, steps: list) -> State:
                      "phase_difference_rad": 2 * math.pi * f * d_val - math.atan(2 * math.pi * f * T_val)}
                  for f in LAG_TABLE_HZ}
         freqs = sorted({ctx.model.tests[m].test.frequency for m in ctx.names if ctx.model.tests[m].test.frequency})
-        text = ({"delay_meas": "a delay (the training BIC and the held-out tests prefer it)",
-                 "T_meas": "a first-order filter (the training BIC and the held-out tests prefer it)"}.get(choice)
+        text = ({"delay_meas": "a delay (the training tests and the held-out tests prefer it)",
+                 "T_meas": "a first-order filter (the training tests and the held-out tests prefer it)"}.get(choice)
                 or "delay or filter: not distinguishable on this plan")
         steps.append({"how": "delay or filter", "effect": a.effect.key, "from": [x.label for x in state.selected],
                       "to": [x.label for x in keep.selected], "accepted": True,
