@@ -161,12 +161,15 @@ def choose_split(tests: Sequence[Excitation], library: Sequence[str]) -> dict[st
     held-out test of what it needs (``REQUIREMENTS``). Ranked by the effects on all axes met, then the effects
     on one axis, then the fewest tests moved from the default, then the number of tests held out closest to the
     default's; at least one test held out, and no more than the default holds out (the fit keeps at least as
-    many tests). The default is kept when it already meets them all, or for plans of more than
-    MAX_SPLIT_SEARCH tests."""
+    many tests), and the fastest training test of each kind of motion (z, a rotation) stays in training: the
+    effects that grow with frequency (inertia, lags, the drive's gains) are fitted mostly on it. The default is
+    kept when it already meets them all, or for plans of more than MAX_SPLIT_SEARCH tests."""
     default = {x.name: x.role for x in tests}
     names = [x.name for x in tests]
     wanted = [k for k, p in identifiability(tests, library).items() if p["plan_meets"]]
     n_held = sum(r == "held-out" for r in default.values())
+    keep = {max((x for x in tests if x.role != "held-out" and x.alike == kind), key=lambda x: x.frequency).name
+            for kind in (True, False) if any(x.role != "held-out" and x.alike == kind for x in tests)}
 
     def rank(roles: Mapping[str, str]) -> tuple:
         split = [Excitation(x.name, roles[x.name], x.frequency, x.alike, x.moving) for x in tests]
@@ -184,6 +187,8 @@ def choose_split(tests: Sequence[Excitation], library: Sequence[str]) -> dict[st
         if not 1 <= bin(mask).count("1") <= n_held:
             continue
         roles = {n: ("held-out" if mask >> k & 1 else "training") for k, n in enumerate(names)}
+        if any(roles[n] == "held-out" for n in keep):
+            continue
         r = rank(roles)
         if r < best:
             chosen, best = roles, r
