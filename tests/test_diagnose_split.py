@@ -75,6 +75,8 @@ def test_the_split_gives_every_effect_the_plan_can_identify_a_test_on_each_side(
     # the compact plan's default split already meets everything: kept
     compact = excitations(PLAN)
     assert choose_split(compact, library) == {x.name: x.role for x in compact}
+    # SMALL: Coulomb friction on axis 1 alone would need z 5 Hz held out, the fastest z test: it stays in training
+    assert choose_split(excitations(SMALL), library) == {x.name: x.role for x in excitations(SMALL)}
     # one fast test moving actuators 1 and 3 (z 5 Hz; psi moves actuator 2 alone): not identifiable on axis 1
     small = identifiability(excitations(SMALL), library)
     assert not small["inertia_motor_axis1"]["plan_meets"] and not small["inertia_motor_axis1"]["split_meets"]
@@ -120,9 +122,7 @@ def test_a_per_axis_effect_beside_an_all_axes_one_is_found_whatever_the_default_
 
 #: a lag inside two- and three-effect combinations, as a delay and as a filter: (truth, plan, seed, form named)
 LAGS = {
-    # before: the default split held out psi 2.5 Hz alone, and the first proposal (Coulomb, carriage mass, k_i,
-    # offset) went astray; now z 5 Hz is held out and the lag's two forms are fitted with every parameter free
-    "coulomb-inertia-delay": ({"tau_c": 0.04, "J1_scale": 1.2, "delay_meas": 0.0015}, SMALL, 332, "delay_meas"),
+    "coulomb-inertia-delay": ({"tau_c": 0.05, "J1_scale": 0.75, "delay_meas": 0.0025}, PLAN, 301, "delay_meas"),
     "coulomb-inertia-filter": ({"tau_c": 0.05, "J1_scale": 0.75, "T_meas": 0.0025}, PLAN, 322, "T_meas"),
     "viscous-delay": ({"b_v": 1.5e-4, "delay_meas": 0.0017}, SMALL, 323, "delay_meas"),
     "viscous-filter": ({"b_v": 1.5e-4, "T_meas": 0.0017}, SMALL, 324, "T_meas"),
@@ -135,8 +135,9 @@ def test_a_lag_among_other_effects_is_named_a_delay_or_a_filter_as_it_is(built_s
     """The issue's second case: Coulomb friction, a motor-side inertia change and a measurement delay; the lag was
     named a first-order filter (T_meas) with the delay's value. Now the selection is fitted again with the lag in
     the other form (every parameter free) and the training BIC and the held-out test decide: the form hidden is
-    named, or, where the plan cannot tell them apart (a lag of 1.7 ms on SMALL's short records: a few units of
-    BIC either way), "delay or filter: not distinguishable on this plan", never the other form. Every parameter
+    named, or, where the plan cannot tell them apart (a lag of 1.7 ms beside a viscous change on SMALL's short
+    records: the training and the held-out test disagree, or tell by a few units), "delay or filter: not
+    distinguishable on this plan", never the other form. Every parameter
     within 5 % (or, for the lag on these short records, 3 standard deviations and 10 %)."""
     truth, plan, seed, form = LAGS[case]
     doc = run(built_ssp, tmp_path, {"actuator": truth}, plan, seed)
@@ -163,7 +164,7 @@ def test_delay_or_filter_not_distinguishable_is_said_not_picked():
     from mast.diagnosis.stages import lag_form
 
     assert lag_form(-25.0, -3.0) == "delay_meas" and lag_form(25.0, 0.5) == "T_meas"
-    assert lag_form(-3.0, -22.0) == "delay_meas"                # SMALL, seed 332: the held-out z 5 Hz tells
+    assert lag_form(-3.0, -22.0) == "delay_meas"                # the held-out tests tell, the training leans to it
     assert lag_form(-4.0, -5.0) == "not distinguishable"        # neither tells
-    assert lag_form(-25.0, 12.0) == "not distinguishable"       # the held-out tests disagree
+    assert lag_form(-16.0, 4.0) == "not distinguishable"        # the held-out test disagrees (SMALL, seed 323)
     assert lag_form(30.0, -1.0) == "not distinguishable"
