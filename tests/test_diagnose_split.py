@@ -84,12 +84,12 @@ def test_the_split_gives_every_effect_the_plan_can_identify_a_test_on_each_side(
     assert small["inertia_motor_axis2"]["plan_meets"]
 
 
-#: a per-axis inertia change on each axis in turn with an all-axes viscous change, on both plans:
-#: (plan, seed, axis, J1_scale of that axis, b_v of every axis)
+#: a per-axis inertia change on each axis in turn with an all-axes viscous change: (plan, seed, axis, J1_scale of
+#: that axis, b_v of every axis). On PLAN_A the default split leaves axis 2 without a held-out fast test, on PLAN_B
+#: axes 1 and 3; axes 1 and 3 on PLAN_A (seeds 311, 313: named within 1 %, docs/diagnose.md) are left out to keep
+#: the suite's time, their default split could already test them
 PER_AXIS = {
-    "A-axis1": (PLAN_A, 311, 1, 1.4, 1.6e-4),
     "A-axis2": (PLAN_A, 302, 2, 1.35, 1.6e-4),
-    "A-axis3": (PLAN_A, 313, 3, 0.7, 1.3e-4),
     "B-axis1": (PLAN_B, 314, 1, 0.65, 1.5e-4),
     "B-axis2": (PLAN_B, 315, 2, 1.4, 1.7e-4),
     "B-axis3": (PLAN_B, 316, 3, 1.35, 1.4e-4),
