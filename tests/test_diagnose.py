@@ -94,21 +94,24 @@ def test_paper_case(built_ssp, tmp_path, seed):
 
 CASES = {   # effect key: (truth, parameters to recover)
     "coulomb": ({"tau_c": 0.035}, ("tau_c",)),
-    "viscous": ({"b_v": 2e-4}, ("b_v",)),
+    # viscous friction: beside an inertia change on one axis, on two plans, in tests/test_diagnose_split.py
     "stribeck": ({"tau_s": 0.02, "omega_s": 3.0}, ("tau_s", "omega_s")),
     "inertia_motor": ({"J1_scale": 0.8}, ("J1_scale",)),
     "inertia_guide": ({"J_guide": 6.8e-4}, ("J_guide",)),
     "carriage_mass": ({"M_load": 3.5}, ("M_load",)),
     "offset": ({"tau_offset": 0.01}, ("tau_offset",)),
-    "lag": ({"T_meas": 3e-3}, ("T_meas",)),
-    "delay": ({"delay_meas": 2e-3}, ("delay_meas",)),
+    # the measurement lag, as a filter and as a delay: beside another effect in tests/test_diagnose_split.py
 }
+
+
+#: the seed of each case (those it had when the cases were numbered 10, 11, ... in the order of issue 5's library)
+SEEDS = {"coulomb": 10, "stribeck": 12, "inertia_motor": 13, "inertia_guide": 14, "carriage_mass": 15, "offset": 16}
 
 
 @pytest.mark.parametrize("case", list(CASES))
 def test_each_library_effect_hidden_alone_is_named(built_ssp, tmp_path, case):
     truth, params = CASES[case]
-    doc = run_case(built_ssp, tmp_path, truth, seed=10 + list(CASES).index(case))
+    doc = run_case(built_ssp, tmp_path, truth, seed=SEEDS[case])
     effects = named(doc)
     assert len(effects) == 1, effects
     (key, effect), = effects.items()
@@ -121,7 +124,7 @@ def test_each_library_effect_hidden_alone_is_named(built_ssp, tmp_path, case):
             values.update(alt.get("parameters", {}))
         assert values["J_guide"] == pytest.approx(6.8e-4, rel=0.05)
         return
-    assert key == ("lag" if case == "delay" else case)
+    assert key == case
     for p in params:
         # within 5 %, or (short tests, a small effect) within 3 standard deviations and 10 %
         error = abs(effect["parameters"][p] - truth[p])

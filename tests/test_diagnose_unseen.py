@@ -141,7 +141,7 @@ def test_the_plan_says_which_effects_it_cannot_tell():
 #: effects on one axis and on the drive (issue 18), values, plans and seeds away from those above and in docs/:
 #: (truth, plan, seed, the effect named, its parameter, the value it must have)
 ONE_AXIS_AND_DRIVE = {
-    "inertia-up-axis2": ({"actuator_2": {"J1_scale": 1.3}}, SMALL, 62, "inertia_motor_axis2", "J1_scale_axis2", 0.3),
+    # inertia on one axis: beside an all-axes viscous change, each axis on two plans, tests/test_diagnose_split.py
     "mass-down-axis1": ({"actuator_1": {"M_load": 1.7}}, PLAN, 63, "carriage_mass_axis1", "M_load_axis1", 1.7 - 2.27),
     "offset-axis3": ({"actuator_3": {"tau_offset": -0.006}}, PLAN, 92, "offset_axis3", "tau_offset_axis3", -0.006),
     "integral-gain": ({"controller": {"k_i": 2.27}}, SMALL, 93, "velocity_integral", "k_i", 2.27),

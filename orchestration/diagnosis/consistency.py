@@ -21,7 +21,7 @@ from typing import Sequence
 import numpy as np
 
 from .effects import BOUNDS, BY_PARAMETER, MEASUREMENT
-from .stages import FD_STEP, Context, State, training_bic
+from .stages import FD_STEP, Context, State, fitted_parameters, training_bic
 
 #: a per-test estimate agrees with the fitted change if within this many of its standard deviations ...
 Z_AGREE = 3.0
@@ -59,7 +59,8 @@ def per_test_estimates(ctx: Context, state: State) -> dict:
     the change each test alone asks for on top of the fitted value (in the band, all selected parameters
     together), with its standard deviation from that test's own residual (lag-1 inflated), and whether the
     tests that inform it agree."""
-    params = [p for a in state.selected if not a.effect.phase_free for p in a.effect.parameters if p in state.changes]
+    params = [p for a in state.selected if not a.effect.phase_free for p in fitted_parameters(a, state.changes)
+              if p in state.changes]
     if not params:
         return {}
     cols = _columns(ctx, state, params)
@@ -119,7 +120,7 @@ def _moved(ctx: Context, before: State, after: State, checks: dict, keep: Sequen
         return {}
     out = {}
     for a in keep:
-        for p in a.effect.parameters:
+        for p in fitted_parameters(a, before.changes):
             if p not in before.changes or p not in after.changes:
                 continue
             c0 = float(before.changes[p]) - float(ctx.nominal[p])
@@ -169,7 +170,7 @@ def only_consistent(ctx: Context, state: State, named: Sequence[dict], steps: li
                     + ", ".join(f"{n} {v['change']:+.3g} (std {v['std']:.2g})" for n, v in c["per_test"].items())
                     + ("" if c["consistent"] else f": disagree on {', '.join(c['disagreeing_tests'])}"
                        if c["disagreeing_tests"] else f": {len(c['informative_tests'])} test(s) inform it"))
-        bad = {a.effect.key: latest[p] for a in kept.selected for p in a.effect.parameters
+        bad = {a.effect.key: latest[p] for a in kept.selected for p in fitted_parameters(a, kept.changes)
                if p in latest and not latest[p]["consistent"]}
         if not bad:
             break

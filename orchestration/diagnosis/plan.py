@@ -49,6 +49,28 @@ def _both_roles(tests: Sequence[Excitation], ok: Callable[[Excitation], bool]) -
     return f"no such {' or '.join(missing)} test" if missing else None
 
 
+def _two(tests: Sequence[Excitation], ok: Callable[[Excitation], bool]) -> Optional[str]:
+    have = [x.name for x in tests if ok(x)]
+    return None if len(have) >= 2 else ("no such test in the plan" if not have else
+                                         f"only one such test in the plan ({have[0]}): one to fit it and another "
+                                         "to check it are needed")
+
+
+@dataclass(frozen=True)
+class InBothRoles:
+    """A requirement of the split: a test for which ``ok`` holds among the training and among the held-out tests
+    (calling it checks a split). The whole plan can meet it (``whole``) when two tests qualify, whatever their
+    roles: a split can then put one on each side (``choose_split``)."""
+
+    ok: Callable[[Excitation], bool]
+
+    def __call__(self, tests: Sequence[Excitation]) -> Optional[str]:
+        return _both_roles(tests, self.ok)
+
+    def whole(self, tests: Sequence[Excitation]) -> Optional[str]:
+        return _two(tests, self.ok)
+
+
 def _fast(tests: Sequence[Excitation]) -> Optional[str]:
     """Two or more fast tests (>= FAST_HZ) of one kind of motion, whatever their roles: backlash makes the
     loop hunt on the fast tests, a rotation loads the axes differently from z and need not hunt alike, and
@@ -80,26 +102,26 @@ def _kinds(tests: Sequence[Excitation]) -> Optional[str]:
 #: effect keys -> (what the plan must excite, the check: None when met, else why not)
 REQUIREMENTS: dict[tuple[str, ...], tuple[str, Callable[[Sequence[Excitation]], Optional[str]]]] = {
     ("coulomb", "offset"): ("velocity reversals in a training and a held-out test",
-                            lambda ts: _both_roles(ts, lambda x: x.frequency > 0)),
+                            InBothRoles(lambda x: x.frequency > 0)),
     ("viscous",): ("reversal rates (speeds) differing by 2 x or more across tests: viscous grows with speed, "
                    "Coulomb friction does not", _speeds),
     ("stribeck",): ("a slow test (<= 1 Hz), where the motion lingers near standstill at each reversal",
                     lambda ts: None if any(0 < x.frequency <= 1.0 for x in ts) else "no test at 1 Hz or below"),
     ("inertia_motor", "inertia_guide"): ("a training and a held-out test at >= 2 Hz: the inertia torque grows "
-                                         "with f^2 and is small below", lambda ts: _both_roles(ts, lambda x: x.frequency >= 2.0)),
+                                         "with f^2 and is small below", InBothRoles(lambda x: x.frequency >= 2.0)),
     ("carriage_mass",): ("motions of the axes alike (z) and differently (a rotation): on z alone a heavier "
                          "carriage and more inertia plus an offset look alike", _kinds),
     ("lag",): ("a test at >= 3 Hz: the phase lag grows with f", lambda ts: None if any(x.frequency >= 3.0 for x in ts)
                else "no test at 3 Hz or above"),
     ("velocity_gain", "position_gain", "velocity_integral"): ("a training and a held-out test at >= 2 Hz, near the cascade's bandwidth "
                                          "(about 4 Hz): well below it the loop follows whatever its gains",
-                                         lambda ts: _both_roles(ts, lambda x: x.frequency >= 2.0)),
+                                         InBothRoles(lambda x: x.frequency >= 2.0)),
     ("velocity_cycle",): ("a training and a held-out test at >= 2 Hz: a longer cycle is a delay inside the velocity "
                           "loop, which grows as the tests approach the cascade's bandwidth (about 4 Hz)",
-                          lambda ts: _both_roles(ts, lambda x: x.frequency >= 2.0)),
+                          InBothRoles(lambda x: x.frequency >= 2.0)),
     ("stiffness",): ("a training and a held-out test at >= 2 Hz: the spring's deflection (a phase lag inside the "
                      "position loop) grows as the tests approach the cascade's bandwidth (about 4 Hz)",
-                     lambda ts: _both_roles(ts, lambda x: x.frequency >= 2.0)),
+                     InBothRoles(lambda x: x.frequency >= 2.0)),
     ("current_limit",): ("tests whose torque reaches the limit (the fastest, largest motions): below it the limit "
                          "leaves no trace (and does no harm to that plan); the commands alone cannot tell whether a "
                          "test reaches it, the diagnosis tries it when the data's torque peak stays below the "
@@ -113,19 +135,64 @@ PER_AXIS_NOTE = "; in tests where that axis moves"
 
 
 def identifiability(tests: Sequence[Excitation], library: Sequence[str]) -> dict[str, dict]:
-    """For every effect of ``library``: what the plan must excite, and whether this plan does."""
+    """For every effect of ``library``: what the plan must excite, whether the plan does whatever the split
+    (``plan_meets``: some split of its tests into training and held-out ones can fit and check it), and whether
+    the tests' roles do (``split_meets``: a training and a held-out test of what it needs)."""
     out = {}
     for key in library:
         base, _, axis = key.partition("_axis")
         for keys, (needs, check) in REQUIREMENTS.items():
             if base in keys:
-                if axis:
-                    why = check([x.on_axis(int(axis) - 1) for x in tests])
-                    needs = needs + PER_AXIS_NOTE
-                else:
-                    why = check(tests)
-                out[key] = {"requires": needs, "plan_meets": why is None, "why_not": why}
+                seen = [x.on_axis(int(axis) - 1) for x in tests] if axis else list(tests)
+                whole = check.whole(seen) if isinstance(check, InBothRoles) else check(seen)
+                split = check(seen) if whole is None else whole
+                out[key] = {"requires": needs + (PER_AXIS_NOTE if axis else ""), "plan_meets": whole is None,
+                            "why_not": whole, "split_meets": split is None, "split_why_not": split}
     return out
+
+
+#: ``choose_split`` enumerates every split of plans up to this many tests (2^n splits, a few milliseconds each)
+MAX_SPLIT_SEARCH = 10
+
+
+def choose_split(tests: Sequence[Excitation], library: Sequence[str]) -> dict[str, str]:
+    """The roles of the tests: the split (the tests' own roles, ``Excitation.role``, as the default) changed as
+    little as possible so that the effects of ``library`` the whole plan can fit and check get a training and a
+    held-out test of what it needs (``REQUIREMENTS``). Ranked by the effects on all axes met, then the effects
+    on one axis, then the fewest tests moved from the default, then the number of tests held out closest to the
+    default's; at least one test held out, and no more than the default holds out (the fit keeps at least as
+    many tests), and the fastest training test of each kind of motion (z, a rotation) stays in training: the
+    effects that grow with frequency (inertia, lags, the drive's gains) are fitted mostly on it. The default is
+    kept when it already meets them all, or for plans of more than MAX_SPLIT_SEARCH tests."""
+    default = {x.name: x.role for x in tests}
+    names = [x.name for x in tests]
+    wanted = [k for k, p in identifiability(tests, library).items() if p["plan_meets"]]
+    n_held = sum(r == "held-out" for r in default.values())
+    keep = {max((x for x in tests if x.role != "held-out" and x.alike == kind), key=lambda x: x.frequency).name
+            for kind in (True, False) if any(x.role != "held-out" and x.alike == kind for x in tests)}
+
+    def rank(roles: Mapping[str, str]) -> tuple:
+        split = [Excitation(x.name, roles[x.name], x.frequency, x.alike, x.moving) for x in tests]
+        met = [k for k, p in identifiability(split, wanted).items() if p["split_meets"]]
+        held = sum(r == "held-out" for r in roles.values())
+        return (-sum("_axis" not in k for k in met), -sum("_axis" in k for k in met),
+                sum(roles[n] != default[n] for n in names), abs(held - n_held))
+
+    best = rank(default)
+    if best[:2] == (-sum("_axis" not in k for k in wanted), -sum("_axis" in k for k in wanted)) \
+            or len(names) > MAX_SPLIT_SEARCH or n_held < 1:
+        return default
+    chosen = default
+    for mask in range(1, 2 ** len(names) - 1):
+        if not 1 <= bin(mask).count("1") <= n_held:
+            continue
+        roles = {n: ("held-out" if mask >> k & 1 else "training") for k, n in enumerate(names)}
+        if any(roles[n] == "held-out" for n in keep):
+            continue
+        r = rank(roles)
+        if r < best:
+            chosen, best = roles, r
+    return chosen
 
 
 def excitations(prepared: Mapping, roles: Mapping[str, str]) -> list[Excitation]:

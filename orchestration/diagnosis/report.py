@@ -318,10 +318,18 @@ def write_report(out: Path, doc: dict, figs: Mapping[str, str]) -> None:
                     lines.append(f"| (or) {alt['effect']} | {vals} | | | | {alt['how']}: dBIC full band "
                                  f"{alt['delta_bic_full_band']:+.0f}, in the band {alt['delta_bic_band']:+.1f}: "
                                  f"{alt['note']} |")
-            if "filter_or_delay" in ev:
+            if "filter_or_delay" in ev and "text" in ev["filter_or_delay"]:    # both forms fitted (lag_form_check)
                 fd = ev["filter_or_delay"]
-                lines.append(f"| (filter or delay) | `delay_meas` | | {fd['delay_meas']:.4g} | | "
-                             f"dBIC delay vs filter {fd['delta_bic_delay_vs_filter']:+.0f}: chose {fd['choice']} |")
+                lines.append(f"| (delay or filter) | `{fd['delay_parameter']}`, `{fd['filter_parameter']}` | | "
+                             f"{fd['delay_meas']:.4g}, {fd['T_meas']:.4g} | | {fd['text']}: dBIC (delay - filter) "
+                             f"training {fd['delta_bic_delay_vs_filter']:+.0f}, held-out "
+                             f"{fd['held_out_deviance_delay_vs_filter']:+.0f} (full band) |")
+            ho = ev.get("held_out_evidence")
+            if ho:
+                per = ho.get("rss_change_percent_per_test") or {}
+                lines.append(f"| (held-out evidence) | | | | | {', '.join(ho['tests']) or 'none'}"
+                             + (": " + ", ".join(f"{n} {v:+.0f} %" for n, v in per.items() if v is not None)
+                                if per else "") + f" ({ho['how']}) |")
         lines.append("")
     else:
         lines += ["None.", ""]
@@ -353,6 +361,8 @@ def write_report(out: Path, doc: dict, figs: Mapping[str, str]) -> None:
         lines += [f"| {n} | {dev['before'][n]:.1f} | {dev['after'][n]:.1f} | {pf['floor_per_test'][n]:.1f} |"
                   for n in dev["after"]]
         lines.append("")
+    if doc.get("split"):
+        lines += [f"Split: {doc['split']['how']}.", ""]
     lines += ["## Gap per test (torque NRMSE %, lower is better)", "",
               "| test | role | before | after | noise floor | tracking error NRMSE % before / after |",
               "|---|---|---|---|---|---|"]
@@ -419,6 +429,13 @@ def write_report(out: Path, doc: dict, figs: Mapping[str, str]) -> None:
                   "(docs/diagnose.md, identifiability table).", "", "| effect | the plan must contain | here |",
                   "|---|---|---|"]
         lines += [f"| {k} | {p['requires']} | {p['why_not']} |" for k, p in unmet.items()]
+        lines.append("")
+    unsplit = {k: p for k, p in doc.get("identifiability", {}).items() if p["plan_meets"] and not p.get("split_meets", True)}
+    if unsplit:
+        lines += ["## What this split cannot check (the plan can)", "",
+                  "The tests' roles leave no training or no held-out test of what these effects need; another split "
+                  "(`--holdout`) can check them.", "", "| effect | the split must contain | here |", "|---|---|---|"]
+        lines += [f"| {k} | {p['requires']} | {p['split_why_not']} |" for k, p in unsplit.items()]
         lines.append("")
     if doc.get("failed_simulations"):
         lines += ["## Trial simulations that failed", "",

@@ -81,12 +81,13 @@ def regression_loop(ctx: Context, state: State, atoms, rejected: set, steps: lis
         ctx.log(f"diagnose: proposed by regression: {[a.label for a in proposal] or 'none'}")
         start = dict(state.changes)
         for a, c in zip(best.atoms, best.coef):
-            p0 = a.effect.parameter
+            # a lag held as a delay stays one: the filter column's coefficient is its delay (the same phase slope)
+            p0 = fitted_parameters(a, state.changes)[0]
             lo, hi = physical_bounds(p0, ctx.nominal)
             start[p0] = float(np.clip(float(ctx.nominal[p0]) + c, lo, hi))
             if a.grid is not None:
                 start[a.effect.parameters[1]] = a.grid
-        cand = fit_state(ctx, proposal, start, getattr(reg, "columns", {}), anchor=state.changes)
+        cand = fit_state(ctx, proposal, start, getattr(reg, "columns", {}), anchor=state.changes, lag_form=True)
         ok = cand is not None and verify(ctx, state, cand, steps, "regression")
         if cand is None:
             failed_step(ctx, state, proposal, steps, "regression")
@@ -102,12 +103,16 @@ BACK_OFF = 4
 
 
 def fit_state(ctx: Context, selected: Sequence[Atom], start: Mapping[str, float],
-              columns: Optional[Mapping] = None, anchor: Optional[Mapping[str, float]] = None) -> Optional[State]:
+              columns: Optional[Mapping] = None, anchor: Optional[Mapping[str, float]] = None,
+              lag_form: bool = False) -> Optional[State]:
     """The selection fitted by re-simulation from ``start``; None if no value near it simulates on every test.
+    A lag is fitted in the form ``start`` holds it (``fitted_parameters``); ``lag_form``: a fitted filter is then
+    compared with a delay fitted alone, the others fixed (polish; a first guess, no re-simulation; the form is
+    decided by ``lag_form_check``).
 
     A start that does not simulate (a proposed value that destabilises the loop) is moved back
     towards ``anchor`` (the current model; the nominal one by default), halving the step each time."""
-    free = _free_parameters(selected)
+    free = _free_parameters(selected, start)
     start = {p: start.get(p, float(ctx.nominal[p])) for p in free}
     base = {p: float((anchor or {}).get(p, ctx.nominal[p])) for p in free}
     for k in range(BACK_OFF + 1):
@@ -120,7 +125,7 @@ def fit_state(ctx: Context, selected: Sequence[Atom], start: Mapping[str, float]
         ctx.log(f"diagnose:   the proposed values do not simulate: fit started {k} halving(s) back towards the "
                 "current model")
     fixed = _discrete_fit(ctx, trial)
-    changes, info = polish(ctx, selected, {**trial, **fixed}, columns or {}, fixed)
+    changes, info = polish(ctx, selected, {**trial, **fixed}, columns or {}, fixed, lag_form)
     pt = ctx.model.trial(changes, ctx.names, "fitted values on every test")
     if pt is None:
         return None
@@ -196,10 +201,11 @@ def verify(ctx: Context, old: State, new: State, steps: list, how: str) -> bool:
     noise = ctx.sigma_b ** 2 * nh
     need = max(PRACTICAL * noise, RELATIVE * max(ho0 - noise, 0.0))
     # no held-out test may get markedly worse: a true effect improves every test or leaves it alone
-    worse = []
+    worse, per_test = [], {}
     for name in ctx.held:
         a, m = band_rss(ctx, old.pt, [name])
         b, _ = band_rss(ctx, new.pt, [name])
+        per_test[name] = 100 * (b - a) / a if a > 0 else None
         if b > a + max(PRACTICAL * ctx.sigma_b ** 2 * m, RELATIVE * a, 3.0 * math.sqrt(2.0 * m) * ctx.sigma_b ** 2):
             worse.append(name)
     if k1 > k0:
@@ -210,7 +216,7 @@ def verify(ctx: Context, old: State, new: State, steps: list, how: str) -> bool:
             "parameters": dict(new.changes), "delta_bic_training": bic1 - bic0,
             "held_out_rss_change_percent": 100 * (ho1 - ho0) / ho0 if ho0 > 0 else None,
             "held_out_rss_needed_percent": -100 * need / ho0 if ho0 > 0 else None,
-            "held_out_tests_worse": worse,
+            "held_out_tests_worse": worse, "held_out_rss_change_percent_per_test": per_test,
             "accepted": bool(ok), "fit": new.info}
     steps.append(step)
     ctx.log(f"diagnose:   {'accepted' if ok else 'refuted by re-simulation'}: {step['to'] or 'none'} "
@@ -283,6 +289,88 @@ def alias_check(ctx: Context, state: State, last_fit, steps: list) -> State:
 
 #: effects whose removal costs less than this (linearised BIC) are re-checked by re-simulation
 PRUNE_DBIC = 200.0
+
+
+#: frequencies [Hz] of the lag's comparison table: what tells a delay from a first-order filter of the same phase
+#: slope is their difference at the higher frequencies the tests' torque holds (the fundamentals, their harmonics)
+LAG_TABLE_HZ = (1.0, 3.0, 10.0, 30.0, 100.0)
+
+
+def lag_form(dbic: float, dho: float) -> str:
+    """The form of a lag from dbic = training BIC (delay - filter) and dho = held-out deviance (delay - filter), the
+    two parts of the selection's score (selection.Regression.score): "delay_meas" or "T_meas" where both prefer it
+    and together by DELTA_BIC or more; else "not distinguishable"."""
+    if dbic <= 0 and dho <= 0 and dbic + dho <= -DELTA_BIC:
+        return "delay_meas"
+    if dbic >= 0 and dho >= 0 and dbic + dho >= DELTA_BIC:
+        return "T_meas"
+    return "not distinguishable"
+
+
+def lag_form_check(ctx: Context, state: State, steps: list) -> State:
+    """A measurement lag: a pure delay (unit magnitude, phase -omega d growing linearly with frequency) or a
+    first-order filter (magnitude 1/sqrt(1 + (omega T)^2) dropping, phase -atan(omega T) bending)? Both alike at
+    low frequency; the selection is fitted again by re-simulation with the lag in the other form (every
+    parameter of the selection free: the others had adapted to the first), and the two are compared by the same
+    information criterion (training BIC, full band: the same number of parameters) and held-out test (held-out
+    deviance n ln(RSS_delay / RSS_filter), full band). The delay is named if both prefer it and their sum (the
+    selection's score) by DELTA_BIC or more, the filter likewise (``lag_form``); otherwise the lag is named with its value and "delay or filter: not
+    distinguishable on this plan", the form fitting the training tests better kept in the model. The decision is
+    a step ``how: delay or filter`` (named_effects reads it)."""
+    for a in state.selected:
+        if not _is_lag(a.effect.parameter):
+            continue
+        T, D = a.effect.parameter, a.effect.parameter.replace("T_meas", "delay_meas")
+        as_delay = fitted_parameters(a, state.changes)[0] == D
+        cur, other = (D, T) if as_delay else (T, D)
+        start = {k: v for k, v in state.changes.items() if k != cur}
+        start[other] = float(state.changes[cur])    # the same phase slope at low frequency
+        cand = fit_state(ctx, state.selected, start, anchor=state.changes)
+        if cand is None:
+            failed_step(ctx, state, state.selected, steps, "delay or filter")
+            continue
+        delay, filt = (state, cand) if as_delay else (cand, state)
+
+        def full(pt: Point, names: Sequence[str]) -> tuple[float, int]:
+            return (sum(float(np.sum((ctx.model.tests[m].y - pt.obs[m]) ** 2)) for m in names),
+                    sum(ctx.model.tests[m].y.size for m in names))
+
+        (rd, n), (rf, _) = full(delay.pt, ctx.train), full(filt.pt, ctx.train)
+        dbic = n * math.log(rd / rf)
+        if ctx.held:
+            (hd, nh), (hf, _) = full(delay.pt, ctx.held), full(filt.pt, ctx.held)
+            dho = nh * math.log(hd / hf)
+        else:
+            dho = 0.0
+        bd, nb = band_rss(ctx, delay.pt, ctx.train)
+        bf, _ = band_rss(ctx, filt.pt, ctx.train)
+        diff = math.sqrt(sum(float(np.sum((delay.pt.obs[m] - filt.pt.obs[m]) ** 2)) for m in ctx.names)
+                         / sum(ctx.model.tests[m].y.size for m in ctx.names))
+        choice = lag_form(dbic, dho)
+        keep = delay if (choice == "delay_meas" or choice == "not distinguishable" and dbic < 0) else filt
+        d_val, T_val = float(delay.changes[D]), float(filt.changes[T])
+        table = {f: {"filter_magnitude": 1.0 / math.sqrt(1.0 + (2 * math.pi * f * T_val) ** 2),
+                     "phase_difference_rad": 2 * math.pi * f * d_val - math.atan(2 * math.pi * f * T_val)}
+                 for f in LAG_TABLE_HZ}
+        freqs = sorted({ctx.model.tests[m].test.frequency for m in ctx.names if ctx.model.tests[m].test.frequency})
+        text = ({"delay_meas": "a delay (the training tests and the held-out tests prefer it)",
+                 "T_meas": "a first-order filter (the training tests and the held-out tests prefer it)"}.get(choice)
+                or "delay or filter: not distinguishable on this plan")
+        steps.append({"how": "delay or filter", "effect": a.effect.key, "from": [x.label for x in state.selected],
+                      "to": [x.label for x in keep.selected], "accepted": True,
+                      "filter_parameter": T, "delay_parameter": D, "T_meas": T_val, "delay_meas": d_val,
+                      "delta_bic_delay_vs_filter": dbic, "held_out_deviance_delay_vs_filter": dho,
+                      "delta_bic_band_delay_vs_filter": nb * math.log(bd / bf),
+                      "choice": choice, "separable": choice != "not distinguishable", "text": text,
+                      "prediction_difference_over_noise": diff / ctx.sigma, "test_frequencies_Hz": freqs,
+                      "filter_vs_delay_at_Hz": table, "kept": D if keep is delay else T,
+                      "parameters_filter": dict(filt.changes), "parameters_delay": dict(delay.changes),
+                      "note": "both forms fitted by re-simulation with every parameter of the selection free; full "
+                              "band (a filter damps the torque's fast content, a delay only shifts it)"})
+        ctx.log(f"diagnose:   delay or filter ({a.effect.key}): {D} = {1e3 * d_val:.3g} ms against {T} = "
+                f"{1e3 * T_val:.3g} ms: dBIC (delay - filter) training {dbic:+.0f}, held-out {dho:+.0f}: {text}")
+        state = keep
+    return state
 
 
 def prune(ctx: Context, state: State, steps: list) -> State:
@@ -408,7 +496,7 @@ def regression_at(ctx: Context, state: State, atoms: Sequence[Atom], sensitiviti
     for a in state.selected:
         if a.effect.key in NONLINEAR:
             continue
-        for pname in a.effect.parameters:
+        for pname in fitted_parameters(a, state.changes):
             if pname in state.changes:
                 delta = state.changes[pname] - float(ctx.nominal[pname])
                 if delta:
@@ -438,16 +526,28 @@ def _on_axis(c: np.ndarray, j: int) -> np.ndarray:
     return out
 
 
-def _free_parameters(selected: Sequence[Atom]) -> list[str]:
+def _is_lag(p: str) -> bool:
+    return AXIS_OF.get(p, (p,))[0] == "T_meas"
+
+
+def fitted_parameters(a: Atom, changes: Mapping[str, float]) -> tuple[str, ...]:
+    """The parameters of ``a`` as the model ``changes`` holds them: a measurement lag (T_meas, T_meas_axis<j>: a
+    first-order filter) held as a delay (delay_meas, delay_meas_axis<j>) when ``changes`` has the delay and not the
+    filter."""
+    return tuple(p.replace("T_meas", "delay_meas") if _is_lag(p) and p not in changes
+                 and p.replace("T_meas", "delay_meas") in changes else p for p in a.effect.parameters)
+
+
+def _free_parameters(selected: Sequence[Atom], start: Mapping[str, float]) -> list[str]:
     out = []
     for a in selected:
-        out += [p for p in a.effect.parameters if p not in out]
+        out += [p for p in fitted_parameters(a, start) if p not in out]
     return out
 
 
 def polish(ctx: Context, selected: Sequence[Atom], start: Mapping[str, float],
-            columns: Mapping[str, Mapping[str, np.ndarray]], fixed: Optional[Mapping[str, float]] = None
-            ) -> tuple[dict, dict]:
+            columns: Mapping[str, Mapping[str, np.ndarray]], fixed: Optional[Mapping[str, float]] = None,
+            lag_form: bool = False) -> tuple[dict, dict]:
     """Bounded least squares of the selected parameters on the training tests, re-simulating.
 
     Jacobian: the measurement parameters' columns are exact (no simulation); plant
@@ -459,7 +559,7 @@ def polish(ctx: Context, selected: Sequence[Atom], start: Mapping[str, float],
 
     model, train, sigma = ctx.model, ctx.train, ctx.sigma
     fixed = dict(fixed or {})     # discrete parameters, fitted on their grid (_discrete_fit)
-    free = [p for p in _free_parameters(selected) if p not in fixed]
+    free = [p for p in _free_parameters(selected, start) if p not in fixed]
     if not free:
         return fixed, {"simulations_of_the_training_tests": 0, "note": "only discrete parameters: fitted on their grid"}
     x0 = np.array([start[p] for p in free], dtype=float)
@@ -544,7 +644,7 @@ def polish(ctx: Context, selected: Sequence[Atom], start: Mapping[str, float],
     info = {"simulations_of_the_training_tests": count[0], "cost": float(sol.cost),
             "wall_s": round(time.perf_counter() - t0, 1), "status": sol.message,
             "jacobian": "exact columns (measurement), re-simulated sensitivities with Broyden updates (plant)"}
-    for p in [p for p in values if AXIS_OF.get(p, (p,))[0] == "T_meas"]:   # a filter or a delay? (no re-simulation)
+    for p in [p for p in values if lag_form and _is_lag(p)]:   # a filter or a delay? (a first guess, no re-simulation)
         key = BY_PARAMETER[p].key
         info[key] = _filter_or_delay(model, at(sol.x), p, values[p], train)
         if info[key]["choice"] == "delay_meas":

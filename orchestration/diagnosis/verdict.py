@@ -120,7 +120,10 @@ def named_effects(ctx: Context, state: State, last_fit, steps: list) -> list:
                                 "note": "re-simulated: the model before and after adding it (band below "
                                         f"{ctx.band.fc:g} Hz)"}
         ev.update(_evidence(reg, best, a))
-        if e.parameter.startswith("T_meas") and e.key in state.info:
+        decided = [st for st in steps if st["how"] == "delay or filter" and st["effect"] == e.key]
+        if decided:     # stages.lag_form_check: both forms fitted by re-simulation
+            ev["filter_or_delay"] = decided[-1]
+        elif e.parameter.startswith("T_meas") and e.key in state.info:
             ev["filter_or_delay"] = state.info[e.key]
         if e.group:
             ev["alternatives"] = _alternatives(reg, best, a, nominal) + [
@@ -131,14 +134,34 @@ def named_effects(ctx: Context, state: State, last_fit, steps: list) -> list:
                  "note": ("the data prefer the named side" if x["delta_bic_full_band"] >= DELTA_BIC else
                           "the data cannot tell the two apart: the preferred side is named")}
                 for x in state.info.get("alias", [])]
+        if added and e.phase_free:
+            ev["held_out_evidence"] = {"tests": list(added.get("leave_one_out") or {}),
+                                       "how": "leave-one-test-out: each test predicted at the value best on the others"}
+        elif added:     # the held-out tests that checked it when it was added, and how their residual changed
+            ev["held_out_evidence"] = {"tests": list(added.get("held_out_rss_change_percent_per_test") or {}),
+                                       "rss_change_percent_per_test": added.get("held_out_rss_change_percent_per_test"),
+                                       "how": "fitted on the training tests, predicted on the held-out tests of the "
+                                              "split (diagnosis.json: split), in the band"}
+        form = {}
+        if "filter_or_delay" in ev and "text" in ev["filter_or_delay"]:
+            form = {"form": ev["filter_or_delay"]["text"]}
         out.append({
-            "effect": e.title, "key": e.key, "kind": e.kind,
+            "effect": e.title, "key": e.key, "kind": e.kind, **form,
             "parameters": params,
             "nominal": {p: float(nominal[p]) for p in params},
             "uncertainty": {p: {"std": stds.get(p), "ci95": ci95.get(p)} for p in params},
             "evidence": ev,
         })
     return out
+
+
+def title(a: Atom, state: State, steps: list) -> str:
+    """An effect's name in the verdict: a measurement lag with its value and form (stages.lag_form_check)."""
+    decided = [st for st in steps if st["how"] == "delay or filter" and st["effect"] == a.effect.key]
+    if not decided:
+        return a.effect.title
+    p = decided[-1]["kept"]
+    return f"{a.effect.title} ({p} {1e3 * state.changes.get(p, float('nan')):.3g} ms: {decided[-1]['text']})"
 
 
 def _lag1(model, pt, names) -> float:
@@ -220,7 +243,7 @@ def judge(ctx: Context, state: State, last_fit, steps: list,
     rms_at_floor = all(per_test[n] <= FLOOR_FACTOR or n in by_bands or n in unreproduced for n in names)
     structured = structure_left is not None and structure_left >= DELTA_BIC
     at_floor = rms_at_floor and not structured
-    titles = ", ".join(a.effect.title for a in state.selected)
+    titles = ", ".join(title(a, state, steps) for a in state.selected)
     rh_text = f"{rh:.2f}" if rh is not None else "-"
     if at_floor and not state.selected:
         status, text = "nothing missing", (f"the nominal model's residual is at the noise floor (RMS {rt:.2f} x the "

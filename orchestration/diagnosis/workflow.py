@@ -12,12 +12,13 @@ import numpy as np
 from ..data.measured import CommandReplay, MeasuredData, controller_geometry, load
 from .effects import AXIS_OF, BY_KEY, CONTROLLER_PARAMETERS, LIBRARY, noise_std
 from .nonlinear import nonlinear_stage, phase_free_stage
-from .plan import excitations, identifiability
+from .plan import choose_split, excitation, excitations, identifiability
 from .report import jsonable, plot_figures, write_model, write_report
 from .resimulation import DiagnosisError, Model, Prepared, Simulator
 from .selection import DELTA_BIC, Atom, Band
 from .consistency import needs_check, only_consistent
-from .stages import MAX_EFFECTS, NONLINEAR_FIRST, Context, State, alias_check, prune, regression_loop, residual_at_floor
+from .stages import (MAX_EFFECTS, NONLINEAR_FIRST, Context, State, alias_check, lag_form_check, prune, regression_loop,
+                     residual_at_floor)
 from .verdict import gap_table, gap_trend, judge, localise_test, named_effects
 
 
@@ -61,22 +62,29 @@ def _model_overrides(ssp: str, model: Optional[str]) -> dict:
                          f"(known: {', '.join(have)})")
 
 
-def _split(data: MeasuredData, holdout: Optional[Sequence[str]]) -> dict[str, str]:
-    """Role of every test: ``--holdout`` names the held-out tests, else the roles the data give,
-    else every second test in frequency order is held out (all training with fewer than three)."""
+def _split(data: MeasuredData, holdout: Optional[Sequence[str]], library: Sequence[str]) -> tuple[dict[str, str], str]:
+    """Role of every test, and how it was decided: ``--holdout`` names the held-out tests, else the roles the data
+    give; else the default (every second test in frequency order held out, all training with fewer than three),
+    changed as little as possible so that every effect the whole plan can identify gets a training and a held-out
+    test of what it needs (plan.choose_split): the default split alone does not decide what can be offered."""
     names = [t.name for t in data.tests]
     if holdout:
         unknown = [h for h in holdout if h not in names]
         if unknown:
             raise DiagnosisError(f"--holdout {', '.join(unknown)}: no such test (tests: {', '.join(names)})")
-        return {n: ("held-out" if n in holdout else "training") for n in names}
+        return {n: ("held-out" if n in holdout else "training") for n in names}, "--holdout"
     if any(t.role for t in data.tests):
-        return {t.name: (t.role or "training") for t in data.tests}
+        return {t.name: (t.role or "training") for t in data.tests}, "the roles the data give"
     order = sorted(data.tests, key=lambda t: (t.frequency or 0.0, t.name))
     roles = {t.name: ("held-out" if k % 2 else "training") for k, t in enumerate(order)}
     if len(order) < 3:
-        roles = {t.name: "training" for t in order}
-    return roles
+        return {t.name: "training" for t in order}, "fewer than three tests: all training"
+    chosen = choose_split([excitation(t.name, roles[t.name], t.time, t.rho_cmd) for t in data.tests], library)
+    moved = sorted(n for n in names if chosen[n] != roles[n])
+    return chosen, ("every second test in frequency order held out" if not moved else
+                    "every second test in frequency order held out, but " + ", ".join(f"{n} {chosen[n]}" for n in moved)
+                    + ": so that every effect the whole plan can identify has a training and a held-out test of "
+                      "what it needs (identifiability table)")
 
 
 #: how the re-simulations run: (on the native variant, direct composition) -> words
@@ -195,7 +203,7 @@ def diagnose(opt: Options, log: Callable[[str], None] = print) -> dict:
     nominal = {**ssp_drive, **ssp_actuator, **model_over, **{p: 0.0 for p in AXIS_OF}}
     base = {a: dict(model_over) for a in actuators} if model_over else {}
     geometry = controller_geometry(opt.ssp)
-    roles = _split(data, opt.holdout)
+    roles, split_how = _split(data, opt.holdout, list(opt.library))
     prepared: dict[str, Prepared] = {}
     for t in data.tests:
         mask = t.time >= t.settle_s - 1e-12
@@ -206,6 +214,9 @@ def diagnose(opt: Options, log: Callable[[str], None] = print) -> dict:
     for key, p in plan.items():
         if not p["plan_meets"] and "_axis" not in key:
             log(f"diagnose: this plan cannot tell {BY_KEY[key].title}: it needs {p['requires']} ({p['why_not']})")
+        elif p["plan_meets"] and not p["split_meets"]:
+            log(f"diagnose: this split ({split_how}) cannot check {BY_KEY[key].title}, the plan could: it needs "
+                f"{p['requires']} ({p['split_why_not']})")
     for j in (1, 2, 3):     # effects on one axis: one line per axis
         blind = [k.rsplit("_axis", 1)[0] for k, p in plan.items() if k.endswith(f"_axis{j}") and not p["plan_meets"]]
         if blind:
@@ -219,8 +230,8 @@ def diagnose(opt: Options, log: Callable[[str], None] = print) -> dict:
     resolution = float(data.meta.get("measurement", {}).get("rho_resolution_m", 0.0) or 0.0)
     band = Band()
     sigma_b = sigma * float(np.median([band.noise_factor(prepared[n].test.sample_time) for n in names]))
-    log(f"diagnose: {len(names)} tests ({len(train)} training, {len(held)} held-out), torque noise floor "
-        f"{1e3 * sigma:.3g} mN.m")
+    log(f"diagnose: {len(names)} tests ({len(train)} training, {len(held)} held-out: {', '.join(held) or 'none'}; "
+        f"{split_how}), torque noise floor {1e3 * sigma:.3g} mN.m")
 
     log(f"diagnose: re-simulating on {_SIMULATORS[(sim_ssp != opt.ssp, direct)]} ({sim_ssp})")
     with Simulator(sim_ssp, prepared, base, actuators, direct=direct, workers=opt.workers, nominal=nominal) as sim:
@@ -237,7 +248,7 @@ def diagnose(opt: Options, log: Callable[[str], None] = print) -> dict:
         # the held-out check would refuse them, and each costs the subset search a column
         library = [BY_KEY[k] for k in opt.library if (BY_KEY[k].kind != "controller"
                    or all(p in ssp_drive for p in BY_KEY[k].parameters + ((BY_KEY[k].quantum,) if BY_KEY[k].quantum else ())))
-                   and ("_axis" not in k or plan.get(k, {}).get("plan_meets", True))]
+                   and ("_axis" not in k or plan.get(k, {}).get("split_meets", True))]
         atoms = [Atom(e, g) for e in library if e.regression for g in (e.grid or (None,))]
         state = State((), {}, nominal_pt)
         steps: list = []
@@ -252,6 +263,7 @@ def diagnose(opt: Options, log: Callable[[str], None] = print) -> dict:
             state, last_fit = regression_loop(ctx, tried, atoms, rejected, steps)
         state = alias_check(ctx, state, last_fit, steps)
         state = prune(ctx, state, steps)
+        state = lag_form_check(ctx, state, steps)
         for e in library:   # effects that make the loop hunt: last, on the phase-free score
             if e.phase_free and not residual_at_floor(ctx, state.pt) and len(state.selected) < MAX_EFFECTS:
                 state = phase_free_stage(ctx, state, e, steps)
@@ -283,6 +295,7 @@ def diagnose(opt: Options, log: Callable[[str], None] = print) -> dict:
         "steps": steps,
         "failed_simulations": model.failures,
         "identifiability": plan,
+        "split": {"how": split_how, "held_out": held, "training": train},
         "augmented_model": outputs,
         "timing": {"wall_s": round(wall, 1), "simulations": n_sims, "simulation_wall_s": round(sim_seconds, 1),
                    "workers": opt.workers, "direct": direct,

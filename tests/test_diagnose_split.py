@@ -1,0 +1,170 @@
+"""`mast diagnose` (issue 29): an effect the whole plan can identify is found whatever the default split, and a
+measurement lag is named a delay or a filter by what separates them, both fitted.
+
+Two plans away from those of tests/test_diagnose.py and docs/ (and their values and seeds): PLAN_A, five tests
+of the issue's kind (z 0.8, 3.3, 5.8 Hz; psi 1.7 Hz, theta 4.2 Hz), whose default split (every second test in
+frequency order) holds out psi and theta only: no held-out fast test moves actuator 2 (psi moves actuator 2
+alone, theta actuators 1 and 3). PLAN_B, three short tests (z 2.5 Hz, psi 3 Hz, z 6 Hz), whose default split
+holds out psi alone: no held-out test moves actuators 1 and 3. The data are synthesized by the Python models
+(the reference), the diagnoses re-simulate on the native form of the fixture's system (``compiled``).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from mast.analyses.synthesize import TestSpec as Spec, synthesize
+from mast.diagnosis import Options, diagnose
+
+from test_diagnose import PLAN, ROOT, SMALL, built_ssp, compiled, named  # noqa: F401  (the module's fixture)
+
+PLAN_A = (Spec("z", 0.004, 0.8, 1.1, 0.3), Spec("psi", math.radians(0.7), 1.7, 0.8, 0.3),
+          Spec("z", 0.003, 3.3, 0.8, 0.2), Spec("theta", math.radians(0.5), 4.2, 0.7, 0.2),
+          Spec("z", 0.0025, 5.8, 0.7, 0.2))
+PLAN_B = (Spec("z", 0.003, 2.5, 1.0, 0.25), Spec("psi", math.radians(0.6), 3.0, 0.7, 0.2),
+          Spec("z", 0.0028, 6.0, 0.6, 0.2))
+
+
+def run(ssp: str, tmp, truth: dict, plan, seed: int) -> dict:
+    data = tmp / "data"
+    synthesize(ssp, data, truth, tests=plan, direct=True, seed=seed, log=lambda *_: None)
+    return diagnose(Options(data, tmp / "out", compiled(ssp), figures=False, direct=False), log=lambda *_: None)
+
+
+def excitations(plan, roles=None):
+    """The plan's tests as the diagnosis reads them (plan.excitation), from their commanded joint motion."""
+    from fmus.mechanism.kinematics import Geometry, inverse_kinematics
+    from mast.core.ssp import read_ssd
+    from mast.diagnosis.plan import excitation
+
+    geometry = Geometry.checked(dict(read_ssd(ROOT / "ssp" / "MAST.ssd").components["controller"].parameters),
+                                "controller")
+    order = sorted(plan, key=lambda s: s.frequency)
+    out = []
+    for s in plan:
+        t = np.arange(0.0, s.stop_time(), 1e-3)
+        q = s.amplitude * np.sin(2 * np.pi * s.frequency * t)
+        pose = {m: q if s.motion == m else 0 * q for m in ("z", "psi", "theta")}
+        rho = np.array([inverse_kinematics(geometry, *p) for p in zip(pose["z"], pose["psi"], pose["theta"])])
+        role = (roles or {}).get(s.name) or ("held-out" if order.index(s) % 2 else "training")
+        out.append(excitation(s.name, role, t, rho))
+    return out
+
+
+def test_the_split_gives_every_effect_the_plan_can_identify_a_test_on_each_side():
+    """No simulation: on PLAN_A the default split has no held-out fast test that moves actuator 2, the plan has
+    two (z 3.3 and 5.8 Hz): inertia on axis 2 is identifiable by the plan, not by that split, and the chosen split
+    meets it and every effect the default met, moving as few tests as it can. A plan with one fast test that
+    moves an axis truly cannot identify inertia on that axis alone, whatever the split, and says so."""
+    from mast.diagnosis.effects import LIBRARY
+    from mast.diagnosis.plan import Excitation, choose_split, identifiability
+
+    library = [e.key for e in LIBRARY]
+    tests = excitations(PLAN_A)
+    default = identifiability(tests, library)
+    assert default["inertia_motor_axis2"]["plan_meets"] and not default["inertia_motor_axis2"]["split_meets"]
+    assert "no such held-out test" in default["inertia_motor_axis2"]["split_why_not"]
+    roles = choose_split(tests, library)
+    chosen = identifiability([Excitation(x.name, roles[x.name], x.frequency, x.alike, x.moving) for x in tests],
+                             library)
+    assert all(p["split_meets"] for p in chosen.values() if p["plan_meets"]), chosen
+    assert sum(roles[x.name] != x.role for x in tests) == 2       # one z test out, theta in
+    assert sum(r == "held-out" for r in roles.values()) == 2
+    # the compact plan's default split already meets everything: kept
+    compact = excitations(PLAN)
+    assert choose_split(compact, library) == {x.name: x.role for x in compact}
+    # SMALL: Coulomb friction on axis 1 alone would need z 5 Hz held out, the fastest z test: it stays in training
+    assert choose_split(excitations(SMALL), library) == {x.name: x.role for x in excitations(SMALL)}
+    # one fast test moving actuators 1 and 3 (z 5 Hz; psi moves actuator 2 alone): not identifiable on axis 1
+    small = identifiability(excitations(SMALL), library)
+    assert not small["inertia_motor_axis1"]["plan_meets"] and not small["inertia_motor_axis1"]["split_meets"]
+    assert "only one such test in the plan (z_5Hz)" in small["inertia_motor_axis1"]["why_not"]
+    assert small["inertia_motor_axis2"]["plan_meets"]
+
+
+#: a per-axis inertia change on each axis in turn with an all-axes viscous change: (plan, seed, axis, J1_scale of
+#: that axis, b_v of every axis). On PLAN_A the default split leaves axis 2 without a held-out fast test, on PLAN_B
+#: axes 1 and 3; axes 1 and 3 on PLAN_A (seeds 311, 313: named within 1 %, docs/diagnose.md) are left out to keep
+#: the suite's time, their default split could already test them
+PER_AXIS = {
+    "A-axis2": (PLAN_A, 302, 2, 1.35, 1.6e-4),
+    "B-axis1": (PLAN_B, 314, 1, 0.65, 1.5e-4),
+    "B-axis2": (PLAN_B, 315, 2, 1.4, 1.7e-4),
+    "B-axis3": (PLAN_B, 316, 3, 1.35, 1.4e-4),
+}
+
+
+@pytest.mark.parametrize("case", list(PER_AXIS))
+def test_a_per_axis_effect_beside_an_all_axes_one_is_found_whatever_the_default_split(built_ssp, tmp_path, case):
+    """The issue's first case: the viscous change was named, the per-axis inertia was not offered ("no such
+    held-out test") and the verdict was "unexplained residual". Now both are named, within 5 %, the split holds out a
+    fast test that moves that axis, and the report says which held-out tests checked each named effect."""
+    plan, seed, axis, scale, b_v = PER_AXIS[case]
+    doc = run(built_ssp, tmp_path, {f"actuator_{axis}": {"J1_scale": scale}, "actuator": {"b_v": b_v}}, plan, seed)
+    effects = named(doc)
+    key = f"inertia_motor_axis{axis}"
+    assert set(effects) == {key, "viscous"}, effects
+    assert effects[key]["parameters"][f"J1_scale_axis{axis}"] == pytest.approx(scale - 1.0, rel=0.05)
+    assert effects["viscous"]["parameters"]["b_v"] == pytest.approx(b_v, rel=0.05)
+    assert doc["verdict"]["status"] == "explained"
+    assert doc["identifiability"][key]["plan_meets"] and doc["identifiability"][key]["split_meets"]
+    moving_fast = {t["name"] for t in doc["tests"] if t["frequency_Hz"] >= 2.0
+                   and (t["motion"] == "z" or (t["motion"] == "psi") == (axis == 2))}
+    for e in effects.values():
+        held = e["evidence"]["held_out_evidence"]["tests"]
+        assert held and set(held) == set(doc["split"]["held_out"])
+    assert set(doc["split"]["held_out"]) & moving_fast
+    report = (tmp_path / "out" / "report.md").read_text()
+    assert "(held-out evidence)" in report and "Split: " in report
+
+
+#: a lag inside two- and three-effect combinations, as a delay and as a filter: (truth, plan, seed, form named)
+LAGS = {
+    "coulomb-inertia-delay": ({"tau_c": 0.05, "J1_scale": 0.75, "delay_meas": 0.0025}, PLAN, 301, "delay_meas"),
+    "coulomb-inertia-filter": ({"tau_c": 0.05, "J1_scale": 0.75, "T_meas": 0.0025}, PLAN, 322, "T_meas"),
+    "viscous-delay": ({"b_v": 1.5e-4, "delay_meas": 0.0017}, SMALL, 323, "delay_meas"),
+    "viscous-filter": ({"b_v": 1.5e-4, "T_meas": 0.0017}, SMALL, 324, "T_meas"),
+}
+KEYS = {"tau_c": "coulomb", "J1_scale": "inertia_motor", "b_v": "viscous", "delay_meas": "lag", "T_meas": "lag"}
+
+
+@pytest.mark.parametrize("case", list(LAGS))
+def test_a_lag_among_other_effects_is_named_a_delay_or_a_filter_as_it_is(built_ssp, tmp_path, case):
+    """The issue's second case: Coulomb friction, a motor-side inertia change and a measurement delay; the lag was
+    named a first-order filter (T_meas) with the delay's value. Now the selection is fitted again with the lag in
+    the other form (every parameter free) and the training BIC and the held-out test decide: the form hidden is
+    named, or, where the plan cannot tell them apart (a lag of 1.7 ms beside a viscous change on SMALL's short
+    records: the training and the held-out test disagree, or tell by a few units), "delay or filter: not
+    distinguishable on this plan", never the other form. Every parameter
+    within 5 % (or, for the lag on these short records, 3 standard deviations and 10 %)."""
+    truth, plan, seed, form = LAGS[case]
+    doc = run(built_ssp, tmp_path, {"actuator": truth}, plan, seed)
+    effects = named(doc)
+    assert set(effects) == {KEYS[p] for p in truth}, effects
+    decided = effects["lag"]["evidence"]["filter_or_delay"]
+    assert decided["choice"] in (form, "not distinguishable"), decided
+    lag = decided["kept"]
+    assert set(effects["lag"]["parameters"]) == {lag} and (lag == form or decided["choice"] != form)
+    for p, v in truth.items():
+        key = lag if KEYS[p] == "lag" else p
+        value = effects[KEYS[p]]["parameters"][key]
+        error, std = abs(value - v), effects[KEYS[p]]["uncertainty"][key]["std"]
+        assert error <= 0.05 * v or (KEYS[p] == "lag" and error <= min(3 * std, 0.1 * v)), (p, effects)
+    assert doc["verdict"]["status"] == "explained"
+    assert effects["lag"]["form"] in doc["verdict"]["text"]
+    if decided["choice"] == "not distinguishable":
+        assert "delay or filter: not distinguishable on this plan" in doc["verdict"]["text"]
+
+
+def test_delay_or_filter_not_distinguishable_is_said_not_picked():
+    """The rule of stages.lag_form_check: a form is named only if the training BIC and the held-out deviance both
+    prefer it and together by DELTA_BIC (the selection's score); otherwise "not distinguishable on this plan"."""
+    from mast.diagnosis.stages import lag_form
+
+    assert lag_form(-25.0, -3.0) == "delay_meas" and lag_form(25.0, 0.5) == "T_meas"
+    assert lag_form(-3.0, -22.0) == "delay_meas"                # the held-out tests tell, the training leans to it
+    assert lag_form(-4.0, -5.0) == "not distinguishable"        # neither tells
+    assert lag_form(-16.0, 4.0) == "not distinguishable"        # the held-out test disagrees (SMALL, seed 323)
+    assert lag_form(30.0, -1.0) == "not distinguishable"
