@@ -14,9 +14,10 @@ import time
 from pathlib import Path
 
 from mast.analyses import animate
+from mast.core.build import default_build_dir
 from mast.core.run import motion_from_cli, simulate, write_outputs
 
-SSP = Path(__file__).resolve().parents[1] / "build" / "ssp" / "MAST.ssp"
+SSP = default_build_dir() / "ssp" / "MAST.ssp"
 
 
 def main() -> None:

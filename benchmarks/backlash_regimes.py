@@ -32,11 +32,12 @@ from mast.core.run import drive_tick_steps, simulate
 from mast.core.ssp import SSPArchive
 from mast.data.measured import AXES, CommandReplay, controller_geometry, load
 from mast.diagnosis.phasefree import COMMAND_JITTER, BandPowers
+from mast.core.build import default_build_dir
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--ssp", default=str(REPO / "build" / "ssp" / "MAST.ssp"))
+    ap.add_argument("--ssp", default=str(default_build_dir() / "ssp" / "MAST.ssp"))
     ap.add_argument("--backlash", type=float, default=0.004, help="rad (default 4 mrad)")
     ap.add_argument("--amplitude", type=float, default=0.003, help="m")
     ap.add_argument("--frequency", type=float, default=3.5, help="Hz")

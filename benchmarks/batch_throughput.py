@@ -22,8 +22,8 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from mast.core.build import default_build_dir
 
-REPO = Path(__file__).resolve().parents[1]
 RECORD = ["z_cmd", "mechanism.z", "psi_cmd", "mechanism.psi", "theta_cmd", "mechanism.theta"] + \
          [f"actuator_{k}.{s}" for k in (1, 2, 3) for s in ("tau_m", "i_m", "u")] + \
          [f"controller.i_cmd_{k}" for k in (1, 2, 3)]  # the voltage u is the actuator's (its drive's current loop)
@@ -211,7 +211,7 @@ def _print_batch(batch: dict, ms) -> None:
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--ssp", default=str(REPO / "build" / "ssp" / "MAST.ssp"))
+    parser.add_argument("--ssp", default=str(default_build_dir() / "ssp" / "MAST.ssp"))
     parser.add_argument("--cases", type=int, default=24)
     parser.add_argument("--stop-time", type=float, default=1.0)
     parser.add_argument("--repeats", type=int, default=3)

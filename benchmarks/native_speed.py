@@ -48,6 +48,7 @@ import tempfile
 import time
 import zipfile
 from pathlib import Path
+from mast.core.build import default_build_dir
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -231,7 +232,7 @@ def cycles(fmu: Path, step: float, valgrind: bool) -> str:
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--ssp", default=str(REPO / "build" / "ssp" / "MAST.ssp"))
+    parser.add_argument("--ssp", default=str(default_build_dir() / "ssp" / "MAST.ssp"))
     parser.add_argument("--stop-time", type=float, default=10.0)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--before", metavar="DIR", help="also time another build's SSPs: DIR/<ssp name> (Python "
@@ -284,7 +285,7 @@ def main() -> int:
         analyses(python, native, args.workers)
     for ident, step in (("MastActuator", 1e-4), ("MastMechanism", 1e-3), ("MastController", 1e-4),
                         ("MastTrajectory", 1e-4)):
-        fmu = REPO / "build" / "fmus" / "native" / f"{ident}.fmu"
+        fmu = default_build_dir() / "fmus" / "native" / f"{ident}.fmu"
         if fmu.exists():
             print("  " + cycles(fmu, step, args.cycles))
     return 0

@@ -26,6 +26,7 @@ import io
 import os
 import re
 import shlex
+import shutil
 import subprocess
 import sys
 from dataclasses import dataclass
@@ -325,7 +326,9 @@ def scratch(built_native, tmp_path_factory) -> Path:
     work = top / "work"
     work.mkdir()
     (work / "build").symlink_to(built_native, target_is_directory=True)
-    for name in ("examples", "docs", "ssp", "tests", "benchmarks"):
+    # examples/ copied: its configs name the build relative to themselves (../build/ssp/MAST.ssp)
+    shutil.copytree(ROOT / "examples", work / "examples", ignore=shutil.ignore_patterns("__pycache__"))
+    for name in ("docs", "ssp", "tests", "benchmarks"):
         (work / name).symlink_to(ROOT / name, target_is_directory=True)
     if (Path(sys.prefix) / "bin" / "activate").exists():   # `source .venv/bin/activate` (README "First results")
         (work / ".venv").symlink_to(Path(sys.prefix), target_is_directory=True)

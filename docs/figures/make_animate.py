@@ -10,10 +10,10 @@ import tempfile
 from pathlib import Path
 
 from mast.analyses import animate
+from mast.core.build import default_build_dir
 from mast.core.run import motion_from_cli, simulate, write_outputs
 
-ROOT = Path(__file__).resolve().parents[2]
-SSP = ROOT / "build" / "ssp" / "MAST.ssp"
+SSP = default_build_dir() / "ssp" / "MAST.ssp"
 OUT = Path(__file__).with_name("animate.png")
 
 

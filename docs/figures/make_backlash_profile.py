@@ -28,8 +28,8 @@ from mast.analyses.synthesize import TestSpec  # noqa: E402
 from mast.analyses.synthesize import synthesize  # noqa: E402
 from mast.diagnosis import Options, diagnose  # noqa: E402
 from mast.diagnosis.phasefree import POOL_RATIO, pooled  # noqa: E402
+from mast.core.build import default_build_dir  # noqa: E402
 
-REPO = Path(__file__).resolve().parents[2]
 OUT = Path(__file__).with_name("backlash_profile.png")
 PLAN = (TestSpec("z", 0.004, 0.7, 1.2, 0.3), TestSpec("psi", math.radians(0.7), 1.8, 0.9, 0.3),
         TestSpec("z", 0.003, 3.5, 0.8, 0.2), TestSpec("theta", math.radians(0.5), 4.0, 0.7, 0.2),
@@ -61,10 +61,10 @@ def main() -> None:
     nonlinear.ENSEMBLE, nonlinear.leave_one_out, workflow.phase_free_stage = REALISATIONS, _capture, _stage
     with tempfile.TemporaryDirectory(prefix="mast_backlash_") as tmp:
         data = Path(tmp) / "data"
-        synthesize(str(REPO / "build" / "ssp" / "MAST.ssp"), data, {"actuator": {"backlash": TRUTH}}, tests=PLAN,
+        synthesize(str(default_build_dir() / "ssp" / "MAST.ssp"), data, {"actuator": {"backlash": TRUTH}}, tests=PLAN,
                    direct=True, seed=SEED, log=lambda *_: None)
         try:
-            diagnose(Options(data, Path(tmp) / "out", str(REPO / "build" / "ssp" / "native" / "MAST.ssp"),
+            diagnose(Options(data, Path(tmp) / "out", str(default_build_dir() / "ssp" / "native" / "MAST.ssp"),
                              figures=False, direct=False))
         except _Captured as c:
             score, ensembles, names = c.score, c.ensembles, c.names

@@ -27,10 +27,10 @@ import numpy as np
 import scipy.io
 
 from mast.analyses.replay import simulate_record
+from mast.core.build import default_build_dir
 from mast.data.record import SignalSpec, load_records, write_records
 
-REPO = Path(__file__).resolve().parents[2]
-BENCH = REPO / "build" / "ssp" / "EMPS_bench.ssp"
+BENCH = default_build_dir() / "ssp" / "EMPS_bench.ssp"
 #: the truth: the benchmark's asymmetric estimates as the load axis's parameters (mean and half-difference)
 TRUTH = {"M": 95.15, "F_v": (166.7 + 240.4) / 2, "dF_v": (166.7 - 240.4) / 2, "F_c": (20.14 + 20.63) / 2,
          "dF_c": (20.14 - 20.63) / 2, "F_offset": 0.0}
