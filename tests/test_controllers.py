@@ -62,7 +62,7 @@ def controller_params(name: str) -> dict:
 def test_controller_systems_are_up_to_date_and_differ_only_in_the_controller():
     default = read_ssd(CONTROLLERS[0].ssd)
     for c in CONTROLLERS[1:]:
-        assert c.ssd.read_bytes() == variant_ssd(c), f"{c.ssd.name} is stale: run python -m mast.core.designs"
+        assert c.ssd.read_bytes() == variant_ssd(c), f"{c.ssd.name} is stale: run python -m mast.core.variants"
         system = read_ssd(c.ssd)
         assert system.connections == default.connections
         for name, comp in system.components.items():

@@ -503,7 +503,7 @@ def test_bad_design_parameters_are_named(mechanism_params):
 def test_variant_systems_differ_from_the_default_only_by_the_swap():
     default = read_ssd(DESIGNS[0].ssd)
     for d in DESIGNS[1:]:
-        assert d.ssd.read_bytes() == variant_ssd(d), f"{d.ssd.name} is stale: run python -m mast.core.designs"
+        assert d.ssd.read_bytes() == variant_ssd(d), f"{d.ssd.name} is stale: run python -m mast.core.variants"
         system = read_ssd(d.ssd)
         assert [c.__dict__ for c in system.connections] == [c.__dict__ for c in default.connections]
         for name, comp in system.components.items():

@@ -12,7 +12,7 @@ system ``ssp/MAST.ssd`` with, and only with, the controller component's
   plant's sets share with them (``L``: the motor's inductance, the legs' length); then the
   variant's own set.
 
-``python -m mast.core.designs`` rewrites these files with the mechanism designs' (tests check
+``python -m mast.core.variants`` rewrites these files with the mechanism designs' (tests check
 they are up to date); ``mast build`` builds each controller FMU with the defaults of its
 system.
 """
@@ -84,7 +84,7 @@ def variant_ssd(c: ControllerVariant, base: Path = SSP_SRC / "MAST.ssd") -> byte
     bindings = plant + own + list(c.sets)
     text = retitle(base, c.name, f"controller {c.name}: {c.title}", (
         f"<!-- Controller {c.name}: {c.title} (docs/controller.md).\n"
-        f"     Written by `python -m mast.core.designs` from {base.name}: it differs from it only in the controller's\n"
+        f"     Written by `python -m mast.core.variants` from {base.name}: it differs from it only in the controller's\n"
         f"     source ({c.model_identifier}.fmu) and parameter sets"
         + (f" (without {', '.join(c.drop_sets)})" if c.drop_sets else "") + ".\n"
         + (f"     The plant's sets come first ({', '.join(plant)}): the controller's model is the plant's, and the\n"

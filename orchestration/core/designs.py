@@ -9,14 +9,13 @@ system ``ssp/MAST.ssd`` with, and only with:
   must be the machine's) replaced by the design's;
 - the design's extra sets bound after the others (mechanism, actuators).
 
-``python -m mast.core.designs`` rewrites those files from ``ssp/MAST.ssd``, and the controller
+``python -m mast.core.variants`` rewrites those files from ``ssp/MAST.ssd``, and the controller
 variants of ``controllers.py`` (tests check they are up to date); ``mast build`` builds each
 design's FMU with the defaults of its system.
 """
 from __future__ import annotations
 
 import re
-import sys
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Sequence
@@ -96,7 +95,7 @@ def variant_ssd(d: Design, base: Path = SSP_SRC / "MAST.ssd") -> bytes:
     """
     text = retitle(base, d.name, f"design {d.name}: {d.title}", (
         f"<!-- Design {d.name}: {d.title} (docs/designs/{d.name}.md).\n"
-        f"     Written by `python -m mast.core.designs` from {base.name}: it differs from it only in the mechanism's\n"
+        f"     Written by `python -m mast.core.variants` from {base.name}: it differs from it only in the mechanism's\n"
         f"     source ({d.model_identifier}.fmu) and the design's parameter sets\n"
         f"     ({', '.join((d.geometry,) + d.mechanism_sets + d.actuator_sets)}).\n"
         f"     Components may be swapped by editing their `source`; parameter sets are bound in order, later ones override. -->"))
@@ -131,15 +130,3 @@ def write_variants(base: Path = SSP_SRC / "MAST.ssd") -> list[Path]:
         d.ssd.write_bytes(variant_ssd(d, base))
         written.append(d.ssd)
     return written
-
-
-def main() -> int:
-    from . import controllers
-
-    for path in write_variants() + controllers.write_variants():
-        print(f"wrote {path}")
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())
