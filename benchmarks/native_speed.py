@@ -208,7 +208,7 @@ def analyses(python: Path, native: Path, workers: int) -> None:
 def cycles(fmu: Path, step: float, valgrind: bool) -> str:
     from lxml import etree
 
-    from mast.core.native.build import compiler, fmi_headers
+    from mast.core.native.compiler import compiler, fmi_headers
 
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)

@@ -19,7 +19,7 @@ from scipy.linalg import matrix_balance
 from conftest import load_params
 from fmus.actuator.model import ActuatorBlock, chain_frequencies, fastest_mode
 from fmus.common.fixed_order import eig_max, expm, matmul
-from mast.core.native.build import compiler
+from mast.core.native.compiler import compiler
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -75,7 +75,7 @@ def test_the_product_and_the_largest_eigenvalue_agree_with_numpy_and_lapack():
 @pytest.fixture(scope="module")
 def c_routines(tmp_path_factory) -> ctypes.CDLL:
     """mast_expm and mast_eig_max (mast_native.h) compiled as the native build compiles them."""
-    from mast.core.native.build import CFLAGS
+    from mast.core.native.compiler import CFLAGS
 
     tmp = tmp_path_factory.mktemp("fixed_order_c")
     source = tmp / "routines.c"

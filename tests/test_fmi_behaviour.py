@@ -526,15 +526,15 @@ def test_without_the_c_front_an_illegal_call_is_fatal_and_the_instance_refuses_w
 
 @pytest.mark.parametrize("fmi_version", [2, 3])
 def test_the_build_falls_back_to_pythonfmus_binary_without_a_c_compiler(monkeypatch, tmp_path, fmi_version):
-    import mast.core.native.build as native
+    import mast.core.native.compiler as toolchain
 
     if fmi_version == 3:
         pytest.importorskip("pythonfmu3")
 
     def no_compiler(platform: str = "linux64"):
-        raise native.NativeBuildError("no C compiler here (test)")
+        raise toolchain.NativeBuildError("no C compiler here (test)")
 
-    monkeypatch.setattr(native, "c_compiler", no_compiler)
+    monkeypatch.setattr(toolchain, "c_compiler", no_compiler)
     build._compiled_front.cache_clear()
     try:
         assert (f"fmi{fmi_version}Fatal instead of fmi{fmi_version}Error (no C compiler here (test))"

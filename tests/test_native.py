@@ -21,7 +21,8 @@ from lxml import etree
 
 from mast.core.build import FMUS, build_fmu, build_ssp
 from mast.core.motion import SineMotion
-from mast.core.native.build import SUPPORT, build_native_all, compiler, fmi_headers
+from mast.core.native.build import SUPPORT, build_native_all
+from mast.core.native.compiler import compiler, fmi_headers
 from mast.core.native.translate import TranslationError, to_c
 from mast.core.run import simulate
 from test_fmi_behaviour import DISCARD, ERROR, OK, Instance, _input, drive
@@ -639,7 +640,8 @@ def test_the_native_axis_keeps_and_evicts_its_discretisations_as_the_python_mode
 
     from fmus.actuator.model import ActuatorBlock
     from mast.core.build import default_parameters
-    from mast.core.native.build import compile_shared, native_sources
+    from mast.core.native.build import native_sources
+    from mast.core.native.compiler import compile_shared
     from mast.core.native import models
     from mast.core.native.models import DISCRETISATIONS_KEPT
 

@@ -22,7 +22,8 @@ from fmpy import read_model_description
 
 from mast.core.build import FMUS, block_class, build_fmu, build_fmu3, build_ssp, default_experiment
 from mast.core.native import models
-from mast.core.native.build import GLIBC_FLOOR, build_native_all, compile_shared, has_zig
+from mast.core.native.build import build_native_all
+from mast.core.native.compiler import GLIBC_FLOOR, compile_shared, has_zig
 from mast.hosts.c_host import build_host, launcher, master_run, run_c_host
 from mast.hosts.cosim import COMPARED, availability, run_host
 from mast.core.native.elf import glibc_versions, machine

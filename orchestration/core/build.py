@@ -112,7 +112,7 @@ def status_front(fmi_version: int = 2) -> tuple[Optional[bytes], str]:
 
 @functools.lru_cache(maxsize=4)
 def _compiled_front(source: bytes, fmi_version: int) -> tuple[Optional[bytes], str]:
-    from .native.build import NativeBuildError, compile_shared
+    from .native.compiler import NativeBuildError, compile_shared
 
     with tempfile.TemporaryDirectory(prefix="mast_front_") as tmp:
         target = Path(tmp) / "front.so"

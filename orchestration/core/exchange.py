@@ -5,7 +5,7 @@ component's inputs, fmi2SetReal, (a feedthrough component: fmi2GetReal of its ou
 fmi2GetReal, publish. Here that runs in C over the FMUs' own function pointers, one ctypes call per
 recording interval instead of three per component and tick: the same calls in the same order with
 the same arguments, so the results are bit-identical (tests/test_native.py). The master uses it when
-every component is an FMU (``FMUComponent``) and a C compiler is there (``mast.core.native.build.compiler``);
+every component is an FMU (``FMUComponent``) and a C compiler is there (``mast.core.native.compiler.compiler``);
 otherwise, and with ``MAST_PYTHON_EXCHANGE=1``, the Python loop. The library is compiled once per
 machine into ``cache_dir()`` (a fraction of a second).
 """
@@ -111,7 +111,7 @@ def library() -> Optional[ctypes.CDLL]:
         return None
     if _LIBRARY:
         return _LIBRARY[0]
-    from .native.build import NativeBuildError, compiler
+    from .native.compiler import NativeBuildError, compiler
 
     target = cache_dir() / f"exchange_{hashlib.sha256(SOURCE.encode()).hexdigest()[:16]}.so"
     lib = None

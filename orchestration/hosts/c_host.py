@@ -26,7 +26,8 @@ from ..core.components import FMUComponent
 from ..core.exchange import SOURCE as EXCHANGE_SOURCE
 from ..core.master import Master
 from ..core.motion import NoStimulus
-from ..core.native.build import NativeBuildError, PLATFORMS, c_compiler, cache_dir, compile_shared, fmi_headers
+from ..core.native.build import cache_dir
+from ..core.native.compiler import PLATFORMS, NativeBuildError, c_compiler, compile_shared, fmi_headers
 from ..core.ssp import SSPArchive, applicable_parameters, safe_extract
 
 __all__ = ["HOST_SOURCE", "MasterRun", "master_run", "build_host", "wine", "launcher", "run_c_host", "HostRun"]

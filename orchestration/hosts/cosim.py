@@ -280,7 +280,7 @@ def _concurrency_library() -> Path:
     import hashlib
 
     from ..core.exchange import cache_dir
-    from ..core.native.build import NativeBuildError, compiler
+    from ..core.native.compiler import NativeBuildError, compiler
 
     source = Path(__file__).with_name("hardware_concurrency.c")
     target = cache_dir() / f"hardware_concurrency_{hashlib.sha256(source.read_bytes()).hexdigest()[:16]}.so"
