@@ -23,6 +23,7 @@ add it, show the gap shrink (docs/diagnose.md).
 """
 
 from .resimulation import DiagnosisError
-from .workflow import Options, diagnose
+from .options import Options
+from .workflow import diagnose
 
 __all__ = ["DiagnosisError", "Options", "diagnose"]

@@ -330,14 +330,14 @@ def _localise(diag: Diagnosis, pt: Point) -> dict:
 
 
 def diagnose_records(opt, log: Callable[[str], None] = print) -> dict:
-    """``mast diagnose`` on a record folder (module docstring); ``opt`` is workflow.Options."""
-    from .workflow import _model_overrides
+    """``mast diagnose`` on a record folder (module docstring); ``opt`` is options.Options."""
+    from .options import model_overrides
 
     t_start = time.perf_counter()
     records = load_records(opt.measured)
     library = AXIS_LIBRARY
     component, bound = _plant(opt.ssp, library)
-    model_over = _model_overrides(opt.ssp, opt.model) if opt.model else {}
+    model_over = model_overrides(opt.ssp, opt.model) if opt.model else {}
     by_key = {e.key: e for e in library}
     nominal = {p: float({**bound, **model_over}[p]) for e in library for p in e.parameters}
     bounds = {p: e.bounds[p] for e in library for p in e.parameters}

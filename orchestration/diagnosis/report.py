@@ -11,7 +11,7 @@ import numpy as np
 from .resimulation import Model, Point
 
 if TYPE_CHECKING:
-    from .workflow import Options
+    from .options import Options
 
 
 def jsonable(x):

@@ -3,7 +3,6 @@ from __future__ import annotations
 
 import json
 import time
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Optional, Sequence
 
@@ -12,6 +11,7 @@ import numpy as np
 from ..data.measured import CommandReplay, MeasuredData, controller_geometry, load
 from .effects import AXIS_OF, BY_KEY, CONTROLLER_PARAMETERS, LIBRARY, noise_std
 from .nonlinear import nonlinear_stage, phase_free_stage
+from .options import Options, model_overrides
 from .plan import choose_split, excitation, excitations, identifiability
 from .report import jsonable, plot_figures, write_model, write_report
 from .resimulation import DiagnosisError, Model, Prepared, Simulator
@@ -20,46 +20,6 @@ from .consistency import needs_check, only_consistent
 from .stages import (MAX_EFFECTS, NONLINEAR_FIRST, Context, State, alias_check, lag_form_check, prune, regression_loop,
                      residual_at_floor)
 from .verdict import gap_table, gap_trend, judge, localise_test, named_effects
-
-
-@dataclass
-class Options:
-    measured: Path
-    out: Path
-    ssp: str
-    model: Optional[str] = None           # a parameter set (.ssv path or name in the SSP's resources)
-    holdout: Optional[Sequence[str]] = None
-    holdout_fraction: Optional[float] = None   # records (mast import) without held-out tests: the share held out
-    workers: int = 2
-    direct: bool = True
-    native: bool = False                  # re-simulate on the SSP's native variant (compiled FMUs, mast build --native)
-    library: Sequence[str] = tuple(e.key for e in LIBRARY)
-    figures: bool = True
-
-
-def _model_overrides(ssp: str, model: Optional[str]) -> dict:
-    """Actuator parameter overrides of the nominal model (``--model``): an .ssv file, or the name of a
-    parameter set inside the SSP (resources/NAME.ssv) or of the project's sources (ssp/resources/NAME.ssv)."""
-    if not model:
-        return {}
-    from ..core.build import REPO
-    from ..core.ssp import SSPArchive
-    from ..core.ssv import parse_ssv
-
-    sources = REPO / "ssp" / "resources"
-    path = Path(model)
-    if path.exists():
-        return {k: v.value for k, v in parse_ssv(path).items()}
-    name = model if model.endswith(".ssv") else f"{model}.ssv"
-    with SSPArchive(ssp) as archive:
-        res = archive.ssd.parent / "resources"
-        for candidate in (res / name, res / "parameters" / name, sources / name):
-            if candidate.exists():
-                return {k: v.value for k, v in parse_ssv(candidate).items()}
-        have = sorted({p.stem for p in res.rglob("*.ssv")} |
-                      {p.stem for p in sources.glob("*.ssv")})
-    raise DiagnosisError(f"--model {model}: neither a file nor a parameter set of the SSP or of ssp/resources "
-                         f"(known: {', '.join(have)})")
 
 
 def _split(data: MeasuredData, holdout: Optional[Sequence[str]], library: Sequence[str]) -> tuple[dict[str, str], str]:
@@ -199,7 +159,7 @@ def diagnose(opt: Options, log: Callable[[str], None] = print) -> dict:
         ssp_drive = {k: float(drive.parameters[k]) for k in wanted if drive is not None and k in drive.parameters}
     stroke = (float(ssp_actuator["rho_min"]), float(ssp_actuator["rho_max"]))
     data = load(opt.measured, stroke=stroke)
-    model_over = _model_overrides(opt.ssp, opt.model)
+    model_over = model_overrides(opt.ssp, opt.model)
     nominal = {**ssp_drive, **ssp_actuator, **model_over, **{p: 0.0 for p in AXIS_OF}}
     base = {a: dict(model_over) for a in actuators} if model_over else {}
     geometry = controller_geometry(opt.ssp)
