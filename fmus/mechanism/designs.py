@@ -34,6 +34,7 @@ from .engine import Body, Description, Engine, Evaluation, Part, TracedBody, ata
 from .engine import cos as _cos
 from .engine import sin as _sin
 from .kinematics import GEOMETRY_PARAMETERS, MAX_TILT, Geometry, KinematicsError, _det3
+from .topology import Coordinate, Drive, Topology
 
 __all__ = ["KINEMATICS", "KINEMATIC_PARAMETERS", "KINEMATIC_PARAMETERS_NAMES", "MASS_PARAMETERS", "PAYLOAD_PARAMETERS",
            "PRS3", "TRACED_PARAMETERS", "describe", "engine", "kinematic_engine", "level_height", "traced_engine"]
@@ -351,6 +352,16 @@ class PRS3(Description):
         parts += [Part("plate", "platform", [(r * math.cos(a), r * math.sin(a), 0.0) for a in rim]),
                   Part("joint", "platform", [(r * ca[i], r * sa[i], 0.0) for i in range(3)])]
         return tuple(parts)
+
+    @property
+    def topology(self) -> Topology:
+        """Three linear drives along the guides with the paper's 300 mm stroke (section 3.1), coordinates
+        (z, psi, theta), home: the level pose with every slider at mid-stroke (``actuator_manufacturer.ssv``'s
+        rho_0 = 0.15 m)."""
+        stroke = (0.0, 0.3)
+        home = self.guess((0.5 * (stroke[0] + stroke[1]),) * 3)
+        return Topology(self.name, tuple(Coordinate(c) for c in self.coordinates),
+                        tuple(Drive(j, "linear", stroke) for j in self.joints), home)
 
     def guess(self, rho: Sequence[float]) -> tuple[float, float, float]:
         """Level pose for the mean slider position (the direct kinematics' cold start)."""

@@ -58,6 +58,7 @@ import numpy as np
 
 from ..common.codegen import compile_generated
 from .kinematics import COND_LIMIT, KinematicsError, _inv3
+from .topology import Topology
 
 __all__ = [
     "Body", "Description", "Evaluation", "Engine", "Part", "TracedBody", "EngineIDP", "EngineJacobians", "KinematicsError", "MARGIN",
@@ -722,6 +723,12 @@ class Description:
 
     def key(self) -> tuple:
         """Everything that defines the description (used to share compiled code)."""
+        raise NotImplementedError
+
+    @property
+    def topology(self) -> "Topology":
+        """Its interface shape (``topology.Topology``: coordinates with units, drives with kind and stroke, home
+        pose): what the mechanism FMU's variables, the controllers, the SSD and the CLI are derived from."""
         raise NotImplementedError
 
     def sketch(self) -> tuple[Part, ...]:
