@@ -145,7 +145,7 @@ def _put_front(items: dict[str, bytes], identifier: str, fmi_version: int = 2) -
 
 def _source_hash(extra: bytes) -> str:
     digest = hashlib.sha256(extra)
-    for file in sorted(FMUS_SRC.rglob("*.py")):
+    for file in sorted([*FMUS_SRC.rglob("*.py"), *FMUS_SRC.rglob("*.toml")]):   # the code and the descriptions
         digest.update(file.relative_to(FMUS_SRC).as_posix().encode())
         digest.update(file.read_bytes())
     return digest.hexdigest()[:10]
