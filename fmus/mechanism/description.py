@@ -271,13 +271,11 @@ class DescriptionFile:
     ``title``, ``path``, ``parameters`` (name -> ``Parameter``, in the file's order), ``coordinates``, the
     legs, bodies and home pose as expressions; ``describe`` makes the engine's description."""
 
-    def __init__(self, path: Path) -> None:
+    def __init__(self, path: Path, text: str) -> None:
         self.path = Path(path)
         where = self.path.name
         try:
-            data = tomllib.loads(self.path.read_text(encoding="utf-8"))
-        except OSError as err:
-            raise DescriptionError(f"{where}: cannot be read: {err}") from None
+            data = tomllib.loads(text)
         except tomllib.TOMLDecodeError as err:
             raise DescriptionError(f"{where}: not valid TOML: {err}") from None
         if "extends" in data:
@@ -451,7 +449,7 @@ class DescriptionFile:
     def _check_home(self) -> None:
         """With the file's values: every leg closes at home, within its stroke; home is not singular."""
         where = self.path.name
-        desc = self.describe({}, owner=where)
+        desc = self.describe(owner=where)
         home = desc.topology.home
         try:
             pose, R, S = self.family.pose(list(home), desc.legs)
@@ -481,22 +479,32 @@ class DescriptionFile:
         return "(" + ", ".join(f"{c} = {v:.6g} {POSE_UNITS[c]}" for c, v in zip(self.coordinates, home)) + ")"
 
     # ---------------------------------------------------------------------------------- descriptions
-    def values(self, params: Mapping[str, object] = {}, masses: bool = True) -> dict[str, float]:
-        """The parameters' values: the file's, overridden by ``params``; ``masses=False``: those that are not the
-        geometry's (``kinematic``) are 0 (a kinematic model: massless bodies, no gravity)."""
+    def values(self, params: Optional[Mapping[str, object]] = None, masses: bool = True,
+               owner: str = "") -> dict[str, float]:
+        """The parameters' values: the file's (``params`` None), or those of ``params``, which must hold every
+        parameter the description uses (ParameterError naming the first missing); ``masses=False``: those that are
+        not the geometry's (``kinematic``) are 0 (a kinematic model: massless bodies, no gravity), and need not be
+        in ``params``."""
         out = {}
         for name, p in self.parameters.items():
             if not masses and name not in self.kinematic:
                 out[name] = 0.0
+            elif params is None:
+                out[name] = p.value
+            elif name in params:
+                out[name] = float(params[name])
+            elif name in self.traced:
+                raise ParameterError(f"{owner or self.path.name}: missing parameter {name!r} [{p.unit}] of the "
+                                     f"{self.name} description ({self.path.name})")
             else:
-                out[name] = float(params[name]) if name in params else p.value
+                out[name] = p.value
         return out
 
-    def describe(self, params: Mapping[str, object] = {}, masses: bool = True, traced: bool = False,
+    def describe(self, params: Optional[Mapping[str, object]] = None, masses: bool = True, traced: bool = False,
                  owner: str = "") -> "Described":
         """The engine's description with ``values(params, masses)``; ``traced``: the parameters ``traced`` as
         named inputs of the generated functions (the same floats as the constants, up to the sign of a zero)."""
-        return Described(self, self.values(params, masses), masses, traced, owner or self.path.name)
+        return Described(self, self.values(params, masses, owner), masses, traced, owner or self.path.name)
 
 
 class Described(Description):
@@ -538,7 +546,8 @@ class Described(Description):
             try:
                 out.append(Body(spec.name, mass, com, inertia))
             except ValueError as exc:
-                names = sorted({n for e in spec.expressions() for n in e.names})
+                blamed = [e for row in spec.inertia for e in row] if "inertia" in str(exc) else [spec.mass]
+                names = sorted({n for e in blamed for n in e.names})
                 raise ParameterError(f"{owner}: parameters {_named(names)}: {exc}") from None
         return out
 
@@ -621,30 +630,40 @@ def _named(names: Sequence[str]) -> str:
     return ", ".join(f"'{n}'" for n in names)
 
 
+#: the shipped files' text, read when this module is imported: a model bundled in an FMU reads them from the
+#: folder it was imported from, which its host may remove while the model lives on
+_SHIPPED = {p.name: p.read_text(encoding="utf-8") for p in sorted(DESCRIPTIONS.glob("*.toml"))}
+
+
 @functools.lru_cache(maxsize=32)
-def _load(path: Path, stamp: float) -> DescriptionFile:
-    return DescriptionFile(path)
+def _load(path: Path, text: str) -> DescriptionFile:
+    return DescriptionFile(path, text)
 
 
 def load(path: Union[str, Path]) -> DescriptionFile:
-    """The checked description file at ``path`` (or the shipped one of that name, ``DESCRIPTIONS``)."""
+    """The checked description file at ``path``, or the shipped one of that name (``DESCRIPTIONS``: "3PRS_T" or
+    "3PRS_T.toml")."""
     p = Path(path)
     if not p.suffix:
-        p = DESCRIPTIONS / f"{p}.toml"
+        p = p.with_suffix(".toml")
+    if p.parent == Path(".") or p.parent == DESCRIPTIONS:
+        if p.name in _SHIPPED:
+            return _load(DESCRIPTIONS / p.name, _SHIPPED[p.name])
+        if p.parent == Path("."):
+            p = DESCRIPTIONS / p.name
     try:
-        stamp = p.stat().st_mtime
+        text = p.read_text(encoding="utf-8")
     except OSError as err:
         raise DescriptionError(f"{p.name}: cannot be read: {err}") from None
-    return _load(p.resolve(), stamp)
+    return _load(p.resolve(), text)
 
 
 def kinematics() -> dict[str, Path]:
     """The shipped mechanisms by name (the ``kinematics`` parameter's values): their description files that
     extend no other."""
     out = {}
-    for p in sorted(DESCRIPTIONS.glob("*.toml")):
-        text = p.read_text(encoding="utf-8")
+    for name, text in _SHIPPED.items():
         data = tomllib.loads(text)
         if "extends" not in data:
-            out[str(data.get("mechanism", {}).get("name", p.stem))] = p
+            out[str(data.get("mechanism", {}).get("name", name))] = DESCRIPTIONS / name
     return out
