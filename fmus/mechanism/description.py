@@ -450,7 +450,11 @@ class DescriptionFile:
         """With the file's values: every leg closes at home, within its stroke; home is not singular."""
         where = self.path.name
         desc = self.describe(owner=where)
-        home = desc.topology.home
+        try:
+            home = desc.topology.home
+        except (ValueError, ZeroDivisionError, OverflowError) as exc:
+            raise DescriptionError(f"{where}: [mechanism.home] cannot be evaluated with the file's values: "
+                                   f"{type(exc).__name__}: {exc}") from None
         try:
             pose, R, S = self.family.pose(list(home), desc.legs)
         except KinematicsError as exc:
