@@ -29,7 +29,7 @@ Legs (``Leg``), base to platform, s the platform point (platform frame) of its s
   carrying S; rho = |S - base| - ``length`` (bodies: ``cylinder``, frame origin at the base joint; ``piston``,
   origin at S; both frames x along the leg base -> S, y = t, z = x cross y).
 - ``"UPS"``: a universal joint at ``base`` (first axis ``t`` fixed to the base, second axis fixed in the
-  cylinder, normal to t and to the leg: y = unit(x cross t)), cylinder, driven prismatic, piston, S; frames
+  cylinder, normal to t and to the leg: y = unit(t cross x)), cylinder, driven prismatic, piston, S; frames
   x along the leg, y the second axis, z = x cross y; rho = |S - base| - ``length``.
 
 A PRS or RPS leg constrains S to the plane through its base normal to t: (S - base) . t = 0.
@@ -288,7 +288,7 @@ def _leg_bodies(leg: Leg, k: int, S, vS, aS, rho, rd, rdd, first: int):
         w, alpha = np.cross(u, ud), np.cross(u, udd)        # turns about t only (t normal to u)
         base_joint = _Joint(None, first, B, np.eye(3), _normals(t))
     elif leg.kind == "UPS":
-        y = _unit(np.cross(u, t))                           # second axis: normal to t and to the leg
+        y = _unit(np.cross(t, u))                           # second axis: normal to t and to the leg
         # w = th1 t + th2 y, u_dot = w x u; alpha = th1dd t + th2dd y + th2 (th1 t x y)
         G = np.column_stack((np.cross(t, u), np.cross(y, u)))
         th1, th2 = np.linalg.lstsq(G, ud, rcond=None)[0]

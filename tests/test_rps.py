@@ -1,7 +1,8 @@
-"""The 3-RPS table (docs/designs/3rps.md) and the Newton-Euler oracle it is checked against.
+"""The 3-RPS table (fmus/mechanism/descriptions/3RPS.toml, docs/designs/3rps.md) and the Newton-Euler oracle it
+is checked against.
 
 The oracle (tests/newton_euler.py, numpy only, no code of fmus/) is first proved on the 3PRS, where the
-engine (``designs.PRS3``) and the closed-form second formulation (``fmus/mechanism/dynamics.py``) are
+engine (the 3PRS description file) and the closed-form second formulation (``fmus/mechanism/dynamics.py``) are
 known to agree: it must reproduce their forces to 1e-9 relative on random states (T layout, 120 deg,
 inclined guides, a payload with an offset centre of mass and a full inertia tensor). Then the 3-RPS
 description's inverse dynamics (the engine) against the oracle, with and without leg masses and gravity;
@@ -17,14 +18,15 @@ import pytest
 
 import newton_euler as ne
 from fmus.mechanism import dynamics
-from fmus.mechanism.designs import PRS3
+from fmus.mechanism.description import load
 from fmus.mechanism.engine import MARGIN, Body, Engine
 from fmus.mechanism.kinematics import Geometry, KinematicsError
-from rps3 import RPS3, TABLE
 
 TOL = 1e-9                                   # relative to the largest force of the state
 T_LAYOUT = (0.0, 0.5 * math.pi, math.pi)
 LAYOUT_120 = (0.0, 2.0 * math.pi / 3.0, 4.0 * math.pi / 3.0)
+RPS = load("3RPS")
+V = RPS.values()                              # the file's parameter values: plain numbers for the oracle
 PAYLOAD = Body("payload", 3.0, (0.02, -0.03, 0.1), ((0.05, 0.001, 0.002), (0.001, 0.04, 0.003), (0.002, 0.003, 0.06)))
 
 
@@ -50,6 +52,18 @@ def random_states(engine: Engine, home, spread, rng, count: int):
 
 
 # ----------------------------------------------------------------------------- the oracle on the 3PRS
+def engine_3prs(H, alpha, beta, payload=None, g=9.81) -> Engine:
+    """The 3PRS description file at these values (the masses below, the payload's)."""
+    values = dict(load("3PRS_T").values(), H=H, beta=beta, **{f"alpha_{k + 1}": a for k, a in enumerate(alpha)},
+                  m_leg=0.07, I_leg=3.943e-4, m_platform=2.06, I_px=0.0631, I_py=0.0631, I_pz=0.1262, g=g)
+    if payload is not None:
+        values.update(m_payload=payload.mass, **dict(zip(("payload_x", "payload_y", "payload_z"), payload.com)),
+                      **{f"I_payload_{a}{b}": payload.inertia[i][j] for a, b, i, j in
+                         (("x", "x", 0, 0), ("y", "y", 1, 1), ("z", "z", 2, 2), ("x", "y", 0, 1), ("x", "z", 0, 2),
+                          ("y", "z", 1, 2))})
+    return Engine(load("3PRS_T").describe(values), g=g)
+
+
 def oracle_3prs(H, r, L, alpha, beta, m_leg, I_leg, m_platform, I_p, g, payload=None) -> ne.Mechanism:
     rod = ne.Inertia(m_leg, (0.5 * L, 0.0, 0.0), ((0.0, 0.0, 0.0), (0.0, I_leg, 0.0), (0.0, 0.0, I_leg)))
     platform = [ne.Inertia(m_platform, (0.0, 0.0, 0.0), np.diag(I_p))]
@@ -63,8 +77,8 @@ def oracle_3prs(H, r, L, alpha, beta, m_leg, I_leg, m_platform, I_p, g, payload=
     (0.4, T_LAYOUT, 0.0, PAYLOAD), (0.4, LAYOUT_120, math.radians(-10.0), PAYLOAD)])
 def test_the_oracle_reproduces_the_3prs_engine(H, alpha, beta, payload):
     masses = dict(m_leg=0.07, I_leg=3.943e-4, m_platform=2.06, I_p=(0.0631, 0.0631, 0.1262))
-    desc = PRS3(H, 0.35, 0.26, alpha, beta, payload=payload, **masses)
-    eng = Engine(desc, g=9.81)
+    eng = engine_3prs(H, alpha, beta, payload)
+    desc = eng.description
     mech = oracle_3prs(H, 0.35, 0.26, alpha, beta, g=9.81, payload=payload, **masses)
     worst = 0.0
     for q, rd, rdd in random_states(eng, desc.topology.home, (0.1, 0.3, 0.3), np.random.default_rng(11), 25):
@@ -81,7 +95,7 @@ def test_the_oracle_reproduces_the_closed_form_3prs_dynamics():
     geom = Geometry(0.4, 0.35, 0.26, T_LAYOUT)
     m = dynamics.Masses(m_leg=0.07, I_leg=3.943e-4, m_platform=2.06, I_px=0.0631, I_py=0.0631, I_pz=0.1262, g=9.81)
     mech = oracle_3prs(0.4, 0.35, 0.26, T_LAYOUT, 0.0, 0.07, 3.943e-4, 2.06, (0.0631, 0.0631, 0.1262), 9.81)
-    eng = Engine(PRS3(0.4, 0.35, 0.26, T_LAYOUT), g=0.0)            # only to pick admissible poses
+    eng = engine_3prs(0.4, T_LAYOUT, 0.0)                              # only to pick admissible poses
     for q, rd, rdd in random_states(eng, eng.description.topology.home, (0.1, 0.3, 0.3), np.random.default_rng(5), 20):
         idp = dynamics.inverse_dynamics_at_pose(geom, m, q, rd, rdd)
         assert relative(ne.forces(mech, ne.full_pose(mech, q), rd, rdd), idp.t_rho) < TOL
@@ -90,8 +104,8 @@ def test_the_oracle_reproduces_the_closed_form_3prs_dynamics():
 def test_the_oracle_sees_what_it_must():
     """A wrong leg inertia or a missing payload shows: the agreement above is not a tautology of zeros."""
     masses = dict(m_leg=0.07, I_leg=3.943e-4, m_platform=2.06, I_p=(0.0631, 0.0631, 0.1262))
-    desc = PRS3(0.4, 0.35, 0.26, T_LAYOUT, payload=PAYLOAD, **masses)
-    eng = Engine(desc, g=9.81)
+    eng = engine_3prs(0.4, T_LAYOUT, 0.0, PAYLOAD)
+    desc = eng.description
     q, rd, rdd = random_states(eng, desc.topology.home, (0.1, 0.3, 0.3), np.random.default_rng(3), 1)[0]
     right = eng.inverse_dynamics_at_pose(q, rd, rdd).t_rho
     for wrong in (oracle_3prs(0.4, 0.35, 0.26, T_LAYOUT, 0.0, 0.07, 2 * 3.943e-4, 2.06, masses["I_p"], 9.81, PAYLOAD),
@@ -100,30 +114,59 @@ def test_the_oracle_sees_what_it_must():
 
 
 # ----------------------------------------------------------------------------- the 3-RPS
-def oracle_3rps(legs: bool, g: float, payload=None) -> ne.Mechanism:
-    k = 1.0 if legs else 0.0
-    cylinder = ne.Inertia(k * TABLE["m_cylinder"], (TABLE["x_cylinder"], 0.0, 0.0), k * np.diag(TABLE["I_cylinder"]))
-    piston = ne.Inertia(k * TABLE["m_piston"], (0.0, 0.0, 0.0), k * np.diag(TABLE["I_piston"]))
-    platform = [ne.Inertia(TABLE["m_platform"], (0.0, 0.0, 0.0), np.diag(TABLE["I_platform"]))]
-    if payload is not None:
-        platform.append(ne.Inertia(payload.mass, payload.com, payload.inertia))
-    return ne.Mechanism(ne.symmetric_legs("RPS", TABLE["R_b"], TABLE["r"], TABLE["alpha"], TABLE["l0"],
-                                          (cylinder, piston)), tuple(platform), g)
+LEGS_FREE = dict(m_cylinder=0.0, I_cylinder_axial=0.0, I_cylinder=0.0, m_carriage=0.0)
 
 
-@pytest.mark.parametrize("legs, g, payload", [(True, 9.81, None), (True, 0.0, None), (False, 9.81, None),
-                                              (False, 0.0, None), (True, 9.81, PAYLOAD)])
+def rps_engine(g: float = 9.81, **values) -> Engine:
+    """The 3RPS description file's engine at its values with ``values`` changed."""
+    return Engine(RPS.describe({**V, **values}), g=g)
+
+
+def oracle_3rps(g: float = 9.81, **values) -> ne.Mechanism:
+    """The oracle from the file's numbers (inertias of the carriage block and the disc computed here)."""
+    v = {**V, **values}
+    mc, a, b, c = v["m_carriage"], v["a_carriage"], v["b_carriage"], v["c_carriage"]
+    cylinder = ne.Inertia(v["m_cylinder"], (v["x_cylinder"], 0.0, 0.0),
+                          np.diag((v["I_cylinder_axial"], v["I_cylinder"], v["I_cylinder"])))
+    rod = ne.Inertia(mc, (0.0, 0.0, 0.0), np.diag((b * b + c * c, a * a + c * c, a * a + b * b)) * mc / 12.0)
+    mp, r = v["m_platform"], v["r"]
+    platform = [ne.Inertia(mp, (0.0, 0.0, 0.0), np.diag((mp * r * r / 4, mp * r * r / 4, mp * r * r / 2)))]
+    if v["m_payload"]:
+        platform.append(ne.Inertia(v["m_payload"], (v["payload_x"], v["payload_y"], v["payload_z"]),
+                                   [[v[f"I_payload_{min(i, j)}{max(i, j)}"] for j in "xyz"] for i in "xyz"]))
+    angles = (v["alpha_1"], v["alpha_2"], v["alpha_3"])
+    return ne.Mechanism(ne.symmetric_legs("RPS", v["R_b"], r, angles, 0.0, (cylinder, rod)), tuple(platform), g)
+
+
+PAYLOAD_VALUES = dict(m_payload=3.0, payload_x=0.02, payload_y=-0.03, payload_z=0.1, I_payload_xx=0.05,
+                      I_payload_yy=0.04, I_payload_zz=0.06, I_payload_xy=0.001, I_payload_xz=0.002, I_payload_yz=0.003)
+
+
+def test_the_3rps_cylinder_numbers_follow_from_their_inputs():
+    """docs/designs/3rps.md: rail 1.5 kg, 0.65 m from the joint, 40 mm square; drive 0.84 kg at 0.05 m."""
+    m_rail, l_rail, w, m_drive, x_drive = 1.5, 0.65, 0.04, 0.48 + 0.36, 0.05
+    m = m_rail + m_drive
+    x = (m_rail * l_rail / 2 + m_drive * x_drive) / m
+    transverse = m_rail * l_rail ** 2 / 12 + m_rail * (l_rail / 2 - x) ** 2 + m_drive * (x - x_drive) ** 2
+    assert (V["m_cylinder"], V["x_cylinder"], V["I_cylinder"], V["I_cylinder_axial"]) == pytest.approx(
+        (m, x, transverse, m_rail * w * w / 6), rel=1e-12)
+    assert V["m_carriage"] == 2.27 and V["m_platform"] == 2.06 and V["r"] == 0.35     # paper Eq. 22, section 3
+    top = RPS.describe().topology
+    assert [d.stroke for d in top.drives] == [(0.26, 0.56)] * 3                        # the paper's 300 mm
+
+
+@pytest.mark.parametrize("legs, g, payload", [(True, 9.81, False), (True, 0.0, False), (False, 9.81, False),
+                                              (False, 0.0, False), (True, 9.81, True)])
 def test_3rps_inverse_dynamics_agree_with_newton_euler(legs, g, payload):
-    desc = RPS3(legs=legs, payload=payload)
-    eng = Engine(desc, g=g)
-    mech = oracle_3rps(legs, g, payload)
+    values = {**({} if legs else LEGS_FREE), **(PAYLOAD_VALUES if payload else {})}
+    eng = rps_engine(g, **values)
+    mech = oracle_3rps(g, **values)
     worst = 0.0
-    for q, rd, rdd in random_states(eng, desc.topology.home, (0.12, 0.35, 0.35), np.random.default_rng(7), 30):
+    for q, rd, rdd in random_states(eng, eng.description.topology.home, (0.12, 0.35, 0.35), np.random.default_rng(7), 30):
         idp = eng.inverse_dynamics_at_pose(q, rd, rdd)
         pose = ne.full_pose(mech, q)
         np.testing.assert_allclose(pose, idp.pose, rtol=0.0, atol=1e-12)
-        rho = ne.joints(mech, pose)
-        np.testing.assert_allclose(rho, eng.ik(q), rtol=0.0, atol=1e-12)
+        np.testing.assert_allclose(ne.joints(mech, pose), eng.ik(q), rtol=0.0, atol=1e-12)
         worst = max(worst, relative(ne.forces(mech, pose, rd, rdd), idp.t_rho))
     assert worst < TOL
 
@@ -132,45 +175,49 @@ def potential(mech: ne.Mechanism, q) -> float:
     """Potential energy [J] of the 3-RPS at q, from the centres of mass alone (the oracle's pose)."""
     pose = ne.full_pose(mech, q)
     R = ne.rotation(*pose[3:])
-    V = sum(b.mass * mech.g * (pose[2] + (R @ np.asarray(b.com))[2]) for b in mech.platform)
+    E = sum(b.mass * mech.g * (pose[2] + (R @ np.asarray(b.com))[2]) for b in mech.platform)
     for leg, S in zip(mech.legs, ne.points(mech, pose)):
         u = (S - np.asarray(leg.base)) / np.linalg.norm(S - np.asarray(leg.base))
-        cyl, pis = leg.bodies
-        V += cyl.mass * mech.g * (leg.base[2] + cyl.com[0] * u[2]) + pis.mass * mech.g * S[2]
-    return V
+        cyl, rod = leg.bodies
+        E += cyl.mass * mech.g * (leg.base[2] + cyl.com[0] * u[2]) + rod.mass * mech.g * S[2]
+    return E
+
+
+def oracle_jacobian(mech: ne.Mechanism, q, h: float) -> np.ndarray:
+    """drho/dq by central differences of the oracle's joints."""
+    q = np.asarray(q, dtype=float)
+    return np.column_stack([(ne.joints(mech, ne.full_pose(mech, q + h * e)) - ne.joints(mech, ne.full_pose(mech, q - h * e)))
+                            / (2 * h) for e in np.eye(3)])
 
 
 def test_3rps_statics_at_rest_carry_the_weight():
     """At rest F = J^-T dV/dq (virtual work, central differences of V and rho): the weight of platform and legs."""
-    desc = RPS3()
-    eng = Engine(desc, g=9.81)
-    mech = oracle_3rps(True, 9.81)
-    home = np.asarray(desc.topology.home)
+    eng = rps_engine()
+    mech = oracle_3rps()
+    home = np.asarray(eng.description.topology.home)
     for q in [home] + [s[0] for s in random_states(eng, home, (0.1, 0.3, 0.3), np.random.default_rng(2), 4)]:
         h = 1e-5
         dV = np.array([(potential(mech, q + h * e) - potential(mech, q - h * e)) / (2 * h) for e in np.eye(3)])
-        J = np.column_stack([(ne.joints(mech, ne.full_pose(mech, q + h * e)) - ne.joints(mech, ne.full_pose(mech, q - h * e)))
-                             / (2 * h) for e in np.eye(3)])
         F = eng.inverse_dynamics_at_pose(q, (0, 0, 0), (0, 0, 0)).t_rho
-        np.testing.assert_allclose(F, np.linalg.solve(J.T, dV), rtol=1e-7)
+        np.testing.assert_allclose(F, np.linalg.solve(oracle_jacobian(mech, q, h).T, dV), rtol=1e-7)
     F_home = eng.inverse_dynamics_at_pose(home, (0, 0, 0), (0, 0, 0)).t_rho
     assert F_home == pytest.approx([29.41285318] * 3, rel=1e-8)        # docs/designs/3rps.md
     # massless legs: the legs' forces hold the platform's weight up, sum F_i u_i,z = m_p g
-    bare = Engine(RPS3(legs=False), g=9.81).inverse_dynamics_at_pose(home, (0, 0, 0), (0, 0, 0)).t_rho
+    bare = rps_engine(**LEGS_FREE).inverse_dynamics_at_pose(home, (0, 0, 0), (0, 0, 0)).t_rho
     pose = ne.full_pose(mech, home)
     uz = [(S - np.asarray(leg.base))[2] / np.linalg.norm(S - np.asarray(leg.base))
           for leg, S in zip(mech.legs, ne.points(mech, pose))]
-    assert float(np.dot(bare, uz)) == pytest.approx(TABLE["m_platform"] * 9.81, rel=1e-12)
+    assert float(np.dot(bare, uz)) == pytest.approx(V["m_platform"] * 9.81, rel=1e-12)
 
 
 def test_3rps_direct_kinematics_keep_their_branch_along_random_walks():
-    desc = RPS3()
-    eng = Engine(desc, g=9.81)
-    mech = oracle_3rps(True, 9.81)
-    home = np.asarray(desc.topology.home)
+    eng = rps_engine()
+    mech = oracle_3rps()
+    home = np.asarray(eng.description.topology.home)
     det_home = eng.margins(home).det
-    lo, hi = TABLE["stroke"]
+    lo, hi = eng.description.topology.drives[0].stroke
     rng = np.random.default_rng(23)
+    steps = 0
     for _ in range(6):
         rho = ne.joints(mech, ne.full_pose(mech, home))
         q = home
@@ -178,28 +225,23 @@ def test_3rps_direct_kinematics_keep_their_branch_along_random_walks():
             step = rng.normal(0.0, 0.006, 3)
             if np.any(rho + step < lo) or np.any(rho + step > hi):
                 continue
-            rho = rho + step
             try:
-                q = np.asarray(eng.dk(rho, guess=q)[0])
-            except KinematicsError:          # a refusal (margin) is allowed; a jump is not
-                rho = rho - step
+                q_next = np.asarray(eng.dk(rho + step, guess=q)[0])
+            except KinematicsError:          # a refusal (the margin) is allowed; a jump is not
                 continue
+            rho, q, steps = rho + step, q_next, steps + 1
             np.testing.assert_allclose(ne.joints(mech, ne.full_pose(mech, q)), rho, rtol=0.0, atol=1e-11)
             assert np.sign(eng.margins(q).det) == np.sign(det_home)
-            cold = np.asarray(eng.dk(rho)[0])                     # from the level guess: the same pose
-            np.testing.assert_allclose(cold, q, rtol=0.0, atol=1e-9)
+            np.testing.assert_allclose(eng.dk(rho)[0], q, rtol=0.0, atol=1e-9)      # a cold start finds it too
+    assert steps > 200
 
 
 def test_3rps_margins_at_home():
     """By the oracle's own drho/dq (central differences), scaled as the engine scales: tilts by r."""
-    desc = RPS3()
-    eng = Engine(desc, g=9.81)
-    mech = oracle_3rps(True, 9.81)
-    home = np.asarray(desc.topology.home)
-    h = 1e-6
-    J = np.column_stack([(ne.joints(mech, ne.full_pose(mech, home + h * e)) - ne.joints(mech, ne.full_pose(mech, home - h * e)))
-                         / (2 * h) for e in np.eye(3)])
-    sv = np.linalg.svd(J / np.array([1.0, TABLE["r"], TABLE["r"]]), compute_uv=False)
+    eng = rps_engine()
+    home = np.asarray(eng.description.topology.home)
+    J = oracle_jacobian(oracle_3rps(), home, 1e-6)
+    sv = np.linalg.svd(J / np.array([1.0, V["r"], V["r"]]), compute_uv=False)
     m = eng.margins(home)
     assert m.parallel == pytest.approx(sv[-1], rel=1e-7) and m.inverse == pytest.approx(1.0 / sv[0], rel=1e-7)
     assert m.det > 0 and min(m.parallel, m.inverse) > 10 * MARGIN
