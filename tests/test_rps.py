@@ -7,11 +7,13 @@ known to agree: it must reproduce their forces to 1e-9 relative on random states
 inclined guides, a payload with an offset centre of mass and a full inertia tensor). Then the 3-RPS
 description's inverse dynamics (the engine) against the oracle, with and without leg masses and gravity;
 its statics at rest against virtual work on the potential energy (a third route, central differences);
-its direct kinematics along random walks (the branch kept); its singularity margins at home.
+its direct kinematics along random walks (the branch kept); its singularity margins at home. Last, a scratch
+6-UPS hexapod (issue 26) from a description file against the oracle, with and without leg masses and gravity.
 """
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 import pytest
@@ -246,3 +248,101 @@ def test_3rps_margins_at_home():
     assert m.parallel == pytest.approx(sv[-1], rel=1e-7) and m.inverse == pytest.approx(1.0 / sv[0], rel=1e-7)
     assert m.det > 0 and min(m.parallel, m.inverse) > 10 * MARGIN
     assert (m.parallel, m.inverse) == pytest.approx((1.2156, 0.5817), abs=1e-4)    # docs/designs/3rps.md
+
+
+# ----------------------------------------------------------------------------- a 6-UPS hexapod (issue 26)
+# a scratch hexapod: pairs of universal joints 24 deg apart on the base circle, spherical joints on the platform
+# circle, legs and platform with offset centres of mass and full inertia tensors (the legs' spin about their own
+# axis, which the universal joint fixes, matters then)
+HEXAPOD = """
+[mechanism]
+name = "6UPS"
+coordinates = ["x", "y", "z", "psi", "theta", "phi"]
+gravity = "g"
+home = { x = 0.0, y = 0.0, z = 0.45, psi = 0.0, theta = 0.0, phi = 0.0 }
+
+[parameters]
+R_b = { value = 0.4, unit = "m", source = "assumed: a test hexapod" }
+r = { value = 0.3, unit = "m", source = "assumed: a test hexapod" }
+gap = { value = 12.0, unit = "deg", source = "assumed: half the angle between a pair of joints" }
+g = { value = 9.81, unit = "m/s2", source = "standard gravity" }
+m_c = { value = 2.34, unit = "kg", source = "assumed" }
+m_r = { value = 2.27, unit = "kg", source = "assumed" }
+m_p = { value = 2.06, unit = "kg", source = "assumed" }
+
+[leg]
+template = "UPS"
+drive = { joint = "P", kind = "linear", stroke = [0.3, 0.7] }
+bodies.cylinder = { mass = "m_c", com = [0.2, 0.01, -0.02], inertia = [[0.002, 0.0003, -0.0002], [0.0003, 0.09, 0.001], [-0.0002, 0.001, 0.08]] }
+bodies.rod = { mass = "m_r", com = [-0.04, 0.015, 0.01], inertia = [[0.0015, -0.0001, 0.0002], [-0.0001, 0.0022, 0.0003], [0.0002, 0.0003, 0.0031]] }
+
+[[bodies]]
+name = "platform"
+mass = "m_p"
+com = [0.01, -0.02, 0.03]
+inertia = [[0.063, 0.002, -0.001], [0.002, 0.06, 0.003], [-0.001, 0.003, 0.126]]
+"""
+CYLINDER = ne.Inertia(2.34, (0.2, 0.01, -0.02), ((0.002, 0.0003, -0.0002), (0.0003, 0.09, 0.001), (-0.0002, 0.001, 0.08)))
+ROD = ne.Inertia(2.27, (-0.04, 0.015, 0.01), ((0.0015, -0.0001, 0.0002), (-0.0001, 0.0022, 0.0003), (0.0002, 0.0003, 0.0031)))
+PLATFORM = ne.Inertia(2.06, (0.01, -0.02, 0.03), ((0.063, 0.002, -0.001), (0.002, 0.06, 0.003), (-0.001, 0.003, 0.126)))
+
+
+def hexapod_angles(k: int) -> tuple[float, float]:
+    """(base joint angle, platform joint angle) [deg] of leg k (0-based): pairs at 0, 120, 240 deg on the base."""
+    pair, side = 120 * (k // 2), (1 if k % 2 else -1)
+    return pair + side * 12.0, pair + side * 48.0
+
+
+def hexapod_file(tmp_path, legs: bool):
+    text = HEXAPOD if legs else HEXAPOD.replace('value = 2.34', 'value = 0.0').replace('value = 2.27', 'value = 0.0')
+    if not legs:     # massless legs: no inertia either
+        text = re.sub(r"(bodies\.(cylinder|rod) = \{ mass = \"m_[cr]\", com = \[[^]]*\]), inertia = [^}]*\}", r"\1 }", text)
+    for k in range(6):
+        b, p = hexapod_angles(k)
+        text += (f'\n[[legs]]\nname = "leg_{k + 1}"\nbase = ["R_b * cos(radians({b}))", "R_b * sin(radians({b}))", 0.0]\n'
+                 f'platform = ["r * cos(radians({p}))", "r * sin(radians({p}))", 0.0]\n'
+                 f'axis = ["-sin(radians({b}))", "cos(radians({b}))", 0.0]\n')
+    path = tmp_path / "hexapod.toml"
+    path.write_text(text)
+    return load(path)
+
+
+def oracle_hexapod(legs: bool, g: float) -> ne.Mechanism:
+    bodies = (CYLINDER, ROD) if legs else (ne.Inertia(), ne.Inertia())
+    out = []
+    for k in range(6):
+        b, p = (math.radians(a) for a in hexapod_angles(k))
+        out.append(ne.Leg("UPS", (0.4 * math.cos(b), 0.4 * math.sin(b), 0.0), (-math.sin(b), math.cos(b), 0.0),
+                          (0.3 * math.cos(p), 0.3 * math.sin(p), 0.0), 0.0, bodies=bodies))
+    return ne.Mechanism(tuple(out), (PLATFORM,), g, coordinates=ne.POSE)
+
+
+@pytest.mark.parametrize("legs, g", [(True, 9.81), (True, 0.0), (False, 9.81), (False, 0.0)])
+def test_6ups_inverse_dynamics_agree_with_newton_euler(tmp_path, legs, g):
+    file = hexapod_file(tmp_path, legs)
+    eng = Engine(file.describe(), g=g)
+    mech = oracle_hexapod(legs, g)
+    home = np.asarray(eng.description.topology.home)
+    rng = np.random.default_rng(29)
+    worst = 0.0
+    for _ in range(30):
+        q = home + rng.uniform(-1.0, 1.0, 6) * (0.05, 0.05, 0.08, 0.2, 0.2, 0.2)
+        rd, rdd = rng.uniform(-0.5, 0.5, 6), rng.uniform(-5.0, 5.0, 6)
+        idp = eng.inverse_dynamics_at_pose(q, rd, rdd)
+        np.testing.assert_allclose(ne.joints(mech, q), eng.ik(q), rtol=0.0, atol=1e-12)
+        worst = max(worst, relative(ne.forces(mech, q, rd, rdd), idp.t_rho))
+    assert worst < TOL
+
+
+def test_6ups_check_sees_the_legs_inertia_off_their_axis(tmp_path):
+    """With the cylinder's products of inertia left out the oracle disagrees: the comparison above tests them."""
+    eng = Engine(hexapod_file(tmp_path, True).describe(), g=9.81)
+    plain = ne.Inertia(CYLINDER.mass, CYLINDER.com, np.diag(np.diag(CYLINDER.tensor)))
+    mech = oracle_hexapod(True, 9.81)
+    wrong = ne.Mechanism(tuple(ne.Leg(leg.kind, leg.base, leg.t, leg.s, 0.0, bodies=(plain, ROD)) for leg in mech.legs),
+                         mech.platform, mech.g, mech.coordinates)
+    rng = np.random.default_rng(31)
+    q = np.asarray(eng.description.topology.home) + rng.uniform(-1.0, 1.0, 6) * (0.05, 0.05, 0.08, 0.2, 0.2, 0.2)
+    rd, rdd = rng.uniform(-0.5, 0.5, 6), rng.uniform(-5.0, 5.0, 6)
+    right = eng.inverse_dynamics_at_pose(q, rd, rdd).t_rho
+    assert relative(ne.forces(mech, q, rd, rdd), right) < TOL < 1e-6 < relative(ne.forces(wrong, q, rd, rdd), right)
