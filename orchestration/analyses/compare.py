@@ -50,7 +50,7 @@ from . import paper, sizing
 from .workspace import STEP_TILT_DEG, STEP_Z
 from ..core.build import default_build_dir
 from ..core.components import fmu_parameters
-from ..core.ssv import typed_value
+from ..core import ssd, ssv
 from .frequency import SineCase, SineResult, bandwidth, run_cases
 
 REPO = Path(__file__).resolve().parents[2]
@@ -125,72 +125,33 @@ class Comparison:
 
 
 # ----------------------------------------------------------------------------- systems
-def _parameter_set_xml(values: Mapping[str, Value], name: str, why: str, indent: str) -> str:
-    """An inline ssd:ParameterBinding holding ``values``."""
-    rows = []
-    for key, value in values.items():
-        kind, text = typed_value(value)
-        text = text.replace("&", "&amp;").replace('"', "&quot;").replace("<", "&lt;")
-        rows.append(f'{indent}        <ssv:Parameter name="{key}" description="{why}"><ssv:{kind} value="{text}"/>'
-                    f'</ssv:Parameter>')
-    body = "\n".join(rows)
-    return (f'{indent}<ssd:ParameterBinding>\n{indent}  <ssd:ParameterValues>\n'
-            f'{indent}    <ssv:ParameterSet version="1.0" name="{name}">\n{indent}      <ssv:Parameters>\n'
-            f'{body}\n{indent}      </ssv:Parameters>\n{indent}    </ssv:ParameterSet>\n'
-            f'{indent}  </ssd:ParameterValues>\n{indent}</ssd:ParameterBinding>')
-
-
-def _bindings_span(block: str) -> tuple[str, int, int, bool]:
-    """(indent, start, end, exists) of a component's ParameterBindings, or where to create them."""
-    found = re.search(r"\n([ \t]*)<ssd:ParameterBindings>.*?</ssd:ParameterBindings>", block, re.S)
-    if found:
-        return found.group(1), found.start(), found.end(), True
-    at = re.search(r"\n([ \t]*)</ssd:Connectors>", block)
-    if at is None:
-        raise ValueError("a component to bind parameters to declares no connectors")
-    return at.group(1), at.end(), at.end(), False
-
-
 def swapped_ssd(base_text: str, fmu_name: str, params: Mapping[str, Value], label: str,
                 component_name: str = "mechanism") -> str:
     """The base system's text with its ``mechanism`` (or ``controller``) swapped for the FMU (module docstring)."""
-    mechanism_found = False
-
-    def component(m: re.Match) -> str:
-        nonlocal mechanism_found
-        block = m.group(0)
-        name = re.search(r'\bname="([^"]*)"', block).group(1)
-        source = re.search(r'\bsource="([^"]*)"', block).group(1)
-        if name == component_name:    # its own defaults replace whatever the base bound
-            mechanism_found = True
-            block = block.replace(f'source="{source}"', f'source="resources/{fmu_name}"', 1)
-            pad, start, end, _ = _bindings_span(block)
-            inline = _parameter_set_xml(params, "design", f"default of {fmu_name}", pad + "  ")
-            return block[:start] + f"\n{pad}<ssd:ParameterBindings>\n{inline}\n{pad}</ssd:ParameterBindings>" + block[end:]
+    document = ssd.read(base_text.encode("utf-8"), "the base system")
+    try:
+        swapped = document.system.component(component_name)
+    except KeyError:
+        raise ValueError(f"the base system has no component named '{component_name}' to swap") from None
+    swapped.source = f"resources/{fmu_name}"          # its own defaults replace whatever the base bound
+    swapped.bindings = [_inline(params, f"default of {fmu_name}")]
+    for comp in document.system.elements if component_name == "mechanism" else ():
         extra, why = {}, ""
-        if component_name != "mechanism":
-            return block
-        if name == "controller":
+        if comp.name == "controller":
             extra = {k: params[k] for k in KINEMATIC_NAMES if k in params}
             why = f"the controller's kinematic model: the geometry of {fmu_name}"
-        elif Path(source).stem == "MastActuator" and "beta" in params and "g" in params:
+        elif Path(comp.source).stem == "MastActuator" and "beta" in params and "g" in params:
             extra = {"g_guide": float(params["g"]) * math.cos(float(params["beta"]))}
             why = f"gravity along the guides of {fmu_name}: g cos(beta)"
-        if not extra:
-            return block
-        pad, start, end, exists = _bindings_span(block)
-        inline = _parameter_set_xml(extra, "design", why, pad + "  ")
-        if not exists:
-            return block[:start] + f"\n{pad}<ssd:ParameterBindings>\n{inline}\n{pad}</ssd:ParameterBindings>" + block[end:]
-        last = list(re.finditer(r"<ssd:ParameterBinding\b[^>]*/>|</ssd:ParameterBinding>", block[:end]))[-1]
-        return block[:last.end()] + "\n" + inline + block[last.end():]     # bound last: it overrides
+        if extra:
+            comp.bindings.append(_inline(extra, why))     # bound last: it overrides
+    document.name = f"MAST_{label}"
+    return document.to_bytes().decode("utf-8")
 
-    text = re.sub(r"<ssd:Component\b.*?</ssd:Component>", component, base_text, flags=re.S)
-    if not mechanism_found:
-        raise ValueError(f"the base system has no component named '{component_name}' to swap")
-    text = re.sub(r'(<ssd:SystemStructureDescription\b[^>]*?\bname=")[^"]*(")', rf"\g<1>MAST_{label}\g<2>", text,
-                  count=1)
-    return text
+
+def _inline(values: Mapping[str, Value], why: str) -> ssd.ParameterBinding:
+    """An inline binding of ``values``, each described by ``why``."""
+    return ssd.ParameterBinding(values=ssv.parameter_set("design", values, descriptions=dict.fromkeys(values, why)))
 
 
 def _label(path: Path, taken: set) -> str:

@@ -26,7 +26,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Optional, Union
+from typing import Callable, Optional, Union
 
 from lxml import etree
 
@@ -161,6 +161,12 @@ class System:
             if c.name == name:
                 return c
         raise KeyError(f"system '{self.name}' has no component '{name}' (it has {', '.join(c.name for c in self.elements)})")
+
+    def bind(self, source: str, accept: Callable[[str], bool]) -> None:
+        """Bind the parameter set ``source`` last (it overrides) to every component whose name ``accept`` takes."""
+        for component in self.elements:
+            if accept(component.name):
+                component.bindings.append(ParameterBinding(source))
 
     def to_element(self) -> etree._Element:
         element = etree.Element(_q("ssd", "System"), name=self.name)
