@@ -403,7 +403,8 @@ def test_singularity_is_flagged_then_refused(case):
 
 
 def test_degenerate_layout_is_singular():
-    desc = designs.PRS3(0.4, 0.35, 0.26, (0.0, 0.0, math.pi))          # two guides on top of each other
+    file = designs.description("3PRS")
+    desc = file.describe({**file.values(), "alpha_2": 0.0, "alpha_3": math.pi})       # two guides on top of each other
     with pytest.raises(KinematicsError, match="singular"):
         designs.Engine(desc).ik((0.4, 0.05, 0.05))
 

@@ -155,7 +155,6 @@ class DriveController(Block):
         #: the controller's kinematic model: the description its geometry set selects (``kinematics``),
         #: the same code as the mechanism's
         self.kinematics = kinematic_engine(P, self.name)
-        self.geometry = self.kinematics.description.geometry
         self._ik = self.kinematics.ik
         self._i_max = float(P["i_max"])
         self._mode = 0

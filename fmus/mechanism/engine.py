@@ -62,7 +62,7 @@ from .topology import Topology
 
 __all__ = [
     "Body", "Description", "Evaluation", "Engine", "Part", "TracedBody", "EngineIDP", "EngineJacobians", "KinematicsError", "MARGIN",
-    "Margins", "SingularityError", "sin", "cos", "sqrt", "atan2", "hypot", "sign", "require", "traced",
+    "Margins", "SingularityError", "sin", "cos", "sqrt", "atan2", "hypot", "sign", "require", "traced", "traced_input",
 ]
 
 #: smallest singularity margin [m/m] the direct kinematics accepts (both kinds, module docstring):
@@ -324,6 +324,14 @@ def require(check: Callable[..., None], *args) -> None:
 def traced(x) -> bool:
     """True for a traced number (for descriptions that need to know; rarely useful)."""
     return isinstance(x, E)
+
+
+def traced_input(like, name: str):
+    """The named input ``name`` of the expression graph the traced number ``like`` belongs to: a parameter
+    traced as an argument of the generated functions (a description's ``Evaluation.parameters``)."""
+    if not isinstance(like, E):
+        raise TypeError(f"traced_input({name!r}): {like!r} is not a traced number")
+    return like.g.input(name)
 
 
 # ===================================================================================== derivatives

@@ -91,7 +91,7 @@ FMUS = (
 #: Python packages the bundled model code imports (pythonfmu itself travels inside each FMU);
 #: written to resources/requirements.txt for `pythonfmu deploy`. tests/test_fmi_behaviour.py
 #: checks it against the imports of fmus/ and the project's own dependencies.
-FMU_REQUIREMENTS = ("numpy>=1.24", "scipy>=1.10")
+FMU_REQUIREMENTS = ("numpy>=1.24", "scipy>=1.10", "tomli>=1.1")   # tomli: the description files on Python 3.10
 
 #: name of the one parameter set per component in a built SSP (ecos: --parameterSet default)
 FLAT_SET_NAME = "default"
@@ -147,7 +147,7 @@ def _put_front(items: dict[str, bytes], identifier: str, fmi_version: int = 2) -
 
 def _source_hash(extra: bytes) -> str:
     digest = hashlib.sha256(extra)
-    for file in sorted(FMUS_SRC.rglob("*.py")):
+    for file in sorted([*FMUS_SRC.rglob("*.py"), *FMUS_SRC.rglob("*.toml")]):   # the code and the descriptions
         digest.update(file.relative_to(FMUS_SRC).as_posix().encode())
         digest.update(file.read_bytes())
     return digest.hexdigest()[:10]
