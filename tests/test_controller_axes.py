@@ -264,7 +264,8 @@ def test_the_hexapod_controller_tracks_its_legs_through_its_own_kinematics(param
     with pytest.raises(ValueError, match="needs six rho_cmd values"):
         block.set_mode("joint", (0.5,) * 3)
     block.set(z_cmd=9.0)
-    with pytest.raises(KinematicsError, match=r"pose command x = 0.01 m, y = -0.02 m, z = 9.0 m, psi = 0.03 rad, .* beyond its stroke"):
+    message = r"pose command x = 0.01 m, y = -0.02 m, z = 9.0 m, psi = 0.03 rad, .* beyond its stroke"
+    with pytest.raises(KinematicsError, match=message):
         block.do_step(params["T_cur"], params["T_cur"] * block.ticks_per_position)
 
 

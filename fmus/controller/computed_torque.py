@@ -66,7 +66,8 @@ class ComputedTorqueController(DriveController):
                 "DESCRIPTIONS": {**declared["DESCRIPTIONS"],
                                  **{f"omega_cmd_{j}": f"Reference speed of motor {j} (rho_dot_ref / i_R; no velocity "
                                                       "loop)" for j in axes},
-                                 **{f"i_cmd_{j}": f"Current command of axis {j} (computed torque / k_T)" for j in axes}}}
+                                 **{f"i_cmd_{j}": f"Current command of axis {j} (computed torque / k_T)"
+                                    for j in axes}}}
 
     LAWS = (commanded_acceleration, limited)
 
@@ -105,7 +106,8 @@ class ComputedTorqueController(DriveController):
         L, n = cls.LAYOUT, len(cls.COORDINATES)
         Q, i_R, i_max = L["rates"], f"S[{L['i_R']}]", f"S[{L['gains'] + 3}]"
         K_P, K_D = f"S[{L['own']}]", f"S[{L['own'] + 1}]"
-        state = [*(f"values[{n + j}]" for j in range(n)), *(f"rdm{j}" for j in range(n)), *(f"acc{j}" for j in range(n))]
+        state = [*(f"values[{n + j}]" for j in range(n)), *(f"rdm{j}" for j in range(n)),
+                 *(f"acc{j}" for j in range(n))]
         return [*(f"rdm{j} = {i_R}*values[{2 * n + j}]" for j in range(n)),
                 *(f"acc{j} = commanded_acceleration(S[{Q + n + j}], S[{Q + j}], rdm{j}, rc{j}, values[{n + j}], {K_P}, "
                   f"{K_D})" for j in range(n)),

@@ -1,7 +1,7 @@
 """The drive under every MAST controller, and the joint-space cascade (paper Fig. 2 and 6).
 
 ``DriveController`` is what all controllers share: the interface (pose commands and the
-three axes' position and speed measurements in, the loop commands out), the drive's
+n axes' position and speed measurements in, the loop commands out), the drive's
 multi-rate schedule of the position and velocity loops, the joint reference and the operating
 modes. The drive's current loop runs inside each actuator (fmus/actuator/drive.py): the
 current command ``i_cmd_k`` is its input. The outer
@@ -9,10 +9,16 @@ law is the subclass's: ``ControllerBlock`` here (the paper's joint-space cascade
 ``WorkspaceController`` (workspace.py), ``FeedForwardController`` (feedforward.py) and
 ``ComputedTorqueController`` (computed_torque.py).
 
+The axes are the mechanism's (its topology, fmus/mechanism/topology.py): one per coordinate c, each with a
+linear drive k = 1..n. The classes here control the 3PRS's (z, psi, theta); ``for_topology`` gives each for
+another mechanism, with the inputs ``<c>_cmd``, ``rho_k``, ``omega_m_k`` and the outputs ``rho_cmd_k``,
+``omega_cmd_k``, ``i_cmd_k`` (``interface``: the connector convention) and its state's layout for n
+(tick.layout). A rotary drive is refused: the transmission i_R below is a linear guide's.
+
 Joint-space cascade, per axis j, all loops sampled, forward-Euler integrators:
 
 position (every T_pos = N_pos T_cur, P):
-    rho_cmd_j  = IK_j(z_cmd, psi_cmd, theta_cmd)       controller's own geometry
+    rho_cmd_j  = IK_j(q_cmd)                            controller's own geometry (3PRS: q = z, psi, theta)
     omega_cmd_j = k_v (rho_cmd_j - rho_j) / i_R         i_R = p / (2 pi i_r)  (paper Eq. 1)
 velocity (every T_vel = N_vel T_cur, PI, limit i_max):
     e = omega_cmd_j - omega_m_j

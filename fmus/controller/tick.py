@@ -6,15 +6,17 @@ ticks from tick n, the inputs held: those that run a loop) in the generated-code
 (mast.core.native.translate: float arithmetic, ``if``, indexing, calls): which loop runs at which tick, the
 pose command's inverse kinematics cached by pose, the joint reference's samples and rates (``REFERENCE_RATES``),
 then the controller's own laws, which each controller class states as lines of the same subset
-(``position_lines``, ``velocity_lines``). The Python controllers compile it once per class (``compiled``) and
-run it on their state ``S``, a list of floats laid out as ``LAYOUT``; the native generator
-(mast.core.native.models) translates the same source to C, on the same layout. What the tick calls:
+(``position_lines``, ``velocity_lines``). The tick is written for the class's n axes (``cls.COORDINATES``, the
+mechanism's coordinates: DriveController.for_topology). The Python controllers compile it once per class
+(``compiled``) and run it on their state ``S``, a list of floats laid out as ``layout(n, parameters)`` (the
+class's ``LAYOUT``; ``LAYOUT`` here: the 3PRS's); the native generator (mast.core.native.models) translates the
+same source to C, on the same layout. What the tick calls (q: the n pose coordinates, rho: the n joints):
 
 - ``a, b = pi_step(...)``, ``rd, rdd = rates(...)``: functions that return a tuple (their own source, translated);
-- ``c = ik_s(S, z, psi, theta, R)`` (the inverse kinematics of the pose command, into R),
-  ``c = currents(rho, rho_dot, rho_ddot (nine numbers), S, CUR)`` (the inverse model's currents),
-  ``c = wsdk(rho (three numbers), S, QM)`` (the workspace controller's direct kinematics of the measured joints),
-  ``c = ikjac_s(S, q0, q1, q2, JK)`` (drho/dq at q in JK[3:12]): 0, or a failure (the caller makes the
+- ``c = ik_s(S, q_1, ..., q_n, R)`` (the inverse kinematics of the pose command, into R),
+  ``c = currents(rho, rho_dot, rho_ddot (3n numbers), S, CUR)`` (the inverse model's currents),
+  ``c = wsdk(rho (n numbers), S, QM)`` (the workspace controller's direct kinematics of the measured joints),
+  ``c = ikjac_s(S, q_1, ..., q_n, JK)`` (drho/dq at q in JK[n:n + n^2]): 0, or a failure (the caller makes the
   message); in Python the controller's own methods, in C the traced engine's functions;
 - the laws' arithmetic as value functions (``position_p_law``, ``pi_step``, ...: each controller's ``LAWS``).
 

@@ -114,7 +114,8 @@ class WorkspaceController(ControllerBlock):
             return super()._failed(code, t)
         at = self.LAYOUT["model_args"]
         what = "measured joints" if code == DK_FAILED else "joint command"
-        error = KinematicsError(f"{self.name}: direct kinematics of the {what} rho = {tuple(self._S[at:at + self.n])!r} m "
+        rho = tuple(self._S[at:at + self.n])
+        error = KinematicsError(f"{self.name}: direct kinematics of the {what} rho = {rho!r} m "
                                 f"failed at t = {t!r} s: {self._failure}")
         error.__cause__ = self._failure
         return error
