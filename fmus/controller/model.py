@@ -460,9 +460,10 @@ class DriveController(Block):
 
 def _declare(cls: type) -> None:
     """Set the declarations of ``cls``'s axes (``_interface``): on DriveController here, on its subclasses as they
-    are made (``__init_subclass__``)."""
+    are made (``__init_subclass__``); what a class states in its own body stays (e.g. FEEDTHROUGH = {})."""
     for key, value in cls._interface().items():
-        setattr(cls, key, value)
+        if key not in vars(cls):
+            setattr(cls, key, value)
 
 
 _declare(DriveController)
