@@ -969,9 +969,9 @@ def _joint_controller(block, vrs: Mapping[str, int]) -> str:
         from fmus.controller.computed_torque import error_gains as own
         own_call = f"    error_gains({P('omega_n')}, {P('zeta')}, s->S + {LAYOUT['own']});"
     elif workspace:
-        from fmus.controller.workspace import pose_gains as own
-        own_call = (f"    pose_gains({P('k_v')}, {P('k_v_scale_z')}, {P('k_v_scale_psi')}, {P('k_v_scale_theta')}, "
-                    f"s->S + {LAYOUT['own']});")
+        from fmus.controller.workspace import pose_gain as own
+        own_call = "\n".join(f"    s->S[{LAYOUT['own'] + k}] = pose_gain({P('k_v')}, {P(f'k_v_scale_{c}')});"
+                              for k, c in enumerate(block.COORDINATES))
     # the kinematic model (and the inverse model's dynamics): the engine traced with the controller's
     # geometry (and bodies) as inputs, read at initialisation (designs.traced_engine)
     from fmus.mechanism.designs import TRACED_PARAMETERS, traced_engine
