@@ -100,14 +100,14 @@ def simulate(ssp: Union[str, Path], stimulus: Optional[Stimulus], stop_time: flo
                           record_step=record_step, parameters=parameters, progress=progress)
 
 
-def motion_from_cli(axis: str, amplitude: float, frequency: float,
-                    axes: Optional[Sequence[str]] = None) -> SineMotion:
-    """CLI units: metres for x, y, z, degrees for the angles. ``axes``: the coordinates of the system
-    (``motion.system_axes``; None: the 3PRS's); a coordinate the system lacks is refused (ValueError naming it
-    and the system's)."""
+def motion_from_cli(axis: str, amplitude: float, frequency: float, axes: Optional[Sequence[str]] = None,
+                    where: str = "the system") -> SineMotion:
+    """CLI units: metres for x, y, z, degrees for the angles. ``axes``: the coordinates of the system ``where``
+    (``motion.system_axes``; None: the 3PRS's); a coordinate it lacks is refused (ValueError naming it and the
+    system's)."""
     motion = SineMotion(axis, amplitude if unit(axis) == "m" else math.radians(amplitude), frequency,
                         axes=(axis,))
-    bind(motion, AXES if axes is None else axes)
+    bind(motion, AXES if axes is None else axes, where)
     return motion
 
 
