@@ -9,6 +9,8 @@ import sys
 import tempfile
 from pathlib import Path
 
+from fmus.mechanism.topology import POSE
+
 from .core.build import default_build_dir
 
 REPO = Path(__file__).resolve().parents[1]
@@ -157,9 +159,10 @@ def cmd_validate(args) -> int:
 
 def cmd_run(args) -> int:
     from .core.master import SimulationError
+    from .core.motion import system_axes
     from .core.run import motion_from_cli, parse_overrides, simulate, write_outputs
+    from .core.ssp import SSPArchive
 
-    motion = motion_from_cli(args.motion, args.amplitude, args.frequency)
     out = Path(args.out)
     ssp = args.ssp
     if args.native:
@@ -170,8 +173,12 @@ def cmd_run(args) -> int:
             print(f"error: no native variant of {args.ssp} (build/ssp/native/...): run `mast build --native`",
                   file=sys.stderr)
             return 2
+    overrides = parse_overrides(args.set or [])
+    with SSPArchive(ssp) as archive:   # --motion: a coordinate of the system's mechanism (its topology)
+        axes = system_axes(archive.system, overrides)
+    motion = motion_from_cli(args.motion, args.amplitude, args.frequency, axes, str(ssp))
     try:
-        result = simulate(ssp, motion, args.stop_time, parameters=parse_overrides(args.set or []),
+        result = simulate(ssp, motion, args.stop_time, parameters=overrides,
                           record=args.record, record_step=args.record_step, direct=args.direct,
                           progress=Progress("co-simulation"))
         failed = None
@@ -474,8 +481,9 @@ def main(argv=None) -> int:
 
     p = sub.add_parser("run", help="run a co-simulation with a sine pose command around the home pose")
     p.add_argument("ssp", nargs="?", default=str(DEFAULT_SSP), help=SSP_HELP)
-    p.add_argument("--motion", choices=("z", "psi", "theta"), default="z", help="the axis of the sine")
-    p.add_argument("--amplitude", type=finite, default=0.01, help="metres for z, degrees for psi and theta")
+    p.add_argument("--motion", choices=POSE, default="z",
+                   help="the axis of the sine: a coordinate of the system's mechanism (the 3PRS's: z, psi, theta)")
+    p.add_argument("--amplitude", type=finite, default=0.01, help="metres for x, y, z, degrees for the angles")
     p.add_argument("--frequency", type=nonnegative, default=1.0, help="Hz")
     p.add_argument("--stop-time", type=seconds, default=2.0, help="s")
     p.add_argument("--set", action="append", metavar="ELEMENT.PARAMETER=VALUE", help="override a parameter (repeatable)")
@@ -591,7 +599,8 @@ def main(argv=None) -> int:
     p.add_argument("--out", type=folder, required=True, help="folder for comparison.csv/.json/.md, runs.csv, the plots, systems/")
     p.add_argument("--quick", action="store_true", help="the small test set: z motion at 1, 4 and 8 Hz (and the designs' "
                                                         "workspaces on a coarse grid: 25 mm, 4 deg)")
-    p.add_argument("--motions", nargs="+", choices=("z", "psi", "theta"), help="motions to test (default: all three)")
+    p.add_argument("--motions", nargs="+", choices=POSE,
+                   help="motions to test, coordinates of every design's mechanism (default: z, psi, theta)")
     p.add_argument("--frequencies", nargs="+", type=hertz, metavar="HZ", help="test frequencies (default: 0.5 to 10 Hz)")
     p.add_argument("--set", action="append", metavar="ELEMENT.PARAMETER=VALUE", help="override a parameter in every design")
     p.add_argument("--workers", type=count, help="parallel processes (default: the number of cores)")

@@ -121,7 +121,7 @@ class InverseModel:
             F = (0.0,) * self.n
         else:
             try:     # as the mechanism block: warm start, else cold; no cold restart across a singularity
-                if restarted_dk(rho[0], rho[1], rho[2], 0.0 if self._guess is None else 1.0, self, None):
+                if restarted_dk(rho, 0.0 if self._guess is None else 1.0, self, None):
                     raise self._failure
                 q, Jq, _ = self._found
                 F = self.engine.forces(q, Jq, rho_dot, rho_ddot)

@@ -45,12 +45,15 @@ from typing import Callable, Mapping, Optional, Sequence, Union
 
 from fmus.common.parameters import Value
 from fmus.mechanism.designs import KINEMATIC_PARAMETERS_NAMES
+from fmus.mechanism.topology import POSE
 
 from . import paper, sizing
 from .workspace import STEP_TILT_DEG, STEP_Z
 from ..core.build import default_build_dir
 from ..core.components import fmu_parameters
 from ..core import ssd, ssv
+from ..core.motion import system_axes
+from ..core.ssp import SSPArchive
 from .frequency import SineCase, SineResult, bandwidth, run_cases
 
 REPO = Path(__file__).resolve().parents[2]
@@ -196,8 +199,6 @@ def prepare(mechanisms: Sequence[Union[str, Path]], out: Union[str, Path], base_
         path = Path(item)
         label = _label(path, taken)
         if path.suffix in (".ssp", ".ssd"):
-            from ..core.ssp import SSPArchive
-
             with SSPArchive(path) as archive:      # the mechanism's bound parameters (attached, geometry ...)
                 comp = archive.system.components.get("mechanism")
                 params = dict(comp.parameters) if comp is not None and component == "mechanism" else {}
@@ -276,11 +277,21 @@ def compare(mechanisms: Sequence[Union[str, Path]] = (), out: Union[str, Path] =
     out = Path(out)
     test_set = test_set or (QUICK if quick else DEFAULT)
     for axis in test_set.axes:
-        if axis not in MOTIONS:
-            raise ValueError(f"test set: motion {axis!r}: expected one of {', '.join(MOTIONS)}")
+        if axis not in POSE:
+            raise ValueError(f"test set: motion {axis!r}: expected a pose component ({', '.join(POSE)})")
+        if axis not in test_set.amplitudes:
+            raise ValueError(f"test set: motion {axis!r}: no test amplitude for it (amplitudes of "
+                             f"{', '.join(test_set.amplitudes)})")
     kind = "controller" if controllers else "design"
     # out is made once the candidates are known: a missing FMU leaves no empty folder behind
     candidates = prepare(controllers or mechanisms, out, base_ssd, fmu_dir, "controller" if controllers else "mechanism")
+    for c in candidates:     # every motion a coordinate of every candidate's mechanism (its topology)
+        with SSPArchive(c.ssp) as archive:
+            axes = system_axes(archive.system, c.overrides(parameters))
+        for axis in test_set.axes:
+            if axis not in axes:
+                raise ValueError(f"test set: motion {axis!r}: {c.label} has no such coordinate; its mechanism's "
+                                 f"coordinates are {', '.join(axes)}")
     out.mkdir(parents=True, exist_ok=True)
     if controllers and payload:
         candidates += [Candidate(f"{c.label} +{payload:g} kg", c.ssp, c.source, c.parameters, payload, c.label)
@@ -321,7 +332,7 @@ def sizing_columns(c: Candidate, results: Sequence[SineResult],
     """The drives of a design over its tests of one motion (``mast sizing`` of each test's steady cycle, run
     continuously): the verdict, the limiting item (drive, item and test) and its margin, the highest test
     frequency up to which no test fails; ``sizing_note`` says why there is none."""
-    from ..core.ssp import SSPArchive, read_ssd
+    from ..core.ssp import read_ssd
 
     try:
         if Path(c.ssp).suffix == ".ssd":
