@@ -9,8 +9,8 @@ mechanisms other than the 3PRS, written here as scratch descriptions for the eng
 The state layout for n = 1..8 (no two fields overlap; n = 3 is the 3PRS's layout of before); the joint cascade's
 tick of n axes against the P/PI cascade written out here; the workspace law against the pose-space P law by hand;
 the model-based laws per axis against the 3PRS's axes; the interface by the connector convention; and the
-refusals (a rotary drive, a controller class of other axes, a mode command of the wrong length, the mechanism's
-forces in the inverse model for n != 3).
+refusals (a rotary drive, a controller class of other axes, a mode command of the wrong length); the inverse
+model's mechanism forces for n = 2 against the statics of the 2-leg table.
 """
 from __future__ import annotations
 
@@ -22,6 +22,7 @@ import pytest
 from fmus.common.parameters import ParameterError
 from fmus.controller.computed_torque import ComputedTorqueController
 from fmus.controller.feedforward import FeedForwardController
+from fmus.controller.inverse_model import InverseModel
 from fmus.controller.model import ControllerBlock
 from fmus.controller.tick import LAYOUT, SIZE, layout, size
 from fmus.controller.workspace import WorkspaceController
@@ -333,8 +334,16 @@ def test_what_a_law_cannot_do_for_n_axes_is_refused_naming_why(params):
     # a class of other axes than its kinematic model's
     with pytest.raises(ParameterError, match=r"2-leg table with coordinates x, z \(two drives\).*for_topology"):
         ControllerBlock(params, "x", kinematics=Engine(TwoLegs(), g=0.0))
-    # the inverse model with the mechanism's forces (its direct kinematics' restart takes three joints today)
+
+
+def test_the_inverse_model_carries_the_weight_of_a_two_leg_table():
+    """attached = 1, n = 2, at rest at x = 0, z = 0.4 m (legs 0.5 m long, A_i = (-+0.3, 0, 0)): by symmetry each
+    leg pushes f along itself with 2 f z / rho = m g (statics), so each motor's torque exceeds the actuators-alone
+    torque by i_R f = i_R m g rho / (2 z)."""
     P = {**default_parameters("MastComputedTorqueController"), "attached": 1}
-    cls = ComputedTorqueController.for_topology(TwoLegs().topology)
-    with pytest.raises(ValueError, match="attached = 1.*2 axes.*three joint coordinates"):
-        cls(P, "x", kinematics=Engine(TwoLegs(), g=0.0), dynamics=Engine(TwoLegs()))
+    loaded = InverseModel(P, "x", dynamics=Engine(TwoLegs(), g=9.81))
+    alone = InverseModel({**P, "attached": 0}, "x", n=2)
+    rho = (0.5, 0.5)
+    f = PLATFORM.mass * 9.81 * 0.5 / (2.0 * 0.4)
+    extra = [a - b for a, b in zip(loaded.torques(rho, (0.0, 0.0), (0.0, 0.0)), alone.torques(rho, (0.0, 0.0), (0.0, 0.0)))]
+    assert extra == pytest.approx([loaded.i_R * f] * 2, rel=1e-12)

@@ -97,11 +97,6 @@ class InverseModel:
         self.n = n if n is not None else (self.engine or kinematic_engine(P, self.owner)).n
         if attached and self.engine.n != self.n:
             raise ValueError(f"{self.owner}: inverse model of {self.n} axes with a mechanism of {self.engine.n} drives")
-        if attached and self.n != 3:
-            raise ValueError(
-                f"{self.owner}: inverse model with the mechanism's forces (attached = 1) for {self.n} axes: its direct "
-                "kinematics' restart (mechanism.model.restarted_dk, shared with the native FMUs) takes three joint "
-                "coordinates; with attached = 0 (actuators only) any number of axes works")
         self._guess = None
         self._found = self._failure = None      # the last direct kinematics' solution, or failure (mechanism.model.dk)
 
