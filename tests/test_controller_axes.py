@@ -347,3 +347,16 @@ def test_the_inverse_model_carries_the_weight_of_a_two_leg_table():
     f = PLATFORM.mass * 9.81 * 0.5 / (2.0 * 0.4)
     extra = [a - b for a, b in zip(loaded.torques(rho, (0.0, 0.0), (0.0, 0.0)), alone.torques(rho, (0.0, 0.0), (0.0, 0.0)))]
     assert extra == pytest.approx([loaded.i_R * f] * 2, rel=1e-12)
+
+
+def test_a_controller_fmu_takes_the_axes_of_its_parameters(params, monkeypatch):
+    """Block.for_parameters (what an FMU calls with its built-in parameters): the 3PRS's set gives the class
+    itself, a set describing the 2-leg table the class with its axes (x_cmd, z_cmd; two drives)."""
+    from fmus.mechanism import designs
+
+    assert ControllerBlock.for_parameters(params) is ControllerBlock
+    monkeypatch.setitem(designs.KINEMATICS, "2-leg", lambda p, masses=True: TwoLegs())
+    two = ControllerBlock.for_parameters({**params, "kinematics": "2-leg"})
+    assert two is ControllerBlock.for_topology(TwoLegs().topology)
+    assert [v for v in two.INPUTS if v.endswith("_cmd")] == ["x_cmd", "z_cmd"]
+    assert [v for v in two.OUTPUTS if v.startswith("i_cmd")] == ["i_cmd_1", "i_cmd_2"]

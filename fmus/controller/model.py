@@ -65,7 +65,7 @@ from ..common.block import Block, ModelError
 from ..common.parameters import ParameterError, Value, nonnegative, positive
 from ..actuator.drive import pi_step
 from ..actuator.model import transmission_ratio
-from ..mechanism.designs import KINEMATIC_PARAMETERS, TRACED_PARAMETERS, description, kinematic_engine
+from ..mechanism.designs import KINEMATIC_PARAMETERS, TRACED_PARAMETERS, describe, description, kinematic_engine
 from ..mechanism.engine import Engine
 from ..mechanism.kinematics import KinematicsError
 from ..mechanism.topology import POSE_UNITS, Topology, TopologyError
@@ -192,6 +192,19 @@ class DriveController(Block):
                 "transmission i_R = p / (2 pi i_r) [m/rad] (paper Eq. 1) and their joint units [m] are a linear "
                 "guide's; a rotary drive needs its own transmission")
         return _specialised(cls, topology.names)
+
+    @classmethod
+    def for_parameters(cls, params: Mapping[str, Value]) -> type:
+        """The class whose variables a controller of ``params`` has: ``for_topology`` of the mechanism their
+        geometry set describes (an FMU fixes its variables with its built-in parameters, ``Block.for_parameters``);
+        this class when they describe none (the block built with them says why)."""
+        if not params:
+            return cls
+        try:
+            topology = describe(params, masses=False).topology
+        except Exception:   # noqa: BLE001 - the block's own construction reports what is wrong with them
+            return cls
+        return cls.for_topology(topology)
 
     def __init__(self, params: Mapping[str, Value], name: str = "", kinematics: Optional[Engine] = None) -> None:
         """``kinematics``: the controller's kinematic model, by default the description its geometry parameter
