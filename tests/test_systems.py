@@ -1,13 +1,19 @@
-"""The system SSDs generated from a system description (mast.core.systems), and the SSD and SSV
+"""The system SSDs generated from a system description (mast.core.systems), the parameter sets
+written from the mechanism description files (mast.core.description_sets), and the SSD and SSV
 modules that write them (mast.core.ssd, mast.core.ssv)."""
 from __future__ import annotations
 
+import math
+import re
 from pathlib import Path
 
 import pytest
 
+from fmus.mechanism.description import load
 from fmus.mechanism.topology import POSE, Coordinate, Drive, Topology
 from mast.core import ssd, ssv
+from mast.core.description_sets import SETS, differences
+from mast.core.designs import DESIGNS, variant
 from mast.core.ssp import read_ssd, validate_ssd_schema
 from mast.core.ssv import SSPFormatError
 from mast.core.systems import MAST, STANDALONE, generate, system_ssd, topology
@@ -125,3 +131,52 @@ def test_writing_what_the_reader_does_not_model_is_refused():
     document = ssd.read(text.encode(), "user.ssd")
     with pytest.raises(SSPFormatError, match="SignalDictionaries"):
         document.to_bytes()
+
+
+# ---- the parameter sets written from the description files ---------------------------------------------
+@pytest.mark.parametrize("described", SETS, ids=lambda s: s.name)
+def test_committed_set_is_what_its_description_gives(described):
+    assert not differences(described), "\n".join(differences(described) + ["run python -m mast.core.variants"])
+
+
+@pytest.mark.parametrize("edit, words", [
+    (lambda t: t.replace('value="0.4"', 'value="0.41"'), r"geometry_3prs\.ssv .*parameter 'H' is 0\.41 m, the "
+                                                          r"description gives 0\.4 m"),
+    (lambda t: t.replace('unit="rad"/></ssv:Parameter>\n    <ssv:Parameter name="alpha_2"',
+                         'unit="deg"/></ssv:Parameter>\n    <ssv:Parameter name="alpha_2"'),
+     r"parameter 'alpha_1' is 0\.0 deg, the description gives 0\.0 rad"),
+    (lambda t: t.replace("Paper section 3: leg length", "a guess"), r"parameter 'L': description 'a guess', its source"),
+    (lambda t: t.replace('<ssv:String value="3PRS"/>', '<ssv:String value="3RPS"/>'), r"parameter 'kinematics' is '3RPS'"),
+    (lambda t: t.replace('<ssv:Parameter name="beta"', '<ssv:Parameter name="gamma"'),
+     r"parameter 'gamma' is not in the description\n.*parameter 'beta' is missing"),
+    (lambda t: t.replace("Bound to the mechanism", "Bound to everything"), r"same parameters, but not the file"),
+])
+def test_a_committed_set_that_differs_from_its_description_is_named(tmp_path, edit, words):
+    geometry = next(s for s in SETS if s.name == "geometry_3prs")
+    text = geometry.path.read_text()
+    assert edit(text) != text
+    (tmp_path / "geometry_3prs.ssv").write_text(edit(text))
+    found = "\n".join(differences(geometry, tmp_path / "geometry_3prs.ssv"))
+    assert re.search(words, found), found
+
+
+def test_every_set_bound_to_a_designs_mechanism_gives_its_description_values():
+    """Read as the SSP reader reads a system: each design's mechanism gets its description file's values (the same
+    floats), the 3PRS's name as ``kinematics``, and ``attached`` from attached.ssv (0 for actuators_only only)."""
+    for d in DESIGNS:
+        file = load(d.name if d.name != "actuators_only" else "3PRS_T")
+        merged = {}
+        for source in variant(d).mechanism.bindings:
+            merged.update({k: p.value for k, p in ssv.read(SSP / source).parameters.items()})
+        assert merged.pop("kinematics") == file.name and merged.pop("attached") == int(d.name != "actuators_only")
+        assert merged == file.values(), d.name
+
+
+def test_the_home_pose_and_the_inclined_guides_gravity_are_derived_from_their_files():
+    home = {k: p for k, p in ssv.read(SSP / "resources" / "home_3prs.ssv").parameters.items()}
+    assert tuple(home[f"{c}_home"].value for c in ("z", "psi", "theta")) == load("3PRS_T").describe().topology.home
+    assert all(p.source.startswith("Home pose, derived from 3PRS_T.toml") for p in home.values())
+    inclined = load("3PRS_inclined").values()
+    g_guide = ssv.read(SSP / "resources" / "guide_inclined.ssv").parameters["g_guide"]
+    assert g_guide.value == pytest.approx(inclined["g"] * math.cos(inclined["beta"]), rel=1e-15)
+    assert g_guide.value == pytest.approx(9.81 * math.cos(math.radians(15.0)), rel=1e-15)

@@ -90,8 +90,10 @@ FMUS = (
 
 #: Python packages the bundled model code imports (pythonfmu itself travels inside each FMU);
 #: written to resources/requirements.txt for `pythonfmu deploy`. tests/test_fmi_behaviour.py
-#: checks it against the imports of fmus/ and the project's own dependencies.
-FMU_REQUIREMENTS = ("numpy>=1.24", "scipy>=1.10", "tomli>=1.1")   # tomli: the description files on Python 3.10
+#: checks it against the imports of fmus/ and the project's own dependencies, markers included (pip, which
+#: `pythonfmu deploy` runs on the file, honours them).
+FMU_REQUIREMENTS = ("numpy>=1.24", "scipy>=1.10",
+                    "tomli>=1.1; python_version < '3.11'")   # tomli: the description files on Python 3.10
 
 #: name of the one parameter set per component in a built SSP (ecos: --parameterSet default)
 FLAT_SET_NAME = "default"

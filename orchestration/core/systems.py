@@ -172,7 +172,8 @@ MAST = SystemDescription(
     actuator=Part("MastActuator.fmu", ("resources/transmission.ssv", "resources/actuator_manufacturer.ssv",
                                        "resources/drive.ssv"), 0.001,
                   "{kind} axis {k} with its drive's current loop (T_cur = 100 us inside the FMU): current command in"),
-    mechanism=Part("MastMechanism.fmu", ("resources/geometry_3prs.ssv", "resources/mass_3prs.ssv"), 0.001,
+    mechanism=Part("MastMechanism.fmu", ("resources/geometry_3prs.ssv", "resources/mass_3prs.ssv",
+                                         "resources/attached.ssv"), 0.001,
                    "{mechanism} inverse dynamics: a disturbance to the actuators, stepped at the position/velocity cycle"),
     ratings="resources/drive_ratings.ssv")
 
@@ -184,5 +185,6 @@ STANDALONE = dataclasses.replace(
             "     co-simulation host runs it as it is (libcosim and ecos accept no system-level connectors).\n"
             "     Everything else is MAST.ssd (tests/test_hosts.py checks they agree).\n"
             + MAST.comment.split("\n", 1)[1],
-    trajectory=Part("MastTrajectory.fmu", ("resources/trajectory_z.ssv",), 0.001,
-                    "Pose command: home pose + sine (trajectory_z.ssv: 10 mm at 1 Hz on z); stepped with the controller"))
+    trajectory=Part("MastTrajectory.fmu", ("resources/home_3prs.ssv", "resources/trajectory_z.ssv"), 0.001,
+                    "Pose command: home pose (home_3prs.ssv) + sine (trajectory_z.ssv: 10 mm at 1 Hz on z); stepped "
+                    "with the controller"))
