@@ -30,10 +30,12 @@ import numpy as np
 
 from ..common.codegen import largest_parameters
 from ..common.parameters import Param, ParameterError, nonnegative
-from .engine import Body, Description, Engine, Evaluation, Part, TracedBody, atan2, hypot, require, sign, sqrt
-from .engine import cos as _cos
-from .engine import sin as _sin
-from .kinematics import GEOMETRY_PARAMETERS, MAX_TILT, Geometry, KinematicsError, _det3
+from ..common.tracer import atan2, hypot, require, sign, sqrt
+from ..common.tracer import cos as _cos
+from ..common.tracer import sin as _sin
+from .engine import Body, Description, Engine, Evaluation, Part, TracedBody
+from .kinematics import GEOMETRY_PARAMETERS, MAX_TILT, Geometry, KinematicsError
+from .kinematics import det3 as _det3
 from .topology import Coordinate, Drive, Topology
 
 __all__ = ["KINEMATICS", "KINEMATIC_PARAMETERS", "KINEMATIC_PARAMETERS_NAMES", "MASS_PARAMETERS", "PAYLOAD_PARAMETERS",
