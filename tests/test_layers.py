@@ -134,3 +134,106 @@ def test_the_private_name_check_sees_both_forms(tmp_path):
     modules = {"p": tmp_path / "__init__.py", "p.a": tmp_path / "a.py", "p.b": tmp_path / "b.py"}
     found = _private_reaches(modules, tmp_path)
     assert [line.split(": ", 1)[1] for line in found] == ["from .a import _x, __version__", "m._x (p.a)"]
+
+
+# --------------------------------------------------------------------------- no import circles
+def _imports(modules: dict[str, Path]) -> dict[str, dict[str, int]]:
+    """{module: {project module it imports: line}}: every import statement, wherever it stands (in a function,
+    under ``if TYPE_CHECKING``), packages' ``__init__`` left out as targets (importing a submodule runs its
+    package first; that order is Python's, not a dependency of the package's own code)."""
+    graph: dict[str, dict[str, int]] = {}
+    for module, path in modules.items():
+        edges = graph.setdefault(module, {})
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            if isinstance(node, ast.ImportFrom):
+                source = _absolute(module, path, node)
+                names = [f"{source}.{alias.name}" for alias in node.names]
+                targets = [n for n in names if n in modules] + ([source] if any(n not in modules for n in names) else [])
+            elif isinstance(node, ast.Import):
+                targets = [alias.name for alias in node.names]
+            else:
+                continue
+            for target in targets:
+                while target and target not in modules:       # a name inside a module: that module
+                    target = target.rpartition(".")[0]
+                if target and target != module and modules[target].name != "__init__.py":
+                    edges.setdefault(target, node.lineno)
+    return graph
+
+
+def _circles(graph: dict[str, dict[str, int]]) -> list[list[str]]:
+    """Every circle of ``graph`` as one path m0 -> m1 -> ... -> m0 through a strongly connected component of
+    more than one module (Tarjan's algorithm, iterative)."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    components = []
+    for root in graph:
+        if root in index:
+            continue
+        work = [(root, iter(graph[root]))]
+        index[root] = low[root] = len(index)
+        stack.append(root)
+        on_stack.add(root)
+        while work:
+            v, children = work[-1]
+            child = next(children, None)
+            if child is not None:
+                if child not in index:
+                    index[child] = low[child] = len(index)
+                    stack.append(child)
+                    on_stack.add(child)
+                    work.append((child, iter(graph[child])))
+                elif child in on_stack:
+                    low[v] = min(low[v], index[child])
+                continue
+            work.pop()
+            if work:
+                low[work[-1][0]] = min(low[work[-1][0]], low[v])
+            if low[v] == index[v]:
+                component = []
+                while True:
+                    w = stack.pop()
+                    on_stack.discard(w)
+                    component.append(w)
+                    if w == v:
+                        break
+                if len(component) > 1:
+                    components.append(set(component))
+    circles = []
+    for component in components:               # one shortest way back to the start inside the component
+        start = min(component)
+        paths = {start: [start]}
+        frontier = [start]
+        found = None
+        while frontier and found is None:
+            nxt = []
+            for v in frontier:
+                for w in sorted(graph[v]):
+                    if w == start:
+                        found = paths[v] + [start]
+                        break
+                    if w in component and w not in paths:
+                        paths[w] = paths[v] + [w]
+                        nxt.append(w)
+                if found:
+                    break
+            frontier = nxt
+        circles.append(found)
+    return circles
+
+
+def test_no_import_circles():
+    """No module of fmus/ or orchestration/ imports, at any depth, a module that imports it back: not across
+    packages, not inside one, not through a function-level or a TYPE_CHECKING import."""
+    graph = _imports(_project_modules())
+    circles = _circles(graph)
+    shown = [" -> ".join(f"{a} (line {graph[a][b]})" for a, b in zip(c, c[1:])) + f" -> {c[-1]}" for c in circles]
+    assert not circles, "import circles:\n" + "\n".join(shown)
+
+
+def test_the_circle_check_names_a_circle():
+    graph = {"p.a": {"p.b": 3}, "p.b": {"p.c": 5}, "p.c": {"p.a": 7, "p.d": 8}, "p.d": {}, "p.e": {"p.d": 1}}
+    assert _circles(graph) == [["p.a", "p.b", "p.c", "p.a"]]
+    assert _circles({"p.a": {"p.b": 1}, "p.b": {}}) == []
