@@ -73,6 +73,18 @@ FIGURES: dict[str, Figure] = {
     **{f"designs.{d}.{what}": Figure("designs", (lambda d, w: lambda v: v[d][w])(d, what), fmt, 0.005)
        for d in ("3PRS_T", "3PRS_120", "3PRS_inclined")
        for what, fmt in (("parallel", "{:.3g}"), ("inverse", "{:.3g}"), ("dexterity", "{:.3g}"))},
+    # the drives' datasheet ratings as docs/sizing.md restates them, in the page's units, from the set mast sizing
+    # reads (ssp/resources/drive_ratings.ssv, SI): the same number, no tolerance (a unit conversion's rounding
+    # stays below the printed digit)
+    **{f"ratings.{name}": Figure("ratings", (lambda n, k, o: lambda v: v[n] * k + o)(name, scale, offset), fmt)
+       for name, scale, offset, fmt in (
+           ("tau_N", 1e3, 0.0, "{:.0f}"), ("i_N", 1.0, 0.0, "{:g}"), ("tau_stall", 1.0, 0.0, "{:.2f}"),
+           ("n_max", 30 / math.pi, 0.0, "{:.0f}"), ("R_th1", 1.0, 0.0, "{:g}"), ("R_th2", 1.0, 0.0, "{:g}"),
+           ("tau_w", 1.0, 0.0, "{:g}"), ("tau_s", 1.0, 0.0, "{:g}"), ("T_w_max", 1.0, -273.15, "{:.0f}"),
+           ("tau_gear_cont", 1.0, 0.0, "{:g}"), ("tau_gear_int", 1.0, 0.0, "{:g}"),
+           ("n_gear_max", 30 / math.pi, 0.0, "{:.0f}"), ("eta_gear", 100.0, 0.0, "{:.0f}"),
+           ("F_guide_max", 1.0, 0.0, "{:.0f}"), ("v_guide_max", 1.0, 0.0, "{:g}"), ("i_amp_cont", 1.0, 0.0, "{:g}"),
+           ("i_amp_peak", 1.0, 0.0, "{:g}"), ("T_ambient", 1.0, -273.15, "{:.0f}"), ("alpha_Cu", 1.0, 0.0, "{:g}"))},
 }
 
 
@@ -97,6 +109,13 @@ def source_ssd() -> dict:
     from mast.core.ssp import read_ssd
 
     return {"controller": dict(read_ssd(ROOT / "ssp" / "MAST.ssd").components["controller"].parameters)}
+
+
+def source_ratings() -> dict:
+    """The drive ratings `mast sizing` checks against (ssp/resources/drive_ratings.ssv), SI values."""
+    from mast.core.ssv import parse_ssv
+
+    return {name: v.value for name, v in parse_ssv(ROOT / "ssp" / "resources" / "drive_ratings.ssv").items()}
 
 
 def source_designs() -> dict:
@@ -125,6 +144,7 @@ def source_workspace(quick: bool = False) -> dict:
 
 
 SOURCES: dict[str, Callable[[], dict]] = {"reproduce": source_reproduce, "ssd": source_ssd, "designs": source_designs,
+                                          "ratings": source_ratings,
                                           "workspace": source_workspace,
                                           "workspace_quick": lambda: source_workspace(quick=True)}
 

@@ -280,8 +280,10 @@ def test_every_marked_figure_is_known():
 
 
 def test_marked_figures_of_the_system_files_and_designs_agree():
-    """The gains MAST.ssd binds (docs/controller.md), the designs' margins at home (docs/mechanism.md)."""
-    problems = figures.check({"ssd": figures.source_ssd(), "designs": figures.source_designs()})
+    """The gains MAST.ssd binds (docs/controller.md), the designs' margins at home (docs/mechanism.md), the drive
+    ratings (docs/sizing.md)."""
+    problems = figures.check({"ssd": figures.source_ssd(), "designs": figures.source_designs(),
+                              "ratings": figures.source_ratings()})
     assert not problems, "\n".join(problems)
 
 
@@ -294,7 +296,7 @@ def test_marked_workspace_figures_agree():
 
 def test_every_figure_source_is_checked_by_a_test():
     """A source added to docs/figures.py is compared with the pages somewhere (here or tests/test_reproduce.py)."""
-    checked = {"ssd", "designs", "workspace", "workspace_quick", "reproduce"}
+    checked = {"ssd", "designs", "workspace", "workspace_quick", "reproduce", "ratings"}
     assert set(figures.SOURCES) == checked, f"sources no test compares: {set(figures.SOURCES) - checked}"
 
 
