@@ -85,6 +85,11 @@ FIGURES: dict[str, Figure] = {
            ("n_gear_max", 30 / math.pi, 0.0, "{:.0f}"), ("eta_gear", 100.0, 0.0, "{:.0f}"),
            ("F_guide_max", 1.0, 0.0, "{:.0f}"), ("v_guide_max", 1.0, 0.0, "{:g}"), ("i_amp_cont", 1.0, 0.0, "{:g}"),
            ("i_amp_peak", 1.0, 0.0, "{:g}"), ("T_ambient", 1.0, -273.15, "{:.0f}"), ("alpha_Cu", 1.0, 0.0, "{:g}"))},
+    # what `mast build` writes and the limits an untrusted archive meets (README, docs/interfaces.md): counts and
+    # sizes the code defines, stated exactly
+    "build.fmus": Figure("build", lambda v: v["fmus"], "{:d}"),
+    **{f"build.{name}": Figure("build", (lambda n: lambda v: v[n])(name), "{:,d}" if name == "max_entries" else "{:g}")
+       for name in ("max_archive_GiB", "max_entry_MiB", "max_entries", "ratio_floor_MiB", "max_ratio")},
 }
 
 
@@ -118,6 +123,16 @@ def source_ratings() -> dict:
     return {name: v.value for name, v in parse_ssv(ROOT / "ssp" / "resources" / "drive_ratings.ssv").items()}
 
 
+def source_build() -> dict:
+    """How many FMUs `mast build` writes (mast.core.build.FMUS); the archive limits (mast.core.ssp.MAX_*), in the
+    units the pages use (binary prefixes)."""
+    from mast.core import ssp
+    from mast.core.build import FMUS
+
+    return {"fmus": len(FMUS), "max_archive_GiB": ssp.MAX_ARCHIVE_BYTES / 2**30, "max_entry_MiB": ssp.MAX_ENTRY_BYTES / 2**20,
+            "max_entries": ssp.MAX_ENTRIES, "ratio_floor_MiB": ssp.RATIO_FLOOR / 2**20, "max_ratio": ssp.MAX_RATIO}
+
+
 def source_designs() -> dict:
     from mast.analyses.workspace import machine
 
@@ -144,7 +159,7 @@ def source_workspace(quick: bool = False) -> dict:
 
 
 SOURCES: dict[str, Callable[[], dict]] = {"reproduce": source_reproduce, "ssd": source_ssd, "designs": source_designs,
-                                          "ratings": source_ratings,
+                                          "ratings": source_ratings, "build": source_build,
                                           "workspace": source_workspace,
                                           "workspace_quick": lambda: source_workspace(quick=True)}
 

@@ -281,9 +281,9 @@ def test_every_marked_figure_is_known():
 
 def test_marked_figures_of_the_system_files_and_designs_agree():
     """The gains MAST.ssd binds (docs/controller.md), the designs' margins at home (docs/mechanism.md), the drive
-    ratings (docs/sizing.md)."""
+    ratings (docs/sizing.md), the FMUs mast build writes and the archive limits (README, docs/interfaces.md)."""
     problems = figures.check({"ssd": figures.source_ssd(), "designs": figures.source_designs(),
-                              "ratings": figures.source_ratings()})
+                              "ratings": figures.source_ratings(), "build": figures.source_build()})
     assert not problems, "\n".join(problems)
 
 
@@ -296,7 +296,7 @@ def test_marked_workspace_figures_agree():
 
 def test_every_figure_source_is_checked_by_a_test():
     """A source added to docs/figures.py is compared with the pages somewhere (here or tests/test_reproduce.py)."""
-    checked = {"ssd", "designs", "workspace", "workspace_quick", "reproduce", "ratings"}
+    checked = {"ssd", "designs", "workspace", "workspace_quick", "reproduce", "ratings", "build"}
     assert set(figures.SOURCES) == checked, f"sources no test compares: {set(figures.SOURCES) - checked}"
 
 
