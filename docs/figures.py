@@ -129,8 +129,9 @@ def source_build() -> dict:
     from mast.core import ssp
     from mast.core.build import FMUS
 
-    return {"fmus": len(FMUS), "max_archive_GiB": ssp.MAX_ARCHIVE_BYTES / 2**30, "max_entry_MiB": ssp.MAX_ENTRY_BYTES / 2**20,
-            "max_entries": ssp.MAX_ENTRIES, "ratio_floor_MiB": ssp.RATIO_FLOOR / 2**20, "max_ratio": ssp.MAX_RATIO}
+    return {"fmus": len(FMUS), "max_archive_GiB": ssp.MAX_ARCHIVE_BYTES / 2**30,
+            "max_entry_MiB": ssp.MAX_ENTRY_BYTES / 2**20, "max_entries": ssp.MAX_ENTRIES,
+            "ratio_floor_MiB": ssp.RATIO_FLOOR / 2**20, "max_ratio": ssp.MAX_RATIO}
 
 
 def source_designs() -> dict:

@@ -148,7 +148,9 @@ def _imports(modules: dict[str, Path]) -> dict[str, dict[str, int]]:
             if isinstance(node, ast.ImportFrom):
                 source = _absolute(module, path, node)
                 names = [f"{source}.{alias.name}" for alias in node.names]
-                targets = [n for n in names if n in modules] + ([source] if any(n not in modules for n in names) else [])
+                targets = [n for n in names if n in modules]
+                if any(n not in modules for n in names):        # a name defined in the module ``source``
+                    targets.append(source)
             elif isinstance(node, ast.Import):
                 targets = [alias.name for alias in node.names]
             else:

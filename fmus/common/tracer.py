@@ -288,7 +288,8 @@ def hypot(a, b):
 
 
 def require(check: Callable[..., None], *args) -> None:
-    """Admissibility check: ``check(*values)`` must raise (the caller's error, e.g. KinematicsError) if the values are not admissible.
+    """Admissibility check: ``check(*values)`` must raise (the caller's error, e.g. KinematicsError) if the values
+    are not admissible.
 
     With floats it runs at once; traced, it runs at that point of every generated function
     that computes its first argument.
