@@ -294,9 +294,16 @@ def test_marked_workspace_figures_agree():
     assert not problems, "\n".join(problems)
 
 
+@pytest.mark.skipif(not figures.EMPS_RECORD.exists(), reason=f"{figures.EMPS_RECORD} not present")
+def test_marked_emps_replay_figures_agree():
+    """docs/emps.md: `mast replay` of the EMPS record with the published estimates and with the nominal model."""
+    problems = figures.check({"emps": figures.source_emps()})
+    assert not problems, "\n".join(problems)
+
+
 def test_every_figure_source_is_checked_by_a_test():
     """A source added to docs/figures.py is compared with the pages somewhere (here or tests/test_reproduce.py)."""
-    checked = {"ssd", "designs", "workspace", "workspace_quick", "reproduce", "ratings", "build"}
+    checked = {"ssd", "designs", "workspace", "workspace_quick", "reproduce", "ratings", "build", "emps"}
     assert set(figures.SOURCES) == checked, f"sources no test compares: {set(figures.SOURCES) - checked}"
 
 
