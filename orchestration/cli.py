@@ -215,13 +215,15 @@ def _size_in_summary(out: Path, summary: dict) -> str:
 
 
 def cmd_fit_gains(args) -> int:
+    from .analyses.identify import gains_file
     from .analyses.identify import main as fit_main
 
     fit = fit_main(args.ssp, Path(args.out) if args.out else None, args.workers)
     print("gains: " + ", ".join(f"{k} = {v:.6g}" for k, v in fit.gains.items()))
     for f, (mag, ph) in fit.responses.items():
         print(f"  {f:g} Hz: magnitude {100 * mag:.1f} %, phase {ph:.1f} deg")
-    print(f"scaled cost {fit.cost:.4f} ({fit.evaluations} evaluations, {fit.wall_time_s:.0f} s)")
+    print(f"scaled cost {fit.cost:.4f} ({fit.evaluations} evaluations, {fit.wall_time_s:.0f} s)"
+          + (f"; wrote {gains_file(Path(args.out))}" if args.out else ""))
     return 0
 
 
@@ -498,7 +500,8 @@ def main(argv=None) -> int:
 
     p = sub.add_parser("fit-gains", help="identify k_v, k_p, k_i from the paper's reported position responses")
     p.add_argument("ssp", nargs="?", default=str(DEFAULT_SSP), help=SSP_HELP)
-    p.add_argument("--out", type=output_file, help="write the fitted gains as an .ssv parameter set")
+    p.add_argument("--out", type=folder, help="folder for the fitted gains, an .ssv parameter set "
+                   "(controller_paper_reading_fit.ssv, the set mast reproduce binds; default: not written)")
     p.add_argument("--workers", type=count, default=2, help="parallel processes")
     p.set_defaults(func=cmd_fit_gains)
 

@@ -26,7 +26,7 @@ from fmus.controller.inverse_model import InverseModel
 from fmus.controller.model import ControllerBlock
 from fmus.controller.tick import LAYOUT, SIZE, layout, size
 from fmus.controller.workspace import WorkspaceController
-from fmus.mechanism import engine as E
+from fmus.common import tracer as E
 from fmus.mechanism.designs import TRACED_PARAMETERS, describe
 from fmus.mechanism.engine import Body, Description, Engine, Evaluation
 from fmus.mechanism.kinematics import KinematicsError

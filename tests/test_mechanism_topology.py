@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from fmus.mechanism import designs
-from fmus.mechanism import engine as E
+from fmus.common import tracer as E
 from fmus.mechanism.engine import Body, Description, Evaluation
 from fmus.mechanism.kinematics import KinematicsError
 from fmus.mechanism.model import MechanismBlock, Variables

@@ -28,7 +28,7 @@ from __future__ import annotations
 from typing import Mapping, Optional, Sequence
 
 from ..actuator.model import PARAMETERS as ACTUATOR_PARAMETERS
-from ..actuator.model import _real, guide_friction, transmission_ratio, two_inertia
+from ..actuator.model import real_or_traced, guide_friction, transmission_ratio, two_inertia
 from ..common.parameters import Value
 from ..mechanism.designs import MASS_PARAMETERS, PAYLOAD_PARAMETERS, engine, kinematic_engine
 from ..mechanism.engine import Engine
@@ -62,10 +62,10 @@ CONSTANTS = ("J", "i_R", "b_v", "weight", "tau_c", "omega_c", "tau_s", "omega_s"
 def model_constants(params: Mapping[str, Value]) -> dict[str, float]:
     """The model's actuator constants (``CONSTANTS``) from the actuator's parameters: J = J1 + J2 [kg m^2]
     (``two_inertia``, Eqs. 20-22), i_R [m/rad], b_v [N m s/rad], weight = M_load g_guide [N], the guide
-    friction's tau_c, omega_c, tau_s, omega_s and k_T [N m/A]. A traced number passes through (``_real``):
+    friction's tau_c, omega_c, tau_s, omega_s and k_T [N m/A]. A traced number passes through (``real_or_traced``):
     the native feed-forward and computed-torque controllers compute them at initialisation with this code."""
     J1, J2 = two_inertia(params)
-    f = {k: _real(params[k]) for k in ("p", "i_r", "b_v", "M_load", "g_guide", "tau_c", "omega_c", "tau_s",
+    f = {k: real_or_traced(params[k]) for k in ("p", "i_r", "b_v", "M_load", "g_guide", "tau_c", "omega_c", "tau_s",
                                        "omega_s", "k_T")}
     return {"J": J1 + J2, "i_R": transmission_ratio(f["p"], f["i_r"]), "b_v": f["b_v"],
             "weight": f["M_load"] * f["g_guide"], "tau_c": f["tau_c"], "omega_c": f["omega_c"],

@@ -86,7 +86,7 @@ def sine_test(ssp: str, axis: str, amplitude: float, frequency: float,
               "controller.i_cmd_1", "controller.i_cmd_2", "controller.i_cmd_3"]
     record = list(dict.fromkeys(record + list(keep)))
     result = simulate(ssp, SineMotion(axis, amplitude, frequency), stop, parameters=parameters,
-                      record=record, record_step=_record_step(frequency), direct=direct)
+                      record=record, record_step=record_step_of(frequency), direct=direct)
     return analyse(result, axis, amplitude, frequency, start, keep)
 
 
@@ -117,7 +117,7 @@ def analyse(result: Result, axis: str, amplitude: float, frequency: float, start
     )
 
 
-def _record_step(frequency: float) -> float:
+def record_step_of(frequency: float) -> float:
     """One sample per millisecond, the MAST systems' exchange step (docs/interfaces.md): the outputs change only
     there, so a finer record adds no information (at 50 Hz, 20 samples a period for the harmonics)."""
     return 1e-3

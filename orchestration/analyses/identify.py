@@ -182,7 +182,15 @@ def start_gains(ssp: str, start_set: str = "controller_joint") -> dict[str, floa
 
 
 def main(ssp: str, out: Optional[Path], workers: int = 2) -> GainFit:
+    """`mast fit-gains`: the fit, written (``out``: a folder, made if missing) as ``out/<GAINS_SET>.ssv``, the
+    parameter set `mast reproduce` binds (``--out ssp/resources`` replaces the shipped one)."""
     fit = fit_gains(ssp, start_gains(ssp), workers)
     if out is not None:
-        write_ssv(fit, out, f"mast fit-gains --out {out.name}")
+        out.mkdir(parents=True, exist_ok=True)
+        write_ssv(fit, gains_file(out), f"mast fit-gains --out {out.name}")
     return fit
+
+
+def gains_file(out: Path) -> Path:
+    """Where `mast fit-gains --out DIR` writes the fitted gains."""
+    return out / f"{GAINS_SET}.ssv"

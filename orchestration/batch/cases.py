@@ -13,7 +13,7 @@ from typing import Any, Mapping, Optional
 
 import numpy as np
 
-from ..analyses.frequency import _record_step, measuring_window
+from ..analyses.frequency import record_step_of, measuring_window
 from .config import DISTRIBUTIONS, BatchConfig, BatchConfigError, as_list
 
 
@@ -215,7 +215,7 @@ def _make_case(config: BatchConfig, info: SystemInfo, parts: dict, index: int, c
     end = stop
     if f > 0 and (stop - start) * f >= 1 - 1e-9:  # whole periods for the harmonic fit
         end = start + math.floor((stop - start) * f + 1e-9) / f
-    record_step = (_record_step(f) if f > 0 else 1e-3) if config.record_step == "auto" else float(config.record_step)
+    record_step = (record_step_of(f) if f > 0 else 1e-3) if config.record_step == "auto" else float(config.record_step)
     case = Case(case_id, index, parts["ssp"], inputs, dict(sorted(overrides.items())), motion, parts.get("sample"),
                 float(stop), float(record_step), (float(start), float(end)))
     defining = {"ssp": info.sha256, "parameters": case.parameters, "direct": config.direct,

@@ -3,14 +3,12 @@ from __future__ import annotations
 
 import zipfile
 from pathlib import Path
-from typing import TYPE_CHECKING, Sequence
+from typing import Sequence
 
 import numpy as np
 
 from ..core import ssd, ssv
-
-if TYPE_CHECKING:
-    from .records import AxisModel, Case, Diagnosis, Point
+from .axis_model import AxisModel, Case, Diagnosis, Point
 
 
 def write_outputs(opt, doc: dict, component: str, model: "AxisModel", cases: Sequence["Case"], before: "Point",
