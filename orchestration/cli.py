@@ -588,7 +588,8 @@ def main(argv=None) -> int:
     p.add_argument("--quick", action="store_true", help="the small test set: z motion at 1, 4 and 8 Hz (and the designs' "
                                                         "workspaces on a coarse grid: 25 mm, 4 deg)")
     p.add_argument("--motions", nargs="+", choices=POSE,
-                   help="motions to test, coordinates of every design's mechanism (default: z, psi, theta)")
+                   help="motions to test, coordinates of every design's mechanism (default: every coordinate of "
+                        "the first design's mechanism; the 3PRS's: z, psi, theta)")
     p.add_argument("--frequencies", nargs="+", type=hertz, metavar="HZ", help="test frequencies (default: 0.5 to 10 Hz)")
     p.add_argument("--set", action="append", metavar="ELEMENT.PARAMETER=VALUE", help="override a parameter in every design")
     p.add_argument("--workers", type=count, help="parallel processes (default: the number of cores)")
