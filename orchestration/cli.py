@@ -370,9 +370,10 @@ def cmd_workspace(args) -> int:
         s = summarize(ws)
         through = ", ".join(f"{name[:-4]} {lo:.3g}..{hi:.3g} deg" if name.endswith("_deg") else
                             f"{name[:-2]} {lo:.4g}..{hi:.4g} m" for name, (lo, hi) in s["ranges_through_home"].items())
-        volume = [k for k in s if k.startswith("volume_")]
-        print(f"{m.label}: {s['poses_inside']} poses inside, volume {s[volume[1]]:.4g} {unit_text(volume[1][7:])} "
-              f"({s[volume[0]]:.4g} {unit_text(volume[0][7:])}); through home {through}; "
+        volume = [k for k in s if k.startswith("volume_")]      # in m and rad, then in m and deg (if angles)
+        shown = [f"{s[k]:.4g} {unit_text(k[len('volume_'):])}" for k in volume]
+        print(f"{m.label}: {s['poses_inside']} poses inside, volume {shown[-1]}"
+              + (f" ({shown[0]})" if len(shown) > 1 else "") + f"; through home {through}; "
               f"smallest margin {s['smallest_margin']['value']:.3g} m/m, worst dexterity {s['worst_dexterity']['value']:.3g}")
         print(f"wrote {', '.join(str(f) for f in files)}")
     if pose is None:

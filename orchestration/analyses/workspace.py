@@ -843,8 +843,12 @@ def plot(ws: Workspace, path: Path) -> Path:
                  f"home {first.name} = {shown(first, ws.home[ws.swept[0]]):.4g} {'deg' if first.angular else 'm'}"
                  + (f" ({held} held)" if held else "")
                  + f"; smallest margin {s['smallest_margin']['value']:.3g} m/m, "
-                 f"worst dexterity {s['worst_dexterity']['value']:.3g}; margin limit {ws.margin:g} m/m")
-    fig.subplots_adjust(left=0.05, right=0.97, top=0.92, bottom=0.1, hspace=0.3, wspace=0.35)
+                 f"worst dexterity {s['worst_dexterity']['value']:.3g}; margin limit {ws.margin:g} m/m",
+                 **({} if len(coords) == 3 else {"fontsize": 8}))
+    if len(coords) == 3:
+        fig.subplots_adjust(left=0.05, right=0.97, top=0.92, bottom=0.1, hspace=0.3, wspace=0.35)
+    else:
+        fig.subplots_adjust(left=0.1, right=0.97, top=0.9, bottom=0.14)
     fig.savefig(path, dpi=100)
     plt.close(fig)
     return path
