@@ -355,38 +355,27 @@ def cmd_compare(args) -> int:
     return 1 if any(r["failed"] for r in comp.summary) else 0
 
 
-def _pose(text: str) -> tuple[float, float, float]:
-    """--pose Z,PSI_DEG,THETA_DEG -> (z [m], psi [rad], theta [rad])."""
-    import math
-
-    parts = text.split(",")
-    try:
-        values = [float(v) for v in parts]
-    except ValueError:
-        values = []
-    if len(values) != 3 or not all(math.isfinite(v) for v in values):
-        raise ValueError(f"--pose {text!r}: expected Z,PSI_DEG,THETA_DEG, three finite numbers (m, deg, deg), "
-                         "e.g. 0.40,5,-3")
-    return values[0], math.radians(values[1]), math.radians(values[2])
-
-
 def cmd_workspace(args) -> int:
     import math
 
-    from .analyses.workspace import classify, compute, machine, summarize, write
+    from .analyses.workspace import classify, compute, machine, parse_pose, summarize, unit_text, write
 
     if not args.out and not args.pose:
-        raise ValueError("workspace: give --out DIR (the whole workspace) or --pose Z,PSI_DEG,THETA_DEG (one pose)")
-    pose = _pose(args.pose) if args.pose else None
+        raise ValueError("workspace: give --out DIR (the whole workspace) or --pose Z,PSI_DEG,THETA_DEG (one pose: one "
+                         "number per coordinate of the mechanism, m or deg)")
     m = machine(args.design, args.payload)
-    ws = compute(m, args.step_z, math.radians(args.step_tilt), progress=Progress(f"workspace of {m.label}"))
+    sweep = args.sweep.split(",") if args.sweep else None
+    pose = parse_pose(args.pose, m.topology) if args.pose else None
+    ws = compute(m, args.step_z, math.radians(args.step_tilt), progress=Progress(f"workspace of {m.label}"), sweep=sweep)
     if args.out:
         files = write(ws, Path(args.out), plots=not args.no_plots)
         s = summarize(ws)
-        r = s["ranges_through_home"]
-        print(f"{m.label}: {s['poses_inside']} poses inside, volume {s['volume_m_deg2']:.4g} m deg^2 "
-              f"({s['volume_m_rad2']:.4g} m rad^2); through home z {r['z_m'][0]:.4g}..{r['z_m'][1]:.4g} m, "
-              f"psi {r['psi_deg'][0]:.3g}..{r['psi_deg'][1]:.3g} deg, theta {r['theta_deg'][0]:.3g}..{r['theta_deg'][1]:.3g} deg; "
+        through = ", ".join(f"{name[:-4]} {lo:.3g}..{hi:.3g} deg" if name.endswith("_deg") else
+                            f"{name[:-2]} {lo:.4g}..{hi:.4g} m" for name, (lo, hi) in s["ranges_through_home"].items())
+        volume = [k for k in s if k.startswith("volume_")]      # in m and rad, then in m and deg (if angles)
+        shown = [f"{s[k]:.4g} {unit_text(k[len('volume_'):])}" for k in volume]
+        print(f"{m.label}: {s['poses_inside']} poses inside, volume {shown[-1]}"
+              + (f" ({shown[0]})" if len(shown) > 1 else "") + f"; through home {through}; "
               f"smallest margin {s['smallest_margin']['value']:.3g} m/m, worst dexterity {s['worst_dexterity']['value']:.3g}")
         print(f"wrote {', '.join(str(f) for f in files)}")
     if pose is None:
@@ -603,7 +592,8 @@ def main(argv=None) -> int:
     p.add_argument("--quick", action="store_true", help="the small test set: z motion at 1, 4 and 8 Hz (and the designs' "
                                                         "workspaces on a coarse grid: 25 mm, 4 deg)")
     p.add_argument("--motions", nargs="+", choices=POSE,
-                   help="motions to test, coordinates of every design's mechanism (default: z, psi, theta)")
+                   help="motions to test, coordinates of every design's mechanism (default: every coordinate of "
+                        "the first design's mechanism; the 3PRS's: z, psi, theta)")
     p.add_argument("--frequencies", nargs="+", type=hertz, metavar="HZ", help="test frequencies (default: 0.5 to 10 Hz)")
     p.add_argument("--set", action="append", metavar="ELEMENT.PARAMETER=VALUE", help="override a parameter in every design")
     p.add_argument("--workers", type=count, help="parallel processes (default: the number of cores)")
@@ -622,10 +612,15 @@ def main(argv=None) -> int:
                    help="payload on the platform, centre of mass at P (static actuator forces, default 0)")
     p.add_argument("--out", type=folder, help="folder for workspace.json, workspace.csv, workspace.png")
     p.add_argument("--pose", metavar="Z,PSI_DEG,THETA_DEG",
-                   help="answer for one pose: inside (exit 0) or not (exit 1), with its margins")
-    p.add_argument("--step-z", type=_positive("metres"), default=STEP_Z, metavar="M", help=f"grid step in z (default {STEP_Z:g} m)")
+                   help="answer for one pose, one number per coordinate of the mechanism (m, deg; the 3PRS: z, psi, "
+                        "theta): inside (exit 0) or not (exit 1), with its margins")
+    p.add_argument("--sweep", metavar="C1,C2,C3",
+                   help="the coordinates the grid sweeps (1 to 3; default every coordinate of the mechanism), the "
+                        "others held at home: x,y,z the constant-orientation workspace, psi,theta,phi the orientation one")
+    p.add_argument("--step-z", type=_positive("metres"), default=STEP_Z, metavar="M",
+                   help=f"grid step in the length coordinates (z; default {STEP_Z:g} m)")
     p.add_argument("--step-tilt", type=_positive("degrees"), default=STEP_TILT_DEG, metavar="DEG",
-                   help=f"grid step in psi and theta (default {STEP_TILT_DEG:g} deg)")
+                   help=f"grid step in the angles (psi, theta; default {STEP_TILT_DEG:g} deg)")
     p.add_argument("--no-plots", action="store_true", help="write no figure")
     p.set_defaults(func=cmd_workspace)
 

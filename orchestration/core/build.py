@@ -246,7 +246,7 @@ def build_fmu(spec: FmuSpec, out_dir: Path, parameters: Optional[dict] = None) -
             "keep_alive(globals())\n")
         fmu = FmuBuilder.build_FMU(script, dest=out_dir / f"{spec.model_identifier}.fmu",
                                    project_files=files, needsExecutionTool=False, canGetAndSetFMUstate=True)
-    _complete(Path(fmu), spec)
+    _complete(Path(fmu), spec, parameters)
     return Path(fmu)
 
 
@@ -290,10 +290,10 @@ def build_fmu3(spec: FmuSpec, out_dir: Path, parameters: Optional[dict] = None) 
     return target
 
 
-def _complete(fmu: Path, spec: FmuSpec) -> None:
+def _complete(fmu: Path, spec: FmuSpec, parameters: Optional[dict] = None) -> None:
     """The FMU pythonfmu wrote, with its model description completed and the C front as its linux64 binary."""
     def complete(items: dict[str, bytes]) -> None:
-        items["modelDescription.xml"] = _complete_model_description(items["modelDescription.xml"], spec)
+        items["modelDescription.xml"] = _complete_model_description(items["modelDescription.xml"], spec, parameters)
         _put_front(items, spec.model_identifier)
 
     _rewrite(fmu, complete)
@@ -309,10 +309,13 @@ def _rewrite(fmu: Path, change: Callable[[dict[str, bytes]], object]) -> None:
             zout.writestr(name, data)
 
 
-def _complete_model_description(xml: bytes, spec: FmuSpec) -> bytes:
-    """What pythonfmu 0.7 leaves out of modelDescription.xml: the units (from the model's declarations) and
-    ModelStructure/InitialUnknowns, which FMI 2.0 requires for outputs with initial="calculated"."""
-    block = block_class(spec.model_identifier)
+def _complete_model_description(xml: bytes, spec: FmuSpec, parameters: Optional[dict] = None) -> bytes:
+    """What pythonfmu 0.7 leaves out of modelDescription.xml: the units (from the model's declarations: of the class
+    whose variables the FMU's built-in ``parameters`` give, default the SSD bindings, ``Block.for_parameters``: a
+    mechanism's follow its topology) and ModelStructure/InitialUnknowns, which FMI 2.0 requires for outputs with
+    initial="calculated"."""
+    params = default_parameters(spec.model_identifier) if parameters is None else parameters
+    block = block_class(spec.model_identifier).for_parameters(params)
     units = dict(block.UNITS)
     units.update({p.name: p.unit for p in block.PARAMETERS if p.kind is float and p.unit})
     root = etree.fromstring(xml)
