@@ -73,7 +73,35 @@ FIGURES: dict[str, Figure] = {
     **{f"designs.{d}.{what}": Figure("designs", (lambda d, w: lambda v: v[d][w])(d, what), fmt, 0.005)
        for d in ("3PRS_T", "3PRS_120", "3PRS_inclined")
        for what, fmt in (("parallel", "{:.3g}"), ("inverse", "{:.3g}"), ("dexterity", "{:.3g}"))},
+    # the drives' datasheet ratings as docs/sizing.md restates them, in the page's units, from the set mast sizing
+    # reads (ssp/resources/drive_ratings.ssv, SI): the same number, no tolerance (a unit conversion's rounding
+    # stays below the printed digit)
+    **{f"ratings.{name}": Figure("ratings", (lambda n, k, o: lambda v: v[n] * k + o)(name, scale, offset), fmt)
+       for name, scale, offset, fmt in (
+           ("tau_N", 1e3, 0.0, "{:.0f}"), ("i_N", 1.0, 0.0, "{:g}"), ("tau_stall", 1.0, 0.0, "{:.2f}"),
+           ("n_max", 30 / math.pi, 0.0, "{:.0f}"), ("R_th1", 1.0, 0.0, "{:g}"), ("R_th2", 1.0, 0.0, "{:g}"),
+           ("tau_w", 1.0, 0.0, "{:g}"), ("tau_s", 1.0, 0.0, "{:g}"), ("T_w_max", 1.0, -273.15, "{:.0f}"),
+           ("tau_gear_cont", 1.0, 0.0, "{:g}"), ("tau_gear_int", 1.0, 0.0, "{:g}"),
+           ("n_gear_max", 30 / math.pi, 0.0, "{:.0f}"), ("eta_gear", 100.0, 0.0, "{:.0f}"),
+           ("F_guide_max", 1.0, 0.0, "{:.0f}"), ("v_guide_max", 1.0, 0.0, "{:g}"), ("i_amp_cont", 1.0, 0.0, "{:g}"),
+           ("i_amp_peak", 1.0, 0.0, "{:g}"), ("T_ambient", 1.0, -273.15, "{:.0f}"), ("alpha_Cu", 1.0, 0.0, "{:g}"))},
+    # what `mast build` writes and the limits an untrusted archive meets (README, docs/interfaces.md): counts and
+    # sizes the code defines, stated exactly
+    "build.fmus": Figure("build", lambda v: v["fmus"], "{:d}"),
+    **{f"build.{name}": Figure("build", (lambda n: lambda v: v[n])(name), "{:,d}" if name == "max_entries" else "{:g}")
+       for name in ("max_archive_GiB", "max_entry_MiB", "max_entries", "ratio_floor_MiB", "max_ratio")},
+    # `mast replay` of the EMPS record (docs/emps.md) with the benchmark's published estimates and with the nominal
+    # model: relative errors [%] (and the force fit [%]). Tolerances far below the differences the page reasons
+    # from (force: 5.41 against 5.56 % for a 0.1 or 0.2 ms computation delay; position: 0.0012 against the
+    # benchmark's 0.014 %), far above what another machine's floats move in a 24.84 s closed loop
+    **{f"emps.{model}.{what}": Figure("emps", (lambda m, w: lambda v: v[m][w])(model, what), fmt, tol)
+       for model in ("published", "nominal")
+       for what, fmt, tol in (("q_m", "{:.3g}", 0.0002), ("force", "{:.3g}", 0.02), ("force_fit", "{:.1f}", 0.05))},
 }
+
+#: the EMPS benchmark's published inverse-model least-squares estimates (the EMPS README; docs/emps.md)
+EMPS_PUBLISHED = {"M": 95.11, "F_v": 203.5, "F_c": 20.39, "F_offset": -3.16}
+EMPS_RECORD = ROOT.parent / "shared" / "data" / "emps" / "DATA_EMPS.mat"
 
 
 def source_reproduce() -> dict:
@@ -97,6 +125,47 @@ def source_ssd() -> dict:
     from mast.core.ssp import read_ssd
 
     return {"controller": dict(read_ssd(ROOT / "ssp" / "MAST.ssd").components["controller"].parameters)}
+
+
+def source_ratings() -> dict:
+    """The drive ratings `mast sizing` checks against (ssp/resources/drive_ratings.ssv), SI values."""
+    from mast.core.ssv import parse_ssv
+
+    return {name: v.value for name, v in parse_ssv(ROOT / "ssp" / "resources" / "drive_ratings.ssv").items()}
+
+
+def source_build() -> dict:
+    """How many FMUs `mast build` writes (mast.core.build.FMUS); the archive limits (mast.core.ssp.MAX_*), in the
+    units the pages use (binary prefixes)."""
+    from mast.core import ssp
+    from mast.core.build import FMUS
+
+    return {"fmus": len(FMUS), "max_archive_GiB": ssp.MAX_ARCHIVE_BYTES / 2**30,
+            "max_entry_MiB": ssp.MAX_ENTRY_BYTES / 2**20, "max_entries": ssp.MAX_ENTRIES,
+            "ratio_floor_MiB": ssp.RATIO_FLOOR / 2**20, "max_ratio": ssp.MAX_RATIO}
+
+
+def source_emps() -> dict:
+    """`mast replay` of the EMPS record on the bench (built into a temporary folder) with the published estimates
+    and with the nominal model: {model: {q_m, force: relative error [%], force_fit [%]}}. Needs the record
+    (../shared/data/emps/DATA_EMPS.mat); seconds."""
+    from mast.analyses.replay import replay
+    from mast.core.build import FMUS, SSP_SRC, build_fmu, build_ssp
+    from mast.data.importer import import_file
+
+    out = {}
+    with tempfile.TemporaryDirectory(prefix="mast_figures_") as tmp:
+        tmp = Path(tmp)
+        for spec in FMUS:
+            if spec.model_identifier in ("MastLoadAxis", "MastEmpsController"):
+                build_fmu(spec, tmp / "fmus")
+        bench = build_ssp(SSP_SRC / "EMPS_bench.ssd", tmp / "fmus", tmp / "ssp")
+        import_file(EMPS_RECORD, ROOT / "examples" / "emps" / "map.toml", tmp / "record")
+        for model, params in (("published", {"axis": EMPS_PUBLISHED}), ("nominal", {})):
+            signals = replay(bench, tmp / "record", tmp / model, params, figures=False)["signals"]
+            out[model] = {"q_m": signals["q_m"]["relative_error_pct"], "force": signals["force"]["relative_error_pct"],
+                          "force_fit": signals["force"]["fit_pct"]}
+    return out
 
 
 def source_designs() -> dict:
@@ -125,6 +194,7 @@ def source_workspace(quick: bool = False) -> dict:
 
 
 SOURCES: dict[str, Callable[[], dict]] = {"reproduce": source_reproduce, "ssd": source_ssd, "designs": source_designs,
+                                          "ratings": source_ratings, "build": source_build, "emps": source_emps,
                                           "workspace": source_workspace,
                                           "workspace_quick": lambda: source_workspace(quick=True)}
 

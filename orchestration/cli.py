@@ -9,6 +9,8 @@ import sys
 import tempfile
 from pathlib import Path
 
+from fmus.mechanism.topology import POSE
+
 from .core.build import default_build_dir
 
 REPO = Path(__file__).resolve().parents[1]
@@ -157,9 +159,10 @@ def cmd_validate(args) -> int:
 
 def cmd_run(args) -> int:
     from .core.master import SimulationError
+    from .core.motion import system_axes
     from .core.run import motion_from_cli, parse_overrides, simulate, write_outputs
+    from .core.ssp import SSPArchive
 
-    motion = motion_from_cli(args.motion, args.amplitude, args.frequency)
     out = Path(args.out)
     ssp = args.ssp
     if args.native:
@@ -170,8 +173,12 @@ def cmd_run(args) -> int:
             print(f"error: no native variant of {args.ssp} (build/ssp/native/...): run `mast build --native`",
                   file=sys.stderr)
             return 2
+    overrides = parse_overrides(args.set or [])
+    with SSPArchive(ssp) as archive:   # --motion: a coordinate of the system's mechanism (its topology)
+        axes = system_axes(archive.system, overrides)
+    motion = motion_from_cli(args.motion, args.amplitude, args.frequency, axes, str(ssp))
     try:
-        result = simulate(ssp, motion, args.stop_time, parameters=parse_overrides(args.set or []),
+        result = simulate(ssp, motion, args.stop_time, parameters=overrides,
                           record=args.record, record_step=args.record_step, direct=args.direct,
                           progress=Progress("co-simulation"))
         failed = None
@@ -208,13 +215,15 @@ def _size_in_summary(out: Path, summary: dict) -> str:
 
 
 def cmd_fit_gains(args) -> int:
+    from .analyses.identify import gains_file
     from .analyses.identify import main as fit_main
 
     fit = fit_main(args.ssp, Path(args.out) if args.out else None, args.workers)
     print("gains: " + ", ".join(f"{k} = {v:.6g}" for k, v in fit.gains.items()))
     for f, (mag, ph) in fit.responses.items():
         print(f"  {f:g} Hz: magnitude {100 * mag:.1f} %, phase {ph:.1f} deg")
-    print(f"scaled cost {fit.cost:.4f} ({fit.evaluations} evaluations, {fit.wall_time_s:.0f} s)")
+    print(f"scaled cost {fit.cost:.4f} ({fit.evaluations} evaluations, {fit.wall_time_s:.0f} s)"
+          + (f"; wrote {gains_file(Path(args.out))}" if args.out else ""))
     return 0
 
 
@@ -346,38 +355,27 @@ def cmd_compare(args) -> int:
     return 1 if any(r["failed"] for r in comp.summary) else 0
 
 
-def _pose(text: str) -> tuple[float, float, float]:
-    """--pose Z,PSI_DEG,THETA_DEG -> (z [m], psi [rad], theta [rad])."""
-    import math
-
-    parts = text.split(",")
-    try:
-        values = [float(v) for v in parts]
-    except ValueError:
-        values = []
-    if len(values) != 3 or not all(math.isfinite(v) for v in values):
-        raise ValueError(f"--pose {text!r}: expected Z,PSI_DEG,THETA_DEG, three finite numbers (m, deg, deg), "
-                         "e.g. 0.40,5,-3")
-    return values[0], math.radians(values[1]), math.radians(values[2])
-
-
 def cmd_workspace(args) -> int:
     import math
 
-    from .analyses.workspace import classify, compute, machine, summarize, write
+    from .analyses.workspace import classify, compute, machine, parse_pose, summarize, unit_text, write
 
     if not args.out and not args.pose:
-        raise ValueError("workspace: give --out DIR (the whole workspace) or --pose Z,PSI_DEG,THETA_DEG (one pose)")
-    pose = _pose(args.pose) if args.pose else None
+        raise ValueError("workspace: give --out DIR (the whole workspace) or --pose Z,PSI_DEG,THETA_DEG (one pose: one "
+                         "number per coordinate of the mechanism, m or deg)")
     m = machine(args.design, args.payload)
-    ws = compute(m, args.step_z, math.radians(args.step_tilt), progress=Progress(f"workspace of {m.label}"))
+    sweep = args.sweep.split(",") if args.sweep else None
+    pose = parse_pose(args.pose, m.topology) if args.pose else None
+    ws = compute(m, args.step_z, math.radians(args.step_tilt), progress=Progress(f"workspace of {m.label}"), sweep=sweep)
     if args.out:
         files = write(ws, Path(args.out), plots=not args.no_plots)
         s = summarize(ws)
-        r = s["ranges_through_home"]
-        print(f"{m.label}: {s['poses_inside']} poses inside, volume {s['volume_m_deg2']:.4g} m deg^2 "
-              f"({s['volume_m_rad2']:.4g} m rad^2); through home z {r['z_m'][0]:.4g}..{r['z_m'][1]:.4g} m, "
-              f"psi {r['psi_deg'][0]:.3g}..{r['psi_deg'][1]:.3g} deg, theta {r['theta_deg'][0]:.3g}..{r['theta_deg'][1]:.3g} deg; "
+        through = ", ".join(f"{name[:-4]} {lo:.3g}..{hi:.3g} deg" if name.endswith("_deg") else
+                            f"{name[:-2]} {lo:.4g}..{hi:.4g} m" for name, (lo, hi) in s["ranges_through_home"].items())
+        volume = [k for k in s if k.startswith("volume_")]      # in m and rad, then in m and deg (if angles)
+        shown = [f"{s[k]:.4g} {unit_text(k[len('volume_'):])}" for k in volume]
+        print(f"{m.label}: {s['poses_inside']} poses inside, volume {shown[-1]}"
+              + (f" ({shown[0]})" if len(shown) > 1 else "") + f"; through home {through}; "
               f"smallest margin {s['smallest_margin']['value']:.3g} m/m, worst dexterity {s['worst_dexterity']['value']:.3g}")
         print(f"wrote {', '.join(str(f) for f in files)}")
     if pose is None:
@@ -474,8 +472,9 @@ def main(argv=None) -> int:
 
     p = sub.add_parser("run", help="run a co-simulation with a sine pose command around the home pose")
     p.add_argument("ssp", nargs="?", default=str(DEFAULT_SSP), help=SSP_HELP)
-    p.add_argument("--motion", choices=("z", "psi", "theta"), default="z", help="the axis of the sine")
-    p.add_argument("--amplitude", type=finite, default=0.01, help="metres for z, degrees for psi and theta")
+    p.add_argument("--motion", choices=POSE, default="z",
+                   help="the axis of the sine: a coordinate of the system's mechanism (the 3PRS's: z, psi, theta)")
+    p.add_argument("--amplitude", type=finite, default=0.01, help="metres for x, y, z, degrees for the angles")
     p.add_argument("--frequency", type=nonnegative, default=1.0, help="Hz")
     p.add_argument("--stop-time", type=seconds, default=2.0, help="s")
     p.add_argument("--set", action="append", metavar="ELEMENT.PARAMETER=VALUE", help="override a parameter (repeatable)")
@@ -490,7 +489,8 @@ def main(argv=None) -> int:
 
     p = sub.add_parser("fit-gains", help="identify k_v, k_p, k_i from the paper's reported position responses")
     p.add_argument("ssp", nargs="?", default=str(DEFAULT_SSP), help=SSP_HELP)
-    p.add_argument("--out", type=output_file, help="write the fitted gains as an .ssv parameter set")
+    p.add_argument("--out", type=folder, help="folder for the fitted gains, an .ssv parameter set "
+                   "(controller_paper_reading_fit.ssv, the set mast reproduce binds; default: not written)")
     p.add_argument("--workers", type=count, default=2, help="parallel processes")
     p.set_defaults(func=cmd_fit_gains)
 
@@ -591,7 +591,9 @@ def main(argv=None) -> int:
     p.add_argument("--out", type=folder, required=True, help="folder for comparison.csv/.json/.md, runs.csv, the plots, systems/")
     p.add_argument("--quick", action="store_true", help="the small test set: z motion at 1, 4 and 8 Hz (and the designs' "
                                                         "workspaces on a coarse grid: 25 mm, 4 deg)")
-    p.add_argument("--motions", nargs="+", choices=("z", "psi", "theta"), help="motions to test (default: all three)")
+    p.add_argument("--motions", nargs="+", choices=POSE,
+                   help="motions to test, coordinates of every design's mechanism (default: every coordinate of "
+                        "the first design's mechanism; the 3PRS's: z, psi, theta)")
     p.add_argument("--frequencies", nargs="+", type=hertz, metavar="HZ", help="test frequencies (default: 0.5 to 10 Hz)")
     p.add_argument("--set", action="append", metavar="ELEMENT.PARAMETER=VALUE", help="override a parameter in every design")
     p.add_argument("--workers", type=count, help="parallel processes (default: the number of cores)")
@@ -610,10 +612,15 @@ def main(argv=None) -> int:
                    help="payload on the platform, centre of mass at P (static actuator forces, default 0)")
     p.add_argument("--out", type=folder, help="folder for workspace.json, workspace.csv, workspace.png")
     p.add_argument("--pose", metavar="Z,PSI_DEG,THETA_DEG",
-                   help="answer for one pose: inside (exit 0) or not (exit 1), with its margins")
-    p.add_argument("--step-z", type=_positive("metres"), default=STEP_Z, metavar="M", help=f"grid step in z (default {STEP_Z:g} m)")
+                   help="answer for one pose, one number per coordinate of the mechanism (m, deg; the 3PRS: z, psi, "
+                        "theta): inside (exit 0) or not (exit 1), with its margins")
+    p.add_argument("--sweep", metavar="C1,C2,C3",
+                   help="the coordinates the grid sweeps (1 to 3; default every coordinate of the mechanism), the "
+                        "others held at home: x,y,z the constant-orientation workspace, psi,theta,phi the orientation one")
+    p.add_argument("--step-z", type=_positive("metres"), default=STEP_Z, metavar="M",
+                   help=f"grid step in the length coordinates (z; default {STEP_Z:g} m)")
     p.add_argument("--step-tilt", type=_positive("degrees"), default=STEP_TILT_DEG, metavar="DEG",
-                   help=f"grid step in psi and theta (default {STEP_TILT_DEG:g} deg)")
+                   help=f"grid step in the angles (psi, theta; default {STEP_TILT_DEG:g} deg)")
     p.add_argument("--no-plots", action="store_true", help="write no figure")
     p.set_defaults(func=cmd_workspace)
 

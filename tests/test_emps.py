@@ -402,7 +402,8 @@ def test_import_warns_when_the_effort_contradicts_its_tap(tmp_path, logged, decl
 def test_diagnosis_compares_the_effort_at_its_tap(tmp_path, bench):
     """mast diagnose re-simulates through the same route: on a record logged before the injection, the
     truth's effort residual is nil at the declared tap and carries the pulses at the other."""
-    from mast.diagnosis.records import AxisModel, _cases
+    from mast.diagnosis.axis_model import AxisModel
+    from mast.diagnosis.records import _cases
 
     log, truth = pulse_lab_file(tmp_path, "before_injection")
     import_file(log, pulse_map(tmp_path, "before_injection"), tmp_path / "rec")

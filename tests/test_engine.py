@@ -18,8 +18,9 @@ import math
 import numpy as np
 import pytest
 
-from fmus.mechanism import engine as E
-from fmus.mechanism.engine import Body, Description, Engine, Evaluation, KinematicsError, TraceError
+from fmus.common import tracer as E
+from fmus.common.tracer import TraceError
+from fmus.mechanism.engine import Body, Description, Engine, Evaluation, KinematicsError
 
 
 # ---------------------------------------------------------------------------- expressions
@@ -34,13 +35,13 @@ def expr(q):
 
 
 def compiled(outputs_of):
-    g = E._Graph()
+    g = E.Graph()
     q = [g.input(f"q{j}") for j in range(3)]
-    outs = [E._lift(g, o) for o in outputs_of(q)]
-    d = [E._Forward(g, {f"q{j}": (1.0 if j == k else 0.0) for j in range(3)}) for k in range(3)]
+    outs = [E.lift(g, o) for o in outputs_of(q)]
+    d = [E.Forward(g, {f"q{j}": (1.0 if j == k else 0.0) for j in range(3)}) for k in range(3)]
     qd = [g.input(f"qd{j}") for j in range(3)]
-    p1 = E._Forward(g, {f"q{j}": qd[j] for j in range(3)})
-    p2 = E._Second(g, p1, {})
+    p1 = E.Forward(g, {f"q{j}": qd[j] for j in range(3)})
+    p2 = E.Second(g, p1, {})
     flat = outs + [d[k](o) for o in outs for k in range(3)] + [p2(o) for o in outs]
     return E.compile_function("f", [f"q{j}" for j in range(3)] + [f"qd{j}" for j in range(3)], flat, g)
 

@@ -24,7 +24,8 @@ from mast.core.build import FLAT_SET_NAME, build_all, build_ssp
 from mast.hosts.cosim import (COMPARED, TOLERANCES, HostError, availability, deviations, run_host)
 from mast.core.motion import SineMotion
 from mast.core.run import simulate
-from mast.core.ssp import NS, SSPArchive, read_ssd, validate_ssd_schema
+from mast.core.ssd import NS
+from mast.core.ssp import SSPArchive, read_ssd, validate_ssd_schema
 from mast.core.ssv import parse_ssv
 
 ROOT = Path(__file__).resolve().parents[1]

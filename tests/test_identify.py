@@ -51,3 +51,21 @@ def test_fit_starts_from_the_loop_shaping_design_even_in_a_built_ssp(tmp_path):
     build_all(tmp_path, log=lambda *_: None)
     design = parse_ssv(ROOT / "ssp" / "resources" / "controller_joint.ssv")
     assert start_gains(str(tmp_path / "ssp" / "MAST.ssp")) == {g: design[g].value for g in GAINS}
+
+
+def test_fit_gains_out_is_a_folder_that_receives_the_set_mast_reproduce_binds(tmp_path, monkeypatch, capsys):
+    """`mast fit-gains --out DIR` (a folder, made if missing, like every --out) writes DIR/<GAINS_SET>.ssv, the
+    name ssp/resources gives the reproduction's gains; the fit itself is replaced by a fixed result here."""
+    from mast import cli
+    from mast.analyses import identify
+
+    fit = GainFit({"k_v": 24.5, "k_p": 0.122, "k_i": 2.83}, [0.1] * 4, dict(fit_targets()), 27, 60.0)
+    monkeypatch.setattr(identify, "start_gains", lambda ssp: {})
+    monkeypatch.setattr(identify, "fit_gains", lambda ssp, start, workers: fit)
+    out = tmp_path / "new" / "gains"
+    assert cli.main(["fit-gains", "--out", str(out)]) == 0
+    written = out / f"{identify.GAINS_SET}.ssv"
+    assert written.name == "controller_paper_reading_fit.ssv"
+    assert (ROOT / "ssp" / "resources" / written.name).exists()
+    assert {k: v.value for k, v in parse_ssv(written).items()} == fit.gains
+    assert f"wrote {written}" in capsys.readouterr().out

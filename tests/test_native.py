@@ -97,7 +97,7 @@ def test_the_sources_in_the_archive_compile_into_a_working_binary(built, tmp_pat
     from fmpy import simulate_fmu
 
     result = simulate_fmu(str(tmp_path), stop_time=0.25, output_interval=0.25, fmi_type="CoSimulation")
-    z_home, amplitude = 0.4051470164434615, 0.01   # ssp/resources/trajectory_z.ssv
+    z_home, amplitude = 0.4051470164434615, 0.01   # ssp/resources/home_3prs.ssv, trajectory_z.ssv
     assert result["z_cmd"][-1] == pytest.approx(z_home + amplitude * math.sin(2 * math.pi * 0.25), rel=1e-12)
 
 

@@ -23,7 +23,7 @@ import math
 import numpy as np
 import pytest
 
-import fmus.mechanism.engine as E
+import fmus.common.tracer as E
 from fmus.mechanism.engine import MARGIN, Body, Description, Engine, Evaluation, KinematicsError, SingularityError
 from fmus.mechanism.model import MechanismBlock
 from mast.analyses import paper

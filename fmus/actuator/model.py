@@ -95,22 +95,22 @@ __all__ = [
     "fastest_mode",
 ]
 
-_MAX_PHASE_PER_SUBSTEP = 2.0  # rad: fastest chain mode x substep (keeps the friction equation monotone)
-_BACKLASH_SUBSTEP = 1e-5  # s: longest substep with backlash (contact and separation resolved to 10 us)
+MAX_PHASE_PER_SUBSTEP = 2.0  # rad: fastest chain mode x substep (keeps the friction equation monotone)
+BACKLASH_SUBSTEP = 1e-5  # s: longest substep with backlash (contact and separation resolved to 10 us)
 _KERNELS_KEPT = 32        # step functions kept, by step size
 _COMPILED_STEP_SIZES = 4  # a fixed-step host needs one or two; beyond, the host varies its step (see _bind)
 
 
 def substep_rule(omega_max: float, h: float, backlash: float, tau_s: float, omega_s: float) -> tuple[int, float]:
     """(m, fall) of a step h [s] (``ActuatorBlock._substeps``): the substeps to try first, so that the fastest
-    chain mode omega_max [rad/s] turns at most _MAX_PHASE_PER_SUBSTEP per substep and, with backlash (> 0 [m]),
-    a substep lasts at most _BACKLASH_SUBSTEP; and the Stribeck friction's steepest fall tau_s sqrt(2/e) /
+    chain mode omega_max [rad/s] turns at most MAX_PHASE_PER_SUBSTEP per substep and, with backlash (> 0 [m]),
+    a substep lasts at most BACKLASH_SUBSTEP; and the Stribeck friction's steepest fall tau_s sqrt(2/e) /
     omega_s [N m s/rad] (0 without). Written in the generated-code subset: the native actuator runs this source."""
-    m = math.ceil(omega_max * h / _MAX_PHASE_PER_SUBSTEP - 1e-12)
+    m = math.ceil(omega_max * h / MAX_PHASE_PER_SUBSTEP - 1e-12)
     if m < 1:
         m = 1
     if backlash > 0.0:
-        mb = math.ceil(h / _BACKLASH_SUBSTEP - 1e-9)
+        mb = math.ceil(h / BACKLASH_SUBSTEP - 1e-9)
         if mb > m:
             m = mb
     fall = tau_s * math.sqrt(2.0 / math.e) / omega_s if tau_s > 0.0 else 0.0
@@ -182,7 +182,7 @@ def transmission_ratio(p: float, i_r: float) -> float:
     return p / (2.0 * math.pi * i_r)
 
 
-def _real(x):
+def real_or_traced(x):
     """A parameter value as a float; a traced number (the native generator's, ``mast build --native``)
     passes through, so the relations below also write the C that computes them from the parameters."""
     return float(x) if isinstance(x, (int, float, str, np.number)) else x
@@ -194,7 +194,7 @@ def two_inertia(params: Mapping[str, Value]) -> tuple[float, float]:
     J1 = J1_scale (J_motor + J_gearbox + J_coupling + J_brake) (Eq. 20 plus the brake),
     J2 = J_guide / i_r^2 + M_load i_R^2.
     """
-    f = {k: _real(params[k]) for k in ("J_motor", "J_gearbox", "J_coupling", "J_brake", "J1_scale",
+    f = {k: real_or_traced(params[k]) for k in ("J_motor", "J_gearbox", "J_coupling", "J_brake", "J1_scale",
                                         "J_guide", "M_load", "i_r", "p")}
     i_R = transmission_ratio(f["p"], f["i_r"])
     J1 = f["J1_scale"] * (f["J_motor"] + f["J_gearbox"] + f["J_coupling"] + f["J_brake"])
@@ -242,13 +242,13 @@ def chain(params: Mapping[str, Value], lists: Optional[Mapping[str, Sequence]] =
         return [J1 + J2], [], []
     if n == 2:
         J1, J2 = two_inertia(params)
-        return [J1, J2], [_real(params["K_t"])], [_real(params["C_t"])]
+        return [J1, J2], [real_or_traced(params["K_t"])], [real_or_traced(params["C_t"])]
     if lists is None:
         lists = {"J_chain": _parse_list(params, "J_chain", n, True),
                  "K_chain": _parse_list(params, "K_chain", n - 1, True),
                  "C_chain": _parse_list(params, "C_chain", n - 1, False)}
     J = list(lists["J_chain"])
-    J[0] *= _real(params["J1_scale"])
+    J[0] *= real_or_traced(params["J1_scale"])
     return J, list(lists["K_chain"]), list(lists["C_chain"])
 
 
@@ -262,7 +262,7 @@ def state_matrices(params: Mapping[str, Value], lumped: Optional[tuple[Sequence,
     """
     J, K, C = chain(params) if lumped is None else lumped
     n = len(J)
-    R, L, k_T, k_E, b_v = (_real(params[k]) for k in ("R", "L", "k_T", "k_E", "b_v"))
+    R, L, k_T, k_E, b_v = (real_or_traced(params[k]) for k in ("R", "L", "k_T", "k_E", "b_v"))
     size = 2 * n + 1
     numbers = all(isinstance(v, float) for v in (*J, *K, *C, R, L, k_T, k_E, b_v))
     A = np.zeros((size, size), dtype=float if numbers else object)   # object: traced numbers (native generator)
@@ -357,7 +357,7 @@ def fastest_mode(J: Sequence[float], K: Sequence[float]) -> float:
 # --------------------------------------------------------------------------------------
 # The block
 # --------------------------------------------------------------------------------------
-_ERRORS = {1: "u", 2: "F"}
+INPUT_ERRORS = {1: "u", 2: "F"}
 
 
 class ActuatorBlock(Block):
@@ -423,7 +423,7 @@ class ActuatorBlock(Block):
         u, F = self.values[0], self.values[1]
         for k, v in enumerate((u, F)):
             if not math.isfinite(v):
-                raise ModelError(f"{self.name}: input '{_ERRORS[k + 1]}' = {v} at t={t0:.9g} s is not finite")
+                raise ModelError(f"{self.name}: input '{INPUT_ERRORS[k + 1]}' = {v} at t={t0:.9g} s is not finite")
         self._write_outputs(F)
 
     def do_step(self, t: float, h: float) -> None:
@@ -496,8 +496,8 @@ class ActuatorBlock(Block):
 
     def fail(self, code: int, t: float, h: float) -> None:
         """Raise the ModelError of the kernel's failure ``code`` in the step from t over h [s]."""
-        if code in _ERRORS:
-            name = _ERRORS[code]
+        if code in INPUT_ERRORS:
+            name = INPUT_ERRORS[code]
             raise ModelError(f"{self.name}: input '{name}' = {self.values[code - 1]} at t={t:.9g} s "
                              f"is not finite")
         if code == 3:
@@ -568,9 +568,9 @@ class ActuatorBlock(Block):
         E = E.reshape(n, -1)
         Phi, Gam = E[:, :n], E[:, n:n + 2]
         if self.params["backlash"] > 0.0:
-            source = _backlash_kernel_source(self, h / m, m)
+            source = backlash_kernel_source(self, h / m, m)
         else:
-            source = _kernel_source(self, Phi, Gam, m)
+            source = kernel_source(self, Phi, Gam, m)
         namespace: dict = {"tanh": math.tanh, "exp": math.exp, "sin": math.sin}
         kernel = compile_generated(source, "kernel", f"{self.name}: actuator kernel h={h!r} m={m}", namespace,
                                    largest_parameters(self.params))
@@ -591,21 +591,21 @@ class ActuatorBlock(Block):
         for E in discretisations:
             numbers += E.tolist()
         for E, c in zip(discretisations, cols):  # the friction solve of each: d omega_N(end) / d tau_L
-            numbers += _friction_constants(p, float(E[2 * self.N * c + n + 1])).values()
+            numbers += friction_constants(p, float(E[2 * self.N * c + n + 1])).values()
         numbers.append(m)
         if self._bound is None:
             names = []
             for prefix, c in zip(("PC", "PG") if backlash else ("P",), cols):
-                rows = _names(prefix, (n, c))  # P_i_j for Phi; Gamma's columns renamed G_i_k below
-                rows[:, n:] = _names("G" + prefix[1:], (n, c - n))
+                rows = name_grid(prefix, (n, c))  # P_i_j for Phi; Gamma's columns renamed G_i_k below
+                rows[:, n:] = name_grid("G" + prefix[1:], (n, c - n))
                 names += rows.ravel().tolist()
             for prefix in (("FC_", "FG_") if backlash else ("F_",)):
-                names += [prefix + k for k in _friction_constants(p, 1.0)]
+                names += [prefix + k for k in friction_constants(p, 1.0)]
             names.append("M_SUB")
             if backlash:
-                source = _backlash_kernel_source(self, h / m, m, named=True)
+                source = backlash_kernel_source(self, h / m, m, named=True)
             else:
-                source = _kernel_source(self, _names("P", (n, n)), _names("G", (n, 2)), m, named=True)
+                source = kernel_source(self, name_grid("P", (n, n)), name_grid("G", (n, 2)), m, named=True)
             source = source.replace("def kernel(values, x):\n", f"def kernel(c, values, x):\n    {', '.join(names)}, = c\n", 1)
             namespace: dict = {"tanh": math.tanh, "exp": math.exp, "sin": math.sin}
             exec(compile(source, "<actuator kernel bound per step size>", "exec"), namespace)
@@ -667,7 +667,7 @@ class _ZohSeries:
         return s, degree, np.array([t.ravel() for t in terms])
 
 
-def _names(prefix: str, shape: tuple[int, int]) -> np.ndarray:
+def name_grid(prefix: str, shape: tuple[int, int]) -> np.ndarray:
     """A matrix of constant names, ``prefix_i_j``, for a kernel source bound per step size."""
     out = np.empty(shape, dtype=object)
     for i, j in np.ndindex(shape):
@@ -697,7 +697,7 @@ def _friction_source(c: Mapping[str, str], indent: str) -> list[str]:
     where f(v0) <= 0 (tanh(s) <= s for s >= 0), then climbs monotonically to the root:
     no overshoot, whatever the friction stiffness.
     tau_f = (a - v) / b is then exactly consistent with v and bounded by tau_c.
-    ``c``: the constants of ``_friction_constants`` as text (numbers, or names bound later).
+    ``c``: the constants of ``friction_constants`` as text (numbers, or names bound later).
     """
     btc, k, inv_wc, inv_b, lin, tol = c["btc"], c["k"], c["inv_wc"], c["inv_b"], c["lin"], c["tol"]
     i = indent
@@ -765,12 +765,12 @@ def _stribeck_source(c: Mapping[str, str], indent: str) -> list[str]:
     ]
 
 
-def _friction_constants(p: Mapping[str, Value], b: float, stribeck: Optional[bool] = None) -> dict[str, float]:
+def friction_constants(p: Mapping[str, Value], b: float, stribeck: Optional[bool] = None) -> dict[str, float]:
     """The numbers of the implicit friction solve over a substep whose d omega_N / d tau_L is ``b``
     (``stribeck``: which solve, by default tau_s > 0; given when the values are traced)."""
-    tau_c, omega_c, tau_s = _real(p["tau_c"]), _real(p["omega_c"]), _real(p["tau_s"])
+    tau_c, omega_c, tau_s = real_or_traced(p["tau_c"]), real_or_traced(p["omega_c"]), real_or_traced(p["tau_s"])
     if tau_s > 0.0 if stribeck is None else stribeck:
-        omega_s = _real(p["omega_s"])
+        omega_s = real_or_traced(p["omega_s"])
         return {"b": b, "bt": b * (tau_c + tau_s), "iwc": 1.0 / omega_c, "iws2": 1.0 / (omega_s * omega_s),
                 "tol": 1e-10 * omega_c, "tau_c": tau_c, "tau_s": tau_s, "inv_b": 1.0 / b}
     k = b * tau_c / omega_c
@@ -781,7 +781,7 @@ def _friction_constants(p: Mapping[str, Value], b: float, stribeck: Optional[boo
 def _friction_lines(p: Mapping[str, Value], b: float, prefix: Optional[str] = None) -> list[str]:
     """The implicit friction solve for this parameter set (``a`` given, sets ``tf``): its constants
     inlined, or (``prefix``) read from names ``prefix + key`` bound per step size."""
-    constants = _friction_constants(p, b)
+    constants = friction_constants(p, b)
     text = {k: repr(v) if prefix is None else prefix + k for k, v in constants.items()}
     return (_stribeck_source if float(p["tau_s"]) > 0.0 else _friction_source)(text, "")
 
@@ -791,19 +791,19 @@ def kernel_constants(p: Mapping[str, Value], i_R, A: np.ndarray, B: np.ndarray, 
     """The numbers the step kernel computes with that depend on the parameters only (not on the step
     size), by name: inlined into a compiled kernel, or (``symbolic``) read by name, as the native FMU
     does after computing them from the parameters at initialisation (these same lines, traced)."""
-    us, n = _real(p["u_supply"]), A.shape[0]
-    c = {"us": us, "nus": -us, "iR": i_R, "niR": -i_R, "weight": i_R * _real(p["M_load"]) * _real(p["g_guide"]),
-         "mg": _real(p["M_load"]) * _real(p["g_guide"]), "ripple": _real(p["tau_ripple"]),
-         "rk": 2.0 * math.pi * i_R / _real(p["ripple_period"]), "rho0": _real(p["rho_0"]),
-         "rmin": _real(p["rho_min"]), "rmax": _real(p["rho_max"]), "kT": _real(p["k_T"]),
-         "tau_c": _real(p["tau_c"]), "omega_c": _real(p["omega_c"]), "tau_s": _real(p["tau_s"]),
-         "omega_s": _real(p["omega_s"])}
+    us, n = real_or_traced(p["u_supply"]), A.shape[0]
+    c = {"us": us, "nus": -us, "iR": i_R, "niR": -i_R, "weight": i_R * real_or_traced(p["M_load"]) * real_or_traced(p["g_guide"]),
+         "mg": real_or_traced(p["M_load"]) * real_or_traced(p["g_guide"]), "ripple": real_or_traced(p["tau_ripple"]),
+         "rk": 2.0 * math.pi * i_R / real_or_traced(p["ripple_period"]), "rho0": real_or_traced(p["rho_0"]),
+         "rmin": real_or_traced(p["rho_min"]), "rmax": real_or_traced(p["rho_max"]), "kT": real_or_traced(p["k_T"]),
+         "tau_c": real_or_traced(p["tau_c"]), "omega_c": real_or_traced(p["omega_c"]), "tau_s": real_or_traced(p["tau_s"]),
+         "omega_s": real_or_traced(p["omega_s"])}
     c.update({f"aw{j}": A[n - 1, j] for j in range(n)})
     c["bw"] = B[n - 1, 1]
     if len(J) == 2:       # backlash (two-inertia model only)
-        hb = 0.5 * _real(p["backlash"])
+        hb = 0.5 * real_or_traced(p["backlash"])
         c.update({"hb": hb, "nhb": -hb, "khb": K[0] * hb, "nkhb": -K[0] * hb, "ks": K[0], "cs": C[0],
-                  "bv": _real(p["b_v"]), "ij2": 1.0 / J[1]})
+                  "bv": real_or_traced(p["b_v"]), "ij2": 1.0 / J[1]})
     return c
 
 
@@ -849,11 +849,11 @@ def _kernel_tail(block: ActuatorBlock, xs: Sequence[str], alpha: str, c: Mapping
     ]
 
 
-def _kernel_source(block: ActuatorBlock, Phi: np.ndarray, Gam: np.ndarray, m: int, named: bool = False,
+def kernel_source(block: ActuatorBlock, Phi: np.ndarray, Gam: np.ndarray, m: int, named: bool = False,
                    symbolic: bool = False) -> str:
     """Python source of ``kernel(values, x) -> int`` (0 ok, 1/2 bad input u/F, 3 diverged, 4 stroke).
 
-    ``named``: Phi and Gam are arrays of names (``_names``), the friction constants and the
+    ``named``: Phi and Gam are arrays of names (``name_grid``), the friction constants and the
     number of substeps (``M_SUB``) are names too: one source for every step size, bound to the
     numbers by ``ActuatorBlock._bind``. ``symbolic`` (with ``named``): the parameters' numbers
     too (``kernel_constants`` as ``Q_<key>``): one source for every parameter set of this
@@ -917,7 +917,7 @@ def _ticks_source(block: ActuatorBlock, Phi: np.ndarray, Gam: np.ndarray, m: int
 
         ticks(values, x, ticks, i_cmd, x_c, u_c, k_p, k_iT, u_max) -> (code, tick, x_c, u_c)
 
-    each tick ``pi_step`` (drive.py) on i_m = x0, then the step over T_cur of ``_kernel_source`` (the same
+    each tick ``pi_step`` (drive.py) on i_m = x0, then the step over T_cur of ``kernel_source`` (the same
     lines: the same arithmetic) with the voltage u_c of the tick before; ``values`` and ``x`` are written
     once, after the last tick (the last u_c applied in values[0]). ``code``: 0, or the kernel's failure code at
     ``tick`` (then nothing is written). No backlash, no torque sensor (``ActuatorBlock.ticks``)."""
@@ -1007,17 +1007,17 @@ def backlash_systems(A: np.ndarray, B: np.ndarray, J: Sequence, K: Sequence, C: 
     return A, Ag, B3
 
 
-def _backlash_kernel_source(block: ActuatorBlock, h_sub: float, m: int, named: bool = False,
+def backlash_kernel_source(block: ActuatorBlock, h_sub: float, m: int, named: bool = False,
                             symbolic: bool = False) -> str:
     """Step with backlash (n_dof = 2): substeps of h_sub, the mode from the deflection at each substep start.
 
     ``named``, ``symbolic``: the step-size-dependent numbers, and the parameters' numbers, are names
-    (see ``_kernel_source``), h_sub is unused."""
+    (see ``kernel_source``), h_sub is unused."""
     p = block.params
     xs = [f"x{j}" for j in range(5)]
     c = _numbers(block, symbolic)
     if named:
-        (Pc, Gc), (Pg, Gg) = (_names("PC", (5, 5)), _names("GC", (5, 3))), (_names("PG", (5, 5)), _names("GG", (5, 3)))
+        (Pc, Gc), (Pg, Gg) = (name_grid("PC", (5, 5)), name_grid("GC", (5, 3))), (name_grid("PG", (5, 5)), name_grid("GG", (5, 3)))
     else:
         (Pc, Gc), (Pg, Gg) = _backlash_matrices(block, h_sub)
     friction = float(p["tau_c"]) > 0.0 or float(p["tau_s"]) > 0.0

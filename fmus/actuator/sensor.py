@@ -39,7 +39,7 @@ def filter_coefficients(T: float, h: float) -> tuple[float, float, float]:
     return e, c, 1.0 - e - c
 
 
-def _delay_split(delay: float, h: float) -> tuple[int, float]:
+def delay_split(delay: float, h: float) -> tuple[int, float]:
     """delay = (n + phi) h with integer n >= 0 and 0 <= phi < 1."""
     q = delay / h
     n = int(math.floor(q + 1e-9))
@@ -104,7 +104,7 @@ class TorqueSensor:
     def _configure(self, h: float) -> None:
         self._h = h
         self._e, self._c, self._d = filter_coefficients(self.T, h)
-        self._n, self._phi = _delay_split(self.delay, h)
+        self._n, self._phi = delay_split(self.delay, h)
         L = self._n + 2
         line = [0.0] * L
         relayout(self._line, len(self._line), self._head, line, L, self._u0)
@@ -129,7 +129,7 @@ def measure(u: np.ndarray, h: float, T: float = 0.0, delay: float = 0.0, offset:
     if T == 0.0 and delay == 0.0:
         return u + offset
     u = np.moveaxis(u, axis, -1)
-    n, phi = _delay_split(delay, h)
+    n, phi = delay_split(delay, h)
     if n or phi:
         pad = np.repeat(u[..., :1], n + 1, axis=-1)
         ext = np.concatenate([pad, u], axis=-1)            # ext[j + n + 1] = u[j]

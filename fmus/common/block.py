@@ -53,6 +53,13 @@ class Block:
         self.params = validate(self.PARAMETERS, params, self.name)
         self.values: list[float] = [0.0] * (len(self.INPUTS) + len(self.OUTPUTS))
 
+    @classmethod
+    def for_parameters(cls, params: Mapping[str, Value]) -> type["Block"]:
+        """The class whose variables a block of ``params`` has: this one, unless the variables follow the
+        parameters (a mechanism's follow its topology, ``MechanismBlock``). An FMU fixes its variables with
+        its built-in parameters (``slave.BlockWrapper``)."""
+        return cls
+
     # -- convenience accessors by name (not for hot paths) -------------------
     def index(self, name: str) -> int:
         try:

@@ -230,14 +230,15 @@ class BlockWrapper:
             front = _pythonfmu_behind_front(self.resources, type(self).__name__)
             self._illegal_is_error = front is not None
             _defuse_pythonfmu_teardown(self.resources, front)
-        cls = self.block_class
+        defaults = load_defaults(self.resources)
+        # the variables of the built-in parameters (a mechanism's follow its topology: Block.for_parameters)
+        self.block_class = cls = type(self).block_class.for_parameters(defaults)
         self.description = (type(self).__doc__ or cls.__doc__ or "").strip().split("\n")[0] or None
         self._n_io = len(cls.INPUTS) + len(cls.OUTPUTS)
         self._values: List[float] = [0.0] * self._n_io
         self._block: Optional[Block] = None
         self._dirty = True
         self._t0 = 0.0
-        defaults = load_defaults(self.resources)
         self._params = {p.name: defaults.get(p.name, _neutral(p.kind)) for p in cls.PARAMETERS}
         self.default_experiment = self._default_experiment()
         self._input_refs = frozenset(range(len(cls.INPUTS)))

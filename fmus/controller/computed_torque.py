@@ -19,12 +19,13 @@ speed rho_dot_ref / i_R.
 """
 from __future__ import annotations
 
-from typing import Mapping
+from typing import Mapping, Optional
 
 from ..common.parameters import Value, nonnegative, positive
+from ..mechanism.engine import Engine
 from .inverse_model import MODEL_PARAMETERS, InverseModel
 from .model import DRIVE_PARAMETERS, DriveController
-from .tick import LAYOUT, MODEL_FAILED, failed_call
+from .tick import MODEL_FAILED, failed_call
 
 COMPUTED_TORQUE_PARAMETERS = (
     positive("omega_n", "rad/s", "Natural frequency of the joint error dynamics"),
@@ -51,25 +52,35 @@ def limited(i: float, i_max: float) -> float:
 
 
 class ComputedTorqueController(DriveController):
-    """Computed torque control of the three axes with the controller's own inverse dynamic model."""
+    """Computed torque control of the n axes with the controller's own inverse dynamic model."""
 
     PARAMETERS = (*DRIVE_PARAMETERS, *MODEL_PARAMETERS, *COMPUTED_TORQUE_PARAMETERS)
     REFERENCE_RATES = True
     MODES = ("pose", "joint", "current")
-    DESCRIPTIONS = {**DriveController.DESCRIPTIONS,
-                    **{f"omega_cmd_{j}": f"Reference speed of motor {j} (rho_dot_ref / i_R; no velocity loop)"
-                       for j in (1, 2, 3)},
-                    **{f"i_cmd_{j}": f"Current command of axis {j} (computed torque / k_T)" for j in (1, 2, 3)}}
+
+    @classmethod
+    def _interface(cls) -> dict:
+        declared = super()._interface()
+        axes = range(1, len(cls.COORDINATES) + 1)
+        return {**declared,
+                "DESCRIPTIONS": {**declared["DESCRIPTIONS"],
+                                 **{f"omega_cmd_{j}": f"Reference speed of motor {j} (rho_dot_ref / i_R; no velocity "
+                                                      "loop)" for j in axes},
+                                 **{f"i_cmd_{j}": f"Current command of axis {j} (computed torque / k_T)"
+                                    for j in axes}}}
 
     LAWS = (commanded_acceleration, limited)
 
-    def __init__(self, params: Mapping[str, Value], name: str = "") -> None:
-        super().__init__(params, name)
-        self.model = InverseModel(self.params, self.name)
+    def __init__(self, params: Mapping[str, Value], name: str = "", kinematics: Optional[Engine] = None,
+                 dynamics: Optional[Engine] = None) -> None:
+        """``kinematics``, ``dynamics``: the controller's kinematic model (``DriveController``) and its inverse
+        model's engine (``InverseModel``), by default the ones its parameter sets select."""
+        super().__init__(params, name, kinematics)
+        self.model = InverseModel(self.params, self.name, dynamics, self.n)
 
     def _constants(self, S: list[float]) -> None:
         super()._constants(S)
-        at = LAYOUT["own"]
+        at = self.LAYOUT["own"]
         self.K_P, self.K_D = S[at:at + 2] = error_gains(float(self.params["omega_n"]), float(self.params["zeta"]))
 
     def _calls(self) -> dict:
@@ -85,17 +96,20 @@ class ComputedTorqueController(DriveController):
     @classmethod
     def position_lines(cls, moded: bool) -> list[str]:
         """omega_cmd reports the reference speed rho_dot_ref / i_R."""
-        return [f"oc{j} = S[{LAYOUT['rates'] + j}]/S[{LAYOUT['i_R']}]" for j in range(3)]
+        L = cls.LAYOUT
+        return [f"oc{j} = S[{L['rates'] + j}]/S[{L['i_R']}]" for j in range(len(cls.COORDINATES))]
 
     @classmethod
     def velocity_lines(cls) -> list[str]:
         """The model's currents at the measured state (rho, rho_dot = i_R omega_m) for the acceleration
         a = rho_ddot_ref + K_D e_dot + K_P e, limited to i_max."""
-        Q, i_R, i_max = LAYOUT["rates"], f"S[{LAYOUT['i_R']}]", f"S[{LAYOUT['gains'] + 3}]"
-        K_P, K_D = f"S[{LAYOUT['own']}]", f"S[{LAYOUT['own'] + 1}]"
-        state = "values[3], values[4], values[5], rdm0, rdm1, rdm2, acc0, acc1, acc2"
-        return [*(f"rdm{j} = {i_R}*values[{6 + j}]" for j in range(3)),
-                *(f"acc{j} = commanded_acceleration(S[{Q + 3 + j}], S[{Q + j}], rdm{j}, rc{j}, values[{3 + j}], {K_P}, "
-                  f"{K_D})" for j in range(3)),
-                *failed_call(f"currents({state}, S, CUR)", state, MODEL_FAILED),
-                *(f"ic{j} = limited(CUR[{j}], {i_max})" for j in range(3))]
+        L, n = cls.LAYOUT, len(cls.COORDINATES)
+        Q, i_R, i_max = L["rates"], f"S[{L['i_R']}]", f"S[{L['gains'] + 3}]"
+        K_P, K_D = f"S[{L['own']}]", f"S[{L['own'] + 1}]"
+        state = [*(f"values[{n + j}]" for j in range(n)), *(f"rdm{j}" for j in range(n)),
+                 *(f"acc{j}" for j in range(n))]
+        return [*(f"rdm{j} = {i_R}*values[{2 * n + j}]" for j in range(n)),
+                *(f"acc{j} = commanded_acceleration(S[{Q + n + j}], S[{Q + j}], rdm{j}, rc{j}, values[{n + j}], {K_P}, "
+                  f"{K_D})" for j in range(n)),
+                *failed_call(L, f"currents({', '.join(state)}, S, CUR)", state, MODEL_FAILED),
+                *(f"ic{j} = limited(CUR[{j}], {i_max})" for j in range(n))]

@@ -13,12 +13,13 @@ reference estimate and the loops' sampling leave.
 """
 from __future__ import annotations
 
-from typing import Mapping
+from typing import Mapping, Optional
 
 from ..common.parameters import Param, Value
+from ..mechanism.engine import Engine
 from .inverse_model import MODEL_PARAMETERS, InverseModel
 from .model import ControllerBlock, position_p_law
-from .tick import LAYOUT, MODEL_FAILED, failed_call
+from .tick import MODEL_FAILED, failed_call
 
 FEEDFORWARD_PARAMETERS = (
     Param("k_ff_v", "1", "Weight of the velocity feed-forward (0: none, 1: full)", 0.0, 1.5),
@@ -46,13 +47,15 @@ class FeedForwardController(ControllerBlock):
     FEEDFORWARD_CURRENT = True
     LAWS = (position_p_law, velocity_feedforward)
 
-    def __init__(self, params: Mapping[str, Value], name: str = "") -> None:
-        super().__init__(params, name)
-        self.model = InverseModel(self.params, self.name)
+    def __init__(self, params: Mapping[str, Value], name: str = "", kinematics: Optional[Engine] = None,
+                 dynamics: Optional[Engine] = None) -> None:
+        """``kinematics``, ``dynamics``: as ``ComputedTorqueController``'s."""
+        super().__init__(params, name, kinematics)
+        self.model = InverseModel(self.params, self.name, dynamics, self.n)
 
     def _constants(self, S: list[float]) -> None:
         super()._constants(S)
-        at = LAYOUT["own"]
+        at = self.LAYOUT["own"]
         S[at:at + 2] = feedforward_gains(float(self.params["k_ff_v"]), float(self.params["k_ff_tau"]), self.i_R)
 
     def _calls(self) -> dict:
@@ -68,10 +71,12 @@ class FeedForwardController(ControllerBlock):
     @classmethod
     def position_lines(cls, moded: bool) -> list[str]:
         """The P law, plus the velocity feed-forward and the inverse model's currents on the reference (i_ff)."""
-        Q, kff_v_iR, kff_tau = LAYOUT["rates"], f"S[{LAYOUT['own']}]", f"S[{LAYOUT['own'] + 1}]"
-        reference = ", ".join([f"rc{j}" for j in range(3)] + [f"S[{Q + k}]" for k in range(6)])
+        L, n = cls.LAYOUT, len(cls.COORDINATES)
+        Q, kff_v_iR, kff_tau = L["rates"], f"S[{L['own']}]", f"S[{L['own'] + 1}]"
+        reference = [f"rc{j}" for j in range(n)] + [f"S[{Q + k}]" for k in range(2 * n)]
         return [*super().position_lines(moded),
-                *(f"oc{j} = velocity_feedforward(oc{j}, S[{Q + j}], {kff_v_iR})" for j in range(3)),
+                *(f"oc{j} = velocity_feedforward(oc{j}, S[{Q + j}], {kff_v_iR})" for j in range(n)),
                 f"if {kff_tau} != 0.0:",
-                *("    " + line for line in failed_call(f"currents({reference}, S, CUR)", reference, MODEL_FAILED)),
-                *(f"    if{j} = {kff_tau}*CUR[{j}]" for j in range(3))]
+                *("    " + line for line in failed_call(L, f"currents({', '.join(reference)}, S, CUR)", reference,
+                                                          MODEL_FAILED)),
+                *(f"    if{j} = {kff_tau}*CUR[{j}]" for j in range(n))]

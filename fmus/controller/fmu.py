@@ -1,7 +1,8 @@
 """FMI 2.0 Co-Simulation wrappers of the controllers (the equations live in model.py and its siblings).
 
-All four have the same inputs and outputs (``DriveController``), so a system swaps its
-controller by the controller component's ``source`` and parameter sets in the SSP
+All four have the same inputs and outputs (``DriveController``: the 3PRS's axes; another mechanism's
+controller is ``block_class.for_topology(topology)``, its variables by the connector convention), so a system
+swaps its controller by the controller component's ``source`` and parameter sets in the SSP
 (``ssp/MAST_<controller>.ssd``).
 """
 from __future__ import annotations

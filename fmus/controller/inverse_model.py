@@ -25,12 +25,13 @@ inverse dynamics per evaluation, about 0.1 ms.
 """
 from __future__ import annotations
 
-from typing import Mapping, Sequence
+from typing import Mapping, Optional, Sequence
 
 from ..actuator.model import PARAMETERS as ACTUATOR_PARAMETERS
-from ..actuator.model import _real, guide_friction, transmission_ratio, two_inertia
+from ..actuator.model import real_or_traced, guide_friction, transmission_ratio, two_inertia
 from ..common.parameters import Value
-from ..mechanism.designs import MASS_PARAMETERS, PAYLOAD_PARAMETERS, engine
+from ..mechanism.designs import MASS_PARAMETERS, PAYLOAD_PARAMETERS, engine, kinematic_engine
+from ..mechanism.engine import Engine
 from ..mechanism.kinematics import KinematicsError
 from ..mechanism.model import restarted_dk
 
@@ -61,10 +62,10 @@ CONSTANTS = ("J", "i_R", "b_v", "weight", "tau_c", "omega_c", "tau_s", "omega_s"
 def model_constants(params: Mapping[str, Value]) -> dict[str, float]:
     """The model's actuator constants (``CONSTANTS``) from the actuator's parameters: J = J1 + J2 [kg m^2]
     (``two_inertia``, Eqs. 20-22), i_R [m/rad], b_v [N m s/rad], weight = M_load g_guide [N], the guide
-    friction's tau_c, omega_c, tau_s, omega_s and k_T [N m/A]. A traced number passes through (``_real``):
+    friction's tau_c, omega_c, tau_s, omega_s and k_T [N m/A]. A traced number passes through (``real_or_traced``):
     the native feed-forward and computed-torque controllers compute them at initialisation with this code."""
     J1, J2 = two_inertia(params)
-    f = {k: _real(params[k]) for k in ("p", "i_r", "b_v", "M_load", "g_guide", "tau_c", "omega_c", "tau_s",
+    f = {k: real_or_traced(params[k]) for k in ("p", "i_r", "b_v", "M_load", "g_guide", "tau_c", "omega_c", "tau_s",
                                        "omega_s", "k_T")}
     return {"J": J1 + J2, "i_R": transmission_ratio(f["p"], f["i_r"]), "b_v": f["b_v"],
             "weight": f["M_load"] * f["g_guide"], "tau_c": f["tau_c"], "omega_c": f["omega_c"],
@@ -72,9 +73,14 @@ def model_constants(params: Mapping[str, Value]) -> dict[str, float]:
 
 
 class InverseModel:
-    """Motor torques for a joint motion (module docstring), from validated parameters."""
+    """Motor torques for a joint motion (module docstring), from validated parameters.
 
-    def __init__(self, params: Mapping[str, Value], owner: str = "") -> None:
+    ``dynamics``: the mechanism's engine (with its bodies), by default the one the parameter sets select
+    (designs.engine; none when ``attached`` = 0); ``n``: the number of axes, by default the mechanism's.
+    """
+
+    def __init__(self, params: Mapping[str, Value], owner: str = "", dynamics: Optional[Engine] = None,
+                 n: Optional[int] = None) -> None:
         P = params
         self.owner = owner or "controller"
         c = model_constants(P)
@@ -85,7 +91,12 @@ class InverseModel:
         self.b_v = c["b_v"]
         self._friction = tuple(c[n] for n in ("tau_c", "omega_c", "tau_s", "omega_s"))
         self.weight = c["weight"]       # [N] along the guide
-        self.engine = engine(P, self.owner) if int(P["attached"]) else None
+        attached = bool(int(P["attached"]))
+        self.engine = (dynamics if dynamics is not None else engine(P, self.owner)) if attached else None
+        #: the number of axes (motors)
+        self.n = n if n is not None else (self.engine or kinematic_engine(P, self.owner)).n
+        if attached and self.engine.n != self.n:
+            raise ValueError(f"{self.owner}: inverse model of {self.n} axes with a mechanism of {self.engine.n} drives")
         self._guess = None
         self._found = self._failure = None      # the last direct kinematics' solution, or failure (mechanism.model.dk)
 
@@ -99,13 +110,13 @@ class InverseModel:
         self._guess = q
 
     def torques(self, rho: Sequence[float], rho_dot: Sequence[float], rho_ddot: Sequence[float]) -> list[float]:
-        """tau_m [N m] of the three motors; KinematicsError (naming the controller) if rho is unreachable."""
+        """tau_m [N m] of the n motors; KinematicsError (naming the controller) if rho is unreachable."""
         i_R = self.i_R
         if self.engine is None:
-            F = (0.0, 0.0, 0.0)
+            F = (0.0,) * self.n
         else:
             try:     # as the mechanism block: warm start, else cold; no cold restart across a singularity
-                if restarted_dk(rho[0], rho[1], rho[2], 0.0 if self._guess is None else 1.0, self, None):
+                if restarted_dk(rho, 0.0 if self._guess is None else 1.0, self, None):
                     raise self._failure
                 q, Jq, _ = self._found
                 F = self.engine.forces(q, Jq, rho_dot, rho_ddot)
@@ -113,7 +124,7 @@ class InverseModel:
                 raise KinematicsError(f"{self.owner}: inverse dynamic model at rho = {tuple(rho)!r} m: {exc}") from exc
             self._guess = q
         return [motor_torque(rho_dot[j], rho_ddot[j], F[j], self.J, i_R, self.b_v, self.weight, *self._friction)
-                for j in range(3)]
+                for j in range(self.n)]
 
     def currents(self, rho: Sequence[float], rho_dot: Sequence[float], rho_ddot: Sequence[float]) -> list[float]:
         """The motor currents [A] of ``torques`` (tau_m / k_T)."""

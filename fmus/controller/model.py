@@ -1,7 +1,7 @@
 """The drive under every MAST controller, and the joint-space cascade (paper Fig. 2 and 6).
 
 ``DriveController`` is what all controllers share: the interface (pose commands and the
-three axes' position and speed measurements in, the loop commands out), the drive's
+n axes' position and speed measurements in, the loop commands out), the drive's
 multi-rate schedule of the position and velocity loops, the joint reference and the operating
 modes. The drive's current loop runs inside each actuator (fmus/actuator/drive.py): the
 current command ``i_cmd_k`` is its input. The outer
@@ -9,10 +9,16 @@ law is the subclass's: ``ControllerBlock`` here (the paper's joint-space cascade
 ``WorkspaceController`` (workspace.py), ``FeedForwardController`` (feedforward.py) and
 ``ComputedTorqueController`` (computed_torque.py).
 
+The axes are the mechanism's (its topology, fmus/mechanism/topology.py): one per coordinate c, each with a
+linear drive k = 1..n. The classes here control the 3PRS's (z, psi, theta); ``for_topology`` gives each for
+another mechanism, with the inputs ``<c>_cmd``, ``rho_k``, ``omega_m_k`` and the outputs ``rho_cmd_k``,
+``omega_cmd_k``, ``i_cmd_k`` (``interface``: the connector convention) and its state's layout for n
+(tick.layout). A rotary drive is refused: the transmission i_R below is a linear guide's.
+
 Joint-space cascade, per axis j, all loops sampled, forward-Euler integrators:
 
 position (every T_pos = N_pos T_cur, P):
-    rho_cmd_j  = IK_j(z_cmd, psi_cmd, theta_cmd)       controller's own geometry
+    rho_cmd_j  = IK_j(q_cmd)                            controller's own geometry (3PRS: q = z, psi, theta)
     omega_cmd_j = k_v (rho_cmd_j - rho_j) / i_R         i_R = p / (2 pi i_r)  (paper Eq. 1)
 velocity (every T_vel = N_vel T_cur, PI, limit i_max):
     e = omega_cmd_j - omega_m_j
@@ -52,21 +58,64 @@ velocity loops off), like a drive's position/velocity/current modes.
 from __future__ import annotations
 
 import math
-from typing import Mapping, Sequence
+from functools import lru_cache
+from typing import Mapping, Optional, Sequence
 
 from ..common.block import Block, ModelError
 from ..common.parameters import ParameterError, Value, nonnegative, positive
 from ..actuator.drive import pi_step
 from ..actuator.model import transmission_ratio
-from ..mechanism.designs import KINEMATIC_PARAMETERS, kinematic_engine
+from ..mechanism.designs import KINEMATIC_PARAMETERS, TRACED_PARAMETERS, describe, description, kinematic_engine
+from ..mechanism.engine import Engine
 from ..mechanism.kinematics import KinematicsError
+from ..mechanism.topology import POSE_UNITS, Topology, TopologyError
 from .reference import rates
-from .tick import LAYOUT, MODEL_FAILED, SIZE, compiled, pi_lines
+from .tick import MODEL_FAILED, compiled, layout, pi_lines
 
 
 #: operating modes, outermost first; the value is the first loop that runs
 MODES = ("pose", "joint", "velocity", "current")
 _MODE_COMMAND = {"joint": "rho_cmd", "velocity": "omega_cmd", "current": "i_cmd"}
+_COUNTS = ("no", "one", "two", "three", "four", "five", "six", "seven", "eight", "nine", "ten")
+
+
+def count_text(n: int) -> str:
+    """``n`` in words up to ten ("three"), else in digits: the messages' way of counting axes."""
+    return _COUNTS[n] if 0 <= n < len(_COUNTS) else str(n)
+
+
+def command_description(coordinate: str) -> str:
+    """The description of the pose command input of ``coordinate`` (a component of topology.POSE)."""
+    if coordinate == "z":
+        return "Platform height command"
+    what = "rotation" if POSE_UNITS[coordinate] == "rad" else "position"
+    return f"Platform {what} command {coordinate}"
+
+
+def interface(coordinates: Sequence[str]) -> dict:
+    """What a controller of the axes ``coordinates`` (the mechanism's coordinate names, topology.Topology.names;
+    one linear drive each) declares: its inputs (the pose command ``<c>_cmd`` per coordinate, ``rho_k``,
+    ``omega_m_k``), outputs (``rho_cmd_k``, ``omega_cmd_k``, ``i_cmd_k``), their units and descriptions, the
+    direct feedthrough, and its state's layout and size (tick.layout)."""
+    n = len(coordinates)
+    axes = range(1, n + 1)
+    inputs = (*(f"{c}_cmd" for c in coordinates), *(f"rho_{j}" for j in axes), *(f"omega_m_{j}" for j in axes))
+    outputs = (*(f"rho_cmd_{j}" for j in axes), *(f"omega_cmd_{j}" for j in axes), *(f"i_cmd_{j}" for j in axes))
+    units = {**{f"{c}_cmd": POSE_UNITS[c] for c in coordinates},
+             **{f"rho_{j}": "m" for j in axes},
+             **{f"omega_m_{j}": "rad/s" for j in axes},
+             **{f"rho_cmd_{j}": "m" for j in axes},
+             **{f"omega_cmd_{j}": "rad/s" for j in axes},
+             **{f"i_cmd_{j}": "A" for j in axes}}
+    descriptions = {**{f"{c}_cmd": command_description(c) for c in coordinates},
+                    **{f"rho_{j}": f"Measured position of guide {j} (linear encoder)" for j in axes},
+                    **{f"omega_m_{j}": f"Measured speed of motor {j} (motor encoder)" for j in axes},
+                    **{f"rho_cmd_{j}": f"Joint position command of axis {j} (inverse kinematics)" for j in axes},
+                    **{f"omega_cmd_{j}": f"Motor speed command of axis {j} (position loop output)" for j in axes},
+                    **{f"i_cmd_{j}": f"Current command of axis {j} (velocity loop output)" for j in axes}}
+    state = layout(n, len(TRACED_PARAMETERS))
+    return {"INPUTS": inputs, "OUTPUTS": outputs, "UNITS": units, "DESCRIPTIONS": descriptions,
+            "FEEDTHROUGH": dict.fromkeys(outputs, inputs), "LAYOUT": state, "SIZE": state["size"]}
 
 
 def position_p_law(rho_cmd: float, rho: float, kv_iR: float) -> float:
@@ -106,33 +155,13 @@ class DriveController(Block):
     """The shared part of every MAST controller (module docstring); subclasses give their laws as lines of the
     tick (``position_lines``, ``velocity_lines``: tick.py) and the constants they read (``_constants``)."""
 
-    INPUTS = ("z_cmd", "psi_cmd", "theta_cmd",
-              "rho_1", "rho_2", "rho_3",
-              "omega_m_1", "omega_m_2", "omega_m_3")
-    OUTPUTS = ("rho_cmd_1", "rho_cmd_2", "rho_cmd_3",
-               "omega_cmd_1", "omega_cmd_2", "omega_cmd_3",
-               "i_cmd_1", "i_cmd_2", "i_cmd_3")
+    #: the axes: the coordinates of the mechanism the class controls (the 3PRS's; another mechanism's:
+    #: ``for_topology``), from which ``interface`` gives INPUTS, OUTPUTS, UNITS, DESCRIPTIONS, FEEDTHROUGH (every
+    #: command follows the samples at a communication point: the laws of its tick, ``evaluate``), LAYOUT, SIZE
+    COORDINATES: tuple[str, ...] = description("3PRS").coordinates
+    LAYOUT: dict[str, int]
+    SIZE: int
     PARAMETERS = DRIVE_PARAMETERS
-    UNITS = {
-        "z_cmd": "m", "psi_cmd": "rad", "theta_cmd": "rad",
-        **{f"rho_{j}": "m" for j in (1, 2, 3)},
-        **{f"omega_m_{j}": "rad/s" for j in (1, 2, 3)},
-        **{f"rho_cmd_{j}": "m" for j in (1, 2, 3)},
-        **{f"omega_cmd_{j}": "rad/s" for j in (1, 2, 3)},
-        **{f"i_cmd_{j}": "A" for j in (1, 2, 3)},
-    }
-    DESCRIPTIONS = {
-        "z_cmd": "Platform height command",
-        "psi_cmd": "Platform rotation command psi",
-        "theta_cmd": "Platform rotation command theta",
-        **{f"rho_{j}": f"Measured position of guide {j} (linear encoder)" for j in (1, 2, 3)},
-        **{f"omega_m_{j}": f"Measured speed of motor {j} (motor encoder)" for j in (1, 2, 3)},
-        **{f"rho_cmd_{j}": f"Joint position command of axis {j} (inverse kinematics)" for j in (1, 2, 3)},
-        **{f"omega_cmd_{j}": f"Motor speed command of axis {j} (position loop output)" for j in (1, 2, 3)},
-        **{f"i_cmd_{j}": f"Current command of axis {j} (velocity loop output)" for j in (1, 2, 3)},
-    }
-    #: every command follows the samples at a communication point (the laws of its tick, ``evaluate``)
-    FEEDTHROUGH = dict.fromkeys(OUTPUTS, INPUTS)
     CYCLE_TIME = "T_cur"
     #: operating modes this controller offers (one without a velocity loop has no "velocity" mode)
     MODES: tuple[str, ...] = MODES
@@ -143,7 +172,43 @@ class DriveController(Block):
     #: the laws' arithmetic the tick calls (value functions in the generated-code subset)
     LAWS: tuple = ()
 
-    def __init__(self, params: Mapping[str, Value], name: str = "") -> None:
+    def __init_subclass__(cls, **kwargs) -> None:
+        super().__init_subclass__(**kwargs)
+        _declare(cls)
+
+    @classmethod
+    def _interface(cls) -> dict:
+        """The class's declarations for its axes (``interface``; subclasses add theirs)."""
+        return interface(cls.COORDINATES)
+
+    @classmethod
+    def for_topology(cls, topology: Topology) -> type:
+        """This controller for the mechanism ``topology`` (its coordinates, one linear drive each): ``cls``
+        itself for the 3PRS's, else a subclass with those axes (made once). TopologyError for a rotary drive."""
+        rotary = [d.name for d in topology.drives if d.kind != "linear"]
+        if rotary:
+            raise TopologyError(
+                f"{cls.__name__}: {topology.name}'s drive(s) {', '.join(rotary)} are rotary: the controllers' "
+                "transmission i_R = p / (2 pi i_r) [m/rad] (paper Eq. 1) and their joint units [m] are a linear "
+                "guide's; a rotary drive needs its own transmission")
+        return _specialised(cls, topology.names)
+
+    @classmethod
+    def for_parameters(cls, params: Mapping[str, Value]) -> type:
+        """The class whose variables a controller of ``params`` has: ``for_topology`` of the mechanism their
+        geometry set describes (an FMU fixes its variables with its built-in parameters, ``Block.for_parameters``);
+        this class when they describe none (the block built with them says why)."""
+        if not params:
+            return cls
+        try:
+            topology = describe(params, masses=False).topology
+        except Exception:   # noqa: BLE001 - the block's own construction reports what is wrong with them
+            return cls
+        return cls.for_topology(topology)
+
+    def __init__(self, params: Mapping[str, Value], name: str = "", kinematics: Optional[Engine] = None) -> None:
+        """``kinematics``: the controller's kinematic model, by default the description its geometry parameter
+        set selects (designs.kinematic_engine); its topology must have this class's axes (``for_topology``)."""
         super().__init__(params, name)
         P = self.params
         T_cur = float(P["T_cur"])
@@ -154,18 +219,36 @@ class DriveController(Block):
         self.i_R = transmission_ratio(P["p"], P["i_r"])
         #: the controller's kinematic model: the description its geometry set selects (``kinematics``),
         #: the same code as the mechanism's
-        self.kinematics = kinematic_engine(P, self.name)
+        self.kinematics = kinematics if kinematics is not None else kinematic_engine(P, self.name)
+        #: the mechanism's interface shape (its coordinates are this controller's axes)
+        self.topology = self._checked_topology(self.kinematics.description.topology)
         self._ik = self.kinematics.ik
         self._i_max = float(P["i_max"])
         self._mode = 0
-        self._override: tuple[float, float, float] | None = None
+        self._override: tuple[float, ...] | None = None
         self._t0 = 0.0
-        #: the state the tick runs on (tick.LAYOUT), its scratch arrays, and the exception of a failed call
-        self._S = [0.0] * SIZE
-        self._R, self._CUR, self._QM, self._JK = [0.0] * 3, [0.0] * 3, [0.0] * 3, [0.0] * 12
+        #: the state the tick runs on (``LAYOUT``), its scratch arrays, and the exception of a failed call
+        n = self.n
+        self._S = [0.0] * self.SIZE
+        self._R, self._CUR, self._QM, self._JK = [0.0] * n, [0.0] * n, [0.0] * n, [0.0] * (n + n * n)
         self._failure: Exception | None = None
         self._bind_tick()
         self._reset()
+
+    def _checked_topology(self, topology: Topology) -> Topology:
+        """``topology``, if this class controls its coordinates (``for_topology``); else ParameterError."""
+        if topology.names != self.COORDINATES:
+            raise ParameterError(
+                f"{self.name}: the kinematic model is a {topology.name} with coordinates {', '.join(topology.names)} "
+                f"({count_text(topology.n)} drives), this {type(self).__name__} controls "
+                f"{', '.join(self.COORDINATES)}: use {type(self).__name__}.for_topology(its topology)")
+        self.for_topology(topology)    # a rotary drive refused
+        return topology
+
+    @property
+    def n(self) -> int:
+        """The number of axes (drives)."""
+        return len(self.COORDINATES)
 
     def _ratio(self, name: str, T: float, T_cur: float) -> int:
         ratio = T / T_cur
@@ -193,13 +276,13 @@ class DriveController(Block):
         self._evaluated = -1                      # the tick whose laws ran at its communication point
         self._before: tuple = ()                  # the law state before them (``_law_state``)
         S = self._S
-        S[:] = [0.0] * SIZE
+        S[:] = [0.0] * self.SIZE
         self._constants(S)
-        S[LAYOUT["mode"]] = float(self._mode)
+        S[self.LAYOUT["mode"]] = float(self._mode)
 
     def _constants(self, S: list[float]) -> None:
-        """The numbers the tick reads from S that the parameters fix (tick.LAYOUT)."""
-        L = LAYOUT
+        """The numbers the tick reads from S that the parameters fix (``LAYOUT``)."""
+        L = self.LAYOUT
         S[L["N_pos"]], S[L["N_vel"]] = float(self._N_pos), float(self._N_vel)
         S[L["T_cur"]], S[L["T_pos"]] = self.T_cur, float(self.params["T_pos"])
         S[L["i_R"]] = self.i_R
@@ -247,24 +330,25 @@ class DriveController(Block):
                 raise ValueError(f"{self.name}: mode 'pose' takes its commands from the inputs")
             self._mode = 0
             self._override = None
-            self._S[LAYOUT["mode"]] = 0.0
-            self._S[LAYOUT["ik"]] = 0.0       # the IK cache forgotten
+            self._S[self.LAYOUT["mode"]] = 0.0
+            self._S[self.LAYOUT["ik"]] = 0.0       # the IK cache forgotten
             return
-        if commands is None or len(commands) != 3:
-            raise ValueError(f"{self.name}: mode {mode!r} needs three {_MODE_COMMAND[mode]} values")
+        if commands is None or len(commands) != self.n:
+            raise ValueError(f"{self.name}: mode {mode!r} needs {count_text(self.n)} {_MODE_COMMAND[mode]} values "
+                             "(one per axis)")
         values = tuple(float(c) for c in commands)
         for j, c in enumerate(values, 1):
             if not math.isfinite(c):
                 raise ModelError(f"{self.name}: {_MODE_COMMAND[mode]}_{j} = {c!r} is not finite")
         self._mode = MODES.index(mode)
         self._override = values  # type: ignore[assignment]
-        self._S[LAYOUT["mode"]] = float(self._mode)
+        self._S[self.LAYOUT["mode"]] = float(self._mode)
         self._apply_override()
         self._write_outputs()
 
     def _apply_override(self) -> None:
-        at = LAYOUT[("rho_cmd", "omega_cmd", "i_cmd")[self._mode - 1]]
-        self._S[at:at + 3] = self._override
+        at = self.LAYOUT[("rho_cmd", "omega_cmd", "i_cmd")[self._mode - 1]]
+        self._S[at:at + self.n] = self._override
 
     # -- life cycle -------------------------------------------------------------
     def initialize(self, t0: float) -> None:
@@ -288,7 +372,7 @@ class DriveController(Block):
             self._before = self._law_state()
             self._evaluated = n
         t = self._t0 + n * self.T_cur
-        s = sum(self.values[:9])
+        s = sum(self.values[:len(self.INPUTS)])
         if s - s != 0.0:   # NaN or inf among the inputs
             self._check_inputs(t)
         self._laws(n, t)
@@ -308,7 +392,7 @@ class DriveController(Block):
         S = self._S
         code = self._steps(self.values, S, self._R, self._CUR, self._QM, self._JK, n, m)   # the ticks inside
         if code:
-            raise self._failed(code, self._t0 + S[LAYOUT["failed"]] * T)
+            raise self._failed(code, self._t0 + S[self.LAYOUT["failed"]] * T)
         self._n = n + m
         self._before = ()
 
@@ -325,7 +409,7 @@ class DriveController(Block):
 
     def _set_law_state(self, state: tuple) -> None:
         self._S[:] = state[0]
-        self._S[LAYOUT["mode"]] = float(self._mode)
+        self._S[self.LAYOUT["mode"]] = float(self._mode)
 
     # -- the laws (subclasses): lines of the tick (tick.py), the commands rc_j, oc_j, ic_j as locals ----------
     @classmethod
@@ -340,22 +424,25 @@ class DriveController(Block):
         raise NotImplementedError
 
     # -- what the tick calls, and the messages of its failures -------------------------
-    def _ik_s(self, S: list[float], z: float, psi: float, theta: float, out: list[float]) -> int:
-        """The inverse kinematics of the pose command into ``out``; 1 if it fails (``_failure``)."""
+    def _ik_s(self, S: list[float], *q_out) -> int:
+        """``ik_s(S, q_1, ..., q_n, out)``: the inverse kinematics of the pose command q into ``out``; 1 if it
+        fails (``_failure``)."""
         try:
-            rho = self._ik((z, psi, theta))
+            rho = self._ik(q_out[:-1])
         except KinematicsError as exc:
             self._failure = exc
             return 1
-        out[0], out[1], out[2] = float(rho[0]), float(rho[1]), float(rho[2])
+        out = q_out[-1]
+        for j, r in enumerate(rho):
+            out[j] = float(r)
         return 0
 
-    def _currents(self, r0: float, r1: float, r2: float, v0: float, v1: float, v2: float, a0: float, a1: float,
-                  a2: float, S: list[float], out: list[float]) -> int:
-        """The inverse model's currents (``model``: the feed-forward and computed-torque controllers) into ``out``;
-        1 if it fails (``_failure``)."""
+    def _currents(self, *args) -> int:
+        """``currents(rho_1..n, rho_dot_1..n, rho_ddot_1..n, S, out)``: the inverse model's currents (``model``:
+        the feed-forward and computed-torque controllers) into ``out``; 1 if it fails (``_failure``)."""
+        n, a, out = self.n, args[:-2], args[-1]
         try:
-            out[:] = self.model.currents((r0, r1, r2), (v0, v1, v2), (a0, a1, a2))
+            out[:] = self.model.currents(a[:n], a[n:2 * n], a[2 * n:])
         except KinematicsError as exc:
             self._failure = exc
             return 1
@@ -366,16 +453,16 @@ class DriveController(Block):
         exc = self._failure
         if code == MODEL_FAILED:
             return exc
-        vals = self.values
-        error = KinematicsError(
-            f"{self.name}: inverse kinematics of the pose command z = {vals[0]!r} m, psi = {vals[1]!r} rad, "
-            f"theta = {vals[2]!r} rad failed at t = {t!r} s: {exc}")
+        pose = ", ".join(f"{c} = {v!r} {POSE_UNITS[c]}" for c, v in zip(self.COORDINATES, self.values))
+        error = KinematicsError(f"{self.name}: inverse kinematics of the pose command {pose} failed at t = {t!r} s: "
+                                f"{exc}")
         error.__cause__ = exc
         return error
 
     # -- helpers ------------------------------------------------------------------
     def _write_outputs(self) -> None:
-        self.values[9:18] = self._S[LAYOUT["rho_cmd"]:LAYOUT["rho_cmd"] + 9]
+        n, at = self.n, self.LAYOUT["rho_cmd"]
+        self.values[3 * n:6 * n] = self._S[at:at + 3 * n]
 
     def _check_inputs(self, t: float) -> None:
         for name, value in zip(self.INPUTS, self.values):
@@ -383,23 +470,47 @@ class DriveController(Block):
                 raise ModelError(f"{self.name}: input '{name}' = {value!r} is not finite at t = {t!r} s")
 
 
+def _declare(cls: type) -> None:
+    """Set the declarations of ``cls``'s axes (``_interface``): on DriveController here, on its subclasses as they
+    are made (``__init_subclass__``); what a class states in its own body stays (e.g. FEEDTHROUGH = {})."""
+    for key, value in cls._interface().items():
+        if key not in vars(cls):
+            setattr(cls, key, value)
+
+
+_declare(DriveController)
+
+
+@lru_cache(maxsize=None)
+def _specialised(cls: type, coordinates: tuple[str, ...]) -> type:
+    """``cls`` for the axes ``coordinates`` (``DriveController.for_topology``): itself if they are its own, else
+    its subclass with them (its declarations by ``__init_subclass__``), made once per class and axes."""
+    if coordinates == cls.COORDINATES:
+        return cls
+    return type(cls.__name__, (cls,), {"COORDINATES": coordinates, "__module__": cls.__module__,
+                                       "__qualname__": f"{cls.__qualname__}[{', '.join(coordinates)}]",
+                                       "__doc__": cls.__doc__})
+
+
 class ControllerBlock(DriveController):
-    """Joint-space P/PI/PI cascade for the three axes (paper Fig. 2 and 6), with its own inverse kinematics."""
+    """Joint-space P/PI/PI cascade of the n axes (paper Fig. 2 and 6), with its own inverse kinematics."""
 
     PARAMETERS = (*CASCADE_PARAMETERS, *DRIVE_PARAMETERS)
     LAWS = (position_p_law,)
 
     def _constants(self, S: list[float]) -> None:
         super()._constants(S)
-        P, at = self.params, LAYOUT["gains"]
+        P, at = self.params, self.LAYOUT["gains"]
         S[at:at + 3] = cascade_gains(float(P["k_v"]), float(P["k_p"]), float(P["k_i"]), float(P["T_vel"]), self.i_R)
 
     @classmethod
     def position_lines(cls, moded: bool) -> list[str]:
         """omega_cmd = k_v (rho_cmd - rho) / i_R."""
-        return [f"oc{j} = position_p_law(rc{j}, values[{3 + j}], S[{LAYOUT['gains']}])" for j in range(3)]
+        n = len(cls.COORDINATES)
+        return [f"oc{j} = position_p_law(rc{j}, values[{n + j}], S[{cls.LAYOUT['gains']}])" for j in range(n)]
 
     @classmethod
     def velocity_lines(cls) -> list[str]:
         """i_cmd = PI(omega_cmd - omega_m) + i_ff, limited to i_max."""
-        return pi_lines([f"if{j}" for j in range(3)] if cls.FEEDFORWARD_CURRENT else ["0.0"] * 3)
+        n = len(cls.COORDINATES)
+        return pi_lines(cls.LAYOUT, n, [f"if{j}" for j in range(n)] if cls.FEEDFORWARD_CURRENT else ["0.0"] * n)

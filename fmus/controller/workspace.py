@@ -1,9 +1,10 @@
 """Workspace position control (paper Fig. 3a): the position error measured on the platform pose.
 
-Per position tick (T_pos), with q = (z, psi, theta) the platform coordinates:
+Per position tick (T_pos), with q the platform coordinates (the mechanism's, topology.Topology.names: for
+the 3PRS (z, psi, theta)):
 
     q_meas    = DK(rho)                          the controller's own direct kinematics
-    qdot_cmd  = K (q_cmd - q_meas)               K = k_v diag(s_z, s_psi, s_theta)    [1/s]
+    qdot_cmd  = K (q_cmd - q_meas)               K = k_v diag(s_c) per coordinate c (k_v_scale_<c>)  [1/s]
     rho_dot_cmd = J_inv(q_meas) qdot_cmd         J_inv = drho/dq, the inverse Jacobian
     omega_cmd_j = rho_dot_cmd_j / i_R
 
@@ -16,46 +17,54 @@ pose command is the direct kinematics of the given rho_cmd.
 """
 from __future__ import annotations
 
-from ..common.parameters import nonnegative
+from typing import Sequence
+
+from ..common.parameters import Param, nonnegative
 from ..mechanism.kinematics import KinematicsError
 from .model import ControllerBlock
-from .tick import DK_FAILED, LAYOUT, TARGET_FAILED, failed_call
-
-WORKSPACE_PARAMETERS = (
-    nonnegative("k_v_scale_z", "1", "Workspace position gain in z, as a multiple of k_v"),
-    nonnegative("k_v_scale_psi", "1", "Workspace position gain in psi, as a multiple of k_v"),
-    nonnegative("k_v_scale_theta", "1", "Workspace position gain in theta, as a multiple of k_v"),
-)
+from .tick import DK_FAILED, TARGET_FAILED, failed_call
 
 
-def pose_gains(k_v: float, s_z: float, s_psi: float, s_theta: float) -> tuple[float, float, float]:
-    """K = k_v (s_z, s_psi, s_theta) [1/s]. Written in the generated-code subset: the native FMU computes
-    them at initialisation with this source."""
-    return (k_v * s_z, k_v * s_psi, k_v * s_theta)
+def workspace_parameters(coordinates: Sequence[str]) -> tuple[Param, ...]:
+    """The pose-space gain scales, one per coordinate c: ``k_v_scale_<c>`` [1] (for the 3PRS: z, psi, theta)."""
+    return tuple(nonnegative(f"k_v_scale_{c}", "1", f"Workspace position gain in {c}, as a multiple of k_v")
+                 for c in coordinates)
 
 
-def joint_speed(J_0: float, J_1: float, J_2: float, qdot_0: float, qdot_1: float, qdot_2: float, i_R: float) -> float:
-    """One axis' motor speed command [rad/s] for the pose rate qdot through its row (J_0, J_1, J_2) of drho/dq.
-    Written in the generated-code subset, as ``pose_gains``."""
-    return (J_0 * qdot_0 + J_1 * qdot_1 + J_2 * qdot_2) / i_R
+def pose_gain(k_v: float, s: float) -> float:
+    """One coordinate's gain of K = k_v diag(s) [1/s]. Written in the generated-code subset: the native FMU
+    computes them at initialisation with this source."""
+    return k_v * s
+
+
+def joint_speed_source(row: Sequence[str], qdot: Sequence[str], i_R: str) -> str:
+    """One axis' motor speed command [rad/s] for the pose rate qdot through its row of drho/dq:
+    (J_0 qdot_0 + ... + J_(n-1) qdot_(n-1)) / i_R, as an expression of the tick (tick.py) in the names given."""
+    return f"({' + '.join(f'{J}*{qd}' for J, qd in zip(row, qdot))})/{i_R}"
 
 
 class WorkspaceController(ControllerBlock):
     """Position loop on the platform pose (through the direct kinematics); velocity PI per axis."""
 
-    PARAMETERS = (*ControllerBlock.PARAMETERS, *WORKSPACE_PARAMETERS)
-    DESCRIPTIONS = {**ControllerBlock.DESCRIPTIONS,
-                    **{f"omega_cmd_{j}": f"Motor speed command of axis {j} (workspace position loop through the "
-                                         f"inverse Jacobian)" for j in (1, 2, 3)}}
+    @classmethod
+    def _interface(cls) -> dict:
+        """The cascade's, with a gain scale per coordinate (``workspace_parameters``)."""
+        declared = super()._interface()
+        axes = range(1, len(cls.COORDINATES) + 1)
+        return {**declared,
+                "PARAMETERS": (*ControllerBlock.PARAMETERS, *workspace_parameters(cls.COORDINATES)),
+                "DESCRIPTIONS": {**declared["DESCRIPTIONS"],
+                                 **{f"omega_cmd_{j}": f"Motor speed command of axis {j} (workspace position loop "
+                                                      f"through the inverse Jacobian)" for j in axes}}}
 
-    LAWS = (joint_speed,)
+    LAWS = ()
 
     def _constants(self, S: list[float]) -> None:
         super()._constants(S)
-        at = LAYOUT["own"]
-        #: pose-space gains [1/s] for z, psi, theta
-        self.K = S[at:at + 3] = pose_gains(float(self.params["k_v"]),
-                                           *(float(self.params[f"k_v_scale_{c}"]) for c in ("z", "psi", "theta")))
+        at, k_v = self.LAYOUT["own"], float(self.params["k_v"])
+        #: pose-space gains [1/s], one per coordinate
+        self.K = S[at:at + self.n] = tuple(pose_gain(k_v, float(self.params[f"k_v_scale_{c}"]))
+                                           for c in self.COORDINATES)
 
     def _reset(self) -> None:
         super()._reset()
@@ -72,38 +81,41 @@ class WorkspaceController(ControllerBlock):
     def _calls(self) -> dict:
         return {**super()._calls(), "wsdk": self._wsdk, "wsdk_target": self._wsdk_target, "ikjac_s": self._ikjac_s}
 
-    def _wsdk(self, r0: float, r1: float, r2: float, S: list[float], out: list[float]) -> int:
-        """The direct kinematics of the measured joints (warm-started from the last) into ``out``; 1 if it fails."""
+    def _wsdk(self, *rho_S_out) -> int:
+        """``wsdk(rho_1, ..., rho_n, S, out)``: the direct kinematics of the measured joints (warm-started from the
+        last) into ``out``; 1 if it fails."""
         try:
-            q = self._q_meas = self.kinematics.dk((r0, r1, r2), self._q_meas)[0]
+            q = self._q_meas = self.kinematics.dk(rho_S_out[:-2], self._q_meas)[0]
         except KinematicsError as exc:
             self._failure = exc
             return 1
-        out[0], out[1], out[2] = q
+        rho_S_out[-1][:len(q)] = q
         return 0
 
-    def _wsdk_target(self, r0: float, r1: float, r2: float, S: list[float], out: list[float]) -> int:
-        """The direct kinematics of the joint command ("joint" mode; from the last, else from the measured
-        joints' pose) into ``out``; 1 if it fails."""
+    def _wsdk_target(self, *rho_S_out) -> int:
+        """``wsdk_target(rho_1, ..., rho_n, S, out)``: the direct kinematics of the joint command ("joint" mode;
+        from the last, else from the measured joints' pose) into ``out``; 1 if it fails."""
         try:
-            q = self._q_target = self.kinematics.dk((r0, r1, r2), self._q_target or self._q_meas)[0]
+            q = self._q_target = self.kinematics.dk(rho_S_out[:-2], self._q_target or self._q_meas)[0]
         except KinematicsError as exc:
             self._failure = exc
             return 1
-        out[0], out[1], out[2] = q
+        rho_S_out[-1][:len(q)] = q
         return 0
 
-    def _ikjac_s(self, S: list[float], q0: float, q1: float, q2: float, out: list[float]) -> int:
-        """drho/dq at q (row-major) into out[3:12]."""
-        out[3:12] = self.kinematics.jacobian((q0, q1, q2))[0]
+    def _ikjac_s(self, S: list[float], *q_out) -> int:
+        """``ikjac_s(S, q_1, ..., q_n, out)``: drho/dq at q (row-major) into out[n:n + n^2]."""
+        n = self.n
+        q_out[-1][n:n + n * n] = self.kinematics.jacobian(q_out[:-1])[0]
         return 0
 
     def _failed(self, code: int, t: float) -> Exception:
         if code not in (DK_FAILED, TARGET_FAILED):
             return super()._failed(code, t)
-        at = LAYOUT["model_args"]
+        at = self.LAYOUT["model_args"]
         what = "measured joints" if code == DK_FAILED else "joint command"
-        error = KinematicsError(f"{self.name}: direct kinematics of the {what} rho = {tuple(self._S[at:at + 3])!r} m "
+        rho = tuple(self._S[at:at + self.n])
+        error = KinematicsError(f"{self.name}: direct kinematics of the {what} rho = {rho!r} m "
                                 f"failed at t = {t!r} s: {self._failure}")
         error.__cause__ = self._failure
         return error
@@ -112,17 +124,20 @@ class WorkspaceController(ControllerBlock):
     def position_lines(cls, moded: bool) -> list[str]:
         """The direct kinematics of the measured joints, the pose-space P law (towards the pose command, or in
         "joint" mode the direct kinematics of rho_cmd), through drho/dq at the measured pose."""
-        own, i_R = LAYOUT["own"], f"S[{LAYOUT['i_R']}]"
-        measured = "values[3], values[4], values[5]"
-        lines = failed_call(f"wsdk({measured}, S, QM)", measured, DK_FAILED)
+        L, n = cls.LAYOUT, len(cls.COORDINATES)
+        own, i_R = L["own"], f"S[{L['i_R']}]"
+        measured = [f"values[{n + j}]" for j in range(n)]
+        lines = failed_call(L, f"wsdk({', '.join(measured)}, S, QM)", measured, DK_FAILED)
         if moded:
-            lines += ["if mode == 0.0:", *(f"    tq{k} = values[{k}]" for k in range(3)), "else:",
-                      *("    " + line for line in failed_call("wsdk_target(rc0, rc1, rc2, S, JK)", "rc0, rc1, rc2",
-                                                               TARGET_FAILED)),
-                      *(f"    tq{k} = JK[{k}]" for k in range(3))]
-        target = [f"tq{k}" if moded else f"values[{k}]" for k in range(3)]
-        lines += [f"qd{k} = S[{own + k}]*({target[k]} - QM[{k}])" for k in range(3)]
-        lines.append("c = ikjac_s(S, QM[0], QM[1], QM[2], JK)")
-        lines += [f"oc{j} = joint_speed(JK[{3 + 3 * j}], JK[{4 + 3 * j}], JK[{5 + 3 * j}], qd0, qd1, qd2, {i_R})"
-                  for j in range(3)]
+            commanded = [f"rc{j}" for j in range(n)]
+            lines += ["if mode == 0.0:", *(f"    tq{k} = values[{k}]" for k in range(n)), "else:",
+                      *("    " + line for line in failed_call(L, f"wsdk_target({', '.join(commanded)}, S, JK)",
+                                                               commanded, TARGET_FAILED)),
+                      *(f"    tq{k} = JK[{k}]" for k in range(n))]
+        target = [f"tq{k}" if moded else f"values[{k}]" for k in range(n)]
+        lines += [f"qd{k} = S[{own + k}]*({target[k]} - QM[{k}])" for k in range(n)]
+        lines.append(f"c = ikjac_s(S, {', '.join(f'QM[{k}]' for k in range(n))}, JK)")
+        qdot = [f"qd{k}" for k in range(n)]
+        lines += [f"oc{j} = " + joint_speed_source([f"JK[{n + n * j + k}]" for k in range(n)], qdot, i_R)
+                  for j in range(n)]
         return lines

@@ -24,8 +24,8 @@ from pathlib import Path
 from typing import Mapping, Optional, Sequence, Union
 
 from ..common.parameters import ParameterError
-from .engine import (Body, Description, Engine, Evaluation, KinematicsError, TracedBody, cos, sin, sqrt,
-                     traced_input)
+from ..common.tracer import cos, sin, sqrt, traced_input
+from .engine import Body, Description, Engine, Evaluation, KinematicsError, TracedBody
 from .legs import FAMILIES, OPTIONAL_FIELDS, TEMPLATES, Leg, level_height
 from .topology import POSE_UNITS, Coordinate, Drive, Topology
 

@@ -75,7 +75,8 @@ PAYLOAD_PARAMETERS: tuple[Param, ...] = (
 )
 
 
-#: the mechanisms by name (the values of the parameter ``kinematics``): their description files
+#: the mechanisms by name (the values of the parameter ``kinematics``): their description files, or a callable
+#: ``(params, masses=True) -> Description`` for a description written in Python (tests' scratch mechanisms)
 KINEMATICS = kinematics()
 
 
@@ -100,6 +101,9 @@ def describe(params: Mapping[str, object], owner: str = "", masses: bool = True,
     cannot be assembled at the level pose.
     """
     where = owner or "mechanism"
+    written = KINEMATICS.get(params.get("kinematics", "3PRS"))
+    if callable(written):       # a description written in Python: called with the parameter set
+        return written(params, masses=masses)
     file = description(params.get("kinematics", "3PRS"), where)
     if file.name == "3PRS":
         _check_3prs(file, file.values(params, masses=False, owner=where), where)

@@ -26,8 +26,8 @@ from typing import Mapping, Optional, Sequence
 import numpy as np
 
 from ..common.parameters import ParameterError
-from .kinematics import (Geometry, KinematicsError, _dk_frame, _first, _frame, _leg_jacobians,
-                         _platform_jacobians, _rates_arrays, _second)
+from .kinematics import (Geometry, KinematicsError, dk_frame, first_order, frame_at, leg_jacobians,
+                         platform_jacobians, rates_arrays, second_order)
 
 __all__ = ["Masses", "IDPResult", "inverse_dynamics", "inverse_dynamics_at_pose"]
 
@@ -83,10 +83,10 @@ class IDPResult:
 
 def _idp(g: Geometry, ms: Masses, fr, rho_dot: Sequence[float], rho_ddot: Sequence[float]):
     """Core (plain floats): returns (t, I_term, c_term, g_term, M as 9-tuple) for a frame with first order."""
-    legs = _leg_jacobians(g, fr)
-    JG, JR = _platform_jacobians(fr)
-    rt = _second(g, fr, rho_dot)
-    bias = _rates_arrays(g, fr, rt)
+    legs = leg_jacobians(g, fr)
+    JG, JR = platform_jacobians(fr)
+    rt = second_order(g, fr, rho_dot)
+    bias = rates_arrays(g, fr, rt)
     ml, Il, mp, gr = ms.m_leg, ms.I_leg, ms.m_platform, ms.g
     Ip = (ms.I_px, ms.I_py, ms.I_pz)
     M = [0.0] * 9
@@ -148,7 +148,7 @@ def inverse_dynamics(geom: Geometry, masses: Masses, rho: Sequence[float], rho_d
     r = _check3("rho", rho)
     rd = _check3("rho_dot", rho_dot)
     rdd = _check3("rho_ddot", rho_ddot)
-    fr = _dk_frame(geom, r, pose_guess, 1e-12, 50)
+    fr = dk_frame(geom, r, pose_guess, 1e-12, 50)
     return _result(fr, _idp(geom, masses, fr, rd, rdd))
 
 
@@ -157,5 +157,5 @@ def inverse_dynamics_at_pose(geom: Geometry, masses: Masses, pose: Sequence[floa
     """As ``inverse_dynamics`` but at a known pose (z [m], psi [rad], theta [rad]) (no DK);
     for model-based control (computed torque, paper Fig. 3b)."""
     p = _check3("pose", pose)
-    fr = _first(geom, _frame(geom, *p))
+    fr = first_order(geom, frame_at(geom, *p))
     return _result(fr, _idp(geom, masses, fr, _check3("rho_dot", rho_dot), _check3("rho_ddot", rho_ddot)))

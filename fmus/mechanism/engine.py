@@ -9,11 +9,11 @@ A mechanism is *described* by (``Description``):
 - the bodies' inertial data (``Body``: mass, centre of mass in the body frame, inertia tensor
   about the centre of mass in the body frame).
 
-``evaluate`` is written with ordinary arithmetic and the functions of this module (``sin``,
-``cos``, ``sqrt``, ``atan2``, ``hypot``, ``sign``, ``require``). With floats it simply
-evaluates. The engine runs it once on *traced* numbers: that records an expression graph,
-which the engine differentiates symbolically (forward mode, first order in each coordinate
-and second order along the motion) and turns into straight-line Python code. So the
+``evaluate`` is written with ordinary arithmetic and the functions of the expression tracer
+(fmus.common.tracer: ``sin``, ``cos``, ``sqrt``, ``atan2``, ``hypot``, ``sign``, ``require``). With
+floats it simply evaluates. The engine runs it once on *traced* numbers: that records an
+expression graph, which the engine differentiates symbolically (forward mode, first order in
+each coordinate and second order along the motion) and turns into straight-line Python code. So the
 Jacobians and their time derivatives are exact (no finite differences) and cost about as
 much as hand-written closed forms.
 
@@ -56,13 +56,13 @@ from typing import Callable, Mapping, Optional, Sequence
 
 import numpy as np
 
-from ..common.codegen import compile_generated
-from .kinematics import COND_LIMIT, KinematicsError, _inv3
+from ..common.tracer import Expr, Forward, Graph, Second, add, compile_function, lift, mul, needed, neg, sub
+from .kinematics import COND_LIMIT, KinematicsError, inv3
 from .topology import Topology
 
 __all__ = [
     "Body", "Description", "Evaluation", "Engine", "Part", "TracedBody", "EngineIDP", "EngineJacobians", "KinematicsError", "MARGIN",
-    "Margins", "SingularityError", "sin", "cos", "sqrt", "atan2", "hypot", "sign", "require", "traced", "traced_input",
+    "Margins", "SingularityError",
 ]
 
 #: smallest singularity margin [m/m] the direct kinematics accepts (both kinds, module docstring):
@@ -70,553 +70,6 @@ __all__ = [
 #: at the platform into an actuator force, by virtual work) and of a platform speed into a carriage
 #: speed. At home the three designs have 0.54-0.63, ten times more (docs/mechanism.md)
 MARGIN = 0.05
-
-
-# ===================================================================================== expressions
-class _Graph:
-    """An expression DAG: nodes in creation order (a valid evaluation order), hash-consed."""
-
-    def __init__(self) -> None:
-        self.nodes: list[E] = []
-        self.memo: dict = {}
-        self.checks: list[E] = []
-
-    def node(self, op: str, args: tuple, value=None, key=None) -> "E":
-        k = key if key is not None else (op, *(a.id for a in args))
-        found = self.memo.get(k)
-        if found is not None:
-            return found
-        n = E(self, len(self.nodes), op, args, value)
-        self.nodes.append(n)
-        self.memo[k] = n
-        return n
-
-    def const(self, value: float) -> "E":
-        value = float(value)
-        return self.node("const", (), value, key=("const", value.hex()))
-
-    def input(self, name: str) -> "E":
-        return self.node("input", (), name, key=("input", name))
-
-
-class TraceError(TypeError):
-    """A description branched on a traced value (use sign, require, or a parameter instead)."""
-
-
-class E:
-    """A traced number: a node of the expression graph. Arithmetic builds new nodes."""
-
-    __slots__ = ("g", "id", "op", "args", "value")
-
-    def __init__(self, g: _Graph, id_: int, op: str, args: tuple, value) -> None:
-        self.g, self.id, self.op, self.args, self.value = g, id_, op, args, value
-
-    # never copied: graphs are immutable once built
-    def __deepcopy__(self, memo):
-        return self
-
-    def __repr__(self) -> str:
-        return f"E#{self.id}({self.op})"
-
-    def __bool__(self):
-        raise TraceError("a mechanism description may not branch on a traced value; use sign(), require() "
-                         "or decide on parameters only")
-
-    __lt__ = __le__ = __gt__ = __ge__ = lambda self, other: self.__bool__()  # noqa: E731
-
-    def __add__(self, o):
-        return _add(self, o)
-
-    def __radd__(self, o):
-        return _add(o, self)
-
-    def __sub__(self, o):
-        return _sub(self, o)
-
-    def __rsub__(self, o):
-        return _sub(o, self)
-
-    def __mul__(self, o):
-        return _mul(self, o)
-
-    def __rmul__(self, o):
-        return _mul(o, self)
-
-    def __truediv__(self, o):
-        return _div(self, o)
-
-    def __rtruediv__(self, o):
-        return _div(o, self)
-
-    def __neg__(self):
-        return _neg(self)
-
-    def __pos__(self):
-        return self
-
-    def __abs__(self):
-        return _unary("abs", self, abs)
-
-
-def _lift(g: _Graph, x) -> E:
-    return x if isinstance(x, E) else g.const(x)
-
-
-def _graph_of(*xs) -> Optional[_Graph]:
-    for x in xs:
-        if isinstance(x, E):
-            return x.g
-    return None
-
-
-def _is(x: E, value: float) -> bool:
-    return x.op == "const" and x.value == value
-
-
-# Folding rules are exact for finite values (x*1, x+0, x*0 -> 0, 0/x -> 0): the traced values are
-# the same floats as a plain evaluation of the description, up to the sign of a zero.
-def _add(a, b):
-    g = _graph_of(a, b)
-    if g is None:
-        return a + b
-    a, b = _lift(g, a), _lift(g, b)
-    if a.op == "const" and b.op == "const":
-        return g.const(a.value + b.value)
-    if _is(a, 0.0):
-        return b
-    if _is(b, 0.0):
-        return a
-    return g.node("add", (a, b))
-
-
-def _sub(a, b):
-    g = _graph_of(a, b)
-    if g is None:
-        return a - b
-    a, b = _lift(g, a), _lift(g, b)
-    if a.op == "const" and b.op == "const":
-        return g.const(a.value - b.value)
-    if _is(b, 0.0):
-        return a
-    if _is(a, 0.0):
-        return _neg(b)
-    return g.node("sub", (a, b))
-
-
-def _mul(a, b):
-    g = _graph_of(a, b)
-    if g is None:
-        return a * b
-    a, b = _lift(g, a), _lift(g, b)
-    if a.op == "const" and b.op == "const":
-        return g.const(a.value * b.value)
-    if _is(a, 0.0) or _is(b, 0.0):
-        return g.const(0.0)
-    if _is(a, 1.0):
-        return b
-    if _is(b, 1.0):
-        return a
-    if _is(a, -1.0):
-        return _neg(b)
-    if _is(b, -1.0):
-        return _neg(a)
-    return g.node("mul", (a, b))
-
-
-def _div(a, b):
-    g = _graph_of(a, b)
-    if g is None:
-        return a / b
-    a, b = _lift(g, a), _lift(g, b)
-    if a.op == "const" and b.op == "const":
-        return g.const(a.value / b.value)
-    if _is(a, 0.0):
-        return g.const(0.0)
-    if _is(b, 1.0):
-        return a
-    return g.node("div", (a, b))
-
-
-def _neg(a):
-    if not isinstance(a, E):
-        return -a
-    if a.op == "const":
-        return a.g.const(-a.value)
-    if a.op == "neg":
-        return a.args[0]
-    return a.g.node("neg", (a,))
-
-
-def _unary(op: str, a, fn):
-    if not isinstance(a, E):
-        return fn(a)
-    if a.op == "const":
-        return a.g.const(fn(a.value))
-    return a.g.node(op, (a,))
-
-
-def _sign(x: float) -> float:
-    return 1.0 if x > 0.0 else -1.0
-
-
-def _sgn0(x: float) -> float:
-    return 1.0 if x >= 0.0 else -1.0
-
-
-def sin(x):
-    """sin for floats and traced numbers."""
-    return _unary("sin", x, math.sin)
-
-
-def cos(x):
-    """cos for floats and traced numbers."""
-    return _unary("cos", x, math.cos)
-
-
-def sqrt(x):
-    """sqrt for floats and traced numbers (guard the argument with ``require`` first)."""
-    return _unary("sqrt", x, math.sqrt)
-
-
-def sign(x):
-    """1.0 if x > 0 else -1.0 (so sign(0) = -1); its derivative is zero."""
-    return _unary("sign", x, _sign)
-
-
-def atan2(y, x):
-    """atan2 for floats and traced numbers."""
-    g = _graph_of(y, x)
-    if g is None:
-        return math.atan2(y, x)
-    y, x = _lift(g, y), _lift(g, x)
-    if y.op == "const" and x.op == "const":
-        return g.const(math.atan2(y.value, x.value))
-    return g.node("atan2", (y, x))
-
-
-def hypot(a, b):
-    """math.hypot for floats and traced numbers."""
-    g = _graph_of(a, b)
-    if g is None:
-        return math.hypot(a, b)
-    a, b = _lift(g, a), _lift(g, b)
-    if a.op == "const" and b.op == "const":
-        return g.const(math.hypot(a.value, b.value))
-    return g.node("hypot", (a, b))
-
-
-def require(check: Callable[..., None], *args) -> None:
-    """Admissibility check: ``check(*values)`` must raise (KinematicsError) if the values are not admissible.
-
-    With floats it runs at once; traced, it runs at that point of every generated function
-    that computes its first argument.
-    """
-    g = _graph_of(*args)
-    if g is None:
-        check(*args)
-        return
-    lifted = tuple(_lift(g, a) for a in args)        # constants first: the check's id follows them
-    node = E(g, len(g.nodes), "check", lifted, check)
-    g.nodes.append(node)
-    g.checks.append(node)
-
-
-def traced(x) -> bool:
-    """True for a traced number (for descriptions that need to know; rarely useful)."""
-    return isinstance(x, E)
-
-
-def traced_input(like, name: str):
-    """The named input ``name`` of the expression graph the traced number ``like`` belongs to: a parameter
-    traced as an argument of the generated functions (a description's ``Evaluation.parameters``)."""
-    if not isinstance(like, E):
-        raise TypeError(f"traced_input({name!r}): {like!r} is not a traced number")
-    return like.g.input(name)
-
-
-# ===================================================================================== derivatives
-class _Derivative:
-    """A derivative of every node (memoized), built in post-order by the subclass's ``_rule``."""
-
-    def __init__(self, g: _Graph, seeds: dict[str, object]) -> None:
-        self.g = g
-        self.seeds = seeds          # input name -> derivative of the input (E or float)
-        self.d: dict[int, E] = {}
-        self.zero = g.const(0.0)
-
-    def __call__(self, n: E) -> E:
-        d = self.d.get(n.id)
-        if d is not None:
-            return d
-        # iterative post-order (graphs are deep: avoid Python recursion)
-        stack = [n]
-        while stack:
-            top = stack[-1]
-            if top.id in self.d:
-                stack.pop()
-                continue
-            pending = [a for a in top.args if a.id not in self.d]
-            if pending and top.op != "check":
-                stack.extend(pending)
-                continue
-            stack.pop()
-            self.d[top.id] = self._rule(top)
-        return self.d[n.id]
-
-    def _rule(self, n: E) -> E:
-        raise NotImplementedError
-
-
-class _Forward(_Derivative):
-    """Forward-mode derivative of every node along one seed."""
-
-    def _rule(self, n: E) -> E:
-        op, g, d = n.op, self.g, self.d
-        if op == "const":
-            return self.zero
-        if op == "input":
-            return _lift(g, self.seeds.get(n.value, 0.0))
-        if op == "check":
-            return self.zero
-        a = n.args[0]
-        da = d[a.id]
-        if op == "add":
-            return _add(da, d[n.args[1].id])
-        if op == "sub":
-            return _sub(da, d[n.args[1].id])
-        if op == "neg":
-            return _neg(da)
-        if op == "mul":
-            b = n.args[1]
-            return _add(_mul(a, d[b.id]), _mul(da, b))
-        if op == "div":
-            b = n.args[1]
-            return _div(_sub(da, _mul(n, d[b.id])), b)
-        if op == "sin":
-            return _mul(cos(a), da)
-        if op == "cos":
-            return _neg(_mul(sin(a), da))
-        if op == "sqrt":
-            return _mul(_div(0.5, n), da)
-        if op == "atan2":
-            y, x = a, n.args[1]
-            dy, dx = da, d[x.id]
-            return _div(_sub(_mul(x, dy), _mul(y, dx)), _add(_mul(x, x), _mul(y, y)))
-        if op == "hypot":
-            b = n.args[1]
-            return _div(_add(_mul(a, da), _mul(b, d[b.id])), n)
-        if op == "abs":
-            return _mul(_unary("sgn0", a, _sgn0), da)
-        if op in ("sign", "sgn0"):
-            return self.zero
-        raise AssertionError(f"no derivative rule for {op}")
-
-
-class _Second(_Derivative):
-    """Second derivative along a path whose first derivative is ``first`` and whose inputs have
-    second derivative ``seeds`` (zero for rho_ddot = 0 in q-space: the engine adds qdd0 later)."""
-
-    def __init__(self, g: _Graph, first: _Forward, seeds: dict[str, object]) -> None:
-        super().__init__(g, seeds)
-        self.p1 = first
-
-    def _rule(self, n: E) -> E:
-        op, g, d, p1 = n.op, self.g, self.d, self.p1
-        if op == "const" or op == "check":
-            return self.zero
-        if op == "input":
-            return _lift(g, self.seeds.get(n.value, 0.0))
-        a = n.args[0]
-        aa = d[a.id]
-        if op == "add":
-            return _add(aa, d[n.args[1].id])
-        if op == "sub":
-            return _sub(aa, d[n.args[1].id])
-        if op == "neg":
-            return _neg(aa)
-        if op == "mul":
-            b = n.args[1]
-            return _add(_add(_mul(a, d[b.id]), _mul(2.0, _mul(p1(a), p1(b)))), _mul(aa, b))
-        if op == "div":        # a = n b  ->  a'' = n'' b + 2 n' b' + n b''
-            b = n.args[1]
-            return _div(_sub(_sub(aa, _mul(2.0, _mul(p1(n), p1(b)))), _mul(n, d[b.id])), b)
-        if op == "sin":
-            va = p1(a)
-            return _sub(_mul(cos(a), aa), _mul(sin(a), _mul(va, va)))
-        if op == "cos":
-            va = p1(a)
-            return _neg(_add(_mul(sin(a), aa), _mul(cos(a), _mul(va, va))))
-        if op == "sqrt":        # n^2 = a  ->  2 n n'' + 2 n'^2 = a''
-            vn = p1(n)
-            return _mul(_div(0.5, n), _sub(aa, _mul(2.0, _mul(vn, vn))))
-        if op == "atan2":       # n' = N / r2, N = x y' - y x', N' = x y'' - y x'', r2' = 2 (x x' + y y')
-            y, x = a, n.args[1]
-            r2 = _add(_mul(x, x), _mul(y, y))
-            dN = _sub(_mul(x, aa), _mul(y, d[x.id]))
-            dr2 = _mul(2.0, _add(_mul(x, p1(x)), _mul(y, p1(y))))
-            return _div(_sub(dN, _mul(p1(n), dr2)), r2)
-        if op == "hypot":       # n^2 = a^2 + b^2 -> n n'' + n'^2 = a a'' + a'^2 + b b'' + b'^2
-            b = n.args[1]
-            va, vb, vn = p1(a), p1(b), p1(n)
-            num = _add(_add(_mul(a, aa), _mul(va, va)), _add(_mul(b, d[b.id]), _mul(vb, vb)))
-            return _div(_sub(num, _mul(vn, vn)), n)
-        if op == "abs":
-            return _mul(_unary("sgn0", a, _sgn0), aa)
-        if op in ("sign", "sgn0"):
-            return self.zero
-        raise AssertionError(f"no second-derivative rule for {op}")
-
-
-# ===================================================================================== code generation
-_FUNCS = {"sin": "_sin", "cos": "_cos", "sqrt": "_sqrt", "atan2": "_atan2", "hypot": "_hypot",
-          "sign": "_sign", "sgn0": "_sgn0", "abs": "_abs"}
-_BINOP = {"add": "+", "sub": "-", "mul": "*", "div": "/"}
-
-
-def _needed(outputs: Sequence[E], checks: Sequence[E]) -> set[int]:
-    """Nodes the outputs depend on, plus the checks on any of them (and what those checks read)."""
-    seen: set[int] = set()
-
-    def close(roots):
-        stack = [r for r in roots if r.op != "const" and r.id not in seen]
-        while stack:
-            n = stack.pop()
-            if n.id in seen:
-                continue
-            seen.add(n.id)
-            stack.extend(a for a in n.args if a.op != "const" and a.id not in seen)
-
-    close(outputs)
-    changed = True
-    while changed:
-        changed = False
-        for c in checks:
-            tested = c.args[0] if c.args else None
-            if c.id not in seen and tested is not None and (tested.id in seen or tested.op == "input"):
-                close([c])
-                changed = True
-    return seen
-
-
-_VECTOR_FUNCS = {"_sin": np.sin, "_cos": np.cos, "_sqrt": np.sqrt, "_atan2": np.arctan2, "_hypot": np.hypot,
-                 "_sign": lambda x: np.where(x > 0.0, 1.0, -1.0), "_sgn0": lambda x: np.where(x >= 0.0, 1.0, -1.0),
-                 "_abs": np.abs}
-
-
-def _admissible(check: Callable) -> Callable:
-    """The check as a mask over arrays: its ``admissible`` method, else the check called point by point."""
-    vector = getattr(check, "admissible", None)
-    if vector is not None:
-        return vector
-
-    def pointwise(*args):
-        arrays = np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in args))
-        ok = np.empty(arrays[0].shape, dtype=bool)
-        for idx in np.ndindex(ok.shape):
-            try:
-                check(*(float(a[idx]) for a in arrays))
-                ok[idx] = True
-            except KinematicsError:
-                ok[idx] = False
-        return ok
-    return pointwise
-
-
-def compile_function(name: str, inputs: Sequence[str], outputs: Sequence[E], graph: _Graph,
-                     label: str = "", vector: bool = False,
-                     prior: Optional[tuple[Sequence[E], set[int]]] = None) -> Callable:
-    """Straight-line Python computing ``outputs`` (a flat tuple) from the named inputs.
-
-    Nodes in creation order (checks where the description called ``require``); a node used
-    once is written into its user's expression (same operations, same order: same floats),
-    up to a nesting depth that keeps the generated source easy on the parser.
-
-    ``vector``: the same code on numpy arrays (inputs broadcast together); a check does not
-    raise but clears its points from a mask, returned as one more output (True: admissible;
-    the other outputs are meaningless where it is False).
-
-    ``prior = (values, done)``: the nodes ``done`` (and their checks) were computed, at the same inputs, by
-    another generated function whose output tuple, its nodes ``values`` in order, this one takes as its first
-    argument ``_prior``: they are not computed again, those this one reads are unpacked from it (``values``
-    must hold every such node: ``Engine._kept``).
-    """
-    ids = _needed(outputs, graph.checks)
-    unpack = []
-    if prior is not None:
-        values, done = prior
-        ids -= done
-        read = {a.id for i in ids for a in graph.nodes[i].args} | {o.id for o in outputs}
-        first = {}
-        for k, v in enumerate(values):
-            first.setdefault(v.id, k)
-        unpack = [f"t{v.id}" if v.id in done and v.id in read and v.op not in ("input", "const") and first[v.id] == k
-                  else "_" for k, v in enumerate(values)]
-        missing = {i for i in read & done if graph.nodes[i].op not in ("input", "const")} - set(first)
-        assert not missing, f"internal error: {name} reads nodes the prior function does not give: {sorted(missing)}"
-        inputs = ["_prior", *inputs]
-    ns: dict = {"_sin": math.sin, "_cos": math.cos, "_sqrt": math.sqrt, "_atan2": math.atan2,
-                "_hypot": math.hypot, "_sign": _sign, "_sgn0": _sgn0, "_abs": abs}
-    if vector:
-        ns.update(_VECTOR_FUNCS)
-    uses: dict[int, int] = {}
-    for i in ids:
-        for a in graph.nodes[i].args:
-            uses[a.id] = uses.get(a.id, 0) + 1
-    for o in outputs:
-        uses[o.id] = uses.get(o.id, 0) + 2
-    inline: dict[int, tuple[str, int]] = {}   # node id -> (expression, nesting depth)
-
-    def ref(n: E) -> tuple[str, int]:
-        if n.op == "const":
-            return (repr(n.value) if n.value >= 0 or math.isnan(n.value) else f"({n.value!r})"), 0
-        if n.op == "input":
-            return n.value, 0
-        if n.id in inline:
-            text, depth = inline.pop(n.id)
-            return f"({text})", depth
-        return f"t{n.id}", 0
-
-    def expr(n: E) -> tuple[str, int]:
-        parts = [ref(a) for a in n.args]
-        depth = 1 + max((d for _, d in parts), default=0)
-        if n.op in _BINOP:
-            return f"{parts[0][0]} {_BINOP[n.op]} {parts[1][0]}", depth
-        if n.op == "neg":
-            return f"-{parts[0][0]}", depth
-        return f"{_FUNCS[n.op]}({', '.join(p for p, _ in parts)})", depth
-
-    lines = [f"def {name}({', '.join(inputs)}):"]
-    if unpack:
-        lines.append(f"    {', '.join(unpack)}, = _prior")
-    if vector:
-        lines.append("    _ok = True")
-    for i in sorted(ids):
-        n = graph.nodes[i]
-        if n.op in ("input", "const"):
-            continue
-        if n.op == "check":
-            key = f"_check{i}"
-            ns[key] = _admissible(n.value) if vector else n.value
-            call = f"{key}({', '.join(ref(a)[0] for a in n.args)})"
-            lines.append(f"    _ok = _ok & {call}" if vector else f"    {call}")
-            continue
-        text, depth = expr(n)
-        if uses.get(n.id, 0) == 1 and depth < 24:
-            inline[n.id] = (text, depth)   # written where it is used
-        else:
-            lines.append(f"    t{i} = {text}")
-    lines.append(f"    return ({''.join(ref(o)[0] + ', ' for o in outputs)}{'_ok, ' if vector else ''})")
-    assert not inline, "internal error: an inlined expression was never used"
-    fn = compile_generated("\n".join(lines), name, f"mast engine: {label or name}", ns)
-    fn.namespace = ns   # what the source calls (the checks): for the C backend (mast.core.native)
-    if not vector:
-        return fn
-
-    def on_arrays(*args):
-        with np.errstate(all="ignore"):       # outside the mask: NaN, never an exception
-            return fn(*args)
-    on_arrays.source = fn.source
-    return on_arrays
 
 
 # ===================================================================================== descriptions
@@ -841,7 +294,7 @@ def margins_of(Jinv: np.ndarray, lengths: Sequence[float]) -> tuple[np.ndarray, 
 def _inv(m: list[float], n: int) -> tuple[list[float], float]:
     """Inverse (row-major) and determinant of an n x n matrix; ZeroDivisionError if singular."""
     if n == 3:
-        inv, det = _inv3(m)
+        inv, det = inv3(m)
         return list(inv), det
     a = [list(m[r * n:(r + 1) * n]) + [1.0 if c == r else 0.0 for c in range(n)] for r in range(n)]
     det = 1.0
@@ -874,9 +327,9 @@ def _shown(rho: Sequence[float]) -> str:
 def _vee_RtX(R, X):
     """vee of the antisymmetric part of R^T X (R, X: 3x3 nested): ((R^T X)_21 - (R^T X)_12)/2, ..."""
     def rtx(i, j):
-        return _add(_add(_mul(R[0][i], X[0][j]), _mul(R[1][i], X[1][j])), _mul(R[2][i], X[2][j]))
-    return [_mul(0.5, _sub(rtx(2, 1), rtx(1, 2))), _mul(0.5, _sub(rtx(0, 2), rtx(2, 0))),
-            _mul(0.5, _sub(rtx(1, 0), rtx(0, 1)))]
+        return add(add(mul(R[0][i], X[0][j]), mul(R[1][i], X[1][j])), mul(R[2][i], X[2][j]))
+    return [mul(0.5, sub(rtx(2, 1), rtx(1, 2))), mul(0.5, sub(rtx(0, 2), rtx(2, 0))),
+            mul(0.5, sub(rtx(1, 0), rtx(0, 1)))]
 
 
 class Engine:
@@ -904,14 +357,14 @@ class Engine:
         self._wb = [self.lengths[m // n] ** 2 for m in range(n * n)]
         self.margin = MARGIN
         self._fns: dict[str, Callable] = {}
-        graph = _Graph()
+        graph = Graph()
         self._graph = graph
         q = [graph.input(f"q{j}") for j in range(n)]
         ev = description.evaluate(q)
         if len(ev.rho) != n or len(ev.pose) != 6 or len(ev.frames) != len(ev.bodies or self.bodies):
             raise ValueError(f"{description.name}: evaluate() must give {n} joint coordinates, a 6-value pose "
                              f"and one frame per body ({len(ev.bodies or self.bodies)})")
-        lift = lambda x: _lift(graph, x)  # noqa: E731
+        lifted = lambda x: lift(graph, x)  # noqa: E731
         if ev.bodies is not None:
             self.bodies = tuple(ev.bodies)
         #: names and values of the description's parameters traced as inputs (Evaluation.parameters): the
@@ -920,17 +373,17 @@ class Engine:
         self._pv = tuple(float(v) for v in ev.parameters.values())
         self._gravity = self.g if ev.gravity is None else ev.gravity
         self._q = q
-        self._rho = [lift(r) for r in ev.rho]
-        self._pose = [lift(p) for p in ev.pose]
+        self._rho = [lifted(r) for r in ev.rho]
+        self._pose = [lifted(p) for p in ev.pose]
         self._frames = []
         for body, (origin, R) in zip(self.bodies, ev.frames):
-            R = [[lift(R[i][j]) for j in range(3)] for i in range(3)]
-            o = [lift(v) for v in origin]
-            com = [_add(o[i], _add(_add(_mul(R[i][0], body.com[0]), _mul(R[i][1], body.com[1])),
-                                   _mul(R[i][2], body.com[2]))) for i in range(3)]
+            R = [[lifted(R[i][j]) for j in range(3)] for i in range(3)]
+            o = [lifted(v) for v in origin]
+            com = [add(o[i], add(add(mul(R[i][0], body.com[0]), mul(R[i][1], body.com[1])),
+                                   mul(R[i][2], body.com[2]))) for i in range(3)]
             self._frames.append((com, R))
         # first derivatives along each coordinate (q-space basis): shared by every function
-        self._dq = [_Forward(graph, {f"q{j}": (1.0 if j == k else 0.0) for j in range(n)}) for k in range(n)]
+        self._dq = [Forward(graph, {f"q{j}": (1.0 if j == k else 0.0) for j in range(n)}) for k in range(n)]
 
     def __deepcopy__(self, memo):      # immutable once built (Block.get_state deep-copies blocks)
         return self
@@ -962,25 +415,25 @@ class Engine:
         return compile_function("ikjac", self._args(self._qnames()), self._ikjac_outputs(), self._graph,
                                 f"{self.description.name} ik+jacobian")
 
-    def _kept(self) -> tuple[list[E], set[int]]:
+    def _kept(self) -> tuple[list[Expr], set[int]]:
         """What ``forces`` shares with ``ikjac`` at the same q (the pose's geometry, its checks): (the nodes of
         that part ``forces`` reads, the part's nodes). ``ikjac_kept`` returns the former after ikjac's outputs,
         ``forces_kept`` takes that tuple and computes only the rest (``compile_function``'s ``prior``)."""
         found = getattr(self, "_kept_split", None)
         if found is None:
             graph, forces = self._graph, self._forces_outputs()
-            needed = _needed(forces, graph.checks)
-            done = _needed(self._ikjac_outputs(), graph.checks) & needed
-            read = {a.id for i in needed - done for a in graph.nodes[i].args} | {o.id for o in forces}
+            wanted = needed(forces, graph.checks)
+            done = needed(self._ikjac_outputs(), graph.checks) & wanted
+            read = {a.id for i in wanted - done for a in graph.nodes[i].args} | {o.id for o in forces}
             shared = [graph.nodes[i] for i in sorted(read & done) if graph.nodes[i].op not in ("input", "const")]
             found = self._kept_split = (shared, done)
         return found
 
-    def _ikjac_outputs(self) -> list[E]:
+    def _ikjac_outputs(self) -> list[Expr]:
         n = self.n
         return list(self._rho) + [self._dq[k](self._rho[i]) for i in range(n) for k in range(n)]
 
-    def _forces_outputs(self) -> list[E]:
+    def _forces_outputs(self) -> list[Expr]:
         return list(self._dynamics_graph(False)[0]) + list(self._pose)
 
     def _build_ikjac_kept(self) -> Callable:
@@ -1004,7 +457,7 @@ class Engine:
         n = self.n
         outs = list(self._rho) + [self._dq[k](self._rho[i]) for i in range(n) for k in range(n)]
         return compile_function("ikjac", self._args(self._qnames()), outs, self._graph, f"{self.description.name} ik+jacobian, "
-                                "arrays", vector=True)
+                                "arrays", vector=True, rejected=KinematicsError)
 
     def _build_forces_many(self) -> Callable:
         t = self._dynamics_graph(False)[0]
@@ -1012,7 +465,7 @@ class Engine:
         inputs = self._qnames() + [f"J{j}{k}" for j in range(n) for k in range(n)] + \
             [f"rd{k}" for k in range(n)] + [f"rdd{k}" for k in range(n)]
         return compile_function("forces", self._args(inputs), list(t), self._graph, f"{self.description.name} forces, arrays",
-                                vector=True)
+                                vector=True, rejected=KinematicsError)
 
     def _dynamics_graph(self, detailed: bool):
         """Outputs of the inverse dynamics, built on the graph (inputs q, J = dq/drho, rd, rdd)."""
@@ -1020,18 +473,18 @@ class Engine:
         Jm = [[g.input(f"J{j}{k}") for k in range(n)] for j in range(n)]
         rd = [g.input(f"rd{k}") for k in range(n)]
         rdd = [g.input(f"rdd{k}") for k in range(n)]
-        qd = [_sum(_mul(Jm[j][k], rd[k]) for k in range(n)) for j in range(n)]
-        p1 = _Forward(g, {f"q{j}": qd[j] for j in range(n)})
-        p2 = _Second(g, p1, {})
+        qd = [_sum(mul(Jm[j][k], rd[k]) for k in range(n)) for j in range(n)]
+        p1 = Forward(g, {f"q{j}": qd[j] for j in range(n)})
+        p2 = Second(g, p1, {})
         h = [p2(r) for r in self._rho]                           # rho'' when qdd = 0
-        qdd0 = [_neg(_sum(_mul(Jm[j][k], h[k]) for k in range(n))) for j in range(n)]   # Jdot rho_dot
+        qdd0 = [neg(_sum(mul(Jm[j][k], h[k]) for k in range(n))) for j in range(n)]   # Jdot rho_dot
         dq = self._dq
 
-        def acc(y: E) -> E:                                          # y'' with rho_ddot = 0
-            return _add(p2(y), _sum(_mul(dq[k](y), qdd0[k]) for k in range(n)))
+        def acc(y: Expr) -> Expr:                                          # y'' with rho_ddot = 0
+            return add(p2(y), _sum(mul(dq[k](y), qdd0[k]) for k in range(n)))
 
-        def to_rho(col_q: list[E]) -> list[E]:                       # row vector in q -> in rho
-            return [_sum(_mul(col_q[k], Jm[k][c]) for k in range(n)) for c in range(n)]
+        def to_rho(col_q: list[Expr]) -> list[Expr]:                       # row vector in q -> in rho
+            return [_sum(mul(col_q[k], Jm[k][c]) for k in range(n)) for c in range(n)]
 
         M = [[g.const(0.0)] * n for _ in range(n)]
         c = [g.const(0.0)] * n
@@ -1045,34 +498,34 @@ class Engine:
             dR = [[[dq[k](R[i][j]) for j in range(3)] for i in range(3)] for k in range(n)]
             Jw_q = [_vee_RtX(R, dR[k]) for k in range(n)]                            # n columns
             Jw = [to_rho([Jw_q[k][i] for k in range(n)]) for i in range(3)]          # 3 x n
-            w = [_sum(_mul(Jw[i][k], rd[k]) for k in range(n)) for i in range(3)]
+            w = [_sum(mul(Jw[i][k], rd[k]) for k in range(n)) for i in range(3)]
             wdot0 = _vee_RtX(R, [[acc(R[i][j]) for j in range(3)] for i in range(3)])
-            Iw = [_sum(_mul(I[i][j], w[j]) for j in range(3)) for i in range(3)]
-            mom = [_add(_sum(_mul(I[i][j], wdot0[j]) for j in range(3)),
-                        _sub(_mul(w[(i + 1) % 3], Iw[(i + 2) % 3]), _mul(w[(i + 2) % 3], Iw[(i + 1) % 3])))
+            Iw = [_sum(mul(I[i][j], w[j]) for j in range(3)) for i in range(3)]
+            mom = [add(_sum(mul(I[i][j], wdot0[j]) for j in range(3)),
+                        sub(mul(w[(i + 1) % 3], Iw[(i + 2) % 3]), mul(w[(i + 2) % 3], Iw[(i + 1) % 3])))
                    for i in range(3)]
             Mt = [[None] * n for _ in range(n)]
             Mr = [[None] * n for _ in range(n)]
             for a in range(n):
                 for b in range(a, n):
-                    Mt[a][b] = Mt[b][a] = _mul(m, _sum(_mul(Jv[i][a], Jv[i][b]) for i in range(3)))
-                    IJb = [_sum(_mul(I[i][j], Jw[j][b]) for j in range(3)) for i in range(3)]
-                    Mr[a][b] = Mr[b][a] = _sum(_mul(Jw[i][a], IJb[i]) for i in range(3))
-            ct = [_mul(m, _sum(_mul(Jv[i][a], a0[i]) for i in range(3))) for a in range(n)]
-            cr = [_sum(_mul(Jw[i][a], mom[i]) for i in range(3)) for a in range(n)]
-            gtr = [_mul(m * grav, Jv[2][a]) for a in range(n)]
+                    Mt[a][b] = Mt[b][a] = mul(m, _sum(mul(Jv[i][a], Jv[i][b]) for i in range(3)))
+                    IJb = [_sum(mul(I[i][j], Jw[j][b]) for j in range(3)) for i in range(3)]
+                    Mr[a][b] = Mr[b][a] = _sum(mul(Jw[i][a], IJb[i]) for i in range(3))
+            ct = [mul(m, _sum(mul(Jv[i][a], a0[i]) for i in range(3))) for a in range(n)]
+            cr = [_sum(mul(Jw[i][a], mom[i]) for i in range(3)) for a in range(n)]
+            gtr = [mul(m * grav, Jv[2][a]) for a in range(n)]
             for a in range(n):
-                c[a] = _add(c[a], _add(ct[a], cr[a]))
-                gt[a] = _add(gt[a], gtr[a])
+                c[a] = add(c[a], add(ct[a], cr[a]))
+                gt[a] = add(gt[a], gtr[a])
                 for b in range(n):
-                    M[a][b] = _add(M[a][b], _add(Mt[a][b], Mr[a][b]))
+                    M[a][b] = add(M[a][b], add(Mt[a][b], Mr[a][b]))
             if detailed:
-                It = [_sum(_mul(Mt[a][b], rdd[b]) for b in range(n)) for a in range(n)]
-                Ir = [_sum(_mul(Mr[a][b], rdd[b]) for b in range(n)) for a in range(n)]
+                It = [_sum(mul(Mt[a][b], rdd[b]) for b in range(n)) for a in range(n)]
+                Ir = [_sum(mul(Mr[a][b], rdd[b]) for b in range(n)) for a in range(n)]
                 terms.append((It, ct, gtr, Ir, cr))
                 kin.append((Jv, Jw, a0, wdot0, [p1(x) for x in com], w))
-        It = [_sum(_mul(M[a][b], rdd[b]) for b in range(n)) for a in range(n)]
-        t = [_add(_add(It[a], c[a]), gt[a]) for a in range(n)]
+        It = [_sum(mul(M[a][b], rdd[b]) for b in range(n)) for a in range(n)]
+        t = [add(add(It[a], c[a]), gt[a]) for a in range(n)]
         return t, It, c, gt, M, terms, kin, qd, qdd0
 
     def _build_forces(self) -> Callable:
@@ -1317,8 +770,8 @@ class Engine:
         return out
 
 
-def _sum(items) -> E:
+def _sum(items) -> Expr:
     total = None
     for x in items:
-        total = x if total is None else _add(total, x)
+        total = x if total is None else add(total, x)
     return total if total is not None else 0.0

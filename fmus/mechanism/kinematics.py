@@ -129,7 +129,7 @@ class Geometry:
             raise ParameterError(f"{owner}: parameter 'L' = {L!r}: must exceed H - r = {H - r!r} m, or the legs "
                                  f"cannot reach the platform")
         try:
-            _first(geom, _frame(geom, geom.home_reach, 0.0, 0.0))
+            first_order(geom, frame_at(geom, geom.home_reach, 0.0, 0.0))
         except KinematicsError as exc:
             raise ParameterError(f"{owner}: parameters 'alpha_1', 'alpha_2', 'alpha_3' = {geom.alpha} rad: the "
                                  f"mechanism cannot be assembled at the level pose: {exc}") from None
@@ -157,11 +157,11 @@ def _fmt(v: float) -> str:
     return f"{v:.6g}"
 
 
-def _det3(a: float, b: float, c: float, d: float, e: float, f: float, g: float, h: float, i: float) -> float:
+def det3(a: float, b: float, c: float, d: float, e: float, f: float, g: float, h: float, i: float) -> float:
     return a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g)
 
 
-def _inv3(m: Sequence[float]) -> tuple[tuple[float, ...], float]:
+def inv3(m: Sequence[float]) -> tuple[tuple[float, ...], float]:
     """Inverse of a row-major 3x3 (9 floats) and its determinant (det 0 -> ZeroDivisionError)."""
     a, b, c, d, e, f, g, h, i = m
     A = e * i - f * h
@@ -178,7 +178,7 @@ def _cond(m: Sequence[float], minv: Sequence[float]) -> float:
     return _sqrt(sum(v * v for v in m)) * _sqrt(sum(v * v for v in minv))
 
 
-def _frame(g: Geometry, z: float, psi: float, theta: float) -> _Frame:
+def frame_at(g: Geometry, z: float, psi: float, theta: float) -> _Frame:
     """Positions: parasitic motion (closed form, any layout), rotation, legs, rho, gamma."""
     if not (_isfinite(z) and _isfinite(psi) and _isfinite(theta)):
         raise KinematicsError(f"pose (z = {z!r} m, psi = {psi!r} rad, theta = {theta!r} rad) is not finite")
@@ -201,10 +201,10 @@ def _frame(g: Geometry, z: float, psi: float, theta: float) -> _Frame:
         rows.append((-sa[i], ca[i], -sa[i] * vx + ca[i] * vy, ca[i] * vx + sa[i] * vy))
     (m00, m01, m02, m03), (m10, m11, m12, m13), (m20, m21, m22, m23) = rows
     # null vector of the 3x4 homogeneous system (generalised cross product)
-    n0 = _det3(m01, m02, m03, m11, m12, m13, m21, m22, m23)
-    n1 = -_det3(m00, m02, m03, m10, m12, m13, m20, m22, m23)
-    n2 = _det3(m00, m01, m03, m10, m11, m13, m20, m21, m23)
-    n3 = -_det3(m00, m01, m02, m10, m11, m12, m20, m21, m22)
+    n0 = det3(m01, m02, m03, m11, m12, m13, m21, m22, m23)
+    n1 = -det3(m00, m02, m03, m10, m12, m13, m20, m22, m23)
+    n2 = det3(m00, m01, m03, m10, m11, m13, m20, m21, m23)
+    n3 = -det3(m00, m01, m02, m10, m11, m12, m20, m21, m22)
     norm = math.hypot(n2, n3)
     if not norm > 1e-9 * r * r:
         raise KinematicsError(
@@ -248,7 +248,7 @@ def _frame(g: Geometry, z: float, psi: float, theta: float) -> _Frame:
     return fr
 
 
-def _first(g: Geometry, fr: _Frame, check: bool = True) -> _Frame:
+def first_order(g: Geometry, fr: _Frame, check: bool = True) -> _Frame:
     """First order: parasitic Jacobian K, point velocities, Jx, Jq, J = Jx^-1 Jq."""
     c, s = fr.c, fr.s
     ct, st = _cos(fr.theta), _sin(fr.theta)
@@ -264,7 +264,7 @@ def _first(g: Geometry, fr: _Frame, check: bool = True) -> _Frame:
         cpar.extend((-sa[i], ca[i], mz))
         cact.append((kpsi[0] * mx + kpsi[1] * my + kpsi[2] * mz, kth[0] * mx + kth[1] * my))
     try:
-        Cinv, detc = _inv3(cpar)
+        Cinv, detc = inv3(cpar)
     except ZeroDivisionError:
         raise KinematicsError(
             f"singular configuration: constraint matrix of the parasitic motion is singular at "
@@ -294,7 +294,7 @@ def _first(g: Geometry, fr: _Frame, check: bool = True) -> _Frame:
         u, w = fr.u[i], fr.w[i]
         Jx.extend((w, w * vpz - u * dp, w * vtz - u * dt))
     try:
-        Jxinv, det = _inv3(Jx)
+        Jxinv, det = inv3(Jx)
     except ZeroDivisionError:
         raise KinematicsError(
             f"singular configuration: Jx is singular (det = 0) at z = {_fmt(fr.z)} m, psi = {_fmt(fr.psi)} rad, "
@@ -325,7 +325,7 @@ class _Rates:
     __slots__ = ("qd", "pard", "omega", "dd", "hd", "wd", "gd", "qdd0", "Pdd0", "alpha0", "dddot0", "hddot0")
 
 
-def _second(g: Geometry, fr: _Frame, rho_dot: Sequence[float]) -> _Rates:
+def second_order(g: Geometry, fr: _Frame, rho_dot: Sequence[float]) -> _Rates:
     """Velocities for rhodot and the bias accelerations (rho_ddot = 0): qdd0 = Jdot rhodot, ..."""
     J = fr.J
     r0, r1, r2 = rho_dot
@@ -440,7 +440,7 @@ def parasitic(geom: Geometry, z: float, psi: float, theta: float) -> tuple[float
     solution is the normalised null vector of a 3x4 matrix (closed form, any guide layout).
     T layout: y = 0, phi = 0, x = -r sin(theta) sin(psi).
     """
-    fr = _frame(geom, float(z), float(psi), float(theta))
+    fr = frame_at(geom, float(z), float(psi), float(theta))
     return fr.x, fr.y, fr.phi
 
 
@@ -449,13 +449,13 @@ def inverse_kinematics(geom: Geometry, z: float, psi: float, theta: float) -> np
 
     Raises KinematicsError naming the leg if the pose is unreachable.
     """
-    fr = _frame(geom, float(z), float(psi), float(theta))
+    fr = frame_at(geom, float(z), float(psi), float(theta))
     return np.array(fr.rho)
 
 
 def full_pose(geom: Geometry, z: float, psi: float, theta: float) -> PoseSolution:
     """Full platform pose, slider heights, leg angles gamma and joint positions (see PoseSolution)."""
-    fr = _frame(geom, float(z), float(psi), float(theta))
+    fr = frame_at(geom, float(z), float(psi), float(theta))
     S = np.array([[fr.x + a[0], fr.y + a[1], fr.z + a[2]] for a in fr.a])
     sl = np.array([[geom.H * geom._ca[i], geom.H * geom._sa[i], fr.rho[i]] for i in range(3)])
     return PoseSolution(fr.x, fr.y, fr.z, fr.psi, fr.theta, fr.phi, np.array(fr.rho), np.array(fr.gamma),
@@ -467,7 +467,7 @@ def home_pose(geom: Geometry, rho0: float) -> np.ndarray:
     return direct_kinematics(geom, (rho0, rho0, rho0))
 
 
-def _dk_frame(g: Geometry, rho: Sequence[float], guess: Optional[Sequence[float]], tol: float,
+def dk_frame(g: Geometry, rho: Sequence[float], guess: Optional[Sequence[float]], tol: float,
               max_iter: int) -> _Frame:
     """Newton on the inverse kinematics; returns the frame (with first order) at the solution."""
     r0, r1, r2 = rho
@@ -482,10 +482,10 @@ def _dk_frame(g: Geometry, rho: Sequence[float], guess: Optional[Sequence[float]
     res = math.inf
     for it in range(max_iter + 1):
         try:
-            fr = _frame(g, q0, q1, q2)
+            fr = frame_at(g, q0, q1, q2)
             e0, e1, e2 = fr.rho[0] - r0, fr.rho[1] - r1, fr.rho[2] - r2
             res = max(abs(e0), abs(e1), abs(e2))
-            _first(g, fr, check=res < tol)
+            first_order(g, fr, check=res < tol)
         except KinematicsError as exc:
             raise KinematicsError(
                 f"direct kinematics did not converge for rho = ({r0:.9g}, {r1:.9g}, {r2:.9g}) m: "
@@ -518,7 +518,7 @@ def direct_kinematics(geom: Geometry, rho: Sequence[float], guess: Optional[Sequ
     r = [float(v) for v in rho]
     if len(r) != 3:
         raise KinematicsError(f"direct kinematics: expected 3 slider heights, got {len(r)}")
-    fr = _dk_frame(geom, r, guess, tol, max_iter)
+    fr = dk_frame(geom, r, guess, tol, max_iter)
     return np.array((fr.z, fr.psi, fr.theta))
 
 
@@ -565,7 +565,7 @@ class JacobianRates:
     parasitic_dot: np.ndarray
 
 
-def _leg_jacobians(g: Geometry, fr: _Frame) -> list[tuple[tuple[float, float, float], ...]]:
+def leg_jacobians(g: Geometry, fr: _Frame) -> list[tuple[tuple[float, float, float], ...]]:
     """Rows (radial, vertical, gamma) of J_b_i in rhodot, for each leg."""
     J = fr.J
     out = []
@@ -580,7 +580,7 @@ def _leg_jacobians(g: Geometry, fr: _Frame) -> list[tuple[tuple[float, float, fl
     return out
 
 
-def _platform_jacobians(fr: _Frame) -> tuple[list[list[float]], list[list[float]]]:
+def platform_jacobians(fr: _Frame) -> tuple[list[list[float]], list[list[float]]]:
     """J_G (rows x, y, z) and J_R (rows body w_x, w_y, w_z) in rhodot."""
     J = fr.J
     (JPp, JPt), (Jwp, Jwt) = fr.JP, fr.Jw
@@ -597,18 +597,18 @@ def jacobians(geom: Geometry, z: float, psi: float, theta: float) -> Jacobians:
 
     Raises KinematicsError (naming Jx or Jq and its condition number) near a singularity.
     """
-    fr = _first(geom, _frame(geom, float(z), float(psi), float(theta)))
+    fr = first_order(geom, frame_at(geom, float(z), float(psi), float(theta)))
     pose = full_pose(geom, z, psi, theta)
     Jx = np.array(fr.Jx).reshape(3, 3)
     Jq = np.diag(fr.w)
     J = np.array(fr.J).reshape(3, 3)
     K = np.array([[0.0, fr.K[k][0], fr.K[k][1]] for k in range(3)])
-    JG, JR = _platform_jacobians(fr)
+    JG, JR = platform_jacobians(fr)
     return Jacobians(pose, Jx, Jq, J, np.linalg.solve(Jq, Jx), K,
-                     np.array(_leg_jacobians(geom, fr)), np.array(JG), np.array(JR))
+                     np.array(leg_jacobians(geom, fr)), np.array(JG), np.array(JR))
 
 
-def _rates_arrays(g: Geometry, fr: _Frame, rt: _Rates) -> dict:
+def rates_arrays(g: Geometry, fr: _Frame, rt: _Rates) -> dict:
     """Bias accelerations of every body coordinate (rho_ddot = 0)."""
     legs = []
     for i in range(3):
@@ -625,9 +625,9 @@ def _rates_arrays(g: Geometry, fr: _Frame, rt: _Rates) -> dict:
 def jacobian_rates(geom: Geometry, z: float, psi: float, theta: float, rho_dot: Sequence[float]) -> JacobianRates:
     """Jdot rhodot of every Jacobian at the pose (z, psi, theta) for slider velocities
     rho_dot (3,) [m/s], exact (closed form: the constraints differentiated twice)."""
-    fr = _first(geom, _frame(geom, float(z), float(psi), float(theta)))
+    fr = first_order(geom, frame_at(geom, float(z), float(psi), float(theta)))
     rd = [float(v) for v in rho_dot]
-    rt = _second(geom, fr, rd)
-    b = _rates_arrays(geom, fr, rt)
+    rt = second_order(geom, fr, rd)
+    b = rates_arrays(geom, fr, rt)
     return JacobianRates(np.array(rt.qd), np.array(b["w"]), np.array(rt.qdd0), np.array(b["legs"]),
                          np.array(b["P"]), np.array(b["wdot"]), np.array(rt.pard))

@@ -31,18 +31,15 @@ from typing import Callable, Mapping, Sequence
 
 import numpy as np
 
-from .engine import Part, atan2, cos, hypot, require, sign, sin, sqrt
-from .kinematics import MAX_TILT, KinematicsError
+from ..common.tracer import atan2, cos, hypot, require, sign, sin, sqrt
+from .engine import Part
+from .kinematics import MAX_TILT, KinematicsError, det3
 
 __all__ = ["FREE", "PLANE", "TEMPLATES", "Family", "Template", "level_height"]
 
 
 def _fmt(v: float) -> str:
     return f"{v:.6g}"
-
-
-def _det3(a, b, c, d, e, f, g, h, i):
-    return a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g)
 
 
 # ----------------------------------------------------------------------------- admissibility checks
@@ -391,10 +388,10 @@ def _plane_pose(q, legs: Sequence[Leg]):
         rows.append((-sa, ca, -sa * vx + ca * vy, ca * vx + sa * vy))
     (m00, m01, m02, m03), (m10, m11, m12, m13), (m20, m21, m22, m23) = rows
     # null vector of the 3x4 homogeneous system (generalised cross product)
-    n0 = _det3(m01, m02, m03, m11, m12, m13, m21, m22, m23)
-    n1 = -_det3(m00, m02, m03, m10, m12, m13, m20, m22, m23)
-    n2 = _det3(m00, m01, m03, m10, m11, m13, m20, m21, m23)
-    n3 = -_det3(m00, m01, m02, m10, m11, m12, m20, m21, m22)
+    n0 = det3(m01, m02, m03, m11, m12, m13, m21, m22, m23)
+    n1 = -det3(m00, m02, m03, m10, m12, m13, m20, m22, m23)
+    n2 = det3(m00, m01, m03, m10, m11, m13, m20, m21, m23)
+    n3 = -det3(m00, m01, m02, m10, m11, m12, m20, m21, m22)
     norm = hypot(n2, n3)
     require(_NullCheck(), norm, z, psi, theta, legs[0].g["platform_radius"], *(leg.g["angle"] for leg in legs))
     k = sign(n2) / norm       # choose cos(phi) > 0

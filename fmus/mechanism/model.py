@@ -16,26 +16,28 @@ force and reports the kinematics of the mechanism as if it were massless.
 from __future__ import annotations
 
 import math
-from typing import Mapping
+from dataclasses import dataclass
+from typing import ClassVar, Mapping, Sequence
 
 from ..common.block import Block, ModelError
 from ..common.parameters import ParameterError, Value
-from .designs import KINEMATIC_PARAMETERS, MASS_PARAMETERS, PAYLOAD_PARAMETERS, engine
+from .designs import KINEMATIC_PARAMETERS, MASS_PARAMETERS, PAYLOAD_PARAMETERS, describe, description, engine
 from .engine import SingularityError
 from .kinematics import KinematicsError
+from .topology import DRIVE_UNITS, POSE, POSE_UNITS, Topology
 
 #: the code of a direct kinematics refused at (or near) a singularity (mast_model.h: MAST_SINGULARITY_ERROR)
 SINGULAR = 4
 
 
-def dk(r0: float, r1: float, r2: float, warm: float, S, out) -> int:
-    """One attempt of the direct kinematics of rho = (r0, r1, r2) [m] by ``S`` (a MechanismBlock or an
-    InverseModel: its ``engine``), from its last solution ``S._guess`` when ``warm`` (1.0), else from the
-    description's guess: 0 (the solution in ``S._found``: q, dq/drho and what ``Engine.forces_kept`` reuses of
-    the pose, ``Engine.dk_kept``), SINGULAR or 1 (the exception in ``S._failure``). ``restarted_dk`` calls it;
-    the native models' C has its own (``mast_dk3``)."""
+def dk(rho, warm: float, S, out) -> int:
+    """One attempt of the direct kinematics of the joint positions ``rho`` (rho_1..n, in the drives' units: m or
+    rad) by ``S`` (a MechanismBlock or an InverseModel: its ``engine``), from its last solution ``S._guess`` when
+    ``warm`` (1.0), else from the description's guess: 0 (the solution in ``S._found``: q, dq/drho and what
+    ``Engine.forces_kept`` reuses of the pose, ``Engine.dk_kept``), SINGULAR or 1 (the exception in
+    ``S._failure``). ``restarted_dk`` calls it; the native models' C has its own (``mast_dk3``)."""
     try:
-        q, J, _, kept = S.engine.dk_kept((r0, r1, r2), S._guess if warm == 1.0 else None)
+        q, J, _, kept = S.engine.dk_kept(rho, S._guess if warm == 1.0 else None)
     except SingularityError as exc:
         S._failure = exc
         return SINGULAR
@@ -46,50 +48,142 @@ def dk(r0: float, r1: float, r2: float, warm: float, S, out) -> int:
     return 0
 
 
-def restarted_dk(r0: float, r1: float, r2: float, warm: float, S, out) -> int:
-    """The direct kinematics of rho = (r0, r1, r2) [m] (``dk``, its solution in ``out``), from the last solution
-    when ``warm`` (1.0), else from the description's guess; a warm start that fails starts again from the guess,
-    but never after a singularity (a cold start could jump to another pose). 0, or the last attempt's code.
-    Written in the generated-code subset: the native mechanism and controllers run this source."""
-    c = dk(r0, r1, r2, warm, S, out)
+def restarted_dk(rho, warm: float, S, out) -> int:
+    """The direct kinematics of the joint positions ``rho`` (an array of n; ``dk``, its solution in ``out``), from
+    the last solution when ``warm`` (1.0), else from the description's guess; a warm start that fails starts again
+    from the guess, but never after a singularity (a cold start could jump to another pose). 0, or the last
+    attempt's code. Written in the generated-code subset: the native mechanism and controllers run this source."""
+    c = dk(rho, warm, S, out)
     if c != 0 and c != SINGULAR and warm == 1.0:
-        c = dk(r0, r1, r2, 0.0, S, out)
+        c = dk(rho, 0.0, S, out)
     return c
 
 
-class MechanismBlock(Block):
-    """3PRS mechanism: DK and IDP; outputs the actuator forces and the platform pose."""
+#: per drive kind: the units of its velocity, acceleration and of the force (torque) it takes
+_KIND_UNITS = {"linear": ("m/s", "m/s2", "N"), "rotary": ("rad/s", "rad/s2", "N.m")}
 
-    INPUTS = ("rho_1", "rho_2", "rho_3",
-              "rho_dot_1", "rho_dot_2", "rho_dot_3",
-              "rho_ddot_1", "rho_ddot_2", "rho_ddot_3")
-    OUTPUTS = ("F_1", "F_2", "F_3", "x", "y", "z", "psi", "theta", "phi")
+#: what each pose output is (the parasitic ones, those not among the coordinates, say so)
+_POSE_DESCRIPTIONS = {
+    "x": "Platform centre P, x",
+    "y": "Platform centre P, y",
+    "z": "Platform centre P, height above the base plane",
+    "psi": "Platform roll about x (R = Rz(phi) Ry(theta) Rx(psi))",
+    "theta": "Platform pitch about y",
+    "phi": "Platform yaw about z",
+}
+
+
+@dataclass(frozen=True)
+class Variables:
+    """The mechanism block's variables for a topology (docs/interfaces.md, the connector convention): inputs
+    ``rho_k``, ``rho_dot_k``, ``rho_ddot_k`` for k = 1..n, outputs ``F_k`` and the six pose components, with
+    their units (a linear drive's m, m/s, m/s2, N; a rotary drive's rad, rad/s, rad/s2, N.m) and descriptions."""
+
+    inputs: tuple[str, ...]
+    outputs: tuple[str, ...]
+    units: Mapping[str, str]
+    descriptions: Mapping[str, str]
+
+    @classmethod
+    def of(cls, coordinates: Sequence[str], kinds: Sequence[str]) -> "Variables":
+        """The variables of a mechanism with the independent ``coordinates`` (pose components) and drives of
+        ``kinds`` ("linear" or "rotary", in order): ``Topology.names`` and the drives' kinds."""
+        ks = range(1, len(kinds) + 1)
+        inputs = (*(f"rho_{k}" for k in ks), *(f"rho_dot_{k}" for k in ks), *(f"rho_ddot_{k}" for k in ks))
+        outputs = (*(f"F_{k}" for k in ks), *POSE)
+        units, text = {}, {}
+        for k, kind in zip(ks, kinds):
+            rate, acceleration, force = _KIND_UNITS[kind]
+            units.update({f"rho_{k}": DRIVE_UNITS[kind], f"rho_dot_{k}": rate, f"rho_ddot_{k}": acceleration,
+                          f"F_{k}": force})
+            if kind == "linear":
+                text.update({
+                    f"rho_{k}": f"Position of slider {k} along its guide from the base plane (vertical guides: "
+                                f"its height)",
+                    f"rho_dot_{k}": f"Velocity of slider {k} along its guide (up positive)",
+                    f"rho_ddot_{k}": f"Acceleration of slider {k} along its guide (up positive)",
+                    f"F_{k}": f"Force actuator {k} applies to the mechanism along its guide, positive upward "
+                              f"(inverse dynamics t_rho_{k})"})
+            else:
+                text.update({
+                    f"rho_{k}": f"Angle of the driven joint {k}",
+                    f"rho_dot_{k}": f"Angular velocity of the driven joint {k}",
+                    f"rho_ddot_{k}": f"Angular acceleration of the driven joint {k}",
+                    f"F_{k}": f"Torque actuator {k} applies to the mechanism about its joint, positive along "
+                              f"rho_{k} (inverse dynamics t_rho_{k})"})
+        units.update(POSE_UNITS)
+        text.update({p: _POSE_DESCRIPTIONS[p] + ("" if p in coordinates else " (parasitic)") for p in POSE})
+        return cls(inputs, outputs, units, text)
+
+    @classmethod
+    def of_topology(cls, topology: Topology) -> "Variables":
+        return cls.of(topology.names, [d.kind for d in topology.drives])
+
+
+#: the variables of the class ``MechanismBlock``: the 3PRS's (z, psi, theta; three linear drives), from its file
+_PRS3 = Variables.of_topology(description("3PRS").describe().topology)
+
+
+class MechanismBlock(Block):
+    """A parallel mechanism (the one its parameters describe): DK and IDP; outputs the actuator forces and the
+    platform pose.
+
+    Its variables follow the topology of its description (``Variables``, ``Topology``): n drives give 3 n
+    inputs and n + 6 outputs. The class's own are the 3PRS's; a block of another topology has its own
+    (instance attributes), and a class made for one topology (``for_topology``: an FMU's, whose variables
+    are fixed when it is built) refuses parameters of another.
+    """
+
+    INPUTS = _PRS3.inputs
+    OUTPUTS = _PRS3.outputs
     PARAMETERS = (*KINEMATIC_PARAMETERS, *MASS_PARAMETERS, *PAYLOAD_PARAMETERS)
-    UNITS = {
-        **{f"rho_{i}": "m" for i in (1, 2, 3)},
-        **{f"rho_dot_{i}": "m/s" for i in (1, 2, 3)},
-        **{f"rho_ddot_{i}": "m/s2" for i in (1, 2, 3)},
-        **{f"F_{i}": "N" for i in (1, 2, 3)},
-        "x": "m", "y": "m", "z": "m", "psi": "rad", "theta": "rad", "phi": "rad",
-    }
-    DESCRIPTIONS = {
-        **{f"rho_{i}": f"Position of slider {i} along its guide from the base plane (vertical guides: "
-                       f"its height)" for i in (1, 2, 3)},
-        **{f"rho_dot_{i}": f"Velocity of slider {i} along its guide (up positive)" for i in (1, 2, 3)},
-        **{f"rho_ddot_{i}": f"Acceleration of slider {i} along its guide (up positive)" for i in (1, 2, 3)},
-        **{f"F_{i}": f"Force actuator {i} applies to the mechanism along its guide, positive upward "
-                     f"(inverse dynamics t_rho_{i})" for i in (1, 2, 3)},
-        "x": "Platform centre P, x (parasitic)",
-        "y": "Platform centre P, y (parasitic)",
-        "z": "Platform centre P, height above the base plane",
-        "psi": "Platform roll about x (R = Rz(phi) Ry(theta) Rx(psi))",
-        "theta": "Platform pitch about y",
-        "phi": "Platform yaw about z (parasitic)",
-    }
+    UNITS = _PRS3.units
+    DESCRIPTIONS = _PRS3.descriptions
+    #: True for a class whose variables are fixed to one topology (``for_topology``)
+    fixed: ClassVar[bool] = False
+    _classes: ClassVar[dict] = {}
+
+    @classmethod
+    def for_topology(cls, topology: Topology) -> type["MechanismBlock"]:
+        """The block class with the variables of ``topology`` (one per set of variables)."""
+        io = Variables.of_topology(topology)
+        key = (io.inputs, tuple(io.units.items()))
+        found = cls._classes.get(key)
+        if found is None:
+            found = cls._classes[key] = type(
+                f"MechanismBlock{topology.n}", (MechanismBlock,),
+                {"__doc__": f"{cls.__doc__.strip().splitlines()[0]} Variables of {topology.name}: drives "
+                            f"{', '.join(topology.joints)}, coordinates {', '.join(topology.names)}.",
+                 "__module__": __name__, "INPUTS": io.inputs, "OUTPUTS": io.outputs, "UNITS": io.units,
+                 "DESCRIPTIONS": io.descriptions, "fixed": True})
+        return found
+
+    @classmethod
+    def for_parameters(cls, params: Mapping[str, Value]) -> type["MechanismBlock"]:
+        """The class whose variables a block of ``params`` has (``for_topology`` of their description); this
+        class when they describe no mechanism (the block built with them says why)."""
+        if not params:
+            return cls
+        try:
+            return cls.for_topology(describe(params, masses=False).topology)
+        except Exception:   # noqa: BLE001 - the block's own construction reports what is wrong with them
+            return cls
 
     def __init__(self, params: Mapping[str, Value], name: str = "") -> None:
         super().__init__(params, name)
         self.engine = engine(self.params, self.name)
+        self.topology = self.engine.description.topology
+        io = Variables.of_topology(self.topology)
+        if io.inputs != self.INPUTS or dict(io.units) != dict(self.UNITS):
+            if self.fixed:
+                raise ParameterError(
+                    f"{self.name}: the parameters describe {self.topology.name} (drives "
+                    f"{', '.join(f'{d.name} {d.kind}' for d in self.topology.drives)}; coordinates "
+                    f"{', '.join(self.topology.names)}), whose variables are not this FMU's "
+                    f"({', '.join(self.INPUTS)}): a mechanism of another topology needs its own FMU")
+            self.INPUTS, self.OUTPUTS, self.UNITS, self.DESCRIPTIONS = io.inputs, io.outputs, io.units, io.descriptions
+            self.values = [0.0] * (len(self.INPUTS) + len(self.OUTPUTS))
+        self.n = self.topology.n
         self.attached = bool(self.params["attached"])
         self._guess = None
         self._found = self._failure = None      # the last direct kinematics' solution, or failure (``dk``)
@@ -97,26 +191,32 @@ class MechanismBlock(Block):
     # -------------------------------------------------------------------------------------
     def _compute(self, t: float) -> None:
         vals = self.values
-        for k in range(9):
+        n = self.n
+        for k in range(3 * n):
             v = vals[k]
             if not math.isfinite(v):
                 raise ModelError(f"{self.name}: input '{self.INPUTS[k]}' = {v!r} is not finite at t = {t!r} s")
-        rho = (vals[0], vals[1], vals[2])
+        rho = tuple(vals[:n])
         eng = self.engine
         try:
-            if restarted_dk(vals[0], vals[1], vals[2], 0.0 if self._guess is None else 1.0, self, None):
+            if restarted_dk(rho, 0.0 if self._guess is None else 1.0, self, None):
                 raise self._failure
             q, J, kept = self._found
             if self.attached:   # the forces reuse the pose's geometry the direct kinematics computed at q
-                out = eng.forces_kept(kept, q, J, (vals[3], vals[4], vals[5]), (vals[6], vals[7], vals[8]))
+                out = eng.forces_kept(kept, q, J, vals[n:2 * n], vals[2 * n:3 * n])
             else:
-                out = (0.0, 0.0, 0.0) + eng.pose(q)
+                out = (0.0,) * n + eng.pose(q)
         except KinematicsError as exc:
-            raise type(exc)(f"{self.name}: at t = {t!r} s, rho = {rho!r} m: {exc}") from exc   # SingularityError stays one
+            raise type(exc)(f"{self.name}: at t = {t!r} s, rho = {rho!r} {self._rho_unit}: {exc}") from exc   # SingularityError stays one
         except OverflowError as exc:   # the equations built for these parameters (engine.overflow_hint)
             raise ParameterError(f"{self.name}: {exc}") from None
         self._guess = q
-        vals[9:18] = out
+        vals[3 * n:] = out
+
+    @property
+    def _rho_unit(self) -> str:
+        units = {d.unit for d in self.topology.drives}
+        return units.pop() if len(units) == 1 else "(m or rad)"
 
     def initialize(self, t0: float) -> None:
         """Outputs at t0 from the current inputs (direct kinematics from the level pose)."""

@@ -10,8 +10,9 @@ would swap it by hand in the SSP (docs/interfaces.md, "Writing a mechanism FMU")
   values of the geometry parameters it declares) is bound after the controller's sets;
 - the actuators' gravity along the guides is g cos(beta) when the FMU declares ``beta``.
 
-The test set is pure sine motions in z, psi and theta at several frequencies around the
-home pose (paper section 4.1; amplitudes of ``paper.AMPLITUDE``). For every design and
+The test set is pure sine motions on every coordinate of the designs' mechanisms (their topology:
+for the 3PRS z, psi and theta) at several frequencies around the home pose (paper section 4.1;
+amplitudes of ``paper.AMPLITUDE``, ``amplitude`` for a coordinate the paper does not move). For every design and
 motion: the closed-loop -3 dB bandwidth, peak and RMS motor torque, peak tracking error and
 parasitic motion amplitudes; and beside them each design's workspace (``mast workspace`` of its
 system: volume, smallest singularity margin inside, margin at home, distance from home to the
@@ -45,18 +46,20 @@ from typing import Callable, Mapping, Optional, Sequence, Union
 
 from fmus.common.parameters import Value
 from fmus.mechanism.designs import KINEMATIC_PARAMETERS_NAMES
+from fmus.mechanism.topology import POSE, POSE_UNITS, Coordinate
 
 from . import paper, sizing
-from .workspace import STEP_TILT_DEG, STEP_Z
+from .workspace import STEP_TILT_DEG, STEP_Z, unit_text
 from ..core.build import default_build_dir
 from ..core.components import fmu_parameters
-from ..core.ssv import typed_value
+from ..core import ssd, ssv
+from ..core.motion import system_axes
+from ..core.ssp import SSPArchive
 from .frequency import SineCase, SineResult, bandwidth, run_cases
 
 REPO = Path(__file__).resolve().parents[2]
 BASE_SSD = REPO / "ssp" / "MAST.ssd"
 FMU_DIR = default_build_dir() / "fmus"
-MOTIONS = ("z", "psi", "theta")
 #: payload [kg] the controllers do not know, for the robustness runs (assumed: about 1.5 times the
 #: 2.06 kg platform, a heavy specimen; it must stay within the drives' current at the test amplitudes)
 PAYLOAD_MISMATCH_KG = 3.0
@@ -69,16 +72,34 @@ WORKSPACE_GRID_QUICK = (0.025, math.radians(4.0))
 
 @dataclass(frozen=True)
 class TestSet:
-    """Sine motions: for each axis, each frequency [Hz], amplitude in m (z) or rad (psi, theta)."""
+    """Sine motions: for each axis, each frequency [Hz], amplitude in m (x, y, z) or rad (the angles). No
+    ``axes``: every coordinate of the designs' mechanisms (``compare``; the 3PRS: z, psi, theta)."""
 
     __test__ = False      # not a pytest test class
 
-    axes: tuple[str, ...] = MOTIONS
+    axes: tuple[str, ...] = ()
     frequencies: tuple[float, ...] = (0.5, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 8.0, 10.0)
     amplitudes: Mapping[str, float] = field(default_factory=lambda: dict(paper.AMPLITUDE))
 
 
-#: the default set: about 1 minute per design on 2 cores
+def amplitude(axis: str) -> float:
+    """The test amplitude of a coordinate: the paper's (``paper.AMPLITUDE``: z 5 mm, psi and theta 0.8 deg), and
+    for one the paper does not move (x, y, phi) assumed the paper's of the same unit (z's for a length, psi's for
+    an angle): a small motion well inside any workspace the MAST's strokes give."""
+    if axis in paper.AMPLITUDE:
+        return paper.AMPLITUDE[axis]
+    return paper.AMPLITUDE["psi" if Coordinate(axis).angular else "z"]
+
+
+def for_axes(test_set: TestSet, axes: Sequence[str]) -> TestSet:
+    """``test_set`` with the coordinates ``axes`` (of the designs' mechanisms) when it names none, and an amplitude
+    (``amplitude``) for every axis it moves that it gives none."""
+    moved = tuple(test_set.axes) or tuple(axes)
+    extra = {a: amplitude(a) for a in moved if a in POSE and a not in test_set.amplitudes}
+    return TestSet(moved, test_set.frequencies, {**test_set.amplitudes, **extra})
+
+
+#: the default set (every coordinate): about 1 minute per 3PRS design on 2 cores
 DEFAULT = TestSet()
 #: the smallest useful set (tests, smoke runs): z only, around the bandwidth
 QUICK = TestSet(axes=("z",), frequencies=(1.0, 4.0, 8.0))
@@ -116,6 +137,7 @@ class Comparison:
     wall_time_s: float
     files: list[Path]
     kind: str = "design"          # what the candidates are: "design" (mechanisms) or "controller"
+    parasitic: dict = field(default_factory=dict)    # label -> the pose components its mechanism does not command
 
     def row(self, label: str, axis: str) -> dict:
         for r in self.summary:
@@ -125,72 +147,33 @@ class Comparison:
 
 
 # ----------------------------------------------------------------------------- systems
-def _parameter_set_xml(values: Mapping[str, Value], name: str, why: str, indent: str) -> str:
-    """An inline ssd:ParameterBinding holding ``values``."""
-    rows = []
-    for key, value in values.items():
-        kind, text = typed_value(value)
-        text = text.replace("&", "&amp;").replace('"', "&quot;").replace("<", "&lt;")
-        rows.append(f'{indent}        <ssv:Parameter name="{key}" description="{why}"><ssv:{kind} value="{text}"/>'
-                    f'</ssv:Parameter>')
-    body = "\n".join(rows)
-    return (f'{indent}<ssd:ParameterBinding>\n{indent}  <ssd:ParameterValues>\n'
-            f'{indent}    <ssv:ParameterSet version="1.0" name="{name}">\n{indent}      <ssv:Parameters>\n'
-            f'{body}\n{indent}      </ssv:Parameters>\n{indent}    </ssv:ParameterSet>\n'
-            f'{indent}  </ssd:ParameterValues>\n{indent}</ssd:ParameterBinding>')
-
-
-def _bindings_span(block: str) -> tuple[str, int, int, bool]:
-    """(indent, start, end, exists) of a component's ParameterBindings, or where to create them."""
-    found = re.search(r"\n([ \t]*)<ssd:ParameterBindings>.*?</ssd:ParameterBindings>", block, re.S)
-    if found:
-        return found.group(1), found.start(), found.end(), True
-    at = re.search(r"\n([ \t]*)</ssd:Connectors>", block)
-    if at is None:
-        raise ValueError("a component to bind parameters to declares no connectors")
-    return at.group(1), at.end(), at.end(), False
-
-
 def swapped_ssd(base_text: str, fmu_name: str, params: Mapping[str, Value], label: str,
                 component_name: str = "mechanism") -> str:
     """The base system's text with its ``mechanism`` (or ``controller``) swapped for the FMU (module docstring)."""
-    mechanism_found = False
-
-    def component(m: re.Match) -> str:
-        nonlocal mechanism_found
-        block = m.group(0)
-        name = re.search(r'\bname="([^"]*)"', block).group(1)
-        source = re.search(r'\bsource="([^"]*)"', block).group(1)
-        if name == component_name:    # its own defaults replace whatever the base bound
-            mechanism_found = True
-            block = block.replace(f'source="{source}"', f'source="resources/{fmu_name}"', 1)
-            pad, start, end, _ = _bindings_span(block)
-            inline = _parameter_set_xml(params, "design", f"default of {fmu_name}", pad + "  ")
-            return block[:start] + f"\n{pad}<ssd:ParameterBindings>\n{inline}\n{pad}</ssd:ParameterBindings>" + block[end:]
+    document = ssd.read(base_text.encode("utf-8"), "the base system")
+    try:
+        swapped = document.system.component(component_name)
+    except KeyError:
+        raise ValueError(f"the base system has no component named '{component_name}' to swap") from None
+    swapped.source = f"resources/{fmu_name}"          # its own defaults replace whatever the base bound
+    swapped.bindings = [_inline(params, f"default of {fmu_name}")]
+    for comp in document.system.elements if component_name == "mechanism" else ():
         extra, why = {}, ""
-        if component_name != "mechanism":
-            return block
-        if name == "controller":
+        if comp.name == "controller":
             extra = {k: params[k] for k in KINEMATIC_NAMES if k in params}
             why = f"the controller's kinematic model: the geometry of {fmu_name}"
-        elif Path(source).stem == "MastActuator" and "beta" in params and "g" in params:
+        elif Path(comp.source).stem == "MastActuator" and "beta" in params and "g" in params:
             extra = {"g_guide": float(params["g"]) * math.cos(float(params["beta"]))}
             why = f"gravity along the guides of {fmu_name}: g cos(beta)"
-        if not extra:
-            return block
-        pad, start, end, exists = _bindings_span(block)
-        inline = _parameter_set_xml(extra, "design", why, pad + "  ")
-        if not exists:
-            return block[:start] + f"\n{pad}<ssd:ParameterBindings>\n{inline}\n{pad}</ssd:ParameterBindings>" + block[end:]
-        last = list(re.finditer(r"<ssd:ParameterBinding\b[^>]*/>|</ssd:ParameterBinding>", block[:end]))[-1]
-        return block[:last.end()] + "\n" + inline + block[last.end():]     # bound last: it overrides
+        if extra:
+            comp.bindings.append(_inline(extra, why))     # bound last: it overrides
+    document.name = f"MAST_{label}"
+    return document.to_bytes().decode("utf-8")
 
-    text = re.sub(r"<ssd:Component\b.*?</ssd:Component>", component, base_text, flags=re.S)
-    if not mechanism_found:
-        raise ValueError(f"the base system has no component named '{component_name}' to swap")
-    text = re.sub(r'(<ssd:SystemStructureDescription\b[^>]*?\bname=")[^"]*(")', rf"\g<1>MAST_{label}\g<2>", text,
-                  count=1)
-    return text
+
+def _inline(values: Mapping[str, Value], why: str) -> ssd.ParameterBinding:
+    """An inline binding of ``values``, each described by ``why``."""
+    return ssd.ParameterBinding(values=ssv.parameter_set("design", values, descriptions=dict.fromkeys(values, why)))
 
 
 def _label(path: Path, taken: set) -> str:
@@ -235,8 +218,6 @@ def prepare(mechanisms: Sequence[Union[str, Path]], out: Union[str, Path], base_
         path = Path(item)
         label = _label(path, taken)
         if path.suffix in (".ssp", ".ssd"):
-            from ..core.ssp import SSPArchive
-
             with SSPArchive(path) as archive:      # the mechanism's bound parameters (attached, geometry ...)
                 comp = archive.system.components.get("mechanism")
                 params = dict(comp.parameters) if comp is not None and component == "mechanism" else {}
@@ -267,7 +248,10 @@ def _finite(x: Optional[float]) -> Optional[float]:
     return x if x is not None and math.isfinite(x) else None
 
 
-def summarize(label: str, axis: str, amplitude: float, results: Sequence[SineResult], payload_kg: float = 0.0) -> dict:
+def summarize(label: str, axis: str, amplitude: float, results: Sequence[SineResult], payload_kg: float = 0.0,
+              parasitic: Sequence[str] = ("x", "y", "phi")) -> dict:
+    """A comparison row: one design's tests of one motion; ``parasitic``: the pose components its mechanism does
+    not command (``parasitic_of``; the 3PRS's by default), their amplitudes as ``parasitic_<c>_<unit>``."""
     ok = [r for r in results if not r.error]
     freqs = [r.frequency for r in ok]
     bw = bandwidth(freqs, [r.ratio for r in ok]) if len(ok) > 1 else None
@@ -275,7 +259,7 @@ def summarize(label: str, axis: str, amplitude: float, results: Sequence[SineRes
     rms = max((max(r.torque_rms) for r in ok), default=math.nan)
     track = max((r.tracking_peak for r in ok), default=math.nan)
     current = max((max(r.current_peak) for r in ok if r.current_peak), default=math.nan)
-    par = {k: max((r.parasitic.get(k, math.nan) for r in ok), default=math.nan) for k in ("x", "y", "phi")}
+    par = {k: max((r.parasitic.get(k, math.nan) for r in ok), default=math.nan) for k in parasitic}
     return {
         "design": label, "motion": axis, "amplitude": amplitude, "payload_kg": payload_kg,
         "bandwidth_Hz": bw,
@@ -285,7 +269,7 @@ def summarize(label: str, axis: str, amplitude: float, results: Sequence[SineRes
         "torque_peak_Nm": _finite(peak), "torque_rms_Nm": _finite(rms), "current_peak_A": _finite(current),
         "tracking_peak": _finite(track), "tracking_peak_rel": _finite(track / amplitude) if amplitude else None,
         "tracking_peak_f_min": _finite(ok[0].tracking_peak) if ok else None,   # at the lowest frequency: quasi-static
-        "parasitic_x_m": _finite(par["x"]), "parasitic_y_m": _finite(par["y"]), "parasitic_phi_rad": _finite(par["phi"]),
+        **{parasitic_column(k): _finite(v) for k, v in par.items()},
         "tests": len(results), "failed": len(results) - len(ok),
         "errors": sorted({r.error for r in results if r.error}),
     }
@@ -315,21 +299,31 @@ def compare(mechanisms: Sequence[Union[str, Path]] = (), out: Union[str, Path] =
     out = Path(out)
     test_set = test_set or (QUICK if quick else DEFAULT)
     for axis in test_set.axes:
-        if axis not in MOTIONS:
-            raise ValueError(f"test set: motion {axis!r}: expected one of {', '.join(MOTIONS)}")
+        if axis not in POSE:
+            raise ValueError(f"test set: motion {axis!r}: expected a pose component ({', '.join(POSE)})")
     kind = "controller" if controllers else "design"
     # out is made once the candidates are known: a missing FMU leaves no empty folder behind
     candidates = prepare(controllers or mechanisms, out, base_ssd, fmu_dir, "controller" if controllers else "mechanism")
+    axes_of = {}
+    for c in candidates:     # every motion a coordinate of every candidate's mechanism (its topology)
+        with SSPArchive(c.ssp) as archive:
+            axes_of[c.label] = axes = system_axes(archive.system, c.overrides(parameters))
+        test_set = for_axes(test_set, axes)
+        for axis in test_set.axes:
+            if axis not in axes:
+                raise ValueError(f"test set: motion {axis!r}: {c.label} has no such coordinate; its mechanism's "
+                                 f"coordinates are {', '.join(axes)}")
     out.mkdir(parents=True, exist_ok=True)
     if controllers and payload:
         candidates += [Candidate(f"{c.label} +{payload:g} kg", c.ssp, c.source, c.parameters, payload, c.label)
                        for c in candidates]
+        axes_of.update({c.label: axes_of[c.nominal] for c in candidates if c.nominal})
     cases, keys = [], []
     for c in candidates:
         for axis in test_set.axes:
             for f in test_set.frequencies:
                 cases.append(SineCase(c.ssp, axis, test_set.amplitudes[axis], f, c.overrides(parameters), direct,
-                                      SIZING_SIGNALS, label=c.label))
+                                      sizing_signals(len(axes_of[c.label])), label=c.label))
                 keys.append((c.label, axis))
     results_flat = run_cases(cases, workers=workers, progress=progress)
     if kind == "design" and workspace_grid is not None:
@@ -338,10 +332,12 @@ def compare(mechanisms: Sequence[Union[str, Path]] = (), out: Union[str, Path] =
     results: dict = {}
     for key, res in zip(keys, results_flat):
         results.setdefault(key, []).append(res)
-    summary = [summarize(c.label, axis, test_set.amplitudes[axis], results[(c.label, axis)], c.payload_kg)
+    summary = [summarize(c.label, axis, test_set.amplitudes[axis], results[(c.label, axis)], c.payload_kg,
+                         parasitic_of(axes_of[c.label]))
                | workspace_columns(c.workspace) | sizing_columns(c, results[(c.label, axis)], parameters)
                for c in candidates for axis in test_set.axes]
-    comp = Comparison(candidates, test_set, results, summary, 0.0, [], kind)
+    comp = Comparison(candidates, test_set, results, summary, 0.0, [], kind,
+                      {label: parasitic_of(axes) for label, axes in axes_of.items()})
     comp.files = write(comp, out, plots=plots)
     comp.wall_time_s = time.perf_counter() - t0
     meta = json.loads((out / "comparison.json").read_text())
@@ -350,9 +346,20 @@ def compare(mechanisms: Sequence[Union[str, Path]] = (), out: Union[str, Path] =
     return comp
 
 
-#: what the drive sizing of each test needs, kept in its steady state
-SIZING_SIGNALS = tuple(f"actuator_{k}.{s}" for k in (1, 2, 3) for s in sizing.SIGNALS) + tuple(
-    f"controller.i_cmd_{k}" for k in (1, 2, 3))
+def sizing_signals(n: int) -> tuple[str, ...]:
+    """What the drive sizing of each test of a system with ``n`` drives needs, kept in its steady state."""
+    return tuple(f"actuator_{k}.{s}" for k in range(1, n + 1) for s in sizing.SIGNALS) + tuple(
+        f"controller.i_cmd_{k}" for k in range(1, n + 1))
+
+
+def parasitic_of(axes: Sequence[str]) -> tuple[str, ...]:
+    """The pose components a mechanism with the coordinates ``axes`` does not command (the 3PRS: x, y, phi)."""
+    return tuple(c for c in POSE if c not in axes)
+
+
+def parasitic_column(c: str) -> str:
+    """The column of a parasitic pose component's amplitude: parasitic_<c>_<unit> (parasitic_x_m, parasitic_phi_rad)."""
+    return f"parasitic_{c}_{POSE_UNITS[c]}"
 
 
 def sizing_columns(c: Candidate, results: Sequence[SineResult],
@@ -360,7 +367,7 @@ def sizing_columns(c: Candidate, results: Sequence[SineResult],
     """The drives of a design over its tests of one motion (``mast sizing`` of each test's steady cycle, run
     continuously): the verdict, the limiting item (drive, item and test) and its margin, the highest test
     frequency up to which no test fails; ``sizing_note`` says why there is none."""
-    from ..core.ssp import SSPArchive, read_ssd
+    from ..core.ssp import read_ssd
 
     try:
         if Path(c.ssp).suffix == ".ssd":
@@ -401,8 +408,9 @@ def design_workspace(c: Candidate, grid: tuple[float, float]) -> dict:
     try:
         return workspace.summarize(workspace.compute(workspace.machine(c.ssp), grid[0], grid[1]))
     except KeyError as exc:
-        return {"error": f"no workspace: the mechanism's parameters do not describe a 3PRS (no {exc.args[0]!r}; "
-                         "`mast workspace` needs the geometry H, r, L, alpha_1..3: docs/workspace.md)"}
+        return {"error": f"no workspace: the mechanism's parameters do not describe its mechanism (no "
+                         f"{exc.args[0]!r}; `mast workspace` needs its geometry, for a 3PRS H, r, L, alpha_1..3: "
+                         "docs/workspace.md)"}
     except (ValueError, KinematicsError) as exc:
         return {"error": f"no workspace: {exc}"}
 
@@ -410,11 +418,18 @@ def design_workspace(c: Candidate, grid: tuple[float, float]) -> dict:
 WORKSPACE_COLUMNS = ("workspace_m_deg2", "margin_min", "margin_home", "singularity_distance_home_m")
 
 
+def volume_key(ws: Mapping) -> str:
+    """The key of a workspace summary's volume in m and deg (the 3PRS: volume_m_deg2; a mechanism with other
+    coordinates its own, volume_m3 for x, y, z): the summary gives it after the one in m and rad."""
+    return [k for k in ws if k.startswith("volume_")][-1]
+
+
 def workspace_columns(ws: Optional[dict]) -> dict:
-    """The workspace figures a comparison row carries (None without a workspace)."""
+    """The workspace figures a comparison row carries (None without a workspace): its volume as
+    ``workspace_<unit>`` (the 3PRS: workspace_m_deg2), the margins."""
     if not ws or "error" in ws:
         return {}
-    return {"workspace_m_deg2": ws["volume_m_deg2"], "margin_min": ws["smallest_margin"]["value"],
+    return {"workspace_" + volume_key(ws)[len("volume_"):]: ws[volume_key(ws)], "margin_min": ws["smallest_margin"]["value"],
             "margin_home": min(ws["home"]["margin_parallel"], ws["home"]["margin_inverse"]),
             "singularity_distance_home_m": ws["distance_to_singularity_at_home_m"]}
 
@@ -450,7 +465,7 @@ RUN_COLUMNS = ("design", "motion", "frequency_Hz", "amplitude", "magnitude", "ma
                "parasitic_phi_rad", "error")
 
 
-def _run_row(label: str, r: SineResult) -> dict:
+def _run_row(label: str, r: SineResult, parasitic: Sequence[str] = ("x", "y", "phi")) -> dict:
     ok = not r.error
     return {"design": label, "motion": r.axis, "frequency_Hz": r.frequency, "amplitude": r.amplitude,
             "magnitude": r.magnitude if ok else None,
@@ -459,8 +474,24 @@ def _run_row(label: str, r: SineResult) -> dict:
             "torque_peak_Nm": max(r.torque_peak) if ok else None, "torque_rms_Nm": max(r.torque_rms) if ok else None,
             "current_peak_A": max(r.current_peak) if ok and r.current_peak else None,
             "tracking_peak": r.tracking_peak if ok else None,
-            "parasitic_x_m": r.parasitic.get("x") if ok else None, "parasitic_y_m": r.parasitic.get("y") if ok else None,
-            "parasitic_phi_rad": r.parasitic.get("phi") if ok else None, "error": r.error or ""}
+            **{parasitic_column(c): r.parasitic.get(c) if ok else None for c in parasitic}, "error": r.error or ""}
+
+
+def columns(base: Sequence[str], rows: Sequence[Mapping]) -> tuple[str, ...]:
+    """``base`` (the 3PRS's columns) with its parasitic_* and workspace volume columns replaced by those ``rows``
+    have (pose order; for the 3PRS the same), the base's when they have none."""
+    keys = dict.fromkeys(k for r in rows for k in r)
+    parasitic = tuple(parasitic_column(c) for c in POSE if parasitic_column(c) in keys)
+    volumes = tuple(k for k in keys if k.startswith("workspace_"))
+    out: list[str] = []
+    for col in base:
+        if col.startswith("parasitic_"):
+            out += [c for c in parasitic or (col,) if c not in out]
+        elif col.startswith("workspace_"):
+            out += volumes or [col]
+        else:
+            out.append(col)
+    return tuple(out)
 
 
 def _fmt(v) -> str:
@@ -498,13 +529,14 @@ def write(comp: Comparison, out: Path, plots: bool = True) -> list[Path]:
     files = []
     kind = comp.kind
     with open(out / "comparison.csv", "w", newline="") as handle:
-        w = csv.DictWriter(handle, (kind,) + SUMMARY_COLUMNS[1:], extrasaction="ignore")
+        w = csv.DictWriter(handle, (kind,) + columns(SUMMARY_COLUMNS, comp.summary)[1:], extrasaction="ignore")
         w.writeheader()
         w.writerows(_renamed(comp.summary, kind))
     files.append(out / "comparison.csv")
-    runs = _renamed([_run_row(label, r) for (label, _), rs in comp.results.items() for r in rs], kind)
+    runs = _renamed([_run_row(label, r, comp.parasitic.get(label, ("x", "y", "phi")))
+                     for (label, _), rs in comp.results.items() for r in rs], kind)
     with open(out / "runs.csv", "w", newline="") as handle:
-        w = csv.DictWriter(handle, (kind,) + RUN_COLUMNS[1:])
+        w = csv.DictWriter(handle, (kind,) + columns(RUN_COLUMNS, runs)[1:])
         w.writeheader()
         w.writerows(runs)
     files.append(out / "runs.csv")
@@ -514,43 +546,51 @@ def write(comp: Comparison, out: Path, plots: bool = True) -> list[Path]:
                      for c in comp.candidates],
         "test_set": {"axes": list(comp.test_set.axes), "frequencies_Hz": list(comp.test_set.frequencies),
                      "amplitudes": dict(comp.test_set.amplitudes),
-                     "amplitude_units": {"z": "m", "psi": "rad", "theta": "rad"}},
+                     "amplitude_units": {a: POSE_UNITS[a] for a in comp.test_set.amplitudes}},
         "summary": _renamed(comp.summary, kind), "runs": runs, "fig10": fig10(comp) if kind == "design" else None,
         "robustness": robustness(comp),
     }
     (out / "comparison.json").write_text(json.dumps(data, indent=2))
     files.append(out / "comparison.json")
+    parasitic = [c for c in columns(SUMMARY_COLUMNS, comp.summary) if c.startswith("parasitic_")]
     lines = [f"| {kind} | motion | bandwidth [Hz] | peak torque [N m] | RMS torque [N m] | peak current [A] "
-             "| peak tracking error | parasitic x [m] | parasitic y [m] | parasitic phi [rad] | failed "
-             "| drives (mast sizing) | limiting item | margin | drives hold up to [Hz] |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             "| peak tracking error | " + " | ".join(f"parasitic {c.split('_')[1]} [{c.split('_')[2]}]" for c in parasitic)
+             + " | failed | drives (mast sizing) | limiting item | margin | drives hold up to [Hz] |",
+             "|---|---|---|---|---|---|---|" + "---|" * len(parasitic) + "---|---|---|---|---|"]
     for r in comp.summary:
-        unit = "m" if r["motion"] == "z" else "rad"
+        unit = POSE_UNITS[r["motion"]]
         bw = _fmt(r["bandwidth_Hz"]) if r["bandwidth_Hz"] is not None else r["bandwidth_note"]
         lines.append(f"| {r['design']} | {r['motion']} | {bw} | {_fmt(r['torque_peak_Nm'])} | {_fmt(r['torque_rms_Nm'])} "
                      f"| {_fmt(r['current_peak_A'])} "
-                     f"| {_fmt(r['tracking_peak'])} {unit} | {_fmt(r['parasitic_x_m'])} | {_fmt(r['parasitic_y_m'])} "
-                     f"| {_fmt(r['parasitic_phi_rad'])} | {r['failed']}/{r['tests']} "
+                     f"| {_fmt(r['tracking_peak'])} {unit} | " + " | ".join(_fmt(r.get(c)) for c in parasitic)
+                     + f" | {r['failed']}/{r['tests']} "
                      f"| {r.get('sizing_verdict') or '-'} | {r.get('sizing_limiting') or r.get('sizing_note') or '-'} "
                      f"| {_fmt(100 * r['sizing_margin']) + ' %' if r.get('sizing_margin') is not None else '-'} "
                      f"| {_fmt(r.get('sizing_holds_up_to_Hz'))} |")
     spaces = [c for c in comp.candidates if c.workspace]
     if spaces:
+        ok = [c.workspace for c in spaces if "error" not in c.workspace]
+        ranges = list(dict.fromkeys(k for w in ok for k in w["ranges_through_home"])) or ["z_m", "psi_deg", "theta_deg"]
+        volumes = list(dict.fromkeys(volume_key(w) for w in ok)) or ["volume_m_deg2"]
+        one = len(volumes) == 1            # one unit: in the header, else in each cell
         lines += ["", "Workspace (`mast workspace`: within the strokes, on the home branch, at least "
                   f"{spaces[0].workspace.get('margin_limit', '-')} m/m from a singularity, connected to home):", "",
-                  "| design | volume [m deg^2] | z through home [m] | psi through home [deg] | theta through home [deg] "
-                  "| smallest margin [m/m] | margin at home [m/m] | home to singularity [m] | worst dexterity |",
-                  "|---|---|---|---|---|---|---|---|---|"]
+                  f"| design | volume{f' [{unit_text(volumes[0][7:])}]' if one else ''} | "
+                  + " | ".join(f"{k.rpartition('_')[0]} through home [{k.rpartition('_')[2]}]" for k in ranges)
+                  + " | smallest margin [m/m] | margin at home [m/m] | home to singularity [m] | worst dexterity |",
+                  "|---|---|" + "---|" * len(ranges) + "---|---|---|---|"]
         for c in spaces:
             w = c.workspace
             if "error" in w:
-                lines.append(f"| {c.label} | {w['error']} | | | | | | | |")
+                lines.append(f"| {c.label} | {w['error']} |" + " |" * (len(ranges) + 4))
                 continue
             r = w["ranges_through_home"]
-            rng = lambda k, f: f"{r[k][0]:{f}} .. {r[k][1]:{f}}"  # noqa: E731
+            rng = lambda k: (f"{r[k][0]:.3g} .. {r[k][1]:.3g}" if k.endswith("_deg")     # noqa: E731
+                             else f"{r[k][0]:.4g} .. {r[k][1]:.4g}") if k in r else "-"
             cols = workspace_columns(w)
-            lines.append(f"| {c.label} | {_fmt(w['volume_m_deg2'])} | {rng('z_m', '.4g')} | {rng('psi_deg', '.3g')} "
-                         f"| {rng('theta_deg', '.3g')} | {_fmt(cols['margin_min'])} | {_fmt(cols['margin_home'])} "
+            volume = _fmt(w[volume_key(w)]) + ("" if one else f" {unit_text(volume_key(w)[7:])}")
+            lines.append(f"| {c.label} | {volume} | " + " | ".join(rng(k) for k in ranges)
+                         + f" | {_fmt(cols['margin_min'])} | {_fmt(cols['margin_home'])} "
                          f"| {_fmt(cols['singularity_distance_home_m'])} | {_fmt(w['worst_dexterity']['value'])} |")
     f10 = data["fig10"]
     if f10:
@@ -565,7 +605,7 @@ def write(comp: Comparison, out: Path, plots: bool = True) -> list[Path]:
                   f"{min(comp.test_set.frequencies):g} Hz | with payload | ratio | peak tracking error | with payload "
                   "| ratio |", "|---|---|---|---|---|---|---|---|---|---|---|"]
         for r in data["robustness"]:
-            unit = "m" if r["motion"] == "z" else "rad"
+            unit = POSE_UNITS[r["motion"]]
             lines.append(f"| {r['controller']} | {r['motion']} | {_fmt(r['payload_kg'])} | {_fmt(r['bandwidth_Hz'])} "
                          f"| {_fmt(r['bandwidth_payload_Hz'])} | {_fmt(r['tracking_peak_f_min'])} {unit} "
                          f"| {_fmt(r['tracking_peak_f_min_payload'])} {unit} | {_fmt(r['tracking_peak_f_min_ratio'])} "
@@ -614,7 +654,7 @@ def _motion_plots(comp: Comparison, out: Path) -> list[Path]:
         ax[1].set_yscale("log")
         ax[0].legend(fontsize=7)
         amplitude = comp.test_set.amplitudes[axis]
-        fig.suptitle(f"{axis} motion, amplitude {amplitude:g} {'m' if axis == 'z' else 'rad'}: controllers as designed "
+        fig.suptitle(f"{axis} motion, amplitude {amplitude:g} {POSE_UNITS[axis]}: controllers as designed "
                      f"(solid) and with a payload they do not know (dashed)")
         fig.tight_layout()
         fig.savefig(out / f"motion_{axis}.png", dpi=110)
@@ -709,7 +749,7 @@ def _plots(comp: Comparison, out: Path) -> list[Path]:
                   [("peak", lambda r: max(r.torque_peak)), ("RMS", lambda r: max(r.torque_rms))])
     per_frequency("tracking.png", "m (z) / rad", "peak tracking error, steady state",
                   [("peak error", lambda r: r.tracking_peak)])
-    per_frequency("parasitic.png", ["m", "m", "rad"], "parasitic motions: half peak-to-peak, steady state",
-                  [("x", lambda r: r.parasitic.get("x", math.nan)), ("y", lambda r: r.parasitic.get("y", math.nan)),
-                   ("phi", lambda r: r.parasitic.get("phi", math.nan))])
+    parasitic = [c for c in POSE if any(c in p for p in comp.parasitic.values())] or ["x", "y", "phi"]
+    per_frequency("parasitic.png", [POSE_UNITS[c] for c in parasitic], "parasitic motions: half peak-to-peak, steady state",
+                  [(c, lambda r, c=c: r.parasitic.get(c, math.nan)) for c in parasitic])
     return files

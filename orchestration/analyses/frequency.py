@@ -18,9 +18,10 @@ from typing import Callable, Mapping, Optional, Sequence
 import numpy as np
 
 from fmus.common.parameters import Value
+from fmus.mechanism.topology import POSE
 
 from ..core.master import Result
-from ..core.motion import SineMotion
+from ..core.motion import SineMotion, system_axes
 
 #: settling time before measuring: at least this long and this many periods [s, periods]
 SETTLE_S, SETTLE_PERIODS = 1.0, 1
@@ -60,8 +61,8 @@ class SineResult:
     torque_rms: list[float]
     torque_h3_h1: list[float]           # 3rd / 1st harmonic of the motor torque (square wave: 1/3)
     tracking_peak: float                # max |command - achieved| on the axis, steady state
-    parasitic: dict[str, float]         # peak-to-peak/2 of x, y, phi in steady state
-    current_peak: list[float] = field(default_factory=list)   # per axis, max |i_cmd| in steady state [A] (if recorded)
+    parasitic: dict[str, float]         # peak-to-peak/2 of each parasitic pose component (3PRS: x, y, phi), steady
+    current_peak: list[float] = field(default_factory=list)   # per drive, max |i_cmd| in steady state [A] (if recorded)
     error: Optional[str] = None
     signals: dict = field(default_factory=dict)  # steady-state time series, if asked for
 
@@ -77,27 +78,46 @@ class SineResult:
 def sine_test(ssp: str, axis: str, amplitude: float, frequency: float,
               parameters: Optional[Mapping[str, Mapping[str, Value]]] = None, direct: bool = False,
               keep: Sequence[str] = ()) -> SineResult:
-    """Run one sine test (amplitude in metres for z, radians for psi/theta) and analyse it."""
+    """Run one sine test (amplitude in metres for a length, radians for an angle) and analyse it."""
     from ..core.run import simulate
+    from ..core.ssp import SSPArchive
 
     start, stop = measuring_window(frequency)
-    record = [f"{axis}_cmd", f"mechanism.{axis}", "mechanism.x", "mechanism.y", "mechanism.phi",
-              "actuator_1.tau_m", "actuator_2.tau_m", "actuator_3.tau_m",
-              "controller.i_cmd_1", "controller.i_cmd_2", "controller.i_cmd_3"]
+    with SSPArchive(ssp) as archive:
+        axes = system_axes(archive.system, parameters)
+    parasitic = tuple(c for c in POSE if c not in axes)
+    record = [f"{axis}_cmd", f"mechanism.{axis}", *(f"mechanism.{c}" for c in parasitic),
+              *(f"actuator_{k}.tau_m" for k in range(1, len(axes) + 1)),
+              *(f"controller.i_cmd_{k}" for k in range(1, len(axes) + 1))]
     record = list(dict.fromkeys(record + list(keep)))
     result = simulate(ssp, SineMotion(axis, amplitude, frequency), stop, parameters=parameters,
-                      record=record, record_step=_record_step(frequency), direct=direct)
-    return analyse(result, axis, amplitude, frequency, start, keep)
+                      record=record, record_step=record_step_of(frequency), direct=direct)
+    return analyse(result, axis, amplitude, frequency, start, keep, parasitic)
+
+
+def drives_in(names: Sequence[str]) -> list[int]:
+    """The drives k whose signals ``actuator_<k>.*`` or ``controller.<name>_<k>`` are among ``names``, in order."""
+    found = set()
+    for name in names:
+        element, _, variable = name.partition(".")
+        for text in (element.rpartition("actuator_")[2] if element.startswith("actuator_") else "",
+                     variable.rpartition("_")[2] if element == "controller" else ""):
+            if text.isdigit():
+                found.add(int(text))
+    return sorted(found)
 
 
 def analyse(result: Result, axis: str, amplitude: float, frequency: float, start: float,
-            keep: Sequence[str] = ()) -> SineResult:
+            keep: Sequence[str] = (), parasitic: Sequence[str] = ("x", "y", "phi")) -> SineResult:
     """Steady-state analysis of a sine test: signals named ``<axis>_cmd``, ``mechanism.<axis>``,
-    and, when recorded, ``actuator_<j>.tau_m`` and ``mechanism.x/y/phi``."""
+    and, when recorded, ``actuator_<k>.tau_m``, ``controller.i_cmd_<k>`` of every drive k and
+    ``mechanism.<c>`` of the ``parasitic`` pose components (the mechanism's ``Topology.parasitic``; by default the
+    3PRS's)."""
     steady = result.time >= start - 1e-9
     t = result.time[steady]
     cmd, got = result[f"{axis}_cmd"][steady], result[f"mechanism.{axis}"][steady]
-    torques = [result[f"actuator_{j}.tau_m"][steady] for j in (1, 2, 3) if f"actuator_{j}.tau_m" in result.signals]
+    drives = drives_in(list(result.signals))
+    torques = [result[f"actuator_{j}.tau_m"][steady] for j in drives if f"actuator_{j}.tau_m" in result.signals]
     h3h1 = []
     for tau in torques:
         h1 = abs(harmonic(t, tau, frequency))
@@ -109,15 +129,15 @@ def analyse(result: Result, axis: str, amplitude: float, frequency: float, start
         torque_rms=[float(np.sqrt(np.mean(tau ** 2))) for tau in torques],
         torque_h3_h1=h3h1,
         tracking_peak=float(np.abs(cmd - got).max()),
-        current_peak=[float(np.abs(result[f"controller.i_cmd_{j}"][steady]).max()) for j in (1, 2, 3)
+        current_peak=[float(np.abs(result[f"controller.i_cmd_{j}"][steady]).max()) for j in drives
                       if f"controller.i_cmd_{j}" in result.signals],
-        parasitic={k: float(np.ptp(result[f"mechanism.{k}"][steady]) / 2) for k in ("x", "y", "phi")
+        parasitic={k: float(np.ptp(result[f"mechanism.{k}"][steady]) / 2) for k in parasitic
                    if f"mechanism.{k}" in result.signals},
         signals={"time": t, **{name: result[name][steady] for name in keep}} if keep else {},
     )
 
 
-def _record_step(frequency: float) -> float:
+def record_step_of(frequency: float) -> float:
     """One sample per millisecond, the MAST systems' exchange step (docs/interfaces.md): the outputs change only
     there, so a finer record adds no information (at 50 Hz, 20 samples a period for the harmonics)."""
     return 1e-3

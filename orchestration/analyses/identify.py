@@ -25,6 +25,7 @@ from typing import Callable, Optional, Sequence
 
 import numpy as np
 
+from ..core import ssv
 from . import paper
 from .frequency import SineCase, run_cases
 
@@ -148,10 +149,6 @@ def fit_gains(ssp: str, start: dict[str, float], workers: int = 2,
 
 def write_ssv(fit: GainFit, path: Path, command: str) -> None:
     """The fitted gains as a parameter set with its provenance (bind it after controller_joint.ssv)."""
-    from lxml import etree
-
-    from ..core.ssp import NS
-
     rows = []
     targets = fit_targets()
     for f, (mag, ph) in fit.responses.items():
@@ -162,21 +159,10 @@ def write_ssv(fit: GainFit, path: Path, command: str) -> None:
                   f"reading) against section 4.2, z at {' and '.join(f'{f:g}' for f in targets)} Hz only (the other "
                   f"rows of mast reproduce are predictions); scaled cost {fit.cost:.3f} over {fit.evaluations} "
                   f"evaluations; " + "; ".join(rows))
-    ssv, ssc = NS["ssv"], NS["ssc"]
-    root = etree.Element(f"{{{ssv}}}ParameterSet", nsmap={"ssv": ssv, "ssc": ssc}, version="1.0",
-                         name=path.stem)
-    root.append(etree.Comment(" Controller gains identified from the paper's reported position responses "
-                              f"(section 4.2) in the paper reading ({READING_SET}.ssv): bound by mast reproduce, "
-                              "not by the default system. "))
-    params = etree.SubElement(root, f"{{{ssv}}}Parameters")
-    for g in GAINS:
-        par = etree.SubElement(params, f"{{{ssv}}}Parameter", name=g, description=provenance)
-        etree.SubElement(par, f"{{{ssv}}}Real", value=repr(fit.gains[g]), unit=UNITS[g])
-    units = etree.SubElement(root, f"{{{ssv}}}Units")
-    for unit, base in (("1/s", {"s": "-1"}), ("A.s/rad", {"A": "1", "s": "1", "rad": "-1"}),
-                       ("A/rad", {"A": "1", "rad": "-1"})):
-        etree.SubElement(etree.SubElement(units, f"{{{ssc}}}Unit", name=unit), f"{{{ssc}}}BaseUnit", **base)
-    path.write_bytes(etree.tostring(root, xml_declaration=True, encoding="UTF-8", pretty_print=True))
+    ssv.write(path, ssv.parameter_set(
+        path.stem, {g: fit.gains[g] for g in GAINS}, UNITS, dict.fromkeys(GAINS, provenance),
+        "Controller gains identified from the paper's reported position responses (section 4.2) in the paper "
+        f"reading ({READING_SET}.ssv): bound by mast reproduce, not by the default system."))
 
 
 def start_gains(ssp: str, start_set: str = "controller_joint") -> dict[str, float]:
@@ -196,7 +182,15 @@ def start_gains(ssp: str, start_set: str = "controller_joint") -> dict[str, floa
 
 
 def main(ssp: str, out: Optional[Path], workers: int = 2) -> GainFit:
+    """`mast fit-gains`: the fit, written (``out``: a folder, made if missing) as ``out/<GAINS_SET>.ssv``, the
+    parameter set `mast reproduce` binds (``--out ssp/resources`` replaces the shipped one)."""
     fit = fit_gains(ssp, start_gains(ssp), workers)
     if out is not None:
-        write_ssv(fit, out, f"mast fit-gains --out {out.name}")
+        out.mkdir(parents=True, exist_ok=True)
+        write_ssv(fit, gains_file(out), f"mast fit-gains --out {out.name}")
     return fit
+
+
+def gains_file(out: Path) -> Path:
+    """Where `mast fit-gains --out DIR` writes the fitted gains."""
+    return out / f"{GAINS_SET}.ssv"

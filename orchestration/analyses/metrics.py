@@ -9,11 +9,13 @@ takes the measuring window of :func:`mast.analyses.frequency.measuring_window`
 Families (the ``outputs.metrics`` names of a batch config):
 
 ``tracking``   ``tracking_<axis>_rms_<unit>``, ``tracking_<axis>_peak_<unit>``: command minus
-               achieved pose, per axis z [m], psi and theta [rad]
+               achieved pose, per commanded coordinate (``<axis>_cmd`` recorded; the 3PRS: z [m],
+               psi and theta [rad])
 ``sine``       ``magnitude``, ``magnitude_dB``, ``phase_deg``: closed-loop response of a sine test
                (ratio of the steady-state harmonics of achieved and commanded pose, by
                :func:`mast.analyses.frequency.analyse`), and ``tau_m_<k>_h3_h1`` (3rd/1st harmonic of torque)
-``torque``     ``tau_m_<k>_peak_Nm``, ``tau_m_<k>_rms_Nm`` per actuator k
+``torque``     ``tau_m_<k>_peak_Nm``, ``tau_m_<k>_rms_Nm`` per actuator k (every drive k whose signals
+               were recorded: the system's n)
 ``current``    ``i_m_<k>_peak_A``, ``i_m_<k>_rms_A`` per actuator k
 ``sizing``     ``sizing_margin``: the smallest margin of the drives against their ratings (``mast sizing``,
                docs/sizing.md; the window as the duty cycle, repeated to steady state for the winding
@@ -35,30 +37,30 @@ from typing import Mapping, Optional, Sequence
 import numpy as np
 
 from . import sizing
-from .frequency import analyse, bandwidth
+from fmus.mechanism.topology import POSE, POSE_UNITS
+
+from .frequency import analyse, bandwidth, drives_in
 from ..core.master import Result
-from ..core.motion import AXES
 
 FAMILIES = ("tracking", "sine", "torque", "current", "saturation", "sizing")
-ACTUATORS = (1, 2, 3)
-UNITS = {"z": "m", "psi": "rad", "theta": "rad"}
 
 
 def signals_for(families: Sequence[str], available: Sequence[str]) -> list[str]:
     """The signals the metric families need, among those ``available`` in the system."""
     want: list[str] = []
-    if "tracking" in families or "sine" in families:
-        want += [s for a in AXES for s in (f"{a}_cmd", f"mechanism.{a}")]
-    if "torque" in families or "sine" in families:
-        want += [f"actuator_{k}.tau_m" for k in ACTUATORS]
-    if "current" in families:
-        want += [f"actuator_{k}.i_m" for k in ACTUATORS]
-    if "saturation" in families:
-        want += [s for k in ACTUATORS for s in (f"controller.i_cmd_{k}", f"controller.u_{k}")]
-    if "sizing" in families:
-        want += [f"actuator_{k}.{s}" for k in ACTUATORS for s in sizing.SIGNALS] + [
-            f"controller.i_cmd_{k}" for k in ACTUATORS]
     have = set(available)
+    numbers = drives_in(available)       # the system's drives, 1..n
+    if "tracking" in families or "sine" in families:     # the commanded coordinates
+        want += [s for a in POSE if f"{a}_cmd" in have for s in (f"{a}_cmd", f"mechanism.{a}")]
+    if "torque" in families or "sine" in families:
+        want += [f"actuator_{k}.tau_m" for k in numbers]
+    if "current" in families:
+        want += [f"actuator_{k}.i_m" for k in numbers]
+    if "saturation" in families:
+        want += [s for k in numbers for s in (f"controller.i_cmd_{k}", f"controller.u_{k}")]
+    if "sizing" in families:
+        want += [f"actuator_{k}.{s}" for k in numbers for s in sizing.SIGNALS] + [
+            f"controller.i_cmd_{k}" for k in numbers]
     return [s for s in dict.fromkeys(want) if s in have]
 
 
@@ -84,17 +86,18 @@ def case_metrics(result: Result, families: Sequence[str] = FAMILIES, motion: Opt
     """
     w = window(result, start, stop)
     sig = w.signals
+    numbers = drives_in(list(sig))       # the drives recorded, 1..n
     out: dict[str, float] = {}
     if not len(w.time):
         return out
     out["window_start_s"], out["window_stop_s"] = float(w.time[0]), float(w.time[-1])
     if "tracking" in families:
-        for a in AXES:
+        for a in POSE:
             cmd, got = sig.get(f"{a}_cmd"), sig.get(f"mechanism.{a}")
             if cmd is not None and got is not None:
                 err = cmd - got
-                out[f"tracking_{a}_rms_{UNITS[a]}"] = _rms(err)
-                out[f"tracking_{a}_peak_{UNITS[a]}"] = float(np.max(np.abs(err)))
+                out[f"tracking_{a}_rms_{POSE_UNITS[a]}"] = _rms(err)
+                out[f"tracking_{a}_peak_{POSE_UNITS[a]}"] = float(np.max(np.abs(err)))
     if "sine" in families and motion and motion.get("frequency", 0) > 0 and motion.get("amplitude", 0) != 0:
         a, f = motion["axis"], float(motion["frequency"])
         if f"{a}_cmd" in sig and f"mechanism.{a}" in sig:
@@ -103,11 +106,11 @@ def case_metrics(result: Result, families: Sequence[str] = FAMILIES, motion: Opt
             out["magnitude"] = mag
             out["magnitude_dB"] = 20.0 * math.log10(mag) if mag > 0 else -math.inf
             out["phase_deg"] = sine.phase_deg
-            for k, value in zip(ACTUATORS, sine.torque_h3_h1):
+            for k, value in zip([k for k in numbers if f"actuator_{k}.tau_m" in sig], sine.torque_h3_h1):
                 out[f"tau_m_{k}_h3_h1"] = float(value)
     for family, signal, unit in (("torque", "tau_m", "Nm"), ("current", "i_m", "A")):
         if family in families:
-            for k in ACTUATORS:
+            for k in numbers:
                 y = sig.get(f"actuator_{k}.{signal}")
                 if y is not None:
                     out[f"{signal}_{k}_peak_{unit}"] = float(np.max(np.abs(y)))
@@ -125,7 +128,7 @@ def case_metrics(result: Result, families: Sequence[str] = FAMILIES, motion: Opt
         dt = float(np.median(np.diff(w.time)))
         any_sat = np.zeros(len(w.time), dtype=bool)
         found = False
-        for k in ACTUATORS:
+        for k in numbers:
             sat = np.zeros(len(w.time), dtype=bool)
             for name, limit in ((f"controller.i_cmd_{k}", limits.get("i_max")), (f"actuator_{k}.u", limits.get("u_max"))):
                 if name in sig and limit:
@@ -137,7 +140,7 @@ def case_metrics(result: Result, families: Sequence[str] = FAMILIES, motion: Opt
             out["saturation_s"] = float(np.count_nonzero(any_sat) * dt)
             out["saturation_fraction"] = float(np.count_nonzero(any_sat) / len(w.time))
         else:
-            for k in ACTUATORS:
+            for k in numbers:
                 out.pop(f"saturation_{k}_s", None)
     return out
 

@@ -9,6 +9,10 @@ The tolerance is the paper's own simulation-vs-experiment deviation, applied as 
 says it (section 4.2): "the simulated positions present a maximum deviation of approximately
 11 % in magnitude and 13 % in phase respect to the experimental signals". Both are relative:
 13 % of the phase lag, not 13 degrees. Numbers that are not phases are held to the 11 %.
+
+Everything here is about the paper's machine, the 3PRS MAST: its motions (``MOTIONS``: z, psi,
+theta) and amplitudes (``AMPLITUDE``) are the 3PRS's. Another mechanism's motions are its
+topology's coordinates (``mast.core.motion.system_axes``); ``compare.amplitude`` gives them an amplitude.
 """
 from __future__ import annotations
 

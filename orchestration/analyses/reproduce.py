@@ -11,6 +11,11 @@ ssp/resources/actuator_paper_reading.ssv with the controller gains fitted in it
 physical variants (manufacturer data; identified J1/1.56 and Coulomb friction).
 The drive's current limit is part of every test; the report says which tests
 touch it.
+
+The reproduction is the paper's, so it is the 3PRS's on purpose: its motions z, psi, theta
+(``MOTIONS``), its three motors (``KEEP``, the figures' motor 1..3) and its actuator_1 as the
+drive of Table 1. The analyses it is built from (``frequency``, ``compare``, ``metrics``) follow
+any mechanism's topology; this module does not, and runs only the MAST's own systems.
 """
 from __future__ import annotations
 

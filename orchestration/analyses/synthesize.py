@@ -20,7 +20,9 @@ from typing import Mapping, Optional, Sequence
 import numpy as np
 
 from fmus.actuator.sensor import measure
+from fmus.mechanism.topology import POSE, Coordinate
 
+from ..core.motion import pose_inputs, system_axes
 from ..data.measured import AXES, FORMAT, VERSION, controller_geometry, write_test_csv
 
 #: the drive's torque filter that every synthetic measurement goes through [s] (about 320 Hz)
@@ -35,7 +37,8 @@ SETTLE_S = 1.0
 
 @dataclass(frozen=True)
 class TestSpec:
-    """One sine test: motion z (amplitude in m) or psi/theta (amplitude in rad)."""
+    """One sine test: motion a coordinate of the system's mechanism (the 3PRS: z, psi, theta), amplitude in m
+    for a length, rad for an angle."""
 
     motion: str
     amplitude: float
@@ -64,13 +67,13 @@ DEFAULT_TESTS: tuple[TestSpec, ...] = (
 
 
 def parse_tests(text: str) -> list[TestSpec]:
-    """'z:0.005:0.4,theta:0.8:2' (amplitude in m for z, degrees for psi/theta; frequency in Hz)."""
+    """'z:0.005:0.4,theta:0.8:2' (amplitude in m for a length, degrees for an angle; frequency in Hz)."""
     tests = []
     for item in text.split(","):
         parts = item.strip().split(":")
-        if len(parts) not in (3, 4) or parts[0] not in ("z", "psi", "theta"):
+        if len(parts) not in (3, 4) or parts[0] not in POSE:
             raise ValueError(f"--tests item {item!r}: expected MOTION:AMPLITUDE:FREQUENCY[:DURATION], "
-                             "motion z, psi or theta")
+                             f"motion a pose coordinate ({', '.join(POSE)}; the 3PRS's: z, psi or theta)")
         try:
             a, f = float(parts[1]), float(parts[2])
             d = float(parts[3]) if len(parts) == 4 else 0.0
@@ -79,7 +82,7 @@ def parse_tests(text: str) -> list[TestSpec]:
         if not (math.isfinite(a) and f > 0 and math.isfinite(f) and d >= 0 and math.isfinite(d)):
             raise ValueError(f"--tests item {item!r}: expected a finite amplitude, a frequency > 0 Hz and a "
                              "duration >= 0 s")
-        tests.append(TestSpec(parts[0], a if parts[0] == "z" else math.radians(a), f, d))
+        tests.append(TestSpec(parts[0], math.radians(a) if Coordinate(parts[0]).angular else a, f, d))
     return tests
 
 
@@ -100,8 +103,8 @@ def _synth_worker(args: tuple) -> dict:
     from ..core.motion import SineMotion
     from ..core.run import simulate
 
-    ssp, spec, parameters, direct, steps = args
-    record = ["z_cmd", "psi_cmd", "theta_cmd", "mechanism.z", "mechanism.psi", "mechanism.theta"]
+    ssp, spec, parameters, direct, steps, axes = args
+    record = [*pose_inputs(axes), *(f"mechanism.{a}" for a in axes)]
     for j in AXES:
         record += [f"actuator_{j}.rho", f"actuator_{j}.tau_meas", f"actuator_{j}.tau_m"]
     res = simulate(ssp, SineMotion(spec.motion, spec.amplitude, spec.frequency), spec.stop_time(),
@@ -133,7 +136,16 @@ def synthesize(ssp: str, out: Path, truth: Mapping[str, Mapping] = None, tests: 
         # every T_cur: the torque measured at the resolution of the drive's sensor (the diagnosis restates its chain)
         steps = drive_tick_steps(archive.system)
         base = steps[0] if steps else archive.system.base_step
-    truth = expand_overrides(truth or {}, components)
+        truth = expand_overrides(truth or {}, components)
+        axes = system_axes(archive.system, truth)
+    if len(axes) != len(AXES):
+        raise ValueError(f"{ssp}: its mechanism has {len(axes)} drives (coordinates {', '.join(axes)}); the measured-"
+                         f"data format (docs/measured-data.md, version {VERSION}) and the controller's kinematic "
+                         f"model the joint commands are logged with have {len(AXES)}")
+    for spec in tests:
+        if spec.motion not in axes:
+            raise ValueError(f"--tests motion {spec.motion!r}: {ssp} has no such coordinate; its mechanism's "
+                             f"coordinates are {', '.join(axes)}")
     geometry = controller_geometry(ssp, truth)
     every = round(sample_time / base)
     if every < 1 or abs(every * base - sample_time) > 1e-9 * sample_time:
@@ -141,7 +153,7 @@ def synthesize(ssp: str, out: Path, truth: Mapping[str, Mapping] = None, tests: 
     out.mkdir(parents=True, exist_ok=True)
     for old in out.glob("*.csv"):
         old.unlink()
-    jobs = [(str(ssp), spec, truth, direct, steps) for spec in tests]
+    jobs = [(str(ssp), spec, truth, direct, steps, axes) for spec in tests]
     names = [spec.name for spec in tests]
     if len(set(names)) != len(names):
         raise ValueError("two tests with the same motion and frequency")
@@ -158,7 +170,7 @@ def synthesize(ssp: str, out: Path, truth: Mapping[str, Mapping] = None, tests: 
         h = run["base_step"]
         idx = np.arange(0, len(run["time"]), every)
         t = run["time"][idx]
-        poses = np.column_stack([run["z_cmd"][idx], run["psi_cmd"][idx], run["theta_cmd"][idx]])
+        poses = np.column_stack([run[f"{a}_cmd"][idx] for a in axes])
         rho_cmd = np.array([inverse_kinematics(geometry, *q) for q in poses])
         rho = np.column_stack([run[f"actuator_{j}.rho"][idx] for j in AXES])
         tau_fine = np.column_stack([run[f"actuator_{j}.tau_meas"] for j in AXES])
@@ -170,12 +182,12 @@ def synthesize(ssp: str, out: Path, truth: Mapping[str, Mapping] = None, tests: 
             q = resolution["rho"]
             rho_meas = np.round(rho_meas / q) * q
         tau_meas = tau + noise["tau_m"] * rng.standard_normal(tau.shape)
-        pose = {a: run[f"mechanism.{a}"][idx] for a in ("z", "psi", "theta")}
+        pose = {a: run[f"mechanism.{a}"][idx] for a in axes}
         file = f"{spec.name}.csv"
         write_test_csv(out / file, t, rho_cmd, rho_meas, tau_meas, pose)
         entries.append({"file": file, "motion": spec.motion,
-                        "amplitude": spec.amplitude if spec.motion == "z" else math.degrees(spec.amplitude),
-                        "amplitude_unit": "m" if spec.motion == "z" else "deg",
+                        "amplitude": math.degrees(spec.amplitude) if Coordinate(spec.motion).angular else spec.amplitude,
+                        "amplitude_unit": "deg" if Coordinate(spec.motion).angular else "m",
                         "frequency": spec.frequency, "settle_s": min(spec.settle, 0.5 * spec.stop_time())})
     meta = {
         "format": FORMAT, "version": VERSION,

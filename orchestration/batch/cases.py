@@ -13,7 +13,8 @@ from typing import Any, Mapping, Optional
 
 import numpy as np
 
-from ..analyses.frequency import _record_step, measuring_window
+from ..analyses.frequency import record_step_of, measuring_window
+from ..core.motion import pose_inputs
 from .config import DISTRIBUTIONS, BatchConfig, BatchConfigError, as_list
 
 
@@ -28,11 +29,13 @@ class SystemInfo:
     nominal: dict[str, dict[str, Any]]        # component -> merged bindings
     parameters: dict[str, list[str]]          # component -> FMU parameter names
     signals: list[str]                        # recordable: system inputs and declared outputs
+    axes: tuple[str, ...] = ()                # its motion axes: its mechanism's coordinates (core.motion.system_axes)
 
     @classmethod
     def read(cls, path: Path) -> "SystemInfo":
         from fmpy import read_model_description
 
+        from ..core.motion import system_axes
         from ..core.run import default_signals
         from ..core.ssp import SSPArchive, check_archive
 
@@ -48,7 +51,8 @@ class SystemInfo:
                     by_fmu[fmu] = [v.name for v in md.modelVariables if v.causality == "parameter"]
                 names[comp] = by_fmu[fmu]
             return cls(path, sha256(path) if path.is_file() else "", list(system.components), list(system.system_inputs),
-                       {c: dict(s.parameters) for c, s in system.components.items()}, names, default_signals(system))
+                       {c: dict(s.parameters) for c, s in system.components.items()}, names, default_signals(system),
+                       system_axes(system))
 
     def resolve(self, key: str, where: str) -> list[tuple[str, str]]:
         """``ELEMENT.PARAMETER`` (ELEMENT may hold * ? [..] wildcards) -> [(component, parameter)]."""
@@ -198,9 +202,14 @@ def _make_case(config: BatchConfig, info: SystemInfo, parts: dict, index: int, c
                   "frequency": float(parts.get("frequency", motion.get("frequency", 0.0)))}
     elif "frequency" in parts:
         raise BatchConfigError("cases.frequency needs a cases.motion (axis and amplitude)")
-    if motion is not None and not all(s in info.system_inputs for s in ("z_cmd", "psi_cmd", "theta_cmd")):
-        raise BatchConfigError(f"{info.path.name} has no pose command inputs (z_cmd, psi_cmd, theta_cmd): "
-                               "it takes no cases.motion")
+    if motion is not None:
+        commands = pose_inputs(info.axes)
+        if motion["axis"] not in info.axes:
+            raise BatchConfigError(f"cases.motion axis {motion['axis']!r}: axis must be one of the coordinates of "
+                                   f"{info.path.name}'s mechanism: {', '.join(info.axes)}")
+        if not all(s in info.system_inputs for s in commands):
+            raise BatchConfigError(f"{info.path.name} has no pose command inputs ({', '.join(commands)}): "
+                                   "it takes no cases.motion")
     f = motion["frequency"] if motion else 0.0
     if config.stop_time == "auto":
         if not f > 0:
@@ -215,7 +224,7 @@ def _make_case(config: BatchConfig, info: SystemInfo, parts: dict, index: int, c
     end = stop
     if f > 0 and (stop - start) * f >= 1 - 1e-9:  # whole periods for the harmonic fit
         end = start + math.floor((stop - start) * f + 1e-9) / f
-    record_step = (_record_step(f) if f > 0 else 1e-3) if config.record_step == "auto" else float(config.record_step)
+    record_step = (record_step_of(f) if f > 0 else 1e-3) if config.record_step == "auto" else float(config.record_step)
     case = Case(case_id, index, parts["ssp"], inputs, dict(sorted(overrides.items())), motion, parts.get("sample"),
                 float(stop), float(record_step), (float(start), float(end)))
     defining = {"ssp": info.sha256, "parameters": case.parameters, "direct": config.direct,

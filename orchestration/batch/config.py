@@ -10,7 +10,7 @@ from pathlib import Path
 from typing import Any, Mapping, Optional, Union
 
 from ..analyses.metrics import FAMILIES
-from ..core.motion import AXES
+from fmus.mechanism.topology import POSE
 
 
 _DIMENSIONS = ("random", "ssp", "list", "grid", "motion", "frequency")  # outermost first
@@ -138,8 +138,9 @@ class BatchConfig:
             if not isinstance(m, Mapping):
                 raise BatchConfigError(f"cases.motion entry {m!r}: expected {{axis = ..., amplitude = ..., frequency = ...}}")
             _check_keys(m, "motion")
-            if m.get("axis") not in AXES:
-                raise BatchConfigError(f"cases.motion {dict(m)}: axis must be one of {', '.join(AXES)}")
+            if m.get("axis") not in POSE:     # the system's own coordinates are checked when the cases are made
+                raise BatchConfigError(f"cases.motion {dict(m)}: axis must be one of the pose components "
+                                       f"{', '.join(POSE)} (a coordinate of the system's mechanism)")
             if "frequency" in m and "frequency" in c:
                 raise BatchConfigError("give the frequency either in cases.motion or in cases.frequency, not both")
         for f in as_list(c.get("frequency", [])):

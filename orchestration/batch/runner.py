@@ -14,6 +14,8 @@ from typing import Callable, Mapping, Optional, Union
 
 import numpy as np
 
+from fmus.mechanism.topology import Coordinate
+
 from .cases import Case, SystemInfo, digest_of, expand, sha256
 from .config import BatchConfig, BatchConfigError
 from .executors import DaskCluster, LocalPool
@@ -201,7 +203,7 @@ def _task(config: BatchConfig, case: Case, info: SystemInfo, before_case, custom
     motion = None
     if case.motion is not None:
         m = case.motion
-        motion = {**m, "amplitude_si": m["amplitude"] if m["axis"] == "z" else math.radians(m["amplitude"])}
+        motion = {**m, "amplitude_si": math.radians(m["amplitude"]) if Coordinate(m["axis"]).angular else m["amplitude"]}
     return {"id": case.id, "ssp_path": str(info.path), "ssp_sha": info.sha256 or digest_of(str(info.path)),
             "direct": config.direct, "parameters": case.parameters, "motion": motion, "stop_time": case.stop_time,
             "record_step": case.record_step, "window": case.window, "keep": list(config.keep),

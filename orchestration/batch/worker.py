@@ -71,7 +71,7 @@ def _session(path: str, direct: bool):
 def run_case(task: Mapping) -> dict:
     """Run one case in this process (a worker): its metrics, kept signals, timings; never raises."""
     from ..core.master import SimulationError
-    from ..core.motion import POSE_INPUTS, PoseStep, SineMotion
+    from ..core.motion import PoseStep, SineMotion, pose_inputs, system_axes
     from ..core.run import default_signals
 
     t_case, cpu_case = time.perf_counter(), time.process_time()
@@ -87,7 +87,7 @@ def run_case(task: Mapping) -> dict:
         motion = task.get("motion")
         if motion is not None:
             stimulus = SineMotion(motion["axis"], motion["amplitude_si"], motion["frequency"])
-        elif all(s in session.system.system_inputs for s in POSE_INPUTS):
+        elif all(s in session.system.system_inputs for s in pose_inputs(system_axes(session.system))):
             stimulus = PoseStep({})   # no motion: the system holds its home pose (docs/batch.md)
         else:
             stimulus = None           # a system without inputs (its own trajectory component)

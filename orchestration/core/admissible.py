@@ -3,9 +3,9 @@
 Before the first step the master hands the extreme poses the stimulus will command
 (``Stimulus.extremes``, e.g. the home pose plus and minus a sine's amplitude) to
 ``check_commands``. Each goes through the inverse kinematics of the plant's mechanism
-(the component whose inputs ``rho_1..3`` the actuators feed, with its own bound
-parameters) and the joint positions are compared with the strokes ``[rho_min, rho_max]``
-of the actuators feeding it. A pose that is unreachable or drives a carriage off its
+(the component whose inputs ``rho_1..n`` the actuators feed, with its own bound
+parameters; n and the coordinates from its description's topology) and the joint positions
+are compared with the strokes ``[rho_min, rho_max]`` of the actuators feeding it. A pose that is unreachable or drives a carriage off its
 stroke refuses the run, naming the command, its value and the limit along that axis
 (found by bisection from the home pose), instead of a run that fails part-way or, with a
 stroke that does not stop the model, runs to the end on nonsense.
@@ -18,10 +18,7 @@ from __future__ import annotations
 import math
 from typing import Mapping, Optional, Sequence
 
-from .motion import AXES, sine_extremes
-
-#: units and display of the pose axes
-_UNIT = {"z": "m", "psi": "rad", "theta": "rad"}
+from .motion import sine_extremes, system_axes, unit
 
 
 class CommandError(ValueError):
@@ -29,45 +26,55 @@ class CommandError(ValueError):
 
 
 def _show(axis: str, value: float) -> str:
-    if axis == "z":
+    if unit(axis) == "m":
         return f"{axis}_cmd = {value:.6g} m"
     return f"{axis}_cmd = {value:.6g} rad ({math.degrees(value):.4g} deg)"
 
 
 def _plant(system, params: Mapping[str, Mapping],
-           mechanism: str) -> Optional[tuple[str, object, list[tuple[str, float, float]]]]:
-    """(mechanism name, its kinematic engine, [(actuator, rho_min, rho_max)] per joint) or None."""
+           mechanism: str) -> Optional[tuple[str, object, list[tuple[str, float, float, str]]]]:
+    """(mechanism name, its kinematic engine, [(actuator, rho_min, rho_max, unit)] per drive) or None."""
     from fmus.mechanism.designs import kinematic_engine
 
     spec = system.components.get(mechanism)
-    if spec is None or not all(f"rho_{i}" in spec.inputs for i in (1, 2, 3)):
+    if spec is None:
+        return None
+    try:
+        eng = kinematic_engine(params.get(mechanism, {}), mechanism)
+        drives = eng.description.topology.drives
+    except Exception:  # a mechanism this project does not describe (a third-party FMU): nothing to check
         return None
     strokes = []
-    for i in (1, 2, 3):
-        feed = [c for c in system.connections if c.end_element == mechanism and c.end_connector == f"rho_{i}"]
+    for k, drive in enumerate(drives, 1):
+        joint = f"rho_{k}"
+        if joint not in spec.inputs:
+            return None
+        feed = [c for c in system.connections if c.end_element == mechanism and c.end_connector == joint]
         source = params.get(feed[0].start_element, {}) if feed and feed[0].start_element else {}
         if "rho_min" not in source or "rho_max" not in source:
             return None
-        strokes.append((feed[0].start_element, float(source["rho_min"]), float(source["rho_max"])))
-    try:
-        eng = kinematic_engine(params.get(mechanism, {}), mechanism)
-    except Exception:  # a mechanism this project does not describe (a third-party FMU): nothing to check
-        return None
+        strokes.append((feed[0].start_element, float(source["rho_min"]), float(source["rho_max"]), drive.unit))
     return mechanism, eng, strokes
 
 
-#: the parameters of a pose-command component (fmus/trajectory: home pose plus one sine on every axis)
-TRAJECTORY = ("z_home", "psi_home", "theta_home", "amplitude_z", "amplitude_psi", "amplitude_theta", "frequency")
+def trajectory_parameters(axes: Sequence[str]) -> tuple[str, ...]:
+    """The parameters of a pose-command component of a system with motion axes ``axes`` (fmus/trajectory: home
+    pose plus one sine on every axis): ``<c>_home``, ``amplitude_<c>`` per axis c, then ``frequency``."""
+    return (*(f"{a}_home" for a in axes), *(f"amplitude_{a}" for a in axes), "frequency")
 
 
 def trajectory_extremes(system, params: Mapping[str, Mapping],
                         t0: float, t1: float) -> Optional[tuple[list[float], list[list[float]]]]:
-    """The extreme poses a trajectory component of ``system`` commands between t0 and t1 (None: none)."""
+    """The extreme poses a trajectory component of ``system`` commands between t0 and t1 (None: none), on the
+    system's motion axes (``motion.system_axes``)."""
+    axes = system_axes(system, params)
+    names = trajectory_parameters(axes)
+    n = len(axes)
     for name, spec in system.components.items():
         p = params.get(name, {})
-        if all(o in spec.outputs for o in ("z_cmd", "psi_cmd", "theta_cmd")) and all(k in p for k in TRAJECTORY):
-            home = [float(p[k]) for k in TRAJECTORY[:3]]
-            amplitude = [float(p[k]) for k in TRAJECTORY[3:6]]
+        if all(f"{a}_cmd" in spec.outputs for a in axes) and all(k in p for k in names):
+            home = [float(p[k]) for k in names[:n]]
+            amplitude = [float(p[k]) for k in names[n:2 * n]]
             return sine_extremes(home, amplitude, 2.0 * math.pi * float(p["frequency"]) * max(t1 - t0, 0.0))
     return None
 
@@ -80,21 +87,23 @@ def _violation(eng, strokes, pose: Sequence[float]) -> Optional[str]:
         rho = eng.ik(pose)
     except KinematicsError as err:
         return str(err)
-    for i, (actuator, lo, hi) in enumerate(strokes):
+    for i, (actuator, lo, hi, u) in enumerate(strokes):
         if not lo <= rho[i] <= hi:
-            return (f"carriage {i + 1} would be at rho_{i + 1} = {rho[i]:.6g} m, beyond the stroke "
-                    f"[{lo:g}, {hi:g}] m of {actuator}")
+            return (f"carriage {i + 1} would be at rho_{i + 1} = {rho[i]:.6g} {u}, beyond the stroke "
+                    f"[{lo:g}, {hi:g}] {u} of {actuator}")
     return None
 
 
 def check_commands(system, params: Mapping[str, Mapping], home: Sequence[float],
                    extremes: Sequence[Sequence[float]], mechanism: str = "mechanism") -> None:
-    """Raise CommandError if a pose of ``extremes`` (z [m], psi, theta [rad]) is outside the workspace
-    of ``mechanism`` (the component whose pose outputs the stimulus reads as the home pose)."""
+    """Raise CommandError if a pose of ``extremes`` (the mechanism's coordinates, in its order and units: for
+    the 3PRS z [m], psi, theta [rad]) is outside the workspace of ``mechanism`` (the component whose pose
+    outputs the stimulus reads as the home pose)."""
     plant = _plant(system, params, mechanism)
     if plant is None:
         return
     name, eng, strokes = plant
+    axes = eng.description.topology.names
     if _violation(eng, strokes, home) is not None:
         return  # the home pose itself is the initial state's business (the mechanism reports it)
     for pose in extremes:
@@ -103,9 +112,9 @@ def check_commands(system, params: Mapping[str, Mapping], home: Sequence[float],
         why = _violation(eng, strokes, pose)
         if why is None:
             continue
-        moved = [k for k in range(3) if pose[k] != home[k]] or [0]
+        moved = [k for k in range(len(axes)) if pose[k] != home[k]] or [0]
         k = moved[0]
-        axis = AXES[k]
+        axis = axes[k]
         # the limit along the direction home -> pose: bisection on the fraction s of the way
         inside, outside = 0.0, 1.0
         for _ in range(60):
@@ -119,4 +128,4 @@ def check_commands(system, params: Mapping[str, Mapping], home: Sequence[float],
         side = "largest" if pose[k] > home[k] else "smallest"
         raise CommandError(
             f"{_show(axis, pose[k])} is outside the workspace of '{name}': {why}. The {side} reachable "
-            f"{axis}_cmd on the way from the home pose ({_show(axis, home[k])}) is {limit:.6g} {_UNIT[axis]}")
+            f"{axis}_cmd on the way from the home pose ({_show(axis, home[k])}) is {limit:.6g} {unit(axis)}")

@@ -27,6 +27,7 @@ parameter set of a component, ecos applies one named set (``--parameterSet``).
 """
 from __future__ import annotations
 
+import dataclasses
 import functools
 import hashlib
 import json
@@ -44,8 +45,9 @@ from lxml import etree
 
 from fmus.common.slave import PYTHONFMU_LIBRARY_SUFFIX
 
-from .ssp import NS, applicable_parameters, read_ssd
-from .ssv import typed_value
+from . import ssd, ssv
+from .ssp import applicable_parameters, read_ssd
+from .units import Unit
 
 REPO = Path(__file__).resolve().parents[2]
 FMUS_SRC = REPO / "fmus"
@@ -88,8 +90,10 @@ FMUS = (
 
 #: Python packages the bundled model code imports (pythonfmu itself travels inside each FMU);
 #: written to resources/requirements.txt for `pythonfmu deploy`. tests/test_fmi_behaviour.py
-#: checks it against the imports of fmus/ and the project's own dependencies.
-FMU_REQUIREMENTS = ("numpy>=1.24", "scipy>=1.10", "tomli>=1.1")   # tomli: the description files on Python 3.10
+#: checks it against the imports of fmus/ and the project's own dependencies, markers included (pip, which
+#: `pythonfmu deploy` runs on the file, honours them).
+FMU_REQUIREMENTS = ("numpy>=1.24", "scipy>=1.10",
+                    "tomli>=1.1; python_version < '3.11'")   # tomli: the description files on Python 3.10
 
 #: name of the one parameter set per component in a built SSP (ecos: --parameterSet default)
 FLAT_SET_NAME = "default"
@@ -242,7 +246,7 @@ def build_fmu(spec: FmuSpec, out_dir: Path, parameters: Optional[dict] = None) -
             "keep_alive(globals())\n")
         fmu = FmuBuilder.build_FMU(script, dest=out_dir / f"{spec.model_identifier}.fmu",
                                    project_files=files, needsExecutionTool=False, canGetAndSetFMUstate=True)
-    _complete(Path(fmu), spec)
+    _complete(Path(fmu), spec, parameters)
     return Path(fmu)
 
 
@@ -286,10 +290,10 @@ def build_fmu3(spec: FmuSpec, out_dir: Path, parameters: Optional[dict] = None) 
     return target
 
 
-def _complete(fmu: Path, spec: FmuSpec) -> None:
+def _complete(fmu: Path, spec: FmuSpec, parameters: Optional[dict] = None) -> None:
     """The FMU pythonfmu wrote, with its model description completed and the C front as its linux64 binary."""
     def complete(items: dict[str, bytes]) -> None:
-        items["modelDescription.xml"] = _complete_model_description(items["modelDescription.xml"], spec)
+        items["modelDescription.xml"] = _complete_model_description(items["modelDescription.xml"], spec, parameters)
         _put_front(items, spec.model_identifier)
 
     _rewrite(fmu, complete)
@@ -305,10 +309,13 @@ def _rewrite(fmu: Path, change: Callable[[dict[str, bytes]], object]) -> None:
             zout.writestr(name, data)
 
 
-def _complete_model_description(xml: bytes, spec: FmuSpec) -> bytes:
-    """What pythonfmu 0.7 leaves out of modelDescription.xml: the units (from the model's declarations) and
-    ModelStructure/InitialUnknowns, which FMI 2.0 requires for outputs with initial="calculated"."""
-    block = block_class(spec.model_identifier)
+def _complete_model_description(xml: bytes, spec: FmuSpec, parameters: Optional[dict] = None) -> bytes:
+    """What pythonfmu 0.7 leaves out of modelDescription.xml: the units (from the model's declarations: of the class
+    whose variables the FMU's built-in ``parameters`` give, default the SSD bindings, ``Block.for_parameters``: a
+    mechanism's follow its topology) and ModelStructure/InitialUnknowns, which FMI 2.0 requires for outputs with
+    initial="calculated"."""
+    params = default_parameters(spec.model_identifier) if parameters is None else parameters
+    block = block_class(spec.model_identifier).for_parameters(params)
     units = dict(block.UNITS)
     units.update({p.name: p.unit for p in block.PARAMETERS if p.kind is float and p.unit})
     root = etree.fromstring(xml)
@@ -366,9 +373,9 @@ def build_ssp(ssd: Path, fmu_dir: Path, out_dir: Path) -> Path:
     return target
 
 
-def flatten_bindings(ssd: Path, parameter_names: Mapping[str, Union[Iterable[str], Mapping[str, str]]]
+def flatten_bindings(ssd_path: Path, parameter_names: Mapping[str, Union[Iterable[str], Mapping[str, str]]]
                      ) -> tuple[bytes, dict[str, bytes]]:
-    """``ssd`` with each component's bindings replaced by one: (SystemStructure.ssd, {archive path: .ssv}).
+    """``ssd_path`` with each component's bindings replaced by one: (SystemStructure.ssd, {archive path: .ssv}).
 
     Values merge in binding order (later bindings override), each keeping the
     unit and description of the binding that set it; the units the values use
@@ -380,83 +387,40 @@ def flatten_bindings(ssd: Path, parameter_names: Mapping[str, Union[Iterable[str
     for a mass in kg) is written converted, in the declared unit: hosts that ignore units
     (libcosim, ecos) then read the right value.
     """
-    import dataclasses
-
-    from .ssp import ssd_unit_definitions
-    from .ssv import parse_ssv
-
     declared = {c: dict(n) for c, n in parameter_names.items() if isinstance(n, Mapping)}
-    bound = applicable_parameters(read_ssd(ssd), parameter_names, declared)   # the typo and unit checks
-    doc = etree.parse(str(ssd))
-    root = doc.getroot()
-    ssd_units = ssd_unit_definitions(root, str(ssd))   # in scope for the inline values
-    ssd_unit_elements = {u.get("name"): u for u in root.iterfind("ssd:Units/ssc:Unit", NS)}
+    bound = applicable_parameters(read_ssd(ssd_path), parameter_names, declared)   # the typo and unit checks
+    document = ssd.read(ssd_path)
     sets: dict[str, bytes] = {}
-    for comp in root.iterfind("ssd:System/ssd:Elements/ssd:Component", NS):
-        bindings = comp.find("ssd:ParameterBindings", NS)
-        if bindings is None or not len(bindings.findall("ssd:ParameterBinding", NS)):
+    for comp in document.system.elements:
+        if not comp.bindings:
             continue
-        merged: dict = {}
-        units: dict[str, etree._Element] = {}
+        merged: dict[str, ssv.ParameterValue] = {}
+        units: dict[str, Unit] = {}
         sources = []
-        for binding in bindings.findall("ssd:ParameterBinding", NS):
-            source = binding.get("source")
-            if source:
-                origin, element = f"{ssd.parent / source}", etree.parse(str(ssd.parent / source)).getroot()
-                sources.append(source)
+        for binding in comp.bindings:
+            if binding.source:
+                values = ssv.read(ssd_path.parent / binding.source)
+                sources.append(binding.source)
             else:
-                element = binding.find("ssd:ParameterValues/ssv:ParameterSet", NS)
-                origin = f"{ssd} (inline values of '{comp.get('name')}')"
+                values = binding.values
                 sources.append("inline values")
-                units.update(ssd_unit_elements)   # written into the flattened set if its values use them
-            merged.update(parse_ssv(etree.tostring(element), origin=origin, units=None if source else ssd_units))
-            for unit in element.iterfind("ssv:Units/ssc:Unit", NS):
-                units[unit.get("name")] = unit
-        own = set(parameter_names[comp.get("name")])
+                units.update(document.units)   # written into the flattened set if its values use them
+            merged.update(values.parameters)
+            units.update(values.units)
+        own = set(parameter_names[comp.name])
         merged = {k: v for k, v in merged.items() if k in own}
-        name = comp.get("name")
         for k, p in merged.items():
-            if p.si is not None and (p.si.factor != 1.0 or p.si.offset) and declared.get(name, {}).get(k):
-                merged[k] = dataclasses.replace(p, value=bound[name][k], unit=declared[name][k], written=None)
-        path = f"resources/parameters/{name}.ssv"
-        sets[path] = _parameter_set_xml(merged, units, f"Parameters of '{name}' in {ssd.name}: "
-                                        f"{', '.join(sources)} merged in this order by mast build")
-        for old in list(bindings):
-            bindings.remove(old)
-        flat = etree.SubElement(bindings, f"{{{NS['ssd']}}}ParameterBinding", source=path)
-        indent = (bindings.tail or "").rsplit("\n", 1)[-1]  # the source's indentation, kept
-        bindings.text, flat.tail = f"\n{indent}  ", f"\n{indent}"
-    note = etree.Comment(f" Built by mast build from {ssd.name}: each component's parameter bindings are "
-                         f"flattened into one set, resources/parameters/<component>.ssv, named '{FLAT_SET_NAME}'. ")
-    note.tail = root.text
-    root.insert(0, note)
-    text = etree.tostring(doc, xml_declaration=True, encoding="UTF-8")
-    return text, sets
-
-
-def _parameter_set_xml(values: dict, units: dict, comment: str) -> bytes:
-    ssv = NS["ssv"]
-    root = etree.Element(f"{{{ssv}}}ParameterSet", nsmap={"ssv": ssv, "ssc": NS["ssc"]},
-                         version="1.0", name=FLAT_SET_NAME)
-    root.append(etree.Comment(f" {comment.replace('--', '- -')} "))
-    params = etree.SubElement(root, f"{{{ssv}}}Parameters")
-    used = []
-    for name, p in values.items():
-        par = etree.SubElement(params, f"{{{ssv}}}Parameter", name=name)
-        if p.source:
-            par.set("description", p.source)
-        value = p.value if p.written is None else p.written  # in p.unit, as the source set wrote it
-        kind, text = typed_value(value)
-        typed = etree.SubElement(par, f"{{{ssv}}}{kind}", value=text)
-        if p.unit and kind == "Real":
-            typed.set("unit", p.unit)
-            used.append(p.unit)
-    declared = [units[u] for u in dict.fromkeys(used) if u in units]
-    if declared:
-        section = etree.SubElement(root, f"{{{ssv}}}Units")
-        for unit in declared:
-            section.append(etree.fromstring(etree.tostring(unit)))
-    return etree.tostring(root, xml_declaration=True, encoding="UTF-8", pretty_print=True)
+            if p.si is not None and (p.si.factor != 1.0 or p.si.offset) and declared.get(comp.name, {}).get(k):
+                merged[k] = dataclasses.replace(p, value=bound[comp.name][k], unit=declared[comp.name][k], written=None)
+        used = dict.fromkeys(p.unit for p in merged.values() if p.unit)
+        path = f"resources/parameters/{comp.name}.ssv"
+        sets[path] = ssv.ParameterSet(FLAT_SET_NAME, merged, {u: units[u] for u in used if u in units},
+                                      f"Parameters of '{comp.name}' in {ssd_path.name}: {', '.join(sources)} merged "
+                                      "in this order by mast build").to_bytes()
+        comp.bindings = [ssd.ParameterBinding(path)]
+    document.comments.append(f"Built by mast build from {ssd_path.name}: each component's parameter bindings are "
+                             f"flattened into one set, resources/parameters/<component>.ssv, named '{FLAT_SET_NAME}'.")
+    return document.to_bytes(), sets
 
 
 def build_all(out: Optional[Path] = None, ssds: Iterable[Path] = (), log=print, fmi3: bool = False) -> list[Path]:

@@ -2,9 +2,9 @@
 
 Every controller FMU has the same inputs and outputs (``fmus/controller/model.py``,
 ``DriveController``), so a variant's system ``ssp/MAST_<controller>.ssd`` is the default
-system ``ssp/MAST.ssd`` with, and only with, the controller component's
+system (``systems.MAST``) with, and only with, the controller component's
 
-- ``source`` replaced by the variant's FMU;
+- FMU replaced by the variant's;
 - parameter sets: for a model-based controller first every set the plant binds (the first
   actuator's and the mechanism's, in their order: the controller's own model is the
   plant's, so it is exact by default); then the default controller's, minus those the
@@ -12,17 +12,17 @@ system ``ssp/MAST.ssd`` with, and only with, the controller component's
   plant's sets share with them (``L``: the motor's inductance, the legs' length); then the
   variant's own set.
 
-``python -m mast.core.variants`` rewrites these files with the mechanism designs' (tests check
-they are up to date); ``mast build`` builds each controller FMU with the defaults of its
+``python -m mast.core.variants`` writes these files (``systems.generate``) with the mechanism
+designs' (tests check they are up to date); ``mast build`` builds each controller FMU with the defaults of its
 system.
 """
 from __future__ import annotations
 
-import re
+import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 
-from .designs import SSP_SRC, retitle
+from .systems import MAST, SSP_SRC, SystemDescription, generate
 
 CONTROLLER_FMU = "MastController"
 CASCADE_SETS = ("resources/controller_joint.ssv", "resources/controller_paper_fit.ssv")
@@ -63,55 +63,40 @@ def controller(name_or_identifier: str) -> ControllerVariant:
     raise KeyError(f"no controller {name_or_identifier!r}; controllers: {', '.join(c.name for c in CONTROLLERS)}")
 
 
-def _sources(block: str) -> list[str]:
-    return re.findall(r'<ssd:ParameterBinding source="([^"]*)"/>', block)
-
-
-def variant_ssd(c: ControllerVariant, base: Path = SSP_SRC / "MAST.ssd") -> bytes:
+def variant(c: ControllerVariant, base: SystemDescription = MAST) -> SystemDescription:
     """The system of controller ``c``: ``base`` with the controller swapped (module docstring)."""
-    blocks = {re.search(r'\bname="([^"]*)"', m.group(0)).group(1): m.group(0)
-              for m in re.finditer(r"<ssd:Component\b.*?</ssd:Component>", base.read_text(encoding="utf-8"), re.S)}
-    if "controller" not in blocks:
-        raise ValueError(f"{base}: no component named 'controller' to swap")
     plant = []
     if c.plant_model:
-        for name in ("actuator_1", "mechanism"):
-            if name not in blocks:
-                raise ValueError(f"{base}: no component '{name}' whose parameter sets the controller's model takes")
-            plant += [s for s in _sources(blocks[name]) if s not in plant]
-    own = [s for s in _sources(blocks["controller"]) if s not in c.drop_sets]
+        plant = list(dict.fromkeys(base.actuator.bindings + base.mechanism.bindings))
+    own = [s for s in base.controller.bindings if s not in c.drop_sets]
     plant = [s for s in plant if s not in own]
-    bindings = plant + own + list(c.sets)
-    text = retitle(base, c.name, f"controller {c.name}: {c.title}", (
-        f"<!-- Controller {c.name}: {c.title} (docs/controller.md).\n"
-        f"     Written by `python -m mast.core.variants` from {base.name}: it differs from it only in the controller's\n"
-        f"     source ({c.model_identifier}.fmu) and parameter sets"
+    comment = (
+        f"Controller {c.name}: {c.title} (docs/controller.md).\n"
+        f"     Written by `python -m mast.core.variants` from {base.name}.ssd: it differs from it only in the "
+        f"controller's\n     source ({c.model_identifier}.fmu) and parameter sets"
         + (f" (without {', '.join(c.drop_sets)})" if c.drop_sets else "") + ".\n"
         + (f"     The plant's sets come first ({', '.join(plant)}): the controller's model is the plant's, and the\n"
            f"     controller's own sets, bound after them, win on shared names (L: winding inductance / leg length).\n"
            if plant else "")
-        + (f"     Its own: {', '.join(c.sets)}, bound last.\n" if c.sets else "") +
-        f"     Components may be swapped by editing their `source`; parameter sets are bound in order, later ones override. -->"))
-
-    def component(m: re.Match) -> str:
-        block = m.group(0)
-        if re.search(r'\bname="([^"]*)"', block).group(1) != "controller":
-            return block
-        source = re.search(r'\bsource="([^"]*)"', block).group(1)
-        block = block.replace(f'source="{source}"', f'source="{Path(source).with_name(c.model_identifier + ".fmu").as_posix()}"', 1)
-        pad = re.search(r'\n([ \t]*)<ssd:ParameterBinding\b', block).group(1)
-        lines = "".join(f'\n{pad}<ssd:ParameterBinding source="{src}"/>' for src in bindings)
-        return re.sub(r'(<ssd:ParameterBindings>).*?(\n[ \t]*</ssd:ParameterBindings>)',
-                      lambda m: m.group(1) + lines + m.group(2), block, count=1, flags=re.S)
-
-    return re.sub(r"<ssd:Component\b.*?</ssd:Component>", component, text, flags=re.S).encode("utf-8")
+        + (f"     Its own: {', '.join(c.sets)}, bound last.\n" if c.sets else "")
+        + "     Components may be swapped by editing their `source`; parameter sets are bound in order, later ones "
+          "override.")
+    return dataclasses.replace(
+        base, name=f"{base.name}_{c.name}", description=f"{base.description} - controller {c.name}: {c.title}",
+        comment=comment, controller=dataclasses.replace(base.controller, fmu=f"{c.model_identifier}.fmu",
+                                                        bindings=tuple(plant + own) + c.sets))
 
 
-def write_variants(base: Path = SSP_SRC / "MAST.ssd") -> list[Path]:
+def variant_ssd(c: ControllerVariant) -> bytes:
+    """The .ssd file of controller ``c`` (``variant``)."""
+    return generate(variant(c))
+
+
+def write_variants() -> list[Path]:
     """(Re)write ssp/MAST_<controller>.ssd for every controller but the default one."""
     written = []
     for c in CONTROLLERS:
         if c.model_identifier != CONTROLLER_FMU:
-            c.ssd.write_bytes(variant_ssd(c, base))
+            c.ssd.write_bytes(variant_ssd(c))
             written.append(c.ssd)
     return written

@@ -2,26 +2,25 @@
 
 A design is a mechanism FMU (built from ``fmus/mechanism`` with its own default parameters)
 plus the parameter sets that define it. Its system ``ssp/MAST_<design>.ssd`` is the default
-system ``ssp/MAST.ssd`` with, and only with:
+system (``systems.MAST``) with, and only with:
 
-- the mechanism component's ``source`` replaced by the design's FMU;
+- the mechanism component's FMU replaced by the design's;
 - the geometry set (bound to the mechanism *and* the controller, whose inverse kinematics
   must be the machine's) replaced by the design's;
 - the design's extra sets bound after the others (mechanism, actuators).
 
-``python -m mast.core.variants`` rewrites those files from ``ssp/MAST.ssd``, and the controller
+``python -m mast.core.variants`` writes those files (``systems.generate``), with the controller
 variants of ``controllers.py`` (tests check they are up to date); ``mast build`` builds each
 design's FMU with the defaults of its system.
 """
 from __future__ import annotations
 
-import re
+import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Sequence
 
-REPO = Path(__file__).resolve().parents[2]
-SSP_SRC = REPO / "ssp"
+from .systems import MAST, REPO, SSP_SRC, SystemDescription, generate
+
 DEFAULT_GEOMETRY = "resources/geometry_3prs.ssv"
 MECHANISM_FMU = "MastMechanism"
 ACTUATOR_FMU = "MastActuator"
@@ -64,69 +63,38 @@ def design(name_or_identifier: str) -> Design:
     raise KeyError(f"no design {name_or_identifier!r}; designs: {', '.join(d.name for d in DESIGNS)}")
 
 
-def _append_bindings(block: str, sources: Sequence[str]) -> str:
-    """A component's XML text with bindings added after its last one (same indentation)."""
-    if not sources:
-        return block
-    matches = list(re.finditer(r"\n([ \t]*)<ssd:ParameterBinding\b[^>]*/>", block))
-    if not matches:
-        raise ValueError("a component to add parameter sets to has no ParameterBinding")
-    last = matches[-1]
-    lines = "".join(f"\n{last.group(1)}<ssd:ParameterBinding source=\"{src}\"/>" for src in sources)
-    return block[:last.end()] + lines + block[last.end():]
+def variant(d: Design, base: SystemDescription = MAST) -> SystemDescription:
+    """The system of design ``d``: ``base`` with the mechanism swapped (module docstring)."""
+    sets = ", ".join((d.geometry,) + d.mechanism_sets + d.actuator_sets)
+
+    def geometry(part):
+        return dataclasses.replace(part, bindings=tuple(d.geometry if s == DEFAULT_GEOMETRY else s for s in part.bindings))
+
+    mechanism = geometry(base.mechanism)
+    return dataclasses.replace(
+        base, name=f"{base.name}_{d.name}", description=f"{base.description} - design {d.name}: {d.title}",
+        comment=f"Design {d.name}: {d.title} (docs/designs/{d.name}.md).\n"
+                f"     Written by `python -m mast.core.variants` from {base.name}.ssd: it differs from it only in the "
+                f"mechanism's\n     source ({d.model_identifier}.fmu) and the design's parameter sets\n     ({sets}).\n"
+                "     Components may be swapped by editing their `source`; parameter sets are bound in order, later "
+                "ones override.",
+        controller=geometry(base.controller),
+        mechanism=dataclasses.replace(mechanism, fmu=f"{d.model_identifier}.fmu",
+                                      bindings=mechanism.bindings + d.mechanism_sets),
+        actuator=dataclasses.replace(base.actuator, bindings=base.actuator.bindings + d.actuator_sets))
 
 
-def retitle(base: Path, name: str, what: str, note: str) -> str:
-    """``base``'s text named MAST_<name>, its system description extended by ``what``, its leading comment ``note``."""
-    text = base.read_text(encoding="utf-8")
-    text, n = re.subn(r"<!--.*?-->", lambda m: note, text, count=1, flags=re.S)
-    if not n:
-        raise ValueError(f"{base}: no leading comment to replace")
-    text = re.sub(r'(<ssd:SystemStructureDescription\b[^>]*?\bname=")[^"]*(")', rf"\g<1>MAST_{name}\g<2>",
-                  text, count=1)
-    return re.sub(r'(<ssd:System\b[^>]*?\bdescription=")([^"]*)(")',
-                  lambda m: f"{m.group(1)}{m.group(2)} - {what}{m.group(3)}", text, count=1)
+def variant_ssd(d: Design) -> bytes:
+    """The .ssd file of design ``d`` (``variant``)."""
+    return generate(variant(d))
 
 
-def variant_ssd(d: Design, base: Path = SSP_SRC / "MAST.ssd") -> bytes:
-    """The system of design ``d``: ``base`` with the mechanism swapped (module docstring).
-
-    Edits the text, so that everything else stays byte for byte as in ``base``.
-    """
-    text = retitle(base, d.name, f"design {d.name}: {d.title}", (
-        f"<!-- Design {d.name}: {d.title} (docs/designs/{d.name}.md).\n"
-        f"     Written by `python -m mast.core.variants` from {base.name}: it differs from it only in the mechanism's\n"
-        f"     source ({d.model_identifier}.fmu) and the design's parameter sets\n"
-        f"     ({', '.join((d.geometry,) + d.mechanism_sets + d.actuator_sets)}).\n"
-        f"     Components may be swapped by editing their `source`; parameter sets are bound in order, later ones override. -->"))
-    text = text.replace(f'source="{DEFAULT_GEOMETRY}"', f'source="{d.geometry}"')
-    swapped = 0
-
-    def component(m: re.Match) -> str:
-        nonlocal swapped
-        block = m.group(0)
-        source = re.search(r'\bsource="([^"]*)"', block).group(1)
-        if Path(source).stem == MECHANISM_FMU:
-            swapped += 1
-            new = Path(source).with_name(f"{d.model_identifier}.fmu").as_posix()
-            block = block.replace(f'source="{source}"', f'source="{new}"', 1)
-            return _append_bindings(block, d.mechanism_sets)
-        if Path(source).stem == ACTUATOR_FMU:
-            return _append_bindings(block, d.actuator_sets)
-        return block
-
-    text = re.sub(r"<ssd:Component\b.*?</ssd:Component>", component, text, flags=re.S)
-    if swapped != 1:
-        raise ValueError(f"{base}: expected one component using {MECHANISM_FMU}.fmu, found {swapped}")
-    return text.encode("utf-8")
-
-
-def write_variants(base: Path = SSP_SRC / "MAST.ssd") -> list[Path]:
+def write_variants() -> list[Path]:
     """(Re)write ssp/MAST_<design>.ssd for every design but the default one."""
     written = []
     for d in DESIGNS:
         if d.model_identifier == MECHANISM_FMU:
             continue
-        d.ssd.write_bytes(variant_ssd(d, base))
+        d.ssd.write_bytes(variant_ssd(d))
         written.append(d.ssd)
     return written

@@ -11,7 +11,7 @@ from fmus.common.parameters import Value
 
 from .components import BlockComponent, FMUComponent
 from .master import Master, Result, SimulationError, Stimulus
-from .motion import AXES, NoStimulus, SineMotion
+from .motion import AXES, NoStimulus, SineMotion, bind, system_axes, unit
 from .ssp import SSPArchive, safe_extract
 
 
@@ -73,6 +73,8 @@ def simulate(ssp: Union[str, Path], stimulus: Optional[Stimulus], stop_time: flo
             if system.system_inputs:
                 raise ValueError(f"{ssp}: the system has inputs ({', '.join(system.system_inputs)}): give a stimulus")
             stimulus = NoStimulus()
+        else:   # the stimulus commands the coordinates of the system's mechanism
+            bind(stimulus, system_axes(system, parameters), str(ssp))
         components = {}
         unzipped: dict[Path, Path] = {}
         try:
@@ -98,9 +100,15 @@ def simulate(ssp: Union[str, Path], stimulus: Optional[Stimulus], stop_time: flo
                           record_step=record_step, parameters=parameters, progress=progress)
 
 
-def motion_from_cli(axis: str, amplitude: float, frequency: float) -> SineMotion:
-    """CLI units: metres for z, degrees for psi and theta."""
-    return SineMotion(axis, amplitude if axis == "z" else math.radians(amplitude), frequency)
+def motion_from_cli(axis: str, amplitude: float, frequency: float, axes: Optional[Sequence[str]] = None,
+                    where: str = "the system") -> SineMotion:
+    """CLI units: metres for x, y, z, degrees for the angles. ``axes``: the coordinates of the system ``where``
+    (``motion.system_axes``; None: the 3PRS's); a coordinate it lacks is refused (ValueError naming it and the
+    system's)."""
+    motion = SineMotion(axis, amplitude if unit(axis) == "m" else math.radians(amplitude), frequency,
+                        axes=(axis,))
+    bind(motion, AXES if axes is None else axes, where)
+    return motion
 
 
 def summarize(result: Result, stop_time: float, motion: SineMotion, ssp: Optional[Union[str, Path]] = None) -> dict:
@@ -111,25 +119,25 @@ def summarize(result: Result, stop_time: float, motion: SineMotion, ssp: Optiona
         "simulated_time_s": stop_time,
         "real_time_factor": round(stop_time / result.wall_time_s, 3) if result.wall_time_s > 0 else None,
         "motion": {"axis": motion.axis, "amplitude": motion.amplitude, "frequency_Hz": motion.frequency,
-                   "home": dict(zip(AXES, motion.home))},
+                   "home": dict(zip(motion.axes, motion.home))},
         "base_step_s": result.stats.get("base_step"),
         "step_multiples": result.stats.get("multiples"),
         "error": result.error,
         "system": {"ssp": None if ssp is None else str(Path(ssp).resolve()),
                    "parameters": result.stats.get("parameters")},
     }
-    k = AXES.index(motion.axis)
     cmd, got = f"{motion.axis}_cmd", f"mechanism.{motion.axis}"
     if cmd in result.signals and got in result.signals and len(result.time):
         err = result[cmd] - result[got]
         summary["tracking_error_peak"] = float(abs(err).max())
         summary["tracking_error_rms"] = float((err ** 2).mean() ** 0.5)
-    for j in (1, 2, 3):
+    j = 1
+    while f"actuator_{j}.tau_m" in result.signals:   # every drive's motor (actuator_k, the connector convention)
         name = f"actuator_{j}.tau_m"
-        if name in result.signals and len(result.time):
+        if len(result.time):
             summary[f"tau_m_{j}_peak_Nm"] = float(abs(result[name]).max())
             summary[f"tau_m_{j}_rms_Nm"] = float((result[name] ** 2).mean() ** 0.5)
-    del k
+        j += 1
     return summary
 
 

@@ -31,7 +31,7 @@ from fmus.common.parameters import Value
 
 from .components import BlockComponent, FMUComponent
 from .master import Master, Result, Stimulus
-from .motion import NoStimulus
+from .motion import NoStimulus, bind, system_axes
 from .run import default_signals
 from .ssp import SSPArchive, safe_extract
 
@@ -109,6 +109,8 @@ class Session:
             if self.system.system_inputs:
                 raise ValueError(f"{self.ssp}: the system has inputs ({', '.join(self.system.system_inputs)}): give a stimulus")
             stimulus = NoStimulus()
+        else:   # the stimulus commands the coordinates of the system's mechanism
+            bind(stimulus, system_axes(self.system, parameters), str(self.ssp))
         t0 = time.perf_counter()
         components = self._acquire()
         self.last_setup_s = time.perf_counter() - t0

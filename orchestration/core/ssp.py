@@ -1,4 +1,4 @@
-"""Read an SSP: the system structure (.ssd), its parameter bindings and step sizes.
+"""Read an SSP: a system (.ssd) with its parameter sets resolved, and the archive it comes in.
 
 What the project's master needs from an SSP, and nothing else:
 - components, their FMU source and their connectors;
@@ -9,12 +9,13 @@ What the project's master needs from an SSP, and nothing else:
   describe a machine to several components (the plant's actuator set also parametrises a
   model-based controller's copy of the actuator). Against typos, ``applicable_parameters``
   refuses a name that matches a parameter of *no* component the set is bound to;
-- step sizes from the Open Simulation Platform annotations: the base step of
-  ``osp:FixedStepAlgorithm`` and each component's ``osp:StepSizeHint``;
-- the parameter set of a component's ratings (``mast sizing``, docs/sizing.md): an annotation of
-  type ``mast.sizing`` holding ``<mast:Ratings source="resources/....ssv"/>``. The ratings are not
-  parameters of the FMU (no host applies them; an annotation of a type a tool does not know is
-  ignored, SSP 1.0), so they live in their own set, named by the system per component.
+- step sizes and the parameter set of a component's ratings, from the annotations
+  ``mast.core.ssd`` reads (OSP's ``osp:FixedStepAlgorithm`` and ``osp:StepSizeHint``;
+  ``mast.sizing``'s ``mast:Ratings``).
+
+The document itself (its classes, its structural checks, writing it) is ``mast.core.ssd``; the
+parameter sets ``mast.core.ssv``. Here every source must stay inside the SSP (or the folder of the
+.ssd), and an archive is checked before a byte of it is extracted.
 """
 from __future__ import annotations
 
@@ -30,20 +31,10 @@ from lxml import etree
 
 from fmus.common.parameters import Value
 
+from . import ssd
+from .ssd import Connection
+from .ssv import ParameterValue, SSPFormatError, parse_ssv
 from .units import Unit, UnitError, convert, parse_unit
-from .ssv import ParameterValue, SSPFormatError, parse_ssv, unit_definitions
-
-NS = {
-    "ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription",
-    "ssc": "http://ssp-standard.org/SSP1/SystemStructureCommon",
-    "ssv": "http://ssp-standard.org/SSP1/SystemStructureParameterValues",
-    "osp": "http://opensimulationplatform.com/SSP/OSPAnnotations",
-    "mast": "urn:mast:sizing",
-}
-OSP_ANNOTATION = "com.opensimulationplatform"
-RATINGS_ANNOTATION = "mast.sizing"
-SSV_TYPE = "application/x-ssp-parameter-set"
-FMU_TYPE = "application/x-fmu-sharedlibrary"
 
 
 @dataclass
@@ -59,14 +50,6 @@ class ComponentSpec:
     units: dict[str, dict[str, tuple[str, Unit]]] = field(default_factory=dict)
     #: the parameter set of the component's ratings (relative source), if the system names one (docs/sizing.md)
     ratings: Optional[str] = None
-
-
-@dataclass(frozen=True)
-class Connection:
-    start_element: str  # "" for a system connector
-    start_connector: str
-    end_element: str
-    end_connector: str
 
 
 @dataclass
@@ -209,83 +192,39 @@ def validate_ssd_schema(path: Union[str, Path]) -> list[str]:
 
 
 def read_ssd(path: Union[str, Path], root: Optional[Path] = None, archive: Optional[Path] = None) -> SystemSpec:
-    """Parse a SystemStructure.ssd; relative sources resolve against ``root`` (default: its folder).
+    """Parse a SystemStructure.ssd (``ssd.read``) and its parameter sets; relative sources resolve against
+    ``root`` (default: its folder).
 
     ``archive``: the .ssp the file was extracted from; messages then name it and the entry
     (``MAST.ssp (entry SystemStructure.ssd)``), not the temporary folder. Every source (FMU,
-    parameter set) must stay inside ``root``.
+    parameter set, ratings) must stay inside ``root``.
     """
     ssd_path = Path(path)
     root = root or ssd_path.parent
     path = _Origin(ssd_path, archive, root)
     within = f"the archive {archive}" if archive else f"the folder {root}"
-    try:
-        doc = etree.parse(str(ssd_path)).getroot()
-    except (etree.XMLSyntaxError, OSError) as err:
-        raise SSPFormatError(f"{path}: cannot read the system structure: {_strip(err, ssd_path)}") from None
-    if doc.tag != f"{{{NS['ssd']}}}SystemStructureDescription":
-        raise SSPFormatError(f"{path}: root element is {doc.tag}, expected ssd:SystemStructureDescription")
-    system = doc.find("ssd:System", NS)
-    if system is None:
-        raise SSPFormatError(f"{path}: no ssd:System element")
-
-    def need(element, attribute: str, what: str) -> str:
-        value = element.get(attribute)
-        if not value:
-            raise SSPFormatError(f"{path}: {what} has no '{attribute}' attribute (line {element.sourceline})")
-        return value
-
-    system_inputs = [need(c, "name", "a system connector") for c in system.findall("ssd:Connectors/ssd:Connector", NS)
-                     if c.get("kind") in ("input", "parameter")]
-    ssd_units = ssd_unit_definitions(doc, str(path))
+    document = ssd.read(ssd_path, str(path))
     components: dict[str, ComponentSpec] = {}
-    for comp in system.findall("ssd:Elements/ssd:Component", NS):
-        name = need(comp, "name", "a component")
-        if name in components:
-            raise SSPFormatError(f"{path}: component name '{name}' is used twice")
-        connectors = comp.findall("ssd:Connectors/ssd:Connector", NS)
-        source = need(comp, "source", f"component '{name}'")
-        if comp.get("type", FMU_TYPE) != FMU_TYPE:
-            raise SSPFormatError(f"{path}: component '{name}' has type '{comp.get('type')}': only FMUs "
-                                 f"({FMU_TYPE}) are supported")
-        _inside(root, source, str(path), f"component '{name}' source", within)
-        spec = ComponentSpec(
-            name=name,
-            source=source,
-            step_size=_step_size_hint(comp, path, name),
-            ratings=_ratings_source(comp, root, path, name, within),
-            inputs=[c.get("name") for c in connectors if c.get("kind") in ("input", "parameter")],
-            outputs=[c.get("name") for c in connectors if c.get("kind") in ("output", "calculatedParameter")],
-        )
-        for binding in comp.findall("ssd:ParameterBindings/ssd:ParameterBinding", NS):
-            parsed = _binding_values(binding, root, path, name, within, ssd_units)
-            source = binding.get("source") or f"inline values of '{name}'"
+    for comp in document.system.elements:
+        name = comp.name
+        _inside(root, comp.source, str(path), f"component '{name}' source", within)
+        if comp.ratings:   # read by mast sizing, which names it if absent
+            _inside(root, comp.ratings, str(path), f"component '{name}' ratings", within)
+        spec = ComponentSpec(name=name, source=comp.source, step_size=comp.step_size_hint, ratings=comp.ratings,
+                             inputs=comp.inputs, outputs=comp.outputs)
+        for binding in comp.bindings:
+            parsed = _binding_values(binding, root, path, name, within)
+            source = binding.source or f"inline values of '{name}'"
             values = {k: p.value for k, p in parsed.items()}
             spec.bindings.append((source, values))
             spec.units.setdefault(source, {}).update((k, (p.unit, p.si)) for k, p in parsed.items() if p.si is not None)
             spec.parameters.update(values)
         components[name] = spec
-    if not components:
-        raise SSPFormatError(f"{path}: the system has no components")
-
-    connections = []
-    for con in system.findall("ssd:Connections/ssd:Connection", NS):
-        c = Connection(con.get("startElement", ""), need(con, "startConnector", "a connection"),
-                       con.get("endElement", ""), need(con, "endConnector", "a connection"))
-        _check_end(c.start_element, c.start_connector, "output", components, system_inputs, path)
-        _check_end(c.end_element, c.end_connector, "input", components, system_inputs, path)
-        connections.append(c)
-
-    base_step, start, stop = None, 0.0, None
-    experiment = doc.find("ssd:DefaultExperiment", NS)
-    if experiment is not None:
-        start = _number(experiment.get("startTime", "0"), path, "DefaultExperiment startTime")
-        stop = _number(experiment.get("stopTime"), path, "DefaultExperiment stopTime") if experiment.get("stopTime") else None
-        algo = experiment.find(f"ssd:Annotations/ssc:Annotation[@type='{OSP_ANNOTATION}']/osp:Algorithm/osp:FixedStepAlgorithm", NS)
-        if algo is not None:
-            base_step = _positive(need(algo, "baseStepSize", "osp:FixedStepAlgorithm"), path, "baseStepSize")
-    return SystemSpec(system.get("name", ssd_path.stem), root, components, connections, system_inputs, base_step, start,
-                      stop, archive)
+    experiment = document.default_experiment or ssd.DefaultExperiment()
+    system = document.system
+    return SystemSpec(system.name or ssd_path.stem, root, components, list(system.connections),
+                      [c.name for c in system.connectors if c.kind in ssd.INPUT_KINDS], experiment.base_step,
+                      experiment.start_time, experiment.stop_time, archive)
 
 
 class _Origin:
@@ -303,75 +242,14 @@ class _Origin:
         return self.entry(self.path)
 
 
-def _strip(err: Exception, path: Path) -> str:
-    """An XML parser's message without the (temporary) file name it repeats."""
-    return str(err).replace(f"{path}:", "").replace(str(path), path.name).strip()
-
-
-def _number(text: str, path, what: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        value = float("nan")
-    if value != value or value in (float("inf"), float("-inf")):
-        raise SSPFormatError(f"{path}: {what}={text!r}: expected a finite number of seconds")
-    return value
-
-
-def _positive(text: str, path, what: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        value = float("nan")
-    if not value > 0:
-        raise SSPFormatError(f"{path}: {what}={text!r}: expected a positive number of seconds")
-    return value
-
-
-def _step_size_hint(comp, path, name: str) -> Optional[float]:
-    hint = comp.find(f"ssd:Annotations/ssc:Annotation[@type='{OSP_ANNOTATION}']/osp:StepSizeHint", NS)
-    return None if hint is None else _positive(hint.get("value", ""), path, f"StepSizeHint of '{name}'")
-
-
-def _ratings_source(comp, root: Path, path, name: str, within: str) -> Optional[str]:
-    found = comp.findall(f"ssd:Annotations/ssc:Annotation[@type='{RATINGS_ANNOTATION}']/mast:Ratings", NS)
-    if not found:
-        return None
-    source = found[0].get("source")
-    if len(found) > 1 or not source:
-        raise SSPFormatError(f"{path}: component '{name}' needs one mast:Ratings with a 'source' in its "
-                             f"'{RATINGS_ANNOTATION}' annotation (line {found[0].sourceline})")
-    _inside(root, source, str(path), f"component '{name}' ratings", within)   # read by mast sizing, which names it if absent
-    return source
-
-
-def ssd_unit_definitions(doc, origin: str) -> dict[str, Unit]:
-    """The units an .ssd defines (``ssd:Units``, SSP 1.0), by name: in scope for its inline parameter values."""
-    units = doc.find("ssd:Units", NS)
-    return {} if units is None else unit_definitions(units, origin)
-
-
-def _binding_values(binding, root: Path, path: "_Origin", component: str, within: str,
-                    ssd_units: Mapping[str, Unit]) -> dict[str, ParameterValue]:
-    unsupported = [what for what, present in (
-        (f"prefix={binding.get('prefix')!r}", binding.get("prefix")),
-        ("an ssd:ParameterMapping", binding.find("ssd:ParameterMapping", NS) is not None),
-        (f"type={binding.get('type')!r}", binding.get("type", SSV_TYPE) != SSV_TYPE)) if present]
-    if unsupported:  # applying the values without them would be silently wrong
-        raise SSPFormatError(f"{path}: a parameter binding of '{component}' has {' and '.join(unsupported)}, "
-                             f"which this reader does not support (line {binding.sourceline})")
-    source = binding.get("source")
-    if source:
-        file = _inside(root, source, str(path), f"component '{component}' binds parameter set", within)
-        if not file.is_file():
-            raise SSPFormatError(f"{path}: component '{component}' binds '{source}', which does not exist")
-        values = parse_ssv(file.read_bytes(), origin=path.entry(file))
-    else:
-        inline = binding.find("ssd:ParameterValues/ssv:ParameterSet", NS)
-        if inline is None:
-            raise SSPFormatError(f"{path}: a parameter binding of '{component}' has neither a source nor values")
-        values = parse_ssv(etree.tostring(inline), origin=f"{path} (inline values of '{component}')", units=ssd_units)
-    return values
+def _binding_values(binding: ssd.ParameterBinding, root: Path, path: _Origin, component: str,
+                    within: str) -> dict[str, ParameterValue]:
+    if binding.values is not None:
+        return binding.values.parameters
+    file = _inside(root, binding.source, str(path), f"component '{component}' binds parameter set", within)
+    if not file.is_file():
+        raise SSPFormatError(f"{path}: component '{component}' binds '{binding.source}', which does not exist")
+    return parse_ssv(file.read_bytes(), origin=path.entry(file))
 
 
 def applicable_parameters(system: SystemSpec, parameter_names: Mapping[str, Iterable[str]],
@@ -435,18 +313,6 @@ def _in_declared_unit(value: float, given: tuple[str, Unit], declared: Optional[
         raise SSPFormatError(f"parameter set {source}: '{name}' is given in '{text}' (dimension {unit.dimension()}), "
                              f"but component '{comp}' declares it in '{declared}' (dimension "
                              f"{target.dimension()})") from None
-
-
-def _check_end(element: str, connector: str, kind: str, components, system_inputs, path) -> None:
-    if element == "":
-        if connector not in system_inputs:
-            raise SSPFormatError(f"{path}: connection names system connector '{connector}', which is not declared")
-        return
-    if element not in components:
-        raise SSPFormatError(f"{path}: connection names component '{element}', which does not exist")
-    declared = components[element].outputs if kind == "output" else components[element].inputs
-    if connector not in declared:
-        raise SSPFormatError(f"{path}: connection names {kind} '{element}.{connector}', which is not a declared {kind} connector")
 
 
 class SSPArchive:

@@ -89,10 +89,10 @@ def _read_file(path: Path, fmt: str) -> dict[str, np.ndarray]:
             raise LabFileError(f"{path}: cannot read as a MATLAB file: {err}") from None
         return {k: v for k, v in raw.items() if not k.startswith("__")}
     if fmt == "csv":
-        from .measured import _read_csv
+        from .measured import read_csv
 
         try:
-            header, data = _read_csv(path)
+            header, data = read_csv(path)
         except MeasuredDataError as err:
             raise LabFileError(f"{path}: {err}") from None
         return {h: data[:, j] for j, h in enumerate(header)}

@@ -138,7 +138,7 @@ def _number(value, key: str, unit: str) -> float:
     return number
 
 
-def _read_csv(path: Path) -> tuple[list[str], np.ndarray]:
+def read_csv(path: Path) -> tuple[list[str], np.ndarray]:
     try:
         with path.open(newline="", encoding="utf-8-sig") as handle:  # -sig: spreadsheets write a BOM
             rows = [r for r in csv.reader(handle) if r and not r[0].lstrip().startswith("#")]
@@ -164,7 +164,7 @@ def _read_csv(path: Path) -> tuple[list[str], np.ndarray]:
     return header, data
 
 
-def _finite(name: str, column: str, values: np.ndarray, time: Optional[np.ndarray]) -> None:
+def check_finite(name: str, column: str, values: np.ndarray, time: Optional[np.ndarray]) -> None:
     bad = ~np.isfinite(values)
     if bad.any():
         k = int(np.argmax(bad))
@@ -173,7 +173,7 @@ def _finite(name: str, column: str, values: np.ndarray, time: Optional[np.ndarra
                                 f"the first on data row {k + 1}{at}")
 
 
-def _check_sampling(name: str, t: np.ndarray) -> None:
+def check_sampling(name: str, t: np.ndarray) -> None:
     if len(t) < MIN_SAMPLES:
         raise MeasuredDataError(f"{name}: column time: {len(t)} samples, expected at least {MIN_SAMPLES}")
     dt = np.diff(t)
@@ -256,7 +256,7 @@ def _load_test(folder: Path, entry: dict, units: Mapping[str, str], k_T, stroke)
     path = folder / name
     if not path.exists():
         raise MeasuredDataError(f"{name}: listed in meta.json but not in {folder}")
-    header, data = _read_csv(path)
+    header, data = read_csv(path)
     col = {h: j for j, h in enumerate(header)}
     torque_cols = [f"tau_m_{j}" for j in AXES]
     current_cols = [f"i_m_{j}" for j in AXES]
@@ -270,9 +270,9 @@ def _load_test(folder: Path, entry: dict, units: Mapping[str, str], k_T, stroke)
     if len(data) == 0:
         raise MeasuredDataError(f"{name}: no data rows")
     t_raw = data[:, col["time"]]
-    _finite(name, "time", t_raw, None)
+    check_finite(name, "time", t_raw, None)
     t = t_raw * _unit_factor(units, "time", name)
-    _check_sampling(name, t)
+    check_sampling(name, t)
     out = {}
     f_len = _unit_factor(units, "rho_cmd", name)
     f_rho = _unit_factor(units, "rho", name)
@@ -282,7 +282,7 @@ def _load_test(folder: Path, entry: dict, units: Mapping[str, str], k_T, stroke)
         for j in AXES:
             c = f"{group}_{j}"
             v = data[:, col[c]]
-            _finite(name, c, v, t)
+            check_finite(name, c, v, t)
             v = v * factor
             if v.min() < lo or v.max() > hi:
                 bad = v.max() if v.max() > hi else v.min()
@@ -304,7 +304,7 @@ def _load_test(folder: Path, entry: dict, units: Mapping[str, str], k_T, stroke)
         cols = []
         for c in current_cols:
             v = data[:, col[c]]
-            _finite(name, c, v, t)
+            check_finite(name, c, v, t)
             v = v * f_cur
             if np.abs(v).max() > MAX_CURRENT:
                 raise MeasuredDataError(f"{name}: column {c}: |i| up to {np.abs(v).max():.6g} A is implausible "
@@ -317,7 +317,7 @@ def _load_test(folder: Path, entry: dict, units: Mapping[str, str], k_T, stroke)
         cols = []
         for c in torque_cols:
             v = data[:, col[c]]
-            _finite(name, c, v, t)
+            check_finite(name, c, v, t)
             cols.append(v * f_tau)
         tau = np.column_stack(cols)
         tcols = torque_cols
@@ -335,7 +335,7 @@ def _load_test(folder: Path, entry: dict, units: Mapping[str, str], k_T, stroke)
         if c in col:
             key = "position" if c in ("x", "y", "z") else "angle"
             v = data[:, col[c]]
-            _finite(name, c, v, t)
+            check_finite(name, c, v, t)
             pose[c] = v * _unit_factor(units, key, name)
     motion = entry.get("motion")
     amplitude = entry.get("amplitude")

@@ -30,7 +30,7 @@ from typing import Mapping, Optional, Sequence, Union
 
 import numpy as np
 
-from .measured import FORMAT, VERSION, MeasuredDataError, Sampled, _check_sampling, _finite, _read_csv
+from .measured import FORMAT, VERSION, MeasuredDataError, Sampled, check_sampling, check_finite, read_csv
 
 #: kinds of signals: what drives the model, and what is compared
 DRIVING = ("command", "injected")
@@ -190,19 +190,19 @@ def _load_test(folder: Path, entry: Mapping, specs: Mapping[str, SignalSpec]) ->
     path = folder / name
     if not path.exists():
         raise RecordError(f"{name}: listed in meta.json but not in {folder}")
-    header, data = _read_csv(path)
+    header, data = read_csv(path)
     col = {h: j for j, h in enumerate(header)}
     missing = [c for c in ["time", *specs] if c not in col]
     if missing:
         raise RecordError(f"{name}: missing column(s) {', '.join(missing)}; meta.json 'signals' names "
                           f"{', '.join(specs)} (and the time column 'time')")
     t = data[:, col["time"]]
-    _finite(name, "time", t, None)
-    _check_sampling(name, t)
+    check_finite(name, "time", t, None)
+    check_sampling(name, t)
     values = {}
     for s in specs:
         v = data[:, col[s]]
-        _finite(name, s, v, t)
+        check_finite(name, s, v, t)
         values[s] = v
     role = entry.get("role")
     if role not in (None, "training", "held-out"):

@@ -3,14 +3,12 @@ from __future__ import annotations
 
 import zipfile
 from pathlib import Path
-from typing import TYPE_CHECKING, Sequence
+from typing import Sequence
 
 import numpy as np
 
-from .report import bind_parameter_set, parameter_set_xml
-
-if TYPE_CHECKING:
-    from .records import AxisModel, Case, Diagnosis, Point
+from ..core import ssd, ssv
+from .axis_model import AxisModel, Case, Diagnosis, Point
 
 
 def write_outputs(opt, doc: dict, component: str, model: "AxisModel", cases: Sequence["Case"], before: "Point",
@@ -27,11 +25,10 @@ def write_outputs(opt, doc: dict, component: str, model: "AxisModel", cases: Seq
         else:
             why[p] = f"nominal model ({doc['model']}): not named by the diagnosis"
     name = f"{component}_diagnosed"
-    xml = parameter_set_xml(name, f" Written by mast diagnose from {Path(opt.measured).name}: the nominal model "
-                            f"({doc['model']}) plus the named effects; bind it after the other parameter sets of "
-                            f"'{component}' (the SSP next to it does). ", doc["values"], units, why)
-    ssv_path = opt.out / f"{name}.ssv"
-    ssv_path.write_bytes(xml)
+    ssv_path = ssv.write(opt.out / f"{name}.ssv", ssv.parameter_set(
+        name, doc["values"], units, why, f"Written by mast diagnose from {Path(opt.measured).name}: the nominal model "
+        f"({doc['model']}) plus the named effects; bind it after the other parameter sets of '{component}' (the SSP "
+        "next to it does)."))
     out = {"parameter_set": str(ssv_path), "values": dict(doc["values"]),
            "use": f"bind resources/{name}.ssv after the other parameter sets of '{component}'"}
     src = Path(opt.ssp)
@@ -41,7 +38,9 @@ def write_outputs(opt, doc: dict, component: str, model: "AxisModel", cases: Seq
             for item in zin.infolist():
                 data = zin.read(item.filename)
                 if item.filename == "SystemStructure.ssd":
-                    data = bind_parameter_set(data, f"resources/{name}.ssv", lambda n: n == component)
+                    document = ssd.read(data, f"{src} (entry {item.filename})")
+                    document.system.bind(f"resources/{name}.ssv", lambda n: n == component)
+                    data = document.to_bytes()
                 zout.writestr(item, data)
             zout.write(ssv_path, f"resources/{name}.ssv")
         out["ssp"] = str(dst)

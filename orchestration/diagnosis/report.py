@@ -4,10 +4,11 @@ from __future__ import annotations
 import math
 import zipfile
 from pathlib import Path
-from typing import TYPE_CHECKING, Callable, Mapping, Optional, Sequence
+from typing import TYPE_CHECKING, Mapping, Optional, Sequence
 
 import numpy as np
 
+from ..core import ssd, ssv
 from .resimulation import Model, Point
 
 if TYPE_CHECKING:
@@ -57,30 +58,28 @@ def write_model(opt: Options, changes: Mapping[str, float], named: Sequence[dict
     from fmus.controller.model import CASCADE_PARAMETERS, DRIVE_PARAMETERS
 
     units = {p.name: p.unit for p in PARAMETERS}
-    xml = parameter_set_xml("actuator_diagnosed", f" Written by mast diagnose from {Path(opt.measured).name}: the nominal "
-                            f"model ({opt.model or 'SSP bindings'}) plus the named effects; bind it after the "
-                            "actuators' other parameter sets (MAST_diagnosed.ssp does). ",
-                            values, units, {name: why.get(name, f"nominal model ({opt.model})") for name in values})
-    ssv_path = opt.out / "actuator_diagnosed.ssv"
-    ssv_path.write_bytes(xml)
+    ssv_path = ssv.write(opt.out / "actuator_diagnosed.ssv", ssv.parameter_set(
+        "actuator_diagnosed", values, units, {name: why.get(name, f"nominal model ({opt.model})") for name in values},
+        f"Written by mast diagnose from {Path(opt.measured).name}: the nominal model ({opt.model or 'SSP bindings'}) "
+        "plus the named effects; bind it after the actuators' other parameter sets (MAST_diagnosed.ssp does)."))
     out = {"parameter_set": str(ssv_path), "values": dict(values),
            "use": "bind resources/actuator_diagnosed.ssv after the other parameter sets of every actuator_k "
                   "(MAST_diagnosed.ssp does that); compare the lab's torque with actuator_k.tau_meas"}
     if undetermined:
         out["not_determined"] = undetermined     # named present, left at the nominal value: the plan does not pin it
     if drive:   # a controller-side effect: the drive's gains, a parameter set of the controller component
-        cxml = parameter_set_xml("controller_diagnosed", f" Written by mast diagnose from {Path(opt.measured).name}: "
-                                 "the drive parameters the data show; bind it after the controller's other parameter sets. ",
-                                 drive, {p.name: p.unit for p in DRIVE_PARAMETERS + CASCADE_PARAMETERS},
-                                 {name: why.get(name, "mast diagnose") for name in drive})
-        (opt.out / "controller_diagnosed.ssv").write_bytes(cxml)
+        ssv.write(opt.out / "controller_diagnosed.ssv", ssv.parameter_set(
+            "controller_diagnosed", drive, {p.name: p.unit for p in DRIVE_PARAMETERS + CASCADE_PARAMETERS},
+            {name: why.get(name, "mast diagnose") for name in drive},
+            f"Written by mast diagnose from {Path(opt.measured).name}: the drive parameters the data show; bind it "
+            "after the controller's other parameter sets."))
         out["controller_parameter_set"] = str(opt.out / "controller_diagnosed.ssv")
         out["controller_values"] = dict(drive)
     for j, a in axes.items():
-        axml = parameter_set_xml(f"actuator_{j + 1}_diagnosed", f" Written by mast diagnose: actuator {j + 1} only "
-                                 "(an effect on one axis); bind it after actuator_diagnosed.ssv. ",
-                                 a, units, {name: f"mast diagnose: {name} of actuator {j + 1}" for name in a})
-        (opt.out / f"actuator_{j + 1}_diagnosed.ssv").write_bytes(axml)
+        ssv.write(opt.out / f"actuator_{j + 1}_diagnosed.ssv", ssv.parameter_set(
+            f"actuator_{j + 1}_diagnosed", a, units, {name: f"mast diagnose: {name} of actuator {j + 1}" for name in a},
+            f"Written by mast diagnose: actuator {j + 1} only (an effect on one axis); bind it after "
+            "actuator_diagnosed.ssv."))
         out.setdefault("axis_values", {})[f"actuator_{j + 1}"] = dict(a)
     src = Path(opt.ssp)
     if src.suffix == ".ssp" and src.exists():
@@ -89,14 +88,14 @@ def write_model(opt: Options, changes: Mapping[str, float], named: Sequence[dict
             for item in zin.infolist():
                 data = zin.read(item.filename)
                 if item.filename == "SystemStructure.ssd":
-                    data = bind_parameter_set(data, "resources/actuator_diagnosed.ssv",
-                                              lambda name: name.startswith("actuator_"))
+                    document = ssd.read(data, f"{src} (entry {item.filename})")
+                    document.system.bind("resources/actuator_diagnosed.ssv", lambda name: name.startswith("actuator_"))
                     if drive:
-                        data = bind_parameter_set(data, "resources/controller_diagnosed.ssv",
-                                                  lambda name: name == "controller")
+                        document.system.bind("resources/controller_diagnosed.ssv", lambda name: name == "controller")
                     for j in axes:
-                        data = bind_parameter_set(data, f"resources/actuator_{j + 1}_diagnosed.ssv",
-                                                  lambda name, j=j: name == f"actuator_{j + 1}")
+                        document.system.bind(f"resources/actuator_{j + 1}_diagnosed.ssv",
+                                             lambda name, j=j: name == f"actuator_{j + 1}")
+                    data = document.to_bytes()
                 zout.writestr(item, data)
             zout.write(ssv_path, "resources/actuator_diagnosed.ssv")
             if drive:
@@ -105,61 +104,6 @@ def write_model(opt: Options, changes: Mapping[str, float], named: Sequence[dict
                 zout.write(opt.out / f"actuator_{j + 1}_diagnosed.ssv", f"resources/actuator_{j + 1}_diagnosed.ssv")
         out["ssp"] = str(dst)
     return out
-
-
-def bind_parameter_set(ssd: bytes, source: str, component: Callable[[str], bool]) -> bytes:
-    """``ssd`` with the parameter set ``source`` bound last to every component whose name ``component`` accepts."""
-    from lxml import etree
-
-    from ..core.ssp import NS
-
-    root = etree.fromstring(ssd)
-    for comp in root.iterfind(".//ssd:Component", NS):
-        if not component(comp.get("name", "")):
-            continue
-        bindings = comp.find("ssd:ParameterBindings", NS)
-        if bindings is None:
-            bindings = etree.SubElement(comp, f"{{{NS['ssd']}}}ParameterBindings")
-        etree.SubElement(bindings, f"{{{NS['ssd']}}}ParameterBinding", source=source)
-    return etree.tostring(root, xml_declaration=True, encoding="UTF-8")
-
-
-def parameter_set_xml(name: str, comment: str, values: Mapping, units: Mapping[str, str],
-                      descriptions: Mapping[str, str]) -> bytes:
-    """An SSP parameter set (.ssv): every value with its unit (declared in ssv:Units) and description."""
-    from lxml import etree
-
-    from ..core.ssp import NS
-
-    ssv, ssc = NS["ssv"], NS["ssc"]
-    root = etree.Element(f"{{{ssv}}}ParameterSet", nsmap={"ssv": ssv, "ssc": ssc}, version="1.0", name=name)
-    root.append(etree.Comment(comment))
-    params = etree.SubElement(root, f"{{{ssv}}}Parameters")
-    used_units = set()
-    for pname, v in values.items():
-        par = etree.SubElement(params, f"{{{ssv}}}Parameter", name=pname, description=descriptions.get(pname, ""))
-        if isinstance(v, str):
-            etree.SubElement(par, f"{{{ssv}}}String", value=v)
-        elif isinstance(v, int) and not isinstance(v, bool):
-            etree.SubElement(par, f"{{{ssv}}}Integer", value=str(v))
-        else:
-            unit = units.get(pname, "")
-            etree.SubElement(par, f"{{{ssv}}}Real", value=repr(float(v)), **({"unit": unit} if unit else {}))
-            if unit:
-                used_units.add(unit)
-    if used_units:
-        ue = etree.SubElement(root, f"{{{ssv}}}Units")
-        for u in sorted(used_units):
-            etree.SubElement(etree.SubElement(ue, f"{{{ssc}}}Unit", name=u), f"{{{ssc}}}BaseUnit",
-                             **BASE_UNITS.get(u, {}))
-    return etree.tostring(root, xml_declaration=True, encoding="UTF-8", pretty_print=True)
-
-
-#: SI base-unit exponents of the units parameter sets use
-BASE_UNITS = {"N.m": {"kg": "1", "m": "2", "s": "-2"}, "1": {}, "kg": {"kg": "1"}, "kg.m2": {"kg": "1", "m": "2"},
-              "N.m.s/rad": {"kg": "1", "m": "2", "s": "-1", "rad": "-1"}, "rad/s": {"rad": "1", "s": "-1"},
-              "rad": {"rad": "1"}, "s": {"s": "1"}, "m": {"m": "1"}, "N": {"kg": "1", "m": "1", "s": "-2"},
-              "N.s/m": {"kg": "1", "s": "-1"}}
 
 
 def plot_figures(out: Path, model: Model, prepared, names, before: Point, after: Point, sigma: float, roles,

@@ -1,9 +1,11 @@
 """`mast check-mechanism`: does a mechanism FMU honour the MAST interface? (docs/interfaces.md)
 
 Black-box checks, run on the FMU alone (or on a Block with the same variables), that any
-correct inverse dynamics of a rigid mechanism driven by three joints passes:
+correct inverse dynamics of a rigid mechanism driven by n joints passes (n, the units and the
+coordinates from the topology its parameters describe, ``fmus.mechanism.topology``; an FMU whose
+parameters describe none is checked against the 3PRS's interface):
 
-1. interface: inputs rho_i, rho_dot_i, rho_ddot_i, outputs F_i and the pose, with their units;
+1. interface: inputs rho_i, rho_dot_i, rho_ddot_i (i = 1..n), outputs F_i and the pose, with their units;
 2. home: at rest at the actuators' start position, finite forces and pose, already in
    initialization mode (hosts read the home pose there);
 3. linear in rho_ddot, with a symmetric positive semi-definite mass matrix M = dF/drho_ddot;
@@ -17,6 +19,7 @@ correct inverse dynamics of a rigid mechanism driven by three joints passes:
 """
 from __future__ import annotations
 
+import functools
 import json
 import math
 import os
@@ -30,13 +33,11 @@ from typing import Callable, Mapping, Optional, Sequence, Union
 
 import numpy as np
 
-INPUTS = tuple(f"rho_{i}" for i in (1, 2, 3)) + tuple(f"rho_dot_{i}" for i in (1, 2, 3)) + \
-    tuple(f"rho_ddot_{i}" for i in (1, 2, 3))
-OUTPUTS = ("F_1", "F_2", "F_3", "x", "y", "z", "psi", "theta", "phi")
-UNITS = {**{f"rho_{i}": "m" for i in (1, 2, 3)}, **{f"rho_dot_{i}": "m/s" for i in (1, 2, 3)},
-         **{f"rho_ddot_{i}": "m/s2" for i in (1, 2, 3)}, **{f"F_{i}": "N" for i in (1, 2, 3)},
-         "x": "m", "y": "m", "z": "m", "psi": "rad", "theta": "rad", "phi": "rad"}
+from fmus.mechanism.topology import POSE
+
 STEP = 1e-3
+#: the joint position of the home test when the topology gives no stroke (the 3PRS's mid-stroke) [m]
+RHO0 = 0.15
 
 
 class Refused(RuntimeError):
@@ -57,11 +58,32 @@ class Check:
 
 
 class _Subject:
-    """What the checks drive: set the nine inputs, step, read the nine outputs."""
+    """What the checks drive: set the 3 n inputs, step, read the n + 6 outputs."""
 
     variables: dict            # name -> (causality, unit or None)
     parameters: dict           # name -> default value
     init_outputs: Optional[list] = None   # outputs read in initialization mode (FMUs only)
+
+    @functools.cached_property
+    def topology(self):
+        """The topology the subject's parameters describe, or None (``fmus.mechanism.topology``)."""
+        from fmus.mechanism.designs import describe
+
+        try:
+            return describe(self.parameters, masses=False).topology
+        except Exception:  # noqa: BLE001 - parameters of a mechanism this project does not describe
+            return None
+
+    @functools.cached_property
+    def expected(self):
+        """The variables the subject must have (``model.Variables``): its topology's, else the 3PRS's."""
+        from fmus.mechanism.model import MechanismBlock, Variables
+
+        topology = self.topology
+        if topology is None:
+            return Variables(MechanismBlock.INPUTS, MechanismBlock.OUTPUTS, MechanismBlock.UNITS,
+                             MechanismBlock.DESCRIPTIONS)
+        return Variables.of_topology(topology)
 
     def start(self, inputs: Sequence[float]) -> list[float]: ...
     def step(self, t: float, inputs: Sequence[float]) -> list[float]: ...
@@ -79,7 +101,8 @@ class BlockSubject(_Subject):
         self.block = None
 
     def _io(self):
-        return [self.block.index(n) for n in INPUTS], [self.block.index(n) for n in OUTPUTS]
+        io = self.expected
+        return [self.block.index(n) for n in io.inputs], [self.block.index(n) for n in io.outputs]
 
     def start(self, inputs):
         self.block = self.block_class(self.parameters)
@@ -148,22 +171,24 @@ class FMUSubject(_Subject):
         self.slave.instantiate(loggingOn=False)
         self.slave.setupExperiment(startTime=0.0)
         self.slave.enterInitializationMode()
-        self.slave.setReal(self._vr(INPUTS), list(inputs))
+        io = self.expected
+        self.slave.setReal(self._vr(io.inputs), list(inputs))
         try:      # hosts read outputs in initialization mode (the master reads the home pose there)
-            self.init_outputs = list(self.slave.getReal(self._vr(OUTPUTS)))
+            self.init_outputs = list(self.slave.getReal(self._vr(io.outputs)))
         except Exception:
             self.init_outputs = None
         try:
             self.slave.exitInitializationMode()
         except Exception as err:
             raise Refused(str(err)) from None
-        return list(self.slave.getReal(self._vr(OUTPUTS)))
+        return list(self.slave.getReal(self._vr(io.outputs)))
 
     def step(self, t, inputs):
+        io = self.expected
         try:
-            self.slave.setReal(self._vr(INPUTS), list(inputs))
+            self.slave.setReal(self._vr(io.inputs), list(inputs))
             self.slave.doStep(currentCommunicationPoint=t, communicationStepSize=STEP)
-            return list(self.slave.getReal(self._vr(OUTPUTS)))
+            return list(self.slave.getReal(self._vr(io.outputs)))
         except Exception as err:      # fmpy raises on a status above fmi2Warning
             raise Refused(str(err)) from None
 
@@ -197,30 +222,42 @@ def _controller_ik(parameters: Mapping) -> tuple[Callable, str]:
     return kinematic_engine(geometry, "controller").ik, where
 
 
-def check(subject: _Subject, rho0: float = 0.15, amplitude: float = 0.02, seed: int = 1) -> list[Check]:
-    """Run the checks of the module docstring; each returns PASS/FAIL with what it measured."""
+def check(subject: _Subject, rho0: Optional[float] = None, amplitude: float = 0.02, seed: int = 1) -> list[Check]:
+    """Run the checks of the module docstring; each returns PASS/FAIL with what it measured. ``rho0``: every
+    joint's position at home (None: the middle of each drive's stroke, ``RHO0`` without a topology)."""
     out: list[Check] = []
     rng = np.random.default_rng(seed)
-    zero = [0.0, 0.0, 0.0]
+    topology, io = subject.topology, subject.expected
+    n = (len(io.outputs) - 6)
+    zero = [0.0] * n
+    words = {3: "nine"}
+    count_in, count_out = words.get(len(io.inputs), str(len(io.inputs))), words.get(len(io.outputs), str(len(io.outputs)))
+    units = {io.units[f"rho_{k}"] for k in range(1, n + 1)}
+    u = units.pop() if len(units) == 1 else "(m or rad)"
 
     # 1. interface
-    missing = [n for n in INPUTS if subject.variables.get(n, (None,))[0] != "input"] + \
-        [n for n in OUTPUTS if subject.variables.get(n, (None,))[0] != "output"]
-    wrong_units = [f"{n} [{subject.variables[n][1]}] (expected {UNITS[n]})" for n in INPUTS + OUTPUTS
-                   if n in subject.variables and subject.variables[n][1] not in (None, "", UNITS[n])]
+    missing = [v for v in io.inputs if subject.variables.get(v, (None,))[0] != "input"] + \
+        [v for v in io.outputs if subject.variables.get(v, (None,))[0] != "output"]
+    wrong_units = [f"{v} [{subject.variables[v][1]}] (expected {io.units[v]})" for v in io.inputs + io.outputs
+                   if v in subject.variables and subject.variables[v][1] not in (None, "", io.units[v])]
     out.append(Check("interface", not missing and not wrong_units,
-                     "all nine inputs and nine outputs, units as specified" if not missing and not wrong_units else
+                     f"all {count_in} inputs and {count_out} outputs, units as specified" if not missing and not wrong_units else
                      f"missing or wrong causality: {', '.join(missing) or 'none'}; units: {', '.join(wrong_units) or 'ok'}"))
     if missing:
         return out
 
     # 2. home
-    home = [rho0] * 3
+    if rho0 is not None or topology is None:
+        home = [RHO0 if rho0 is None else rho0] * n
+    else:
+        home = [0.5 * (d.stroke[0] + d.stroke[1]) for d in topology.drives]
+    shown = f"{home[0]}" if len(set(home)) == 1 else f"({', '.join(f'{v:g}' for v in home)})"
+    z = io.outputs.index("z")
     try:
         y0 = subject.start(home + zero + zero)
         ok = all(math.isfinite(v) for v in y0)
-        detail = (f"at rest at rho = {rho0} m: F = ({', '.join(f'{v:.4g}' for v in y0[:3])}) N, z = {y0[5]:.6g} m"
-                  if ok else f"non-finite outputs {y0}")
+        detail = (f"at rest at rho = {shown} {u}: F = ({', '.join(f'{v:.4g}' for v in y0[:n])}) "
+                  f"{io.units['F_1']}, z = {y0[z]:.6g} m" if ok else f"non-finite outputs {y0}")
         early = subject.init_outputs
         if early is not None and not np.allclose(early, y0, rtol=1e-9, atol=1e-12):
             ok = False
@@ -228,7 +265,7 @@ def check(subject: _Subject, rho0: float = 0.15, amplitude: float = 0.02, seed: 
                        f"follow the inputs there (hosts read the home pose before leaving initialization)")
         out.append(Check("home", ok, detail))
     except Refused as err:
-        out.append(Check("home", False, f"refused at rest at rho = {rho0} m: {err}"))
+        out.append(Check("home", False, f"refused at rest at rho = {shown} {u}: {err}"))
         return out
     t = [0.0]
 
@@ -241,12 +278,12 @@ def check(subject: _Subject, rho0: float = 0.15, amplitude: float = 0.02, seed: 
         # 3. linear in rho_ddot, M symmetric positive semi-definite
         worst_lin, worst_sym, min_eig, scale = 0.0, 0.0, math.inf, 1e-12
         for _ in range(3):
-            rho = np.array(home) + rng.uniform(-amplitude, amplitude, 3)
-            rd = rng.uniform(-0.2, 0.2, 3)
-            f0 = F(rho, rd, zero)[:3]
-            M = np.column_stack([F(rho, rd, np.eye(3)[j])[:3] - f0 for j in range(3)])
-            a = rng.uniform(-5, 5, 3)
-            worst_lin = max(worst_lin, np.abs(F(rho, rd, a)[:3] - f0 - M @ a).max())
+            rho = np.array(home) + rng.uniform(-amplitude, amplitude, n)
+            rd = rng.uniform(-0.2, 0.2, n)
+            f0 = F(rho, rd, zero)[:n]
+            M = np.column_stack([F(rho, rd, np.eye(n)[j])[:n] - f0 for j in range(n)])
+            a = rng.uniform(-5, 5, n)
+            worst_lin = max(worst_lin, np.abs(F(rho, rd, a)[:n] - f0 - M @ a).max())
             scale = max(scale, np.abs(M).max())
             worst_sym = max(worst_sym, np.abs(M - M.T).max())
             min_eig = min(min_eig, np.linalg.eigvalsh(0.5 * (M + M.T)).min())
@@ -257,9 +294,9 @@ def check(subject: _Subject, rho0: float = 0.15, amplitude: float = 0.02, seed: 
         # 4. quadratic in rho_dot
         worst, ref = 0.0, 1e-12
         for _ in range(3):
-            rho = np.array(home) + rng.uniform(-amplitude, amplitude, 3)
-            v = rng.uniform(-0.5, 0.5, 3)
-            f0, f1, f2 = (F(rho, k * v, zero)[:3] for k in (0, 1, 2))
+            rho = np.array(home) + rng.uniform(-amplitude, amplitude, n)
+            v = rng.uniform(-0.5, 0.5, n)
+            f0, f1, f2 = (F(rho, k * v, zero)[:n] for k in (0, 1, 2))
             worst = max(worst, np.abs((f2 - f0) - 4 * (f1 - f0)).max())
             ref = max(ref, np.abs(f1 - f0).max())
         out.append(Check("velocity terms", worst <= 1e-6 * ref + 1e-9,
@@ -267,26 +304,26 @@ def check(subject: _Subject, rho0: float = 0.15, amplitude: float = 0.02, seed: 
 
         # 5. closed cycle, rest to rest: no net work
         T = 0.4
-        u, w = rng.uniform(-1, 1, 3), rng.uniform(-1, 1, 3)
-        u *= amplitude / np.abs(u).max()
-        w *= amplitude / np.abs(w).max()
-        n = 400
+        du, dw = rng.uniform(-1, 1, n), rng.uniform(-1, 1, n)
+        du *= amplitude / np.abs(du).max()
+        dw *= amplitude / np.abs(dw).max()
+        samples = 400
         work, gross = 0.0, 0.0
-        ts = np.linspace(0.0, T, n + 1)
+        ts = np.linspace(0.0, T, samples + 1)
         powers = []
         for s in ts:
             x = s / T
             tau, taud, taudd = 10 * x ** 3 - 15 * x ** 4 + 6 * x ** 5, (30 * x ** 2 - 60 * x ** 3 + 30 * x ** 4) / T, \
                 (60 * x - 180 * x ** 2 + 120 * x ** 3) / T ** 2
             ph = 2 * math.pi * tau
-            pos = np.array(home) + u * math.sin(ph) + w * (1 - math.cos(ph))
-            dpos = u * math.cos(ph) + w * math.sin(ph)
-            ddpos = -u * math.sin(ph) + w * math.cos(ph)
+            pos = np.array(home) + du * math.sin(ph) + dw * (1 - math.cos(ph))
+            dpos = du * math.cos(ph) + dw * math.sin(ph)
+            ddpos = -du * math.sin(ph) + dw * math.cos(ph)
             vel = dpos * 2 * math.pi * taud
             acc = ddpos * (2 * math.pi * taud) ** 2 + dpos * 2 * math.pi * taudd
-            powers.append(F(pos, vel, acc)[:3] @ vel)
+            powers.append(F(pos, vel, acc)[:n] @ vel)
         powers = np.array(powers)
-        h = T / n
+        h = T / samples
         work = h / 3 * (powers[0] + powers[-1] + 4 * powers[1:-1:2].sum() + 2 * powers[2:-1:2].sum())
         gross = np.abs(powers).sum() * h
         out.append(Check("closed cycle", abs(work) <= 1e-5 * gross + 1e-9,
@@ -295,14 +332,15 @@ def check(subject: _Subject, rho0: float = 0.15, amplitude: float = 0.02, seed: 
 
         # 6. the pose fits the controller's kinematic model
         ik, where = _controller_ik(subject.parameters)
+        coordinates = [POSE.index(c) for c in (topology.names if topology is not None else ("z", "psi", "theta"))]
         worst = 0.0
         for _ in range(5):
-            rho = np.array(home) + rng.uniform(-amplitude, amplitude, 3)
-            pose = F(rho, zero, zero)[3:]
-            worst = max(worst, np.abs(np.array(ik((pose[2], pose[3], pose[4]))) - rho).max())
+            rho = np.array(home) + rng.uniform(-amplitude, amplitude, n)
+            pose = F(rho, zero, zero)[n:]
+            worst = max(worst, np.abs(np.array(ik([pose[k] for k in coordinates])) - rho).max())
         out.append(Check("controller kinematics", worst < 1e-9,
                          f"the controller's inverse kinematics ({where}) maps the reported pose back to rho "
-                         f"to {worst:.2g} m"))
+                         f"to {worst:.2g} {u}"))
     except Refused as err:
         out.append(Check("inside the workspace", False, f"a step near home was refused: {err}"))
         subject.close()
@@ -310,8 +348,10 @@ def check(subject: _Subject, rho0: float = 0.15, amplitude: float = 0.02, seed: 
 
     # 7. refusal, not NaN
     refusals = []
-    for label, inputs in (("unreachable rho", [rho0, rho0 + 10.0, rho0] + zero + zero),
-                          ("non-finite input", [rho0, rho0, rho0, math.nan, 0.0, 0.0] + zero)):
+    far = list(home)
+    far[1 % n] += 10.0
+    for label, inputs in (("unreachable rho", far + zero + zero),
+                          ("non-finite input", home + [math.nan] + zero[1:] + zero)):
         try:
             subject.start(home + zero + zero)
             y = subject.step(0.0, inputs)

@@ -51,7 +51,7 @@ static inline const char *mast_repr(double x, char *buf, size_t size)
     return buf;
 }
 
-/* kinematics._inv3: inverse (row-major) and determinant; returns 0 when det == 0 (Python: ZeroDivisionError) */
+/* kinematics.inv3: inverse (row-major) and determinant; returns 0 when det == 0 (Python: ZeroDivisionError) */
 static inline int mast_inv3(const double *m, double *inv, double *det_out)
 {
     double a = m[0], b = m[1], c = m[2], d = m[3], e = m[4], f = m[5], g = m[6], h = m[7], i = m[8];

@@ -7,10 +7,10 @@ code, which ``translate.to_c`` writes as C:
   (``ActuatorBlock._bind``'s source, with the parameters' numbers as names too), one kernel per
   structure the parameters select, for each chain n_dof = 1..``N_MAX`` (one binary, the chain chosen
   by n_dof at initialisation); the parameters' numbers traced through the model's relations
-  (``kernel_constants``, ``state_matrices``, ``backlash_systems``, ``_friction_constants``); the
+  (``kernel_constants``, ``state_matrices``, ``backlash_systems``, ``friction_constants``); the
   discretisation of each step size computed in C (``mast_expm``) with the model's substep rule
   (``substep_rule``, ``substeps_enough``); the torque measurement's filter and delay line
-  (sensor.py: ``filter_coefficients``, ``_delay_split``, ``measurement_step``, ``relayout``);
+  (sensor.py: ``filter_coefficients``, ``delay_split``, ``measurement_step``, ``relayout``);
 - mechanism (every design): the engine's traced functions (inverse kinematics with its
   Jacobian, inverse dynamics, pose), driven by the engine's Newton direct kinematics
   (``mast_native.h``); the engine traces the description with every parameter (geometry,
@@ -260,33 +260,33 @@ def _actuator_variants(block) -> list[tuple[str, dict, bool]]:
 def _actuator(block, vrs: Mapping[str, int]) -> str:
     """ActuatorBlock in C, every parameter read at run time, n_dof too: one chain per n_dof of
     ``actuator_structures`` (``_actuator_chain``), chosen at initialisation; what no chain changes once: the friction
-    solve's numbers (``_friction_constants`` traced), the torque measurement (sensor.py: ``filter_coefficients``,
-    ``_delay_split`` and the delay line's ``relayout`` and ``measurement_step`` translated), the substep rule
+    solve's numbers (``friction_constants`` traced), the torque measurement (sensor.py: ``filter_coefficients``,
+    ``delay_split`` and the delay line's ``relayout`` and ``measurement_step`` translated), the substep rule
     (``substep_rule``, ``substeps_enough``, translated)."""
     import inspect
 
     from fmus.actuator import model as am
     from fmus.actuator import sensor
-    from fmus.mechanism.engine import _Graph, _lift, compile_function
+    from fmus.common.tracer import Graph as _Graph, lift as _lift, compile_function
 
-    # --- the friction solve's numbers for a substep of d omega_N / d tau_L = b (traced _friction_constants)
+    # --- the friction solve's numbers for a substep of d omega_N / d tau_L = b (traced friction_constants)
     code, friction_keys = [], {}
     for kind, stribeck in (("coulomb", False), ("stribeck", True)):
         g = _Graph()
         names = ["b", "tau_c", "omega_c", "tau_s", "omega_s"]
         ins = {n: g.input(n) for n in names}
-        fc = am._friction_constants(ins, ins["b"], stribeck)
+        fc = am.friction_constants(ins, ins["b"], stribeck)
         friction_keys[kind] = list(fc)
         fn = compile_function(f"friction_{kind}", names, [_lift(g, v) for v in fc.values()], g,
                               label=f"actuator {kind} friction")
         code.append(to_c(fn.source, f"friction_{kind}"))
     # --- the torque measurement: the model's own coefficient functions, translated
     code.append(to_c(inspect.getsource(sensor.filter_coefficients), "filter_coefficients"))
-    code.append(to_c(inspect.getsource(sensor._delay_split), "delay_split"))
+    code.append(to_c(inspect.getsource(sensor.delay_split), "delay_split"))
     code.append(to_c(inspect.getsource(sensor.relayout), "relayout", arrays=("old", "line")))
     code.append(to_c(inspect.getsource(sensor.measurement_step), "measurement_step", arrays=("line",)))
     # --- the substep rule (ActuatorBlock._substeps): the model's own functions, translated
-    limits = {"_MAX_PHASE_PER_SUBSTEP": am._MAX_PHASE_PER_SUBSTEP, "_BACKLASH_SUBSTEP": am._BACKLASH_SUBSTEP}
+    limits = {"MAX_PHASE_PER_SUBSTEP": am.MAX_PHASE_PER_SUBSTEP, "BACKLASH_SUBSTEP": am.BACKLASH_SUBSTEP}
     code += [to_c(inspect.getsource(am.substep_rule), "substep_rule", constants=limits),
              to_c(inspect.getsource(am.substeps_enough), "substeps_enough")]
     chains, rows, sizes, shared = [], [], [], None
@@ -314,14 +314,14 @@ def _actuator_chain(block, vrs: Mapping[str, int], friction_keys: Mapping[str, l
     - ``kernel_n<N>_<structure>``: the step kernel of each structure (friction, ripple, backlash: the kernels
       numbered from ``first`` in the whole file), the model's own bound-by-name kernel (ActuatorBlock._bind's
       source, ``symbolic``), its names read from the instance's arrays;
-    - ``setup_n<N>`` (the numbers, the kernel's structure as ActuatorBlock._kernel_source chooses it, the fastest
+    - ``setup_n<N>`` (the numbers, the kernel's structure as ActuatorBlock.kernel_source chooses it, the fastest
       chain mode) and ``discretise_n<N>`` (ActuatorBlock._substeps and _bind restated: the substep rule, then
       ``mast_expm``).
 
     Returns (the code, each kernel's row of the tables: (name, friction 0/1/2, ripple, backlash, offsets of its
     friction numbers in H), the sizes of Q and H)."""
     from fmus.actuator import model as am
-    from fmus.mechanism.engine import _Graph, _lift, compile_function
+    from fmus.common.tracer import Graph as _Graph, lift as _lift, compile_function
 
     N = block.N
     nx, wN, nm = 2 * N + 1, 2 * N, 2 * N + 3
@@ -359,16 +359,16 @@ def _actuator_chain(block, vrs: Mapping[str, int], friction_keys: Mapping[str, l
         slots, h_names = dict(q_slots), []
         friction = "stribeck" if chosen["tau_s"] > 0.0 else "coulomb" if chosen["tau_c"] > 0.0 else None
         if backlash:
-            source = am._backlash_kernel_source(vb, 0.0, 1, named=True, symbolic=True)
+            source = am.backlash_kernel_source(vb, 0.0, 1, named=True, symbolic=True)
             blocks = [("PC", (5, 5)), ("GC", (5, 3)), ("PG", (5, 5)), ("GG", (5, 3))]
             prefixes = ("FC_", "FG_")
         else:
-            source = am._kernel_source(vb, am._names("P", (nx, nx)), am._names("G", (nx, 2)), 1, named=True,
+            source = am.kernel_source(vb, am.name_grid("P", (nx, nx)), am.name_grid("G", (nx, 2)), 1, named=True,
                                        symbolic=True)
             blocks = [("P", (nx, nx)), ("G", (nx, 2))]
             prefixes = ("F_",)
         for prefix, shape in blocks:
-            h_names += am._names(prefix, shape).ravel().tolist()
+            h_names += am.name_grid(prefix, shape).ravel().tolist()
         friction_at = []
         for prefix in prefixes:
             friction_at.append(len(h_names))
@@ -441,7 +441,7 @@ def _actuator_chain(block, vrs: Mapping[str, int], friction_keys: Mapping[str, l
         ]
     discretise += ["    return MAST_OK;", "}", ""]
     setup = [
-        f"/* the chain n_dof = {N}: the kernel's structure (friction, ripple, backlash), as ActuatorBlock._kernel_source "
+        f"/* the chain n_dof = {N}: the kernel's structure (friction, ripple, backlash), as ActuatorBlock.kernel_source "
         "chooses it */",
         f"static int variant_n{N}(const State *s)", "{",
         f"    int fr = {Q['tau_s']} > 0.0 ? 2 : {Q['tau_c']} > 0.0 ? 1 : 0;",
@@ -485,7 +485,7 @@ def _actuator_c(block, vrs: Mapping[str, int], code: list[str], chains: list[str
     (its allocation around TorqueSensor's ``relayout`` and ``measurement_step``, translated) and the messages of
     ActuatorBlock; ``shared``: the slots in Q of the numbers this
     glue reads (the same in every chain)."""
-    from fmus.actuator.model import _ERRORS
+    from fmus.actuator.model import INPUT_ERRORS
 
     n_in = len(block.INPUTS)
     nx, nq, nh = largest
@@ -496,7 +496,7 @@ def _actuator_c(block, vrs: Mapping[str, int], code: list[str], chains: list[str
     cases = "\n".join(f"    case {k}: code = kernel_{name}(values, s->x, d->H, s->Q, d->m); break;"
                       for k, (name, *_) in enumerate(rows))
     table = lambda column: ", ".join(str(row[column]) for row in rows)   # noqa: E731
-    names = ", ".join(_literal(_ERRORS[k]) for k in sorted(_ERRORS))
+    names = ", ".join(_literal(INPUT_ERRORS[k]) for k in sorted(INPUT_ERRORS))
     T, delay, offset = R["T_meas"], R["delay_meas"], R["tau_offset"]
     sensor = [
         "/* TorqueSensor.step (sensor.py): the delay line of n + 2 samples, newest at head (relayout and",
@@ -861,17 +861,16 @@ def _mechanism(block, vrs: Mapping[str, int]) -> str:
         "    return MAST_KINEMATICS_ERROR;", "}", "",
         "/* mechanism.model.dk: one attempt from the last solution (warm), else from the level pose (the cold start);",
         "   S: the instance (State's first member), out: q, then J = dq/drho; a failure's message in s->why_text */",
-        "static int dk(double r0, double r1, double r2, double warm, double *S, double *out)", "{",
+        "static int dk(double *rho, double warm, double *S, double *out)", "{",
         "    State *s = (State *)S;",
         "    const double *P = s->P;",
-        "    double rho[3] = {r0, r1, r2};",
         "    if (warm == 1.0) {",
         "        for (int k = 0; k < 3; k++) out[k] = s->q[k];",
         "    } else {",
-        f"        out[0] = level_height(r0, r1, r2, {P['H']}, {P['r']}, {P['L']}, s->cb, s->sb);",
+        f"        out[0] = level_height(rho[0], rho[1], rho[2], {P['H']}, {P['r']}, {P['L']}, s->cb, s->sb);",
         "        out[1] = 0.0; out[2] = 0.0;", "    }",
         f"    return {dk};", "}", "",
-        to_c(inspect.getsource(restarted_dk), "restarted_dk", arrays=("S", "out"), calls=("dk",),
+        to_c(inspect.getsource(restarted_dk), "restarted_dk", arrays=("rho", "S", "out"), calls=("dk",),
              constants={"SINGULAR": SINGULAR}),
         "/* MechanismBlock._compute: direct kinematics (restarted_dk), then the forces and the pose */",
         "static int compute(State *s, double *values, const mast_parameters *p, double t, char *msg, size_t size)", "{",
@@ -884,7 +883,7 @@ def _mechanism(block, vrs: Mapping[str, int]) -> str:
         "            snprintf(msg, size, \"input '%s' = %s is not finite at t = %s s\", INPUT_NAMES[k], "
         "mast_repr(values[k], v, sizeof v), mast_repr(t, w, sizeof w));",
         "            return MAST_MODEL_ERROR;", "        }", "    }",
-        "    code = restarted_dk(values[0], values[1], values[2], s->warm ? 1.0 : 0.0, (double *)s, qJ);",
+        "    code = restarted_dk(values, s->warm ? 1.0 : 0.0, (double *)s, qJ);   /* rho: values[0..2] */",
         "    if (code) {",
         "        kinematics_error(values, t, s->why_text, msg, size);",
         "        return code;          /* MAST_KINEMATICS_ERROR, or MAST_SINGULARITY_ERROR: it stays one */",
@@ -969,9 +968,9 @@ def _joint_controller(block, vrs: Mapping[str, int]) -> str:
         from fmus.controller.computed_torque import error_gains as own
         own_call = f"    error_gains({P('omega_n')}, {P('zeta')}, s->S + {LAYOUT['own']});"
     elif workspace:
-        from fmus.controller.workspace import pose_gains as own
-        own_call = (f"    pose_gains({P('k_v')}, {P('k_v_scale_z')}, {P('k_v_scale_psi')}, {P('k_v_scale_theta')}, "
-                    f"s->S + {LAYOUT['own']});")
+        from fmus.controller.workspace import pose_gain as own
+        own_call = "\n".join(f"    s->S[{LAYOUT['own'] + k}] = pose_gain({P('k_v')}, {P(f'k_v_scale_{c}')});"
+                              for k, c in enumerate(block.COORDINATES))
     # the kinematic model (and the inverse model's dynamics): the engine traced with the controller's
     # geometry (and bodies) as inputs, read at initialisation (designs.traced_engine)
     from fmus.mechanism.designs import TRACED_PARAMETERS, traced_engine
@@ -1115,7 +1114,7 @@ def _model_constants_c(vrs: Mapping[str, int]) -> str:
     """``model_constants(p, out)``: the inverse model's actuator constants (``inverse_model.CONSTANTS``) from
     the parameters, by ``inverse_model.model_constants`` traced (``two_inertia``, ``transmission_ratio``)."""
     from fmus.controller.inverse_model import CONSTANTS, model_constants
-    from fmus.mechanism.engine import _Graph, _lift, compile_function
+    from fmus.common.tracer import Graph as _Graph, lift as _lift, compile_function
 
     g = _Graph()
     names = ("J_motor", "J_gearbox", "J_coupling", "J_brake", "J1_scale", "J_guide", "M_load", "i_r", "p", "b_v",
@@ -1163,18 +1162,17 @@ def _inverse_model(eng, vrs: Mapping[str, int]) -> str:
         f"static const char *const M_COORDINATES[] = {{{coordinates}}};", "",
         "/* mechanism.model.dk for the inverse model: one attempt from its last solution (warm), else from the",
         "   description's guess; S: the instance's state (State's first member), out: q, then J = dq/drho */",
-        "static int dk(double r0, double r1, double r2, double warm, double *S, double *out)", "{",
+        "static int dk(double *rho, double warm, double *S, double *out)", "{",
         "    State *s = (State *)S;",
-        "    double rho[3] = {r0, r1, r2};",
         f"    if (warm == 1.0) {{ for (int k = 0; k < 3; k++) out[k] = S[{G} + k]; }} else guess(S, rho, out);",
         f"    return {dk};", "}", "",
-        to_c(inspect.getsource(restarted_dk), "restarted_dk", arrays=("S", "out"), calls=("dk",),
+        to_c(inspect.getsource(restarted_dk), "restarted_dk", arrays=("rho", "S", "out"), calls=("dk",),
              constants={"SINGULAR": SINGULAR}),
         "/* InverseModel.currents at a = (rho, rho_dot, rho_ddot); 0, or an error code with msg */",
         "static int model_eval(const double *a, double *S, double *out, char *msg, size_t size)", "{",
         "    double qJ[12], *q = qJ, *J = qJ + 3, F[12] = {0.0, 0.0, 0.0};",
         f"    if (S[{LAYOUT['attached']}] != 0.0) {{",
-        f"        int code = restarted_dk(a[0], a[1], a[2], S[{W}], S, qJ);",
+        f"        int code = restarted_dk((double *)a, S[{W}], S, qJ);   /* rho: a[0..2] */",
         "        if (code) {", "            snprintf(msg, size, \"%s\", ((State *)S)->text);", "            return code;",
         "        }",
         "        code = forces(q[0], q[1], q[2], J[0], J[1], J[2], J[3], J[4], J[5], J[6], J[7], J[8], "

@@ -3,7 +3,7 @@
 The models already generate their hot code from their own descriptions: the mechanism
 engine traces a description to straight-line functions (``engine.compile_function``), the
 actuator writes its exact-discretisation step with the implicit friction solve
-(``actuator.model._kernel_source``). That generated code uses a small, fixed subset of
+(``actuator.model.kernel_source``). That generated code uses a small, fixed subset of
 Python: float arithmetic (``%`` on the non-negative tick counters), comparisons,
 ``if``/``elif``/``else``, ``for _ in range(N)`` with ``break``, (tuple) assignments, indexing of
 the argument lists, calls of a few scalar functions and of other generated functions. Some model
