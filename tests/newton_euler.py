@@ -37,6 +37,7 @@ A PRS or RPS leg constrains S to the plane through its base normal to t: (S - ba
 Forces: F_k the force actuator k applies along its joint (on the slider or piston along +axis, the
 reaction on the guide or cylinder), so that F . rho_dot is its power (the engine's t_rho).
 """
+
 from __future__ import annotations
 
 import math
@@ -100,7 +101,14 @@ def _unit(x) -> np.ndarray:
 
 def rotation(psi: float, theta: float, phi: float) -> np.ndarray:
     """R = Rz(phi) Ry(theta) Rx(psi) (world <- platform)."""
-    cx, sx, cy, sy, cz, sz = math.cos(psi), math.sin(psi), math.cos(theta), math.sin(theta), math.cos(phi), math.sin(phi)
+    cx, sx, cy, sy, cz, sz = (
+        math.cos(psi),
+        math.sin(psi),
+        math.cos(theta),
+        math.sin(theta),
+        math.cos(phi),
+        math.sin(phi),
+    )
     Rx = np.array(((1, 0, 0), (0, cx, -sx), (0, sx, cx)))
     Ry = np.array(((cy, 0, sy), (0, 1, 0), (-sy, 0, cy)))
     Rz = np.array(((cz, -sz, 0), (sz, cz, 0), (0, 0, 1)))
@@ -131,7 +139,7 @@ def joints(mech: Mechanism, pose: Sequence[float]) -> np.ndarray:
         if leg.kind == "PRS":
             a = _unit(leg.axis)
             along = d @ a
-            out.append(along - math.sqrt(leg.length ** 2 - (d @ d - along * along)))
+            out.append(along - math.sqrt(leg.length**2 - (d @ d - along * along)))
         else:
             out.append(math.sqrt(d @ d) - leg.length)
     return np.array(out)
@@ -139,8 +147,13 @@ def joints(mech: Mechanism, pose: Sequence[float]) -> np.ndarray:
 
 def constraints(mech: Mechanism, pose: Sequence[float]) -> np.ndarray:
     """(S_i - base_i) . t_i of every PRS and RPS leg [m] (0 on an assembled mechanism)."""
-    return np.array([(S - _v(leg.base)) @ _unit(leg.t) for leg, S in zip(mech.legs, points(mech, pose))
-                     if leg.kind in ("PRS", "RPS")])
+    return np.array(
+        [
+            (S - _v(leg.base)) @ _unit(leg.t)
+            for leg, S in zip(mech.legs, points(mech, pose))
+            if leg.kind in ("PRS", "RPS")
+        ]
+    )
 
 
 def full_pose(mech: Mechanism, q: Sequence[float], tol: float = 1e-15) -> np.ndarray:
@@ -181,7 +194,7 @@ def _rows(mech: Mechanism, pose, twist=None):
         r = R @ _v(leg.s)
         S = P + r
         vS = None if v is None else v + np.cross(w, r)
-        cen = None if v is None else np.cross(w, np.cross(w, r))      # S's acceleration when a_P = alpha = 0
+        cen = None if v is None else np.cross(w, np.cross(w, r))  # S's acceleration when a_P = alpha = 0
         if leg.kind in ("PRS", "RPS"):
             t = _unit(leg.t)
             con_rows.append(np.concatenate((t, np.cross(r, t))))
@@ -227,9 +240,9 @@ def platform_motion(mech: Mechanism, pose, rho_dot, rho_ddot) -> tuple[np.ndarra
 @dataclass
 class _Body:
     inertia: Inertia
-    R: np.ndarray             # world <- body
+    R: np.ndarray  # world <- body
     origin: np.ndarray
-    a_origin: np.ndarray      # acceleration of the frame origin
+    a_origin: np.ndarray  # acceleration of the frame origin
     w: np.ndarray
     alpha: np.ndarray
 
@@ -247,11 +260,11 @@ class _Body:
 
 @dataclass
 class _Joint:
-    parent: Optional[int]     # body index, None: the ground
+    parent: Optional[int]  # body index, None: the ground
     child: int
     point: np.ndarray
-    forces: np.ndarray        # 3 x k basis of the reaction force
-    moments: np.ndarray       # 3 x j basis of the reaction moment
+    forces: np.ndarray  # 3 x k basis of the reaction force
+    moments: np.ndarray  # 3 x j basis of the reaction moment
     drive: Optional[int] = None
     drive_axis: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
@@ -271,12 +284,14 @@ def _leg_bodies(leg: Leg, k: int, S, vS, aS, rho, rd, rdd, first: int):
         e = (S - C) / L
         ed = (vS - rd * a) / L
         edd = (aS - rdd * a) / L
-        w, alpha = np.cross(e, ed), np.cross(e, edd)        # the rod turns about t only: w normal to e
+        w, alpha = np.cross(e, ed), np.cross(e, edd)  # the rod turns about t only: w normal to e
         slider = _Body(leg.bodies[0], np.eye(3), C, rdd * a, np.zeros(3), np.zeros(3))
         rod = _Body(leg.bodies[1], _frame(e, t), C, rdd * a, w, alpha)
-        joints = [_Joint(None, first, C, _normals(a), np.eye(3), drive=k, drive_axis=a),
-                  _Joint(first, first + 1, C, np.eye(3), _normals(t)),
-                  _Joint(first + 1, 0, S, np.eye(3), np.zeros((3, 0)))]
+        joints = [
+            _Joint(None, first, C, _normals(a), np.eye(3), drive=k, drive_axis=a),
+            _Joint(first, first + 1, C, np.eye(3), _normals(t)),
+            _Joint(first + 1, 0, S, np.eye(3), np.zeros((3, 0))),
+        ]
         return [slider, rod], joints
     d = S - B
     ln = np.linalg.norm(d)
@@ -285,10 +300,10 @@ def _leg_bodies(leg: Leg, k: int, S, vS, aS, rho, rd, rdd, first: int):
     udd = (aS - rdd * u - 2.0 * rd * ud) / ln
     if leg.kind == "RPS":
         y = t
-        w, alpha = np.cross(u, ud), np.cross(u, udd)        # turns about t only (t normal to u)
+        w, alpha = np.cross(u, ud), np.cross(u, udd)  # turns about t only (t normal to u)
         base_joint = _Joint(None, first, B, np.eye(3), _normals(t))
     elif leg.kind == "UPS":
-        y = _unit(np.cross(t, u))                           # second axis: normal to t and to the leg
+        y = _unit(np.cross(t, u))  # second axis: normal to t and to the leg
         # w = th1 t + th2 y, u_dot = w x u; alpha = th1dd t + th2dd y + th2 (th1 t x y)
         G = np.column_stack((np.cross(t, u), np.cross(y, u)))
         th1, th2 = np.linalg.lstsq(G, ud, rcond=None)[0]
@@ -302,9 +317,11 @@ def _leg_bodies(leg: Leg, k: int, S, vS, aS, rho, rd, rdd, first: int):
     Rl = _frame(u, y)
     cylinder = _Body(leg.bodies[0], Rl, B, np.zeros(3), w, alpha)
     piston = _Body(leg.bodies[1], Rl, S, aS, w, alpha)
-    joints = [base_joint,
-              _Joint(first, first + 1, S, _normals(u), np.eye(3), drive=k, drive_axis=u),
-              _Joint(first + 1, 0, S, np.eye(3), np.zeros((3, 0)))]
+    joints = [
+        base_joint,
+        _Joint(first, first + 1, S, _normals(u), np.eye(3), drive=k, drive_axis=u),
+        _Joint(first + 1, 0, S, np.eye(3), np.zeros((3, 0))),
+    ]
     return [cylinder, piston], joints
 
 
@@ -351,15 +368,15 @@ def forces_of_motion(mech: Mechanism, pose, twist, acc) -> np.ndarray:
         rhs[3:6] += Mo + np.cross(b.com() - G0, F)
     for i, b in enumerate(body_list, start=1):
         F, Mo = b.wrench(mech.g)
-        rhs[6 * i:6 * i + 3] = F
-        rhs[6 * i + 3:6 * i + 6] = Mo
+        rhs[6 * i : 6 * i + 3] = F
+        rhs[6 * i + 3 : 6 * i + 6] = Mo
         centres[i] = b.com()
 
     def put(col: int, body: Optional[int], sign: float, f: np.ndarray, m: np.ndarray, at: np.ndarray) -> None:
         if body is None:
             return
-        M[6 * body:6 * body + 3, col] += sign * f
-        M[6 * body + 3:6 * body + 6, col] += sign * (m + np.cross(at - centres[body], f))
+        M[6 * body : 6 * body + 3, col] += sign * f
+        M[6 * body + 3 : 6 * body + 6, col] += sign * (m + np.cross(at - centres[body], f))
 
     zero = np.zeros(3)
     for col, (what, j, c) in enumerate(cols):
@@ -377,7 +394,7 @@ def forces_of_motion(mech: Mechanism, pose, twist, acc) -> np.ndarray:
             put(col, j.child, 1.0, j.drive_axis, zero, j.point)
             put(col, j.parent, -1.0, j.drive_axis, zero, j.point)
     x_all = np.linalg.solve(M, rhs)
-    return x_all[len(cols):]
+    return x_all[len(cols) :]
 
 
 def forces(mech: Mechanism, pose, rho_dot, rho_ddot) -> np.ndarray:
@@ -387,8 +404,15 @@ def forces(mech: Mechanism, pose, rho_dot, rho_ddot) -> np.ndarray:
 
 
 # ----------------------------------------------------------------------------- mechanisms from plain numbers
-def symmetric_legs(kind: str, base_radius: float, platform_radius: float, angles: Sequence[float], length: float,
-                   bodies: tuple, beta: float = 0.0) -> tuple:
+def symmetric_legs(
+    kind: str,
+    base_radius: float,
+    platform_radius: float,
+    angles: Sequence[float],
+    length: float,
+    bodies: tuple,
+    beta: float = 0.0,
+) -> tuple:
     """Legs whose base joints lie at ``base_radius`` [m] and platform joints at ``platform_radius`` [m] at
     the ``angles`` [rad] around z, revolute (first universal) axes tangential, t_i = (-sin a_i, cos a_i, 0);
     PRS: guides at the base joints inclined by ``beta`` [rad] towards the centre axis."""
@@ -396,6 +420,15 @@ def symmetric_legs(kind: str, base_radius: float, platform_radius: float, angles
     for a in angles:
         ca, sa = math.cos(a), math.sin(a)
         axis = (-math.sin(beta) * ca, -math.sin(beta) * sa, math.cos(beta))
-        legs.append(Leg(kind, (base_radius * ca, base_radius * sa, 0.0), (-sa, ca, 0.0),
-                        (platform_radius * ca, platform_radius * sa, 0.0), length, axis=axis, bodies=bodies))
+        legs.append(
+            Leg(
+                kind,
+                (base_radius * ca, base_radius * sa, 0.0),
+                (-sa, ca, 0.0),
+                (platform_radius * ca, platform_radius * sa, 0.0),
+                length,
+                axis=axis,
+                bodies=bodies,
+            )
+        )
     return tuple(legs)

@@ -10,25 +10,25 @@ its statics at rest against virtual work on the potential energy (a third route,
 its direct kinematics along random walks (the branch kept); its singularity margins at home. Last, a scratch
 6-UPS hexapod (issue 26) from a description file against the oracle, with and without leg masses and gravity.
 """
+
 from __future__ import annotations
 
 import math
-import re
 
+import newton_euler as ne
 import numpy as np
 import pytest
 
-import newton_euler as ne
 from fmus.mechanism import dynamics
 from fmus.mechanism.description import load
 from fmus.mechanism.engine import MARGIN, Body, Engine
 from fmus.mechanism.kinematics import Geometry, KinematicsError
 
-TOL = 1e-9                                   # relative to the largest force of the state
+TOL = 1e-9  # relative to the largest force of the state
 T_LAYOUT = (0.0, 0.5 * math.pi, math.pi)
 LAYOUT_120 = (0.0, 2.0 * math.pi / 3.0, 4.0 * math.pi / 3.0)
 RPS = load("3RPS")
-V = RPS.values()                              # the file's parameter values: plain numbers for the oracle
+V = RPS.values()  # the file's parameter values: plain numbers for the oracle
 PAYLOAD = Body("payload", 3.0, (0.02, -0.03, 0.1), ((0.05, 0.001, 0.002), (0.001, 0.04, 0.003), (0.002, 0.003, 0.06)))
 
 
@@ -56,13 +56,35 @@ def random_states(engine: Engine, home, spread, rng, count: int):
 # ----------------------------------------------------------------------------- the oracle on the 3PRS
 def engine_3prs(H, alpha, beta, payload=None, g=9.81) -> Engine:
     """The 3PRS description file at these values (the masses below, the payload's)."""
-    values = dict(load("3PRS_T").values(), H=H, beta=beta, **{f"alpha_{k + 1}": a for k, a in enumerate(alpha)},
-                  m_leg=0.07, I_leg=3.943e-4, m_platform=2.06, I_px=0.0631, I_py=0.0631, I_pz=0.1262, g=g)
+    values = dict(
+        load("3PRS_T").values(),
+        H=H,
+        beta=beta,
+        **{f"alpha_{k + 1}": a for k, a in enumerate(alpha)},
+        m_leg=0.07,
+        I_leg=3.943e-4,
+        m_platform=2.06,
+        I_px=0.0631,
+        I_py=0.0631,
+        I_pz=0.1262,
+        g=g,
+    )
     if payload is not None:
-        values.update(m_payload=payload.mass, **dict(zip(("payload_x", "payload_y", "payload_z"), payload.com)),
-                      **{f"I_payload_{a}{b}": payload.inertia[i][j] for a, b, i, j in
-                         (("x", "x", 0, 0), ("y", "y", 1, 1), ("z", "z", 2, 2), ("x", "y", 0, 1), ("x", "z", 0, 2),
-                          ("y", "z", 1, 2))})
+        values.update(
+            m_payload=payload.mass,
+            **dict(zip(("payload_x", "payload_y", "payload_z"), payload.com)),
+            **{
+                f"I_payload_{a}{b}": payload.inertia[i][j]
+                for a, b, i, j in (
+                    ("x", "x", 0, 0),
+                    ("y", "y", 1, 1),
+                    ("z", "z", 2, 2),
+                    ("x", "y", 0, 1),
+                    ("x", "z", 0, 2),
+                    ("y", "z", 1, 2),
+                )
+            },
+        )
     return Engine(load("3PRS_T").describe(values), g=g)
 
 
@@ -74,9 +96,16 @@ def oracle_3prs(H, r, L, alpha, beta, m_leg, I_leg, m_platform, I_p, g, payload=
     return ne.Mechanism(ne.symmetric_legs("PRS", H, r, alpha, L, (ne.Inertia(), rod), beta), tuple(platform), g)
 
 
-@pytest.mark.parametrize("H, alpha, beta, payload", [
-    (0.4, T_LAYOUT, 0.0, None), (0.4, LAYOUT_120, 0.0, None), (0.55, T_LAYOUT, math.radians(15.0), None),
-    (0.4, T_LAYOUT, 0.0, PAYLOAD), (0.4, LAYOUT_120, math.radians(-10.0), PAYLOAD)])
+@pytest.mark.parametrize(
+    "H, alpha, beta, payload",
+    [
+        (0.4, T_LAYOUT, 0.0, None),
+        (0.4, LAYOUT_120, 0.0, None),
+        (0.55, T_LAYOUT, math.radians(15.0), None),
+        (0.4, T_LAYOUT, 0.0, PAYLOAD),
+        (0.4, LAYOUT_120, math.radians(-10.0), PAYLOAD),
+    ],
+)
 def test_the_oracle_reproduces_the_3prs_engine(H, alpha, beta, payload):
     masses = dict(m_leg=0.07, I_leg=3.943e-4, m_platform=2.06, I_p=(0.0631, 0.0631, 0.1262))
     eng = engine_3prs(H, alpha, beta, payload)
@@ -86,7 +115,7 @@ def test_the_oracle_reproduces_the_3prs_engine(H, alpha, beta, payload):
     for q, rd, rdd in random_states(eng, desc.topology.home, (0.1, 0.3, 0.3), np.random.default_rng(11), 25):
         idp = eng.inverse_dynamics_at_pose(q, rd, rdd)
         pose = ne.full_pose(mech, q)
-        np.testing.assert_allclose(pose, idp.pose, rtol=0.0, atol=1e-12)          # the parasitic motion
+        np.testing.assert_allclose(pose, idp.pose, rtol=0.0, atol=1e-12)  # the parasitic motion
         np.testing.assert_allclose(ne.joints(mech, pose), eng.ik(q), rtol=0.0, atol=1e-12)
         worst = max(worst, relative(ne.forces(mech, pose, rd, rdd), idp.t_rho))
     assert worst < TOL
@@ -97,7 +126,7 @@ def test_the_oracle_reproduces_the_closed_form_3prs_dynamics():
     geom = Geometry(0.4, 0.35, 0.26, T_LAYOUT)
     m = dynamics.Masses(m_leg=0.07, I_leg=3.943e-4, m_platform=2.06, I_px=0.0631, I_py=0.0631, I_pz=0.1262, g=9.81)
     mech = oracle_3prs(0.4, 0.35, 0.26, T_LAYOUT, 0.0, 0.07, 3.943e-4, 2.06, (0.0631, 0.0631, 0.1262), 9.81)
-    eng = engine_3prs(0.4, T_LAYOUT, 0.0)                              # only to pick admissible poses
+    eng = engine_3prs(0.4, T_LAYOUT, 0.0)  # only to pick admissible poses
     for q, rd, rdd in random_states(eng, eng.description.topology.home, (0.1, 0.3, 0.3), np.random.default_rng(5), 20):
         idp = dynamics.inverse_dynamics_at_pose(geom, m, q, rd, rdd)
         assert relative(ne.forces(mech, ne.full_pose(mech, q), rd, rdd), idp.t_rho) < TOL
@@ -110,8 +139,10 @@ def test_the_oracle_sees_what_it_must():
     desc = eng.description
     q, rd, rdd = random_states(eng, desc.topology.home, (0.1, 0.3, 0.3), np.random.default_rng(3), 1)[0]
     right = eng.inverse_dynamics_at_pose(q, rd, rdd).t_rho
-    for wrong in (oracle_3prs(0.4, 0.35, 0.26, T_LAYOUT, 0.0, 0.07, 2 * 3.943e-4, 2.06, masses["I_p"], 9.81, PAYLOAD),
-                  oracle_3prs(0.4, 0.35, 0.26, T_LAYOUT, 0.0, g=9.81, **masses)):
+    for wrong in (
+        oracle_3prs(0.4, 0.35, 0.26, T_LAYOUT, 0.0, 0.07, 2 * 3.943e-4, 2.06, masses["I_p"], 9.81, PAYLOAD),
+        oracle_3prs(0.4, 0.35, 0.26, T_LAYOUT, 0.0, g=9.81, **masses),
+    ):
         assert relative(ne.forces(wrong, ne.full_pose(wrong, q), rd, rdd), right) > 1e-5
 
 
@@ -128,20 +159,36 @@ def oracle_3rps(g: float = 9.81, **values) -> ne.Mechanism:
     """The oracle from the file's numbers (inertias of the carriage block and the disc computed here)."""
     v = {**V, **values}
     mc, a, b, c = v["m_carriage"], v["a_carriage"], v["b_carriage"], v["c_carriage"]
-    cylinder = ne.Inertia(v["m_cylinder"], (v["x_cylinder"], 0.0, 0.0),
-                          np.diag((v["I_cylinder_axial"], v["I_cylinder"], v["I_cylinder"])))
+    cylinder = ne.Inertia(
+        v["m_cylinder"], (v["x_cylinder"], 0.0, 0.0), np.diag((v["I_cylinder_axial"], v["I_cylinder"], v["I_cylinder"]))
+    )
     rod = ne.Inertia(mc, (0.0, 0.0, 0.0), np.diag((b * b + c * c, a * a + c * c, a * a + b * b)) * mc / 12.0)
     mp, r = v["m_platform"], v["r"]
     platform = [ne.Inertia(mp, (0.0, 0.0, 0.0), np.diag((mp * r * r / 4, mp * r * r / 4, mp * r * r / 2)))]
     if v["m_payload"]:
-        platform.append(ne.Inertia(v["m_payload"], (v["payload_x"], v["payload_y"], v["payload_z"]),
-                                   [[v[f"I_payload_{min(i, j)}{max(i, j)}"] for j in "xyz"] for i in "xyz"]))
+        platform.append(
+            ne.Inertia(
+                v["m_payload"],
+                (v["payload_x"], v["payload_y"], v["payload_z"]),
+                [[v[f"I_payload_{min(i, j)}{max(i, j)}"] for j in "xyz"] for i in "xyz"],
+            )
+        )
     angles = (v["alpha_1"], v["alpha_2"], v["alpha_3"])
     return ne.Mechanism(ne.symmetric_legs("RPS", v["R_b"], r, angles, 0.0, (cylinder, rod)), tuple(platform), g)
 
 
-PAYLOAD_VALUES = dict(m_payload=3.0, payload_x=0.02, payload_y=-0.03, payload_z=0.1, I_payload_xx=0.05,
-                      I_payload_yy=0.04, I_payload_zz=0.06, I_payload_xy=0.001, I_payload_xz=0.002, I_payload_yz=0.003)
+PAYLOAD_VALUES = dict(
+    m_payload=3.0,
+    payload_x=0.02,
+    payload_y=-0.03,
+    payload_z=0.1,
+    I_payload_xx=0.05,
+    I_payload_yy=0.04,
+    I_payload_zz=0.06,
+    I_payload_xy=0.001,
+    I_payload_xz=0.002,
+    I_payload_yz=0.003,
+)
 
 
 def test_the_3rps_cylinder_numbers_follow_from_their_inputs():
@@ -149,22 +196,27 @@ def test_the_3rps_cylinder_numbers_follow_from_their_inputs():
     m_rail, l_rail, w, m_drive, x_drive = 1.5, 0.65, 0.04, 0.48 + 0.36, 0.05
     m = m_rail + m_drive
     x = (m_rail * l_rail / 2 + m_drive * x_drive) / m
-    transverse = m_rail * l_rail ** 2 / 12 + m_rail * (l_rail / 2 - x) ** 2 + m_drive * (x - x_drive) ** 2
+    transverse = m_rail * l_rail**2 / 12 + m_rail * (l_rail / 2 - x) ** 2 + m_drive * (x - x_drive) ** 2
     assert (V["m_cylinder"], V["x_cylinder"], V["I_cylinder"], V["I_cylinder_axial"]) == pytest.approx(
-        (m, x, transverse, m_rail * w * w / 6), rel=1e-12)
-    assert V["m_carriage"] == 2.27 and V["m_platform"] == 2.06 and V["r"] == 0.35     # paper Eq. 22, section 3
+        (m, x, transverse, m_rail * w * w / 6), rel=1e-12
+    )
+    assert V["m_carriage"] == 2.27 and V["m_platform"] == 2.06 and V["r"] == 0.35  # paper Eq. 22, section 3
     top = RPS.describe().topology
-    assert [d.stroke for d in top.drives] == [(0.26, 0.56)] * 3                        # the paper's 300 mm
+    assert [d.stroke for d in top.drives] == [(0.26, 0.56)] * 3  # the paper's 300 mm
 
 
-@pytest.mark.parametrize("legs, g, payload", [(True, 9.81, False), (True, 0.0, False), (False, 9.81, False),
-                                              (False, 0.0, False), (True, 9.81, True)])
+@pytest.mark.parametrize(
+    "legs, g, payload",
+    [(True, 9.81, False), (True, 0.0, False), (False, 9.81, False), (False, 0.0, False), (True, 9.81, True)],
+)
 def test_3rps_inverse_dynamics_agree_with_newton_euler(legs, g, payload):
     values = {**({} if legs else LEGS_FREE), **(PAYLOAD_VALUES if payload else {})}
     eng = rps_engine(g, **values)
     mech = oracle_3rps(g, **values)
     worst = 0.0
-    for q, rd, rdd in random_states(eng, eng.description.topology.home, (0.12, 0.35, 0.35), np.random.default_rng(7), 30):
+    for q, rd, rdd in random_states(
+        eng, eng.description.topology.home, (0.12, 0.35, 0.35), np.random.default_rng(7), 30
+    ):
         idp = eng.inverse_dynamics_at_pose(q, rd, rdd)
         pose = ne.full_pose(mech, q)
         np.testing.assert_allclose(pose, idp.pose, rtol=0.0, atol=1e-12)
@@ -188,8 +240,12 @@ def potential(mech: ne.Mechanism, q) -> float:
 def oracle_jacobian(mech: ne.Mechanism, q, h: float) -> np.ndarray:
     """drho/dq by central differences of the oracle's joints."""
     q = np.asarray(q, dtype=float)
-    return np.column_stack([(ne.joints(mech, ne.full_pose(mech, q + h * e)) - ne.joints(mech, ne.full_pose(mech, q - h * e)))
-                            / (2 * h) for e in np.eye(3)])
+    return np.column_stack(
+        [
+            (ne.joints(mech, ne.full_pose(mech, q + h * e)) - ne.joints(mech, ne.full_pose(mech, q - h * e))) / (2 * h)
+            for e in np.eye(3)
+        ]
+    )
 
 
 def test_3rps_statics_at_rest_carry_the_weight():
@@ -203,12 +259,14 @@ def test_3rps_statics_at_rest_carry_the_weight():
         F = eng.inverse_dynamics_at_pose(q, (0, 0, 0), (0, 0, 0)).t_rho
         np.testing.assert_allclose(F, np.linalg.solve(oracle_jacobian(mech, q, h).T, dV), rtol=1e-7)
     F_home = eng.inverse_dynamics_at_pose(home, (0, 0, 0), (0, 0, 0)).t_rho
-    assert F_home == pytest.approx([29.41285318] * 3, rel=1e-8)        # docs/designs/3rps.md
+    assert F_home == pytest.approx([29.41285318] * 3, rel=1e-8)  # docs/designs/3rps.md
     # massless legs: the legs' forces hold the platform's weight up, sum F_i u_i,z = m_p g
     bare = rps_engine(**LEGS_FREE).inverse_dynamics_at_pose(home, (0, 0, 0), (0, 0, 0)).t_rho
     pose = ne.full_pose(mech, home)
-    uz = [(S - np.asarray(leg.base))[2] / np.linalg.norm(S - np.asarray(leg.base))
-          for leg, S in zip(mech.legs, ne.points(mech, pose))]
+    uz = [
+        (S - np.asarray(leg.base))[2] / np.linalg.norm(S - np.asarray(leg.base))
+        for leg, S in zip(mech.legs, ne.points(mech, pose))
+    ]
     assert float(np.dot(bare, uz)) == pytest.approx(V["m_platform"] * 9.81, rel=1e-12)
 
 
@@ -229,12 +287,12 @@ def test_3rps_direct_kinematics_keep_their_branch_along_random_walks():
                 continue
             try:
                 q_next = np.asarray(eng.dk(rho + step, guess=q)[0])
-            except KinematicsError:          # a refusal (the margin) is allowed; a jump is not
+            except KinematicsError:  # a refusal (the margin) is allowed; a jump is not
                 continue
             rho, q, steps = rho + step, q_next, steps + 1
             np.testing.assert_allclose(ne.joints(mech, ne.full_pose(mech, q)), rho, rtol=0.0, atol=1e-11)
             assert np.sign(eng.margins(q).det) == np.sign(det_home)
-            np.testing.assert_allclose(eng.dk(rho)[0], q, rtol=0.0, atol=1e-9)      # a cold start finds it too
+            np.testing.assert_allclose(eng.dk(rho)[0], q, rtol=0.0, atol=1e-9)  # a cold start finds it too
     assert steps > 200
 
 
@@ -247,7 +305,7 @@ def test_3rps_margins_at_home():
     m = eng.margins(home)
     assert m.parallel == pytest.approx(sv[-1], rel=1e-7) and m.inverse == pytest.approx(1.0 / sv[0], rel=1e-7)
     assert m.det > 0 and min(m.parallel, m.inverse) > 10 * MARGIN
-    assert (m.parallel, m.inverse) == pytest.approx((1.2156, 0.5817), abs=1e-4)    # docs/designs/3rps.md
+    assert (m.parallel, m.inverse) == pytest.approx((1.2156, 0.5817), abs=1e-4)  # docs/designs/3rps.md
 
 
 # ----------------------------------------------------------------------------- a 6-UPS hexapod (issue 26)
@@ -273,8 +331,6 @@ m_p = { value = 2.06, unit = "kg", source = "assumed" }
 [leg]
 template = "UPS"
 drive = { joint = "P", kind = "linear", stroke = [0.3, 0.7] }
-bodies.cylinder = { mass = "m_c", com = [0.2, 0.01, -0.02], inertia = [[0.002, 0.0003, -0.0002], [0.0003, 0.09, 0.001], [-0.0002, 0.001, 0.08]] }
-bodies.rod = { mass = "m_r", com = [-0.04, 0.015, 0.01], inertia = [[0.0015, -0.0001, 0.0002], [-0.0001, 0.0022, 0.0003], [0.0002, 0.0003, 0.0031]] }
 
 [[bodies]]
 name = "platform"
@@ -282,8 +338,23 @@ mass = "m_p"
 com = [0.01, -0.02, 0.03]
 inertia = [[0.063, 0.002, -0.001], [0.002, 0.06, 0.003], [-0.001, 0.003, 0.126]]
 """
-CYLINDER = ne.Inertia(2.34, (0.2, 0.01, -0.02), ((0.002, 0.0003, -0.0002), (0.0003, 0.09, 0.001), (-0.0002, 0.001, 0.08)))
-ROD = ne.Inertia(2.27, (-0.04, 0.015, 0.01), ((0.0015, -0.0001, 0.0002), (-0.0001, 0.0022, 0.0003), (0.0002, 0.0003, 0.0031)))
+LEG_BODIES = """
+[leg.bodies.cylinder]
+mass = "m_c"
+com = [0.2, 0.01, -0.02]
+inertia = [[0.002, 0.0003, -0.0002], [0.0003, 0.09, 0.001], [-0.0002, 0.001, 0.08]]
+
+[leg.bodies.rod]
+mass = "m_r"
+com = [-0.04, 0.015, 0.01]
+inertia = [[0.0015, -0.0001, 0.0002], [-0.0001, 0.0022, 0.0003], [0.0002, 0.0003, 0.0031]]
+"""
+CYLINDER = ne.Inertia(
+    2.34, (0.2, 0.01, -0.02), ((0.002, 0.0003, -0.0002), (0.0003, 0.09, 0.001), (-0.0002, 0.001, 0.08))
+)
+ROD = ne.Inertia(
+    2.27, (-0.04, 0.015, 0.01), ((0.0015, -0.0001, 0.0002), (-0.0001, 0.0022, 0.0003), (0.0002, 0.0003, 0.0031))
+)
 PLATFORM = ne.Inertia(2.06, (0.01, -0.02, 0.03), ((0.063, 0.002, -0.001), (0.002, 0.06, 0.003), (-0.001, 0.003, 0.126)))
 
 
@@ -294,14 +365,15 @@ def hexapod_angles(k: int) -> tuple[float, float]:
 
 
 def hexapod_file(tmp_path, legs: bool):
-    text = HEXAPOD if legs else HEXAPOD.replace('value = 2.34', 'value = 0.0').replace('value = 2.27', 'value = 0.0')
-    if not legs:     # massless legs: no inertia either
-        text = re.sub(r"(bodies\.(cylinder|rod) = \{ mass = \"m_[cr]\", com = \[[^]]*\]), inertia = [^}]*\}", r"\1 }", text)
+    """The scratch hexapod's description file, its legs with their bodies or massless."""
+    text = HEXAPOD + (LEG_BODIES if legs else "")
     for k in range(6):
         b, p = hexapod_angles(k)
-        text += (f'\n[[legs]]\nname = "leg_{k + 1}"\nbase = ["R_b * cos(radians({b}))", "R_b * sin(radians({b}))", 0.0]\n'
-                 f'platform = ["r * cos(radians({p}))", "r * sin(radians({p}))", 0.0]\n'
-                 f'axis = ["-sin(radians({b}))", "cos(radians({b}))", 0.0]\n')
+        text += (
+            f'\n[[legs]]\nname = "leg_{k + 1}"\nbase = ["R_b * cos(radians({b}))", "R_b * sin(radians({b}))", 0.0]\n'
+            f'platform = ["r * cos(radians({p}))", "r * sin(radians({p}))", 0.0]\n'
+            f'axis = ["-sin(radians({b}))", "cos(radians({b}))", 0.0]\n'
+        )
     path = tmp_path / "hexapod.toml"
     path.write_text(text)
     return load(path)
@@ -312,8 +384,16 @@ def oracle_hexapod(legs: bool, g: float) -> ne.Mechanism:
     out = []
     for k in range(6):
         b, p = (math.radians(a) for a in hexapod_angles(k))
-        out.append(ne.Leg("UPS", (0.4 * math.cos(b), 0.4 * math.sin(b), 0.0), (-math.sin(b), math.cos(b), 0.0),
-                          (0.3 * math.cos(p), 0.3 * math.sin(p), 0.0), 0.0, bodies=bodies))
+        out.append(
+            ne.Leg(
+                "UPS",
+                (0.4 * math.cos(b), 0.4 * math.sin(b), 0.0),
+                (-math.sin(b), math.cos(b), 0.0),
+                (0.3 * math.cos(p), 0.3 * math.sin(p), 0.0),
+                0.0,
+                bodies=bodies,
+            )
+        )
     return ne.Mechanism(tuple(out), (PLATFORM,), g, coordinates=ne.POSE)
 
 
@@ -339,8 +419,12 @@ def test_6ups_check_sees_the_legs_inertia_off_their_axis(tmp_path):
     eng = Engine(hexapod_file(tmp_path, True).describe(), g=9.81)
     plain = ne.Inertia(CYLINDER.mass, CYLINDER.com, np.diag(np.diag(CYLINDER.tensor)))
     mech = oracle_hexapod(True, 9.81)
-    wrong = ne.Mechanism(tuple(ne.Leg(leg.kind, leg.base, leg.t, leg.s, 0.0, bodies=(plain, ROD)) for leg in mech.legs),
-                         mech.platform, mech.g, mech.coordinates)
+    wrong = ne.Mechanism(
+        tuple(ne.Leg(leg.kind, leg.base, leg.t, leg.s, 0.0, bodies=(plain, ROD)) for leg in mech.legs),
+        mech.platform,
+        mech.g,
+        mech.coordinates,
+    )
     rng = np.random.default_rng(31)
     q = np.asarray(eng.description.topology.home) + rng.uniform(-1.0, 1.0, 6) * (0.05, 0.05, 0.08, 0.2, 0.2, 0.2)
     rd, rdd = rng.uniform(-0.5, 0.5, 6), rng.uniform(-5.0, 5.0, 6)
