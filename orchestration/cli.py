@@ -581,7 +581,9 @@ def main(argv=None) -> int:
                                        "plots (docs/designs, docs/controller.md)")
     which = p.add_mutually_exclusive_group(required=True)
     which.add_argument("--mechanism", nargs="+", metavar="FMU_OR_SSP",
-                       help="mechanism FMUs to swap into the base system (or whole systems, .ssp/.ssd)")
+                       help="mechanism FMUs to swap into the base system (or whole systems, .ssp/.ssd), or the name "
+                            "of a mechanism description without a system (3RPS): its workspace, margins and static "
+                            "forces beside the designs', not run")
     which.add_argument("--controller", nargs="+", metavar="NAME_FMU_OR_SSP",
                        help="controllers: joint, workspace, feedforward, computed_torque, controller FMUs to swap into "
                             "the base system, or whole systems (.ssp/.ssd)")

@@ -13,6 +13,8 @@ its direct kinematics along random walks (the branch kept); its singularity marg
 
 from __future__ import annotations
 
+import csv
+import json
 import math
 
 import newton_euler as ne
@@ -430,3 +432,42 @@ def test_6ups_check_sees_the_legs_inertia_off_their_axis(tmp_path):
     rd, rdd = rng.uniform(-0.5, 0.5, 6), rng.uniform(-5.0, 5.0, 6)
     right = eng.inverse_dynamics_at_pose(q, rd, rdd).t_rho
     assert relative(ne.forces(mech, q, rd, rdd), right) < TOL < 1e-6 < relative(ne.forces(wrong, q, rd, rdd), right)
+
+
+# ----------------------------------------------------------------------------- beside the designs
+def test_the_3rps_workspace_from_its_description_alone():
+    """`mast workspace 3RPS`: its own strokes and home, every body's mass (static forces against the oracle)."""
+    from mast.analyses import workspace as W
+
+    m = W.machine("3RPS")
+    assert (m.rho_min, m.rho_max) == ((0.26,) * 3, (0.56,) * 3) and m.rho_home == pytest.approx((0.41,) * 3)
+    assert m.missing_masses == () and m.drive == {}
+    ws = W.compute(m, 0.025, math.radians(4.0))
+    s = W.summarize(ws)
+    home = rps_engine().margins(rps_engine().description.topology.home)
+    assert (s["home"]["margin_parallel"], s["home"]["margin_inverse"]) == pytest.approx((home.parallel, home.inverse))
+    assert s["static_forces"]["home_N"] == pytest.approx([29.41285318] * 3, rel=1e-8)
+    mech = oracle_3rps()
+    inside = np.argwhere(ws.status == W.INSIDE)
+    for k in np.random.default_rng(3).choice(len(inside), 5, replace=False):
+        i = tuple(inside[k])
+        q = [ws.axes[d][i[d]] for d in range(3)]
+        at_rest = ne.forces(mech, ne.full_pose(mech, q), np.zeros(3), np.zeros(3))
+        np.testing.assert_allclose(ws.forces[(slice(None),) + i], at_rest, rtol=1e-9)
+
+
+def test_compare_puts_the_3rps_beside_the_designs_without_running_it(tmp_path):
+    from mast.analyses.compare import NOT_RUN, QUICK, WORKSPACE_GRID_QUICK, compare
+    from mast.cli import main as cli_main
+
+    comp = compare(["3RPS"], tmp_path / "cmp", QUICK, workspace_grid=WORKSPACE_GRID_QUICK, workers=1)
+    assert comp.candidates == [] and comp.summary == []
+    rows = list(csv.DictReader(open(tmp_path / "cmp" / "comparison.csv")))
+    assert [(r["design"], r["motion"], r["sizing_note"]) for r in rows] == [("3RPS", "", NOT_RUN)]
+    assert float(rows[0]["margin_home"]) == pytest.approx(0.5817, abs=1e-4) and float(rows[0]["workspace_m_deg2"]) > 100
+    md = (tmp_path / "cmp" / "comparison.md").read_text()
+    assert "| 3RPS (description, not run) | 29.41, 29.41, 29.41 |" in md
+    data = json.loads((tmp_path / "cmp" / "comparison.json").read_text())
+    assert data["descriptions"][0]["workspace"]["static_forces"]["home_N"] == pytest.approx([29.41285318] * 3)
+    assert cli_main(["compare", "--mechanism", "3RPS", "--out", str(tmp_path / "cli"), "--quick"]) == 0
+    assert "3RPS (description, not run)" in (tmp_path / "cli" / "comparison.md").read_text()

@@ -21,6 +21,11 @@ runs.csv (one row per sine test), comparison.json (everything), comparison.md (t
 bode.png, bandwidth.png, torque.png, tracking.png, parasitic.png, and systems/*.ssp (the
 systems that were run, for `mast run`).
 
+A mechanism may also be given by the name of its shipped description file (``workspace.described``: for example
+``3RPS`` for ``fmus/mechanism/descriptions/3RPS.toml``) when it has no system yet: it is not run, and its workspace
+(its own strokes and home), margins and static forces at rest stand beside the designs' (comparison.csv rows with
+no motion, comparison.json "descriptions", comparison.md's workspace and static-force tables).
+
 ``--controller`` compares controllers the same way (``compare(controllers=...)``): a
 controller is named (joint, workspace, feedforward, computed_torque: its system
 ``ssp/MAST_<name>.ssd``), given as a controller FMU (swapped into the base system's
@@ -49,7 +54,7 @@ from fmus.mechanism.designs import KINEMATIC_PARAMETERS_NAMES
 from fmus.mechanism.topology import POSE, POSE_UNITS, Coordinate
 
 from . import paper, sizing
-from .workspace import STEP_TILT_DEG, STEP_Z, unit_text
+from .workspace import STEP_TILT_DEG, STEP_Z, described, unit_text
 from ..core.build import default_build_dir
 from ..core.components import fmu_parameters
 from ..core import ssd, ssv
@@ -138,6 +143,9 @@ class Comparison:
     files: list[Path]
     kind: str = "design"          # what the candidates are: "design" (mechanisms) or "controller"
     parasitic: dict = field(default_factory=dict)    # label -> the pose components its mechanism does not command
+    #: mechanisms given by their description alone (``workspace.described``): not run, their workspace beside the
+    #: designs' ({"label", "source", "workspace", "note"})
+    descriptions: list = field(default_factory=list)
 
     def row(self, label: str, axis: str) -> dict:
         for r in self.summary:
@@ -302,8 +310,11 @@ def compare(mechanisms: Sequence[Union[str, Path]] = (), out: Union[str, Path] =
         if axis not in POSE:
             raise ValueError(f"test set: motion {axis!r}: expected a pose component ({', '.join(POSE)})")
     kind = "controller" if controllers else "design"
+    # a mechanism named by its description alone (no system to run): its workspace, margins and static forces
+    alone = [str(m) for m in mechanisms if not Path(m).exists() and described(str(m))]
+    runnable = [m for m in mechanisms if str(m) not in alone]
     # out is made once the candidates are known: a missing FMU leaves no empty folder behind
-    candidates = prepare(controllers or mechanisms, out, base_ssd, fmu_dir, "controller" if controllers else "mechanism")
+    candidates = prepare(controllers or runnable, out, base_ssd, fmu_dir, "controller" if controllers else "mechanism")
     axes_of = {}
     for c in candidates:     # every motion a coordinate of every candidate's mechanism (its topology)
         with SSPArchive(c.ssp) as archive:
@@ -337,7 +348,8 @@ def compare(mechanisms: Sequence[Union[str, Path]] = (), out: Union[str, Path] =
                | workspace_columns(c.workspace) | sizing_columns(c, results[(c.label, axis)], parameters)
                for c in candidates for axis in test_set.axes]
     comp = Comparison(candidates, test_set, results, summary, 0.0, [], kind,
-                      {label: parasitic_of(axes) for label, axes in axes_of.items()})
+                      {label: parasitic_of(axes) for label, axes in axes_of.items()},
+                      [description_only(name, workspace_grid) for name in alone])
     comp.files = write(comp, out, plots=plots)
     comp.wall_time_s = time.perf_counter() - t0
     meta = json.loads((out / "comparison.json").read_text())
@@ -413,6 +425,28 @@ def design_workspace(c: Candidate, grid: tuple[float, float]) -> dict:
                          "docs/workspace.md)"}
     except (ValueError, KinematicsError) as exc:
         return {"error": f"no workspace: {exc}"}
+
+
+#: why a mechanism given by its description alone is not run
+NOT_RUN = ("not run: a description alone has no system (its mechanism FMU and an SSD with one actuator per drive; "
+           "docs/designs/3rps.md)")
+
+
+def description_only(name: str, grid: Optional[tuple[float, float]]) -> dict:
+    """A mechanism given by its description's name (``workspace.described``): its workspace summary (its own
+    strokes and home; static forces at rest in N), beside the designs', or {"error": why}."""
+    from fmus.mechanism.designs import description
+    from fmus.mechanism.kinematics import KinematicsError
+
+    from . import workspace
+
+    out = {"label": name, "source": str(description(name).path), "note": NOT_RUN}
+    if grid is None:
+        return {**out, "workspace": {"error": "no workspace: none asked for"}}
+    try:
+        return {**out, "workspace": workspace.summarize(workspace.compute(workspace.machine(name), grid[0], grid[1]))}
+    except (ValueError, KinematicsError) as exc:
+        return {**out, "workspace": {"error": f"no workspace: {exc}"}}
 
 
 WORKSPACE_COLUMNS = ("workspace_m_deg2", "margin_min", "margin_home", "singularity_distance_home_m")
@@ -532,6 +566,8 @@ def write(comp: Comparison, out: Path, plots: bool = True) -> list[Path]:
         w = csv.DictWriter(handle, (kind,) + columns(SUMMARY_COLUMNS, comp.summary)[1:], extrasaction="ignore")
         w.writeheader()
         w.writerows(_renamed(comp.summary, kind))
+        w.writerows(_renamed([{"design": d["label"], "motion": "", "sizing_note": d["note"],
+                               **workspace_columns(d["workspace"])} for d in comp.descriptions], kind))
     files.append(out / "comparison.csv")
     runs = _renamed([_run_row(label, r, comp.parasitic.get(label, ("x", "y", "phi")))
                      for (label, _), rs in comp.results.items() for r in rs], kind)
@@ -549,6 +585,7 @@ def write(comp: Comparison, out: Path, plots: bool = True) -> list[Path]:
                      "amplitude_units": {a: POSE_UNITS[a] for a in comp.test_set.amplitudes}},
         "summary": _renamed(comp.summary, kind), "runs": runs, "fig10": fig10(comp) if kind == "design" else None,
         "robustness": robustness(comp),
+        **({"descriptions": comp.descriptions} if comp.descriptions else {}),
     }
     (out / "comparison.json").write_text(json.dumps(data, indent=2))
     files.append(out / "comparison.json")
@@ -567,31 +604,33 @@ def write(comp: Comparison, out: Path, plots: bool = True) -> list[Path]:
                      f"| {r.get('sizing_verdict') or '-'} | {r.get('sizing_limiting') or r.get('sizing_note') or '-'} "
                      f"| {_fmt(100 * r['sizing_margin']) + ' %' if r.get('sizing_margin') is not None else '-'} "
                      f"| {_fmt(r.get('sizing_holds_up_to_Hz'))} |")
-    spaces = [c for c in comp.candidates if c.workspace]
+    spaces = [(c.label, c.workspace) for c in comp.candidates if c.workspace]
+    spaces += [(f"{d['label']} (description, not run)", d["workspace"]) for d in comp.descriptions]
     if spaces:
-        ok = [c.workspace for c in spaces if "error" not in c.workspace]
+        ok = [w for _, w in spaces if "error" not in w]
         ranges = list(dict.fromkeys(k for w in ok for k in w["ranges_through_home"])) or ["z_m", "psi_deg", "theta_deg"]
         volumes = list(dict.fromkeys(volume_key(w) for w in ok)) or ["volume_m_deg2"]
         one = len(volumes) == 1            # one unit: in the header, else in each cell
         lines += ["", "Workspace (`mast workspace`: within the strokes, on the home branch, at least "
-                  f"{spaces[0].workspace.get('margin_limit', '-')} m/m from a singularity, connected to home):", "",
+                  f"{spaces[0][1].get('margin_limit', '-')} m/m from a singularity, connected to home):", "",
                   f"| design | volume{f' [{unit_text(volumes[0][7:])}]' if one else ''} | "
                   + " | ".join(f"{k.rpartition('_')[0]} through home [{k.rpartition('_')[2]}]" for k in ranges)
                   + " | smallest margin [m/m] | margin at home [m/m] | home to singularity [m] | worst dexterity |",
                   "|---|---|" + "---|" * len(ranges) + "---|---|---|---|"]
-        for c in spaces:
-            w = c.workspace
+        for label, w in spaces:
             if "error" in w:
-                lines.append(f"| {c.label} | {w['error']} |" + " |" * (len(ranges) + 4))
+                lines.append(f"| {label} | {w['error']} |" + " |" * (len(ranges) + 4))
                 continue
             r = w["ranges_through_home"]
             rng = lambda k: (f"{r[k][0]:.3g} .. {r[k][1]:.3g}" if k.endswith("_deg")     # noqa: E731
                              else f"{r[k][0]:.4g} .. {r[k][1]:.4g}") if k in r else "-"
             cols = workspace_columns(w)
             volume = _fmt(w[volume_key(w)]) + ("" if one else f" {unit_text(volume_key(w)[7:])}")
-            lines.append(f"| {c.label} | {volume} | " + " | ".join(rng(k) for k in ranges)
+            lines.append(f"| {label} | {volume} | " + " | ".join(rng(k) for k in ranges)
                          + f" | {_fmt(cols['margin_min'])} | {_fmt(cols['margin_home'])} "
                          f"| {_fmt(cols['singularity_distance_home_m'])} | {_fmt(w['worst_dexterity']['value'])} |")
+    if comp.descriptions:
+        lines += _static_lines(spaces) + ["", *(f"{d['label']}: {d['note']}." for d in comp.descriptions)]
     f10 = data["fig10"]
     if f10:
         lines += ["", "Paper Fig. 10, z motion -3 dB bandwidth: "
@@ -613,11 +652,29 @@ def write(comp: Comparison, out: Path, plots: bool = True) -> list[Path]:
                          f"| {_fmt(r['tracking_peak_ratio'])} |")
     (out / "comparison.md").write_text("\n".join(lines) + "\n")
     files.append(out / "comparison.md")
-    if plots:
+    if plots and comp.candidates:
         files += _plots(comp, out)
         if kind == "controller":
             files += _motion_plots(comp, out)
     return files
+
+
+def _static_lines(spaces: Sequence[tuple[str, dict]]) -> list[str]:
+    """comparison.md's table of the static actuator forces at rest (``mast workspace``'s static_forces): at home
+    and the largest inside the workspace, where the workspace gives them."""
+    lines = ["", "Static actuator forces at rest (weight of the platform and the legs; `mast workspace`):", "",
+             "| design | at home [N] | largest inside [N] | at |", "|---|---|---|---|"]
+    for label, w in spaces:
+        forces = w.get("static_forces", {}) if "error" not in w else {}
+        home = next((v for k, v in forces.items() if k.startswith("home_")), None)
+        largest = next((v for k, v in forces.items() if k.startswith("largest_") and k != "largest_motor_torque_Nm"),
+                       None)
+        if home is None:
+            lines.append(f"| {label} | {forces.get('not_computed', '-')} | | |")
+            continue
+        at = ", ".join(f"{k.rpartition('_')[0]} = {_fmt(v)} {k.rpartition('_')[2]}" for k, v in forces["at"].items())
+        lines.append(f"| {label} | {', '.join(_fmt(v) for v in home)} | {_fmt(largest)} | {at} |")
+    return lines
 
 
 def _motion_plots(comp: Comparison, out: Path) -> list[Path]:

@@ -42,7 +42,7 @@ from typing import Callable, Mapping, Optional, Sequence, Union
 
 import numpy as np
 
-from fmus.mechanism.designs import MASS_PARAMETERS, describe, engine as design_engine
+from fmus.mechanism.designs import KINEMATICS, MASS_PARAMETERS, describe, description, engine as design_engine
 from fmus.mechanism.engine import MARGIN, Engine, margins_of
 from fmus.mechanism.kinematics import KinematicsError
 from fmus.mechanism.topology import Coordinate, Topology
@@ -84,11 +84,15 @@ class Machine:
     rho_home: tuple
     drive: Mapping = field(default_factory=dict)
     payload_kg: float = 0.0
+    #: the parameters of the mechanism's bodies and gravity (None: the 3PRS's, ``BODY_MASSES``)
+    masses: Optional[tuple] = None
 
     @property
     def missing_masses(self) -> tuple[str, ...]:
         """The mass parameters the mechanism's parameters do not give (a user's own mechanism FMU, e.g. the
         lumped one of docs/interfaces.md): its workspace is then kinematic only, with no static forces."""
+        if self.masses is not None:
+            return tuple(name for name in self.masses if name not in self.params)
         return tuple(p.name for p in MASS_PARAMETERS if p.name in BODY_MASSES and p.name not in self.params)
 
     @property
@@ -125,6 +129,25 @@ def _from_system(label: str, system, mechanism: Optional[Mapping] = None, payloa
                    tuple(float(a["rho_0"]) for a in acts), drive, float(payload))
 
 
+def described(name: str) -> bool:
+    """Whether ``name`` is a mechanism of a shipped description file (``designs.KINEMATICS``: 3PRS, 3RPS, ...)."""
+    return name in KINEMATICS and not callable(KINEMATICS[name])
+
+
+def _from_description(name: str, payload: float = 0.0) -> Machine:
+    """The machine of a mechanism description alone (no system): its file's parameter values, its drives' strokes,
+    home at its home pose; no actuator data (the static forces in N, no motor torque)."""
+    if not (math.isfinite(payload) and payload >= 0.0):
+        raise ValueError(f"--payload {payload!r}: expected a finite mass >= 0 kg")
+    file = description(name)
+    params = {"kinematics": name, **file.values()}
+    top = describe(params, name, masses=False).topology
+    rho_home = design_engine(params, name, masses=False).ik(top.home)
+    return Machine(name, params, tuple(d.stroke[0] for d in top.drives), tuple(d.stroke[1] for d in top.drives),
+                   tuple(float(v) for v in rho_home), {}, float(payload),
+                   tuple(n for n in file.traced if n not in file.kinematic))
+
+
 def _drive_order(name: str) -> tuple:
     """actuator_k in the order of k (actuator_10 after actuator_9), the connector convention's drive k."""
     head, _, k = name.rpartition("_")
@@ -132,9 +155,10 @@ def _drive_order(name: str) -> tuple:
 
 
 def machine(design: Union[str, Path], payload: float = 0.0, mechanism: Optional[Mapping] = None) -> Machine:
-    """The machine of a design name (``mast.core.designs``), a system (.ssd/.ssp) or a mechanism FMU (swapped into
-    ssp/MAST.ssd with its own defaults, as ``mast compare`` does). ``mechanism``: parameters that replace
-    the system's mechanism parameters (an FMU's defaults)."""
+    """The machine of a design name (``mast.core.designs``), a system (.ssd/.ssp), a mechanism FMU (swapped into
+    ssp/MAST.ssd with its own defaults, as ``mast compare`` does) or the name of a mechanism description alone
+    (``described``: its own strokes and home, no system). ``mechanism``: parameters that replace the system's
+    mechanism parameters (an FMU's defaults)."""
     from ..core.designs import DESIGNS
     from ..core.ssp import SSPArchive, read_ssd
 
@@ -144,8 +168,11 @@ def machine(design: Union[str, Path], payload: float = 0.0, mechanism: Optional[
         d = named[text]
         return _from_system(d.name, read_ssd(d.ssd), mechanism, payload)
     path = Path(text)
+    if not path.exists() and described(text) and mechanism is None:
+        return _from_description(text, payload)
     if not path.exists():
-        raise ValueError(f"design {text!r}: neither a design ({', '.join(d.name for d in DESIGNS)}) nor a file")
+        raise ValueError(f"design {text!r}: neither a design ({', '.join(d.name for d in DESIGNS)}), a mechanism "
+                         f"description ({', '.join(k for k in KINEMATICS if described(k))}) nor a file")
     if path.suffix == ".ssd":
         return _from_system(path.stem, read_ssd(path), mechanism, payload)
     if path.suffix == ".ssp":
