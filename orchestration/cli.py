@@ -608,8 +608,9 @@ def main(argv=None) -> int:
 
     p = sub.add_parser("workspace", help="the poses a design reaches within its strokes without crossing a singularity: "
                                          "DIR/workspace.json/.csv/.png, or one pose (docs/workspace.md)")
-    p.add_argument("design", help="design name (3PRS_T, 3PRS_120, 3PRS_inclined, actuators_only), a system .ssd/.ssp "
-                                  "or a mechanism .fmu")
+    p.add_argument("design", help="design name (3PRS_T, 3PRS_120, 3PRS_inclined, actuators_only), a system .ssd/.ssp, "
+                                  "a mechanism .fmu or a mechanism description without a system (3RPS: its own strokes "
+                                  "and home)")
     p.add_argument("--payload", type=nonnegative, default=0.0, metavar="KG",
                    help="payload on the platform, centre of mass at P (static actuator forces, default 0)")
     p.add_argument("--out", type=folder, help="folder for workspace.json, workspace.csv, workspace.png")

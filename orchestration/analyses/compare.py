@@ -662,7 +662,9 @@ def write(comp: Comparison, out: Path, plots: bool = True) -> list[Path]:
 def _static_lines(spaces: Sequence[tuple[str, dict]]) -> list[str]:
     """comparison.md's table of the static actuator forces at rest (``mast workspace``'s static_forces): at home
     and the largest inside the workspace, where the workspace gives them."""
-    lines = ["", "Static actuator forces at rest (weight of the platform and the legs; `mast workspace`):", "",
+    lines = ["", "Static forces of the mechanism on its drives at rest (`mast workspace`; a carriage the actuator model "
+                 "carries, M_load, is not in them, as the 3PRS's; one that is a body of the mechanism is, as the "
+                 "3RPS's):", "",
              "| design | at home [N] | largest inside [N] | at |", "|---|---|---|---|"]
     for label, w in spaces:
         forces = w.get("static_forces", {}) if "error" not in w else {}
