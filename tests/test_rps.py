@@ -471,3 +471,10 @@ def test_compare_puts_the_3rps_beside_the_designs_without_running_it(tmp_path):
     assert data["descriptions"][0]["workspace"]["static_forces"]["home_N"] == pytest.approx([29.41285318] * 3)
     assert cli_main(["compare", "--mechanism", "3RPS", "--out", str(tmp_path / "cli"), "--quick"]) == 0
     assert "3RPS (description, not run)" in (tmp_path / "cli" / "comparison.md").read_text()
+    with pytest.raises(
+        FileNotFoundError,
+        match=r"mechanism 3XYZ: no such file or a mechanism description's name "
+        r"\(3PRS, 3RPS",
+    ):
+        compare(["3XYZ"], tmp_path / "none", QUICK)
+    assert not (tmp_path / "none").exists()

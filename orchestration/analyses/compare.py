@@ -50,7 +50,7 @@ from pathlib import Path
 from typing import Callable, Mapping, Optional, Sequence, Union
 
 from fmus.common.parameters import Value
-from fmus.mechanism.designs import KINEMATIC_PARAMETERS_NAMES
+from fmus.mechanism.designs import KINEMATIC_PARAMETERS_NAMES, KINEMATICS
 from fmus.mechanism.topology import POSE, POSE_UNITS, Coordinate
 
 from . import paper, sizing
@@ -212,6 +212,8 @@ def prepare(mechanisms: Sequence[Union[str, Path]], out: Union[str, Path], base_
             path = Path(item)
             if not path.exists():
                 known = f" or a controller name ({', '.join(named)})" if named else ""
+                if component == "mechanism":
+                    known = f" or a mechanism description's name ({', '.join(k for k in KINEMATICS if described(k))})"
                 raise FileNotFoundError(f"{component} {path}: no such file{known}")
             if path.suffix not in (".fmu", ".ssp", ".ssd"):
                 raise ValueError(f"{component} {path}: expected an .fmu (a {component} to swap in) or an .ssp/.ssd "
