@@ -27,7 +27,7 @@ code, which ``translate.to_c`` writes as C:
   ``drive_gains``, ``cascade_gains``, ``transmission_ratio``, the controllers' ``LAWS``,
   ``reference.rates``, ``inverse_model.motor_torque``, ``guide_friction``,
   ``designs.level_height``);
-- trajectory: the sine about the home pose (its parameters read at run time).
+- trajectory: the tables of the sine about the home pose (mast_trajectory.c; its parameters read at run time).
 
 The direct kinematics' restart policy (warm start, else cold; a cold restart after a failed warm
 start, never after a singularity) is ``mechanism.model.restarted_dk``, which ``MechanismBlock`` and
@@ -35,7 +35,7 @@ start, never after a singularity) is ``mechanism.model.restarted_dk``, which ``M
 
 What the models' generators do not cover is restated here in C, held to the Python model by
 tests/test_native.py: the outputs of the actuator at rest (``initialize``), the one attempt of the
-direct kinematics each C file makes (``dk``: ``mast_dk3`` from its guess) and the messages around it
+direct kinematics each controller's C file makes (``dk``: ``mast_dk`` from its guess) and the messages around it
 (``MechanismBlock._compute``, ``InverseModel.torques``, ``WorkspaceController._wsdk``), the actuator's
 doubling of its substeps around ``mast_expm`` and the allocation of its delay line, and the
 controllers' ``evaluate`` and ``do_step`` around the tick (once per communication point, the step's
@@ -61,7 +61,8 @@ from fmus.controller.tick import DK_FAILED, LAYOUT, MODEL_FAILED, SIZE, tick_sou
 
 from .translate import c_double, split_invariants, to_c
 
-__all__ = ["Variable", "emit_model", "c_string", "to_generate", "actuator_structures", "N_MAX"]
+__all__ = ["Variable", "emit_model", "emit_mechanism", "mechanism_model", "mechanism_variables", "mechanism_guess",
+           "c_string", "to_generate", "actuator_structures", "N_MAX", "RUNTIME"]
 
 @dataclass(frozen=True)
 class Variable:
@@ -98,10 +99,10 @@ def _literal(text: str) -> str:
 
 
 # ----------------------------------------------------------------------------------- shared parts
-def _why_function(name: str, checks: Mapping[str, object]) -> str:
-    """``static const char *name(int check)``: the message of the traced check ``_check<N>`` (its c_message)."""
+def _why_function(name: str, checks: Mapping[str, object], static: bool = True) -> str:
+    """``const char *name(int check)``: the message of the traced check ``_check<N>`` (its c_message)."""
     cases = [f"    case {int(k.replace('_check', ''))}: return {_literal(v.c_message)};" for k, v in sorted(checks.items())]
-    return "\n".join([f"static const char *{name}(int check)", "{", "    switch (check) {", *cases,
+    return "\n".join([f"{'static ' if static else ''}const char *{name}(int check)", "{", "    switch (check) {", *cases,
                       "    default: return \"a check of the description failed\";", "    }", "}", ""])
 
 
@@ -119,50 +120,39 @@ def _variable_table(variables: Sequence[Variable]) -> str:
 
 def _check_function(params: Sequence[Param], vrs: Mapping[str, int], extra: Sequence[str] = (),
                     model_check: bool = False) -> str:
-    """``check``: the Python model's range checks (``Param.check``, the same messages), then the C lines
-    ``extra`` (the model's own checks across parameters); ``model_check``: then the model's own checks
-    of the set (``model_check``, in the model's part of the file)."""
-    lines = ["static int check(const mast_parameters *p, char *msg, size_t size)", "{",
-             "    char v[40];", "    (void)v;"]
-    for spec in params:
-        vr = vrs[spec.name]
-        name = spec.name
-        if spec.kind is str:
-            continue
-        expected = c_string(spec.expected())
-        if spec.kind is int:
-            value, show = f"(double)p->integer[{vr}]", f"snprintf(v, sizeof v, \"%d\", p->integer[{vr}])"
-        else:
-            value, show = f"p->real[{vr}]", f"mast_repr(p->real[{vr}], v, sizeof v)"
-            lines += [f"    if (!isfinite({value})) {{", f"        {show};",
-                      f"        snprintf(msg, size, \"parameter '{name}' = %s: expected a finite number\", v);",
-                      "        return MAST_PARAMETER_ERROR;", "    }"]
-        lo, hi = ("<=", ">=") if spec.exclusive else ("<", ">")
-        bad = []
-        if spec.minimum != -math.inf:
-            bad.append(f"{value} {lo} {c_double(spec.minimum)}")
-        if spec.maximum != math.inf:
-            bad.append(f"{value} {hi} {c_double(spec.maximum)}")
-        if bad:
-            lines += [f"    if ({' || '.join(bad)}) {{", f"        {show};",
-                      f"        snprintf(msg, size, \"parameter '{name}' = %s: expected \" {expected}, v);",
-                      "        return MAST_PARAMETER_ERROR;", "    }"]
-    lines += [*extra, "    return model_check(p, msg, size);" if model_check else "    return MAST_OK;", "}", ""]
+    """``check``: the Python model's range checks (``Param.check``, the same messages) by the runtime's
+    ``mast_check_ranges`` over a table of the parameters' ranges, then the C lines ``extra`` (the model's own
+    checks across parameters); ``model_check``: then the model's own checks of the set (``model_check``, in the
+    model's part of the file)."""
+    bound = lambda x: c_double(x) if math.isfinite(x) else ("INFINITY" if x > 0 else "-INFINITY")   # noqa: E731
+    rows = [f"    {{{_literal(spec.name)}, {vrs[spec.name]}, {int(spec.kind is int)}, {bound(spec.minimum)}, "
+            f"{bound(spec.maximum)}, {int(bool(spec.exclusive))}, {_literal(spec.expected())}}},"
+            for spec in params if spec.kind is not str]
+    lines = ["static const mast_range RANGES[] = {", *(rows or ['    {"", 0, 0, 0.0, 0.0, 0, ""},']), "};", "",
+             "static int check(const mast_parameters *p, char *msg, size_t size)", "{",
+             f"    if (mast_check_ranges(RANGES, {len(rows)}, p, msg, size)) return MAST_PARAMETER_ERROR;",
+             *extra, "    return model_check(p, msg, size);" if model_check else "    return MAST_OK;", "}", ""]
     prototype = ["static int model_check(const mast_parameters *p, char *msg, size_t size);", ""] if model_check else []
     return "\n".join(prototype + lines)
 
 
 def _model_struct(identifier: str, guid: str, variables: Sequence[Variable], n_inputs: int, n_io: int,
-                  feedthrough: bool) -> str:
+                  feedthrough: bool, state: str = "State", functions: str = "") -> str:
+    """MAST_MODEL: the model's table row; ``state``: its state's type, ``functions``: the prefix of its initialize
+    and do_step (a runtime's, e.g. ``mast_mechanism_``)."""
     return (f"const mast_model MAST_MODEL = {{{_literal(identifier)}, {_literal(guid)}, {len(variables)}, VARIABLES, "
-            f"{n_inputs}, {n_io}, sizeof(State), check, initialize, do_step, {'evaluate' if feedthrough else 'NULL'}}};\n")
+            f"{n_inputs}, {n_io}, sizeof({state}), check, {functions}initialize, {functions}do_step, "
+            f"{'evaluate' if feedthrough else 'NULL'}}};\n")
 
 
 _HEAD = """/* Generated by mast build --native from the {what} (mast.core.native.models): do not edit. */
 #include "mast_native.h"
 #include "mast_model.h"
-
+#include "mast_ranges.h"
+{more}
 """
+#: the runtime files (fmus/common/native) a kind of model runs on besides those every model has (build.SUPPORT_FILES)
+RUNTIME = {"mechanism": ("mast_mechanism.c", "mast_mechanism.h"), "trajectory": ("mast_trajectory.c", "mast_trajectory.h")}
 
 
 # ----------------------------------------------------------------------------------- actuator
@@ -718,13 +708,22 @@ def _actuator_checks(block, vrs: Mapping[str, int]) -> list[str]:
 
 # ----------------------------------------------------------------------------------- mechanism
 def _ikjac_c(eng, name: str, checks: Mapping[str, object]) -> str:
-    """The engine's traced inverse kinematics with its Jacobian as C ``name``, and ``name_p`` (``mast_ikjac3``:
-    the engine's traced parameters, ``eng.parameters``, from the array P; none for an engine traced with
-    them as constants)."""
+    """The engine's traced inverse kinematics with its Jacobian as C ``name``, ``name_p`` (the engine's traced
+    parameters, ``eng.parameters``, from the array P; none for an engine traced with them as constants) and
+    ``name_m``, the same as mast_dk's ``mast_ikjac`` (its model: P)."""
     args = "".join(f", P[{k}]" for k in range(len(eng.parameters)))
+    q = ", ".join(f"q{k}" for k in range(eng.n))
     return "\n".join([to_c(eng._fn("ikjac").source, name, checks=checks),
-                      f"static int {name}_p(const double *P, double q0, double q1, double q2, double *out)", "{",
-                      "    (void)P;", f"    return {name}(q0, q1, q2{args}, out);", "}", ""])
+                      f"static int {name}_p(const double *P, {', '.join(f'double q{k}' for k in range(eng.n))}, double *out)",
+                      "{", "    (void)P;", f"    return {name}({q}{args}, out);", "}",
+                      f"static int {name}_m(const void *P, const double *q, double *out) {{ return {name}_p(P, "
+                      f"{', '.join(f'q[{k}]' for k in range(eng.n))}, out); }}", ""])
+
+
+def _dk_call(eng, model: str, names: str, lengths: str, q: str, J: str, text: str) -> str:
+    """C: mast_dk of the engine ``eng`` (``ikjac_m``, ``why``) for rho, from and into ``q``, J into ``J``."""
+    return (f"mast_dk(&(mast_dk_problem){{{eng.n}, ikjac_m, {model}, why, {names}, {lengths}, {c_double(eng.margin)}, "
+            f"{c_double(eng.cond_limit)}, 1e-12, 50}}, rho, {q}, {J}, {text})")
 
 
 def _traced_parameters_c(vrs: Mapping[str, int]) -> str:
@@ -737,10 +736,11 @@ def _traced_parameters_c(vrs: Mapping[str, int]) -> str:
                         for k, n in enumerate(TRACED_PARAMETERS)], "}", ""])
 
 
-def _describe_checks_c(vrs: Mapping[str, int], payload: bool) -> list[str]:
+def _describe_checks_c(vrs: Mapping[str, int], payload: bool, why: str = "why", mechanism: bool = False) -> list[str]:
     """C lines (in a function with ``p``, ``msg``, ``size``) of ``designs.describe``'s checks of a parameter set
     after its ranges, with its messages: the kinematics, kinematics.Geometry.checked (beta = 0), the payload's
-    inertia tensor (``payload``: engine.Body), designs._check_inclined (beta != 0). Needs ``ikjac`` (traced)."""
+    inertia tensor (``payload``: engine.Body), designs._check_inclined (beta != 0). Needs ``ikjac`` (traced), or, in a
+    ``mechanism``, its hoisted kernels (mast_mechanism.h); ``why``: the message function of its checks."""
     from fmus.mechanism.designs import TRACED_PARAMETERS
 
     P = {name: f"P[{k}]" for k, name in enumerate(TRACED_PARAMETERS)}
@@ -756,7 +756,9 @@ def _describe_checks_c(vrs: Mapping[str, int], payload: bool) -> list[str]:
         "        return MAST_PARAMETER_ERROR;", "    }",
         f"    double cb = cos({P['beta']}), sb = sin({P['beta']});",
         f"    double z = level_height(0.0, 0.0, 0.0, {P['H']}, {P['r']}, {P['L']}, cb, sb);",
-        "    int code = ikjac(z, 0.0, 0.0, " + params + ", out);",
+        *(["    double K[MECH_NK_IKJAC], level[3] = {z, 0.0, 0.0};", "    mech_ikjac_invariants(P, K);",
+           "    int code = mech_ikjac(level, P, K, out);"] if mechanism else
+          ["    int code = ikjac(z, 0.0, 0.0, " + params + ", out);"]),
         f"    if ({P['beta']} == 0.0) {{   /* kinematics.Geometry.checked */",
         f"        if (!({P['r']} < {P['H']})) {{",
         f"            snprintf(msg, size, \"parameter 'r' = %s: must be < H = %s m (working assembly: the spherical joints "
@@ -766,11 +768,11 @@ def _describe_checks_c(vrs: Mapping[str, int], payload: bool) -> list[str]:
         f"            snprintf(msg, size, \"parameter 'L' = %s: must exceed H - r = %s m, or the legs cannot reach the "
         f"platform\", {R['L']}, mast_repr({P['H']} - {P['r']}, h, sizeof h));",
         "            return MAST_PARAMETER_ERROR;", "        }",
-        "        if (code || !mast_inv3(out + 3, inv, &det)) {",
+        "        if (code || !mast_inv(3, out + 3, inv, &det)) {",
         "            snprintf(msg, size, \"parameters 'alpha_1', 'alpha_2', 'alpha_3' = (%s, %s, %s) rad: the mechanism "
         "cannot be assembled at the level pose: %s\", "
         f"mast_repr({P['alpha_1']}, a1, sizeof a1), mast_repr({P['alpha_2']}, a2, sizeof a2), "
-        f"mast_repr({P['alpha_3']}, a3, sizeof a3), code ? why(-code) : \"singular configuration\");",
+        f"mast_repr({P['alpha_3']}, a3, sizeof a3), code ? {why}(-code) : \"singular configuration\");",
         "            return MAST_PARAMETER_ERROR;", "        }", "    }"]
     if payload:
         names = ("I_payload_xx", "I_payload_xy", "I_payload_xz", "I_payload_yy", "I_payload_yz", "I_payload_zz")
@@ -790,7 +792,7 @@ def _describe_checks_c(vrs: Mapping[str, int], payload: bool) -> list[str]:
         f"    if ({P['beta']} != 0.0 && code) {{   /* designs._check_inclined */",
         "        snprintf(msg, size, \"parameters 'H', 'r', 'L', 'beta' = %s m, %s m, %s m, %s rad: the mechanism cannot be "
         "assembled at the level pose with the sliders at the foot of their guides: %s\", "
-        f"{R['H']}, {R['r']}, {R['L']}, {R['beta']}, why(-code));",
+        f"{R['H']}, {R['r']}, {R['L']}, {R['beta']}, {why}(-code));",
         "        return MAST_PARAMETER_ERROR;", "    }"]
     return lines
 
@@ -804,114 +806,120 @@ def _level_height_c() -> str:
     return to_c(inspect.getsource(level_height), "level_height")
 
 
-def _mechanism(block, vrs: Mapping[str, int]) -> str:
-    """MechanismBlock for every parameter set: the engine traced with the geometry, the bodies, the payload
-    and g as named inputs (``designs.traced_engine``), their values read at initialisation, with what the
-    traced functions compute from them alone (``split_invariants``: once, not at every step); the geometry
-    checks of ``designs.describe`` (the same messages) at exitInitializationMode."""
-    import inspect
-
+def _mechanism(block, vrs: Mapping[str, int]) -> tuple[str, str]:
+    """MechanismBlock for every parameter set of the 3PRS: the engine traced with the geometry, the bodies, the
+    payload and g as named inputs (``designs.traced_engine``), their values read at initialisation
+    (``mechanism_model``); the geometry checks of ``designs.describe`` (the same messages) at
+    exitInitializationMode. (model file, config.h)"""
     from fmus.mechanism.designs import TRACED_PARAMETERS, traced_engine
-    from fmus.mechanism.model import SINGULAR, restarted_dk
 
     eng = traced_engine(block.params, block.name)
     if tuple(eng.parameters) != TRACED_PARAMETERS or len(eng.lengths) != 3 \
             or eng.lengths != (1.0, block.params["r"], block.params["r"]):
         raise ValueError(f"{block.name}: the native mechanism expects the 3PRS traced with {TRACED_PARAMETERS} and "
                          "the coordinate lengths (1, r, r)")
-    ikjac, forces, pose = eng._fn("ikjac"), eng._fn("forces"), eng._fn("pose")
-    checks = {k: v for k, v in {**ikjac.namespace, **forces.namespace, **pose.namespace}.items()
-              if k.startswith("_check")}
-    NP = len(TRACED_PARAMETERS)
-    P = {name: f"P[{k}]" for k, name in enumerate(TRACED_PARAMETERS)}
-    params = ", ".join(f"P[{k}]" for k in range(NP))
-    inputs = ", ".join(_literal(n) for n in block.INPUTS)
-    coordinates = ", ".join(_literal(n) for n in eng.description.coordinates)
-    dk = (f"mast_dk3(ikjac_k_p, s->P, why, COORDINATES, s->lengths, {c_double(eng.margin)}, rho, out, out + 3, "
-          f"1e-12, 50, {c_double(eng.cond_limit)}, s->why_text, sizeof s->why_text)")
-    attached = f"p->integer[{vrs['attached']}]"
-    # the parts of the traced functions that depend on the parameters alone, computed at initialisation
-    hoisted = {name: split_invariants(fn.source, TRACED_PARAMETERS) for name, fn in
-               (("ikjac", ikjac), ("dynamics", forces), ("pose", pose))}
-    sizes = {name: max(1, n) for name, (_, _, n) in hoisted.items()}
-    invariant_code = [to_c(hoisted[name][0], f"{name}_invariants") for name in hoisted]
-    hot_code = [to_c(hoisted[name][1], f"{name}_k", arrays=("K",), checks=checks) for name in hoisted]
+    r = TRACED_PARAMETERS.index("r")
+    joints = ", ".join(f"r{k}" for k in range(eng.n))
+    # PRS3.guess: the level pose for the mean slider position, its cosines from beta as PRS3 computes them
+    guess = (f"def guess({joints}, {', '.join(TRACED_PARAMETERS)}):\n"
+             f"    return (level_height({joints}, H, r, L, cos(beta), sin(beta)), 0.0, 0.0)\n")
+    model, config = mechanism_model(eng, [vrs.get(name, -1) for name in TRACED_PARAMETERS], (-1, r, r),
+                                    vrs["attached"], guess, block.INPUTS, [_level_height_c()])
     return "\n".join([
-        f"typedef struct {{ double q[3]; int warm; double P[{NP + sizes['ikjac']}]; double K_dynamics[{sizes['dynamics']}];",
-        f"                 double K_pose[{sizes['pose']}]; double lengths[3]; double cb, sb; char why_text[1024]; }} State;",
-        "/* P: the traced parameters (TRACED_PARAMETERS), then ikjac's invariants; K_*: the other functions' */", "",
-        _ikjac_c(eng, "ikjac", checks),
-        *invariant_code, *hot_code,
-        "/* mast_ikjac3 of the hoisted ikjac: the parameters and its invariants from P */",
-        "static int ikjac_k_p(const double *P, double q0, double q1, double q2, double *out)", "{",
-        f"    return ikjac_k(q0, q1, q2, {params}, (double *)P + {NP}, out);", "}", "",
-        _level_height_c(),
-        _why_function("why", checks),
-        f"static const char *const INPUT_NAMES[] = {{{inputs}}};",
-        f"static const char *const COORDINATES[] = {{{coordinates}}};", "",
+        model,
         _traced_parameters_c(vrs),
         "/* designs.describe's checks of a parameter set (after the ranges), with its messages */",
         "static int model_check(const mast_parameters *p, char *msg, size_t size)", "{",
-        *_describe_checks_c(vrs, payload=True),
-        "    return MAST_OK;", "}", "",
-        "static int kinematics_error(const double *values, double t, const char *what, char *msg, size_t size)", "{",
-        "    char a[40], b[40], c[40], d[40];",
-        "    snprintf(msg, size, \"at t = %s s, rho = (%s, %s, %s) m: %s\", mast_repr(t, d, sizeof d), "
-        "mast_repr(values[0], a, sizeof a), mast_repr(values[1], b, sizeof b), mast_repr(values[2], c, sizeof c), what);",
-        "    return MAST_KINEMATICS_ERROR;", "}", "",
-        "/* mechanism.model.dk: one attempt from the last solution (warm), else from the level pose (the cold start);",
-        "   S: the instance (State's first member), out: q, then J = dq/drho; a failure's message in s->why_text */",
-        "static int dk(double r0, double r1, double r2, double warm, double *S, double *out)", "{",
-        "    State *s = (State *)S;",
-        "    const double *P = s->P;",
-        "    double rho[3] = {r0, r1, r2};",
-        "    if (warm == 1.0) {",
-        "        for (int k = 0; k < 3; k++) out[k] = s->q[k];",
-        "    } else {",
-        f"        out[0] = level_height(r0, r1, r2, {P['H']}, {P['r']}, {P['L']}, s->cb, s->sb);",
-        "        out[1] = 0.0; out[2] = 0.0;", "    }",
-        f"    return {dk};", "}", "",
-        to_c(inspect.getsource(restarted_dk), "restarted_dk", arrays=("S", "out"), calls=("dk",),
-             constants={"SINGULAR": SINGULAR}),
-        "/* MechanismBlock._compute: direct kinematics (restarted_dk), then the forces and the pose */",
-        "static int compute(State *s, double *values, const mast_parameters *p, double t, char *msg, size_t size)", "{",
-        "    char v[40], w[40];",
-        "    double qJ[12], *q = qJ, *J = qJ + 3;",
-        "    const double *P = s->P;",
-        "    int code;",
-        "    for (int k = 0; k < 9; k++) {",
-        "        if (!isfinite(values[k])) {",
-        "            snprintf(msg, size, \"input '%s' = %s is not finite at t = %s s\", INPUT_NAMES[k], "
-        "mast_repr(values[k], v, sizeof v), mast_repr(t, w, sizeof w));",
-        "            return MAST_MODEL_ERROR;", "        }", "    }",
-        "    code = restarted_dk(values[0], values[1], values[2], s->warm ? 1.0 : 0.0, (double *)s, qJ);",
-        "    if (code) {",
-        "        kinematics_error(values, t, s->why_text, msg, size);",
-        "        return code;          /* MAST_KINEMATICS_ERROR, or MAST_SINGULARITY_ERROR: it stays one */",
-        "    }",
-        f"    if ({attached}) {{",
-        "        code = dynamics_k(q[0], q[1], q[2], J[0], J[1], J[2], J[3], J[4], J[5], J[6], J[7], J[8], "
-        f"values[3], values[4], values[5], values[6], values[7], values[8], {params}, s->K_dynamics, values + 9);",
-        "    } else {   /* attached = 0: no force, the kinematics of the mechanism */",
-        "        values[9] = 0.0; values[10] = 0.0; values[11] = 0.0;",
-        f"        code = pose_k(q[0], q[1], q[2], {params}, s->K_pose, values + 12);",
-        "    }",
-        "    if (code) return kinematics_error(values, t, why(-code), msg, size);",
-        "    for (int k = 0; k < 3; k++) s->q[k] = q[k];",
-        "    s->warm = 1;",
-        "    return MAST_OK;", "}", "",
-        "static int initialize(void *state, double *values, const mast_parameters *p, double t0, char *msg, size_t size)",
-        "{", "    State *s = state;", "    s->warm = 0;", "    traced_parameters(p, s->P);",
-        f"    ikjac_invariants({params.replace('P[', 's->P[')}, s->P + {NP});",
-        f"    dynamics_invariants({params.replace('P[', 's->P[')}, s->K_dynamics);",
-        f"    pose_invariants({params.replace('P[', 's->P[')}, s->K_pose);",
-        f"    s->lengths[0] = 1.0; s->lengths[1] = {P['r'].replace('P', 's->P')}; "
-        f"s->lengths[2] = {P['r'].replace('P', 's->P')};   /* Engine.lengths (1, r, r) [m] */",
-        f"    s->cb = cos(s->{P['beta']}); s->sb = sin(s->{P['beta']});",
-        "    return compute(s, values, p, t0, msg, size);",
-        "}", "",
-        "static int do_step(void *state, double *values, const mast_parameters *p, double t, double h, char *msg, size_t size)",
-        "{", "    (void)h;", "    return compute(state, values, p, t + h, msg, size);", "}", ""])
+        *_describe_checks_c(vrs, payload=True, why="mech_why", mechanism=True),
+        "    return MAST_OK;", "}", ""]), config
+
+
+def mechanism_guess(eng) -> str:
+    """The Python source of ``guess(r0, ..., <the traced parameters>)``: the description's cold start of the
+    direct kinematics when it does not depend on rho (the same pose for rho = 0 and rho = 1 m); ValueError
+    naming the description otherwise (a guess that moves with rho has a native form when written as one, as
+    the 3PRS's level pose: ``_mechanism``)."""
+    n, d = eng.n, eng.description
+    poses = []
+    for rho in ([0.0] * n, [1.0] * n):
+        try:
+            poses.append(tuple(float(v) for v in d.guess(rho)))
+        except Exception as err:   # noqa: BLE001 (the description's own code: any failure means no constant guess)
+            raise ValueError(f"{d.name}: its guess fails at rho = {rho}: {err}") from None
+    if poses[0] != poses[1] or len(poses[0]) != n:
+        raise ValueError(f"{d.name}: its guess {poses[0]} at rho = 0 and {poses[1]} at rho = 1 m is not one pose of "
+                         f"{n} coordinates: the native mechanism takes a constant cold start (or one written as a "
+                         "generated function)")
+    args = ", ".join([f"r{k}" for k in range(n)] + list(eng.parameters))
+    return f"def guess({args}):\n    return ({', '.join(c_double(v) for v in poses[0])},)\n"
+
+
+def mechanism_variables(n: int) -> list[Variable]:
+    """The variables of a mechanism of ``n`` drives without parameters (the connector convention): inputs rho_k,
+    rho_dot_k, rho_ddot_k, outputs F_k and the pose x, y, z, psi, theta, phi."""
+    from fmus.mechanism.topology import POSE
+
+    inputs = [f"{kind}_{k}" for kind in ("rho", "rho_dot", "rho_ddot") for k in range(1, n + 1)]
+    outputs = [f"F_{k}" for k in range(1, n + 1)] + list(POSE)
+    return [Variable(name, vr, "Real", "input" if vr < len(inputs) else "output", 0.0)
+            for vr, name in enumerate(inputs + outputs)]
+
+
+def mechanism_model(eng, traced_vrs: Sequence[int], length_parameters: Sequence[int], attached_vr: int, guess: str,
+                    inputs: Sequence[str], support: Sequence[str] = ()) -> tuple[str, str]:
+    """The generated part of a native mechanism (mast_mechanism.h) for the engine ``eng`` of any description: its
+    traced kernels (inverse kinematics with its Jacobian, dynamics, pose), each split into what the parameters
+    alone fix (``split_invariants``: computed at initialisation, not at every step) and the rest, with a fixed
+    interface (``packed``: q, J, rho_dot, rho_ddot, the parameters P as arrays); the restart policy
+    (``mechanism.model.restarted_dk``) and the cold start ``guess`` (Python source of the generated subset)
+    translated; the tables. ``traced_vrs``: per traced parameter (``eng.parameters``), its value reference or
+    -1; ``length_parameters``: per coordinate, the traced parameter that is its length (``Engine.lengths``) or
+    -1 (then the engine's number); ``attached_vr``: the value reference of 'attached', or -1; ``inputs``: the
+    FMU's input names; ``support``: C the guess calls (value functions). (model part, config.h)"""
+    import inspect
+
+    from fmus.mechanism.model import SINGULAR, restarted_dk
+
+    n, names = eng.n, list(eng.parameters)
+    fns = {name: eng._fn(key) for name, key in (("ikjac", "ikjac"), ("dynamics", "forces"), ("pose", "pose"))}
+    checks = {k: v for fn in fns.values() for k, v in fn.namespace.items() if k.startswith("_check")}
+    q = [f"q{j}" for j in range(n)]
+    groups = {"q": q, "J": [f"J{j}{k}" for j in range(n) for k in range(n)], "rho_dot": [f"rd{k}" for k in range(n)],
+              "rho_ddot": [f"rdd{k}" for k in range(n)], "P": names}
+    code, sizes = [], {}
+    for name, fn in fns.items():
+        invariants, main, sizes[name] = split_invariants(fn.source, names)
+        code += [to_c(invariants, f"mech_{name}_invariants", packed={"P": names}, static=False),
+                 to_c(main, f"mech_{name}", arrays=("K",), checks=checks, static=False,
+                      packed={k: v for k, v in groups.items() if k in ("q", "P") or name == "dynamics"})]
+    args = list(inspect.signature(restarted_dk).parameters)
+    joints = args[:args.index("warm")]
+    packing = {"rho": joints} if joints != ["rho"] else {}
+    code += [to_c(inspect.getsource(restarted_dk), "mech_restarted_dk", arrays=("S", "out", *(() if packing else ("rho",))),
+                  calls={"dk": "mast_mechanism_dk"}, constants={"SINGULAR": SINGULAR}, packed=packing, static=False),
+             *support,
+             to_c(guess, "mech_guess", packed={"rho": [f"r{k}" for k in range(n)], "P": names}, static=False,
+                  values=("level_height",)),
+             _why_function("mech_why", checks, static=False)]
+    lengths = [c_double(v if k < 0 else 0.0) for v, k in zip(eng.lengths, length_parameters)]
+    row = lambda items: ", ".join(str(v) for v in items)     # noqa: E731
+    tables = [
+        "/* the tables of this mechanism (mast_mechanism.h) */",
+        f"const int MECH_TRACED_VR[MECH_NP] = {{{row(traced_vrs or [-1])}}};   /* {', '.join(names) or 'none'} */",
+        f"const int MECH_LENGTH_PARAMETER[MECH_N] = {{{row(length_parameters)}}};",
+        f"const double MECH_LENGTH_VALUE[MECH_N] = {{{row(lengths)}}};",
+        f"const char *const MECH_COORDINATES[MECH_N] = {{{row(_literal(c) for c in eng.description.coordinates)}}};",
+        f"const char *const MECH_INPUT_NAMES[3 * MECH_N] = {{{row(_literal(i) for i in inputs)}}};", ""]
+    config = "\n".join([
+        f"/* Generated by mast build --native from the description {eng.description.name} "
+        "(mast.core.native.models): the sizes of this mechanism (mast_mechanism.h) */",
+        "#ifndef CONFIG_H", "#define CONFIG_H",
+        f"#define MECH_N {n}", f"#define MECH_NP {max(1, len(names))}",
+        *[f"#define MECH_NK_{name.upper()} {max(1, k)}" for name, k in sizes.items()],
+        f"#define MECH_ATTACHED_VR {attached_vr}",
+        f"#define MECH_MARGIN {c_double(eng.margin)}", f"#define MECH_COND_LIMIT {c_double(eng.cond_limit)}",
+        "#endif", ""])
+    return "\n".join(code + tables), config
 
 
 # ----------------------------------------------------------------------------------- controller
@@ -927,8 +935,7 @@ def _workspace_dk(block) -> str:
         "static int wsdk_eval(const double *rho, double *S, double *q, char *msg, size_t size)", "{",
         "    double J[9];",
         f"    if (S[{W}] == 1.0) {{ for (int k = 0; k < 3; k++) q[k] = S[{G} + k]; }} else guess(S, rho, q);",
-        f"    int code = mast_dk3(ikjac_p, S + {LAYOUT['P']}, why, K_COORDINATES, LENGTHS(S), {c_double(eng.margin)}, rho, "
-        f"q, J, 1e-12, 50, {c_double(eng.cond_limit)}, msg, size);",
+        f"    int code = {_dk_call(eng, 'S + ' + str(LAYOUT['P']), 'K_COORDINATES', 'LENGTHS(S)', 'q', 'J', 'msg, size')};",
         "    if (code) return code;",
         f"    for (int k = 0; k < 3; k++) S[{G} + k] = q[k];", f"    S[{W}] = 1.0;", "    return 0;", "}", "",
         "static int wsdk(double r0, double r1, double r2, double *S, double *out)", "{",
@@ -1150,8 +1157,7 @@ def _inverse_model(eng, vrs: Mapping[str, int]) -> str:
     torque = ", ".join(f"S[{MC + k}]" for k in range(CONSTANTS.index("k_T")))
     W, G, A, PO = LAYOUT["warm"], LAYOUT["guess"], LAYOUT["model_args"], LAYOUT["P"]
     params = ", ".join(f"S[{PO + k}]" for k in range(len(eng.parameters)))
-    dk = (f"mast_dk3(ikjac_p, S + {PO}, why, M_COORDINATES, LENGTHS(S), {c_double(eng.margin)}, rho, out, out + 3, "
-          f"1e-12, 50, {c_double(eng.cond_limit)}, s->text, sizeof s->text)")
+    dk = _dk_call(eng, f"S + {PO}", "M_COORDINATES", "LENGTHS(S)", "out", "out + 3", "s->text, sizeof s->text")
     coordinates = ", ".join(_literal(n) for n in eng.description.coordinates)
     checks = {k: v for k, v in eng._fn("forces").namespace.items() if k.startswith("_check")}
     return "\n".join([
@@ -1225,26 +1231,15 @@ def native_controllers() -> tuple[type, ...]:
 
 # ----------------------------------------------------------------------------------- trajectory
 def _trajectory(block, vrs: Mapping[str, int]) -> str:
-    """TrajectoryBlock._write, its parameters read at run time (tunable as in the Python FMU)."""
-    P = {name: f"p->real[{vrs[name]}]" for name in ("z_home", "psi_home", "theta_home", "amplitude_z",
-                                                    "amplitude_psi", "amplitude_theta", "frequency")}
+    """TrajectoryBlock's tables (mast_trajectory.h): per output <c>_cmd, the value references of <c>_home and
+    amplitude_<c>; the frequency's."""
+    coordinates = [name.removesuffix("_cmd") for name in block.OUTPUTS]
+    row = lambda items: ", ".join(str(v) for v in items)     # noqa: E731
     return "\n".join([
-        "typedef struct { double t0; } State;", "",
-        "static int write(const State *s, double *values, const mast_parameters *p, double t, char *msg, size_t size)",
-        "{", "    char v[40];",
-        "    if (!isfinite(t)) {",
-        "        snprintf(msg, size, \"time t = %s s is not finite\", mast_repr(t, v, sizeof v));",
-        "        return MAST_MODEL_ERROR;", "    }",
-        f"    double omega = 2.0 * {c_double(math.pi)} * {P['frequency']};",
-        "    double sn = sin(omega * (t - s->t0));",
-        f"    values[0] = {P['z_home']} + {P['amplitude_z']} * sn;",
-        f"    values[1] = {P['psi_home']} + {P['amplitude_psi']} * sn;",
-        f"    values[2] = {P['theta_home']} + {P['amplitude_theta']} * sn;",
-        "    return MAST_OK;", "}", "",
-        "static int initialize(void *state, double *values, const mast_parameters *p, double t0, char *msg, size_t size)",
-        "{", "    State *s = state;", "    s->t0 = t0;", "    return write(s, values, p, t0, msg, size);", "}", "",
-        "static int do_step(void *state, double *values, const mast_parameters *p, double t, double h, char *msg, size_t size)",
-        "{", "    return write(state, values, p, t + h, msg, size);", "}", ""])
+        f"const int TRAJECTORY_N = {len(coordinates)};   /* {', '.join(block.OUTPUTS)} */",
+        f"const int TRAJECTORY_HOME_VR[] = {{{row(vrs[f'{c}_home'] for c in coordinates)}}};",
+        f"const int TRAJECTORY_AMPLITUDE_VR[] = {{{row(vrs[f'amplitude_{c}'] for c in coordinates)}}};",
+        f"const int TRAJECTORY_FREQUENCY_VR = {vrs['frequency']};", ""])
 
 
 # ----------------------------------------------------------------------------------- entry point
@@ -1258,9 +1253,10 @@ def to_generate(block_class: type, generated: Mapping[str, object], wanted: Mapp
 
 
 def emit_model(identifier: str, guid: str, block_class: type, parameters: Mapping[str, object],
-               variables: Sequence[Variable]) -> str:
-    """The C model file of the FMU ``identifier`` (its modelDescription ``variables``), generated from
-    ``block_class`` built with ``parameters``."""
+               variables: Sequence[Variable]) -> dict[str, str]:
+    """The generated C files of the FMU ``identifier`` (its modelDescription ``variables``), from ``block_class``
+    built with ``parameters``: ``<identifier>_model.c`` (the kernels and tables), and a mechanism's ``config.h``
+    (its sizes); the runtime they run on: ``RUNTIME``."""
     vrs = {v.name: v.vr for v in variables}
     n_inputs, n_io = len(block_class.INPUTS), len(block_class.INPUTS) + len(block_class.OUTPUTS)
     expected = list(block_class.INPUTS + block_class.OUTPUTS) + [p.name for p in block_class.PARAMETERS]
@@ -1273,20 +1269,42 @@ def emit_model(identifier: str, guid: str, block_class: type, parameters: Mappin
                  else v for v in variables]
     kind = native_kind(block_class)
     extra: list[str] = []
+    files, more, state, functions = {}, "", "State", ""
     if kind == "actuator":
         axis = getattr(block, "axis", block)         # DriveActuatorBlock: the axis behind its current loop
         body = _drive_actuator(block, vrs) if axis is not block else _actuator(block, vrs)
         extra = _actuator_checks(axis, vrs)
     elif kind == "mechanism":
-        body = _mechanism(block, vrs)
+        body, files["config.h"] = _mechanism(block, vrs)
+        more, state, functions = '#include "mast_mechanism.h"\n', "mast_mechanism_state", "mast_mechanism_"
     elif kind == "controller":
         body = _joint_controller(block, vrs)
     elif kind == "trajectory":
         body = _trajectory(block, vrs)
+        more, state, functions = '#include "mast_trajectory.h"\n', "mast_trajectory_state", "mast_trajectory_"
     else:
         raise ValueError(f"{identifier}: {block_class.__name__} has no native form yet")
-    return "".join([_HEAD.format(what=f"{block_class.__module__}.{block_class.__name__}"),
-                    _variable_table(variables), "\n",
-                    _check_function(block_class.PARAMETERS, vrs, extra, kind in ("mechanism", "controller")),
-                    "\n", body, "\n",
-                    _model_struct(identifier, guid, variables, n_inputs, n_io, bool(block_class.FEEDTHROUGH))])
+    files[f"{identifier}_model.c"] = "".join([
+        _HEAD.format(what=f"{block_class.__module__}.{block_class.__name__}", more=more),
+        _variable_table(variables), "\n",
+        _check_function(block_class.PARAMETERS, vrs, extra, kind in ("mechanism", "controller")),
+        "\n", body, "\n",
+        _model_struct(identifier, guid, variables, n_inputs, n_io, bool(block_class.FEEDTHROUGH), state, functions)])
+    return files
+
+
+def emit_mechanism(identifier: str, guid: str, eng) -> dict[str, str]:
+    """The generated C files of a native mechanism FMU for the engine ``eng`` of a description traced with its
+    numbers as constants (no parameters; ``mechanism_variables`` its variables): ``<identifier>_model.c`` and
+    ``config.h`` (``mechanism_model``, with the description's constant cold start, ``mechanism_guess``)."""
+    if eng.parameters:
+        raise ValueError(f"{identifier}: {eng.description.name} is traced with parameters {eng.parameters}: a "
+                         "mechanism with parameters is generated from its block (emit_model)")
+    variables = mechanism_variables(eng.n)
+    inputs = [v.name for v in variables if v.causality == "input"]
+    model, config = mechanism_model(eng, [], [-1] * eng.n, -1, mechanism_guess(eng), inputs)
+    return {"config.h": config, f"{identifier}_model.c": "".join([
+        _HEAD.format(what=f"description {eng.description.name}", more='#include "mast_mechanism.h"\n'),
+        _variable_table(variables), "\n", _check_function((), {}), "\n", model, "\n",
+        _model_struct(identifier, guid, variables, len(inputs), len(variables), False, "mast_mechanism_state",
+                      "mast_mechanism_")])}
