@@ -70,7 +70,7 @@ def test_native_fmus_declare_the_python_fmus_variables_validate_and_carry_source
 
     from mast.core.build import block_class
     from mast.core.native.build import SUPPORT_FILES
-    from mast.core.native.models import RUNTIME, native_kind
+    from mast.core.native.models import runtime_files
 
     for ident in NATIVE:
         native, python = built / "fmus" / "native" / f"{ident}.fmu", built / "fmus" / f"{ident}.fmu"
@@ -85,11 +85,11 @@ def test_native_fmus_declare_the_python_fmus_variables_validate_and_carry_source
         assert {k: v for k, v in mn.find("CoSimulation").attrib.items()} == dict(mp.find("CoSimulation").attrib)
         assert mn.get("guid") != mp.get("guid") and "native" in mn.get("generationTool")
         sources = [f.get("name") for f in mn.find("CoSimulation/SourceFiles")]
-        runtime = (*SUPPORT_FILES, *RUNTIME.get(native_kind(block_class(ident)), ()))   # the same for every model
+        runtime = (*SUPPORT_FILES, *runtime_files(block_class(ident)))   # the same for every model of a kind
         assert sorted(sources) == sorted([*(n for n in runtime if n.endswith(".c")), f"{ident}_model.c"])
         headers = {f"sources/{n}" for n in runtime if n.endswith(".h")}
         assert {f"sources/{s}" for s in sources} | headers | {"sources/mast_model.h", "sources/mast_native.h"} <= set(names)
-        assert ("sources/config.h" in names) == (ident in MECHANISMS)     # a mechanism's sizes
+        assert ("sources/config.h" in names) == (ident in MECHANISMS or "Actuator" in ident)  # the sizes
         assert b"libpython" not in binary and b"Py_Initialize" not in binary and b"numpy" not in binary
 
 

@@ -8,9 +8,9 @@ A native FMU is made from the Python FMU of the same model (``mast.core.build``)
 - its C is the runtime of fmus/common/native, the same for every model: the wrapper ``fmi2_wrapper.c`` (the FMI
   glue) against the model interface ``mast_model.h``, the scalar helpers ``mast_native.h``, the parameters' range
   checks ``mast_ranges.c``, the matrix helpers
-  ``mast_linalg.c`` and the direct kinematics ``mast_dk.c`` (``SUPPORT_FILES``), a mechanism's ``mast_mechanism.c``
-  (``models.RUNTIME``); and what is generated for the model (``models.emit_model``): one model file of traced
-  straight-line kernels and tables, and a mechanism's ``config.h`` (its sizes);
+  ``mast_linalg.c`` and the direct kinematics ``mast_dk.c`` (``SUPPORT_FILES``), and its kind's (``models.runtime_files``:
+  ``mast_actuator.c`` and a drive's ``mast_drive.c``, ``mast_mechanism.c``, ``mast_trajectory.c``); and what is generated for the model (``models.emit_model``): one model file of traced
+  straight-line kernels and tables, and an actuator's or a mechanism's ``config.h`` (its sizes);
 - the sources travel in ``sources/`` so a host on another platform can compile them (with the
   FMI 2.0 headers, which every importer has); the binary is ``binaries/linux64/<id>.so``, compiled
   here with zig's C compiler against glibc 2.17 (``c_compiler``; ``$CC`` when set, and without zig ``cc`` or
@@ -38,7 +38,7 @@ from typing import Mapping, Optional, Sequence
 from lxml import etree
 
 from .compiler import PLATFORMS, NativeBuildError, compile_shared
-from .models import RUNTIME, Variable, emit_model, native_kind, to_generate
+from .models import Variable, emit_model, runtime_files, to_generate
 
 __all__ = ["build_native_fmu", "build_native_all", "native_sources", "read_variables", "SUPPORT"]
 
@@ -70,7 +70,7 @@ def native_sources(identifier: str, block_class: type, parameters: Mapping[str, 
     variables = read_variables(model_description)
     model_file = f"{identifier}_model.c"
     generated = emit_model(identifier, "GUID", block_class, parameters, variables)
-    runtime = SUPPORT_FILES + RUNTIME.get(native_kind(block_class), ())
+    runtime = SUPPORT_FILES + runtime_files(block_class)
     digest = hashlib.sha256("".join(generated[k] for k in sorted(generated)).encode() + model_description)
     for name in runtime:
         digest.update((SUPPORT / name).read_bytes())
