@@ -8,7 +8,7 @@
 #include "mast_actuator.h"
 #include "mast_native.h"
 
-#define PI 3.141592653589793   /* math.pi */
+#define MATH_PI 3.141592653589793   /* math.pi */
 
 static const char *const INPUT_NAMES[] = {"u", "F"};   /* actuator.model._ERRORS */
 
@@ -117,7 +117,7 @@ static double omega_max(const mast_actuator_state *s, const mast_actuator_chain 
     for (int i = 0; i < N; i++)
         for (int j = 0; j < N; j++) S[i * N + j] *= (1.0 / sqrt(s->Q[c->J + i])) * (1.0 / sqrt(s->Q[c->J + j]));
     double lam = mast_eig_max(N, S);
-    return 2.0 * PI * (sqrt(lam > 0.0 ? lam : 0.0) / (2.0 * PI));
+    return 2.0 * MATH_PI * (sqrt(lam > 0.0 ? lam : 0.0) / (2.0 * MATH_PI));
 }
 
 /* the chain n_dof from the parameters (ActuatorBlock.__init__) */
