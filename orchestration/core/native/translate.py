@@ -30,6 +30,8 @@ A generated Python function becomes ``static int NAME(...)``:
   k`` (the actuator's status codes) returns k, as does ``return status`` (a status another
   generated function returned: ``status = f(..., ARRAY)``, its results in ARRAY); ``a, b = f(...)``
   calls another generated function that returns a tuple (its ``out`` a scratch array of the caller);
+- ``packed`` groups of scalar arguments are taken as one array each (``pack``: ``ikjac(q0, q1, q2, H, r, ...)``
+  becomes ``ikjac(double *q, double *P, ...)``): the fixed interface the runtime calls for any number of them;
 - a call of a check the tracing recorded (``_checkN(...)``) becomes ``if (!(cond)) return
   -N;`` with ``cond`` the check's ``c_condition`` (a C expression of ``a0, a1, ...``); the
   caller reports which check failed, with the message the check's ``c_message`` gives.
