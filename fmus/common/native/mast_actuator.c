@@ -236,6 +236,32 @@ static int sensor_step(mast_actuator_state *s, double u, double h, const mast_pa
     return MAST_OK;
 }
 
+/* the discretisation of another step size h than the last step's: one kept (ActuatorBlock._select's key), or a new
+ * one in the oldest slot; NULL with msg for a step size that is not finite and positive or cannot be discretised */
+static mast_actuator_disc *select(mast_actuator_state *s, double h, char *msg, size_t size)
+{
+    char v[40], key_text[40];
+    if (!(h > 0.0 && isfinite(h))) {
+        snprintf(msg, size, "step size h = %s s: expected a finite positive number", mast_repr(h, v, sizeof v));
+        return NULL;
+    }
+    mast_actuator_disc *d = NULL;
+    snprintf(key_text, sizeof key_text, "%.12g", h);      /* ActuatorBlock._select's key */
+    double key = strtod(key_text, NULL);
+    for (int k = 0; k < s->n_disc; k++) if (s->key[k] == key) { d = &s->disc[k]; s->last = k; }
+    if (!d) {
+        int slot = s->next_disc;
+        if (discretise(s, key, &s->disc[slot], msg, size)) return NULL;
+        s->key[slot] = key;
+        s->next_disc = (slot + 1) % ACT_KEPT;
+        if (s->n_disc < ACT_KEPT) s->n_disc++;
+        d = &s->disc[slot];
+        s->last = slot;
+    }
+    s->h_last = h;
+    return d;
+}
+
 static int input_error(const double *values, int code, double t, char *msg, size_t size)
 {
     char v[40];
@@ -250,6 +276,7 @@ int mast_actuator_initialize(void *state, double *values, const mast_parameters 
     mast_actuator_state *s = state;
     const double *Q = s->Q;
     memset(s, 0, sizeof *s);
+    s->h_last = NAN;
     int row = chain_of(p->integer[ACT_VR_N_DOF]);
     if (row < 0) {     /* refused by check (exitInitializationMode runs it first), with its message */
         int code = mast_actuator_check(p, msg, size);
@@ -283,29 +310,9 @@ int mast_actuator_do_step(void *state, double *values, const mast_parameters *p,
                           size_t size)
 {
     mast_actuator_state *s = state;
-    char v[40], key_text[40];
-    if (!(h > 0.0 && isfinite(h))) {
-        snprintf(msg, size, "step size h = %s s: expected a finite positive number", mast_repr(h, v, sizeof v));
-        return MAST_MODEL_ERROR;
-    }
-    mast_actuator_disc *d = h == s->h_last ? &s->disc[s->last] : NULL;   /* do_step selects only for another h */
-    double key = h;
-    if (!d) {
-        snprintf(key_text, sizeof key_text, "%.12g", h);      /* ActuatorBlock._select's key */
-        key = strtod(key_text, NULL);
-        for (int k = 0; k < s->n_disc; k++) if (s->key[k] == key) { d = &s->disc[k]; s->last = k; }
-    }
-    if (!d) {
-        int slot = s->next_disc;
-        int code = discretise(s, key, &s->disc[slot], msg, size);
-        if (code) return code;
-        s->key[slot] = key;
-        s->next_disc = (slot + 1) % ACT_KEPT;
-        if (s->n_disc < ACT_KEPT) s->n_disc++;
-        d = &s->disc[slot];
-        s->last = slot;
-    }
-    s->h_last = h;
+    /* do_step selects only for another h than the last step's (h_last: NaN until a step, equal to no h) */
+    mast_actuator_disc *d = h == s->h_last ? &s->disc[s->last] : select(s, h, msg, size);
+    if (!d) return MAST_MODEL_ERROR;
     int code = ACTUATOR_KERNELS[s->variant].step(values, s->x, d->H, s->Q, d->m);
     if (code == 1 || code == 2) return input_error(values, code, t, msg, size);
     if (code == 3) {
