@@ -74,7 +74,7 @@ def test_the_product_and_the_largest_eigenvalue_agree_with_numpy_and_lapack():
 
 @pytest.fixture(scope="module")
 def c_routines(tmp_path_factory) -> ctypes.CDLL:
-    """mast_expm and mast_eig_max (mast_native.h) compiled as the native build compiles them."""
+    """mast_expm and mast_eig_max (mast_linalg.c) compiled as the native build compiles them."""
     from mast.core.native.compiler import CFLAGS
 
     tmp = tmp_path_factory.mktemp("fixed_order_c")
@@ -84,8 +84,9 @@ def c_routines(tmp_path_factory) -> ctypes.CDLL:
                       'double eig_max_c(int n, double *S) { return mast_eig_max(n, S); }\n')
     library = tmp / "routines.so"
     flags = [f for f in CFLAGS if f.startswith(("-O", "-ffp", "-f", "-std", "-D"))]
-    subprocess.run([compiler(), *flags, "-shared", f"-I{ROOT / 'fmus' / 'common' / 'native'}", "-o", str(library),
-                    str(source), "-lm"], check=True, capture_output=True)
+    support = ROOT / "fmus" / "common" / "native"
+    subprocess.run([compiler(), *flags, "-shared", f"-I{support}", "-o", str(library), str(source),
+                    str(support / "mast_linalg.c"), "-lm"], check=True, capture_output=True)
     lib = ctypes.CDLL(str(library))
     lib.eig_max_c.restype = ctypes.c_double
     return lib

@@ -30,6 +30,7 @@ from test_fmi_behaviour import DISCARD, ERROR, OK, Instance, _input, drive
 ROOT = Path(__file__).resolve().parents[1]
 NATIVE = ("MastActuator", "MastMechanism", "MastController", "MastTrajectory", "Mast3PRS120", "Mast3PRSInclined",
           "MastActuatorsOnly", "MastFeedForwardController", "MastComputedTorqueController", "MastWorkspaceController")
+MECHANISMS = ("MastMechanism", "Mast3PRS120", "Mast3PRSInclined", "MastActuatorsOnly")
 SYSTEMS = ("MAST", "MAST_standalone", "MAST_3PRS_120", "MAST_3PRS_inclined", "MAST_actuators_only", "MAST_feedforward",
            "MAST_computed_torque", "MAST_workspace")
 #: native and Python FMUs run the same floating-point operations (mast.core.native.translate): the issue asks 1e-9
@@ -67,6 +68,10 @@ def _relative_error(a, b) -> float:
 def test_native_fmus_declare_the_python_fmus_variables_validate_and_carry_sources_not_python(built):
     from fmpy.validation import validate_fmu
 
+    from mast.core.build import block_class
+    from mast.core.native.build import SUPPORT_FILES
+    from mast.core.native.models import runtime_files
+
     for ident in NATIVE:
         native, python = built / "fmus" / "native" / f"{ident}.fmu", built / "fmus" / f"{ident}.fmu"
         assert validate_fmu(str(native)) == [], ident
@@ -80,8 +85,11 @@ def test_native_fmus_declare_the_python_fmus_variables_validate_and_carry_source
         assert {k: v for k, v in mn.find("CoSimulation").attrib.items()} == dict(mp.find("CoSimulation").attrib)
         assert mn.get("guid") != mp.get("guid") and "native" in mn.get("generationTool")
         sources = [f.get("name") for f in mn.find("CoSimulation/SourceFiles")]
-        assert sorted(sources) == sorted(["fmi2_wrapper.c", f"{ident}_model.c"])
-        assert {f"sources/{s}" for s in sources} | {"sources/mast_model.h", "sources/mast_native.h"} <= set(names)
+        runtime = (*SUPPORT_FILES, *runtime_files(block_class(ident)))   # the same for every model of a kind
+        assert sorted(sources) == sorted([*(n for n in runtime if n.endswith(".c")), f"{ident}_model.c"])
+        headers = {f"sources/{n}" for n in runtime if n.endswith(".h")}
+        assert {f"sources/{s}" for s in sources} | headers | {"sources/mast_model.h", "sources/mast_native.h"} <= set(names)
+        assert ("sources/config.h" in names) == (ident in MECHANISMS or "Actuator" in ident)  # the sizes
         assert b"libpython" not in binary and b"Py_Initialize" not in binary and b"numpy" not in binary
 
 
@@ -735,7 +743,7 @@ def test_the_native_actuator_refuses_a_bad_parameter_set_with_the_python_fmus_me
 
 
 def test_the_c_matrix_exponential_agrees_with_scipy_over_the_parameter_ranges(tmp_path):
-    """mast_expm (mast_native.h) against scipy.linalg.expm, the independent route: the actuator's augmented
+    """mast_expm (mast_linalg.c) against scipy.linalg.expm, the independent route: the actuator's augmented
     matrices [[A B], [0 0]] h for parameter sets spread over decades around the paper's, and steps from
     10 us to 10 ms (the substep rule keeps omega_max h_sub <= 2; here up to 40 unsubdivided)."""
     from scipy.linalg import expm, matrix_balance
@@ -748,7 +756,7 @@ def test_the_c_matrix_exponential_agrees_with_scipy_over_the_parameter_ranges(tm
                       '{ return mast_expm(n, M, E); }\n')
     library = tmp_path / "expm.so"
     subprocess.run([compiler(), "-O2", "-ffp-contract=off", "-shared", "-fPIC",
-                    f"-I{ROOT / 'fmus' / 'common' / 'native'}", "-o", str(library), str(source), "-lm"],
+                    f"-I{SUPPORT}", "-o", str(library), str(source), str(SUPPORT / "mast_linalg.c"), "-lm"],
                    check=True, capture_output=True)
     expm_c = ctypes.CDLL(str(library)).expm_c
     rng = np.random.default_rng(7)

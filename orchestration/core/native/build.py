@@ -5,8 +5,12 @@ A native FMU is made from the Python FMU of the same model (``mast.core.build``)
 - its modelDescription.xml is the Python FMU's (the same variables, value references, units,
   causality, variability, start values, descriptions and DefaultExperiment: they are generated in one place,
   ``fmus/common/slave.py``), with the generation tool, the GUID and the source file list changed;
-- its C is the wrapper ``fmus/common/native/fmi2_wrapper.c`` (the FMI glue, once for all models),
-  the support header ``mast_native.h`` and one generated model file (``models.emit_model``);
+- its C is the runtime of fmus/common/native, the same for every model: the wrapper ``fmi2_wrapper.c`` (the FMI
+  glue) against the model interface ``mast_model.h``, the scalar helpers ``mast_native.h``, the parameters' range
+  checks ``mast_ranges.c``, the matrix helpers
+  ``mast_linalg.c`` and the direct kinematics ``mast_dk.c`` (``SUPPORT_FILES``), and its kind's (``models.runtime_files``:
+  ``mast_actuator.c`` and a drive's ``mast_drive.c``, ``mast_mechanism.c``, ``mast_trajectory.c``); and what is generated for the model (``models.emit_model``): one model file of traced
+  straight-line kernels and tables, and an actuator's or a mechanism's ``config.h`` (its sizes);
 - the sources travel in ``sources/`` so a host on another platform can compile them (with the
   FMI 2.0 headers, which every importer has); the binary is ``binaries/linux64/<id>.so``, compiled
   here with zig's C compiler against glibc 2.17 (``c_compiler``; ``$CC`` when set, and without zig ``cc`` or
@@ -34,13 +38,16 @@ from typing import Mapping, Optional, Sequence
 from lxml import etree
 
 from .compiler import PLATFORMS, NativeBuildError, compile_shared
-from .models import Variable, emit_model, to_generate
+from .models import Variable, emit_model, runtime_files, to_generate
 
 __all__ = ["build_native_fmu", "build_native_all", "native_sources", "read_variables", "SUPPORT"]
 
 REPO = Path(__file__).resolve().parents[3]
 SUPPORT = REPO / "fmus" / "common" / "native"
-SUPPORT_FILES = ("fmi2_wrapper.c", "mast_model.h", "mast_native.h")
+#: the runtime every native FMU carries (the FMI glue, the model interface, the scalar and matrix helpers, the
+#: direct kinematics); a kind of model adds its own (``models.RUNTIME``)
+SUPPORT_FILES = ("fmi2_wrapper.c", "mast_model.h", "mast_native.h", "mast_ranges.c", "mast_ranges.h",
+                 "mast_linalg.c", "mast_linalg.h", "mast_dk.c", "mast_dk.h")
 #: what a native FMU was generated for (its parameter set), inside the archive
 GENERATED_FOR = "resources/mast_native.json"
 def read_variables(model_description: bytes) -> list[Variable]:
@@ -62,13 +69,15 @@ def native_sources(identifier: str, block_class: type, parameters: Mapping[str, 
     """({file name: C source}, native modelDescription.xml) for the Python FMU's ``model_description``."""
     variables = read_variables(model_description)
     model_file = f"{identifier}_model.c"
-    draft = emit_model(identifier, "GUID", block_class, parameters, variables)
-    digest = hashlib.sha256(draft.encode() + model_description)
-    for name in SUPPORT_FILES:
+    generated = emit_model(identifier, "GUID", block_class, parameters, variables)
+    runtime = SUPPORT_FILES + runtime_files(block_class)
+    digest = hashlib.sha256("".join(generated[k] for k in sorted(generated)).encode() + model_description)
+    for name in runtime:
         digest.update((SUPPORT / name).read_bytes())
     guid = "{" + str(uuid.UUID(bytes=digest.digest()[:16], version=4)) + "}"
-    sources = {name: (SUPPORT / name).read_bytes() for name in SUPPORT_FILES}
-    sources[model_file] = draft.replace('"GUID"', f'"{guid}"', 1).encode()
+    sources = {name: (SUPPORT / name).read_bytes() for name in runtime}
+    sources.update({name: text.encode() for name, text in generated.items()})
+    sources[model_file] = generated[model_file].replace('"GUID"', f'"{guid}"', 1).encode()
     root = etree.fromstring(model_description)
     root.set("guid", guid)
     root.set("generationTool", "MAST mast build --native (C generated from the model's code)")

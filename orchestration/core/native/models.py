@@ -1,4 +1,10 @@
-"""One C model file per FMU, from the model the Python FMU runs (``mast build --native``).
+"""The generated part of a native FMU, from the model the Python FMU runs (``mast build --native``).
+
+A native FMU runs on the runtime of fmus/common/native, C written by hand and the same for every model of a kind
+(the FMI glue, the matrix helpers, the direct kinematics for n coordinates, and per kind: mast_actuator.c and
+mast_drive.c, mast_mechanism.c, mast_trajectory.c; ``runtime_files``), against one fixed interface per kind. What
+is generated here for one model is its traced straight-line kernels, its tables (variables, parameter ranges,
+chains and kernels, which parameter feeds which traced input) and the sizes in its ``config.h``.
 
 Each emitter builds the Python block with the FMU's parameter set and takes its generated
 code, which ``translate.to_c`` writes as C:
@@ -8,12 +14,13 @@ code, which ``translate.to_c`` writes as C:
   structure the parameters select, for each chain n_dof = 1..``N_MAX`` (one binary, the chain chosen
   by n_dof at initialisation); the parameters' numbers traced through the model's relations
   (``kernel_constants``, ``state_matrices``, ``backlash_systems``, ``friction_constants``); the
-  discretisation of each step size computed in C (``mast_expm``) with the model's substep rule
+  discretisation of each step size computed by the runtime (``mast_expm``) with the model's substep rule
   (``substep_rule``, ``substeps_enough``); the torque measurement's filter and delay line
-  (sensor.py: ``filter_coefficients``, ``delay_split``, ``measurement_step``, ``relayout``);
+  (sensor.py: ``filter_coefficients``, ``delay_split``, ``measurement_step``, ``relayout``); a drive's
+  ``pi_step`` and ``current_gains``;
 - mechanism (every design): the engine's traced functions (inverse kinematics with its
   Jacobian, inverse dynamics, pose), driven by the engine's Newton direct kinematics
-  (``mast_native.h``); the engine traces the description with every parameter (geometry,
+  (mast_dk.c); the engine traces the description with every parameter (geometry,
   bodies, payload, g) as a named input (``designs.traced_engine``), so one C file serves every
   parameter set;
 - controllers (``native_controllers``: the joint cascade, feed-forward, computed torque,
@@ -27,19 +34,20 @@ code, which ``translate.to_c`` writes as C:
   ``drive_gains``, ``cascade_gains``, ``transmission_ratio``, the controllers' ``LAWS``,
   ``reference.rates``, ``inverse_model.motor_torque``, ``guide_friction``,
   ``designs.level_height``);
-- trajectory: the sine about the home pose (its parameters read at run time).
+- trajectory: the tables of the sine about the home pose (mast_trajectory.c; its parameters read at run time).
 
 The direct kinematics' restart policy (warm start, else cold; a cold restart after a failed warm
 start, never after a singularity) is ``mechanism.model.restarted_dk``, which ``MechanismBlock`` and
 ``InverseModel`` run and the mechanism and the feed-forward and computed-torque controllers translate.
 
-What the models' generators do not cover is restated here in C, held to the Python model by
-tests/test_native.py: the outputs of the actuator at rest (``initialize``), the one attempt of the
-direct kinematics each C file makes (``dk``: ``mast_dk3`` from its guess) and the messages around it
-(``MechanismBlock._compute``, ``InverseModel.torques``, ``WorkspaceController._wsdk``), the actuator's
-doubling of its substeps around ``mast_expm`` and the allocation of its delay line, and the
-controllers' ``evaluate`` and ``do_step`` around the tick (once per communication point, the step's
-checks and messages).
+What the models' generators do not cover is restated in C, held to the Python model by
+tests/test_native.py: in the runtime, the outputs of the actuator at rest, its doubling of its substeps around
+``mast_expm`` and the allocation of its delay line, the mechanism's restart and messages
+(``MechanismBlock._compute``); still in this module's strings (the next step of issue 25): the one attempt of
+the direct kinematics each controller's C file makes (``dk``: ``mast_dk`` from its guess) and the messages
+around it (``InverseModel.torques``, ``WorkspaceController._wsdk``), the controllers' ``evaluate`` and
+``do_step`` around the tick (once per communication point, the step's checks and messages), and the 3PRS
+design's checks of a parameter set (``designs.describe``'s).
 
 Parameters: all read at run time, with what depends on them computed at initialisation: the
 trajectory's, the actuator's (n_dof too: the chains 1..``N_MAX`` are all in the binary; a parameter set with
@@ -61,7 +69,8 @@ from fmus.controller.tick import DK_FAILED, LAYOUT, MODEL_FAILED, SIZE, tick_sou
 
 from .translate import c_double, split_invariants, to_c
 
-__all__ = ["Variable", "emit_model", "c_string", "to_generate", "actuator_structures", "N_MAX"]
+__all__ = ["Variable", "emit_model", "emit_mechanism", "mechanism_model", "mechanism_variables", "mechanism_guess",
+           "c_string", "to_generate", "actuator_structures", "N_MAX", "RUNTIME", "runtime_files"]
 
 @dataclass(frozen=True)
 class Variable:
@@ -98,10 +107,10 @@ def _literal(text: str) -> str:
 
 
 # ----------------------------------------------------------------------------------- shared parts
-def _why_function(name: str, checks: Mapping[str, object]) -> str:
-    """``static const char *name(int check)``: the message of the traced check ``_check<N>`` (its c_message)."""
+def _why_function(name: str, checks: Mapping[str, object], static: bool = True) -> str:
+    """``const char *name(int check)``: the message of the traced check ``_check<N>`` (its c_message)."""
     cases = [f"    case {int(k.replace('_check', ''))}: return {_literal(v.c_message)};" for k, v in sorted(checks.items())]
-    return "\n".join([f"static const char *{name}(int check)", "{", "    switch (check) {", *cases,
+    return "\n".join([f"{'static ' if static else ''}const char *{name}(int check)", "{", "    switch (check) {", *cases,
                       "    default: return \"a check of the description failed\";", "    }", "}", ""])
 
 
@@ -119,50 +128,49 @@ def _variable_table(variables: Sequence[Variable]) -> str:
 
 def _check_function(params: Sequence[Param], vrs: Mapping[str, int], extra: Sequence[str] = (),
                     model_check: bool = False) -> str:
-    """``check``: the Python model's range checks (``Param.check``, the same messages), then the C lines
-    ``extra`` (the model's own checks across parameters); ``model_check``: then the model's own checks
-    of the set (``model_check``, in the model's part of the file)."""
-    lines = ["static int check(const mast_parameters *p, char *msg, size_t size)", "{",
-             "    char v[40];", "    (void)v;"]
-    for spec in params:
-        vr = vrs[spec.name]
-        name = spec.name
-        if spec.kind is str:
-            continue
-        expected = c_string(spec.expected())
-        if spec.kind is int:
-            value, show = f"(double)p->integer[{vr}]", f"snprintf(v, sizeof v, \"%d\", p->integer[{vr}])"
-        else:
-            value, show = f"p->real[{vr}]", f"mast_repr(p->real[{vr}], v, sizeof v)"
-            lines += [f"    if (!isfinite({value})) {{", f"        {show};",
-                      f"        snprintf(msg, size, \"parameter '{name}' = %s: expected a finite number\", v);",
-                      "        return MAST_PARAMETER_ERROR;", "    }"]
-        lo, hi = ("<=", ">=") if spec.exclusive else ("<", ">")
-        bad = []
-        if spec.minimum != -math.inf:
-            bad.append(f"{value} {lo} {c_double(spec.minimum)}")
-        if spec.maximum != math.inf:
-            bad.append(f"{value} {hi} {c_double(spec.maximum)}")
-        if bad:
-            lines += [f"    if ({' || '.join(bad)}) {{", f"        {show};",
-                      f"        snprintf(msg, size, \"parameter '{name}' = %s: expected \" {expected}, v);",
-                      "        return MAST_PARAMETER_ERROR;", "    }"]
-    lines += [*extra, "    return model_check(p, msg, size);" if model_check else "    return MAST_OK;", "}", ""]
+    """``check``: the Python model's range checks (``Param.check``, the same messages) by the runtime's
+    ``mast_check_ranges`` over a table of the parameters' ranges, then the C lines ``extra`` (the model's own
+    checks across parameters); ``model_check``: then the model's own checks of the set (``model_check``, in the
+    model's part of the file)."""
+    bound = lambda x: c_double(x) if math.isfinite(x) else ("INFINITY" if x > 0 else "-INFINITY")   # noqa: E731
+    rows = [f"    {{{_literal(spec.name)}, {vrs[spec.name]}, {int(spec.kind is int)}, {bound(spec.minimum)}, "
+            f"{bound(spec.maximum)}, {int(bool(spec.exclusive))}, {_literal(spec.expected())}}},"
+            for spec in params if spec.kind is not str]
+    lines = ["static const mast_range RANGES[] = {", *(rows or ['    {"", 0, 0, 0.0, 0.0, 0, ""},']), "};", "",
+             "static int check(const mast_parameters *p, char *msg, size_t size)", "{",
+             f"    if (mast_check_ranges(RANGES, {len(rows)}, p, msg, size)) return MAST_PARAMETER_ERROR;",
+             *extra, "    return model_check(p, msg, size);" if model_check else "    return MAST_OK;", "}", ""]
     prototype = ["static int model_check(const mast_parameters *p, char *msg, size_t size);", ""] if model_check else []
     return "\n".join(prototype + lines)
 
 
 def _model_struct(identifier: str, guid: str, variables: Sequence[Variable], n_inputs: int, n_io: int,
-                  feedthrough: bool) -> str:
+                  feedthrough: bool, state: str = "State", functions: str = "") -> str:
+    """MAST_MODEL: the model's table row; ``state``: its state's type, ``functions``: the prefix of its initialize
+    and do_step (a runtime's, e.g. ``mast_mechanism_``)."""
     return (f"const mast_model MAST_MODEL = {{{_literal(identifier)}, {_literal(guid)}, {len(variables)}, VARIABLES, "
-            f"{n_inputs}, {n_io}, sizeof(State), check, initialize, do_step, {'evaluate' if feedthrough else 'NULL'}}};\n")
+            f"{n_inputs}, {n_io}, sizeof({state}), check, {functions}initialize, {functions}do_step, "
+            f"{'evaluate' if feedthrough else 'NULL'}}};\n")
 
 
 _HEAD = """/* Generated by mast build --native from the {what} (mast.core.native.models): do not edit. */
 #include "mast_native.h"
 #include "mast_model.h"
-
+#include "mast_ranges.h"
+{more}
 """
+#: the runtime files (fmus/common/native) a kind of model runs on besides those every model has (build.SUPPORT_FILES)
+RUNTIME = {"mechanism": ("mast_mechanism.c", "mast_mechanism.h"), "trajectory": ("mast_trajectory.c", "mast_trajectory.h"),
+           "actuator": ("mast_actuator.c", "mast_actuator.h")}
+#: and a drive's (an actuator with its current loop: DriveActuatorBlock)
+DRIVE = ("mast_drive.c", "mast_drive.h")
+
+
+def runtime_files(block_class: type) -> tuple[str, ...]:
+    """The runtime files of ``block_class``'s native form besides those every model has (build.SUPPORT_FILES)."""
+    from fmus.actuator.drive import DriveActuatorBlock
+
+    return RUNTIME.get(native_kind(block_class), ()) + (DRIVE if issubclass(block_class, DriveActuatorBlock) else ())
 
 
 # ----------------------------------------------------------------------------------- actuator
@@ -178,7 +186,7 @@ SENSOR_SAMPLES = 4096
 #: step sizes whose exact discretisation a native actuator instance keeps (a varying-step host brings more:
 #: the oldest is recomputed when it comes back, about 3.4 us with the default parameters: docs/native.md)
 DISCRETISATIONS_KEPT = 8
-#: the kernel_constants a native actuator's code shared by its chains reads (the same slot in every chain's Q)
+#: the kernel_constants the native actuator's runtime reads (the same slot in every chain's Q: config.h's ACT_Q_*)
 _SHARED_CONSTANTS = ("tau_c", "omega_c", "tau_s", "omega_s", "ripple", "rk", "iR", "mg", "kT", "rho0", "rmin", "rmax")
 
 
@@ -212,28 +220,6 @@ def _chain_count(name: str, N: int) -> int:
     return N if name == "J_chain" else N - 1
 
 
-def _parse_chain(vrs: Mapping[str, int], n: str, longest: int, indent: str) -> list[str]:
-    """C: the chain's lists for n_dof = ``n`` (a C expression, at most ``longest``) parsed into ``chain_<name>``
-    arrays (n_dof >= 3), refused as ``chain`` refuses them."""
-    lines = []
-    for name, positive in CHAIN_LISTS.items():
-        count, what = n if name == "J_chain" else f"{n} - 1", "> 0" if positive else ">= 0"
-        text = f"p->string[{vrs[name]}]"
-        lines += [
-            f"{indent}double chain_{name}[{_chain_count(name, longest)}];",
-            f"{indent}int {name}_code = mast_parse_list({text}, {count}, {int(positive)}, chain_{name}, &items, item, "
-            f"sizeof item);",
-            f"{indent}if ({name}_code == -1) {{",
-            f"{indent}    snprintf(msg, size, \"parameter '{name}' = '%s': expected %d space separated numbers "
-            f"{what} for n_dof = %d, got %d\", {text} ? {text} : \"\", {count}, {n}, items);",
-            f"{indent}    return MAST_PARAMETER_ERROR;", f"{indent}}}",
-            f"{indent}if ({name}_code > 0) {{",
-            f"{indent}    snprintf(msg, size, \"parameter '{name}' = '%s': item '%s' is not a finite number {what}\", "
-            f"{text} ? {text} : \"\", item);",
-            f"{indent}    return MAST_PARAMETER_ERROR;", f"{indent}}}"]
-    return lines
-
-
 def _structure_block(block, N: int):
     """The ActuatorBlock of the chain n_dof = ``N`` with ``block``'s other parameters: what the generator takes
     from it is the structure (the sizes, the names of the kernel's numbers), every number being read at run time,
@@ -257,88 +243,114 @@ def _actuator_variants(block) -> list[tuple[str, dict, bool]]:
     return out
 
 
-def _actuator(block, vrs: Mapping[str, int]) -> str:
-    """ActuatorBlock in C, every parameter read at run time, n_dof too: one chain per n_dof of
-    ``actuator_structures`` (``_actuator_chain``), chosen at initialisation; what no chain changes once: the friction
-    solve's numbers (``friction_constants`` traced), the torque measurement (sensor.py: ``filter_coefficients``,
-    ``delay_split`` and the delay line's ``relayout`` and ``measurement_step`` translated), the substep rule
-    (``substep_rule``, ``substeps_enough``, translated)."""
+def _actuator(block, vrs: Mapping[str, int]) -> tuple[str, str]:
+    """ActuatorBlock's generated part (mast_actuator.h; the runtime mast_actuator.c runs it), every parameter read at
+    run time, n_dof too: one chain per n_dof of ``actuator_structures`` (``_actuator_chain``, chosen at
+    initialisation); what no chain changes, translated from the model's own code: the friction solve's numbers
+    (``friction_constants`` traced), the torque measurement (sensor.py: ``filter_coefficients``, ``delay_split``,
+    ``relayout``, ``measurement_step``), the substep rule (``substep_rule``, ``substeps_enough``); the tables of the
+    chains and their kernels. (model part, config.h)"""
     import inspect
 
     from fmus.actuator import model as am
     from fmus.actuator import sensor
-    from fmus.common.tracer import Graph as _Graph, lift as _lift, compile_function
+    from fmus.common.tracer import Graph, compile_function, lift
 
     # --- the friction solve's numbers for a substep of d omega_N / d tau_L = b (traced friction_constants)
     code, friction_keys = [], {}
     for kind, stribeck in (("coulomb", False), ("stribeck", True)):
-        g = _Graph()
+        g = Graph()
         names = ["b", "tau_c", "omega_c", "tau_s", "omega_s"]
         ins = {n: g.input(n) for n in names}
         fc = am.friction_constants(ins, ins["b"], stribeck)
         friction_keys[kind] = list(fc)
-        fn = compile_function(f"friction_{kind}", names, [_lift(g, v) for v in fc.values()], g,
+        fn = compile_function(f"friction_{kind}", names, [lift(g, v) for v in fc.values()], g,
                               label=f"actuator {kind} friction")
-        code.append(to_c(fn.source, f"friction_{kind}"))
-    # --- the torque measurement: the model's own coefficient functions, translated
-    code.append(to_c(inspect.getsource(sensor.filter_coefficients), "filter_coefficients"))
-    code.append(to_c(inspect.getsource(sensor.delay_split), "delay_split"))
-    code.append(to_c(inspect.getsource(sensor.relayout), "relayout", arrays=("old", "line")))
-    code.append(to_c(inspect.getsource(sensor.measurement_step), "measurement_step", arrays=("line",)))
-    # --- the substep rule (ActuatorBlock._substeps): the model's own functions, translated
+        code.append(to_c(fn.source, f"act_friction_{kind}", static=False))
+    # --- the torque measurement and the substep rule (ActuatorBlock._substeps): the model's own functions
     limits = {"MAX_PHASE_PER_SUBSTEP": am.MAX_PHASE_PER_SUBSTEP, "BACKLASH_SUBSTEP": am.BACKLASH_SUBSTEP}
-    code += [to_c(inspect.getsource(am.substep_rule), "substep_rule", constants=limits),
-             to_c(inspect.getsource(am.substeps_enough), "substeps_enough")]
-    chains, rows, sizes, shared = [], [], [], None
+    for fn, name, arrays, constants in ((sensor.filter_coefficients, "filter_coefficients", (), {}),
+                                        (sensor.delay_split, "delay_split", (), {}),
+                                        (sensor.relayout, "relayout", ("old", "line"), {}),
+                                        (sensor.measurement_step, "measurement_step", ("line",), {}),
+                                        (am.substep_rule, "substep_rule", (), limits),
+                                        (am.substeps_enough, "substeps_enough", (), {})):
+        code.append(to_c(inspect.getsource(fn), f"act_{name}", arrays=arrays, constants=constants, static=False))
+    reals = [spec.name for spec in block.PARAMETERS if spec.kind is float]
+    kernels, chains, sizes, shared = [], [], [], None
     for N in actuator_structures(block.params):
         chain = _structure_block(block, N)
         keys = list(chain.constants)
         slots = {k: keys.index(k) for k in _SHARED_CONSTANTS}
         assert shared in (None, slots), "kernel_constants: the chains' shared numbers must keep their slots"
         shared = slots
-        chain_code, chain_rows, nq, nh = _actuator_chain(chain, vrs, friction_keys, len(rows))
-        chains += chain_code
-        rows += chain_rows
-        sizes.append((2 * N + 1, nq, nh))
-    return _actuator_c(block, vrs, code, chains, rows, shared, [max(s) for s in zip(*sizes)])
+        chain_code, rows, chain_row, nq, nh = _actuator_chain(chain, reals, friction_keys, len(kernels))
+        code += chain_code
+        kernels += rows
+        chains.append(chain_row)
+        sizes.append((2 * N + 1, nq, nh, 3 * N - 2))
+    nx, nq, nh, lists = [max(s) for s in zip(*sizes)]
+    row = lambda items: ", ".join(str(v) for v in items)     # noqa: E731
+    tables = [
+        "/* each kernel of every chain: its structure (friction 0 none, 1 Coulomb, 2 Stribeck; ripple; backlash), where",
+        "   its friction numbers start in H (mast_actuator.h) */",
+        "const mast_actuator_kernel ACTUATOR_KERNELS[] = {", *(f"    {{{row(r)}}}," for r in kernels), "};",
+        "/* each chain: n_dof, its numbers, its kernels (first, count), the slots in Q of A, B, J, K, Ag, B3, bw, hb */",
+        "const mast_actuator_chain ACTUATOR_CHAINS[] = {", *(f"    {{{row(r)}}}," for r in chains), "};",
+        f"const int ACTUATOR_N_CHAINS = {len(chains)};",
+        f"const int ACTUATOR_REAL_VR[ACT_N_REALS] = {{{row(vrs[n] for n in reals)}}};   /* {', '.join(reals)} */", ""]
+    drive = ("k_pc", "k_ic", "T_cur", "u_max") if "k_pc" in vrs else ()
+    config = "\n".join([
+        f"/* Generated by mast build --native for {block.name} (mast.core.native.models): the sizes of this actuator "
+        "and the value references its runtime reads (mast_actuator.h) */",
+        "#ifndef CONFIG_H", "#define CONFIG_H",
+        f"#define ACT_NX {nx}", f"#define ACT_NQ {nq}", f"#define ACT_NH {nh}", f"#define ACT_N_REALS {len(reals)}",
+        f"#define ACT_N_LISTS {max(1, lists)}", f"#define ACT_KEPT {DISCRETISATIONS_KEPT}",
+        f"#define ACT_SENSOR_SAMPLES {SENSOR_SAMPLES}", f"#define ACT_N_MAX {N_MAX}",
+        *(f"#define ACT_Q_{k.upper()} {i}" for k, i in shared.items()),
+        *(f"#define ACT_VR_{n.upper()} {vrs[n]}" for n in ("n_dof", "J_chain", "K_chain", "C_chain", "rho_min",
+                                                           "rho_max", "rho_0", "backlash", "T_meas", "delay_meas",
+                                                           "tau_offset", *drive)),
+        "#endif", ""])
+    if drive:
+        from fmus.actuator.drive import current_gains, pi_step
+
+        code += [to_c(inspect.getsource(pi_step), "act_pi_step", static=False),
+                 to_c(inspect.getsource(current_gains), "act_current_gains", static=False)]
+    return "\n".join(code + tables), config
 
 
-def _actuator_chain(block, vrs: Mapping[str, int], friction_keys: Mapping[str, list], first: int
-                    ) -> tuple[list[str], list[tuple], int, int]:
-    """The C of the chain n_dof = ``block.N``, each part from the model's own code:
+def _actuator_chain(block, reals: Sequence[str], friction_keys: Mapping[str, list], first: int
+                    ) -> tuple[list[str], list[tuple], tuple, int, int]:
+    """The generated part of the chain n_dof = ``block.N``, each from the model's own code:
 
-    - ``constants_n<N>``: the parameters' numbers (``kernel_constants``, the state matrices A, B of
-      ``state_matrices`` with ``two_inertia`` and ``transmission_ratio``, the backlash's two systems of
+    - ``constants_n<N>(reals, lists, Q)``: the parameters' numbers (``kernel_constants``, the state matrices A, B
+      of ``state_matrices`` with ``two_inertia`` and ``transmission_ratio``, the backlash's two systems of
       ``backlash_systems``, J and K; for n_dof >= 3 from the numbers of J_chain, K_chain, C_chain), traced with the
       parameters as named inputs by the mechanism engine's tracer (``engine.compile_function``) and translated;
     - ``kernel_n<N>_<structure>``: the step kernel of each structure (friction, ripple, backlash: the kernels
       numbered from ``first`` in the whole file), the model's own bound-by-name kernel (ActuatorBlock._bind's
-      source, ``symbolic``), its names read from the instance's arrays;
-    - ``setup_n<N>`` (the numbers, the kernel's structure as ActuatorBlock.kernel_source chooses it, the fastest
-      chain mode) and ``discretise_n<N>`` (ActuatorBlock._substeps and _bind restated: the substep rule, then
-      ``mast_expm``).
+      source, ``symbolic``), its names read from the instance's arrays.
 
-    Returns (the code, each kernel's row of the tables: (name, friction 0/1/2, ripple, backlash, offsets of its
-    friction numbers in H), the sizes of Q and H)."""
+    Returns (the code, each kernel's row of ACTUATOR_KERNELS, the chain's row of ACTUATOR_CHAINS, the sizes of Q
+    and H)."""
     from fmus.actuator import model as am
-    from fmus.common.tracer import Graph as _Graph, lift as _lift, compile_function
+    from fmus.common.tracer import Graph, compile_function, lift
 
     N = block.N
-    nx, wN, nm = 2 * N + 1, 2 * N, 2 * N + 3
-    reals = [spec.name for spec in block.PARAMETERS if spec.kind is float]
-    R = {name: f"p->real[{vrs[name]}]" for name in reals}
+    nx = 2 * N + 1
     # --- the parameters' numbers, traced through the model's relations
-    g = _Graph()
+    g = Graph()
     traced = {**block.params, **{name: g.input(name) for name in reals}}
     lists = {name: [g.input(f"{name}_{k}") for k in range(_chain_count(name, N))] for name in CHAIN_LISTS} \
         if N >= 3 else None
-    inputs = reals + [e.value for items in (lists or {}).values() for e in items]
+    items = [e.value for values in (lists or {}).values() for e in values]
     J, K, C = am.chain(traced, lists)
     A, B, _ = am.state_matrices(traced, (J, K, C))
     i_R = am.transmission_ratio(traced["p"], traced["i_r"])
     constants = am.kernel_constants(traced, i_R, A, B, J, K, C)
     assert list(constants) == list(block.constants)
-    outputs, offsets = list(constants.values()), {}
+    outputs, offsets = list(constants.values()), {"Ag": -1, "B3": -1}
     parts = [("A", list(A.ravel())), ("B", list(B.ravel())), ("J", list(J)), ("K", list(K))]
     if N == 2:
         Ac, Ag, B3 = am.backlash_systems(A, B, J, K, C)
@@ -346,15 +358,13 @@ def _actuator_chain(block, vrs: Mapping[str, int], friction_keys: Mapping[str, l
     for key, values in parts:
         offsets[key] = len(outputs)
         outputs += values
-    nq = len(outputs)
-    fn = compile_function("constants", inputs, [_lift(g, v) for v in outputs], g, label="actuator constants")
-    code = [to_c(fn.source, f"constants_n{N}")]
+    fn = compile_function("constants", reals + items, [lift(g, v) for v in outputs], g, label="actuator constants")
+    code = [to_c(fn.source, f"constants_n{N}", packed={"reals": reals, "lists": items})]
     # --- the kernels, one per structure, their numbers read from Q (parameters) and H (step size)
     q_slots = {f"Q_{k}": ("Q", i) for i, k in enumerate(constants)}
-    variants = _actuator_variants(block)
-    rows, sizes, select = [], [], []
+    rows, sizes = [], []
     fr_code = {None: 0, "coulomb": 1, "stribeck": 2}
-    for k, (name, chosen, backlash) in enumerate(variants):
+    for name, chosen, backlash in _actuator_variants(block):
         vb = am.ActuatorBlock({**block.params, **chosen}, name=block.name)
         slots, h_names = dict(q_slots), []
         friction = "stribeck" if chosen["tau_s"] > 0.0 else "coulomb" if chosen["tau_c"] > 0.0 else None
@@ -377,354 +387,32 @@ def _actuator_chain(block, vrs: Mapping[str, int], friction_keys: Mapping[str, l
         code.append(to_c(_indexed(source, slots, ("H", "Q", "M_SUB")), f"kernel_n{N}_{name}",
                          arrays=("values", "x", "H", "Q")))
         ripple = int(chosen["tau_ripple"] > 0.0)
-        rows.append((f"n{N}_{name}", fr_code[friction], ripple, int(backlash), friction_at[0], friction_at[-1]))
-        select.append(f"    if (fr == {fr_code[friction]} && rp == {ripple} && bl == {int(backlash)}) return {first + k};")
+        rows.append((f"kernel_n{N}_{name}", fr_code[friction], ripple, int(backlash), friction_at[0], friction_at[-1]))
         sizes.append(len(h_names))
-    Q = {k: f"s->Q[{i}]" for i, k in enumerate(constants)}
-    chain_args = [f"chain_{name}[{k}]" for name in CHAIN_LISTS for k in range(_chain_count(name, N))] if N >= 3 else []
-    fargs = f"{Q['tau_c']}, {Q['omega_c']}, {Q['tau_s']}, {Q['omega_s']}"
-    A, B, Jo, Ko = offsets["A"], offsets["B"], offsets["J"], offsets["K"]
-    discretise = [
-        "/* ActuatorBlock._substeps (the substep rule) and _bind (the numbers of a step size), for the key h */",
-        f"static int discretise_n{N}(State *s, double h, Disc *d, char *msg, size_t size)", "{",
-        "    char v[40];",
-        "    int backlash = V_BACKLASH[s->variant], fr = V_FRICTION[s->variant];",
-        "    double rule[2];",
-        f"    substep_rule(s->omega_max, h, (double)backlash, {Q['tau_s']}, {Q['omega_s']}, rule);",
-        "    double m = rule[0], fall = rule[1];",
-        f"    double M[{nm * nm}], E[{nm * nm}], b = 0.0;",
-        "    for (;;) {",
-        "        double hs = h / m;",
-        f"        for (int i = 0; i < {nm * nm}; i++) M[i] = 0.0;",
-        f"        for (int i = 0; i < {nx}; i++) {{",
-        f"            for (int j = 0; j < {nx}; j++) M[i * {nm} + j] = s->Q[{A} + i * {nx} + j] * hs;",
-        f"            for (int j = 0; j < 2; j++) M[i * {nm} + {nx} + j] = s->Q[{B} + i * 2 + j] * hs;",
-        "        }",
-        f"        if (mast_expm({nm}, M, E)) {{ snprintf(msg, size, \"out of memory\"); return MAST_MODEL_ERROR; }}",
-        f"        b = E[{wN * nm + nx + 1}];",
-        "        if (substeps_enough(b, fall, m)) break;",
-        "        m *= 2.0;", "    }",
-        "    if (!(b > 0.0)) {",
-        "        snprintf(msg, size, \"no substep gives a monotone friction update for h = %s s\", mast_repr(h, v, sizeof v));",
-        "        return MAST_MODEL_ERROR;", "    }",
-        "    d->m = m;",
-        "    if (!backlash) {",
-        f"        for (int i = 0; i < {nx}; i++) {{",
-        f"            for (int j = 0; j < {nx}; j++) d->H[i * {nx} + j] = E[i * {nm} + j];",
-        f"            for (int j = 0; j < 2; j++) d->H[{nx * nx} + i * 2 + j] = E[i * {nm} + {nx} + j];",
-        "        }",
-        f"        if (fr == 1) friction_coulomb(E[{wN * nm + nx + 1}], {fargs}, d->H + V_F0[s->variant]);",
-        f"        if (fr == 2) friction_stribeck(E[{wN * nm + nx + 1}], {fargs}, d->H + V_F0[s->variant]);",
-        "        return MAST_OK;", "    }",
-    ]
-    if N == 2:      # _backlash_matrices: in contact (A, B3) and in the gap (Ag, B3), 8 x 8
-        Ag, B3 = offsets["Ag"], offsets["B3"]
-        discretise += [
-            "    double hs = h / m, M8[64], E8[64];",
-            f"    const int system[2] = {{{A}, {Ag}}};",
-            "    for (int which = 0; which < 2; which++) {",
-            "        for (int i = 0; i < 64; i++) M8[i] = 0.0;",
-            "        for (int i = 0; i < 5; i++) {",
-            "            for (int j = 0; j < 5; j++) M8[i * 8 + j] = s->Q[system[which] + i * 5 + j] * hs;",
-            f"            for (int j = 0; j < 3; j++) M8[i * 8 + 5 + j] = s->Q[{B3} + i * 3 + j] * hs;",
-            "        }",
-            "        if (mast_expm(8, M8, E8)) { snprintf(msg, size, \"out of memory\"); return MAST_MODEL_ERROR; }",
-            "        double *P = d->H + which * 40, *G = P + 25;",
-            "        for (int i = 0; i < 5; i++) {",
-            "            for (int j = 0; j < 5; j++) P[i * 5 + j] = E8[i * 8 + j];",
-            "            for (int j = 0; j < 3; j++) G[i * 3 + j] = E8[i * 8 + 5 + j];",
-            "        }",
-            "        double *F = d->H + (which ? V_F1[s->variant] : V_F0[s->variant]);   /* b = G[4][1] */",
-            f"        if (fr == 1) friction_coulomb(G[13], {fargs}, F);",
-            f"        if (fr == 2) friction_stribeck(G[13], {fargs}, F);",
-            "    }",
-        ]
-    discretise += ["    return MAST_OK;", "}", ""]
-    setup = [
-        f"/* the chain n_dof = {N}: the kernel's structure (friction, ripple, backlash), as ActuatorBlock.kernel_source "
-        "chooses it */",
-        f"static int variant_n{N}(const State *s)", "{",
-        f"    int fr = {Q['tau_s']} > 0.0 ? 2 : {Q['tau_c']} > 0.0 ? 1 : 0;",
-        f"    int rp = {Q['ripple']} > 0.0, bl = {Q['hb'] + ' > 0.0' if N == 2 else '0'};",
-        *select,
-        f"    return {first};", "}", "",
-        "/* 2 pi times chain_frequencies(J, K).max(): the fastest chain mode [rad/s] */",
-        f"static double omega_max_n{N}(const State *s)", "{",
-        *([f"    double S[{N * N}];",
-           f"    for (int i = 0; i < {N * N}; i++) S[i] = 0.0;",
-           f"    for (int k = 0; k < {N - 1}; k++) {{",
-           f"        double K = s->Q[{Ko} + k];",
-           f"        S[k * {N} + k] += K; S[(k + 1) * {N} + k + 1] += K;",
-           f"        S[k * {N} + k + 1] -= K; S[(k + 1) * {N} + k] -= K;",
-           "    }",
-           f"    for (int i = 0; i < {N}; i++)",
-           f"        for (int j = 0; j < {N}; j++) S[i * {N} + j] *= (1.0 / sqrt(s->Q[{Jo} + i])) * (1.0 / sqrt(s->Q[{Jo} + j]));",
-           f"    double lam = mast_eig_max({N}, S);",
-           f"    return 2.0 * {c_double(math.pi)} * (sqrt(lam > 0.0 ? lam : 0.0) / (2.0 * {c_double(math.pi)}));"]
-          if N > 1 else ["    (void)s;", "    return 0.0;"]),
-        "}", "",
-        f"/* the chain n_dof = {N} from the parameters (ActuatorBlock.__init__) */",
-        f"static int setup_n{N}(State *s, const mast_parameters *p, char *msg, size_t size)", "{",
-        *(["    int items;", "    char item[64];", *_parse_chain(vrs, str(N), N, "    ")] if N >= 3 else []),
-        f"    constants_n{N}({', '.join([R[n] for n in reals] + chain_args)}, s->Q);",
-        f"    s->N = {N};",
-        f"    s->bw = {list(constants).index('bw')};",
-        f"    s->variant = variant_n{N}(s);",
-        f"    s->omega_max = omega_max_n{N}(s);",
-        "    (void)msg; (void)size;",
-        "    return MAST_OK;", "}", ""]
-    return code + discretise + setup, rows, nq, max(sizes)
-
-
-def _actuator_c(block, vrs: Mapping[str, int], code: list[str], chains: list[str], rows: Sequence[tuple],
-                shared: Mapping[str, int], largest: Sequence[int]) -> str:
-    """The C glue of the native actuator around the generated functions (``code``: shared by the chains;
-    ``chains``: each chain's, ``_actuator_chain``, with the tables' ``rows``): the instance's state, sized for the
-    largest chain (``largest``: the sizes of x, Q, H), the chain n_dof selects at initialisation, the
-    discretisation of each step size (the chain's ``discretise_n<N>``), the delay line of the torque measurement
-    (its allocation around TorqueSensor's ``relayout`` and ``measurement_step``, translated) and the messages of
-    ActuatorBlock; ``shared``: the slots in Q of the numbers this
-    glue reads (the same in every chain)."""
-    from fmus.actuator.model import INPUT_ERRORS
-
-    n_in = len(block.INPUTS)
-    nx, nq, nh = largest
-    Q = {k: f"s->Q[{i}]" for k, i in shared.items()}
-    R = {name: f"p->real[{vrs[name]}]" for name in (spec.name for spec in block.PARAMETERS if spec.kind is float)}
-    structures = actuator_structures(block.params)
-    n_dof = f"p->integer[{vrs['n_dof']}]"
-    cases = "\n".join(f"    case {k}: code = kernel_{name}(values, s->x, d->H, s->Q, d->m); break;"
-                      for k, (name, *_) in enumerate(rows))
-    table = lambda column: ", ".join(str(row[column]) for row in rows)   # noqa: E731
-    names = ", ".join(_literal(INPUT_ERRORS[k]) for k in sorted(INPUT_ERRORS))
-    T, delay, offset = R["T_meas"], R["delay_meas"], R["tau_offset"]
-    sensor = [
-        "/* TorqueSensor.step (sensor.py): the delay line of n + 2 samples, newest at head (relayout and",
-        "   measurement_step, translated; the line's allocation, its longest length and its message here) */",
-        "static int sensor_step(State *s, double u, double h, const mast_parameters *p, double *out, char *msg, size_t size)",
-        "{",
-        "    if (h != s->s_h) {          /* TorqueSensor._configure */",
-        "        double co[3], sp[2];",
-        "        char a[40], b[40];",
-        f"        filter_coefficients({T}, h, co);",
-        f"        delay_split({delay}, h, sp);",
-        f"        if (sp[0] + 2.0 > {SENSOR_SAMPLES}.0) {{",
-        f"            snprintf(msg, size, \"parameter 'delay_meas' = %s s is %.0f steps of h = %s s: this native FMU keeps "
-        f"at most {SENSOR_SAMPLES - 2}\", mast_repr({delay}, a, sizeof a), sp[0], mast_repr(h, b, sizeof b));",
-        "            return MAST_MODEL_ERROR;", "        }",
-        "        int L = (int)sp[0] + 2;",
-        "        double *line = malloc((size_t)L * sizeof(double));",
-        "        if (!line) { snprintf(msg, size, \"out of memory\"); return MAST_MODEL_ERROR; }",
-        "        relayout(s->hist, s->s_len, s->s_head, line, L, s->s_u0);",
-        "        memcpy(s->hist, line, (size_t)L * sizeof(double));",
-        "        free(line);",
-        "        s->s_len = L; s->s_head = L - 1;",
-        "        s->s_e = co[0]; s->s_c = co[1]; s->s_d = co[2]; s->s_n = (int)sp[0]; s->s_phi = sp[1]; s->s_h = h;",
-        "    }",
-        "    double r[3];",
-        "    measurement_step(u, s->hist, s->s_head, s->s_len, s->s_n, s->s_phi, s->s_e, s->s_c, s->s_d, s->s_y, "
-        "s->s_uprev, r);",
-        "    s->s_head = (int)r[0]; s->s_y = r[1]; s->s_uprev = r[2];",
-        f"    *out = s->s_y + {offset};",
-        "    return MAST_OK;", "}", ""]
-    return "\n".join([
-        f"typedef struct {{ double m; double H[{nh}]; }} Disc;",
-        "typedef struct {",
-        "    int N, bw;                    /* the chain (n_dof) and the slot in Q of its B[omega_N, tau_L] */",
-        f"    double x[{nx}];",
-        f"    double Q[{nq}];               /* the parameters' numbers: kernel_constants, A, B, the chain */",
-        "    double omega_max;",
-        "    int variant, n_disc, next_disc, last;   /* last: the slot of the last step's h (ActuatorBlock._h) */",
-        "    double h_last;",
-        f"    double key[{DISCRETISATIONS_KEPT}];",
-        f"    Disc disc[{DISCRETISATIONS_KEPT}];",
-        "    int sensor, s_n, s_len, s_head;",
-        "    double s_h, s_e, s_c, s_d, s_phi, s_y, s_uprev, s_u0;",
-        f"    double hist[{SENSOR_SAMPLES}];",
-        "} State;", "",
-        *code,
-        "/* each kernel of every chain: its backlash, its friction (0 none, 1 Coulomb, 2 Stribeck), where its friction "
-        "numbers start in H */",
-        f"static const int V_BACKLASH[] = {{{table(3)}}};",
-        f"static const int V_FRICTION[] = {{{table(1)}}};",
-        f"static const int V_F0[] = {{{table(4)}}};",
-        f"static const int V_F1[] = {{{table(5)}}};",
-        f"static const char *const INPUT_NAMES[] = {{{names}}};", "",
-        *chains,
-        "/* the discretisation of step h by the instance's chain */",
-        "static int discretise(State *s, double h, Disc *d, char *msg, size_t size)", "{",
-        "    switch (s->N) {",
-        *[f"    case {N}: return discretise_n{N}(s, h, d, msg, size);" for N in structures[:-1]],
-        f"    default: return discretise_n{structures[-1]}(s, h, d, msg, size);",
-        "    }", "}", "",
-        *sensor,
-        "static int input_error(const double *values, int code, double t, char *msg, size_t size)", "{",
-        "    char v[40];",
-        "    double x = values[code - 1];",
-        "    mast_repr(x, v, sizeof v);",
-        "    snprintf(msg, size, \"input '%s' = %s at t=%.9g s is not finite\", INPUT_NAMES[code - 1], v, t);",
-        "    return MAST_MODEL_ERROR;", "}", "",
-        "/* ActuatorBlock.initialize: the chain n_dof selects, at rest (x = 0), the outputs from the inputs */",
-        "static int initialize(void *state, double *values, const mast_parameters *p, double t0, char *msg, size_t size)",
-        "{", "    State *s = state;",
-        "    memset(s, 0, sizeof *s);",
-        "    int code;",
-        f"    switch ({n_dof}) {{",
-        *[f"    case {N}: code = setup_n{N}(s, p, msg, size); break;" for N in structures],
-        "    default:    /* refused by check (exitInitializationMode runs it first), with its message */",
-        "        code = check(p, msg, size);",
-        "        return code ? code : MAST_PARAMETER_ERROR;",
-        "    }",
-        "    if (code) return code;",
-        "    double u = values[0], F = values[1];",
-        "    if (!isfinite(u)) return input_error(values, 1, t0, msg, size);",
-        "    if (!isfinite(F)) return input_error(values, 2, t0, msg, size);",
-        "    double w = 0.0;",
-        f"    double tf = {Q['tau_c']} * tanh(w / {Q['omega_c']});",
-        f"    if ({Q['tau_s']} > 0.0) tf += {Q['tau_s']} * exp(-((w / {Q['omega_s']}) * (w / {Q['omega_s']}))) * tanh(w / {Q['omega_c']});",
-        f"    double tl = -{Q['iR']} * (F + {Q['mg']}) - tf;",
-        f"    if ({Q['ripple']} > 0.0) tl -= {Q['ripple']} * sin({Q['rk']} * 0.0);",
-        "    double al = 0.0 + s->Q[s->bw] * tl;",
-        f"    double tm = {Q['kT']} * 0.0;",
-        f"    values[{n_in}] = {Q['rho0']} + {Q['iR']} * 0.0;",
-        f"    values[{n_in + 1}] = {Q['iR']} * w;",
-        f"    values[{n_in + 2}] = {Q['iR']} * al;",
-        f"    values[{n_in + 3}] = 0.0; values[{n_in + 4}] = 0.0; values[{n_in + 5}] = 0.0; values[{n_in + 6}] = tm;",
-        f"    s->sensor = !({T} == 0.0 && {delay} == 0.0 && {offset} == 0.0);",
-        "    s->s_u0 = tm; s->s_y = tm; s->s_uprev = tm; s->s_h = NAN; s->s_len = 0; s->s_head = 0;",
-        f"    values[{n_in + 7}] = s->sensor ? s->s_y + {offset} : tm;",
-        "    (void)u;",
-        "    return MAST_OK;", "}", "",
-        "static int do_step(void *state, double *values, const mast_parameters *p, double t, double h, char *msg, size_t size)",
-        "{", "    State *s = state;", "    char v[40], key_text[40];", "    int code = -1;",
-        "    if (!(h > 0.0 && isfinite(h))) {",
-        "        snprintf(msg, size, \"step size h = %s s: expected a finite positive number\", mast_repr(h, v, sizeof v));",
-        "        return MAST_MODEL_ERROR;", "    }",
-        "    Disc *d = h == s->h_last ? &s->disc[s->last] : NULL;   /* do_step selects only for another h */",
-        "    double key = h;",
-        "    if (!d) {",
-        "        snprintf(key_text, sizeof key_text, \"%.12g\", h);      /* ActuatorBlock._select's key */",
-        "        key = strtod(key_text, NULL);",
-        "        for (int k = 0; k < s->n_disc; k++) if (s->key[k] == key) { d = &s->disc[k]; s->last = k; }",
-        "    }",
-        "    if (!d) {",
-        "        int slot = s->next_disc;",
-        "        code = discretise(s, key, &s->disc[slot], msg, size);",
-        "        if (code) return code;",
-        "        s->key[slot] = key;",
-        f"        s->next_disc = (slot + 1) % {DISCRETISATIONS_KEPT};",
-        f"        if (s->n_disc < {DISCRETISATIONS_KEPT}) s->n_disc++;",
-        "        d = &s->disc[slot];",
-        "        s->last = slot;",
-        "    }",
-        "    s->h_last = h;",
-        "    switch (s->variant) {", cases, "    }",
-        "    if (code == 1 || code == 2) return input_error(values, code, t, msg, size);",
-        "    if (code == 3) {",
-        "        snprintf(msg, size, \"diverged at t=%.9g s (non-finite state)\", t + h);",
-        "        return MAST_MODEL_ERROR;", "    }",
-        "    if (code == 4) {",
-        f"        snprintf(msg, size, \"carriage left the stroke [%g, %g] m: rho = %.6g m at t=%.9g s\", "
-        f"{Q['rmin']}, {Q['rmax']}, {Q['rho0']} + {Q['iR']} * s->x[s->N], t + h);",
-        "        return MAST_MODEL_ERROR;", "    }",
-        f"    if (s->sensor) return sensor_step(s, values[{n_in + 6}], h, p, values + {n_in + 7}, msg, size);",
-        "    return MAST_OK;", "}", ""])
-
-
-def _drive_actuator(block, vrs: Mapping[str, int]) -> str:
-    """DriveActuatorBlock in C: the native actuator (``_actuator``) of its axis, renamed ``axis_*``, run T_cur at
-    a time behind the current loop: ``pi_step`` and ``current_gains`` translated from their own source, the
-    schedule of ``DriveActuatorBlock.do_step`` (m ticks of the PI, each followed by the axis' step) restated."""
-    import inspect
-    import re
-
-    from fmus.actuator.drive import current_gains, pi_step
-
-    axis = _actuator(block.axis, vrs)
-    axis = re.sub(r"\bState\b", "Axis", axis)
-    axis = re.sub(r"\bstatic int (initialize|do_step)\(", r"static int axis_\1(", axis)
-    P = {name: f"p->real[{vrs[name]}]" for name in ("k_pc", "k_ic", "T_cur", "u_max")}
-    n_out = len(block.axis.OUTPUTS)
-    outputs = [f"    for (int k = 2; k < {2 + n_out}; k++) values[k] = s->av[k];", f"    values[{2 + n_out}] = s->u;"]
-    command = ["    if (!isfinite(values[0])) {",
-               "        snprintf(msg, size, \"input 'i_cmd' = %s at t=%.9g s is not finite\", mast_repr(values[0], v, "
-               "sizeof v), t);", "        return MAST_MODEL_ERROR;", "    }"]
-    return "\n".join([
-        axis,
-        "/* DriveActuatorBlock: the axis (its values: u, F, then its outputs) behind the current loop */",
-        f"typedef struct {{ Axis a; double av[{2 + n_out}]; double x_c, u, gains[3]; }} State;", "",
-        to_c(inspect.getsource(pi_step), "pi_step"),
-        to_c(inspect.getsource(current_gains), "current_gains"),
-        "static int initialize(void *state, double *values, const mast_parameters *p, double t0, char *msg, size_t size)",
-        "{", "    State *s = state;", "    char v[40];", "    double t = t0;",
-        *command,
-        f"    current_gains({P['k_pc']}, {P['k_ic']}, {P['T_cur']}, {P['u_max']}, s->gains);",
-        "    s->x_c = 0.0; s->u = 0.0;",
-        "    s->av[0] = 0.0; s->av[1] = values[1];",
-        "    int code = axis_initialize(&s->a, s->av, p, t0, msg, size);",
-        "    if (code) return code;",
-        *outputs,
-        "    return MAST_OK;", "}", "",
-        "static int do_step(void *state, double *values, const mast_parameters *p, double t, double h, char *msg, size_t size)",
-        "{", "    State *s = state;", "    char v[40], w[40];",
-        f"    double T = {P['T_cur']}, m = nearbyint(h / T), PI[2];",
-        "    if (m < 1.0 || fabs(h - m * T) > 1e-6 * T) {",
-        "        snprintf(msg, size, \"step size h = %s s is not a positive integer multiple of T_cur = %s s\", "
-        "mast_repr(h, v, sizeof v), mast_repr(T, w, sizeof w));",
-        "        return MAST_MODEL_ERROR;", "    }",
-        *command,
-        "    for (int k = 0; k < (int)m; k++) {      /* the PI on i_m at this tick; its voltage from the next one */",
-        f"        pi_step(values[0] - s->av[{2 + block.axis.OUTPUTS.index('i_m')}], s->x_c, s->gains[0], s->gains[1], "
-        "s->gains[2], 0.0, PI);",
-        "        s->x_c = PI[1];",
-        "        s->av[0] = s->u; s->av[1] = values[1];",
-        "        int code = axis_do_step(&s->a, s->av, p, t + k * T, T, msg, size);",
-        "        if (code) return code;",
-        "        s->u = PI[0];", "    }",
-        *outputs,
-        "    return MAST_OK;", "}", ""])
-
-
-def _actuator_checks(block, vrs: Mapping[str, int]) -> list[str]:
-    """ActuatorBlock.__init__'s checks after the parameters' own (the same messages)."""
-    r = {k: f"p->real[{vrs[k]}]" for k in ("rho_min", "rho_max", "rho_0", "backlash")}
-    show = lambda k, buf: f"mast_repr({r[k]}, {buf}, sizeof {buf})"   # noqa: E731
-    lines = ["    {", "        char a[40], b[40], d[40];",
-             f"        if (!({r['rho_min']} < {r['rho_max']})) {{",
-             f"            snprintf(msg, size, \"parameter 'rho_max' = %s: expected a value above rho_min = %s m\", "
-             f"{show('rho_max', 'a')}, {show('rho_min', 'b')});",
-             "            return MAST_PARAMETER_ERROR;", "        }",
-             f"        if (!({r['rho_min']} < {r['rho_0']} && {r['rho_0']} < {r['rho_max']})) {{",
-             f"            snprintf(msg, size, \"parameter 'rho_0' = %s: expected a position inside the stroke (%s, %s) m\", "
-             f"{show('rho_0', 'a')}, {show('rho_min', 'b')}, {show('rho_max', 'd')});",
-             "            return MAST_PARAMETER_ERROR;", "        }"]
-    structures = actuator_structures(block.params)
-    n = f"p->integer[{vrs['n_dof']}]"
-    runs = f"1..{N_MAX}" + "".join(f" and {N}" for N in structures[N_MAX:])
-    lines += [f"        if (({n} < 1 || {n} > {N_MAX}){''.join(f' && {n} != {N}' for N in structures[N_MAX:])}) {{",
-              f"            snprintf(msg, size, \"parameter 'n_dof' = %d: this native FMU has the chains n_dof = {runs} "
-              f"(N_MAX = {N_MAX}); the project's master (mast run, mast batch, ...) generates one for a larger n_dof "
-              f"itself; for another host set n_dof in the actuator's parameter set (.ssv) and rebuild: mast build --native\", "
-              f"{n});",
-              "            return MAST_PARAMETER_ERROR;", "        }",
-              f"        if ({n} >= 3) {{", "            int items;", "            char item[64];",
-              *_parse_chain(vrs, n, max(structures), "            "), "        }",
-              f"        if ({n} != 2 && {r['backlash']} > 0.0) {{",
-              f"            snprintf(msg, size, \"parameter 'backlash' = %s: backlash is modelled in the two-inertia "
-              f"transmission only (n_dof = 2, here %d)\", {show('backlash', 'a')}, {n});",
-              "            return MAST_PARAMETER_ERROR;", "        }"]
-    return lines + ["        (void)a; (void)b; (void)d;", "    }"]
+    keys = list(constants)
+    chain = (N, f"constants_n{N}", first, len(rows), offsets["A"], offsets["B"], offsets["J"], offsets["K"],
+             offsets["Ag"], offsets["B3"], keys.index("bw"), keys.index("hb") if N == 2 else -1)
+    return code, rows, chain, len(outputs), max(sizes)
 
 
 # ----------------------------------------------------------------------------------- mechanism
 def _ikjac_c(eng, name: str, checks: Mapping[str, object]) -> str:
-    """The engine's traced inverse kinematics with its Jacobian as C ``name``, and ``name_p`` (``mast_ikjac3``:
-    the engine's traced parameters, ``eng.parameters``, from the array P; none for an engine traced with
-    them as constants)."""
+    """The engine's traced inverse kinematics with its Jacobian as C ``name``, ``name_p`` (the engine's traced
+    parameters, ``eng.parameters``, from the array P; none for an engine traced with them as constants) and
+    ``name_m``, the same as mast_dk's ``mast_ikjac`` (its model: P)."""
     args = "".join(f", P[{k}]" for k in range(len(eng.parameters)))
+    q = ", ".join(f"q{k}" for k in range(eng.n))
     return "\n".join([to_c(eng._fn("ikjac").source, name, checks=checks),
-                      f"static int {name}_p(const double *P, double q0, double q1, double q2, double *out)", "{",
-                      "    (void)P;", f"    return {name}(q0, q1, q2{args}, out);", "}", ""])
+                      f"static int {name}_p(const double *P, {', '.join(f'double q{k}' for k in range(eng.n))}, double *out)",
+                      "{", "    (void)P;", f"    return {name}({q}{args}, out);", "}",
+                      f"static int {name}_m(const void *P, const double *q, double *out) {{ return {name}_p(P, "
+                      f"{', '.join(f'q[{k}]' for k in range(eng.n))}, out); }}", ""])
+
+
+def _dk_call(eng, model: str, names: str, lengths: str, q: str, J: str, text: str) -> str:
+    """C: mast_dk of the engine ``eng`` (``ikjac_m``, ``why``) for rho, from and into ``q``, J into ``J``."""
+    return (f"mast_dk(&(mast_dk_problem){{{eng.n}, ikjac_m, {model}, why, {names}, {lengths}, {c_double(eng.margin)}, "
+            f"{c_double(eng.cond_limit)}, 1e-12, 50}}, rho, {q}, {J}, {text})")
 
 
 def _traced_parameters_c(vrs: Mapping[str, int]) -> str:
@@ -737,10 +425,11 @@ def _traced_parameters_c(vrs: Mapping[str, int]) -> str:
                         for k, n in enumerate(TRACED_PARAMETERS)], "}", ""])
 
 
-def _describe_checks_c(vrs: Mapping[str, int], payload: bool) -> list[str]:
+def _describe_checks_c(vrs: Mapping[str, int], payload: bool, why: str = "why", mechanism: bool = False) -> list[str]:
     """C lines (in a function with ``p``, ``msg``, ``size``) of ``designs.describe``'s checks of a parameter set
     after its ranges, with its messages: the kinematics, kinematics.Geometry.checked (beta = 0), the payload's
-    inertia tensor (``payload``: engine.Body), designs._check_inclined (beta != 0). Needs ``ikjac`` (traced)."""
+    inertia tensor (``payload``: engine.Body), designs._check_inclined (beta != 0). Needs ``ikjac`` (traced), or, in a
+    ``mechanism``, its hoisted kernels (mast_mechanism.h); ``why``: the message function of its checks."""
     from fmus.mechanism.designs import TRACED_PARAMETERS
 
     P = {name: f"P[{k}]" for k, name in enumerate(TRACED_PARAMETERS)}
@@ -756,7 +445,9 @@ def _describe_checks_c(vrs: Mapping[str, int], payload: bool) -> list[str]:
         "        return MAST_PARAMETER_ERROR;", "    }",
         f"    double cb = cos({P['beta']}), sb = sin({P['beta']});",
         f"    double z = level_height(0.0, 0.0, 0.0, {P['H']}, {P['r']}, {P['L']}, cb, sb);",
-        "    int code = ikjac(z, 0.0, 0.0, " + params + ", out);",
+        *(["    double K[MECH_NK_IKJAC], level[3] = {z, 0.0, 0.0};", "    mech_ikjac_invariants(P, K);",
+           "    int code = mech_ikjac(level, P, K, out);"] if mechanism else
+          ["    int code = ikjac(z, 0.0, 0.0, " + params + ", out);"]),
         f"    if ({P['beta']} == 0.0) {{   /* kinematics.Geometry.checked */",
         f"        if (!({P['r']} < {P['H']})) {{",
         f"            snprintf(msg, size, \"parameter 'r' = %s: must be < H = %s m (working assembly: the spherical joints "
@@ -766,11 +457,11 @@ def _describe_checks_c(vrs: Mapping[str, int], payload: bool) -> list[str]:
         f"            snprintf(msg, size, \"parameter 'L' = %s: must exceed H - r = %s m, or the legs cannot reach the "
         f"platform\", {R['L']}, mast_repr({P['H']} - {P['r']}, h, sizeof h));",
         "            return MAST_PARAMETER_ERROR;", "        }",
-        "        if (code || !mast_inv3(out + 3, inv, &det)) {",
+        "        if (code || !mast_inv(3, out + 3, inv, &det)) {",
         "            snprintf(msg, size, \"parameters 'alpha_1', 'alpha_2', 'alpha_3' = (%s, %s, %s) rad: the mechanism "
         "cannot be assembled at the level pose: %s\", "
         f"mast_repr({P['alpha_1']}, a1, sizeof a1), mast_repr({P['alpha_2']}, a2, sizeof a2), "
-        f"mast_repr({P['alpha_3']}, a3, sizeof a3), code ? why(-code) : \"singular configuration\");",
+        f"mast_repr({P['alpha_3']}, a3, sizeof a3), code ? {why}(-code) : \"singular configuration\");",
         "            return MAST_PARAMETER_ERROR;", "        }", "    }"]
     if payload:
         names = ("I_payload_xx", "I_payload_xy", "I_payload_xz", "I_payload_yy", "I_payload_yz", "I_payload_zz")
@@ -790,7 +481,7 @@ def _describe_checks_c(vrs: Mapping[str, int], payload: bool) -> list[str]:
         f"    if ({P['beta']} != 0.0 && code) {{   /* designs._check_inclined */",
         "        snprintf(msg, size, \"parameters 'H', 'r', 'L', 'beta' = %s m, %s m, %s m, %s rad: the mechanism cannot be "
         "assembled at the level pose with the sliders at the foot of their guides: %s\", "
-        f"{R['H']}, {R['r']}, {R['L']}, {R['beta']}, why(-code));",
+        f"{R['H']}, {R['r']}, {R['L']}, {R['beta']}, {why}(-code));",
         "        return MAST_PARAMETER_ERROR;", "    }"]
     return lines
 
@@ -804,113 +495,120 @@ def _level_height_c() -> str:
     return to_c(inspect.getsource(level_height), "level_height")
 
 
-def _mechanism(block, vrs: Mapping[str, int]) -> str:
-    """MechanismBlock for every parameter set: the engine traced with the geometry, the bodies, the payload
-    and g as named inputs (``designs.traced_engine``), their values read at initialisation, with what the
-    traced functions compute from them alone (``split_invariants``: once, not at every step); the geometry
-    checks of ``designs.describe`` (the same messages) at exitInitializationMode."""
-    import inspect
-
+def _mechanism(block, vrs: Mapping[str, int]) -> tuple[str, str]:
+    """MechanismBlock for every parameter set of the 3PRS: the engine traced with the geometry, the bodies, the
+    payload and g as named inputs (``designs.traced_engine``), their values read at initialisation
+    (``mechanism_model``); the geometry checks of ``designs.describe`` (the same messages) at
+    exitInitializationMode. (model file, config.h)"""
     from fmus.mechanism.designs import TRACED_PARAMETERS, traced_engine
-    from fmus.mechanism.model import SINGULAR, restarted_dk
 
     eng = traced_engine(block.params, block.name)
     if tuple(eng.parameters) != TRACED_PARAMETERS or len(eng.lengths) != 3 \
             or eng.lengths != (1.0, block.params["r"], block.params["r"]):
         raise ValueError(f"{block.name}: the native mechanism expects the 3PRS traced with {TRACED_PARAMETERS} and "
                          "the coordinate lengths (1, r, r)")
-    ikjac, forces, pose = eng._fn("ikjac"), eng._fn("forces"), eng._fn("pose")
-    checks = {k: v for k, v in {**ikjac.namespace, **forces.namespace, **pose.namespace}.items()
-              if k.startswith("_check")}
-    NP = len(TRACED_PARAMETERS)
-    P = {name: f"P[{k}]" for k, name in enumerate(TRACED_PARAMETERS)}
-    params = ", ".join(f"P[{k}]" for k in range(NP))
-    inputs = ", ".join(_literal(n) for n in block.INPUTS)
-    coordinates = ", ".join(_literal(n) for n in eng.description.coordinates)
-    dk = (f"mast_dk3(ikjac_k_p, s->P, why, COORDINATES, s->lengths, {c_double(eng.margin)}, rho, out, out + 3, "
-          f"1e-12, 50, {c_double(eng.cond_limit)}, s->why_text, sizeof s->why_text)")
-    attached = f"p->integer[{vrs['attached']}]"
-    # the parts of the traced functions that depend on the parameters alone, computed at initialisation
-    hoisted = {name: split_invariants(fn.source, TRACED_PARAMETERS) for name, fn in
-               (("ikjac", ikjac), ("dynamics", forces), ("pose", pose))}
-    sizes = {name: max(1, n) for name, (_, _, n) in hoisted.items()}
-    invariant_code = [to_c(hoisted[name][0], f"{name}_invariants") for name in hoisted]
-    hot_code = [to_c(hoisted[name][1], f"{name}_k", arrays=("K",), checks=checks) for name in hoisted]
+    r = TRACED_PARAMETERS.index("r")
+    joints = ", ".join(f"r{k}" for k in range(eng.n))
+    # PRS3.guess: the level pose for the mean slider position, its cosines from beta as PRS3 computes them
+    guess = (f"def guess({joints}, {', '.join(TRACED_PARAMETERS)}):\n"
+             f"    return (level_height({joints}, H, r, L, cos(beta), sin(beta)), 0.0, 0.0)\n")
+    model, config = mechanism_model(eng, [vrs.get(name, -1) for name in TRACED_PARAMETERS], (-1, r, r),
+                                    vrs["attached"], guess, block.INPUTS, [_level_height_c()])
     return "\n".join([
-        f"typedef struct {{ double q[3]; int warm; double P[{NP + sizes['ikjac']}]; double K_dynamics[{sizes['dynamics']}];",
-        f"                 double K_pose[{sizes['pose']}]; double lengths[3]; double cb, sb; char why_text[1024]; }} State;",
-        "/* P: the traced parameters (TRACED_PARAMETERS), then ikjac's invariants; K_*: the other functions' */", "",
-        _ikjac_c(eng, "ikjac", checks),
-        *invariant_code, *hot_code,
-        "/* mast_ikjac3 of the hoisted ikjac: the parameters and its invariants from P */",
-        "static int ikjac_k_p(const double *P, double q0, double q1, double q2, double *out)", "{",
-        f"    return ikjac_k(q0, q1, q2, {params}, (double *)P + {NP}, out);", "}", "",
-        _level_height_c(),
-        _why_function("why", checks),
-        f"static const char *const INPUT_NAMES[] = {{{inputs}}};",
-        f"static const char *const COORDINATES[] = {{{coordinates}}};", "",
+        model,
         _traced_parameters_c(vrs),
         "/* designs.describe's checks of a parameter set (after the ranges), with its messages */",
         "static int model_check(const mast_parameters *p, char *msg, size_t size)", "{",
-        *_describe_checks_c(vrs, payload=True),
-        "    return MAST_OK;", "}", "",
-        "static int kinematics_error(const double *values, double t, const char *what, char *msg, size_t size)", "{",
-        "    char a[40], b[40], c[40], d[40];",
-        "    snprintf(msg, size, \"at t = %s s, rho = (%s, %s, %s) m: %s\", mast_repr(t, d, sizeof d), "
-        "mast_repr(values[0], a, sizeof a), mast_repr(values[1], b, sizeof b), mast_repr(values[2], c, sizeof c), what);",
-        "    return MAST_KINEMATICS_ERROR;", "}", "",
-        "/* mechanism.model.dk: one attempt from the last solution (warm), else from the level pose (the cold start);",
-        "   S: the instance (State's first member), out: q, then J = dq/drho; a failure's message in s->why_text */",
-        "static int dk(double *rho, double warm, double *S, double *out)", "{",
-        "    State *s = (State *)S;",
-        "    const double *P = s->P;",
-        "    if (warm == 1.0) {",
-        "        for (int k = 0; k < 3; k++) out[k] = s->q[k];",
-        "    } else {",
-        f"        out[0] = level_height(rho[0], rho[1], rho[2], {P['H']}, {P['r']}, {P['L']}, s->cb, s->sb);",
-        "        out[1] = 0.0; out[2] = 0.0;", "    }",
-        f"    return {dk};", "}", "",
-        to_c(inspect.getsource(restarted_dk), "restarted_dk", arrays=("rho", "S", "out"), calls=("dk",),
-             constants={"SINGULAR": SINGULAR}),
-        "/* MechanismBlock._compute: direct kinematics (restarted_dk), then the forces and the pose */",
-        "static int compute(State *s, double *values, const mast_parameters *p, double t, char *msg, size_t size)", "{",
-        "    char v[40], w[40];",
-        "    double qJ[12], *q = qJ, *J = qJ + 3;",
-        "    const double *P = s->P;",
-        "    int code;",
-        "    for (int k = 0; k < 9; k++) {",
-        "        if (!isfinite(values[k])) {",
-        "            snprintf(msg, size, \"input '%s' = %s is not finite at t = %s s\", INPUT_NAMES[k], "
-        "mast_repr(values[k], v, sizeof v), mast_repr(t, w, sizeof w));",
-        "            return MAST_MODEL_ERROR;", "        }", "    }",
-        "    code = restarted_dk(values, s->warm ? 1.0 : 0.0, (double *)s, qJ);   /* rho: values[0..2] */",
-        "    if (code) {",
-        "        kinematics_error(values, t, s->why_text, msg, size);",
-        "        return code;          /* MAST_KINEMATICS_ERROR, or MAST_SINGULARITY_ERROR: it stays one */",
-        "    }",
-        f"    if ({attached}) {{",
-        "        code = dynamics_k(q[0], q[1], q[2], J[0], J[1], J[2], J[3], J[4], J[5], J[6], J[7], J[8], "
-        f"values[3], values[4], values[5], values[6], values[7], values[8], {params}, s->K_dynamics, values + 9);",
-        "    } else {   /* attached = 0: no force, the kinematics of the mechanism */",
-        "        values[9] = 0.0; values[10] = 0.0; values[11] = 0.0;",
-        f"        code = pose_k(q[0], q[1], q[2], {params}, s->K_pose, values + 12);",
-        "    }",
-        "    if (code) return kinematics_error(values, t, why(-code), msg, size);",
-        "    for (int k = 0; k < 3; k++) s->q[k] = q[k];",
-        "    s->warm = 1;",
-        "    return MAST_OK;", "}", "",
-        "static int initialize(void *state, double *values, const mast_parameters *p, double t0, char *msg, size_t size)",
-        "{", "    State *s = state;", "    s->warm = 0;", "    traced_parameters(p, s->P);",
-        f"    ikjac_invariants({params.replace('P[', 's->P[')}, s->P + {NP});",
-        f"    dynamics_invariants({params.replace('P[', 's->P[')}, s->K_dynamics);",
-        f"    pose_invariants({params.replace('P[', 's->P[')}, s->K_pose);",
-        f"    s->lengths[0] = 1.0; s->lengths[1] = {P['r'].replace('P', 's->P')}; "
-        f"s->lengths[2] = {P['r'].replace('P', 's->P')};   /* Engine.lengths (1, r, r) [m] */",
-        f"    s->cb = cos(s->{P['beta']}); s->sb = sin(s->{P['beta']});",
-        "    return compute(s, values, p, t0, msg, size);",
-        "}", "",
-        "static int do_step(void *state, double *values, const mast_parameters *p, double t, double h, char *msg, size_t size)",
-        "{", "    (void)h;", "    return compute(state, values, p, t + h, msg, size);", "}", ""])
+        *_describe_checks_c(vrs, payload=True, why="mech_why", mechanism=True),
+        "    return MAST_OK;", "}", ""]), config
+
+
+def mechanism_guess(eng) -> str:
+    """The Python source of ``guess(r0, ..., <the traced parameters>)``: the description's cold start of the
+    direct kinematics when it does not depend on rho (the same pose for rho = 0 and rho = 1 m); ValueError
+    naming the description otherwise (a guess that moves with rho has a native form when written as one, as
+    the 3PRS's level pose: ``_mechanism``)."""
+    n, d = eng.n, eng.description
+    poses = []
+    for rho in ([0.0] * n, [1.0] * n):
+        try:
+            poses.append(tuple(float(v) for v in d.guess(rho)))
+        except Exception as err:   # noqa: BLE001 (the description's own code: any failure means no constant guess)
+            raise ValueError(f"{d.name}: its guess fails at rho = {rho}: {err}") from None
+    if poses[0] != poses[1] or len(poses[0]) != n:
+        raise ValueError(f"{d.name}: its guess {poses[0]} at rho = 0 and {poses[1]} at rho = 1 m is not one pose of "
+                         f"{n} coordinates: the native mechanism takes a constant cold start (or one written as a "
+                         "generated function)")
+    args = ", ".join([f"r{k}" for k in range(n)] + list(eng.parameters))
+    return f"def guess({args}):\n    return ({', '.join(c_double(v) for v in poses[0])},)\n"
+
+
+def mechanism_variables(n: int) -> list[Variable]:
+    """The variables of a mechanism of ``n`` drives without parameters (the connector convention): inputs rho_k,
+    rho_dot_k, rho_ddot_k, outputs F_k and the pose x, y, z, psi, theta, phi."""
+    from fmus.mechanism.topology import POSE
+
+    inputs = [f"{kind}_{k}" for kind in ("rho", "rho_dot", "rho_ddot") for k in range(1, n + 1)]
+    outputs = [f"F_{k}" for k in range(1, n + 1)] + list(POSE)
+    return [Variable(name, vr, "Real", "input" if vr < len(inputs) else "output", 0.0)
+            for vr, name in enumerate(inputs + outputs)]
+
+
+def mechanism_model(eng, traced_vrs: Sequence[int], length_parameters: Sequence[int], attached_vr: int, guess: str,
+                    inputs: Sequence[str], support: Sequence[str] = ()) -> tuple[str, str]:
+    """The generated part of a native mechanism (mast_mechanism.h) for the engine ``eng`` of any description: its
+    traced kernels (inverse kinematics with its Jacobian, dynamics, pose), each split into what the parameters
+    alone fix (``split_invariants``: computed at initialisation, not at every step) and the rest, with a fixed
+    interface (``packed``: q, J, rho_dot, rho_ddot, the parameters P as arrays); the restart policy
+    (``mechanism.model.restarted_dk``) and the cold start ``guess`` (Python source of the generated subset)
+    translated; the tables. ``traced_vrs``: per traced parameter (``eng.parameters``), its value reference or
+    -1; ``length_parameters``: per coordinate, the traced parameter that is its length (``Engine.lengths``) or
+    -1 (then the engine's number); ``attached_vr``: the value reference of 'attached', or -1; ``inputs``: the
+    FMU's input names; ``support``: C the guess calls (value functions). (model part, config.h)"""
+    import inspect
+
+    from fmus.mechanism.model import SINGULAR, restarted_dk
+
+    n, names = eng.n, list(eng.parameters)
+    fns = {name: eng._fn(key) for name, key in (("ikjac", "ikjac"), ("dynamics", "forces"), ("pose", "pose"))}
+    checks = {k: v for fn in fns.values() for k, v in fn.namespace.items() if k.startswith("_check")}
+    q = [f"q{j}" for j in range(n)]
+    groups = {"q": q, "J": [f"J{j}{k}" for j in range(n) for k in range(n)], "rho_dot": [f"rd{k}" for k in range(n)],
+              "rho_ddot": [f"rdd{k}" for k in range(n)], "P": names}
+    code, sizes = [], {}
+    for name, fn in fns.items():
+        invariants, main, sizes[name] = split_invariants(fn.source, names)
+        code += [to_c(invariants, f"mech_{name}_invariants", packed={"P": names}, static=False),
+                 to_c(main, f"mech_{name}", arrays=("K",), checks=checks, static=False,
+                      packed={k: v for k, v in groups.items() if k in ("q", "P") or name == "dynamics"})]
+    args = list(inspect.signature(restarted_dk).parameters)
+    joints = args[:args.index("warm")]
+    packing = {"rho": joints} if joints != ["rho"] else {}
+    code += [to_c(inspect.getsource(restarted_dk), "mech_restarted_dk", arrays=("S", "out", *(() if packing else ("rho",))),
+                  calls={"dk": "mast_mechanism_dk"}, constants={"SINGULAR": SINGULAR}, packed=packing, static=False),
+             *support,
+             to_c(guess, "mech_guess", packed={"rho": [f"r{k}" for k in range(n)], "P": names}, static=False,
+                  values=("level_height",)),
+             _why_function("mech_why", checks, static=False)]
+    lengths = [c_double(v if k < 0 else 0.0) for v, k in zip(eng.lengths, length_parameters)]
+    row = lambda items: ", ".join(str(v) for v in items)     # noqa: E731
+    tables = [
+        "/* the tables of this mechanism (mast_mechanism.h) */",
+        f"const int MECH_TRACED_VR[MECH_NP] = {{{row(traced_vrs or [-1])}}};   /* {', '.join(names) or 'none'} */",
+        f"const int MECH_LENGTH_PARAMETER[MECH_N] = {{{row(length_parameters)}}};",
+        f"const double MECH_LENGTH_VALUE[MECH_N] = {{{row(lengths)}}};",
+        f"const char *const MECH_COORDINATES[MECH_N] = {{{row(_literal(c) for c in eng.description.coordinates)}}};",
+        f"const char *const MECH_INPUT_NAMES[3 * MECH_N] = {{{row(_literal(i) for i in inputs)}}};", ""]
+    config = "\n".join([
+        f"/* Generated by mast build --native from the description {eng.description.name} "
+        "(mast.core.native.models): the sizes of this mechanism (mast_mechanism.h) */",
+        "#ifndef CONFIG_H", "#define CONFIG_H",
+        f"#define MECH_N {n}", f"#define MECH_NP {max(1, len(names))}",
+        *[f"#define MECH_NK_{name.upper()} {max(1, k)}" for name, k in sizes.items()],
+        f"#define MECH_ATTACHED_VR {attached_vr}",
+        f"#define MECH_MARGIN {c_double(eng.margin)}", f"#define MECH_COND_LIMIT {c_double(eng.cond_limit)}",
+        "#endif", ""])
+    return "\n".join(code + tables), config
 
 
 # ----------------------------------------------------------------------------------- controller
@@ -926,8 +624,7 @@ def _workspace_dk(block) -> str:
         "static int wsdk_eval(const double *rho, double *S, double *q, char *msg, size_t size)", "{",
         "    double J[9];",
         f"    if (S[{W}] == 1.0) {{ for (int k = 0; k < 3; k++) q[k] = S[{G} + k]; }} else guess(S, rho, q);",
-        f"    int code = mast_dk3(ikjac_p, S + {LAYOUT['P']}, why, K_COORDINATES, LENGTHS(S), {c_double(eng.margin)}, rho, "
-        f"q, J, 1e-12, 50, {c_double(eng.cond_limit)}, msg, size);",
+        f"    int code = {_dk_call(eng, 'S + ' + str(LAYOUT['P']), 'K_COORDINATES', 'LENGTHS(S)', 'q', 'J', 'msg, size')};",
         "    if (code) return code;",
         f"    for (int k = 0; k < 3; k++) S[{G} + k] = q[k];", f"    S[{W}] = 1.0;", "    return 0;", "}", "",
         "static int wsdk(double r0, double r1, double r2, double *S, double *out)", "{",
@@ -1114,14 +811,14 @@ def _model_constants_c(vrs: Mapping[str, int]) -> str:
     """``model_constants(p, out)``: the inverse model's actuator constants (``inverse_model.CONSTANTS``) from
     the parameters, by ``inverse_model.model_constants`` traced (``two_inertia``, ``transmission_ratio``)."""
     from fmus.controller.inverse_model import CONSTANTS, model_constants
-    from fmus.common.tracer import Graph as _Graph, lift as _lift, compile_function
+    from fmus.common.tracer import Graph, compile_function, lift
 
-    g = _Graph()
+    g = Graph()
     names = ("J_motor", "J_gearbox", "J_coupling", "J_brake", "J1_scale", "J_guide", "M_load", "i_r", "p", "b_v",
              "g_guide", "tau_c", "omega_c", "tau_s", "omega_s", "k_T")
     constants = model_constants({n: g.input(n) for n in names})
     assert tuple(constants) == CONSTANTS
-    fn = compile_function("traced_model_constants", names, [_lift(g, v) for v in constants.values()], g,
+    fn = compile_function("traced_model_constants", names, [lift(g, v) for v in constants.values()], g,
                           label="inverse model constants")
     args = ", ".join(f"p->real[{vrs[n]}]" for n in names)
     return "\n".join([to_c(fn.source, "traced_model_constants"),
@@ -1149,8 +846,7 @@ def _inverse_model(eng, vrs: Mapping[str, int]) -> str:
     torque = ", ".join(f"S[{MC + k}]" for k in range(CONSTANTS.index("k_T")))
     W, G, A, PO = LAYOUT["warm"], LAYOUT["guess"], LAYOUT["model_args"], LAYOUT["P"]
     params = ", ".join(f"S[{PO + k}]" for k in range(len(eng.parameters)))
-    dk = (f"mast_dk3(ikjac_p, S + {PO}, why, M_COORDINATES, LENGTHS(S), {c_double(eng.margin)}, rho, out, out + 3, "
-          f"1e-12, 50, {c_double(eng.cond_limit)}, s->text, sizeof s->text)")
+    dk = _dk_call(eng, f"S + {PO}", "M_COORDINATES", "LENGTHS(S)", "out", "out + 3", "s->text, sizeof s->text")
     coordinates = ", ".join(_literal(n) for n in eng.description.coordinates)
     checks = {k: v for k, v in eng._fn("forces").namespace.items() if k.startswith("_check")}
     return "\n".join([
@@ -1162,17 +858,18 @@ def _inverse_model(eng, vrs: Mapping[str, int]) -> str:
         f"static const char *const M_COORDINATES[] = {{{coordinates}}};", "",
         "/* mechanism.model.dk for the inverse model: one attempt from its last solution (warm), else from the",
         "   description's guess; S: the instance's state (State's first member), out: q, then J = dq/drho */",
-        "static int dk(double *rho, double warm, double *S, double *out)", "{",
+        "static int dk(double r0, double r1, double r2, double warm, double *S, double *out)", "{",
         "    State *s = (State *)S;",
+        "    double rho[3] = {r0, r1, r2};",
         f"    if (warm == 1.0) {{ for (int k = 0; k < 3; k++) out[k] = S[{G} + k]; }} else guess(S, rho, out);",
         f"    return {dk};", "}", "",
-        to_c(inspect.getsource(restarted_dk), "restarted_dk", arrays=("rho", "S", "out"), calls=("dk",),
+        to_c(inspect.getsource(restarted_dk), "restarted_dk", arrays=("S", "out"), calls=("dk",),
              constants={"SINGULAR": SINGULAR}),
         "/* InverseModel.currents at a = (rho, rho_dot, rho_ddot); 0, or an error code with msg */",
         "static int model_eval(const double *a, double *S, double *out, char *msg, size_t size)", "{",
         "    double qJ[12], *q = qJ, *J = qJ + 3, F[12] = {0.0, 0.0, 0.0};",
         f"    if (S[{LAYOUT['attached']}] != 0.0) {{",
-        f"        int code = restarted_dk((double *)a, S[{W}], S, qJ);   /* rho: a[0..2] */",
+        f"        int code = restarted_dk(a[0], a[1], a[2], S[{W}], S, qJ);",
         "        if (code) {", "            snprintf(msg, size, \"%s\", ((State *)S)->text);", "            return code;",
         "        }",
         "        code = forces(q[0], q[1], q[2], J[0], J[1], J[2], J[3], J[4], J[5], J[6], J[7], J[8], "
@@ -1223,26 +920,15 @@ def native_controllers() -> tuple[type, ...]:
 
 # ----------------------------------------------------------------------------------- trajectory
 def _trajectory(block, vrs: Mapping[str, int]) -> str:
-    """TrajectoryBlock._write, its parameters read at run time (tunable as in the Python FMU)."""
-    P = {name: f"p->real[{vrs[name]}]" for name in ("z_home", "psi_home", "theta_home", "amplitude_z",
-                                                    "amplitude_psi", "amplitude_theta", "frequency")}
+    """TrajectoryBlock's tables (mast_trajectory.h): per output <c>_cmd, the value references of <c>_home and
+    amplitude_<c>; the frequency's."""
+    coordinates = [name.removesuffix("_cmd") for name in block.OUTPUTS]
+    row = lambda items: ", ".join(str(v) for v in items)     # noqa: E731
     return "\n".join([
-        "typedef struct { double t0; } State;", "",
-        "static int write(const State *s, double *values, const mast_parameters *p, double t, char *msg, size_t size)",
-        "{", "    char v[40];",
-        "    if (!isfinite(t)) {",
-        "        snprintf(msg, size, \"time t = %s s is not finite\", mast_repr(t, v, sizeof v));",
-        "        return MAST_MODEL_ERROR;", "    }",
-        f"    double omega = 2.0 * {c_double(math.pi)} * {P['frequency']};",
-        "    double sn = sin(omega * (t - s->t0));",
-        f"    values[0] = {P['z_home']} + {P['amplitude_z']} * sn;",
-        f"    values[1] = {P['psi_home']} + {P['amplitude_psi']} * sn;",
-        f"    values[2] = {P['theta_home']} + {P['amplitude_theta']} * sn;",
-        "    return MAST_OK;", "}", "",
-        "static int initialize(void *state, double *values, const mast_parameters *p, double t0, char *msg, size_t size)",
-        "{", "    State *s = state;", "    s->t0 = t0;", "    return write(s, values, p, t0, msg, size);", "}", "",
-        "static int do_step(void *state, double *values, const mast_parameters *p, double t, double h, char *msg, size_t size)",
-        "{", "    return write(state, values, p, t + h, msg, size);", "}", ""])
+        f"const int TRAJECTORY_N = {len(coordinates)};   /* {', '.join(block.OUTPUTS)} */",
+        f"const int TRAJECTORY_HOME_VR[] = {{{row(vrs[f'{c}_home'] for c in coordinates)}}};",
+        f"const int TRAJECTORY_AMPLITUDE_VR[] = {{{row(vrs[f'amplitude_{c}'] for c in coordinates)}}};",
+        f"const int TRAJECTORY_FREQUENCY_VR = {vrs['frequency']};", ""])
 
 
 # ----------------------------------------------------------------------------------- entry point
@@ -1256,9 +942,10 @@ def to_generate(block_class: type, generated: Mapping[str, object], wanted: Mapp
 
 
 def emit_model(identifier: str, guid: str, block_class: type, parameters: Mapping[str, object],
-               variables: Sequence[Variable]) -> str:
-    """The C model file of the FMU ``identifier`` (its modelDescription ``variables``), generated from
-    ``block_class`` built with ``parameters``."""
+               variables: Sequence[Variable]) -> dict[str, str]:
+    """The generated C files of the FMU ``identifier`` (its modelDescription ``variables``), from ``block_class``
+    built with ``parameters``: ``<identifier>_model.c`` (the kernels and tables), and a mechanism's ``config.h``
+    (its sizes); the runtime they run on: ``RUNTIME``."""
     vrs = {v.name: v.vr for v in variables}
     n_inputs, n_io = len(block_class.INPUTS), len(block_class.INPUTS) + len(block_class.OUTPUTS)
     expected = list(block_class.INPUTS + block_class.OUTPUTS) + [p.name for p in block_class.PARAMETERS]
@@ -1271,20 +958,44 @@ def emit_model(identifier: str, guid: str, block_class: type, parameters: Mappin
                  else v for v in variables]
     kind = native_kind(block_class)
     extra: list[str] = []
+    files, more, state, functions = {}, "", "State", ""
     if kind == "actuator":
         axis = getattr(block, "axis", block)         # DriveActuatorBlock: the axis behind its current loop
-        body = _drive_actuator(block, vrs) if axis is not block else _actuator(block, vrs)
-        extra = _actuator_checks(axis, vrs)
+        body, files["config.h"] = _actuator(axis, vrs)
+        extra = ["    if (mast_actuator_check(p, msg, size)) return MAST_PARAMETER_ERROR;"]
+        runtime = "drive" if axis is not block else "actuator"
+        more, state, functions = f'#include "mast_{runtime}.h"\n', f"mast_{runtime}_state", f"mast_{runtime}_"
     elif kind == "mechanism":
-        body = _mechanism(block, vrs)
+        body, files["config.h"] = _mechanism(block, vrs)
+        more, state, functions = '#include "mast_mechanism.h"\n', "mast_mechanism_state", "mast_mechanism_"
     elif kind == "controller":
         body = _joint_controller(block, vrs)
     elif kind == "trajectory":
         body = _trajectory(block, vrs)
+        more, state, functions = '#include "mast_trajectory.h"\n', "mast_trajectory_state", "mast_trajectory_"
     else:
         raise ValueError(f"{identifier}: {block_class.__name__} has no native form yet")
-    return "".join([_HEAD.format(what=f"{block_class.__module__}.{block_class.__name__}"),
-                    _variable_table(variables), "\n",
-                    _check_function(block_class.PARAMETERS, vrs, extra, kind in ("mechanism", "controller")),
-                    "\n", body, "\n",
-                    _model_struct(identifier, guid, variables, n_inputs, n_io, bool(block_class.FEEDTHROUGH))])
+    files[f"{identifier}_model.c"] = "".join([
+        _HEAD.format(what=f"{block_class.__module__}.{block_class.__name__}", more=more),
+        _variable_table(variables), "\n",
+        _check_function(block_class.PARAMETERS, vrs, extra, kind in ("mechanism", "controller")),
+        "\n", body, "\n",
+        _model_struct(identifier, guid, variables, n_inputs, n_io, bool(block_class.FEEDTHROUGH), state, functions)])
+    return files
+
+
+def emit_mechanism(identifier: str, guid: str, eng) -> dict[str, str]:
+    """The generated C files of a native mechanism FMU for the engine ``eng`` of a description traced with its
+    numbers as constants (no parameters; ``mechanism_variables`` its variables): ``<identifier>_model.c`` and
+    ``config.h`` (``mechanism_model``, with the description's constant cold start, ``mechanism_guess``)."""
+    if eng.parameters:
+        raise ValueError(f"{identifier}: {eng.description.name} is traced with parameters {eng.parameters}: a "
+                         "mechanism with parameters is generated from its block (emit_model)")
+    variables = mechanism_variables(eng.n)
+    inputs = [v.name for v in variables if v.causality == "input"]
+    model, config = mechanism_model(eng, [], [-1] * eng.n, -1, mechanism_guess(eng), inputs)
+    return {"config.h": config, f"{identifier}_model.c": "".join([
+        _HEAD.format(what=f"description {eng.description.name}", more='#include "mast_mechanism.h"\n'),
+        _variable_table(variables), "\n", _check_function((), {}), "\n", model, "\n",
+        _model_struct(identifier, guid, variables, len(inputs), len(variables), False, "mast_mechanism_state",
+                      "mast_mechanism_")])}

@@ -30,6 +30,8 @@ A generated Python function becomes ``static int NAME(...)``:
   k`` (the actuator's status codes) returns k, as does ``return status`` (a status another
   generated function returned: ``status = f(..., ARRAY)``, its results in ARRAY); ``a, b = f(...)``
   calls another generated function that returns a tuple (its ``out`` a scratch array of the caller);
+- ``packed`` groups of scalar arguments are taken as one array each (``pack``: ``ikjac(q0, q1, q2, H, r, ...)``
+  becomes ``ikjac(double *q, double *P, ...)``): the fixed interface the runtime calls for any number of them;
 - a call of a check the tracing recorded (``_checkN(...)``) becomes ``if (!(cond)) return
   -N;`` with ``cond`` the check's ``c_condition`` (a C expression of ``a0, a1, ...``); the
   caller reports which check failed, with the message the check's ``c_message`` gives.
@@ -41,7 +43,7 @@ import math
 import textwrap
 from typing import Callable, Mapping, Optional, Sequence
 
-__all__ = ["TranslationError", "to_c", "c_double", "split_invariants"]
+__all__ = ["TranslationError", "to_c", "c_double", "split_invariants", "pack"]
 
 #: Python names of the scalar functions the generators call -> C (libm or support/mast_native.h)
 FUNCTIONS = {
@@ -79,7 +81,7 @@ class _Writer:
                  calls: Sequence[str] = (), values: Sequence[str] = (), constants: Mapping[str, float] = ()) -> None:
         self.name = name
         self.constants = dict(constants)
-        self.calls = set(calls)
+        self.calls = dict(calls) if isinstance(calls, Mapping) else {c: c for c in calls}   # Python -> C name
         self.values = set(values)
         self.arrays = set(arrays)
         self.checks = checks
@@ -142,7 +144,7 @@ class _Writer:
         if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id in self.calls \
                 and not node.keywords:     # another generated function: status code, results in its array argument
             args = [a.id if isinstance(a, ast.Name) and a.id in self.arrays else self.expr(a) for a in node.args]
-            return f"{node.func.id}({', '.join(args)})"
+            return f"{self.calls[node.func.id]}({', '.join(args)})"
         if isinstance(node, ast.Subscript) and isinstance(node.value, ast.Name) and node.value.id in self.arrays:
             return f"{node.value.id}[{self.index(node.slice)}]"
         self.fail(node, "expression")
@@ -286,17 +288,21 @@ class _Writer:
 
 
 def to_c(source: str, name: str, arrays: Sequence[str] = (), checks: Mapping[str, Callable] = (),
-         static: bool = True, calls: Sequence[str] = (), values: Sequence[str] = (),
-         constants: Mapping[str, float] = ()) -> str:
+         static: bool = True, calls: Sequence[str] | Mapping[str, str] = (), values: Sequence[str] = (),
+         constants: Mapping[str, float] = (), packed: Mapping[str, Sequence[str]] = ()) -> str:
     """C of the one generated Python function in ``source`` (module docstring), named ``name``;
-    ``calls``: other generated functions it may call (``status = f(..., ARRAY)``); ``values``: value
-    functions (one computed number) it may call in an expression; ``constants``: the module's named numbers
-    it reads (written as their values)."""
+    ``calls``: other generated functions it may call (``status = f(..., ARRAY)``; a mapping: their C names);
+    ``values``: value functions (one computed number) it may call in an expression; ``constants``: the
+    module's named numbers it reads (written as their values); ``packed``: {array: the scalar arguments it
+    carries, in order}: the function takes the array instead (``pack``), a fixed C interface for any size."""
     tree = ast.parse(textwrap.dedent(source))
     functions = [n for n in tree.body if isinstance(n, ast.FunctionDef)]
     if len(functions) != 1 or len(tree.body) != 1:
         raise TranslationError(f"{name}: expected one generated function, found {len(tree.body)} statements")
     fn = functions[0]
+    if packed:
+        pack(fn, packed, name, list(calls))
+        arrays = (*arrays, *packed)
     w = _Writer(name, arrays, dict(checks or {}), calls, values, constants)
     body = fn.body
     if body and isinstance(body[0], ast.Expr) and isinstance(body[0].value, ast.Constant) \
@@ -315,6 +321,52 @@ def to_c(source: str, name: str, arrays: Sequence[str] = (), checks: Mapping[str
     for k in range(0, len(names), 8):
         decl.append("    double " + ", ".join(names[k:k + 8]) + ";")
     return "\n".join([head, "{"] + decl + w.lines + ["}", ""])
+
+
+def pack(fn: ast.FunctionDef, packed: Mapping[str, Sequence[str]], name: str, calls: Sequence[str] = ()) -> None:
+    """``fn`` rewritten in place to take each array of ``packed`` ({array: its scalar arguments, in order}) instead
+    of its scalars: the array at the first scalar's place (an array with no scalars right after the previous array,
+    or first), each read of a scalar an index into its array, and each run of a whole group in the arguments of a
+    call of ``calls`` (other generated functions) the array. A scalar out of its group's order, or assigned, is refused (TranslationError)."""
+    where = {arg: (array, k) for array, names in packed.items() for k, arg in enumerate(names)}
+    args = [a.arg for a in fn.args.args]
+    out: list[str] = []
+    i = 0
+    while i < len(args):
+        group = next((a for a, names in packed.items() if names and args[i:i + len(names)] == list(names)), None)
+        if group is None and args[i] in where:
+            raise TranslationError(f"{name}: argument {args[i]} is not in the order of its group {where[args[i]][0]}")
+        out.append(group or args[i])
+        i += len(packed[group]) if group else 1
+    previous = -1
+    for array in packed:
+        if array not in out:
+            out.insert(previous + 1, array)
+        previous = out.index(array)
+
+    class Pack(ast.NodeTransformer):
+        def visit_Call(self, node: ast.Call) -> ast.AST:
+            names = [a.id if isinstance(a, ast.Name) else None for a in node.args]
+            called = isinstance(node.func, ast.Name) and node.func.id in calls
+            for array, group in packed.items() if called else ():
+                n = len(group)
+                for k in range(len(names) - n + 1) if n else ():
+                    if names[k:k + n] == list(group):
+                        node.args[k:k + n] = [ast.Name(array, ast.Load())]
+                        names[k:k + n] = [array]
+            return self.generic_visit(node)
+
+        def visit_Name(self, node: ast.Name) -> ast.AST:
+            if node.id not in where:
+                return node
+            if not isinstance(node.ctx, ast.Load):
+                raise TranslationError(f"{name}: the packed argument {node.id} is assigned")
+            array, k = where[node.id]
+            return ast.copy_location(ast.Subscript(ast.Name(array, ast.Load()), ast.Constant(k), ast.Load()), node)
+
+    Pack().visit(fn)
+    fn.args.args = [ast.arg(a) for a in out]
+    ast.fix_missing_locations(fn)
 
 
 def split_invariants(source: str, invariant: Sequence[str]) -> tuple[str, str, int]:

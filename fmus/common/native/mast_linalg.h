@@ -1,0 +1,38 @@
+/* Matrix helpers of the native models (mast_linalg.c): n x n row-major matrices of doubles, each routine
+ * the same operations in the same order as the Python it mirrors (named at each), so the floats agree. */
+#ifndef MAST_LINALG_H
+#define MAST_LINALG_H
+
+/* the largest n the routines with work arrays on the stack take (mast_inv, mast_sv_extremes) */
+#define MAST_LINALG_N_MAX 12
+
+/* engine._inv: inverse (row-major) and determinant of the n x n matrix m; for n = 3 kinematics.inv3 (cofactors),
+ * else Gauss-Jordan elimination with partial pivoting. 0 when the matrix is singular (Python: ZeroDivisionError)
+ * or n is above MAST_LINALG_N_MAX, else 1. */
+int mast_inv(int n, const double *m, double *inv, double *det);
+
+/* engine._cond: Frobenius condition number |m|_F |m^-1|_F of the matrices m, minv of n2 entries */
+double mast_cond(const double *m, const double *minv, int n2);
+
+/* The smallest and largest singular values of the n x n matrix a (row-major), by one-sided Jacobi rotations
+ * (engine.margins_of takes them from LAPACK's svd: they agree to rounding) */
+void mast_sv_extremes(int n, const double *a, double *smin, double *smax);
+
+/* The smallest eigenvalue of the symmetric 3x3 matrix a (row-major), by the trigonometric closed form
+ * (engine.Body's check of an inertia tensor: numpy's eigvalsh there; they agree to rounding) */
+double mast_sym3_min_eig(const double *a);
+
+/* exp(M) of the n x n row-major matrix M into E, the mathematics of the Python actuator's varying-step
+ * route (fmus/actuator/model.py; fmus/common/fixed_order.expm, the same operations): M balanced by a diagonal
+ * similarity of powers of two (D^-1 M D, exact; Parlett-Reinsch iteration as LAPACK gebal without permutation),
+ * then scaling and squaring a degree-16 Taylor polynomial with ||X||_1 <= 1/2, then E = D exp(.) D^-1.
+ * A matrix with a non-finite entry (parameters beyond floating point) gives NaN everywhere, as the
+ * Python route's (the caller then refuses the step size). 0, or -1 when memory is short.
+ * tests/test_native.py checks it against scipy.linalg.expm. */
+int mast_expm(int n, const double *M, double *E);
+
+/* The largest eigenvalue of the symmetric n x n matrix S (destroyed), by cyclic Jacobi rotations
+ * (fixed_order.eig_max's arithmetic; chain_frequencies takes it from LAPACK's eigvalsh) */
+double mast_eig_max(int n, double *S);
+
+#endif
