@@ -10,8 +10,9 @@ import subprocess
 import numpy as np
 import pytest
 
-from fmus.mechanism import engine as E
+from fmus.common import tracer as E
 from fmus.mechanism.engine import Body, Description, Engine, Evaluation
+from fmus.mechanism.kinematics import KinematicsError
 from mast.core.native.build import SUPPORT, SUPPORT_FILES
 from mast.core.native.compiler import CFLAGS, compile_shared, compiler
 from mast.core.native.models import RUNTIME, emit_mechanism
@@ -153,7 +154,7 @@ def test_a_six_drive_mechanism_is_generated_compiled_and_computes_the_python_eng
     # out of reach: every leg 0.3 m; the engine's refusal, with the six joints in the message
     values[:6] = [0.3] * 6
     code = model.do_step(state, values, ctypes.byref(params), 1.0, 1e-3, msg, len(msg))
-    with pytest.raises(E.KinematicsError) as python:
+    with pytest.raises(KinematicsError) as python:
         eng.dk([0.3] * 6, HOME)
     refusal = "direct kinematics did not converge for rho = (0.3, 0.3, 0.3, 0.3, 0.3, 0.3) m: 50 iterations"
     assert code == 3 and str(python.value).startswith(refusal)

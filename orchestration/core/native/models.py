@@ -430,7 +430,7 @@ def _describe_checks_c(vrs: Mapping[str, int], payload: bool, why: str = "why", 
     after its ranges, with its messages: the kinematics, kinematics.Geometry.checked (beta = 0), the payload's
     inertia tensor (``payload``: engine.Body), designs._check_inclined (beta != 0). Needs ``ikjac`` (traced), or, in a
     ``mechanism``, its hoisted kernels (mast_mechanism.h); ``why``: the message function of its checks."""
-    from fmus.mechanism.designs import TRACED_PARAMETERS
+    from fmus.mechanism.designs import KINEMATICS, TRACED_PARAMETERS
 
     P = {name: f"P[{k}]" for k, name in enumerate(TRACED_PARAMETERS)}
     params = ", ".join(f"P[{k}]" for k in range(len(TRACED_PARAMETERS)))
@@ -440,8 +440,11 @@ def _describe_checks_c(vrs: Mapping[str, int], payload: bool, why: str = "why", 
         f"    double P[{len(TRACED_PARAMETERS)}], out[12], inv[9], det;",
         "    char h[40], r[40], l[40], beta[40], a1[40], a2[40], a3[40];",
         "    traced_parameters(p, P);",
+        *(f"    if (strcmp({kind}, \"{name}\") == 0) {{ snprintf(msg, size, \"parameter 'kinematics' = '%s': this native "
+          f"FMU computes the 3PRS it was generated from\", {kind}); return MAST_PARAMETER_ERROR; }}"
+          for name in KINEMATICS if name != "3PRS"),
         f"    if (strcmp({kind}, \"3PRS\") != 0) {{",
-        f"        snprintf(msg, size, \"parameter 'kinematics' = '%s': expected one of 3PRS\", {kind});",
+        f"        snprintf(msg, size, \"parameter 'kinematics' = '%s': expected one of {', '.join(KINEMATICS)}\", {kind});",
         "        return MAST_PARAMETER_ERROR;", "    }",
         f"    double cb = cos({P['beta']}), sb = sin({P['beta']});",
         f"    double z = level_height(0.0, 0.0, 0.0, {P['H']}, {P['r']}, {P['L']}, cb, sb);",
@@ -858,18 +861,17 @@ def _inverse_model(eng, vrs: Mapping[str, int]) -> str:
         f"static const char *const M_COORDINATES[] = {{{coordinates}}};", "",
         "/* mechanism.model.dk for the inverse model: one attempt from its last solution (warm), else from the",
         "   description's guess; S: the instance's state (State's first member), out: q, then J = dq/drho */",
-        "static int dk(double r0, double r1, double r2, double warm, double *S, double *out)", "{",
+        "static int dk(double *rho, double warm, double *S, double *out)", "{",
         "    State *s = (State *)S;",
-        "    double rho[3] = {r0, r1, r2};",
         f"    if (warm == 1.0) {{ for (int k = 0; k < 3; k++) out[k] = S[{G} + k]; }} else guess(S, rho, out);",
         f"    return {dk};", "}", "",
-        to_c(inspect.getsource(restarted_dk), "restarted_dk", arrays=("S", "out"), calls=("dk",),
+        to_c(inspect.getsource(restarted_dk), "restarted_dk", arrays=("rho", "S", "out"), calls=("dk",),
              constants={"SINGULAR": SINGULAR}),
         "/* InverseModel.currents at a = (rho, rho_dot, rho_ddot); 0, or an error code with msg */",
         "static int model_eval(const double *a, double *S, double *out, char *msg, size_t size)", "{",
         "    double qJ[12], *q = qJ, *J = qJ + 3, F[12] = {0.0, 0.0, 0.0};",
         f"    if (S[{LAYOUT['attached']}] != 0.0) {{",
-        f"        int code = restarted_dk(a[0], a[1], a[2], S[{W}], S, qJ);",
+        f"        int code = restarted_dk((double *)a, S[{W}], S, qJ);   /* rho: a[0..2] */",
         "        if (code) {", "            snprintf(msg, size, \"%s\", ((State *)S)->text);", "            return code;",
         "        }",
         "        code = forces(q[0], q[1], q[2], J[0], J[1], J[2], J[3], J[4], J[5], J[6], J[7], J[8], "
