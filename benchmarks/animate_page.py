@@ -6,6 +6,7 @@ writes the page REPEAT times and prints the frames, the page's size (and how muc
 the best wall time. Usage:
     .venv/bin/python benchmarks/animate_page.py [RUN_DIR] [--ssp SSP] [--stop-time T] [--fps F] [--repeat R]
 """
+
 from __future__ import annotations
 
 import argparse
@@ -43,9 +44,11 @@ def main() -> None:
         import plotly.offline
 
         library = len(plotly.offline.get_plotlyjs().encode("utf-8"))
-        print(f"{done['frames']} frames ({args.fps:g} per simulated second, {done['simulated_s']:.3g} s of motion): "
-              f"{done['bytes'] / 1e6:.2f} MB ({library / 1e6:.2f} MB of it plotly.js, "
-              f"{(done['bytes'] - library) / 1e3:.0f} kB the figure), written in {best:.2f} s (best of {args.repeat})")
+        print(
+            f"{done['frames']} frames ({args.fps:g} per simulated second, {done['simulated_s']:.3g} s of motion): "
+            f"{done['bytes'] / 1e6:.2f} MB ({library / 1e6:.2f} MB of it plotly.js, "
+            f"{(done['bytes'] - library) / 1e3:.0f} kB the figure), written in {best:.2f} s (best of {args.repeat})"
+        )
 
 
 if __name__ == "__main__":

@@ -15,6 +15,7 @@ Usage:
     .venv/bin/python benchmarks/backlash_regimes.py [--backlash 0.004] [--runs 60] [--duration 0.8]
 Costs about 0.15 s of CPU per native run and a few seconds per Python run (0.8 s tests).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -26,13 +27,12 @@ import numpy as np
 
 from fmus.actuator.sensor import measure
 from mast.analyses.synthesize import DEFAULT_TORQUE_FILTER, TestSpec, synthesize
-from mast.core.build import REPO
+from mast.core.build import default_build_dir
 from mast.core.motion import SineMotion
 from mast.core.run import drive_tick_steps, simulate
 from mast.core.ssp import SSPArchive
 from mast.data.measured import AXES, CommandReplay, controller_geometry, load
 from mast.diagnosis.phasefree import COMMAND_JITTER, BandPowers
-from mast.core.build import default_build_dir
 
 
 def main() -> None:
@@ -57,8 +57,17 @@ def main() -> None:
 
     def observed(stimulus, ssp: str, params: dict, direct: bool) -> np.ndarray:
         """The torque as the synthesis logs it (drive filter, sampled at 1 ms), without the noise."""
-        res = simulate(ssp, stimulus, spec.stop_time(), parameters=params, record=record, record_step=None,
-                       direct=direct, base_step=steps and steps[0], step_sizes=steps and steps[1])
+        res = simulate(
+            ssp,
+            stimulus,
+            spec.stop_time(),
+            parameters=params,
+            record=record,
+            record_step=None,
+            direct=direct,
+            base_step=steps and steps[0],
+            step_sizes=steps and steps[1],
+        )
         tau = np.column_stack([res[f"actuator_{j}.tau_meas"] for j in AXES])
         every = round(1e-3 / res.stats["base_step"])
         return measure(tau, res.stats["base_step"], T=DEFAULT_TORQUE_FILTER, axis=0)[::every]
@@ -79,9 +88,12 @@ def main() -> None:
     def show(label: str, p: np.ndarray) -> None:
         print(f"{label:58s} " + "  ".join(f"{v:9.3g}" for v in p))
 
-    print(f"{spec.name}, {args.amplitude * 1e3:g} mm, {args.duration:g} s (from {args.settle:g} s), backlash "
-          f"{args.backlash * 1e3:g} mrad; band powers of the torque residual [N^2 m^2], bands "
-          + ", ".join(f"{lo:g}-{hi:g}" for lo, hi in bands.bands) + " Hz")
+    print(
+        f"{spec.name}, {args.amplitude * 1e3:g} mm, {args.duration:g} s (from {args.settle:g} s), backlash "
+        f"{args.backlash * 1e3:g} mrad; band powers of the torque residual [N^2 m^2], bands "
+        + ", ".join(f"{lo:g}-{hi:g}" for lo, hi in bands.bands)
+        + " Hz"
+    )
     rec = powers(clean)
     show("the record (synthesis, exact sine, no noise)", rec)
     again = observed(SineMotion("z", args.amplitude, args.frequency), args.ssp, truth, True)
@@ -94,17 +106,20 @@ def main() -> None:
     t0 = time.process_time()
     for k in range(args.runs):
         eps = 10 ** rng.uniform(-13, -9) * rng.choice([-1.0, 1.0])
-        rows.append(powers(observed(SineMotion("z", args.amplitude * (1 + eps), args.frequency), str(native),
-                                    truth, False)))
+        rows.append(
+            powers(observed(SineMotion("z", args.amplitude * (1 + eps), args.frequency), str(native), truth, False))
+        )
         if (k + 1) % 10 == 0:
             print(f"  {k + 1}/{args.runs} native runs", flush=True)
     rows = np.array(rows)
     for q in (0, 5, 50, 95, 100):
         show(f"native runs, amplitude perturbed: {q}th percentile", np.percentile(rows, q, axis=0))
     quiet = int(np.sum(rows[:, 0] <= 3.0 * rec[0]))
-    print(f"runs as quiet as the record below {bands.bands[0][1]:g} Hz (<= 3 x its power): {quiet} of {len(rows)}; "
-          f"runs below the record in every band: {int(np.sum(np.all(rows <= rec, axis=1)))}; "
-          f"CPU {time.process_time() - t0:.1f} s for the native runs")
+    print(
+        f"runs as quiet as the record below {bands.bands[0][1]:g} Hz (<= 3 x its power): {quiet} of {len(rows)}; "
+        f"runs below the record in every band: {int(np.sum(np.all(rows <= rec, axis=1)))}; "
+        f"CPU {time.process_time() - t0:.1f} s for the native runs"
+    )
 
 
 if __name__ == "__main__":

@@ -7,6 +7,7 @@ and where a run's time goes (physics vs FMU plumbing).
 The machine may be shared: every figure is the minimum over interleaved repeats (the least disturbed).
 Needs `mast build` first; the direct-route figures assume fmus/ is the code the FMUs were built from.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -22,11 +23,14 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+
 from mast.core.build import default_build_dir
 
-RECORD = ["z_cmd", "mechanism.z", "psi_cmd", "mechanism.psi", "theta_cmd", "mechanism.theta"] + \
-         [f"actuator_{k}.{s}" for k in (1, 2, 3) for s in ("tau_m", "i_m", "u")] + \
-         [f"controller.i_cmd_{k}" for k in (1, 2, 3)]  # the voltage u is the actuator's (its drive's current loop)
+RECORD = (
+    ["z_cmd", "mechanism.z", "psi_cmd", "mechanism.psi", "theta_cmd", "mechanism.theta"]
+    + [f"actuator_{k}.{s}" for k in (1, 2, 3) for s in ("tau_m", "i_m", "u")]
+    + [f"controller.i_cmd_{k}" for k in (1, 2, 3)]
+)  # the voltage u is the actuator's (its drive's current loop)
 
 
 class _PhysicsClock:
@@ -43,8 +47,13 @@ class _PhysicsClock:
             if not (name.startswith("fmus.") or name.startswith("mast_")) or module is None:
                 continue
             for cls in list(vars(module).values()):
-                if isinstance(cls, type) and "do_step" in vars(cls) and hasattr(cls, "INPUTS") \
-                        and cls.__module__ == name and not any(cls is c for c, _ in self._patched):
+                if (
+                    isinstance(cls, type)
+                    and "do_step" in vars(cls)
+                    and hasattr(cls, "INPUTS")
+                    and cls.__module__ == name
+                    and not any(cls is c for c, _ in self._patched)
+                ):
                     self._wrap(cls)
 
     def _wrap(self, cls) -> None:
@@ -58,6 +67,7 @@ class _PhysicsClock:
                 return original(block, t, h)
             finally:
                 state.total += clock() - t0
+
         cls.do_step = do_step
         self._patched.append((cls, original))
 
@@ -88,6 +98,7 @@ def single_run(ssp: str, stop: float, repeats: int) -> dict:
         """fmu: the master's compiled exchange loop; fmu_fmpy_calls: its Python loop through fmpy's prototypes."""
         FMUComponent.fast_calls = key != "fmu_fmpy_calls"
         os.environ["MAST_PYTHON_EXCHANGE"] = "1" if key == "fmu_fmpy_calls" else "0"
+
     physics = _PhysicsClock()
     try:
         for key, session in sessions.items():  # warm up: every model module loaded
@@ -131,9 +142,15 @@ def batch_runs(ssp: str, cases: int, stop: float, repeats: int) -> dict:
     from mast.batch import run_batch
 
     masses = [1.8 + 0.02 * k for k in range(cases)]
-    config = {"name": "bench", "ssp": ssp, "run": {"stop_time": stop, "record_step": 1e-3},
-              "cases": {"motion": {"axis": "z", "amplitude": 0.005, "frequency": 5.0},
-                        "list": [{"mechanism.m_platform": m} for m in masses]}}
+    config = {
+        "name": "bench",
+        "ssp": ssp,
+        "run": {"stop_time": stop, "record_step": 1e-3},
+        "cases": {
+            "motion": {"axis": "z", "amplitude": 0.005, "frequency": 5.0},
+            "list": [{"mechanism.m_platform": m} for m in masses],
+        },
+    }
     out: dict = {"cases": cases, "stop_time_s": stop, "runs": []}
     tmp = Path(tempfile.mkdtemp(prefix="mast_bench_batch_"))
     try:
@@ -143,30 +160,39 @@ def batch_runs(ssp: str, cases: int, stop: float, repeats: int) -> dict:
                 result = run_batch(config, folder, workers=workers, progress=False, plots=False)
                 ok = [r for r in result.records if r["status"] == "ok"]
                 timing = [r["timing"] for r in ok]
-                out["runs"].append({
-                    "workers": workers, "wall_s": result.wall_s, "ok": len(ok),
-                    "step_s": statistics.mean(t["step_s"] for t in timing),
-                    "init_s": statistics.mean(t["init_s"] for t in timing),
-                    "setup_s": statistics.median(t["setup_s"] for t in timing),
-                    "first_setup_s": max(t["setup_s"] for t in timing),
-                    "metrics_s": statistics.mean(t["metrics_s"] for t in timing),
-                    "case_s": statistics.mean(t["case_s"] for t in timing),
-                    "cpu_s": statistics.mean(t["cpu_s"] for t in timing)})
+                out["runs"].append(
+                    {
+                        "workers": workers,
+                        "wall_s": result.wall_s,
+                        "ok": len(ok),
+                        "step_s": statistics.mean(t["step_s"] for t in timing),
+                        "init_s": statistics.mean(t["init_s"] for t in timing),
+                        "setup_s": statistics.median(t["setup_s"] for t in timing),
+                        "first_setup_s": max(t["setup_s"] for t in timing),
+                        "metrics_s": statistics.mean(t["metrics_s"] for t in timing),
+                        "case_s": statistics.mean(t["case_s"] for t in timing),
+                        "cpu_s": statistics.mean(t["cpu_s"] for t in timing),
+                    }
+                )
                 shutil.rmtree(folder, ignore_errors=True)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     for workers in (1, 2):
         runs = [r for r in out["runs"] if r["workers"] == workers]
         fastest = min(runs, key=lambda r: r["wall_s"])
-        out[f"w{workers}"] = {**fastest, "cases_per_min": 60 * cases / fastest["wall_s"],
-                              # what a case costs beyond its time stepping, all included (pool start,
-                              # FMU loading, reset, initialization, metrics, result files), per worker
-                              "overhead_per_case_s": fastest["wall_s"] * workers / cases - fastest["step_s"]}
+        out[f"w{workers}"] = {
+            **fastest,
+            "cases_per_min": 60 * cases / fastest["wall_s"],
+            # what a case costs beyond its time stepping, all included (pool start,
+            # FMU loading, reset, initialization, metrics, result files), per worker
+            "overhead_per_case_s": fastest["wall_s"] * workers / cases - fastest["step_s"],
+        }
     out["scaling_efficiency"] = out["w2"]["cases_per_min"] / (2 * out["w1"]["cases_per_min"])
     # the same from the workers' CPU time per case (what a case costs when the cores are not shared):
     # below 1 when two workers slow each other down (memory, caches, the driver)
-    out["cpu_scaling_efficiency"] = min(r["cpu_s"] for r in out["runs"] if r["workers"] == 1) / \
-        min(r["cpu_s"] for r in out["runs"] if r["workers"] == 2)
+    out["cpu_scaling_efficiency"] = min(r["cpu_s"] for r in out["runs"] if r["workers"] == 1) / min(
+        r["cpu_s"] for r in out["runs"] if r["workers"] == 2
+    )
     return out
 
 
@@ -188,25 +214,39 @@ def profile(ssp: str, stop: float) -> str:
 def _print_single(single: dict, stop: float, repeats: int, ms) -> None:
     print(f"one run, z sine 5 mm at 5 Hz, {stop:g} s simulated (min of {repeats}):")
     print(f"  FMU co-simulation, stepping   {ms(single['fmu_step_s'])}   real-time factor {single['rtf_fmu']:.2f}")
-    print(f"  direct composition, stepping  {ms(single['direct_step_s'])}   real-time factor {single['rtf_direct']:.2f}")
-    for key, label in (("fmu", "FMU co-simulation"), ("fmu_fmpy_calls", "FMU, Python loop, fmpy calls"),
-                       ("direct", "direct composition")):
-        print(f"  {label:28s} physics {ms(single[key + '_physics_s'])}, plumbing {ms(single[key + '_plumbing_s'])}"
-              f" = {single[key + '_plumbing_over_physics']:.2f} x physics")
-    print(f"  initialization {ms(single['fmu_init_s'])}, session reset {ms(single['fmu_setup_s'])}; "
-          f"simulate() without reuse adds {ms(single['simulate_overhead_s'])} (extract, load, instantiate, free)")
+    print(
+        f"  direct composition, stepping  {ms(single['direct_step_s'])}   real-time factor {single['rtf_direct']:.2f}"
+    )
+    for key, label in (
+        ("fmu", "FMU co-simulation"),
+        ("fmu_fmpy_calls", "FMU, Python loop, fmpy calls"),
+        ("direct", "direct composition"),
+    ):
+        print(
+            f"  {label:28s} physics {ms(single[key + '_physics_s'])}, plumbing {ms(single[key + '_plumbing_s'])}"
+            f" = {single[key + '_plumbing_over_physics']:.2f} x physics"
+        )
+    print(
+        f"  initialization {ms(single['fmu_init_s'])}, session reset {ms(single['fmu_setup_s'])}; "
+        f"simulate() without reuse adds {ms(single['simulate_overhead_s'])} (extract, load, instantiate, free)"
+    )
 
 
 def _print_batch(batch: dict, ms) -> None:
-    print(f"batch of {batch['cases']} cases of {batch['stop_time_s']:g} s "
-          f"(min of {len(batch['runs']) // 2} interleaved):")
+    print(
+        f"batch of {batch['cases']} cases of {batch['stop_time_s']:g} s (min of {len(batch['runs']) // 2} interleaved):"
+    )
     for w in (1, 2):
         b = batch[f"w{w}"]
-        print(f"  {w} worker(s): {b['wall_s']:6.2f} s  {b['cases_per_min']:6.1f} cases/min  "
-              f"overhead/case {ms(b['overhead_per_case_s'])} (step {ms(b['step_s'])}, init {ms(b['init_s'])}, "
-              f"reset {ms(b['setup_s'])}, metrics {ms(b['metrics_s'])}, first load {ms(b['first_setup_s'])})")
-    print(f"  scaling efficiency 2 vs 1 worker: {100 * batch['scaling_efficiency']:.1f} % by throughput, "
-          f"{100 * batch['cpu_scaling_efficiency']:.1f} % by CPU time per case")
+        print(
+            f"  {w} worker(s): {b['wall_s']:6.2f} s  {b['cases_per_min']:6.1f} cases/min  "
+            f"overhead/case {ms(b['overhead_per_case_s'])} (step {ms(b['step_s'])}, init {ms(b['init_s'])}, "
+            f"reset {ms(b['setup_s'])}, metrics {ms(b['metrics_s'])}, first load {ms(b['first_setup_s'])})"
+        )
+    print(
+        f"  scaling efficiency 2 vs 1 worker: {100 * batch['scaling_efficiency']:.1f} % by throughput, "
+        f"{100 * batch['cpu_scaling_efficiency']:.1f} % by CPU time per case"
+    )
 
 
 def main(argv=None) -> int:

@@ -6,6 +6,7 @@ co-simulation's schedule) and prints the CPU time per call. Usage:
 Run it before and after a change of engine.dk or MechanismBlock (timings are noisy on a shared
 machine: the best of R repeats is printed).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -55,7 +56,9 @@ def main() -> None:
                 blk.values[0:9] = u
                 blk.do_step(k * 1e-3, 1e-3)
             best_step = min(best_step, (time.process_time() - t0) / len(inputs))
-        print(f"{d.name:14s} dk (warm) {best_dk * 1e6:6.1f} us/call   MechanismBlock.do_step {best_step * 1e6:6.1f} us/step")
+        print(
+            f"{d.name:14s} dk (warm) {best_dk * 1e6:6.1f} us/call   MechanismBlock.do_step {best_step * 1e6:6.1f} us/step"
+        )
 
 
 if __name__ == "__main__":

@@ -36,6 +36,7 @@ with the truth tau_c = 0.0718, J1_scale = 0.641026, seed 1) re-simulating on the
 (``--direct``), the Python FMUs (``--fmu``) and the native variant (its default when built), one run
 each, wall and CPU time of the child.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -48,6 +49,7 @@ import tempfile
 import time
 import zipfile
 from pathlib import Path
+
 from mast.core.build import default_build_dir
 
 REPO = Path(__file__).resolve().parents[1]
@@ -76,7 +78,7 @@ def call_costs(callgrind_out: Path) -> dict[tuple[str, str], list[int]]:
     out: dict[tuple[str, str], list[int]] = {}
     pending = None
 
-    def name(kind: str, text: str) -> str:      # "(id) name" defines an id, "(id)" reuses it (compressed strings)
+    def name(kind: str, text: str) -> str:  # "(id) name" defines an id, "(id)" reuses it (compressed strings)
         m = re.match(r"\((\d+)\)\s*(.*)", text)
         if not m:
             return text
@@ -118,10 +120,16 @@ def profile(ssp: Path, stop: float) -> None:
         return
     with tempfile.TemporaryDirectory(prefix="mast_profile_") as tmp:
         out = Path(tmp) / "callgrind.out"
-        code = (f"from mast.core.motion import SineMotion\nfrom mast.core.run import simulate\n"
-                f"simulate({str(ssp)!r}, SineMotion('z', 0.01, 1.0), {stop!r})\n")
-        subprocess.run(["valgrind", "--tool=callgrind", f"--callgrind-out-file={out}", sys.executable, "-c", code],
-                       check=True, capture_output=True, env={**os.environ, "MAST_PYTHON_EXCHANGE": "0"})
+        code = (
+            f"from mast.core.motion import SineMotion\nfrom mast.core.run import simulate\n"
+            f"simulate({str(ssp)!r}, SineMotion('z', 0.01, 1.0), {stop!r})\n"
+        )
+        subprocess.run(
+            ["valgrind", "--tool=callgrind", f"--callgrind-out-file={out}", sys.executable, "-c", code],
+            check=True,
+            capture_output=True,
+            env={**os.environ, "MAST_PYTHON_EXCHANGE": "0"},
+        )
         costs = call_costs(out)
     print(f"{ssp.name} (native FMUs), {stop:g} s simulated under callgrind: instructions per call, by FMU binary")
     print(f"  {'binary':22s} {'call':12s} {'calls':>8s} {'instr/call':>11s} {'instr in all':>13s}")
@@ -142,7 +150,7 @@ def timed_child(command: list[str], **kwargs) -> tuple[float, float]:
     cpu, wall = _child_cpu(), time.perf_counter()
     done = subprocess.run(command, capture_output=True, text=True, **kwargs)
     wall, cpu = time.perf_counter() - wall, _child_cpu() - cpu
-    if done.returncode not in (0, 3):      # mast diagnose: 3 = an unexplained residual, still a run
+    if done.returncode not in (0, 3):  # mast diagnose: 3 = an unexplained residual, still a run
         raise subprocess.CalledProcessError(done.returncode, command, done.stdout, done.stderr)
     return cpu, wall
 
@@ -167,19 +175,28 @@ def hosts(native: Path, stop: float, repeats: int) -> None:
             row = (_child_cpu() - cpu, time.perf_counter() - wall)
             best[host] = min(best.get(host, (float("inf"),) * 2), row)
     start = min(timed_child([sys.executable, "-c", "import mast.hosts.cosim, libcosimpy"]) for _ in range(repeats))
-    print(f"{native.name} (native FMUs), {stop:g} s simulated, the SSP's own trajectory, {len(signals)} signals "
-          f"recorded, best of {repeats}:")
+    print(
+        f"{native.name} (native FMUs), {stop:g} s simulated, the SSP's own trajectory, {len(signals)} signals "
+        f"recorded, best of {repeats}:"
+    )
     ours = best["our master"]
     for label, (cpu, wall) in best.items():
-        ratio = "" if label == "our master" else \
-            (f"   {label}/ours CPU {cpu / ours[0]:.2f}, ours/{label} {ours[0] / cpu:.2f}; wall {wall / ours[1]:.2f}, "
-             f"{ours[1] / wall:.2f}")
+        ratio = (
+            ""
+            if label == "our master"
+            else (
+                f"   {label}/ours CPU {cpu / ours[0]:.2f}, ours/{label} {ours[0] / cpu:.2f}; wall {wall / ours[1]:.2f}, "
+                f"{ours[1] / wall:.2f}"
+            )
+        )
         print(f"  {label:12s} {cpu:7.2f} s CPU {wall:7.2f} s wall   real-time factor (CPU) {stop / cpu:6.2f}{ratio}")
     for host in ("libcosim", "ecos"):
         if host not in best:
             print(f"  {host}: not run ({availability(host)})")
-    print(f"  (of libcosim's: its Python child starting and importing libcosimpy alone: {start[0]:.2f} s CPU, "
-          f"{start[1]:.2f} s wall)")
+    print(
+        f"  (of libcosim's: its Python child starting and importing libcosimpy alone: {start[0]:.2f} s CPU, "
+        f"{start[1]:.2f} s wall)"
+    )
 
 
 def analyses(python: Path, native: Path, workers: int) -> None:
@@ -188,18 +205,64 @@ def analyses(python: Path, native: Path, workers: int) -> None:
     with tempfile.TemporaryDirectory(prefix="mast_bench_") as tmp:
         tmp = Path(tmp)
         measured = tmp / "paper_case"
-        timed_child([*mast, "synthesize", str(python), "--out", str(measured), "--set", "actuator.tau_c=0.0718",
-                     "--set", "actuator.J1_scale=0.641026", "--seed", "1"])
+        timed_child(
+            [
+                *mast,
+                "synthesize",
+                str(python),
+                "--out",
+                str(measured),
+                "--set",
+                "actuator.tau_c=0.0718",
+                "--set",
+                "actuator.J1_scale=0.641026",
+                "--seed",
+                "1",
+            ]
+        )
         rows = []
         for label, ssp in (("Python FMUs", python), ("native FMUs", native)):
-            rows.append((f"mast reproduce --fmi, {label}",
-                         timed_child([*mast, "reproduce", str(ssp), "--fmi", "--workers", str(workers), "--out",
-                                      str(tmp / f"reproduce_{label[:6]}")])))
-        for label, ssp, flag in (("direct composition", python, ["--direct"]), ("Python FMUs", python, ["--fmu"]),
-                                 ("native FMUs (the default when built)", python, [])):
-            rows.append((f"mast diagnose (paper case), {label}",
-                         timed_child([*mast, "diagnose", str(ssp), "--measured", str(measured), "--workers",
-                                      str(workers), "--out", str(tmp / f"diagnose_{len(rows)}"), *flag])))
+            rows.append(
+                (
+                    f"mast reproduce --fmi, {label}",
+                    timed_child(
+                        [
+                            *mast,
+                            "reproduce",
+                            str(ssp),
+                            "--fmi",
+                            "--workers",
+                            str(workers),
+                            "--out",
+                            str(tmp / f"reproduce_{label[:6]}"),
+                        ]
+                    ),
+                )
+            )
+        for label, ssp, flag in (
+            ("direct composition", python, ["--direct"]),
+            ("Python FMUs", python, ["--fmu"]),
+            ("native FMUs (the default when built)", python, []),
+        ):
+            rows.append(
+                (
+                    f"mast diagnose (paper case), {label}",
+                    timed_child(
+                        [
+                            *mast,
+                            "diagnose",
+                            str(ssp),
+                            "--measured",
+                            str(measured),
+                            "--workers",
+                            str(workers),
+                            "--out",
+                            str(tmp / f"diagnose_{len(rows)}"),
+                            *flag,
+                        ]
+                    ),
+                )
+            )
         print(f"analyses, {workers} workers, one run each (child CPU time of every process, wall time):")
         for label, (cpu, wall) in rows:
             print(f"  {label:48s} {wall:7.1f} s wall {cpu:7.1f} s CPU")
@@ -213,8 +276,18 @@ def cycles(fmu: Path, step: float, valgrind: bool) -> str:
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         host = tmp / "cycles"
-        subprocess.run([compiler(), "-O2", f"-I{fmi_headers()}", "-o", str(host),
-                        str(REPO / "benchmarks" / "native_cycles.c"), "-ldl"], check=True)
+        subprocess.run(
+            [
+                compiler(),
+                "-O2",
+                f"-I{fmi_headers()}",
+                "-o",
+                str(host),
+                str(REPO / "benchmarks" / "native_cycles.c"),
+                "-ldl",
+            ],
+            check=True,
+        )
         with zipfile.ZipFile(fmu) as z:
             z.extractall(tmp / "fmu")
         guid = etree.parse(str(tmp / "fmu" / "modelDescription.xml")).getroot().get("guid")
@@ -224,8 +297,18 @@ def cycles(fmu: Path, step: float, valgrind: bool) -> str:
         rss10, rss5000, ok, _ = plain.stdout.split()
         text = f"{fmu.stem:20s} 5000 cycles: RSS {rss10} -> {rss5000} KiB, statuses as expected: {ok == '1'}"
         if valgrind and shutil.which("valgrind"):
-            checked = subprocess.run(["valgrind", "-q", "--error-exitcode=3", "--leak-check=full",
-                                      "--errors-for-leak-kinds=definite", *args], capture_output=True, text=True)
+            checked = subprocess.run(
+                [
+                    "valgrind",
+                    "-q",
+                    "--error-exitcode=3",
+                    "--leak-check=full",
+                    "--errors-for-leak-kinds=definite",
+                    *args,
+                ],
+                capture_output=True,
+                text=True,
+            )
             text += f"; valgrind, 200 cycles: {'clean' if checked.returncode == 0 else checked.stderr[-800:]}"
         return text
 
@@ -235,8 +318,11 @@ def main() -> int:
     parser.add_argument("--ssp", default=str(default_build_dir() / "ssp" / "MAST.ssp"))
     parser.add_argument("--stop-time", type=float, default=10.0)
     parser.add_argument("--repeats", type=int, default=3)
-    parser.add_argument("--before", metavar="DIR", help="also time another build's SSPs: DIR/<ssp name> (Python "
-                                                        "FMUs) and DIR/native/<ssp name> (native FMUs)")
+    parser.add_argument(
+        "--before",
+        metavar="DIR",
+        help="also time another build's SSPs: DIR/<ssp name> (Python FMUs) and DIR/native/<ssp name> (native FMUs)",
+    )
     parser.add_argument("--profile", action="store_true", help="also: the native run's instructions per FMU and call")
     parser.add_argument("--cycles", action="store_true", help="also run the C host's cycles under valgrind")
     parser.add_argument("--hosts", action="store_true", help="also run the native SSP in libcosim and the ecos CLI")
@@ -250,11 +336,18 @@ def main() -> int:
         print(f"{native} is missing: run `mast build --native` first", file=sys.stderr)
         return 2
     stop = args.stop_time
-    rows = {"direct composition (Python models)": (python, True, True),
-            "Python FMUs, exchange loop in Python": (python, False, True), "Python FMUs": (python, False, False),
-            "native FMUs, exchange loop in Python": (native, False, True), "native FMUs": (native, False, False)}
-    before = {"Python FMUs": Path(args.before) / python.name,
-              "native FMUs": Path(args.before) / "native" / python.name} if args.before else {}
+    rows = {
+        "direct composition (Python models)": (python, True, True),
+        "Python FMUs, exchange loop in Python": (python, False, True),
+        "Python FMUs": (python, False, False),
+        "native FMUs, exchange loop in Python": (native, False, True),
+        "native FMUs": (native, False, False),
+    }
+    before = (
+        {"Python FMUs": Path(args.before) / python.name, "native FMUs": Path(args.before) / "native" / python.name}
+        if args.before
+        else {}
+    )
     missing = [str(p) for p in before.values() if not p.exists()]
     if missing:
         print(f"{', '.join(missing)} missing (--before: another build's build/ssp folder)", file=sys.stderr)
@@ -264,18 +357,25 @@ def main() -> int:
     for _ in range(args.repeats):
         for label, (ssp, direct, python_loop) in rows.items():
             best[label] = min(best[label], cpu_run(ssp, stop, direct, python_loop))
-    print(f"{python.name}: {stop:g} s simulated, z sine 10 mm at 1 Hz, CPU time of this process, "
-          f"best of {args.repeats}")
+    print(
+        f"{python.name}: {stop:g} s simulated, z sine 10 mm at 1 Hz, CPU time of this process, best of {args.repeats}"
+    )
     for label, cpu in best.items():
         print(f"  {label:36s} {cpu:7.2f} s CPU   real-time factor {stop / cpu:7.2f}")
     print(f"  Python FMUs / native FMUs CPU time: {best['Python FMUs'] / best['native FMUs']:.1f}")
-    print(f"  native co-simulation / direct composition: "
-          f"{best['native FMUs'] / best['direct composition (Python models)']:.2f}")
-    print(f"  compiled / Python exchange loop CPU time: Python FMUs "
-          f"{best['Python FMUs'] / best['Python FMUs, exchange loop in Python']:.2f}, native FMUs "
-          f"{best['native FMUs'] / best['native FMUs, exchange loop in Python']:.2f}")
+    print(
+        f"  native co-simulation / direct composition: "
+        f"{best['native FMUs'] / best['direct composition (Python models)']:.2f}"
+    )
+    print(
+        f"  compiled / Python exchange loop CPU time: Python FMUs "
+        f"{best['Python FMUs'] / best['Python FMUs, exchange loop in Python']:.2f}, native FMUs "
+        f"{best['native FMUs'] / best['native FMUs, exchange loop in Python']:.2f}"
+    )
     for route in before:
-        print(f"  {route} after / before ({args.before}) CPU time: {best[route] / best[f'{route}, before (--before)']:.2f}")
+        print(
+            f"  {route} after / before ({args.before}) CPU time: {best[route] / best[f'{route}, before (--before)']:.2f}"
+        )
     if args.profile:
         for ssp in [native] + ([before["native FMUs"]] if before else []):
             profile(ssp, 1.0)
@@ -283,8 +383,12 @@ def main() -> int:
         hosts(native.parent / "MAST_standalone.ssp", args.host_stop_time, args.repeats)
     if args.analyses:
         analyses(python, native, args.workers)
-    for ident, step in (("MastActuator", 1e-4), ("MastMechanism", 1e-3), ("MastController", 1e-4),
-                        ("MastTrajectory", 1e-4)):
+    for ident, step in (
+        ("MastActuator", 1e-4),
+        ("MastMechanism", 1e-3),
+        ("MastController", 1e-4),
+        ("MastTrajectory", 1e-4),
+    ):
         fmu = default_build_dir() / "fmus" / "native" / f"{ident}.fmu"
         if fmu.exists():
             print("  " + cycles(fmu, step, args.cycles))

@@ -13,6 +13,7 @@ The other blocks do not depend on the step size this way (the controller accepts
 its cycle only, the mechanism is algebraic). Every figure is the minimum over ``--repeats``
 interleaved repeats (the machine may be shared).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -36,8 +37,10 @@ def parameter_sets() -> dict[str, dict]:
     base = dict(read_ssd(REPO / "ssp" / "MAST.ssd").components["actuator_1"].parameters)
     identified = {**base, **read_values(REPO / "ssp" / "resources" / "actuator_identified.ssv")}
     names = {p.name for p in ActuatorBlock.PARAMETERS}
-    return {label: {k: v for k, v in values.items() if k in names}
-            for label, values in (("manufacturer", base), ("identified (friction)", identified))}
+    return {
+        label: {k: v for k, v in values.items() if k in names}
+        for label, values in (("manufacturer", base), ("identified (friction)", identified))
+    }
 
 
 def per_step(params: dict, steps: np.ndarray) -> tuple[float, float]:
@@ -80,8 +83,11 @@ def main(argv=None) -> int:
                 best[name] = [min(b, f) for b, f in zip(best[name], per_step(params, steps))]
         for column, what in enumerate(("all steps", "steady state")):
             ratio = best["varying 50-150 us"][column] / best["fixed 100 us"][column]
-            print(f"{label if column == 0 else '':<24}{what:<14}"
-                  + "".join(f"{best[n][column] * 1e6:>21.1f} us" for n in patterns) + f"{ratio:>17.1f}x")
+            print(
+                f"{label if column == 0 else '':<24}{what:<14}"
+                + "".join(f"{best[n][column] * 1e6:>21.1f} us" for n in patterns)
+                + f"{ratio:>17.1f}x"
+            )
     return 0
 
 

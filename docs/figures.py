@@ -11,6 +11,7 @@ NAME`` only those; ``reproduce`` runs ``mast reproduce``: minutes) and writes th
 the code too (tests/test_docs.py for the cheap sources, tests/test_reproduce.py for ``reproduce`` on the
 run it makes anyway) and fail with the page, the line, both values and this command.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -33,6 +34,7 @@ class Figure:
     """One stated figure: ``source`` computes a dict of named values, ``pick`` takes this one from it, ``fmt``
     writes it, and a page agrees with the code when it states the value so written, or one within ``tolerance``
     (absolute, in the figure's unit: what may differ between machines)."""
+
     source: str
     pick: Callable[[Mapping], float]
     fmt: str
@@ -53,50 +55,82 @@ def _magnitude_pct(motion: str) -> Callable[[Mapping], float]:
 
 FIGURES: dict[str, Figure] = {
     # mast reproduce (docs/reproduction.md): the headline counts and the 10 Hz positions
-    **{f"reproduce.{name}": Figure("reproduce", (lambda n: lambda v: v["summary"][n])(name), "{:d}")
-       for name in ("predictions_within", "predictions", "fits_within", "fits", "reuses_within", "reuses", "runs")},
+    **{
+        f"reproduce.{name}": Figure("reproduce", (lambda n: lambda v: v["summary"][n])(name), "{:d}")
+        for name in ("predictions_within", "predictions", "fits_within", "fits", "reuses_within", "reuses", "runs")
+    },
     **{f"reproduce.phase_10Hz_{m}": Figure("reproduce", _phase(m), "{:.2f}", 0.02) for m in ("z", "psi", "theta")},
-    **{f"reproduce.magnitude_10Hz_{m}": Figure("reproduce", _magnitude_pct(m), "{:.1f}", 0.05)
-       for m in ("z", "psi", "theta")},
+    **{
+        f"reproduce.magnitude_10Hz_{m}": Figure("reproduce", _magnitude_pct(m), "{:.1f}", 0.05)
+        for m in ("z", "psi", "theta")
+    },
     # the default system's controller gains (ssp/MAST.ssd, docs/controller.md)
-    **{f"ssd.controller.{g}": Figure("ssd", (lambda g: lambda v: v["controller"][g])(g), "{:.4g}")
-       for g in ("k_v", "k_p", "k_i")},
+    **{
+        f"ssd.controller.{g}": Figure("ssd", (lambda g: lambda v: v["controller"][g])(g), "{:.4g}")
+        for g in ("k_v", "k_p", "k_i")
+    },
     # the designs' workspaces (`mast workspace DESIGN`, docs/workspace.md; the --quick grid of `mast compare`, README)
-    **{f"{grid}.{d}.{what}": Figure(grid, (lambda d, w: lambda v: v[d][w])(d, what), fmt, tol)
-       # a volume may differ by a grid node or two between machines (a node on the margin's edge): 0.005 m deg^2
-       # each on the default grid, 0.4 on the quick one
-       for grid, fmt_volume, cells in (("workspace", "{:.0f}", 0.5), ("workspace_quick", "{:.1f}", 0.8))
-       for d in ("3PRS_T", "3PRS_120", "3PRS_inclined")
-       for what, fmt, tol in (("volume_m_deg2", fmt_volume, cells), ("smallest_margin", "{:.3f}", 0.0),
-                              ("worst_dexterity", "{:.1f}", 0.0))},
+    **{
+        f"{grid}.{d}.{what}": Figure(grid, (lambda d, w: lambda v: v[d][w])(d, what), fmt, tol)
+        # a volume may differ by a grid node or two between machines (a node on the margin's edge): 0.005 m deg^2
+        # each on the default grid, 0.4 on the quick one
+        for grid, fmt_volume, cells in (("workspace", "{:.0f}", 0.5), ("workspace_quick", "{:.1f}", 0.8))
+        for d in ("3PRS_T", "3PRS_120", "3PRS_inclined")
+        for what, fmt, tol in (
+            ("volume_m_deg2", fmt_volume, cells),
+            ("smallest_margin", "{:.3f}", 0.0),
+            ("worst_dexterity", "{:.1f}", 0.0),
+        )
+    },
     # the designs' singularity margins at home (docs/mechanism.md)
-    **{f"designs.{d}.{what}": Figure("designs", (lambda d, w: lambda v: v[d][w])(d, what), fmt, 0.005)
-       for d in ("3PRS_T", "3PRS_120", "3PRS_inclined")
-       for what, fmt in (("parallel", "{:.3g}"), ("inverse", "{:.3g}"), ("dexterity", "{:.3g}"))},
+    **{
+        f"designs.{d}.{what}": Figure("designs", (lambda d, w: lambda v: v[d][w])(d, what), fmt, 0.005)
+        for d in ("3PRS_T", "3PRS_120", "3PRS_inclined")
+        for what, fmt in (("parallel", "{:.3g}"), ("inverse", "{:.3g}"), ("dexterity", "{:.3g}"))
+    },
     # the drives' datasheet ratings as docs/sizing.md restates them, in the page's units, from the set mast sizing
     # reads (ssp/resources/drive_ratings.ssv, SI): the same number, no tolerance (a unit conversion's rounding
     # stays below the printed digit)
-    **{f"ratings.{name}": Figure("ratings", (lambda n, k, o: lambda v: v[n] * k + o)(name, scale, offset), fmt)
-       for name, scale, offset, fmt in (
-           ("tau_N", 1e3, 0.0, "{:.0f}"), ("i_N", 1.0, 0.0, "{:g}"), ("tau_stall", 1.0, 0.0, "{:.2f}"),
-           ("n_max", 30 / math.pi, 0.0, "{:.0f}"), ("R_th1", 1.0, 0.0, "{:g}"), ("R_th2", 1.0, 0.0, "{:g}"),
-           ("tau_w", 1.0, 0.0, "{:g}"), ("tau_s", 1.0, 0.0, "{:g}"), ("T_w_max", 1.0, -273.15, "{:.0f}"),
-           ("tau_gear_cont", 1.0, 0.0, "{:g}"), ("tau_gear_int", 1.0, 0.0, "{:g}"),
-           ("n_gear_max", 30 / math.pi, 0.0, "{:.0f}"), ("eta_gear", 100.0, 0.0, "{:.0f}"),
-           ("F_guide_max", 1.0, 0.0, "{:.0f}"), ("v_guide_max", 1.0, 0.0, "{:g}"), ("i_amp_cont", 1.0, 0.0, "{:g}"),
-           ("i_amp_peak", 1.0, 0.0, "{:g}"), ("T_ambient", 1.0, -273.15, "{:.0f}"), ("alpha_Cu", 1.0, 0.0, "{:g}"))},
+    **{
+        f"ratings.{name}": Figure("ratings", (lambda n, k, o: lambda v: v[n] * k + o)(name, scale, offset), fmt)
+        for name, scale, offset, fmt in (
+            ("tau_N", 1e3, 0.0, "{:.0f}"),
+            ("i_N", 1.0, 0.0, "{:g}"),
+            ("tau_stall", 1.0, 0.0, "{:.2f}"),
+            ("n_max", 30 / math.pi, 0.0, "{:.0f}"),
+            ("R_th1", 1.0, 0.0, "{:g}"),
+            ("R_th2", 1.0, 0.0, "{:g}"),
+            ("tau_w", 1.0, 0.0, "{:g}"),
+            ("tau_s", 1.0, 0.0, "{:g}"),
+            ("T_w_max", 1.0, -273.15, "{:.0f}"),
+            ("tau_gear_cont", 1.0, 0.0, "{:g}"),
+            ("tau_gear_int", 1.0, 0.0, "{:g}"),
+            ("n_gear_max", 30 / math.pi, 0.0, "{:.0f}"),
+            ("eta_gear", 100.0, 0.0, "{:.0f}"),
+            ("F_guide_max", 1.0, 0.0, "{:.0f}"),
+            ("v_guide_max", 1.0, 0.0, "{:g}"),
+            ("i_amp_cont", 1.0, 0.0, "{:g}"),
+            ("i_amp_peak", 1.0, 0.0, "{:g}"),
+            ("T_ambient", 1.0, -273.15, "{:.0f}"),
+            ("alpha_Cu", 1.0, 0.0, "{:g}"),
+        )
+    },
     # what `mast build` writes and the limits an untrusted archive meets (README, docs/interfaces.md): counts and
     # sizes the code defines, stated exactly
     "build.fmus": Figure("build", lambda v: v["fmus"], "{:d}"),
-    **{f"build.{name}": Figure("build", (lambda n: lambda v: v[n])(name), "{:,d}" if name == "max_entries" else "{:g}")
-       for name in ("max_archive_GiB", "max_entry_MiB", "max_entries", "ratio_floor_MiB", "max_ratio")},
+    **{
+        f"build.{name}": Figure("build", (lambda n: lambda v: v[n])(name), "{:,d}" if name == "max_entries" else "{:g}")
+        for name in ("max_archive_GiB", "max_entry_MiB", "max_entries", "ratio_floor_MiB", "max_ratio")
+    },
     # `mast replay` of the EMPS record (docs/emps.md) with the benchmark's published estimates and with the nominal
     # model: relative errors [%] (and the force fit [%]). Tolerances far below the differences the page reasons
     # from (force: 5.41 against 5.56 % for a 0.1 or 0.2 ms computation delay; position: 0.0012 against the
     # benchmark's 0.014 %), far above what another machine's floats move in a 24.84 s closed loop
-    **{f"emps.{model}.{what}": Figure("emps", (lambda m, w: lambda v: v[m][w])(model, what), fmt, tol)
-       for model in ("published", "nominal")
-       for what, fmt, tol in (("q_m", "{:.3g}", 0.0002), ("force", "{:.3g}", 0.02), ("force_fit", "{:.1f}", 0.05))},
+    **{
+        f"emps.{model}.{what}": Figure("emps", (lambda m, w: lambda v: v[m][w])(model, what), fmt, tol)
+        for model in ("published", "nominal")
+        for what, fmt, tol in (("q_m", "{:.3g}", 0.0002), ("force", "{:.3g}", 0.02), ("force_fit", "{:.1f}", 0.05))
+    },
 }
 
 #: the EMPS benchmark's published inverse-model least-squares estimates (the EMPS README; docs/emps.md)
@@ -140,9 +174,14 @@ def source_build() -> dict:
     from mast.core import ssp
     from mast.core.build import FMUS
 
-    return {"fmus": len(FMUS), "max_archive_GiB": ssp.MAX_ARCHIVE_BYTES / 2**30,
-            "max_entry_MiB": ssp.MAX_ENTRY_BYTES / 2**20, "max_entries": ssp.MAX_ENTRIES,
-            "ratio_floor_MiB": ssp.RATIO_FLOOR / 2**20, "max_ratio": ssp.MAX_RATIO}
+    return {
+        "fmus": len(FMUS),
+        "max_archive_GiB": ssp.MAX_ARCHIVE_BYTES / 2**30,
+        "max_entry_MiB": ssp.MAX_ENTRY_BYTES / 2**20,
+        "max_entries": ssp.MAX_ENTRIES,
+        "ratio_floor_MiB": ssp.RATIO_FLOOR / 2**20,
+        "max_ratio": ssp.MAX_RATIO,
+    }
 
 
 def source_emps() -> dict:
@@ -163,8 +202,11 @@ def source_emps() -> dict:
         import_file(EMPS_RECORD, ROOT / "examples" / "emps" / "map.toml", tmp / "record")
         for model, params in (("published", {"axis": EMPS_PUBLISHED}), ("nominal", {})):
             signals = replay(bench, tmp / "record", tmp / model, params, figures=False)["signals"]
-            out[model] = {"q_m": signals["q_m"]["relative_error_pct"], "force": signals["force"]["relative_error_pct"],
-                          "force_fit": signals["force"]["fit_pct"]}
+            out[model] = {
+                "q_m": signals["q_m"]["relative_error_pct"],
+                "force": signals["force"]["relative_error_pct"],
+                "force_fit": signals["force"]["fit_pct"],
+            }
     return out
 
 
@@ -188,15 +230,24 @@ def source_workspace(quick: bool = False) -> dict:
     out = {}
     for name in ("3PRS_T", "3PRS_120", "3PRS_inclined"):
         s = summarize(compute(machine(name), *(WORKSPACE_GRID_QUICK if quick else WORKSPACE_GRID)))
-        out[name] = {"volume_m_deg2": s["volume_m_deg2"], "smallest_margin": s["smallest_margin"]["value"],
-                     "worst_dexterity": s["worst_dexterity"]["value"]}
+        out[name] = {
+            "volume_m_deg2": s["volume_m_deg2"],
+            "smallest_margin": s["smallest_margin"]["value"],
+            "worst_dexterity": s["worst_dexterity"]["value"],
+        }
     return out
 
 
-SOURCES: dict[str, Callable[[], dict]] = {"reproduce": source_reproduce, "ssd": source_ssd, "designs": source_designs,
-                                          "ratings": source_ratings, "build": source_build, "emps": source_emps,
-                                          "workspace": source_workspace,
-                                          "workspace_quick": lambda: source_workspace(quick=True)}
+SOURCES: dict[str, Callable[[], dict]] = {
+    "reproduce": source_reproduce,
+    "ssd": source_ssd,
+    "designs": source_designs,
+    "ratings": source_ratings,
+    "build": source_build,
+    "emps": source_emps,
+    "workspace": source_workspace,
+    "workspace_quick": lambda: source_workspace(quick=True),
+}
 
 
 def pages() -> list[Path]:
@@ -227,16 +278,20 @@ def check(values: Mapping[str, dict], paths: list[Path] | None = None) -> list[s
             key, stated = match["key"], match["value"]
             figure = FIGURES.get(key)
             if figure is None:
-                problems.append(f"{where}:{line}: figure {key!r} is not in docs/figures.py FIGURES (known: "
-                                f"{', '.join(sorted(FIGURES))})")
+                problems.append(
+                    f"{where}:{line}: figure {key!r} is not in docs/figures.py FIGURES (known: "
+                    f"{', '.join(sorted(FIGURES))})"
+                )
                 continue
             if figure.source not in values:
                 continue
             computed = figure.pick(values[figure.source])
             if figure.fmt.format(computed) != stated and not abs(_number(stated) - computed) <= figure.tolerance:
-                problems.append(f"{where}:{line}: the page states {key} = {stated}, the code gives "
-                                f"{figure.fmt.format(computed)} (tolerance {figure.tolerance:g}): run `{REGENERATE} "
-                                f"--source {figure.source}` and say in the text why the figure moved")
+                problems.append(
+                    f"{where}:{line}: the page states {key} = {stated}, the code gives "
+                    f"{figure.fmt.format(computed)} (tolerance {figure.tolerance:g}): run `{REGENERATE} "
+                    f"--source {figure.source}` and say in the text why the figure moved"
+                )
     return problems
 
 
@@ -259,6 +314,7 @@ def write(values: Mapping[str, dict], paths: list[Path] | None = None) -> list[s
                 line = text.count("\n", 0, match.start()) + 1
                 changes.append(f"{path.relative_to(ROOT)}:{line} {match['key']}: {match['value']} -> {new}")
             return f"<!-- figure {match['key']} -->{new}<!-- /figure -->"
+
         updated = MARKER.sub(replace, text)
         if updated != text:
             path.write_text(updated)
@@ -266,10 +322,15 @@ def write(values: Mapping[str, dict], paths: list[Path] | None = None) -> list[s
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0],
-                                     formatter_class=argparse.ArgumentDefaultsHelpFormatter)
-    parser.add_argument("--source", action="append", choices=sorted(SOURCES),
-                        help="compute only these sources (repeatable; default: every source a page uses)")
+    parser = argparse.ArgumentParser(
+        description=__doc__.splitlines()[0], formatter_class=argparse.ArgumentDefaultsHelpFormatter
+    )
+    parser.add_argument(
+        "--source",
+        action="append",
+        choices=sorted(SOURCES),
+        help="compute only these sources (repeatable; default: every source a page uses)",
+    )
     parser.add_argument("--check", action="store_true", help="write nothing; list the figures that differ (exit 1)")
     args = parser.parse_args(argv)
     values = {name: SOURCES[name]() for name in sorted(args.source or used_sources())}

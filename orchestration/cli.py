@@ -1,4 +1,5 @@
 """The ``mast`` command line: build, validate, run, bench."""
+
 from __future__ import annotations
 
 import argparse
@@ -14,17 +15,19 @@ from fmus.mechanism.topology import POSE
 from .core.build import default_build_dir
 
 REPO = Path(__file__).resolve().parents[1]
-BUILD = default_build_dir()   # build/ of the checkout, or of the current directory after a plain install
+BUILD = default_build_dir()  # build/ of the checkout, or of the current directory after a plain install
 DEFAULT_SSP = BUILD / "ssp" / "MAST.ssp"
 
 
 def _positive(what: str):
     """An argparse type: a positive, finite number of ``what`` (inf, nan, 0 and negatives are refused)."""
+
     def parse(text: str) -> float:
         value = _number(text)
         if not value > 0 or not math.isfinite(value):
             raise argparse.ArgumentTypeError(f"{text!r}: expected a positive, finite number of {what}")
         return value
+
     return parse
 
 
@@ -126,12 +129,17 @@ def cmd_build(args) -> int:
         platforms = ("linux64", "aarch64-linux", "win64", "darwin64") if args.cross else ("linux64",)
         skipped_ssds, skipped_fmus = without_native_form()
         if skipped_ssds:
-            print(f"skipped {', '.join([p.name for p in skipped_ssds] + [f'{i}.fmu' for i in skipped_fmus])}: the "
-                  "native runtime generates the 3PRS's mechanism and controllers only yet (issue 25); their Python "
-                  "FMUs run")
-        build_native_all(Path(args.out), [p for p in sorted(SSP_SRC.glob("*.ssd")) if p not in skipped_ssds],
-                         fmus=[s.model_identifier for s in FMUS if s.model_identifier not in skipped_fmus],
-                         platforms=platforms)
+            print(
+                f"skipped {', '.join([p.name for p in skipped_ssds] + [f'{i}.fmu' for i in skipped_fmus])}: the "
+                "native runtime generates the 3PRS's mechanism and controllers only yet (issue 25); their Python "
+                "FMUs run"
+            )
+        build_native_all(
+            Path(args.out),
+            [p for p in sorted(SSP_SRC.glob("*.ssd")) if p not in skipped_ssds],
+            fmus=[s.model_identifier for s in FMUS if s.model_identifier not in skipped_fmus],
+            platforms=platforms,
+        )
     return 0
 
 
@@ -179,17 +187,26 @@ def cmd_run(args) -> int:
 
         ssp = native_variant(args.ssp)
         if ssp is None:
-            print(f"error: no native variant of {args.ssp} (build/ssp/native/...): run `mast build --native`",
-                  file=sys.stderr)
+            print(
+                f"error: no native variant of {args.ssp} (build/ssp/native/...): run `mast build --native`",
+                file=sys.stderr,
+            )
             return 2
     overrides = parse_overrides(args.set or [])
-    with SSPArchive(ssp) as archive:   # --motion: a coordinate of the system's mechanism (its topology)
+    with SSPArchive(ssp) as archive:  # --motion: a coordinate of the system's mechanism (its topology)
         axes = system_axes(archive.system, overrides)
     motion = motion_from_cli(args.motion, args.amplitude, args.frequency, axes, str(ssp))
     try:
-        result = simulate(ssp, motion, args.stop_time, parameters=overrides,
-                          record=args.record, record_step=args.record_step, direct=args.direct,
-                          progress=Progress("co-simulation"))
+        result = simulate(
+            ssp,
+            motion,
+            args.stop_time,
+            parameters=overrides,
+            record=args.record,
+            record_step=args.record_step,
+            direct=args.direct,
+            progress=Progress("co-simulation"),
+        )
         failed = None
     except SimulationError as err:
         result, failed = err.result, str(err)
@@ -206,7 +223,8 @@ def cmd_run(args) -> int:
 def _size_in_summary(out: Path, summary: dict) -> str:
     """The run's drive sizing (mast sizing) beside it and its verdict in summary.json; what was written, for the
     message. A system without ratings is run all the same: the summary then says why it has no verdict."""
-    from .analyses.sizing import SizingError, size_run, write as write_sizing
+    from .analyses.sizing import SizingError, size_run
+    from .analyses.sizing import write as write_sizing
     from .core.atomic import atomic_write
 
     try:
@@ -218,8 +236,10 @@ def _size_in_summary(out: Path, summary: dict) -> str:
     files = write_sizing(doc, sized, out)
     summary["sizing"] = {"verdict": doc["verdict"], "limiting": doc["limiting"]}
     atomic_write(out / "summary.json", json.dumps(summary, indent=2).encode())
-    print(f"sizing: {doc['verdict']}; limiting {doc['limiting']['drive']} {doc['limiting']['component']} "
-          f"{doc['limiting']['item']}, margin {100 * doc['limiting']['margin']:.1f} %")
+    print(
+        f"sizing: {doc['verdict']}; limiting {doc['limiting']['drive']} {doc['limiting']['component']} "
+        f"{doc['limiting']['item']}, margin {100 * doc['limiting']['margin']:.1f} %"
+    )
     return ", " + ", ".join(str(f) for f in files)
 
 
@@ -231,8 +251,10 @@ def cmd_fit_gains(args) -> int:
     print("gains: " + ", ".join(f"{k} = {v:.6g}" for k, v in fit.gains.items()))
     for f, (mag, ph) in fit.responses.items():
         print(f"  {f:g} Hz: magnitude {100 * mag:.1f} %, phase {ph:.1f} deg")
-    print(f"scaled cost {fit.cost:.4f} ({fit.evaluations} evaluations, {fit.wall_time_s:.0f} s)"
-          + (f"; wrote {gains_file(Path(args.out))}" if args.out else ""))
+    print(
+        f"scaled cost {fit.cost:.4f} ({fit.evaluations} evaluations, {fit.wall_time_s:.0f} s)"
+        + (f"; wrote {gains_file(Path(args.out))}" if args.out else "")
+    )
     return 0
 
 
@@ -240,10 +262,12 @@ def cmd_reproduce(args) -> int:
     from .analyses.reproduce import reproduce
 
     summary = reproduce(args.ssp, Path(args.out), workers=args.workers, direct=not args.fmi)
-    print(f"{summary['predictions_within']} of {summary['predictions']} predictions within the paper's tolerance "
-          f"(fitted rows: {summary['fits_within']} of {summary['fits']}; reused fitted numbers: "
-          f"{summary['reuses_within']} of {summary['reuses']}); {summary['runs']} co-simulations in "
-          f"{summary['wall_time_s']:.0f} s; wrote {Path(args.out) / 'report.md'}")
+    print(
+        f"{summary['predictions_within']} of {summary['predictions']} predictions within the paper's tolerance "
+        f"(fitted rows: {summary['fits_within']} of {summary['fits']}; reused fitted numbers: "
+        f"{summary['reuses_within']} of {summary['reuses']}); {summary['runs']} co-simulations in "
+        f"{summary['wall_time_s']:.0f} s; wrote {Path(args.out) / 'report.md'}"
+    )
     return 1 if summary["failures"] else 0
 
 
@@ -264,8 +288,8 @@ def cmd_bench(args) -> int:
 
 
 def cmd_synthesize(args) -> int:
-    from .core.run import parse_overrides
     from .analyses.synthesize import DEFAULT_TESTS, parse_tests, synthesize
+    from .core.run import parse_overrides
 
     def pairs(items, what):
         out = {}
@@ -280,29 +304,51 @@ def cmd_synthesize(args) -> int:
             out[key.strip()] = number
         return out
 
-    synthesize(args.ssp, Path(args.out), parse_overrides(args.set or []),
-               tests=parse_tests(args.tests) if args.tests else DEFAULT_TESTS,
-               noise=pairs(args.noise, "noise"), resolution=pairs(args.resolution, "resolution"),
-               torque_filter_s=args.torque_filter, sample_time=args.sample_time, seed=args.seed,
-               direct=args.direct, workers=args.workers, truth_path=Path(args.truth) if args.truth else None)
+    synthesize(
+        args.ssp,
+        Path(args.out),
+        parse_overrides(args.set or []),
+        tests=parse_tests(args.tests) if args.tests else DEFAULT_TESTS,
+        noise=pairs(args.noise, "noise"),
+        resolution=pairs(args.resolution, "resolution"),
+        torque_filter_s=args.torque_filter,
+        sample_time=args.sample_time,
+        seed=args.seed,
+        direct=args.direct,
+        workers=args.workers,
+        truth_path=Path(args.truth) if args.truth else None,
+    )
     return 0
 
 
 def cmd_diagnose(args) -> int:
-    from .diagnosis import Options, diagnose
-
     from .analyses.bench import native_variant
     from .data.record import is_record_folder
+    from .diagnosis import Options, diagnose
 
     if sum(map(bool, (args.fmu, args.direct, args.native))) > 1:
         print("error: --fmu, --direct and --native are alternatives: give one", file=sys.stderr)
         return 2
     # default: the native variant where it is built (a MAST measured-data folder), else the direct composition
-    native = args.native or (not args.fmu and not args.direct and not is_record_folder(Path(args.measured))
-                             and native_variant(args.ssp) is not None)
-    doc = diagnose(Options(Path(args.measured), Path(args.out), args.ssp, model=args.model,
-                           holdout=args.holdout.split(",") if args.holdout else None, workers=args.workers,
-                           direct=not args.fmu, native=native, holdout_fraction=args.holdout_fraction))
+    native = args.native or (
+        not args.fmu
+        and not args.direct
+        and not is_record_folder(Path(args.measured))
+        and native_variant(args.ssp) is not None
+    )
+    doc = diagnose(
+        Options(
+            Path(args.measured),
+            Path(args.out),
+            args.ssp,
+            model=args.model,
+            holdout=args.holdout.split(",") if args.holdout else None,
+            workers=args.workers,
+            direct=not args.fmu,
+            native=native,
+            holdout_fraction=args.holdout_fraction,
+        )
+    )
     return 0 if doc["verdict"]["status"] != "unexplained residual" else 3
 
 
@@ -312,9 +358,11 @@ def cmd_import(args) -> int:
     summary = import_file(args.file, args.map, args.out)
     for warning in summary["warnings"]:
         print(f"import: warning: {warning}", file=sys.stderr)
-    print(f"import: {summary['samples']} samples every {summary['sample_time_s']:.6g} s "
-          f"({summary['duration_s']:.6g} s), signals {', '.join(f'{k} ({v})' for k, v in summary['signals'].items())} "
-          f"-> {summary['folder']}")
+    print(
+        f"import: {summary['samples']} samples every {summary['sample_time_s']:.6g} s "
+        f"({summary['duration_s']:.6g} s), signals {', '.join(f'{k} ({v})' for k, v in summary['signals'].items())} "
+        f"-> {summary['folder']}"
+    )
     return 0
 
 
@@ -352,15 +400,30 @@ def cmd_compare(args) -> int:
     from .core.run import parse_overrides
 
     base = QUICK if args.quick else DEFAULT
-    test_set = TestSet(tuple(args.motions) if args.motions else base.axes,
-                       tuple(args.frequencies) if args.frequencies else base.frequencies, base.amplitudes)
-    comp = compare(args.mechanism or (), Path(args.out), test_set, workers=args.workers, direct=args.direct,
-                   parameters=parse_overrides(args.set or []), base_ssd=args.ssd, fmu_dir=args.fmus,
-                   progress=CountProgress("compare"), controllers=args.controller or (), payload=args.payload,
-                   workspace_grid=WORKSPACE_GRID_QUICK if args.quick else WORKSPACE_GRID)
+    test_set = TestSet(
+        tuple(args.motions) if args.motions else base.axes,
+        tuple(args.frequencies) if args.frequencies else base.frequencies,
+        base.amplitudes,
+    )
+    comp = compare(
+        args.mechanism or (),
+        Path(args.out),
+        test_set,
+        workers=args.workers,
+        direct=args.direct,
+        parameters=parse_overrides(args.set or []),
+        base_ssd=args.ssd,
+        fmu_dir=args.fmus,
+        progress=CountProgress("compare"),
+        controllers=args.controller or (),
+        payload=args.payload,
+        workspace_grid=WORKSPACE_GRID_QUICK if args.quick else WORKSPACE_GRID,
+    )
     print((Path(args.out) / "comparison.md").read_text(), end="")
-    print(f"{sum(r['tests'] for r in comp.summary)} sine tests in {comp.wall_time_s:.0f} s; "
-          f"wrote {', '.join(p.name for p in comp.files)} in {args.out}")
+    print(
+        f"{sum(r['tests'] for r in comp.summary)} sine tests in {comp.wall_time_s:.0f} s; "
+        f"wrote {', '.join(p.name for p in comp.files)} in {args.out}"
+    )
     return 1 if any(r["failed"] for r in comp.summary) else 0
 
 
@@ -370,22 +433,31 @@ def cmd_workspace(args) -> int:
     from .analyses.workspace import classify, compute, machine, parse_pose, summarize, unit_text, write
 
     if not args.out and not args.pose:
-        raise ValueError("workspace: give --out DIR (the whole workspace) or --pose Z,PSI_DEG,THETA_DEG (one pose: one "
-                         "number per coordinate of the mechanism, m or deg)")
+        raise ValueError(
+            "workspace: give --out DIR (the whole workspace) or --pose Z,PSI_DEG,THETA_DEG (one pose: one "
+            "number per coordinate of the mechanism, m or deg)"
+        )
     m = machine(args.design, args.payload)
     sweep = args.sweep.split(",") if args.sweep else None
     pose = parse_pose(args.pose, m.topology) if args.pose else None
-    ws = compute(m, args.step_z, math.radians(args.step_tilt), progress=Progress(f"workspace of {m.label}"), sweep=sweep)
+    ws = compute(
+        m, args.step_z, math.radians(args.step_tilt), progress=Progress(f"workspace of {m.label}"), sweep=sweep
+    )
     if args.out:
         files = write(ws, Path(args.out), plots=not args.no_plots)
         s = summarize(ws)
-        through = ", ".join(f"{name[:-4]} {lo:.3g}..{hi:.3g} deg" if name.endswith("_deg") else
-                            f"{name[:-2]} {lo:.4g}..{hi:.4g} m" for name, (lo, hi) in s["ranges_through_home"].items())
-        volume = [k for k in s if k.startswith("volume_")]      # in m and rad, then in m and deg (if angles)
-        shown = [f"{s[k]:.4g} {unit_text(k[len('volume_'):])}" for k in volume]
-        print(f"{m.label}: {s['poses_inside']} poses inside, volume {shown[-1]}"
-              + (f" ({shown[0]})" if len(shown) > 1 else "") + f"; through home {through}; "
-              f"smallest margin {s['smallest_margin']['value']:.3g} m/m, worst dexterity {s['worst_dexterity']['value']:.3g}")
+        through = ", ".join(
+            f"{name[:-4]} {lo:.3g}..{hi:.3g} deg" if name.endswith("_deg") else f"{name[:-2]} {lo:.4g}..{hi:.4g} m"
+            for name, (lo, hi) in s["ranges_through_home"].items()
+        )
+        volume = [k for k in s if k.startswith("volume_")]  # in m and rad, then in m and deg (if angles)
+        shown = [f"{s[k]:.4g} {unit_text(k[len('volume_') :])}" for k in volume]
+        print(
+            f"{m.label}: {s['poses_inside']} poses inside, volume {shown[-1]}"
+            + (f" ({shown[0]})" if len(shown) > 1 else "")
+            + f"; through home {through}; "
+            f"smallest margin {s['smallest_margin']['value']:.3g} m/m, worst dexterity {s['worst_dexterity']['value']:.3g}"
+        )
         print(f"wrote {', '.join(str(f) for f in files)}")
     if pose is None:
         return 0
@@ -398,8 +470,10 @@ def cmd_animate(args) -> int:
     from .analyses.animate import write
 
     done = write(args.run_dir, args.out, args.fps)
-    print(f"wrote {done['out']}: {done['frames']} frames ({done['fps']:g} per simulated second over "
-          f"{done['simulated_s']:.3g} s), {done['bytes'] / 1e6:.2f} MB, in {done['seconds']:.2f} s")
+    print(
+        f"wrote {done['out']}: {done['frames']} frames ({done['fps']:g} per simulated second over "
+        f"{done['simulated_s']:.3g} s), {done['bytes'] / 1e6:.2f} MB, in {done['seconds']:.2f} s"
+    )
     return 0
 
 
@@ -446,33 +520,48 @@ SSP_HELP = "the built system (.ssp) to run"
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="mast", description="MAST co-simulation: FMUs, SSP and master",
-                                     formatter_class=HelpFormatter)
+    parser = argparse.ArgumentParser(
+        prog="mast", description="MAST co-simulation: FMUs, SSP and master", formatter_class=HelpFormatter
+    )
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     sub.add_parser = functools.partial(sub.add_parser, formatter_class=HelpFormatter)
 
     p = sub.add_parser("build", help="build build/fmus/*.fmu and build/ssp/*.ssp from fmus/ and ssp/")
     p.add_argument("--out", type=folder, default=str(BUILD), help="build folder")
     p.add_argument("--fmi3", action="store_true", help="also build the FMI 3.0 variants into OUT/fmus3 (pythonfmu3)")
-    p.add_argument("--native", action="store_true",
-                   help="also build native FMUs (compiled C, no Python at run time) into OUT/fmus/native and the SSPs "
-                        "that bind them into OUT/ssp/native (needs a C compiler: docs/native.md)")
-    p.add_argument("--cross", action="store_true",
-                   help="with --native: aarch64-linux, Windows and macOS (x86_64) binaries too, with zig (pip install "
-                        "ziglang); the Windows ones are run under Wine by the tests, the others only compiled "
-                        "(docs/native.md)")
+    p.add_argument(
+        "--native",
+        action="store_true",
+        help="also build native FMUs (compiled C, no Python at run time) into OUT/fmus/native and the SSPs "
+        "that bind them into OUT/ssp/native (needs a C compiler: docs/native.md)",
+    )
+    p.add_argument(
+        "--cross",
+        action="store_true",
+        help="with --native: aarch64-linux, Windows and macOS (x86_64) binaries too, with zig (pip install "
+        "ziglang); the Windows ones are run under Wine by the tests, the others only compiled "
+        "(docs/native.md)",
+    )
     p.set_defaults(func=cmd_build)
 
     p = sub.add_parser("hosts", help="run an SSP in libcosim, ecospy and the ecos CLI; compare with this master")
-    p.add_argument("ssp", nargs="?", default=str(BUILD / "ssp" / "MAST_standalone.ssp"),
-                   help="the built system (.ssp) to run; it must drive itself (a trajectory FMU: the hosts have no "
-                        "stimulus of ours)")
+    p.add_argument(
+        "ssp",
+        nargs="?",
+        default=str(BUILD / "ssp" / "MAST_standalone.ssp"),
+        help="the built system (.ssp) to run; it must drive itself (a trajectory FMU: the hosts have no "
+        "stimulus of ours)",
+    )
     p.add_argument("--stop-time", type=seconds, default=1.0, help="s")
-    p.add_argument("--host", action="append", choices=("libcosim", "ecospy", "ecos"),
-                   help="host to run (repeatable; default: all)")
-    p.add_argument("--show", choices=("ecospy", "ecos"),
-                   help="run nothing: print the environment (and the ecos command line, its csv.xml written here) "
-                        "to run the host by hand")
+    p.add_argument(
+        "--host", action="append", choices=("libcosim", "ecospy", "ecos"), help="host to run (repeatable; default: all)"
+    )
+    p.add_argument(
+        "--show",
+        choices=("ecospy", "ecos"),
+        help="run nothing: print the environment (and the ecos command line, its csv.xml written here) "
+        "to run the host by hand",
+    )
     p.set_defaults(func=cmd_hosts)
 
     p = sub.add_parser("validate", help="fmpy validation of every FMU and SSP 1.0 schema check of every SSD")
@@ -481,36 +570,57 @@ def main(argv=None) -> int:
 
     p = sub.add_parser("run", help="run a co-simulation with a sine pose command around the home pose")
     p.add_argument("ssp", nargs="?", default=str(DEFAULT_SSP), help=SSP_HELP)
-    p.add_argument("--motion", choices=POSE, default="z",
-                   help="the axis of the sine: a coordinate of the system's mechanism (the 3PRS's: z, psi, theta)")
+    p.add_argument(
+        "--motion",
+        choices=POSE,
+        default="z",
+        help="the axis of the sine: a coordinate of the system's mechanism (the 3PRS's: z, psi, theta)",
+    )
     p.add_argument("--amplitude", type=finite, default=0.01, help="metres for x, y, z, degrees for the angles")
     p.add_argument("--frequency", type=nonnegative, default=1.0, help="Hz")
     p.add_argument("--stop-time", type=seconds, default=2.0, help="s")
-    p.add_argument("--set", action="append", metavar="ELEMENT.PARAMETER=VALUE", help="override a parameter (repeatable)")
-    p.add_argument("--record", action="append", metavar="ELEMENT.CONNECTOR",
-                   help="signal to record (repeatable; default: every system input and declared output)")
+    p.add_argument(
+        "--set", action="append", metavar="ELEMENT.PARAMETER=VALUE", help="override a parameter (repeatable)"
+    )
+    p.add_argument(
+        "--record",
+        action="append",
+        metavar="ELEMENT.CONNECTOR",
+        help="signal to record (repeatable; default: every system input and declared output)",
+    )
     p.add_argument("--record-step", type=seconds, default=1e-3, help="s between recorded samples")
     p.add_argument("--direct", action="store_true", help="run the model objects directly (no FMI), same schedule")
-    p.add_argument("--native", action="store_true",
-                   help="run the SSP's native variant (build/ssp/native/, mast build --native): compiled FMUs")
+    p.add_argument(
+        "--native",
+        action="store_true",
+        help="run the SSP's native variant (build/ssp/native/, mast build --native): compiled FMUs",
+    )
     p.add_argument("--out", type=folder, default="results", help="folder for results.csv, summary.json, motion.png")
     p.set_defaults(func=cmd_run)
 
     p = sub.add_parser("fit-gains", help="identify k_v, k_p, k_i from the paper's reported position responses")
     p.add_argument("ssp", nargs="?", default=str(DEFAULT_SSP), help=SSP_HELP)
-    p.add_argument("--out", type=folder, help="folder for the fitted gains, an .ssv parameter set "
-                   "(controller_paper_reading_fit.ssv, the set mast reproduce binds; default: not written)")
+    p.add_argument(
+        "--out",
+        type=folder,
+        help="folder for the fitted gains, an .ssv parameter set "
+        "(controller_paper_reading_fit.ssv, the set mast reproduce binds; default: not written)",
+    )
     p.add_argument("--workers", type=count, default=2, help="parallel processes")
     p.set_defaults(func=cmd_fit_gains)
 
     p = sub.add_parser("reproduce", help="regenerate the paper's analyses: DIR/report.md, figures, paper_table.json")
     p.add_argument("ssp", nargs="?", default=str(DEFAULT_SSP), help=SSP_HELP)
-    p.add_argument("--out", type=folder, default="results/reproduce", help="folder for report.md, the figures, "
-                                                                          "paper_table.json")
+    p.add_argument(
+        "--out", type=folder, default="results/reproduce", help="folder for report.md, the figures, paper_table.json"
+    )
     p.add_argument("--workers", type=count, default=2, help="parallel processes")
-    p.add_argument("--fmi", action="store_true",
-                   help="run the SSP's FMUs through FMI (the same numbers to 1e-12, tests/test_cosim.py; about "
-                        "twice the CPU time); the default runs the same components and schedule without FMI")
+    p.add_argument(
+        "--fmi",
+        action="store_true",
+        help="run the SSP's FMUs through FMI (the same numbers to 1e-12, tests/test_cosim.py; about "
+        "twice the CPU time); the default runs the same components and schedule without FMI",
+    )
     p.set_defaults(func=cmd_reproduce)
 
     p = sub.add_parser("bench", help="real-time factor of the default system, FMU co-simulation vs direct composition")
@@ -522,91 +632,170 @@ def main(argv=None) -> int:
     p = sub.add_parser("synthesize", help="synthetic measured data with a hidden effect (docs/measured-data.md)")
     p.add_argument("ssp", nargs="?", default=str(DEFAULT_SSP), help=SSP_HELP)
     p.add_argument("--out", type=folder, required=True, help="measured-data folder to write (CSV per test + meta.json)")
-    p.add_argument("--set", action="append", metavar="ELEMENT.PARAMETER=VALUE",
-                   help="the truth: override a parameter (repeatable; 'actuator.X' sets X on every actuator)")
-    p.add_argument("--noise", action="append", metavar="SIGNAL=STD",
-                   help="white sensor noise: tau_m=0.002 (N.m, default), rho=0 (m, default)")
-    p.add_argument("--resolution", action="append", metavar="SIGNAL=STEP", help="encoder quantisation: rho=1e-6 (m, default)")
-    p.add_argument("--torque-filter", type=nonnegative, default=5e-4, help="the drive's torque low-pass time constant [s]")
+    p.add_argument(
+        "--set",
+        action="append",
+        metavar="ELEMENT.PARAMETER=VALUE",
+        help="the truth: override a parameter (repeatable; 'actuator.X' sets X on every actuator)",
+    )
+    p.add_argument(
+        "--noise",
+        action="append",
+        metavar="SIGNAL=STD",
+        help="white sensor noise: tau_m=0.002 (N.m, default), rho=0 (m, default)",
+    )
+    p.add_argument(
+        "--resolution", action="append", metavar="SIGNAL=STEP", help="encoder quantisation: rho=1e-6 (m, default)"
+    )
+    p.add_argument(
+        "--torque-filter", type=nonnegative, default=5e-4, help="the drive's torque low-pass time constant [s]"
+    )
     p.add_argument("--sample-time", type=seconds, default=1e-3, help="log sampling step [s]")
-    p.add_argument("--tests", help="MOTION:AMPLITUDE:FREQUENCY[,...] (m for z, degrees for psi/theta; default: 7 tests)")
+    p.add_argument(
+        "--tests", help="MOTION:AMPLITUDE:FREQUENCY[,...] (m for z, degrees for psi/theta; default: 7 tests)"
+    )
     p.add_argument("--seed", type=int, default=0, help="seed of the noise")
-    p.add_argument("--truth", type=output_file, help="where to write the truth (default: next to the folder, DIR.truth.json)")
+    p.add_argument(
+        "--truth", type=output_file, help="where to write the truth (default: next to the folder, DIR.truth.json)"
+    )
     p.add_argument("--direct", action="store_true", help="run the model objects without FMI (same numbers, faster)")
     p.add_argument("--workers", type=count, default=2, help="parallel processes")
     p.set_defaults(func=cmd_synthesize)
 
-    p = sub.add_parser("diagnose", help="name the effects missing from the model by comparing it with measured data "
-                                        "(docs/diagnose.md)",
-                       epilog="exit status: 0 when the verdict explains the data (or nothing is missing), 3 when a "
-                              "residual stays unexplained (the results are written all the same), 2 on bad input")
+    p = sub.add_parser(
+        "diagnose",
+        help="name the effects missing from the model by comparing it with measured data (docs/diagnose.md)",
+        epilog="exit status: 0 when the verdict explains the data (or nothing is missing), 3 when a "
+        "residual stays unexplained (the results are written all the same), 2 on bad input",
+    )
     p.add_argument("ssp", nargs="?", default=str(DEFAULT_SSP), help=SSP_HELP)
-    p.add_argument("--measured", required=True, help="measured-data folder, or a record folder from mast import "
-                                                     "(docs/measured-data.md)")
-    p.add_argument("--out", type=folder, required=True, help="folder for diagnosis.json, report.md, figures, the augmented model")
-    p.add_argument("--model", help="nominal actuator parameter set: an .ssv file or the name of one in the SSP "
-                                   "(default: the SSP's bindings, i.e. the manufacturer data)")
-    p.add_argument("--holdout", help="comma-separated test names to hold out (default: meta.json roles, else every "
-                                     "second test in frequency order)")
-    p.add_argument("--holdout-fraction", type=share, metavar="SHARE",
-                   help="records of any machine (mast import) with no held-out test: hold out this last share of "
-                        "every test (default 1/3; docs/emps.md)")
+    p.add_argument(
+        "--measured",
+        required=True,
+        help="measured-data folder, or a record folder from mast import (docs/measured-data.md)",
+    )
+    p.add_argument(
+        "--out", type=folder, required=True, help="folder for diagnosis.json, report.md, figures, the augmented model"
+    )
+    p.add_argument(
+        "--model",
+        help="nominal actuator parameter set: an .ssv file or the name of one in the SSP "
+        "(default: the SSP's bindings, i.e. the manufacturer data)",
+    )
+    p.add_argument(
+        "--holdout",
+        help="comma-separated test names to hold out (default: meta.json roles, else every "
+        "second test in frequency order)",
+    )
+    p.add_argument(
+        "--holdout-fraction",
+        type=share,
+        metavar="SHARE",
+        help="records of any machine (mast import) with no held-out test: hold out this last share of "
+        "every test (default 1/3; docs/emps.md)",
+    )
     p.add_argument("--workers", type=count, default=2, help="parallel processes")
     p.add_argument("--fmu", action="store_true", help="re-simulate through the SSP's (Python) FMUs")
-    p.add_argument("--direct", action="store_true",
-                   help="re-simulate on the direct composition of the Python models (the reference: the FMUs' own model "
-                        "objects, equal to 1e-12); the default when the SSP has no native variant")
-    p.add_argument("--native", action="store_true",
-                   help="re-simulate on the SSP's native variant (build/ssp/native/, mast build --native: compiled FMUs, "
-                        "the Python models to 1e-9); the default when it is built (docs/diagnose.md)")
+    p.add_argument(
+        "--direct",
+        action="store_true",
+        help="re-simulate on the direct composition of the Python models (the reference: the FMUs' own model "
+        "objects, equal to 1e-12); the default when the SSP has no native variant",
+    )
+    p.add_argument(
+        "--native",
+        action="store_true",
+        help="re-simulate on the SSP's native variant (build/ssp/native/, mast build --native: compiled FMUs, "
+        "the Python models to 1e-9); the default when it is built (docs/diagnose.md)",
+    )
     p.set_defaults(func=cmd_diagnose)
 
-    p = sub.add_parser("import", help="a lab's log (.mat or CSV) through a column map into a record folder "
-                                      "(docs/measured-data.md)")
+    p = sub.add_parser(
+        "import", help="a lab's log (.mat or CSV) through a column map into a record folder (docs/measured-data.md)"
+    )
     p.add_argument("file", help="the lab's file: .mat (MATLAB) or .csv")
     p.add_argument("--map", required=True, help="column map (TOML), e.g. examples/emps/map.toml")
     p.add_argument("--out", type=folder, required=True, help="record folder to write (meta.json and one CSV)")
     p.set_defaults(func=cmd_import)
 
-    p = sub.add_parser("replay", help="drive a model with a record's commands and inputs; relative error and fit "
-                                      "per signal, plots (docs/measured-data.md)")
+    p = sub.add_parser(
+        "replay",
+        help="drive a model with a record's commands and inputs; relative error and fit "
+        "per signal, plots (docs/measured-data.md)",
+    )
     p.add_argument("ssp", help="the model: a built .ssp, e.g. build/ssp/EMPS_bench.ssp")
-    p.add_argument("--model", action=Renamed, instead="give the model's SSP as the first argument: "
-                                                        "mast replay SSP --measured DIR --out OUT (--model is "
-                                                        "diagnose's nominal parameter set)")
+    p.add_argument(
+        "--model",
+        action=Renamed,
+        instead="give the model's SSP as the first argument: "
+        "mast replay SSP --measured DIR --out OUT (--model is "
+        "diagnose's nominal parameter set)",
+    )
     p.add_argument("--measured", required=True, help="record folder (mast import)")
     p.add_argument("--out", type=folder, required=True, help="folder for replay.json, replay.csv and the plots")
     p.add_argument("--set", action="append", metavar="ELEMENT.PARAMETER=VALUE", help="override a parameter")
     p.add_argument("--fmu", action="store_true", help="simulate through the FMUs (default: the direct composition)")
     p.set_defaults(func=cmd_replay)
 
-    p = sub.add_parser("check-mechanism", help="black-box checks a mechanism FMU must pass to plug in (docs/interfaces.md)")
+    p = sub.add_parser(
+        "check-mechanism", help="black-box checks a mechanism FMU must pass to plug in (docs/interfaces.md)"
+    )
     p.add_argument("fmu", nargs="+", help="mechanism FMU(s)")
     p.set_defaults(func=cmd_check_mechanism)
 
     from .analyses.compare import PAYLOAD_MISMATCH_KG
 
-    p = sub.add_parser("compare", help="run one sine test set on several mechanism designs or controllers: table and "
-                                       "plots (docs/designs, docs/controller.md)")
+    p = sub.add_parser(
+        "compare",
+        help="run one sine test set on several mechanism designs or controllers: table and "
+        "plots (docs/designs, docs/controller.md)",
+    )
     which = p.add_mutually_exclusive_group(required=True)
-    which.add_argument("--mechanism", nargs="+", metavar="FMU_OR_SSP",
-                       help="mechanism FMUs to swap into the base system (or whole systems, .ssp/.ssd), or the name "
-                            "of a mechanism description without a system (3RPS): its workspace, margins and static "
-                            "forces beside the designs', not run")
-    which.add_argument("--controller", nargs="+", metavar="NAME_FMU_OR_SSP",
-                       help="controllers: joint, workspace, feedforward, computed_torque, controller FMUs to swap into "
-                            "the base system, or whole systems (.ssp/.ssd)")
-    p.add_argument("--payload", type=nonnegative, default=PAYLOAD_MISMATCH_KG, metavar="KG",
-                   help="with --controller: also run every test with this payload on the platform, unknown to the "
-                        f"controllers (default {PAYLOAD_MISMATCH_KG:g} kg; 0: no robustness runs)")
-    p.add_argument("--out", type=folder, required=True, help="folder for comparison.csv/.json/.md, runs.csv, the plots, systems/")
-    p.add_argument("--quick", action="store_true", help="the small test set: z motion at 1, 4 and 8 Hz (and the designs' "
-                                                        "workspaces on a coarse grid: 25 mm, 4 deg)")
-    p.add_argument("--motions", nargs="+", choices=POSE,
-                   help="motions to test, coordinates of every design's mechanism (default: every coordinate of "
-                        "the first design's mechanism; the 3PRS's: z, psi, theta)")
-    p.add_argument("--frequencies", nargs="+", type=hertz, metavar="HZ", help="test frequencies (default: 0.5 to 10 Hz)")
-    p.add_argument("--set", action="append", metavar="ELEMENT.PARAMETER=VALUE", help="override a parameter in every design")
+    which.add_argument(
+        "--mechanism",
+        nargs="+",
+        metavar="FMU_OR_SSP",
+        help="mechanism FMUs to swap into the base system (or whole systems, .ssp/.ssd), or the name "
+        "of a mechanism description without a system (3RPS): its workspace, margins and static "
+        "forces beside the designs', not run",
+    )
+    which.add_argument(
+        "--controller",
+        nargs="+",
+        metavar="NAME_FMU_OR_SSP",
+        help="controllers: joint, workspace, feedforward, computed_torque, controller FMUs to swap into "
+        "the base system, or whole systems (.ssp/.ssd)",
+    )
+    p.add_argument(
+        "--payload",
+        type=nonnegative,
+        default=PAYLOAD_MISMATCH_KG,
+        metavar="KG",
+        help="with --controller: also run every test with this payload on the platform, unknown to the "
+        f"controllers (default {PAYLOAD_MISMATCH_KG:g} kg; 0: no robustness runs)",
+    )
+    p.add_argument(
+        "--out", type=folder, required=True, help="folder for comparison.csv/.json/.md, runs.csv, the plots, systems/"
+    )
+    p.add_argument(
+        "--quick",
+        action="store_true",
+        help="the small test set: z motion at 1, 4 and 8 Hz (and the designs' "
+        "workspaces on a coarse grid: 25 mm, 4 deg)",
+    )
+    p.add_argument(
+        "--motions",
+        nargs="+",
+        choices=POSE,
+        help="motions to test, coordinates of every design's mechanism (default: every coordinate of "
+        "the first design's mechanism; the 3PRS's: z, psi, theta)",
+    )
+    p.add_argument(
+        "--frequencies", nargs="+", type=hertz, metavar="HZ", help="test frequencies (default: 0.5 to 10 Hz)"
+    )
+    p.add_argument(
+        "--set", action="append", metavar="ELEMENT.PARAMETER=VALUE", help="override a parameter in every design"
+    )
     p.add_argument("--workers", type=count, help="parallel processes (default: the number of cores)")
     p.add_argument("--direct", action="store_true", help="run the model objects without FMI (this project's FMUs only)")
     p.add_argument("--ssd", default=str(REPO / "ssp" / "MAST.ssd"), help="base system the FMUs are swapped into")
@@ -615,51 +804,93 @@ def main(argv=None) -> int:
 
     from .analyses.workspace import STEP_TILT_DEG, STEP_Z
 
-    p = sub.add_parser("workspace", help="the poses a design reaches within its strokes without crossing a singularity: "
-                                         "DIR/workspace.json/.csv/.png, or one pose (docs/workspace.md)")
-    p.add_argument("design", help="design name (3PRS_T, 3PRS_120, 3PRS_inclined, actuators_only), a system .ssd/.ssp, "
-                                  "a mechanism .fmu or a mechanism description without a system (3RPS: its own strokes "
-                                  "and home)")
-    p.add_argument("--payload", type=nonnegative, default=0.0, metavar="KG",
-                   help="payload on the platform, centre of mass at P (static actuator forces, default 0)")
+    p = sub.add_parser(
+        "workspace",
+        help="the poses a design reaches within its strokes without crossing a singularity: "
+        "DIR/workspace.json/.csv/.png, or one pose (docs/workspace.md)",
+    )
+    p.add_argument(
+        "design",
+        help="design name (3PRS_T, 3PRS_120, 3PRS_inclined, actuators_only), a system .ssd/.ssp, "
+        "a mechanism .fmu or a mechanism description without a system (3RPS: its own strokes "
+        "and home)",
+    )
+    p.add_argument(
+        "--payload",
+        type=nonnegative,
+        default=0.0,
+        metavar="KG",
+        help="payload on the platform, centre of mass at P (static actuator forces, default 0)",
+    )
     p.add_argument("--out", type=folder, help="folder for workspace.json, workspace.csv, workspace.png")
-    p.add_argument("--pose", metavar="Z,PSI_DEG,THETA_DEG",
-                   help="answer for one pose, one number per coordinate of the mechanism (m, deg; the 3PRS: z, psi, "
-                        "theta): inside (exit 0) or not (exit 1), with its margins")
-    p.add_argument("--sweep", metavar="C1,C2,C3",
-                   help="the coordinates the grid sweeps (1 to 3; default every coordinate of the mechanism), the "
-                        "others held at home: x,y,z the constant-orientation workspace, psi,theta,phi the orientation one")
-    p.add_argument("--step-z", type=_positive("metres"), default=STEP_Z, metavar="M",
-                   help=f"grid step in the length coordinates (z; default {STEP_Z:g} m)")
-    p.add_argument("--step-tilt", type=_positive("degrees"), default=STEP_TILT_DEG, metavar="DEG",
-                   help=f"grid step in the angles (psi, theta; default {STEP_TILT_DEG:g} deg)")
+    p.add_argument(
+        "--pose",
+        metavar="Z,PSI_DEG,THETA_DEG",
+        help="answer for one pose, one number per coordinate of the mechanism (m, deg; the 3PRS: z, psi, "
+        "theta): inside (exit 0) or not (exit 1), with its margins",
+    )
+    p.add_argument(
+        "--sweep",
+        metavar="C1,C2,C3",
+        help="the coordinates the grid sweeps (1 to 3; default every coordinate of the mechanism), the "
+        "others held at home: x,y,z the constant-orientation workspace, psi,theta,phi the orientation one",
+    )
+    p.add_argument(
+        "--step-z",
+        type=_positive("metres"),
+        default=STEP_Z,
+        metavar="M",
+        help=f"grid step in the length coordinates (z; default {STEP_Z:g} m)",
+    )
+    p.add_argument(
+        "--step-tilt",
+        type=_positive("degrees"),
+        default=STEP_TILT_DEG,
+        metavar="DEG",
+        help=f"grid step in the angles (psi, theta; default {STEP_TILT_DEG:g} deg)",
+    )
     p.add_argument("--no-plots", action="store_true", help="write no figure")
     p.set_defaults(func=cmd_workspace)
 
-    p = sub.add_parser("animate", help="a run replayed in 3-D: one self-contained HTML page, play/pause, time slider, "
-                                       "the commanded pose as a ghost (docs/animate.md)")
+    p = sub.add_parser(
+        "animate",
+        help="a run replayed in 3-D: one self-contained HTML page, play/pause, time slider, "
+        "the commanded pose as a ghost (docs/animate.md)",
+    )
     p.add_argument("run_dir", help="a `mast run` output folder (results.csv, summary.json)")
     p.add_argument("--out", type=output_file, required=True, help="the HTML page to write")
     from .analyses.animate import FPS
 
-    p.add_argument("--fps", type=_positive("frames per second"), default=FPS,
-                   help=f"frames per second of simulated time (default {FPS:g})")
+    p.add_argument(
+        "--fps",
+        type=_positive("frames per second"),
+        default=FPS,
+        help=f"frames per second of simulated time (default {FPS:g})",
+    )
     p.set_defaults(func=cmd_animate)
 
-
-    p = sub.add_parser("sizing", help="the drives of a run against their datasheet ratings: margin table, verdict, "
-                                      "torque-speed envelope and winding temperature (docs/sizing.md)")
+    p = sub.add_parser(
+        "sizing",
+        help="the drives of a run against their datasheet ratings: margin table, verdict, "
+        "torque-speed envelope and winding temperature (docs/sizing.md)",
+    )
     p.add_argument("run_dir", metavar="RUN_DIR", help="a run folder of `mast run` (results.csv, summary.json)")
     p.add_argument("--ssp", help="the system whose ratings apply (default: the one summary.json names)")
-    p.add_argument("--set", action="append", metavar="ELEMENT.PARAMETER=VALUE",
-                   help="the run's parameter overrides (default: those summary.json records)")
+    p.add_argument(
+        "--set",
+        action="append",
+        metavar="ELEMENT.PARAMETER=VALUE",
+        help="the run's parameter overrides (default: those summary.json records)",
+    )
     p.add_argument("--out", type=folder, help="folder for sizing.json, sizing.md and the plots (default: RUN_DIR)")
     p.add_argument("--no-plots", action="store_true", help="write no figures")
     p.set_defaults(func=cmd_sizing)
 
     p = sub.add_parser("batch", help="run the cases of a batch config (TOML/YAML) in parallel: docs/batch.md")
     p.add_argument("config", help="batch config: .toml, .yaml or .json")
-    p.add_argument("--out", type=folder, required=True, help="folder for the results (manifest, per-case files, tables, plots)")
+    p.add_argument(
+        "--out", type=folder, required=True, help="folder for the results (manifest, per-case files, tables, plots)"
+    )
     p.add_argument("--workers", type=count, help="local worker processes (default: the number of cores)")
     p.add_argument("--scheduler", metavar="ADDRESS", help="run on this Dask scheduler (tcp://host:8786) instead")
     p.add_argument("--resume", action="store_true", help="go on with the batch in --out: skip its finished cases")

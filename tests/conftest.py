@@ -1,4 +1,5 @@
 """Shared fixtures: parameter values as the default system (ssp/MAST.ssd) binds them."""
+
 from __future__ import annotations
 
 from pathlib import Path

@@ -5,6 +5,7 @@ or from textbook solutions: python-control transfer functions, scipy solve_ivp o
 ODE written out by hand, closed-form DC-motor responses, energy bookkeeping. None of
 them reuses the model's matrices or kernels.
 """
+
 from __future__ import annotations
 
 import math
@@ -12,12 +13,18 @@ import math
 import control
 import numpy as np
 import pytest
+from conftest import load_params
 from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
-from conftest import load_params
-from fmus.actuator.model import (ActuatorBlock, chain_frequencies, natural_frequencies, transfer_functions,
-                                 transmission_ratio, two_inertia)
+from fmus.actuator.model import (
+    ActuatorBlock,
+    chain_frequencies,
+    natural_frequencies,
+    transfer_functions,
+    transmission_ratio,
+    two_inertia,
+)
 from fmus.common.block import ModelError
 from fmus.common.parameters import ParameterError
 
@@ -29,7 +36,7 @@ def paper_inertias(p: dict) -> tuple[float, float, float]:
     """(J1, J2, i_R) straight from Eqs. 1, 20 (+ brake), 21, 22."""
     i_R = p["p"] / (2 * math.pi * p["i_r"])
     J1 = p["J1_scale"] * (p["J_motor"] + p["J_gearbox"] + p["J_coupling"] + p["J_brake"])
-    J2 = p["J_guide"] / p["i_r"] ** 2 + p["M_load"] * i_R ** 2
+    J2 = p["J_guide"] / p["i_r"] ** 2 + p["M_load"] * i_R**2
     return J1, J2, i_R
 
 
@@ -78,8 +85,12 @@ def test_paper_relations(actuator_params):
     tfs = transfer_functions(p)
     k, c = p["K_t"], p["C_t"]
     den = [J1 * J2, (J1 + J2) * c, (J1 + J2) * k, 0, 0]  # Eq. 2 typed out
-    expected = {"TF1": ([J2, c, k], den), "TF2": ([c, k], [J2, c, k]),
-                "TF1d": ([J1, c, k], den), "TF2d": ([c, k], [J1, c, k])}
+    expected = {
+        "TF1": ([J2, c, k], den),
+        "TF2": ([c, k], [J2, c, k]),
+        "TF1d": ([J1, c, k], den),
+        "TF2d": ([c, k], [J1, c, k]),
+    }
     for name, (num, dn) in expected.items():
         np.testing.assert_allclose(tfs[name][0], num, rtol=1e-14, err_msg=name)
         np.testing.assert_allclose(tfs[name][1], dn, rtol=1e-14, err_msg=name)
@@ -246,11 +257,15 @@ def test_energy_balance(actuator_params):
     e_in = np.sum(u_held * 0.5 * (i[:-1] + i[1:])) * h
     f_held = F
     e_force = np.sum(f_held * 0.5 * (out["rho_dot"][:-1] + out["rho_dot"][1:])) * h
-    loss = p["R"] * i ** 2 + p["C_t"] * (w1 - w2) ** 2 + p["b_v"] * w2 ** 2 \
-        + p["tau_c"] * np.tanh(w2 / p["omega_c"]) * w2
+    loss = p["R"] * i**2 + p["C_t"] * (w1 - w2) ** 2 + p["b_v"] * w2**2 + p["tau_c"] * np.tanh(w2 / p["omega_c"]) * w2
     e_loss = integral(loss[:-1], loss[1:])
-    stored = 0.5 * p["L"] * i ** 2 + 0.5 * J1 * w1 ** 2 + 0.5 * J2 * w2 ** 2 + 0.5 * p["K_t"] * dth ** 2 \
+    stored = (
+        0.5 * p["L"] * i**2
+        + 0.5 * J1 * w1**2
+        + 0.5 * J2 * w2**2
+        + 0.5 * p["K_t"] * dth**2
         + p["M_load"] * p["g_guide"] * out["rho"]
+    )
     residual = e_in - e_loss - e_force - (stored[-1] - stored[0])
     assert e_in > 0.5 and e_loss > 0.5  # a real exchange took place (joules)
     assert np.count_nonzero(np.diff(np.sign(w2[np.abs(w2) > 1.0]))) >= 2  # reversals happened
@@ -348,19 +363,38 @@ def reference_solution(p: dict, samples: int) -> np.ndarray:
     def rhs(_t, x, u, F):
         i, t1, t2, w1, w2 = x
         spring = K * (t1 - t2) + C * (w1 - w2)
-        return [(u - R * i - kE * w1) / L, w1, w2, (kT * i - spring) / J1,
-                (spring - i_R * F - W - tc * math.tanh(w2 / wc) - p["b_v"] * w2) / J2]
+        return [
+            (u - R * i - kE * w1) / L,
+            w1,
+            w2,
+            (kT * i - spring) / J1,
+            (spring - i_R * F - W - tc * math.tanh(w2 / wc) - p["b_v"] * w2) / J2,
+        ]
 
     def jac(_t, x, u, F):
         d = tc / wc / math.cosh(x[4] / wc) ** 2 + p["b_v"]
-        return [[-R / L, 0, 0, -kE / L, 0], [0, 0, 0, 1, 0], [0, 0, 0, 0, 1],
-                [kT / J1, -K / J1, K / J1, -C / J1, C / J1], [0, K / J2, -K / J2, C / J2, (-C - d) / J2]]
+        return [
+            [-R / L, 0, 0, -kE / L, 0],
+            [0, 0, 0, 1, 0],
+            [0, 0, 0, 0, 1],
+            [kT / J1, -K / J1, K / J1, -C / J1, C / J1],
+            [0, K / J2, -K / J2, C / J2, (-C - d) / J2],
+        ]
 
     x = np.zeros(5)
     rows = [x]
     for u, F in SCENARIO:
-        sol = solve_ivp(rhs, (0, CHUNK), x, method="Radau", rtol=1e-11, atol=[1e-12, 1e-12, 1e-12, 1e-9, 1e-9],
-                        jac=jac, args=(u, F), t_eval=np.linspace(0, CHUNK, samples + 1)[1:])
+        sol = solve_ivp(
+            rhs,
+            (0, CHUNK),
+            x,
+            method="Radau",
+            rtol=1e-11,
+            atol=[1e-12, 1e-12, 1e-12, 1e-9, 1e-9],
+            jac=jac,
+            args=(u, F),
+            t_eval=np.linspace(0, CHUNK, samples + 1)[1:],
+        )
         assert sol.success
         rows += list(sol.y.T)
         x = sol.y[:, -1]
@@ -402,10 +436,10 @@ def test_convergence_against_solve_ivp():
         errors[h] = {"i": e[0], "rho": e[2] * i_R, "omega_m": e[3], "omega_N": e[4]}
     e = errors[1e-4]
     assert np.ptp(ref[:, 3]) > 50 and np.count_nonzero(np.diff(np.sign(ref[:, 4]))) >= 2
-    assert e["rho"] < 1e-6            # m
-    assert e["omega_m"] < 0.3         # rad/s, of a 146 rad/s range
-    assert e["omega_N"] < 0.8         # rad/s
-    assert e["i"] < 0.03              # A, of a 21 A range
+    assert e["rho"] < 1e-6  # m
+    assert e["omega_m"] < 0.3  # rad/s, of a 146 rad/s range
+    assert e["omega_N"] < 0.8  # rad/s
+    assert e["i"] < 0.03  # A, of a 21 A range
     for key in e:
         assert errors[2.5e-5][key] < 0.6 * e[key], key  # decreases with h (about first order)
 
@@ -432,8 +466,13 @@ def test_three_inertias_with_stiff_spring_reproduce_two(actuator_params):
     J1_raw = p["J_motor"] + p["J_gearbox"] + p["J_coupling"] + p["J_brake"]
     _, J2, _ = paper_inertias(p)
     # the guide side split in two halves joined by a spring 1000 x K_t (a 46 kHz mode)
-    chain3 = dict(p, n_dof=3, J_chain=f"{J1_raw!r} {J2 / 2!r} {J2 / 2!r}",
-                  K_chain=f"{p['K_t']!r} {1e3 * p['K_t']!r}", C_chain=f"{p['C_t']!r} 0.0")
+    chain3 = dict(
+        p,
+        n_dof=3,
+        J_chain=f"{J1_raw!r} {J2 / 2!r} {J2 / 2!r}",
+        K_chain=f"{p['K_t']!r} {1e3 * p['K_t']!r}",
+        C_chain=f"{p['C_t']!r} 0.0",
+    )
     f3 = chain_frequencies([J1_raw * p["J1_scale"], J2 / 2, J2 / 2], [p["K_t"], 1e3 * p["K_t"]])
     assert f3[0] == pytest.approx(natural_frequencies(p)["TF1"], rel=2e-3)
     t = np.arange(5000) * H
@@ -461,7 +500,7 @@ def test_initialize_outputs(actuator_params):
     out = block.outputs()
     assert out["rho"] == p["rho_0"] and out["rho_dot"] == 0 and out["i_m"] == 0
     # undeflected springs: the guide side alone takes the force and the weight
-    assert out["rho_ddot"] == pytest.approx(-i_R ** 2 * (12.0 + p["M_load"] * p["g_guide"]) / J2, rel=1e-12)
+    assert out["rho_ddot"] == pytest.approx(-(i_R**2) * (12.0 + p["M_load"] * p["g_guide"]) / J2, rel=1e-12)
     block.do_step(0.0, H)
     block.initialize(0.0)  # restarts
     assert block.outputs() == out
@@ -527,8 +566,17 @@ def test_leaving_the_stroke(actuator_params):
 
 
 # -- a varying communication step ---------------------------------------------------------------------
-@pytest.mark.parametrize("variant", ["manufacturer", "identified (Coulomb friction)", "Stribeck", "backlash",
-                                     "three inertias", "1 ms steps (substeps)"])
+@pytest.mark.parametrize(
+    "variant",
+    [
+        "manufacturer",
+        "identified (Coulomb friction)",
+        "Stribeck",
+        "backlash",
+        "three inertias",
+        "1 ms steps (substeps)",
+    ],
+)
 def test_a_varying_step_compiles_nothing_per_step_and_matches_a_kernel_compiled_per_step(monkeypatch, variant):
     """A host that varies its step: after the first few step sizes each new one is bound to a kernel
     compiled once (no compilation per step); its results equal those of a kernel compiled for
@@ -536,10 +584,13 @@ def test_a_varying_step_compiles_nothing_per_step_and_matches_a_kernel_compiled_
     import fmus.actuator.model as model
 
     p = load_params("actuator_identified" if variant != "manufacturer" else "actuator")
-    p = {"Stribeck": dict(p, tau_s=0.02, omega_s=2.0),
-         "backlash": dict(p, backlash=2e-4),
-         "three inertias": dict(p, n_dof=3, J_chain=f"{p['J_motor']!r} 1e-4 1e-4", K_chain="800.0 2000.0",
-                                C_chain="0.01 0.0")}.get(variant, p)
+    p = {
+        "Stribeck": dict(p, tau_s=0.02, omega_s=2.0),
+        "backlash": dict(p, backlash=2e-4),
+        "three inertias": dict(
+            p, n_dof=3, J_chain=f"{p['J_motor']!r} 1e-4 1e-4", K_chain="800.0 2000.0", C_chain="0.01 0.0"
+        ),
+    }.get(variant, p)
     scale = 10.0 if variant.startswith("1 ms") else 1.0
     steps = np.random.default_rng(3).uniform(0.5e-4, 1.5e-4, 30) * scale
     t = np.concatenate([[0.0], np.cumsum(steps)[:-1]])

@@ -1,18 +1,19 @@
 """The actuator's effects with neutral defaults (issue 5): Stribeck friction, backlash,
 position ripple, and the torque measurement model (tau_meas). Checked against closed-form
 results; the defaults leave the generated step code and every number unchanged."""
+
 from __future__ import annotations
 
 import math
 
 import numpy as np
 import pytest
-
 from conftest import load_params
+from test_actuator import run
+
 from fmus.actuator.model import ActuatorBlock, transmission_ratio
 from fmus.actuator.sensor import TorqueSensor, filter_coefficients, measure
 from fmus.common.parameters import ParameterError
-from test_actuator import run
 
 H = 1e-4
 
@@ -35,7 +36,7 @@ def test_measurement_model_in_the_fmu_equals_the_array_version():
     out = run(ActuatorBlock(p), 2.0 * np.sin(np.linspace(0, 30, 5000)), 10.0)
     expect = measure(out["tau_m"], H, 3e-3, 2.5e-3, 0.01)
     assert np.abs(out["tau_meas"] - expect).max() < 1e-15
-    assert np.abs(out["tau_meas"] - out["tau_m"]).max() > 1e-3   # it does something
+    assert np.abs(out["tau_meas"] - out["tau_m"]).max() > 1e-3  # it does something
 
 
 def test_filter_is_exact_for_a_ramp_and_the_delay_shifts():
@@ -69,9 +70,9 @@ def test_stribeck_breakaway_torque():
     k = int(np.argmax(out["rho_dot"] > slide))
     assert k > 0
     w = np.linspace(0, 10, 100001)
-    peak = float(np.max((p["tau_c"] + p["tau_s"] * np.exp(-(w / p["omega_s"]) ** 2)) * np.tanh(w / p["omega_c"])))
+    peak = float(np.max((p["tau_c"] + p["tau_s"] * np.exp(-((w / p["omega_s"]) ** 2))) * np.tanh(w / p["omega_c"])))
     assert peak > p["tau_c"] + 0.5 * p["tau_s"]
-    assert out["tau_m"][:k + 1].max() == pytest.approx(peak + weight, rel=0.02)
+    assert out["tau_m"][: k + 1].max() == pytest.approx(peak + weight, rel=0.02)
     # once sliding fast, the friction falls back to tau_c: constant voltage, steady speed
     fast = run(ActuatorBlock(p), 3.0, 0.0, n=20000)
     plain = run(ActuatorBlock(dict(p, tau_s=0.0)), 3.0, 0.0, n=20000)
@@ -97,9 +98,9 @@ def test_backlash_dead_zone():
     st = block.state()
     defl = st["theta_1"] - st["theta_2"]
     tau = p["k_T"] * st["i"]
-    assert abs(st["theta_2"]) < b / 20        # the guide only crept
+    assert abs(st["theta_2"]) < b / 20  # the guide only crept
     assert defl == pytest.approx(b / 2 + tau / p["K_t"], rel=1e-3)
-    assert block.substeps == 10               # 10 us substeps at the 100 us step
+    assert block.substeps == 10  # 10 us substeps at the 100 us step
     # before contact the motor accelerates freely: no spring torque on it
     assert np.abs(out["theta_m"][:5]).max() < b / 2
 
@@ -129,6 +130,6 @@ def test_ripple_torque_depends_on_position():
     phase = 2 * math.pi * (rho - p["rho_0"]) / p["ripple_period"]
     basis = np.column_stack([np.ones_like(rho), rho, np.sin(phase), np.cos(phase)])
     coef, res, *_ = np.linalg.lstsq(basis, w, rcond=None)
-    assert math.hypot(coef[2], coef[3]) > 0.05          # rad/s of ripple at the position period
+    assert math.hypot(coef[2], coef[3]) > 0.05  # rad/s of ripple at the position period
     plain = run(ActuatorBlock(dict(p, tau_ripple=0.0)), 2.0, 0.0, n=20000)
     assert np.std(np.diff(plain["omega_m"][keep])) < 0.1 * np.std(np.diff(w))

@@ -7,6 +7,7 @@ against the recorded signals through formulas written here from docs/geometry.md
 H (cos alpha_i, sin alpha_i, 0), its direction (-sin beta cos alpha_i, -sin beta sin alpha_i, cos beta)), not
 through the description's code.
 """
+
 from __future__ import annotations
 
 import json
@@ -22,12 +23,14 @@ from mast.cli import main as cli_main
 from mast.core.master import Result
 
 ROOT = Path(__file__).resolve().parents[1]
-DESIGNS = {"3PRS_T": ("MastMechanism", ROOT / "ssp" / "MAST.ssd"),
-           "3PRS_inclined": ("Mast3PRSInclined", ROOT / "ssp" / "MAST_3PRS_inclined.ssd")}
+DESIGNS = {
+    "3PRS_T": ("MastMechanism", ROOT / "ssp" / "MAST.ssd"),
+    "3PRS_inclined": ("Mast3PRSInclined", ROOT / "ssp" / "MAST_3PRS_inclined.ssd"),
+}
 #: the run: a psi sine of 4 deg at 2 Hz for 0.5 s (the peak tilt at 0.125 s)
 MOTION = ["--motion", "psi", "--amplitude", "4", "--frequency", "2", "--stop-time", "0.5"]
 #: the page writes coordinates to 10^-DECIMALS m: a point is off by at most half of that per axis
-ROUNDING = 0.5 * 10.0 ** -animate.DECIMALS * math.sqrt(3)
+ROUNDING = 0.5 * 10.0**-animate.DECIMALS * math.sqrt(3)
 
 
 @pytest.fixture(scope="module")
@@ -106,7 +109,7 @@ def guides(params: dict) -> tuple[np.ndarray, np.ndarray]:
 @pytest.mark.parametrize("design", list(DESIGNS))
 def test_page_draws_the_mechanism_where_the_run_put_it(runs, pages, design):
     html = pages[design].read_text(encoding="utf-8")
-    assert external_resources(html) == []       # plotly.js is inlined: nothing fetched when opened
+    assert external_resources(html) == []  # plotly.js is inlined: nothing fetched when opened
     first, frames = plotly_figure(html)
     names = [t["name"] for t in first]
     result = Result.read_csv(runs[design] / "results.csv")
@@ -131,10 +134,12 @@ def test_page_draws_the_mechanism_where_the_run_put_it(runs, pages, design):
         assert len(legs) == 3
         for i, leg in enumerate(legs):
             np.testing.assert_allclose(leg, [carriages[i], joints[i]], rtol=0, atol=1e-12)
-        np.testing.assert_allclose(np.linalg.norm(joints - carriages, axis=1), params["L"], rtol=0,
-                                   atol=2 * ROUNDING)
-        centre = np.array(traces["achieved: plates"]["x"][:1] + traces["achieved: plates"]["y"][:1]
-                          + traces["achieved: plates"]["z"][:1])
+        np.testing.assert_allclose(np.linalg.norm(joints - carriages, axis=1), params["L"], rtol=0, atol=2 * ROUNDING)
+        centre = np.array(
+            traces["achieved: plates"]["x"][:1]
+            + traces["achieved: plates"]["y"][:1]
+            + traces["achieved: plates"]["z"][:1]
+        )
         recorded = np.array([result[f"mechanism.{c}"][k] for c in "xyz"])
         np.testing.assert_allclose(centre, recorded, rtol=0, atol=ROUNDING)
         np.testing.assert_allclose(np.linalg.norm(joints - centre, axis=1), params["r"], rtol=0, atol=2 * ROUNDING)
@@ -143,17 +148,18 @@ def test_page_draws_the_mechanism_where_the_run_put_it(runs, pages, design):
         ghost_centre = np.array([traces["commanded: plates"][a][0] for a in "xyz"])
         assert abs(ghost_centre[2] - result["z_cmd"][k]) <= ROUNDING
         ghost_carriages = xyz(traces["commanded: carriages"])[0]
-        np.testing.assert_allclose(np.linalg.norm(ghost_joints - ghost_carriages, axis=1), params["L"], rtol=0,
-                                   atol=2 * ROUNDING)
+        np.testing.assert_allclose(
+            np.linalg.norm(ghost_joints - ghost_carriages, axis=1), params["L"], rtol=0, atol=2 * ROUNDING
+        )
         psi_seen.append(result["mechanism.psi"][k])
-    assert max(psi_seen) > math.radians(2.0)          # the frames span the motion
+    assert max(psi_seen) > math.radians(2.0)  # the frames span the motion
 
 
 def test_frames_are_the_samples_nearest_each_frame_time():
     t = np.arange(0, 1.0005, 0.001)
     k = animate.frame_indices(t, 40.0)
     assert len(k) == 41 and np.all(np.abs(t[k] - np.arange(41) / 40.0) < 1e-9)
-    uneven = np.array([0.0, 0.012, 0.03, 0.052, 0.1])     # 0.025 -> 0.03, 0.05 and 0.075 -> 0.052, 0.1
+    uneven = np.array([0.0, 0.012, 0.03, 0.052, 0.1])  # 0.025 -> 0.03, 0.05 and 0.075 -> 0.052, 0.1
     assert list(animate.frame_indices(uneven, 40.0)) == [0, 2, 3, 4]
 
 
@@ -204,10 +210,10 @@ def test_a_mechanism_without_geometry_is_refused_by_name(runs, tmp_path, capsys)
     del mechanism["L"]
     (folder / "summary.json").write_text(json.dumps(summary))
     assert "'L'" in refused(capsys, folder, tmp_path / "page.html")
-    mechanism["L"], mechanism["attached"] = 0.26, 0      # the actuators_only design: no mechanism attached
+    mechanism["L"], mechanism["attached"] = 0.26, 0  # the actuators_only design: no mechanism attached
     (folder / "summary.json").write_text(json.dumps(summary))
     assert "not attached (parameter 'attached' = 0" in refused(capsys, folder, tmp_path / "page.html")
-    del summary["system"]                                # a run folder from before the record
+    del summary["system"]  # a run folder from before the record
     (folder / "summary.json").write_text(json.dumps(summary))
     assert "no 'system.parameters'" in refused(capsys, folder, tmp_path / "page.html")
 
@@ -230,7 +236,7 @@ def test_a_failed_write_leaves_the_old_page_and_no_temporary_file(runs, tmp_path
 
 # ----------------------------------------------------------------------------- in a browser
 def rgb(hex_colour: str) -> np.ndarray:
-    return np.array([int(hex_colour[k:k + 2], 16) for k in (1, 3, 5)]) / 255.0
+    return np.array([int(hex_colour[k : k + 2], 16) for k in (1, 3, 5)]) / 255.0
 
 
 #: the drawing's colours of the legs and the carriages
@@ -248,8 +254,10 @@ def near(image: np.ndarray, colour: np.ndarray) -> np.ndarray:
     return np.abs(image - colour).max(axis=2) < 0.06
 
 
-@pytest.mark.skipif(animate.chromium() is None, reason="Chromium is not installed (Debian: apt-get install chromium); "
-                                             ".ci/run installs it where it can")
+@pytest.mark.skipif(
+    animate.chromium() is None,
+    reason="Chromium is not installed (Debian: apt-get install chromium); .ci/run installs it where it can",
+)
 def test_the_page_draws_and_animates_the_mechanism_in_a_browser(pages, tmp_path):
     rest = screenshot(pages["3PRS_T"], 0.0, tmp_path)
     tilted = screenshot(pages["3PRS_T"], 0.125, tmp_path)

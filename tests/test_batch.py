@@ -1,5 +1,6 @@
 """Batch co-simulation: session reuse (reset = fresh), config expansion, metrics, crash safety,
 atomic results and resume, the CLI, and the same batch on a Dask LocalCluster."""
+
 from __future__ import annotations
 
 import json
@@ -13,12 +14,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from mast.analyses.metrics import case_metrics, sweep_metrics
 from mast.batch import BatchConfig, BatchConfigError, expand, read_batch, run_batch
-from mast.core.build import FMUS, SSP_SRC, build_fmu, build_ssp
 from mast.cli import main as cli_main
+from mast.core.build import FMUS, SSP_SRC, build_fmu, build_ssp
 from mast.core.components import BlockComponent
 from mast.core.master import Master, Result, SimulationError
-from mast.analyses.metrics import case_metrics, sweep_metrics
 from mast.core.motion import SineMotion
 from mast.core.run import simulate
 from mast.core.session import Session
@@ -27,6 +28,7 @@ from mast.core.ssp import ComponentSpec, Connection, SystemSpec, read_ssd
 # test_master's toy blocks
 sys.path.insert(0, str(Path(__file__).parent))
 from test_master import Gain, Hold, Integrator  # noqa: E402
+
 
 @pytest.fixture(scope="module")
 def ssp(tmp_path_factory) -> Path:
@@ -49,8 +51,10 @@ class Counting(BlockComponent):
 
 
 def _loop():
-    comps = {"int": ComponentSpec("int", "x", 0.01, ["u"], ["y"], {"x0": 1.0}),
-             "gain": ComponentSpec("gain", "x", 0.01, ["u"], ["y"], {"k": -2.0})}
+    comps = {
+        "int": ComponentSpec("int", "x", 0.01, ["u"], ["y"], {"x0": 1.0}),
+        "gain": ComponentSpec("gain", "x", 0.01, ["u"], ["y"], {"k": -2.0}),
+    }
     cons = [Connection("int", "y", "gain", "u"), Connection("gain", "y", "int", "u")]
     spec = SystemSpec("loop", Path("."), comps, cons, [], 0.01, 0.0, 1.0)
     return spec, {"int": Counting("int", Integrator), "gain": Counting("gain", Gain)}
@@ -73,11 +77,11 @@ def test_reset_instances_reproduce_fresh_ones(ssp):
     motion = dict(axis="z", amplitude=0.004, frequency=4.0)
     heavy = {"mechanism": {"m_platform": 3.0}, "actuator_2": {"tau_c": 0.07}}
     with Session(ssp) as session:
-        a = session.run(SineMotion(**motion), 0.15, parameters=heavy)       # fresh instances
-        b = session.run(SineMotion(**motion), 0.15)                        # reset: the SSD's parameters again
-        c = session.run(SineMotion(**motion), 0.15, parameters=heavy)      # reset: the overrides again
+        a = session.run(SineMotion(**motion), 0.15, parameters=heavy)  # fresh instances
+        b = session.run(SineMotion(**motion), 0.15)  # reset: the SSD's parameters again
+        c = session.run(SineMotion(**motion), 0.15, parameters=heavy)  # reset: the overrides again
         assert (session.instantiations, session.resets) == (1, 2)
-        with pytest.raises(SimulationError):                              # a failing run discards the instances
+        with pytest.raises(SimulationError):  # a failing run discards the instances
             session.run(SineMotion(**motion), 0.5, parameters={"actuator_1": {"g_guide": 5000.0}})  # off its stroke
         d = session.run(SineMotion(**motion), 0.15)
         assert session.instantiations == 2
@@ -98,11 +102,23 @@ def test_metrics_of_a_known_signal():
     cmd = 0.2 + amp * np.sin(2 * np.pi * f * t)
     got = 0.2 + 0.5 * amp * np.sin(2 * np.pi * f * t - np.pi / 4)
     i_cmd = np.where(t >= 1.5, 10.0, 1.0)  # at the 10 A limit from 1.5 s on
-    signals = {"z_cmd": cmd, "mechanism.z": got, "psi_cmd": 0 * t, "mechanism.psi": 0 * t,
-               "actuator_1.tau_m": 0.3 * np.sin(2 * np.pi * f * t), "actuator_1.i_m": 2.0 * np.ones_like(t),
-               "controller.i_cmd_1": i_cmd, "actuator_1.u": 0 * t}
-    m = case_metrics(Result(t, signals), motion={"axis": "z", "amplitude": amp, "frequency": f},
-                     start=1.0, stop=2.0, limits={"i_max": 10.0, "u_max": 24.0})
+    signals = {
+        "z_cmd": cmd,
+        "mechanism.z": got,
+        "psi_cmd": 0 * t,
+        "mechanism.psi": 0 * t,
+        "actuator_1.tau_m": 0.3 * np.sin(2 * np.pi * f * t),
+        "actuator_1.i_m": 2.0 * np.ones_like(t),
+        "controller.i_cmd_1": i_cmd,
+        "actuator_1.u": 0 * t,
+    }
+    m = case_metrics(
+        Result(t, signals),
+        motion={"axis": "z", "amplitude": amp, "frequency": f},
+        start=1.0,
+        stop=2.0,
+        limits={"i_max": 10.0, "u_max": 24.0},
+    )
     assert m["magnitude"] == pytest.approx(0.5, rel=1e-9)
     assert m["phase_deg"] == pytest.approx(-45.0, abs=1e-6)
     assert m["magnitude_dB"] == pytest.approx(20 * math.log10(0.5))
@@ -148,13 +164,24 @@ def _config(ssp, **cases):
 
 
 def test_case_expansion_dimensions_wildcards_and_seeded_samples(ssp):
-    config = BatchConfig.from_dict({
-        **_config(ssp, motion=[{"axis": "z", "amplitude": 0.002}, {"axis": "psi", "amplitude": 0.5}],
-                  frequency=[2, 5], grid={"mechanism.m_platform": [1.5, 2.5]},
-                  list=[{"actuator_*.tau_c": 0.02}, {"actuator_1.tau_c": 0.07}],
-                  random={"samples": 3, "seed": 7, "actuator_*.J1_scale": {"relative": 0.1},
-                          "mechanism.m_leg": {"normal": [0.07, 0.01], "clip": [0.05, 0.09]}}),
-        "parameters": {"controller.k_v": 20.0}})
+    config = BatchConfig.from_dict(
+        {
+            **_config(
+                ssp,
+                motion=[{"axis": "z", "amplitude": 0.002}, {"axis": "psi", "amplitude": 0.5}],
+                frequency=[2, 5],
+                grid={"mechanism.m_platform": [1.5, 2.5]},
+                list=[{"actuator_*.tau_c": 0.02}, {"actuator_1.tau_c": 0.07}],
+                random={
+                    "samples": 3,
+                    "seed": 7,
+                    "actuator_*.J1_scale": {"relative": 0.1},
+                    "mechanism.m_leg": {"normal": [0.07, 0.01], "clip": [0.05, 0.09]},
+                },
+            ),
+            "parameters": {"controller.k_v": 20.0},
+        }
+    )
     cases = expand(config)
     assert len(cases) == 3 * 2 * 2 * 2 * 2  # samples x list x grid x motions x frequencies
     assert [c.id for c in cases[:3]] == ["c00000", "c00001", "c00002"]
@@ -171,39 +198,52 @@ def test_case_expansion_dimensions_wildcards_and_seeded_samples(ssp):
     # reproducible, and sample-major: more samples keep the first ones
     again = expand(config)
     assert [c.digest for c in again] == [c.digest for c in cases]
-    more = BatchConfig.from_dict({**config.raw, "cases": {**config.raw["cases"],
-                                                           "random": {**config.raw["cases"]["random"], "samples": 5}}})
-    assert [c.digest for c in expand(more)[:len(cases)]] == [c.digest for c in cases]
+    more = BatchConfig.from_dict(
+        {**config.raw, "cases": {**config.raw["cases"], "random": {**config.raw["cases"]["random"], "samples": 5}}}
+    )
+    assert [c.digest for c in expand(more)[: len(cases)]] == [c.digest for c in cases]
     # SSP variants multiply the cases; cases.ssp picks some
-    two = {**_config(ssp, motion={"axis": "z", "amplitude": 0.002}, frequency=[1, 2]), "ssp": {"a": str(ssp), "b": str(ssp)}}
-    assert [(c.ssp, c.motion["frequency"]) for c in expand(BatchConfig.from_dict(two))] == \
-        [("a", 1.0), ("a", 2.0), ("b", 1.0), ("b", 2.0)]
+    two = {
+        **_config(ssp, motion={"axis": "z", "amplitude": 0.002}, frequency=[1, 2]),
+        "ssp": {"a": str(ssp), "b": str(ssp)},
+    }
+    assert [(c.ssp, c.motion["frequency"]) for c in expand(BatchConfig.from_dict(two))] == [
+        ("a", 1.0),
+        ("a", 2.0),
+        ("b", 1.0),
+        ("b", 2.0),
+    ]
     assert len(expand(BatchConfig.from_dict({**two, "cases": {**two["cases"], "ssp": ["b"]}}))) == 2
 
 
-@pytest.mark.parametrize("cases, message", [
-    ({"grid": {"mechanism.m_platfrom": [1.0]}}, "no parameter 'm_platfrom'"),
-    ({"grid": {"actuatr_*.tau_c": [1.0]}}, "matches no component"),
-    ({"grid": {"tau_c": [1.0]}}, "not ELEMENT.PARAMETER"),
-    ({"random": {"samples": 2, "mechanism.m_platform": {"uniform": [1, 2]}}}, "seed"),
-    ({"random": {"samples": 2, "seed": 1, "mechanism.m_platform": {"gauss": [1, 2]}}}, "expected one of"),
-    ({"motion": {"axis": "x", "amplitude": 1}}, "axis must be one of"),
-    ({"frequencies": [1]}, "unknown key"),
-])
+@pytest.mark.parametrize(
+    "cases, message",
+    [
+        ({"grid": {"mechanism.m_platfrom": [1.0]}}, "no parameter 'm_platfrom'"),
+        ({"grid": {"actuatr_*.tau_c": [1.0]}}, "matches no component"),
+        ({"grid": {"tau_c": [1.0]}}, "not ELEMENT.PARAMETER"),
+        ({"random": {"samples": 2, "mechanism.m_platform": {"uniform": [1, 2]}}}, "seed"),
+        ({"random": {"samples": 2, "seed": 1, "mechanism.m_platform": {"gauss": [1, 2]}}}, "expected one of"),
+        ({"motion": {"axis": "x", "amplitude": 1}}, "axis must be one of"),
+        ({"frequencies": [1]}, "unknown key"),
+    ],
+)
 def test_config_errors_say_what_is_wrong(ssp, cases, message):
     with pytest.raises(BatchConfigError, match=message):
         expand(BatchConfig.from_dict(_config(ssp, **cases)))
 
 
 def test_kept_signals_are_checked_before_running(ssp):
-    config = BatchConfig.from_dict({**_config(ssp, motion={"axis": "z", "amplitude": 0.001}),
-                                    "outputs": {"keep": ["mechanism.zz"]}})
+    config = BatchConfig.from_dict(
+        {**_config(ssp, motion={"axis": "z", "amplitude": 0.001}), "outputs": {"keep": ["mechanism.zz"]}}
+    )
     with pytest.raises(BatchConfigError, match="mechanism.zz not in"):
         expand(config)
 
 
 def test_toml_and_yaml_configs_give_the_same_cases(ssp, tmp_path):
-    (tmp_path / "b.toml").write_text(textwrap.dedent(f"""
+    (tmp_path / "b.toml").write_text(
+        textwrap.dedent(f"""
         ssp = "{ssp}"
         [run]
         stop_time = 0.1
@@ -211,14 +251,17 @@ def test_toml_and_yaml_configs_give_the_same_cases(ssp, tmp_path):
         motion = {{ axis = "theta", amplitude = 0.5, frequency = 10 }}
         [cases.grid]
         "actuator_*.tau_c" = [0.02, 0.07]
-        """))
-    (tmp_path / "b.yaml").write_text(textwrap.dedent(f"""
+        """)
+    )
+    (tmp_path / "b.yaml").write_text(
+        textwrap.dedent(f"""
         ssp: {ssp}
         run: {{stop_time: 0.1}}
         cases:
           motion: {{axis: theta, amplitude: 0.5, frequency: 10}}
           grid: {{"actuator_*.tau_c": [0.02, 0.07]}}
-        """))
+        """)
+    )
     toml_cases, yaml_cases = (expand(BatchConfig.load(tmp_path / n)) for n in ("b.toml", "b.yaml"))
     assert [c.digest for c in toml_cases] == [c.digest for c in yaml_cases] and len(toml_cases) == 2
 
@@ -245,26 +288,41 @@ def _hook(case_id: str):
 
 def _small(ssp, **extra) -> dict:
     """Six short cases: c00002 has an invalid mass (fails at initialization), the rest are fine."""
-    return {"name": "small", "ssp": str(ssp), "run": {"stop_time": 0.12, "record_step": 0.001},
-            "cases": {"motion": {"axis": "z", "amplitude": 0.002, "frequency": 10},
-                      "list": [{"mechanism.m_platform": m} for m in (2.0, 2.2, -1.0, 2.4, 2.6, 2.8)]},
-            "outputs": {"keep": ["mechanism.z"], "metrics": ["tracking", "torque"]}, **extra}
+    return {
+        "name": "small",
+        "ssp": str(ssp),
+        "run": {"stop_time": 0.12, "record_step": 0.001},
+        "cases": {
+            "motion": {"axis": "z", "amplitude": 0.002, "frequency": 10},
+            "list": [{"mechanism.m_platform": m} for m in (2.0, 2.2, -1.0, 2.4, 2.6, 2.8)],
+        },
+        "outputs": {"keep": ["mechanism.z"], "metrics": ["tracking", "torque"]},
+        **extra,
+    }
 
 
 def test_batch_records_failures_and_a_segfault_and_goes_on(ssp, tmp_path):
     out = tmp_path / "b"
     result = run_batch(_small(ssp), out, workers=2, before_case=_hook("c00003"), progress=False)
     status = {r["id"]: r["status"] for r in result.records}
-    assert status == {"c00000": "ok", "c00001": "ok", "c00002": "failed", "c00003": "crashed",
-                      "c00004": "ok", "c00005": "ok"}
+    assert status == {
+        "c00000": "ok",
+        "c00001": "ok",
+        "c00002": "failed",
+        "c00003": "crashed",
+        "c00004": "ok",
+        "c00005": "ok",
+    }
     by_id = {r["id"]: r for r in result.records}
     assert "m_platform" in by_id["c00002"]["error"] and "SIGSEGV" in by_id["c00003"]["error"]
     assert by_id["c00000"]["metrics"]["tracking_z_rms_m"] > 0 and "tau_m_1_peak_Nm" in by_id["c00000"]["metrics"]
     # one file per case, written whole; kept signals beside; no temp files left
     for case_id in status:
         saved = json.loads((out / "cases" / f"{case_id}.json").read_text())
-        assert saved["status"] == status[case_id] and saved["parameters"]["mechanism.m_platform"] == \
-            by_id[case_id]["parameters"]["mechanism.m_platform"]
+        assert (
+            saved["status"] == status[case_id]
+            and saved["parameters"]["mechanism.m_platform"] == by_id[case_id]["parameters"]["mechanism.m_platform"]
+        )
     signals = np.load(out / "cases" / "c00001.npz")
     assert set(signals.files) == {"time", "mechanism.z"} and len(signals["time"]) == 121
     assert not list(out.rglob("*.tmp"))
@@ -272,8 +330,9 @@ def test_batch_records_failures_and_a_segfault_and_goes_on(ssp, tmp_path):
     assert (manifest["ok"], manifest["failed"], manifest["crashed"], manifest["pending"]) == (4, 1, 1, 0)
     assert (out / "summary.csv").read_text().splitlines()[0].startswith("id,status,ssp,axis")
     # a case run on reset instances in a worker gives what a fresh simulate gives
-    fresh = simulate(ssp, SineMotion("z", 0.002, 10), 0.12, parameters={"mechanism": {"m_platform": 2.2}},
-                     record=["mechanism.z"])
+    fresh = simulate(
+        ssp, SineMotion("z", 0.002, 10), 0.12, parameters={"mechanism": {"m_platform": 2.2}}, record=["mechanism.z"]
+    )
     np.testing.assert_allclose(signals["mechanism.z"], fresh["mechanism.z"], rtol=1e-12, atol=1e-15)
     # resume: nothing left; retry_failed: the failed and crashed cases run again, the rest stay
     again = run_batch(_small(ssp), out, workers=2, resume=True, progress=False)
@@ -317,7 +376,8 @@ def test_interrupted_batch_resumes_without_repeating_a_finished_case(ssp, tmp_pa
 
 def test_cli_batch_dry_run_run_and_exit_codes(ssp, tmp_path, capsys):
     config = tmp_path / "sweep.toml"
-    config.write_text(textwrap.dedent(f"""
+    config.write_text(
+        textwrap.dedent(f"""
         name = "cli"
         ssp = "{ssp}"
         [run]
@@ -325,7 +385,8 @@ def test_cli_batch_dry_run_run_and_exit_codes(ssp, tmp_path, capsys):
         [cases]
         motion = {{ axis = "psi", amplitude = 0.3 }}
         frequency = [10, 20]
-        """))
+        """)
+    )
     assert cli_main(["batch", str(config), "--out", str(tmp_path / "o"), "--dry-run"]) == 0
     assert "2 case(s)" in capsys.readouterr().out
     assert cli_main(["batch", str(config), "--out", str(tmp_path / "o"), "--workers", "1"]) == 0
@@ -344,8 +405,11 @@ def test_cli_batch_dry_run_run_and_exit_codes(ssp, tmp_path, capsys):
 
 
 def test_a_case_over_its_timeout_is_failed(ssp, tmp_path):
-    config = {"ssp": str(ssp), "run": {"stop_time": 3.0, "timeout": 0.2},
-              "cases": {"motion": {"axis": "z", "amplitude": 0.002, "frequency": 2}}}
+    config = {
+        "ssp": str(ssp),
+        "run": {"stop_time": 3.0, "timeout": 0.2},
+        "cases": {"motion": {"axis": "z", "amplitude": 0.002, "frequency": 2}},
+    }
     result = run_batch(config, tmp_path / "t", workers=1, progress=False, plots=False)
     assert result.failed == 1 and "timed out after 0.2 s" in result.records[0]["error"]
     assert result.records[0]["timing"]["case_s"] < 2.0
@@ -358,13 +422,25 @@ def test_dask_local_cluster_runs_the_same_batch_and_survives_a_dead_worker(ssp, 
     local = run_batch(_small(ssp), tmp_path / "local", workers=2, progress=False)
     # one task per worker thread at a time and no retries: the dead worker's case, and only it, is crashed
     with dask.config.set({"distributed.scheduler.allowed-failures": 0, "distributed.scheduler.worker-saturation": 1.0}):
-        with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                      dashboard_address=None) as cluster:
-            remote = run_batch(_small(ssp), tmp_path / "dask", scheduler=cluster.scheduler_address,
-                               before_case=_hook("c00004"), progress=False)
+        with distributed.LocalCluster(
+            n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
+        ) as cluster:
+            remote = run_batch(
+                _small(ssp),
+                tmp_path / "dask",
+                scheduler=cluster.scheduler_address,
+                before_case=_hook("c00004"),
+                progress=False,
+            )
     status = {r["id"]: r["status"] for r in remote.records}
-    assert status == {"c00000": "ok", "c00001": "ok", "c00002": "failed", "c00003": "ok",
-                      "c00004": "crashed", "c00005": "ok"}
+    assert status == {
+        "c00000": "ok",
+        "c00001": "ok",
+        "c00002": "failed",
+        "c00003": "ok",
+        "c00004": "crashed",
+        "c00005": "ok",
+    }
     for a, b in zip(local.records, remote.records):
         if b["status"] == "ok":
             assert a["metrics"] == b["metrics"]  # bit for bit: the same FMUs, reset between cases
@@ -373,11 +449,15 @@ def test_dask_local_cluster_runs_the_same_batch_and_survives_a_dead_worker(ssp, 
 
 def test_a_batch_without_motion_holds_the_home_pose(ssp, tmp_path):
     """docs/batch.md: without a motion the system holds its home pose (every case failed before)."""
-    config = {"name": "hold", "ssp": str(ssp), "run": {"stop_time": 0.05, "record_step": 0.001},
-              "cases": {"list": [{"mechanism.m_platform": m} for m in (2.06, 3.0)]},
-              "outputs": {"keep": ["z_cmd", "mechanism.z"]}}
+    config = {
+        "name": "hold",
+        "ssp": str(ssp),
+        "run": {"stop_time": 0.05, "record_step": 0.001},
+        "cases": {"list": [{"mechanism.m_platform": m} for m in (2.06, 3.0)]},
+        "outputs": {"keep": ["z_cmd", "mechanism.z"]},
+    }
     result = run_batch(config, tmp_path / "b", workers=1, progress=False)
     assert [r["status"] for r in result.records] == ["ok", "ok"], [r["error"] for r in result.records]
     signals = np.load(tmp_path / "b" / "cases" / "c00000.npz")
     assert np.ptp(signals["z_cmd"]) == 0.0 and signals["z_cmd"][0] == pytest.approx(signals["mechanism.z"][0], abs=1e-9)
-    assert np.ptp(signals["mechanism.z"]) < 1e-4   # held: the loop takes up the load (tens of micrometres)
+    assert np.ptp(signals["mechanism.z"]) < 1e-4  # held: the loop takes up the load (tens of micrometres)

@@ -3,6 +3,7 @@ user (the figures they print are measured by hand on a named machine: docs/nativ
 
 A benchmark added to benchmarks/ without a smoke mode here fails ``test_every_benchmark_has_a_smoke_mode``.
 """
+
 from __future__ import annotations
 
 import os
@@ -27,16 +28,23 @@ SMOKE = {
 
 def test_every_benchmark_has_a_smoke_mode():
     scripts = sorted(p.name for p in (ROOT / "benchmarks").glob("*.py"))
-    assert sorted(SMOKE) == scripts, \
+    assert sorted(SMOKE) == scripts, (
         f"tests/test_benchmarks.py SMOKE must name every benchmarks/*.py with short arguments: has {sorted(SMOKE)}"
+    )
 
 
 @pytest.mark.parametrize("script", sorted(SMOKE))
 def test_benchmark_runs_in_smoke_mode(script, built_native):
     args = [a.format(ssp=built_native / "ssp" / "MAST.ssp") for a in SMOKE[script]]
     env = {**os.environ, "MAST_BUILD": str(built_native), "PYTHONPATH": str(ROOT)}
-    proc = subprocess.run([sys.executable, str(ROOT / "benchmarks" / script), *args], cwd=ROOT, env=env,
-                          capture_output=True, text=True, timeout=600)
+    proc = subprocess.run(
+        [sys.executable, str(ROOT / "benchmarks" / script), *args],
+        cwd=ROOT,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert proc.returncode == 0, f"benchmarks/{script} {' '.join(args)}:\n{proc.stdout[-2000:]}\n{proc.stderr[-3000:]}"
     assert proc.stdout.strip(), f"benchmarks/{script} printed no figure"
 

@@ -1,5 +1,6 @@
 """`mast compare`: a design swapped in from its FMU is the system a user would write by hand,
 and a (small) comparison writes its table, data and plots."""
+
 from __future__ import annotations
 
 import csv
@@ -9,8 +10,8 @@ from pathlib import Path
 
 import pytest
 
-from mast.cli import main as cli_main
 from mast.analyses.compare import WORKSPACE_GRID_QUICK, TestSet, compare, fmu_parameters, swapped_ssd
+from mast.cli import main as cli_main
 from mast.core.designs import DESIGNS
 from mast.core.ssp import read_ssd, validate_ssd_schema
 
@@ -23,8 +24,13 @@ def fmus(tmp_path_factory) -> Path:
 
     out = tmp_path_factory.mktemp("compare_fmus")
     for spec in FMUS:
-        if spec.model_identifier in ("MastActuator", "MastController", "MastMechanism", "MastActuatorsOnly",
-                                     "Mast3PRSInclined"):
+        if spec.model_identifier in (
+            "MastActuator",
+            "MastController",
+            "MastMechanism",
+            "MastActuatorsOnly",
+            "Mast3PRSInclined",
+        ):
             build_fmu(spec, out)
     return out
 
@@ -51,18 +57,33 @@ def test_swapping_an_fmu_gives_the_design_system(fmus, tmp_path):
 
 def test_compare_writes_table_data_and_plots(fmus, tmp_path):
     out = tmp_path / "cmp"
-    comp = compare([fmus / "MastMechanism.fmu", fmus / "MastActuatorsOnly.fmu"], out,
-                   TestSet(axes=("z",), frequencies=(2.0, 8.0)), workers=2, fmu_dir=fmus,
-                   workspace_grid=WORKSPACE_GRID_QUICK)
+    comp = compare(
+        [fmus / "MastMechanism.fmu", fmus / "MastActuatorsOnly.fmu"],
+        out,
+        TestSet(axes=("z",), frequencies=(2.0, 8.0)),
+        workers=2,
+        fmu_dir=fmus,
+        workspace_grid=WORKSPACE_GRID_QUICK,
+    )
     assert [c.label for c in comp.candidates] == ["MastMechanism", "MastActuatorsOnly"]
-    for name in ("comparison.csv", "runs.csv", "comparison.json", "comparison.md", "bode.png", "bandwidth.png",
-                 "torque.png", "tracking.png", "parasitic.png", "systems/MastMechanism.ssp"):
+    for name in (
+        "comparison.csv",
+        "runs.csv",
+        "comparison.json",
+        "comparison.md",
+        "bode.png",
+        "bandwidth.png",
+        "torque.png",
+        "tracking.png",
+        "parasitic.png",
+        "systems/MastMechanism.ssp",
+    ):
         assert (out / name).stat().st_size > 100, name
     rows = list(csv.DictReader(open(out / "comparison.csv")))
     assert [(r["design"], r["motion"]) for r in rows] == [("MastMechanism", "z"), ("MastActuatorsOnly", "z")]
     for r in rows:
         assert r["failed"] == "0"
-        assert 2.0 < float(r["bandwidth_Hz"]) < 8.0             # magnitude falls through -3 dB in between
+        assert 2.0 < float(r["bandwidth_Hz"]) < 8.0  # magnitude falls through -3 dB in between
         assert 0.0 < float(r["torque_rms_Nm"]) < float(r["torque_peak_Nm"]) < 0.31
         assert 0.0 < float(r["tracking_peak"]) < 2 * 0.005
         # the workspace beside them: the same kinematics for both (the actuators alone report the 3PRS's poses)
@@ -81,12 +102,30 @@ def test_compare_writes_table_data_and_plots(fmus, tmp_path):
 
 def test_cli_compare(fmus, tmp_path):
     out = tmp_path / "cli"
-    code = cli_main(["compare", "--mechanism", str(fmus / "Mast3PRSInclined.fmu"), "--out", str(out), "--quick",
-                     "--frequencies", "3", "--motions", "theta", "--workers", "1", "--fmus", str(fmus)])
+    code = cli_main(
+        [
+            "compare",
+            "--mechanism",
+            str(fmus / "Mast3PRSInclined.fmu"),
+            "--out",
+            str(out),
+            "--quick",
+            "--frequencies",
+            "3",
+            "--motions",
+            "theta",
+            "--workers",
+            "1",
+            "--fmus",
+            str(fmus),
+        ]
+    )
     assert code == 0
     row = next(csv.DictReader(open(out / "comparison.csv")))
     assert row["design"] == "Mast3PRSInclined" and row["motion"] == "theta"
-    assert float(row["workspace_m_deg2"]) > 100.0 and "Workspace (`mast workspace`" in (out / "comparison.md").read_text()
+    assert (
+        float(row["workspace_m_deg2"]) > 100.0 and "Workspace (`mast workspace`" in (out / "comparison.md").read_text()
+    )
     assert float(row["parasitic_x_m"]) >= 0.0 and math.isfinite(float(row["torque_peak_Nm"]))
     assert cli_main(["compare", "--mechanism", str(tmp_path / "none.fmu"), "--out", str(out)]) == 2
 
@@ -95,8 +134,12 @@ def test_swapping_into_a_system_without_bindings(fmus, tmp_path):
     """A base system that binds nothing: the swap creates the bindings the design needs."""
     import re
 
-    base = re.sub(r"\s*<ssd:ParameterBindings>.*?</ssd:ParameterBindings>", "",
-                  (ROOT / "ssp" / "MAST.ssd").read_text(), flags=re.S)
+    base = re.sub(
+        r"\s*<ssd:ParameterBindings>.*?</ssd:ParameterBindings>",
+        "",
+        (ROOT / "ssp" / "MAST.ssd").read_text(),
+        flags=re.S,
+    )
     fmu = fmus / "Mast3PRSInclined.fmu"
     (tmp_path / "bare.ssd").write_text(swapped_ssd(base, fmu.name, fmu_parameters(fmu), "bare"))
     assert validate_ssd_schema(tmp_path / "bare.ssd") == []

@@ -1,4 +1,5 @@
 """`mast check-mechanism`: the project's designs pass, and each check catches what it is for."""
+
 from __future__ import annotations
 
 import math
@@ -11,9 +12,9 @@ from fmus.common.block import Block
 from fmus.mechanism import designs
 from fmus.mechanism.model import MechanismBlock
 from mast.cli import main as cli_main
-from mast.hosts.conformance import BlockSubject, check, check_mechanism
 from mast.core.designs import DESIGNS
 from mast.core.ssp import read_ssd
+from mast.hosts.conformance import BlockSubject, check, check_mechanism
 
 
 def verdicts(results) -> dict:
@@ -71,12 +72,15 @@ class Broken(Block):
         v[9:18] = F
 
 
-@pytest.mark.parametrize("kind, fails", [
-    ("no velocity terms", {"closed cycle"}),
-    ("asymmetric", {"mass matrix", "closed cycle"}),
-    ("other geometry", {"controller kinematics"}),
-    ("nan", {"refuses what it cannot compute"}),
-])
+@pytest.mark.parametrize(
+    "kind, fails",
+    [
+        ("no velocity terms", {"closed cycle"}),
+        ("asymmetric", {"mass matrix", "closed cycle"}),
+        ("other geometry", {"controller kinematics"}),
+        ("nan", {"refuses what it cannot compute"}),
+    ],
+)
 def test_each_check_catches_its_fault(mechanism_params, kind, fails):
     cls = type(f"Broken_{kind.replace(' ', '_')}", (Broken,), {"kind": kind})
     results = verdicts(check(BlockSubject(cls, mechanism_params)))

@@ -8,6 +8,7 @@ a discrete transfer function, one sample of computation delay, feedback). The
 difference equations of the block are documented in docs/controller.md; none of
 the block's code is reused here.
 """
+
 from __future__ import annotations
 
 import math
@@ -15,6 +16,7 @@ import math
 import control as ct
 import numpy as np
 import pytest
+from conftest import RESOURCES
 from scipy.linalg import expm
 
 from fmus.common.block import ModelError
@@ -23,15 +25,13 @@ from fmus.controller.model import ControllerBlock
 from fmus.mechanism.kinematics import Geometry, KinematicsError, home_pose, inverse_kinematics
 from mast.core.ssv import read_values
 
-from conftest import RESOURCES
-
 # Plant data for the test loops only (Maxon RE 40 24 V catalogue, reference.md section 2);
 # the controller under test never sees them.
-R_M = 0.299          # ohm
-L_M = 0.0823e-3      # H
-K_T = 30.2e-3        # N m / A
-K_E = 30.2e-3        # V s / rad (SI: equal to k_T)
-J_M = 2.44e-5        # kg m^2, motor + reflected load, about what the velocity gains were designed for
+R_M = 0.299  # ohm
+L_M = 0.0823e-3  # H
+K_T = 30.2e-3  # N m / A
+K_E = 30.2e-3  # V s / rad (SI: equal to k_T)
+J_M = 2.44e-5  # kg m^2, motor + reflected load, about what the velocity gains were designed for
 
 AXES = (1, 2, 3)
 #: the drive's current loop, which runs in the actuators (restated in the full-cascade test)
@@ -40,7 +40,7 @@ DRIVE = read_values(RESOURCES / "drive.ssv")
 # every leg spans the horizontal gap H - r, so z = rho_0 + sqrt(L^2 - (H - r)^2); default geometry
 # H = 0.4, r = 0.35, L = 0.26 m (checked against the parameter set in test_home_pose...).
 RHO_HOME = 0.15
-HOME_Z = RHO_HOME + math.sqrt(0.26 ** 2 - (0.40 - 0.35) ** 2)
+HOME_Z = RHO_HOME + math.sqrt(0.26**2 - (0.40 - 0.35) ** 2)
 
 
 def block(params: dict, **changes) -> ControllerBlock:
@@ -84,23 +84,24 @@ def assert_close(simulated: np.ndarray, expected: np.ndarray, rtol: float = 1e-9
 
 # --------------------------------------------------------------------------- linear loops
 
+
 def test_velocity_loop_step_matches_discrete_closed_loop(controller_params):
     """Velocity PI at T_vel = 10 T_cur, ideal current loop, inertia plant; block stepped with h = T_vel."""
     P = controller_params
     T_cur = P["T_cur"]
     T_vel = 10 * T_cur
     blk = block(P, T_vel=T_vel, T_pos=T_vel)
-    r = np.array([10.0, -20.0, 5.0])           # rad/s, k_p r well below i_max
+    r = np.array([10.0, -20.0, 5.0])  # rad/s, k_p r well below i_max
     blk.set_mode("velocity", r)
     blk.initialize(0.0)
     n = 300
     w = np.zeros(3)
     w_log, i_log = np.zeros((n, 3)), np.zeros((n, 3))
     for k in range(n):
-        i_now = get_axes(blk, "i_cmd")         # ideal current loop: i_m = i_cmd
+        i_now = get_axes(blk, "i_cmd")  # ideal current loop: i_m = i_cmd
         w_log[k], i_log[k] = w, i_now
         set_axes(blk, "omega_m", w)
-        blk.do_step(k * T_vel, T_vel)          # 10 ticks, inputs held
+        blk.do_step(k * T_vel, T_vel)  # 10 ticks, inputs held
         w = w + K_T / J_M * T_vel * i_now
     assert blk.ticks == 10 * n
     plant = ct.c2d(ct.tf([K_T], [J_M, 0.0]), T_vel, method="zoh")
@@ -120,7 +121,7 @@ def test_position_loop_step_matches_discrete_closed_loop(controller_params):
     T_pos = P["T_pos"]
     blk = block(P)
     i_R = i_R_of(P)
-    r = np.array([0.01, -0.02, 0.005])         # m
+    r = np.array([0.01, -0.02, 0.005])  # m
     blk.set_mode("joint", r)
     blk.initialize(0.0)
     m = round(T_pos / P["T_cur"])
@@ -149,9 +150,7 @@ def motor_plant(T: float, i_R: float):
 
     L di/dt = u - R i - k_E omega;  J domega/dt = k_T i;  drho/dt = i_R omega.
     """
-    A = np.array([[-R_M / L_M, -K_E / L_M, 0.0],
-                  [K_T / J_M, 0.0, 0.0],
-                  [0.0, i_R, 0.0]])
+    A = np.array([[-R_M / L_M, -K_E / L_M, 0.0], [K_T / J_M, 0.0, 0.0], [0.0, i_R, 0.0]])
     B = np.array([[1.0 / L_M], [0.0], [0.0]])
     M = expm(np.block([[A, B], [np.zeros((1, 4))]]) * T)
     return A, B, M[:3, :3], M[:3, 3]
@@ -170,24 +169,24 @@ def test_full_cascade_single_rate_matches_interconnection(controller_params):
     T = P["T_cur"]
     i_R = i_R_of(P)
     blk = block(P, T_pos=T, T_vel=T)
-    r = np.array([1e-4, -2e-4, 5e-5])          # m, small: no saturation
+    r = np.array([1e-4, -2e-4, 5e-5])  # m, small: no saturation
     blk.set_mode("joint", r)
     blk.initialize(0.0)
     A, B, Ad, Bd = motor_plant(T, i_R)
     n = 2500
-    x = np.zeros((3, 3))                       # axis x state
+    x = np.zeros((3, 3))  # axis x state
     rho_log, u_log = np.zeros((n, 3)), np.zeros((n, 3))
-    u_now, x_c = np.zeros(3), np.zeros(3)       # the voltage applied, the current PI's integrator
+    u_now, x_c = np.zeros(3), np.zeros(3)  # the voltage applied, the current PI's integrator
     for k in range(n):
         rho_log[k], u_log[k] = x[:, 2], u_now
         set_axes(blk, "omega_m", x[:, 1])
         set_axes(blk, "rho", x[:, 2])
-        blk.evaluate()                         # i_cmd from the samples at t_k
+        blk.evaluate()  # i_cmd from the samples at t_k
         e = get_axes(blk, "i_cmd") - x[:, 0]
         u_next, x_c = k_pc * e + x_c, x_c + k_ic * T * e
         blk.do_step(k * T, T)
         x = x @ Ad.T + np.outer(u_now, Bd)
-        u_now = u_next                         # applied from the next tick: one cycle of computation delay
+        u_now = u_next  # applied from the next tick: one cycle of computation delay
     assert np.max(np.abs(u_log)) < u_max
     # python-control: plant c2d, controller blocks, interconnect by signal names
     plant = ct.c2d(ct.ss(A, B, np.eye(3), np.zeros((3, 1))), T, method="zoh")
@@ -210,6 +209,7 @@ def test_full_cascade_single_rate_matches_interconnection(controller_params):
 
 
 # --------------------------------------------------------------------------- timing
+
 
 def test_multirate_outer_loops_hold_between_their_ticks(controller_params):
     """h = T_cur: omega_cmd changes only every N_pos ticks, i_cmd every N_vel ticks."""
@@ -283,6 +283,7 @@ def test_initialize_resets_state_and_outputs(controller_params):
 
 # --------------------------------------------------------------------------- limits and anti-windup
 
+
 def naive_pi(kp, ki, T, limit):
     """PI with the same saturation but no anti-windup (the integrator always integrates)."""
     state = {"x": 0.0}
@@ -291,6 +292,7 @@ def naive_pi(kp, ki, T, limit):
         v = kp * e + state["x"]
         state["x"] += ki * T * e
         return min(max(v, -limit), limit)
+
     return step
 
 
@@ -299,7 +301,7 @@ def test_velocity_limit_and_anti_windup(controller_params):
     P = controller_params
     T_vel = P["T_vel"]
     blk = block(P)
-    target = 1000.0                             # rad/s, k_p * target >> i_max
+    target = 1000.0  # rad/s, k_p * target >> i_max
     blk.set_mode("velocity", (target, -target, 0.0))
     blk.initialize(0.0)
     naive = naive_pi(P["k_p"], P["k_i"], T_vel, P["i_max"])
@@ -314,24 +316,25 @@ def test_velocity_limit_and_anti_windup(controller_params):
         blk.do_step(k * T_vel, T_vel)
         w = w + K_T / J_M * T_vel * i_now
         w_naive, i_naive = w_naive + K_T / J_M * T_vel * i_naive, naive(target - w_naive)
-    assert np.max(np.abs(i_log)) == P["i_max"]            # saturates, never beyond
+    assert np.max(np.abs(i_log)) == P["i_max"]  # saturates, never beyond
     assert i_log[5, 0] == P["i_max"] and i_log[5, 1] == -P["i_max"]
     overshoot = np.max(w_log[:, 0]) / target - 1.0
     overshoot_naive = np.max(wn_log) / target - 1.0
-    assert overshoot_naive > 0.3                          # wind-up with a naive PI ...
-    assert overshoot < 0.05                               # ... and not with the block's
+    assert overshoot_naive > 0.3  # wind-up with a naive PI ...
+    assert overshoot < 0.05  # ... and not with the block's
     np.testing.assert_allclose(w_log[-1, :2], (target, -target), rtol=1e-3)
     np.testing.assert_array_equal(w_log[:, 2], 0.0)
 
 
 # --------------------------------------------------------------------------- inverse kinematics
 
+
 def test_home_pose_maps_to_mid_stroke(controller_params):
     """Home pose command -> the IK values, all three carriages at rho_0 (geometry by hand and the DK)."""
     P = controller_params
     assert (P["H"], P["r"], P["L"]) == (0.4, 0.35, 0.26)
     geom = Geometry.from_params(P)
-    z, psi, theta = home_pose(geom, RHO_HOME)          # direct kinematics of the mechanism module
+    z, psi, theta = home_pose(geom, RHO_HOME)  # direct kinematics of the mechanism module
     assert z == pytest.approx(HOME_Z, abs=1e-9) and abs(psi) < 1e-9 and abs(theta) < 1e-9
     blk = block(P)
     blk.set(z_cmd=HOME_Z, psi_cmd=0.0, theta_cmd=0.0)
@@ -349,7 +352,7 @@ def test_pose_command_maps_through_the_inverse_kinematics(controller_params):
         blk.initialize(0.0)
         rho_cmd = get_axes(blk, "rho_cmd")
         np.testing.assert_array_equal(rho_cmd, inverse_kinematics(geom, *pose))
-        assert np.ptp(rho_cmd) > 1e-3                   # a tilt really moves the joints differently
+        assert np.ptp(rho_cmd) > 1e-3  # a tilt really moves the joints differently
         for name in ("omega_cmd", "i_cmd"):
             np.testing.assert_array_equal(get_axes(blk, name), 0.0)
 
@@ -363,7 +366,7 @@ def test_pure_z_command_moves_all_joints_equally(controller_params):
     rho0 = get_axes(blk, "rho_cmd")
     dz = 0.015
     blk.set(z_cmd=HOME_Z + dz)
-    blk.do_step(0.0, P["T_cur"])                 # tick 0 runs the position loop
+    blk.do_step(0.0, P["T_cur"])  # tick 0 runs the position loop
     np.testing.assert_allclose(get_axes(blk, "rho_cmd") - rho0, dz, rtol=1e-9)
 
 
@@ -410,14 +413,18 @@ def test_controller_geometry_is_its_own_binding(controller_params):
 
 # --------------------------------------------------------------------------- errors
 
-@pytest.mark.parametrize("name, value, match", [
-    ("T_vel", 0.00105, "T_vel"),
-    ("T_pos", 0.00015, "T_pos"),
-    ("k_p", -0.1, "k_p"),
-    ("T_cur", 0.0, "T_cur"),
-    ("i_max", 0.0, "i_max"),
-    ("p", 0.0, "'p'"),
-])
+
+@pytest.mark.parametrize(
+    "name, value, match",
+    [
+        ("T_vel", 0.00105, "T_vel"),
+        ("T_pos", 0.00015, "T_pos"),
+        ("k_p", -0.1, "k_p"),
+        ("T_cur", 0.0, "T_cur"),
+        ("i_max", 0.0, "i_max"),
+        ("p", 0.0, "'p'"),
+    ],
+)
 def test_bad_parameters(controller_params, name, value, match):
     with pytest.raises(ParameterError, match=match):
         block(controller_params, **{name: value})
@@ -452,7 +459,7 @@ def test_non_finite_input_at_initialize(controller_params):
 
 def test_unreachable_pose_passes_kinematics_error_on(controller_params):
     geom = Geometry.from_params(controller_params)
-    bad = (HOME_Z, 1.2, 0.0)                      # far beyond the joint range
+    bad = (HOME_Z, 1.2, 0.0)  # far beyond the joint range
     with pytest.raises(KinematicsError) as expected:
         inverse_kinematics(geom, *bad)
     blk = block(controller_params)

@@ -12,6 +12,7 @@ the model-based laws per axis against the 3PRS's axes; the interface by the conn
 refusals (a rotary drive, a controller class of other axes, a mode command of the wrong length); the inverse
 model's mechanism forces for n = 2 against the statics of the 2-leg table.
 """
+
 from __future__ import annotations
 
 import math
@@ -19,6 +20,7 @@ import math
 import numpy as np
 import pytest
 
+from fmus.common import tracer as E
 from fmus.common.parameters import ParameterError
 from fmus.controller.computed_torque import ComputedTorqueController
 from fmus.controller.feedforward import FeedForwardController
@@ -26,7 +28,6 @@ from fmus.controller.inverse_model import InverseModel
 from fmus.controller.model import ControllerBlock
 from fmus.controller.tick import LAYOUT, SIZE, layout, size
 from fmus.controller.workspace import WorkspaceController
-from fmus.common import tracer as E
 from fmus.mechanism.designs import TRACED_PARAMETERS, describe
 from fmus.mechanism.engine import Body, Description, Engine, Evaluation
 from fmus.mechanism.kinematics import KinematicsError
@@ -52,8 +53,11 @@ class TwoLegs(Description):
     def evaluate(self, q):
         x, z = q
         d = self.d
-        return Evaluation([E.sqrt((x + d) * (x + d) + z * z), E.sqrt((x - d) * (x - d) + z * z)],
-                          [x, 0.0, z, 0.0, 0.0, 0.0], [((x, 0.0, z), IDENTITY)])
+        return Evaluation(
+            [E.sqrt((x + d) * (x + d) + z * z), E.sqrt((x - d) * (x - d) + z * z)],
+            [x, 0.0, z, 0.0, 0.0, 0.0],
+            [((x, 0.0, z), IDENTITY)],
+        )
 
     def guess(self, rho):
         return (0.0, 0.4)
@@ -63,15 +67,21 @@ class TwoLegs(Description):
 
     @property
     def topology(self) -> Topology:
-        return Topology(self.name, (Coordinate("x"), Coordinate("z")),
-                        tuple(Drive(j, self.kind, (0.2, 0.8)) for j in self.joints), (0.0, 0.4))
+        return Topology(
+            self.name,
+            (Coordinate("x"), Coordinate("z")),
+            tuple(Drive(j, self.kind, (0.2, 0.8)) for j in self.joints),
+            (0.0, 0.4),
+        )
 
 
 def rzyx(psi, theta, phi):
     cx, sx, cy, sy, cz, sz = (E.cos(psi), E.sin(psi), E.cos(theta), E.sin(theta), E.cos(phi), E.sin(phi))
-    return ((cz * cy, cz * sy * sx - sz * cx, cz * sy * cx + sz * sx),
-            (sz * cy, sz * sy * sx + cz * cx, sz * sy * cx - cz * sx),
-            (-sy, cy * sx, cy * cx))
+    return (
+        (cz * cy, cz * sy * sx - sz * cx, cz * sy * cx + sz * sx),
+        (sz * cy, sz * sy * sx + cz * cx, sz * sy * cx - cz * sx),
+        (-sy, cy * sx, cy * cx),
+    )
 
 
 def hexagon(radius: float, offset: float) -> list[tuple[float, float, float]]:
@@ -112,8 +122,12 @@ class Hexapod(Description):
 
     @property
     def topology(self) -> Topology:
-        return Topology(self.name, tuple(Coordinate(c) for c in self.coordinates),
-                        tuple(Drive(j, "linear", (0.3, 0.7)) for j in self.joints), self.guess(()))
+        return Topology(
+            self.name,
+            tuple(Coordinate(c) for c in self.coordinates),
+            tuple(Drive(j, "linear", (0.3, 0.7)) for j in self.joints),
+            self.guess(()),
+        )
 
 
 @pytest.fixture(scope="module")
@@ -141,13 +155,38 @@ def two_leg_jinv(x: float, z: float, d: float = 0.3) -> np.ndarray:
 
 # ---------------------------------------------------------------------------- the layout
 #: what each field of the state holds, as a number of doubles for n axes and p traced parameters
-FIELDS = {"n": lambda n: 1, "t0": lambda n: 1, "ik": lambda n: 1, "pose": lambda n: n, "x_v": lambda n: n,
-          "rho_cmd": lambda n: n, "omega_cmd": lambda n: n, "i_cmd": lambda n: n, "failed": lambda n: 1,
-          "gains": lambda n: 4, "mode": lambda n: 1, "hist": lambda n: 4 * n, "k": lambda n: 1, "i_ff": lambda n: n,
-          "warm": lambda n: 1, "guess": lambda n: n, "model_args": lambda n: 3 * n, "rates": lambda n: 2 * n,
-          "own": lambda n: max(2, n), "N_pos": lambda n: 1, "N_vel": lambda n: 1, "T_cur": lambda n: 1,
-          "T_pos": lambda n: 1, "i_R": lambda n: 1, "cb": lambda n: 1, "sb": lambda n: 1, "attached": lambda n: 1,
-          "P": lambda n: len(TRACED_PARAMETERS), "model": lambda n: 9, "lengths": lambda n: n}
+FIELDS = {
+    "n": lambda n: 1,
+    "t0": lambda n: 1,
+    "ik": lambda n: 1,
+    "pose": lambda n: n,
+    "x_v": lambda n: n,
+    "rho_cmd": lambda n: n,
+    "omega_cmd": lambda n: n,
+    "i_cmd": lambda n: n,
+    "failed": lambda n: 1,
+    "gains": lambda n: 4,
+    "mode": lambda n: 1,
+    "hist": lambda n: 4 * n,
+    "k": lambda n: 1,
+    "i_ff": lambda n: n,
+    "warm": lambda n: 1,
+    "guess": lambda n: n,
+    "model_args": lambda n: 3 * n,
+    "rates": lambda n: 2 * n,
+    "own": lambda n: max(2, n),
+    "N_pos": lambda n: 1,
+    "N_vel": lambda n: 1,
+    "T_cur": lambda n: 1,
+    "T_pos": lambda n: 1,
+    "i_R": lambda n: 1,
+    "cb": lambda n: 1,
+    "sb": lambda n: 1,
+    "attached": lambda n: 1,
+    "P": lambda n: len(TRACED_PARAMETERS),
+    "model": lambda n: 9,
+    "lengths": lambda n: n,
+}
 
 
 @pytest.mark.parametrize("n", range(1, 9))
@@ -163,10 +202,37 @@ def test_the_state_layout_for_n_axes_gives_every_field_its_own_doubles(n):
 
 
 def test_the_layout_for_three_axes_is_the_3prs_layout_of_before():
-    before = {"n": 0, "t0": 1, "ik": 2, "pose": 3, "x_v": 6, "rho_cmd": 15, "omega_cmd": 18, "i_cmd": 21,
-              "failed": 24, "gains": 25, "mode": 29, "hist": 32, "k": 44, "i_ff": 45, "warm": 48, "guess": 49,
-              "model_args": 52, "rates": 61, "own": 67, "N_pos": 70, "N_vel": 71, "T_cur": 72, "T_pos": 73,
-              "i_R": 74, "cb": 75, "sb": 76, "attached": 77, "P": 78, "model": 102}
+    before = {
+        "n": 0,
+        "t0": 1,
+        "ik": 2,
+        "pose": 3,
+        "x_v": 6,
+        "rho_cmd": 15,
+        "omega_cmd": 18,
+        "i_cmd": 21,
+        "failed": 24,
+        "gains": 25,
+        "mode": 29,
+        "hist": 32,
+        "k": 44,
+        "i_ff": 45,
+        "warm": 48,
+        "guess": 49,
+        "model_args": 52,
+        "rates": 61,
+        "own": 67,
+        "N_pos": 70,
+        "N_vel": 71,
+        "T_cur": 72,
+        "T_pos": 73,
+        "i_R": 74,
+        "cb": 75,
+        "sb": 76,
+        "attached": 77,
+        "P": 78,
+        "model": 102,
+    }
     assert {k: LAYOUT[k] for k in before} == before
     assert SIZE == 114 and LAYOUT["lengths"] == SIZE - 3
     assert ControllerBlock.LAYOUT == LAYOUT and ControllerBlock.SIZE == SIZE
@@ -178,10 +244,16 @@ def test_the_layout_for_three_axes_is_the_3prs_layout_of_before():
 def test_a_controller_for_another_mechanism_declares_its_axes_by_the_connector_convention(params):
     hexapod = ControllerBlock.for_topology(Hexapod().topology)
     pose = ("x", "y", "z", "psi", "theta", "phi")
-    assert hexapod.INPUTS == (*(f"{c}_cmd" for c in pose), *(f"rho_{k}" for k in range(1, 7)),
-                              *(f"omega_m_{k}" for k in range(1, 7)))
-    assert hexapod.OUTPUTS == (*(f"rho_cmd_{k}" for k in range(1, 7)), *(f"omega_cmd_{k}" for k in range(1, 7)),
-                               *(f"i_cmd_{k}" for k in range(1, 7)))
+    assert hexapod.INPUTS == (
+        *(f"{c}_cmd" for c in pose),
+        *(f"rho_{k}" for k in range(1, 7)),
+        *(f"omega_m_{k}" for k in range(1, 7)),
+    )
+    assert hexapod.OUTPUTS == (
+        *(f"rho_cmd_{k}" for k in range(1, 7)),
+        *(f"omega_cmd_{k}" for k in range(1, 7)),
+        *(f"i_cmd_{k}" for k in range(1, 7)),
+    )
     assert [hexapod.UNITS[f"{c}_cmd"] for c in pose] == ["m", "m", "m", "rad", "rad", "rad"]
     assert hexapod.UNITS["rho_6"] == "m" and hexapod.UNITS["omega_m_6"] == "rad/s" and hexapod.UNITS["i_cmd_6"] == "A"
     assert hexapod.FEEDTHROUGH["i_cmd_4"] == hexapod.INPUTS
@@ -212,7 +284,7 @@ def cascade_by_hand(P: dict, inputs: list[tuple], d: float = 0.3) -> list[tuple]
             for j, w in enumerate((w1, w2)):
                 e = omega_cmd[j] - w
                 v = P["k_p"] * e + x[j]
-                if abs(v) <= P["i_max"] or (v > 0.0) != (e > 0.0):     # integrate unless winding up further
+                if abs(v) <= P["i_max"] or (v > 0.0) != (e > 0.0):  # integrate unless winding up further
                     x[j] += P["k_i"] * P["T_vel"] * e
                 i_cmd[j] = max(-P["i_max"], min(P["i_max"], v))
         out.append((tuple(rho_cmd), tuple(omega_cmd), tuple(i_cmd)))
@@ -226,8 +298,10 @@ def test_the_joint_cascade_of_two_axes_is_the_p_pi_cascade_written_out(params):
     rng = np.random.default_rng(11)
     ticks = 40
     poses = [(0.02 * math.sin(0.3 * k), 0.4 + 0.01 * math.cos(0.2 * k)) for k in range(ticks)]
-    inputs = [(*q, *(r + 1e-3 * rng.standard_normal() for r in two_leg_ik(*q)), *(20.0 * rng.standard_normal(2)))
-              for q in poses]
+    inputs = [
+        (*q, *(r + 1e-3 * rng.standard_normal() for r in two_leg_ik(*q)), *(20.0 * rng.standard_normal(2)))
+        for q in poses
+    ]
     expected = cascade_by_hand(P, inputs)
     block.set(**dict(zip(cls.INPUTS, inputs[0])))
     block.initialize(0.0)
@@ -242,7 +316,7 @@ def test_the_joint_cascade_of_two_axes_is_the_p_pi_cascade_written_out(params):
         np.testing.assert_allclose([out["omega_cmd_1"], out["omega_cmd_2"]], omega_cmd, rtol=1e-12, atol=1e-9)
         np.testing.assert_allclose([out["i_cmd_1"], out["i_cmd_2"]], i_cmd, rtol=1e-12, atol=1e-12)
         saturated += sum(abs(i) == P["i_max"] for i in i_cmd)
-    assert 0 < saturated < 2 * ticks      # the limit and the anti-windup were exercised, and the linear range too
+    assert 0 < saturated < 2 * ticks  # the limit and the anti-windup were exercised, and the linear range too
     assert block.ticks_per_position > 1  # and ticks without a position law
 
 
@@ -260,8 +334,9 @@ def test_the_hexapod_controller_tracks_its_legs_through_its_own_kinematics(param
     legs = [np.linalg.norm(np.array(q[:3]) + R @ np.array(b) - np.array(a)) for a, b in zip(desc.base, desc.top)]
     np.testing.assert_allclose([out[f"rho_cmd_{k}"] for k in range(1, 7)], legs, rtol=1e-14)
     i_R = params["p"] / (2.0 * math.pi * params["i_r"])
-    np.testing.assert_allclose([out[f"omega_cmd_{k}"] for k in range(1, 7)],
-                               [params["k_v"] * (r - 0.5) / i_R for r in legs], rtol=1e-12)
+    np.testing.assert_allclose(
+        [out[f"omega_cmd_{k}"] for k in range(1, 7)], [params["k_v"] * (r - 0.5) / i_R for r in legs], rtol=1e-12
+    )
     with pytest.raises(ValueError, match="needs six rho_cmd values"):
         block.set_mode("joint", (0.5,) * 3)
     block.set(z_cmd=9.0)
@@ -290,8 +365,10 @@ def test_the_workspace_law_of_two_axes_is_the_pose_space_p_law_written_out(param
 
 
 # ---------------------------------------------------------------------------- the model-based laws
-@pytest.mark.parametrize("kind, ident", [(ComputedTorqueController, "MastComputedTorqueController"),
-                                         (FeedForwardController, "MastFeedForwardController")])
+@pytest.mark.parametrize(
+    "kind, ident",
+    [(ComputedTorqueController, "MastComputedTorqueController"), (FeedForwardController, "MastFeedForwardController")],
+)
 def test_the_model_based_laws_of_two_axes_are_the_3prs_laws_axis_by_axis(kind, ident):
     """With the actuators alone (attached = 0) each axis' law is the same whatever the others: two axes of a 2-leg
     table fed what axes 1 and 3 of the 3PRS's controller are fed (joint mode) command the same currents."""
@@ -345,7 +422,9 @@ def test_the_inverse_model_carries_the_weight_of_a_two_leg_table():
     alone = InverseModel({**P, "attached": 0}, "x", n=2)
     rho = (0.5, 0.5)
     f = PLATFORM.mass * 9.81 * 0.5 / (2.0 * 0.4)
-    extra = [a - b for a, b in zip(loaded.torques(rho, (0.0, 0.0), (0.0, 0.0)), alone.torques(rho, (0.0, 0.0), (0.0, 0.0)))]
+    extra = [
+        a - b for a, b in zip(loaded.torques(rho, (0.0, 0.0), (0.0, 0.0)), alone.torques(rho, (0.0, 0.0), (0.0, 0.0)))
+    ]
     assert extra == pytest.approx([loaded.i_R * f] * 2, rel=1e-12)
 
 

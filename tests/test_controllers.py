@@ -9,6 +9,7 @@ Each is checked against an expectation computed another way:
   test_controller.py) run with the pose direction's gain;
 - feed-forward against the plain cascade (zero weights: the same numbers).
 """
+
 from __future__ import annotations
 
 import csv
@@ -82,7 +83,7 @@ def test_model_based_controllers_bind_the_plants_values():
     for source, shadowed in ((act, {"L"}), (mech, set())):
         for k in names & set(source) - shadowed:
             assert ctl[k] == source[k], k
-    assert ctl["L"] == mech["L"]     # the leg length wins over the motor inductance of the actuator's set
+    assert ctl["L"] == mech["L"]  # the leg length wins over the motor inductance of the actuator's set
 
 
 def test_fmus_reproduce_the_direct_composition(systems):
@@ -110,11 +111,14 @@ class Reference:
 def test_reference_derivatives_are_exact_for_cubics():
     T = 1e-3
     refs = [Reference(T) for _ in range(3)]
-    coef = [(0.1, 0.02, -3.0, 40.0), (0.2, -0.05, 1.5, 0.0), (0.15, 0.0, 0.0, -7.0)]    # c0 + c1 t + c2 t^2 + c3 t^3
+    coef = [(0.1, 0.02, -3.0, 40.0), (0.2, -0.05, 1.5, 0.0), (0.15, 0.0, 0.0, -7.0)]  # c0 + c1 t + c2 t^2 + c3 t^3
 
     def at(t, c, d=0):
-        return [c[1] + 2 * c[2] * t + 3 * c[3] * t * t, 2 * c[2] + 6 * c[3] * t][d - 1] if d else \
-            c[0] + c[1] * t + c[2] * t * t + c[3] * t ** 3
+        return (
+            [c[1] + 2 * c[2] * t + 3 * c[3] * t * t, 2 * c[2] + 6 * c[3] * t][d - 1]
+            if d
+            else c[0] + c[1] * t + c[2] * t * t + c[3] * t**3
+        )
 
     for k in range(8):
         t = 0.01 + k * T
@@ -135,7 +139,7 @@ def test_reference_error_on_a_sine_is_second_order_in_the_step():
         for k in range(4):
             rho_ddot = ref.update(math.sin(w * (t - (3 - k) * T)))[1]
         errors.append(rho_ddot + w * w * math.sin(w * t))
-        assert errors[-1] == pytest.approx(-11 / 12 * T * T * w ** 4 * math.sin(w * t), rel=0.1)
+        assert errors[-1] == pytest.approx(-11 / 12 * T * T * w**4 * math.sin(w * t), rel=0.1)
     assert abs(errors[0]) < 0.01 * w * w
 
 
@@ -144,13 +148,18 @@ def test_inverse_model_matches_the_plants_forward_simulation(systems):
     """Motor torques the controller's model computes from the plant's own motion (rho, rho_dot, rho_ddot)
     equal the torques the forward simulation of actuators and mechanism needed for it."""
     rec = [f"actuator_{j}.{s}" for j in (1, 2, 3) for s in ("rho", "rho_dot", "rho_ddot", "tau_m")]
-    res = simulate(systems["joint"], SineMotion("theta", math.radians(1.0), 2.0), 1.0, record=rec, direct=True,
-                   record_step=1e-3)
+    res = simulate(
+        systems["joint"], SineMotion("theta", math.radians(1.0), 2.0), 1.0, record=rec, direct=True, record_step=1e-3
+    )
     model = InverseModel(ComputedTorqueController(controller_params("computed_torque")).params)
     s = res.signals
     window = res.time > 0.3
-    got = np.array([model.torques(*[[s[f"actuator_{j}.{q}"][k] for j in (1, 2, 3)]
-                                    for q in ("rho", "rho_dot", "rho_ddot")]) for k in np.flatnonzero(window)]).T
+    got = np.array(
+        [
+            model.torques(*[[s[f"actuator_{j}.{q}"][k] for j in (1, 2, 3)] for q in ("rho", "rho_dot", "rho_ddot")])
+            for k in np.flatnonzero(window)
+        ]
+    ).T
     want = np.array([s[f"actuator_{j}.tau_m"][window] for j in (1, 2, 3)])
     for j in range(3):
         rms = np.sqrt(np.mean(want[j] ** 2))
@@ -165,10 +174,17 @@ def test_computed_torque_error_follows_the_chosen_poles(systems):
     """Exact model: each joint error obeys e'' + 2 zeta w e' + w^2 e = 0 from its own initial value, however
     the step couples the joints, for two pole choices (critically damped and underdamped)."""
     for omega_n, zeta in ((2 * math.pi * 10.0, 1.0), (2 * math.pi * 6.0, 0.5)):
-        res = simulate(systems["computed_torque"], PoseStep(STEP), 0.5, record=JOINT, direct=True, record_step=1e-3,
-                       parameters={"controller": {"omega_n": omega_n, "zeta": zeta}})
+        res = simulate(
+            systems["computed_torque"],
+            PoseStep(STEP),
+            0.5,
+            record=JOINT,
+            direct=True,
+            record_step=1e-3,
+            parameters={"controller": {"omega_n": omega_n, "zeta": zeta}},
+        )
         e, t = joint_errors(res), res.time
-        wd = omega_n * math.sqrt(1.0 - zeta ** 2) if zeta < 1 else 0.0
+        wd = omega_n * math.sqrt(1.0 - zeta**2) if zeta < 1 else 0.0
         if zeta < 1:
             shape = np.exp(-zeta * omega_n * t) * (np.cos(wd * t) + zeta * omega_n / wd * np.sin(wd * t))
         else:
@@ -182,16 +198,22 @@ def test_computed_torque_with_an_unknown_payload_settles_where_statics_say(syste
     """A payload the controller does not know: no integral action, so the joints settle at e_ss with
     K_P M e_ss = the payload's weight on the joints; for vertical guides those forces add up to m g."""
     m = 3.0
-    res = simulate(systems["computed_torque"], PoseStep({"z": 0.0005}), 0.6, record=JOINT, direct=True,
-                   parameters={"mechanism": {"m_payload": m}})
+    res = simulate(
+        systems["computed_torque"],
+        PoseStep({"z": 0.0005}),
+        0.6,
+        record=JOINT,
+        direct=True,
+        parameters={"mechanism": {"m_payload": m}},
+    )
     e_ss = joint_errors(res)[:, -1]
     ctl = ComputedTorqueController(controller_params("computed_torque"))
     model = ctl.model
     rho = [res.signals[f"actuator_{j}.rho"][-1] for j in (1, 2, 3)]
-    M = model.engine.inverse_dynamics(rho, [0.0] * 3, [0.0] * 3).M + model.J / model.i_R ** 2 * np.eye(3)
+    M = model.engine.inverse_dynamics(rho, [0.0] * 3, [0.0] * 3).M + model.J / model.i_R**2 * np.eye(3)
     forces = ctl.K_P * (M @ e_ss)
     assert forces.sum() == pytest.approx(m * 9.81, rel=0.02)
-    assert np.all(forces > -1e-3 * m * 9.81)          # the weight pushes every slider down (or not at all)
+    assert np.all(forces > -1e-3 * m * 9.81)  # the weight pushes every slider down (or not at all)
     # without the payload the error vanishes
     exact = simulate(systems["computed_torque"], PoseStep({"z": 0.0005}), 0.6, record=JOINT, direct=True)
     assert np.max(np.abs(joint_errors(exact)[:, -1])) < 1e-3 * np.max(np.abs(e_ss))
@@ -212,16 +234,28 @@ def test_workspace_gains_shape_each_pose_direction(systems):
     linear = {f"actuator_{j}": {"tau_c": 0.0} for j in (1, 2, 3)}
     poses = ["mechanism.z", "mechanism.psi", "mechanism.theta"]
     steps = {"z": 0.0002, "psi": 0.001}
-    work = simulate(systems["workspace"], PoseStep(steps), 0.4, record=poses + ["z_cmd", "psi_cmd"],
-                    direct=True, parameters={"controller": {"k_v_scale_psi": 3.0}, **linear})
+    work = simulate(
+        systems["workspace"],
+        PoseStep(steps),
+        0.4,
+        record=poses + ["z_cmd", "psi_cmd"],
+        direct=True,
+        parameters={"controller": {"k_v_scale_psi": 3.0}, **linear},
+    )
     for axis, gain in (("z", k_v), ("psi", 3 * k_v)):
-        joint = simulate(systems["joint"], PoseStep({axis: steps[axis]}), 0.4, record=poses + [f"{axis}_cmd"],
-                         direct=True, parameters={"controller": {"k_v": gain}, **linear})
+        joint = simulate(
+            systems["joint"],
+            PoseStep({axis: steps[axis]}),
+            0.4,
+            record=poses + [f"{axis}_cmd"],
+            direct=True,
+            parameters={"controller": {"k_v": gain}, **linear},
+        )
         e_work = work.signals[f"{axis}_cmd"] - work.signals[f"mechanism.{axis}"]
         e_joint = joint.signals[f"{axis}_cmd"] - joint.signals[f"mechanism.{axis}"]
         assert np.max(np.abs(e_work - e_joint)) < 0.01 * steps[axis], axis
     theta = work.signals["mechanism.theta"] - work.signals["mechanism.theta"][0]
-    assert np.max(np.abs(theta)) < 0.01 * steps["psi"]          # decoupled: no theta motion
+    assert np.max(np.abs(theta)) < 0.01 * steps["psi"]  # decoupled: no theta motion
 
 
 def test_workspace_controller_in_joint_mode_refuses_a_joint_command_it_cannot_reach():
@@ -234,8 +268,11 @@ def test_workspace_controller_in_joint_mode_refuses_a_joint_command_it_cannot_re
     ctl.do_step(0.0, 1e-3)
     assert [ctl.get(f"rho_cmd_{j}") for j in (1, 2, 3)] == [0.15, 0.15, 0.15]
     ctl.set_mode("joint", (0.15, 0.9, 0.15))
-    with pytest.raises(KinematicsError, match=r"^ws: direct kinematics of the joint command rho = \(0\.15, 0\.9, 0\.15\) m "
-                                              r"failed at t = 0\.001 s: direct kinematics did not converge"):
+    with pytest.raises(
+        KinematicsError,
+        match=r"^ws: direct kinematics of the joint command rho = \(0\.15, 0\.9, 0\.15\) m "
+        r"failed at t = 0\.001 s: direct kinematics did not converge",
+    ):
         ctl.do_step(1e-3, 1e-3)
 
 
@@ -249,8 +286,14 @@ def test_workspace_control_with_unit_gains_is_the_joint_cascade_for_small_motion
 # ----------------------------------------------------------------------------- feed-forward
 def test_feedforward_with_zero_weights_is_the_cascade(systems):
     motion = dict(axis="z", amplitude=0.005, frequency=2.0)
-    ff = simulate(systems["feedforward"], SineMotion(**motion), 0.3, record=JOINT, direct=True,
-                  parameters={"controller": {"k_ff_v": 0.0, "k_ff_tau": 0.0}})
+    ff = simulate(
+        systems["feedforward"],
+        SineMotion(**motion),
+        0.3,
+        record=JOINT,
+        direct=True,
+        parameters={"controller": {"k_ff_v": 0.0, "k_ff_tau": 0.0}},
+    )
     joint = simulate(systems["joint"], SineMotion(**motion), 0.3, record=JOINT, direct=True)
     np.testing.assert_array_equal(joint_errors(ff), joint_errors(joint))
 
@@ -282,11 +325,38 @@ def test_compare_controllers_tabulates_and_plots_with_an_unknown_payload(systems
 
     fmus = Path(systems["joint"]).parents[1] / "fmus"
     out = tmp_path / "cmp"
-    code = cli_main(["compare", "--controller", "joint", "computed_torque", "--motions", "z", "--frequencies", "1", "3",
-                     "--payload", "3", "--out", str(out), "--direct", "--workers", "2", "--fmus", str(fmus)])
+    code = cli_main(
+        [
+            "compare",
+            "--controller",
+            "joint",
+            "computed_torque",
+            "--motions",
+            "z",
+            "--frequencies",
+            "1",
+            "3",
+            "--payload",
+            "3",
+            "--out",
+            str(out),
+            "--direct",
+            "--workers",
+            "2",
+            "--fmus",
+            str(fmus),
+        ]
+    )
     assert code == 0
-    for name in ("comparison.csv", "runs.csv", "comparison.json", "comparison.md", "bode.png", "motion_z.png",
-                 "systems/computed_torque.ssp"):
+    for name in (
+        "comparison.csv",
+        "runs.csv",
+        "comparison.json",
+        "comparison.md",
+        "bode.png",
+        "motion_z.png",
+        "systems/computed_torque.ssp",
+    ):
         assert (out / name).stat().st_size > 100, name
     data = json.loads((out / "comparison.json").read_text())
     labels = [c["label"] for c in data["controllers"]]

@@ -1,4 +1,5 @@
 """End to end: build the FMUs and the SSP, co-simulate through FMI, compare with the direct composition."""
+
 from __future__ import annotations
 
 import json
@@ -8,9 +9,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mast.core.build import build_all
 from mast.cli import main as cli_main
 from mast.cli import validate_all
+from mast.core.build import build_all
 from mast.core.master import SimulationError
 from mast.core.motion import SineMotion
 from mast.core.run import simulate
@@ -57,7 +58,8 @@ def test_default_system_tracks_a_slow_z_motion(ssp):
     result = simulate(ssp, SineMotion("z", 0.005, 0.5), 4.0, direct=True)
     steady = result.time >= 2.0  # one whole period after the settling period
     ratio = harmonic(result.time[steady], result["mechanism.z"][steady], 0.5) / harmonic(
-        result.time[steady], result["z_cmd"][steady], 0.5)
+        result.time[steady], result["z_cmd"][steady], 0.5
+    )
     assert 0.95 < abs(ratio) < 1.02  # the paper measures 99.4 % at 0.4 Hz
     assert -15.0 < np.degrees(np.angle(ratio)) < 0.0  # a lag of a few degrees (paper: -6.3 deg at 0.4 Hz)
     # a pure z motion leaves the platform level: the T layout loads the guides unequally, so the
@@ -87,14 +89,26 @@ def test_failures_name_component_time_and_cause_and_keep_partial_results(ssp, di
     assert 10 < len(partial.time) < 501 and np.all(np.isfinite(partial["mechanism.z"]))
 
 
-@pytest.mark.parametrize("motion, named", [
-    (SineMotion("z", 1e9, 1.0), r"z_cmd = 1e\+09 m is outside the workspace of 'mechanism': carriage 1 would be at "
-                                r"rho_1 = 1e\+09 m, beyond the stroke \[0, 0\.3\] m of actuator_1\. The largest "
-                                r"reachable z_cmd .* is 0\.555\d* m"),
-    (SineMotion("z", -0.5, 1.0), r"z_cmd = -0\.09\d* m is outside .* The smallest reachable z_cmd .* is 0\.255\d* m"),
-    (SineMotion("psi", math.radians(70.0), 1.0), r"psi_cmd = 1\.22173 rad \(70 deg\) is outside the workspace.*"
-                                                 r"largest reachable psi_cmd .* is 0\.41\d* rad"),
-])
+@pytest.mark.parametrize(
+    "motion, named",
+    [
+        (
+            SineMotion("z", 1e9, 1.0),
+            r"z_cmd = 1e\+09 m is outside the workspace of 'mechanism': carriage 1 would be at "
+            r"rho_1 = 1e\+09 m, beyond the stroke \[0, 0\.3\] m of actuator_1\. The largest "
+            r"reachable z_cmd .* is 0\.555\d* m",
+        ),
+        (
+            SineMotion("z", -0.5, 1.0),
+            r"z_cmd = -0\.09\d* m is outside .* The smallest reachable z_cmd .* is 0\.255\d* m",
+        ),
+        (
+            SineMotion("psi", math.radians(70.0), 1.0),
+            r"psi_cmd = 1\.22173 rad \(70 deg\) is outside the workspace.*"
+            r"largest reachable psi_cmd .* is 0\.41\d* rad",
+        ),
+    ],
+)
 def test_commands_outside_the_workspace_are_refused_before_the_first_step(ssp, motion, named):
     with pytest.raises(ValueError, match=named):
         simulate(ssp, motion, 0.5, direct=True)
@@ -104,8 +118,24 @@ def test_commands_outside_the_workspace_are_refused_before_the_first_step(ssp, m
 
 def test_cli_run_writes_results_summary_and_plot(ssp, tmp_path):
     out = tmp_path / "run"
-    code = cli_main(["run", str(ssp), "--motion", "theta", "--amplitude", "1", "--frequency", "2",
-                     "--stop-time", "0.2", "--out", str(out), "--set", "actuator_1.tau_c=0.0718"])
+    code = cli_main(
+        [
+            "run",
+            str(ssp),
+            "--motion",
+            "theta",
+            "--amplitude",
+            "1",
+            "--frequency",
+            "2",
+            "--stop-time",
+            "0.2",
+            "--out",
+            str(out),
+            "--set",
+            "actuator_1.tau_c=0.0718",
+        ]
+    )
     assert code == 0
     summary = json.loads((out / "summary.json").read_text())
     assert summary["wall_time_s"] > 0 and summary["real_time_factor"] > 0
@@ -116,18 +146,36 @@ def test_cli_run_writes_results_summary_and_plot(ssp, tmp_path):
 
 def test_cli_records_only_the_chosen_signals(ssp, tmp_path):
     out = tmp_path / "chosen"
-    assert cli_main(["run", str(ssp), "--stop-time", "0.05", "--out", str(out),
-                     "--record", "mechanism.z", "--record", "actuator_2.i_m"]) == 0
+    assert (
+        cli_main(
+            [
+                "run",
+                str(ssp),
+                "--stop-time",
+                "0.05",
+                "--out",
+                str(out),
+                "--record",
+                "mechanism.z",
+                "--record",
+                "actuator_2.i_m",
+            ]
+        )
+        == 0
+    )
     assert (out / "results.csv").read_text().splitlines()[0] == "time,mechanism.z,actuator_2.i_m"
     assert cli_main(["run", str(ssp), "--stop-time", "0.05", "--out", str(out), "--record", "mechanism.nope"]) == 2
 
 
 @pytest.mark.parametrize("direct", [False, True])
-@pytest.mark.parametrize("component, parameter, value", [
-    ("actuator_1", "n_dof", 2.5),          # an Integer parameter: 2.5 ran as 2 through FMI
-    ("mechanism", "attached", 0.5),        # 0/1: 0.5 ran as 0 (no mechanism load) through FMI
-    ("actuator_1", "n_dof", 2 ** 32 + 2),  # wraps around to 2 in a C int
-])
+@pytest.mark.parametrize(
+    "component, parameter, value",
+    [
+        ("actuator_1", "n_dof", 2.5),  # an Integer parameter: 2.5 ran as 2 through FMI
+        ("mechanism", "attached", 0.5),  # 0/1: 0.5 ran as 0 (no mechanism load) through FMI
+        ("actuator_1", "n_dof", 2**32 + 2),  # wraps around to 2 in a C int
+    ],
+)
 def test_integer_parameters_refuse_what_they_cannot_hold_on_every_route(ssp, direct, component, parameter, value):
     with pytest.raises(Exception) as info:
         simulate(ssp, SineMotion("z", 0.0, 0.0), 0.002, parameters={component: {parameter: value}}, direct=direct)
@@ -163,16 +211,25 @@ def test_a_set_in_grams_is_built_into_the_ssp_in_kilograms(built, tmp_path):
     assert (flat.written, flat.unit, flat.value) == (2.06, "kg", 2.06)
 
 
-@pytest.mark.parametrize("identifier, parameter, fraction", [("MastActuator", "n_dof", 1.5),
-                                                             ("MastMechanism", "attached", 0.5)])
-def test_a_host_setting_a_fraction_through_set_real_gets_the_parameter_named(built, tmp_path, identifier, parameter,
-                                                                             fraction):
+@pytest.mark.parametrize(
+    "identifier, parameter, fraction", [("MastActuator", "n_dof", 1.5), ("MastMechanism", "attached", 0.5)]
+)
+def test_a_host_setting_a_fraction_through_set_real_gets_the_parameter_named(
+    built, tmp_path, identifier, parameter, fraction
+):
     """A host (not this master) may set an Integer parameter with fmi2SetReal: a fraction is refused, never
     truncated (truncated, it would differ from the start value: n_dof 2 -> 1, attached 1 -> 0)."""
     from fmpy import extract, read_model_description
     from fmpy.fmi1 import FMICallException
-    from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
-                           fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, calloc, free)
+    from fmpy.fmi2 import (
+        FMU2Slave,
+        calloc,
+        fmi2CallbackAllocateMemoryTYPE,
+        fmi2CallbackFreeMemoryTYPE,
+        fmi2CallbackFunctions,
+        fmi2CallbackLoggerTYPE,
+        free,
+    )
 
     fmu = built / "fmus" / f"{identifier}.fmu"
     md = read_model_description(str(fmu))
@@ -182,12 +239,16 @@ def test_a_host_setting_a_fraction_through_set_real_gets_the_parameter_named(bui
     callbacks.logger = fmi2CallbackLoggerTYPE(lambda _e, _n, _s, _c, message: log.append(message.decode()))
     callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
     callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
-    slave = FMU2Slave(guid=md.guid, unzipDirectory=extract(str(fmu), unzipdir=str(tmp_path)), modelIdentifier=identifier,
-                      instanceName="x")
+    slave = FMU2Slave(
+        guid=md.guid,
+        unzipDirectory=extract(str(fmu), unzipdir=str(tmp_path)),
+        modelIdentifier=identifier,
+        instanceName="x",
+    )
     slave.instantiate(callbacks=callbacks, loggingOn=True)
     slave.setupExperiment(startTime=0.0)
     slave.enterInitializationMode()
-    with pytest.raises(FMICallException):   # a Real for an Integer variable: refused by the FMI state machine
+    with pytest.raises(FMICallException):  # a Real for an Integer variable: refused by the FMI state machine
         slave.setReal([vr[parameter]], [fraction])
     assert any(f"'{parameter}'" in m and "not Real" in m for m in log), log
     # an illegal call is an fmi2Error that changes nothing (the C front, docs/interfaces.md): the value was
@@ -202,6 +263,9 @@ def test_a_host_setting_a_fraction_through_set_real_gets_the_parameter_named(bui
 def test_a_trajectory_component_outside_the_workspace_is_refused_before_the_first_step(built):
     """A system without inputs commands itself (ssp/MAST_standalone.ssd): its trajectory is checked the same way."""
     standalone = built / "ssp" / "MAST_standalone.ssp"
-    with pytest.raises(ValueError, match=r"z_cmd = 0\.905\d* m is outside the workspace of 'mechanism': carriage 1 "
-                                         r".* stroke \[0, 0\.3\] m of actuator_1\. The largest reachable z_cmd .* 0\.555"):
+    with pytest.raises(
+        ValueError,
+        match=r"z_cmd = 0\.905\d* m is outside the workspace of 'mechanism': carriage 1 "
+        r".* stroke \[0, 0\.3\] m of actuator_1\. The largest reachable z_cmd .* 0\.555",
+    ):
         simulate(standalone, None, 0.5, parameters={"trajectory": {"amplitude_z": 0.5}}, direct=True)

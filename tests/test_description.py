@@ -7,6 +7,7 @@
   parasitic motion from S_i . t_i = 0 solved by Newton here; DK round trips on each;
 - bad files: each refused with the file, the leg or body, and what was expected.
 """
+
 from __future__ import annotations
 
 import math
@@ -23,10 +24,19 @@ BASE = (DESCRIPTIONS / "3PRS_T.toml").read_text(encoding="utf-8")
 
 
 def rot(psi, theta, phi):
-    cx, sx, cy, sy, cz, sz = (math.cos(psi), math.sin(psi), math.cos(theta), math.sin(theta),
-                              math.cos(phi), math.sin(phi))
-    return (np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]]) @ np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
-            @ np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]]))
+    cx, sx, cy, sy, cz, sz = (
+        math.cos(psi),
+        math.sin(psi),
+        math.cos(theta),
+        math.sin(theta),
+        math.cos(phi),
+        math.sin(phi),
+    )
+    return (
+        np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]])
+        @ np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
+        @ np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]])
+    )
 
 
 def written(tmp_path: Path, text: str, name: str = "bad.toml") -> Path:
@@ -41,15 +51,20 @@ def changed(old: str, new: str, text: str = BASE) -> str:
 
 
 # ---- the shipped designs ---------------------------------------------------------------------------
-@pytest.mark.parametrize("name, geometry", [("3PRS_T", "geometry_3prs"), ("3PRS_120", "geometry_3prs_120"),
-                                            ("3PRS_inclined", "geometry_3prs_inclined")])
+@pytest.mark.parametrize(
+    "name, geometry",
+    [("3PRS_T", "geometry_3prs"), ("3PRS_120", "geometry_3prs_120"), ("3PRS_inclined", "geometry_3prs_inclined")],
+)
 def test_each_design_file_holds_the_values_its_parameter_sets_bind(name, geometry):
     from mast.core.build import SSP_SRC
     from mast.core.ssv import parse_ssv
 
     file = load(name)
-    bound = {k: p.value for set_ in ("mass_3prs", geometry)
-             for k, p in parse_ssv(SSP_SRC / "resources" / f"{set_}.ssv").items()}
+    bound = {
+        k: p.value
+        for set_ in ("mass_3prs", geometry)
+        for k, p in parse_ssv(SSP_SRC / "resources" / f"{set_}.ssv").items()
+    }
     values = file.values()
     assert bound["kinematics"] == file.name == "3PRS"
     assert {k: float(bound[k]) for k in values} == values
@@ -108,12 +123,21 @@ def hexapod_legs(template: str) -> str:
         pair = 120 * (k // 2)
         b = f"radians({pair} + {'-' if k % 2 == 0 else ''}gap)"
         p = f"radians({pair + 60 * (1 if k % 2 else -1)} + {'' if k % 2 else '-'}gap)"
-        leg = [f'name = "leg_{k + 1}"', f'base = ["Rb * cos({b})", "Rb * sin({b})", 0.0]',
-               f'platform = ["Rp * cos({p})", "Rp * sin({p})", 0.0]', f'axis = ["-sin({b})", "cos({b})", 0.0]']
+        leg = [
+            f'name = "leg_{k + 1}"',
+            f'base = ["Rb * cos({b})", "Rb * sin({b})", 0.0]',
+            f'platform = ["Rp * cos({p})", "Rp * sin({p})", 0.0]',
+            f'axis = ["-sin({b})", "cos({b})", 0.0]',
+        ]
         if template == "PUS":
-            leg = [f'name = "leg_{k + 1}"', f'base = ["Rb * cos({b})", "Rb * sin({b})", 0.0]',
-                   'guide = [0.0, 0.0, 1.0]', 'length = "Lp"',
-                   f'platform = ["Rp * cos({p})", "Rp * sin({p})", 0.0]', f'axis = ["-sin({b})", "cos({b})", 0.0]']
+            leg = [
+                f'name = "leg_{k + 1}"',
+                f'base = ["Rb * cos({b})", "Rb * sin({b})", 0.0]',
+                "guide = [0.0, 0.0, 1.0]",
+                'length = "Lp"',
+                f'platform = ["Rp * cos({p})", "Rp * sin({p})", 0.0]',
+                f'axis = ["-sin({b})", "cos({b})", 0.0]',
+            ]
         legs.append("[[legs]]\n" + "\n".join(leg) + "\n")
     return "\n".join(legs)
 
@@ -126,7 +150,9 @@ def points(file, values):
         pair = math.radians(120 * (k // 2))
         b = pair + (gap if k % 2 else -gap)
         p = pair + math.radians(60 * (1 if k % 2 else -1)) + (gap if k % 2 else -gap)
-        out.append((np.array([Rb * math.cos(b), Rb * math.sin(b), 0.0]), np.array([Rp * math.cos(p), Rp * math.sin(p), 0.0])))
+        out.append(
+            (np.array([Rb * math.cos(b), Rb * math.sin(b), 0.0]), np.array([Rp * math.cos(p), Rp * math.sin(p), 0.0]))
+        )
     return out
 
 
@@ -158,6 +184,7 @@ def test_a_6ups_hexapod_from_a_file_gives_the_leg_lengths_and_its_dk_the_pose(tm
             T += 0.5 * body.mass * Jq.v[body.name] @ Jq.v[body.name] + 0.5 * Jq.w[body.name] @ I @ Jq.w[body.name]
         V = sum(body.mass * 9.81 * com_z for body, com_z in zip(eng.bodies, _com_heights(eng, q)))
         return T + V
+
     h = 1e-6
     # q moves with qd and accelerates with the "Jdot rho_dot" of rho_ddot = 0
     qa = q0 + h * qd + 0.5 * h * h * jac.Jdot
@@ -169,15 +196,19 @@ def test_a_6ups_hexapod_from_a_file_gives_the_leg_lengths_and_its_dk_the_pose(tm
 
 def _com_heights(eng, q):
     ev = eng.description.evaluate(list(q))
-    return [float(o[2] + R[2][0] * b.com[0] + R[2][1] * b.com[1] + R[2][2] * b.com[2])
-            for b, (o, R) in zip(eng.bodies, ev.frames)]
+    return [
+        float(o[2] + R[2][0] * b.com[0] + R[2][1] * b.com[1] + R[2][2] * b.com[2])
+        for b, (o, R) in zip(eng.bodies, ev.frames)
+    ]
 
 
 def test_a_6pus_from_a_file_gives_the_slider_positions(tmp_path):
     text = changed('template = "UPS"', 'template = "PUS"', HEXAPOD).replace(
         'bodies.cylinder = { mass = "m_c", com = [0.15, 0.0, 0.0], inertia = [[0.001, 0, 0], [0, 0.01, 0], [0, 0, 0.01]] }\n'
-        'bodies.rod = { mass = "0.5 * m_c", com = [-0.1, 0.0, 0.0] }', 'bodies.link = { mass = "m_c", com = [0.3, 0, 0] }')
-    text = changed('[parameters]\n', '[parameters]\nLp = { value = 0.6, unit = "m", source = "assumed" }\n', text)
+        'bodies.rod = { mass = "0.5 * m_c", com = [-0.1, 0.0, 0.0] }',
+        'bodies.link = { mass = "m_c", com = [0.3, 0, 0] }',
+    )
+    text = changed("[parameters]\n", '[parameters]\nLp = { value = 0.6, unit = "m", source = "assumed" }\n', text)
     text = changed("stroke = [0.4, 1.0]", "stroke = [-0.3, 0.5]", text).replace('z = "h0"', 'z = "h0 + 0.3"')
     file = load(written(tmp_path, text + hexapod_legs("PUS"), "pus.toml"))
     eng = Engine(file.describe(), g=9.81)
@@ -240,8 +271,9 @@ def test_a_3rps_from_a_file_gives_the_leg_lengths_with_its_parasitic_motion(tmp_
 
         def residual(u):
             return np.array([Si @ np.array([-math.sin(a), math.cos(a), 0.0]) for Si, a in zip(S(*u), alpha)])
+
         u = np.zeros(3)
-        for _ in range(30):                         # Newton on S_i . t_i = 0, finite-difference Jacobian
+        for _ in range(30):  # Newton on S_i . t_i = 0, finite-difference Jacobian
             J = np.column_stack([(residual(u + e) - residual(u - e)) / 2e-7 for e in np.eye(3) * 1e-7])
             u = u - np.linalg.solve(J, residual(u))
         own = [np.linalg.norm(Si - 0.4 * np.array([math.cos(a), math.sin(a), 0.0])) for Si, a in zip(S(*u), alpha)]
@@ -251,60 +283,119 @@ def test_a_3rps_from_a_file_gives_the_leg_lengths_with_its_parasitic_motion(tmp_
 
 
 # ---- bad files ---------------------------------------------------------------------------------------
-@pytest.mark.parametrize("old, new, words", [
-    # a leg that does not close at home
-    ('name = "leg_1"', 'name = "leg_1"\nbase_radius = "H + L"',
-     r"bad.toml: leg 'leg_1' \(PRS\) does not close at the home pose \(z = 0.405147 m, psi = 0 rad, theta = 0 rad\): "
-     r"pose unreachable: leg 1 would need a horizontal reach of 0.31 m > L = 0.26 m"),
-    # the driven joint missing, doubled, or not drivable
-    ('drive = { joint = "P", kind = "linear", stroke = [0.0, 0.3] }', '',
-     r"bad.toml: leg 'leg_1' \(PRS\): no driven joint: expected exactly one"),
-    ('drive = { joint = "P", kind = "linear", stroke = [0.0, 0.3] }',
-     'drives = [{ joint = "P", kind = "linear", stroke = [0.0, 0.3] }, { joint = "R", kind = "rotary", stroke = [-1, 1] }]',
-     r"bad.toml: leg 'leg_1' \(PRS\): 2 driven joints: expected exactly one"),
-    ('drive = { joint = "P", kind = "linear"', 'drive = { joint = "S", kind = "linear"',
-     r"bad.toml: leg 'leg_1' \(PRS\): drive joint 'S': expected P"),
-    ('drive = { joint = "P", kind = "linear"', 'drive = { joint = "P", kind = "rotary"',
-     r"bad.toml: leg 'leg_1' \(PRS\): drive kind 'rotary': joint P is linear"),
-    # a number of drives that does not match the coordinates
-    ('coordinates = ["z", "psi", "theta"]', 'coordinates = ["z", "psi"]',
-     r"bad.toml: 3 drives \(one per leg\) for 2 coordinates \(z, psi\): expected one driven joint per coordinate"),
-    ('coordinates = ["z", "psi", "theta"]', 'coordinates = ["x", "psi", "theta"]',
-     r"bad.toml: \[mechanism\] coordinates x, psi, theta: legs of the plane family \(PRS\) need the coordinates "
-     r"z, psi, theta"),
-    # units of the wrong dimension
-    ('H = { value = 0.4, unit = "m"', 'H = { value = 0.4, unit = "kg"',
-     r"bad.toml: leg 'leg_1' \(PRS\): base_radius: expression 'H' is in kg: expected m \(its parameters' units: "
-     r"H \[kg\]\)"),
-    ('I_leg = { value = 0.0003943333333333334, unit = "kg.m2"', 'I_leg = { value = 0.0003943333333333334, unit = "kg"',
-     r"bad.toml: leg 'leg_1' \(PRS\): body 'leg_1' \(part link\): inertia row 2\[1\]: expression 'I_leg' is in kg: "
-     r"expected kg.m2"),
-    ('length = "L"', 'length = "L + alpha_1"', r"expression 'L \+ alpha_1': m \+ rad: units of different dimensions"),
-    ('H = { value = 0.4, unit = "m"', 'H = { value = 0.4, unit = "meters"', r"bad.toml: parameter 'H': unit 'meters'"),
-    # a singular home pose: two guides on top of each other
-    ('alpha_2 = { value = 1.5707963267948966', 'alpha_2 = { value = 0.0',
-     r"bad.toml: the home pose \(z = 0.405147 m, psi = 0 rad, theta = 0 rad\) is not admissible: singular"),
-    # a stroke that excludes home
-    ("stroke = [0.0, 0.3]", "stroke = [0.2, 0.3]",
-     r"bad.toml: leg 'leg_1': its drive's stroke \[0.2, 0.3\] excludes home \(0.15 at the home pose"),
-    ("stroke = [0.0, 0.3]", "stroke = [0.3, 0.0]", r"drive stroke \[0.3, 0.0\]: expected \[lower, upper\] \[m\]"),
-    # an expression outside the subset
-    ('length = "L"', 'length = "__import__(\'os\').getcwd()"',
-     r"bad.toml: leg 'leg_1' \(PRS\): length: expression .*: the call .* is outside the subset \(\+ - \* / \*\*"),
-    ('length = "L"', 'length = "L if H else r"', r"expression 'L if H else r': IfExp .* is outside the subset"),
-    ('length = "L"', 'length = "L ** 0.5"', r"a power other than an integer literal 1..8 is outside the subset"),
-    ('length = "L"', 'length = "[L][0]"', r"is outside the subset"),
-    # an unknown parameter name
-    ('length = "L"', 'length = "L_leg"',
-     r"bad.toml: leg 'leg_1' \(PRS\): length: expression 'L_leg': unknown parameter 'L_leg' \(parameters: H, r, L,"),
-    ('com = ["payload_x", "payload_y", "payload_z"]', 'com = ["payload_x", "payload_y", "payload_w"]',
-     r"bad.toml: body 'payload': com\[2\]: expression 'payload_w': unknown parameter 'payload_w'"),
-    # parameters without a source, unknown keys, an unknown template
-    ('source = "Paper section 3: leg length"', 'source = " "', r"bad.toml: parameter 'L': expected its source"),
-    ('template = "PRS"', 'template = "PPS"', r"bad.toml: leg 1: template 'PPS': expected one of PRS, RPS, UPS, PUS"),
-    ('inclination = "beta"', 'inclination = "beta"\nwidth = 0.1',
-     r"bad.toml: leg 'leg_1' \(PRS\): unknown 'width'"),
-])
+@pytest.mark.parametrize(
+    "old, new, words",
+    [
+        # a leg that does not close at home
+        (
+            'name = "leg_1"',
+            'name = "leg_1"\nbase_radius = "H + L"',
+            r"bad.toml: leg 'leg_1' \(PRS\) does not close at the home pose \(z = 0.405147 m, psi = 0 rad, theta = 0 rad\): "
+            r"pose unreachable: leg 1 would need a horizontal reach of 0.31 m > L = 0.26 m",
+        ),
+        # the driven joint missing, doubled, or not drivable
+        (
+            'drive = { joint = "P", kind = "linear", stroke = [0.0, 0.3] }',
+            "",
+            r"bad.toml: leg 'leg_1' \(PRS\): no driven joint: expected exactly one",
+        ),
+        (
+            'drive = { joint = "P", kind = "linear", stroke = [0.0, 0.3] }',
+            'drives = [{ joint = "P", kind = "linear", stroke = [0.0, 0.3] }, { joint = "R", kind = "rotary", stroke = [-1, 1] }]',
+            r"bad.toml: leg 'leg_1' \(PRS\): 2 driven joints: expected exactly one",
+        ),
+        (
+            'drive = { joint = "P", kind = "linear"',
+            'drive = { joint = "S", kind = "linear"',
+            r"bad.toml: leg 'leg_1' \(PRS\): drive joint 'S': expected P",
+        ),
+        (
+            'drive = { joint = "P", kind = "linear"',
+            'drive = { joint = "P", kind = "rotary"',
+            r"bad.toml: leg 'leg_1' \(PRS\): drive kind 'rotary': joint P is linear",
+        ),
+        # a number of drives that does not match the coordinates
+        (
+            'coordinates = ["z", "psi", "theta"]',
+            'coordinates = ["z", "psi"]',
+            r"bad.toml: 3 drives \(one per leg\) for 2 coordinates \(z, psi\): expected one driven joint per coordinate",
+        ),
+        (
+            'coordinates = ["z", "psi", "theta"]',
+            'coordinates = ["x", "psi", "theta"]',
+            r"bad.toml: \[mechanism\] coordinates x, psi, theta: legs of the plane family \(PRS\) need the coordinates "
+            r"z, psi, theta",
+        ),
+        # units of the wrong dimension
+        (
+            'H = { value = 0.4, unit = "m"',
+            'H = { value = 0.4, unit = "kg"',
+            r"bad.toml: leg 'leg_1' \(PRS\): base_radius: expression 'H' is in kg: expected m \(its parameters' units: "
+            r"H \[kg\]\)",
+        ),
+        (
+            'I_leg = { value = 0.0003943333333333334, unit = "kg.m2"',
+            'I_leg = { value = 0.0003943333333333334, unit = "kg"',
+            r"bad.toml: leg 'leg_1' \(PRS\): body 'leg_1' \(part link\): inertia row 2\[1\]: expression 'I_leg' is in kg: "
+            r"expected kg.m2",
+        ),
+        (
+            'length = "L"',
+            'length = "L + alpha_1"',
+            r"expression 'L \+ alpha_1': m \+ rad: units of different dimensions",
+        ),
+        (
+            'H = { value = 0.4, unit = "m"',
+            'H = { value = 0.4, unit = "meters"',
+            r"bad.toml: parameter 'H': unit 'meters'",
+        ),
+        # a singular home pose: two guides on top of each other
+        (
+            "alpha_2 = { value = 1.5707963267948966",
+            "alpha_2 = { value = 0.0",
+            r"bad.toml: the home pose \(z = 0.405147 m, psi = 0 rad, theta = 0 rad\) is not admissible: singular",
+        ),
+        # a stroke that excludes home
+        (
+            "stroke = [0.0, 0.3]",
+            "stroke = [0.2, 0.3]",
+            r"bad.toml: leg 'leg_1': its drive's stroke \[0.2, 0.3\] excludes home \(0.15 at the home pose",
+        ),
+        ("stroke = [0.0, 0.3]", "stroke = [0.3, 0.0]", r"drive stroke \[0.3, 0.0\]: expected \[lower, upper\] \[m\]"),
+        # an expression outside the subset
+        (
+            'length = "L"',
+            "length = \"__import__('os').getcwd()\"",
+            r"bad.toml: leg 'leg_1' \(PRS\): length: expression .*: the call .* is outside the subset \(\+ - \* / \*\*",
+        ),
+        ('length = "L"', 'length = "L if H else r"', r"expression 'L if H else r': IfExp .* is outside the subset"),
+        ('length = "L"', 'length = "L ** 0.5"', r"a power other than an integer literal 1..8 is outside the subset"),
+        ('length = "L"', 'length = "[L][0]"', r"is outside the subset"),
+        # an unknown parameter name
+        (
+            'length = "L"',
+            'length = "L_leg"',
+            r"bad.toml: leg 'leg_1' \(PRS\): length: expression 'L_leg': unknown parameter 'L_leg' \(parameters: H, r, L,",
+        ),
+        (
+            'com = ["payload_x", "payload_y", "payload_z"]',
+            'com = ["payload_x", "payload_y", "payload_w"]',
+            r"bad.toml: body 'payload': com\[2\]: expression 'payload_w': unknown parameter 'payload_w'",
+        ),
+        # parameters without a source, unknown keys, an unknown template
+        ('source = "Paper section 3: leg length"', 'source = " "', r"bad.toml: parameter 'L': expected its source"),
+        (
+            'template = "PRS"',
+            'template = "PPS"',
+            r"bad.toml: leg 1: template 'PPS': expected one of PRS, RPS, UPS, PUS",
+        ),
+        (
+            'inclination = "beta"',
+            'inclination = "beta"\nwidth = 0.1',
+            r"bad.toml: leg 'leg_1' \(PRS\): unknown 'width'",
+        ),
+    ],
+)
 def test_a_bad_description_is_refused_naming_the_file_the_part_and_what_was_expected(tmp_path, old, new, words):
     path = written(tmp_path, changed(old, new))
     with pytest.raises(DescriptionError, match=words):
@@ -328,7 +419,7 @@ def test_a_parameter_set_without_a_parameter_the_description_uses_is_refused_by_
     del values["m_leg"]
     with pytest.raises(ParameterError, match=r"mechanism: missing parameter 'm_leg' \[kg\] of the 3PRS description"):
         file.describe(values, owner="mechanism")
-    file.describe(values, masses=False)          # a kinematic model needs only the geometry
+    file.describe(values, masses=False)  # a kinematic model needs only the geometry
 
 
 def test_expressions_evaluate_in_the_subset_with_their_dimensions():

@@ -18,6 +18,7 @@ independent coordinates q = (z, psi, theta), so no direct kinematics enters them
 - the designs as systems: FMU co-simulation equals the direct composition, each variant
   system differs from the default one only by the swap.
 """
+
 from __future__ import annotations
 
 import math
@@ -36,9 +37,18 @@ from mast.core.ssp import read_ssd
 
 DEG = math.pi / 180.0
 EZ = np.array([0.0, 0.0, 1.0])
-PAYLOAD = {"m_payload": 1.7, "payload_x": 0.04, "payload_y": -0.03, "payload_z": 0.09,
-           "I_payload_xx": 0.012, "I_payload_yy": 0.009, "I_payload_zz": 0.015,
-           "I_payload_xy": 0.001, "I_payload_xz": -0.002, "I_payload_yz": 0.0015}
+PAYLOAD = {
+    "m_payload": 1.7,
+    "payload_x": 0.04,
+    "payload_y": -0.03,
+    "payload_z": 0.09,
+    "I_payload_xx": 0.012,
+    "I_payload_yy": 0.009,
+    "I_payload_zz": 0.015,
+    "I_payload_xy": 0.001,
+    "I_payload_xz": -0.002,
+    "I_payload_yz": 0.0015,
+}
 
 
 def system_params(design_name: str, component: str = "mechanism") -> dict:
@@ -67,10 +77,19 @@ def case(request):
 
 # ---- this file's own model ---------------------------------------------------------------------
 def rot(psi, theta, phi):
-    cx, sx, cy, sy, cz, sz = (math.cos(psi), math.sin(psi), math.cos(theta), math.sin(theta),
-                              math.cos(phi), math.sin(phi))
-    return (np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]]) @ np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
-            @ np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]]))
+    cx, sx, cy, sy, cz, sz = (
+        math.cos(psi),
+        math.sin(psi),
+        math.cos(theta),
+        math.sin(theta),
+        math.cos(phi),
+        math.sin(phi),
+    )
+    return (
+        np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]])
+        @ np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
+        @ np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]])
+    )
 
 
 def vee(W):
@@ -95,8 +114,13 @@ class Own:
         self.m_pl = P.get("m_payload", 0.0)
         self.c_pl = np.array([P.get("payload_x", 0.0), P.get("payload_y", 0.0), P.get("payload_z", 0.0)])
         xy, xz, yz = P.get("I_payload_xy", 0.0), P.get("I_payload_xz", 0.0), P.get("I_payload_yz", 0.0)
-        self.I_pl = np.array([[P.get("I_payload_xx", 0.0), xy, xz], [xy, P.get("I_payload_yy", 0.0), yz],
-                              [xz, yz, P.get("I_payload_zz", 0.0)]])
+        self.I_pl = np.array(
+            [
+                [P.get("I_payload_xx", 0.0), xy, xz],
+                [xy, P.get("I_payload_yy", 0.0), yz],
+                [xz, yz, P.get("I_payload_zz", 0.0)],
+            ]
+        )
 
     def parasitic(self, q):
         """(x, y, phi) by Newton on S_i . t_i = 0 (analytic Jacobian), from (0, 0, 0)."""
@@ -122,7 +146,7 @@ class Own:
             S = P + R @ (self.r * e)
             delta = S - self.H * e
             a = d @ delta
-            rho = a - math.sqrt(a * a - delta @ delta + self.L ** 2)      # the root below S_i
+            rho = a - math.sqrt(a * a - delta @ delta + self.L**2)  # the root below S_i
             out["S"].append(S)
             out["B"].append(self.H * e + rho * d)
             out["rho"].append(rho)
@@ -138,13 +162,13 @@ class Own:
         v = (p["P"] - m["P"]) / (2 * eps)
         w = vee(b0["R"].T @ (p["R"] - m["R"]) / (2 * eps))
         T = 0.5 * self.m_p * v @ v + 0.5 * w @ self.I_p @ w
-        vc = v + b0["R"] @ np.cross(w, self.c_pl)                         # payload centre of mass
+        vc = v + b0["R"] @ np.cross(w, self.c_pl)  # payload centre of mass
         T += 0.5 * self.m_pl * vc @ vc + 0.5 * w @ self.I_pl @ w
         for i in range(3):
             cm, cp = 0.5 * (m["S"][i] + m["B"][i]), 0.5 * (p["S"][i] + p["B"][i])
             u0 = (b0["S"][i] - b0["B"][i]) / self.L
             ud = ((p["S"][i] - p["B"][i]) - (m["S"][i] - m["B"][i])) / (2 * eps * self.L)
-            om = np.cross(u0, ud)                                           # planar leg: omega = u x u_dot
+            om = np.cross(u0, ud)  # planar leg: omega = u x u_dot
             vc_leg = (cp - cm) / (2 * eps)
             T += 0.5 * self.m_leg * vc_leg @ vc_leg + 0.5 * self.I_leg * om @ om
         return T
@@ -164,7 +188,7 @@ def home(own: Own, rho0: float = 0.15) -> float:
     """z of the level pose with every slider at rho0 (this file's geometry)."""
     base = own.H * own.e[0] + rho0 * own.d[0]
     gap = own.r - base @ own.e[0]
-    return base[2] + math.sqrt(own.L ** 2 - gap ** 2)
+    return base[2] + math.sqrt(own.L**2 - gap**2)
 
 
 def ddt(f, t, h):
@@ -180,8 +204,9 @@ class Path3:
 
     def __init__(self, own: Own, seed: int, tilt: float = 8.0) -> None:
         rng = np.random.default_rng(seed)
-        self.q0 = np.array([home(own) + rng.uniform(-0.015, 0.015), rng.uniform(-tilt, tilt) * DEG,
-                            rng.uniform(-tilt, tilt) * DEG])
+        self.q0 = np.array(
+            [home(own) + rng.uniform(-0.015, 0.015), rng.uniform(-tilt, tilt) * DEG, rng.uniform(-tilt, tilt) * DEG]
+        )
         self.A = np.array([0.02, 6 * DEG, 6 * DEG]) * rng.uniform(0.4, 1.0, 3)
         self.w = 2 * math.pi * rng.uniform(2.0, 5.0, 3)
         self.p = rng.uniform(0, 2 * math.pi, 3)
@@ -193,7 +218,7 @@ class Path3:
         return self.A * self.w * np.cos(self.w * t + self.p)
 
     def qdd(self, t):
-        return -self.A * self.w ** 2 * np.sin(self.w * t + self.p)
+        return -self.A * self.w**2 * np.sin(self.w * t + self.p)
 
 
 def joint_motion(own: Own, path: Path3, t: float):
@@ -225,7 +250,7 @@ def lagrange_in_q(own: Own, path: Path3, t: float):
     q, qd = path.q(t), path.qd(t)
     E = np.eye(3)
 
-    def momentum(qq, vv):       # T is quadratic in q_dot: a wide central difference is exact
+    def momentum(qq, vv):  # T is quadratic in q_dot: a wide central difference is exact
         return np.array([(own.kinetic(qq, vv + 0.05 * e) - own.kinetic(qq, vv - 0.05 * e)) / 0.1 for e in E])
 
     dpdt = ddt(lambda s: momentum(path.q(s), path.qd(s)), t, 2e-4)
@@ -243,14 +268,14 @@ def test_euler_lagrange_by_numbers(case):
         rho, rd, rdd = joint_motion(own, path, t)
         res = eng.inverse_dynamics_at_pose(path.q(t), rd, rdd)
         Qq, Gq, Mq = lagrange_in_q(own, path, t)
-        J = np.linalg.inv(own.drho_dq(path.q(t)))                          # dq/drho
+        J = np.linalg.inv(own.drho_dq(path.q(t)))  # dq/drho
         F, G, M = J.T @ Qq, J.T @ Gq, J.T @ Mq @ J
         scale = np.abs(res.t_rho).max()
         np.testing.assert_allclose(res.t_rho, F, atol=2e-6 * scale, err_msg=name)
         np.testing.assert_allclose(res.g_term, G, atol=2e-6 * scale, err_msg=name)
         np.testing.assert_allclose(res.M, M, atol=2e-6 * np.abs(M).max(), err_msg=name)
         np.testing.assert_allclose(res.c_term, F - G - M @ rdd, atol=2e-6 * scale, err_msg=name)
-        assert np.abs(res.c_term).max() > 100 * 2e-6 * scale                # the velocity terms are exercised
+        assert np.abs(res.c_term).max() > 100 * 2e-6 * scale  # the velocity terms are exercised
         np.testing.assert_allclose(res.I_term + res.c_term + res.g_term, res.t_rho, atol=1e-12)
         np.testing.assert_allclose(sum(i + c + g for i, c, g in res.terms.values()), res.t_rho, atol=1e-11)
 
@@ -286,7 +311,7 @@ def test_static_equilibrium(case):
         res = eng.inverse_dynamics_at_pose(q, (0, 0, 0), (0, 0, 0))
         np.testing.assert_allclose(res.t_rho, statics(own, q), atol=1e-10, err_msg=name)
         np.testing.assert_allclose(res.t_rho, res.g_term, atol=0)
-        if own.beta == 0.0:     # vertical frictionless guides carry no vertical load
+        if own.beta == 0.0:  # vertical frictionless guides carry no vertical load
             total = (own.m_p + own.m_pl + 3 * own.m_leg) * own.g
             assert res.t_rho.sum() == pytest.approx(total, abs=1e-10)
 
@@ -307,8 +332,8 @@ def test_ik_and_dk_round_trips(case):
         q = np.array([home(own) + rng.uniform(-0.04, 0.04), rng.uniform(-15, 15) * DEG, rng.uniform(-15, 15) * DEG])
         rho = own.rho(q)
         np.testing.assert_allclose(eng.ik(q), rho, atol=1e-12, err_msg=name)
-        np.testing.assert_allclose(eng.dk(rho)[0], q, atol=1e-11, err_msg=name)                      # cold
-        np.testing.assert_allclose(eng.dk(rho, guess=q + 0.01)[0], q, atol=1e-11, err_msg=name)      # warm
+        np.testing.assert_allclose(eng.dk(rho)[0], q, atol=1e-11, err_msg=name)  # cold
+        np.testing.assert_allclose(eng.dk(rho, guess=q + 0.01)[0], q, atol=1e-11, err_msg=name)  # warm
         x, y, phi = own.parasitic(q)
         np.testing.assert_allclose(eng.pose(q), [x, y, q[0], q[1], q[2], phi], atol=1e-14, err_msg=name)
 
@@ -326,7 +351,9 @@ def test_jacobians_and_rates_against_differences(case):
     P = lambda s: own.poses(eng.dk(rho0 + s * rd, tol=1e-15)[0])["P"]  # noqa: E731
     np.testing.assert_allclose(jac.v["platform"], ddt(P, 0.0, 1e-4), atol=1e-8)
     np.testing.assert_allclose(jac.J_v["platform"] @ rd, jac.v["platform"], atol=1e-14)
-    np.testing.assert_allclose(jac.a0["platform"], d2dt2(P, 0.0, 2e-3), atol=1e-5 * (1 + np.abs(jac.a0["platform"]).max()))
+    np.testing.assert_allclose(
+        jac.a0["platform"], d2dt2(P, 0.0, 2e-3), atol=1e-5 * (1 + np.abs(jac.a0["platform"]).max())
+    )
 
 
 def test_controller_uses_the_design_kinematics(controller_params):
@@ -363,8 +390,9 @@ def probe(eng, q):
     return cond
 
 
-@pytest.mark.parametrize("direction", [(0.0, 1.0, 0.0), (0.0, 0.0, -1.0), (0.0, 0.7, 0.7), (1.0, 0.0, 0.0),
-                                       (-1.0, 0.0, 0.0)])
+@pytest.mark.parametrize(
+    "direction", [(0.0, 1.0, 0.0), (0.0, 0.0, -1.0), (0.0, 0.7, 0.7), (1.0, 0.0, 0.0), (-1.0, 0.0, 0.0)]
+)
 def test_rays_to_the_workspace_boundary(case, direction):
     """Walking out of the workspace: finite results up to a clear error, never a NaN."""
     name, params, eng, own = case
@@ -374,7 +402,7 @@ def test_rays_to_the_workspace_boundary(case, direction):
     assert outcomes[0] is not None
     first_failure = next((k for k, c in enumerate(outcomes) if c is None), None)
     if direction[0] == 0.0:
-        assert first_failure is not None, name                      # a tilt of 70 deg is out of range
+        assert first_failure is not None, name  # a tilt of 70 deg is out of range
     # the reachable part is one piece: no pose works again after the first failure along the ray
     if first_failure is not None:
         assert all(c is None for c in outcomes[first_failure:]) or direction[0] != 0.0
@@ -388,14 +416,14 @@ def test_singularity_is_flagged_then_refused(case):
     short = {**params, "L": params["H"] - params["r"] * math.cos(params["beta"]) + 0.06}
     eng, own = designs.engine(short), Own(short)
     z = home(own)
-    lo, hi = 0.0, 59.0 * DEG                     # psi: find where the pose stops being reachable
+    lo, hi = 0.0, 59.0 * DEG  # psi: find where the pose stops being reachable
     assert probe(eng, (z, 0.0, lo)) is not None and probe(eng, (z, 0.0, hi)) is None, name
     for _ in range(60):
         mid = 0.5 * (lo + hi)
         lo, hi = (mid, hi) if probe(eng, (z, 0.0, mid)) is not None else (lo, mid)
     conds = [probe(eng, (z, 0.0, lo - d)) for d in (1e-2, 1e-4, 1e-6)]
     assert all(c is not None for c in conds), name
-    assert conds[0] < conds[1] < conds[2] and conds[2] > 30 * conds[0], (name, conds)   # the flag
+    assert conds[0] < conds[1] < conds[2] and conds[2] > 30 * conds[0], (name, conds)  # the flag
     with pytest.raises(KinematicsError, match="unreachable"):
         eng.ik((z, 0.0, hi + 1e-9))
     res = eng.inverse_dynamics_at_pose((z, 0.0, lo - 1e-6), (0, 0, 0), (0, 0, 0))
@@ -404,7 +432,7 @@ def test_singularity_is_flagged_then_refused(case):
 
 def test_degenerate_layout_is_singular():
     file = designs.description("3PRS")
-    desc = file.describe({**file.values(), "alpha_2": 0.0, "alpha_3": math.pi})       # two guides on top of each other
+    desc = file.describe({**file.values(), "alpha_2": 0.0, "alpha_3": math.pi})  # two guides on top of each other
     with pytest.raises(KinematicsError, match="singular"):
         designs.Engine(desc).ik((0.4, 0.05, 0.05))
 
@@ -428,10 +456,10 @@ def test_engine_agrees_with_appendix_a(mechanism_params):
         gamma = jacobians(geom, *q).pose.gamma
         Jx, Jq, JxJq, Jb, JR = appendix(geom, q, gamma)
         np.testing.assert_allclose(jac.J, JxJq, atol=1e-12)
-        for i, flip in ((0, 1.0), (1, 1.0), (2, -1.0)):          # bar 3: the paper's x is -radial
+        for i, flip in ((0, 1.0), (1, 1.0), (2, -1.0)):  # bar 3: the paper's x is -radial
             e = np.array([math.cos(geom.alpha[i]), math.sin(geom.alpha[i]), 0.0])
             leg = f"leg_{i + 1}"
-            rows = np.array([flip * (e @ jac.J_v[leg]), jac.J_v[leg][2], jac.J_w[leg][1]])   # radial, height, gamma
+            rows = np.array([flip * (e @ jac.J_v[leg]), jac.J_v[leg][2], jac.J_w[leg][1]])  # radial, height, gamma
             np.testing.assert_allclose(rows, Jb[i], atol=1e-12)
         np.testing.assert_allclose(jac.J_v["platform"], jacobians(geom, *q).J_G, atol=1e-12)
         np.testing.assert_allclose(jac.J_w["platform"], JR, atol=1e-12)
@@ -443,14 +471,19 @@ def test_engine_agrees_with_the_closed_form(mechanism_params, alpha):
     eng, geom, ms = designs.engine(P), Geometry.from_params(P), Masses.from_params(P)
     rng = np.random.default_rng(8)
     from fmus.mechanism.kinematics import inverse_kinematics
+
     for _ in range(20):
         q = (0.405 + rng.uniform(-0.04, 0.04), rng.uniform(-15, 15) * DEG, rng.uniform(-15, 15) * DEG)
         rd, rdd = rng.uniform(-1, 1, 3), rng.uniform(-10, 10, 3)
-        assert tuple(eng.ik(q)) == tuple(inverse_kinematics(geom, *q))          # same floats
+        assert tuple(eng.ik(q)) == tuple(inverse_kinematics(geom, *q))  # same floats
         new, old = eng.inverse_dynamics_at_pose(q, rd, rdd), inverse_dynamics_at_pose(geom, ms, q, rd, rdd)
         scale = np.abs(old.t_rho).max()
-        for a, b in ((new.t_rho, old.t_rho), (new.I_term, old.I_term), (new.c_term, old.c_term),
-                     (new.g_term, old.g_term)):
+        for a, b in (
+            (new.t_rho, old.t_rho),
+            (new.I_term, old.I_term),
+            (new.c_term, old.c_term),
+            (new.g_term, old.g_term),
+        ):
             np.testing.assert_allclose(a, b, atol=1e-12 * scale)
         np.testing.assert_allclose(new.M, old.M, atol=1e-14)
 
@@ -485,9 +518,9 @@ def test_payload_adds_its_weight_and_moves_the_load(mechanism_params):
     F0 = np.array([bare.get(f"F_{i}") for i in (1, 2, 3)])
     F1 = np.array([loaded.get(f"F_{i}") for i in (1, 2, 3)])
     assert (F1 - F0).sum() == pytest.approx(PAYLOAD["m_payload"] * 9.81, abs=1e-10)
-    assert F1[0] - F0[0] > F1[2] - F0[2]               # centre of mass towards guide 1 (+x)
+    assert F1[0] - F0[0] > F1[2] - F0[2]  # centre of mass towards guide 1 (+x)
     with pytest.raises(Exception, match="I_payload"):
-        MechanismBlock({**mechanism_params, **PAYLOAD, "I_payload_xy": 0.5})     # not positive semi-definite
+        MechanismBlock({**mechanism_params, **PAYLOAD, "I_payload_xy": 0.5})  # not positive semi-definite
 
 
 def test_bad_design_parameters_are_named(mechanism_params):
@@ -496,9 +529,9 @@ def test_bad_design_parameters_are_named(mechanism_params):
     with pytest.raises(ParameterError, match="'kinematics'"):
         MechanismBlock({**mechanism_params, "kinematics": "6UPS"})
     with pytest.raises(ParameterError, match="'beta'"):
-        MechanismBlock({**mechanism_params, "beta": 1.2})                                # beyond 45 deg
+        MechanismBlock({**mechanism_params, "beta": 1.2})  # beyond 45 deg
     with pytest.raises(ParameterError, match="'H', 'r', 'L', 'beta'"):
-        MechanismBlock({**mechanism_params, "beta": 0.6})                                # no assembly
+        MechanismBlock({**mechanism_params, "beta": 0.6})  # no assembly
 
 
 def test_variant_systems_differ_from_the_default_only_by_the_swap():
@@ -510,17 +543,23 @@ def test_variant_systems_differ_from_the_default_only_by_the_swap():
         for name, comp in system.components.items():
             ref = default.components[name]
             assert (comp.inputs, comp.outputs, comp.step_size) == (ref.inputs, ref.outputs, ref.step_size)
-            changed = {k for k in set(comp.parameters) | set(ref.parameters)
-                       if comp.parameters.get(k) != ref.parameters.get(k)}
+            changed = {
+                k for k in set(comp.parameters) | set(ref.parameters) if comp.parameters.get(k) != ref.parameters.get(k)
+            }
             if name == "mechanism":
                 assert Path(comp.source).stem == d.model_identifier
             else:
                 assert comp.source == ref.source
             allowed = set(designs.KINEMATIC_PARAMETERS_NAMES) | {"attached", "g_guide"}
             assert changed <= allowed, (d.name, name, changed)
-        assert system.components["mechanism"].parameters.items() >= {
-            k: v for k, v in system.components["controller"].parameters.items()
-            if k in designs.KINEMATIC_PARAMETERS_NAMES}.items()          # one geometry for both
+        assert (
+            system.components["mechanism"].parameters.items()
+            >= {
+                k: v
+                for k, v in system.components["controller"].parameters.items()
+                if k in designs.KINEMATIC_PARAMETERS_NAMES
+            }.items()
+        )  # one geometry for both
 
 
 @pytest.fixture(scope="module")

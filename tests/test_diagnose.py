@@ -6,6 +6,7 @@ measured-data folder. A compact test plan keeps the suite short: z sines at 0.6,
 frequency order is held out (theta 1.5 Hz, z 7 Hz). Default noise: 2 mN m on the torque,
 1 um encoder steps, the drive's 0.5 ms torque filter. Seeds differ between cases.
 """
+
 from __future__ import annotations
 
 import json
@@ -14,17 +15,25 @@ from pathlib import Path
 
 import pytest
 
+from mast.analyses.synthesize import TestSpec as Spec
+from mast.analyses.synthesize import synthesize
 from mast.diagnosis import Options, diagnose
-from mast.analyses.synthesize import TestSpec as Spec, synthesize
 
 ROOT = Path(__file__).resolve().parents[1]
 
-PLAN = (Spec("z", 0.005, 0.6, 2.0, 0.3), Spec("theta", math.radians(0.8), 1.5, 1.0, 0.3),
-        Spec("z", 0.005, 3.0, 1.0, 0.3), Spec("z", 0.005, 7.0, 0.8, 0.3))
+PLAN = (
+    Spec("z", 0.005, 0.6, 2.0, 0.3),
+    Spec("theta", math.radians(0.8), 1.5, 1.0, 0.3),
+    Spec("z", 0.005, 3.0, 1.0, 0.3),
+    Spec("z", 0.005, 7.0, 0.8, 0.3),
+)
 IDENTIFIED = {"tau_c": 0.0718, "J1_scale": 1 / 1.56}
 #: a smaller plan of other frequencies, amplitudes and axes: z 1.2 Hz 4 mm, psi 2.5 Hz 0.6 deg, z 5 Hz 3 mm (psi held out)
-SMALL = (Spec("z", 0.004, 1.2, 1.1, 0.3), Spec("psi", math.radians(0.6), 2.5, 0.8, 0.3),
-         Spec("z", 0.003, 5.0, 0.6, 0.2))
+SMALL = (
+    Spec("z", 0.004, 1.2, 1.1, 0.3),
+    Spec("psi", math.radians(0.6), 2.5, 0.8, 0.3),
+    Spec("z", 0.003, 5.0, 0.6, 0.2),
+)
 
 
 @pytest.fixture(scope="module")
@@ -78,7 +87,7 @@ def test_paper_case(built_ssp, tmp_path, seed):
     for e in effects.values():
         assert e["uncertainty"][next(iter(e["parameters"]))]["std"] > 0
         assert e["evidence"]["when_added"]["delta_bic_training"] < -10
-    if seed == 1:   # the outputs a user gets
+    if seed == 1:  # the outputs a user gets
         out = tmp_path / "out"
         text = (out / "report.md").read_text()
         for fig in ("fig_time.png", "fig_residual_signals.png", "fig_residual_frequency.png"):
@@ -92,7 +101,7 @@ def test_paper_case(built_ssp, tmp_path, seed):
         assert p["J1_scale"] == pytest.approx(effects["inertia_motor"]["parameters"]["J1_scale"], rel=1e-12)
 
 
-CASES = {   # effect key: (truth, parameters to recover)
+CASES = {  # effect key: (truth, parameters to recover)
     "coulomb": ({"tau_c": 0.035}, ("tau_c",)),
     # viscous friction: beside an inertia change on one axis, on two plans, in tests/test_diagnose_split.py
     "stribeck": ({"tau_s": 0.02, "omega_s": 3.0}, ("tau_s", "omega_s")),
@@ -114,7 +123,7 @@ def test_each_library_effect_hidden_alone_is_named(built_ssp, tmp_path, case):
     doc = run_case(built_ssp, tmp_path, truth, seed=SEEDS[case])
     effects = named(doc)
     assert len(effects) == 1, effects
-    (key, effect), = effects.items()
+    ((key, effect),) = effects.items()
     assert doc["verdict"]["status"] == "explained"
     if case == "inertia_guide":
         # the two sides of the transmission: either named directly or reported as the equivalent alternative
@@ -132,8 +141,9 @@ def test_each_library_effect_hidden_alone_is_named(built_ssp, tmp_path, case):
         assert error <= max(0.05 * abs(truth[p]), 3 * std) and error <= 0.1 * abs(truth[p]), (p, effect)
 
 
-@pytest.mark.parametrize("plan, seed", [(PLAN, 3), (PLAN, 4), (SMALL, 95), (SMALL, 96)],
-                         ids=["plan-3", "plan-4", "small-95", "small-96"])
+@pytest.mark.parametrize(
+    "plan, seed", [(PLAN, 3), (PLAN, 4), (SMALL, 95), (SMALL, 96)], ids=["plan-3", "plan-4", "small-95", "small-96"]
+)
 def test_nothing_hidden_names_nothing(built_ssp, tmp_path, plan, seed):
     doc = run_case(built_ssp, tmp_path, {}, seed, plan=plan)
     assert doc["named_effects"] == []
@@ -170,7 +180,7 @@ def test_backlash_hidden_alone_is_named_on_the_phase_free_score(built_ssp, tmp_p
     effects = named(doc)
     assert set(effects) == {"backlash"}
     assert doc["verdict"]["status"] == "explained"
-    assert doc["verdict"]["judged_by_band_powers"]          # where the loop hunts: not sample by sample
+    assert doc["verdict"]["judged_by_band_powers"]  # where the loop hunts: not sample by sample
     effect = effects["backlash"]
     value, unc = effect["parameters"]["backlash"], effect["uncertainty"]["backlash"]
     error = abs(value - backlash)
@@ -187,9 +197,13 @@ def test_backlash_hidden_alone_is_named_on_the_phase_free_score(built_ssp, tmp_p
 
 #: the issue's kind of plan (issue 18): z, psi and theta at other frequencies and amplitudes than PLAN; the
 #: default split holds out the rotations (psi 1.8 Hz, theta 4 Hz), so the fast z tests are all training
-ISSUE_PLAN = (Spec("z", 0.004, 0.7, 1.2, 0.3), Spec("psi", math.radians(0.7), 1.8, 0.9, 0.3),
-              Spec("z", 0.003, 3.5, 0.8, 0.2), Spec("theta", math.radians(0.5), 4.0, 0.7, 0.2),
-              Spec("z", 0.0025, 6.0, 0.7, 0.2))
+ISSUE_PLAN = (
+    Spec("z", 0.004, 0.7, 1.2, 0.3),
+    Spec("psi", math.radians(0.7), 1.8, 0.9, 0.3),
+    Spec("z", 0.003, 3.5, 0.8, 0.2),
+    Spec("theta", math.radians(0.5), 4.0, 0.7, 0.2),
+    Spec("z", 0.0025, 6.0, 0.7, 0.2),
+)
 
 
 def test_nothing_hidden_on_the_issue_plan_names_nothing(built_ssp, tmp_path):
@@ -198,7 +212,7 @@ def test_nothing_hidden_on_the_issue_plan_names_nothing(built_ssp, tmp_path):
     doc = diagnose(Options(data, tmp_path / "out", built_ssp, figures=False, native=True), log=lambda *_: None)
     assert doc["named_effects"] == [] and doc["verdict"]["status"] == "nothing missing"
     assert doc["identifiability"]["backlash"]["plan_meets"]
-    assert doc["timing"]["simulated_ssp"] == compiled(built_ssp)     # Options.native: the variant beside the SSP
+    assert doc["timing"]["simulated_ssp"] == compiled(built_ssp)  # Options.native: the variant beside the SSP
 
 
 def test_cli_and_errors(built_ssp, tmp_path, capsys):
@@ -207,15 +221,33 @@ def test_cli_and_errors(built_ssp, tmp_path, capsys):
     data = tmp_path / "data"
     synthesize(built_ssp, data, {"actuator": IDENTIFIED}, tests=PLAN[2:3], direct=True, seed=6, log=lambda *_: None)
     # the identified set as the nominal model (a parameter set inside the SSP): nothing is missing
-    assert main(["diagnose", built_ssp, "--measured", str(data), "--out", str(tmp_path / "o"),
-                 "--model", "actuator_identified"]) == 0
+    assert (
+        main(
+            [
+                "diagnose",
+                built_ssp,
+                "--measured",
+                str(data),
+                "--out",
+                str(tmp_path / "o"),
+                "--model",
+                "actuator_identified",
+            ]
+        )
+        == 0
+    )
     doc = json.loads((tmp_path / "o" / "diagnosis.json").read_text())
     # one z test at 3 Hz: the console and the report say what such a plan cannot tell
     console = capsys.readouterr().out
-    for title, why in (("carriage or payload mass", "only motions of the axes alike"),
-                       ("backlash", "only one test at 3 Hz"), ("Stribeck", "no test at 1 Hz or below")):
-        assert any(line.startswith("diagnose: this plan cannot tell") and title in line and why in line
-                   for line in console.splitlines()), (title, console)
+    for title, why in (
+        ("carriage or payload mass", "only motions of the axes alike"),
+        ("backlash", "only one test at 3 Hz"),
+        ("Stribeck", "no test at 1 Hz or below"),
+    ):
+        assert any(
+            line.startswith("diagnose: this plan cannot tell") and title in line and why in line
+            for line in console.splitlines()
+        ), (title, console)
     report = (tmp_path / "o" / "report.md").read_text()
     assert "## What this test plan cannot tell" in report
     assert "| carriage_mass |" in report and "| backlash |" in report and "| lag |" not in report
@@ -225,12 +257,16 @@ def test_cli_and_errors(built_ssp, tmp_path, capsys):
     assert doc["augmented_model"]["values"]["tau_c"] == 0.0718
     # the SSP's native variant is built beside it (the fixture): the CLI re-simulates on it by default
     assert doc["timing"]["simulator"].startswith("the native FMUs") and doc["ssp"] == built_ssp
-    assert main(["diagnose", built_ssp, "--measured", str(data), "--out", str(tmp_path / "x"), "--fmu", "--direct"]) == 2
+    assert (
+        main(["diagnose", built_ssp, "--measured", str(data), "--out", str(tmp_path / "x"), "--fmu", "--direct"]) == 2
+    )
     import shutil
 
-    alone = shutil.copy(built_ssp, tmp_path / "alone.ssp")     # no native variant beside it
+    alone = shutil.copy(built_ssp, tmp_path / "alone.ssp")  # no native variant beside it
     assert main(["diagnose", str(alone), "--measured", str(data), "--out", str(tmp_path / "x"), "--native"]) == 2
     assert "no native variant" in capsys.readouterr().err and not (tmp_path / "x").exists()
     assert main(["diagnose", built_ssp, "--measured", str(tmp_path / "nowhere"), "--out", str(tmp_path / "x")]) == 2
-    assert main(["diagnose", built_ssp, "--measured", str(data), "--out", str(tmp_path / "x"),
-                 "--model", "no_such_set"]) == 2
+    assert (
+        main(["diagnose", built_ssp, "--measured", str(data), "--out", str(tmp_path / "x"), "--model", "no_such_set"])
+        == 2
+    )

@@ -17,14 +17,14 @@ named alone, the verdict, an interval that holds the truth, every test the value
 other one quieter than the re-simulations; never which test falls into which regime (marker ``regime``: .ci/run runs
 them again under another BLAS kernel).
 """
+
 from __future__ import annotations
 
 import pytest
-
-from mast.diagnosis import Options, diagnose
-from mast.analyses.synthesize import synthesize
-
 from test_diagnose import ISSUE_PLAN, PLAN, built_ssp, compiled, named  # noqa: F401  (the module's fixture)
+
+from mast.analyses.synthesize import synthesize
+from mast.diagnosis import Options, diagnose
 
 pytestmark = pytest.mark.regime
 
@@ -32,12 +32,16 @@ pytestmark = pytest.mark.regime
 def run(ssp: str, tmp, truth: dict, plan, seed: int, **options) -> dict:
     data = tmp / "data"
     synthesize(ssp, data, truth, tests=plan, direct=True, seed=seed, log=lambda *_: None)
-    return diagnose(Options(data, tmp / "out", compiled(ssp), figures=False, direct=False, **options),
-                    log=lambda *_: None)
+    return diagnose(
+        Options(data, tmp / "out", compiled(ssp), figures=False, direct=False, **options), log=lambda *_: None
+    )
 
 
-@pytest.mark.parametrize("backlash, plan, seed", [(0.0045, ISSUE_PLAN, 72), (0.0065, PLAN, 73)],
-                         ids=["issue-plan-4.5mrad", "default-plan-6.5mrad"])
+@pytest.mark.parametrize(
+    "backlash, plan, seed",
+    [(0.0045, ISSUE_PLAN, 72), (0.0065, PLAN, 73)],
+    ids=["issue-plan-4.5mrad", "default-plan-6.5mrad"],
+)
 def test_backlash_is_named_within_5_percent(built_ssp, tmp_path, backlash, plan, seed):
     """Backlash alone: named (nothing else), its value within 5 % with a 95 % interval that holds it (determined on
     the plan), confirmed by leave-one-test-out, the band powers of every test it is fitted on at the floor with it
@@ -59,14 +63,16 @@ def test_backlash_is_named_within_5_percent(built_ssp, tmp_path, backlash, plan,
     grid = sorted(pf["profile"])
     assert grid[0] < value < grid[-1]
     assert pf["value_determined"]
-    if plan is ISSUE_PLAN:   # where the deviance had no curvature, the report would say the plan does not pin the value
+    if plan is ISSUE_PLAN:  # where the deviance had no curvature, the report would say the plan does not pin the value
         from mast.diagnosis.report import write_report
 
         assert "not determined on this plan" not in (tmp_path / "out" / "report.md").read_text()
         pf["value_determined"], pf["value_not_determined_because"] = False, ["z_3.5Hz predicted at 0.008 ..."]
         write_report(tmp_path / "out", doc, {})
-        assert "Its value is not determined on this plan (z_3.5Hz predicted at 0.008" in (
-            tmp_path / "out" / "report.md").read_text()
+        assert (
+            "Its value is not determined on this plan (z_3.5Hz predicted at 0.008"
+            in (tmp_path / "out" / "report.md").read_text()
+        )
 
 
 def test_backlash_is_named_whichever_regime_each_record_hunts_in(built_ssp, tmp_path):

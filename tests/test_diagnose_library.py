@@ -1,6 +1,7 @@
 """The diagnosis library without simulation (issue 18): per-axis measurement effects against the FMU's own
 sample-by-sample sensor, per-axis columns, the equivalent inertia of one axis's transmission by hand, the
 per-axis identifiability requirements and the grid of a discrete (cycle-time) parameter. Milliseconds."""
+
 from __future__ import annotations
 
 import math
@@ -9,13 +10,28 @@ import numpy as np
 import pytest
 
 from fmus.actuator.sensor import TorqueSensor
-from mast.diagnosis.effects import AXIS_OF, BY_KEY, MEASUREMENT, Chain, SimSignals, chain_for, column
+from mast.diagnosis.effects import AXIS_OF, BY_KEY, MEASUREMENT, SimSignals, chain_for, column
 
 H = 1e-4
-NOMINAL = {"T_meas": 0.0, "delay_meas": 0.0, "tau_offset": 0.0, "p": 0.07, "i_r": 91 / 6, "omega_c": 0.5,
-           "J1_scale": 1.0, "J_motor": 1.42e-5, "J_gearbox": 1.4e-6, "J_coupling": 4.68e-6, "J_brake": 1e-6,
-           "J_guide": 4.524e-4, "M_load": 2.27, "g_guide": 9.81, "tau_c": 0.02, "b_v": 0.0,
-           **{p: 0.0 for p in AXIS_OF}}
+NOMINAL = {
+    "T_meas": 0.0,
+    "delay_meas": 0.0,
+    "tau_offset": 0.0,
+    "p": 0.07,
+    "i_r": 91 / 6,
+    "omega_c": 0.5,
+    "J1_scale": 1.0,
+    "J_motor": 1.42e-5,
+    "J_gearbox": 1.4e-6,
+    "J_coupling": 4.68e-6,
+    "J_brake": 1e-6,
+    "J_guide": 4.524e-4,
+    "M_load": 2.27,
+    "g_guide": 9.81,
+    "tau_c": 0.02,
+    "b_v": 0.0,
+    **{p: 0.0 for p in AXIS_OF},
+}
 
 
 def signals(m: int = 1500, seed: int = 3) -> SimSignals:
@@ -31,7 +47,13 @@ def test_a_per_axis_lag_and_offset_match_the_fmus_sensor_on_that_axis():
     """The chain with a filter on axis 1, a delay on axis 2 and an offset on axis 3 (increments on the all-axes
     values) equals the FMU's own sample-by-sample sensor (TorqueSensor) per axis, then the drive filter."""
     s = signals()
-    params = {**NOMINAL, "T_meas": 4e-4, "T_meas_axis1": 1.7e-3, "delay_meas_axis2": 2.35e-3, "tau_offset_axis3": -0.007}
+    params = {
+        **NOMINAL,
+        "T_meas": 4e-4,
+        "T_meas_axis1": 1.7e-3,
+        "delay_meas_axis2": 2.35e-3,
+        "tau_offset_axis3": -0.007,
+    }
     chain = chain_for(params, H, 5e-4, 0.0)
     got = chain.observe(s.tau_m)
     per_axis = [(2.1e-3, 0.0, 0.0), (4e-4, 2.35e-3, 0.0), (4e-4, 0.0, -0.007)]
@@ -63,7 +85,9 @@ def test_a_per_axis_increment_that_makes_its_axis_unphysical_is_out_of_bounds():
     assert physical_bounds("tau_c", NOMINAL) == BOUNDS["tau_c"]
     lag1 = BY_KEY["lag_axis1"]
     assert not _in_bounds(lag1, NOMINAL, -1e-4) and _in_bounds(lag1, NOMINAL, 1e-4)
-    assert not _in_bounds(BY_KEY["coulomb_axis2"], NOMINAL, -0.021) and _in_bounds(BY_KEY["coulomb_axis2"], NOMINAL, -0.019)
+    assert not _in_bounds(BY_KEY["coulomb_axis2"], NOMINAL, -0.021) and _in_bounds(
+        BY_KEY["coulomb_axis2"], NOMINAL, -0.019
+    )
 
 
 @pytest.mark.parametrize("param", ["tau_c", "J1_scale", "M_load", "tau_offset", "T_meas"])
@@ -102,13 +126,22 @@ def test_per_axis_requirements_need_that_axis_to_move():
         return excitation(name, role, t, 0.15 + np.column_stack([0 * s, s, -s]))
 
     plan = [test("a", "training", 1.0), test("b", "held-out", 3.5), test("c", "training", 6.0)]
-    keys = ["coulomb_axis1", "inertia_motor_axis1", "lag_axis1", "coulomb_axis2", "inertia_motor_axis3",
-            "carriage_mass_axis2", "offset_axis3", "velocity_cycle", "current_limit"]
+    keys = [
+        "coulomb_axis1",
+        "inertia_motor_axis1",
+        "lag_axis1",
+        "coulomb_axis2",
+        "inertia_motor_axis3",
+        "carriage_mass_axis2",
+        "offset_axis3",
+        "velocity_cycle",
+        "current_limit",
+    ]
     got = identifiability(plan, keys)
     assert not any(got[k]["plan_meets"] for k in keys if k.endswith("_axis1"))
     assert all(got[k]["plan_meets"] for k in ("coulomb_axis2", "inertia_motor_axis3", "offset_axis3", "velocity_cycle"))
     assert "that axis moves" in got["coulomb_axis2"]["requires"]
-    assert not got["carriage_mass_axis2"]["plan_meets"]       # no motion of the axes alike (z)
+    assert not got["carriage_mass_axis2"]["plan_meets"]  # no motion of the axes alike (z)
 
 
 def test_a_cycle_time_lives_on_its_grid():
@@ -119,7 +152,7 @@ def test_a_cycle_time_lives_on_its_grid():
     ctx = SimpleNamespace(nominal={"T_cur": 1e-4})
     got = _snap(ctx, {"T_vel": 1.86e-3, "k_p": 0.05, "tau_c_axis2": 0.01})
     assert got["T_vel"] == pytest.approx(19e-4, rel=1e-12) and got["k_p"] == 0.05
-    assert _snap(ctx, {"T_vel": 1e-6})["T_vel"] == pytest.approx(1e-4)   # at least one current-loop cycle
+    assert _snap(ctx, {"T_vel": 1e-6})["T_vel"] == pytest.approx(1e-4)  # at least one current-loop cycle
     assert BY_KEY["velocity_cycle"].kind == BY_KEY["current_limit"].kind == "controller"
     assert math.isclose(BY_KEY["velocity_cycle"].step / 1e-4, 10)
 
@@ -134,4 +167,3 @@ def test_per_axis_subsets_stay_small():
     assert _per_axis_excess(("coulomb_axis1", "viscous_axis2", "offset_axis3"))
     assert not _per_axis_excess(("carriage_mass", "carriage_mass_axis1", "offset_axis3"))
     assert not _per_axis_excess(("coulomb_axis1", "coulomb_axis2", "inertia_motor"))
-

@@ -8,23 +8,31 @@ alone, theta actuators 1 and 3). PLAN_B, three short tests (z 2.5 Hz, psi 3 Hz, 
 holds out psi alone: no held-out test moves actuators 1 and 3. The data are synthesized by the Python models
 (the reference), the diagnoses re-simulate on the native form of the fixture's system (``compiled``).
 """
+
 from __future__ import annotations
 
 import math
 
 import numpy as np
 import pytest
-
-from mast.analyses.synthesize import TestSpec as Spec, synthesize
-from mast.diagnosis import Options, diagnose
-
 from test_diagnose import PLAN, ROOT, SMALL, built_ssp, compiled, named  # noqa: F401  (the module's fixture)
 
-PLAN_A = (Spec("z", 0.004, 0.8, 1.1, 0.3), Spec("psi", math.radians(0.7), 1.7, 0.8, 0.3),
-          Spec("z", 0.003, 3.3, 0.8, 0.2), Spec("theta", math.radians(0.5), 4.2, 0.7, 0.2),
-          Spec("z", 0.0025, 5.8, 0.7, 0.2))
-PLAN_B = (Spec("z", 0.003, 2.5, 1.0, 0.25), Spec("psi", math.radians(0.6), 3.0, 0.7, 0.2),
-          Spec("z", 0.0028, 6.0, 0.6, 0.2))
+from mast.analyses.synthesize import TestSpec as Spec
+from mast.analyses.synthesize import synthesize
+from mast.diagnosis import Options, diagnose
+
+PLAN_A = (
+    Spec("z", 0.004, 0.8, 1.1, 0.3),
+    Spec("psi", math.radians(0.7), 1.7, 0.8, 0.3),
+    Spec("z", 0.003, 3.3, 0.8, 0.2),
+    Spec("theta", math.radians(0.5), 4.2, 0.7, 0.2),
+    Spec("z", 0.0025, 5.8, 0.7, 0.2),
+)
+PLAN_B = (
+    Spec("z", 0.003, 2.5, 1.0, 0.25),
+    Spec("psi", math.radians(0.6), 3.0, 0.7, 0.2),
+    Spec("z", 0.0028, 6.0, 0.6, 0.2),
+)
 
 
 def run(ssp: str, tmp, truth: dict, plan, seed: int) -> dict:
@@ -39,8 +47,9 @@ def excitations(plan, roles=None):
     from mast.core.ssp import read_ssd
     from mast.diagnosis.plan import excitation
 
-    geometry = Geometry.checked(dict(read_ssd(ROOT / "ssp" / "MAST.ssd").components["controller"].parameters),
-                                "controller")
+    geometry = Geometry.checked(
+        dict(read_ssd(ROOT / "ssp" / "MAST.ssd").components["controller"].parameters), "controller"
+    )
     order = sorted(plan, key=lambda s: s.frequency)
     out = []
     for s in plan:
@@ -67,10 +76,11 @@ def test_the_split_gives_every_effect_the_plan_can_identify_a_test_on_each_side(
     assert default["inertia_motor_axis2"]["plan_meets"] and not default["inertia_motor_axis2"]["split_meets"]
     assert "no such held-out test" in default["inertia_motor_axis2"]["split_why_not"]
     roles = choose_split(tests, library)
-    chosen = identifiability([Excitation(x.name, roles[x.name], x.frequency, x.alike, x.moving) for x in tests],
-                             library)
+    chosen = identifiability(
+        [Excitation(x.name, roles[x.name], x.frequency, x.alike, x.moving) for x in tests], library
+    )
     assert all(p["split_meets"] for p in chosen.values() if p["plan_meets"]), chosen
-    assert sum(roles[x.name] != x.role for x in tests) == 2       # one z test out, theta in
+    assert sum(roles[x.name] != x.role for x in tests) == 2  # one z test out, theta in
     assert sum(r == "held-out" for r in roles.values()) == 2
     # the compact plan's default split already meets everything: kept
     compact = excitations(PLAN)
@@ -110,8 +120,11 @@ def test_a_per_axis_effect_beside_an_all_axes_one_is_found_whatever_the_default_
     assert effects["viscous"]["parameters"]["b_v"] == pytest.approx(b_v, rel=0.05)
     assert doc["verdict"]["status"] == "explained"
     assert doc["identifiability"][key]["plan_meets"] and doc["identifiability"][key]["split_meets"]
-    moving_fast = {t["name"] for t in doc["tests"] if t["frequency_Hz"] >= 2.0
-                   and (t["motion"] == "z" or (t["motion"] == "psi") == (axis == 2))}
+    moving_fast = {
+        t["name"]
+        for t in doc["tests"]
+        if t["frequency_Hz"] >= 2.0 and (t["motion"] == "z" or (t["motion"] == "psi") == (axis == 2))
+    }
     for e in effects.values():
         held = e["evidence"]["held_out_evidence"]["tests"]
         assert held and set(held) == set(doc["split"]["held_out"])
@@ -164,7 +177,7 @@ def test_delay_or_filter_not_distinguishable_is_said_not_picked():
     from mast.diagnosis.stages import lag_form
 
     assert lag_form(-25.0, -3.0) == "delay_meas" and lag_form(25.0, 0.5) == "T_meas"
-    assert lag_form(-3.0, -22.0) == "delay_meas"                # the held-out tests tell, the training leans to it
-    assert lag_form(-4.0, -5.0) == "not distinguishable"        # neither tells
-    assert lag_form(-16.0, 4.0) == "not distinguishable"        # the held-out test disagrees (SMALL, seed 323)
+    assert lag_form(-3.0, -22.0) == "delay_meas"  # the held-out tests tell, the training leans to it
+    assert lag_form(-4.0, -5.0) == "not distinguishable"  # neither tells
+    assert lag_form(-16.0, 4.0) == "not distinguishable"  # the held-out test disagrees (SMALL, seed 323)
     assert lag_form(30.0, -1.0) == "not distinguishable"

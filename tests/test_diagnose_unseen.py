@@ -5,35 +5,44 @@ information, never the end of the run.
 SMALL (test_diagnose.py): z 1.2 Hz 4 mm, psi 2.5 Hz 0.6 deg, z 5 Hz 3 mm (0.6 to 1.1 s each; psi held
 out). Values and seeds differ from those of tests/test_diagnose.py.
 """
+
 from __future__ import annotations
 
 import numpy as np
-
 import pytest
-
-from mast.diagnosis import Options, diagnose
-from mast.analyses.synthesize import synthesize
-
 from test_diagnose import PLAN, SMALL, built_ssp, compiled, named  # noqa: F401  (the module's fixture)
 
+from mast.analyses.synthesize import synthesize
+from mast.diagnosis import Options, diagnose
 
 
 def run(ssp: str, tmp, truth: dict, plan, seed: int, **options) -> dict:
     data = tmp / "data"
     synthesize(ssp, data, truth, tests=plan, direct=True, seed=seed, log=lambda *_: None)
-    return diagnose(Options(data, tmp / "out", compiled(ssp), figures=False, direct=False, **options),
-                    log=lambda *_: None)
+    return diagnose(
+        Options(data, tmp / "out", compiled(ssp), figures=False, direct=False, **options), log=lambda *_: None
+    )
 
 
-@pytest.mark.parametrize("parameter, value, plan, seed", [
-    ("J1_scale", 1.2, SMALL, 31),       # heavier motor side: the guide-side equivalent destabilises the loop
-    ("M_load", 2.9, PLAN, 32),          # heavier carriage (nominal 2.27 kg)
-    ("M_load", 1.6, SMALL, 33),         # lighter carriage
-    ("J1_scale", 1.15, PLAN, 35),       # heavier motor side, the default plan
-    ("M_load", 3.1, SMALL, 36),         # heavier carriage, the small plan
-    ("J1_scale", 0.85, SMALL, 37),      # lighter motor side, the small plan
-], ids=["inertia-up-small-plan", "mass-up-default-plan", "mass-down-small-plan", "inertia-up-default-plan",
-        "mass-up-small-plan", "inertia-down-small-plan"])
+@pytest.mark.parametrize(
+    "parameter, value, plan, seed",
+    [
+        ("J1_scale", 1.2, SMALL, 31),  # heavier motor side: the guide-side equivalent destabilises the loop
+        ("M_load", 2.9, PLAN, 32),  # heavier carriage (nominal 2.27 kg)
+        ("M_load", 1.6, SMALL, 33),  # lighter carriage
+        ("J1_scale", 1.15, PLAN, 35),  # heavier motor side, the default plan
+        ("M_load", 3.1, SMALL, 36),  # heavier carriage, the small plan
+        ("J1_scale", 0.85, SMALL, 37),  # lighter motor side, the small plan
+    ],
+    ids=[
+        "inertia-up-small-plan",
+        "mass-up-default-plan",
+        "mass-down-small-plan",
+        "inertia-up-default-plan",
+        "mass-up-small-plan",
+        "inertia-down-small-plan",
+    ],
+)
 def test_heavier_and_lighter_machines_are_named(built_ssp, tmp_path, parameter, value, plan, seed):
     doc = run(built_ssp, tmp_path, {"actuator": {parameter: value}}, plan, seed)
     effects = named(doc)
@@ -78,7 +87,8 @@ def test_a_drive_gain_below_its_documentation_gets_a_controller_name(built_ssp, 
     assert "k_p" not in am["values"]
     with SSPArchive(am["ssp"]) as archive:
         assert archive.system.components["controller"].parameters["k_p"] == pytest.approx(
-            effects["velocity_gain"]["parameters"]["k_p"], rel=1e-12)
+            effects["velocity_gain"]["parameters"]["k_p"], rel=1e-12
+        )
         assert "k_p" not in archive.system.components["actuator_1"].parameters
 
 
@@ -119,14 +129,21 @@ def test_the_plan_says_which_effects_it_cannot_tell():
         return excitation(name, role, t, rho)
 
     slow = [test("z0.5", "training", 0.5), test("z0.8", "held-out", 0.8)]
-    plan = identifiability(slow, ["coulomb", "inertia_motor", "lag", "velocity_gain", "carriage_mass", "stribeck",
-                                  "backlash"])
+    plan = identifiability(
+        slow, ["coulomb", "inertia_motor", "lag", "velocity_gain", "carriage_mass", "stribeck", "backlash"]
+    )
     assert plan["coulomb"]["plan_meets"] and plan["stribeck"]["plan_meets"]
-    assert not any(plan[k]["plan_meets"] for k in ("inertia_motor", "lag", "velocity_gain", "carriage_mass",
-                                                    "backlash"))
+    assert not any(
+        plan[k]["plan_meets"] for k in ("inertia_motor", "lag", "velocity_gain", "carriage_mass", "backlash")
+    )
     assert slow[0].frequency == pytest.approx(0.5, rel=0.05) and slow[0].alike
-    issue = [test("z1", "training", 1.0), test("z4", "training", 4.5), test("z6", "training", 6.0),
-             test("psi2", "held-out", 2.0, True), test("theta3", "held-out", 3.0, True)]
+    issue = [
+        test("z1", "training", 1.0),
+        test("z4", "training", 4.5),
+        test("z6", "training", 6.0),
+        test("psi2", "held-out", 2.0, True),
+        test("theta3", "held-out", 3.0, True),
+    ]
     assert not issue[3].alike
     for roles in (("training", "training"), ("training", "held-out"), ("held-out", "training")):
         issue[1].role, issue[2].role = roles
@@ -174,12 +191,14 @@ def test_effects_on_one_axis_and_in_the_drive_are_named(built_ssp, tmp_path, cas
         assert effects[key]["kind"] == "controller" and set(am["controller_values"]) == {parameter}
         with SSPArchive(am["ssp"]) as archive:
             assert archive.system.components["controller"].parameters[parameter] == pytest.approx(
-                effects[key]["parameters"][parameter], rel=1e-12)
+                effects[key]["parameters"][parameter], rel=1e-12
+            )
     else:
         base = parameter.rsplit("_axis", 1)[0]
         assert set(am["axis_values"]) == {component} and parameter not in am["values"]
         assert am["axis_values"][component][base] == pytest.approx(
-            truth[component][base], rel=0.05, abs=0.05 * abs(value))
+            truth[component][base], rel=0.05, abs=0.05 * abs(value)
+        )
 
 
 #: causes outside the library (issue 18): (truth, plan, seed, what may be named)
@@ -189,8 +208,12 @@ OUTSIDE = {
     "position-cycle": ({"controller": {"T_pos": 0.004}}, SMALL, 201, {}),
     # a true Coulomb friction with a guide torque ripple the library lacks: before the guard, Coulomb friction and
     # a viscous friction (a stand-in for part of the ripple) named; the ripple's residual stays
-    "coulomb-and-ripple": ({"actuator": {"tau_c": 0.045, "tau_ripple": 0.002}}, SMALL, 204,
-                           {"coulomb": ("tau_c", 0.045)}),
+    "coulomb-and-ripple": (
+        {"actuator": {"tau_c": 0.045, "tau_ripple": 0.002}},
+        SMALL,
+        204,
+        {"coulomb": ("tau_c", 0.045)},
+    ),
     # the position loop at 2 ms: motor-side inertia (J1_scale 1.008) and a measurement lag (0.32 ms) reproduce its
     # trace down to the noise floor; before the check ran at the floor, both were named ("explained")
     "position-cycle-at-the-floor": ({"controller": {"T_pos": 0.002}}, SMALL, 209, {}),
@@ -220,9 +243,9 @@ def test_a_cause_outside_the_library_gets_no_plant_name(built_ssp, tmp_path, cas
     assert hints and not {h["key"] for h in hints} & set(expected)
     assert all(h["why_not_named"] for h in hints)
     assert "Hints, not names" in (tmp_path / "out" / "report.md").read_text()
-    if not expected:    # nothing named: the augmented model is the nominal one
+    if not expected:  # nothing named: the augmented model is the nominal one
         assert doc["augmented_model"]["values"] == {} and "controller_values" not in doc["augmented_model"]
-    if case.endswith("at-the-floor"):   # stand-ins that reach the noise floor together: refused there too
+    if case.endswith("at-the-floor"):  # stand-ins that reach the noise floor together: refused there too
         assert all(r <= 1.2 for r in doc["verdict"]["residual_over_noise_per_test"].values())
         assert len(hints) >= 2 and "structured" in doc["verdict"]["text"]
 

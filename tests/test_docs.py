@@ -17,6 +17,7 @@
 - The figures the pages mark (``<!-- figure KEY -->...<!-- /figure -->``) agree with the code:
   docs/figures.py (cheap sources here; ``mast reproduce``'s in tests/test_reproduce.py).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -42,8 +43,10 @@ PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md"))]
 RUNNABLE = ("sh", "bash", "console", "python")
 MARK = re.compile(r"^<!-- (?P<kind>run|not run)(?::\s*(?P<arg>.*?))?\s*-->\s*$")
 FENCE = re.compile(r"^(?P<indent>\s*)```(?P<lang>[\w-]*)\s*$")
-HOW = ("mark it on the line before its fence: <!-- run -->, <!-- run: OLD => NEW --> (a short variant) or "
-       "<!-- not run: REASON --> (tests/test_docs.py)")
+HOW = (
+    "mark it on the line before its fence: <!-- run -->, <!-- run: OLD => NEW --> (a short variant) or "
+    "<!-- not run: REASON --> (tests/test_docs.py)"
+)
 
 
 def _figures():
@@ -60,11 +63,11 @@ figures = _figures()
 @dataclass
 class Block:
     page: Path
-    line: int            # of the opening fence
+    line: int  # of the opening fence
     lang: str
     text: str
-    mark: str | None     # "run", "not run" or None
-    arg: str             # the replacements of a run, the reason of a not run
+    mark: str | None  # "run", "not run" or None
+    arg: str  # the replacements of a run, the reason of a not run
 
     @property
     def where(self) -> str:
@@ -82,8 +85,16 @@ def blocks(page: Path) -> list[Block]:
         end = next((j for j in range(k + 1, len(lines)) if lines[j].strip() == "```"), len(lines))
         mark = MARK.match(lines[k - 1].strip()) if k else None
         indent = len(fence["indent"])
-        out.append(Block(page, k + 1, fence["lang"], "\n".join(l[indent:] for l in lines[k + 1:end]),
-                         mark["kind"] if mark else None, (mark["arg"] or "") if mark else ""))
+        out.append(
+            Block(
+                page,
+                k + 1,
+                fence["lang"],
+                "\n".join(l[indent:] for l in lines[k + 1 : end]),
+                mark["kind"] if mark else None,
+                (mark["arg"] or "") if mark else "",
+            )
+        )
         k = end + 1
     return out
 
@@ -144,6 +155,7 @@ def _full_parser() -> argparse.ArgumentParser:
     def keep(self, *a, **k):
         captured["parser"] = self
         raise SystemExit(0)
+
     argparse.ArgumentParser.parse_args = keep
     try:
         with pytest.raises(SystemExit):
@@ -221,8 +233,11 @@ def _readme_rows() -> dict[str, str]:
 
 def _options(sub: argparse.ArgumentParser) -> list[str]:
     """The options a user may give (the long spelling of each), without --help and refused old spellings."""
-    return [max(a.option_strings, key=len) for a in sub._actions
-            if a.option_strings and a.help is not argparse.SUPPRESS and not isinstance(a, argparse._HelpAction)]
+    return [
+        max(a.option_strings, key=len)
+        for a in sub._actions
+        if a.option_strings and a.help is not argparse.SUPPRESS and not isinstance(a, argparse._HelpAction)
+    ]
 
 
 def test_readme_command_table_names_every_subcommand_and_option():
@@ -230,8 +245,10 @@ def test_readme_command_table_names_every_subcommand_and_option():
     problems = []
     for name, sub in _subparsers(_full_parser()).items():
         if name not in rows:
-            problems.append(f"`mast {name}` has no row: add `| \\`mast {name} ...\\` | what it does |` "
-                            f"(its options: {' '.join(_options(sub))})")
+            problems.append(
+                f"`mast {name}` has no row: add `| \\`mast {name} ...\\` | what it does |` "
+                f"(its options: {' '.join(_options(sub))})"
+            )
             continue
         missing = [o for o in _options(sub) if not re.search(re.escape(o) + r"(?![\w-])", rows[name])]
         if missing:
@@ -253,8 +270,11 @@ def test_help_describes_every_argument_and_shows_every_default():
             if not action.help:
                 problems.append(f"mast {name} {label}: no help text")
                 continue
-            shown = sub._get_formatter()._get_help_string(action) % {**vars(action), "prog": sub.prog} \
-                if "%(" in sub._get_formatter()._get_help_string(action) else action.help
+            shown = (
+                sub._get_formatter()._get_help_string(action) % {**vars(action), "prog": sub.prog}
+                if "%(" in sub._get_formatter()._get_help_string(action)
+                else action.help
+            )
             if action.default not in (None, False, argparse.SUPPRESS) and "default" not in shown:
                 problems.append(f"mast {name} {label}: default {action.default!r} not shown")
         assert "usage: mast " + name in text
@@ -282,15 +302,22 @@ def test_every_marked_figure_is_known():
 def test_marked_figures_of_the_system_files_and_designs_agree():
     """The gains MAST.ssd binds (docs/controller.md), the designs' margins at home (docs/mechanism.md), the drive
     ratings (docs/sizing.md), the FMUs mast build writes and the archive limits (README, docs/interfaces.md)."""
-    problems = figures.check({"ssd": figures.source_ssd(), "designs": figures.source_designs(),
-                              "ratings": figures.source_ratings(), "build": figures.source_build()})
+    problems = figures.check(
+        {
+            "ssd": figures.source_ssd(),
+            "designs": figures.source_designs(),
+            "ratings": figures.source_ratings(),
+            "build": figures.source_build(),
+        }
+    )
     assert not problems, "\n".join(problems)
 
 
 def test_marked_workspace_figures_agree():
     """The designs' workspaces: docs/workspace.md (default grid), README "First results" (compare's quick grid)."""
-    problems = figures.check({"workspace": figures.source_workspace(),
-                              "workspace_quick": figures.source_workspace(quick=True)})
+    problems = figures.check(
+        {"workspace": figures.source_workspace(), "workspace_quick": figures.source_workspace(quick=True)}
+    )
     assert not problems, "\n".join(problems)
 
 
@@ -321,17 +348,29 @@ def test_the_headline_figures_are_marked():
 # not timings and do not match.
 _SECONDS = r"\d+(?:\.\d+)?\s*(?:s|ms|min|minutes?|seconds?|h|hours?)\b"
 TIMING = re.compile(
-    r"\b(?:takes?|took|taking|runs? in|ran in|wall(?:[- ]clock| time)?|elapsed)\b[^.;|]{0,30}?" + _SECONDS
-    + r"|" + _SECONDS + r"[^.;|]{0,25}?\b(?:on (?:\d+|two|one|a|this|the) (?:cores?|CPUs?|machine|laptop)|wall|"
+    r"\b(?:takes?|took|taking|runs? in|ran in|wall(?:[- ]clock| time)?|elapsed)\b[^.;|]{0,30}?"
+    + _SECONDS
+    + r"|"
+    + _SECONDS
+    + r"[^.;|]{0,25}?\b(?:on (?:\d+|two|one|a|this|the) (?:cores?|CPUs?|machine|laptop)|wall|"
     r"per (?:case|run|simulation|co-simulation))\b"
     r"|real[- ]time factor[^.;|]{0,20}?\d|\d+(?:\.\d+)?\s*(?:x|times) (?:faster|slower|quicker)"
-    r"|\d+(?:\.\d+)?\s*(?:cases|simulations|runs|steps)/s\b", re.I)
+    r"|\d+(?:\.\d+)?\s*(?:cases|simulations|runs|steps)/s\b",
+    re.I,
+)
 BENCHMARK = re.compile(r"benchmarks/\w+\.py|mast bench|make bench")
 #: the bare timings the pages still state (issue 30): a page may hold at most this many; a timing moved beside its
 #: benchmark lowers the count here (the test says so), a new bare one fails
 KNOWN_BARE_TIMINGS = {
-    "README.md": 2, "docs/batch.md": 3, "docs/controller.md": 1, "docs/designs/README.md": 1, "docs/diagnose.md": 6,
-    "docs/emps.md": 1, "docs/interfaces.md": 1, "docs/native.md": 3, "docs/reproduction.md": 2,
+    "README.md": 2,
+    "docs/batch.md": 3,
+    "docs/controller.md": 1,
+    "docs/designs/README.md": 1,
+    "docs/diagnose.md": 6,
+    "docs/emps.md": 1,
+    "docs/interfaces.md": 1,
+    "docs/native.md": 3,
+    "docs/reproduction.md": 2,
     "docs/using-the-fmus.md": 1,
 }
 
@@ -369,9 +408,11 @@ def test_bare_timings_are_refused():
         found = bare_timings(page.read_text())
         known = KNOWN_BARE_TIMINGS.get(name, 0)
         if len(found) > known:
-            problems.append(f"{name}: {len(found)} timings with no benchmark named beside them (known {known}): "
-                            + "; ".join(f"line {n}: {t!r}" for n, t in found)
-                            + " -- name the benchmark (benchmarks/*.py, mast bench) and its machine in the paragraph")
+            problems.append(
+                f"{name}: {len(found)} timings with no benchmark named beside them (known {known}): "
+                + "; ".join(f"line {n}: {t!r}" for n, t in found)
+                + " -- name the benchmark (benchmarks/*.py, mast bench) and its machine in the paragraph"
+            )
         elif len(found) < known:
             problems.append(f"{name}: {len(found)} bare timings, KNOWN_BARE_TIMINGS says {known}: lower it")
     assert not problems, "\n".join(problems)
@@ -411,7 +452,7 @@ def scratch(built_native, tmp_path_factory) -> Path:
     shutil.copytree(ROOT / "examples", work / "examples", ignore=shutil.ignore_patterns("__pycache__"))
     for name in ("docs", "ssp", "tests", "benchmarks"):
         (work / name).symlink_to(ROOT / name, target_is_directory=True)
-    if (Path(sys.prefix) / "bin" / "activate").exists():   # `source .venv/bin/activate` (README "First results")
+    if (Path(sys.prefix) / "bin" / "activate").exists():  # `source .venv/bin/activate` (README "First results")
         (work / ".venv").symlink_to(Path(sys.prefix), target_is_directory=True)
     if (ROOT.parent / "shared").is_dir():
         (top / "shared").symlink_to(ROOT.parent / "shared", target_is_directory=True)
@@ -423,9 +464,13 @@ def test_documented_block_runs(block, scratch, built_native):
     text = _apply(block)
     if "../shared" in text and not (scratch.parent / "shared").exists():
         pytest.skip("needs the measured data in ../shared")
-    env = {**os.environ, "MAST_BUILD": str(built_native), "PYTHONPATH": str(ROOT),
-           "PATH": os.pathsep.join([str(Path(sys.executable).parent), os.environ.get("PATH", "")]),
-           "MPLBACKEND": "Agg"}
+    env = {
+        **os.environ,
+        "MAST_BUILD": str(built_native),
+        "PYTHONPATH": str(ROOT),
+        "PATH": os.pathsep.join([str(Path(sys.executable).parent), os.environ.get("PATH", "")]),
+        "MPLBACKEND": "Agg",
+    }
     if block.lang == "python":
         script = scratch / f"block_{block.page.stem}_{block.line}.py"
         script.write_text(text + "\n")
@@ -433,4 +478,6 @@ def test_documented_block_runs(block, scratch, built_native):
     else:
         command = ["bash", "-euo", "pipefail", "-c", "\n".join(commands(text))]
     proc = subprocess.run(command, cwd=scratch, env=env, capture_output=True, text=True, timeout=900)
-    assert proc.returncode == 0, f"{block.where}:\n{text}\nexit {proc.returncode}\n{proc.stdout[-2000:]}\n{proc.stderr[-3000:]}"
+    assert proc.returncode == 0, (
+        f"{block.where}:\n{text}\nexit {proc.returncode}\n{proc.stdout[-2000:]}\n{proc.stderr[-3000:]}"
+    )

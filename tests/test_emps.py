@@ -3,6 +3,7 @@
 The shipped record /work/shared/data/emps/DATA_EMPS.mat (../shared/data/emps from the
 repository) is read from there, never copied or edited.
 """
+
 from __future__ import annotations
 
 import json
@@ -71,10 +72,10 @@ def test_axis_matches_the_exact_solution_of_mass_viscous_coulomb_offset():
 def test_axis_asymmetric_friction_and_sticking():
     # below the friction (|F - offset| <= F_c -dF_c side) the axis sticks exactly
     block = axis(F_c=5.0, dF_c=1.0, F_offset=0.5)
-    run_axis(block, -4.4, 0.5)        # |-4.4 - 0.5| = 4.9 > F_c - dF_c = 4 -> moves backwards
+    run_axis(block, -4.4, 0.5)  # |-4.4 - 0.5| = 4.9 > F_c - dF_c = 4 -> moves backwards
     assert block.get("q_dot") < 0
     block = axis(F_c=5.0, dF_c=1.0, F_offset=0.5)
-    run_axis(block, 6.4, 0.5)         # 6.4 - 0.5 = 5.9 < F_c + dF_c = 6 -> sticks
+    run_axis(block, 6.4, 0.5)  # 6.4 - 0.5 = 5.9 < F_c + dF_c = 6 -> sticks
     assert block.get("q") == 0.0 and block.get("q_dot") == 0.0
     # steady velocity per direction: F - off = (F_c +- dF_c) + (F_v +- dF_v) v
     for F, c, fv in ((50.0, 6.0, 25.0), (-50.0, 4.0, 15.0)):
@@ -92,20 +93,28 @@ def test_controller_reproduces_the_logged_drive_command():
     the lab's own controller output)."""
     d = scipy.io.loadmat(str(EMPS))
     qm, qg, vir = (d[k].ravel() for k in ("qm", "qg", "vir"))
-    block = EmpsController({"k_p": float(d["kp"].item()), "k_v": float(d["kv"].item()),
-                            "g_tau": float(d["gtau"].item()), "u_max": 10.0, "T_s": 1e-3, "q_0": float(qm[0])})
+    block = EmpsController(
+        {
+            "k_p": float(d["kp"].item()),
+            "k_v": float(d["kv"].item()),
+            "g_tau": float(d["gtau"].item()),
+            "u_max": 10.0,
+            "T_s": 1e-3,
+            "q_0": float(qm[0]),
+        }
+    )
     block.initialize(0.0)
     n = 3000
     u = np.empty(n)
     for k in range(n):
         block.set(q_ref=qg[k], q_m=qm[k], u_inj=0.0)
-        for tick in range(10):                 # stepped at 0.1 ms: samples on the first tick
+        for tick in range(10):  # stepped at 0.1 ms: samples on the first tick
             block.do_step(k * 1e-3 + tick * 1e-4, 1e-4)
             if tick == 0:
                 u[k] = block.get("u")
     assert block.get("F") == block.get("F_before_injection") == pytest.approx(float(d["gtau"].item()) * u[-1])
-    err = u[5:] - vir[5:n]                        # the first samples: the filter's unknown history
-    assert np.sqrt(np.mean(err ** 2)) < 0.01 * np.sqrt(np.mean(vir[:n] ** 2))
+    err = u[5:] - vir[5:n]  # the first samples: the filter's unknown history
+    assert np.sqrt(np.mean(err**2)) < 0.01 * np.sqrt(np.mean(vir[:n] ** 2))
 
 
 # --------------------------------------------------------------------------------------
@@ -126,21 +135,35 @@ def test_import_emps_record(tmp_path):
 
 def _mat(path: Path, **variables) -> Path:
     t = np.arange(200) * 1e-3
-    base = {"t": t[:, None], "qm": np.sin(t)[:, None], "qg": np.sin(t)[:, None], "vir": np.cos(t)[:, None],
-            "gtau": np.array([[35.0]])}
+    base = {
+        "t": t[:, None],
+        "qm": np.sin(t)[:, None],
+        "qg": np.sin(t)[:, None],
+        "vir": np.cos(t)[:, None],
+        "gtau": np.array([[35.0]]),
+    }
     base.update(variables)
     scipy.io.savemat(str(path), {k: v for k, v in base.items() if v is not None})
     return path
 
 
-@pytest.mark.parametrize("change, match", [
-    ({"qm": None}, r"bad\.mat: variable 'qm' \(signal q_m\) not found"),
-    ({"vir": np.ones((200, 2))}, r"bad\.mat: variable 'vir' \(signal force\): shape \(200, 2\)"),
-    ({"qg": np.ones((150, 1))}, r"bad\.mat: variable 'qg' \(signal q_ref\): 150 samples, expected 200"),
-    ({"t": np.r_[np.arange(100), np.arange(99, 199)][:, None] * 1e-3}, r"bad\.mat: variable 't' \(time\): not increasing at sample 101"),
-    ({"vir": np.r_[np.zeros(50), np.nan, np.zeros(149)][:, None]}, r"bad\.mat: variable 'vir' \(signal force\): 1 NaN .* sample 51"),
-    ({"gtau": np.ones((2, 2))}, r"bad\.mat: variable 'gtau' \(scale of signal force\): shape \(2, 2\)"),
-])
+@pytest.mark.parametrize(
+    "change, match",
+    [
+        ({"qm": None}, r"bad\.mat: variable 'qm' \(signal q_m\) not found"),
+        ({"vir": np.ones((200, 2))}, r"bad\.mat: variable 'vir' \(signal force\): shape \(200, 2\)"),
+        ({"qg": np.ones((150, 1))}, r"bad\.mat: variable 'qg' \(signal q_ref\): 150 samples, expected 200"),
+        (
+            {"t": np.r_[np.arange(100), np.arange(99, 199)][:, None] * 1e-3},
+            r"bad\.mat: variable 't' \(time\): not increasing at sample 101",
+        ),
+        (
+            {"vir": np.r_[np.zeros(50), np.nan, np.zeros(149)][:, None]},
+            r"bad\.mat: variable 'vir' \(signal force\): 1 NaN .* sample 51",
+        ),
+        ({"gtau": np.ones((2, 2))}, r"bad\.mat: variable 'gtau' \(scale of signal force\): shape \(2, 2\)"),
+    ],
+)
 def test_import_errors_name_the_file_and_the_variable(tmp_path, change, match):
     bad = _mat(tmp_path / "bad.mat", **change)
     with pytest.raises(LabFileError, match=match):
@@ -149,7 +172,7 @@ def test_import_errors_name_the_file_and_the_variable(tmp_path, change, match):
 
 
 def test_import_csv_through_a_map_with_units(tmp_path):
-    t = np.arange(100) * 1.0                                   # ms
+    t = np.arange(100) * 1.0  # ms
     table = np.column_stack([t, 1000 * np.sin(t / 100), 1000 * np.sin(t / 100), np.cos(t), np.ones(100)])
     np.savetxt(tmp_path / "log.csv", table, delimiter=",", header="t_ms,ref_mm,pos_mm,cmd_V,pulse_V", comments="")
     (tmp_path / "map.toml").write_text("""
@@ -261,12 +284,19 @@ def test_diagnose_names_friction_offset_and_asymmetry_on_the_emps_record(tmp_pat
     assert sym["gap"]["emps"]["force"]["whole"]["relative_error_pct"] <= 5.85
     # what is left is not in the library: a friction transition at the reversals, said, not named
     assert doc["verdict"]["status"] == "unexplained residual" and "velocity reversals" in doc["verdict"]["text"]
-    for f in ("diagnosis.json", "report.md", "fig_residual.png", "fig_friction.png", "axis_diagnosed.ssv",
-              "EMPS_bench_diagnosed.ssp"):
+    for f in (
+        "diagnosis.json",
+        "report.md",
+        "fig_residual.png",
+        "fig_friction.png",
+        "axis_diagnosed.ssv",
+        "EMPS_bench_diagnosed.ssp",
+    ):
         assert (out / f).exists(), f
     again = replay(out / "EMPS_bench_diagnosed.ssp", tmp_path / "rec", tmp_path / "replay", figures=False)
     assert again["signals"]["force"]["relative_error_pct"] == pytest.approx(
-        force["after"]["whole"]["relative_error_pct"], rel=1e-6)
+        force["after"]["whole"]["relative_error_pct"], rel=1e-6
+    )
 
 
 #: the EMPS law's gains (the .mat's scalars), and a plant for the synthetic pulse records
@@ -274,8 +304,9 @@ G_TAU, K_P, K_V, U_MAX, T_S = 35.15065188, 160.18, 243.45, 10.0, 1e-3
 PLANT = {"M": 95.0, "F_v": 200.0, "F_c": 20.0, "F_offset": -3.0}
 
 
-def emps_pulse_loop(q_ref: np.ndarray, pulse: np.ndarray, M: float, F_v: float, F_c: float, F_offset: float
-                    ) -> tuple[np.ndarray, np.ndarray]:
+def emps_pulse_loop(
+    q_ref: np.ndarray, pulse: np.ndarray, M: float, F_v: float, F_c: float, F_offset: float
+) -> tuple[np.ndarray, np.ndarray]:
     """The EMPS closed loop written here from the law (../shared/data/emps/README.md) and the axis equations, a
     second formulation of the bench: returns the position at the samples and the controller's output after the
     saturation u_s(k) [V]. The pulse [V] is added after the saturation; sample k of the record holds over
@@ -295,8 +326,9 @@ def emps_pulse_loop(q_ref: np.ndarray, pulse: np.ndarray, M: float, F_v: float, 
         for tick in range(10):
             F = G_TAU * (applied_old if tick == 0 else u_s[k] + pulse[k])
             a = v + b * (F - F_offset)
-            v1 = ((a - b * F_c) / (1 + b * F_v) if a > b * F_c else
-                  (a + b * F_c) / (1 + b * F_v) if a < -b * F_c else 0.0)
+            v1 = (
+                (a - b * F_c) / (1 + b * F_v) if a > b * F_c else (a + b * F_c) / (1 + b * F_v) if a < -b * F_c else 0.0
+            )
             x += 0.5e-4 * (v + v1)
             v = v1
         applied_old = u_s[k] + pulse[k]
@@ -316,8 +348,14 @@ def pulse_lab_file(folder: Path, tap: str) -> tuple[Path, dict]:
     vir = u_s + pulse if tap == "applied" else u_s
     folder.mkdir(parents=True, exist_ok=True)
     path = folder / f"pulses_{tap}.csv"
-    np.savetxt(path, np.column_stack([t, q_ref, q_m, vir, pulse]), delimiter=",", fmt="%.17g",
-               header="t,qg,qm,vir,pulse_N", comments="")
+    np.savetxt(
+        path,
+        np.column_stack([t, q_ref, q_m, vir, pulse]),
+        delimiter=",",
+        fmt="%.17g",
+        header="t,qg,qm,vir,pulse_N",
+        comments="",
+    )
     return path, {"q_m": q_m, "force": G_TAU * vir, "u_s": u_s, "pulse": pulse}
 
 
@@ -369,7 +407,7 @@ def test_pulse_record_replays_at_the_declared_tap(tmp_path, bench, tap):
     rec = load_records(tmp_path / "rec").tests[0]
     assert rec.specs["force"].tap == tap
     sim = simulate_record(bench, rec, {"axis": PLANT})
-    assert np.abs(truth["q_m"]).max() > 5e-4                      # the pulses and the step moved the axis
+    assert np.abs(truth["q_m"]).max() > 5e-4  # the pulses and the step moved the axis
     assert np.abs(sim["q_m"] - truth["q_m"]).max() < 1e-9 * np.abs(truth["q_m"]).max()
     assert np.abs(sim["force"] - truth["force"]).max() < 1e-9 * np.abs(truth["force"]).max()
     assert compare(rec, sim)["force"]["relative_error_pct"] < 1e-7
@@ -425,15 +463,15 @@ def test_edge_steps_against_noise(tmp_path):
 
     rng = np.random.default_rng(1)
     k = np.arange(4000)
-    pulse = np.where(k % 100 >= 50, 2.0, 0.0) * (k % 100 < 70)   # edges at 50, 70, 150, 170, ...
-    noise = rng.normal(0.0, 1.0, 4000).cumsum()                   # one-sample changes of std 1
+    pulse = np.where(k % 100 >= 50, 2.0, 0.0) * (k % 100 < 70)  # edges at 50, 70, 150, 170, ...
+    noise = rng.normal(0.0, 1.0, 4000).cumsum()  # one-sample changes of std 1
     found = edge_steps(noise + 1.5 * pulse, pulse)
     assert found.edges == 80 and found.steps and found.step == pytest.approx(3.0, abs=0.5)
     assert edge_steps(noise, pulse).no_steps
-    own = np.where(np.isin(k, (50, 150, 250, 350)), 50.0, 0.0)   # four large changes of its own on rising edges:
-    few = edge_steps(noise + own.cumsum(), pulse)                  # significant, but they are not steps at every edge
+    own = np.where(np.isin(k, (50, 150, 250, 350)), 50.0, 0.0)  # four large changes of its own on rising edges:
+    few = edge_steps(noise + own.cumsum(), pulse)  # significant, but they are not steps at every edge
     assert abs(few.t) > 10 and few.share < 0.5 and not few.steps and not few.no_steps
-    assert edge_steps(noise, np.sin(np.arange(4000) * 0.01)) is None   # a smooth input has no edges
+    assert edge_steps(noise, np.sin(np.arange(4000) * 0.01)) is None  # a smooth input has no edges
 
 
 @pytest.mark.parametrize("unit_line", ["", 'unit = " "'])
@@ -441,8 +479,11 @@ def test_injected_input_without_a_unit_is_refused(tmp_path, unit_line):
     """The pulse variable's name ends in _N but it acts in volts: without a declared unit it is refused, naming
     the signal and the variable, and nothing is written."""
     log, _ = pulse_lab_file(tmp_path, "applied")
-    with pytest.raises(LabFileError, match=r"map_applied\.toml: \[signals\.u_inj\]: the injected input \(variable "
-                                           r"'pulse_N'\) has no unit: declare the unit it acts in"):
+    with pytest.raises(
+        LabFileError,
+        match=r"map_applied\.toml: \[signals\.u_inj\]: the injected input \(variable "
+        r"'pulse_N'\) has no unit: declare the unit it acts in",
+    ):
         import_file(log, pulse_map(tmp_path, "applied", unit_line), tmp_path / "rec")
     assert not (tmp_path / "rec").exists()
 
@@ -458,8 +499,9 @@ def test_tap_is_applied_or_before_injection_and_only_on_an_effort():
     with pytest.raises(RecordError, match="m: signal force: tap 'after', expected one of applied, before_injection"):
         parse_signals({**base, "force": {**effort, "tap": "after"}}, "m")
     with pytest.raises(RecordError, match="signal q: tap 'before_injection' on a position signal"):
-        parse_signals({**base, "q": {"kind": "position", "unit": "m", "model": "axis.q", "tap": "before_injection"}},
-                      "m")
+        parse_signals(
+            {**base, "q": {"kind": "position", "unit": "m", "model": "axis.q", "tap": "before_injection"}}, "m"
+        )
 
 
 def test_replay_refuses_a_tap_the_model_does_not_have(tmp_path, bench):
@@ -473,9 +515,12 @@ def test_replay_refuses_a_tap_the_model_does_not_have(tmp_path, bench):
     meta["signals"]["force"]["model"] = "controller.u_before_injection"
     (tmp_path / "rec" / "meta.json").write_text(json.dumps(meta))
     rec = load_records(tmp_path / "rec").tests[0]
-    with pytest.raises(RecordError, match=r"signal force is logged at tap 'before_injection': .* model output "
-                                          r"controller\.u_before_injection_before_injection .* the outputs of "
-                                          r"controller: u, F, u_before_injection"):
+    with pytest.raises(
+        RecordError,
+        match=r"signal force is logged at tap 'before_injection': .* model output "
+        r"controller\.u_before_injection_before_injection .* the outputs of "
+        r"controller: u, F, u_before_injection",
+    ):
         simulate_record(bench, rec)
 
 
@@ -486,7 +531,7 @@ def test_replay_stops_at_the_stop_time_with_the_same_values(tmp_path, bench):
     import_file(log, pulse_map(tmp_path, "applied"), tmp_path / "rec")
     rec = load_records(tmp_path / "rec").tests[0]
     part = simulate_record(bench, rec, {"axis": PLANT}, stop_time=0.1)
-    assert len(part["q_m"]) == 101                                # the samples up to the stop time, the same values
+    assert len(part["q_m"]) == 101  # the samples up to the stop time, the same values
     assert np.abs(part["q_m"] - truth["q_m"][:101]).max() < 1e-12 + 1e-9 * np.abs(truth["q_m"]).max()
 
 
@@ -496,8 +541,10 @@ def test_held_out_samples_last_third_or_named_tests(tmp_path):
     from mast.diagnosis.resimulation import DiagnosisError
 
     t = np.arange(300) * 1e-3
-    specs = {"q_ref": SignalSpec("q_ref", "command", "m", input="q_ref"),
-             "force": SignalSpec("force", "effort", "N", model="controller.F")}
+    specs = {
+        "q_ref": SignalSpec("q_ref", "command", "m", input="q_ref"),
+        "force": SignalSpec("force", "effort", "N", model="controller.F"),
+    }
     tests = [{"name": n, "time": t, "values": {"q_ref": np.sin(t), "force": np.cos(t)}} for n in ("a", "b")]
     records = load_records(write_records(tmp_path / "rec", specs, tests))
     cases, how = _cases(records, 1 / 3)

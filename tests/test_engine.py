@@ -10,6 +10,7 @@ differences, and whole mechanisms against textbook equations that share no code 
   textbook angular-velocity matrix;
 - admissibility checks, refusal to branch on traced values, sharing and copying.
 """
+
 from __future__ import annotations
 
 import copy
@@ -54,15 +55,20 @@ def test_generated_values_are_the_plain_floats_and_derivatives_are_exact():
         qd = rng.uniform(-1.0, 1.0, 3)
         out = f(*q, *qd)
         plain = expr(list(q))
-        assert tuple(out[:3]) == tuple(plain)                      # same operations, same floats
+        assert tuple(out[:3]) == tuple(plain)  # same operations, same floats
         grad = np.array(out[3:12]).reshape(3, 3)
-        for k in range(3):                                            # 6th-order central differences
+        for k in range(3):  # 6th-order central differences
             h = 1e-3
             e = np.eye(3)[k]
-            fd = sum(w * np.array(expr(list(q + s * h * e))) for s, w in
-                     ((3, 1 / 60), (2, -3 / 20), (1, 3 / 4), (-1, -3 / 4), (-2, 3 / 20), (-3, -1 / 60))) / h
+            fd = (
+                sum(
+                    w * np.array(expr(list(q + s * h * e)))
+                    for s, w in ((3, 1 / 60), (2, -3 / 20), (1, 3 / 4), (-1, -3 / 4), (-2, 3 / 20), (-3, -1 / 60))
+                )
+                / h
+            )
             np.testing.assert_allclose(grad[:, k], fd, rtol=1e-9, atol=1e-10)
-        h = 1e-3                                                      # second derivative along q + t qd
+        h = 1e-3  # second derivative along q + t qd
         line = lambda t: np.array(expr(list(q + t * qd)))  # noqa: E731
         fd2 = (-line(2 * h) + 16 * line(h) - 30 * line(0) + 16 * line(-h) - line(-2 * h)) / (12 * h * h)
         np.testing.assert_allclose(out[12:15], fd2, rtol=1e-7, atol=1e-7)
@@ -90,6 +96,7 @@ def test_checks_run_where_the_description_puts_them():
             def reach(w2_, q1):
                 if not w2_ > 0.0:
                     raise KinematicsError(f"reach lost at q1 = {q1:g}")
+
             E.require(reach, w2, q[1])
             rho = [q[0], q[1] + E.sqrt(w2), q[2]]
             return Evaluation(rho, [0.0] * 6, [((q[0], 0.0, 0.0), np.eye(3))])
@@ -99,7 +106,7 @@ def test_checks_run_where_the_description_puts_them():
 
     eng = Engine(Checked())
     assert eng.ik((0.1, 0.6, 0.2)) == (0.1, 0.6 + math.sqrt(1.0 - 0.36), 0.2)
-    with pytest.raises(KinematicsError, match="reach lost at q1 = 1.5"):   # not a math domain error
+    with pytest.raises(KinematicsError, match="reach lost at q1 = 1.5"):  # not a math domain error
         eng.ik((0.1, 1.5, 0.2))
     with pytest.raises(KinematicsError, match="reach lost"):
         eng.inverse_dynamics_at_pose((0.1, 1.5, 0.2), (0, 0, 0), (0, 0, 0))
@@ -122,8 +129,10 @@ class TwoLink(Description):
 
     def __init__(self, m1, m2, l1, lc1, lc2, I1, I2):
         self.p = (m1, m2, l1, lc1, lc2, I1, I2)
-        self.bodies = (Body("link1", m1, (lc1, 0.0, 0.0), ((0.3 * I1, 0, 0), (0, I1, 0), (0, 0, I1))),
-                       Body("link2", m2, (lc2, 0.0, 0.0), ((0.1 * I2, 0, 0), (0, I2, 0), (0, 0, I2))))
+        self.bodies = (
+            Body("link1", m1, (lc1, 0.0, 0.0), ((0.3 * I1, 0, 0), (0, I1, 0), (0, 0, I1))),
+            Body("link2", m2, (lc2, 0.0, 0.0), ((0.1 * I2, 0, 0), (0, I2, 0), (0, 0, I2))),
+        )
 
     def evaluate(self, q):
         q1, q2 = q
@@ -145,18 +154,25 @@ def test_two_link_arm_matches_the_textbook():
         qdd = rng.uniform(-5, 5, 2)
         res = eng.inverse_dynamics(q, qd, qdd)
         c2 = math.cos(q[1])
-        M = np.array([[m1 * lc1 ** 2 + m2 * (l1 ** 2 + lc2 ** 2 + 2 * l1 * lc2 * c2) + I1 + I2,
-                       m2 * (lc2 ** 2 + l1 * lc2 * c2) + I2],
-                      [m2 * (lc2 ** 2 + l1 * lc2 * c2) + I2, m2 * lc2 ** 2 + I2]])
+        M = np.array(
+            [
+                [m1 * lc1**2 + m2 * (l1**2 + lc2**2 + 2 * l1 * lc2 * c2) + I1 + I2, m2 * (lc2**2 + l1 * lc2 * c2) + I2],
+                [m2 * (lc2**2 + l1 * lc2 * c2) + I2, m2 * lc2**2 + I2],
+            ]
+        )
         h = -m2 * l1 * lc2 * math.sin(q[1])
         C = np.array([h * qd[1] ** 2 + 2 * h * qd[0] * qd[1], -h * qd[0] ** 2])
-        G = np.array([(m1 * lc1 + m2 * l1) * g * math.cos(q[0]) + m2 * lc2 * g * math.cos(q[0] + q[1]),
-                      m2 * lc2 * g * math.cos(q[0] + q[1])])
+        G = np.array(
+            [
+                (m1 * lc1 + m2 * l1) * g * math.cos(q[0]) + m2 * lc2 * g * math.cos(q[0] + q[1]),
+                m2 * lc2 * g * math.cos(q[0] + q[1]),
+            ]
+        )
         np.testing.assert_allclose(res.M, M, atol=1e-14)
         np.testing.assert_allclose(res.c_term, C, atol=1e-13)
         np.testing.assert_allclose(res.g_term, G, atol=1e-13)
         np.testing.assert_allclose(res.t_rho, M @ qdd + C + G, atol=1e-12)
-        np.testing.assert_allclose(res.q, q, atol=1e-15)                      # identity kinematics: DK trivial
+        np.testing.assert_allclose(res.q, q, atol=1e-15)  # identity kinematics: DK trivial
         # the body split adds up, and rotation never carries gravity
         total = sum(i + c + gg for i, c, gg in res.terms.values())
         np.testing.assert_allclose(total, res.t_rho, atol=1e-12)
@@ -166,9 +182,11 @@ def test_two_link_arm_matches_the_textbook():
 # ---------------------------------------------------------------------------- gimbal
 def rzyx(psi, theta, phi):
     cx, sx, cy, sy, cz, sz = (E.cos(psi), E.sin(psi), E.cos(theta), E.sin(theta), E.cos(phi), E.sin(phi))
-    return ((cz * cy, cz * sy * sx - sz * cx, cz * sy * cx + sz * sx),
-            (sz * cy, sz * sy * sx + cz * cx, sz * sy * cx - cz * sx),
-            (-sy, cy * sx, cy * cx))
+    return (
+        (cz * cy, cz * sy * sx - sz * cx, cz * sy * cx + sz * sx),
+        (sz * cy, sz * sy * sx + cz * cx, sz * sy * cx - cz * sx),
+        (-sy, cy * sx, cy * cx),
+    )
 
 
 INERTIA = ((0.08, 0.004, -0.006), (0.004, 0.05, 0.003), (-0.006, 0.003, 0.11))
@@ -192,9 +210,13 @@ class Gimbal(Description):
 def lagrangian(q, qd, m=2.5, g=9.81):
     """Textbook: w_body = E(q) qd for R = Rz Ry Rx; centre of mass R c above (0, 0, 0.3)."""
     psi, theta, phi = q
-    Em = np.array([[1, 0, -math.sin(theta)],
-                   [0, math.cos(psi), math.sin(psi) * math.cos(theta)],
-                   [0, -math.sin(psi), math.cos(psi) * math.cos(theta)]])
+    Em = np.array(
+        [
+            [1, 0, -math.sin(theta)],
+            [0, math.cos(psi), math.sin(psi) * math.cos(theta)],
+            [0, -math.sin(psi), math.cos(psi) * math.cos(theta)],
+        ]
+    )
     w = Em @ qd
     R = np.array(rzyx(*q), dtype=float)
     # centre-of-mass velocity: omega_world x (R c), omega_world = R w
@@ -213,7 +235,7 @@ def test_gimbal_matches_euler_lagrange_by_numbers():
         res = eng.inverse_dynamics_at_pose(q, qd, qdd)
         path = lambda t: (q + t * qd + 0.5 * t * t * qdd, qd + t * qdd)  # noqa: E731
 
-        def p(t):     # dL/dqd along the path (L is quadratic in qd: a wide difference is exact)
+        def p(t):  # dL/dqd along the path (L is quadratic in qd: a wide difference is exact)
             qq, vv = path(t)
             return np.array([(lagrangian(qq, vv + 0.1 * e) - lagrangian(qq, vv - 0.1 * e)) / 0.2 for e in np.eye(3)])
 
@@ -248,6 +270,7 @@ def test_forces_after_the_direct_kinematics_reuse_its_pose_bit_for_bit(mechanism
     """dk_kept + forces_kept (the mechanism block's hot path: the forces read the pose's geometry the direct
     kinematics computed at q) give the very floats of dk + forces, which compute everything themselves."""
     from conftest import RESOURCES, read_values
+
     from fmus.mechanism.designs import engine
 
     params = dict(mechanism_params)
@@ -259,7 +282,7 @@ def test_forces_after_the_direct_kinematics_reuse_its_pose_bit_for_bit(mechanism
     for k in range(6):
         rho = eng.ik((0.4 + 0.005 * k, 0.01 * k, -0.008 * k))
         rd, rdd = (0.1 * k, -0.05, 0.02 * k), (1.0, -2.0 * k, 0.5)
-        *plain, = eng.dk(rho, q)
+        (*plain,) = eng.dk(rho, q)
         q, J, cond, kept = eng.dk_kept(rho, q)
         assert [q, J, cond] == plain
         assert eng.forces_kept(kept, q, J, rd, rdd) == eng.forces(q, J, rd, rdd)

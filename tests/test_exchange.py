@@ -7,6 +7,7 @@ the current loop at t, and the voltage it computes is applied one T_cur later, a
 The former pattern is rebuilt here independently, in the direct composition: a controller with the
 current loop inside (``TenKilohertzController``: the laws of each tick, then the PI on the measured
 current, outputs after the step, no feedthrough) exchanging with voltage-driven axes every 100 us."""
+
 from __future__ import annotations
 
 import math
@@ -14,6 +15,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from conftest import ROOT as REPO
 
 from fmus.actuator.drive import CURRENT_LOOP_PARAMETERS, pi_step
 from fmus.actuator.model import ActuatorBlock
@@ -23,8 +25,6 @@ from mast.core.components import BlockComponent
 from mast.core.master import Master
 from mast.core.motion import SineMotion
 from mast.core.ssp import Connection, read_ssd
-
-from conftest import ROOT as REPO
 
 AXES = (1, 2, 3)
 
@@ -53,7 +53,7 @@ class TenKilohertzController(Block):
         assert round(h / self.T) == 1
         laws = self.laws
         laws.values[:9] = self.values[:9]
-        laws.do_step(t, h)              # the laws of the tick at t from the samples at t (no input set: held)
+        laws.do_step(t, h)  # the laws of the tick at t from the samples at t (no input set: held)
         i_cmd = laws.values[15:18]
         for j in range(3):
             self.u[j], self.x_c[j] = pi_step(i_cmd[j] - self.values[9 + j], self.x_c[j], *self.gains)
@@ -68,17 +68,22 @@ def ten_kilohertz(ssd):
     cons += [Connection("controller", f"u_{k}", f"actuator_{k}", "u") for k in AXES]
     cons += [Connection(f"actuator_{k}", "i_m", "controller", f"i_m_{k}") for k in AXES]
     comps = dict(system.components)
-    comps["controller"] = replace(comps["controller"], step_size=1e-4, inputs=list(TenKilohertzController.INPUTS),
-                                  outputs=list(TenKilohertzController.OUTPUTS))
+    comps["controller"] = replace(
+        comps["controller"],
+        step_size=1e-4,
+        inputs=list(TenKilohertzController.INPUTS),
+        outputs=list(TenKilohertzController.OUTPUTS),
+    )
     for k in AXES:
         comps[f"actuator_{k}"] = replace(comps[f"actuator_{k}"], step_size=1e-4, inputs=["u", "F"])
     return replace(system, components=comps, connections=cons, base_step=1e-4)
 
 
 def blocks_of(system, **override):
-    return {name: BlockComponent(name, override.get(name) or
-                                 BlockComponent.class_for(spec.source.rsplit("/", 1)[-1][:-4]))
-            for name, spec in system.components.items()}
+    return {
+        name: BlockComponent(name, override.get(name) or BlockComponent.class_for(spec.source.rsplit("/", 1)[-1][:-4]))
+        for name, spec in system.components.items()
+    }
 
 
 class LateController(ControllerBlock):
@@ -87,8 +92,15 @@ class LateController(ControllerBlock):
     FEEDTHROUGH = {}
 
 
-SIGNALS = ["mechanism.z", "actuator_1.rho_ddot", "actuator_1.rho", "actuator_2.i_m", "actuator_3.tau_m",
-           "actuator_1.omega_m", "controller.i_cmd_2"]
+SIGNALS = [
+    "mechanism.z",
+    "actuator_1.rho_ddot",
+    "actuator_1.rho",
+    "actuator_2.i_m",
+    "actuator_3.tau_m",
+    "actuator_1.omega_m",
+    "controller.i_cmd_2",
+]
 
 
 def largest_difference(a, b) -> float:
@@ -99,12 +111,12 @@ def largest_difference(a, b) -> float:
 def former():
     ssd = REPO / "ssp" / "MAST.ssd"
     system = ten_kilohertz(ssd)
-    blocks = blocks_of(system, controller=TenKilohertzController,
-                       **{f"actuator_{k}": ActuatorBlock for k in AXES})
+    blocks = blocks_of(system, controller=TenKilohertzController, **{f"actuator_{k}": ActuatorBlock for k in AXES})
     params = {f"actuator_{k}": {} for k in AXES}
     master = Master(system, blocks)
-    return master.run(0.3, SineMotion("z", 0.01, 10.0), record=SIGNALS + ["controller.u_1"], record_step=1e-3,
-                      parameters=params)
+    return master.run(
+        0.3, SineMotion("z", 0.01, 10.0), record=SIGNALS + ["controller.u_1"], record_step=1e-3, parameters=params
+    )
 
 
 def test_the_1khz_drive_pattern_gives_the_former_10khz_trajectories_to_rounding(former):

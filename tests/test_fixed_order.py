@@ -1,6 +1,7 @@
 """Small linear algebra in a fixed order (fmus/common/fixed_order.py): right against scipy/LAPACK (the
 independent route), the same floats as the native FMUs' C, and no BLAS left in a co-simulation's arithmetic
 (a run under another OpenBLAS kernel is bit-identical), issue 24."""
+
 from __future__ import annotations
 
 import ctypes
@@ -13,10 +14,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import load_params
 from scipy.linalg import expm as scipy_expm
 from scipy.linalg import matrix_balance
 
-from conftest import load_params
 from fmus.actuator.model import ActuatorBlock, chain_frequencies, fastest_mode
 from fmus.common.fixed_order import eig_max, expm, matmul
 from mast.core.native.compiler import compiler
@@ -31,13 +32,23 @@ def _generators(count: int = 24) -> list[np.ndarray]:
     base = load_params("actuator_identified")
     out = []
     for k in range(count):
-        params = {**base, **{name: base[name] * 10.0 ** rng.uniform(-1.0, 1.0)
-                             for name in ("R", "L", "k_T", "J_motor", "J_guide", "K_t", "C_t", "b_v")}}
+        params = {
+            **base,
+            **{
+                name: base[name] * 10.0 ** rng.uniform(-1.0, 1.0)
+                for name in ("R", "L", "k_T", "J_motor", "J_guide", "K_t", "C_t", "b_v")
+            },
+        }
         if k % 3 == 1:
             params["backlash"] = 1e-3
         if k % 3 == 2:
-            params = {**params, "n_dof": 3, "J_chain": "1.2e-4 1e-4 1.1e-4", "K_chain": "3000 2500",
-                      "C_chain": "0.01 0.02"}
+            params = {
+                **params,
+                "n_dof": 3,
+                "J_chain": "1.2e-4 1e-4 1.1e-4",
+                "K_chain": "3000 2500",
+                "C_chain": "0.01 0.02",
+            }
         block = ActuatorBlock(params)
         for M in block._generators():
             for h in (1e-5, 1e-4, 1e-3, 1e-2):
@@ -53,8 +64,10 @@ def test_the_exponential_agrees_with_scipys_pade_route():
         E, reference = expm(X), scipy_expm(X)
         d = matrix_balance(X, permute=False, separate=True)[1][0]
         scaled = d[None, :] / d[:, None]
-        worst = max(worst, float(np.abs((E - reference) * scaled).sum(axis=0).max()
-                                 / np.abs(reference * scaled).sum(axis=0).max()))
+        worst = max(
+            worst,
+            float(np.abs((E - reference) * scaled).sum(axis=0).max() / np.abs(reference * scaled).sum(axis=0).max()),
+        )
     assert worst < 1e-11, worst
     assert np.isnan(expm(np.array([[np.inf, 0.0], [0.0, 1.0]]))).all()
 
@@ -79,14 +92,29 @@ def c_routines(tmp_path_factory) -> ctypes.CDLL:
 
     tmp = tmp_path_factory.mktemp("fixed_order_c")
     source = tmp / "routines.c"
-    source.write_text('#include "mast_native.h"\n'
-                      'int expm_c(int n, const double *M, double *E) { return mast_expm(n, M, E); }\n'
-                      'double eig_max_c(int n, double *S) { return mast_eig_max(n, S); }\n')
+    source.write_text(
+        '#include "mast_native.h"\n'
+        "int expm_c(int n, const double *M, double *E) { return mast_expm(n, M, E); }\n"
+        "double eig_max_c(int n, double *S) { return mast_eig_max(n, S); }\n"
+    )
     library = tmp / "routines.so"
     flags = [f for f in CFLAGS if f.startswith(("-O", "-ffp", "-f", "-std", "-D"))]
     support = ROOT / "fmus" / "common" / "native"
-    subprocess.run([compiler(), *flags, "-shared", f"-I{support}", "-o", str(library), str(source),
-                    str(support / "mast_linalg.c"), "-lm"], check=True, capture_output=True)
+    subprocess.run(
+        [
+            compiler(),
+            *flags,
+            "-shared",
+            f"-I{support}",
+            "-o",
+            str(library),
+            str(source),
+            str(support / "mast_linalg.c"),
+            "-lm",
+        ],
+        check=True,
+        capture_output=True,
+    )
     lib = ctypes.CDLL(str(library))
     lib.eig_max_c.restype = ctypes.c_double
     return lib
@@ -141,8 +169,9 @@ def test_a_run_with_backlash_is_bit_identical_under_another_blas_kernel(tmp_path
         env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_CORETYPE"}
         if kernel:
             env["OPENBLAS_CORETYPE"] = kernel
-        done = subprocess.run([sys.executable, "-c", _RUN, str(ssp)], env=env, capture_output=True, text=True,
-                              check=True)
+        done = subprocess.run(
+            [sys.executable, "-c", _RUN, str(ssp)], env=env, capture_output=True, text=True, check=True
+        )
         runs.append(json.loads(done.stdout))
     assert runs[0].keys() == runs[1].keys()
     differing = [k for k in runs[0] if runs[0][k] != runs[1][k]]

@@ -5,6 +5,7 @@ one: driven with the same inputs the two give the same outputs to the last bit. 
 runs an FMI 3.0 MAST FMU; libcosim 0.0.6 refuses FMI 3.0. Why the FMI 2.0 FMUs stay the ones to use:
 docs/using-the-fmus.md.
 """
+
 from __future__ import annotations
 
 import ctypes
@@ -18,16 +19,21 @@ from lxml import etree
 
 import mast.core.build as build
 from mast.core.build import FMUS, block_class, build_all, build_ssp
-from mast.hosts.cosim import HostError, availability, run_host
 from mast.core.ssp import read_ssd
+from mast.hosts.cosim import HostError, availability, run_host
 
-pytestmark = pytest.mark.skipif(importlib.util.find_spec("pythonfmu3") is None,
-                                reason="pythonfmu3 is not installed (pip install -e '.[test]' installs it)")
+pytestmark = pytest.mark.skipif(
+    importlib.util.find_spec("pythonfmu3") is None,
+    reason="pythonfmu3 is not installed (pip install -e '.[test]' installs it)",
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 OK, WARNING, DISCARD, ERROR, FATAL = range(5)
-IDENTIFIERS = [s.model_identifier for s in FMUS
-               if s.model_identifier in ("MastActuator", "MastMechanism", "MastController", "MastTrajectory")]
+IDENTIFIERS = [
+    s.model_identifier
+    for s in FMUS
+    if s.model_identifier in ("MastActuator", "MastMechanism", "MastController", "MastTrajectory")
+]
 
 
 @pytest.fixture(scope="module", autouse=True)
@@ -70,8 +76,12 @@ class Instance3:
         self.inputs = [v.name for v in self.md.modelVariables if v.causality == "input"]
         self.outputs = [v.name for v in self.md.modelVariables if v.causality == "output"]
         self.log: list[tuple[int, str]] = []
-        self.slave = FMU3Slave(guid=self.md.guid, unzipDirectory=str(self.unzip),
-                               modelIdentifier=self.md.coSimulation.modelIdentifier, instanceName=name)
+        self.slave = FMU3Slave(
+            guid=self.md.guid,
+            unzipDirectory=str(self.unzip),
+            modelIdentifier=self.md.coSimulation.modelIdentifier,
+            instanceName=name,
+        )
 
         def log(_env, status, _category, message):
             self.log.append((status, (message or b"").decode(errors="replace")))
@@ -93,8 +103,14 @@ class Instance3:
     def step(self, t: float, h: float) -> int:
         flags = [ctypes.c_bool() for _ in range(3)]
         last = ctypes.c_double()
-        return self.slave.dll.fmi3DoStep(self.slave.component, ctypes.c_double(t), ctypes.c_double(h), ctypes.c_bool(True),
-                                         *[ctypes.byref(f) for f in flags], ctypes.byref(last))
+        return self.slave.dll.fmi3DoStep(
+            self.slave.component,
+            ctypes.c_double(t),
+            ctypes.c_double(h),
+            ctypes.c_bool(True),
+            *[ctypes.byref(f) for f in flags],
+            ctypes.byref(last),
+        )
 
     def close(self) -> None:
         self.slave.terminate()
@@ -196,8 +212,16 @@ def test_fmi3_variant_starts_at_the_hosts_start_time(built):
     from fmpy import simulate_fmu
 
     traj = read_ssd(ROOT / "ssp" / "MAST_standalone.ssd").components["trajectory"].parameters
-    runs = [simulate_fmu(str(built / folder / "MastTrajectory.fmu"), start_time=0.1, stop_time=0.105,
-                         step_size=1e-3, output_interval=1e-3) for folder in ("fmus", "fmus3")]
+    runs = [
+        simulate_fmu(
+            str(built / folder / "MastTrajectory.fmu"),
+            start_time=0.1,
+            stop_time=0.105,
+            step_size=1e-3,
+            output_interval=1e-3,
+        )
+        for folder in ("fmus", "fmus3")
+    ]
     expected = traj["z_home"] + traj["amplitude_z"] * np.sin(2 * np.pi * traj["frequency"] * (runs[1]["time"] - 0.1))
     np.testing.assert_allclose(runs[1]["z_cmd"], expected, rtol=0, atol=1e-12)
     np.testing.assert_array_equal(runs[1]["z_cmd"], runs[0]["z_cmd"])
@@ -213,8 +237,14 @@ def ssps(built) -> tuple[Path, Path]:
 @pytest.mark.skipif(availability("ecos") is not None, reason=f"ecos: {availability('ecos')}")
 def test_the_ecos_command_line_runs_an_fmi3_mast_fmu(built):
     """A C++ host through its FMI 3.0 loader. A whole FMI 3.0 system in ecos is not reliable: see the docs."""
-    result = run_host("ecos", built / "fmus3" / "MastTrajectory.fmu", 0.5, ["instance.z_cmd", "instance.time"],
-                      sample_step=0.01, base_step=0.01)
+    result = run_host(
+        "ecos",
+        built / "fmus3" / "MastTrajectory.fmu",
+        0.5,
+        ["instance.z_cmd", "instance.time"],
+        sample_step=0.01,
+        base_step=0.01,
+    )
     traj = read_ssd(ROOT / "ssp" / "MAST_standalone.ssd").components["trajectory"].parameters
     expected = traj["z_home"] + traj["amplitude_z"] * np.sin(2 * np.pi * traj["frequency"] * result.time)
     np.testing.assert_allclose(result["instance.z_cmd"], expected, atol=5.0001e-7)  # 6 printed decimals
@@ -237,7 +267,7 @@ def test_outputs_are_calculated_in_initialization_and_declare_no_start_value(bui
     from fmpy import read_model_description
 
     fmi2, fmi3 = sorted((built / "fmus").glob("*.fmu")), sorted((built / "fmus3").glob("*.fmu"))
-    assert fmi2 and [f.name for f in fmi2] == [f.name for f in fmi3]   # every FMU in both versions
+    assert fmi2 and [f.name for f in fmi2] == [f.name for f in fmi3]  # every FMU in both versions
     fmus = fmi2 + fmi3
     for fmu in fmus:
         md = read_model_description(str(fmu))
@@ -257,8 +287,14 @@ def _values(inst: Instance3, function: str, name_or_vr, value=0.0, ctype=ctypes.
 
 
 def _enter(inst: Instance3) -> int:
-    return inst.slave.dll.fmi3EnterInitializationMode(inst.slave.component, ctypes.c_bool(False), ctypes.c_double(0.0),
-                                                      ctypes.c_double(0.0), ctypes.c_bool(False), ctypes.c_double(0.0))
+    return inst.slave.dll.fmi3EnterInitializationMode(
+        inst.slave.component,
+        ctypes.c_bool(False),
+        ctypes.c_double(0.0),
+        ctypes.c_double(0.0),
+        ctypes.c_bool(False),
+        ctypes.c_double(0.0),
+    )
 
 
 def _drive(inst: Instance3, first: int, n: int, h: float = 1e-4) -> np.ndarray:
@@ -273,8 +309,18 @@ def _drive(inst: Instance3, first: int, n: int, h: float = 1e-4) -> np.ndarray:
     return np.array(rows)
 
 
-CASES = ("exit before enter", "step before initialization", "enter twice", "parameter after initialization",
-         "output", "unknown reference", "wrong type", "boolean", "foreign state", "step after terminate")
+CASES = (
+    "exit before enter",
+    "step before initialization",
+    "enter twice",
+    "parameter after initialization",
+    "output",
+    "unknown reference",
+    "wrong type",
+    "boolean",
+    "foreign state",
+    "step after terminate",
+)
 
 
 def test_fmi3_illegal_calls_return_error_name_the_fault_and_change_nothing(built):
@@ -292,11 +338,14 @@ def test_fmi3_illegal_calls_return_error_name_the_fault_and_change_nothing(built
         def refused(status: int, *words: str) -> None:
             assert status == ERROR, (case, inst.log[-2:])
             assert inst.log[-1][0] == ERROR and all(w in inst.log[-1][1] for w in words), (case, inst.log[-2:])
-            assert not [m for s, m in inst.log if s == FATAL], case   # pythonfmu3's own Fatal report is not passed on
+            assert not [m for s, m in inst.log if s == FATAL], case  # pythonfmu3's own Fatal report is not passed on
 
         if case == "exit before enter":
-            refused(inst.slave.dll.fmi3ExitInitializationMode(inst.slave.component), "exitInitializationMode",
-                    "not allowed in instantiated")
+            refused(
+                inst.slave.dll.fmi3ExitInitializationMode(inst.slave.component),
+                "exitInitializationMode",
+                "not allowed in instantiated",
+            )
         elif case == "step before initialization":
             refused(inst.step(0.0, 1e-4), "doStep", "not allowed in instantiated")
         elif case == "enter twice":
@@ -310,17 +359,26 @@ def test_fmi3_illegal_calls_return_error_name_the_fault_and_change_nothing(built
         fresh.start({"tau_c": 0.0718})
         np.testing.assert_array_equal(_drive(inst, 0, 3), _drive(fresh, 0, 3))
         first = 3
-        if case == "parameter after initialization":   # was: Fatal, and every later call refused
-            refused(_values(inst, "fmi3SetFloat64", "tau_c", 0.05), "setFloat64", "parameter 'tau_c' is fixed",
-                    "before exitInitializationMode", "step mode")
+        if case == "parameter after initialization":  # was: Fatal, and every later call refused
+            refused(
+                _values(inst, "fmi3SetFloat64", "tau_c", 0.05),
+                "setFloat64",
+                "parameter 'tau_c' is fixed",
+                "before exitInitializationMode",
+                "step mode",
+            )
             assert inst.get(["tau_c"]) == [0.0718]
         elif case == "output":
             refused(_values(inst, "fmi3SetFloat64", "tau_m", 1.0), "'tau_m' is output", "only inputs and parameters")
         elif case == "unknown reference":
             refused(_values(inst, "fmi3GetFloat64", 4711), "getFloat64", "value reference 4711 is not a variable of")
         elif case == "wrong type":
-            refused(_values(inst, "fmi3SetInt32", "tau_c", 1, ctypes.c_int32), "setInt32", "'tau_c'",
-                    "is of type Float64, not Int32")
+            refused(
+                _values(inst, "fmi3SetInt32", "tau_c", 1, ctypes.c_int32),
+                "setInt32",
+                "'tau_c'",
+                "is of type Float64, not Int32",
+            )
         elif case == "boolean":
             refused(_values(inst, "fmi3GetBoolean", "rho", False, ctypes.c_bool), "getBoolean", "not Boolean")
         elif case == "foreign state":
@@ -328,9 +386,9 @@ def test_fmi3_illegal_calls_return_error_name_the_fault_and_change_nothing(built
         elif case == "step after terminate":
             assert inst.slave.dll.fmi3Terminate(inst.slave.component) == OK
             refused(inst.step(3e-4, 1e-4), "doStep", "not allowed in terminated")
-            assert _values(inst, "fmi3GetFloat64", "rho") == OK   # a legal call after it
+            assert _values(inst, "fmi3GetFloat64", "rho") == OK  # a legal call after it
             fresh.slave.terminate()
-            for i in (inst, fresh):   # and a reset, to run again
+            for i in (inst, fresh):  # and a reset, to run again
                 assert i.slave.dll.fmi3Reset(i.slave.component) == OK
                 i.start({"tau_c": 0.0718})
             first = 0
@@ -391,19 +449,23 @@ def test_fmi3_feedthrough_output_follows_its_input_and_is_declared_in_the_model_
     vr = {v.name: v.valueReference for v in md.modelVariables}
     with zipfile.ZipFile(fmu) as z:
         structure = etree.fromstring(z.read("modelDescription.xml")).find("ModelStructure")
-    assert {o.get("valueReference"): (o.get("dependencies"), o.get("dependenciesKind"))
-            for o in structure.iterfind("Output")} == {str(vr["y"]): (str(vr["b"]), "dependent"),
-                                                       str(vr["z"]): ("", None)}
+    assert {
+        o.get("valueReference"): (o.get("dependencies"), o.get("dependenciesKind"))
+        for o in structure.iterfind("Output")
+    } == {str(vr["y"]): (str(vr["b"]), "dependent"), str(vr["z"]): ("", None)}
     inst = Instance3(fmu, "halver")
     inst.start({"k": 0.5})
     inst.set(a=3.0, b=8.0)
-    assert inst.get(["y", "z"]) == [4.0, 0.0]          # y follows b at once; z has not stepped
+    assert inst.get(["y", "z"]) == [4.0, 0.0]  # y follows b at once; z has not stepped
     assert inst.step(0.0, 0.1) == OK and inst.get(["y", "z"]) == [4.0, 0.1]
     inst.set(b=-2.0)
     assert inst.get(["y"]) == [-1.0]
     inst.set(b=300.0)
-    assert inst.log[-1] == (ERROR, "setFloat64: evaluating the outputs: ValueError: b above 100 (the '%' in this "
-                                   "message reaches an FMI 3.0 host as it is)"), inst.log[-2:]   # not a format
+    assert inst.log[-1] == (
+        ERROR,
+        "setFloat64: evaluating the outputs: ValueError: b above 100 (the '%' in this "
+        "message reaches an FMI 3.0 host as it is)",
+    ), inst.log[-2:]  # not a format
     assert inst.step(0.1, 0.1) == DISCARD and "b above 100" in inst.log[-1][1]
     inst.set(b=10.0)
     assert inst.step(0.1, 0.1) == OK and inst.get(["y", "z"]) == [5.0, pytest.approx(0.2)]
@@ -429,7 +491,7 @@ def test_feedthrough_outputs_of_the_mast_fmi3_fmus_follow_their_inputs_as_the_mo
         block.initialize(0.0)
         names, h = list(cls.FEEDTHROUGH), 1e-4
         for k in range(3):
-            inputs = {name: _input(name, (k + 0.5) * h, 0.3) for name in cls.INPUTS}   # not the last ones
+            inputs = {name: _input(name, (k + 0.5) * h, 0.3) for name in cls.INPUTS}  # not the last ones
             inst.set(**inputs)
             block.set(**inputs)
             block.evaluate()

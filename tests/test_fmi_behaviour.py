@@ -5,6 +5,7 @@ cycles (and failing ones) without a crash or growing memory; reset; get/set FMU 
 errors as fmi2Discard with the cause logged; parameter errors at initialisation; the Python
 requirements each FMU carries.
 """
+
 from __future__ import annotations
 
 import ast
@@ -30,8 +31,11 @@ from mast.core.build import FMU_REQUIREMENTS, FMUS, build_all, build_fmu
 
 ROOT = Path(__file__).resolve().parents[1]
 OK, WARNING, DISCARD, ERROR, FATAL = range(5)
-IDENTIFIERS = [spec.model_identifier for spec in FMUS if spec.model_identifier in
-               ("MastActuator", "MastMechanism", "MastController", "MastTrajectory")]
+IDENTIFIERS = [
+    spec.model_identifier
+    for spec in FMUS
+    if spec.model_identifier in ("MastActuator", "MastMechanism", "MastController", "MastTrajectory")
+]
 
 
 @pytest.fixture(scope="module")
@@ -53,8 +57,15 @@ class Instance:
 
     def __init__(self, fmu: Path, name: str, unzip: Path | None = None) -> None:
         from fmpy import extract
-        from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
-                               fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, calloc, free)
+        from fmpy.fmi2 import (
+            FMU2Slave,
+            calloc,
+            fmi2CallbackAllocateMemoryTYPE,
+            fmi2CallbackFreeMemoryTYPE,
+            fmi2CallbackFunctions,
+            fmi2CallbackLoggerTYPE,
+            free,
+        )
 
         self.md = model_description(str(fmu))
         self.unzip = unzip or Path(extract(str(fmu)))
@@ -62,8 +73,12 @@ class Instance:
         self.vr = {v.name: v.valueReference for v in self.md.modelVariables}
         self.inputs = [v.name for v in self.md.modelVariables if v.causality == "input"]
         self.outputs = [v.name for v in self.md.modelVariables if v.causality == "output"]
-        self.slave = FMU2Slave(guid=self.md.guid, unzipDirectory=str(self.unzip),
-                               modelIdentifier=self.md.coSimulation.modelIdentifier, instanceName=name)
+        self.slave = FMU2Slave(
+            guid=self.md.guid,
+            unzipDirectory=str(self.unzip),
+            modelIdentifier=self.md.coSimulation.modelIdentifier,
+            instanceName=name,
+        )
 
         def logger(_env, _name, status, _category, message):
             self.log.append((status, (message or b"").decode(errors="replace")))
@@ -159,8 +174,12 @@ def test_each_fmu_carries_the_requirements_of_its_code_for_pythonfmu_deploy(buil
 
 def test_pythonfmu_deploy_installs_from_the_bundled_requirements(built):
     """`pythonfmu deploy` runs pip on resources/requirements.txt (here everything is present already)."""
-    proc = subprocess.run([sys.executable, "-m", "pythonfmu", "deploy", "-f", str(built / "fmus" / "MastTrajectory.fmu")],
-                          capture_output=True, text=True, timeout=300)
+    proc = subprocess.run(
+        [sys.executable, "-m", "pythonfmu", "deploy", "-f", str(built / "fmus" / "MastTrajectory.fmu")],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert proc.returncode == 0, proc.stdout + proc.stderr
     assert "numpy" in proc.stdout and "scipy" in proc.stdout
 
@@ -429,9 +448,19 @@ def _real(inst: Instance, function: str, name_or_vr, value: float = 0.0) -> int:
     return getattr(inst.dll, function)(inst.c, vr, 1, buf)
 
 
-@pytest.mark.parametrize("case", ["exit before enter", "parameter after initialization", "output",
-                                  "unknown reference", "wrong type", "step after terminate",
-                                  "step before initialization", "enter twice"])
+@pytest.mark.parametrize(
+    "case",
+    [
+        "exit before enter",
+        "parameter after initialization",
+        "output",
+        "unknown reference",
+        "wrong type",
+        "step after terminate",
+        "step before initialization",
+        "enter twice",
+    ],
+)
 def test_illegal_calls_return_error_name_the_fault_and_change_nothing(built, case):
     """FMI 2.0 section 4.3: a call its state does not allow, a set the variable does not allow, an unknown
     value reference: fmi2Error with one message (status Error) naming the fault, and nothing changes: the
@@ -451,8 +480,11 @@ def test_illegal_calls_return_error_name_the_fault_and_change_nothing(built, cas
     elif case == "enter twice":
         inst.slave.setupExperiment(startTime=0.0)
         inst.slave.enterInitializationMode()
-        refused(inst.dll.fmi2EnterInitializationMode(inst.c), "enterInitializationMode",
-                "not allowed in initialization mode")
+        refused(
+            inst.dll.fmi2EnterInitializationMode(inst.c),
+            "enterInitializationMode",
+            "not allowed in initialization mode",
+        )
     if case == "enter twice":
         inst.set(tau_c=0.0718)
         assert inst.dll.fmi2ExitInitializationMode(inst.c) == OK
@@ -462,8 +494,13 @@ def test_illegal_calls_return_error_name_the_fault_and_change_nothing(built, cas
     np.testing.assert_array_equal(drive(inst, 0, 3), drive(fresh, 0, 3))
     first = 3
     if case == "parameter after initialization":  # was: OK, then every doStep Discard
-        refused(_real(inst, "fmi2SetReal", "tau_c", 0.05),
-                "setReal", "parameter 'tau_c' is fixed", "before exitInitializationMode", "step mode")
+        refused(
+            _real(inst, "fmi2SetReal", "tau_c", 0.05),
+            "setReal",
+            "parameter 'tau_c' is fixed",
+            "before exitInitializationMode",
+            "step mode",
+        )
         assert inst.get(["tau_c"]) == [0.0718]
     elif case == "output":
         refused(_real(inst, "fmi2SetReal", "tau_m", 1.0), "'tau_m' is output", "only inputs and parameters")
@@ -490,7 +527,9 @@ def _slave_of(inst: Instance):
     import gc
 
     identifier = inst.md.coSimulation.modelIdentifier
-    found = [o for o in gc.get_objects() if type(o).__name__ == identifier and o.instance_name == inst.slave.instanceName]
+    found = [
+        o for o in gc.get_objects() if type(o).__name__ == identifier and o.instance_name == inst.slave.instanceName
+    ]
     assert len(found) == 1, found
     return found[0]
 
@@ -502,7 +541,7 @@ def test_a_failure_nobody_foresaw_is_fatal_and_the_instance_refuses_every_later_
     assert inst.start() == OK
     drive(inst, 0, 3)
 
-    class Defective(frozenset):   # the value references' check, on every path of getReal (fast_get too)
+    class Defective(frozenset):  # the value references' check, on every path of getReal (fast_get too)
         def issuperset(self, *_):
             raise ZeroDivisionError("injected")
 
@@ -545,8 +584,10 @@ def test_the_build_falls_back_to_pythonfmus_binary_without_a_c_compiler(monkeypa
     monkeypatch.setattr(toolchain, "c_compiler", no_compiler)
     build._compiled_front.cache_clear()
     try:
-        assert (f"fmi{fmi_version}Fatal instead of fmi{fmi_version}Error (no C compiler here (test))"
-                in build.front_note(fmi_version))
+        assert (
+            f"fmi{fmi_version}Fatal instead of fmi{fmi_version}Error (no C compiler here (test))"
+            in build.front_note(fmi_version)
+        )
         spec = next(s for s in FMUS if s.model_identifier == "MastTrajectory")
         fmu = (build_fmu if fmi_version == 2 else build.build_fmu3)(spec, tmp_path)
     finally:
@@ -564,16 +605,16 @@ def test_the_build_falls_back_to_pythonfmus_binary_without_a_c_compiler(monkeypa
 def test_legal_sets_in_each_state(built):
     """Parameters before exitInitializationMode, inputs until terminate; gets in every state."""
     inst = Instance(built / "fmus" / "MastActuator.fmu", "axis")
-    assert _real(inst, "fmi2SetReal", "tau_c", 0.0718) == OK            # instantiated: a parameter
+    assert _real(inst, "fmi2SetReal", "tau_c", 0.0718) == OK  # instantiated: a parameter
     inst.slave.setupExperiment(startTime=0.0)
     inst.slave.enterInitializationMode()
-    assert _real(inst, "fmi2SetReal", "tau_c", 0.0718) == OK            # initialization mode: a parameter
-    assert _real(inst, "fmi2SetReal", "i_cmd", 1.0) == OK                   # and an input
+    assert _real(inst, "fmi2SetReal", "tau_c", 0.0718) == OK  # initialization mode: a parameter
+    assert _real(inst, "fmi2SetReal", "i_cmd", 1.0) == OK  # and an input
     assert inst.dll.fmi2ExitInitializationMode(inst.c) == OK
-    assert _real(inst, "fmi2SetReal", "i_cmd", 2.0) == OK                   # step mode: an input
+    assert _real(inst, "fmi2SetReal", "i_cmd", 2.0) == OK  # step mode: an input
     assert inst.step(0.0, 1e-4) == OK and _real(inst, "fmi2GetReal", "tau_c") == OK
     assert inst.dll.fmi2Terminate(inst.c) == OK
-    assert _real(inst, "fmi2GetReal", "tau_m") == OK                    # terminated: gets still answer
+    assert _real(inst, "fmi2GetReal", "tau_m") == OK  # terminated: gets still answer
     assert not [m for st, m in inst.log if st >= ERROR], inst.log
     inst.slave.freeInstance()
 
@@ -609,7 +650,9 @@ def test_a_feedthrough_output_follows_its_input_and_is_declared_in_the_model_str
         block_class = Halver
 
     slave = HalverSlave(instance_name="halver")
-    structure = {u.get("index"): u.get("dependencies") for u in slave.to_xml().iterfind("ModelStructure/Outputs/Unknown")}
+    structure = {
+        u.get("index"): u.get("dependencies") for u in slave.to_xml().iterfind("ModelStructure/Outputs/Unknown")
+    }
     names = [v.name for v in slave.vars.values()]
     assert {names[int(i) - 1]: dep for i, dep in structure.items()} == {"y": str(names.index("b") + 1), "z": ""}
     slave.setup_experiment(0.0, None, None)

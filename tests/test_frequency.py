@@ -1,4 +1,5 @@
 """Frequency-response extraction, checked on systems with a known answer through the same harness."""
+
 from __future__ import annotations
 
 import math
@@ -10,15 +11,17 @@ import pytest
 
 from fmus.common.block import Block
 from fmus.common.parameters import Param
-from mast.core.components import BlockComponent
 from mast.analyses.frequency import analyse, bandwidth, harmonic, measuring_window
+from mast.core.components import BlockComponent
 from mast.core.master import Master
 from mast.core.motion import SineMotion
 from mast.core.ssp import ComponentSpec, Connection, SystemSpec
 
 H = 1e-3  # base step of the toy system [s]
 #: a known closed loop: 2nd order, 6 Hz, damping 0.5, with a 4 ms transport delay (Pade, 3rd order)
-PLANT = ct.tf([(2 * math.pi * 6) ** 2], [1, 2 * 0.5 * 2 * math.pi * 6, (2 * math.pi * 6) ** 2]) * ct.tf(*ct.pade(4e-3, 3))
+PLANT = ct.tf([(2 * math.pi * 6) ** 2], [1, 2 * 0.5 * 2 * math.pi * 6, (2 * math.pi * 6) ** 2]) * ct.tf(
+    *ct.pade(4e-3, 3)
+)
 DISCRETE = ct.ss(ct.c2d(PLANT, H, method="zoh"))
 
 

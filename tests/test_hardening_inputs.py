@@ -1,4 +1,5 @@
 """Bad input on the command line and in parameter sets: a clear error naming it, before any run."""
+
 from __future__ import annotations
 
 import shutil
@@ -6,12 +7,12 @@ from pathlib import Path
 
 import pytest
 
-from fmus.common.parameters import exact_boolean, exact_integer
 import mast.core.build as build_module
-from mast.core.build import default_parameters
+from fmus.common.parameters import exact_boolean, exact_integer
 from mast.cli import main as cli_main
-from mast.core.units import UnitError, convert, parse_unit
+from mast.core.build import default_parameters
 from mast.core.ssv import SSPFormatError, parse_ssv
+from mast.core.units import UnitError, convert, parse_unit
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -22,7 +23,7 @@ def test_exact_integer_takes_whole_numbers(value, expected):
     assert exact_integer(value) == expected and isinstance(exact_integer(value), int)
 
 
-@pytest.mark.parametrize("value", [2.5, "2.5", 0.5, float("inf"), float("nan"), "two", None, 2 ** 31, -2 ** 31 - 1])
+@pytest.mark.parametrize("value", [2.5, "2.5", 0.5, float("inf"), float("nan"), "two", None, 2**31, -(2**31) - 1])
 def test_exact_integer_refuses_fractions_and_what_a_c_int_cannot_hold(value):
     with pytest.raises(ValueError, match="not a whole number|not a number|integer range"):
         exact_integer(value)
@@ -36,9 +37,11 @@ def test_exact_boolean_refuses_what_is_not_true_or_false(value):
 
 @pytest.mark.parametrize("kind, raw", [("Boolean", "0.5"), ("Boolean", "yes"), ("Integer", "2.5")])
 def test_ssv_refuses_a_boolean_or_integer_that_is_not_one(kind, raw):
-    ssv = (f'<ssv:ParameterSet xmlns:ssv="http://ssp-standard.org/SSP1/SystemStructureParameterValues" '
-           f'version="1.0" name="s"><ssv:Parameters><ssv:Parameter name="attached"><ssv:{kind} value="{raw}"/>'
-           f'</ssv:Parameter></ssv:Parameters></ssv:ParameterSet>')
+    ssv = (
+        f'<ssv:ParameterSet xmlns:ssv="http://ssp-standard.org/SSP1/SystemStructureParameterValues" '
+        f'version="1.0" name="s"><ssv:Parameters><ssv:Parameter name="attached"><ssv:{kind} value="{raw}"/>'
+        f"</ssv:Parameter></ssv:Parameters></ssv:ParameterSet>"
+    )
     with pytest.raises(SSPFormatError, match=f"set.ssv: parameter 'attached': value '{raw}' is not a valid {kind}"):
         parse_ssv(ssv, origin="set.ssv")
 
@@ -50,10 +53,16 @@ def test_ssv_units_are_converted_to_the_declared_unit(tmp_path, unit, value, si)
     assert default_parameters("MastMechanism", ssd)["m_platform"] == pytest.approx(si, rel=1e-12)
 
 
-@pytest.mark.parametrize("unit, message", [
-    ("s", r"mass_3prs.ssv: 'm_platform' is given in 's' \(dimension s\), but component 'mechanism' declares it in 'kg'"),
-    ("furlong", r"mass_3prs.ssv: parameter 'm_platform': unit 'furlong': 'furlong' is not a known unit symbol"),
-])
+@pytest.mark.parametrize(
+    "unit, message",
+    [
+        (
+            "s",
+            r"mass_3prs.ssv: 'm_platform' is given in 's' \(dimension s\), but component 'mechanism' declares it in 'kg'",
+        ),
+        ("furlong", r"mass_3prs.ssv: parameter 'm_platform': unit 'furlong': 'furlong' is not a known unit symbol"),
+    ],
+)
 def test_ssv_units_of_another_dimension_or_unknown_are_refused_by_name(tmp_path, unit, message):
     ssd = _system_with(tmp_path, f'<ssv:Real value="2.06" unit="{unit}"/>')
     with pytest.raises(SSPFormatError, match=message):
@@ -89,21 +98,24 @@ def a_file(tmp_path) -> Path:
     return path
 
 
-@pytest.mark.parametrize("argv, named", [
-    (["run", "--stop-time", "inf"], "--stop-time: 'inf'"),
-    (["run", "--stop-time", "nan"], "--stop-time: 'nan'"),
-    (["run", "--stop-time", "0"], "--stop-time: '0'"),
-    (["run", "--record-step", "-1"], "--record-step: '-1'"),
-    (["run", "--amplitude", "nan"], "--amplitude: 'nan'"),
-    (["bench", "--stop-time", "inf"], "--stop-time: 'inf'"),
-    (["hosts", "--stop-time", "-1"], "--stop-time: '-1'"),
-    (["synthesize", "--out", "x", "--sample-time", "nan"], "--sample-time: 'nan'"),
-    (["compare", "--mechanism", "a.fmu", "--out", "x", "--frequencies", "inf"], "--frequencies: 'inf'"),
-    (["diagnose", "--measured", "m", "--out", "x", "--workers", "0"], "--workers: '0'"),
-    (["diagnose", "--measured", "m", "--out", "x", "--holdout-fraction", "1.5"], "--holdout-fraction: '1.5'"),
-    (["workspace", "3PRS_T", "--out", "x", "--step-z", "-0.01"], "--step-z: '-0.01'"),
-    (["workspace", "3PRS_T", "--out", "x", "--payload", "nan"], "--payload: 'nan'"),
-])
+@pytest.mark.parametrize(
+    "argv, named",
+    [
+        (["run", "--stop-time", "inf"], "--stop-time: 'inf'"),
+        (["run", "--stop-time", "nan"], "--stop-time: 'nan'"),
+        (["run", "--stop-time", "0"], "--stop-time: '0'"),
+        (["run", "--record-step", "-1"], "--record-step: '-1'"),
+        (["run", "--amplitude", "nan"], "--amplitude: 'nan'"),
+        (["bench", "--stop-time", "inf"], "--stop-time: 'inf'"),
+        (["hosts", "--stop-time", "-1"], "--stop-time: '-1'"),
+        (["synthesize", "--out", "x", "--sample-time", "nan"], "--sample-time: 'nan'"),
+        (["compare", "--mechanism", "a.fmu", "--out", "x", "--frequencies", "inf"], "--frequencies: 'inf'"),
+        (["diagnose", "--measured", "m", "--out", "x", "--workers", "0"], "--workers: '0'"),
+        (["diagnose", "--measured", "m", "--out", "x", "--holdout-fraction", "1.5"], "--holdout-fraction: '1.5'"),
+        (["workspace", "3PRS_T", "--out", "x", "--step-z", "-0.01"], "--step-z: '-0.01'"),
+        (["workspace", "3PRS_T", "--out", "x", "--payload", "nan"], "--payload: 'nan'"),
+    ],
+)
 def test_cli_refuses_non_finite_and_non_positive_numbers(capsys, argv, named):
     with pytest.raises(SystemExit) as info:
         cli_main(argv)
@@ -112,13 +124,22 @@ def test_cli_refuses_non_finite_and_non_positive_numbers(capsys, argv, named):
     assert named in err and "Traceback" not in err
 
 
-@pytest.mark.parametrize("argv", [
-    ["run", "--out", "{file}"], ["run", "--out", "{file}/sub"], ["reproduce", "--out", "{file}"],
-    ["batch", "config.toml", "--out", "{file}"], ["compare", "--mechanism", "a.fmu", "--out", "{file}"],
-    ["synthesize", "--out", "{file}"], ["diagnose", "--measured", "m", "--out", "{file}"],
-    ["fit-gains", "--out", "{file}"], ["import", "f.mat", "--map", "m.toml", "--out", "{file}"],
-    ["replay", "a.ssp", "--measured", "m", "--out", "{file}"], ["workspace", "3PRS_T", "--out", "{file}"],
-])
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["run", "--out", "{file}"],
+        ["run", "--out", "{file}/sub"],
+        ["reproduce", "--out", "{file}"],
+        ["batch", "config.toml", "--out", "{file}"],
+        ["compare", "--mechanism", "a.fmu", "--out", "{file}"],
+        ["synthesize", "--out", "{file}"],
+        ["diagnose", "--measured", "m", "--out", "{file}"],
+        ["fit-gains", "--out", "{file}"],
+        ["import", "f.mat", "--map", "m.toml", "--out", "{file}"],
+        ["replay", "a.ssp", "--measured", "m", "--out", "{file}"],
+        ["workspace", "3PRS_T", "--out", "{file}"],
+    ],
+)
 def test_cli_refuses_an_output_that_is_a_file_before_running(capsys, a_file, argv):
     argv = [a.format(file=a_file) for a in argv]
     with pytest.raises(SystemExit) as info:
@@ -129,12 +150,15 @@ def test_cli_refuses_an_output_that_is_a_file_before_running(capsys, a_file, arg
     assert a_file.read_text() == "keep me"
 
 
-@pytest.mark.parametrize("argv, named", [
-    (["synthesize", "--out", "{tmp}/x", "--noise", "tau_m=abc"], "--noise 'tau_m=abc'"),
-    (["synthesize", "--out", "{tmp}/x", "--resolution", "rho=-1"], "--resolution 'rho=-1'"),
-    (["synthesize", "--out", "{tmp}/x", "--tests", "z:0.005:nan"], "--tests item 'z:0.005:nan'"),
-    (["synthesize", "--out", "{tmp}/x", "--tests", "z:abc:1"], "--tests item 'z:abc:1'"),
-])
+@pytest.mark.parametrize(
+    "argv, named",
+    [
+        (["synthesize", "--out", "{tmp}/x", "--noise", "tau_m=abc"], "--noise 'tau_m=abc'"),
+        (["synthesize", "--out", "{tmp}/x", "--resolution", "rho=-1"], "--resolution 'rho=-1'"),
+        (["synthesize", "--out", "{tmp}/x", "--tests", "z:0.005:nan"], "--tests item 'z:0.005:nan'"),
+        (["synthesize", "--out", "{tmp}/x", "--tests", "z:abc:1"], "--tests item 'z:abc:1'"),
+    ],
+)
 def test_cli_synthesize_options_name_the_bad_item(capsys, tmp_path, argv, named):
     assert cli_main([a.format(tmp=tmp_path) for a in argv]) == 2
     err = capsys.readouterr().err
@@ -190,9 +214,11 @@ def _system_with_inline_mass(tmp_path: Path, unit: str, units_section: str) -> P
     shutil.copytree(ROOT / "ssp" / "resources", tmp_path / "resources")
     text = (ROOT / "ssp" / "MAST.ssd").read_text()
     end = text.index("</ssd:ParameterBindings>", text.index('<ssd:Component name="mechanism"'))
-    binding = ('<ssd:ParameterBinding><ssd:ParameterValues><ssv:ParameterSet version="1.0" name="inline">'
-               f'<ssv:Parameters><ssv:Parameter name="m_platform"><ssv:Real value="2060.0" unit="{unit}"/>'
-               "</ssv:Parameter></ssv:Parameters></ssv:ParameterSet></ssd:ParameterValues></ssd:ParameterBinding>")
+    binding = (
+        '<ssd:ParameterBinding><ssd:ParameterValues><ssv:ParameterSet version="1.0" name="inline">'
+        f'<ssv:Parameters><ssv:Parameter name="m_platform"><ssv:Real value="2060.0" unit="{unit}"/>'
+        "</ssv:Parameter></ssv:Parameters></ssv:ParameterSet></ssd:ParameterValues></ssd:ParameterBinding>"
+    )
     text = text[:end] + binding + text[end:]
     text = text.replace("<ssd:DefaultExperiment", units_section + "<ssd:DefaultExperiment", 1)
     (tmp_path / "MAST.ssd").write_text(text)
@@ -207,15 +233,19 @@ def test_units_an_ssd_defines_apply_to_its_inline_values_on_every_route(tmp_path
     from mast.core.build import block_class, flatten_bindings
     from mast.core.ssp import read_ssd
 
-    units = ('<ssd:Units><ssc:Unit name="gram_of_lab"><ssc:BaseUnit kg="1" factor="0.001"/></ssc:Unit></ssd:Units>')
+    units = '<ssd:Units><ssc:Unit name="gram_of_lab"><ssc:BaseUnit kg="1" factor="0.001"/></ssc:Unit></ssd:Units>'
     ssd = _system_with_inline_mass(tmp_path / "defined", "gram_of_lab", units)
     assert default_parameters("MastMechanism", ssd)["m_platform"] == pytest.approx(2.06, rel=1e-12)
-    names = {c: {p.name: p.unit for p in block_class(Path(s.source).stem).PARAMETERS}
-             for c, s in read_ssd(ssd).components.items()}
+    names = {
+        c: {p.name: p.unit for p in block_class(Path(s.source).stem).PARAMETERS}
+        for c, s in read_ssd(ssd).components.items()
+    }
     _, sets = flatten_bindings(ssd, names)
     flat = parse_ssv(sets["resources/parameters/mechanism.ssv"])
     assert flat["m_platform"].value == pytest.approx(2.06, rel=1e-12) and flat["m_platform"].unit == "kg"
     etree.fromstring(sets["resources/parameters/mechanism.ssv"])  # well-formed
     undefined = _system_with_inline_mass(tmp_path / "undefined", "gram_of_lab", "")
-    with pytest.raises(SSPFormatError, match=r"inline values of 'mechanism'\): parameter 'm_platform': unit 'gram_of_lab'"):
+    with pytest.raises(
+        SSPFormatError, match=r"inline values of 'mechanism'\): parameter 'm_platform': unit 'gram_of_lab'"
+    ):
         default_parameters("MastMechanism", undefined)

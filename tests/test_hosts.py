@@ -10,6 +10,7 @@ Each host runs in a child process (mast.hosts.cosim). What is checked:
 - the ecos command line (a C++ program, libpython preloaded) reproduces ecospy to its printed precision;
 - a model failure and a bad parameter reach the host as the model's message, and the host is not killed.
 """
+
 from __future__ import annotations
 
 import shutil
@@ -21,12 +22,12 @@ import pytest
 
 from fmus.mechanism.kinematics import Geometry, home_pose
 from mast.core.build import FLAT_SET_NAME, build_all, build_ssp
-from mast.hosts.cosim import (COMPARED, TOLERANCES, HostError, availability, deviations, run_host)
 from mast.core.motion import SineMotion
 from mast.core.run import simulate
 from mast.core.ssd import NS
 from mast.core.ssp import SSPArchive, read_ssd, validate_ssd_schema
 from mast.core.ssv import parse_ssv
+from mast.hosts.cosim import COMPARED, TOLERANCES, HostError, availability, deviations, run_host
 
 ROOT = Path(__file__).resolve().parents[1]
 SSP_SRC = ROOT / "ssp"
@@ -47,15 +48,21 @@ def built(tmp_path_factory) -> Path:
 
 def inline_binding(component: str, values: dict[str, tuple[float, str]]):
     """An edit of the SSD text: one more binding, inline values, after the component's last binding."""
+
     def edit(text: str) -> str:
         start = text.index(f'<ssd:Component name="{component}"')
         end = text.index("</ssd:ParameterBindings>", start)
-        params = "".join(f'<ssv:Parameter name="{n}"><ssv:Real value="{v!r}" unit="{u}"/></ssv:Parameter>'
-                         for n, (v, u) in values.items())
-        binding = ('<ssd:ParameterBinding><ssd:ParameterValues><ssv:ParameterSet version="1.0" name="test">'
-                   f"<ssv:Parameters>{params}</ssv:Parameters></ssv:ParameterSet></ssd:ParameterValues>"
-                   "</ssd:ParameterBinding>\n        ")
+        params = "".join(
+            f'<ssv:Parameter name="{n}"><ssv:Real value="{v!r}" unit="{u}"/></ssv:Parameter>'
+            for n, (v, u) in values.items()
+        )
+        binding = (
+            '<ssd:ParameterBinding><ssd:ParameterValues><ssv:ParameterSet version="1.0" name="test">'
+            f"<ssv:Parameters>{params}</ssv:Parameters></ssv:ParameterSet></ssd:ParameterValues>"
+            "</ssd:ParameterBinding>\n        "
+        )
         return text[:end] + binding + text[end:]
+
     return edit
 
 
@@ -64,6 +71,7 @@ def file_binding(component: str, source: str):
         start = text.index(f'<ssd:Component name="{component}"')
         end = text.index("</ssd:ParameterBindings>", start)
         return text[:end] + f'<ssd:ParameterBinding source="{source}"/>\n        ' + text[end:]
+
     return edit
 
 
@@ -88,9 +96,13 @@ MOTION = {"amplitude_z": (0.004, "m"), "amplitude_theta": (0.02, "rad"), "freque
 @pytest.fixture(scope="module")
 def bound(built, tmp_path_factory) -> Path:
     """actuator_1 with the paper's identified set bound over the manufacturer's; a 2 Hz z + theta motion inline."""
-    return variant(built, tmp_path_factory.mktemp("variant"), "bound",
-                   file_binding("actuator_1", "resources/actuator_identified.ssv"),
-                   inline_binding("trajectory", MOTION))
+    return variant(
+        built,
+        tmp_path_factory.mktemp("variant"),
+        "bound",
+        file_binding("actuator_1", "resources/actuator_identified.ssv"),
+        inline_binding("trajectory", MOTION),
+    )
 
 
 @pytest.fixture(scope="module")
@@ -112,9 +124,13 @@ def test_standalone_ssd_is_the_default_system_with_its_own_pose_command():
         assert _shape(alone, name) == _shape(mast, name), f"{name} differs between MAST.ssd and MAST_standalone.ssd"
     pose = {(c.end_element, c.end_connector) for c in mast.connections if not c.start_element}
     assert {(c.start_element, c.start_connector, c.end_element, c.end_connector) for c in alone.connections} == (
-        {(c.start_element, c.start_connector, c.end_element, c.end_connector) for c in mast.connections
-         if c.start_element}
-        | {("trajectory", connector, element, connector) for element, connector in pose})
+        {
+            (c.start_element, c.start_connector, c.end_element, c.end_connector)
+            for c in mast.connections
+            if c.start_element
+        }
+        | {("trajectory", connector, element, connector) for element, connector in pose}
+    )
     assert (alone.base_step, alone.start_time) == (mast.base_step, mast.start_time)
     assert alone.components["trajectory"].step_size == alone.components["controller"].step_size
 
@@ -152,7 +168,8 @@ def test_built_ssps_bind_one_parameter_set_per_component_with_values_units_and_s
                 own = {v.name for v in read_model_description(str(fmu)).modelVariables if v.causality == "parameter"}
                 # the merged bindings, restricted to the FMU's own parameters (SSP: other names are ignored)
                 assert {n: p.value for n, p in flat.items()} == {
-                    n: v for n, v in original.components[name].parameters.items() if n in own}
+                    n: v for n, v in original.components[name].parameters.items() if n in own
+                }
                 # unit and source travel with each value: the last binding that set it
                 for binding in reversed(original_bindings(source, name)):
                     for n, p in parse_ssv(source.parent / binding).items():
@@ -170,8 +187,7 @@ def original_bindings(ssd: Path, component: str) -> list[str]:
     from lxml import etree
 
     comp = etree.parse(str(ssd)).getroot().find(f"ssd:System/ssd:Elements/ssd:Component[@name='{component}']", NS)
-    return [b.get("source") for b in comp.iterfind("ssd:ParameterBindings/ssd:ParameterBinding", NS)
-            if b.get("source")]
+    return [b.get("source") for b in comp.iterfind("ssd:ParameterBindings/ssd:ParameterBinding", NS) if b.get("source")]
 
 
 class HomeMotion(SineMotion):
@@ -190,14 +206,16 @@ def test_our_master_runs_the_standalone_ssp_like_the_default_one_with_the_python
     alone = simulate(built / "ssp" / "MAST_standalone.ssp", None, 0.3)
     traj = read_ssd(SSP_SRC / "MAST_standalone.ssd").components["trajectory"].parameters
     assert traj["amplitude_z"] > 0 and traj["amplitude_psi"] == traj["amplitude_theta"] == 0
-    stimulus = HomeMotion([traj["z_home"], traj["psi_home"], traj["theta_home"]], "z", traj["amplitude_z"],
-                          traj["frequency"])
+    stimulus = HomeMotion(
+        [traj["z_home"], traj["psi_home"], traj["theta_home"]], "z", traj["amplitude_z"], traj["frequency"]
+    )
     driven = simulate(built / "ssp" / "MAST.ssp", stimulus, 0.3)
     np.testing.assert_allclose(alone["trajectory.z_cmd"], driven["z_cmd"], rtol=0, atol=1e-15)
     for name in driven.signals:  # equal but for the rounding of t + h (FMU) against t0 + (n + 1) h (master)
         if "." in name:
-            np.testing.assert_allclose(alone[name], driven[name], rtol=0, atol=1e-8 * np.ptp(driven[name]) + 1e-15,
-                                       err_msg=name)
+            np.testing.assert_allclose(
+                alone[name], driven[name], rtol=0, atol=1e-8 * np.ptp(driven[name]) + 1e-15, err_msg=name
+            )
     assert np.ptp(alone["mechanism.z"]) > 0.009  # it moved: up to the +10 mm crest of the 1 Hz sine
 
 
@@ -223,8 +241,9 @@ def run_cached(host_runs, host, ssp, signals, **kwargs):
 SIGNALS = list(COMPARED) + ["actuator_1.tau_c", "actuator_2.tau_c", "trajectory.frequency", "trajectory.z_cmd"]
 
 
-@pytest.mark.parametrize("host", [pytest.param("libcosim", marks=needs("libcosim")),
-                                  pytest.param("ecospy", marks=needs("ecospy"))])
+@pytest.mark.parametrize(
+    "host", [pytest.param("libcosim", marks=needs("libcosim")), pytest.param("ecospy", marks=needs("ecospy"))]
+)
 def test_host_applies_the_bindings_and_matches_our_master(host, bound, reference, host_runs):
     result = run_cached(host_runs, host, bound, SIGNALS)
     assert "exit_signal" not in result.stats  # a Python host exits cleanly (fmus/common/slave.py)
@@ -235,8 +254,11 @@ def test_host_applies_the_bindings_and_matches_our_master(host, bound, reference
     assert result.time[-1] == pytest.approx(STOP) and np.all(np.diff(result.time) == pytest.approx(1e-3))
     dev = deviations(result, reference, list(COMPARED))
     tolerance = TOLERANCES[host]
-    over = {s: f"{d:.3g} > {tolerance[COMPARED[s]]:g} {COMPARED[s]}" for s, d in dev.items()
-            if not d <= tolerance[COMPARED[s]]}
+    over = {
+        s: f"{d:.3g} > {tolerance[COMPARED[s]]:g} {COMPARED[s]}"
+        for s, d in dev.items()
+        if not d <= tolerance[COMPARED[s]]
+    }
     assert not over, f"{host} differs from our master: {over}"
     # and the run is the bound one: 2 Hz, 4 mm on z and 0.02 rad on theta around the home pose
     # (the host's current command one exchange late, mast.hosts.cosim.TOLERANCES: measured 2.1e-4 relative)
@@ -244,12 +266,18 @@ def test_host_applies_the_bindings_and_matches_our_master(host, bound, reference
     assert 0.03 < np.ptp(result["mechanism.theta"]) < 0.045
 
 
-@pytest.mark.parametrize("host", [pytest.param("libcosim", marks=needs("libcosim")),
-                                  pytest.param("ecospy", marks=needs("ecospy"))])
+@pytest.mark.parametrize(
+    "host", [pytest.param("libcosim", marks=needs("libcosim")), pytest.param("ecospy", marks=needs("ecospy"))]
+)
 def test_host_steps_each_component_at_its_step_size_hint(host, bound):
     """Every component at 1 ms (the 1 kHz exchange, docs/interfaces.md): a new value every base step."""
-    result = run_host(host, bound, 0.02, ["mechanism.F_1", "actuator_1.rho", "controller.i_cmd_1",
-                                          "trajectory.z_cmd"], sample_step=1e-3)
+    result = run_host(
+        host,
+        bound,
+        0.02,
+        ["mechanism.F_1", "actuator_1.rho", "controller.i_cmd_1", "trajectory.z_cmd"],
+        sample_step=1e-3,
+    )
     assert len(result.time) >= 20 and np.all(np.diff(result.time) == pytest.approx(1e-3))
     for name in ("mechanism.F_1", "actuator_1.rho", "controller.i_cmd_1", "trajectory.z_cmd"):
         assert np.count_nonzero(np.diff(result[name])) == len(result.time) - 1, name
@@ -270,14 +298,16 @@ def test_ecos_command_line_runs_the_ssp_like_ecospy(bound, reference, host_runs)
 # -- failures inside a host ------------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def out_of_stroke(built, tmp_path_factory) -> Path:
-    return variant(built, tmp_path_factory.mktemp("stroke"), "stroke",
-                   inline_binding("trajectory", {"amplitude_z": (0.5, "m")}))
+    return variant(
+        built, tmp_path_factory.mktemp("stroke"), "stroke", inline_binding("trajectory", {"amplitude_z": (0.5, "m")})
+    )
 
 
 @pytest.fixture(scope="module")
 def bad_parameter(built, tmp_path_factory) -> Path:
-    return variant(built, tmp_path_factory.mktemp("param"), "param",
-                   inline_binding("mechanism", {"m_platform": (-1.0, "kg")}))
+    return variant(
+        built, tmp_path_factory.mktemp("param"), "param", inline_binding("mechanism", {"m_platform": (-1.0, "kg")})
+    )
 
 
 @needs("libcosim")
@@ -334,16 +364,21 @@ def test_ecospy_imports_without_ld_library_path_and_the_shown_environment_works(
     env = {k: v for k, v in os.environ.items() if k != "LD_LIBRARY_PATH"}
     plain = subprocess.run([sys.executable, "-c", "import ecospy"], env=env, capture_output=True, text=True)
     assert plain.returncode != 0 and "libtbb.so.12" in plain.stderr  # what a user meets
-    helped = subprocess.run([sys.executable, "-c", "from mast.hosts.cosim import import_ecospy; import_ecospy()"],
-                            env=env, capture_output=True, text=True)
+    helped = subprocess.run(
+        [sys.executable, "-c", "from mast.hosts.cosim import import_ecospy; import_ecospy()"],
+        env=env,
+        capture_output=True,
+        text=True,
+    )
     assert helped.returncode == 0, helped.stderr[-2000:]
     from mast.hosts.cosim import show
 
     shown = show("ecospy", "unused.ssp", 1.0, [], tmp_path)  # what `mast hosts --show ecospy` prints
     assert "export LD_LIBRARY_PATH=" in shown
     exports = "\n".join(line for line in shown.splitlines() if line.startswith("export"))
-    shell = subprocess.run(["bash", "-c", f'{exports}\n"{sys.executable}" -c "import ecospy"'], env=env,
-                           capture_output=True, text=True)
+    shell = subprocess.run(
+        ["bash", "-c", f'{exports}\n"{sys.executable}" -c "import ecospy"'], env=env, capture_output=True, text=True
+    )
     assert shell.returncode == 0, shell.stderr[-2000:]
 
 
@@ -373,7 +408,8 @@ def test_a_cpp_host_exits_without_touching_freed_memory(built):
     with zipfile.ZipFile(fmu) as z:
         if not any(n.endswith(".pythonfmu.so") for n in z.namelist()):
             pytest.skip("built without a C compiler: no C front")
-    result = run_host("ecos", fmu, 0.01, ["instance.z_cmd"], base_step=1e-3,
-                      wrapper=("valgrind", "--error-exitcode=99"))
+    result = run_host(
+        "ecos", fmu, 0.01, ["instance.z_cmd"], base_step=1e-3, wrapper=("valgrind", "--error-exitcode=99")
+    )
     assert "exit_signal" not in result.stats
     assert "ERROR SUMMARY: 0 errors" in result.stats["log"], result.stats["log"][-3000:]

@@ -1,4 +1,5 @@
 """The gain identification's pieces: residual scaling and the parameter set it writes."""
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -45,8 +46,8 @@ def test_default_system_binds_the_fitted_gains_last():
 
 def test_fit_starts_from_the_loop_shaping_design_even_in_a_built_ssp(tmp_path):
     """Built SSPs carry flattened bindings; the start set is then read from the source ssp/resources."""
-    from mast.core.build import build_all
     from mast.analyses.identify import start_gains
+    from mast.core.build import build_all
 
     build_all(tmp_path, log=lambda *_: None)
     design = parse_ssv(ROOT / "ssp" / "resources" / "controller_joint.ssv")

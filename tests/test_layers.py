@@ -1,6 +1,7 @@
 """The ``mast`` package's layers import only downwards (README, the orchestration/ row):
 core <- data <- analyses <- diagnosis, batch, hosts <- cli. A module that reaches up a layer
 (or across, between the three top layers) fails here with its name and the import."""
+
 from __future__ import annotations
 
 import ast
@@ -25,10 +26,10 @@ def _imported_layers(path: Path) -> list[tuple[str, str]]:
     found = []
     for node in ast.walk(ast.parse(path.read_text(), str(path))):
         if isinstance(node, ast.ImportFrom):
-            if node.level:                      # relative: from the module's own package
+            if node.level:  # relative: from the module's own package
                 base = own[:-1][: len(own) - node.level] if node.level > 1 else own[:-1]
                 target = base + (node.module.split(".") if node.module else [])
-                if not target:                  # from . import x (the package root)
+                if not target:  # from . import x (the package root)
                     target = [alias.name for alias in node.names][:1]
             elif node.module and node.module.split(".")[0] == "mast":
                 target = node.module.split(".")[1:] or [alias.name for alias in node.names][:1]
@@ -95,7 +96,7 @@ def _private_reaches(modules: dict[str, Path], root: Path = ROOT) -> list[str]:
     wrong = []
     for module, path in modules.items():
         tree = ast.parse(path.read_text(), str(path))
-        aliases = {}                                      # local name -> the project module it is
+        aliases = {}  # local name -> the project module it is
         for node in ast.walk(tree):
             if isinstance(node, ast.ImportFrom):
                 source = _absolute(module, path, node)
@@ -111,7 +112,7 @@ def _private_reaches(modules: dict[str, Path], root: Path = ROOT) -> list[str]:
         for node in ast.walk(tree):
             if not isinstance(node, ast.Attribute) or not _private(node.attr):
                 continue
-            target = ast.unparse(node.value)              # a.b._x after "import a.b", or m._x after "... as m"
+            target = ast.unparse(node.value)  # a.b._x after "import a.b", or m._x after "... as m"
             target = aliases.get(target, target if target in modules and "." in target else None)
             if target is not None and target != module:
                 wrong.append(f"{path.relative_to(root)}:{node.lineno}: {ast.unparse(node)} ({target})")
@@ -149,14 +150,14 @@ def _imports(modules: dict[str, Path]) -> dict[str, dict[str, int]]:
                 source = _absolute(module, path, node)
                 names = [f"{source}.{alias.name}" for alias in node.names]
                 targets = [n for n in names if n in modules]
-                if any(n not in modules for n in names):        # a name defined in the module ``source``
+                if any(n not in modules for n in names):  # a name defined in the module ``source``
                     targets.append(source)
             elif isinstance(node, ast.Import):
                 targets = [alias.name for alias in node.names]
             else:
                 continue
             for target in targets:
-                while target and target not in modules:       # a name inside a module: that module
+                while target and target not in modules:  # a name inside a module: that module
                     target = target.rpartition(".")[0]
                 if target and target != module and modules[target].name != "__init__.py":
                     edges.setdefault(target, node.lineno)
@@ -204,7 +205,7 @@ def _circles(graph: dict[str, dict[str, int]]) -> list[list[str]]:
                 if len(component) > 1:
                     components.append(set(component))
     circles = []
-    for component in components:               # one shortest way back to the start inside the component
+    for component in components:  # one shortest way back to the start inside the component
         start = min(component)
         paths = {start: [start]}
         frontier = [start]

@@ -1,4 +1,5 @@
 """The master's schedule, initialization and error handling, on toy blocks with known answers."""
+
 from __future__ import annotations
 
 import math
@@ -190,7 +191,7 @@ def test_stop_time_between_ticks_ends_at_the_next_tick():
 
 @pytest.mark.parametrize("record_step", [0.015, 0.001, 0.0])
 def test_record_step_not_a_multiple_of_the_base_step_is_refused_not_rounded(record_step):
-    spec, blocks = loop_system(0.01)   # base step 0.01 s
+    spec, blocks = loop_system(0.01)  # base step 0.01 s
     with pytest.raises(ValueError, match=rf"record step {record_step!r} s: expected .*(whole multiple|positive)"):
         Master(spec, blocks).run(0.1, Hold(), record=["int.y"], record_step=record_step)
     result = Master(spec, blocks).run(0.1, Hold(), record=["int.y"], record_step=0.02)
@@ -255,13 +256,15 @@ def test_fmu_feedthrough_is_read_from_the_model_structure(tmp_path):
     from mast.core.components import feedthrough_of
 
     start = {"input": ' start="0"', "output": ""}
-    variables = "".join(f'<ScalarVariable name="{n}" valueReference="{i}" causality="{c}"><Real{start[c]}/></ScalarVariable>'
-                        for i, (n, c) in enumerate([("a", "input"), ("b", "input"), ("y", "output"), ("z", "output"),
-                                                    ("w", "output")]))
+    variables = "".join(
+        f'<ScalarVariable name="{n}" valueReference="{i}" causality="{c}"><Real{start[c]}/></ScalarVariable>'
+        for i, (n, c) in enumerate([("a", "input"), ("b", "input"), ("y", "output"), ("z", "output"), ("w", "output")])
+    )
     (tmp_path / "modelDescription.xml").write_text(
         '<?xml version="1.0" encoding="UTF-8"?><fmiModelDescription fmiVersion="2.0" modelName="m" guid="{g}">'
         '<CoSimulation modelIdentifier="m"/>'
-        f'<ModelVariables>{variables}</ModelVariables><ModelStructure><Outputs>'
+        f"<ModelVariables>{variables}</ModelVariables><ModelStructure><Outputs>"
         '<Unknown index="3" dependencies="2"/><Unknown index="4" dependencies=""/><Unknown index="5"/>'
-        '</Outputs></ModelStructure></fmiModelDescription>')
+        "</Outputs></ModelStructure></fmiModelDescription>"
+    )
     assert feedthrough_of(read_model_description(str(tmp_path / "modelDescription.xml"))) == {"y": frozenset({"b"})}

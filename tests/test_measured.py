@@ -1,6 +1,7 @@
 """Measured-data format (docs/measured-data.md): loading, unit conversion, every validation error
 names the file and the column; synthesize writes the format and keeps the truth outside;
 replaying the recorded commands with the truth reproduces the noise-free signals."""
+
 from __future__ import annotations
 
 import json
@@ -27,10 +28,13 @@ def built_ssp(tmp_path_factory) -> str:
 
 def _write(folder: Path, files: dict, meta_over: dict | None = None, units: dict | None = None) -> Path:
     folder.mkdir(parents=True, exist_ok=True)
-    meta = {"format": "mast-measured-data", "version": 1,
-            "units": units or {"time": "s", "rho_cmd": "m", "rho": "m", "tau_m": "N.m"},
-            "measurement": {"torque_filter_s": 5e-4},
-            "tests": [{"file": f, "motion": "z", "amplitude": 0.005, "frequency": 2.0} for f in files]}
+    meta = {
+        "format": "mast-measured-data",
+        "version": 1,
+        "units": units or {"time": "s", "rho_cmd": "m", "rho": "m", "tau_m": "N.m"},
+        "measurement": {"torque_filter_s": 5e-4},
+        "tests": [{"file": f, "motion": "z", "amplitude": 0.005, "frequency": 2.0} for f in files],
+    }
     meta.update(meta_over or {})
     (folder / "meta.json").write_text(json.dumps(meta))
     for name, table in files.items():
@@ -58,10 +62,21 @@ def _table(scale_time=1.0, scale_len=1.0, scale_tau=1.0, current=False) -> dict:
 
 def test_load_converts_units(tmp_path):
     si = load(_write(tmp_path / "si", {"a.csv": _table()}))
-    mm = load(_write(tmp_path / "mm", {"a.csv": _table(scale_time=1e3, scale_len=1e3, scale_tau=1e3)},
-                     units={"time": "ms", "rho_cmd": "mm", "rho": "mm", "tau_m": "mN.m"}))
-    cur = load(_write(tmp_path / "cur", {"a.csv": _table(current=True)}, meta_over={"k_T": 0.0302},
-                      units={"time": "s", "rho_cmd": "m", "rho": "m", "i_m": "A"}))
+    mm = load(
+        _write(
+            tmp_path / "mm",
+            {"a.csv": _table(scale_time=1e3, scale_len=1e3, scale_tau=1e3)},
+            units={"time": "ms", "rho_cmd": "mm", "rho": "mm", "tau_m": "mN.m"},
+        )
+    )
+    cur = load(
+        _write(
+            tmp_path / "cur",
+            {"a.csv": _table(current=True)},
+            meta_over={"k_T": 0.0302},
+            units={"time": "s", "rho_cmd": "m", "rho": "m", "i_m": "A"},
+        )
+    )
     a, b, c = si.tests[0], mm.tests[0], cur.tests[0]
     np.testing.assert_allclose(b.time, a.time, atol=1e-12)
     np.testing.assert_allclose(b.rho_cmd, a.rho_cmd, rtol=1e-9)
@@ -103,19 +118,31 @@ def _broken(kind: str) -> tuple[dict, dict, dict | None]:
     return tab, meta_over, units
 
 
-@pytest.mark.parametrize("kind, pattern", [
-    ("missing column", r"a\.csv: missing column\(s\) rho_2"),
-    ("nan", r"a\.csv: column tau_m_2: 1 missing or non-finite value\(s\), the first on data row 124 \(t = 0\.123 s\)"),
-    ("gap", r"a\.csv: column time: gap of 0\.051 s after t = 0\.199"),
-    ("irregular", r"a\.csv: column time: irregular sampling"),
-    ("not increasing", r"a\.csv: column time: not increasing at data row 18"),
-    ("unknown unit", r"a\.csv: unit 'inch' for 'rho' is not known"),
-    ("rho in mm labelled m", r"a\.csv: column rho_1: 154\.99 m lies outside the stroke \[0, 0\.3\] m: check units\.rho"),
-    ("torque in mN.m labelled N.m", r"a\.csv: column tau_m_1: motor torque up to 50 N\.m is implausible .* units\.tau_m"),
-    ("time in ms labelled s", r"a\.csv: column time: sampling step 1 s is implausible .* check units\.time"),
-    ("current without k_T", r"a\.csv: columns i_m_1\.\.3 need the torque constant 'k_T'"),
-    ("no units entry", r"a\.csv: meta\.json 'units' has no entry for 'rho_cmd'"),
-])
+@pytest.mark.parametrize(
+    "kind, pattern",
+    [
+        ("missing column", r"a\.csv: missing column\(s\) rho_2"),
+        (
+            "nan",
+            r"a\.csv: column tau_m_2: 1 missing or non-finite value\(s\), the first on data row 124 \(t = 0\.123 s\)",
+        ),
+        ("gap", r"a\.csv: column time: gap of 0\.051 s after t = 0\.199"),
+        ("irregular", r"a\.csv: column time: irregular sampling"),
+        ("not increasing", r"a\.csv: column time: not increasing at data row 18"),
+        ("unknown unit", r"a\.csv: unit 'inch' for 'rho' is not known"),
+        (
+            "rho in mm labelled m",
+            r"a\.csv: column rho_1: 154\.99 m lies outside the stroke \[0, 0\.3\] m: check units\.rho",
+        ),
+        (
+            "torque in mN.m labelled N.m",
+            r"a\.csv: column tau_m_1: motor torque up to 50 N\.m is implausible .* units\.tau_m",
+        ),
+        ("time in ms labelled s", r"a\.csv: column time: sampling step 1 s is implausible .* check units\.time"),
+        ("current without k_T", r"a\.csv: columns i_m_1\.\.3 need the torque constant 'k_T'"),
+        ("no units entry", r"a\.csv: meta\.json 'units' has no entry for 'rho_cmd'"),
+    ],
+)
 def test_validation_errors_name_file_and_column(tmp_path, kind, pattern):
     tab, meta_over, units = _broken(kind)
     folder = _write(tmp_path / "d", {"a.csv": tab}, meta_over, units)
@@ -151,16 +178,25 @@ def test_folder_level_errors(tmp_path):
 def test_replay_reproduces_the_noise_free_signals(built_ssp, tmp_path):
     """Synthesize one test with a truth, reload it, simulate it driven by its recorded commands with the
     same truth: the torques before noise agree to 1e-9 N m, the positions to 1e-12 m."""
-    from mast.diagnosis.resimulation import sim_job
-    from mast.data.measured import CommandReplay, controller_geometry
-    from mast.analyses.synthesize import TestSpec as Spec, synthesize
     from fmus.actuator.sensor import measure
+    from mast.analyses.synthesize import TestSpec as Spec
+    from mast.analyses.synthesize import synthesize
     from mast.core.run import drive_tick_steps
     from mast.core.ssp import SSPArchive
+    from mast.data.measured import CommandReplay, controller_geometry
+    from mast.diagnosis.resimulation import sim_job
 
     truth = {"actuator": {"tau_c": 0.0718, "J1_scale": 0.641, "T_meas": 2e-3}}
-    res = synthesize(built_ssp, tmp_path / "data", truth, tests=[Spec("theta", math.radians(0.8), 3.0, 1.0)],
-                     direct=True, workers=1, seed=4, log=lambda *_: None)
+    res = synthesize(
+        built_ssp,
+        tmp_path / "data",
+        truth,
+        tests=[Spec("theta", math.radians(0.8), 3.0, 1.0)],
+        direct=True,
+        workers=1,
+        seed=4,
+        log=lambda *_: None,
+    )
     assert res["truth"] == tmp_path / "data.truth.json" and res["truth"].exists()
     assert "tau_c" not in (tmp_path / "data" / "meta.json").read_text()
     data = load(tmp_path / "data")
@@ -186,8 +222,28 @@ def test_synthesize_cli(built_ssp, tmp_path):
     from mast.cli import main
 
     out = tmp_path / "cli"
-    assert main(["synthesize", built_ssp, "--out", str(out), "--set", "actuator.tau_c=0.05", "--tests", "z:0.005:4:0.5",
-                 "--noise", "tau_m=0.001", "--direct", "--seed", "2", "--workers", "1"]) == 0
+    assert (
+        main(
+            [
+                "synthesize",
+                built_ssp,
+                "--out",
+                str(out),
+                "--set",
+                "actuator.tau_c=0.05",
+                "--tests",
+                "z:0.005:4:0.5",
+                "--noise",
+                "tau_m=0.001",
+                "--direct",
+                "--seed",
+                "2",
+                "--workers",
+                "1",
+            ]
+        )
+        == 0
+    )
     data = load(out)
     assert [t.name for t in data.tests] == ["z_4Hz"]
     truth = json.loads((tmp_path / "cli.truth.json").read_text())
@@ -202,8 +258,10 @@ def test_diagnose_refuses_torques_whose_unit_is_a_thousand_times_off_before_sear
     from mast.cli import main
 
     data = tmp_path / "data"
-    assert main(["synthesize", built_ssp, "--out", str(data), "--tests", "z:0.005:4:0.3", "--direct",
-                 "--workers", "1"]) == 0
+    assert (
+        main(["synthesize", built_ssp, "--out", str(data), "--tests", "z:0.005:4:0.3", "--direct", "--workers", "1"])
+        == 0
+    )
     meta = json.loads((data / "meta.json").read_text())
     meta["units"]["tau_m"] = "mN.m"
     (data / "meta.json").write_text(json.dumps(meta))
@@ -213,24 +271,38 @@ def test_diagnose_refuses_torques_whose_unit_is_a_thousand_times_off_before_sear
     assert "z_4Hz.csv: column tau_m_1" in err and "units.tau_m (now 'mN.m')" in err and "0.001 times" in err
 
 
-@pytest.mark.parametrize("units, pattern", [
-    ({"time": "s", "rho_cmd": "mm", "rho": "mm", "tau_m": "N.m"},     # metres declared as mm: inside the stroke
-     r"a\.csv: columns rho_cmd_1\.\.3 swing by \+-5e-06 m while meta\.json gives a z amplitude of 0\.005 m.*"
-     r"check units\.rho_cmd \(now 'mm'\)"),
-    ({"time": "s", "rho_cmd": "m", "rho": "um", "tau_m": "N.m"},
-     r"a\.csv: column rho_1 differs from rho_cmd_1 by 15\d mm .* 1e-06 times the commands.*units\.rho = 'um'"),
-])
+@pytest.mark.parametrize(
+    "units, pattern",
+    [
+        (
+            {"time": "s", "rho_cmd": "mm", "rho": "mm", "tau_m": "N.m"},  # metres declared as mm: inside the stroke
+            r"a\.csv: columns rho_cmd_1\.\.3 swing by \+-5e-06 m while meta\.json gives a z amplitude of 0\.005 m.*"
+            r"check units\.rho_cmd \(now 'mm'\)",
+        ),
+        (
+            {"time": "s", "rho_cmd": "m", "rho": "um", "tau_m": "N.m"},
+            r"a\.csv: column rho_1 differs from rho_cmd_1 by 15\d mm .* 1e-06 times the commands.*units\.rho = 'um'",
+        ),
+    ],
+)
 def test_positions_in_the_wrong_length_unit_are_named(tmp_path, units, pattern):
     with pytest.raises(MeasuredDataError, match=pattern):
         load(_write(tmp_path / "d", {"a.csv": _table()}, units=units))
 
 
-@pytest.mark.parametrize("where, value, pattern", [
-    ("measurement", {"torque_filter_s": "fast"}, r"meta\.json: measurement\.torque_filter_s = 'fast': expected a finite"),
-    ("measurement", {"rho_resolution_m": [1]}, r"meta\.json: measurement\.rho_resolution_m = \[1\]"),
-    ("test", {"frequency": "2 Hz"}, r"meta\.json: tests\[a\.csv\]\.frequency = '2 Hz'"),
-    ("test", {"amplitude": None, "settle_s": "x"}, r"meta\.json: tests\[a\.csv\]\.settle_s = 'x'"),
-])
+@pytest.mark.parametrize(
+    "where, value, pattern",
+    [
+        (
+            "measurement",
+            {"torque_filter_s": "fast"},
+            r"meta\.json: measurement\.torque_filter_s = 'fast': expected a finite",
+        ),
+        ("measurement", {"rho_resolution_m": [1]}, r"meta\.json: measurement\.rho_resolution_m = \[1\]"),
+        ("test", {"frequency": "2 Hz"}, r"meta\.json: tests\[a\.csv\]\.frequency = '2 Hz'"),
+        ("test", {"amplitude": None, "settle_s": "x"}, r"meta\.json: tests\[a\.csv\]\.settle_s = 'x'"),
+    ],
+)
 def test_non_numeric_meta_values_name_the_key(tmp_path, where, value, pattern):
     folder = _write(tmp_path / "d", {"a.csv": _table()})
     meta = json.loads((folder / "meta.json").read_text())

@@ -9,6 +9,7 @@ Body poses come from the direct kinematics (checked against the inverse kinemati
 test_mechanism_kinematics.py) and this file's own rotation matrix and joint positions;
 velocities and all derivatives are finite differences of positions.
 """
+
 from __future__ import annotations
 
 import math
@@ -39,10 +40,19 @@ def masses(mechanism_params) -> Masses:
 
 # ---- independent body model ------------------------------------------------------------------
 def rot(psi, theta, phi):
-    cx, sx, cy, sy, cz, sz = (math.cos(psi), math.sin(psi), math.cos(theta), math.sin(theta),
-                              math.cos(phi), math.sin(phi))
-    return (np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]]) @ np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
-            @ np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]]))
+    cx, sx, cy, sy, cz, sz = (
+        math.cos(psi),
+        math.sin(psi),
+        math.cos(theta),
+        math.sin(theta),
+        math.cos(phi),
+        math.sin(phi),
+    )
+    return (
+        np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]])
+        @ np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
+        @ np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]])
+    )
 
 
 def body_poses(geom: Geometry, rho) -> dict:
@@ -94,15 +104,16 @@ class Trajectory:
 
     def __init__(self, geom, seed, amp=0.03, fmax=5.0, tilt=10.0):
         rng = np.random.default_rng(seed)
-        self.rho0 = inverse_kinematics(geom, 0.40 + rng.uniform(-0.02, 0.02), rng.uniform(-tilt, tilt) * DEG,
-                                       rng.uniform(-tilt, tilt) * DEG)
+        self.rho0 = inverse_kinematics(
+            geom, 0.40 + rng.uniform(-0.02, 0.02), rng.uniform(-tilt, tilt) * DEG, rng.uniform(-tilt, tilt) * DEG
+        )
         self.A = rng.uniform(0.3, 1.0, 3) * amp
         self.w = 2 * math.pi * rng.uniform(0.5, 1.0, 3) * fmax
         self.p = rng.uniform(0, 2 * math.pi, 3)
 
     def __call__(self, t):
         s = self.w * t + self.p
-        return (self.rho0 + self.A * np.sin(s), self.A * self.w * np.cos(s), -self.A * self.w ** 2 * np.sin(s))
+        return (self.rho0 + self.A * np.sin(s), self.A * self.w * np.cos(s), -self.A * self.w**2 * np.sin(s))
 
 
 # ---- power balance ---------------------------------------------------------------------------------
@@ -118,7 +129,7 @@ def test_power_balance_along_random_trajectories(geom, masses):
             balances.append(ddt(energy, t))
         powers, balances = np.array(powers), np.array(balances)
         scale = np.abs(powers).max()
-        assert scale > 1.0                                                 # a real test: watts flow
+        assert scale > 1.0  # a real test: watts flow
         np.testing.assert_allclose(powers, balances, atol=1e-6 * scale)
 
 
@@ -133,7 +144,7 @@ def test_power_balance_catches_a_missing_term(geom, masses):
         dE = ddt(energy, t)
         errors.append(inverse_dynamics(geom, wrong, rho, rd, rdd).t_rho @ rd - dE)
         scale = max(scale, abs(dE))
-    assert np.abs(errors).max() > 100 * 1e-6 * scale          # 100 x the tolerance of the balance test
+    assert np.abs(errors).max() > 100 * 1e-6 * scale  # 100 x the tolerance of the balance test
 
 
 # ---- Euler-Lagrange by numbers -----------------------------------------------------------------------
@@ -143,16 +154,22 @@ def lagrange_forces(geom, ms, traj, t):
     eta_v, eta_q = 0.05, 1e-5
     E = np.eye(3)
 
-    def momentum(rho_, rd_):   # T is quadratic in rho_dot: a wide central difference is exact
-        return np.array([(kinetic(geom, ms, rho_, rd_ + eta_v * e) - kinetic(geom, ms, rho_, rd_ - eta_v * e))
-                         / (2 * eta_v) for e in E])
+    def momentum(rho_, rd_):  # T is quadratic in rho_dot: a wide central difference is exact
+        return np.array(
+            [
+                (kinetic(geom, ms, rho_, rd_ + eta_v * e) - kinetic(geom, ms, rho_, rd_ - eta_v * e)) / (2 * eta_v)
+                for e in E
+            ]
+        )
 
     dpdt = ddt(lambda s: momentum(*traj(s)[:2]), t)
-    dTdq = np.array([(kinetic(geom, ms, rho + eta_q * e, rd) - kinetic(geom, ms, rho - eta_q * e, rd)) / (2 * eta_q)
-                     for e in E])
-    dVdq = np.array([(potential(geom, ms, rho + eta_q * e) - potential(geom, ms, rho - eta_q * e)) / (2 * eta_q)
-                     for e in E])
-    M = np.array([momentum(rho, e) for e in E]).T            # dT/drhodot at rhodot = e_k -> column k of M
+    dTdq = np.array(
+        [(kinetic(geom, ms, rho + eta_q * e, rd) - kinetic(geom, ms, rho - eta_q * e, rd)) / (2 * eta_q) for e in E]
+    )
+    dVdq = np.array(
+        [(potential(geom, ms, rho + eta_q * e) - potential(geom, ms, rho - eta_q * e)) / (2 * eta_q) for e in E]
+    )
+    M = np.array([momentum(rho, e) for e in E]).T  # dT/drhodot at rhodot = e_k -> column k of M
     return dpdt - dTdq + dVdq, dVdq, M
 
 
@@ -171,7 +188,7 @@ def test_euler_lagrange_by_numbers(geom, masses):
         # the velocity terms alone: E(L) with gravity and acceleration terms removed
         c_el = F_el - G_el - M_el @ rdd
         np.testing.assert_allclose(res.c_term, c_el, atol=1e-6 * scale)
-        assert np.abs(res.c_term).max() > 100 * 1e-6 * scale      # the velocity terms are really exercised
+        assert np.abs(res.c_term).max() > 100 * 1e-6 * scale  # the velocity terms are really exercised
 
 
 class Line:
@@ -185,9 +202,11 @@ class Line:
 
 
 def test_velocity_terms_by_euler_lagrange_at_speed(geom, masses):
-    for q, rd in (((0.40, 10 * DEG, -8 * DEG), (1.0, -0.8, 0.5)),
-                  ((0.38, -12 * DEG, 5 * DEG), (-0.6, 0.9, 1.0)),
-                  ((0.42, 0.0, 0.0), (0.0, 1.0, -1.0))):
+    for q, rd in (
+        ((0.40, 10 * DEG, -8 * DEG), (1.0, -0.8, 0.5)),
+        ((0.38, -12 * DEG, 5 * DEG), (-0.6, 0.9, 1.0)),
+        ((0.42, 0.0, 0.0), (0.0, 1.0, -1.0)),
+    ):
         line = Line(inverse_kinematics(geom, *q), rd)
         res = inverse_dynamics_at_pose(geom, masses, q, rd, (0, 0, 0))
         F_el, G_el, _ = lagrange_forces(geom, masses, line, 0.0)
@@ -239,7 +258,7 @@ def statics(geom, ms, q):
         arm = S - P
         A[3:6, cols] = np.array([[0, -arm[2], arm[1]], [arm[2], 0, -arm[0]], [-arm[1], arm[0], 0]])
         # ((S - B) x (-F)) . t + ((C - B) x (-m g e_z)) . t = 0  ->  ((S - B) x F) . t = -((C - B) x m g e_z) . t
-        A[6 + i, cols] = np.cross(t, S - B)          # (u x F) . t = F . (t x u)
+        A[6 + i, cols] = np.cross(t, S - B)  # (u x F) . t = F . (t x u)
         b[6 + i] = -np.cross(C - B, ms.m_leg * ms.g * EZ) @ t
     F = np.linalg.solve(A, b).reshape(3, 3)
     return F[:, 2] + ms.m_leg * ms.g
@@ -253,7 +272,7 @@ def test_static_forces_at_home_match_hand_calculation(geom, masses):
     # share the platform equally; every slider also carries its own leg.
     np.testing.assert_allclose(res.t_rho, [W_p / 2 + W_l, W_l, W_p / 2 + W_l], atol=1e-12)
     assert res.t_rho.sum() == pytest.approx(W_p + 3 * W_l, abs=1e-12)
-    np.testing.assert_allclose(res.pose, [0.15 + math.sqrt(geom.L ** 2 - (geom.H - geom.r) ** 2), 0, 0], atol=1e-12)
+    np.testing.assert_allclose(res.pose, [0.15 + math.sqrt(geom.L**2 - (geom.H - geom.r) ** 2), 0, 0], atol=1e-12)
     np.testing.assert_allclose(statics(geom, masses, res.pose), res.t_rho, atol=1e-12)
 
 
@@ -291,8 +310,11 @@ def test_block_outputs_and_warm_start(mechanism_params, geom, masses):
     for k in range(50):
         t = k * 1e-3
         rho, rd, rdd = traj(t + 1e-3)
-        blk.set(**{f"rho_{i + 1}": rho[i] for i in range(3)}, **{f"rho_dot_{i + 1}": rd[i] for i in range(3)},
-                **{f"rho_ddot_{i + 1}": rdd[i] for i in range(3)})
+        blk.set(
+            **{f"rho_{i + 1}": rho[i] for i in range(3)},
+            **{f"rho_dot_{i + 1}": rd[i] for i in range(3)},
+            **{f"rho_ddot_{i + 1}": rdd[i] for i in range(3)},
+        )
         blk.do_step(t, 1e-3)
     res = inverse_dynamics(geom, masses, rho, rd, rdd)
     out = blk.outputs()
@@ -311,7 +333,7 @@ def test_block_speed(mechanism_params):
         blk.set(rho_1=0.15 + 1e-5 * k, rho_dot_1=0.01, rho_ddot_2=0.1)
         blk.do_step(k * 1e-3, 1e-3)
     per_step = (time.perf_counter() - start) / n
-    assert per_step < 1e-3          # generous: about 0.07 ms here; 1 ms would be real time
+    assert per_step < 1e-3  # generous: about 0.07 ms here; 1 ms would be real time
 
 
 def test_block_errors(mechanism_params):
@@ -319,7 +341,7 @@ def test_block_errors(mechanism_params):
     blk.set(rho_1=0.15, rho_2=0.15, rho_3=0.15, rho_dot_2=math.nan)
     with pytest.raises(ModelError, match="rho_dot_2"):
         blk.initialize(0.0)
-    blk.set(rho_dot_2=0.0, rho_2=0.6)              # no assembly exists
+    blk.set(rho_dot_2=0.0, rho_2=0.6)  # no assembly exists
     with pytest.raises(KinematicsError, match=r"MechanismBlock: at t = 0.001 s.*did not converge"):
         blk.do_step(0.0, 1e-3)
 
@@ -331,16 +353,19 @@ def test_inverse_dynamics_input_errors(geom, masses):
         inverse_dynamics(geom, masses, (0.0, 0.6, 0.0), (0, 0, 0), (0, 0, 0))
 
 
-@pytest.mark.parametrize("change, name", [
-    ({"r": 0.45}, "'r'"),                                      # spherical joints outside the guides
-    ({"L": 0.04}, "'L'"),                                      # legs cannot reach
-    ({"alpha_2": 0.0}, "'alpha_1'"),                           # two guides on top of each other
-    ({"m_leg": -1.0}, "'m_leg'"),
-    ({"m_platform": 0.0}, "'m_platform'"),
-    ({"H": 0.0}, "'H'"),
-    ({"alpha_3": 7.0}, "'alpha_3'"),
-    ({"I_pz": math.nan}, "'I_pz'"),
-])
+@pytest.mark.parametrize(
+    "change, name",
+    [
+        ({"r": 0.45}, "'r'"),  # spherical joints outside the guides
+        ({"L": 0.04}, "'L'"),  # legs cannot reach
+        ({"alpha_2": 0.0}, "'alpha_1'"),  # two guides on top of each other
+        ({"m_leg": -1.0}, "'m_leg'"),
+        ({"m_platform": 0.0}, "'m_platform'"),
+        ({"H": 0.0}, "'H'"),
+        ({"alpha_3": 7.0}, "'alpha_3'"),
+        ({"I_pz": math.nan}, "'I_pz'"),
+    ],
+)
 def test_bad_parameters_are_named(mechanism_params, change, name):
     with pytest.raises(ParameterError, match=name):
         MechanismBlock({**mechanism_params, **change})

@@ -3,6 +3,7 @@ differences, the paper's Appendix A (typos fixed, docs/mechanism.md), errors.
 
 Independent routes: positions are rebuilt here from (P, R) with this file's own rotation
 matrix; Jacobians are checked by central differences of positions only."""
+
 from __future__ import annotations
 
 import math
@@ -12,8 +13,18 @@ import pytest
 
 from fmus.common.block import ModelError
 from fmus.common.parameters import ParameterError
-from fmus.mechanism.kinematics import (MAX_TILT, Geometry, KinematicsError, direct_kinematics, full_pose,
-                                       home_pose, inverse_kinematics, jacobian_rates, jacobians, parasitic)
+from fmus.mechanism.kinematics import (
+    MAX_TILT,
+    Geometry,
+    KinematicsError,
+    direct_kinematics,
+    full_pose,
+    home_pose,
+    inverse_kinematics,
+    jacobian_rates,
+    jacobians,
+    parasitic,
+)
 
 DEG = math.pi / 180.0
 T_ALPHA = (0.0, math.pi / 2, math.pi)
@@ -34,15 +45,22 @@ def geom120(mechanism_params) -> Geometry:
 def poses(geom: Geometry, n: int, seed: int = 1) -> np.ndarray:
     """Random (z, psi, theta): z around home +-0.05 m, psi, theta within +-15 deg."""
     rng = np.random.default_rng(seed)
-    z0 = 0.15 + math.sqrt(geom.L ** 2 - (geom.H - geom.r) ** 2)
-    return np.column_stack([z0 + rng.uniform(-0.05, 0.05, n), rng.uniform(-15, 15, n) * DEG,
-                            rng.uniform(-15, 15, n) * DEG])
+    z0 = 0.15 + math.sqrt(geom.L**2 - (geom.H - geom.r) ** 2)
+    return np.column_stack(
+        [z0 + rng.uniform(-0.05, 0.05, n), rng.uniform(-15, 15, n) * DEG, rng.uniform(-15, 15, n) * DEG]
+    )
 
 
 # ---- this file's own geometry (not the module's) ------------------------------------------
 def rot(psi: float, theta: float, phi: float) -> np.ndarray:
-    cx, sx, cy, sy, cz, sz = (math.cos(psi), math.sin(psi), math.cos(theta), math.sin(theta),
-                              math.cos(phi), math.sin(phi))
+    cx, sx, cy, sy, cz, sz = (
+        math.cos(psi),
+        math.sin(psi),
+        math.cos(theta),
+        math.sin(theta),
+        math.cos(phi),
+        math.sin(phi),
+    )
     Rx = np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]])
     Ry = np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
     Rz = np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]])
@@ -88,16 +106,16 @@ def test_constraints_and_leg_lengths_both_layouts(geom, geom120):
             sol = full_pose(g, *q)
             for i in range(3):
                 e, t = units(g, i)
-                assert abs(b["S"][i] @ t) < 1e-14                        # S_i . t_i = 0 (leg in its plane)
+                assert abs(b["S"][i] @ t) < 1e-14  # S_i . t_i = 0 (leg in its plane)
                 assert np.linalg.norm(b["S"][i] - b["B"][i]) == pytest.approx(g.L, abs=1e-14)
-                assert b["S"][i][2] > b["B"][i][2]                       # legs point up
-                assert g.H - b["S"][i] @ e > 0                           # S_i inside the guide radius
+                assert b["S"][i][2] > b["B"][i][2]  # legs point up
+                assert g.H - b["S"][i] @ e > 0  # S_i inside the guide radius
                 np.testing.assert_allclose(sol.S[i], b["S"][i], atol=1e-14)
                 # leg direction = L (-cos gamma e_i + sin gamma e_z)
                 gam = sol.gamma[i]
-                np.testing.assert_allclose(b["S"][i] - b["B"][i],
-                                           g.L * (-math.cos(gam) * e + math.sin(gam) * np.array([0, 0, 1])),
-                                           atol=1e-14)
+                np.testing.assert_allclose(
+                    b["S"][i] - b["B"][i], g.L * (-math.cos(gam) * e + math.sin(gam) * np.array([0, 0, 1])), atol=1e-14
+                )
             np.testing.assert_allclose(sol.R, b["R"], atol=1e-15)
 
 
@@ -115,14 +133,15 @@ def test_120_layout_has_yaw_and_side_motion(geom120):
     # phi = atan(sin psi sin theta / (cos psi + cos theta)); guide 1 (on x) gives y = -r sin(phi) cos(theta)
     for psi, theta in ((10 * DEG, 10 * DEG), (-7 * DEG, 12 * DEG), (14 * DEG, -3 * DEG)):
         x, y, phi = parasitic(geom120, 0.4, psi, theta)
-        assert phi == pytest.approx(math.atan2(math.sin(psi) * math.sin(theta), math.cos(psi) + math.cos(theta)),
-                                    abs=1e-14)
+        assert phi == pytest.approx(
+            math.atan2(math.sin(psi) * math.sin(theta), math.cos(psi) + math.cos(theta)), abs=1e-14
+        )
         assert y == pytest.approx(-geom120.r * math.sin(phi) * math.cos(theta), abs=1e-15)
 
 
 def test_home_pose(geom):
     q = home_pose(geom, 0.15)
-    z0 = 0.15 + math.sqrt(geom.L ** 2 - (geom.H - geom.r) ** 2)
+    z0 = 0.15 + math.sqrt(geom.L**2 - (geom.H - geom.r) ** 2)
     np.testing.assert_allclose(q, [z0, 0, 0], atol=1e-13)
     assert z0 == pytest.approx(0.405147, abs=1e-6)
     np.testing.assert_allclose(inverse_kinematics(geom, z0, 0, 0), [0.15] * 3, atol=1e-15)
@@ -132,7 +151,7 @@ def test_ik_dk_round_trip(geom, geom120):
     for g in (geom, geom120):
         for q in poses(g, 60, seed=2):
             rho = inverse_kinematics(g, *q)
-            np.testing.assert_allclose(direct_kinematics(g, rho), q, atol=1e-11)            # cold start
+            np.testing.assert_allclose(direct_kinematics(g, rho), q, atol=1e-11)  # cold start
             np.testing.assert_allclose(direct_kinematics(g, rho, guess=q + 0.01), q, atol=1e-11)
 
 
@@ -149,19 +168,20 @@ def test_jacobians_against_finite_differences(geom, geom120, layout):
     for q in poses(g, 12, seed=3):
         jac = jacobians(g, *q)
         rho = inverse_kinematics(g, *q)
-        dk = lambda r: direct_kinematics(g, r, guess=q)                         # noqa: E731
+        dk = lambda r: direct_kinematics(g, r, guess=q)  # noqa: E731
         eps = 1e-6
         np.testing.assert_allclose(jac.J, fd_jac(dk, rho, eps), atol=2e-8)
         np.testing.assert_allclose(jac.J_inv, fd_jac(lambda qq: inverse_kinematics(g, *qq), q, eps), atol=2e-8)
         np.testing.assert_allclose(np.linalg.solve(jac.Jx, jac.Jq), jac.J, atol=1e-12)
         np.testing.assert_allclose(jac.K, fd_jac(lambda qq: parasitic(g, *qq), q, eps), atol=2e-8)
-        body = lambda r: bodies(g, dk(r))                                        # noqa: E731
+        body = lambda r: bodies(g, dk(r))  # noqa: E731
         for i in range(3):
             np.testing.assert_allclose(jac.J_b[i], fd_jac(lambda r: body(r)["leg"][i], rho, eps), atol=1e-7)
         np.testing.assert_allclose(jac.J_G, fd_jac(lambda r: body(r)["P"], rho, eps), atol=2e-8)
         R0 = body(rho)["R"]
-        JR = np.array([vee(R0.T @ (body(rho + eps * e)["R"] - body(rho - eps * e)["R"]) / (2 * eps))
-                       for e in np.eye(3)]).T
+        JR = np.array(
+            [vee(R0.T @ (body(rho + eps * e)["R"] - body(rho - eps * e)["R"]) / (2 * eps)) for e in np.eye(3)]
+        ).T
         np.testing.assert_allclose(jac.J_R, JR, atol=1e-7)
 
 
@@ -175,23 +195,25 @@ def test_jacobian_rates_against_finite_differences(geom, geom120, layout):
         rd = rng.uniform(-1.0, 1.0, 3)
         rates = jacobian_rates(g, *q, rd)
         # cold start and a tight tolerance: a warm-started Newton step would be linear in rho
-        dk = lambda r: direct_kinematics(g, r, tol=1e-15)                       # noqa: E731
+        dk = lambda r: direct_kinematics(g, r, tol=1e-15)  # noqa: E731
         h = 3e-4
         # second differences of positions (fully independent of the Jacobians)
-        qdd = (dk(rho + h * rd) - 2 * dk(rho) + dk(rho - h * rd)) / h ** 2
+        qdd = (dk(rho + h * rd) - 2 * dk(rho) + dk(rho - h * rd)) / h**2
         np.testing.assert_allclose(rates.Jdot, qdd, atol=1e-5 * (1 + np.abs(qdd).max()))
         b = [bodies(g, dk(rho + k * h * rd)) for k in (-1, 0, 1)]
-        Pdd = (b[2]["P"] - 2 * b[1]["P"] + b[0]["P"]) / h ** 2
+        Pdd = (b[2]["P"] - 2 * b[1]["P"] + b[0]["P"]) / h**2
         np.testing.assert_allclose(rates.J_G_dot, Pdd, atol=1e-5 * (1 + np.abs(Pdd).max()))
         for i in range(3):
-            legdd = (b[2]["leg"][i] - 2 * b[1]["leg"][i] + b[0]["leg"][i]) / h ** 2
+            legdd = (b[2]["leg"][i] - 2 * b[1]["leg"][i] + b[0]["leg"][i]) / h**2
             np.testing.assert_allclose(rates.J_b_dot[i], legdd, atol=1e-5 * (1 + np.abs(legdd).max()))
         # velocities
         np.testing.assert_allclose(rates.qdot, (dk(rho + 1e-6 * rd) - dk(rho - 1e-6 * rd)) / 2e-6, atol=1e-8)
+
         # angular: w(t) = vee(R^T Rdot) by central differences, then its derivative
         def w_at(s):
             Rm, R0, Rp = (bodies(g, dk(rho + (s + k * 1e-5) * rd))["R"] for k in (-1, 0, 1))
             return vee(R0.T @ (Rp - Rm) / 2e-5)
+
         np.testing.assert_allclose(rates.w, w_at(0.0), rtol=1e-8, atol=1e-8)
         h2 = 2e-4
         wdot = (w_at(h2) - w_at(-h2)) / (2 * h2)
@@ -199,8 +221,9 @@ def test_jacobian_rates_against_finite_differences(geom, geom120, layout):
         # and via the Jacobians themselves: d/dt (J(rho(t))) rhodot
         Jp, Jm = jacobians(g, *dk(rho + h * rd)), jacobians(g, *dk(rho - h * rd))
         np.testing.assert_allclose(rates.J_R_dot, (Jp.J_R - Jm.J_R) @ rd / (2 * h), rtol=1e-5, atol=1e-5)
-        np.testing.assert_allclose(rates.J_b_dot, np.einsum("ijk,k->ij", Jp.J_b - Jm.J_b, rd) / (2 * h),
-                                   rtol=1e-5, atol=1e-5)
+        np.testing.assert_allclose(
+            rates.J_b_dot, np.einsum("ijk,k->ij", Jp.J_b - Jm.J_b, rd) / (2 * h), rtol=1e-5, atol=1e-5
+        )
 
 
 # ---- the paper's Appendix A, typos fixed (docs/mechanism.md) ---------------------------------
@@ -210,28 +233,44 @@ def appendix(geom: Geometry, q, gamma):
     z, psi, th = q
     g1, g2, g3 = gamma
     s, c = math.sin, math.cos
-    Jx = np.array([
-        [L * s(g1), L * r * s(th) * c(psi) * c(g1), L * r * c(th) * s(psi) * c(g1) + L * r * s(th - g1)],   # A.2-4
-        [L * s(g2), L * r * (s(psi) * c(g2) + c(th) * c(psi) * s(g2)),
-         -L * r * s(th) * s(psi) * s(g2)],            # A.7 FIXED: gamma_1 -> gamma_2 and sign + -> -
-        [L * s(g3), -L * r * s(th) * c(psi) * c(g3), -L * r * c(th) * s(psi) * c(g3) + L * r * s(th + g3)],  # A.8-10
-    ])
-    Jq = np.diag([L * s(g1), L * s(g2), L * s(g3)])                                                          # A.11
+    Jx = np.array(
+        [
+            [L * s(g1), L * r * s(th) * c(psi) * c(g1), L * r * c(th) * s(psi) * c(g1) + L * r * s(th - g1)],  # A.2-4
+            [
+                L * s(g2),
+                L * r * (s(psi) * c(g2) + c(th) * c(psi) * s(g2)),
+                -L * r * s(th) * s(psi) * s(g2),
+            ],  # A.7 FIXED: gamma_1 -> gamma_2 and sign + -> -
+            [
+                L * s(g3),
+                -L * r * s(th) * c(psi) * c(g3),
+                -L * r * c(th) * s(psi) * c(g3) + L * r * s(th + g3),
+            ],  # A.8-10
+        ]
+    )
+    Jq = np.diag([L * s(g1), L * s(g2), L * s(g3)])  # A.11
     JxJq = np.linalg.solve(Jx, Jq)
-    A1 = np.array([[0, -0.5 * r * s(th) * c(psi), -0.5 * (r * s(th) + r * c(th) * s(psi))],
-                   [0.5, 0, -0.5 * r * c(th)],
-                   [0, -r * s(th) * c(psi) / (L * s(g1)), -(r * s(th) + r * c(th) * s(psi)) / (L * s(g1))]])
-    Jb1 = A1 @ JxJq + np.array([[0, 0, 0], [0.5, 0, 0], [0, 0, 0]])                                        # A.24
-    A2 = np.array([[0, -0.5 * r * s(psi), 0],
-                   [0, -c(g2) / (2 * s(g2)) * r * s(psi), 0],
-                   [0, -r * s(psi) / (L * s(g2)), 0]])
-    Jb2 = A2 @ JxJq + np.array([[0, 0, 0], [0, 1, 0], [0, 0, 0]])                                          # A.28
-    A3 = np.array([[0, -0.5 * r * s(th) * c(psi), +0.5 * (r * s(th) - r * c(th) * s(psi))],   # FIXED sign
-                   [0.5, 0, 0.5 * r * c(th)],
-                   [0, r * s(th) * c(psi) / (L * s(g3)),
-                    -(r * s(th) - r * c(th) * s(psi)) / (L * s(g3))]])                         # FIXED + -> -
-    Jb3 = A3 @ JxJq + np.array([[0, 0, 0], [0, 0, 0.5], [0, 0, 0]])                                        # A.29
-    JR = np.array([[1, 0], [0, c(psi)], [0, -s(psi)]]) @ JxJq[1:3, :]                                    # A.32
+    A1 = np.array(
+        [
+            [0, -0.5 * r * s(th) * c(psi), -0.5 * (r * s(th) + r * c(th) * s(psi))],
+            [0.5, 0, -0.5 * r * c(th)],
+            [0, -r * s(th) * c(psi) / (L * s(g1)), -(r * s(th) + r * c(th) * s(psi)) / (L * s(g1))],
+        ]
+    )
+    Jb1 = A1 @ JxJq + np.array([[0, 0, 0], [0.5, 0, 0], [0, 0, 0]])  # A.24
+    A2 = np.array(
+        [[0, -0.5 * r * s(psi), 0], [0, -c(g2) / (2 * s(g2)) * r * s(psi), 0], [0, -r * s(psi) / (L * s(g2)), 0]]
+    )
+    Jb2 = A2 @ JxJq + np.array([[0, 0, 0], [0, 1, 0], [0, 0, 0]])  # A.28
+    A3 = np.array(
+        [
+            [0, -0.5 * r * s(th) * c(psi), +0.5 * (r * s(th) - r * c(th) * s(psi))],  # FIXED sign
+            [0.5, 0, 0.5 * r * c(th)],
+            [0, r * s(th) * c(psi) / (L * s(g3)), -(r * s(th) - r * c(th) * s(psi)) / (L * s(g3))],
+        ]
+    )  # FIXED + -> -
+    Jb3 = A3 @ JxJq + np.array([[0, 0, 0], [0, 0, 0.5], [0, 0, 0]])  # A.29
+    JR = np.array([[1, 0], [0, c(psi)], [0, -s(psi)]]) @ JxJq[1:3, :]  # A.32
     return Jx, Jq, JxJq, (Jb1, Jb2, Jb3), JR
 
 
@@ -242,9 +281,9 @@ def test_appendix_jacobians_after_fixing_typos(geom):
         np.testing.assert_allclose(jac.Jx, Jx, atol=1e-14)
         np.testing.assert_allclose(jac.Jq, Jq, atol=1e-14)
         np.testing.assert_allclose(jac.J, JxJq, atol=1e-12)
-        np.testing.assert_allclose(jac.J_b[0], Jb[0], atol=1e-12)      # bar 1: radial = +x
-        np.testing.assert_allclose(jac.J_b[1], Jb[1], atol=1e-12)      # bar 2: radial = +y
-        flip = np.diag([-1.0, 1.0, 1.0])                               # bar 3: radial = -x, the paper uses x
+        np.testing.assert_allclose(jac.J_b[0], Jb[0], atol=1e-12)  # bar 1: radial = +x
+        np.testing.assert_allclose(jac.J_b[1], Jb[1], atol=1e-12)  # bar 2: radial = +y
+        flip = np.diag([-1.0, 1.0, 1.0])  # bar 3: radial = -x, the paper uses x
         np.testing.assert_allclose(flip @ jac.J_b[2], Jb[2], atol=1e-12)
         np.testing.assert_allclose(jac.J_R, JR, atol=1e-12)
 
@@ -280,13 +319,14 @@ def test_appendix_loop_closure_velocities(geom):
         g1, g2, g3 = jac.pose.gamma
         z, psi, th = q
         s, c = math.sin, math.cos
-        assert xd == pytest.approx(L * gd[0] * s(g1) + r * thd * s(th), abs=1e-12)                      # A.12
-        assert zd == pytest.approx(rd[0] + L * gd[0] * c(g1) + r * thd * c(th), abs=1e-12)              # A.13
-        assert -r * psd * s(psi) == pytest.approx(L * gd[1] * s(g2), abs=1e-12)                         # A.14
-        assert zd == pytest.approx(rd[1] + L * gd[1] * c(g2) + r * thd * s(th) * s(psi)
-                                   - r * psd * c(th) * c(psi), abs=1e-12)                               # A.15 fixed
-        assert xd == pytest.approx(-L * gd[2] * s(g3) - r * thd * s(th), abs=1e-12)                     # A.16
-        assert zd == pytest.approx(rd[2] + L * gd[2] * c(g3) - r * thd * c(th), abs=1e-12)              # A.17
+        assert xd == pytest.approx(L * gd[0] * s(g1) + r * thd * s(th), abs=1e-12)  # A.12
+        assert zd == pytest.approx(rd[0] + L * gd[0] * c(g1) + r * thd * c(th), abs=1e-12)  # A.13
+        assert -r * psd * s(psi) == pytest.approx(L * gd[1] * s(g2), abs=1e-12)  # A.14
+        assert zd == pytest.approx(
+            rd[1] + L * gd[1] * c(g2) + r * thd * s(th) * s(psi) - r * psd * c(th) * c(psi), abs=1e-12
+        )  # A.15 fixed
+        assert xd == pytest.approx(-L * gd[2] * s(g3) - r * thd * s(th), abs=1e-12)  # A.16
+        assert zd == pytest.approx(rd[2] + L * gd[2] * c(g3) - r * thd * c(th), abs=1e-12)  # A.17
 
 
 # ---- errors ------------------------------------------------------------------------------------
@@ -310,14 +350,14 @@ def test_out_of_range_and_not_finite(geom):
 
 def test_dk_failure_is_reported(geom):
     with pytest.raises(KinematicsError, match="did not converge"):
-        direct_kinematics(geom, (0.0, 0.6, 0.0))                       # no assembly exists
+        direct_kinematics(geom, (0.0, 0.6, 0.0))  # no assembly exists
     rho = inverse_kinematics(geom, 0.42, 10 * DEG, -10 * DEG)
     with pytest.raises(KinematicsError, match=r"did not converge.*2 iterations, residual"):
         direct_kinematics(geom, rho, max_iter=2, tol=1e-15)
 
 
 def test_singular_layout_is_reported(geom):
-    same = Geometry(geom.H, geom.r, geom.L, (0.0, 0.0, math.pi))       # two guides on top of each other
+    same = Geometry(geom.H, geom.r, geom.L, (0.0, 0.0, math.pi))  # two guides on top of each other
     with pytest.raises(KinematicsError, match="singular"):
         jacobians(same, 0.4, 0.05, 0.05)
 

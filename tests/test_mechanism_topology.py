@@ -1,6 +1,7 @@
 """The layers around the engine follow the mechanism's topology (issue 25): a scratch mechanism with two
 drives and the coordinates (z, theta) drives the mechanism block (and its FMU's variables), the trajectory
 block, the motion stimulus and the admissibility check; a motion axis the system lacks is refused by name."""
+
 from __future__ import annotations
 
 import json
@@ -10,8 +11,8 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from fmus.mechanism import designs
 from fmus.common import tracer as E
+from fmus.mechanism import designs
 from fmus.mechanism.engine import Body, Description, Evaluation
 from fmus.mechanism.kinematics import KinematicsError
 from fmus.mechanism.model import MechanismBlock, Variables
@@ -38,8 +39,9 @@ class Planar2(Description):
     def __init__(self, H, r, L, m_platform=0.0, I_p=(0.0, 0.0, 0.0)):
         self.H, self.r, self.L = float(H), float(r), float(L)
         Ix, Iy, Iz = (float(v) for v in I_p)
-        self.bodies = (Body("platform", float(m_platform), (0.0, 0.0, 0.0),
-                            ((Ix, 0.0, 0.0), (0.0, Iy, 0.0), (0.0, 0.0, Iz))),)
+        self.bodies = (
+            Body("platform", float(m_platform), (0.0, 0.0, 0.0), ((Ix, 0.0, 0.0), (0.0, Iy, 0.0), (0.0, 0.0, Iz))),
+        )
         self.lengths = (1.0, self.r)
 
     def key(self):
@@ -49,7 +51,7 @@ class Planar2(Description):
         z, theta = q
         c, s = E.cos(theta), E.sin(theta)
         rho = []
-        for side in (1.0, -1.0):     # the platform point R (side r, 0, 0) with R = Ry(theta)
+        for side in (1.0, -1.0):  # the platform point R (side r, 0, 0) with R = Ry(theta)
             u = side * self.H - side * self.r * c
             w2 = self.L * self.L - u * u
             E.require(_reach, w2)
@@ -64,16 +66,26 @@ class Planar2(Description):
     @property
     def topology(self):
         stroke = (0.0, 0.3)
-        return Topology(self.name, (Coordinate("z"), Coordinate("theta")),
-                        (Drive("rho_1", "linear", stroke), Drive("rho_2", "linear", stroke)), self.guess((0.15, 0.15)))
+        return Topology(
+            self.name,
+            (Coordinate("z"), Coordinate("theta")),
+            (Drive("rho_1", "linear", stroke), Drive("rho_2", "linear", stroke)),
+            self.guess((0.15, 0.15)),
+        )
 
 
 @pytest.fixture
 def planar(monkeypatch, mechanism_params):
     """The parameters of the scratch mechanism (``kinematics`` = 2PRR, registered for this test)."""
+
     def build(params, masses=True):
-        return Planar2(params["H"], params["r"], params["L"], m_platform=params["m_platform"] if masses else 0.0,
-                       I_p=(params["I_px"], params["I_py"], params["I_pz"]) if masses else (0.0, 0.0, 0.0))
+        return Planar2(
+            params["H"],
+            params["r"],
+            params["L"],
+            m_platform=params["m_platform"] if masses else 0.0,
+            I_p=(params["I_px"], params["I_py"], params["I_pz"]) if masses else (0.0, 0.0, 0.0),
+        )
 
     monkeypatch.setitem(designs.KINEMATICS, "2PRR", build)
     return {**mechanism_params, "kinematics": "2PRR"}
@@ -81,8 +93,17 @@ def planar(monkeypatch, mechanism_params):
 
 def test_variables_follow_the_drives_and_coordinates():
     io = Variables.of(("psi", "theta", "phi"), ("rotary", "rotary", "linear"))
-    assert io.inputs == ("rho_1", "rho_2", "rho_3", "rho_dot_1", "rho_dot_2", "rho_dot_3",
-                         "rho_ddot_1", "rho_ddot_2", "rho_ddot_3")
+    assert io.inputs == (
+        "rho_1",
+        "rho_2",
+        "rho_3",
+        "rho_dot_1",
+        "rho_dot_2",
+        "rho_dot_3",
+        "rho_ddot_1",
+        "rho_ddot_2",
+        "rho_ddot_3",
+    )
     assert io.outputs == ("F_1", "F_2", "F_3", "x", "y", "z", "psi", "theta", "phi")
     assert [io.units[v] for v in ("rho_1", "rho_dot_1", "rho_ddot_1", "F_1")] == ["rad", "rad/s", "rad/s2", "N.m"]
     assert [io.units[v] for v in ("rho_3", "rho_dot_3", "rho_ddot_3", "F_3")] == ["m", "m/s", "m/s2", "N"]
@@ -105,7 +126,7 @@ def test_a_two_drive_mechanism_block(planar):
     weight = planar["m_platform"] * planar["g"]
     assert out["F_1"] == pytest.approx(0.5 * weight, rel=1e-12) and out["F_2"] == pytest.approx(0.5 * weight, rel=1e-12)
     assert out["theta"] == pytest.approx(0.0, abs=1e-14)
-    assert out["z"] == pytest.approx(0.15 + math.sqrt(0.26 ** 2 - 0.05 ** 2), rel=1e-12)
+    assert out["z"] == pytest.approx(0.15 + math.sqrt(0.26**2 - 0.05**2), rel=1e-12)
     # tilted (the +x side higher: theta < 0, R = Ry(theta)): the direct kinematics' pose maps back to the joints by the closed form (Planar2.evaluate)
     blk.set(rho_1=0.16, rho_2=0.13, rho_dot_1=0.05, rho_ddot_2=-1.0)
     blk.do_step(0.0, 1e-3)
@@ -152,7 +173,7 @@ def test_trajectory_block_for_the_coordinates():
     assert TrajectoryBlock.for_parameters(params) is cls
     blk = cls(params)
     blk.initialize(0.0)
-    blk.do_step(0.0, 0.125)      # a quarter period: the crest of the sine
+    blk.do_step(0.0, 0.125)  # a quarter period: the crest of the sine
     assert blk.values == [pytest.approx(0.41, rel=1e-15), pytest.approx(0.02, rel=1e-15)]
     with pytest.raises(ValueError, match="'q1'"):
         TrajectoryBlock.for_coordinates(("z", "q1"))
@@ -160,11 +181,17 @@ def test_trajectory_block_for_the_coordinates():
 
 def _system(params):
     """A system of the scratch mechanism, two actuators feeding its joints, pose command inputs."""
-    comps = {"mechanism": SimpleNamespace(inputs=list(MechanismBlock(params).INPUTS), outputs=[], parameters=params),
-             "trajectory": SimpleNamespace(inputs=[], outputs=["z_cmd", "theta_cmd"], parameters={}),
-             **{f"actuator_{k}": SimpleNamespace(inputs=[], outputs=["rho"], parameters={}) for k in (1, 2)}}
-    connections = [SimpleNamespace(start_element=f"actuator_{k}", start_connector="rho", end_element="mechanism",
-                                   end_connector=f"rho_{k}") for k in (1, 2)]
+    comps = {
+        "mechanism": SimpleNamespace(inputs=list(MechanismBlock(params).INPUTS), outputs=[], parameters=params),
+        "trajectory": SimpleNamespace(inputs=[], outputs=["z_cmd", "theta_cmd"], parameters={}),
+        **{f"actuator_{k}": SimpleNamespace(inputs=[], outputs=["rho"], parameters={}) for k in (1, 2)},
+    }
+    connections = [
+        SimpleNamespace(
+            start_element=f"actuator_{k}", start_connector="rho", end_element="mechanism", end_connector=f"rho_{k}"
+        )
+        for k in (1, 2)
+    ]
     return SimpleNamespace(components=comps, connections=connections, system_inputs=["z_cmd", "theta_cmd"])
 
 
@@ -180,19 +207,33 @@ def test_motion_and_admissibility_on_the_system_coordinates(planar):
     bind(step, ("z", "theta"))
     assert step.reads == ["mechanism.z", "mechanism.theta"]
     # a coordinate the system lacks: refused, naming it and the system's
-    with pytest.raises(ValueError, match=r"motion axis 'psi': the 2PRR system has no such coordinate; its "
-                                         r"mechanism's coordinates are z, theta"):
+    with pytest.raises(
+        ValueError,
+        match=r"motion axis 'psi': the 2PRR system has no such coordinate; its "
+        r"mechanism's coordinates are z, theta",
+    ):
         bind(SineMotion("psi", 0.01, 1.0), system_axes(system), "the 2PRR system")
     with pytest.raises(ValueError, match="pose step 'psi'"):
         bind(PoseStep({"psi": 0.01}), ("z", "theta"))
     # the admissibility check: the strokes of the two actuators, the limit named per coordinate with its unit
-    params = {"mechanism": planar, **{f"actuator_{k}": {"rho_min": 0.0, "rho_max": 0.3} for k in (1, 2)},
-              "trajectory": {"z_home": 0.405, "theta_home": 0.0, "amplitude_z": 0.0, "amplitude_theta": 0.3,
-                             "frequency": 1.0}}
-    home = [0.15 + math.sqrt(0.26 ** 2 - 0.05 ** 2), 0.0]
-    check_commands(system, params, home, [[home[0], 0.05], [home[0], -0.05]])     # inside: no error
-    with pytest.raises(CommandError, match=r"theta_cmd = 0.6 rad .*carriage 1 would be at rho_1 = .* m, beyond the "
-                                           r"stroke \[0, 0.3\] m of actuator_1.*largest reachable theta_cmd .* rad$"):
+    params = {
+        "mechanism": planar,
+        **{f"actuator_{k}": {"rho_min": 0.0, "rho_max": 0.3} for k in (1, 2)},
+        "trajectory": {
+            "z_home": 0.405,
+            "theta_home": 0.0,
+            "amplitude_z": 0.0,
+            "amplitude_theta": 0.3,
+            "frequency": 1.0,
+        },
+    }
+    home = [0.15 + math.sqrt(0.26**2 - 0.05**2), 0.0]
+    check_commands(system, params, home, [[home[0], 0.05], [home[0], -0.05]])  # inside: no error
+    with pytest.raises(
+        CommandError,
+        match=r"theta_cmd = 0.6 rad .*carriage 1 would be at rho_1 = .* m, beyond the "
+        r"stroke \[0, 0.3\] m of actuator_1.*largest reachable theta_cmd .* rad$",
+    ):
         check_commands(system, params, home, [[home[0], 0.6]])
     with pytest.raises(CommandError, match=r"z_cmd = 0.6 m .*largest reachable z_cmd on the way .* is 0.55\d* m"):
         check_commands(system, params, home, [[0.6, 0.0]])

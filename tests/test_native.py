@@ -6,6 +6,7 @@ parameters and failing steps. FMI behaviour through the C API (several instances
 state, calls out of order) and 200 instantiate/free cycles of a C host under valgrind.
 The FMUs are compiled once for the module (-O2).
 """
+
 from __future__ import annotations
 
 import ctypes
@@ -18,6 +19,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from lxml import etree
+from test_fmi_behaviour import DISCARD, ERROR, OK, Instance, _input, drive
 
 from mast.core.build import FMUS, build_fmu, build_ssp
 from mast.core.motion import SineMotion
@@ -25,14 +27,31 @@ from mast.core.native.build import SUPPORT, build_native_all
 from mast.core.native.compiler import compiler, fmi_headers
 from mast.core.native.translate import TranslationError, to_c
 from mast.core.run import simulate
-from test_fmi_behaviour import DISCARD, ERROR, OK, Instance, _input, drive
 
 ROOT = Path(__file__).resolve().parents[1]
-NATIVE = ("MastActuator", "MastMechanism", "MastController", "MastTrajectory", "Mast3PRS120", "Mast3PRSInclined",
-          "MastActuatorsOnly", "MastFeedForwardController", "MastComputedTorqueController", "MastWorkspaceController")
+NATIVE = (
+    "MastActuator",
+    "MastMechanism",
+    "MastController",
+    "MastTrajectory",
+    "Mast3PRS120",
+    "Mast3PRSInclined",
+    "MastActuatorsOnly",
+    "MastFeedForwardController",
+    "MastComputedTorqueController",
+    "MastWorkspaceController",
+)
 MECHANISMS = ("MastMechanism", "Mast3PRS120", "Mast3PRSInclined", "MastActuatorsOnly")
-SYSTEMS = ("MAST", "MAST_standalone", "MAST_3PRS_120", "MAST_3PRS_inclined", "MAST_actuators_only", "MAST_feedforward",
-           "MAST_computed_torque", "MAST_workspace")
+SYSTEMS = (
+    "MAST",
+    "MAST_standalone",
+    "MAST_3PRS_120",
+    "MAST_3PRS_inclined",
+    "MAST_actuators_only",
+    "MAST_feedforward",
+    "MAST_computed_torque",
+    "MAST_workspace",
+)
 #: native and Python FMUs run the same floating-point operations (mast.core.native.translate): the issue asks 1e-9
 TOLERANCE = 1e-9
 
@@ -76,7 +95,10 @@ def test_native_fmus_declare_the_python_fmus_variables_validate_and_carry_source
         native, python = built / "fmus" / "native" / f"{ident}.fmu", built / "fmus" / f"{ident}.fmu"
         assert validate_fmu(str(native)) == [], ident
         with zipfile.ZipFile(native) as zn, zipfile.ZipFile(python) as zp:
-            mn, mp = etree.fromstring(zn.read("modelDescription.xml")), etree.fromstring(zp.read("modelDescription.xml"))
+            mn, mp = (
+                etree.fromstring(zn.read("modelDescription.xml")),
+                etree.fromstring(zp.read("modelDescription.xml")),
+            )
             names = zn.namelist()
             binary = zn.read(f"binaries/linux64/{ident}.so")
         variables = [(etree.tostring(v), v.get("valueReference")) for v in mn.iter("ScalarVariable")]
@@ -85,10 +107,12 @@ def test_native_fmus_declare_the_python_fmus_variables_validate_and_carry_source
         assert {k: v for k, v in mn.find("CoSimulation").attrib.items()} == dict(mp.find("CoSimulation").attrib)
         assert mn.get("guid") != mp.get("guid") and "native" in mn.get("generationTool")
         sources = [f.get("name") for f in mn.find("CoSimulation/SourceFiles")]
-        runtime = (*SUPPORT_FILES, *runtime_files(block_class(ident)))   # the same for every model of a kind
+        runtime = (*SUPPORT_FILES, *runtime_files(block_class(ident)))  # the same for every model of a kind
         assert sorted(sources) == sorted([*(n for n in runtime if n.endswith(".c")), f"{ident}_model.c"])
         headers = {f"sources/{n}" for n in runtime if n.endswith(".h")}
-        assert {f"sources/{s}" for s in sources} | headers | {"sources/mast_model.h", "sources/mast_native.h"} <= set(names)
+        assert {f"sources/{s}" for s in sources} | headers | {"sources/mast_model.h", "sources/mast_native.h"} <= set(
+            names
+        )
         assert ("sources/config.h" in names) == (ident in MECHANISMS or "Actuator" in ident)  # the sizes
         assert b"libpython" not in binary and b"Py_Initialize" not in binary and b"numpy" not in binary
 
@@ -99,13 +123,16 @@ def test_the_sources_in_the_archive_compile_into_a_working_binary(built, tmp_pat
         z.extractall(tmp_path)
     library = tmp_path / "rebuilt.so"
     c_files = sorted(str(p) for p in (tmp_path / "sources").glob("*.c"))
-    subprocess.run([compiler(), "-O2", "-shared", "-fPIC", f"-I{fmi_headers()}", "-o", str(library), *c_files, "-lm"],
-                   check=True, capture_output=True)
+    subprocess.run(
+        [compiler(), "-O2", "-shared", "-fPIC", f"-I{fmi_headers()}", "-o", str(library), *c_files, "-lm"],
+        check=True,
+        capture_output=True,
+    )
     shutil.copy(library, tmp_path / "binaries" / "linux64" / "MastTrajectory.so")
     from fmpy import simulate_fmu
 
     result = simulate_fmu(str(tmp_path), stop_time=0.25, output_interval=0.25, fmi_type="CoSimulation")
-    z_home, amplitude = 0.4051470164434615, 0.01   # ssp/resources/home_3prs.ssv, trajectory_z.ssv
+    z_home, amplitude = 0.4051470164434615, 0.01  # ssp/resources/home_3prs.ssv, trajectory_z.ssv
     assert result["z_cmd"][-1] == pytest.approx(z_home + amplitude * math.sin(2 * math.pi * 0.25), rel=1e-12)
 
 
@@ -126,7 +153,7 @@ def test_a_10_hz_sine_reproduces_the_python_fmus_also_with_the_tunable_trajector
     native = simulate(built / "ssp" / "native" / "MAST.ssp", stimulus, 0.3)
     assert _relative_error(python, native) <= TOLERANCE
     z = np.asarray(native.signals["z_cmd"] if "z_cmd" in native.signals else next(iter(native.signals.values())))
-    assert np.ptp(z) > 0.003   # the sine is there
+    assert np.ptp(z) > 0.003  # the sine is there
     ten_hz = {"trajectory": {"frequency": 10.0, "amplitude_z": 0.002}}  # a parameter set at run time
     python = simulate(built / "ssp" / "MAST_standalone.ssp", None, 0.3, parameters=ten_hz)
     native = simulate(built / "ssp" / "native" / "MAST_standalone.ssp", None, 0.3, parameters=ten_hz)
@@ -145,7 +172,7 @@ def test_instances_are_independent_and_a_restored_state_reproduces_the_continuat
     a, b = _native(built, "MastActuator", "a"), _native(built, "MastActuator", "b")
     assert a.start() == OK and b.start() == OK
     rows = []
-    for k in range(60):                      # interleaved, different inputs
+    for k in range(60):  # interleaved, different inputs
         drive(b, k, 1, seed=2.0)
         rows.append(drive(a, k, 1, seed=1.0)[0])
     assert np.array_equal(np.array(rows), expected)
@@ -180,7 +207,7 @@ def test_the_controllers_commands_follow_the_inputs_set_once_per_communication_p
                         inst.set(**{name: v})
                 elif how == "once" or k % 2 == 0:
                     inst.set(**real)
-                out.append(inst.get())                     # the commands at t, before the step
+                out.append(inst.get())  # the commands at t, before the step
                 assert inst.step(t, 1e-3) == OK, inst.log[-2:]
             rows[how] = np.array(out)
             inst.close()
@@ -201,28 +228,33 @@ def test_calls_out_of_order_return_error_with_a_logged_message_and_the_instance_
     value = (ctypes.c_double * 1)(0.0)
     assert inst.dll.fmi2GetReal(inst.c, vr(99999), 1, value) == ERROR
     assert "unknown value reference 99999" in inst.log[-1][1]
-    assert inst.dll.fmi2SetReal(inst.c, vr(inst.vr["rho"]), 1, value) == ERROR   # an output
+    assert inst.dll.fmi2SetReal(inst.c, vr(inst.vr["rho"]), 1, value) == ERROR  # an output
     assert "'rho' is an output" in inst.log[-1][1]
     assert inst.dll.fmi2SetReal(inst.c, vr(inst.vr["n_dof"]), 1, value) == ERROR  # an Integer variable
     assert inst.start() == OK
     value[0] = 0.5
-    assert inst.dll.fmi2SetReal(inst.c, vr(inst.vr["R"]), 1, value) == ERROR      # fixed parameter after init
+    assert inst.dll.fmi2SetReal(inst.c, vr(inst.vr["R"]), 1, value) == ERROR  # fixed parameter after init
     assert "parameter 'R' is fixed" in inst.log[-1][1]
     assert inst.dll.fmi2EnterInitializationMode(inst.c) == ERROR
-    assert inst.step(0.0, 1e-4) == OK          # nothing changed: it still steps
+    assert inst.step(0.0, 1e-4) == OK  # nothing changed: it still steps
     inst.close()
 
 
-@pytest.mark.parametrize("ident, parameter, value", [("MastMechanism", "m_platform", -1.0),
-                                                     ("MastActuator", "R", 0.0),
-                                                     ("MastController", "k_v", -2.5),
-                                                     ("MastFeedForwardController", "M_load", 0.0),
-                                                     ("MastComputedTorqueController", "k_T", -0.3)])
+@pytest.mark.parametrize(
+    "ident, parameter, value",
+    [
+        ("MastMechanism", "m_platform", -1.0),
+        ("MastActuator", "R", 0.0),
+        ("MastController", "k_v", -2.5),
+        ("MastFeedForwardController", "M_load", 0.0),
+        ("MastComputedTorqueController", "k_T", -0.3),
+    ],
+)
 def test_bad_parameters_get_the_python_fmus_message(built, ident, parameter, value):
     messages = []
     for fmu in (built / "fmus" / f"{ident}.fmu", built / "fmus" / "native" / f"{ident}.fmu"):
         inst = Instance(fmu, "component")
-        assert inst.start({parameter: value}) == OK       # as the Python FMUs: refused steps follow
+        assert inst.start({parameter: value}) == OK  # as the Python FMUs: refused steps follow
         messages.append(next(m for s, m in inst.log if s == ERROR and "exitInitializationMode" in m))
         assert inst.step(0.0, 1e-3) == DISCARD and "did not initialise" in inst.log[-1][1]
         inst.close()
@@ -246,9 +278,10 @@ def test_a_failing_step_is_refused_with_the_python_fmus_message(built):
 def test_a_pose_within_the_singularity_margin_is_refused_by_both_routes_with_the_same_message(built):
     """Engine.dk's margin (engine.MARGIN) in C too: on the inclined design's path from home towards its
     parallel singularity (tests/test_workspace.py), 98 % of the way is within the margin, 97 % is not."""
+    from test_designs import Own
+
     from fmus.mechanism.engine import MARGIN
     from mast.analyses import workspace as W
-    from test_designs import Own
 
     machine = W.machine("3PRS_inclined")
     engine, own = machine.engine(), Own({**machine.params, "g": 9.81})
@@ -273,30 +306,77 @@ def test_a_pose_within_the_singularity_margin_is_refused_by_both_routes_with_the
     assert messages[0] == messages[1]
 
 
-@pytest.mark.parametrize("ident, h, tuned", [
-    # the gains: computed at initialisation by the controller's own cascade_gains, transmission_ratio
-    ("MastController", 1e-4, {"k_v": 41.5, "k_p": 0.031, "k_i": 2.7, "i_max": 3.5, "p": 0.006, "i_r": 2.5}),
-    # and the other controllers' own gains: feedforward_gains, error_gains, pose_gains
-    ("MastFeedForwardController", 1e-4, {"k_v": 41.5, "k_i": 2.7, "k_ff_v": 0.6, "k_ff_tau": 0.8}),
-    ("MastComputedTorqueController", 1e-4, {"i_max": 0.5, "omega_n": 90.0, "zeta": 0.8}),
-    ("MastWorkspaceController", 1e-4, {"k_v": 41.5, "k_v_scale_z": 1.2, "k_v_scale_psi": 0.7, "k_v_scale_theta": 1.5,
-                                       "k_p": 0.031, "k_i": 2.7, "i_max": 3.5}),
-    # the masses, inertias and g: inputs of the engine's traced functions (designs.traced_engine)
-    ("MastMechanism", 1e-3, {"m_leg": 0.45, "I_leg": 0.003, "m_platform": 3.1, "I_px": 0.011, "I_py": 0.013,
-                             "I_pz": 0.02, "g": 9.7}),
-    # the controllers' cycle times (their schedule) and kinematic model (the engine traced with the geometry
-    # as inputs), and the feed-forward and computed-torque controllers' inverse model's bodies
-    ("MastController", 1e-3, {"T_pos": 2e-3, "T_vel": 5e-4, "H": 0.41, "r": 0.34, "alpha_2": 1.6, "p": 0.006}),
-    ("MastWorkspaceController", 1e-3, {"T_vel": 4e-4, "L": 0.27, "beta": 0.05, "i_r": 2.5}),
-    ("MastFeedForwardController", 1e-3, {"T_pos": 2e-3, "H": 0.41, "m_platform": 2.5, "m_payload": 3.0,
-                                         "payload_z": 0.05}),
-    ("MastComputedTorqueController", 1e-3, {"T_vel": 5e-4, "r": 0.34, "g": 9.7, "I_py": 0.02}),
-    # and their inverse model's actuator constants (inverse_model.model_constants at initialisation)
-    ("MastFeedForwardController", 1e-3, {"M_load": 3.1, "J1_scale": 1.3, "J_motor": 2e-5, "tau_c": 0.05,
-                                         "omega_c": 0.7, "b_v": 3e-4, "tau_s": 0.02, "omega_s": 4.0, "k_T": 0.3,
-                                         "g_guide": 5.0, "i_r": 2.5}),
-    ("MastComputedTorqueController", 1e-3, {"M_load": 3.1, "J1_scale": 1.3, "J_guide": 2e-6, "tau_c": 0.05,
-                                            "b_v": 3e-4, "k_T": 0.3, "g_guide": 5.0, "p": 0.006})])
+@pytest.mark.parametrize(
+    "ident, h, tuned",
+    [
+        # the gains: computed at initialisation by the controller's own cascade_gains, transmission_ratio
+        ("MastController", 1e-4, {"k_v": 41.5, "k_p": 0.031, "k_i": 2.7, "i_max": 3.5, "p": 0.006, "i_r": 2.5}),
+        # and the other controllers' own gains: feedforward_gains, error_gains, pose_gains
+        ("MastFeedForwardController", 1e-4, {"k_v": 41.5, "k_i": 2.7, "k_ff_v": 0.6, "k_ff_tau": 0.8}),
+        ("MastComputedTorqueController", 1e-4, {"i_max": 0.5, "omega_n": 90.0, "zeta": 0.8}),
+        (
+            "MastWorkspaceController",
+            1e-4,
+            {
+                "k_v": 41.5,
+                "k_v_scale_z": 1.2,
+                "k_v_scale_psi": 0.7,
+                "k_v_scale_theta": 1.5,
+                "k_p": 0.031,
+                "k_i": 2.7,
+                "i_max": 3.5,
+            },
+        ),
+        # the masses, inertias and g: inputs of the engine's traced functions (designs.traced_engine)
+        (
+            "MastMechanism",
+            1e-3,
+            {"m_leg": 0.45, "I_leg": 0.003, "m_platform": 3.1, "I_px": 0.011, "I_py": 0.013, "I_pz": 0.02, "g": 9.7},
+        ),
+        # the controllers' cycle times (their schedule) and kinematic model (the engine traced with the geometry
+        # as inputs), and the feed-forward and computed-torque controllers' inverse model's bodies
+        ("MastController", 1e-3, {"T_pos": 2e-3, "T_vel": 5e-4, "H": 0.41, "r": 0.34, "alpha_2": 1.6, "p": 0.006}),
+        ("MastWorkspaceController", 1e-3, {"T_vel": 4e-4, "L": 0.27, "beta": 0.05, "i_r": 2.5}),
+        (
+            "MastFeedForwardController",
+            1e-3,
+            {"T_pos": 2e-3, "H": 0.41, "m_platform": 2.5, "m_payload": 3.0, "payload_z": 0.05},
+        ),
+        ("MastComputedTorqueController", 1e-3, {"T_vel": 5e-4, "r": 0.34, "g": 9.7, "I_py": 0.02}),
+        # and their inverse model's actuator constants (inverse_model.model_constants at initialisation)
+        (
+            "MastFeedForwardController",
+            1e-3,
+            {
+                "M_load": 3.1,
+                "J1_scale": 1.3,
+                "J_motor": 2e-5,
+                "tau_c": 0.05,
+                "omega_c": 0.7,
+                "b_v": 3e-4,
+                "tau_s": 0.02,
+                "omega_s": 4.0,
+                "k_T": 0.3,
+                "g_guide": 5.0,
+                "i_r": 2.5,
+            },
+        ),
+        (
+            "MastComputedTorqueController",
+            1e-3,
+            {
+                "M_load": 3.1,
+                "J1_scale": 1.3,
+                "J_guide": 2e-6,
+                "tau_c": 0.05,
+                "b_v": 3e-4,
+                "k_T": 0.3,
+                "g_guide": 5.0,
+                "p": 0.006,
+            },
+        ),
+    ],
+)
 def test_parameters_read_at_run_time_are_tunable_in_any_host(built, ident, h, tuned):
     """Set by the host as on the Python FMU (docs/native.md, Parameters): the same outputs, step for step."""
     rows = []
@@ -309,8 +389,8 @@ def test_parameters_read_at_run_time_are_tunable_in_any_host(built, ident, h, tu
     assert default.start() == OK
     untuned = drive(default, 0, 40, h=h, seed=3.0)
     default.close()
-    assert np.abs(rows[0] - untuned).max() > 1e-3 * np.abs(untuned).max()     # the parameters matter
-    assert np.abs(rows[0] - rows[1]).max() <= TOLERANCE * np.abs(rows[0]).max()   # measured: 0
+    assert np.abs(rows[0] - untuned).max() > 1e-3 * np.abs(untuned).max()  # the parameters matter
+    assert np.abs(rows[0] - rows[1]).max() <= TOLERANCE * np.abs(rows[0]).max()  # measured: 0
 
 
 def _start(inst: Instance, parameters: dict) -> int:
@@ -331,23 +411,46 @@ def _carriages(inst: Instance, n: int, h: float) -> np.ndarray:
         values = {}
         for i in range(3):
             w = 2 * math.pi * (2.0 + i)
-            values |= {f"rho_{i + 1}": 0.15 + 0.012 * math.sin(w * t + i), f"rho_dot_{i + 1}": 0.012 * w * math.cos(w * t + i),
-                       f"rho_ddot_{i + 1}": -0.012 * w * w * math.sin(w * t + i)}
+            values |= {
+                f"rho_{i + 1}": 0.15 + 0.012 * math.sin(w * t + i),
+                f"rho_dot_{i + 1}": 0.012 * w * math.cos(w * t + i),
+                f"rho_ddot_{i + 1}": -0.012 * w * w * math.sin(w * t + i),
+            }
         inst.set(**values)
         assert inst.step(t, h) == OK, inst.log[-3:]
         rows.append(inst.get())
     return np.array(rows)
 
 
-@pytest.mark.parametrize("ident, tuned", [
-    # geometry, bodies, payload and g of the T design: one generated code for every parameter set
-    ("MastMechanism", {"H": 0.41, "r": 0.33, "L": 0.27, "alpha_2": 1.62, "m_leg": 0.45, "I_px": 0.011, "g": 9.7,
-                       "m_payload": 4.0, "payload_x": 0.02, "payload_z": 0.08, "I_payload_xx": 0.02,
-                       "I_payload_yy": 0.03, "I_payload_zz": 0.04, "I_payload_xy": 0.002}),
-    # the inclined design made vertical (Python traces other formulas then; C computes the same floats)
-    ("Mast3PRSInclined", {"beta": 0.0, "H": 0.4}),
-    # actuators alone, attached again: the inverse dynamics instead of the kinematics only
-    ("MastActuatorsOnly", {"attached": 1, "beta": 0.1, "H": 0.45})])
+@pytest.mark.parametrize(
+    "ident, tuned",
+    [
+        # geometry, bodies, payload and g of the T design: one generated code for every parameter set
+        (
+            "MastMechanism",
+            {
+                "H": 0.41,
+                "r": 0.33,
+                "L": 0.27,
+                "alpha_2": 1.62,
+                "m_leg": 0.45,
+                "I_px": 0.011,
+                "g": 9.7,
+                "m_payload": 4.0,
+                "payload_x": 0.02,
+                "payload_z": 0.08,
+                "I_payload_xx": 0.02,
+                "I_payload_yy": 0.03,
+                "I_payload_zz": 0.04,
+                "I_payload_xy": 0.002,
+            },
+        ),
+        # the inclined design made vertical (Python traces other formulas then; C computes the same floats)
+        ("Mast3PRSInclined", {"beta": 0.0, "H": 0.4}),
+        # actuators alone, attached again: the inverse dynamics instead of the kinematics only
+        ("MastActuatorsOnly", {"attached": 1, "beta": 0.1, "H": 0.45}),
+    ],
+)
 def test_every_mechanism_parameter_is_tunable_in_any_host(built, ident, tuned):
     """Geometry, payload and bodies set through start values as on the Python FMU: the same outputs (0 measured)."""
     rows = []
@@ -360,21 +463,29 @@ def test_every_mechanism_parameter_is_tunable_in_any_host(built, ident, tuned):
     assert default.start() == OK
     untuned = _carriages(default, 40, 5e-3)
     default.close()
-    assert np.abs(rows[0] - untuned).max() > 1e-3 * np.abs(untuned).max()     # the parameters matter
-    assert np.abs(rows[0] - rows[1]).max() <= TOLERANCE * np.abs(rows[0]).max()   # measured: 0
+    assert np.abs(rows[0] - untuned).max() > 1e-3 * np.abs(untuned).max()  # the parameters matter
+    assert np.abs(rows[0] - rows[1]).max() <= TOLERANCE * np.abs(rows[0]).max()  # measured: 0
 
 
-@pytest.mark.parametrize("ident, tuned, words", [
-    ("MastMechanism", {"r": 0.45}, "parameter 'r' = 0.45: must be < H = 0.4 m"),
-    ("MastMechanism", {"L": 0.04}, "parameter 'L' = 0.04: must exceed H - r"),
-    ("MastMechanism", {"kinematics": "6UPS"}, "parameter 'kinematics' = '6UPS': expected one of"),
-    ("MastMechanism", {"m_payload": 1.0, "I_payload_xx": 0.01, "I_payload_xy": 0.5},
-     "inertia tensor is not positive semi-definite"),
-    ("Mast3PRSInclined", {"H": 0.9}, "cannot be assembled at the level pose with the sliders at the foot"),
-    ("MastController", {"T_pos": 1.05e-3}, "parameter 'T_pos' = 0.00105 s must be an integer multiple of T_cur"),
-    ("MastWorkspaceController", {"r": 0.5}, "parameter 'r' = 0.5: must be < H")])
-def test_a_mechanism_or_controller_that_cannot_be_built_is_refused_with_the_python_fmus_message(built, ident, tuned,
-                                                                                               words):
+@pytest.mark.parametrize(
+    "ident, tuned, words",
+    [
+        ("MastMechanism", {"r": 0.45}, "parameter 'r' = 0.45: must be < H = 0.4 m"),
+        ("MastMechanism", {"L": 0.04}, "parameter 'L' = 0.04: must exceed H - r"),
+        ("MastMechanism", {"kinematics": "6UPS"}, "parameter 'kinematics' = '6UPS': expected one of"),
+        (
+            "MastMechanism",
+            {"m_payload": 1.0, "I_payload_xx": 0.01, "I_payload_xy": 0.5},
+            "inertia tensor is not positive semi-definite",
+        ),
+        ("Mast3PRSInclined", {"H": 0.9}, "cannot be assembled at the level pose with the sliders at the foot"),
+        ("MastController", {"T_pos": 1.05e-3}, "parameter 'T_pos' = 0.00105 s must be an integer multiple of T_cur"),
+        ("MastWorkspaceController", {"r": 0.5}, "parameter 'r' = 0.5: must be < H"),
+    ],
+)
+def test_a_mechanism_or_controller_that_cannot_be_built_is_refused_with_the_python_fmus_message(
+    built, ident, tuned, words
+):
     messages = []
     for fmu in (built / "fmus" / f"{ident}.fmu", built / "fmus" / "native" / f"{ident}.fmu"):
         inst = Instance(fmu, "table")
@@ -407,8 +518,19 @@ def test_a_controller_whose_direct_kinematics_fails_is_refused_with_the_python_f
 def test_200_instantiate_free_cycles_of_a_c_host_are_clean_under_valgrind_and_5000_keep_memory_flat(built, tmp_path):
     valgrind = shutil.which("valgrind")
     host = tmp_path / "cycles"
-    subprocess.run([compiler(), "-O2", f"-I{fmi_headers()}", "-o", str(host),
-                    str(ROOT / "benchmarks" / "native_cycles.c"), "-ldl"], check=True, capture_output=True)
+    subprocess.run(
+        [
+            compiler(),
+            "-O2",
+            f"-I{fmi_headers()}",
+            "-o",
+            str(host),
+            str(ROOT / "benchmarks" / "native_cycles.c"),
+            "-ldl",
+        ],
+        check=True,
+        capture_output=True,
+    )
     for ident, h in (("MastActuator", 1e-4), ("MastMechanism", 1e-3), ("MastController", 1e-4)):
         folder = tmp_path / ident
         with zipfile.ZipFile(built / "fmus" / "native" / f"{ident}.fmu") as z:
@@ -422,9 +544,12 @@ def test_200_instantiate_free_cycles_of_a_c_host_are_clean_under_valgrind_and_50
         # per cycle would show 146, an instance (over 1 KiB) 5000
         assert ok == 1 and logged >= 15000 and rss5000 - rss10 <= 128, plain.stdout
         if valgrind:
-            checked = subprocess.run([valgrind, "-q", "--error-exitcode=3", "--leak-check=full",
-                                      "--errors-for-leak-kinds=definite", *args], capture_output=True, text=True,
-                                     timeout=300)
+            checked = subprocess.run(
+                [valgrind, "-q", "--error-exitcode=3", "--leak-check=full", "--errors-for-leak-kinds=definite", *args],
+                capture_output=True,
+                text=True,
+                timeout=300,
+            )
             assert checked.returncode == 0, checked.stderr[-3000:]
 
 
@@ -450,22 +575,32 @@ def test_ecos_command_line_runs_the_native_ssp_without_python_and_libcosim_runs_
         dev = deviations(result, reference, signals)
         over = {s: d for s, d in dev.items() if not d <= TOLERANCES[host][COMPARED[s]]}
         assert not over, f"{host} differs from our master: {over}"
-        assert np.ptp(result["mechanism.z"]) > 0.005      # the 10 mm sine ran
+        assert np.ptp(result["mechanism.z"]) > 0.005  # the 10 mm sine ran
 
 
 #: the feed-forward and computed-torque controllers' inverse model: another actuator than the plant's
 _INVERSE_MODEL = {"M_load": 3.1, "J1_scale": 1.3, "tau_c": 0.05, "b_v": 3e-4, "k_T": 0.3, "g_guide": 5.0}
 
 
-@pytest.mark.parametrize("system, changed, stop", [
-    ("MAST", {"actuator_2": {"R": 0.35, "tau_c": 0.03},
-              "mechanism": {"m_platform": 2.5, "L": 0.265, "m_payload": 2.0, "payload_z": 0.05},
-              "controller": {"k_v": 40.0, "L": 0.265, "T_pos": 2e-3}}, 0.2),
-    ("MAST_feedforward", {"controller": _INVERSE_MODEL}, 0.05),
-    ("MAST_computed_torque", {"controller": _INVERSE_MODEL}, 0.05)])
-def test_our_master_runs_a_native_system_with_another_parameter_set_like_the_python_fmus(built, tmp_path,
-                                                                                          monkeypatch, system,
-                                                                                          changed, stop):
+@pytest.mark.parametrize(
+    "system, changed, stop",
+    [
+        (
+            "MAST",
+            {
+                "actuator_2": {"R": 0.35, "tau_c": 0.03},
+                "mechanism": {"m_platform": 2.5, "L": 0.265, "m_payload": 2.0, "payload_z": 0.05},
+                "controller": {"k_v": 40.0, "L": 0.265, "T_pos": 2e-3},
+            },
+            0.2,
+        ),
+        ("MAST_feedforward", {"controller": _INVERSE_MODEL}, 0.05),
+        ("MAST_computed_torque", {"controller": _INVERSE_MODEL}, 0.05),
+    ],
+)
+def test_our_master_runs_a_native_system_with_another_parameter_set_like_the_python_fmus(
+    built, tmp_path, monkeypatch, system, changed, stop
+):
     """Parameters changed by the caller: the native FMUs read them at run time, as the Python FMUs; only a
     parameter a native FMU holds as generated makes the master generate the model for it (mast.core.native.build)."""
     monkeypatch.setenv("MAST_NATIVE_CACHE", str(tmp_path))
@@ -476,7 +611,7 @@ def test_our_master_runs_a_native_system_with_another_parameter_set_like_the_pyt
     # every parameter changed here is read at run time: nothing is generated for them
     assert not list(tmp_path.glob("*/*.fmu"))
     unchanged = simulate(built / "ssp" / f"{system}.ssp", stimulus, stop)
-    assert _relative_error(python, unchanged) > 1e-3    # the change matters
+    assert _relative_error(python, unchanged) > 1e-3  # the change matters
 
 
 def test_the_c_backend_computes_what_the_python_computes_branch_for_branch(tmp_path):
@@ -491,13 +626,31 @@ def test_the_c_backend_computes_what_the_python_computes_branch_for_branch(tmp_p
         "            s = s*0.5 + tanh(a)\n"
         "            break\n"
         "        a, b = b, a - 0.25\n"
-        "    return (s, a, b, a % 2.0 if a > 0.0 else -1.0)\n")
+        "    return (s, a, b, a % 2.0 if a > 0.0 else -1.0)\n"
+    )
     namespace = {"tanh": math.tanh}
     exec(source, namespace)  # noqa: S102 (the test's own source)
-    (tmp_path / "f.c").write_text('#include "mast_native.h"\n' + to_c(source, "f", static=False)
-                                  + "double m(double x, double y) { return mast_mod(x, y); }\n")
-    subprocess.run([compiler(), "-O2", "-ffp-contract=off", "-shared", "-fPIC", f"-I{SUPPORT}", "-o",
-                    str(tmp_path / "f.so"), str(tmp_path / "f.c"), "-lm"], check=True, capture_output=True)
+    (tmp_path / "f.c").write_text(
+        '#include "mast_native.h"\n'
+        + to_c(source, "f", static=False)
+        + "double m(double x, double y) { return mast_mod(x, y); }\n"
+    )
+    subprocess.run(
+        [
+            compiler(),
+            "-O2",
+            "-ffp-contract=off",
+            "-shared",
+            "-fPIC",
+            f"-I{SUPPORT}",
+            "-o",
+            str(tmp_path / "f.so"),
+            str(tmp_path / "f.c"),
+            "-lm",
+        ],
+        check=True,
+        capture_output=True,
+    )
     f = ctypes.CDLL(str(tmp_path / "f.so")).f
     f.argtypes = [ctypes.c_double, ctypes.c_double, ctypes.POINTER(ctypes.c_double)]
     out = (ctypes.c_double * 4)()
@@ -509,14 +662,18 @@ def test_the_c_backend_computes_what_the_python_computes_branch_for_branch(tmp_p
     # % of the tick counters: integer remainder where exact, fmod elsewhere; always Python's (x >= 0) bit for bit
     m = ctypes.CDLL(str(tmp_path / "f.so")).m
     m.restype, m.argtypes = ctypes.c_double, [ctypes.c_double, ctypes.c_double]
-    for x in (0.0, 1.0, 9.0, 10.0, 12345.0, 2.0 ** 31 - 1, 2.0 ** 31, 2.0 ** 40 + 7, 0.5, 7.25, 1e300):
-        for y in (1.0, 3.0, 10.0, 2.0 ** 31 + 1, 0.3, 2.5):
+    for x in (0.0, 1.0, 9.0, 10.0, 12345.0, 2.0**31 - 1, 2.0**31, 2.0**40 + 7, 0.5, 7.25, 1e300):
+        for y in (1.0, 3.0, 10.0, 2.0**31 + 1, 0.3, 2.5):
             assert math.copysign(1.0, m(x, y)) == 1.0 and m(x, y) == x % y, (x, y)
     # a slice store that reads the array it writes (a shift register): every value before any store
-    (tmp_path / "g.c").write_text(to_c("def g(x):\n    x[1:] = (x[0], x[1], x[2] + 1.0)\n    return 0\n", "g",
-                                       arrays=("x",), static=False))
-    subprocess.run([compiler(), "-O2", "-shared", "-fPIC", "-o", str(tmp_path / "g.so"), str(tmp_path / "g.c")],
-                   check=True, capture_output=True)
+    (tmp_path / "g.c").write_text(
+        to_c("def g(x):\n    x[1:] = (x[0], x[1], x[2] + 1.0)\n    return 0\n", "g", arrays=("x",), static=False)
+    )
+    subprocess.run(
+        [compiler(), "-O2", "-shared", "-fPIC", "-o", str(tmp_path / "g.so"), str(tmp_path / "g.c")],
+        check=True,
+        capture_output=True,
+    )
     x = (ctypes.c_double * 4)(1.0, 2.0, 3.0, 4.0)
     assert ctypes.CDLL(str(tmp_path / "g.so")).g(x) == 0 and list(x) == [1.0, 1.0, 2.0, 4.0]
     # the controllers' tick (fmus/controller/tick.py), which Python runs too: a call returning a tuple, stores by
@@ -524,8 +681,20 @@ def test_the_c_backend_computes_what_the_python_computes_branch_for_branch(tmp_p
     pair = "def pair(u, v):\n    return (u*v, u - v)\n"
     tick = "def tick(x):\n    a, b = pair(x[0], x[1])\n    x[0] = b\n    x[2:4] = (a, x[0] + a)\n    return 0\n"
     (tmp_path / "t.c").write_text(to_c(pair, "pair") + to_c(tick, "tick", arrays=("x",), calls=("pair",), static=False))
-    subprocess.run([compiler(), "-O2", "-ffp-contract=off", "-shared", "-fPIC", "-o", str(tmp_path / "t.so"),
-                    str(tmp_path / "t.c")], check=True, capture_output=True)
+    subprocess.run(
+        [
+            compiler(),
+            "-O2",
+            "-ffp-contract=off",
+            "-shared",
+            "-fPIC",
+            "-o",
+            str(tmp_path / "t.so"),
+            str(tmp_path / "t.c"),
+        ],
+        check=True,
+        capture_output=True,
+    )
     exec(pair + tick, namespace)  # noqa: S102 (the test's own source)
     x, y = (ctypes.c_double * 5)(0.3, 1.7, 0.0, 0.0, 9.0), [0.3, 1.7, 0.0, 0.0, 9.0]
     assert ctypes.CDLL(str(tmp_path / "t.so")).tick(x) == 0 and namespace["tick"](y) == 0
@@ -540,9 +709,9 @@ def test_what_the_parameters_alone_fix_is_computed_once_and_the_floats_do_not_ch
     function, bit for bit, at poses and parameter sets that differ; only parameter-only assignments move."""
     import random
 
+    from fmus.mechanism.designs import TRACED_PARAMETERS, traced_engine
     from mast.core.build import default_parameters
     from mast.core.native.translate import split_invariants
-    from fmus.mechanism.designs import TRACED_PARAMETERS, traced_engine
 
     params = default_parameters("Mast3PRSInclined")
     eng = traced_engine(params, "Mast3PRSInclined")
@@ -551,16 +720,16 @@ def test_what_the_parameters_alone_fix_is_computed_once_and_the_floats_do_not_ch
         fn = eng._fn(name)
         invariants, main, n = split_invariants(fn.source, TRACED_PARAMETERS)
         ns = dict(fn.namespace)
-        exec(invariants + "\n" + main, ns)   # noqa: S102 (generated by the function under test)
+        exec(invariants + "\n" + main, ns)  # noqa: S102 (generated by the function under test)
         hoisted = invariants.splitlines()[1:-1]
         assert n > 0 and all(f"q{k}" not in line and "_check" not in line for line in hoisted for k in range(3))
-        assert any("_cos(alpha_1)" in line for line in hoisted) and "_cos(q1)" in main   # trig of the geometry
+        assert any("_cos(alpha_1)" in line for line in hoisted) and "_cos(q1)" in main  # trig of the geometry
         for _ in range(20):
-            P = [v * rng.uniform(0.97, 1.03) for v in eng._pv]     # another parameter set each time
+            P = [v * rng.uniform(0.97, 1.03) for v in eng._pv]  # another parameter set each time
             q = [0.4 + rng.uniform(-0.01, 0.01), rng.uniform(-0.05, 0.05), rng.uniform(-0.05, 0.05)]
             args = q + [rng.uniform(-1.0, 1.0) for _ in range(n_q - 3)]
             K = ns[f"{name}_invariants"](*P)
-            assert len(K) == n and ns[name](*args, *P, list(K)) == fn(*args, *P)    # the same floats (==)
+            assert len(K) == n and ns[name](*args, *P, list(K)) == fn(*args, *P)  # the same floats (==)
 
 
 def test_only_the_models_a_generator_knows_claim_a_native_form():
@@ -574,13 +743,27 @@ def test_only_the_models_a_generator_knows_claim_a_native_form():
 
 
 # -- the actuator: every parameter read at run time, its discretisation computed in the FMU ------------
-@pytest.mark.parametrize("h, tuned", [
-    # and the drive's current loop (current_gains, at initialisation), over steps of ten ticks
-    (1e-3, {"R": 0.35, "tau_c": 0.03, "K_t": 900.0, "k_pc": 0.3, "k_ic": 1000.0, "u_max": 20.0}),
-    # Stribeck, ripple and the torque measurement, at a current-loop cycle no system uses
-    (2.5e-4, {"tau_s": 0.02, "omega_s": 5.0, "tau_ripple": 0.01, "T_meas": 3e-4, "delay_meas": 2.5e-4,
-              "tau_offset": 0.01, "T_cur": 2.5e-4}),
-    (1e-4, {"backlash": 0.002, "J1_scale": 0.8})])
+@pytest.mark.parametrize(
+    "h, tuned",
+    [
+        # and the drive's current loop (current_gains, at initialisation), over steps of ten ticks
+        (1e-3, {"R": 0.35, "tau_c": 0.03, "K_t": 900.0, "k_pc": 0.3, "k_ic": 1000.0, "u_max": 20.0}),
+        # Stribeck, ripple and the torque measurement, at a current-loop cycle no system uses
+        (
+            2.5e-4,
+            {
+                "tau_s": 0.02,
+                "omega_s": 5.0,
+                "tau_ripple": 0.01,
+                "T_meas": 3e-4,
+                "delay_meas": 2.5e-4,
+                "tau_offset": 0.01,
+                "T_cur": 2.5e-4,
+            },
+        ),
+        (1e-4, {"backlash": 0.002, "J1_scale": 0.8}),
+    ],
+)
 def test_the_native_actuator_reads_its_parameters_at_run_time_as_the_python_fmu(built, h, tuned):
     """The same trajectory as the Python FMU with the same settings: the exact discretisation (expm of the
     parameters' matrices, docs/native.md) computed in C; the Python FMU's comes from scipy (measured: at
@@ -598,7 +781,7 @@ def test_the_native_actuator_reads_its_parameters_at_run_time_as_the_python_fmu(
     untuned = drive(default, 0, steps, h=h, seed=3.0)
     default.close()
     scale = np.abs(rows[0]).max(axis=0)
-    assert (np.abs(rows[0] - untuned).max(axis=0) > 1e-3 * scale).any()         # the parameters matter
+    assert (np.abs(rows[0] - untuned).max(axis=0) > 1e-3 * scale).any()  # the parameters matter
     assert (np.abs(rows[0] - rows[1]).max(axis=0) <= TOLERANCE * scale).all()
 
 
@@ -635,8 +818,7 @@ def test_the_native_actuator_follows_a_host_that_varies_its_step_and_refuses_a_s
     assert (np.abs(rows[0] - rows[1]).max(axis=0) <= TOLERANCE * scale).all()
 
 
-def test_the_native_axis_keeps_and_evicts_its_discretisations_as_the_python_model_steps(built, tmp_path,
-                                                                                       monkeypatch):
+def test_the_native_axis_keeps_and_evicts_its_discretisations_as_the_python_model_steps(built, tmp_path, monkeypatch):
     """The cache of DISCRETISATIONS_KEPT step sizes (the slot of the last h, the oldest recomputed when it
     comes back) is unreachable through MastActuator: its axis steps T_cur whatever the host's step. So the
     voltage-in axis alone (ActuatorBlock, which the generator also emits) is compiled here and stepped with
@@ -648,9 +830,9 @@ def test_the_native_axis_keeps_and_evicts_its_discretisations_as_the_python_mode
 
     from fmus.actuator.model import ActuatorBlock
     from mast.core.build import default_parameters
+    from mast.core.native import models
     from mast.core.native.build import native_sources
     from mast.core.native.compiler import compile_shared
-    from mast.core.native import models
     from mast.core.native.models import DISCRETISATIONS_KEPT
 
     monkeypatch.setattr(models, "N_MAX", 3)
@@ -667,20 +849,25 @@ def test_the_native_axis_keeps_and_evicts_its_discretisations_as_the_python_mode
     for vr, sv in enumerate(variables):
         sv.set("valueReference", str(vr))
     measured = {"T_meas": 2e-4, "delay_meas": 3.3e-4, "tau_offset": 0.01}
-    params = {k: v for k, v in {**default_parameters("MastActuator"), "tau_s": 0.02, **measured}.items()
-              if k in order}
+    params = {k: v for k, v in {**default_parameters("MastActuator"), "tau_s": 0.02, **measured}.items() if k in order}
     sources, xml = native_sources("MastActuator", ActuatorBlock, params, etree.tostring(root))
     library = tmp_path / "binaries" / "linux64" / "MastActuator.so"
     library.parent.mkdir(parents=True)
     compile_shared(sources, library)
-    sizes = [1e-4, 2.5e-5, 7e-5, 1.3e-4, 3e-4, 5e-5, 1e-3, 4.1e-4, 2e-4, 6.7e-5, 9e-4][:DISCRETISATIONS_KEPT + 3]
+    sizes = [1e-4, 2.5e-5, 7e-5, 1.3e-4, 3e-4, 5e-5, 1e-3, 4.1e-4, 2e-4, 6.7e-5, 9e-4][: DISCRETISATIONS_KEPT + 3]
     assert len(set(sizes)) == DISCRETISATIONS_KEPT + 3
     outputs = [order.index(name) for name in ActuatorBlock.OUTPUTS]
     # and the chain n_dof = 3 in the same binary, set at run time (a few steps of each size)
-    for tuned, steps in (({"tau_s": 0.02, **measured}, 4 * len(sizes) + 20),
-                         ({"tau_s": 0.02, **measured, "n_dof": 3, **_chain_lists(3)}, 30)):
-        native = FMU2Slave(guid=etree.fromstring(xml).get("guid"), unzipDirectory=str(tmp_path),
-                           modelIdentifier="MastActuator", instanceName="axis")
+    for tuned, steps in (
+        ({"tau_s": 0.02, **measured}, 4 * len(sizes) + 20),
+        ({"tau_s": 0.02, **measured, "n_dof": 3, **_chain_lists(3)}, 30),
+    ):
+        native = FMU2Slave(
+            guid=etree.fromstring(xml).get("guid"),
+            unzipDirectory=str(tmp_path),
+            modelIdentifier="MastActuator",
+            instanceName="axis",
+        )
         native.instantiate()
         native.setupExperiment(startTime=0.0)
         native.enterInitializationMode()
@@ -692,7 +879,7 @@ def test_the_native_axis_keeps_and_evicts_its_discretisations_as_the_python_mode
         python.set(u=0.0, F=6.0)
         python.initialize(0.0)
         t, rows = 0.0, []
-        for k in range(steps):                # each size twice in a row: the last slot's reuse too
+        for k in range(steps):  # each size twice in a row: the last slot's reuse too
             h = sizes[3 * (k // 2) % len(sizes) if k < 2 * len(sizes) else k // 2 % len(sizes)]
             u = 3.0 * math.sin(40.0 * t)
             native.setReal([0, 1], [u, 6.0])
@@ -739,7 +926,9 @@ def test_the_native_actuator_refuses_a_bad_parameter_set_with_the_python_fmus_me
         messages.append(next(m for s, m in inst.log if s == ERROR and "exitInitializationMode" in m))
         assert inst.step(0.0, 1e-4) == DISCARD
         inst.close()
-    assert messages[0] == messages[1] and "parameter 'rho_0' = 0.9: expected a position inside the stroke" in messages[0]
+    assert (
+        messages[0] == messages[1] and "parameter 'rho_0' = 0.9: expected a position inside the stroke" in messages[0]
+    )
 
 
 def test_the_c_matrix_exponential_agrees_with_scipy_over_the_parameter_ranges(tmp_path):
@@ -752,20 +941,37 @@ def test_the_c_matrix_exponential_agrees_with_scipy_over_the_parameter_ranges(tm
     from mast.core.build import default_parameters
 
     source = tmp_path / "expm.c"
-    source.write_text('#include "mast_native.h"\nint expm_c(int n, const double *M, double *E) '
-                      '{ return mast_expm(n, M, E); }\n')
+    source.write_text(
+        '#include "mast_native.h"\nint expm_c(int n, const double *M, double *E) { return mast_expm(n, M, E); }\n'
+    )
     library = tmp_path / "expm.so"
-    subprocess.run([compiler(), "-O2", "-ffp-contract=off", "-shared", "-fPIC",
-                    f"-I{SUPPORT}", "-o", str(library), str(source), str(SUPPORT / "mast_linalg.c"), "-lm"],
-                   check=True, capture_output=True)
+    subprocess.run(
+        [
+            compiler(),
+            "-O2",
+            "-ffp-contract=off",
+            "-shared",
+            "-fPIC",
+            f"-I{SUPPORT}",
+            "-o",
+            str(library),
+            str(source),
+            str(SUPPORT / "mast_linalg.c"),
+            "-lm",
+        ],
+        check=True,
+        capture_output=True,
+    )
     expm_c = ctypes.CDLL(str(library)).expm_c
     rng = np.random.default_rng(7)
-    own = {p.name for p in ActuatorBlock.PARAMETERS}    # the axis behind the drive's current loop
+    own = {p.name for p in ActuatorBlock.PARAMETERS}  # the axis behind the drive's current loop
     base = {k: v for k, v in default_parameters("MastActuator").items() if k in own}
     worst = 0.0
     for k in range(60):
-        factors = {name: 10.0 ** rng.uniform(-1.0, 1.0) for name in ("R", "L", "k_T", "k_E", "J_motor", "J_guide",
-                                                                      "M_load", "K_t", "C_t", "b_v")}
+        factors = {
+            name: 10.0 ** rng.uniform(-1.0, 1.0)
+            for name in ("R", "L", "k_T", "k_E", "J_motor", "J_guide", "M_load", "K_t", "C_t", "b_v")
+        }
         params = {**base, **{name: base[name] * f for name, f in factors.items()}, "n_dof": 1 + k % 2}
         block = ActuatorBlock(params)
         n = block.A.shape[0]
@@ -776,16 +982,26 @@ def test_the_c_matrix_exponential_agrees_with_scipy_over_the_parameter_ranges(tm
             h = min(h, 40.0 / omega)
             X = np.ascontiguousarray(M * h)
             E = np.zeros_like(X)
-            assert expm_c(n + 2, X.ctypes.data_as(ctypes.POINTER(ctypes.c_double)),
-                          E.ctypes.data_as(ctypes.POINTER(ctypes.c_double))) == 0
+            assert (
+                expm_c(
+                    n + 2,
+                    X.ctypes.data_as(ctypes.POINTER(ctypes.c_double)),
+                    E.ctypes.data_as(ctypes.POINTER(ctypes.c_double)),
+                )
+                == 0
+            )
             reference = expm(X)
             # normwise, each state on its own scale (the matrix mixes A, rad and rad/s): in the coordinates
             # LAPACK's balancing chooses, D^-1 E D
             d = matrix_balance(X, permute=False, separate=True)[1][0]
             scaled = d[None, :] / d[:, None]
-            worst = max(worst, float(np.abs((E - reference) * scaled).sum(axis=0).max()
-                                     / np.abs(reference * scaled).sum(axis=0).max()))
-    assert worst < 1e-11, worst        # measured: 3.4e-13
+            worst = max(
+                worst,
+                float(
+                    np.abs((E - reference) * scaled).sum(axis=0).max() / np.abs(reference * scaled).sum(axis=0).max()
+                ),
+            )
+    assert worst < 1e-11, worst  # measured: 3.4e-13
 
 
 def test_the_native_actuator_refuses_what_it_cannot_compute_with_a_message(built):
@@ -807,8 +1023,11 @@ def test_the_native_actuator_refuses_what_it_cannot_compute_with_a_message(built
 
 def _chain_lists(n: int) -> dict:
     """A chain of n_dof = n >= 3 (the two-inertia model's guide side split in n - 1 bodies and springs)."""
-    return {"J_chain": " ".join(["1.2e-4"] + [repr(2.1e-4 / (n - 1))] * (n - 1)),
-            "K_chain": " ".join([repr(1500.0 * (n - 1))] * (n - 1)), "C_chain": " ".join(["0.01"] * (n - 1))}
+    return {
+        "J_chain": " ".join(["1.2e-4"] + [repr(2.1e-4 / (n - 1))] * (n - 1)),
+        "K_chain": " ".join([repr(1500.0 * (n - 1))] * (n - 1)),
+        "C_chain": " ".join(["0.01"] * (n - 1)),
+    }
 
 
 def _start_with(inst: Instance, parameters: dict) -> int:
@@ -829,14 +1048,32 @@ def test_one_native_actuator_runs_every_n_dof_up_to_n_max_set_at_run_time_as_the
     from mast.core.native.models import N_MAX
 
     python, native = built / "fmus" / "MastActuator.fmu", built / "fmus" / "native" / "MastActuator.fmu"
-    cases = [({"n_dof": 1, "R": 0.35, "tau_s": 0.02, "T_meas": 2e-4}, None),
-             ({"n_dof": 2, "backlash": 0.002}, None),
-             ({"n_dof": 3, "J_chain": "1e-4, 4e-5 2e-4", "K_chain": "700 2000", "C_chain": "0.01 0.02", "R": 0.35,
-               "tau_s": 0.02, "T_meas": 2e-4}, None),
-             ({"n_dof": N_MAX, **_chain_lists(N_MAX), "tau_ripple": 0.01}, None),
-             ({"n_dof": 3, **_chain_lists(3), "K_chain": "900"}, "expected 2 space separated numbers > 0 for n_dof = 3, got 1"),
-             ({"n_dof": 4, **_chain_lists(4), "C_chain": "0.01 -1 0"}, "item '-1' is not a finite number >= 0"),
-             ({"n_dof": 1, "backlash": 0.002}, "backlash is modelled in the two-inertia transmission only (n_dof = 2, here 1)")]
+    cases = [
+        ({"n_dof": 1, "R": 0.35, "tau_s": 0.02, "T_meas": 2e-4}, None),
+        ({"n_dof": 2, "backlash": 0.002}, None),
+        (
+            {
+                "n_dof": 3,
+                "J_chain": "1e-4, 4e-5 2e-4",
+                "K_chain": "700 2000",
+                "C_chain": "0.01 0.02",
+                "R": 0.35,
+                "tau_s": 0.02,
+                "T_meas": 2e-4,
+            },
+            None,
+        ),
+        ({"n_dof": N_MAX, **_chain_lists(N_MAX), "tau_ripple": 0.01}, None),
+        (
+            {"n_dof": 3, **_chain_lists(3), "K_chain": "900"},
+            "expected 2 space separated numbers > 0 for n_dof = 3, got 1",
+        ),
+        ({"n_dof": 4, **_chain_lists(4), "C_chain": "0.01 -1 0"}, "item '-1' is not a finite number >= 0"),
+        (
+            {"n_dof": 1, "backlash": 0.002},
+            "backlash is modelled in the two-inertia transmission only (n_dof = 2, here 1)",
+        ),
+    ]
     runs = []
     for parameters, expected in cases:
         rows, messages = [], []
@@ -854,13 +1091,16 @@ def test_one_native_actuator_runs_every_n_dof_up_to_n_max_set_at_run_time_as_the
             runs.append(rows[0])
         else:
             assert len(messages) == 2 and messages[0] == messages[1] and expected in messages[0], messages
-    for a, b in zip(runs, runs[1:]):       # each n_dof another model
+    for a, b in zip(runs, runs[1:]):  # each n_dof another model
         assert np.abs(a - b).max() > 1e-6 * np.abs(a).max()
     inst = _native(built, "MastActuator", "axis")
     assert _start_with(inst, {"n_dof": N_MAX + 1, **_chain_lists(N_MAX + 1)}) == OK
     message = next(m for s, m in inst.log if s == ERROR)
-    assert (f"parameter 'n_dof' = {N_MAX + 1}: this native FMU has the chains n_dof = 1..{N_MAX} (N_MAX = {N_MAX})"
-            in message and "mast build --native" in message)
+    assert (
+        f"parameter 'n_dof' = {N_MAX + 1}: this native FMU has the chains n_dof = 1..{N_MAX} (N_MAX = {N_MAX})"
+        in message
+        and "mast build --native" in message
+    )
     assert inst.step(0.0, 1e-3) == DISCARD
     inst.close()
 
@@ -878,12 +1118,13 @@ def test_our_master_generates_the_native_actuator_for_an_n_dof_above_its_chains(
     native = built / "fmus" / "native" / "MastActuator.fmu"
     assert for_parameters(native, wanted) == native and not (tmp_path / "cache").exists()
     monkeypatch.setattr(models, "N_MAX", 1)
-    small = build_native_fmu("MastActuator", built / "fmus" / "MastActuator.fmu", tmp_path / "small",
-                             default_parameters("MastActuator"))     # chains 1 and 2 (its own n_dof)
+    small = build_native_fmu(
+        "MastActuator", built / "fmus" / "MastActuator.fmu", tmp_path / "small", default_parameters("MastActuator")
+    )  # chains 1 and 2 (its own n_dof)
     assert for_parameters(small, {"n_dof": 2}) == small
     made = for_parameters(small, wanted)
     assert made.parent.parent == tmp_path / "cache" and generated_for(made)["parameters"]["n_dof"] == 3
-    assert for_parameters(small, wanted) == made                     # kept
+    assert for_parameters(small, wanted) == made  # kept
     rows = []
     for fmu in (built / "fmus" / "MastActuator.fmu", made):
         inst = Instance(fmu, "axis")
@@ -918,14 +1159,14 @@ def test_the_compiled_exchange_loop_is_the_python_loop_call_for_call(built, rout
     ssp = built / "ssp" / ("native" if route == "native" else "") / "MAST.ssp"
     stop = 0.2 if route == "native" else 0.05
     runs = {}
-    for loop in ("1", "0"):   # MAST_PYTHON_EXCHANGE: 1 the Python loop, 0 the compiled one
+    for loop in ("1", "0"):  # MAST_PYTHON_EXCHANGE: 1 the Python loop, 0 the compiled one
         monkeypatch.setenv("MAST_PYTHON_EXCHANGE", loop)
         every_tick = simulate(ssp, SineMotion("z", 0.002, 10.0), stop, record_step=None)
         failed = None
-        if route == "native":   # and a record step that does not divide the run: 200 ticks, every third
+        if route == "native":  # and a record step that does not divide the run: 200 ticks, every third
             thirds = simulate(ssp, SineMotion("z", 0.002, 10.0), stop, record_step=3e-3)
             every_tick.signals.update({f"{name} (every 3 ms)": v for name, v in thirds.signals.items()})
-            with pytest.raises(SimulationError) as failed:   # a carriage leaves its stroke
+            with pytest.raises(SimulationError) as failed:  # a carriage leaves its stroke
                 simulate(ssp, _Climb(), 0.2, parameters={f"actuator_{k}": {"rho_max": 0.152} for k in (1, 2, 3)})
         runs[loop] = every_tick, failed
     (python, p_fail), (compiled, c_fail) = runs["1"], runs["0"]

@@ -1,6 +1,7 @@
 """The native runtime (fmus/common/native) for any number of drives: its matrix helpers against numpy, and a
 native mechanism generated and compiled for a scratch six-drive description (a 6-UPS hexapod written here in the
 engine's description format) against the Python engine of the same description."""
+
 from __future__ import annotations
 
 import ctypes
@@ -17,14 +18,28 @@ from mast.core.native.build import SUPPORT, SUPPORT_FILES
 from mast.core.native.compiler import CFLAGS, compile_shared, compiler
 from mast.core.native.models import RUNTIME, emit_mechanism
 
+
 # ---------------------------------------------------------------------------- matrix helpers
 @pytest.fixture(scope="module")
 def linalg(tmp_path_factory) -> ctypes.CDLL:
     """mast_linalg.c compiled as the native build compiles it."""
     library = tmp_path_factory.mktemp("linalg") / "linalg.so"
     flags = [f for f in CFLAGS if f.startswith(("-O", "-ffp", "-std", "-D"))]
-    subprocess.run([compiler(), *flags, "-shared", "-fPIC", f"-I{SUPPORT}", "-o", str(library),
-                    str(SUPPORT / "mast_linalg.c"), "-lm"], check=True, capture_output=True)
+    subprocess.run(
+        [
+            compiler(),
+            *flags,
+            "-shared",
+            "-fPIC",
+            f"-I{SUPPORT}",
+            "-o",
+            str(library),
+            str(SUPPORT / "mast_linalg.c"),
+            "-lm",
+        ],
+        check=True,
+        capture_output=True,
+    )
     return ctypes.CDLL(str(library))
 
 
@@ -38,7 +53,7 @@ def test_the_inverse_and_the_singular_values_for_any_n_agree_with_numpy(linalg, 
     against LAPACK through numpy, the independent route, on random matrices with columns of other scales."""
     rng = np.random.default_rng(n)
     for _ in range(20):
-        m = rng.normal(size=(n, n)) * 10.0 ** rng.uniform(-1, 1, size=n)   # columns of other scales
+        m = rng.normal(size=(n, n)) * 10.0 ** rng.uniform(-1, 1, size=n)  # columns of other scales
         inv, det = np.zeros((n, n)), ctypes.c_double()
         assert linalg.mast_inv(n, _pointer(np.ascontiguousarray(m)), _pointer(inv), ctypes.byref(det)) == 1
         np.testing.assert_allclose(inv @ m, np.eye(n), atol=1e-10 * np.linalg.cond(m))
@@ -55,9 +70,11 @@ def test_the_inverse_and_the_singular_values_for_any_n_agree_with_numpy(linalg, 
 # ---------------------------------------------------------------------------- a six-drive mechanism
 def _rzyx(psi, theta, phi):
     cx, sx, cy, sy, cz, sz = (E.cos(psi), E.sin(psi), E.cos(theta), E.sin(theta), E.cos(phi), E.sin(phi))
-    return ((cz * cy, cz * sy * sx - sz * cx, cz * sy * cx + sz * sx),
-            (sz * cy, sz * sy * sx + cz * cx, sz * sy * cx - cz * sx),
-            (-sy, cy * sx, cy * cx))
+    return (
+        (cz * cy, cz * sy * sx - sz * cx, cz * sy * cx + sz * sx),
+        (sz * cy, sz * sy * sx + cz * cx, sz * sy * cx - cz * sx),
+        (-sy, cy * sx, cy * cx),
+    )
 
 
 def _ring(radius: float, angles_deg) -> list[tuple[float, float, float]]:
@@ -76,9 +93,10 @@ class Hexapod(Description):
     name = "6-UPS scratch"
     coordinates = ("x", "y", "z", "psi", "theta", "phi")
     joints = tuple(f"rho_{k}" for k in range(1, 7))
-    bodies = (Body("platform", 20.0, (0.01, -0.02, 0.03), ((0.3, 0.01, -0.02), (0.01, 0.35, 0.015),
-                                                           (-0.02, 0.015, 0.5))),)
-    lengths = (1.0, 1.0, 1.0, 0.3, 0.3, 0.3)        # the platform's radius turns its angles into metres
+    bodies = (
+        Body("platform", 20.0, (0.01, -0.02, 0.03), ((0.3, 0.01, -0.02), (0.01, 0.35, 0.015), (-0.02, 0.015, 0.5))),
+    )
+    lengths = (1.0, 1.0, 1.0, 0.3, 0.3, 0.3)  # the platform's radius turns its angles into metres
 
     def evaluate(self, q):
         x, y, z, psi, theta, phi = q
@@ -94,23 +112,50 @@ class Hexapod(Description):
 
 
 class MastParameters(ctypes.Structure):
-    _fields_ = [("real", ctypes.POINTER(ctypes.c_double)), ("integer", ctypes.POINTER(ctypes.c_int)),
-                ("string", ctypes.POINTER(ctypes.c_char_p))]
+    _fields_ = [
+        ("real", ctypes.POINTER(ctypes.c_double)),
+        ("integer", ctypes.POINTER(ctypes.c_int)),
+        ("string", ctypes.POINTER(ctypes.c_char_p)),
+    ]
 
 
-_STEP = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.POINTER(ctypes.c_double),
-                         ctypes.POINTER(MastParameters), ctypes.c_double, ctypes.c_double, ctypes.c_char_p,
-                         ctypes.c_size_t)
-_INIT = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.POINTER(ctypes.c_double),
-                         ctypes.POINTER(MastParameters), ctypes.c_double, ctypes.c_char_p, ctypes.c_size_t)
+_STEP = ctypes.CFUNCTYPE(
+    ctypes.c_int,
+    ctypes.c_void_p,
+    ctypes.POINTER(ctypes.c_double),
+    ctypes.POINTER(MastParameters),
+    ctypes.c_double,
+    ctypes.c_double,
+    ctypes.c_char_p,
+    ctypes.c_size_t,
+)
+_INIT = ctypes.CFUNCTYPE(
+    ctypes.c_int,
+    ctypes.c_void_p,
+    ctypes.POINTER(ctypes.c_double),
+    ctypes.POINTER(MastParameters),
+    ctypes.c_double,
+    ctypes.c_char_p,
+    ctypes.c_size_t,
+)
 
 
 class MastModel(ctypes.Structure):
     """mast_model.h's mast_model"""
-    _fields_ = [("identifier", ctypes.c_char_p), ("guid", ctypes.c_char_p), ("n_variables", ctypes.c_int),
-                ("variables", ctypes.c_void_p), ("n_inputs", ctypes.c_int), ("n_io", ctypes.c_int),
-                ("state_size", ctypes.c_size_t), ("check", ctypes.c_void_p), ("initialize", _INIT),
-                ("do_step", _STEP), ("evaluate", ctypes.c_void_p)]
+
+    _fields_ = [
+        ("identifier", ctypes.c_char_p),
+        ("guid", ctypes.c_char_p),
+        ("n_variables", ctypes.c_int),
+        ("variables", ctypes.c_void_p),
+        ("n_inputs", ctypes.c_int),
+        ("n_io", ctypes.c_int),
+        ("state_size", ctypes.c_size_t),
+        ("check", ctypes.c_void_p),
+        ("initialize", _INIT),
+        ("do_step", _STEP),
+        ("evaluate", ctypes.c_void_p),
+    ]
 
 
 def test_a_six_drive_mechanism_is_generated_compiled_and_computes_the_python_engines_forces(tmp_path):
@@ -141,13 +186,16 @@ def test_a_six_drive_mechanism_is_generated_compiled_and_computes_the_python_eng
         rho = eng.ik(q_pose)
         rd, rdd = rng.uniform(-0.1, 0.1, 6), rng.uniform(-1.0, 1.0, 6)
         values[:18] = [*rho, *rd, *rdd]
-        code = (model.initialize(state, values, ctypes.byref(params), 0.0, msg, len(msg)) if k == 0 else
-                model.do_step(state, values, ctypes.byref(params), 1e-3 * (k - 1), 1e-3, msg, len(msg)))
+        code = (
+            model.initialize(state, values, ctypes.byref(params), 0.0, msg, len(msg))
+            if k == 0
+            else model.do_step(state, values, ctypes.byref(params), 1e-3 * (k - 1), 1e-3, msg, len(msg))
+        )
         assert code == 0, msg.value.decode()
         q, J, _ = eng.dk(rho, q_prev)
         expected = np.array(eng.forces(q, J, rd, rdd))
         got = np.array(values[18:30])
-        np.testing.assert_allclose(got[6:], q_pose, atol=1e-11)         # the pose: the motion's own
+        np.testing.assert_allclose(got[6:], q_pose, atol=1e-11)  # the pose: the motion's own
         worst = max(worst, float(np.abs(got - expected).max() / np.abs(expected[:6]).max()))
         q_prev = q
     assert worst <= 1e-12, worst

@@ -1,4 +1,5 @@
 """The phase-free score (orchestration/diagnosis/phasefree.py), checked against Monte Carlo (no simulation)."""
+
 from __future__ import annotations
 
 import math
@@ -38,7 +39,7 @@ def test_deviance_of_noise_is_chi_square_and_profiles_the_noise():
     assert fit.sigma == pytest.approx(sigma, rel=0.02)
     assert fit.deviance / len(names) == pytest.approx(nb, rel=0.35)
     assert sum(d > score.floor(n) for n, d in fit.per_test.items()) <= 1
-    loud = {n: np.tile([sigma ** 2 * score.bands[n].noise_fraction[0], 0, 0, 0], (3, 1)) for n in names}
+    loud = {n: np.tile([sigma**2 * score.bands[n].noise_fraction[0], 0, 0, 0], (3, 1)) for n in names}
     assert score.fit(loud, names).deviance > fit.deviance + 100
 
 
@@ -65,22 +66,25 @@ def test_smoothed_search_finds_a_value_whose_hunting_is_rough_in_the_value():
     hunt = 3 * sigma * np.sin(2 * np.pi * 40 * t)[:, None] * np.ones((1, 3))
     for truth in (3.5e-3, 5.2e-3):
         measured = {m: sigma * rng.standard_normal((n, 3)) + hunt for m in names}
-        score = PhaseFreeScore(measured, {m: np.zeros((n, 3)) for m in names}, {m: DT for m in names},
-                               sigma_floor=sigma)
+        score = PhaseFreeScore(
+            measured, {m: np.zeros((n, 3)) for m in names}, {m: DT for m in names}, sigma_floor=sigma
+        )
         unit = score.bands["z0"].powers(hunt)
         ensembles: dict = {}
 
         def simulate(values):
-            for v in values:     # (as the diagnosis does: a value within 1e-9 of one simulated is that one)
+            for v in values:  # (as the diagnosis does: a value within 1e-9 of one simulated is that one)
                 if not any(abs(v - u) <= 1e-9 * u for u in ensembles):
                     g = np.random.default_rng(int(v * 1e9))
-                    ensembles[v] = {m: np.array([unit * (v / truth) ** 2 * math.exp(0.15 * g.standard_normal())
-                                                 for _ in range(3)]) for m in names}
+                    ensembles[v] = {
+                        m: np.array([unit * (v / truth) ** 2 * math.exp(0.15 * g.standard_normal()) for _ in range(3)])
+                        for m in names
+                    }
 
         def smoothed(v, ratio):
             return score.fit(pooled(ensembles, v, ratio), names).deviance
 
-        simulate([5e-4 * 2 ** k for k in range(8)])
+        simulate([5e-4 * 2**k for k in range(8)])
         mid, fine = search(simulate, smoothed, 4e-3, (0.0, 0.2))
         value, _ = estimate(fine, 2 ** (1 / 4))
         assert value == pytest.approx(truth, rel=0.05), (truth, value)
@@ -101,10 +105,10 @@ def test_search_grows_the_fine_grid_towards_its_minimum():
 
     mid, fine = search(asked.extend, smoothed, 4e-3, (0.0, 0.2))
     best = min(fine, key=fine.get)
-    assert best == pytest.approx(4e-3 * 2 ** 0.625, rel=1e-9)       # the grid value nearest 2^0.6
+    assert best == pytest.approx(4e-3 * 2**0.625, rel=1e-9)  # the grid value nearest 2^0.6
     assert 2 <= sorted(fine).index(best) <= len(fine) - 3
     mid, fine = search(asked.extend, smoothed, 4e-3, (0.0, 5e-3))
-    assert max(asked[-len(fine):]) <= 5e-3 and max(fine) <= 5e-3
+    assert max(asked[-len(fine) :]) <= 5e-3 and max(fine) <= 5e-3
 
 
 def test_leave_one_out_confirms_a_hunting_seen_on_two_tests_whatever_the_split():
@@ -123,7 +127,7 @@ def test_leave_one_out_confirms_a_hunting_seen_on_two_tests_whatever_the_split()
     measured = {m: sigma * rng.standard_normal((n, 3)) + (hunt if m in hunting else 0) for m in names}
     score = PhaseFreeScore(measured, {m: np.zeros((n, 3)) for m in names}, {m: DT for m in names}, sigma_floor=sigma)
     unit = score.bands["z1"].powers(hunt)
-    scan = [5e-4 * 2 ** k for k in range(6)]
+    scan = [5e-4 * 2**k for k in range(6)]
     ensembles = {v: {m: np.tile(unit * (v / truth) ** 2 * (m in hunting), (3, 1)) for m in names} for v in scan}
     ensembles[0.0] = {m: np.zeros((3, len(unit))) for m in names}
     folds = leave_one_out(score, ensembles, 0.0, scan, names)
@@ -131,7 +135,7 @@ def test_leave_one_out_confirms_a_hunting_seen_on_two_tests_whatever_the_split()
         assert folds[m]["value"] == truth and folds[m]["deviance_change"] < -100
     for m in set(names) - hunting:
         assert abs(folds[m]["deviance_change"]) < 10
-    held = ["z1", "psi2"]            # the split that holds out the quiet tests only
+    held = ["z1", "psi2"]  # the split that holds out the quiet tests only
     change = score.fit(ensembles[truth], held).deviance - score.fit(ensembles[0.0], held).deviance
     assert abs(change) < 10
 
@@ -145,12 +149,16 @@ def test_quieter_tells_a_quieter_regime_from_power_the_effect_does_not_make():
     sigma = 2e-3
     measured = {"t": sigma * rng.standard_normal((700, 3))}
     score = PhaseFreeScore(measured, {"t": np.zeros((700, 3))}, {"t": DT}, sigma_floor=sigma)
-    noise = sigma ** 2 * score.bands["t"].noise_fraction
+    noise = sigma**2 * score.bands["t"].noise_fraction
     ensemble = np.array([[4e-5, 5e-6, 3e-7, 5e-6], [6e-5, 6e-6, 4e-7, 4e-6]])
     loudest = ensemble.max(axis=0) + noise
     rel = np.sqrt(2.0 / score.dof["t"])
-    for k, factor, expected in [(None, 0.5, True), (1, 3.0, False), (0, 1.0 + 4 * rel[0], False),
-                                (0, 1.0 + 2 * rel[0], True)]:
+    for k, factor, expected in [
+        (None, 0.5, True),
+        (1, 3.0, False),
+        (0, 1.0 + 4 * rel[0], False),
+        (0, 1.0 + 2 * rel[0], True),
+    ]:
         m = 0.5 * loudest if k is None else np.where(np.arange(4) == k, factor * loudest, 0.5 * loudest)
         score.measured["t"] = m
         assert score.quieter("t", ensemble, sigma) is expected, (k, factor)

@@ -10,9 +10,9 @@
   too, under qemu-user where it is installed;
 - libcosim stepping the FMUs in several worker threads computes what it computes in one, native and Python FMUs.
 """
+
 from __future__ import annotations
 
-import shutil
 import zipfile
 from pathlib import Path
 
@@ -24,15 +24,15 @@ from mast.core.build import FMUS, block_class, build_fmu, build_fmu3, build_ssp,
 from mast.core.native import models
 from mast.core.native.build import build_native_all
 from mast.core.native.compiler import GLIBC_FLOOR, compile_shared, has_zig
+from mast.core.native.elf import glibc_versions, machine
 from mast.hosts.c_host import build_host, launcher, master_run, run_c_host
 from mast.hosts.cosim import COMPARED, availability, run_host
-from mast.core.native.elf import glibc_versions, machine
 
 ROOT = Path(__file__).resolve().parents[1]
 STANDALONE = ROOT / "ssp" / "MAST_standalone.ssd"
 NATIVE = ("MastTrajectory", "MastController", "MastActuator", "MastMechanism")
-TOLERANCE = 1e-9   # relative to each signal's largest value: the native FMUs' agreement (tests/test_native.py)
-STOP = 1.0         # s of the standalone system in the C host runs
+TOLERANCE = 1e-9  # relative to each signal's largest value: the native FMUs' agreement (tests/test_native.py)
+STOP = 1.0  # s of the standalone system in the C host runs
 CYCLES = 200
 
 
@@ -70,8 +70,11 @@ def _relative_error(a: dict, b: dict) -> float:
 
 # -- DefaultExperiment ---------------------------------------------------------------------------------------
 def test_every_fmu_declares_a_default_experiment_with_its_cycle_time(built):
-    fmus = sorted((built / "fmus").glob("*.fmu")) + sorted((built / "fmus3").glob("*.fmu")) + \
-        sorted((built / "fmus" / "native").glob("*.fmu"))
+    fmus = (
+        sorted((built / "fmus").glob("*.fmu"))
+        + sorted((built / "fmus3").glob("*.fmu"))
+        + sorted((built / "fmus" / "native").glob("*.fmu"))
+    )
     assert len(fmus) == 2 * len(FMUS) + len(NATIVE)
     for fmu in fmus:
         md = read_model_description(str(fmu))
@@ -82,9 +85,9 @@ def test_every_fmu_declares_a_default_experiment_with_its_cycle_time(built):
         start, stop, step = default_experiment(identifier)
         assert float(experiment.startTime) == start == 0.0, fmu
         assert float(experiment.stopTime) == stop > 0, fmu
-        if block.CYCLE_TIME is None:   # the step the first system using it gives it
+        if block.CYCLE_TIME is None:  # the step the first system using it gives it
             assert float(experiment.stepSize) == step, fmu
-        else:                          # the cycle time in the FMU's own parameter set (its start value)
+        else:  # the cycle time in the FMU's own parameter set (its start value)
             start_value = {v.name: v.start for v in md.modelVariables}[block.CYCLE_TIME]
             assert float(experiment.stepSize) == float(start_value) > 0, (fmu, experiment.stepSize, start_value)
 
@@ -98,15 +101,18 @@ def _binaries(built: Path, platform: str) -> list[tuple[str, bytes]]:
     return out
 
 
-@pytest.mark.skipif(not has_zig(), reason="the Linux binaries target glibc 2.17 through zig's C compiler: "
-                                          "pip install ziglang (in the project's test extra)")
+@pytest.mark.skipif(
+    not has_zig(),
+    reason="the Linux binaries target glibc 2.17 through zig's C compiler: "
+    "pip install ziglang (in the project's test extra)",
+)
 def test_native_linux_binaries_need_no_glibc_above_2_17(built):
     binaries = _binaries(built, "linux64")
     assert len(binaries) == len(NATIVE)
     for name, data in binaries:
         assert machine(data) == "x86_64", name
         versions = glibc_versions(data)
-        assert versions, name   # it links glibc (libm's functions: a check that reads nothing would pass)
+        assert versions, name  # it links glibc (libm's functions: a check that reads nothing would pass)
         assert max(versions) <= GLIBC_FLOOR, (name, max(versions))
 
 
@@ -157,8 +163,11 @@ def test_the_c_host_on_linux_runs_the_fmus_as_our_master(reference, tmp_path):
     assert all(np.array_equal(run.outputs[n], x) for n, x in reference.outputs.items())
 
 
-@pytest.mark.skipif(launcher("win64") is None, reason="Wine is not installed (Debian: apt-get install wine64; .ci/run "
-                                           "installs it where it can): the Windows binaries are compiled, not run")
+@pytest.mark.skipif(
+    launcher("win64") is None,
+    reason="Wine is not installed (Debian: apt-get install wine64; .ci/run "
+    "installs it where it can): the Windows binaries are compiled, not run",
+)
 @pytest.mark.skipif(not has_zig(), reason="the Windows binaries and host are compiled by zig: pip install ziglang")
 def test_the_windows_binaries_run_under_wine_as_on_linux(reference, tmp_path):
     """One Wine process: 200 life cycles of each FMU (a doStep before initialization refused with fmi2Error,
@@ -171,10 +180,12 @@ def test_the_windows_binaries_run_under_wine_as_on_linux(reference, tmp_path):
     assert _relative_error(reference.outputs, run.outputs) <= TOLERANCE
 
 
-@pytest.mark.skipif(launcher("aarch64-linux") is None,
-                    reason="qemu-user and Debian's aarch64 C library are not installed (apt-get install qemu-user "
-                           "libc6-arm64-cross; .ci/run installs them where it can): the aarch64-linux binaries are "
-                           "compiled, not run")
+@pytest.mark.skipif(
+    launcher("aarch64-linux") is None,
+    reason="qemu-user and Debian's aarch64 C library are not installed (apt-get install qemu-user "
+    "libc6-arm64-cross; .ci/run installs them where it can): the aarch64-linux binaries are "
+    "compiled, not run",
+)
 @pytest.mark.skipif(not has_zig(), reason="the aarch64 binaries and host are compiled by zig: pip install ziglang")
 def test_the_aarch64_binaries_run_under_qemu_as_on_x86_64(reference, tmp_path):
     """The same on aarch64-linux (binaries compiled from the FMUs' sources, glibc 2.17), under qemu-user with
@@ -188,15 +199,18 @@ def test_the_aarch64_binaries_run_under_qemu_as_on_x86_64(reference, tmp_path):
 
 # -- hosts that step in parallel -------------------------------------------------------------------------------
 @pytest.mark.skipif(availability("libcosim") is not None, reason=f"libcosim: {availability('libcosim')}")
-@pytest.mark.parametrize("ssp, stop", [("native/MAST_standalone.ssp", 1.0), ("MAST_standalone.ssp", 0.1)],
-                         ids=["native", "python"])
+@pytest.mark.parametrize(
+    "ssp, stop", [("native/MAST_standalone.ssp", 1.0), ("MAST_standalone.ssp", 0.1)], ids=["native", "python"]
+)
 def test_libcosim_stepping_in_several_worker_threads_gives_the_trajectories_of_one(built, ssp, stop):
     """libcosim steps the FMUs of a step in a pool of worker threads: 3 workers against 1 give the same floats
     (each instance keeps its own state); the Python FMUs, called from several threads at once, take the GIL in
     turn: no deadlock (a run that hangs fails at the timeout), no crash."""
-    runs = {n: run_host("libcosim", built / "ssp" / ssp, stop, list(COMPARED), worker_threads=n, timeout=300)
-            for n in (1, 3)}
-    assert runs[1].stats["threads"] < runs[3].stats["threads"]   # the pool did grow (measured: 3 and 6 threads)
+    runs = {
+        n: run_host("libcosim", built / "ssp" / ssp, stop, list(COMPARED), worker_threads=n, timeout=300)
+        for n in (1, 3)
+    }
+    assert runs[1].stats["threads"] < runs[3].stats["threads"]  # the pool did grow (measured: 3 and 6 threads)
     assert len(runs[3].time) == round(stop / 1e-3)
     for signal in COMPARED:
         assert np.array_equal(runs[1][signal], runs[3][signal]), signal

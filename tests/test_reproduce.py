@@ -1,5 +1,6 @@
 """`mast reproduce`: every number the paper reports has a row, marked fit, reuse or prediction with the
 tolerance it is judged by and its source; no prediction is a number a fit used; every figure is written."""
+
 from __future__ import annotations
 
 import importlib.util
@@ -12,14 +13,27 @@ from pathlib import Path
 import pytest
 
 from mast.analyses import paper
-from mast.core.build import build_all
 from mast.analyses.identify import fit_targets
 from mast.analyses.reproduce import plan, reproduce
+from mast.core.build import build_all
 from mast.core.ssv import parse_ssv
 
 ROOT = Path(__file__).resolve().parents[1]
-FIELDS = {"key", "quantity", "unit", "kind", "paper", "ours", "difference", "tolerance", "tolerance_band",
-          "within_paper_deviation", "statement", "source", "note"}
+FIELDS = {
+    "key",
+    "quantity",
+    "unit",
+    "kind",
+    "paper",
+    "ours",
+    "difference",
+    "tolerance",
+    "tolerance_band",
+    "within_paper_deviation",
+    "statement",
+    "source",
+    "note",
+}
 
 
 @pytest.fixture(scope="module")
@@ -66,8 +80,10 @@ def test_no_prediction_is_a_number_a_fit_used(report):
     rows = json.loads((out / "paper_table.json").read_text())
     used = set()
     for f, (mag, ph) in fit_targets().items():
-        used |= {paper.CLAIM[paper.position_key("magnitude", "z", f)].statement,
-                 paper.CLAIM[paper.position_key("phase", "z", f)].statement}
+        used |= {
+            paper.CLAIM[paper.position_key("magnitude", "z", f)].statement,
+            paper.CLAIM[paper.position_key("phase", "z", f)].statement,
+        }
         assert paper.CLAIM[paper.position_key("magnitude", "z", f)].value == mag
     for r in rows:
         if r["kind"] == "prediction":
@@ -78,8 +94,9 @@ def test_no_prediction_is_a_number_a_fit_used(report):
     fitted = parse_ssv(ROOT / "ssp" / "resources" / "controller_paper_reading_fit.ssv")
     assert f"z at {' and '.join(f'{f:g}' for f in fit_targets())} Hz only" in fitted["k_v"].source
     for case in (c for cases in plan("MAST.ssp").values() for c in cases):
-        assert {g: case.parameters["controller"][g] for g in ("k_v", "k_p", "k_i")} == \
-            {g: fitted[g].value for g in ("k_v", "k_p", "k_i")}
+        assert {g: case.parameters["controller"][g] for g in ("k_v", "k_p", "k_i")} == {
+            g: fitted[g].value for g in ("k_v", "k_p", "k_i")
+        }
 
 
 def test_kinds_follow_the_fit_targets():
@@ -92,9 +109,9 @@ def test_kinds_follow_the_fit_targets():
 
 
 def test_tolerance_is_the_papers_relative_deviation():
-    phase = paper.CLAIM[paper.position_key("phase", "z", 10.0)]          # -103.7 deg: 13 % is 13.48 deg
+    phase = paper.CLAIM[paper.position_key("phase", "z", 10.0)]  # -103.7 deg: 13 % is 13.48 deg
     assert phase.within(-103.7 + 13.4) and not phase.within(-103.7 + 13.6)
-    low = paper.CLAIM[paper.position_key("phase", "z", 0.4)]             # -6.3 deg: 13 % is 0.82 deg
+    low = paper.CLAIM[paper.position_key("phase", "z", 0.4)]  # -6.3 deg: 13 % is 0.82 deg
     assert low.within(-7.1) and not low.within(-7.2)
     mag = paper.CLAIM[paper.position_key("magnitude", "z", 5.0)]
     assert mag.within(0.654 * 1.109) and not mag.within(0.654 * 1.111)
@@ -106,8 +123,13 @@ def test_report_states_counts_limits_and_figures(report):
     text = (out / "report.md").read_text()
     assert f"**{summary['predictions_within']} of {summary['predictions']} predictions**" in text
     assert "## Where a test touches a limit" in text
-    for name in ("fig7_bode.png", "fig8_10_frequency_response.png", "fig11_z_time.png", "fig12_psi_time.png",
-                 "fig13_theta_time.png"):
+    for name in (
+        "fig7_bode.png",
+        "fig8_10_frequency_response.png",
+        "fig11_z_time.png",
+        "fig12_psi_time.png",
+        "fig13_theta_time.png",
+    ):
         assert (out / name).stat().st_size > 20_000
         assert f"({name})" in text
 
@@ -151,5 +173,8 @@ def test_paper_table_is_strict_json_when_a_number_could_not_be_computed():
     from mast.analyses.reproduce import _strict
 
     row = {"ours": float("nan"), "tolerance_band": [0.5, float("inf")], "kind": "prediction"}
-    assert json.loads(json.dumps(_strict(row), allow_nan=False)) == {"ours": None, "tolerance_band": [0.5, None],
-                                                                     "kind": "prediction"}
+    assert json.loads(json.dumps(_strict(row), allow_nan=False)) == {
+        "ours": None,
+        "tolerance_band": [0.5, None],
+        "kind": "prediction",
+    }

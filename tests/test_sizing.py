@@ -1,6 +1,7 @@
 """Drive sizing (mast sizing, docs/sizing.md): the two-node thermal model against its closed-form
 solution, the figures against an independent computation from results.csv, the verdict against a
 lowered rating, and the errors of bad input."""
+
 from __future__ import annotations
 
 import csv
@@ -29,7 +30,7 @@ def closed_form_rise(t: np.ndarray, P: float, R_th1: float, R_th2: float, tau_w:
     a21, a22 = 1 / (R_th1 * C_s), -(1 / R_th1 + 1 / R_th2) / C_s
     tr, det = a11 + a22, a11 * a22 - a12 * a21
     l1, l2 = (tr + math.sqrt(tr * tr - 4 * det)) / 2, (tr - math.sqrt(tr * tr - 4 * det)) / 2
-    x_ss = np.array([P * (R_th1 + R_th2), P * R_th2])          # the steady state: the resistances in series
+    x_ss = np.array([P * (R_th1 + R_th2), P * R_th2])  # the steady state: the resistances in series
     v1, v2 = np.array([a12, l1 - a11]), np.array([a12, l2 - a11])
     c1, c2 = np.linalg.solve(np.column_stack([v1, v2]), -x_ss)  # x(0) = x_ss + c1 v1 + c2 v2 = 0
     return x_ss[0] + c1 * v1[0] * np.exp(l1 * t) + c2 * v2[0] * np.exp(l2 * t)
@@ -37,10 +38,10 @@ def closed_form_rise(t: np.ndarray, P: float, R_th1: float, R_th2: float, tau_w:
 
 def test_thermal_step_response_is_the_closed_form():
     model = thermal.TwoNode(**NET)
-    current = 6.0                                              # the nominal current
+    current = 6.0  # the nominal current
     t = np.arange(0.0, 12000.0, 1.0)
     T_w, _ = thermal.run(model, t, np.full(len(t), current))
-    expected = closed_form_rise(t, NET["R_25"] * current ** 2, NET["R_th1"], NET["R_th2"], NET["tau_w"], NET["tau_s"])
+    expected = closed_form_rise(t, NET["R_25"] * current**2, NET["R_th1"], NET["R_th2"], NET["tau_w"], NET["tau_s"])
     assert np.max(np.abs(T_w - model.T_ambient - expected)) < 1e-9 * expected.max()
     # at the nominal current the RE 40 settles near its rating (6.58 K/W x 10.8 W = 71 K above ambient)
     assert expected[-1] == pytest.approx(10.764 * 6.58, rel=0.02)
@@ -49,22 +50,22 @@ def test_thermal_step_response_is_the_closed_form():
 def test_thermal_steady_state_with_the_copper_coefficient_is_the_closed_form():
     alpha, current, T_a = 0.0039, 5.0, 313.15
     model = thermal.TwoNode(**NET, alpha_Cu=alpha, T_ambient=T_a)
-    t = np.arange(0.0, 1.0, 1e-3)                              # a duty cycle of constant current, repeated
+    t = np.arange(0.0, 1.0, 1e-3)  # a duty cycle of constant current, repeated
     heat = thermal.periodic(model, t, np.full(len(t), current))
     # T_w - T_a = R_25 I^2 (1 + alpha (T_w - 25 degC)) (R_th1 + R_th2), solved for T_w
-    R_sum, P_25 = NET["R_th1"] + NET["R_th2"], NET["R_25"] * current ** 2
+    R_sum, P_25 = NET["R_th1"] + NET["R_th2"], NET["R_25"] * current**2
     rise = P_25 * (1 + alpha * (T_a - 298.15)) * R_sum / (1 - P_25 * alpha * R_sum)
     assert heat.start[0] == pytest.approx(rise, rel=1e-9)
     assert heat.T_w.max() - T_a == pytest.approx(rise, rel=1e-9)
-    assert abs(heat.warmup_T_w[-1] - T_a - rise) <= 0.1        # the warm-up reaches it
-    assert 4 * 809 / 3 < heat.warmup_t[-1] < 10 * 809          # on the motor's time constant
+    assert abs(heat.warmup_T_w[-1] - T_a - rise) <= 0.1  # the warm-up reaches it
+    assert 4 * 809 / 3 < heat.warmup_t[-1] < 10 * 809  # on the motor's time constant
 
 
 def test_thermal_runaway_is_refused():
     model = thermal.TwoNode(**NET, alpha_Cu=0.0039)
     t = np.arange(0.0, 1.0, 1e-3)
     with pytest.raises(ValueError, match="thermal runaway"):
-        thermal.periodic(model, t, np.full(len(t), 40.0))    # R I^2 alpha (R_th1 + R_th2) > 1
+        thermal.periodic(model, t, np.full(len(t), 40.0))  # R I^2 alpha (R_th1 + R_th2) > 1
 
 
 # ----------------------------------------------------------------------------- a run folder, written here
@@ -82,8 +83,14 @@ def write_run(folder: Path, ssp: Path = SSD, frequency: float = 1.0, scale: floa
         out = csv.writer(handle)
         out.writerow(columns)
         out.writerows(zip(*(np.char.mod("%.12g", v) for v in columns.values())))
-    (folder / "summary.json").write_text(json.dumps({"motion": {"axis": "z", "amplitude": 0.01, "frequency_Hz": frequency},
-                                                     "system": {"ssp": str(ssp), "parameters": {}}}))
+    (folder / "summary.json").write_text(
+        json.dumps(
+            {
+                "motion": {"axis": "z", "amplitude": 0.01, "frequency_Hz": frequency},
+                "system": {"ssp": str(ssp), "parameters": {}},
+            }
+        )
+    )
     return columns
 
 
@@ -97,8 +104,8 @@ def read_back(path: Path, start: float) -> dict[str, list[float]]:
 def test_figures_are_those_computed_independently_from_results_csv(tmp_path):
     write_run(tmp_path / "run")
     doc, _ = sizing.size_run(tmp_path / "run")
-    data = read_back(tmp_path / "run" / "results.csv", 1.0)      # the duty cycle: the last of two periods
-    i_r, p, J_in = 91 / 6, 0.07, 1.42e-05 + 1e-06 + 1.4e-06        # transmission.ssv, actuator_manufacturer.ssv
+    data = read_back(tmp_path / "run" / "results.csv", 1.0)  # the duty cycle: the last of two periods
+    i_r, p, J_in = 91 / 6, 0.07, 1.42e-05 + 1e-06 + 1.4e-06  # transmission.ssv, actuator_manufacturer.ssv
     for k in (1, 2, 3):
         tau, om, cur = (data[f"actuator_{k}.{s}"] for s in ("tau_m", "omega_m", "i_m"))
         items = {(i["component"], i["item"]): i["figure"] for i in doc["drives"][f"actuator_{k}"]["items"]}
@@ -114,7 +121,9 @@ def test_figures_are_those_computed_independently_from_results_csv(tmp_path):
         out = [i_r * (a - J_in * b) for a, b in zip(tau, accel)]
         assert items["gearhead", "RMS output torque"] == pytest.approx(rms(out), rel=1e-4)
         assert items["guide", "peak axial force"] == pytest.approx(2 * math.pi * max(map(abs, out)) / p, rel=1e-4)
-        assert items["guide", "peak carriage speed"] == pytest.approx(max(map(abs, om)) * p / (2 * math.pi * i_r), rel=1e-9)
+        assert items["guide", "peak carriage speed"] == pytest.approx(
+            max(map(abs, om)) * p / (2 * math.pi * i_r), rel=1e-9
+        )
     assert doc["verdict"] == "pass"
 
 
@@ -136,20 +145,22 @@ def test_the_verdict_flips_when_a_rating_is_lowered_below_the_run(tmp_path):
     ratings.write_text(re.sub(r'(name="tau_N".*?<ssv:Real value=")177(")', rf"\g<1>{1e3 * rms * 0.9:.6g}\g<2>", text))
     doc, _ = sizing.size_run(tmp_path / "run")
     assert doc["verdict"] == "fail"
-    assert (doc["limiting"]["component"], doc["limiting"]["item"]) in {("motor", "RMS torque"),
-                                                                       ("motor", "RMS torque, gearhead losses")}
+    assert (doc["limiting"]["component"], doc["limiting"]["item"]) in {
+        ("motor", "RMS torque"),
+        ("motor", "RMS torque, gearhead losses"),
+    }
     assert doc["limiting"]["margin"] < 0
 
 
 def test_a_drive_on_its_current_limit_is_at_limit(tmp_path):
     write_run(tmp_path / "run")
     t, signals = sizing.read_results(tmp_path / "run" / "results.csv")
-    signals["actuator_2.i_m"] = np.clip(signals["actuator_2.i_m"] * 100, -10.0, 10.0)   # held at the 10 A peak
+    signals["actuator_2.i_m"] = np.clip(signals["actuator_2.i_m"] * 100, -10.0, 10.0)  # held at the 10 A peak
     from mast.core.ssp import read_ssd
 
     sized = sizing.size_signals(sizing.drives(read_ssd(SSD)), t, signals, 1.0)
     v = sizing.verdict(sized)
-    assert v["verdict"] == "fail"                      # 10 A RMS-ish is above the 5 A continuous current
+    assert v["verdict"] == "fail"  # 10 A RMS-ish is above the 5 A continuous current
     peak = [i for i in sized[1].items if i.name == "peak current"][0]
     assert peak.status == "at limit" and peak.margin == pytest.approx(0.0, abs=1e-12)
 
@@ -162,7 +173,7 @@ def test_a_run_folder_without_results_is_named(tmp_path, capsys):
         sizing.size_run(tmp_path / "run")
     assert main(["sizing", str(tmp_path / "run")]) == 2
     assert "no results.csv" in capsys.readouterr().err
-    assert list((tmp_path / "run").iterdir()) == []            # nothing written
+    assert list((tmp_path / "run").iterdir()) == []  # nothing written
 
 
 def test_ratings_missing_for_a_drive_are_named_and_nothing_is_written(tmp_path):
@@ -170,19 +181,27 @@ def test_ratings_missing_for_a_drive_are_named_and_nothing_is_written(tmp_path):
     write_run(tmp_path / "run", ssd)
     text = ssd.read_text()
     blocks = text.split('<ssd:Component name="actuator_2"', 1)
-    ssd.write_text(blocks[0] + '<ssd:Component name="actuator_2"'
-                   + re.sub(r"\n[ \t]*<ssc:Annotation type=\"mast.sizing\">.*?</ssc:Annotation>", "", blocks[1], count=1))
+    ssd.write_text(
+        blocks[0]
+        + '<ssd:Component name="actuator_2"'
+        + re.sub(r"\n[ \t]*<ssc:Annotation type=\"mast.sizing\">.*?</ssc:Annotation>", "", blocks[1], count=1)
+    )
     before = sorted(p.name for p in (tmp_path / "run").iterdir())
     with pytest.raises(sizing.SizingError, match=r"drive actuator_2: .* names no ratings"):
         sizing.size_run(tmp_path / "run")
     ssd.write_text(text)
     ratings = ssd.parent / "resources" / "drive_ratings.ssv"
     ratings.write_text(re.sub(r'\n[ \t]*<ssv:Parameter name="R_th2".*?</ssv:Parameter>', "", ratings.read_text()))
-    with pytest.raises(sizing.SizingError, match=r"drive actuator_1: its ratings resources/drive_ratings.ssv lack R_th2 "
-                                                 r"\(thermal resistance housing-ambient, K/W\)"):
+    with pytest.raises(
+        sizing.SizingError,
+        match=r"drive actuator_1: its ratings resources/drive_ratings.ssv lack R_th2 "
+        r"\(thermal resistance housing-ambient, K/W\)",
+    ):
         sizing.size_run(tmp_path / "run")
     ratings.unlink()
-    with pytest.raises(sizing.SizingError, match=r"drive actuator_1: its ratings resources/drive_ratings.ssv cannot be read"):
+    with pytest.raises(
+        sizing.SizingError, match=r"drive actuator_1: its ratings resources/drive_ratings.ssv cannot be read"
+    ):
         sizing.size_run(tmp_path / "run")
     assert sorted(p.name for p in (tmp_path / "run").iterdir()) == before
 
@@ -191,7 +210,9 @@ def test_a_rating_of_the_wrong_dimension_is_named(tmp_path):
     ssd = copy_system(tmp_path)
     write_run(tmp_path / "run", ssd)
     ratings = ssd.parent / "resources" / "drive_ratings.ssv"
-    ratings.write_text(ratings.read_text().replace('<ssv:Real value="12000" unit="rpm"/>', '<ssv:Real value="12000" unit="N.m"/>'))
+    ratings.write_text(
+        ratings.read_text().replace('<ssv:Real value="12000" unit="rpm"/>', '<ssv:Real value="12000" unit="N.m"/>')
+    )
     with pytest.raises(sizing.SizingError, match=r"rating n_max .* expected a Real in rad/s"):
         sizing.size_run(tmp_path / "run")
 
@@ -204,7 +225,7 @@ def test_mast_sizing_writes_the_table_and_plots_atomically(tmp_path, capsys):
     printed = capsys.readouterr().out
     assert "Sizing verdict: **pass**" in printed and "| actuator_3 | amplifier | peak current |" in printed
     names = sorted(p.name for p in (tmp_path / "run").iterdir())
-    assert names == sorted(["results.csv", "summary.json", *sizing.FILES])     # no temporary file left
+    assert names == sorted(["results.csv", "summary.json", *sizing.FILES])  # no temporary file left
     doc = json.loads((tmp_path / "run" / "sizing.json").read_text())
     assert doc["verdict"] == "pass" and set(doc["drives"]) == {"actuator_1", "actuator_2", "actuator_3"}
     assert (tmp_path / "run" / "sizing_envelope.png").read_bytes()[:4] == b"\x89PNG"
@@ -235,7 +256,7 @@ def test_batch_metrics_and_compare_columns_carry_the_verdict(tmp_path):
 
     drive_set = sizing.drives(read_ssd(SSD))
     results = []
-    for frequency, scale in ((1.0, 1.0), (2.0, 3.0)):      # a gentle test and a hard one
+    for frequency, scale in ((1.0, 1.0), (2.0, 3.0)):  # a gentle test and a hard one
         columns = write_run(tmp_path / f"run{frequency:g}", frequency=frequency, scale=scale)
         t = columns.pop("time")
         expected = sizing.verdict(sizing.size_signals(drive_set, t, columns, frequency))
@@ -244,8 +265,14 @@ def test_batch_metrics_and_compare_columns_carry_the_verdict(tmp_path):
         assert metrics["sizing_margin"] == pytest.approx(expected["limiting"]["margin"], rel=1e-12)
         assert metrics["sizing_fail"] == float(expected["verdict"] == "fail")
         assert "sizing_margin" not in case_metrics(Result(t, columns), ["sizing"], motion, drives=None)
-        results.append((expected, SineResult("z", 0.01, frequency, 1.0 + 0j, [0.0], [0.0], [0.0], 0.0, {},
-                                             signals={"time": t, **columns})))
+        results.append(
+            (
+                expected,
+                SineResult(
+                    "z", 0.01, frequency, 1.0 + 0j, [0.0], [0.0], [0.0], 0.0, {}, signals={"time": t, **columns}
+                ),
+            )
+        )
     assert results[0][0]["verdict"] == "pass" and results[1][0]["verdict"] == "fail"
     row = sizing_columns(Candidate("MAST", str(SSD), str(SSD)), [r for _, r in results], None)
     worst = results[1][0]["limiting"]
@@ -257,12 +284,12 @@ def test_batch_metrics_and_compare_columns_carry_the_verdict(tmp_path):
 
 
 def test_the_duty_cycle_is_whole_periods_at_the_end_of_the_run():
-    t = np.round(np.arange(0.0, 3.0005, 1e-3), 9)            # 3 s at 1 ms, as `make run` records
+    t = np.round(np.arange(0.0, 3.0005, 1e-3), 9)  # 3 s at 1 ms, as `make run` records
     for frequency, samples in ((10.0, 2900), (1.0, 2000), (3.0, 2000), (7.0, 2000), (0.5, 2000)):
         cycle = sizing.duty_cycle(t, frequency)
         assert (cycle.start, cycle.stop) == (len(t) - samples, len(t)), frequency
-        assert (samples * 1e-3 * frequency) == pytest.approx(round(samples * 1e-3 * frequency))   # whole periods
-    assert sizing.duty_cycle(t, 0.0) is None and sizing.duty_cycle(t, 0.2) is None   # not periodic, too short
+        assert (samples * 1e-3 * frequency) == pytest.approx(round(samples * 1e-3 * frequency))  # whole periods
+    assert sizing.duty_cycle(t, 0.0) is None and sizing.duty_cycle(t, 0.2) is None  # not periodic, too short
 
 
 def test_a_ratings_source_outside_the_system_is_refused(tmp_path):
@@ -270,7 +297,10 @@ def test_a_ratings_source_outside_the_system_is_refused(tmp_path):
     from mast.core.ssv import SSPFormatError
 
     ssd = copy_system(tmp_path)
-    ssd.write_text(ssd.read_text().replace('source="resources/drive_ratings.ssv"', 'source="../../drive_ratings.ssv"', 1))
-    with pytest.raises(SSPFormatError, match="component 'actuator_1' ratings '../../drive_ratings.ssv' is not a "
-                                             "relative path inside"):
+    ssd.write_text(
+        ssd.read_text().replace('source="resources/drive_ratings.ssv"', 'source="../../drive_ratings.ssv"', 1)
+    )
+    with pytest.raises(
+        SSPFormatError, match="component 'actuator_1' ratings '../../drive_ratings.ssv' is not a relative path inside"
+    ):
         read_ssd(ssd)

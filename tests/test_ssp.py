@@ -1,4 +1,5 @@
 """Reading the system structure: the default SSD, bindings, step sizes and malformed input."""
+
 from __future__ import annotations
 
 import zipfile
@@ -41,7 +42,9 @@ def test_bindings_apply_in_order_later_overrides_earlier(tmp_path):
     text = SSD.read_text().replace(
         '<ssd:ParameterBinding source="resources/actuator_manufacturer.ssv"/>',
         '<ssd:ParameterBinding source="resources/actuator_manufacturer.ssv"/>'
-        '<ssd:ParameterBinding source="resources/actuator_identified.ssv"/>', 1)
+        '<ssd:ParameterBinding source="resources/actuator_identified.ssv"/>',
+        1,
+    )
     (tmp_path / "resources").symlink_to(ROOT / "ssp" / "resources")
     (tmp_path / "x.ssd").write_text(text)
     system = read_ssd(tmp_path / "x.ssd")
@@ -49,15 +52,27 @@ def test_bindings_apply_in_order_later_overrides_earlier(tmp_path):
     assert system.components["actuator_2"].parameters["tau_c"] == pytest.approx(0.019278, rel=1e-4)
 
 
-@pytest.mark.parametrize("edit, message", [
-    (lambda s: s.replace('endElement="mechanism" endConnector="rho_1"', 'endElement="mechanism" endConnector="rho_9"'),
-     "mechanism.rho_9"),
-    (lambda s: s.replace('startElement="controller" startConnector="i_cmd_1"', 'startElement="controler" startConnector="i_cmd_1"'),
-     "controler"),
-    (lambda s: s.replace('<osp:StepSizeHint value="0.001"/>', '<osp:StepSizeHint value="-1"/>'), "StepSizeHint"),
-    (lambda s: s.replace("resources/mass_3prs.ssv", "resources/missing.ssv"), "missing.ssv"),
-    (lambda s: s[: len(s) // 2], "cannot read"),
-])
+@pytest.mark.parametrize(
+    "edit, message",
+    [
+        (
+            lambda s: s.replace(
+                'endElement="mechanism" endConnector="rho_1"', 'endElement="mechanism" endConnector="rho_9"'
+            ),
+            "mechanism.rho_9",
+        ),
+        (
+            lambda s: s.replace(
+                'startElement="controller" startConnector="i_cmd_1"',
+                'startElement="controler" startConnector="i_cmd_1"',
+            ),
+            "controler",
+        ),
+        (lambda s: s.replace('<osp:StepSizeHint value="0.001"/>', '<osp:StepSizeHint value="-1"/>'), "StepSizeHint"),
+        (lambda s: s.replace("resources/mass_3prs.ssv", "resources/missing.ssv"), "missing.ssv"),
+        (lambda s: s[: len(s) // 2], "cannot read"),
+    ],
+)
 def test_malformed_ssd_gives_a_clear_error(tmp_path, edit, message):
     (tmp_path / "resources").symlink_to(ROOT / "ssp" / "resources")
     (tmp_path / "bad.ssd").write_text(edit(SSD.read_text()))
@@ -99,7 +114,10 @@ def test_corrupt_and_incomplete_archives_are_named(tmp_path):
 
 def test_parse_overrides():
     assert parse_overrides(["actuator_1.tau_c=0.07", "actuator_2.n_dof=1", "x.s=abc"]) == {
-        "actuator_1": {"tau_c": 0.07}, "actuator_2": {"n_dof": 1}, "x": {"s": "abc"}}
+        "actuator_1": {"tau_c": 0.07},
+        "actuator_2": {"n_dof": 1},
+        "x": {"s": "abc"},
+    }
     with pytest.raises(ValueError, match="ELEMENT.PARAMETER=VALUE"):
         parse_overrides(["tau_c=0.07"])
 
@@ -116,8 +134,10 @@ def test_bound_names_a_component_lacks_are_ignored_unless_no_component_of_the_se
     bound = applicable_parameters(system, names)
     assert "R" in system.components["controller"].parameters and "R" not in bound["controller"]
     assert bound["controller"]["k_T"] == bound["actuator_1"]["k_T"]
-    assert bound["controller"]["L"] == bound["mechanism"]["L"]            # the later (geometry) binding wins
+    assert bound["controller"]["L"] == bound["mechanism"]["L"]  # the later (geometry) binding wins
     source, values = system.components["controller"].bindings[-1]
     system.components["controller"].bindings[-1] = (source, {**values, "omega_nn": 1.0})
-    with pytest.raises(SSPFormatError, match=r"controller_computed_torque.ssv: 'omega_nn' is a parameter of no component"):
+    with pytest.raises(
+        SSPFormatError, match=r"controller_computed_torque.ssv: 'omega_nn' is a parameter of no component"
+    ):
         applicable_parameters(system, names)

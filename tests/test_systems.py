@@ -1,6 +1,7 @@
 """The system SSDs generated from a system description (mast.core.systems), the parameter sets
 written from the mechanism description files (mast.core.description_sets), and the SSD and SSV
 modules that write them (mast.core.ssd, mast.core.ssv)."""
+
 from __future__ import annotations
 
 import math
@@ -33,15 +34,18 @@ def _system(tmp_path: Path, data: bytes, name: str = "x.ssd"):
 
 
 def _semantics(system) -> tuple:
-    comps = {n: (c.source, c.step_size, c.inputs, c.outputs, c.bindings, c.ratings, c.parameters)
-             for n, c in system.components.items()}
+    comps = {
+        n: (c.source, c.step_size, c.inputs, c.outputs, c.bindings, c.ratings, c.parameters)
+        for n, c in system.components.items()
+    }
     return (comps, system.connections, system.system_inputs, system.base_step, system.start_time, system.stop_time)
 
 
 @pytest.mark.parametrize("description", [MAST, STANDALONE], ids=lambda d: d.name)
 def test_committed_system_is_what_the_generator_writes(description):
-    assert description.path.read_bytes() == generate(description), \
+    assert description.path.read_bytes() == generate(description), (
         f"{description.path.name} is stale: run python -m mast.core.variants"
+    )
 
 
 def test_generated_default_system_reads_as_the_committed_one(tmp_path):
@@ -62,18 +66,24 @@ def test_topology_of_the_default_system_is_the_3prs():
 def _expected_connections(names, n, source=""):
     out = {(source, f"{c}_cmd", "controller", f"{c}_cmd") for c in names}
     for k in range(1, n + 1):
-        out |= {("controller", f"i_cmd_{k}", f"actuator_{k}", "i_cmd"),
-                (f"actuator_{k}", "rho", "controller", f"rho_{k}"),
-                (f"actuator_{k}", "omega_m", "controller", f"omega_m_{k}"),
-                (f"actuator_{k}", "rho", "mechanism", f"rho_{k}"),
-                (f"actuator_{k}", "rho_dot", "mechanism", f"rho_dot_{k}"),
-                (f"actuator_{k}", "rho_ddot", "mechanism", f"rho_ddot_{k}"),
-                ("mechanism", f"F_{k}", f"actuator_{k}", "F")}
+        out |= {
+            ("controller", f"i_cmd_{k}", f"actuator_{k}", "i_cmd"),
+            (f"actuator_{k}", "rho", "controller", f"rho_{k}"),
+            (f"actuator_{k}", "omega_m", "controller", f"omega_m_{k}"),
+            (f"actuator_{k}", "rho", "mechanism", f"rho_{k}"),
+            (f"actuator_{k}", "rho_dot", "mechanism", f"rho_dot_{k}"),
+            (f"actuator_{k}", "rho_ddot", "mechanism", f"rho_ddot_{k}"),
+            ("mechanism", f"F_{k}", f"actuator_{k}", "F"),
+        }
     return out
 
 
-HEXAPOD = Topology("hexapod", tuple(Coordinate(c) for c in POSE),
-                   tuple(Drive(f"rho_{k}", "linear", (0.0, 0.2)) for k in range(1, 7)), (0.0, 0.0, 0.5, 0.0, 0.0, 0.0))
+HEXAPOD = Topology(
+    "hexapod",
+    tuple(Coordinate(c) for c in POSE),
+    tuple(Drive(f"rho_{k}", "linear", (0.0, 0.2)) for k in range(1, 7)),
+    (0.0, 0.0, 0.5, 0.0, 0.0, 0.0),
+)
 
 
 @pytest.mark.parametrize("description", [MAST, STANDALONE], ids=lambda d: d.name)
@@ -89,15 +99,23 @@ def test_a_six_drive_topology_gives_six_actuators_and_every_connection(tmp_path,
     assert mech.inputs == [f"{q}_{k}" for q in ("rho", "rho_dot", "rho_ddot") for k in range(1, 7)]
     assert mech.outputs == [f"F_{k}" for k in range(1, 7)] + list(POSE)
     assert system.components["controller"].inputs[:6] == [f"{c}_cmd" for c in POSE]
-    for k in range(1, 7):   # each actuator bound like the 3PRS's, with its ratings and step size
+    for k in range(1, 7):  # each actuator bound like the 3PRS's, with its ratings and step size
         a = system.components[f"actuator_{k}"]
-        assert (a.source, a.step_size, a.ratings) == ("resources/MastActuator.fmu", 0.001, "resources/drive_ratings.ssv")
+        assert (a.source, a.step_size, a.ratings) == (
+            "resources/MastActuator.fmu",
+            0.001,
+            "resources/drive_ratings.ssv",
+        )
         assert [s for s, _ in a.bindings] == list(MAST.actuator.bindings)
 
 
 def test_rotary_drives_give_angular_joint_units():
-    delta = Topology("delta", (Coordinate("x"), Coordinate("y"), Coordinate("z")),
-                     tuple(Drive(f"rho_{k}", "rotary", (-1.0, 1.0)) for k in (1, 2, 3)), (0.0, 0.0, -0.3))
+    delta = Topology(
+        "delta",
+        (Coordinate("x"), Coordinate("y"), Coordinate("z")),
+        tuple(Drive(f"rho_{k}", "rotary", (-1.0, 1.0)) for k in (1, 2, 3)),
+        (0.0, 0.0, -0.3),
+    )
     doc = system_ssd(MAST, delta)
     units = {(c.name, k.name): k.unit for c in doc.system.elements for k in c.connectors}
     assert units[("mechanism", "rho_2")] == "rad" and units[("mechanism", "rho_ddot_3")] == "rad/s2"
@@ -107,8 +125,13 @@ def test_rotary_drives_give_angular_joint_units():
 
 
 def test_parameter_set_round_trip(tmp_path):
-    written = ssv.parameter_set("trial", {"m": 2.5, "n": 3, "on": True, "kind": "3PRS -- a <note>", "J": 1e-5},
-                                {"m": "g", "J": "kg.m2"}, {"m": "a mass", "kind": "text"}, "a comment -- with dashes")
+    written = ssv.parameter_set(
+        "trial",
+        {"m": 2.5, "n": 3, "on": True, "kind": "3PRS -- a <note>", "J": 1e-5},
+        {"m": "g", "J": "kg.m2"},
+        {"m": "a mass", "kind": "text"},
+        "a comment -- with dashes",
+    )
     path = ssv.write(tmp_path / "trial.ssv", written)
     back = ssv.read(path)
     assert back.name == "trial" and list(back.parameters) == ["m", "n", "on", "kind", "J"]
@@ -125,9 +148,15 @@ def test_an_ssd_round_trips_through_its_classes():
 
 
 def test_writing_what_the_reader_does_not_model_is_refused():
-    text = (SSP / "MAST.ssd").read_text().replace(
-        "<ssd:Connections>", '<ssd:SignalDictionaries><ssd:SignalDictionary name="d"/></ssd:SignalDictionaries>'
-        "<ssd:Connections>", 1)
+    text = (
+        (SSP / "MAST.ssd")
+        .read_text()
+        .replace(
+            "<ssd:Connections>",
+            '<ssd:SignalDictionaries><ssd:SignalDictionary name="d"/></ssd:SignalDictionaries><ssd:Connections>',
+            1,
+        )
+    )
     document = ssd.read(text.encode(), "user.ssd")
     with pytest.raises(SSPFormatError, match="SignalDictionaries"):
         document.to_bytes()
@@ -139,18 +168,36 @@ def test_committed_set_is_what_its_description_gives(described):
     assert not differences(described), "\n".join(differences(described) + ["run python -m mast.core.variants"])
 
 
-@pytest.mark.parametrize("edit, words", [
-    (lambda t: t.replace('value="0.4"', 'value="0.41"'), r"geometry_3prs\.ssv .*parameter 'H' is 0\.41 m, the "
-                                                          r"description gives 0\.4 m"),
-    (lambda t: t.replace('unit="rad"/></ssv:Parameter>\n    <ssv:Parameter name="alpha_2"',
-                         'unit="deg"/></ssv:Parameter>\n    <ssv:Parameter name="alpha_2"'),
-     r"parameter 'alpha_1' is 0\.0 deg, the description gives 0\.0 rad"),
-    (lambda t: t.replace("Paper section 3: leg length", "a guess"), r"parameter 'L': description 'a guess', its source"),
-    (lambda t: t.replace('<ssv:String value="3PRS"/>', '<ssv:String value="3RPS"/>'), r"parameter 'kinematics' is '3RPS'"),
-    (lambda t: t.replace('<ssv:Parameter name="beta"', '<ssv:Parameter name="gamma"'),
-     r"parameter 'gamma' is not in the description\n.*parameter 'beta' is missing"),
-    (lambda t: t.replace("Bound to the mechanism", "Bound to everything"), r"same parameters, but not the file"),
-])
+@pytest.mark.parametrize(
+    "edit, words",
+    [
+        (
+            lambda t: t.replace('value="0.4"', 'value="0.41"'),
+            r"geometry_3prs\.ssv .*parameter 'H' is 0\.41 m, the "
+            r"description gives 0\.4 m",
+        ),
+        (
+            lambda t: t.replace(
+                'unit="rad"/></ssv:Parameter>\n    <ssv:Parameter name="alpha_2"',
+                'unit="deg"/></ssv:Parameter>\n    <ssv:Parameter name="alpha_2"',
+            ),
+            r"parameter 'alpha_1' is 0\.0 deg, the description gives 0\.0 rad",
+        ),
+        (
+            lambda t: t.replace("Paper section 3: leg length", "a guess"),
+            r"parameter 'L': description 'a guess', its source",
+        ),
+        (
+            lambda t: t.replace('<ssv:String value="3PRS"/>', '<ssv:String value="3RPS"/>'),
+            r"parameter 'kinematics' is '3RPS'",
+        ),
+        (
+            lambda t: t.replace('<ssv:Parameter name="beta"', '<ssv:Parameter name="gamma"'),
+            r"parameter 'gamma' is not in the description\n.*parameter 'beta' is missing",
+        ),
+        (lambda t: t.replace("Bound to the mechanism", "Bound to everything"), r"same parameters, but not the file"),
+    ],
+)
 def test_a_committed_set_that_differs_from_its_description_is_named(tmp_path, edit, words):
     geometry = next(s for s in SETS if s.name == "geometry_3prs")
     text = geometry.path.read_text()

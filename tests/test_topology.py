@@ -1,4 +1,5 @@
 """The topology every layer derives from (fmus/mechanism/topology.py): the 3PRS's, and bad ones refused."""
+
 import pytest
 
 from fmus.mechanism.designs import describe
@@ -19,15 +20,20 @@ def test_the_3prs_topology_is_three_linear_drives_and_z_psi_theta():
     assert rho == pytest.approx([0.15] * 3, abs=1e-12)
 
 
-@pytest.mark.parametrize("make, words", [
-    (lambda: Coordinate("w"), "coordinate 'w'"),
-    (lambda: Drive("rho_1", "hydraulic", (0.0, 1.0)), "kind 'hydraulic'"),
-    (lambda: Drive("rho_1", "linear", (0.3, 0.0)), "lower < upper"),
-    (lambda: Topology("T", (Coordinate("z"),), (), (0.0,)), "0 drives for 1 coordinates"),
-    (lambda: Topology("T", (Coordinate("z"), Coordinate("z")), (Drive("a", "linear", (0, 1)),) * 2, (0, 0)),
-     "each pose component at most once"),
-    (lambda: Topology("T", (Coordinate("z"),), (Drive("a", "linear", (0, 1)),), (0.0, 1.0)), "expected 1 finite"),
-])
+@pytest.mark.parametrize(
+    "make, words",
+    [
+        (lambda: Coordinate("w"), "coordinate 'w'"),
+        (lambda: Drive("rho_1", "hydraulic", (0.0, 1.0)), "kind 'hydraulic'"),
+        (lambda: Drive("rho_1", "linear", (0.3, 0.0)), "lower < upper"),
+        (lambda: Topology("T", (Coordinate("z"),), (), (0.0,)), "0 drives for 1 coordinates"),
+        (
+            lambda: Topology("T", (Coordinate("z"), Coordinate("z")), (Drive("a", "linear", (0, 1)),) * 2, (0, 0)),
+            "each pose component at most once",
+        ),
+        (lambda: Topology("T", (Coordinate("z"),), (Drive("a", "linear", (0, 1)),), (0.0, 1.0)), "expected 1 finite"),
+    ],
+)
 def test_a_bad_topology_is_refused_naming_what(make, words):
     with pytest.raises(TopologyError, match=words.replace("(", r"\(").replace(")", r"\)")):
         make()

@@ -1,5 +1,6 @@
 """Untrusted archives and files: size limits, references that leave their archive or folder,
 errors that name what the user gave, and no temporary files left behind on any path."""
+
 from __future__ import annotations
 
 import json
@@ -9,12 +10,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from test_batch import ssp as built_ssp  # noqa: F401 (the fixture: the default system's SSP, built from this tree)
 
 import mast.core.ssp as ssp_module
-from mast.data.measured import MeasuredDataError, load
 from mast.core.ssp import SSPArchive, read_ssd, safe_extract
 from mast.core.ssv import SSPFormatError
-from test_batch import ssp as built_ssp  # noqa: F401 (the fixture: the default system's SSP, built from this tree)
+from mast.data.measured import MeasuredDataError, load
 
 ROOT = Path(__file__).resolve().parents[1]
 SSD = ROOT / "ssp" / "MAST.ssd"
@@ -67,29 +68,38 @@ def test_total_and_entry_sizes_are_capped(tmp_path, monkeypatch):
 
 
 # -- references that leave their archive or folder -----------------------------------------------
-@pytest.mark.parametrize("reference", ["/etc/passwd", "../../../etc/passwd", "resources/../../outside.ssv",
-                                       "file:///etc/passwd"])
+@pytest.mark.parametrize(
+    "reference", ["/etc/passwd", "../../../etc/passwd", "resources/../../outside.ssv", "file:///etc/passwd"]
+)
 def test_ssd_sources_outside_the_archive_are_refused(tmp_path, reference):
     (tmp_path / "outside.ssv").write_text((RESOURCES / "mass_3prs.ssv").read_text())
     text = SSD.read_text().replace('source="resources/mass_3prs.ssv"', f'source="{reference}"')
     archive = _archive(tmp_path / "user.ssp", text)
-    with pytest.raises(SSPFormatError, match=rf"user\.ssp \(entry SystemStructure\.ssd\): component 'mechanism' "
-                                             rf"binds parameter set '{reference}' is not a relative path inside"):
+    with pytest.raises(
+        SSPFormatError,
+        match=rf"user\.ssp \(entry SystemStructure\.ssd\): component 'mechanism' "
+        rf"binds parameter set '{reference}' is not a relative path inside",
+    ):
         SSPArchive(archive)
     fmu = SSD.read_text().replace('source="resources/MastMechanism.fmu"', f'source="{reference}"')
     with pytest.raises(SSPFormatError, match=r"component 'mechanism' source .* is not a relative path inside"):
         SSPArchive(_archive(tmp_path / "fmu.ssp", fmu))
 
 
-@pytest.mark.parametrize("attributes, message", [('prefix="m."', "prefix='m.'"),
-                                                 ('type="application/x-ssp-parameter-mapping"', "type=")])
+@pytest.mark.parametrize(
+    "attributes, message", [('prefix="m."', "prefix='m.'"), ('type="application/x-ssp-parameter-mapping"', "type=")]
+)
 def test_binding_features_the_reader_would_ignore_are_refused(tmp_path, attributes, message):
-    text = SSD.read_text().replace('<ssd:ParameterBinding source="resources/mass_3prs.ssv"/>',
-                                   f'<ssd:ParameterBinding source="resources/mass_3prs.ssv" {attributes}/>')
+    text = SSD.read_text().replace(
+        '<ssd:ParameterBinding source="resources/mass_3prs.ssv"/>',
+        f'<ssd:ParameterBinding source="resources/mass_3prs.ssv" {attributes}/>',
+    )
     with pytest.raises(SSPFormatError, match=rf"binding of 'mechanism' has {message}.*does not support"):
         SSPArchive(_archive(tmp_path / "user.ssp", text))
-    nested = SSD.read_text().replace('source="resources/MastMechanism.fmu" type="application/x-fmu-sharedlibrary"',
-                                     'source="resources/MastMechanism.ssp" type="application/x-ssp-package"')
+    nested = SSD.read_text().replace(
+        'source="resources/MastMechanism.fmu" type="application/x-fmu-sharedlibrary"',
+        'source="resources/MastMechanism.ssp" type="application/x-ssp-package"',
+    )
     with pytest.raises(SSPFormatError, match=r"component 'mechanism' has type 'application/x-ssp-package': only FMUs"):
         SSPArchive(_archive(tmp_path / "nested.ssp", nested))
 
@@ -99,20 +109,32 @@ def test_a_measured_test_file_outside_the_data_folder_is_refused(tmp_path):
     folder.mkdir()
     (tmp_path / "secret.csv").write_text("time\n0\n")
     for reference in ("../secret.csv", "/etc/passwd", "../../../../etc/passwd"):
-        (folder / "meta.json").write_text(json.dumps({
-            "format": "mast-measured-data", "version": 1, "units": {"time": "s"}, "tests": [{"file": reference}]}))
+        (folder / "meta.json").write_text(
+            json.dumps(
+                {"format": "mast-measured-data", "version": 1, "units": {"time": "s"}, "tests": [{"file": reference}]}
+            )
+        )
         with pytest.raises(MeasuredDataError, match=r"meta\.json: tests\[0\] file .* is not a relative path inside"):
             load(folder)
 
 
 # -- errors name the user's archive, not a deleted temporary folder ------------------------------
-@pytest.mark.parametrize("edit, message", [
-    (lambda s: s[: len(s) // 2], r"user\.ssp \(entry SystemStructure\.ssd\): cannot read the system structure"),
-    (lambda s: s.replace('endElement="mechanism" endConnector="rho_1"', 'endElement="mechanism" endConnector="rho_9"'),
-     r"user\.ssp \(entry SystemStructure\.ssd\): connection names input 'mechanism\.rho_9'"),
-    (lambda s: s.replace('startTime="0.0"', 'startTime="soon"'),
-     r"user\.ssp \(entry SystemStructure\.ssd\): DefaultExperiment startTime='soon'"),
-])
+@pytest.mark.parametrize(
+    "edit, message",
+    [
+        (lambda s: s[: len(s) // 2], r"user\.ssp \(entry SystemStructure\.ssd\): cannot read the system structure"),
+        (
+            lambda s: s.replace(
+                'endElement="mechanism" endConnector="rho_1"', 'endElement="mechanism" endConnector="rho_9"'
+            ),
+            r"user\.ssp \(entry SystemStructure\.ssd\): connection names input 'mechanism\.rho_9'",
+        ),
+        (
+            lambda s: s.replace('startTime="0.0"', 'startTime="soon"'),
+            r"user\.ssp \(entry SystemStructure\.ssd\): DefaultExperiment startTime='soon'",
+        ),
+    ],
+)
 def test_errors_inside_an_archive_name_the_archive_and_the_entry(tmp_path, tmpdir_watch, edit, message):
     archive = _archive(tmp_path / "user.ssp", edit(SSD.read_text()))
     with pytest.raises(SSPFormatError, match=message) as info:
@@ -175,9 +197,14 @@ def test_a_run_leaves_no_temporary_files_after_success_and_after_failure(built_s
 def test_a_batch_leaves_no_temporary_files_after_success_and_after_failure(built_ssp, tmp_path, tmpdir_watch):
     from mast.batch import run_batch
 
-    config = {"ssp": str(built_ssp), "run": {"stop_time": 0.01, "record_step": 0.001},
-              "cases": {"motion": {"axis": "z", "amplitude": 0.001, "frequency": 5},
-                        "list": [{"mechanism.m_platform": m} for m in (2.0, -1.0)]}}
+    config = {
+        "ssp": str(built_ssp),
+        "run": {"stop_time": 0.01, "record_step": 0.001},
+        "cases": {
+            "motion": {"axis": "z", "amplitude": 0.001, "frequency": 5},
+            "list": [{"mechanism.m_platform": m} for m in (2.0, -1.0)],
+        },
+    }
     result = run_batch(config, tmp_path / "b", workers=1, progress=False, plots=False)
     assert (result.ok, result.failed) == (1, 1)
     assert not any(tmpdir_watch.iterdir()), list(tmpdir_watch.iterdir())
@@ -195,10 +222,16 @@ def test_a_zip_bomb_inside_an_ssp_or_given_as_an_fmu_is_named(tmp_path, tmpdir_w
     from mast.core.run import simulate
 
     bomb = _bomb_fmu(tmp_path / "bomb.fmu").read_bytes()
-    archive = _archive(tmp_path / "user.ssp", SSD.read_text(),
-                       {f"resources/{name}.fmu": bomb for name in ("MastController", "MastActuator", "MastMechanism")})
-    with pytest.raises(SSPFormatError, match=r"user\.ssp \(entry resources/Mast\w+\.fmu\): entry 'modelDescription\.xml' "
-                                             r"is compressed \d+ times"):
+    archive = _archive(
+        tmp_path / "user.ssp",
+        SSD.read_text(),
+        {f"resources/{name}.fmu": bomb for name in ("MastController", "MastActuator", "MastMechanism")},
+    )
+    with pytest.raises(
+        SSPFormatError,
+        match=r"user\.ssp \(entry resources/Mast\w+\.fmu\): entry 'modelDescription\.xml' "
+        r"is compressed \d+ times",
+    ):
         simulate(archive, SineMotion("z", 0.001, 5.0), 0.01)
     assert not any(tmpdir_watch.iterdir())
     with pytest.raises(SSPFormatError, match=r"bomb\.fmu: entry 'modelDescription\.xml' is compressed"):

@@ -15,6 +15,7 @@ determinant tells the branches apart, its singular values (tilts scaled by r) gi
 - the engine's kinematics on arrays (the workspace's route) give the scalar route's floats.
 Grids are coarse here (25 mm, 4 deg): the figures of the docs come from the default grid.
 """
+
 from __future__ import annotations
 
 import json
@@ -22,6 +23,7 @@ import math
 
 import numpy as np
 import pytest
+from test_designs import Own
 
 import fmus.common.tracer as E
 from fmus.mechanism.engine import MARGIN, Body, Description, Engine, Evaluation, KinematicsError, SingularityError
@@ -29,13 +31,12 @@ from fmus.mechanism.model import MechanismBlock
 from mast.analyses import paper
 from mast.analyses import workspace as W
 from mast.cli import main as cli
-from test_designs import Own
 
 DEG = math.pi / 180.0
-COARSE = dict(step_z=0.025, step_tilt=4.0 * DEG)      # 0.15 m (half the stroke) is 6 steps
-RHO_TWO = (0.14736, 0.16332, 0.04250)                      # issue 17
-PLUS = (0.2603, 16.02 * DEG, -15.79 * DEG)                 # det > 0, found by the DK from the level pose
-MINUS = (0.2445, 18.47 * DEG, -18.97 * DEG)                # det < 0, same carriage positions
+COARSE = dict(step_z=0.025, step_tilt=4.0 * DEG)  # 0.15 m (half the stroke) is 6 steps
+RHO_TWO = (0.14736, 0.16332, 0.04250)  # issue 17
+PLUS = (0.2603, 16.02 * DEG, -15.79 * DEG)  # det > 0, found by the DK from the level pose
+MINUS = (0.2445, 18.47 * DEG, -18.97 * DEG)  # det < 0, same carriage positions
 SINGULAR = (0.252056, 17.30 * DEG, -17.45 * DEG)
 
 
@@ -65,8 +66,8 @@ def inclined_ws(inclined):
 
 def test_two_branches_with_the_same_carriages(inclined):
     m, eng, own = inclined
-    plus = eng.dk(RHO_TWO)[0]                                   # cold start: the level pose
-    minus = eng.dk(RHO_TWO, guess=MINUS)[0]                     # a start on the other branch stays there
+    plus = eng.dk(RHO_TWO)[0]  # cold start: the level pose
+    minus = eng.dk(RHO_TWO, guess=MINUS)[0]  # a start on the other branch stays there
     np.testing.assert_allclose(plus, PLUS, atol=2e-4)
     np.testing.assert_allclose(minus, MINUS, atol=2e-4)
     for q in (plus, minus):
@@ -82,8 +83,11 @@ def test_two_branches_with_the_same_carriages(inclined):
     # plain Newton from this start on the home branch lands on the negative pose: refused, the pose named
     start = (0.20198, 0.44212, -0.12533)
     assert own_margins(own, start)[0] > 0
-    with pytest.raises(SingularityError, match=r"the solution z = 0\.2445\d* m, psi = .*\(18\.47 deg\).* lies on "
-                                               r"another assembly branch than the start z = 0\.20198 m"):
+    with pytest.raises(
+        SingularityError,
+        match=r"the solution z = 0\.2445\d* m, psi = .*\(18\.47 deg\).* lies on "
+        r"another assembly branch than the start z = 0\.20198 m",
+    ):
         eng.dk(RHO_TWO, guess=start)
 
 
@@ -104,8 +108,8 @@ def test_block_driven_across_the_singularity_stops_instead_of_jumping(inclined):
             out = block.outputs()
             reached.append(np.array([out["z"], out["psi"], out["theta"]]))
     assert "singularity" in str(err.value)
-    assert len(reached) > 300                                   # it went most of the way first
-    for q in reached:                                           # and every pose it gave is on the home branch
+    assert len(reached) > 300  # it went most of the way first
+    for q in reached:  # and every pose it gave is on the home branch
         det, par, inv = own_margins(own, q)
         assert det > 0 and min(par, inv) > 0.9 * MARGIN
 
@@ -113,7 +117,7 @@ def test_block_driven_across_the_singularity_stops_instead_of_jumping(inclined):
 def test_the_singular_pose_is_refused(inclined, inclined_ws):
     m, eng, own = inclined
     det, par, _ = own_margins(own, SINGULAR)
-    assert abs(det) < 1e-3 and par < 1e-3                      # singular by the independent route
+    assert abs(det) < 1e-3 and par < 1e-3  # singular by the independent route
     with pytest.raises(SingularityError, match=r"z = 0\.252056 m, psi = .*17\.3 deg\), theta = .*-17\.45 deg\)"):
         eng.dk(own.rho(SINGULAR))
     answer = W.classify(inclined_ws, SINGULAR)
@@ -129,7 +133,7 @@ def test_no_path_inside_the_workspace_crosses_a_sign_change(inclined, inclined_w
     home_det = own_margins(own, ws.home)[0]
     node = lambda i: np.array([ws.axes[d][i[d]] for d in range(3)])  # noqa: E731
     crossed_nodes = 0
-    for _ in range(8):                                          # random walks along kept edges from home
+    for _ in range(8):  # random walks along kept edges from home
         i = list(ws.home_index)
         for _ in range(20):
             moves = []
@@ -196,7 +200,7 @@ def test_arrays_give_the_scalar_floats(inclined):
     rng = np.random.default_rng(3)
     q = [rng.uniform(0.1, 0.6, 300), rng.uniform(-70, 70, 300) * DEG, rng.uniform(-70, 70, 300) * DEG]
     rho, Jinv, ok = eng.evaluate_many(q)
-    assert 30 < ok.sum() < 270                                   # both kinds present
+    assert 30 < ok.sum() < 270  # both kinds present
     for k in range(300):
         qk = [v[k] for v in q]
         try:
@@ -205,15 +209,16 @@ def test_arrays_give_the_scalar_floats(inclined):
             assert not ok[k], qk
             continue
         assert ok[k], qk
-        assert tuple(rho[:, k]) == eng.ik(qk) and list(Jinv[k].ravel()) == Jk   # the same floats
+        assert tuple(rho[:, k]) == eng.ik(qk) and list(Jinv[k].ravel()) == Jk  # the same floats
 
-    class Plain(Description):                                    # a check without an array form: point by point
+    class Plain(Description):  # a check without an array form: point by point
         bodies = (Body("b", 1.0),)
 
         def evaluate(self, q):
             def reach(w2):
                 if not w2 > 0.0:
                     raise KinematicsError("reach lost")
+
             w2 = 1.0 - q[1] * q[1]
             E.require(reach, w2)
             return Evaluation([q[0], E.sqrt(w2), q[2]], [0.0] * 6, [((q[0], 0.0, 0.0), np.eye(3))])
@@ -234,7 +239,7 @@ def test_a_mechanism_without_body_masses_gets_a_kinematic_workspace():
     lumped = {k: v for k, v in full.items() if k not in BODY_MASSES}
     kinematic = summarize(compute(machine("3PRS_T", mechanism=lumped), 0.025, math.radians(4)))
     reference = summarize(compute(machine("3PRS_T"), 0.025, math.radians(4)))
-    assert kinematic["volume_m_deg2"] == reference["volume_m_deg2"]   # the same geometry, the same poses
+    assert kinematic["volume_m_deg2"] == reference["volume_m_deg2"]  # the same geometry, the same poses
     assert kinematic["smallest_margin"]["value"] == pytest.approx(reference["smallest_margin"]["value"])
     assert "m_leg" in kinematic["static_forces"]["not_computed"] and "home_N" not in kinematic["static_forces"]
     assert "home_N" in reference["static_forces"]

@@ -5,6 +5,7 @@ Each figure: left, a 3-D view at a tilted pose (body frames from the design's de
 fmus/mechanism/designs.py); right, the plane of leg 1 at the home pose (sliders at 0.15 m)
 with the symbols of the geometry parameter set.
 """
+
 from __future__ import annotations
 
 import math
@@ -52,16 +53,18 @@ def draw(design) -> Path:
         e = np.array([math.cos(a), math.sin(a), 0.0])
         d = math.cos(beta) * np.array([0, 0, 1.0]) - math.sin(beta) * e
         foot = desc.H * e
-        ax.plot(*np.c_[foot, foot + 0.5 * d], color="0.5", lw=4)                  # guide
+        ax.plot(*np.c_[foot, foot + 0.5 * d], color="0.5", lw=4)  # guide
         B, S = legs[i]
-        ax.plot(*np.c_[B, S], **style)                                            # leg
-        ax.scatter(*B, color="C3", s=45)                                           # carriage
-        ax.text(*(foot + 0.52 * d), f"guide {i + 1}\n$\\alpha_{i + 1}$ = {math.degrees(a):.0f}°", ha="center",
-                fontsize=8)
+        ax.plot(*np.c_[B, S], **style)  # leg
+        ax.scatter(*B, color="C3", s=45)  # carriage
+        ax.text(
+            *(foot + 0.52 * d), f"guide {i + 1}\n$\\alpha_{i + 1}$ = {math.degrees(a):.0f}°", ha="center", fontsize=8
+        )
         ax.text(*(B + [0.015, 0, -0.03]), f"$\\rho_{i + 1}$", color="C3", fontsize=9)
-    ring = np.array([P + R @ (desc.r * np.array([math.cos(s), math.sin(s), 0.0])) for s in np.linspace(0, 2 * math.pi, 73)])
-    ax.plot(ring[:, 0], ring[:, 1], ring[:, 2], color="C1" if attached else "0.6", lw=1.5,
-            ls="-" if attached else "--")
+    ring = np.array(
+        [P + R @ (desc.r * np.array([math.cos(s), math.sin(s), 0.0])) for s in np.linspace(0, 2 * math.pi, 73)]
+    )
+    ax.plot(ring[:, 0], ring[:, 1], ring[:, 2], color="C1" if attached else "0.6", lw=1.5, ls="-" if attached else "--")
     for k, col in enumerate(("r", "g", "b")):
         ax.quiver(*P, *(0.12 * R[:, k]), color=col)
     ax.scatter(*P, color="k", s=15)
@@ -79,12 +82,21 @@ def draw(design) -> Path:
     B, S = legs[0]
     radial = lambda v: float(v @ e)  # noqa: E731
     top = 0.5
-    ax2.plot([desc.H, desc.H - top * math.sin(beta)], [0, top * math.cos(beta)], color="0.5", lw=5,
-             label=f"guide 1 (β = {math.degrees(beta):.0f}° from the vertical)")
+    ax2.plot(
+        [desc.H, desc.H - top * math.sin(beta)],
+        [0, top * math.cos(beta)],
+        color="0.5",
+        lw=5,
+        label=f"guide 1 (β = {math.degrees(beta):.0f}° from the vertical)",
+    )
     ax2.plot([0, 0], [0, 0.55], color="k", lw=0.8, ls="-.")
     ax2.plot([radial(B), radial(S)], [B[2], S[2]], label="leg 1 (length L)", **style)
-    ax2.plot([-0.05, radial(S)], [S[2], S[2]], label="platform (radius r)",
-             **(dict(color="C1", lw=3) if attached else dict(color="0.6", lw=1.2, ls="--")))
+    ax2.plot(
+        [-0.05, radial(S)],
+        [S[2], S[2]],
+        label="platform (radius r)",
+        **(dict(color="C1", lw=3) if attached else dict(color="0.6", lw=1.2, ls="--")),
+    )
     ax2.scatter([radial(B)], [B[2]], color="C3", zorder=5, label="carriage 1: revolute joint, axis t_1")
     ax2.scatter([radial(S)], [S[2]], color="C2", zorder=5, label="spherical joint S_1")
     ax2.scatter([0], [P[2]], color="k", zorder=5)
@@ -97,7 +109,9 @@ def draw(design) -> Path:
     off = 0.025 * np.array([math.cos(beta), math.sin(beta)])
     foot = np.array([desc.H, 0.0]) + off
     ax2.annotate("", tuple(foot + RHO_HOME * d), tuple(foot), arrowprops=dict(arrowstyle="<->", color="C3"))
-    ax2.text(*(foot + 0.5 * RHO_HOME * d + [0.008, 0]), f"ρ_1 = {RHO_HOME} m\n(along the guide)", color="C3", fontsize=8)
+    ax2.text(
+        *(foot + 0.5 * RHO_HOME * d + [0.008, 0]), f"ρ_1 = {RHO_HOME} m\n(along the guide)", color="C3", fontsize=8
+    )
     ax2.text(0.01, 0.55, "centre axis", fontsize=8)
     ax2.set_aspect("equal")
     ax2.set_xlim(-0.08, max(desc.H, radial(B)) + 0.14)
@@ -106,8 +120,11 @@ def draw(design) -> Path:
     ax2.set_ylabel("height z [m]")
     ax2.grid(True, lw=0.3)
     ax2.legend(loc="lower left", bbox_to_anchor=(0.0, 0.1), fontsize=8)
-    ax2.set_title(f"plane of leg 1 at home: sliders at {RHO_HOME} m, z = {z0:.4f} m\n"
-                  f"H = {desc.H} m, r = {desc.r} m, L = {desc.L} m", fontsize=10)
+    ax2.set_title(
+        f"plane of leg 1 at home: sliders at {RHO_HOME} m, z = {z0:.4f} m\n"
+        f"H = {desc.H} m, r = {desc.r} m, L = {desc.L} m",
+        fontsize=10,
+    )
     fig.tight_layout()
     out = HERE / f"{design.name}.png"
     fig.savefig(out, dpi=90)

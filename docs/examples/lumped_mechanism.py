@@ -14,6 +14,7 @@ Build it (from the repository root):
 
 It needs nothing of this project: numpy and pythonfmu only.
 """
+
 from __future__ import annotations
 
 import builtins
@@ -34,7 +35,7 @@ class LumpedMechanism(Fmi2Slave):
 
     def __init__(self, **kwargs) -> None:
         super().__init__(**kwargs)
-        self.m, self.g = 0.75, 9.81                       # kg per carriage, m/s^2
+        self.m, self.g = 0.75, 9.81  # kg per carriage, m/s^2
         # the geometry the controller's kinematic model must use (same names as its parameter set)
         self.kinematics, self.H, self.r, self.L = "3PRS", 0.4, 0.35, 0.26
         self.alpha_1, self.alpha_2, self.alpha_3, self.beta = 0.0, math.pi / 2, math.pi, 0.0
@@ -44,7 +45,9 @@ class LumpedMechanism(Fmi2Slave):
         for name in ["F_1", "F_2", "F_3"] + POSE:
             setattr(self, name, 0.0)
             self.register_variable(Real(name, causality=Fmi2Causality.output, variability=Fmi2Variability.continuous))
-        self.register_variable(String("kinematics", causality=Fmi2Causality.parameter, variability=Fmi2Variability.fixed))
+        self.register_variable(
+            String("kinematics", causality=Fmi2Causality.parameter, variability=Fmi2Variability.fixed)
+        )
         for name in ("m", "g", "H", "r", "L", "alpha_1", "alpha_2", "alpha_3", "beta"):
             self.register_variable(Real(name, causality=Fmi2Causality.parameter, variability=Fmi2Variability.fixed))
         self._guess = None
@@ -53,8 +56,8 @@ class LumpedMechanism(Fmi2Slave):
     def _ik(self, q: np.ndarray) -> np.ndarray:
         z, psi, theta = q
         r, H, L = self.r, self.H, self.L
-        x = -r * math.sin(theta) * math.sin(psi)          # parasitic motion of the T layout (y = phi = 0)
-        d = (x + r * math.cos(theta), r * math.cos(psi), r * math.cos(theta) - x)   # radial distance of S_i
+        x = -r * math.sin(theta) * math.sin(psi)  # parasitic motion of the T layout (y = phi = 0)
+        d = (x + r * math.cos(theta), r * math.cos(psi), r * math.cos(theta) - x)  # radial distance of S_i
         h = (z - r * math.sin(theta), z + r * math.cos(theta) * math.sin(psi), z + r * math.sin(theta))
         reach = [L * L - (H - di) ** 2 for di in d]
         if min(reach) <= 0.0 or min(H - di for di in d) <= 0.0:
@@ -62,7 +65,11 @@ class LumpedMechanism(Fmi2Slave):
         return np.array([hi - math.sqrt(wi) for hi, wi in zip(h, reach)])
 
     def _dk(self, rho: np.ndarray) -> np.ndarray:
-        q = self._guess if self._guess is not None else np.array([rho.mean() + math.sqrt(self.L ** 2 - (self.H - self.r) ** 2), 0.0, 0.0])
+        q = (
+            self._guess
+            if self._guess is not None
+            else np.array([rho.mean() + math.sqrt(self.L**2 - (self.H - self.r) ** 2), 0.0, 0.0])
+        )
         for _ in range(30):
             e = self._ik(q) - rho
             if np.abs(e).max() < 1e-12:
@@ -93,7 +100,7 @@ class LumpedMechanism(Fmi2Slave):
         if self._in_init:
             try:
                 self._compute()
-            except ValueError:      # inputs not set yet: keep the last outputs
+            except ValueError:  # inputs not set yet: keep the last outputs
                 pass
         return super().get_real(vrs)
 
@@ -102,7 +109,7 @@ class LumpedMechanism(Fmi2Slave):
         try:
             self._compute()
         except ValueError as err:
-            self.log(f"initial pose: {err}", status=Fmi2Status.error)   # doStep will refuse too
+            self.log(f"initial pose: {err}", status=Fmi2Status.error)  # doStep will refuse too
 
     def do_step(self, current_time: float, step_size: float) -> bool:
         # refuse (False: fmi2Discard) rather than raise: pythonfmu 0.7.0 mishandles the references of

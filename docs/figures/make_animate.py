@@ -4,6 +4,7 @@ Run from the repository root after `make build` (needs Chromium):  python docs/f
 A theta sine of 5 deg at 2 Hz on the default system (the model objects on the FMUs' schedule), 1 s,
 replayed; the picture is the page at t = 0.6 s, where the platform lags the commanded pose (the ghost).
 """
+
 from __future__ import annotations
 
 import tempfile

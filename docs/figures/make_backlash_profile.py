@@ -9,6 +9,7 @@ value's ensemble is at hand (about 650 test simulations, a few minutes on 2 core
 tests with one and with four realisations per value, and pooled over the values within 2^(1/8) (two
 realisations each), as the diagnosis scores a value (phasefree.pooled).
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -24,20 +25,28 @@ import numpy as np  # noqa: E402
 
 import mast.diagnosis.nonlinear as nonlinear  # noqa: E402
 import mast.diagnosis.workflow as workflow  # noqa: E402
-from mast.analyses.synthesize import TestSpec  # noqa: E402
-from mast.analyses.synthesize import synthesize  # noqa: E402
+from mast.analyses.synthesize import (
+    TestSpec,  # noqa: E402
+    synthesize,  # noqa: E402
+)
+from mast.core.build import default_build_dir  # noqa: E402
 from mast.diagnosis import Options, diagnose  # noqa: E402
 from mast.diagnosis.phasefree import POOL_RATIO, pooled  # noqa: E402
-from mast.core.build import default_build_dir  # noqa: E402
 
 OUT = Path(__file__).with_name("backlash_profile.png")
-PLAN = (TestSpec("z", 0.004, 0.7, 1.2, 0.3), TestSpec("psi", math.radians(0.7), 1.8, 0.9, 0.3),
-        TestSpec("z", 0.003, 3.5, 0.8, 0.2), TestSpec("theta", math.radians(0.5), 4.0, 0.7, 0.2),
-        TestSpec("z", 0.0025, 6.0, 0.7, 0.2))
+PLAN = (
+    TestSpec("z", 0.004, 0.7, 1.2, 0.3),
+    TestSpec("psi", math.radians(0.7), 1.8, 0.9, 0.3),
+    TestSpec("z", 0.003, 3.5, 0.8, 0.2),
+    TestSpec("theta", math.radians(0.5), 4.0, 0.7, 0.2),
+    TestSpec("z", 0.0025, 6.0, 0.7, 0.2),
+)
 TRUTH, SEED, REALISATIONS = 3.5e-3, 71, 4
 #: a grid at 2^(1/6) over the basin's surroundings and one at 2^(1/16) across it (6 significant digits)
-VALUES = sorted({float(f"{1.5e-3 * 2 ** (k / 6):.6g}") for k in range(15)} |
-                {float(f"{2.6e-3 * 2 ** (k / 16):.6g}") for k in range(17)})
+VALUES = sorted(
+    {float(f"{1.5e-3 * 2 ** (k / 6):.6g}") for k in range(15)}
+    | {float(f"{2.6e-3 * 2 ** (k / 16):.6g}") for k in range(17)}
+)
 
 
 class _Captured(Exception):
@@ -61,11 +70,25 @@ def main() -> None:
     nonlinear.ENSEMBLE, nonlinear.leave_one_out, workflow.phase_free_stage = REALISATIONS, _capture, _stage
     with tempfile.TemporaryDirectory(prefix="mast_backlash_") as tmp:
         data = Path(tmp) / "data"
-        synthesize(str(default_build_dir() / "ssp" / "MAST.ssp"), data, {"actuator": {"backlash": TRUTH}}, tests=PLAN,
-                   direct=True, seed=SEED, log=lambda *_: None)
+        synthesize(
+            str(default_build_dir() / "ssp" / "MAST.ssp"),
+            data,
+            {"actuator": {"backlash": TRUTH}},
+            tests=PLAN,
+            direct=True,
+            seed=SEED,
+            log=lambda *_: None,
+        )
         try:
-            diagnose(Options(data, Path(tmp) / "out", str(default_build_dir() / "ssp" / "native" / "MAST.ssp"),
-                             figures=False, direct=False))
+            diagnose(
+                Options(
+                    data,
+                    Path(tmp) / "out",
+                    str(default_build_dir() / "ssp" / "native" / "MAST.ssp"),
+                    figures=False,
+                    direct=False,
+                )
+            )
         except _Captured as c:
             score, ensembles, names = c.score, c.ensembles, c.names
         else:
@@ -77,20 +100,32 @@ def main() -> None:
 
     fig, ax = plt.subplots(figsize=(7.5, 4.2))
     mrad = np.array(values) * 1e3
-    for r, style, label in ((1, "x:", "one realisation per value"), (REALISATIONS, "o-", "four realisations per value")):
-        ax.semilogy(mrad, [deviance({n: ensembles[v][n][:r] for n in names}) for v in values], style, ms=4, lw=1,
-                    label=label)
+    for r, style, label in (
+        (1, "x:", "one realisation per value"),
+        (REALISATIONS, "o-", "four realisations per value"),
+    ):
+        ax.semilogy(
+            mrad, [deviance({n: ensembles[v][n][:r] for n in names}) for v in values], style, ms=4, lw=1, label=label
+        )
     two = {v: {n: ensembles[v][n][:2] for n in names} for v in values}
-    ax.semilogy(mrad, [deviance(pooled(two, v, POOL_RATIO)) for v in values], "s-", ms=4, lw=1.5,
-                label="pooled within 2^(1/8), two realisations per value")
+    ax.semilogy(
+        mrad,
+        [deviance(pooled(two, v, POOL_RATIO)) for v in values],
+        "s-",
+        ms=4,
+        lw=1.5,
+        label="pooled within 2^(1/8), two realisations per value",
+    )
     floor = sum(score.floor(n) for n in names)
     ax.axvline(TRUTH * 1e3, color="k", lw=0.8, ls="--")
     ax.axhline(floor, color="grey", lw=0.8)
     ax.text(mrad[0], floor * 1.1, f"the five tests' floors ({floor:.0f})", fontsize=7, color="grey")
     ax.set_xlabel("backlash [mrad]")
     ax.set_ylabel("phase-free deviance, all five tests")
-    ax.set_title(f"Issue plan (z 0.7/3.5/6 Hz, psi 1.8 Hz, theta 4 Hz), truth {TRUTH * 1e3:g} mrad (dashed), "
-                 f"seed {SEED}", fontsize=8)
+    ax.set_title(
+        f"Issue plan (z 0.7/3.5/6 Hz, psi 1.8 Hz, theta 4 Hz), truth {TRUTH * 1e3:g} mrad (dashed), seed {SEED}",
+        fontsize=8,
+    )
     ax.legend(fontsize=7)
     ax.grid(alpha=0.3, which="both")
     fig.tight_layout()

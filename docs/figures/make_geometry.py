@@ -4,6 +4,7 @@ Run from the repository root:  python docs/figures/make_geometry.py
 Left: 3-D view of the T layout at a tilted pose. Right: the vertical radial plane of
 leg 1 with the symbols H, r, L, rho_1, gamma_1, d_1 and the platform centre P.
 """
+
 from __future__ import annotations
 
 import math
@@ -32,16 +33,21 @@ def main() -> None:
         a = geom.alpha[i]
         e = np.array([math.cos(a), math.sin(a), 0.0])
         base = geom.H * e
-        ax.plot(*np.c_[base, base + [0, 0, 0.5]], color="0.6", lw=3)            # guide
+        ax.plot(*np.c_[base, base + [0, 0, 0.5]], color="0.6", lw=3)  # guide
         B, S = pose.sliders[i], pose.S[i]
-        ax.plot(*np.c_[B, S], color="C0", lw=2.5)                                 # leg
+        ax.plot(*np.c_[B, S], color="C0", lw=2.5)  # leg
         ax.scatter(*B, color="C3", s=40)
         ax.scatter(*S, color="C2", s=40)
-        ax.text(*(base + [0, 0, 0.52]), f"guide {i + 1}\n$\\alpha_{i + 1}$ = {math.degrees(a):.0f}°",
-                ha="center", fontsize=8)
+        ax.text(
+            *(base + [0, 0, 0.52]),
+            f"guide {i + 1}\n$\\alpha_{i + 1}$ = {math.degrees(a):.0f}°",
+            ha="center",
+            fontsize=8,
+        )
         ax.text(*(B + [0.01, 0, -0.03]), f"$\\rho_{i + 1}$", fontsize=9, color="C3")
-    ring = np.array([P + pose.R @ (geom.r * np.array([math.cos(s), math.sin(s), 0.0]))
-                     for s in np.linspace(0, 2 * math.pi, 73)])
+    ring = np.array(
+        [P + pose.R @ (geom.r * np.array([math.cos(s), math.sin(s), 0.0])) for s in np.linspace(0, 2 * math.pi, 73)]
+    )
     ax.plot(ring[:, 0], ring[:, 1], ring[:, 2], color="C1", lw=1.5)
     tri = np.vstack([pose.S, pose.S[:1]])
     ax.plot(tri[:, 0], tri[:, 1], tri[:, 2], color="C1", lw=1, ls="--")

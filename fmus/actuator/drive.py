@@ -16,6 +16,7 @@ voltage is a 100 us zero-order hold whatever h is. ``u`` after a step is the vol
 that communication point on (computed at the last tick), before the power stage's clip to
 +-u_supply (ActuatorBlock).
 """
+
 from __future__ import annotations
 
 import math
@@ -74,7 +75,7 @@ class DriveActuatorBlock(Block):
         **{k: v for k, v in ActuatorBlock.DESCRIPTIONS.items() if k != "u"},
         "i_cmd": "current command from the controller (the drive's current loop follows it every T_cur)",
         "u": "voltage the current loop applies from this communication point on (computed at the last "
-             "T_cur tick; before the power stage's clip to +-u_supply)",
+        "T_cur tick; before the power stage's clip to +-u_supply)",
     }
 
     def __init__(self, params: Mapping[str, Value], name: str = "") -> None:
@@ -84,8 +85,8 @@ class DriveActuatorBlock(Block):
         self.axis = ActuatorBlock({k: v for k, v in P.items() if k not in _LOOP}, self.name)
         self.T_cur = float(P["T_cur"])
         self._gains = current_gains(float(P["k_pc"]), float(P["k_ic"]), self.T_cur, float(P["u_max"]))
-        self._x_c = 0.0   # integrator state [V]
-        self._u = 0.0     # voltage applied over the next T_cur [V]
+        self._x_c = 0.0  # integrator state [V]
+        self._u = 0.0  # voltage applied over the next T_cur [V]
 
     def initialize(self, t0: float) -> None:
         """At rest, no voltage applied yet; the outputs from the axis' state and the inputs."""
@@ -101,17 +102,18 @@ class DriveActuatorBlock(Block):
         T = self.T_cur
         m = round(h / T)
         if m < 1 or abs(h - m * T) > 1e-6 * T:
-            raise ModelError(f"{self.name}: step size h = {h!r} s is not a positive integer multiple of "
-                             f"T_cur = {T!r} s")
+            raise ModelError(
+                f"{self.name}: step size h = {h!r} s is not a positive integer multiple of T_cur = {T!r} s"
+            )
         self._check(t)
         values, axis = self.values, self.axis.values
         i_cmd = values[0]
-        axis[1] = values[1]                    # F, held over the ticks (the kernel only reads it)
+        axis[1] = values[1]  # F, held over the ticks (the kernel only reads it)
         kp, kiT, u_max = self._gains
         x_c, u = self._x_c, self._u
-        kernel, x, sensor = self.axis.stepper(T)   # the axis' do_step(t_k, T), without a call per tick
+        kernel, x, sensor = self.axis.stepper(T)  # the axis' do_step(t_k, T), without a call per tick
         ticks = self.axis.ticks(T, pi_step)
-        if ticks is not None:   # the loop below in one generated function (the same arithmetic)
+        if ticks is not None:  # the loop below in one generated function (the same arithmetic)
             code, _, x_c_end, u_end = ticks(axis, x, m, i_cmd, x_c, u, kp, kiT, u_max)
             if not code:
                 self._x_c, self._u = x_c_end, u_end
@@ -119,7 +121,7 @@ class DriveActuatorBlock(Block):
                 return
             # it failed and wrote nothing: the loop below fails at the same tick, with the model's message
         for k in range(m):
-            u_next, x_c = pi_step(i_cmd - axis[7], x_c, kp, kiT, u_max)   # axis[7]: i_m at this tick
+            u_next, x_c = pi_step(i_cmd - axis[7], x_c, kp, kiT, u_max)  # axis[7]: i_m at this tick
             axis[0] = u
             code = kernel(axis, x)
             if code:

@@ -1,4 +1,5 @@
 """FMI 2.0 Co-Simulation wrapper of the actuator model (the equations live in model.py)."""
+
 from __future__ import annotations
 
 from ..common.fmi import BlockSlave

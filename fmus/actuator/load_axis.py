@@ -32,6 +32,7 @@ of a substep v1 = a - b F_f(v1), a = v0 + b (F - F_offset), b = h/M, is
 (the time-stepping of set-valued friction: no chatter at rest, no smoothing speed to
 choose), the position by the trapezoidal rule q1 = q0 + h (v0 + v1) / 2.
 """
+
 from __future__ import annotations
 
 import math
@@ -48,10 +49,16 @@ LOAD_AXIS_PARAMETERS: tuple[Param, ...] = (
     positive("M", "kg", "moving mass seen from the load (load plus motor and screw inertia reflected)"),
     nonnegative("F_c", "N", "Coulomb friction (mean of the two directions)"),
     nonnegative("F_v", "N.s/m", "viscous friction (mean of the two directions)"),
-    Param("dF_c", "N", "Coulomb friction asymmetry: F_c + dF_c for positive velocity, F_c - dF_c for negative "
-          "(0: symmetric)"),
-    Param("dF_v", "N.s/m", "viscous friction asymmetry: F_v + dF_v for positive velocity, F_v - dF_v for "
-          "negative (0: symmetric)"),
+    Param(
+        "dF_c",
+        "N",
+        "Coulomb friction asymmetry: F_c + dF_c for positive velocity, F_c - dF_c for negative (0: symmetric)",
+    ),
+    Param(
+        "dF_v",
+        "N.s/m",
+        "viscous friction asymmetry: F_v + dF_v for positive velocity, F_v - dF_v for negative (0: symmetric)",
+    ),
     Param("F_offset", "N", "constant force against the drive: M q'' = F - F_f(q') - F_offset (0: none)"),
     Param("q_0", "m", "initial position (at rest)"),
     positive("h_max", "s", "longest integration substep"),
@@ -84,9 +91,11 @@ class LoadAxisBlock(Block):
         for side, sign in (("positive", 1.0), ("negative", -1.0)):
             for mean, delta in (("F_c", "dF_c"), ("F_v", "dF_v")):
                 if p[mean] + sign * p[delta] < 0.0:
-                    raise ParameterError(f"{self.name}: parameter '{delta}' = {p[delta]!r}: the {side}-velocity "
-                                         f"coefficient {mean} {'+' if sign > 0 else '-'} {delta} would be negative "
-                                         f"({mean} = {p[mean]!r})")
+                    raise ParameterError(
+                        f"{self.name}: parameter '{delta}' = {p[delta]!r}: the {side}-velocity "
+                        f"coefficient {mean} {'+' if sign > 0 else '-'} {delta} would be negative "
+                        f"({mean} = {p[mean]!r})"
+                    )
         self._q = self._v = self._ff = 0.0
         self._steps: dict = {}
 
@@ -104,8 +113,15 @@ class LoadAxisBlock(Block):
             n = max(1, math.ceil(h / p["h_max"] - 1e-9))
             hs = h / n
             b = hs / p["M"]
-            self._steps[h] = (n, hs, b, p["F_c"] + p["dF_c"], p["F_c"] - p["dF_c"],
-                              1.0 + b * (p["F_v"] + p["dF_v"]), 1.0 + b * (p["F_v"] - p["dF_v"]))
+            self._steps[h] = (
+                n,
+                hs,
+                b,
+                p["F_c"] + p["dF_c"],
+                p["F_c"] - p["dF_c"],
+                1.0 + b * (p["F_v"] + p["dF_v"]),
+                1.0 + b * (p["F_v"] - p["dF_v"]),
+            )
         return self._steps[h]
 
     def do_step(self, t: float, h: float) -> None:

@@ -69,6 +69,7 @@ size costs one weighted sum of them. benchmarks/variable_step.py measures both r
 exponential, balancing and product here is ``fmus.common.fixed_order``'s (no BLAS or LAPACK: the
 same floats on every machine, and the native actuator's, docs/native.md).
 """
+
 from __future__ import annotations
 
 import functools
@@ -76,6 +77,7 @@ import math
 from typing import Callable, Mapping, Optional, Sequence
 
 import numpy as np
+
 from ..common.block import Block, ModelError
 from ..common.codegen import compile_generated, largest_parameters
 from ..common.fixed_order import balance, eig_max, expm, matmul
@@ -97,7 +99,7 @@ __all__ = [
 
 MAX_PHASE_PER_SUBSTEP = 2.0  # rad: fastest chain mode x substep (keeps the friction equation monotone)
 BACKLASH_SUBSTEP = 1e-5  # s: longest substep with backlash (contact and separation resolved to 10 us)
-_KERNELS_KEPT = 32        # step functions kept, by step size
+_KERNELS_KEPT = 32  # step functions kept, by step size
 _COMPILED_STEP_SIZES = 4  # a fixed-step host needs one or two; beyond, the host varies its step (see _bind)
 
 
@@ -136,20 +138,32 @@ PARAMETERS: tuple[Param, ...] = (
     nonnegative("J_brake", "kg.m2", "brake inertia, on the motor shaft: added to J1"),
     positive("J1_scale", "1", "multiplier on J1 (paper identified set: 1/1.56); scales J_chain[0] when n_dof >= 3"),
     positive("J_guide", "kg.m2", "linear guide inertia at its input shaft (Eq. 21)"),
-    nonnegative("M_load", "kg", "drive carriage mass (Eqs. 21-22); its weight acts on the guide (0: the carriage is a "
-                "body of the mechanism, a 3-RPS's leg: docs/designs/3rps.md)"),
+    nonnegative(
+        "M_load",
+        "kg",
+        "drive carriage mass (Eqs. 21-22); its weight acts on the guide (0: the carriage is a "
+        "body of the mechanism, a 3-RPS's leg: docs/designs/3rps.md)",
+    ),
     positive("K_t", "N.m/rad", "transmission stiffness, motor side (Eqs. 2-3, Table 1)"),
     nonnegative("C_t", "N.m.s/rad", "transmission damping, motor side (Eqs. 2-3, Table 1)"),
     nonnegative("tau_c", "N.m", "guide Coulomb friction referred to the motor shaft (Eq. 23)"),
     positive("omega_c", "rad/s", "friction smoothing speed at the motor shaft: tau_c tanh(omega/omega_c)"),
     nonnegative("b_v", "N.m.s/rad", "viscous friction on the guide side, motor shaft"),
-    nonnegative("tau_s", "N.m", "Stribeck: static friction excess over tau_c at standstill, motor shaft "
-                "(0: no Stribeck effect)"),
+    nonnegative(
+        "tau_s", "N.m", "Stribeck: static friction excess over tau_c at standstill, motor shaft (0: no Stribeck effect)"
+    ),
     positive("omega_s", "rad/s", "Stribeck speed at the motor shaft: the excess decays as exp(-(omega/omega_s)^2)"),
-    nonnegative("backlash", "rad", "total dead zone of the transmission spring K_t at the motor shaft "
-                "(n_dof = 2 only; 0: no backlash)"),
-    nonnegative("tau_ripple", "N.m", "amplitude of a position-periodic guide torque (belt tooth mesh, cogging) "
-                "at the motor shaft: tau_ripple sin(2 pi (rho - rho_0) / ripple_period); 0: none"),
+    nonnegative(
+        "backlash",
+        "rad",
+        "total dead zone of the transmission spring K_t at the motor shaft (n_dof = 2 only; 0: no backlash)",
+    ),
+    nonnegative(
+        "tau_ripple",
+        "N.m",
+        "amplitude of a position-periodic guide torque (belt tooth mesh, cogging) "
+        "at the motor shaft: tau_ripple sin(2 pi (rho - rho_0) / ripple_period); 0: none",
+    ),
     positive("ripple_period", "m", "carriage travel per period of the guide torque ripple"),
     nonnegative("T_meas", "s", "torque measurement: first-order low-pass time constant (output tau_meas)"),
     nonnegative("delay_meas", "s", "torque measurement: pure delay (output tau_meas)"),
@@ -158,14 +172,16 @@ PARAMETERS: tuple[Param, ...] = (
     Param("rho_0", "m", "initial carriage position, rho_min < rho_0 < rho_max"),
     Param("rho_min", "m", "lower end of the stroke"),
     Param("rho_max", "m", "upper end of the stroke"),
-    Param("n_dof", "", "transmission model: 1 rigid, 2 two-inertia (Eqs. 2-3), N >= 3 chain",
-          1, 64, kind=int),
-    Param("J_chain", "kg.m2", "n_dof >= 3: N inertias, motor side first, referred to the motor shaft, "
-          "carriage included in the last, space separated", kind=str),
-    Param("K_chain", "N.m/rad", "n_dof >= 3: N-1 stiffnesses referred to the motor shaft, space separated",
-          kind=str),
-    Param("C_chain", "N.m.s/rad", "n_dof >= 3: N-1 dampings referred to the motor shaft, space separated",
-          kind=str),
+    Param("n_dof", "", "transmission model: 1 rigid, 2 two-inertia (Eqs. 2-3), N >= 3 chain", 1, 64, kind=int),
+    Param(
+        "J_chain",
+        "kg.m2",
+        "n_dof >= 3: N inertias, motor side first, referred to the motor shaft, "
+        "carriage included in the last, space separated",
+        kind=str,
+    ),
+    Param("K_chain", "N.m/rad", "n_dof >= 3: N-1 stiffnesses referred to the motor shaft, space separated", kind=str),
+    Param("C_chain", "N.m.s/rad", "n_dof >= 3: N-1 dampings referred to the motor shaft, space separated", kind=str),
     positive("i_r", "1", "gearbox ratio (Eq. 1)"),
     positive("p", "m", "guide feed per revolution of its input shaft (Eq. 1)"),
 )
@@ -195,18 +211,20 @@ def two_inertia(params: Mapping[str, Value]) -> tuple[float, float]:
     J1 = J1_scale (J_motor + J_gearbox + J_coupling + J_brake) (Eq. 20 plus the brake),
     J2 = J_guide / i_r^2 + M_load i_R^2.
     """
-    f = {k: real_or_traced(params[k]) for k in ("J_motor", "J_gearbox", "J_coupling", "J_brake", "J1_scale",
-                                        "J_guide", "M_load", "i_r", "p")}
+    f = {
+        k: real_or_traced(params[k])
+        for k in ("J_motor", "J_gearbox", "J_coupling", "J_brake", "J1_scale", "J_guide", "M_load", "i_r", "p")
+    }
     i_R = transmission_ratio(f["p"], f["i_r"])
     J1 = f["J1_scale"] * (f["J_motor"] + f["J_gearbox"] + f["J_coupling"] + f["J_brake"])
-    J2 = f["J_guide"] / (f["i_r"] * f["i_r"]) + f["M_load"] * (i_R * i_R)   # x * x: the same float as x ** 2
+    J2 = f["J_guide"] / (f["i_r"] * f["i_r"]) + f["M_load"] * (i_R * i_R)  # x * x: the same float as x ** 2
     return J1, J2
 
 
 def guide_friction(omega: float, tau_c: float, omega_c: float, tau_s: float = 0.0, omega_s: float = 1.0) -> float:
     """Guide friction torque at the motor shaft [N m] at motor speed ``omega`` [rad/s] (module docstring):
     (tau_c + tau_s exp(-(omega/omega_s)^2)) tanh(omega/omega_c); tau_c, tau_s [N m], omega_c, omega_s [rad/s]."""
-    excess = tau_s * math.exp(-(omega / omega_s) ** 2) if tau_s else 0.0
+    excess = tau_s * math.exp(-((omega / omega_s) ** 2)) if tau_s else 0.0
     return (tau_c + excess) * math.tanh(omega / omega_c)
 
 
@@ -214,8 +232,10 @@ def _parse_list(params: Mapping[str, Value], name: str, count: int, positive: bo
     text = str(params[name]).replace(",", " ").split()
     what = "> 0" if positive else ">= 0"
     if len(text) != count:
-        raise ParameterError(f"parameter '{name}' = {params[name]!r}: expected {count} space separated "
-                             f"numbers {what} for n_dof = {params['n_dof']}, got {len(text)}")
+        raise ParameterError(
+            f"parameter '{name}' = {params[name]!r}: expected {count} space separated "
+            f"numbers {what} for n_dof = {params['n_dof']}, got {len(text)}"
+        )
     values = []
     for item in text:
         try:
@@ -223,14 +243,14 @@ def _parse_list(params: Mapping[str, Value], name: str, count: int, positive: bo
         except ValueError:
             v = math.nan
         if not math.isfinite(v) or (v <= 0.0 if positive else v < 0.0):
-            raise ParameterError(f"parameter '{name}' = {params[name]!r}: item {item!r} is not a finite "
-                                 f"number {what}")
+            raise ParameterError(f"parameter '{name}' = {params[name]!r}: item {item!r} is not a finite number {what}")
         values.append(v)
     return values
 
 
-def chain(params: Mapping[str, Value], lists: Optional[Mapping[str, Sequence]] = None
-          ) -> tuple[list[float], list[float], list[float]]:
+def chain(
+    params: Mapping[str, Value], lists: Optional[Mapping[str, Sequence]] = None
+) -> tuple[list[float], list[float], list[float]]:
     """The lumped chain selected by ``n_dof``: (J [kg m^2], K [N m/rad], C [N m s/rad]).
 
     All referred to the motor shaft, motor side first, guide side last; len(J) = n_dof
@@ -245,16 +265,19 @@ def chain(params: Mapping[str, Value], lists: Optional[Mapping[str, Sequence]] =
         J1, J2 = two_inertia(params)
         return [J1, J2], [real_or_traced(params["K_t"])], [real_or_traced(params["C_t"])]
     if lists is None:
-        lists = {"J_chain": _parse_list(params, "J_chain", n, True),
-                 "K_chain": _parse_list(params, "K_chain", n - 1, True),
-                 "C_chain": _parse_list(params, "C_chain", n - 1, False)}
+        lists = {
+            "J_chain": _parse_list(params, "J_chain", n, True),
+            "K_chain": _parse_list(params, "K_chain", n - 1, True),
+            "C_chain": _parse_list(params, "C_chain", n - 1, False),
+        }
     J = list(lists["J_chain"])
     J[0] *= real_or_traced(params["J1_scale"])
     return J, list(lists["K_chain"]), list(lists["C_chain"])
 
 
-def state_matrices(params: Mapping[str, Value], lumped: Optional[tuple[Sequence, Sequence, Sequence]] = None
-                   ) -> tuple[np.ndarray, np.ndarray, list[str]]:
+def state_matrices(
+    params: Mapping[str, Value], lumped: Optional[tuple[Sequence, Sequence, Sequence]] = None
+) -> tuple[np.ndarray, np.ndarray, list[str]]:
     """Linear part of the model: dx/dt = A x + B [u_sat, tau_L]^T.
 
     x = [i, theta_1..theta_N, omega_1..omega_N] (A, rad, rad/s); u_sat [V]; tau_L [N m] the
@@ -266,7 +289,7 @@ def state_matrices(params: Mapping[str, Value], lumped: Optional[tuple[Sequence,
     R, L, k_T, k_E, b_v = (real_or_traced(params[k]) for k in ("R", "L", "k_T", "k_E", "b_v"))
     size = 2 * n + 1
     numbers = all(isinstance(v, float) for v in (*J, *K, *C, R, L, k_T, k_E, b_v))
-    A = np.zeros((size, size), dtype=float if numbers else object)   # object: traced numbers (native generator)
+    A = np.zeros((size, size), dtype=float if numbers else object)  # object: traced numbers (native generator)
     B = np.zeros((size, 2), dtype=A.dtype)
     th = lambda k: 1 + k  # noqa: E731  (index helpers)
     om = lambda k: 1 + n + k  # noqa: E731
@@ -367,8 +390,18 @@ class ActuatorBlock(Block):
     INPUTS = ("u", "F")
     OUTPUTS = ("rho", "rho_dot", "rho_ddot", "theta_m", "omega_m", "i_m", "tau_m", "tau_meas")
     PARAMETERS = PARAMETERS
-    UNITS = {"u": "V", "F": "N", "rho": "m", "rho_dot": "m/s", "rho_ddot": "m/s2", "theta_m": "rad",
-             "omega_m": "rad/s", "i_m": "A", "tau_m": "N.m", "tau_meas": "N.m"}
+    UNITS = {
+        "u": "V",
+        "F": "N",
+        "rho": "m",
+        "rho_dot": "m/s",
+        "rho_ddot": "m/s2",
+        "theta_m": "rad",
+        "omega_m": "rad/s",
+        "i_m": "A",
+        "tau_m": "N.m",
+        "tau_meas": "N.m",
+    }
     DESCRIPTIONS = {
         "u": "voltage command from the controller (clipped to +-u_supply)",
         "F": "force this actuator applies to the mechanism along its guide, positive upward",
@@ -386,11 +419,15 @@ class ActuatorBlock(Block):
         super().__init__(params, name)
         p = self.params
         if not p["rho_min"] < p["rho_max"]:
-            raise ParameterError(f"{self.name}: parameter 'rho_max' = {p['rho_max']!r}: expected a value above "
-                                 f"rho_min = {p['rho_min']!r} m")
+            raise ParameterError(
+                f"{self.name}: parameter 'rho_max' = {p['rho_max']!r}: expected a value above "
+                f"rho_min = {p['rho_min']!r} m"
+            )
         if not p["rho_min"] < p["rho_0"] < p["rho_max"]:
-            raise ParameterError(f"{self.name}: parameter 'rho_0' = {p['rho_0']!r}: expected a position inside "
-                                 f"the stroke ({p['rho_min']!r}, {p['rho_max']!r}) m")
+            raise ParameterError(
+                f"{self.name}: parameter 'rho_0' = {p['rho_0']!r}: expected a position inside "
+                f"the stroke ({p['rho_min']!r}, {p['rho_max']!r}) m"
+            )
         try:
             self.J, self.K, self.C = chain(p)
         except ParameterError as err:
@@ -401,15 +438,20 @@ class ActuatorBlock(Block):
         self.constants = kernel_constants(p, self.i_R, self.A, self.B, self.J, self.K, self.C)
         self._omega_max = fastest_mode(self.J, self.K)
         if p["backlash"] > 0.0 and self.N != 2:
-            raise ParameterError(f"{self.name}: parameter 'backlash' = {p['backlash']!r}: backlash is modelled "
-                                 f"in the two-inertia transmission only (n_dof = 2, here {self.N})")
-        self._sensor = (None if is_neutral(p["T_meas"], p["delay_meas"], p["tau_offset"])
-                        else TorqueSensor(p["T_meas"], p["delay_meas"], p["tau_offset"]))
+            raise ParameterError(
+                f"{self.name}: parameter 'backlash' = {p['backlash']!r}: backlash is modelled "
+                f"in the two-inertia transmission only (n_dof = 2, here {self.N})"
+            )
+        self._sensor = (
+            None
+            if is_neutral(p["T_meas"], p["delay_meas"], p["tau_offset"])
+            else TorqueSensor(p["T_meas"], p["delay_meas"], p["tau_offset"])
+        )
         self._kernels: dict[float, tuple[Callable, int]] = {}
-        self._ticks: dict[float, Callable] = {}       # the drive's loop over steps of h (``ticks``), by h
-        self._ticks_h, self._ticks_fn = math.nan, None   # the last h asked and its loop
-        self._compiled = 0                            # step sizes compiled with their numbers inlined
-        self._bound: Optional[Callable] = None        # the kernel that takes its step size's numbers first
+        self._ticks: dict[float, Callable] = {}  # the drive's loop over steps of h (``ticks``), by h
+        self._ticks_h, self._ticks_fn = math.nan, None  # the last h asked and its loop
+        self._compiled = 0  # step sizes compiled with their numbers inlined
+        self._bound: Optional[Callable] = None  # the kernel that takes its step size's numbers first
         self._series: Optional[list["_ZohSeries"]] = None  # exp(M h)[:n] for any h, per generator
         self._h = math.nan
         self._kernel: Callable = _no_kernel
@@ -465,8 +507,12 @@ class ActuatorBlock(Block):
             E = E.reshape(n, -1)
             namespace: dict = {"tanh": math.tanh, "exp": math.exp, "sin": math.sin, "pi_step": pi_step}
             found = self._ticks[key] = compile_generated(
-                _ticks_source(self, E[:, :n], E[:, n:n + 2], m), "ticks", f"{self.name}: drive ticks h={key!r} m={m}",
-                namespace, largest_parameters(self.params))
+                _ticks_source(self, E[:, :n], E[:, n : n + 2], m),
+                "ticks",
+                f"{self.name}: drive ticks h={key!r} m={m}",
+                namespace,
+                largest_parameters(self.params),
+            )
         self._ticks_h, self._ticks_fn = h, found
         return found
 
@@ -481,32 +527,41 @@ class ActuatorBlock(Block):
         w = x[2 * N]
         tau_f = p["tau_c"] * math.tanh(w / p["omega_c"])
         if p["tau_s"] > 0.0:
-            tau_f += p["tau_s"] * math.exp(-(w / p["omega_s"]) ** 2) * math.tanh(w / p["omega_c"])
+            tau_f += p["tau_s"] * math.exp(-((w / p["omega_s"]) ** 2)) * math.tanh(w / p["omega_c"])
         tau_L = -self.i_R * (F + p["M_load"] * p["g_guide"]) - tau_f
         if p["tau_ripple"] > 0.0:
             tau_L -= p["tau_ripple"] * math.sin(2.0 * math.pi * self.i_R * x[N] / p["ripple_period"])
-        alpha = 0.0   # springs undeflected here; summed in the kernel's order (``_alpha``), no BLAS
+        alpha = 0.0  # springs undeflected here; summed in the kernel's order (``_alpha``), no BLAS
         for a_k, x_k in zip(self.A[2 * N].tolist(), x):
             alpha += a_k * x_k
         alpha += float(self.B[2 * N, 1]) * tau_L
         n_in = len(self.INPUTS)
         tau_m = p["k_T"] * x[0]
         tau_meas = tau_m if self._sensor is None else self._sensor.reset(tau_m)
-        self.values[n_in:] = [p["rho_0"] + self.i_R * x[N], self.i_R * w, self.i_R * alpha,
-                              x[1], x[N + 1], x[0], tau_m, tau_meas]
+        self.values[n_in:] = [
+            p["rho_0"] + self.i_R * x[N],
+            self.i_R * w,
+            self.i_R * alpha,
+            x[1],
+            x[N + 1],
+            x[0],
+            tau_m,
+            tau_meas,
+        ]
 
     def fail(self, code: int, t: float, h: float) -> None:
         """Raise the ModelError of the kernel's failure ``code`` in the step from t over h [s]."""
         if code in INPUT_ERRORS:
             name = INPUT_ERRORS[code]
-            raise ModelError(f"{self.name}: input '{name}' = {self.values[code - 1]} at t={t:.9g} s "
-                             f"is not finite")
+            raise ModelError(f"{self.name}: input '{name}' = {self.values[code - 1]} at t={t:.9g} s is not finite")
         if code == 3:
             raise ModelError(f"{self.name}: diverged at t={t + h:.9g} s (non-finite state)")
         p = self.params
         rho = p["rho_0"] + self.i_R * self._x[self.N]
-        raise ModelError(f"{self.name}: carriage left the stroke [{p['rho_min']:g}, {p['rho_max']:g}] m: "
-                         f"rho = {rho:.6g} m at t={t + h:.9g} s")
+        raise ModelError(
+            f"{self.name}: carriage left the stroke [{p['rho_min']:g}, {p['rho_max']:g}] m: "
+            f"rho = {rho:.6g} m at t={t + h:.9g} s"
+        )
 
     def _select(self, h: float) -> None:
         if not (h > 0.0 and math.isfinite(h)):
@@ -551,7 +606,7 @@ class ActuatorBlock(Block):
         m, fall = substep_rule(self._omega_max, h, p["backlash"], p["tau_s"], p["omega_s"])
         n = 2 * self.N + 1
         b_at = 2 * self.N * (n + 2 + (p["backlash"] > 0.0)) + n + 1  # Gamma[omega_N, tau_L]: [Phi Gamma] has n + 2
-        while True:                                                 # columns, n + 3 with backlash's input pl
+        while True:  # columns, n + 3 with backlash's input pl
             discretisations = zoh(h / m)
             b = discretisations[0][b_at]  # d omega_N(end) / d tau_L over a substep
             if substeps_enough(b, fall, m):
@@ -567,14 +622,15 @@ class ActuatorBlock(Block):
         first = self._generators()[0]
         m, (E,) = self._substeps(h, lambda h_sub: [expm(first * h_sub)[:n].ravel()])
         E = E.reshape(n, -1)
-        Phi, Gam = E[:, :n], E[:, n:n + 2]
+        Phi, Gam = E[:, :n], E[:, n : n + 2]
         if self.params["backlash"] > 0.0:
             source = backlash_kernel_source(self, h / m, m)
         else:
             source = kernel_source(self, Phi, Gam, m)
         namespace: dict = {"tanh": math.tanh, "exp": math.exp, "sin": math.sin}
-        kernel = compile_generated(source, "kernel", f"{self.name}: actuator kernel h={h!r} m={m}", namespace,
-                                   largest_parameters(self.params))
+        kernel = compile_generated(
+            source, "kernel", f"{self.name}: actuator kernel h={h!r} m={m}", namespace, largest_parameters(self.params)
+        )
         return kernel, m
 
     def _bind(self, h: float) -> tuple[Callable, int]:
@@ -588,7 +644,7 @@ class ActuatorBlock(Block):
             self._series = [_ZohSeries(M, n) for M in self._generators()]
         m, discretisations = self._substeps(h, lambda h_sub: [s(h_sub) for s in self._series])
         numbers = []
-        cols = [len(E) // n for E in discretisations]   # [Phi Gamma]: n + 2 columns, n + 3 with backlash
+        cols = [len(E) // n for E in discretisations]  # [Phi Gamma]: n + 2 columns, n + 3 with backlash
         for E in discretisations:
             numbers += E.tolist()
         for E, c in zip(discretisations, cols):  # the friction solve of each: d omega_N(end) / d tau_L
@@ -600,14 +656,16 @@ class ActuatorBlock(Block):
                 rows = name_grid(prefix, (n, c))  # P_i_j for Phi; Gamma's columns renamed G_i_k below
                 rows[:, n:] = name_grid("G" + prefix[1:], (n, c - n))
                 names += rows.ravel().tolist()
-            for prefix in (("FC_", "FG_") if backlash else ("F_",)):
+            for prefix in ("FC_", "FG_") if backlash else ("F_",):
                 names += [prefix + k for k in friction_constants(p, 1.0)]
             names.append("M_SUB")
             if backlash:
                 source = backlash_kernel_source(self, h / m, m, named=True)
             else:
                 source = kernel_source(self, name_grid("P", (n, n)), name_grid("G", (n, 2)), m, named=True)
-            source = source.replace("def kernel(values, x):\n", f"def kernel(c, values, x):\n    {', '.join(names)}, = c\n", 1)
+            source = source.replace(
+                "def kernel(values, x):\n", f"def kernel(c, values, x):\n    {', '.join(names)}, = c\n", 1
+            )
             namespace: dict = {"tanh": math.tanh, "exp": math.exp, "sin": math.sin}
             exec(compile(source, "<actuator kernel bound per step size>", "exec"), namespace)
             self._bound = namespace["kernel"]
@@ -626,8 +684,8 @@ class _ZohSeries:
     order (no BLAS: the same floats on every machine, ``fmus.common.fixed_order``).
     """
 
-    REMAINDER = 2.0 ** -60
-    KEPT = 256   # reference steps kept
+    REMAINDER = 2.0**-60
+    KEPT = 256  # reference steps kept
 
     def __init__(self, M: np.ndarray, rows: int) -> None:
         self._M, self._rows = M, rows
@@ -645,14 +703,14 @@ class _ZohSeries:
             reference = self._references[h_r] = self._expand(h_r, math.ldexp(1.0, exponent - 5))
         s, degree, C = reference
         if C is None:  # M s too large for a short series: the exponential itself
-            return expm(self._M * h)[:self._rows].ravel()
+            return expm(self._M * h)[: self._rows].ravel()
         x, weights = (h - h_r) / s, [1.0]
         for _ in range(degree):
             weights.append(weights[-1] * x)
         return (np.array(weights)[:, None] * C).sum(axis=0)
 
     def _expand(self, h_r: float, s: float) -> tuple[float, int, Optional[np.ndarray]]:
-        nu = self._norm * s   # the series' terms fall at least as nu^k / k!
+        nu = self._norm * s  # the series' terms fall at least as nu^k / k!
         if nu > 1.0:
             return s, 0, None
         degree, bound = 1, nu * nu / 2.0
@@ -660,7 +718,7 @@ class _ZohSeries:
             degree += 1
             bound *= nu / (degree + 1)
         X = self._M * s
-        term = expm(self._M * h_r)[:self._rows] if h_r > 0.0 else np.eye(len(X))[:self._rows]
+        term = expm(self._M * h_r)[: self._rows] if h_r > 0.0 else np.eye(len(X))[: self._rows]
         terms = [term]
         for k in range(1, degree + 1):
             term = matmul(term, X) / k
@@ -682,8 +740,11 @@ def _no_kernel(values: list, x: list) -> int:  # pragma: no cover - replaced bef
 
 def _lin(coefs: Sequence, names: Sequence[str]) -> str:
     """sum(c v): a number is inlined (a zero left out), a string is the name of a constant bound later."""
-    terms = [f"{c}*{v}" if isinstance(c, str) else f"{float(c)!r}*{v}"
-             for c, v in zip(coefs, names) if isinstance(c, str) or c != 0.0]
+    terms = [
+        f"{c}*{v}" if isinstance(c, str) else f"{float(c)!r}*{v}"
+        for c, v in zip(coefs, names)
+        if isinstance(c, str) or c != 0.0
+    ]
     return " + ".join(terms) if terms else "0.0"
 
 
@@ -772,11 +833,25 @@ def friction_constants(p: Mapping[str, Value], b: float, stribeck: Optional[bool
     tau_c, omega_c, tau_s = real_or_traced(p["tau_c"]), real_or_traced(p["omega_c"]), real_or_traced(p["tau_s"])
     if tau_s > 0.0 if stribeck is None else stribeck:
         omega_s = real_or_traced(p["omega_s"])
-        return {"b": b, "bt": b * (tau_c + tau_s), "iwc": 1.0 / omega_c, "iws2": 1.0 / (omega_s * omega_s),
-                "tol": 1e-10 * omega_c, "tau_c": tau_c, "tau_s": tau_s, "inv_b": 1.0 / b}
+        return {
+            "b": b,
+            "bt": b * (tau_c + tau_s),
+            "iwc": 1.0 / omega_c,
+            "iws2": 1.0 / (omega_s * omega_s),
+            "tol": 1e-10 * omega_c,
+            "tau_c": tau_c,
+            "tau_s": tau_s,
+            "inv_b": 1.0 / b,
+        }
     k = b * tau_c / omega_c
-    return {"btc": b * tau_c, "k": k, "inv_wc": 1.0 / omega_c, "inv_b": 1.0 / b, "lin": 1.0 / (1.0 + k),
-            "tol": 1e-10 * omega_c}
+    return {
+        "btc": b * tau_c,
+        "k": k,
+        "inv_wc": 1.0 / omega_c,
+        "inv_b": 1.0 / b,
+        "lin": 1.0 / (1.0 + k),
+        "tol": 1e-10 * omega_c,
+    }
 
 
 def _friction_lines(p: Mapping[str, Value], b: float, prefix: Optional[str] = None) -> list[str]:
@@ -787,24 +862,47 @@ def _friction_lines(p: Mapping[str, Value], b: float, prefix: Optional[str] = No
     return (_stribeck_source if float(p["tau_s"]) > 0.0 else _friction_source)(text, "")
 
 
-def kernel_constants(p: Mapping[str, Value], i_R, A: np.ndarray, B: np.ndarray, J: Sequence, K: Sequence,
-                     C: Sequence) -> dict[str, object]:
+def kernel_constants(
+    p: Mapping[str, Value], i_R, A: np.ndarray, B: np.ndarray, J: Sequence, K: Sequence, C: Sequence
+) -> dict[str, object]:
     """The numbers the step kernel computes with that depend on the parameters only (not on the step
     size), by name: inlined into a compiled kernel, or (``symbolic``) read by name, as the native FMU
     does after computing them from the parameters at initialisation (these same lines, traced)."""
     us, n = real_or_traced(p["u_supply"]), A.shape[0]
-    c = {"us": us, "nus": -us, "iR": i_R, "niR": -i_R, "weight": i_R * real_or_traced(p["M_load"]) * real_or_traced(p["g_guide"]),
-         "mg": real_or_traced(p["M_load"]) * real_or_traced(p["g_guide"]), "ripple": real_or_traced(p["tau_ripple"]),
-         "rk": 2.0 * math.pi * i_R / real_or_traced(p["ripple_period"]), "rho0": real_or_traced(p["rho_0"]),
-         "rmin": real_or_traced(p["rho_min"]), "rmax": real_or_traced(p["rho_max"]), "kT": real_or_traced(p["k_T"]),
-         "tau_c": real_or_traced(p["tau_c"]), "omega_c": real_or_traced(p["omega_c"]), "tau_s": real_or_traced(p["tau_s"]),
-         "omega_s": real_or_traced(p["omega_s"])}
+    c = {
+        "us": us,
+        "nus": -us,
+        "iR": i_R,
+        "niR": -i_R,
+        "weight": i_R * real_or_traced(p["M_load"]) * real_or_traced(p["g_guide"]),
+        "mg": real_or_traced(p["M_load"]) * real_or_traced(p["g_guide"]),
+        "ripple": real_or_traced(p["tau_ripple"]),
+        "rk": 2.0 * math.pi * i_R / real_or_traced(p["ripple_period"]),
+        "rho0": real_or_traced(p["rho_0"]),
+        "rmin": real_or_traced(p["rho_min"]),
+        "rmax": real_or_traced(p["rho_max"]),
+        "kT": real_or_traced(p["k_T"]),
+        "tau_c": real_or_traced(p["tau_c"]),
+        "omega_c": real_or_traced(p["omega_c"]),
+        "tau_s": real_or_traced(p["tau_s"]),
+        "omega_s": real_or_traced(p["omega_s"]),
+    }
     c.update({f"aw{j}": A[n - 1, j] for j in range(n)})
     c["bw"] = B[n - 1, 1]
-    if len(J) == 2:       # backlash (two-inertia model only)
+    if len(J) == 2:  # backlash (two-inertia model only)
         hb = 0.5 * real_or_traced(p["backlash"])
-        c.update({"hb": hb, "nhb": -hb, "khb": K[0] * hb, "nkhb": -K[0] * hb, "ks": K[0], "cs": C[0],
-                  "bv": real_or_traced(p["b_v"]), "ij2": 1.0 / J[1]})
+        c.update(
+            {
+                "hb": hb,
+                "nhb": -hb,
+                "khb": K[0] * hb,
+                "nkhb": -K[0] * hb,
+                "ks": K[0],
+                "cs": C[0],
+                "bv": real_or_traced(p["b_v"]),
+                "ij2": 1.0 / J[1],
+            }
+        )
     return c
 
 
@@ -818,8 +916,10 @@ def _numbers(block: ActuatorBlock, symbolic: bool) -> dict[str, str]:
 def _load_lines(block: ActuatorBlock, xs: Sequence[str], c: Mapping[str, str], ripple: bool) -> list[str]:
     """Unpack the state and compute tl, the torque on the last inertia except friction (held over the step)."""
     if ripple:
-        return [f"    {', '.join(xs)}, = x",
-                f"    tl = {c['niR']}*F - {c['weight']} - {c['ripple']}*sin({c['rk']}*x{block.N})"]
+        return [
+            f"    {', '.join(xs)}, = x",
+            f"    tl = {c['niR']}*F - {c['weight']} - {c['ripple']}*sin({c['rk']}*x{block.N})",
+        ]
     return [f"    tl = {c['niR']}*F - {c['weight']}", f"    {', '.join(xs)}, = x"]
 
 
@@ -850,8 +950,9 @@ def _kernel_tail(block: ActuatorBlock, xs: Sequence[str], alpha: str, c: Mapping
     ]
 
 
-def kernel_source(block: ActuatorBlock, Phi: np.ndarray, Gam: np.ndarray, m: int, named: bool = False,
-                   symbolic: bool = False) -> str:
+def kernel_source(
+    block: ActuatorBlock, Phi: np.ndarray, Gam: np.ndarray, m: int, named: bool = False, symbolic: bool = False
+) -> str:
     """Python source of ``kernel(values, x) -> int`` (0 ok, 1/2 bad input u/F, 3 diverged, 4 stroke).
 
     ``named``: Phi and Gam are arrays of names (``name_grid``), the friction constants and the
@@ -873,8 +974,9 @@ def kernel_source(block: ActuatorBlock, Phi: np.ndarray, Gam: np.ndarray, m: int
     return "\n".join(lines) + "\n"
 
 
-def _substep_lines(block: ActuatorBlock, Phi: np.ndarray, Gam: np.ndarray, named: bool,
-                   shared: bool = False) -> list[str]:
+def _substep_lines(
+    block: ActuatorBlock, Phi: np.ndarray, Gam: np.ndarray, named: bool, shared: bool = False
+) -> list[str]:
     """One substep (u, tl and the state x0.. given): the implicit friction torque tf, then the state.
 
     ``shared`` (numbers inlined): the friction's ``a`` and the new omega_N have the same terms but the
@@ -890,8 +992,14 @@ def _substep_lines(block: ActuatorBlock, Phi: np.ndarray, Gam: np.ndarray, named
         head = _lin(list(Phi[wN]) + [Gam[wN, 0]], xs + ["u"])
         last = _lin([Gam[wN, 1]], ["w"])
         to_tl = _lin([Gam[wN, 1]], ["tl"])
-        if shared and not named and head != "0.0" and last != "0.0" and rows[wN] == f"{head} + {last}" \
-                and a_terms == f"{head} + {to_tl}":
+        if (
+            shared
+            and not named
+            and head != "0.0"
+            and last != "0.0"
+            and rows[wN] == f"{head} + {last}"
+            and a_terms == f"{head} + {to_tl}"
+        ):
             body.append(f"s_a = {head}")
             a_terms, rows[wN] = f"s_a + {to_tl}", f"s_a + {last}"
         body.append(f"a = {a_terms}")
@@ -926,17 +1034,19 @@ def _ticks_source(block: ActuatorBlock, Phi: np.ndarray, Gam: np.ndarray, m: int
     xs = [f"x{j}" for j in range(2 * N + 1)]
     c = _numbers(block, False)
     ripple = float(block.params["tau_ripple"]) > 0.0
-    lines = ["def ticks(values, x, ticks, i_cmd, x_c, u_c, k_p, k_iT, u_max):",
-             "    F = values[1]",
-             "    if F - F != 0.0: return 2, 0, x_c, u_c",
-             f"    tl = {c['niR']}*F - {c['weight']}",
-             f"    {', '.join(xs)}, = x",
-             "    for k in range(ticks):",
-             "        u_n, x_c = pi_step(i_cmd - x0, x_c, k_p, k_iT, u_max)",
-             "        u = u_a = u_c",
-             "        if u - u != 0.0: return 1, k, x_c, u_c",
-             f"        if u > {c['us']}: u = {c['us']}",
-             f"        elif u < {c['nus']}: u = {c['nus']}"]
+    lines = [
+        "def ticks(values, x, ticks, i_cmd, x_c, u_c, k_p, k_iT, u_max):",
+        "    F = values[1]",
+        "    if F - F != 0.0: return 2, 0, x_c, u_c",
+        f"    tl = {c['niR']}*F - {c['weight']}",
+        f"    {', '.join(xs)}, = x",
+        "    for k in range(ticks):",
+        "        u_n, x_c = pi_step(i_cmd - x0, x_c, k_p, k_iT, u_max)",
+        "        u = u_a = u_c",
+        "        if u - u != 0.0: return 1, k, x_c, u_c",
+        f"        if u > {c['us']}: u = {c['us']}",
+        f"        elif u < {c['nus']}: u = {c['nus']}",
+    ]
     if ripple:
         lines.append(f"        tl = {c['niR']}*F - {c['weight']} - {c['ripple']}*sin({c['rk']}*x{N})")
     body = _substep_lines(block, Phi, Gam, False, shared=True)
@@ -945,22 +1055,25 @@ def _ticks_source(block: ActuatorBlock, Phi: np.ndarray, Gam: np.ndarray, m: int
     else:
         lines.append(f"        for _ in range({m}):")
         lines += ["            " + s for s in body]
-    lines += [f"        s = {' + '.join(xs)}",
-              "        if s - s != 0.0: return 3, k, x_c, u_c",
-              f"        rho = {c['rho0']} + {c['iR']}*x{N}",
-              f"        if rho < {c['rmin']} or rho > {c['rmax']}: return 4, k, x_c, u_c",
-              "        u_c = u_n",
-              f"    x[:] = ({', '.join(xs)},)",
-              f"    tm = {c['kT']}*x0",
-              "    values[0] = u_a",
-              f"    values[{len(block.INPUTS)}:] = (rho, {c['iR']}*x{2 * N}, {c['iR']}*({_alpha(block, c, False)}), "
-              f"x1, x{N + 1}, x0, tm, tm)",
-              "    return 0, ticks, x_c, u_c"]
+    lines += [
+        f"        s = {' + '.join(xs)}",
+        "        if s - s != 0.0: return 3, k, x_c, u_c",
+        f"        rho = {c['rho0']} + {c['iR']}*x{N}",
+        f"        if rho < {c['rmin']} or rho > {c['rmax']}: return 4, k, x_c, u_c",
+        "        u_c = u_n",
+        f"    x[:] = ({', '.join(xs)},)",
+        f"    tm = {c['kT']}*x0",
+        "    values[0] = u_a",
+        f"    values[{len(block.INPUTS)}:] = (rho, {c['iR']}*x{2 * N}, {c['iR']}*({_alpha(block, c, False)}), "
+        f"x1, x{N + 1}, x0, tm, tm)",
+        "    return 0, ticks, x_c, u_c",
+    ]
     return "\n".join(lines) + "\n"
 
 
-def _backlash_matrices(block: ActuatorBlock, h_sub: float, exponential: Callable = expm
-                       ) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]:
+def _backlash_matrices(
+    block: ActuatorBlock, h_sub: float, exponential: Callable = expm
+) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]:
     """Exact ZOH discretisations of the two-inertia model in contact and in the gap: ((Phi, Gamma) each)."""
     out = []
     for M in _backlash_generators(block):
@@ -986,8 +1099,9 @@ def _backlash_generators(block: ActuatorBlock) -> tuple[np.ndarray, np.ndarray]:
     return out[0], out[1]
 
 
-def backlash_systems(A: np.ndarray, B: np.ndarray, J: Sequence, K: Sequence, C: Sequence
-                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def backlash_systems(
+    A: np.ndarray, B: np.ndarray, J: Sequence, K: Sequence, C: Sequence
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The two-inertia model with backlash: (A in contact, A in the gap, B3 for [u_sat, tau_L, pl])."""
     A = A.copy()
     J1, J2 = J
@@ -1008,8 +1122,9 @@ def backlash_systems(A: np.ndarray, B: np.ndarray, J: Sequence, K: Sequence, C: 
     return A, Ag, B3
 
 
-def backlash_kernel_source(block: ActuatorBlock, h_sub: float, m: int, named: bool = False,
-                            symbolic: bool = False) -> str:
+def backlash_kernel_source(
+    block: ActuatorBlock, h_sub: float, m: int, named: bool = False, symbolic: bool = False
+) -> str:
     """Step with backlash (n_dof = 2): substeps of h_sub, the mode from the deflection at each substep start.
 
     ``named``, ``symbolic``: the step-size-dependent numbers, and the parameters' numbers, are names
@@ -1018,22 +1133,36 @@ def backlash_kernel_source(block: ActuatorBlock, h_sub: float, m: int, named: bo
     xs = [f"x{j}" for j in range(5)]
     c = _numbers(block, symbolic)
     if named:
-        (Pc, Gc), (Pg, Gg) = (name_grid("PC", (5, 5)), name_grid("GC", (5, 3))), (name_grid("PG", (5, 5)), name_grid("GG", (5, 3)))
+        (Pc, Gc), (Pg, Gg) = (
+            (name_grid("PC", (5, 5)), name_grid("GC", (5, 3))),
+            (name_grid("PG", (5, 5)), name_grid("GG", (5, 3))),
+        )
     else:
         (Pc, Gc), (Pg, Gg) = _backlash_matrices(block, h_sub)
     friction = float(p["tau_c"]) > 0.0 or float(p["tau_s"]) > 0.0
     lines = _kernel_head(c) + _load_lines(block, xs, c, float(p["tau_ripple"]) > 0.0)
     lines.append(f"    for _ in range({'M_SUB' if named else m}):")
     lines.append("        d = x1 - x2")
-    lines += [f"        if d > {c['hb']}:", f"            pl = {c['khb']}", "            contact = 1.0",
-              f"        elif d < {c['nhb']}:", f"            pl = {c['nkhb']}", "            contact = 1.0",
-              "        else:", "            pl = 0.0", "            contact = 0.0"]
+    lines += [
+        f"        if d > {c['hb']}:",
+        f"            pl = {c['khb']}",
+        "            contact = 1.0",
+        f"        elif d < {c['nhb']}:",
+        f"            pl = {c['nkhb']}",
+        "            contact = 1.0",
+        "        else:",
+        "            pl = 0.0",
+        "            contact = 0.0",
+    ]
     for cond, (Phi, Gam), prefix in (("if contact > 0.0:", (Pc, Gc), "FC_"), ("else:", (Pg, Gg), "FG_")):
         lines.append(f"        {cond}")
         body = []
         if friction:
-            body.append(f"a = {_lin(list(Phi[4]) + list(Gam[4]), xs + ['u', 'tl', 'pl'])}" if cond.startswith("if")
-                        else f"a = {_lin(list(Phi[4]) + list(Gam[4, :2]), xs + ['u', 'tl'])}")
+            body.append(
+                f"a = {_lin(list(Phi[4]) + list(Gam[4]), xs + ['u', 'tl', 'pl'])}"
+                if cond.startswith("if")
+                else f"a = {_lin(list(Phi[4]) + list(Gam[4, :2]), xs + ['u', 'tl'])}"
+            )
             body += _friction_lines(p, 1.0, prefix) if named else _friction_lines(p, float(Gam[4, 1]))
             body.append("w = tl - tf")
         else:

@@ -16,6 +16,7 @@ compared with a lab's log, not the motion.
 The same arithmetic runs sample by sample inside the FMU (``TorqueSensor``) and on whole
 arrays in the analysis (``measure``): equal to rounding on the same step grid.
 """
+
 from __future__ import annotations
 
 import math
@@ -49,8 +50,9 @@ def delay_split(delay: float, h: float) -> tuple[int, float]:
     return n, phi
 
 
-def measurement_step(u: float, line, head: int, L: int, n: int, phi: float, e: float, c: float, d: float, y: float,
-                     u_prev: float) -> tuple[int, float, float]:
+def measurement_step(
+    u: float, line, head: int, L: int, n: int, phi: float, e: float, c: float, d: float, y: float, u_prev: float
+) -> tuple[int, float, float]:
     """One step of the measurement with the new sample u (at the end of the step): the delay line ``line``, a
     ring of L = n + 2 samples (the newest at ``head``), then the filter (y_k = e y_{k-1} + c ud_k + d ud_{k-1}).
     Returns (head, y, ud): the newest sample's place, the filter's output (tau_meas - tau_offset) and the
@@ -58,7 +60,7 @@ def measurement_step(u: float, line, head: int, L: int, n: int, phi: float, e: f
     this source."""
     head = (head + 1) % L
     line[head] = u
-    a = line[(head - n + L) % L]               # u_{k-n}
+    a = line[(head - n + L) % L]  # u_{k-n}
     ud = a if phi == 0.0 else (1.0 - phi) * a + phi * line[(head - n - 1 + L) % L]
     y = e * y + c * ud + d * u_prev
     return (head, y, ud)
@@ -97,7 +99,7 @@ class TorqueSensor:
         self._h = math.nan
         self._y = self._u0
         self._u_prev = self._u0
-        self._line: list[float] = []     # the delay line (``measurement_step``), none before the first step
+        self._line: list[float] = []  # the delay line (``measurement_step``), none before the first step
         self._head = 0
         return self._y + self.offset
 
@@ -114,14 +116,15 @@ class TorqueSensor:
         """Advance by h with the new torque sample u (at the end of the step); returns tau_meas."""
         if h != self._h:
             self._configure(h)
-        self._head, self._y, self._u_prev = measurement_step(u, self._line, self._head, self._n + 2, self._n,
-                                                             self._phi, self._e, self._c, self._d, self._y,
-                                                             self._u_prev)
+        self._head, self._y, self._u_prev = measurement_step(
+            u, self._line, self._head, self._n + 2, self._n, self._phi, self._e, self._c, self._d, self._y, self._u_prev
+        )
         return self._y + self.offset
 
 
-def measure(u: np.ndarray, h: float, T: float = 0.0, delay: float = 0.0, offset: float = 0.0,
-            axis: int = -1) -> np.ndarray:
+def measure(
+    u: np.ndarray, h: float, T: float = 0.0, delay: float = 0.0, offset: float = 0.0, axis: int = -1
+) -> np.ndarray:
     """The measurement model on samples u[0], u[1], ... on a grid of step h (u[0]: steady past)."""
     from scipy.signal import lfilter
 
@@ -132,16 +135,16 @@ def measure(u: np.ndarray, h: float, T: float = 0.0, delay: float = 0.0, offset:
     n, phi = delay_split(delay, h)
     if n or phi:
         pad = np.repeat(u[..., :1], n + 1, axis=-1)
-        ext = np.concatenate([pad, u], axis=-1)            # ext[j + n + 1] = u[j]
+        ext = np.concatenate([pad, u], axis=-1)  # ext[j + n + 1] = u[j]
         m = u.shape[-1]
-        a = ext[..., 1:m + 1]                               # u[k - n]
-        b = ext[..., 0:m]                                   # u[k - n - 1]
+        a = ext[..., 1 : m + 1]  # u[k - n]
+        b = ext[..., 0:m]  # u[k - n - 1]
         ud = a if phi == 0.0 else (1.0 - phi) * a + phi * b
     else:
         ud = u
     e, c, d = filter_coefficients(T, h)
     if T > 0.0:
-        zi = (e * ud[..., :1] + d * ud[..., :1])            # y_{-1} e + d u_{-1} with y_{-1} = u_{-1} = u0
+        zi = e * ud[..., :1] + d * ud[..., :1]  # y_{-1} e + d u_{-1} with y_{-1} = u_{-1} = u0
         y = lfilter([c, d], [1.0, -e], ud, axis=-1, zi=zi)[0]
     else:
         y = ud

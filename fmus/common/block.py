@@ -22,6 +22,7 @@ State: ``get_state()`` returns a snapshot of everything the block holds and
 (FMI get/set FMU state). The default copies the block's attributes deeply;
 a block whose state is cheaper to describe may override both.
 """
+
 from __future__ import annotations
 
 import copy

@@ -9,6 +9,7 @@ so the result depends on nothing but the inputs. The functions compute the same 
 operation, as the native FMUs' C (``mast_expm``, ``mast_eig_max`` in fmus/common/native/mast_native.h,
 built with ``-ffp-contract=off``): the Python and the native actuator discretise with the same digits.
 """
+
 from __future__ import annotations
 
 import math
@@ -119,11 +120,11 @@ def eig_max(S: Sequence[Sequence[float]]) -> float:
                 t = (1.0 if theta >= 0.0 else -1.0) / (abs(theta) + sqrt(theta * theta + 1.0))
                 c = 1.0 / sqrt(t * t + 1.0)
                 s = t * c
-                for row in S:                       # S <- S R (columns p, q)
+                for row in S:  # S <- S R (columns p, q)
                     kp, kq = row[p], row[q]
                     row[p] = c * kp - s * kq
                     row[q] = s * kp + c * kq
-                rp, rq = S[p], S[q]                 # S <- R^T S (rows p, q)
+                rp, rq = S[p], S[q]  # S <- R^T S (rows p, q)
                 for k in range(n):
                     pk, qk = rp[k], rq[k]
                     rp[k] = c * pk - s * qk

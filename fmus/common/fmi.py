@@ -4,6 +4,7 @@ The behaviour hosts rely on (initialization, errors, state, several instances)
 is in ``slave.py``, shared with the FMI 3.0 wrapper ``fmi3.py``; this module
 registers the variables the FMI 2.0 way and maps the typed calls.
 """
+
 from __future__ import annotations
 
 from typing import List
@@ -11,16 +12,30 @@ from typing import List
 from pythonfmu import DefaultExperiment, Fmi2Causality, Fmi2Initial, Fmi2Slave, Fmi2Variability, Integer, Real, String
 from pythonfmu.enums import Fmi2Status
 
-from .slave import (INSTANTIATED, PARAMETERS_FILE, STEPPING, BlockWrapper, FmiVocabulary, fast_get,  # noqa: F401
-                    fast_set, fmi_call, keep_alive, load_defaults)  # PARAMETERS_FILE, keep_alive, load_defaults: re-exported
+from .slave import (
+    INSTANTIATED,
+    STEPPING,
+    BlockWrapper,
+    FmiVocabulary,
+    fast_get,  # noqa: F401
+    fast_set,
+    fmi_call,
+)  # PARAMETERS_FILE, keep_alive, load_defaults: re-exported
 
 
 class BlockSlave(BlockWrapper, Fmi2Slave):
     """FMI 2.0 slave exposing one Block; subclasses set ``block_class``."""
 
-    fmi = FmiVocabulary({float: Real, int: Integer, str: String}, Fmi2Causality, Fmi2Variability, Fmi2Initial,
-                        Fmi2Status, message_is_format=True, set_real="setReal",
-                        default_experiment=DefaultExperiment)
+    fmi = FmiVocabulary(
+        {float: Real, int: Integer, str: String},
+        Fmi2Causality,
+        Fmi2Variability,
+        Fmi2Initial,
+        Fmi2Status,
+        message_is_format=True,
+        set_real="setReal",
+        default_experiment=DefaultExperiment,
+    )
 
     def __init__(self, **kwargs) -> None:
         super().__init__(**kwargs)
@@ -31,7 +46,7 @@ class BlockSlave(BlockWrapper, Fmi2Slave):
         """pythonfmu's modelDescription, with the direct feedthrough (``Block.FEEDTHROUGH``) declared in
         ModelStructure/Outputs: each output lists the inputs it depends on (none: an empty list)."""
         root = super().to_xml(model_options)
-        index = {vr: k + 1 for k, vr in enumerate(self.vars)}   # FMI 2.0 names variables by their position
+        index = {vr: k + 1 for k, vr in enumerate(self.vars)}  # FMI 2.0 names variables by their position
         dependencies = {index[out]: ins for out, ins in self._output_dependencies().items()}
         for unknown in root.iterfind("ModelStructure/Outputs/Unknown"):
             unknown.set("dependencies", " ".join(str(index[vr]) for vr in dependencies[int(unknown.get("index"))]))

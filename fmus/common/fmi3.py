@@ -7,12 +7,12 @@ types (Float64, Int32, String), the independent variable ``time``, unit
 definitions and the direct feedthrough in ModelStructure. Only the build imports
 this module outside an FMU; inside one, pythonfmu3 travels with it.
 """
+
 from __future__ import annotations
 
 from typing import List
 
-from pythonfmu3 import (DefaultExperiment, Fmi3Causality, Fmi3Initial, Fmi3Slave, Fmi3Variability, Float64, Int32,
-                        String)
+from pythonfmu3 import DefaultExperiment, Float64, Fmi3Causality, Fmi3Initial, Fmi3Slave, Fmi3Variability, Int32, String
 from pythonfmu3.enums import Fmi3Status
 from pythonfmu3.unit import Unit
 
@@ -23,15 +23,22 @@ from .slave import INSTANTIATED, STEPPING, BlockWrapper, FmiVocabulary, fast_get
 #: whatever the host says. The C front (pythonfmu_shim.c, START_TIME_REFERENCE) sets the start time at this
 #: value reference, which no variable has, right before it forwards fmi3EnterInitializationMode. Without the
 #: front (a build without a C compiler) the start time is 0.
-START_TIME_REFERENCE = 0x7FFFFFFF   # the largest that pythonfmu3 passes to Python unchanged (a C int)
+START_TIME_REFERENCE = 0x7FFFFFFF  # the largest that pythonfmu3 passes to Python unchanged (a C int)
 
 
 class BlockSlave3(BlockWrapper, Fmi3Slave):
     """FMI 3.0 slave exposing one Block; subclasses set ``block_class``."""
 
-    fmi = FmiVocabulary({float: Float64, int: Int32, str: String}, Fmi3Causality, Fmi3Variability, Fmi3Initial,
-                        Fmi3Status, message_is_format=False, set_real="setFloat64",
-                        default_experiment=DefaultExperiment)
+    fmi = FmiVocabulary(
+        {float: Float64, int: Int32, str: String},
+        Fmi3Causality,
+        Fmi3Variability,
+        Fmi3Initial,
+        Fmi3Status,
+        message_is_format=False,
+        set_real="setFloat64",
+        default_experiment=DefaultExperiment,
+    )
 
     def __init__(self, **kwargs) -> None:
         super().__init__(**kwargs)
@@ -42,8 +49,14 @@ class BlockSlave3(BlockWrapper, Fmi3Slave):
         units.update({p.name: p.unit for p in cls.PARAMETERS if p.kind is float and p.unit})
         self.register_units([Unit(u) for u in sorted(set(units.values()))])
         self._register_block(units, input_start=0.0)
-        self.register_variable(Float64("time", causality=Fmi3Causality.independent,
-                                       variability=Fmi3Variability.continuous, getter=lambda: self._time))
+        self.register_variable(
+            Float64(
+                "time",
+                causality=Fmi3Causality.independent,
+                variability=Fmi3Variability.continuous,
+                getter=lambda: self._time,
+            )
+        )
 
     def to_xml(self, model_options=dict()):
         """pythonfmu3's modelDescription, with the direct feedthrough (``Block.FEEDTHROUGH``) declared in
@@ -67,8 +80,8 @@ class BlockSlave3(BlockWrapper, Fmi3Slave):
     @fast_set
     @fmi_call()
     def set_float64(self, vrs: List[int], values: List[float]) -> None:
-        if len(vrs) == 1 and vrs[0] == START_TIME_REFERENCE:   # the C front's, before enterInitializationMode
-            if self._phase == INSTANTIATED:   # else enterInitializationMode, next, is refused and changes nothing
+        if len(vrs) == 1 and vrs[0] == START_TIME_REFERENCE:  # the C front's, before enterInitializationMode
+            if self._phase == INSTANTIATED:  # else enterInitializationMode, next, is refused and changes nothing
                 self._setup(values[0])
                 self._time = values[0]
             return

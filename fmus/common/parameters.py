@@ -5,6 +5,7 @@ sets (``ssp/parameters/*.ssv``) with their unit and source. Code only declares
 what a model accepts, so that a wrong name or an out-of-range value is rejected
 with a message that names it.
 """
+
 from __future__ import annotations
 
 import math
@@ -20,7 +21,7 @@ class ParameterError(ValueError):
 
 
 #: the range of an FMI Integer (fmi2Integer, fmi3Int32): a larger value would wrap around in the C call
-INT32_MIN, INT32_MAX = -2 ** 31, 2 ** 31 - 1
+INT32_MIN, INT32_MAX = -(2**31), 2**31 - 1
 
 
 def exact_integer(value: object) -> int:
@@ -103,7 +104,9 @@ class Param:
             try:
                 return exact_string(value)
             except ValueError:
-                raise ParameterError(f"{where}parameter '{self.name}' = {value!r}: expected {self.expected()}") from None
+                raise ParameterError(
+                    f"{where}parameter '{self.name}' = {value!r}: expected {self.expected()}"
+                ) from None
         try:
             number = exact_integer(value) if self.kind is int else float(value)
         except (TypeError, ValueError, OverflowError):
@@ -138,7 +141,8 @@ def validate(specs: Sequence[Param], values: Mapping[str, Value], owner: str = "
     unknown = sorted(set(values) - set(by_name))
     if unknown:
         raise ParameterError(
-            f"{where}unknown parameter(s) {', '.join(unknown)}; expected names: {', '.join(sorted(by_name))}")
+            f"{where}unknown parameter(s) {', '.join(unknown)}; expected names: {', '.join(sorted(by_name))}"
+        )
     missing = sorted(set(by_name) - set(values))
     if missing:
         raise ParameterError(f"{where}missing parameter(s) {', '.join(missing)}")

@@ -47,6 +47,7 @@ Behaviour hosts rely on:
 - several instances, and instances that failed, come and go in one process
   (``_survive_pythonfmu_cleanup``, ``_drop_repeated_path``).
 """
+
 from __future__ import annotations
 
 import atexit
@@ -87,14 +88,16 @@ def load_defaults(resources: Optional[str]) -> dict:
 class FmiVocabulary:
     """The names an FMI version's Python package gives to what both versions have."""
 
-    kinds: Mapping[type, Callable]   # Python type of a value -> variable class (Real, Integer, ... / Float64, Int32, ...)
-    causality: Any                   # enumerations: Fmi2Causality / Fmi3Causality, ...
+    kinds: Mapping[
+        type, Callable
+    ]  # Python type of a value -> variable class (Real, Integer, ... / Float64, Int32, ...)
+    causality: Any  # enumerations: Fmi2Causality / Fmi3Causality, ...
     variability: Any
     initial: Any
     status: Any
-    message_is_format: bool          # the host's logger expands the message as a printf format (FMI 2.0, not 3.0)
-    set_real: str                    # the call that sets floating-point values: setReal / setFloat64
-    default_experiment: Callable     # DefaultExperiment(start_time, stop_time, step_size) of the version's package
+    message_is_format: bool  # the host's logger expands the message as a printf format (FMI 2.0, not 3.0)
+    set_real: str  # the call that sets floating-point values: setReal / setFloat64
+    default_experiment: Callable  # DefaultExperiment(start_time, stop_time, step_size) of the version's package
 
 
 # the states of an instance (FMI 2.0 co-simulation; FMI 3.0's step mode is "step mode" here too)
@@ -125,6 +128,7 @@ def fmi_call(*allowed: str) -> Callable:
     an illegal call when no front is there to say fmi2Error. The instance survives the exception
     for fmi2Reset and fmi2FreeInstance (``_survive_pythonfmu_cleanup``).
     """
+
     def decorate(method: Callable) -> Callable:
         name = _fmi_name(method.__name__)
         states = allowed or ALIVE
@@ -141,15 +145,17 @@ def fmi_call(*allowed: str) -> Callable:
                 illegal = isinstance(err, IllegalCall)
                 message = f"{name}: {err}" if illegal else f"{name}: {type(err).__name__}: {err}"
                 if illegal and not isinstance(err, _Refused) and self._illegal_is_error:
-                    self._log_error(message)    # fmi2Error: nothing changed, the instance goes on
+                    self._log_error(message)  # fmi2Error: nothing changed, the instance goes on
                 else:
-                    self._log_fatal(message)    # fmi2Fatal: every later call is refused
+                    self._log_fatal(message)  # fmi2Fatal: every later call is refused
                     if self._failed is None:
                         self._failed = message
                 if self._native:
                     _survive_pythonfmu_cleanup(self)
                 raise
+
         return call
+
     return decorate
 
 
@@ -158,16 +164,21 @@ def fast_get(checked: Callable) -> Callable:
     get_float64), its common case in one frame: an instance that has not failed, every value reference an
     input or output, no output to recompute first (initialization mode after a set). Then the values straight
     from the block, as ``_get_values`` reads them; otherwise ``checked`` answers, with its checks and messages."""
+
     @functools.wraps(checked)
     def get(self, vrs):
         try:
-            if self._failed is None and self._io_refs.issuperset(vrs) and not (self._phase == INITIALIZATION
-                                                                               and self._dirty):
+            if (
+                self._failed is None
+                and self._io_refs.issuperset(vrs)
+                and not (self._phase == INITIALIZATION and self._dirty)
+            ):
                 values = self._values
                 return [values[vr] for vr in vrs]
         except Exception:  # nothing foreseen fails here; whatever does, ``checked`` meets it and says so
             pass
         return checked(self, vrs)
+
     return get
 
 
@@ -175,6 +186,7 @@ def fast_set(checked: Callable) -> Callable:
     """A set of Real inputs in step mode (``checked`` as for ``fast_get``), its common case in one frame: an
     instance that has not failed, every value reference an input. The same as ``_set_values`` then (the
     values into the block, the feedthrough outputs evaluated); otherwise ``checked`` answers."""
+
     @functools.wraps(checked)
     def set_(self, vrs, values):
         try:
@@ -188,6 +200,7 @@ def fast_set(checked: Callable) -> Callable:
         except Exception:  # as in fast_get (the same values written again)
             pass
         return checked(self, vrs, values)
+
     return set_
 
 
@@ -212,8 +225,8 @@ class BlockWrapper:
     block_class: ClassVar[type[Block]]
     fmi: ClassVar[FmiVocabulary]
     _phase = INSTANTIATED
-    _failed: Optional[str] = None     # why the instance refuses every call (it answered fmi2Fatal)
-    _illegal_is_error = True          # an illegal call reaches the host as fmi2Error (see fmi_call)
+    _failed: Optional[str] = None  # why the instance refuses every call (it answered fmi2Fatal)
+    _illegal_is_error = True  # an illegal call reaches the host as fmi2Error (see fmi_call)
     _init_error: Optional[str] = None
     _eval_error: Optional[str] = None  # a failed evaluation of the feedthrough outputs (``_evaluate``)
     #: (start time, stop time, step size) [s] of the modelDescription's DefaultExperiment, set by the build (the
@@ -242,7 +255,7 @@ class BlockWrapper:
         self._params = {p.name: defaults.get(p.name, _neutral(p.kind)) for p in cls.PARAMETERS}
         self.default_experiment = self._default_experiment()
         self._input_refs = frozenset(range(len(cls.INPUTS)))
-        self._io_refs = frozenset(range(self._n_io))   # the inputs and outputs: all Real (_register_block)
+        self._io_refs = frozenset(range(self._n_io))  # the inputs and outputs: all Real (_register_block)
 
     def _default_experiment(self):
         """The DefaultExperiment the FMU declares (``experiment``, the step size the block's cycle time); None
@@ -265,20 +278,41 @@ class BlockWrapper:
 
         start = {} if input_start is None else {"start": input_start}
         for name in cls.INPUTS:
-            self.register_variable(real(name, causality=causality.input, variability=variability.continuous,
-                                        description=cls.DESCRIPTIONS.get(name), **unit(name), **start))
+            self.register_variable(
+                real(
+                    name,
+                    causality=causality.input,
+                    variability=variability.continuous,
+                    description=cls.DESCRIPTIONS.get(name),
+                    **unit(name),
+                    **start,
+                )
+            )
         # outputs: initial="calculated" (no start value): computed in initialization mode from the parameters
         # and the inputs (the mechanism's pose from the carriages' positions ...), as FMI 2.0/3.0 define it
         for name in cls.OUTPUTS:
-            self.register_variable(real(name, causality=causality.output, variability=variability.continuous,
-                                        initial=fmi.initial.calculated, description=cls.DESCRIPTIONS.get(name),
-                                        **unit(name)))
+            self.register_variable(
+                real(
+                    name,
+                    causality=causality.output,
+                    variability=variability.continuous,
+                    initial=fmi.initial.calculated,
+                    description=cls.DESCRIPTIONS.get(name),
+                    **unit(name),
+                )
+            )
         for spec in cls.PARAMETERS:
-            self.register_variable(fmi.kinds[spec.kind](
-                spec.name, causality=causality.parameter, variability=variability.fixed,
-                description=f"[{spec.unit}] {spec.description}" if spec.unit else spec.description,
-                getter=lambda n=spec.name: self._params[n],
-                setter=lambda v, n=spec.name: self._set_param(n, v), **unit(spec.name)))
+            self.register_variable(
+                fmi.kinds[spec.kind](
+                    spec.name,
+                    causality=causality.parameter,
+                    variability=variability.fixed,
+                    description=f"[{spec.unit}] {spec.description}" if spec.unit else spec.description,
+                    getter=lambda n=spec.name: self._params[n],
+                    setter=lambda v, n=spec.name: self._set_param(n, v),
+                    **unit(spec.name),
+                )
+            )
 
     def _output_dependencies(self) -> dict[int, list[int]]:
         """ModelStructure's direct feedthrough (``Block.FEEDTHROUGH``), by value reference: every output -> the
@@ -290,8 +324,9 @@ class BlockWrapper:
     # FMI 2.0's logger takes the message as a printf format: a '%' in it must be written '%%' there;
     # FMI 3.0's takes the text as it is (FmiVocabulary.message_is_format)
     def _logged(self, message: str, status, category: str) -> None:
-        self.log(message.replace("%", "%%") if self.fmi.message_is_format else message, status=status,
-                 category=category)
+        self.log(
+            message.replace("%", "%%") if self.fmi.message_is_format else message, status=status, category=category
+        )
 
     def _log_warning(self, message: str) -> None:
         self._logged(message, self.fmi.status.warning, "logStatusWarning")
@@ -331,16 +366,20 @@ class BlockWrapper:
         for vr in vrs:
             var = self.vars.get(vr)
             if var is None:
-                raise IllegalCall(f"value reference {vr} is not a variable of {type(self).__name__} "
-                                  f"(it has {min(self.vars)}..{max(self.vars)})")
+                raise IllegalCall(
+                    f"value reference {vr} is not a variable of {type(self).__name__} "
+                    f"(it has {min(self.vars)}..{max(self.vars)})"
+                )
             if variable_class is None or not isinstance(var, variable_class):
                 raise IllegalCall(f"'{var.name}' (value reference {vr}) is of type {type(var).__name__}, not {wanted}")
             if not write:
                 continue
             if var.causality == causality.parameter:
                 if self._phase not in (INSTANTIATED, INITIALIZATION):
-                    raise IllegalCall(f"parameter '{var.name}' is fixed: it can be set before exitInitializationMode, "
-                                      f"not in {self._phase}")
+                    raise IllegalCall(
+                        f"parameter '{var.name}' is fixed: it can be set before exitInitializationMode, "
+                        f"not in {self._phase}"
+                    )
             elif var.causality == causality.input:
                 if self._phase == TERMINATED:
                     raise IllegalCall(f"input '{var.name}' cannot be set in {self._phase}")
@@ -436,7 +475,9 @@ class BlockWrapper:
             if self._init_error is not None:
                 raise RuntimeError(f"the instance did not initialise: {self._init_error}")
             if self._eval_error is not None:
-                raise RuntimeError(f"the outputs of the inputs set at this communication point failed: {self._eval_error}")
+                raise RuntimeError(
+                    f"the outputs of the inputs set at this communication point failed: {self._eval_error}"
+                )
             self._block.do_step(current_time, step_size)
         except Exception as err:  # the host decides what to do; the instance stays usable for terminate/free
             self._log_error(f"doStep at t={current_time:.6g} s: {type(err).__name__}: {err}")
@@ -447,15 +488,24 @@ class BlockWrapper:
     @fmi_call()
     def _get_fmu_state(self) -> "SlaveState":
         block = self._block
-        return SlaveState(type(self).__name__, dict(self._params), list(self._values) if block is None else None,
-                          None if block is None else block.get_state(), self._dirty, self._t0, self._phase,
-                          self._init_error)
+        return SlaveState(
+            type(self).__name__,
+            dict(self._params),
+            list(self._values) if block is None else None,
+            None if block is None else block.get_state(),
+            self._dirty,
+            self._t0,
+            self._phase,
+            self._init_error,
+        )
 
     @fmi_call()
     def _set_fmu_state(self, state: "SlaveState") -> None:
         if getattr(state, "owner", None) != type(self).__name__ or not hasattr(state, "block"):
-            raise IllegalCall(f"not an FMU state of {type(self).__name__}: {type(state).__name__} "
-                              f"{getattr(state, 'owner', '')}".rstrip())
+            raise IllegalCall(
+                f"not an FMU state of {type(self).__name__}: {type(state).__name__} "
+                f"{getattr(state, 'owner', '')}".rstrip()
+            )
         self._params = dict(state.params)
         if state.block is None:
             self._block = None
@@ -497,9 +547,13 @@ def _pythonfmu_behind_front(resources: Optional[str], identifier: str) -> Option
     """pythonfmu's library when the FMU's binary is the C front (``pythonfmu_shim.c``) on this platform, else None."""
     if not sys.platform.startswith("linux") or not resources:
         return None
-    for platform in ("linux64", "x86_64-linux"):   # FMI 2.0, FMI 3.0
-        library = os.path.join(os.path.dirname(os.path.abspath(resources)), "binaries", platform,
-                               f"{identifier}{PYTHONFMU_LIBRARY_SUFFIX}.so")
+    for platform in ("linux64", "x86_64-linux"):  # FMI 2.0, FMI 3.0
+        library = os.path.join(
+            os.path.dirname(os.path.abspath(resources)),
+            "binaries",
+            platform,
+            f"{identifier}{PYTHONFMU_LIBRARY_SUFFIX}.so",
+        )
         if os.path.exists(library):
             return library
     return None
@@ -551,7 +605,7 @@ def _drop_repeated_path(resources: Optional[str]) -> None:
     """pythonfmu inserts the resources folder into sys.path at every instantiation: keep one entry."""
     if resources and sys.path.count(resources) > 1:
         first = sys.path.index(resources)
-        sys.path[:] = sys.path[:first + 1] + [p for p in sys.path[first + 1:] if p != resources]
+        sys.path[:] = sys.path[: first + 1] + [p for p in sys.path[first + 1 :] if p != resources]
 
 
 def _neutral(kind: type):

@@ -26,6 +26,7 @@ mask instead).
 Users: the mechanism engine (fmus.mechanism.engine: Jacobians and inverse dynamics of a description),
 the native generator's traced constants (mast.core.native.models).
 """
+
 from __future__ import annotations
 
 import math
@@ -37,9 +38,31 @@ from .block import ModelError
 from .codegen import compile_generated
 
 __all__ = [
-    "Graph", "Expr", "TraceError", "lift", "graph_of", "add", "sub", "mul", "div", "neg", "unary",
-    "sin", "cos", "sqrt", "sign", "atan2", "hypot", "require", "traced", "traced_input",
-    "Derivative", "Forward", "Second", "needed", "compile_function",
+    "Graph",
+    "Expr",
+    "TraceError",
+    "lift",
+    "graph_of",
+    "add",
+    "sub",
+    "mul",
+    "div",
+    "neg",
+    "unary",
+    "sin",
+    "cos",
+    "sqrt",
+    "sign",
+    "atan2",
+    "hypot",
+    "require",
+    "traced",
+    "traced_input",
+    "Derivative",
+    "Forward",
+    "Second",
+    "needed",
+    "compile_function",
 ]
 
 
@@ -92,8 +115,10 @@ class Expr:
         return f"Expr#{self.id}({self.op})"
 
     def __bool__(self):
-        raise TraceError("a mechanism description may not branch on a traced value; use sign(), require() "
-                         "or decide on parameters only")
+        raise TraceError(
+            "a mechanism description may not branch on a traced value; use sign(), require() "
+            "or decide on parameters only"
+        )
 
     __lt__ = __le__ = __gt__ = __ge__ = lambda self, other: self.__bool__()  # noqa: E731
 
@@ -298,7 +323,7 @@ def require(check: Callable[..., None], *args) -> None:
     if g is None:
         check(*args)
         return
-    lifted = tuple(lift(g, a) for a in args)        # constants first: the check's id follows them
+    lifted = tuple(lift(g, a) for a in args)  # constants first: the check's id follows them
     node = Expr(g, len(g.nodes), "check", lifted, check)
     g.nodes.append(node)
     g.checks.append(node)
@@ -323,7 +348,7 @@ class Derivative:
 
     def __init__(self, g: Graph, seeds: dict[str, object]) -> None:
         self.g = g
-        self.seeds = seeds          # input name -> derivative of the input (Expr or float)
+        self.seeds = seeds  # input name -> derivative of the input (Expr or float)
         self.d: dict[int, Expr] = {}
         self.zero = g.const(0.0)
 
@@ -421,7 +446,7 @@ class Second(Derivative):
         if op == "mul":
             b = n.args[1]
             return add(add(mul(a, d[b.id]), mul(2.0, mul(p1(a), p1(b)))), mul(aa, b))
-        if op == "div":        # a = n b  ->  a'' = n'' b + 2 n' b' + n b''
+        if op == "div":  # a = n b  ->  a'' = n'' b + 2 n' b' + n b''
             b = n.args[1]
             return div(sub(sub(aa, mul(2.0, mul(p1(n), p1(b)))), mul(n, d[b.id])), b)
         if op == "sin":
@@ -430,16 +455,16 @@ class Second(Derivative):
         if op == "cos":
             va = p1(a)
             return neg(add(mul(sin(a), aa), mul(cos(a), mul(va, va))))
-        if op == "sqrt":        # n^2 = a  ->  2 n n'' + 2 n'^2 = a''
+        if op == "sqrt":  # n^2 = a  ->  2 n n'' + 2 n'^2 = a''
             vn = p1(n)
             return mul(div(0.5, n), sub(aa, mul(2.0, mul(vn, vn))))
-        if op == "atan2":       # n' = N / r2, N = x y' - y x', N' = x y'' - y x'', r2' = 2 (x x' + y y')
+        if op == "atan2":  # n' = N / r2, N = x y' - y x', N' = x y'' - y x'', r2' = 2 (x x' + y y')
             y, x = a, n.args[1]
             r2 = add(mul(x, x), mul(y, y))
             dN = sub(mul(x, aa), mul(y, d[x.id]))
             dr2 = mul(2.0, add(mul(x, p1(x)), mul(y, p1(y))))
             return div(sub(dN, mul(p1(n), dr2)), r2)
-        if op == "hypot":       # n^2 = a^2 + b^2 -> n n'' + n'^2 = a a'' + a'^2 + b b'' + b'^2
+        if op == "hypot":  # n^2 = a^2 + b^2 -> n n'' + n'^2 = a a'' + a'^2 + b b'' + b'^2
             b = n.args[1]
             va, vb, vn = p1(a), p1(b), p1(n)
             num = add(add(mul(a, aa), mul(va, va)), add(mul(b, d[b.id]), mul(vb, vb)))
@@ -452,8 +477,16 @@ class Second(Derivative):
 
 
 # ===================================================================================== code generation
-_FUNCS = {"sin": "_sin", "cos": "_cos", "sqrt": "_sqrt", "atan2": "_atan2", "hypot": "_hypot",
-          "sign": "_sign", "sgn0": "_sgn0", "abs": "_abs"}
+_FUNCS = {
+    "sin": "_sin",
+    "cos": "_cos",
+    "sqrt": "_sqrt",
+    "atan2": "_atan2",
+    "hypot": "_hypot",
+    "sign": "_sign",
+    "sgn0": "_sgn0",
+    "abs": "_abs",
+}
 _BINOP = {"add": "+", "sub": "-", "mul": "*", "div": "/"}
 
 
@@ -482,9 +515,16 @@ def needed(outputs: Sequence[Expr], checks: Sequence[Expr]) -> set[int]:
     return seen
 
 
-_VECTOR_FUNCS = {"_sin": np.sin, "_cos": np.cos, "_sqrt": np.sqrt, "_atan2": np.arctan2, "_hypot": np.hypot,
-                 "_sign": lambda x: np.where(x > 0.0, 1.0, -1.0), "_sgn0": lambda x: np.where(x >= 0.0, 1.0, -1.0),
-                 "_abs": np.abs}
+_VECTOR_FUNCS = {
+    "_sin": np.sin,
+    "_cos": np.cos,
+    "_sqrt": np.sqrt,
+    "_atan2": np.arctan2,
+    "_hypot": np.hypot,
+    "_sign": lambda x: np.where(x > 0.0, 1.0, -1.0),
+    "_sgn0": lambda x: np.where(x >= 0.0, 1.0, -1.0),
+    "_abs": np.abs,
+}
 
 
 def _admissible(check: Callable, rejected: type[Exception]) -> Callable:
@@ -504,13 +544,20 @@ def _admissible(check: Callable, rejected: type[Exception]) -> Callable:
             except rejected:
                 ok[idx] = False
         return ok
+
     return pointwise
 
 
-def compile_function(name: str, inputs: Sequence[str], outputs: Sequence[Expr], graph: Graph,
-                     label: str = "", vector: bool = False,
-                     prior: Optional[tuple[Sequence[Expr], set[int]]] = None,
-                     rejected: type[Exception] = ModelError) -> Callable:
+def compile_function(
+    name: str,
+    inputs: Sequence[str],
+    outputs: Sequence[Expr],
+    graph: Graph,
+    label: str = "",
+    vector: bool = False,
+    prior: Optional[tuple[Sequence[Expr], set[int]]] = None,
+    rejected: type[Exception] = ModelError,
+) -> Callable:
     """Straight-line Python computing ``outputs`` (a flat tuple) from the named inputs.
 
     Nodes in creation order (checks where the description called ``require``); a node used
@@ -537,13 +584,23 @@ def compile_function(name: str, inputs: Sequence[str], outputs: Sequence[Expr], 
         first = {}
         for k, v in enumerate(values):
             first.setdefault(v.id, k)
-        unpack = [f"t{v.id}" if v.id in done and v.id in read and v.op not in ("input", "const") and first[v.id] == k
-                  else "_" for k, v in enumerate(values)]
+        unpack = [
+            f"t{v.id}" if v.id in done and v.id in read and v.op not in ("input", "const") and first[v.id] == k else "_"
+            for k, v in enumerate(values)
+        ]
         missing = {i for i in read & done if graph.nodes[i].op not in ("input", "const")} - set(first)
         assert not missing, f"internal error: {name} reads nodes the prior function does not give: {sorted(missing)}"
         inputs = ["_prior", *inputs]
-    ns: dict = {"_sin": math.sin, "_cos": math.cos, "_sqrt": math.sqrt, "_atan2": math.atan2,
-                "_hypot": math.hypot, "_sign": _sign, "_sgn0": _sgn0, "_abs": abs}
+    ns: dict = {
+        "_sin": math.sin,
+        "_cos": math.cos,
+        "_sqrt": math.sqrt,
+        "_atan2": math.atan2,
+        "_hypot": math.hypot,
+        "_sign": _sign,
+        "_sgn0": _sgn0,
+        "_abs": abs,
+    }
     if vector:
         ns.update(_VECTOR_FUNCS)
     uses: dict[int, int] = {}
@@ -552,7 +609,7 @@ def compile_function(name: str, inputs: Sequence[str], outputs: Sequence[Expr], 
             uses[a.id] = uses.get(a.id, 0) + 1
     for o in outputs:
         uses[o.id] = uses.get(o.id, 0) + 2
-    inline: dict[int, tuple[str, int]] = {}   # node id -> (expression, nesting depth)
+    inline: dict[int, tuple[str, int]] = {}  # node id -> (expression, nesting depth)
 
     def ref(n: Expr) -> tuple[str, int]:
         if n.op == "const":
@@ -590,18 +647,19 @@ def compile_function(name: str, inputs: Sequence[str], outputs: Sequence[Expr], 
             continue
         text, depth = expr(n)
         if uses.get(n.id, 0) == 1 and depth < 24:
-            inline[n.id] = (text, depth)   # written where it is used
+            inline[n.id] = (text, depth)  # written where it is used
         else:
             lines.append(f"    t{i} = {text}")
     lines.append(f"    return ({''.join(ref(o)[0] + ', ' for o in outputs)}{'_ok, ' if vector else ''})")
     assert not inline, "internal error: an inlined expression was never used"
     fn = compile_generated("\n".join(lines), name, f"mast engine: {label or name}", ns)
-    fn.namespace = ns   # what the source calls (the checks): for the C backend (mast.core.native)
+    fn.namespace = ns  # what the source calls (the checks): for the C backend (mast.core.native)
     if not vector:
         return fn
 
     def on_arrays(*args):
-        with np.errstate(all="ignore"):       # outside the mask: NaN, never an exception
+        with np.errstate(all="ignore"):  # outside the mask: NaN, never an exception
             return fn(*args)
+
     on_arrays.source = fn.source
     return on_arrays

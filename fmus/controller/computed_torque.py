@@ -17,6 +17,7 @@ error (an unknown payload) shows as a forcing term, with a steady offset under g
 velocity cycle, so the controller has no "velocity" mode; omega_cmd reports the reference
 speed rho_dot_ref / i_R.
 """
+
 from __future__ import annotations
 
 from typing import Mapping, Optional
@@ -39,8 +40,9 @@ def error_gains(omega_n: float, zeta: float) -> tuple[float, float]:
     return (omega_n * omega_n, 2.0 * zeta * omega_n)
 
 
-def commanded_acceleration(rho_ddot_ref: float, rho_dot_ref: float, rho_dot: float, rho_ref: float, rho: float,
-                           K_P: float, K_D: float) -> float:
+def commanded_acceleration(
+    rho_ddot_ref: float, rho_dot_ref: float, rho_dot: float, rho_ref: float, rho: float, K_P: float, K_D: float
+) -> float:
     """a = rho_ddot_ref + K_D (rho_dot_ref - rho_dot) + K_P (rho_ref - rho) [m/s^2], one axis: the joint
     acceleration the inverse model is asked for. Written in the generated-code subset, as ``error_gains``."""
     return rho_ddot_ref + K_D * (rho_dot_ref - rho_dot) + K_P * (rho_ref - rho)
@@ -62,17 +64,27 @@ class ComputedTorqueController(DriveController):
     def _interface(cls) -> dict:
         declared = super()._interface()
         axes = range(1, len(cls.COORDINATES) + 1)
-        return {**declared,
-                "DESCRIPTIONS": {**declared["DESCRIPTIONS"],
-                                 **{f"omega_cmd_{j}": f"Reference speed of motor {j} (rho_dot_ref / i_R; no velocity "
-                                                      "loop)" for j in axes},
-                                 **{f"i_cmd_{j}": f"Current command of axis {j} (computed torque / k_T)"
-                                    for j in axes}}}
+        return {
+            **declared,
+            "DESCRIPTIONS": {
+                **declared["DESCRIPTIONS"],
+                **{
+                    f"omega_cmd_{j}": f"Reference speed of motor {j} (rho_dot_ref / i_R; no velocity loop)"
+                    for j in axes
+                },
+                **{f"i_cmd_{j}": f"Current command of axis {j} (computed torque / k_T)" for j in axes},
+            },
+        }
 
     LAWS = (commanded_acceleration, limited)
 
-    def __init__(self, params: Mapping[str, Value], name: str = "", kinematics: Optional[Engine] = None,
-                 dynamics: Optional[Engine] = None) -> None:
+    def __init__(
+        self,
+        params: Mapping[str, Value],
+        name: str = "",
+        kinematics: Optional[Engine] = None,
+        dynamics: Optional[Engine] = None,
+    ) -> None:
         """``kinematics``, ``dynamics``: the controller's kinematic model (``DriveController``) and its inverse
         model's engine (``InverseModel``), by default the ones its parameter sets select."""
         super().__init__(params, name, kinematics)
@@ -81,7 +93,7 @@ class ComputedTorqueController(DriveController):
     def _constants(self, S: list[float]) -> None:
         super()._constants(S)
         at = self.LAYOUT["own"]
-        self.K_P, self.K_D = S[at:at + 2] = error_gains(float(self.params["omega_n"]), float(self.params["zeta"]))
+        self.K_P, self.K_D = S[at : at + 2] = error_gains(float(self.params["omega_n"]), float(self.params["zeta"]))
 
     def _calls(self) -> dict:
         return {**super()._calls(), "currents": self._currents}
@@ -106,10 +118,18 @@ class ComputedTorqueController(DriveController):
         L, n = cls.LAYOUT, len(cls.COORDINATES)
         Q, i_R, i_max = L["rates"], f"S[{L['i_R']}]", f"S[{L['gains'] + 3}]"
         K_P, K_D = f"S[{L['own']}]", f"S[{L['own'] + 1}]"
-        state = [*(f"values[{n + j}]" for j in range(n)), *(f"rdm{j}" for j in range(n)),
-                 *(f"acc{j}" for j in range(n))]
-        return [*(f"rdm{j} = {i_R}*values[{2 * n + j}]" for j in range(n)),
-                *(f"acc{j} = commanded_acceleration(S[{Q + n + j}], S[{Q + j}], rdm{j}, rc{j}, values[{n + j}], {K_P}, "
-                  f"{K_D})" for j in range(n)),
-                *failed_call(L, f"currents({', '.join(state)}, S, CUR)", state, MODEL_FAILED),
-                *(f"ic{j} = limited(CUR[{j}], {i_max})" for j in range(n))]
+        state = [
+            *(f"values[{n + j}]" for j in range(n)),
+            *(f"rdm{j}" for j in range(n)),
+            *(f"acc{j}" for j in range(n)),
+        ]
+        return [
+            *(f"rdm{j} = {i_R}*values[{2 * n + j}]" for j in range(n)),
+            *(
+                f"acc{j} = commanded_acceleration(S[{Q + n + j}], S[{Q + j}], rdm{j}, rc{j}, values[{n + j}], {K_P}, "
+                f"{K_D})"
+                for j in range(n)
+            ),
+            *failed_call(L, f"currents({', '.join(state)}, S, CUR)", state, MODEL_FAILED),
+            *(f"ic{j} = limited(CUR[{j}], {i_max})" for j in range(n)),
+        ]

@@ -21,6 +21,7 @@ stepping the block and the axis at h therefore applies u(k) from t_k + h on: h i
 controller's computation delay (one tick), and the force is a zero-order hold over the
 rest of the sample (with h = T_s the delay is a whole sample).
 """
+
 from __future__ import annotations
 
 import math
@@ -46,8 +47,16 @@ class EmpsController(Block):
     OUTPUTS = ("u", "F", "u_before_injection", "F_before_injection", "q_dot_est")
     PARAMETERS = EMPS_PARAMETERS
     CYCLE_TIME = "T_s"
-    UNITS = {"q_ref": "m", "q_m": "m", "u_inj": "V", "u": "V", "F": "N", "u_before_injection": "V",
-             "F_before_injection": "N", "q_dot_est": "m/s"}
+    UNITS = {
+        "q_ref": "m",
+        "q_m": "m",
+        "u_inj": "V",
+        "u": "V",
+        "F": "N",
+        "u_before_injection": "V",
+        "F_before_injection": "N",
+        "q_dot_est": "m/s",
+    }
     DESCRIPTIONS = {
         "q_ref": "reference position",
         "q_m": "measured position (encoder, load side)",
@@ -87,8 +96,10 @@ class EmpsController(Block):
             ratio = self.params["T_s"] / h
             m = round(ratio)
             if m < 1 or abs(ratio - m) > 1e-9 * ratio:
-                raise ParameterError(f"{self.name}: parameter 'T_s' = {self.params['T_s']!r} s: expected a whole "
-                                     f"multiple of the step {h!r} s")
+                raise ParameterError(
+                    f"{self.name}: parameter 'T_s' = {self.params['T_s']!r} s: expected a whole "
+                    f"multiple of the step {h!r} s"
+                )
             self._per_sample[h] = m
         return self._per_sample[h]
 

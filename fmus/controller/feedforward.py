@@ -11,6 +11,7 @@ reference, so the feedback loops only correct what the model misses. With both w
 0 this is the plain cascade; with 1 and an exact model the tracking error is what the
 reference estimate and the loops' sampling leave.
 """
+
 from __future__ import annotations
 
 from typing import Mapping, Optional
@@ -47,8 +48,13 @@ class FeedForwardController(ControllerBlock):
     FEEDFORWARD_CURRENT = True
     LAWS = (position_p_law, velocity_feedforward)
 
-    def __init__(self, params: Mapping[str, Value], name: str = "", kinematics: Optional[Engine] = None,
-                 dynamics: Optional[Engine] = None) -> None:
+    def __init__(
+        self,
+        params: Mapping[str, Value],
+        name: str = "",
+        kinematics: Optional[Engine] = None,
+        dynamics: Optional[Engine] = None,
+    ) -> None:
         """``kinematics``, ``dynamics``: as ``ComputedTorqueController``'s."""
         super().__init__(params, name, kinematics)
         self.model = InverseModel(self.params, self.name, dynamics, self.n)
@@ -56,7 +62,7 @@ class FeedForwardController(ControllerBlock):
     def _constants(self, S: list[float]) -> None:
         super()._constants(S)
         at = self.LAYOUT["own"]
-        S[at:at + 2] = feedforward_gains(float(self.params["k_ff_v"]), float(self.params["k_ff_tau"]), self.i_R)
+        S[at : at + 2] = feedforward_gains(float(self.params["k_ff_v"]), float(self.params["k_ff_tau"]), self.i_R)
 
     def _calls(self) -> dict:
         return {**super()._calls(), "currents": self._currents}
@@ -74,9 +80,13 @@ class FeedForwardController(ControllerBlock):
         L, n = cls.LAYOUT, len(cls.COORDINATES)
         Q, kff_v_iR, kff_tau = L["rates"], f"S[{L['own']}]", f"S[{L['own'] + 1}]"
         reference = [f"rc{j}" for j in range(n)] + [f"S[{Q + k}]" for k in range(2 * n)]
-        return [*super().position_lines(moded),
-                *(f"oc{j} = velocity_feedforward(oc{j}, S[{Q + j}], {kff_v_iR})" for j in range(n)),
-                f"if {kff_tau} != 0.0:",
-                *("    " + line for line in failed_call(L, f"currents({', '.join(reference)}, S, CUR)", reference,
-                                                          MODEL_FAILED)),
-                *(f"    if{j} = {kff_tau}*CUR[{j}]" for j in range(n))]
+        return [
+            *super().position_lines(moded),
+            *(f"oc{j} = velocity_feedforward(oc{j}, S[{Q + j}], {kff_v_iR})" for j in range(n)),
+            f"if {kff_tau} != 0.0:",
+            *(
+                "    " + line
+                for line in failed_call(L, f"currents({', '.join(reference)}, S, CUR)", reference, MODEL_FAILED)
+            ),
+            *(f"    if{j} = {kff_tau}*CUR[{j}]" for j in range(n)),
+        ]

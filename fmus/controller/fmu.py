@@ -5,6 +5,7 @@ controller is ``block_class.for_topology(topology)``, its variables by the conne
 swaps its controller by the controller component's ``source`` and parameter sets in the SSP
 (``ssp/MAST_<controller>.ssd``).
 """
+
 from __future__ import annotations
 
 from ..common.fmi import BlockSlave

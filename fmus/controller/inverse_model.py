@@ -23,13 +23,14 @@ real controller can ask its plant for its mass matrix. The price of the copy is
 computation in the controller: one direct kinematics (warm-started Newton) and one
 inverse dynamics per evaluation, about 0.1 ms.
 """
+
 from __future__ import annotations
 
 import dataclasses
 from typing import Mapping, Optional, Sequence
 
 from ..actuator.model import PARAMETERS as ACTUATOR_PARAMETERS
-from ..actuator.model import real_or_traced, guide_friction, transmission_ratio, two_inertia
+from ..actuator.model import guide_friction, real_or_traced, transmission_ratio, two_inertia
 from ..common.parameters import Value
 from ..mechanism.designs import MASS_PARAMETERS, PAYLOAD_PARAMETERS, engine, kinematic_engine
 from ..mechanism.engine import Engine
@@ -43,16 +44,31 @@ MODEL_PARAMETERS = (
     *(_ACTUATOR[n] for n in ("k_T", "J_motor", "J_gearbox", "J_coupling", "J_brake", "J1_scale", "J_guide")),
     # the model's plant is the 3PRS's actuator, whose carriage rides the belt (an actuator may have none: a 3-RPS's
     # carriage is a body of its mechanism, docs/designs/3rps.md, where the joint cascade runs)
-    dataclasses.replace(_ACTUATOR["M_load"], minimum=0.0, exclusive=True,
-                        description="drive carriage mass (Eqs. 21-22); its weight acts on the guide"),
+    dataclasses.replace(
+        _ACTUATOR["M_load"],
+        minimum=0.0,
+        exclusive=True,
+        description="drive carriage mass (Eqs. 21-22); its weight acts on the guide",
+    ),
     *(_ACTUATOR[n] for n in ("tau_c", "omega_c", "b_v", "tau_s", "omega_s", "g_guide")),
     *MASS_PARAMETERS,
     *PAYLOAD_PARAMETERS,
 )
 
 
-def motor_torque(rho_dot: float, rho_ddot: float, F: float, J: float, i_R: float, b_v: float, weight: float,
-                 tau_c: float, omega_c: float, tau_s: float, omega_s: float) -> float:
+def motor_torque(
+    rho_dot: float,
+    rho_ddot: float,
+    F: float,
+    J: float,
+    i_R: float,
+    b_v: float,
+    weight: float,
+    tau_c: float,
+    omega_c: float,
+    tau_s: float,
+    omega_s: float,
+) -> float:
     """tau_m [N m] of one axis (module docstring) for its joint motion and the mechanism's force F [N].
     Written in the generated-code subset: the native controllers run this source (mast.core.native.models)."""
     w = rho_dot / i_R
@@ -70,11 +86,21 @@ def model_constants(params: Mapping[str, Value]) -> dict[str, float]:
     friction's tau_c, omega_c, tau_s, omega_s and k_T [N m/A]. A traced number passes through (``real_or_traced``):
     the native feed-forward and computed-torque controllers compute them at initialisation with this code."""
     J1, J2 = two_inertia(params)
-    f = {k: real_or_traced(params[k]) for k in ("p", "i_r", "b_v", "M_load", "g_guide", "tau_c", "omega_c", "tau_s",
-                                       "omega_s", "k_T")}
-    return {"J": J1 + J2, "i_R": transmission_ratio(f["p"], f["i_r"]), "b_v": f["b_v"],
-            "weight": f["M_load"] * f["g_guide"], "tau_c": f["tau_c"], "omega_c": f["omega_c"],
-            "tau_s": f["tau_s"], "omega_s": f["omega_s"], "k_T": f["k_T"]}
+    f = {
+        k: real_or_traced(params[k])
+        for k in ("p", "i_r", "b_v", "M_load", "g_guide", "tau_c", "omega_c", "tau_s", "omega_s", "k_T")
+    }
+    return {
+        "J": J1 + J2,
+        "i_R": transmission_ratio(f["p"], f["i_r"]),
+        "b_v": f["b_v"],
+        "weight": f["M_load"] * f["g_guide"],
+        "tau_c": f["tau_c"],
+        "omega_c": f["omega_c"],
+        "tau_s": f["tau_s"],
+        "omega_s": f["omega_s"],
+        "k_T": f["k_T"],
+    }
 
 
 class InverseModel:
@@ -84,8 +110,9 @@ class InverseModel:
     (designs.engine; none when ``attached`` = 0); ``n``: the number of axes, by default the mechanism's.
     """
 
-    def __init__(self, params: Mapping[str, Value], owner: str = "", dynamics: Optional[Engine] = None,
-                 n: Optional[int] = None) -> None:
+    def __init__(
+        self, params: Mapping[str, Value], owner: str = "", dynamics: Optional[Engine] = None, n: Optional[int] = None
+    ) -> None:
         P = params
         self.owner = owner or "controller"
         c = model_constants(P)
@@ -95,7 +122,7 @@ class InverseModel:
         self.k_T = c["k_T"]
         self.b_v = c["b_v"]
         self._friction = tuple(c[n] for n in ("tau_c", "omega_c", "tau_s", "omega_s"))
-        self.weight = c["weight"]       # [N] along the guide
+        self.weight = c["weight"]  # [N] along the guide
         attached = bool(int(P["attached"]))
         self.engine = (dynamics if dynamics is not None else engine(P, self.owner)) if attached else None
         #: the number of axes (motors)
@@ -103,7 +130,7 @@ class InverseModel:
         if attached and self.engine.n != self.n:
             raise ValueError(f"{self.owner}: inverse model of {self.n} axes with a mechanism of {self.engine.n} drives")
         self._guess = None
-        self._found = self._failure = None      # the last direct kinematics' solution, or failure (mechanism.model.dk)
+        self._found = self._failure = None  # the last direct kinematics' solution, or failure (mechanism.model.dk)
 
     @property
     def warm_start(self):
@@ -120,7 +147,7 @@ class InverseModel:
         if self.engine is None:
             F = (0.0,) * self.n
         else:
-            try:     # as the mechanism block: warm start, else cold; no cold restart across a singularity
+            try:  # as the mechanism block: warm start, else cold; no cold restart across a singularity
                 if restarted_dk(rho, 0.0 if self._guess is None else 1.0, self, None):
                     raise self._failure
                 q, Jq, _ = self._found
@@ -128,8 +155,10 @@ class InverseModel:
             except KinematicsError as exc:
                 raise KinematicsError(f"{self.owner}: inverse dynamic model at rho = {tuple(rho)!r} m: {exc}") from exc
             self._guess = q
-        return [motor_torque(rho_dot[j], rho_ddot[j], F[j], self.J, i_R, self.b_v, self.weight, *self._friction)
-                for j in range(self.n)]
+        return [
+            motor_torque(rho_dot[j], rho_ddot[j], F[j], self.J, i_R, self.b_v, self.weight, *self._friction)
+            for j in range(self.n)
+        ]
 
     def currents(self, rho: Sequence[float], rho_dot: Sequence[float], rho_ddot: Sequence[float]) -> list[float]:
         """The motor currents [A] of ``torques`` (tau_m / k_T)."""

@@ -55,24 +55,30 @@ mode: "pose" (default), "joint" (rho_cmd given, the IK bypassed), "velocity"
 (omega_cmd given, the position loop off) or "current" (i_cmd given, position and
 velocity loops off), like a drive's position/velocity/current modes.
 """
+
 from __future__ import annotations
 
 import math
 from functools import lru_cache
 from typing import Mapping, Optional, Sequence
 
-from ..common.block import Block, ModelError
-from ..common.parameters import ParameterError, Value, nonnegative, positive
 from ..actuator.drive import pi_step
 from ..actuator.model import transmission_ratio
-from ..mechanism.designs import (KINEMATIC_PARAMETERS, TRACED_PARAMETERS, describe, description, kinematic_engine,
-                                parameters_for)
+from ..common.block import Block, ModelError
+from ..common.parameters import ParameterError, Value, nonnegative, positive
+from ..mechanism.designs import (
+    KINEMATIC_PARAMETERS,
+    TRACED_PARAMETERS,
+    describe,
+    description,
+    kinematic_engine,
+    parameters_for,
+)
 from ..mechanism.engine import Engine
 from ..mechanism.kinematics import KinematicsError
 from ..mechanism.topology import POSE_UNITS, Topology, TopologyError
 from .reference import rates
 from .tick import MODEL_FAILED, compiled, layout, pi_lines
-
 
 #: operating modes, outermost first; the value is the first loop that runs
 MODES = ("pose", "joint", "velocity", "current")
@@ -102,21 +108,32 @@ def interface(coordinates: Sequence[str]) -> dict:
     axes = range(1, n + 1)
     inputs = (*(f"{c}_cmd" for c in coordinates), *(f"rho_{j}" for j in axes), *(f"omega_m_{j}" for j in axes))
     outputs = (*(f"rho_cmd_{j}" for j in axes), *(f"omega_cmd_{j}" for j in axes), *(f"i_cmd_{j}" for j in axes))
-    units = {**{f"{c}_cmd": POSE_UNITS[c] for c in coordinates},
-             **{f"rho_{j}": "m" for j in axes},
-             **{f"omega_m_{j}": "rad/s" for j in axes},
-             **{f"rho_cmd_{j}": "m" for j in axes},
-             **{f"omega_cmd_{j}": "rad/s" for j in axes},
-             **{f"i_cmd_{j}": "A" for j in axes}}
-    descriptions = {**{f"{c}_cmd": command_description(c) for c in coordinates},
-                    **{f"rho_{j}": f"Measured position of guide {j} (linear encoder)" for j in axes},
-                    **{f"omega_m_{j}": f"Measured speed of motor {j} (motor encoder)" for j in axes},
-                    **{f"rho_cmd_{j}": f"Joint position command of axis {j} (inverse kinematics)" for j in axes},
-                    **{f"omega_cmd_{j}": f"Motor speed command of axis {j} (position loop output)" for j in axes},
-                    **{f"i_cmd_{j}": f"Current command of axis {j} (velocity loop output)" for j in axes}}
+    units = {
+        **{f"{c}_cmd": POSE_UNITS[c] for c in coordinates},
+        **{f"rho_{j}": "m" for j in axes},
+        **{f"omega_m_{j}": "rad/s" for j in axes},
+        **{f"rho_cmd_{j}": "m" for j in axes},
+        **{f"omega_cmd_{j}": "rad/s" for j in axes},
+        **{f"i_cmd_{j}": "A" for j in axes},
+    }
+    descriptions = {
+        **{f"{c}_cmd": command_description(c) for c in coordinates},
+        **{f"rho_{j}": f"Measured position of guide {j} (linear encoder)" for j in axes},
+        **{f"omega_m_{j}": f"Measured speed of motor {j} (motor encoder)" for j in axes},
+        **{f"rho_cmd_{j}": f"Joint position command of axis {j} (inverse kinematics)" for j in axes},
+        **{f"omega_cmd_{j}": f"Motor speed command of axis {j} (position loop output)" for j in axes},
+        **{f"i_cmd_{j}": f"Current command of axis {j} (velocity loop output)" for j in axes},
+    }
     state = layout(n, len(TRACED_PARAMETERS))
-    return {"INPUTS": inputs, "OUTPUTS": outputs, "UNITS": units, "DESCRIPTIONS": descriptions,
-            "FEEDTHROUGH": dict.fromkeys(outputs, inputs), "LAYOUT": state, "SIZE": state["size"]}
+    return {
+        "INPUTS": inputs,
+        "OUTPUTS": outputs,
+        "UNITS": units,
+        "DESCRIPTIONS": descriptions,
+        "FEEDTHROUGH": dict.fromkeys(outputs, inputs),
+        "LAYOUT": state,
+        "SIZE": state["size"],
+    }
 
 
 def position_p_law(rho_cmd: float, rho: float, kv_iR: float) -> float:
@@ -194,7 +211,8 @@ class DriveController(Block):
             raise TopologyError(
                 f"{cls.__name__}: {topology.name}'s drive(s) {', '.join(rotary)} are rotary: the controllers' "
                 "transmission i_R = p / (2 pi i_r) [m/rad] (paper Eq. 1) and their joint units [m] are a linear "
-                "guide's; a rotary drive needs its own transmission")
+                "guide's; a rotary drive needs its own transmission"
+            )
         return _specialised(cls, topology.names)
 
     @classmethod
@@ -206,7 +224,7 @@ class DriveController(Block):
             return cls
         try:
             topology = describe(params, masses=False).topology
-        except Exception:   # noqa: BLE001 - the block's own construction reports what is wrong with them
+        except Exception:  # noqa: BLE001 - the block's own construction reports what is wrong with them
             return cls
         return _with_parameters(cls.for_topology(topology), params.get("kinematics", "3PRS"))
 
@@ -248,8 +266,9 @@ class DriveController(Block):
             raise ParameterError(
                 f"{self.name}: the kinematic model is a {topology.name} with coordinates {', '.join(topology.names)} "
                 f"({count_text(topology.n)} drives), this {type(self).__name__} controls "
-                f"{', '.join(self.COORDINATES)}: use {type(self).__name__}.for_topology(its topology)")
-        self.for_topology(topology)    # a rotary drive refused
+                f"{', '.join(self.COORDINATES)}: use {type(self).__name__}.for_topology(its topology)"
+            )
+        self.for_topology(topology)  # a rotary drive refused
         return topology
 
     @property
@@ -263,7 +282,8 @@ class DriveController(Block):
         if n < 1 or abs(ratio - n) > 1e-6 * n:
             raise ParameterError(
                 f"{self.name}: parameter '{name}' = {T!r} s must be an integer multiple of "
-                f"T_cur = {T_cur!r} s (ratio {ratio:.9g})")
+                f"T_cur = {T_cur!r} s (ratio {ratio:.9g})"
+            )
         return int(n)
 
     def _bind_tick(self) -> None:
@@ -280,8 +300,8 @@ class DriveController(Block):
     def _reset(self) -> None:
         """Tick 0, every state and command 0 (the IK cache and the reference empty), the constants in S."""
         self._n = 0
-        self._evaluated = -1                      # the tick whose laws ran at its communication point
-        self._before: tuple = ()                  # the law state before them (``_law_state``)
+        self._evaluated = -1  # the tick whose laws ran at its communication point
+        self._before: tuple = ()  # the law state before them (``_law_state``)
         S = self._S
         S[:] = [0.0] * self.SIZE
         self._constants(S)
@@ -297,7 +317,7 @@ class DriveController(Block):
 
     def set_state(self, state: object) -> None:
         super().set_state(state)
-        self._bind_tick()          # the tick's calls bound to this controller, not to the snapshot's
+        self._bind_tick()  # the tick's calls bound to this controller, not to the snapshot's
 
     # -- properties -----------------------------------------------------------
     @property
@@ -338,11 +358,12 @@ class DriveController(Block):
             self._mode = 0
             self._override = None
             self._S[self.LAYOUT["mode"]] = 0.0
-            self._S[self.LAYOUT["ik"]] = 0.0       # the IK cache forgotten
+            self._S[self.LAYOUT["ik"]] = 0.0  # the IK cache forgotten
             return
         if commands is None or len(commands) != self.n:
-            raise ValueError(f"{self.name}: mode {mode!r} needs {count_text(self.n)} {_MODE_COMMAND[mode]} values "
-                             "(one per axis)")
+            raise ValueError(
+                f"{self.name}: mode {mode!r} needs {count_text(self.n)} {_MODE_COMMAND[mode]} values (one per axis)"
+            )
         values = tuple(float(c) for c in commands)
         for j, c in enumerate(values, 1):
             if not math.isfinite(c):
@@ -355,7 +376,7 @@ class DriveController(Block):
 
     def _apply_override(self) -> None:
         at = self.LAYOUT[("rho_cmd", "omega_cmd", "i_cmd")[self._mode - 1]]
-        self._S[at:at + self.n] = self._override
+        self._S[at : at + self.n] = self._override
 
     # -- life cycle -------------------------------------------------------------
     def initialize(self, t0: float) -> None:
@@ -379,8 +400,8 @@ class DriveController(Block):
             self._before = self._law_state()
             self._evaluated = n
         t = self._t0 + n * self.T_cur
-        s = sum(self.values[:len(self.INPUTS)])
-        if s - s != 0.0:   # NaN or inf among the inputs
+        s = sum(self.values[: len(self.INPUTS)])
+        if s - s != 0.0:  # NaN or inf among the inputs
             self._check_inputs(t)
         self._laws(n, t)
 
@@ -388,16 +409,19 @@ class DriveController(Block):
         T = self.T_cur
         m = round(h / T)
         if m < 1 or abs(h - m * T) > 1e-6 * T:
-            raise ModelError(f"{self.name}: step size h = {h!r} s is not a positive integer multiple of T_cur = {T!r} s")
+            raise ModelError(
+                f"{self.name}: step size h = {h!r} s is not a positive integer multiple of T_cur = {T!r} s"
+            )
         n = self._n
         if abs(t - (self._t0 + n * T)) > 0.5 * T:
             raise ModelError(
                 f"{self.name}: do_step at t = {t!r} s, but tick {n} belongs to t = {self._t0 + n * T!r} s "
-                "(steps must be contiguous from initialize)")
-        if self._evaluated != n:   # no input set at this communication point: the inputs held
+                "(steps must be contiguous from initialize)"
+            )
+        if self._evaluated != n:  # no input set at this communication point: the inputs held
             self.evaluate()
         S = self._S
-        code = self._steps(self.values, S, self._R, self._CUR, self._QM, self._JK, n, m)   # the ticks inside
+        code = self._steps(self.values, S, self._R, self._CUR, self._QM, self._JK, n, m)  # the ticks inside
         if code:
             raise self._failed(code, self._t0 + S[self.LAYOUT["failed"]] * T)
         self._n = n + m
@@ -449,7 +473,7 @@ class DriveController(Block):
         the feed-forward and computed-torque controllers) into ``out``; 1 if it fails (``_failure``)."""
         n, a, out = self.n, args[:-2], args[-1]
         try:
-            out[:] = self.model.currents(a[:n], a[n:2 * n], a[2 * n:])
+            out[:] = self.model.currents(a[:n], a[n : 2 * n], a[2 * n :])
         except KinematicsError as exc:
             self._failure = exc
             return 1
@@ -461,15 +485,16 @@ class DriveController(Block):
         if code == MODEL_FAILED:
             return exc
         pose = ", ".join(f"{c} = {v!r} {POSE_UNITS[c]}" for c, v in zip(self.COORDINATES, self.values))
-        error = KinematicsError(f"{self.name}: inverse kinematics of the pose command {pose} failed at t = {t!r} s: "
-                                f"{exc}")
+        error = KinematicsError(
+            f"{self.name}: inverse kinematics of the pose command {pose} failed at t = {t!r} s: {exc}"
+        )
         error.__cause__ = exc
         return error
 
     # -- helpers ------------------------------------------------------------------
     def _write_outputs(self) -> None:
         n, at = self.n, self.LAYOUT["rho_cmd"]
-        self.values[3 * n:6 * n] = self._S[at:at + 3 * n]
+        self.values[3 * n : 6 * n] = self._S[at : at + 3 * n]
 
     def _check_inputs(self, t: float) -> None:
         for name, value in zip(self.INPUTS, self.values):
@@ -494,9 +519,16 @@ def _specialised(cls: type, coordinates: tuple[str, ...]) -> type:
     its subclass with them (its declarations by ``__init_subclass__``), made once per class and axes."""
     if coordinates == cls.COORDINATES:
         return cls
-    return type(cls.__name__, (cls,), {"COORDINATES": coordinates, "__module__": cls.__module__,
-                                       "__qualname__": f"{cls.__qualname__}[{', '.join(coordinates)}]",
-                                       "__doc__": cls.__doc__})
+    return type(
+        cls.__name__,
+        (cls,),
+        {
+            "COORDINATES": coordinates,
+            "__module__": cls.__module__,
+            "__qualname__": f"{cls.__qualname__}[{', '.join(coordinates)}]",
+            "__doc__": cls.__doc__,
+        },
+    )
 
 
 @lru_cache(maxsize=None)
@@ -506,8 +538,17 @@ def _with_parameters(cls: type, kind: str) -> type:
     parameters = parameters_for(cls.PARAMETERS, kind) if cls.MECHANISM == "3PRS" else cls.PARAMETERS
     if parameters == cls.PARAMETERS:
         return cls
-    return type(cls.__name__, (cls,), {"PARAMETERS": parameters, "MECHANISM": kind, "__module__": cls.__module__,
-                                       "__qualname__": f"{cls.__qualname__}[{kind}]", "__doc__": cls.__doc__})
+    return type(
+        cls.__name__,
+        (cls,),
+        {
+            "PARAMETERS": parameters,
+            "MECHANISM": kind,
+            "__module__": cls.__module__,
+            "__qualname__": f"{cls.__qualname__}[{kind}]",
+            "__doc__": cls.__doc__,
+        },
+    )
 
 
 class ControllerBlock(DriveController):
@@ -519,7 +560,7 @@ class ControllerBlock(DriveController):
     def _constants(self, S: list[float]) -> None:
         super()._constants(S)
         P, at = self.params, self.LAYOUT["gains"]
-        S[at:at + 3] = cascade_gains(float(P["k_v"]), float(P["k_p"]), float(P["k_i"]), float(P["T_vel"]), self.i_R)
+        S[at : at + 3] = cascade_gains(float(P["k_v"]), float(P["k_p"]), float(P["k_i"]), float(P["T_vel"]), self.i_R)
 
     @classmethod
     def position_lines(cls, moded: bool) -> list[str]:

@@ -17,6 +17,7 @@ one sample gives zero derivatives, two a first difference and zero acceleration,
 the quadratic's. Commands with steps (a reference jump) give a burst of large values for
 three samples, as any differentiator does: shape references before differentiating them.
 """
+
 from __future__ import annotations
 
 

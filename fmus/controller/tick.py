@@ -23,6 +23,7 @@ same source to C, on the same layout. What the tick calls (q: the n pose coordin
 A failed call ends the tick: it records the tick in ``S[failed]`` (and the arguments of a failed inverse model or
 direct kinematics in ``S[model_args]``) and returns the call's code, ``MODEL_FAILED`` or ``DK_FAILED``.
 """
+
 from __future__ import annotations
 
 from functools import lru_cache
@@ -32,6 +33,7 @@ from ..mechanism.designs import TRACED_PARAMETERS
 from .inverse_model import CONSTANTS
 
 __all__ = ["layout", "size", "LAYOUT", "SIZE", "DK_FAILED", "MODEL_FAILED", "TARGET_FAILED", "tick_sources", "compiled"]
+
 
 def layout(n: int, parameters: int) -> dict[str, int]:
     """The offsets of a controller's state S (doubles) for ``n`` axes and a kinematic model traced with
@@ -51,12 +53,40 @@ def layout(n: int, parameters: int) -> dict[str, int]:
     (the free places kept: the native FMUs' state is the same). ``size(n, parameters)``: its length."""
     if n < 1:
         raise ValueError(f"state layout for n = {n!r} axes: expected n >= 1")
-    fields = (("n", 1), ("t0", 1), ("ik", 1), ("pose", n), ("x_v", n), (None, 2 * n), ("rho_cmd", n),
-              ("omega_cmd", n), ("i_cmd", n), ("failed", 1), ("gains", 4), ("mode", 1), (None, 2),
-              ("hist", 4 * n), ("k", 1), ("i_ff", n), ("warm", 1), ("guess", n), ("model_args", 3 * n),
-              ("rates", 2 * n), ("own", max(2, n)), ("N_pos", 1), ("N_vel", 1), ("T_cur", 1), ("T_pos", 1),
-              ("i_R", 1), ("cb", 1), ("sb", 1), ("attached", 1), ("P", parameters), ("model", len(CONSTANTS)),
-              ("lengths", n))
+    fields = (
+        ("n", 1),
+        ("t0", 1),
+        ("ik", 1),
+        ("pose", n),
+        ("x_v", n),
+        (None, 2 * n),
+        ("rho_cmd", n),
+        ("omega_cmd", n),
+        ("i_cmd", n),
+        ("failed", 1),
+        ("gains", 4),
+        ("mode", 1),
+        (None, 2),
+        ("hist", 4 * n),
+        ("k", 1),
+        ("i_ff", n),
+        ("warm", 1),
+        ("guess", n),
+        ("model_args", 3 * n),
+        ("rates", 2 * n),
+        ("own", max(2, n)),
+        ("N_pos", 1),
+        ("N_vel", 1),
+        ("T_cur", 1),
+        ("T_pos", 1),
+        ("i_R", 1),
+        ("cb", 1),
+        ("sb", 1),
+        ("attached", 1),
+        ("P", parameters),
+        ("model", len(CONSTANTS)),
+        ("lengths", n),
+    )
     out, at = {}, 0
     for name, length in fields:
         if name is not None:
@@ -85,8 +115,10 @@ TARGET_FAILED = 3000
 
 def _commands(n: int) -> dict[str, list[str]]:
     """The tick's locals of the velocity PI's states and the commands, per axis j = 0..n-1."""
-    return {k: [f"{p}{j}" for j in range(n)] for k, p in (("x_v", "xv"), ("rho_cmd", "rc"), ("omega_cmd", "oc"),
-                                                          ("i_cmd", "ic"))}
+    return {
+        k: [f"{p}{j}" for j in range(n)]
+        for k, p in (("x_v", "xv"), ("rho_cmd", "rc"), ("omega_cmd", "oc"), ("i_cmd", "ic"))
+    }
 
 
 def _indented(lines: Sequence[str], indent: str) -> list[str]:
@@ -103,13 +135,15 @@ def _ik_lines(L: Mapping[str, int], n: int) -> list[str]:
     P = L["pose"]
     pose = [f"values[{k}]" for k in range(n)]
     same = " and ".join(f"values[{k}] == S[{P + k}]" for k in range(n))
-    return [f"if not (S[{L['ik']}] == 1.0 and {same}):",
-            f"    c = ik_s(S, {', '.join(pose)}, R)",
-            "    if c != 0:",
-            f"        S[{L['failed']}] = n",
-            "        return c",
-            *(f"    rc{j} = R[{j}]" for j in range(n)),
-            f"    S[{L['ik']}:{L['ik'] + n + 1}] = (1.0, {', '.join(pose)})"]
+    return [
+        f"if not (S[{L['ik']}] == 1.0 and {same}):",
+        f"    c = ik_s(S, {', '.join(pose)}, R)",
+        "    if c != 0:",
+        f"        S[{L['failed']}] = n",
+        "        return c",
+        *(f"    rc{j} = R[{j}]" for j in range(n)),
+        f"    S[{L['ik']}:{L['ik'] + n + 1}] = (1.0, {', '.join(pose)})",
+    ]
 
 
 def _reference_lines(L: Mapping[str, int], n: int) -> list[str]:
@@ -117,26 +151,42 @@ def _reference_lines(L: Mapping[str, int], n: int) -> list[str]:
     rates of the last (at most four) samples, ``reference.rates``, kept in S[rates]."""
     H, K, Q, T = L["hist"], L["k"], L["rates"], L["T_pos"]
     old = ", ".join(f"S[{H + k}]" for k in range(3 * n))
-    lines = [f"S[{H + n}:{H + 4 * n}] = ({old})", f"S[{H}:{H + n}] = {_tuple([f'rc{j}' for j in range(n)])}",
-             f"k = S[{K}] + 1.0", "if k > 4.0:", "    k = 4.0", f"S[{K}] = k"]
+    lines = [
+        f"S[{H + n}:{H + 4 * n}] = ({old})",
+        f"S[{H}:{H + n}] = {_tuple([f'rc{j}' for j in range(n)])}",
+        f"k = S[{K}] + 1.0",
+        "if k > 4.0:",
+        "    k = 4.0",
+        f"S[{K}] = k",
+    ]
     for j in range(n):
-        lines += [f"rd{j}, rdd{j} = rates(k, rc{j}, S[{H + n + j}], S[{H + 2 * n + j}], S[{H + 3 * n + j}], S[{T}])",
-                  f"S[{Q + j}] = rd{j}", f"S[{Q + n + j}] = rdd{j}"]
+        lines += [
+            f"rd{j}, rdd{j} = rates(k, rc{j}, S[{H + n + j}], S[{H + 2 * n + j}], S[{H + 3 * n + j}], S[{T}])",
+            f"S[{Q + j}] = rd{j}",
+            f"S[{Q + n + j}] = rdd{j}",
+        ]
     return lines
 
 
 def failed_call(L: Mapping[str, int], call: str, args: Sequence[str], code: int) -> list[str]:
     """``c = call`` whose failure ends the tick with ``code``, the arguments ``args`` kept for the message
     (in S[model_args], of the layout ``L``)."""
-    return [f"c = {call}", "if c != 0:", f"    S[{L['failed']}] = n",
-            f"    S[{L['model_args']}:{L['model_args'] + len(args)}] = {_tuple(args)}", f"    return {code}"]
+    return [
+        f"c = {call}",
+        "if c != 0:",
+        f"    S[{L['failed']}] = n",
+        f"    S[{L['model_args']}:{L['model_args'] + len(args)}] = {_tuple(args)}",
+        f"    return {code}",
+    ]
 
 
 def pi_lines(L: Mapping[str, int], n: int, offset: Sequence[str]) -> list[str]:
     """The velocity PI of the n axes (``pi_step``) with the offsets (feed-forward currents) ``offset``."""
     kp, kiT, i_max = (f"S[{L['gains'] + k}]" for k in (1, 2, 3))
-    return [f"ic{j}, xv{j} = pi_step(oc{j} - values[{2 * n + j}], xv{j}, {kp}, {kiT}, {i_max}, {offset[j]})"
-            for j in range(n)]
+    return [
+        f"ic{j}, xv{j} = pi_step(oc{j} - values[{2 * n + j}], xv{j}, {kp}, {kiT}, {i_max}, {offset[j]})"
+        for j in range(n)
+    ]
 
 
 def tick_sources(cls: type, modes: Sequence[str] = ("pose",)) -> tuple[str, str, str]:
@@ -149,11 +199,13 @@ def tick_sources(cls: type, modes: Sequence[str] = ("pose",)) -> tuple[str, str,
     unpack = [f"{v} = S[{S[k] + j}]" for k, vs in named.items() for j, v in enumerate(vs)]
     unpack += [f"if{j} = S[{S['i_ff'] + j}]" for j in range(n)] if ff else []
     commands = ", ".join(named["rho_cmd"] + named["omega_cmd"] + named["i_cmd"])
-    store = [f"S[{S['x_v']}:{S['x_v'] + n}] = {_tuple(named['x_v'])}",
-             f"S[{S['rho_cmd']}:{S['rho_cmd'] + 3 * n}] = ({commands})",
-             *([f"S[{S['i_ff']}:{S['i_ff'] + n}] = {_tuple([f'if{j}' for j in range(n)])}"] if ff else []),
-             f"values[{3 * n}:] = ({commands})",
-             "return 0"]
+    store = [
+        f"S[{S['x_v']}:{S['x_v'] + n}] = {_tuple(named['x_v'])}",
+        f"S[{S['rho_cmd']}:{S['rho_cmd'] + 3 * n}] = ({commands})",
+        *([f"S[{S['i_ff']}:{S['i_ff'] + n}] = {_tuple([f'if{j}' for j in range(n)])}"] if ff else []),
+        f"values[{3 * n}:] = ({commands})",
+        "return 0",
+    ]
     ik = _ik_lines(S, n)
     if moded:
         ik = [f"if S[{S['mode']}] == 0.0:", *_indented(ik, "    ")]
@@ -161,26 +213,40 @@ def tick_sources(cls: type, modes: Sequence[str] = ("pose",)) -> tuple[str, str,
     position = [*ik, *(_reference_lines(S, n) if cls.REFERENCE_RATES else []), *cls.position_lines(moded)]
     velocity = cls.velocity_lines()
     if moded:
-        body = [f"mode = S[{S['mode']}]",
-                f"if mode <= 1.0 and n % S[{S['N_pos']}] == 0.0:", *_indented(position, "    "),
-                f"if mode <= 2.0 and n % S[{S['N_vel']}] == 0.0:", *_indented(velocity, "    ")]
+        body = [
+            f"mode = S[{S['mode']}]",
+            f"if mode <= 1.0 and n % S[{S['N_pos']}] == 0.0:",
+            *_indented(position, "    "),
+            f"if mode <= 2.0 and n % S[{S['N_vel']}] == 0.0:",
+            *_indented(velocity, "    "),
+        ]
     else:
-        body = [f"if n % S[{S['N_pos']}] == 0.0:", *_indented(position, "    "),
-                f"if n % S[{S['N_vel']}] == 0.0:", *_indented(velocity, "    ")]
+        body = [
+            f"if n % S[{S['N_pos']}] == 0.0:",
+            *_indented(position, "    "),
+            f"if n % S[{S['N_vel']}] == 0.0:",
+            *_indented(velocity, "    "),
+        ]
     laws = ["def laws(values, S, R, CUR, QM, JK, n):", *_indented([*unpack, *body, *store], "    ")]
-    steps = ["def steps(values, S, R, CUR, QM, JK, n, m):",
-             "    k = n + 1", "    inner = m - 1",
-             "    for _ in range(inner):",
-             f"        if k % S[{S['N_pos']}] == 0.0 or k % S[{S['N_vel']}] == 0.0:",
-             "            c = laws(values, S, R, CUR, QM, JK, k)",
-             "            if c != 0:", "                return c",
-             "        k += 1",
-             "    return 0"]
+    steps = [
+        "def steps(values, S, R, CUR, QM, JK, n, m):",
+        "    k = n + 1",
+        "    inner = m - 1",
+        "    for _ in range(inner):",
+        f"        if k % S[{S['N_pos']}] == 0.0 or k % S[{S['N_vel']}] == 0.0:",
+        "            c = laws(values, S, R, CUR, QM, JK, k)",
+        "            if c != 0:",
+        "                return c",
+        "        k += 1",
+        "    return 0",
+    ]
     return tuple("\n".join(lines) + "\n" for lines in (start, laws, steps))
 
 
 @lru_cache(maxsize=None)
 def compiled(cls: type, modes: tuple[str, ...]) -> tuple:
     """The code objects of ``tick_sources(cls, modes)`` for Python (compiled once per class)."""
-    return tuple(compile(source, f"<{cls.__name__} tick: {name}>", "exec")
-                 for name, source in zip(("start", "laws", "steps"), tick_sources(cls, modes)))
+    return tuple(
+        compile(source, f"<{cls.__name__} tick: {name}>", "exec")
+        for name, source in zip(("start", "laws", "steps"), tick_sources(cls, modes))
+    )

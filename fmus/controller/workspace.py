@@ -15,6 +15,7 @@ pose direction (the scales s), so that, say, the rotations can be stiffer than t
 and error dynamics that are decoupled in the pose, not in the joints. In "joint" mode the
 pose command is the direct kinematics of the given rho_cmd.
 """
+
 from __future__ import annotations
 
 from typing import Sequence
@@ -27,8 +28,9 @@ from .tick import DK_FAILED, TARGET_FAILED, failed_call
 
 def workspace_parameters(coordinates: Sequence[str]) -> tuple[Param, ...]:
     """The pose-space gain scales, one per coordinate c: ``k_v_scale_<c>`` [1] (for the 3PRS: z, psi, theta)."""
-    return tuple(nonnegative(f"k_v_scale_{c}", "1", f"Workspace position gain in {c}, as a multiple of k_v")
-                 for c in coordinates)
+    return tuple(
+        nonnegative(f"k_v_scale_{c}", "1", f"Workspace position gain in {c}, as a multiple of k_v") for c in coordinates
+    )
 
 
 def pose_gain(k_v: float, s: float) -> float:
@@ -51,11 +53,18 @@ class WorkspaceController(ControllerBlock):
         """The cascade's, with a gain scale per coordinate (``workspace_parameters``)."""
         declared = super()._interface()
         axes = range(1, len(cls.COORDINATES) + 1)
-        return {**declared,
-                "PARAMETERS": (*ControllerBlock.PARAMETERS, *workspace_parameters(cls.COORDINATES)),
-                "DESCRIPTIONS": {**declared["DESCRIPTIONS"],
-                                 **{f"omega_cmd_{j}": f"Motor speed command of axis {j} (workspace position loop "
-                                                      f"through the inverse Jacobian)" for j in axes}}}
+        return {
+            **declared,
+            "PARAMETERS": (*ControllerBlock.PARAMETERS, *workspace_parameters(cls.COORDINATES)),
+            "DESCRIPTIONS": {
+                **declared["DESCRIPTIONS"],
+                **{
+                    f"omega_cmd_{j}": f"Motor speed command of axis {j} (workspace position loop "
+                    f"through the inverse Jacobian)"
+                    for j in axes
+                },
+            },
+        }
 
     LAWS = ()
 
@@ -63,13 +72,14 @@ class WorkspaceController(ControllerBlock):
         super()._constants(S)
         at, k_v = self.LAYOUT["own"], float(self.params["k_v"])
         #: pose-space gains [1/s], one per coordinate
-        self.K = S[at:at + self.n] = tuple(pose_gain(k_v, float(self.params[f"k_v_scale_{c}"]))
-                                           for c in self.COORDINATES)
+        self.K = S[at : at + self.n] = tuple(
+            pose_gain(k_v, float(self.params[f"k_v_scale_{c}"])) for c in self.COORDINATES
+        )
 
     def _reset(self) -> None:
         super()._reset()
-        self._q_meas = None       # last direct kinematics of the measured joints (its warm start)
-        self._q_target = None     # last direct kinematics of rho_cmd (joint mode)
+        self._q_meas = None  # last direct kinematics of the measured joints (its warm start)
+        self._q_target = None  # last direct kinematics of rho_cmd (joint mode)
 
     def _law_state(self) -> tuple:
         return (*super()._law_state(), self._q_meas, self._q_target)
@@ -89,7 +99,7 @@ class WorkspaceController(ControllerBlock):
         except KinematicsError as exc:
             self._failure = exc
             return 1
-        rho_S_out[-1][:len(q)] = q
+        rho_S_out[-1][: len(q)] = q
         return 0
 
     def _wsdk_target(self, *rho_S_out) -> int:
@@ -100,13 +110,13 @@ class WorkspaceController(ControllerBlock):
         except KinematicsError as exc:
             self._failure = exc
             return 1
-        rho_S_out[-1][:len(q)] = q
+        rho_S_out[-1][: len(q)] = q
         return 0
 
     def _ikjac_s(self, S: list[float], *q_out) -> int:
         """``ikjac_s(S, q_1, ..., q_n, out)``: drho/dq at q (row-major) into out[n:n + n^2]."""
         n = self.n
-        q_out[-1][n:n + n * n] = self.kinematics.jacobian(q_out[:-1])[0]
+        q_out[-1][n : n + n * n] = self.kinematics.jacobian(q_out[:-1])[0]
         return 0
 
     def _failed(self, code: int, t: float) -> Exception:
@@ -114,9 +124,10 @@ class WorkspaceController(ControllerBlock):
             return super()._failed(code, t)
         at = self.LAYOUT["model_args"]
         what = "measured joints" if code == DK_FAILED else "joint command"
-        rho = tuple(self._S[at:at + self.n])
-        error = KinematicsError(f"{self.name}: direct kinematics of the {what} rho = {rho!r} m "
-                                f"failed at t = {t!r} s: {self._failure}")
+        rho = tuple(self._S[at : at + self.n])
+        error = KinematicsError(
+            f"{self.name}: direct kinematics of the {what} rho = {rho!r} m failed at t = {t!r} s: {self._failure}"
+        )
         error.__cause__ = self._failure
         return error
 
@@ -130,14 +141,21 @@ class WorkspaceController(ControllerBlock):
         lines = failed_call(L, f"wsdk({', '.join(measured)}, S, QM)", measured, DK_FAILED)
         if moded:
             commanded = [f"rc{j}" for j in range(n)]
-            lines += ["if mode == 0.0:", *(f"    tq{k} = values[{k}]" for k in range(n)), "else:",
-                      *("    " + line for line in failed_call(L, f"wsdk_target({', '.join(commanded)}, S, JK)",
-                                                               commanded, TARGET_FAILED)),
-                      *(f"    tq{k} = JK[{k}]" for k in range(n))]
+            lines += [
+                "if mode == 0.0:",
+                *(f"    tq{k} = values[{k}]" for k in range(n)),
+                "else:",
+                *(
+                    "    " + line
+                    for line in failed_call(L, f"wsdk_target({', '.join(commanded)}, S, JK)", commanded, TARGET_FAILED)
+                ),
+                *(f"    tq{k} = JK[{k}]" for k in range(n)),
+            ]
         target = [f"tq{k}" if moded else f"values[{k}]" for k in range(n)]
         lines += [f"qd{k} = S[{own + k}]*({target[k]} - QM[{k}])" for k in range(n)]
         lines.append(f"c = ikjac_s(S, {', '.join(f'QM[{k}]' for k in range(n))}, JK)")
         qdot = [f"qd{k}" for k in range(n)]
-        lines += [f"oc{j} = " + joint_speed_source([f"JK[{n + n * j + k}]" for k in range(n)], qdot, i_R)
-                  for j in range(n)]
+        lines += [
+            f"oc{j} = " + joint_speed_source([f"JK[{n + n * j + k}]" for k in range(n)], qdot, i_R) for j in range(n)
+        ]
         return lines

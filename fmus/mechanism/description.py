@@ -14,6 +14,7 @@ what was expected); ``DescriptionFile.describe(params)`` gives the engine's ``De
 parameter set (the file's values, overridden by ``params``). A file may ``extend`` another one of the
 same folder: the other's mechanism with some parameters of its own (a design of the same structure).
 """
+
 from __future__ import annotations
 
 import ast
@@ -31,11 +32,19 @@ from .topology import POSE_UNITS, Coordinate, Drive, Topology
 
 try:
     import tomllib
-except ModuleNotFoundError:          # Python 3.10
-    import tomli as tomllib          # type: ignore[no-redef]
+except ModuleNotFoundError:  # Python 3.10
+    import tomli as tomllib  # type: ignore[no-redef]
 
-__all__ = ["DESCRIPTIONS", "DescriptionError", "DescriptionFile", "Described", "Expression", "Parameter",
-           "kinematics", "load"]
+__all__ = [
+    "DESCRIPTIONS",
+    "DescriptionError",
+    "DescriptionFile",
+    "Described",
+    "Expression",
+    "Parameter",
+    "kinematics",
+    "load",
+]
 
 #: the folder of the shipped description files (package data)
 DESCRIPTIONS = Path(__file__).resolve().parent / "descriptions"
@@ -48,9 +57,16 @@ class DescriptionError(ValueError):
 
 # ===================================================================================== units
 #: base dimensions of the units a description may use: (m, kg, s, rad, deg)
-_BASE = {"m": (1, 0, 0, 0, 0), "kg": (0, 1, 0, 0, 0), "s": (0, 0, 1, 0, 0), "rad": (0, 0, 0, 1, 0),
-         "deg": (0, 0, 0, 0, 1), "N": (1, 1, -2, 0, 0), "1": (0, 0, 0, 0, 0)}
-_NUMBER = None       # a literal number: takes the dimension its use needs (docs/mechanism.md)
+_BASE = {
+    "m": (1, 0, 0, 0, 0),
+    "kg": (0, 1, 0, 0, 0),
+    "s": (0, 0, 1, 0, 0),
+    "rad": (0, 0, 0, 1, 0),
+    "deg": (0, 0, 0, 0, 1),
+    "N": (1, 1, -2, 0, 0),
+    "1": (0, 0, 0, 0, 0),
+}
+_NUMBER = None  # a literal number: takes the dimension its use needs (docs/mechanism.md)
 _ONE = (0, 0, 0, 0, 0)
 
 
@@ -63,7 +79,7 @@ def dimension(unit: str) -> tuple[int, ...]:
     for sign_, part in zip((1, -1), parts):
         for factor in part.split("."):
             base = factor.rstrip("0123456789-")
-            power = factor[len(base):] or "1"
+            power = factor[len(base) :] or "1"
             if base not in _BASE:
                 raise ValueError(unit)
             for k, v in enumerate(_BASE[base]):
@@ -111,22 +127,28 @@ class Expression:
         if isinstance(node, ast.BinOp):
             if not isinstance(node.op, (ast.Add, ast.Sub, ast.Mult, ast.Div, ast.Pow)):
                 bad = f"the operator {type(node.op).__name__}"
-            elif isinstance(node.op, ast.Pow) and not (isinstance(node.right, ast.Constant)
-                                                       and type(node.right.value) is int and 0 < node.right.value < 9):
+            elif isinstance(node.op, ast.Pow) and not (
+                isinstance(node.right, ast.Constant) and type(node.right.value) is int and 0 < node.right.value < 9
+            ):
                 bad = "a power other than an integer literal 1..8"
         elif isinstance(node, ast.UnaryOp):
             if not isinstance(node.op, (ast.USub, ast.UAdd)):
                 bad = f"the operator {type(node.op).__name__}"
         elif isinstance(node, ast.Call):
-            if not (isinstance(node.func, ast.Name) and node.func.id in FUNCTIONS) or node.keywords or \
-                    len(node.args) != 1:
+            if (
+                not (isinstance(node.func, ast.Name) and node.func.id in FUNCTIONS)
+                or node.keywords
+                or len(node.args) != 1
+            ):
                 what = node.func.id if isinstance(node.func, ast.Name) else ast.unparse(node.func)
                 bad = f"the call {what}(...)" if what not in FUNCTIONS else f"{what} with other than one argument"
         elif isinstance(node, ast.Name):
             if isinstance(node.ctx, ast.Load) and node.id not in FUNCTIONS and node.id != "pi":
                 if node.id not in units:
-                    raise DescriptionError(f"{self.where}: expression {self.source!r}: unknown parameter "
-                                           f"{node.id!r} (parameters: {', '.join(units) or 'none'})")
+                    raise DescriptionError(
+                        f"{self.where}: expression {self.source!r}: unknown parameter "
+                        f"{node.id!r} (parameters: {', '.join(units) or 'none'})"
+                    )
                 names.add(node.id)
         elif isinstance(node, ast.Constant):
             if type(node.value) not in (int, float):
@@ -134,8 +156,7 @@ class Expression:
         elif not isinstance(node, (ast.operator, ast.unaryop, ast.expr_context)):
             bad = f"{type(node).__name__} ({ast.unparse(node) if isinstance(node, ast.expr) else ''})"
         if bad:
-            raise DescriptionError(f"{self.where}: expression {self.source!r}: {bad} is outside the subset "
-                                   f"({SUBSET})")
+            raise DescriptionError(f"{self.where}: expression {self.source!r}: {bad} is outside the subset ({SUBSET})")
 
     def dims(self, units: Mapping[str, str]):
         """The expression's dimension (``_NUMBER`` when it is made of numbers alone); DescriptionError when it
@@ -183,9 +204,11 @@ class Expression:
         """DescriptionError unless the expression has the dimension of ``expected`` (or is a plain number)."""
         dims = self.dims(units)
         if dims is not _NUMBER and dims != dimension(expected) and not (expected == "1" and dims == dimension("rad")):
-            raise DescriptionError(f"{self.where}: expression {self.source!r} is in {_unit_text(dims)}: expected "
-                                   f"{expected} (its parameters' units: "
-                                   f"{', '.join(f'{n} [{units[n]}]' for n in sorted(self.names))})")
+            raise DescriptionError(
+                f"{self.where}: expression {self.source!r} is in {_unit_text(dims)}: expected "
+                f"{expected} (its parameters' units: "
+                f"{', '.join(f'{n} [{units[n]}]' for n in sorted(self.names))})"
+            )
 
     def __call__(self, env: Mapping[str, object]):
         """The value with the parameters ``env`` (floats, or traced numbers)."""
@@ -202,7 +225,7 @@ class Expression:
         if isinstance(node, ast.Call):
             return FUNCTIONS[node.func.id](self._eval(node.args[0], env))
         a = self._eval(node.left, env)
-        if isinstance(node.op, ast.Pow):          # repeated products: the same floats traced or not
+        if isinstance(node.op, ast.Pow):  # repeated products: the same floats traced or not
             out = a
             for _ in range(node.right.value - 1):
                 out = out * a
@@ -236,19 +259,23 @@ def _table(data, where: str, required: Sequence[str], optional: Sequence[str] = 
         raise DescriptionError(f"{where}: expected a table with {', '.join(required)}")
     missing = [k for k in required if k not in data]
     if missing:
-        raise DescriptionError(f"{where}: missing {', '.join(repr(k) for k in missing)} (expected "
-                               f"{', '.join(list(required) + list(optional))})")
+        raise DescriptionError(
+            f"{where}: missing {', '.join(repr(k) for k in missing)} (expected "
+            f"{', '.join(list(required) + list(optional))})"
+        )
     unknown = [k for k in data if k not in required and k not in optional]
     if unknown:
-        raise DescriptionError(f"{where}: unknown {', '.join(repr(k) for k in unknown)} (expected "
-                               f"{', '.join(list(required) + list(optional))})")
+        raise DescriptionError(
+            f"{where}: unknown {', '.join(repr(k) for k in unknown)} (expected "
+            f"{', '.join(list(required) + list(optional))})"
+        )
     return data
 
 
 @dataclass
 class _BodySpec:
     name: str
-    on: str                         # "platform", or the leg's part it rides on ("leg_1:link")
+    on: str  # "platform", or the leg's part it rides on ("leg_1:link")
     mass: Expression
     com: tuple
     inertia: tuple
@@ -262,10 +289,10 @@ class _BodySpec:
 class _LegSpec:
     name: str
     template: object
-    fields: dict                     # field -> Expression or tuple of 3
+    fields: dict  # field -> Expression or tuple of 3
     kind: str
     stroke: tuple
-    bodies: list                     # _BodySpec per part
+    bodies: list  # _BodySpec per part
 
 
 class DescriptionFile:
@@ -289,8 +316,10 @@ class DescriptionFile:
             params = dict(base.data["parameters"])
             for name in data["parameters"]:
                 if name not in params:
-                    raise DescriptionError(f"{where}: parameter {name!r} is not one of {data['extends']}'s "
-                                           f"({', '.join(params)}): a design that extends another sets its values")
+                    raise DescriptionError(
+                        f"{where}: parameter {name!r} is not one of {data['extends']}'s "
+                        f"({', '.join(params)}): a design that extends another sets its values"
+                    )
             params.update(data["parameters"])
             data = {**base.data, "mechanism": mech, "parameters": params}
             self.extends: Optional[str] = base.path.name
@@ -298,8 +327,9 @@ class DescriptionFile:
             self.extends = None
         self.data = data
         _table(data, where, ("mechanism", "parameters", "legs"), ("leg", "bodies"))
-        mech = _table(data["mechanism"], f"{where}: [mechanism]", ("name", "coordinates", "home", "gravity"),
-                      ("title",))
+        mech = _table(
+            data["mechanism"], f"{where}: [mechanism]", ("name", "coordinates", "home", "gravity"), ("title",)
+        )
         self.name, self.title = str(mech["name"]), str(mech.get("title", mech["name"]))
         self.parameters = self._parameters(data["parameters"], where)
         units = {n: p.unit for n, p in self.parameters.items()}
@@ -312,27 +342,39 @@ class DescriptionFile:
         self.legs = [self._leg({**shared, **leg}, k, where, units) for k, leg in enumerate(legs)]
         families = {leg.template.family for leg in self.legs}
         if len(families) != 1:
-            raise DescriptionError(f"{where}: legs of templates {', '.join(sorted({l.template.name for l in self.legs}))}"
-                                   f": every leg of a mechanism must be of one family (docs/mechanism.md)")
+            raise DescriptionError(
+                f"{where}: legs of templates {', '.join(sorted({l.template.name for l in self.legs}))}"
+                f": every leg of a mechanism must be of one family (docs/mechanism.md)"
+            )
         self.family = FAMILIES[families.pop()]
         coords = mech["coordinates"]
         if not isinstance(coords, list) or not all(c in POSE_UNITS for c in coords) or len(set(coords)) != len(coords):
-            raise DescriptionError(f"{where}: [mechanism] coordinates {coords!r}: expected distinct pose components "
-                                   f"from {', '.join(POSE_UNITS)}")
+            raise DescriptionError(
+                f"{where}: [mechanism] coordinates {coords!r}: expected distinct pose components "
+                f"from {', '.join(POSE_UNITS)}"
+            )
         self.coordinates = tuple(coords)
         if len(self.legs) != len(self.coordinates):
-            raise DescriptionError(f"{where}: {len(self.legs)} drives (one per leg) for {len(self.coordinates)} "
-                                   f"coordinates ({', '.join(self.coordinates)}): expected one driven joint per "
-                                   f"coordinate")
+            raise DescriptionError(
+                f"{where}: {len(self.legs)} drives (one per leg) for {len(self.coordinates)} "
+                f"coordinates ({', '.join(self.coordinates)}): expected one driven joint per "
+                f"coordinate"
+            )
         if self.coordinates != self.family.coordinates:
-            raise DescriptionError(f"{where}: [mechanism] coordinates {', '.join(self.coordinates)}: legs of the "
-                                   f"{self.family.name} family ({', '.join(sorted({l.template.name for l in self.legs}))})"
-                                   f" need the coordinates {', '.join(self.family.coordinates)}")
+            raise DescriptionError(
+                f"{where}: [mechanism] coordinates {', '.join(self.coordinates)}: legs of the "
+                f"{self.family.name} family ({', '.join(sorted({l.template.name for l in self.legs}))})"
+                f" need the coordinates {', '.join(self.family.coordinates)}"
+            )
         home = _table(mech["home"], f"{where}: [mechanism.home]", self.coordinates)
-        self.home = tuple(self._expr(home[c], f"{where}: [mechanism.home] {c}", POSE_UNITS[c]) for c in self.coordinates)
+        self.home = tuple(
+            self._expr(home[c], f"{where}: [mechanism.home] {c}", POSE_UNITS[c]) for c in self.coordinates
+        )
         self.gravity = self._expr(mech["gravity"], f"{where}: [mechanism] gravity", "m/s2")
-        self.bodies = [self._body(b, f"{where}: body {b.get('name', k + 1)!r}" if isinstance(b, dict) else where,
-                                  units, None) for k, b in enumerate(data.get("bodies", []))]
+        self.bodies = [
+            self._body(b, f"{where}: body {b.get('name', k + 1)!r}" if isinstance(b, dict) else where, units, None)
+            for k, b in enumerate(data.get("bodies", []))
+        ]
         names = [b.name for leg in self.legs for b in leg.bodies] + [b.name for b in self.bodies]
         if len(set(names)) != len(names):
             raise DescriptionError(f"{where}: bodies {names}: each name at most once")
@@ -340,7 +382,7 @@ class DescriptionFile:
         geometry = set()
         for leg in self.legs:
             for e in leg.fields.values():
-                for x in (e if isinstance(e, tuple) else (e,)):
+                for x in e if isinstance(e, tuple) else (e,):
                     geometry |= x.names
         used = set(geometry) | self.gravity.names
         for b in [b for leg in self.legs for b in leg.bodies] + self.bodies:
@@ -364,23 +406,32 @@ class DescriptionFile:
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
                 raise DescriptionError(f"{w}: value {value!r}: expected a finite number")
             bounds = entry.get("range", [-math.inf, math.inf])
-            if not (isinstance(bounds, list) and len(bounds) == 2 and all(
-                    isinstance(b, (int, float)) and not isinstance(b, bool) and not math.isnan(b) for b in bounds)
-                    and bounds[0] < bounds[1]):
-                raise DescriptionError(f"{w}: range {bounds!r}: expected [lower, upper] with lower < upper "
-                                       f"(inf for no bound)")
+            if not (
+                isinstance(bounds, list)
+                and len(bounds) == 2
+                and all(isinstance(b, (int, float)) and not isinstance(b, bool) and not math.isnan(b) for b in bounds)
+                and bounds[0] < bounds[1]
+            ):
+                raise DescriptionError(
+                    f"{w}: range {bounds!r}: expected [lower, upper] with lower < upper (inf for no bound)"
+                )
             if not bounds[0] <= value <= bounds[1]:
                 raise DescriptionError(f"{w}: value {value!r} outside its range [{bounds[0]:g}, {bounds[1]:g}]")
             try:
                 dimension(str(entry["unit"]))
             except ValueError:
-                raise DescriptionError(f"{w}: unit {entry['unit']!r}: expected a unit made of "
-                                       f"{', '.join(_BASE)} (for example m, rad, kg, kg.m2, m/s2, 1)") from None
+                raise DescriptionError(
+                    f"{w}: unit {entry['unit']!r}: expected a unit made of "
+                    f"{', '.join(_BASE)} (for example m, rad, kg, kg.m2, m/s2, 1)"
+                ) from None
             if not str(entry["source"]).strip():
-                raise DescriptionError(f"{w}: expected its source (paper table or equation, datasheet, measured data,"
-                                       f" or 'assumed: reason')")
-            out[name] = Parameter(name, float(value), str(entry["unit"]), str(entry["source"]),
-                                  (float(bounds[0]), float(bounds[1])))
+                raise DescriptionError(
+                    f"{w}: expected its source (paper table or equation, datasheet, measured data,"
+                    f" or 'assumed: reason')"
+                )
+            out[name] = Parameter(
+                name, float(value), str(entry["unit"]), str(entry["source"]), (float(bounds[0]), float(bounds[1]))
+            )
         return out
 
     def _expr(self, source, where: str, unit: str) -> Expression:
@@ -416,31 +467,44 @@ class DescriptionFile:
         drivable = " or ".join(template.drivable)
         if not isinstance(drives, list) or len(drives) != 1:
             got = "no driven joint" if not drives else f"{len(drives)} driven joints"
-            raise DescriptionError(f"{w}: {got}: expected exactly one, drive = {{ joint = \"{drivable}\", kind, "
-                                   f"stroke = [lower, upper] }}")
+            raise DescriptionError(
+                f'{w}: {got}: expected exactly one, drive = {{ joint = "{drivable}", kind, stroke = [lower, upper] }}'
+            )
         drive = _table(drives[0], f"{w}: drive", ("joint", "kind", "stroke"))
         if drive["joint"] not in template.drivable:
-            raise DescriptionError(f"{w}: drive joint {drive['joint']!r}: expected {drivable} (the {template.name} "
-                                   f"template's drivable joint)")
+            raise DescriptionError(
+                f"{w}: drive joint {drive['joint']!r}: expected {drivable} (the {template.name} "
+                f"template's drivable joint)"
+            )
         kind = template.drivable[drive["joint"]]
         if drive["kind"] != kind:
             raise DescriptionError(f"{w}: drive kind {drive['kind']!r}: joint {drive['joint']} is {kind}")
         stroke = drive["stroke"]
-        if not (isinstance(stroke, list) and len(stroke) == 2 and all(
-                isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in stroke)
-                and stroke[0] < stroke[1]):
-            raise DescriptionError(f"{w}: drive stroke {stroke!r}: expected [lower, upper] "
-                                   f"[{'m' if kind == 'linear' else 'rad'}] with lower < upper")
+        if not (
+            isinstance(stroke, list)
+            and len(stroke) == 2
+            and all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in stroke)
+            and stroke[0] < stroke[1]
+        ):
+            raise DescriptionError(
+                f"{w}: drive stroke {stroke!r}: expected [lower, upper] "
+                f"[{'m' if kind == 'linear' else 'rad'}] with lower < upper"
+            )
         bodies = leg.get("bodies", {})
         if not isinstance(bodies, dict) or any(p not in template.parts for p in bodies):
-            raise DescriptionError(f"{w}: bodies {list(bodies) if isinstance(bodies, dict) else bodies!r}: expected "
-                                   f"a table by part ({', '.join(template.parts)})")
+            raise DescriptionError(
+                f"{w}: bodies {list(bodies) if isinstance(bodies, dict) else bodies!r}: expected "
+                f"a table by part ({', '.join(template.parts)})"
+            )
         specs = []
         for part in template.parts:
             body = bodies.get(part, {"mass": 0.0})
             body_name = name if len(template.parts) == 1 else f"{name}_{part}"
-            specs.append(self._body({"name": body_name, **body}, f"{w}: body {body_name!r} (part {part})", units,
-                                    f"{name}:{part}"))
+            specs.append(
+                self._body(
+                    {"name": body_name, **body}, f"{w}: body {body_name!r} (part {part})", units, f"{name}:{part}"
+                )
+            )
         return _LegSpec(name, template, fields, kind, (float(stroke[0]), float(stroke[1])), specs)
 
     def _body(self, body, where: str, units, on: Optional[str]) -> _BodySpec:
@@ -448,13 +512,18 @@ class DescriptionFile:
         zero = [0.0, 0.0, 0.0]
         inertia = body.get("inertia", [zero, zero, zero])
         if not isinstance(inertia, list) or len(inertia) != 3:
-            raise DescriptionError(f"{where}: inertia {inertia!r}: expected a 3x3 tensor [[xx, xy, xz], ...] "
-                                   f"[kg.m2] about the centre of mass")
-        return _BodySpec(str(body["name"]), on or "platform", self._expr(body["mass"], f"{where}: mass", "kg"),
-                         self._vector(body.get("com", zero), f"{where}: com", "m"),
-                         tuple(self._vector(row, f"{where}: inertia row {k + 1}", "kg.m2")
-                               for k, row in enumerate(inertia)),
-                         bool(body.get("optional", False)))
+            raise DescriptionError(
+                f"{where}: inertia {inertia!r}: expected a 3x3 tensor [[xx, xy, xz], ...] "
+                f"[kg.m2] about the centre of mass"
+            )
+        return _BodySpec(
+            str(body["name"]),
+            on or "platform",
+            self._expr(body["mass"], f"{where}: mass", "kg"),
+            self._vector(body.get("com", zero), f"{where}: com", "m"),
+            tuple(self._vector(row, f"{where}: inertia row {k + 1}", "kg.m2") for k, row in enumerate(inertia)),
+            bool(body.get("optional", False)),
+        )
 
     # ---------------------------------------------------------------------------------- checks
     def _check_home(self) -> None:
@@ -464,8 +533,9 @@ class DescriptionFile:
         try:
             home = desc.topology.home
         except (ValueError, ZeroDivisionError, OverflowError) as exc:
-            raise DescriptionError(f"{where}: [mechanism.home] cannot be evaluated with the file's values: "
-                                   f"{type(exc).__name__}: {exc}") from None
+            raise DescriptionError(
+                f"{where}: [mechanism.home] cannot be evaluated with the file's values: {type(exc).__name__}: {exc}"
+            ) from None
         try:
             pose, R, S = self.family.pose(list(home), desc.legs)
         except KinematicsError as exc:
@@ -474,12 +544,16 @@ class DescriptionFile:
             try:
                 rho, _ = leg.close(Si, list(home))
             except KinematicsError as exc:
-                raise DescriptionError(f"{where}: leg {spec.name!r} ({spec.template.name}) does not close at the home "
-                                       f"pose {self._pose_text(home)}: {exc}") from None
+                raise DescriptionError(
+                    f"{where}: leg {spec.name!r} ({spec.template.name}) does not close at the home "
+                    f"pose {self._pose_text(home)}: {exc}"
+                ) from None
             lo, hi = spec.stroke
             if not lo <= rho <= hi:
-                raise DescriptionError(f"{where}: leg {spec.name!r}: its drive's stroke [{lo:g}, {hi:g}] excludes home "
-                                       f"({rho:.6g} at the home pose {self._pose_text(home)})")
+                raise DescriptionError(
+                    f"{where}: leg {spec.name!r}: its drive's stroke [{lo:g}, {hi:g}] excludes home "
+                    f"({rho:.6g} at the home pose {self._pose_text(home)})"
+                )
         engine = Engine(desc, g=0.0)
         try:
             engine.jacobian(home)
@@ -487,15 +561,18 @@ class DescriptionFile:
         except KinematicsError as exc:
             raise DescriptionError(f"{where}: the home pose {self._pose_text(home)} is singular: {exc}") from None
         if not margins.smallest > 0.0:
-            raise DescriptionError(f"{where}: the home pose {self._pose_text(home)} is singular: margins parallel "
-                                   f"{margins.parallel:.3g}, inverse {margins.inverse:.3g} m/m")
+            raise DescriptionError(
+                f"{where}: the home pose {self._pose_text(home)} is singular: margins parallel "
+                f"{margins.parallel:.3g}, inverse {margins.inverse:.3g} m/m"
+            )
 
     def _pose_text(self, home) -> str:
         return "(" + ", ".join(f"{c} = {v:.6g} {POSE_UNITS[c]}" for c, v in zip(self.coordinates, home)) + ")"
 
     # ---------------------------------------------------------------------------------- descriptions
-    def values(self, params: Optional[Mapping[str, object]] = None, masses: bool = True,
-               owner: str = "") -> dict[str, float]:
+    def values(
+        self, params: Optional[Mapping[str, object]] = None, masses: bool = True, owner: str = ""
+    ) -> dict[str, float]:
         """The parameters' values: the file's (``params`` None), or those of ``params``, which must hold every
         parameter the description uses (ParameterError naming the first missing); ``masses=False``: those that are
         not the geometry's (``kinematic``) are 0 (a kinematic model: massless bodies, no gravity), and need not be
@@ -509,14 +586,17 @@ class DescriptionFile:
             elif name in params:
                 out[name] = float(params[name])
             elif name in self.traced:
-                raise ParameterError(f"{owner or self.path.name}: missing parameter {name!r} [{p.unit}] of the "
-                                     f"{self.name} description ({self.path.name})")
+                raise ParameterError(
+                    f"{owner or self.path.name}: missing parameter {name!r} [{p.unit}] of the "
+                    f"{self.name} description ({self.path.name})"
+                )
             else:
                 out[name] = p.value
         return out
 
-    def describe(self, params: Optional[Mapping[str, object]] = None, masses: bool = True, traced: bool = False,
-                 owner: str = "") -> "Described":
+    def describe(
+        self, params: Optional[Mapping[str, object]] = None, masses: bool = True, traced: bool = False, owner: str = ""
+    ) -> "Described":
         """The engine's description with ``values(params, masses)``; ``traced``: the parameters ``traced`` as
         named inputs of the generated functions (the same floats as the constants, up to the sign of a zero)."""
         return Described(self, self.values(params, masses, owner), masses, traced, owner or self.path.name)
@@ -526,8 +606,9 @@ class Described(Description):
     """The engine's description of a description file at parameter values (``DescriptionFile.describe``):
     ``values`` (name -> float), ``legs`` (``legs.Leg`` with float geometry), ``bodies`` (``Body``)."""
 
-    def __init__(self, file: DescriptionFile, values: Mapping[str, float], masses: bool, traced: bool,
-                 owner: str) -> None:
+    def __init__(
+        self, file: DescriptionFile, values: Mapping[str, float], masses: bool, traced: bool, owner: str
+    ) -> None:
         self.file, self.params, self.masses, self.traced = file, dict(values), masses, traced
         self.name = file.name
         self.coordinates = file.coordinates
@@ -576,8 +657,15 @@ class Described(Description):
             env = {n: traced_input(q[0], n) for n in self.file.traced}
             env.update({n: v for n, v in self.params.items() if n not in env})
             legs = self._legs(env, True)
-            bodies = [TracedBody(s.name, s.mass(env), tuple(e(env) for e in s.com),
-                                 tuple(tuple(e(env) for e in row) for row in s.inertia)) for s in self._specs()]
+            bodies = [
+                TracedBody(
+                    s.name,
+                    s.mass(env),
+                    tuple(e(env) for e in s.com),
+                    tuple(tuple(e(env) for e in row) for row in s.inertia),
+                )
+                for s in self._specs()
+            ]
         pose, R, S = self.file.family.pose(q, legs)
         rho, frames = [], []
         for leg, Si in zip(legs, S):
@@ -596,9 +684,14 @@ class Described(Description):
         legs = self.legs
         if self.file.family.name == "plane" and all(leg.template.name == "PRS" for leg in legs):
             g = legs[0]
-            return (level_height(rho[0], rho[1], rho[2], g.g["base_radius"], g.g["platform_radius"], g.g["length"],
-                                 g.cb, g.sb), 0.0, 0.0)
-        if self.file.family.name == "plane":          # RPS: the leg length is the distance in the leg's plane
+            return (
+                level_height(
+                    rho[0], rho[1], rho[2], g.g["base_radius"], g.g["platform_radius"], g.g["length"], g.cb, g.sb
+                ),
+                0.0,
+                0.0,
+            )
+        if self.file.family.name == "plane":  # RPS: the leg length is the distance in the leg's plane
             g = legs[0]
             mean = sum(rho) / len(rho)
             gap = g.g["base_radius"] - g.g["platform_radius"]
@@ -609,8 +702,12 @@ class Described(Description):
     def topology(self) -> Topology:
         """The file's coordinates, one drive per leg (rho_k, its kind and stroke), the home pose at these values."""
         home = tuple(float(e(self.params)) for e in self.file.home)
-        return Topology(self.name, tuple(Coordinate(c) for c in self.coordinates),
-                        tuple(Drive(j, spec.kind, spec.stroke) for j, spec in zip(self.joints, self.file.legs)), home)
+        return Topology(
+            self.name,
+            tuple(Coordinate(c) for c in self.coordinates),
+            tuple(Drive(j, spec.kind, spec.stroke) for j, spec in zip(self.joints, self.file.legs)),
+            home,
+        )
 
     def sketch(self):
         """The base (a disc through the legs' base points), each leg's parts (``legs.Leg.sketch``), the platform (a
@@ -624,8 +721,10 @@ class Described(Description):
         names = [b.name for b in self.bodies]
         for leg, spec in zip(self.legs, self.file.legs):
             parts += leg.sketch([b.name for b in spec.bodies if b.name in names], spec.stroke[0])
-        parts += [Part("plate", "platform", [(r * math.cos(a), r * math.sin(a), 0.0) for a in rim]),
-                  Part("joint", "platform", [leg.platform_point() for leg in self.legs])]
+        parts += [
+            Part("plate", "platform", [(r * math.cos(a), r * math.sin(a), 0.0) for a in rim]),
+            Part("joint", "platform", [leg.platform_point() for leg in self.legs]),
+        ]
         return tuple(parts)
 
 

@@ -19,6 +19,7 @@ mass is the actuators' M_load). The PRS leg template (``legs.py``) repeats the c
 ``kinematics.py`` operation for operation, so for beta = 0 its inverse kinematics gives the very
 same floats.
 """
+
 from __future__ import annotations
 
 import math
@@ -32,18 +33,37 @@ from .engine import Engine
 from .kinematics import GEOMETRY_PARAMETERS, Geometry, KinematicsError
 from .legs import level_height
 
-__all__ = ["KINEMATICS", "KINEMATIC_PARAMETERS", "KINEMATIC_PARAMETERS_NAMES", "MASS_PARAMETERS", "PAYLOAD_PARAMETERS",
-           "TRACED_PARAMETERS", "describe", "description", "description_parameters", "engine", "kinematic_engine",
-           "level_height", "parameters_for", "traced_engine"]
+__all__ = [
+    "KINEMATICS",
+    "KINEMATIC_PARAMETERS",
+    "KINEMATIC_PARAMETERS_NAMES",
+    "MASS_PARAMETERS",
+    "PAYLOAD_PARAMETERS",
+    "TRACED_PARAMETERS",
+    "describe",
+    "description",
+    "description_parameters",
+    "engine",
+    "kinematic_engine",
+    "level_height",
+    "parameters_for",
+    "traced_engine",
+]
 
 
 #: the geometry parameter set: bound to the mechanism and to the controller (its kinematic model)
 KINEMATIC_PARAMETERS: tuple[Param, ...] = (
-    Param("kinematics", "", "Kinematic model of the mechanism: 3PRS (three guides, revolute + spherical joints)",
-          kind=str),
+    Param(
+        "kinematics", "", "Kinematic model of the mechanism: 3PRS (three guides, revolute + spherical joints)", kind=str
+    ),
     *GEOMETRY_PARAMETERS,
-    Param("beta", "rad", "Inclination of every guide from the vertical, towards the centre axis (0: vertical guides)",
-          -math.radians(45.0), math.radians(45.0)),
+    Param(
+        "beta",
+        "rad",
+        "Inclination of every guide from the vertical, towards the centre axis (0: vertical guides)",
+        -math.radians(45.0),
+        math.radians(45.0),
+    ),
 )
 
 KINEMATIC_PARAMETERS_NAMES: tuple[str, ...] = tuple(p.name for p in KINEMATIC_PARAMETERS)
@@ -57,9 +77,15 @@ MASS_PARAMETERS: tuple[Param, ...] = (
     nonnegative("I_py", "kg.m2", "Platform inertia about its own y axis, at P"),
     nonnegative("I_pz", "kg.m2", "Platform inertia about its own z axis, at P"),
     Param("g", "m/s2", "Gravitational acceleration (along -z)", minimum=0.0, maximum=100.0),
-    Param("attached", "", "1: the mechanism loads the actuators (its inverse dynamics); 0: actuators alone "
-                          "(paper Fig. 10 'without the MAST'): no force, the pose outputs are the kinematics",
-          minimum=0, maximum=1, kind=int),
+    Param(
+        "attached",
+        "",
+        "1: the mechanism loads the actuators (its inverse dynamics); 0: actuators alone "
+        "(paper Fig. 10 'without the MAST'): no force, the pose outputs are the kinematics",
+        minimum=0,
+        maximum=1,
+        kind=int,
+    ),
 )
 
 PAYLOAD_PARAMETERS: tuple[Param, ...] = (
@@ -84,8 +110,9 @@ KINEMATICS = kinematics()
 def description(kind: str = "3PRS", owner: str = "") -> DescriptionFile:
     """The description file of the mechanism ``kind`` (ParameterError naming the parameter if there is none)."""
     if kind not in KINEMATICS:
-        raise ParameterError(f"{owner or 'mechanism'}: parameter 'kinematics' = {kind!r}: expected one of "
-                             f"{', '.join(KINEMATICS)}")
+        raise ParameterError(
+            f"{owner or 'mechanism'}: parameter 'kinematics' = {kind!r}: expected one of {', '.join(KINEMATICS)}"
+        )
     return load(KINEMATICS[kind])
 
 
@@ -98,8 +125,10 @@ def description_parameters(kind: str) -> tuple[tuple[Param, ...], tuple[Param, .
     def param(p) -> Param:
         return Param(p.name, p.unit, p.source, p.range[0], p.range[1])
 
-    return (tuple(param(p) for n, p in file.parameters.items() if n in file.kinematic),
-            tuple(param(p) for n, p in file.parameters.items() if n not in file.kinematic))
+    return (
+        tuple(param(p) for n, p in file.parameters.items() if n in file.kinematic),
+        tuple(param(p) for n, p in file.parameters.items() if n not in file.kinematic),
+    )
 
 
 def parameters_for(schema: Sequence[Param], kind: object) -> tuple[Param, ...]:
@@ -116,8 +145,11 @@ def parameters_for(schema: Sequence[Param], kind: object) -> tuple[Param, ...]:
     placed = set()
     for p in schema:
         if p.name == "kinematics":
-            out.append(Param("kinematics", "", f"Kinematic model of the mechanism: {kind} "
-                                               f"({description(kind).title})", kind=str))
+            out.append(
+                Param(
+                    "kinematics", "", f"Kinematic model of the mechanism: {kind} ({description(kind).title})", kind=str
+                )
+            )
         elif p.name in base.parameters:
             group = "geometry" if p.name in base.kinematic else "others"
             if group not in placed:
@@ -142,7 +174,7 @@ def describe(params: Mapping[str, object], owner: str = "", masses: bool = True,
     """
     where = owner or "mechanism"
     written = KINEMATICS.get(params.get("kinematics", "3PRS"))
-    if callable(written):       # a description written in Python: called with the parameter set
+    if callable(written):  # a description written in Python: called with the parameter set
         return written(params, masses=masses)
     file = description(params.get("kinematics", "3PRS"), where)
     if file.name == "3PRS":
@@ -158,14 +190,16 @@ def _check_3prs(file: DescriptionFile, values: Mapping[str, float], owner: str) 
     if beta == 0.0:
         Geometry.checked(values, owner)
         return
-    Geometry.from_params(values)              # H, r, L > 0, finite angles
+    Geometry.from_params(values)  # H, r, L > 0, finite angles
     desc = file.describe(values, masses=False)
     try:
-        desc.evaluate(list(desc.guess((0.0, 0.0, 0.0))))      # plain floats: the checks run at once
+        desc.evaluate(list(desc.guess((0.0, 0.0, 0.0))))  # plain floats: the checks run at once
     except KinematicsError as exc:
-        raise ParameterError(f"{owner}: parameters 'H', 'r', 'L', 'beta' = {values['H']!r} m, {values['r']!r} m, "
-                             f"{values['L']!r} m, {beta!r} rad: the mechanism cannot be assembled at the level pose "
-                             f"with the sliders at the foot of their guides: {exc}") from None
+        raise ParameterError(
+            f"{owner}: parameters 'H', 'r', 'L', 'beta' = {values['H']!r} m, {values['r']!r} m, "
+            f"{values['L']!r} m, {beta!r} rad: the mechanism cannot be assembled at the level pose "
+            f"with the sliders at the foot of their guides: {exc}"
+        ) from None
 
 
 _ENGINES: dict = {}

@@ -17,6 +17,7 @@ angular velocity w = J_R rho_dot as quasi-velocities, I_mp = diag(I_px, I_py, I_
 the platform frame. Jacobians and their time derivatives come from ``kinematics``
 (closed form, exact). See docs/mechanism.md.
 """
+
 from __future__ import annotations
 
 import math
@@ -26,8 +27,17 @@ from typing import Mapping, Optional, Sequence
 import numpy as np
 
 from ..common.parameters import ParameterError
-from .kinematics import (Geometry, KinematicsError, dk_frame, first_order, frame_at, leg_jacobians,
-                         platform_jacobians, rates_arrays, second_order)
+from .kinematics import (
+    Geometry,
+    KinematicsError,
+    dk_frame,
+    first_order,
+    frame_at,
+    leg_jacobians,
+    platform_jacobians,
+    rates_arrays,
+    second_order,
+)
 
 __all__ = ["Masses", "IDPResult", "inverse_dynamics", "inverse_dynamics_at_pose"]
 
@@ -108,12 +118,20 @@ def _idp(g: Geometry, ms: Masses, fr, rho_dot: Sequence[float], rho_ddot: Sequen
     gyro = (w[1] * Iw[2] - w[2] * Iw[1], w[2] * Iw[0] - w[0] * Iw[2], w[0] * Iw[1] - w[1] * Iw[0])
     mrot = tuple(Ip[k] * wd0[k] + gyro[k] for k in range(3))
     for a in range(3):
-        c[a] += mp * (JG[0][a] * P0[0] + JG[1][a] * P0[1] + JG[2][a] * P0[2]) + \
-            JR[0][a] * mrot[0] + JR[1][a] * mrot[1] + JR[2][a] * mrot[2]
+        c[a] += (
+            mp * (JG[0][a] * P0[0] + JG[1][a] * P0[1] + JG[2][a] * P0[2])
+            + JR[0][a] * mrot[0]
+            + JR[1][a] * mrot[1]
+            + JR[2][a] * mrot[2]
+        )
         gt[a] += JG[2][a] * mp * gr
         for b in range(a, 3):
-            M[3 * a + b] += mp * (JG[0][a] * JG[0][b] + JG[1][a] * JG[1][b] + JG[2][a] * JG[2][b]) + \
-                Ip[0] * JR[0][a] * JR[0][b] + Ip[1] * JR[1][a] * JR[1][b] + Ip[2] * JR[2][a] * JR[2][b]
+            M[3 * a + b] += (
+                mp * (JG[0][a] * JG[0][b] + JG[1][a] * JG[1][b] + JG[2][a] * JG[2][b])
+                + Ip[0] * JR[0][a] * JR[0][b]
+                + Ip[1] * JR[1][a] * JR[1][b]
+                + Ip[2] * JR[2][a] * JR[2][b]
+            )
     M[3], M[6], M[7] = M[1], M[2], M[5]
     a0, a1, a2 = rho_ddot
     It = (M[0] * a0 + M[1] * a1 + M[2] * a2, M[3] * a0 + M[4] * a1 + M[5] * a2, M[6] * a0 + M[7] * a1 + M[8] * a2)
@@ -133,12 +151,25 @@ def _check3(name: str, v: Sequence[float]) -> list[float]:
 
 def _result(fr, out) -> IDPResult:
     t, It, c, gt, M = out
-    return IDPResult(np.array(t), np.array(It), np.array(c), np.array(gt), np.array(M).reshape(3, 3),
-                     np.array((fr.z, fr.psi, fr.theta)), np.array((fr.x, fr.y, fr.phi)))
+    return IDPResult(
+        np.array(t),
+        np.array(It),
+        np.array(c),
+        np.array(gt),
+        np.array(M).reshape(3, 3),
+        np.array((fr.z, fr.psi, fr.theta)),
+        np.array((fr.x, fr.y, fr.phi)),
+    )
 
 
-def inverse_dynamics(geom: Geometry, masses: Masses, rho: Sequence[float], rho_dot: Sequence[float],
-                     rho_ddot: Sequence[float], pose_guess: Optional[Sequence[float]] = None) -> IDPResult:
+def inverse_dynamics(
+    geom: Geometry,
+    masses: Masses,
+    rho: Sequence[float],
+    rho_dot: Sequence[float],
+    rho_ddot: Sequence[float],
+    pose_guess: Optional[Sequence[float]] = None,
+) -> IDPResult:
     """Actuator forces t_rho [N] for slider heights rho [m], velocities rho_dot [m/s] and
     accelerations rho_ddot [m/s^2] (each (3,)).
 
@@ -152,8 +183,9 @@ def inverse_dynamics(geom: Geometry, masses: Masses, rho: Sequence[float], rho_d
     return _result(fr, _idp(geom, masses, fr, rd, rdd))
 
 
-def inverse_dynamics_at_pose(geom: Geometry, masses: Masses, pose: Sequence[float], rho_dot: Sequence[float],
-                             rho_ddot: Sequence[float]) -> IDPResult:
+def inverse_dynamics_at_pose(
+    geom: Geometry, masses: Masses, pose: Sequence[float], rho_dot: Sequence[float], rho_ddot: Sequence[float]
+) -> IDPResult:
     """As ``inverse_dynamics`` but at a known pose (z [m], psi [rad], theta [rad]) (no DK);
     for model-based control (computed torque, paper Fig. 3b)."""
     p = _check3("pose", pose)

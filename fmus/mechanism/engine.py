@@ -48,6 +48,7 @@ a carriage can move without moving the platform).
 Joint coordinates and forces: t_rho_i is the generalized force conjugate to rho_i, i.e. the
 force the actuator applies along its joint (power t_rho . rho_dot).
 """
+
 from __future__ import annotations
 
 import math
@@ -61,8 +62,18 @@ from .kinematics import COND_LIMIT, KinematicsError, inv3
 from .topology import Topology
 
 __all__ = [
-    "Body", "Description", "Evaluation", "Engine", "Part", "TracedBody", "EngineIDP", "EngineJacobians", "KinematicsError", "MARGIN",
-    "Margins", "SingularityError",
+    "Body",
+    "Description",
+    "Evaluation",
+    "Engine",
+    "Part",
+    "TracedBody",
+    "EngineIDP",
+    "EngineJacobians",
+    "KinematicsError",
+    "MARGIN",
+    "Margins",
+    "SingularityError",
 ]
 
 #: smallest singularity margin [m/m] the direct kinematics accepts (both kinds, module docstring):
@@ -296,7 +307,7 @@ def _inv(m: list[float], n: int) -> tuple[list[float], float]:
     if n == 3:
         inv, det = inv3(m)
         return list(inv), det
-    a = [list(m[r * n:(r + 1) * n]) + [1.0 if c == r else 0.0 for c in range(n)] for r in range(n)]
+    a = [list(m[r * n : (r + 1) * n]) + [1.0 if c == r else 0.0 for c in range(n)] for r in range(n)]
     det = 1.0
     for c in range(n):
         p = max(range(c, n), key=lambda r: abs(a[r][c]))
@@ -326,10 +337,15 @@ def _shown(rho: Sequence[float]) -> str:
 
 def _vee_RtX(R, X):
     """vee of the antisymmetric part of R^T X (R, X: 3x3 nested): ((R^T X)_21 - (R^T X)_12)/2, ..."""
+
     def rtx(i, j):
         return add(add(mul(R[0][i], X[0][j]), mul(R[1][i], X[1][j])), mul(R[2][i], X[2][j]))
-    return [mul(0.5, sub(rtx(2, 1), rtx(1, 2))), mul(0.5, sub(rtx(0, 2), rtx(2, 0))),
-            mul(0.5, sub(rtx(1, 0), rtx(0, 1)))]
+
+    return [
+        mul(0.5, sub(rtx(2, 1), rtx(1, 2))),
+        mul(0.5, sub(rtx(0, 2), rtx(2, 0))),
+        mul(0.5, sub(rtx(1, 0), rtx(0, 1))),
+    ]
 
 
 class Engine:
@@ -346,8 +362,10 @@ class Engine:
         self.cond_limit = cond_limit
         self.n = n = len(description.coordinates)
         if len(description.joints) != n:
-            raise ValueError(f"{description.name}: {len(description.joints)} joints for {n} coordinates; "
-                             "the engine needs as many joint coordinates as independent coordinates")
+            raise ValueError(
+                f"{description.name}: {len(description.joints)} joints for {n} coordinates; "
+                "the engine needs as many joint coordinates as independent coordinates"
+            )
         self.bodies = tuple(description.bodies)
         self.lengths = tuple(float(v) for v in (description.lengths or (1.0,) * n))
         if len(self.lengths) != n or not all(math.isfinite(v) and v > 0.0 for v in self.lengths):
@@ -362,8 +380,10 @@ class Engine:
         q = [graph.input(f"q{j}") for j in range(n)]
         ev = description.evaluate(q)
         if len(ev.rho) != n or len(ev.pose) != 6 or len(ev.frames) != len(ev.bodies or self.bodies):
-            raise ValueError(f"{description.name}: evaluate() must give {n} joint coordinates, a 6-value pose "
-                             f"and one frame per body ({len(ev.bodies or self.bodies)})")
+            raise ValueError(
+                f"{description.name}: evaluate() must give {n} joint coordinates, a 6-value pose "
+                f"and one frame per body ({len(ev.bodies or self.bodies)})"
+            )
         lifted = lambda x: lift(graph, x)  # noqa: E731
         if ev.bodies is not None:
             self.bodies = tuple(ev.bodies)
@@ -379,13 +399,15 @@ class Engine:
         for body, (origin, R) in zip(self.bodies, ev.frames):
             R = [[lifted(R[i][j]) for j in range(3)] for i in range(3)]
             o = [lifted(v) for v in origin]
-            com = [add(o[i], add(add(mul(R[i][0], body.com[0]), mul(R[i][1], body.com[1])),
-                                   mul(R[i][2], body.com[2]))) for i in range(3)]
+            com = [
+                add(o[i], add(add(mul(R[i][0], body.com[0]), mul(R[i][1], body.com[1])), mul(R[i][2], body.com[2])))
+                for i in range(3)
+            ]
             self._frames.append((com, R))
         # first derivatives along each coordinate (q-space basis): shared by every function
         self._dq = [Forward(graph, {f"q{j}": (1.0 if j == k else 0.0) for j in range(n)}) for k in range(n)]
 
-    def __deepcopy__(self, memo):      # immutable once built (Block.get_state deep-copies blocks)
+    def __deepcopy__(self, memo):  # immutable once built (Block.get_state deep-copies blocks)
         return self
 
     # -------------------------------------------------------------------------- generated functions
@@ -412,8 +434,13 @@ class Engine:
         return compile_function("ik", self._args(self._qnames()), self._rho, self._graph, f"{self.description.name} ik")
 
     def _build_ikjac(self) -> Callable:
-        return compile_function("ikjac", self._args(self._qnames()), self._ikjac_outputs(), self._graph,
-                                f"{self.description.name} ik+jacobian")
+        return compile_function(
+            "ikjac",
+            self._args(self._qnames()),
+            self._ikjac_outputs(),
+            self._graph,
+            f"{self.description.name} ik+jacobian",
+        )
 
     def _kept(self) -> tuple[list[Expr], set[int]]:
         """What ``forces`` shares with ``ikjac`` at the same q (the pose's geometry, its checks): (the nodes of
@@ -438,34 +465,68 @@ class Engine:
 
     def _build_ikjac_kept(self) -> Callable:
         outs = self._ikjac_outputs() + self._kept()[0]
-        return compile_function("ikjac_kept", self._args(self._qnames()), outs, self._graph,
-                                f"{self.description.name} ik+jacobian, kept for the forces")
+        return compile_function(
+            "ikjac_kept",
+            self._args(self._qnames()),
+            outs,
+            self._graph,
+            f"{self.description.name} ik+jacobian, kept for the forces",
+        )
 
     def _build_forces_kept(self) -> Callable:
         n = self.n
         shared, done = self._kept()
-        inputs = self._qnames() + [f"J{j}{k}" for j in range(n) for k in range(n)] + \
-            [f"rd{k}" for k in range(n)] + [f"rdd{k}" for k in range(n)]
-        return compile_function("forces_kept", self._args(inputs), self._forces_outputs(), self._graph,
-                                f"{self.description.name} forces after ikjac_kept",
-                                prior=(self._ikjac_outputs() + shared, done))
+        inputs = (
+            self._qnames()
+            + [f"J{j}{k}" for j in range(n) for k in range(n)]
+            + [f"rd{k}" for k in range(n)]
+            + [f"rdd{k}" for k in range(n)]
+        )
+        return compile_function(
+            "forces_kept",
+            self._args(inputs),
+            self._forces_outputs(),
+            self._graph,
+            f"{self.description.name} forces after ikjac_kept",
+            prior=(self._ikjac_outputs() + shared, done),
+        )
 
     def _build_pose(self) -> Callable:
-        return compile_function("pose", self._args(self._qnames()), self._pose, self._graph, f"{self.description.name} pose")
+        return compile_function(
+            "pose", self._args(self._qnames()), self._pose, self._graph, f"{self.description.name} pose"
+        )
 
     def _build_ikjac_many(self) -> Callable:
         n = self.n
         outs = list(self._rho) + [self._dq[k](self._rho[i]) for i in range(n) for k in range(n)]
-        return compile_function("ikjac", self._args(self._qnames()), outs, self._graph, f"{self.description.name} ik+jacobian, "
-                                "arrays", vector=True, rejected=KinematicsError)
+        return compile_function(
+            "ikjac",
+            self._args(self._qnames()),
+            outs,
+            self._graph,
+            f"{self.description.name} ik+jacobian, arrays",
+            vector=True,
+            rejected=KinematicsError,
+        )
 
     def _build_forces_many(self) -> Callable:
         t = self._dynamics_graph(False)[0]
         n = self.n
-        inputs = self._qnames() + [f"J{j}{k}" for j in range(n) for k in range(n)] + \
-            [f"rd{k}" for k in range(n)] + [f"rdd{k}" for k in range(n)]
-        return compile_function("forces", self._args(inputs), list(t), self._graph, f"{self.description.name} forces, arrays",
-                                vector=True, rejected=KinematicsError)
+        inputs = (
+            self._qnames()
+            + [f"J{j}{k}" for j in range(n) for k in range(n)]
+            + [f"rd{k}" for k in range(n)]
+            + [f"rdd{k}" for k in range(n)]
+        )
+        return compile_function(
+            "forces",
+            self._args(inputs),
+            list(t),
+            self._graph,
+            f"{self.description.name} forces, arrays",
+            vector=True,
+            rejected=KinematicsError,
+        )
 
     def _dynamics_graph(self, detailed: bool):
         """Outputs of the inverse dynamics, built on the graph (inputs q, J = dq/drho, rd, rdd)."""
@@ -476,14 +537,14 @@ class Engine:
         qd = [_sum(mul(Jm[j][k], rd[k]) for k in range(n)) for j in range(n)]
         p1 = Forward(g, {f"q{j}": qd[j] for j in range(n)})
         p2 = Second(g, p1, {})
-        h = [p2(r) for r in self._rho]                           # rho'' when qdd = 0
-        qdd0 = [neg(_sum(mul(Jm[j][k], h[k]) for k in range(n))) for j in range(n)]   # Jdot rho_dot
+        h = [p2(r) for r in self._rho]  # rho'' when qdd = 0
+        qdd0 = [neg(_sum(mul(Jm[j][k], h[k]) for k in range(n))) for j in range(n)]  # Jdot rho_dot
         dq = self._dq
 
-        def acc(y: Expr) -> Expr:                                          # y'' with rho_ddot = 0
+        def acc(y: Expr) -> Expr:  # y'' with rho_ddot = 0
             return add(p2(y), _sum(mul(dq[k](y), qdd0[k]) for k in range(n)))
 
-        def to_rho(col_q: list[Expr]) -> list[Expr]:                       # row vector in q -> in rho
+        def to_rho(col_q: list[Expr]) -> list[Expr]:  # row vector in q -> in rho
             return [_sum(mul(col_q[k], Jm[k][c]) for k in range(n)) for c in range(n)]
 
         M = [[g.const(0.0)] * n for _ in range(n)]
@@ -493,17 +554,21 @@ class Engine:
         grav = self._gravity
         for body, (com, R) in zip(self.bodies, self._frames):
             m, I = body.mass, body.inertia
-            Jv = [to_rho([dq[k](com[i]) for k in range(n)]) for i in range(3)]       # 3 x n
+            Jv = [to_rho([dq[k](com[i]) for k in range(n)]) for i in range(3)]  # 3 x n
             a0 = [acc(com[i]) for i in range(3)]
             dR = [[[dq[k](R[i][j]) for j in range(3)] for i in range(3)] for k in range(n)]
-            Jw_q = [_vee_RtX(R, dR[k]) for k in range(n)]                            # n columns
-            Jw = [to_rho([Jw_q[k][i] for k in range(n)]) for i in range(3)]          # 3 x n
+            Jw_q = [_vee_RtX(R, dR[k]) for k in range(n)]  # n columns
+            Jw = [to_rho([Jw_q[k][i] for k in range(n)]) for i in range(3)]  # 3 x n
             w = [_sum(mul(Jw[i][k], rd[k]) for k in range(n)) for i in range(3)]
             wdot0 = _vee_RtX(R, [[acc(R[i][j]) for j in range(3)] for i in range(3)])
             Iw = [_sum(mul(I[i][j], w[j]) for j in range(3)) for i in range(3)]
-            mom = [add(_sum(mul(I[i][j], wdot0[j]) for j in range(3)),
-                        sub(mul(w[(i + 1) % 3], Iw[(i + 2) % 3]), mul(w[(i + 2) % 3], Iw[(i + 1) % 3])))
-                   for i in range(3)]
+            mom = [
+                add(
+                    _sum(mul(I[i][j], wdot0[j]) for j in range(3)),
+                    sub(mul(w[(i + 1) % 3], Iw[(i + 2) % 3]), mul(w[(i + 2) % 3], Iw[(i + 1) % 3])),
+                )
+                for i in range(3)
+            ]
             Mt = [[None] * n for _ in range(n)]
             Mr = [[None] * n for _ in range(n)]
             for a in range(n):
@@ -530,10 +595,15 @@ class Engine:
 
     def _build_forces(self) -> Callable:
         n = self.n
-        inputs = self._qnames() + [f"J{j}{k}" for j in range(n) for k in range(n)] + \
-            [f"rd{k}" for k in range(n)] + [f"rdd{k}" for k in range(n)]
-        return compile_function("forces", self._args(inputs), self._forces_outputs(), self._graph,
-                                f"{self.description.name} forces")
+        inputs = (
+            self._qnames()
+            + [f"J{j}{k}" for j in range(n) for k in range(n)]
+            + [f"rd{k}" for k in range(n)]
+            + [f"rdd{k}" for k in range(n)]
+        )
+        return compile_function(
+            "forces", self._args(inputs), self._forces_outputs(), self._graph, f"{self.description.name} forces"
+        )
 
     def _build_detailed(self) -> Callable:
         n = self.n
@@ -544,8 +614,12 @@ class Engine:
             outs += list(Itb) + list(ctb) + list(gtb) + list(Irb) + list(crb)
             outs += [x for row in Jv for x in row] + [x for row in Jw for x in row] + list(a0) + list(wd0)
             outs += list(v) + list(w)
-        inputs = self._qnames() + [f"J{j}{k}" for j in range(n) for k in range(n)] + \
-            [f"rd{k}" for k in range(n)] + [f"rdd{k}" for k in range(n)]
+        inputs = (
+            self._qnames()
+            + [f"J{j}{k}" for j in range(n) for k in range(n)]
+            + [f"rd{k}" for k in range(n)]
+            + [f"rdd{k}" for k in range(n)]
+        )
         return compile_function("detailed", self._args(inputs), outs, self._graph, f"{self.description.name} detailed")
 
     # -------------------------------------------------------------------------- kinematics
@@ -576,8 +650,10 @@ class Engine:
 
     def _check_cond(self, cond: float, q) -> None:
         if not cond < self.cond_limit:
-            raise KinematicsError(f"singular configuration: drho/dq has condition number {cond:.3g} "
-                                  f"(limit {self.cond_limit:.0e}) at {self._fmt_q(q)}")
+            raise KinematicsError(
+                f"singular configuration: drho/dq has condition number {cond:.3g} "
+                f"(limit {self.cond_limit:.0e}) at {self._fmt_q(q)}"
+            )
 
     def margins(self, q: Sequence[float]) -> Margins:
         """Singularity margins and dexterity at q (``Margins``; KinematicsError if q is not admissible)."""
@@ -587,12 +663,15 @@ class Engine:
 
     def _fmt_q(self, q) -> str:
         units = {"z": "m", "x": "m", "y": "m"}
-        return ", ".join(f"{name} = {float(v):.6g} {units.get(name, 'rad')}"
-                         + ("" if name in units else f" ({math.degrees(float(v)):.4g} deg)")
-                         for name, v in zip(self.description.coordinates, q))
+        return ", ".join(
+            f"{name} = {float(v):.6g} {units.get(name, 'rad')}"
+            + ("" if name in units else f" ({math.degrees(float(v)):.4g} deg)")
+            for name, v in zip(self.description.coordinates, q)
+        )
 
-    def dk(self, rho: Sequence[float], guess: Optional[Sequence[float]] = None, tol: float = 1e-12,
-           max_iter: int = 50) -> tuple[tuple[float, ...], list[float], float]:
+    def dk(
+        self, rho: Sequence[float], guess: Optional[Sequence[float]] = None, tol: float = 1e-12, max_iter: int = 50
+    ) -> tuple[tuple[float, ...], list[float], float]:
         """Direct kinematics: (q, J = dq/drho, cond) for joint coordinates rho.
 
         Newton's method on the inverse kinematics, from ``guess`` (or the description's level
@@ -603,14 +682,16 @@ class Engine:
         """
         return self._newton(rho, guess, tol, max_iter, self._fn("ikjac"))[:3]
 
-    def dk_kept(self, rho: Sequence[float], guess: Optional[Sequence[float]] = None
-                ) -> tuple[tuple[float, ...], list[float], float, tuple]:
+    def dk_kept(
+        self, rho: Sequence[float], guess: Optional[Sequence[float]] = None
+    ) -> tuple[tuple[float, ...], list[float], float, tuple]:
         """``dk`` for the forces that follow at its solution: (q, J, cond, kept), ``kept`` what ``forces_kept``
         reuses of the last evaluation at q (the same Newton steps: the same q, J, cond)."""
         return self._newton(rho, guess, 1e-12, 50, self._fn("ikjac_kept"))
 
-    def _newton(self, rho: Sequence[float], guess: Optional[Sequence[float]], tol: float, max_iter: int,
-                ikjac: Callable) -> tuple[tuple[float, ...], list[float], float, tuple]:
+    def _newton(
+        self, rho: Sequence[float], guess: Optional[Sequence[float]], tol: float, max_iter: int, ikjac: Callable
+    ) -> tuple[tuple[float, ...], list[float], float, tuple]:
         """``dk``'s Newton iteration with ``ikjac`` (``ikjac``, or ``ikjac_kept``): (q, J, cond, its output at q)."""
         n = self.n
         r = [float(v) for v in rho]
@@ -630,17 +711,21 @@ class Engine:
                 out = ikjac(*q, *pv)
                 e = [out[i] - r[i] for i in range(n)]
                 res = max([abs(v) for v in e])
-                Jinv = list(out[n:n + n * n])
+                Jinv = list(out[n : n + n * n])
                 J, det = self._inverse(Jinv, q)
                 if res < tol:
                     cond = _cond(Jinv, J)
                     self._check_cond(cond, q)
             except KinematicsError as exc:
-                raise KinematicsError(f"direct kinematics did not converge for rho = ({_shown(r)}) m: iteration "
-                                      f"{it} reached {self._fmt_q(q)}, where: {exc}") from exc
+                raise KinematicsError(
+                    f"direct kinematics did not converge for rho = ({_shown(r)}) m: iteration "
+                    f"{it} reached {self._fmt_q(q)}, where: {exc}"
+                ) from exc
             if not math.isfinite(res):
-                raise KinematicsError(f"direct kinematics did not converge for rho = ({_shown(r)}) m: non-finite "
-                                      f"residual at iteration {it} ({self._fmt_q(q)})")
+                raise KinematicsError(
+                    f"direct kinematics did not converge for rho = ({_shown(r)}) m: non-finite "
+                    f"residual at iteration {it} ({self._fmt_q(q)})"
+                )
             if it == 0:
                 start, det0 = tuple(q), det
             if res < tol:
@@ -650,9 +735,11 @@ class Engine:
                 break
             for j in range(n):
                 q[j] -= sum([J[j * n + k] * e[k] for k in range(n)])
-        raise KinematicsError(f"direct kinematics did not converge for rho = ({_shown(r)}) m: {max_iter} iterations, "
-                              f"residual max|rho(q) - rho| = {res:.3g} m > tol = {tol:.3g} m "
-                              f"(last {self._fmt_q(q)})")
+        raise KinematicsError(
+            f"direct kinematics did not converge for rho = ({_shown(r)}) m: {max_iter} iterations, "
+            f"residual max|rho(q) - rho| = {res:.3g} m > tol = {tol:.3g} m "
+            f"(last {self._fmt_q(q)})"
+        )
 
     def _check_branch(self, q, Jinv, J, det, start, det0, rho) -> None:
         """The solution on the start's branch and at least ``margin`` from a singularity (SingularityError)."""
@@ -660,7 +747,8 @@ class Engine:
             raise SingularityError(
                 f"direct kinematics for rho = ({_shown(rho)}) m: the solution {self._fmt_q(q)} lies on another assembly "
                 f"branch than the start {self._fmt_q(start)} (det(drho/dq) = {det:+.3g} there, {det0:+.3g} at the "
-                f"start): the joints crossed a parallel singularity; refused rather than jump to the other branch")
+                f"start): the joints crossed a parallel singularity; refused rather than jump to the other branch"
+            )
         m = self.margin
         # cheap lower bounds first: sigma_min(A) >= 1 / |A^-1|_F (exact singular values only near the limit)
         fa = sum([v * v * w for v, w in zip(Jinv, self._wa)])
@@ -669,12 +757,16 @@ class Engine:
             return
         mg = self.margins(q)
         if mg.smallest < m:
-            kind = "parallel (the platform could move with the joints locked)" if mg.parallel < m else \
-                "inverse (a joint could move without moving the platform)"
+            kind = (
+                "parallel (the platform could move with the joints locked)"
+                if mg.parallel < m
+                else "inverse (a joint could move without moving the platform)"
+            )
             raise SingularityError(
                 f"direct kinematics for rho = ({_shown(rho)}) m: the solution {self._fmt_q(q)} is within the margin of a "
                 f"{kind} singularity: margins parallel {mg.parallel:.3g}, inverse {mg.inverse:.3g} < {m:g} m/m "
-                f"(det(drho/dq) = {det:+.3g}; docs/mechanism.md, 'Singularities and the assembly branch')")
+                f"(det(drho/dq) = {det:+.3g}; docs/mechanism.md, 'Singularities and the assembly branch')"
+            )
 
     def evaluate_many(self, q: Sequence) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Inverse kinematics and Jacobian over arrays: q = n arrays (broadcast together) ->
@@ -700,13 +792,15 @@ class Engine:
         return np.stack([np.broadcast_to(np.asarray(v, dtype=float), shape) for v in out[:n]])
 
     # -------------------------------------------------------------------------- dynamics
-    def forces(self, q: Sequence[float], J: Sequence[float], rho_dot: Sequence[float],
-               rho_ddot: Sequence[float]) -> tuple[float, ...]:
+    def forces(
+        self, q: Sequence[float], J: Sequence[float], rho_dot: Sequence[float], rho_ddot: Sequence[float]
+    ) -> tuple[float, ...]:
         """Hot path: (t_rho..., x, y, z, psi, theta, phi) at q with J = dq/drho (from ``dk``)."""
         return self._fn("forces")(*q, *J, *rho_dot, *rho_ddot, *self._pv)
 
-    def forces_kept(self, kept: tuple, q: Sequence[float], J: Sequence[float], rho_dot: Sequence[float],
-                    rho_ddot: Sequence[float]) -> tuple[float, ...]:
+    def forces_kept(
+        self, kept: tuple, q: Sequence[float], J: Sequence[float], rho_dot: Sequence[float], rho_ddot: Sequence[float]
+    ) -> tuple[float, ...]:
         """``forces`` after ``dk_kept``: what it computed at q is not computed again (the same floats)."""
         return self._fn("forces_kept")(kept, *q, *J, *rho_dot, *rho_ddot, *self._pv)
 
@@ -720,7 +814,7 @@ class Engine:
 
         def take(m):
             nonlocal k
-            v = np.array(out[k:k + m], dtype=float)
+            v = np.array(out[k : k + m], dtype=float)
             k += m
             return v
 
@@ -739,15 +833,21 @@ class Engine:
         jac = EngineJacobians(qa, rho, Jm, np.linalg.inv(Jm), cond, qd, qdd0, Jv, Jw, a0, wd0, v, w)
         return idp, jac
 
-    def inverse_dynamics(self, rho: Sequence[float], rho_dot: Sequence[float], rho_ddot: Sequence[float],
-                         guess: Optional[Sequence[float]] = None) -> EngineIDP:
+    def inverse_dynamics(
+        self,
+        rho: Sequence[float],
+        rho_dot: Sequence[float],
+        rho_ddot: Sequence[float],
+        guess: Optional[Sequence[float]] = None,
+    ) -> EngineIDP:
         """Forces t_rho for the joint motion (rho, rho_dot, rho_ddot), pose by the direct kinematics."""
         rd, rdd = self._vector("rho_dot", rho_dot), self._vector("rho_ddot", rho_ddot)
         q, J, cond = self.dk(self._vector("rho", rho), guess)
         return self._unpack(q, J, cond, rd, rdd)[0]
 
-    def inverse_dynamics_at_pose(self, q: Sequence[float], rho_dot: Sequence[float],
-                                 rho_ddot: Sequence[float]) -> EngineIDP:
+    def inverse_dynamics_at_pose(
+        self, q: Sequence[float], rho_dot: Sequence[float], rho_ddot: Sequence[float]
+    ) -> EngineIDP:
         """As ``inverse_dynamics`` at a known q (no direct kinematics)."""
         q = self._vector("q", q)
         _, J, cond = self.jacobian(q)

@@ -7,6 +7,7 @@ variables and parameters follow the description its built-in parameters name (``
 3-RPS's, ``MechanismBlock.for_parameters``).
 Swap a design by the mechanism component's ``source`` and its parameter sets in the SSP.
 """
+
 from __future__ import annotations
 
 from ..common.fmi import BlockSlave

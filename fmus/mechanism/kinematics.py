@@ -28,6 +28,7 @@ derivatives (the bias accelerations "Jdot rhodot", obtained by differentiating t
 constraints twice), with scalar ``math`` for speed: the co-simulation calls the direct
 kinematics and the inverse dynamics every millisecond.
 """
+
 from __future__ import annotations
 
 import math
@@ -40,9 +41,19 @@ from ..common.block import ModelError
 from ..common.parameters import Param, ParameterError, positive
 
 __all__ = [
-    "Geometry", "KinematicsError", "PoseSolution", "Jacobians", "JacobianRates",
-    "MAX_TILT", "parasitic", "inverse_kinematics", "full_pose", "direct_kinematics",
-    "home_pose", "jacobians", "jacobian_rates",
+    "Geometry",
+    "KinematicsError",
+    "PoseSolution",
+    "Jacobians",
+    "JacobianRates",
+    "MAX_TILT",
+    "parasitic",
+    "inverse_kinematics",
+    "full_pose",
+    "direct_kinematics",
+    "home_pose",
+    "jacobians",
+    "jacobian_rates",
 ]
 
 #: largest |psi| or |theta| accepted [rad] (60 deg: three times the machine's 20 deg,
@@ -107,8 +118,12 @@ class Geometry:
     def from_params(cls, params: Mapping[str, object]) -> "Geometry":
         """Geometry from a parameter mapping (H, r, L, alpha_1..3; other keys ignored)."""
         try:
-            return cls(H=float(params["H"]), r=float(params["r"]), L=float(params["L"]),
-                       alpha=(float(params["alpha_1"]), float(params["alpha_2"]), float(params["alpha_3"])))
+            return cls(
+                H=float(params["H"]),
+                r=float(params["r"]),
+                L=float(params["L"]),
+                alpha=(float(params["alpha_1"]), float(params["alpha_2"]), float(params["alpha_3"])),
+            )
         except KeyError as exc:
             raise ParameterError(f"Geometry: missing parameter {exc.args[0]!r}") from None
 
@@ -123,16 +138,22 @@ class Geometry:
         geom = cls.from_params(params)
         H, r, L = geom.H, geom.r, geom.L
         if not r < H:
-            raise ParameterError(f"{owner}: parameter 'r' = {r!r}: must be < H = {H!r} m (working assembly: the "
-                                 f"spherical joints lie inside the guide radius)")
+            raise ParameterError(
+                f"{owner}: parameter 'r' = {r!r}: must be < H = {H!r} m (working assembly: the "
+                f"spherical joints lie inside the guide radius)"
+            )
         if not H - r < L:
-            raise ParameterError(f"{owner}: parameter 'L' = {L!r}: must exceed H - r = {H - r!r} m, or the legs "
-                                 f"cannot reach the platform")
+            raise ParameterError(
+                f"{owner}: parameter 'L' = {L!r}: must exceed H - r = {H - r!r} m, or the legs "
+                f"cannot reach the platform"
+            )
         try:
             first_order(geom, frame_at(geom, geom.home_reach, 0.0, 0.0))
         except KinematicsError as exc:
-            raise ParameterError(f"{owner}: parameters 'alpha_1', 'alpha_2', 'alpha_3' = {geom.alpha} rad: the "
-                                 f"mechanism cannot be assembled at the level pose: {exc}") from None
+            raise ParameterError(
+                f"{owner}: parameters 'alpha_1', 'alpha_2', 'alpha_3' = {geom.alpha} rad: the "
+                f"mechanism cannot be assembled at the level pose: {exc}"
+            ) from None
         return geom
 
     @property
@@ -147,9 +168,32 @@ class _Frame:
     """Everything the kinematics knows at one pose (plain floats, filled in stages)."""
 
     __slots__ = (
-        "z", "psi", "theta", "x", "y", "phi", "c", "s", "R", "a", "u", "w", "rho", "gamma",
+        "z",
+        "psi",
+        "theta",
+        "x",
+        "y",
+        "phi",
+        "c",
+        "s",
+        "R",
+        "a",
+        "u",
+        "w",
+        "rho",
+        "gamma",
         # first order
-        "kpsi", "kth", "Cinv", "K", "JP", "Jw", "D", "Hh", "Jx", "Jxinv", "J",
+        "kpsi",
+        "kth",
+        "Cinv",
+        "K",
+        "JP",
+        "Jw",
+        "D",
+        "Hh",
+        "Jx",
+        "Jxinv",
+        "J",
     )
 
 
@@ -169,9 +213,20 @@ def inv3(m: Sequence[float]) -> tuple[tuple[float, ...], float]:
     C = d * h - e * g
     det = a * A + b * B + c * C
     k = 1.0 / det
-    return ((A * k, (c * h - b * i) * k, (b * f - c * e) * k,
-             B * k, (a * i - c * g) * k, (c * d - a * f) * k,
-             C * k, (b * g - a * h) * k, (a * e - b * d) * k), det)
+    return (
+        (
+            A * k,
+            (c * h - b * i) * k,
+            (b * f - c * e) * k,
+            B * k,
+            (a * i - c * g) * k,
+            (c * d - a * f) * k,
+            C * k,
+            (b * g - a * h) * k,
+            (a * e - b * d) * k,
+        ),
+        det,
+    )
 
 
 def _cond(m: Sequence[float], minv: Sequence[float]) -> float:
@@ -185,7 +240,8 @@ def frame_at(g: Geometry, z: float, psi: float, theta: float) -> _Frame:
     if abs(psi) > MAX_TILT or abs(theta) > MAX_TILT:
         raise KinematicsError(
             f"pose out of range: |psi| = {abs(psi):.6g} rad or |theta| = {abs(theta):.6g} rad exceeds "
-            f"the admissible tilt {MAX_TILT:.6g} rad ({math.degrees(MAX_TILT):g} deg)")
+            f"the admissible tilt {MAX_TILT:.6g} rad ({math.degrees(MAX_TILT):g} deg)"
+        )
     r = g.r
     cp, sp = _cos(psi), _sin(psi)
     ct, st = _cos(theta), _sin(theta)
@@ -210,16 +266,25 @@ def frame_at(g: Geometry, z: float, psi: float, theta: float) -> _Frame:
         raise KinematicsError(
             f"singular configuration: the constraints S_i . t_i = 0 do not determine the parasitic motion "
             f"(x, y, phi) at z = {_fmt(z)} m, psi = {_fmt(psi)} rad, theta = {_fmt(theta)} rad "
-            f"(guide angles {g.alpha} rad; |null vector (cos, sin)| = {norm:.3g})")
-    k = (1.0 if n2 > 0.0 else -1.0) / norm       # choose cos(phi) > 0
+            f"(guide angles {g.alpha} rad; |null vector (cos, sin)| = {norm:.3g})"
+        )
+    k = (1.0 if n2 > 0.0 else -1.0) / norm  # choose cos(phi) > 0
     x, y, c, s = n0 * k, n1 * k, n2 * k, n3 * k
     fr = _Frame()
     fr.z, fr.psi, fr.theta = z, psi, theta
     fr.x, fr.y, fr.phi, fr.c, fr.s = x, y, math.atan2(s, c), c, s
     # R = Rz(phi) Ry(theta) Rx(psi), row-major
-    fr.R = (c * ct, c * st * sp - s * cp, c * st * cp + s * sp,
-            s * ct, s * st * sp + c * cp, s * st * cp - c * sp,
-            -st, ct * sp, ct * cp)
+    fr.R = (
+        c * ct,
+        c * st * sp - s * cp,
+        c * st * cp + s * sp,
+        s * ct,
+        s * st * sp + c * cp,
+        s * st * cp - c * sp,
+        -st,
+        ct * sp,
+        ct * cp,
+    )
     H, L = g.H, g.L
     a, uu, ww, rho, gam = [], [], [], [], []
     for i in range(3):
@@ -233,12 +298,14 @@ def frame_at(g: Geometry, z: float, psi: float, theta: float) -> _Frame:
             raise KinematicsError(
                 f"pose unreachable (not the working assembly): spherical joint S_{i + 1} at radial distance "
                 f"{_fmt(d)} m is outside the guide radius H = {_fmt(H)} m by {_fmt(-u)} m "
-                f"(z = {_fmt(z)} m, psi = {_fmt(psi)} rad, theta = {_fmt(theta)} rad)")
+                f"(z = {_fmt(z)} m, psi = {_fmt(psi)} rad, theta = {_fmt(theta)} rad)"
+            )
         w2 = L * L - u * u
         if not w2 > 0.0:
             raise KinematicsError(
                 f"pose unreachable: leg {i + 1} would need a horizontal reach of {_fmt(u)} m > L = {_fmt(L)} m "
-                f"(short by {_fmt(u - L)} m) at z = {_fmt(z)} m, psi = {_fmt(psi)} rad, theta = {_fmt(theta)} rad")
+                f"(short by {_fmt(u - L)} m) at z = {_fmt(z)} m, psi = {_fmt(psi)} rad, theta = {_fmt(theta)} rad"
+            )
         w = _sqrt(w2)
         uu.append(u)
         ww.append(w)
@@ -252,8 +319,8 @@ def first_order(g: Geometry, fr: _Frame, check: bool = True) -> _Frame:
     """First order: parasitic Jacobian K, point velocities, Jx, Jq, J = Jx^-1 Jq."""
     c, s = fr.c, fr.s
     ct, st = _cos(fr.theta), _sin(fr.theta)
-    kpsi = (c * ct, s * ct, -st)     # world axis of psi_dot: Rz(phi) Ry(theta) e_x
-    kth = (-s, c, 0.0)               # world axis of theta_dot: Rz(phi) e_y
+    kpsi = (c * ct, s * ct, -st)  # world axis of psi_dot: Rz(phi) Ry(theta) e_x
+    kth = (-s, c, 0.0)  # world axis of theta_dot: Rz(phi) e_y
     ca, sa = g._ca, g._sa
     cpar = []
     cact = []
@@ -268,11 +335,16 @@ def first_order(g: Geometry, fr: _Frame, check: bool = True) -> _Frame:
     except ZeroDivisionError:
         raise KinematicsError(
             f"singular configuration: constraint matrix of the parasitic motion is singular at "
-            f"z = {_fmt(fr.z)} m, psi = {_fmt(fr.psi)} rad, theta = {_fmt(fr.theta)} rad") from None
+            f"z = {_fmt(fr.z)} m, psi = {_fmt(fr.psi)} rad, theta = {_fmt(fr.theta)} rad"
+        ) from None
     # K: d(x, y, phi)/d(psi, theta) (no dependence on z); K[k] = (dk/dpsi, dk/dtheta)
-    K = tuple((-(Cinv[3 * k] * cact[0][0] + Cinv[3 * k + 1] * cact[1][0] + Cinv[3 * k + 2] * cact[2][0]),
-               -(Cinv[3 * k] * cact[0][1] + Cinv[3 * k + 1] * cact[1][1] + Cinv[3 * k + 2] * cact[2][1]))
-              for k in range(3))
+    K = tuple(
+        (
+            -(Cinv[3 * k] * cact[0][0] + Cinv[3 * k + 1] * cact[1][0] + Cinv[3 * k + 2] * cact[2][0]),
+            -(Cinv[3 * k] * cact[0][1] + Cinv[3 * k + 1] * cact[1][1] + Cinv[3 * k + 2] * cact[2][1]),
+        )
+        for k in range(3)
+    )
     # columns (psi, theta) of dP/dq and domega/dq (the z column is (0,0,1) and 0)
     JPp, JPt = (K[0][0], K[1][0], 0.0), (K[0][1], K[1][1], 0.0)
     Jwp = (kpsi[0], kpsi[1], kpsi[2] + K[2][0])
@@ -298,19 +370,22 @@ def first_order(g: Geometry, fr: _Frame, check: bool = True) -> _Frame:
     except ZeroDivisionError:
         raise KinematicsError(
             f"singular configuration: Jx is singular (det = 0) at z = {_fmt(fr.z)} m, psi = {_fmt(fr.psi)} rad, "
-            f"theta = {_fmt(fr.theta)} rad") from None
+            f"theta = {_fmt(fr.theta)} rad"
+        ) from None
     if check:
         cond = _cond(Jx, Jxinv)
         if not cond < COND_LIMIT:
             raise KinematicsError(
                 f"singular configuration: Jx has condition number {cond:.3g} (limit {COND_LIMIT:.0e}) at "
-                f"z = {_fmt(fr.z)} m, psi = {_fmt(fr.psi)} rad, theta = {_fmt(fr.theta)} rad")
+                f"z = {_fmt(fr.z)} m, psi = {_fmt(fr.psi)} rad, theta = {_fmt(fr.theta)} rad"
+            )
         w = fr.w
         condq = max(w) / min(w)
         if not condq < COND_LIMIT:
             raise KinematicsError(
                 f"singular configuration: Jq = diag(L sin gamma_i) has condition number {condq:.3g} "
-                f"(a leg is horizontal: gamma = {[round(x, 6) for x in fr.gamma]} rad)")
+                f"(a leg is horizontal: gamma = {[round(x, 6) for x in fr.gamma]} rad)"
+            )
     w = fr.w
     fr.kpsi, fr.kth, fr.Cinv, fr.K = kpsi, kth, Cinv, K
     fr.JP, fr.Jw = (JPp, JPt), (Jwp, Jwt)
@@ -339,13 +414,15 @@ def second_order(g: Geometry, fr: _Frame, rho_dot: Sequence[float]) -> _Rates:
     kp, kt = fr.kpsi, fr.kth
     om = (pd * kp[0] + td * kt[0], pd * kp[1] + td * kt[1], pd * kp[2] + fd)
     # alpha0 = theta_dot phi_dot (e_z x k_theta) + psi_dot ((phi_dot e_z + theta_dot k_theta) x k_psi)
-    bx, by, bz = td * kt[0], td * kt[1], fd          # phi_dot e_z + theta_dot k_theta
-    al0 = (td * fd * (-kt[1]) + pd * (by * kp[2] - bz * kp[1]),
-           td * fd * kt[0] + pd * (bz * kp[0] - bx * kp[2]),
-           pd * (bx * kp[1] - by * kp[0]))
+    bx, by, bz = td * kt[0], td * kt[1], fd  # phi_dot e_z + theta_dot k_theta
+    al0 = (
+        td * fd * (-kt[1]) + pd * (by * kp[2] - bz * kp[1]),
+        td * fd * kt[0] + pd * (bz * kp[0] - bx * kp[2]),
+        pd * (bx * kp[1] - by * kp[0]),
+    )
     ca, sa = g._ca, g._sa
     wsq = om[0] * om[0] + om[1] * om[1] + om[2] * om[2]
-    cen = []   # omega x (omega x a_i) = omega (omega . a) - a |omega|^2
+    cen = []  # omega x (omega x a_i) = omega (omega . a) - a |omega|^2
     b = []
     for i in range(3):
         ax, ay, az = fr.a[i]
@@ -381,9 +458,11 @@ def second_order(g: Geometry, fr: _Frame, rho_dot: Sequence[float]) -> _Rates:
         hb_.append(hbias)
         beta.append(fr.w[i] * hbias - fr.u[i] * dbias + ddi * ddi + wdi * wdi)
     Xi = fr.Jxinv
-    qdd0 = (-(Xi[0] * beta[0] + Xi[1] * beta[1] + Xi[2] * beta[2]),
-            -(Xi[3] * beta[0] + Xi[4] * beta[1] + Xi[5] * beta[2]),
-            -(Xi[6] * beta[0] + Xi[7] * beta[1] + Xi[8] * beta[2]))
+    qdd0 = (
+        -(Xi[0] * beta[0] + Xi[1] * beta[1] + Xi[2] * beta[2]),
+        -(Xi[3] * beta[0] + Xi[4] * beta[1] + Xi[5] * beta[2]),
+        -(Xi[6] * beta[0] + Xi[7] * beta[1] + Xi[8] * beta[2]),
+    )
     zdd, pdd, tdd = qdd0
     # full bias accelerations with qdd = qdd0
     xdd = K[0][0] * pdd + K[0][1] * tdd + xb
@@ -398,8 +477,7 @@ def second_order(g: Geometry, fr: _Frame, rho_dot: Sequence[float]) -> _Rates:
     rt.qdd0 = qdd0
     rt.Pdd0 = (xdd, ydd, zdd)
     # alpha = Jw qdd0 + alpha0 + e_z phi_ddot_bias  (fdd already holds phi_ddot_bias)
-    rt.alpha0 = (pdd * kp[0] + tdd * kt[0] + al0[0], pdd * kp[1] + tdd * kt[1] + al0[1],
-                 pdd * kp[2] + fdd + al0[2])
+    rt.alpha0 = (pdd * kp[0] + tdd * kt[0] + al0[0], pdd * kp[1] + tdd * kt[1] + al0[1], pdd * kp[2] + fdd + al0[2])
     rt.dddot0 = [D[i][1] * pdd + D[i][2] * tdd + db_[i] for i in range(3)]
     rt.hddot0 = [zdd + Hh[i][1] * pdd + Hh[i][2] * tdd + hb_[i] for i in range(3)]
     return rt
@@ -458,8 +536,19 @@ def full_pose(geom: Geometry, z: float, psi: float, theta: float) -> PoseSolutio
     fr = frame_at(geom, float(z), float(psi), float(theta))
     S = np.array([[fr.x + a[0], fr.y + a[1], fr.z + a[2]] for a in fr.a])
     sl = np.array([[geom.H * geom._ca[i], geom.H * geom._sa[i], fr.rho[i]] for i in range(3)])
-    return PoseSolution(fr.x, fr.y, fr.z, fr.psi, fr.theta, fr.phi, np.array(fr.rho), np.array(fr.gamma),
-                        S, sl, np.array(fr.R).reshape(3, 3))
+    return PoseSolution(
+        fr.x,
+        fr.y,
+        fr.z,
+        fr.psi,
+        fr.theta,
+        fr.phi,
+        np.array(fr.rho),
+        np.array(fr.gamma),
+        S,
+        sl,
+        np.array(fr.R).reshape(3, 3),
+    )
 
 
 def home_pose(geom: Geometry, rho0: float) -> np.ndarray:
@@ -467,8 +556,7 @@ def home_pose(geom: Geometry, rho0: float) -> np.ndarray:
     return direct_kinematics(geom, (rho0, rho0, rho0))
 
 
-def dk_frame(g: Geometry, rho: Sequence[float], guess: Optional[Sequence[float]], tol: float,
-              max_iter: int) -> _Frame:
+def dk_frame(g: Geometry, rho: Sequence[float], guess: Optional[Sequence[float]], tol: float, max_iter: int) -> _Frame:
     """Newton on the inverse kinematics; returns the frame (with first order) at the solution."""
     r0, r1, r2 = rho
     if not (_isfinite(r0) and _isfinite(r1) and _isfinite(r2)):
@@ -502,11 +590,17 @@ def dk_frame(g: Geometry, rho: Sequence[float], guess: Optional[Sequence[float]]
     raise KinematicsError(
         f"direct kinematics did not converge for rho = ({r0:.9g}, {r1:.9g}, {r2:.9g}) m: "
         f"{max_iter} iterations, residual max|rho(q) - rho| = {res:.3g} m > tol = {tol:.3g} m "
-        f"(last z = {q0:.6g} m, psi = {q1:.6g} rad, theta = {q2:.6g} rad)")
+        f"(last z = {q0:.6g} m, psi = {q1:.6g} rad, theta = {q2:.6g} rad)"
+    )
 
 
-def direct_kinematics(geom: Geometry, rho: Sequence[float], guess: Optional[Sequence[float]] = None,
-                      tol: float = 1e-12, max_iter: int = 50) -> np.ndarray:
+def direct_kinematics(
+    geom: Geometry,
+    rho: Sequence[float],
+    guess: Optional[Sequence[float]] = None,
+    tol: float = 1e-12,
+    max_iter: int = 50,
+) -> np.ndarray:
     """Pose (z [m], psi [rad], theta [rad]) for slider heights rho (3,) [m].
 
     Newton's method on the inverse kinematics (step J = Jx^-1 Jq), warm-started from
@@ -574,9 +668,13 @@ def leg_jacobians(g: Geometry, fr: _Frame) -> list[tuple[tuple[float, float, flo
         dj = tuple(Di[0] * J[c] + Di[1] * J[3 + c] + Di[2] * J[6 + c] for c in range(3))
         hj = tuple(Hi[0] * J[c] + Hi[1] * J[3 + c] + Hi[2] * J[6 + c] for c in range(3))
         w = fr.w[i]
-        out.append((tuple(0.5 * v for v in dj),
-                    tuple(0.5 * (hj[c] + (1.0 if c == i else 0.0)) for c in range(3)),
-                    tuple(v / w for v in dj)))
+        out.append(
+            (
+                tuple(0.5 * v for v in dj),
+                tuple(0.5 * (hj[c] + (1.0 if c == i else 0.0)) for c in range(3)),
+                tuple(v / w for v in dj),
+            )
+        )
     return out
 
 
@@ -584,8 +682,7 @@ def platform_jacobians(fr: _Frame) -> tuple[list[list[float]], list[list[float]]
     """J_G (rows x, y, z) and J_R (rows body w_x, w_y, w_z) in rhodot."""
     J = fr.J
     (JPp, JPt), (Jwp, Jwt) = fr.JP, fr.Jw
-    JG = [[(1.0 if k == 2 else 0.0) * J[c] + JPp[k] * J[3 + c] + JPt[k] * J[6 + c] for c in range(3)]
-          for k in range(3)]
+    JG = [[(1.0 if k == 2 else 0.0) * J[c] + JPp[k] * J[3 + c] + JPt[k] * J[6 + c] for c in range(3)] for k in range(3)]
     Jw = [[Jwp[k] * J[3 + c] + Jwt[k] * J[6 + c] for c in range(3)] for k in range(3)]
     R = fr.R
     JR = [[R[k] * Jw[0][c] + R[3 + k] * Jw[1][c] + R[6 + k] * Jw[2][c] for c in range(3)] for k in range(3)]
@@ -604,8 +701,9 @@ def jacobians(geom: Geometry, z: float, psi: float, theta: float) -> Jacobians:
     J = np.array(fr.J).reshape(3, 3)
     K = np.array([[0.0, fr.K[k][0], fr.K[k][1]] for k in range(3)])
     JG, JR = platform_jacobians(fr)
-    return Jacobians(pose, Jx, Jq, J, np.linalg.solve(Jq, Jx), K,
-                     np.array(leg_jacobians(geom, fr)), np.array(JG), np.array(JR))
+    return Jacobians(
+        pose, Jx, Jq, J, np.linalg.solve(Jq, Jx), K, np.array(leg_jacobians(geom, fr)), np.array(JG), np.array(JR)
+    )
 
 
 def rates_arrays(g: Geometry, fr: _Frame, rt: _Rates) -> dict:
@@ -629,5 +727,12 @@ def jacobian_rates(geom: Geometry, z: float, psi: float, theta: float, rho_dot: 
     rd = [float(v) for v in rho_dot]
     rt = second_order(geom, fr, rd)
     b = rates_arrays(geom, fr, rt)
-    return JacobianRates(np.array(rt.qd), np.array(b["w"]), np.array(rt.qdd0), np.array(b["legs"]),
-                         np.array(b["P"]), np.array(b["wdot"]), np.array(rt.pard))
+    return JacobianRates(
+        np.array(rt.qd),
+        np.array(b["w"]),
+        np.array(rt.qdd0),
+        np.array(b["legs"]),
+        np.array(b["P"]),
+        np.array(b["wdot"]),
+        np.array(rt.pard),
+    )

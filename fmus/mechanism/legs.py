@@ -23,6 +23,7 @@ R = Rz(phi) Ry(theta) Rx(psi). Every formula is written with the engine's functi
 evaluates on floats and traces on expressions (engine.py); the PRS leg repeats the 3PRS's closed
 form operation for operation (the paper's machine, kinematics.py), so its floats are those.
 """
+
 from __future__ import annotations
 
 import math
@@ -58,8 +59,10 @@ _finite.admissible = lambda z, psi, theta: np.isfinite(z) & np.isfinite(psi) & n
 
 def _finite6(x, y, z, psi, theta, phi) -> None:
     if not all(math.isfinite(v) for v in (x, y, z, psi, theta, phi)):
-        raise KinematicsError(f"pose (x = {x!r} m, y = {y!r} m, z = {z!r} m, psi = {psi!r} rad, theta = {theta!r} rad, "
-                              f"phi = {phi!r} rad) is not finite")
+        raise KinematicsError(
+            f"pose (x = {x!r} m, y = {y!r} m, z = {z!r} m, psi = {psi!r} rad, theta = {theta!r} rad, "
+            f"phi = {phi!r} rad) is not finite"
+        )
 
 
 _finite6.c_condition = " && ".join(f"isfinite(a{k})" for k in range(6))
@@ -71,12 +74,15 @@ def _tilt(psi, theta) -> None:
     if abs(psi) > MAX_TILT or abs(theta) > MAX_TILT:
         raise KinematicsError(
             f"pose out of range: |psi| = {abs(psi):.6g} rad or |theta| = {abs(theta):.6g} rad exceeds "
-            f"the admissible tilt {MAX_TILT:.6g} rad ({math.degrees(MAX_TILT):g} deg)")
+            f"the admissible tilt {MAX_TILT:.6g} rad ({math.degrees(MAX_TILT):g} deg)"
+        )
 
 
 _tilt.c_condition = f"!(fabs(a0) > {MAX_TILT!r} || fabs(a1) > {MAX_TILT!r})"
-_tilt.c_message = (f"pose out of range: |psi| or |theta| exceeds the admissible tilt {MAX_TILT:.6g} rad "
-                   f"({math.degrees(MAX_TILT):g} deg)")
+_tilt.c_message = (
+    f"pose out of range: |psi| or |theta| exceeds the admissible tilt {MAX_TILT:.6g} rad "
+    f"({math.degrees(MAX_TILT):g} deg)"
+)
 _tilt.admissible = lambda psi, theta: (np.abs(psi) <= MAX_TILT) & (np.abs(theta) <= MAX_TILT)
 
 
@@ -88,15 +94,17 @@ class _NullCheck:
     """The parasitic motion determined: |null vector| > 1e-9 r^2 (arguments: norm, z, psi, theta, r, alpha_1..3)."""
 
     c_condition = "a0 > ((1e-09 * a4) * a4)"
-    c_message = ("singular configuration: the constraints S_i . t_i = 0 do not determine the parasitic "
-                 "motion (x, y, phi)")
+    c_message = (
+        "singular configuration: the constraints S_i . t_i = 0 do not determine the parasitic motion (x, y, phi)"
+    )
 
     def __call__(self, norm, z, psi, theta, r, *alpha) -> None:
         if not norm > 1e-9 * r * r:
             raise KinematicsError(
                 f"singular configuration: the constraints S_i . t_i = 0 do not determine the parasitic motion "
                 f"(x, y, phi) at {_pose_text(z, psi, theta)} (guide angles {tuple(alpha)} rad; "
-                f"|null vector (cos, sin)| = {norm:.3g})")
+                f"|null vector (cos, sin)| = {norm:.3g})"
+            )
 
     @staticmethod
     def admissible(norm, z, psi, theta, r, *alpha):
@@ -109,8 +117,10 @@ class _InsideCheck:
     def __init__(self, i: int, inclined: bool) -> None:
         self.i, self.inclined = i, inclined
         self.c_condition = "a0 > 0.0"
-        self.c_message = (f"pose unreachable (not the working assembly): spherical joint S_{i + 1} is on the outer "
-                          f"side of guide {i + 1}")
+        self.c_message = (
+            f"pose unreachable (not the working assembly): spherical joint S_{i + 1} is on the outer "
+            f"side of guide {i + 1}"
+        )
 
     def __call__(self, u, d, z, psi, theta, H) -> None:
         if not u > 0.0:
@@ -118,11 +128,13 @@ class _InsideCheck:
             if self.inclined:
                 raise KinematicsError(
                     f"pose unreachable (not the working assembly): spherical joint S_{i} is {_fmt(-u)} m on the "
-                    f"outer side of guide {i} ({_pose_text(z, psi, theta)})")
+                    f"outer side of guide {i} ({_pose_text(z, psi, theta)})"
+                )
             raise KinematicsError(
                 f"pose unreachable (not the working assembly): spherical joint S_{i} at radial distance "
                 f"{_fmt(d)} m is outside the guide radius H = {_fmt(H)} m by {_fmt(-u)} m "
-                f"({_pose_text(z, psi, theta)})")
+                f"({_pose_text(z, psi, theta)})"
+            )
 
     @staticmethod
     def admissible(u, d, z, psi, theta, H):
@@ -142,7 +154,8 @@ class _ReachCheck:
             what = "a reach perpendicular to its guide" if self.inclined else "a horizontal reach"
             raise KinematicsError(
                 f"pose unreachable: leg {self.i + 1} would need {what} of {_fmt(u)} m > L = {_fmt(L)} m "
-                f"(short by {_fmt(u - L)} m) at {_pose_text(z, psi, theta)}")
+                f"(short by {_fmt(u - L)} m) at {_pose_text(z, psi, theta)}"
+            )
 
     @staticmethod
     def admissible(w2, u, z, psi, theta, L):
@@ -201,20 +214,43 @@ class Template:
 #: parts "cylinder" (frame at b) and "rod" (frame at S), x along the leg, y = axis x leg (the universal joint's
 #: second axis). PUS: a driven slider on a guide from b along the unit vector ``guide``, a universal joint (first
 #: axis ``axis``), a link of length L to the spherical joint at s; part "link": frame at the slider.
-TEMPLATES: dict[str, Template] = {t.name: t for t in (
-    Template("PRS", "plane", {"P": "linear"},
-             {"angle": "rad", "base_radius": "m", "platform_radius": "m", "length": "m", "inclination": "rad"},
-             ("link",), "driven slider on an inclined guide, revolute joint, link, spherical joint"),
-    Template("RPS", "plane", {"P": "linear"},
-             {"angle": "rad", "base_radius": "m", "platform_radius": "m"},
-             ("cylinder", "rod"), "revolute joint at the base, driven prismatic leg, spherical joint"),
-    Template("UPS", "free", {"P": "linear"},
-             {"base": "m", "platform": "m", "axis": "1"},
-             ("cylinder", "rod"), "universal joint at the base, driven prismatic leg, spherical joint"),
-    Template("PUS", "free", {"P": "linear"},
-             {"base": "m", "guide": "1", "platform": "m", "length": "m", "axis": "1"},
-             ("link",), "driven slider on a guide, universal joint, link, spherical joint"),
-)}
+TEMPLATES: dict[str, Template] = {
+    t.name: t
+    for t in (
+        Template(
+            "PRS",
+            "plane",
+            {"P": "linear"},
+            {"angle": "rad", "base_radius": "m", "platform_radius": "m", "length": "m", "inclination": "rad"},
+            ("link",),
+            "driven slider on an inclined guide, revolute joint, link, spherical joint",
+        ),
+        Template(
+            "RPS",
+            "plane",
+            {"P": "linear"},
+            {"angle": "rad", "base_radius": "m", "platform_radius": "m"},
+            ("cylinder", "rod"),
+            "revolute joint at the base, driven prismatic leg, spherical joint",
+        ),
+        Template(
+            "UPS",
+            "free",
+            {"P": "linear"},
+            {"base": "m", "platform": "m", "axis": "1"},
+            ("cylinder", "rod"),
+            "universal joint at the base, driven prismatic leg, spherical joint",
+        ),
+        Template(
+            "PUS",
+            "free",
+            {"P": "linear"},
+            {"base": "m", "guide": "1", "platform": "m", "length": "m", "axis": "1"},
+            ("link",),
+            "driven slider on a guide, universal joint, link, spherical joint",
+        ),
+    )
+}
 
 #: defaults of optional fields (a vertical guide)
 OPTIONAL_FIELDS = {"inclination": 0.0}
@@ -264,9 +300,9 @@ class Leg:
         d = ca * Sx + sa * Sy
         h = Sz
         if self.inclined:
-            dr = d - H                           # S_i relative to the foot of guide i, in its plane
-            u = -(cb * dr + sb * h)              # distance of S_i inside the guide line
-            a = cb * h - sb * dr                 # position of S_i's projection along the guide
+            dr = d - H  # S_i relative to the foot of guide i, in its plane
+            u = -(cb * dr + sb * h)  # distance of S_i inside the guide line
+            a = cb * h - sb * dr  # position of S_i's projection along the guide
         else:
             u = H - d
             a = h
@@ -286,9 +322,14 @@ class Leg:
         i, g, ca, sa = self.i, self.g, self.ca, self.sa
         H = g["base_radius"]
         Sx, Sy, Sz = S
-        dr = ca * Sx + sa * Sy - H               # S_i relative to the base joint, in the leg's plane
-        require(_PositiveCheck(f"pose unreachable (not the working assembly): spherical joint S_{i + 1} is not "
-                               f"above the base joint of leg {i + 1}"), Sz)
+        dr = ca * Sx + sa * Sy - H  # S_i relative to the base joint, in the leg's plane
+        require(
+            _PositiveCheck(
+                f"pose unreachable (not the working assembly): spherical joint S_{i + 1} is not "
+                f"above the base joint of leg {i + 1}"
+            ),
+            Sz,
+        )
         rho = sqrt(dr * dr + Sz * Sz)
         Bx, By = ca * H, sa * H
         lx, ly, lz = (Sx - Bx) / rho, (Sy - By) / rho, Sz / rho
@@ -342,19 +383,25 @@ class Leg:
         name = self.template.name
         if name == "PRS":
             ca, sa, cb, sb, H, L = self.ca, self.sa, self.cb, self.sb, self.g["base_radius"], self.g["length"]
-            return [Part("guide", None, [(ca * H, sa * H, 0.0), (ca * (H - sb), sa * (H - sb), cb)], joint=self.i),
-                    Part("carriage", bodies[0], [(0.0, 0.0, 0.0)]),
-                    Part("link", bodies[0], [(0.0, 0.0, 0.0), (L, 0.0, 0.0)])]
+            return [
+                Part("guide", None, [(ca * H, sa * H, 0.0), (ca * (H - sb), sa * (H - sb), cb)], joint=self.i),
+                Part("carriage", bodies[0], [(0.0, 0.0, 0.0)]),
+                Part("link", bodies[0], [(0.0, 0.0, 0.0), (L, 0.0, 0.0)]),
+            ]
         if name == "PUS":
             b, gd, L = self.g["base"], self.g["guide"], self.g["length"]
-            return [Part("guide", None, [tuple(b), tuple(b[k] + gd[k] for k in range(3))], joint=self.i),
-                    Part("carriage", bodies[0], [(0.0, 0.0, 0.0)]),
-                    Part("link", bodies[0], [(0.0, 0.0, 0.0), (L, 0.0, 0.0)])]
-        half = 0.5 * short        # RPS, UPS: a cylinder from the base joint, a rod from the spherical joint
-        return [Part("joint", None, [self.base_point()]),
-                Part("link", bodies[0], [(0.0, 0.0, 0.0), (half, 0.0, 0.0)]),
-                Part("carriage", bodies[1], [(-half, 0.0, 0.0)]),
-                Part("link", bodies[1], [(-half, 0.0, 0.0), (0.0, 0.0, 0.0)])]
+            return [
+                Part("guide", None, [tuple(b), tuple(b[k] + gd[k] for k in range(3))], joint=self.i),
+                Part("carriage", bodies[0], [(0.0, 0.0, 0.0)]),
+                Part("link", bodies[0], [(0.0, 0.0, 0.0), (L, 0.0, 0.0)]),
+            ]
+        half = 0.5 * short  # RPS, UPS: a cylinder from the base joint, a rod from the spherical joint
+        return [
+            Part("joint", None, [self.base_point()]),
+            Part("link", bodies[0], [(0.0, 0.0, 0.0), (half, 0.0, 0.0)]),
+            Part("carriage", bodies[1], [(-half, 0.0, 0.0)]),
+            Part("link", bodies[1], [(-half, 0.0, 0.0), (0.0, 0.0, 0.0)]),
+        ]
 
 
 # ----------------------------------------------------------------------------- families
@@ -394,11 +441,13 @@ def _plane_pose(q, legs: Sequence[Leg]):
     n3 = -det3(m00, m01, m02, m10, m11, m12, m20, m21, m22)
     norm = hypot(n2, n3)
     require(_NullCheck(), norm, z, psi, theta, legs[0].g["platform_radius"], *(leg.g["angle"] for leg in legs))
-    k = sign(n2) / norm       # choose cos(phi) > 0
+    k = sign(n2) / norm  # choose cos(phi) > 0
     x, y, c, s = n0 * k, n1 * k, n2 * k, n3 * k
-    R = ((c * ct, c * st * sp - s * cp, c * st * cp + s * sp),
-         (s * ct, s * st * sp + c * cp, s * st * cp - c * sp),
-         (-st, ct * sp, ct * cp))
+    R = (
+        (c * ct, c * st * sp - s * cp, c * st * cp + s * sp),
+        (s * ct, s * st * sp + c * cp, s * st * cp - c * sp),
+        (-st, ct * sp, ct * cp),
+    )
     S = []
     for vx, vy, vz in v:
         ax, ay = c * vx - s * vy, s * vx + c * vy
@@ -414,9 +463,11 @@ def _free_pose(q, legs: Sequence[Leg]):
     cp, sp = cos(psi), sin(psi)
     ct, st = cos(theta), sin(theta)
     c, s = cos(phi), sin(phi)
-    R = ((c * ct, c * st * sp - s * cp, c * st * cp + s * sp),
-         (s * ct, s * st * sp + c * cp, s * st * cp - c * sp),
-         (-st, ct * sp, ct * cp))
+    R = (
+        (c * ct, c * st * sp - s * cp, c * st * cp + s * sp),
+        (s * ct, s * st * sp + c * cp, s * st * cp - c * sp),
+        (-st, ct * sp, ct * cp),
+    )
     S = []
     for leg in legs:
         p = leg.g["platform"]

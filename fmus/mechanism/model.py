@@ -13,6 +13,7 @@ The mechanism is the one its parameters describe (``designs.py``: the geometry s
 (``engine.py``). With ``attached = 0`` (actuators alone, paper Fig. 10) the block exerts no
 force and reports the kinematics of the mechanism as if it were massless.
 """
+
 from __future__ import annotations
 
 import math
@@ -102,23 +103,30 @@ class Variables:
         units, text = {}, {}
         for k, kind in zip(ks, kinds):
             rate, acceleration, force = _KIND_UNITS[kind]
-            units.update({f"rho_{k}": DRIVE_UNITS[kind], f"rho_dot_{k}": rate, f"rho_ddot_{k}": acceleration,
-                          f"F_{k}": force})
+            units.update(
+                {f"rho_{k}": DRIVE_UNITS[kind], f"rho_dot_{k}": rate, f"rho_ddot_{k}": acceleration, f"F_{k}": force}
+            )
             if kind == "linear":
-                text.update({
-                    f"rho_{k}": f"Position of slider {k} along its guide from the base plane (vertical guides: "
-                                f"its height)",
-                    f"rho_dot_{k}": f"Velocity of slider {k} along its guide (up positive)",
-                    f"rho_ddot_{k}": f"Acceleration of slider {k} along its guide (up positive)",
-                    f"F_{k}": f"Force actuator {k} applies to the mechanism along its guide, positive upward "
-                              f"(inverse dynamics t_rho_{k})"})
+                text.update(
+                    {
+                        f"rho_{k}": f"Position of slider {k} along its guide from the base plane (vertical guides: "
+                        f"its height)",
+                        f"rho_dot_{k}": f"Velocity of slider {k} along its guide (up positive)",
+                        f"rho_ddot_{k}": f"Acceleration of slider {k} along its guide (up positive)",
+                        f"F_{k}": f"Force actuator {k} applies to the mechanism along its guide, positive upward "
+                        f"(inverse dynamics t_rho_{k})",
+                    }
+                )
             else:
-                text.update({
-                    f"rho_{k}": f"Angle of the driven joint {k}",
-                    f"rho_dot_{k}": f"Angular velocity of the driven joint {k}",
-                    f"rho_ddot_{k}": f"Angular acceleration of the driven joint {k}",
-                    f"F_{k}": f"Torque actuator {k} applies to the mechanism about its joint, positive along "
-                              f"rho_{k} (inverse dynamics t_rho_{k})"})
+                text.update(
+                    {
+                        f"rho_{k}": f"Angle of the driven joint {k}",
+                        f"rho_dot_{k}": f"Angular velocity of the driven joint {k}",
+                        f"rho_ddot_{k}": f"Angular acceleration of the driven joint {k}",
+                        f"F_{k}": f"Torque actuator {k} applies to the mechanism about its joint, positive along "
+                        f"rho_{k} (inverse dynamics t_rho_{k})",
+                    }
+                )
         units.update(POSE_UNITS)
         text.update({p: _POSE_DESCRIPTIONS[p] + ("" if p in coordinates else " (parasitic)") for p in POSE})
         return cls(inputs, outputs, units, text)
@@ -165,12 +173,21 @@ class MechanismBlock(Block):
         found = cls._classes.get(key)
         if found is None:
             found = cls._classes[key] = type(
-                f"MechanismBlock{topology.n}", (MechanismBlock,),
-                {"__doc__": f"{cls.__doc__.strip().splitlines()[0]} Variables of {topology.name}: drives "
-                            f"{', '.join(topology.joints)}, coordinates {', '.join(topology.names)}.",
-                 "__module__": __name__, "INPUTS": io.inputs, "OUTPUTS": io.outputs, "UNITS": io.units,
-                 "DESCRIPTIONS": io.descriptions, "fixed": True, "PARAMETERS": parameters,
-                 "MECHANISM": kind if parameters != MechanismBlock.PARAMETERS else "3PRS"})
+                f"MechanismBlock{topology.n}",
+                (MechanismBlock,),
+                {
+                    "__doc__": f"{cls.__doc__.strip().splitlines()[0]} Variables of {topology.name}: drives "
+                    f"{', '.join(topology.joints)}, coordinates {', '.join(topology.names)}.",
+                    "__module__": __name__,
+                    "INPUTS": io.inputs,
+                    "OUTPUTS": io.outputs,
+                    "UNITS": io.units,
+                    "DESCRIPTIONS": io.descriptions,
+                    "fixed": True,
+                    "PARAMETERS": parameters,
+                    "MECHANISM": kind if parameters != MechanismBlock.PARAMETERS else "3PRS",
+                },
+            )
         return found
 
     @classmethod
@@ -181,11 +198,11 @@ class MechanismBlock(Block):
             return cls
         try:
             return cls.for_topology(describe(params, masses=False).topology, params.get("kinematics", "3PRS"))
-        except Exception:   # noqa: BLE001 - the block's own construction reports what is wrong with them
+        except Exception:  # noqa: BLE001 - the block's own construction reports what is wrong with them
             return cls
 
     def __init__(self, params: Mapping[str, Value], name: str = "") -> None:
-        if self.MECHANISM == "3PRS":    # the parameters of the description the set names (``parameters_for``)
+        if self.MECHANISM == "3PRS":  # the parameters of the description the set names (``parameters_for``)
             self.PARAMETERS = parameters_for(self.PARAMETERS, params.get("kinematics", "3PRS"))
         super().__init__(params, name)
         self.engine = engine(self.params, self.name)
@@ -197,13 +214,14 @@ class MechanismBlock(Block):
                     f"{self.name}: the parameters describe {self.topology.name} (drives "
                     f"{', '.join(f'{d.name} {d.kind}' for d in self.topology.drives)}; coordinates "
                     f"{', '.join(self.topology.names)}), whose variables are not this FMU's "
-                    f"({', '.join(self.INPUTS)}): a mechanism of another topology needs its own FMU")
+                    f"({', '.join(self.INPUTS)}): a mechanism of another topology needs its own FMU"
+                )
             self.INPUTS, self.OUTPUTS, self.UNITS, self.DESCRIPTIONS = io.inputs, io.outputs, io.units, io.descriptions
             self.values = [0.0] * (len(self.INPUTS) + len(self.OUTPUTS))
         self.n = self.topology.n
         self.attached = bool(self.params["attached"])
         self._guess = None
-        self._found = self._failure = None      # the last direct kinematics' solution, or failure (``dk``)
+        self._found = self._failure = None  # the last direct kinematics' solution, or failure (``dk``)
 
     # -------------------------------------------------------------------------------------
     def _compute(self, t: float) -> None:
@@ -219,16 +237,18 @@ class MechanismBlock(Block):
             if restarted_dk(rho, 0.0 if self._guess is None else 1.0, self, None):
                 raise self._failure
             q, J, kept = self._found
-            if self.attached:   # the forces reuse the pose's geometry the direct kinematics computed at q
-                out = eng.forces_kept(kept, q, J, vals[n:2 * n], vals[2 * n:3 * n])
+            if self.attached:  # the forces reuse the pose's geometry the direct kinematics computed at q
+                out = eng.forces_kept(kept, q, J, vals[n : 2 * n], vals[2 * n : 3 * n])
             else:
                 out = (0.0,) * n + eng.pose(q)
         except KinematicsError as exc:
-            raise type(exc)(f"{self.name}: at t = {t!r} s, rho = {rho!r} {self._rho_unit}: {exc}") from exc   # SingularityError stays one
-        except OverflowError as exc:   # the equations built for these parameters (engine.overflow_hint)
+            raise type(exc)(
+                f"{self.name}: at t = {t!r} s, rho = {rho!r} {self._rho_unit}: {exc}"
+            ) from exc  # SingularityError stays one
+        except OverflowError as exc:  # the equations built for these parameters (engine.overflow_hint)
             raise ParameterError(f"{self.name}: {exc}") from None
         self._guess = q
-        vals[3 * n:] = out
+        vals[3 * n :] = out
 
     @property
     def _rho_unit(self) -> str:

@@ -12,6 +12,7 @@ The platform pose is always the six values (x, y, z, psi, theta, phi) [m, m, m, 
 (``POSE``; R = Rz(phi) Ry(theta) Rx(psi)); a mechanism's coordinates are a subset of them, in
 its own order, and its parasitic components are the rest.
 """
+
 from __future__ import annotations
 
 import math
@@ -70,8 +71,10 @@ class Drive:
             raise TopologyError(f"drive {self.name}: kind {self.kind!r}: expected one of {', '.join(DRIVE_UNITS)}")
         lo, hi = (float(v) for v in self.stroke)
         if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
-            raise TopologyError(f"drive {self.name}: stroke {self.stroke!r}: expected finite (lower, upper) "
-                                f"[{self.unit}] with lower < upper")
+            raise TopologyError(
+                f"drive {self.name}: stroke {self.stroke!r}: expected finite (lower, upper) "
+                f"[{self.unit}] with lower < upper"
+            )
         object.__setattr__(self, "stroke", (lo, hi))
 
     @property
@@ -98,14 +101,17 @@ class Topology:
         if len(set(names)) != len(names):
             raise TopologyError(f"{self.name}: coordinates {names}: each pose component at most once")
         if len(self.drives) != len(self.coordinates):
-            raise TopologyError(f"{self.name}: {len(self.drives)} drives for {len(self.coordinates)} coordinates "
-                                f"({', '.join(names)}): a fully actuated mechanism needs one drive per coordinate")
+            raise TopologyError(
+                f"{self.name}: {len(self.drives)} drives for {len(self.coordinates)} coordinates "
+                f"({', '.join(names)}): a fully actuated mechanism needs one drive per coordinate"
+            )
         drives = [d.name for d in self.drives]
         if len(set(drives)) != len(drives):
             raise TopologyError(f"{self.name}: drives {drives}: each joint name at most once")
         if len(self.home) != len(self.coordinates) or not all(math.isfinite(float(v)) for v in self.home):
-            raise TopologyError(f"{self.name}: home {self.home!r}: expected {len(self.coordinates)} finite values "
-                                f"({', '.join(names)})")
+            raise TopologyError(
+                f"{self.name}: home {self.home!r}: expected {len(self.coordinates)} finite values ({', '.join(names)})"
+            )
         object.__setattr__(self, "home", tuple(float(v) for v in self.home))
 
     @property

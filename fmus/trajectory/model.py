@@ -13,6 +13,7 @@ t + h, so a Jacobi master hands the controller the command of the instant it sam
 gives the block of any other set of pose components, and an FMU built with the parameters of another
 set (``x_home``, ...) has that block's variables (``Block.for_parameters``).
 """
+
 from __future__ import annotations
 
 import math
@@ -26,8 +27,10 @@ from ..mechanism.topology import POSE, Coordinate
 _TEXT = {
     "x": ("Platform centre P, x, at the home pose", "Commanded x of the platform centre P"),
     "y": ("Platform centre P, y, at the home pose", "Commanded y of the platform centre P"),
-    "z": ("Height of the platform centre P at the home pose (all sliders at rho_0)",
-          "Commanded height of the platform centre P"),
+    "z": (
+        "Height of the platform centre P at the home pose (all sliders at rho_0)",
+        "Commanded height of the platform centre P",
+    ),
     "psi": ("Roll at the home pose", "Commanded roll about x"),
     "theta": ("Pitch at the home pose", "Commanded pitch about y"),
     "phi": ("Yaw at the home pose", "Commanded yaw about z"),
@@ -41,13 +44,30 @@ def _parameters(coordinates: Sequence[str]) -> tuple[Param, ...]:
         c = Coordinate(name)
         if c.angular:
             homes.append(Param(f"{name}_home", "rad", _TEXT[name][0], minimum=-math.pi / 2, maximum=math.pi / 2))
-            amplitudes.append(Param(f"amplitude_{name}", "rad", f"Amplitude of the sine on {name} (0: {name} stays "
-                                    f"at home)", minimum=-math.pi / 2, maximum=math.pi / 2))
+            amplitudes.append(
+                Param(
+                    f"amplitude_{name}",
+                    "rad",
+                    f"Amplitude of the sine on {name} (0: {name} stays at home)",
+                    minimum=-math.pi / 2,
+                    maximum=math.pi / 2,
+                )
+            )
         else:
-            homes.append(Param(f"{name}_home", "m", _TEXT[name][0], **({"minimum": 0.0, "exclusive": True}
-                                                                       if name == "z" else {})))
-            amplitudes.append(Param(f"amplitude_{name}", "m", f"Amplitude of the sine on {name} (0: {name} stays "
-                                    f"at home)", minimum=-1.0, maximum=1.0))
+            homes.append(
+                Param(
+                    f"{name}_home", "m", _TEXT[name][0], **({"minimum": 0.0, "exclusive": True} if name == "z" else {})
+                )
+            )
+            amplitudes.append(
+                Param(
+                    f"amplitude_{name}",
+                    "m",
+                    f"Amplitude of the sine on {name} (0: {name} stays at home)",
+                    minimum=-1.0,
+                    maximum=1.0,
+                )
+            )
     return (*homes, *amplitudes, nonnegative("frequency", "Hz", "Frequency of the sine (0 holds the home pose)"))
 
 
@@ -66,7 +86,7 @@ class TrajectoryBlock(Block):
     @classmethod
     def for_coordinates(cls, coordinates: Sequence[str]) -> type["TrajectoryBlock"]:
         """The block commanding ``coordinates`` (pose components, in the mechanism's order: ``Topology.names``)."""
-        names = tuple(Coordinate(c).name for c in coordinates)   # each checked to be a pose component
+        names = tuple(Coordinate(c).name for c in coordinates)  # each checked to be a pose component
         if not names or len(set(names)) != len(names):
             raise ValueError(f"trajectory coordinates {names}: expected distinct pose components of {', '.join(POSE)}")
         if names == TrajectoryBlock.COORDINATES:
@@ -74,11 +94,18 @@ class TrajectoryBlock(Block):
         found = cls._classes.get(names)
         if found is None:
             found = cls._classes[names] = type(
-                f"TrajectoryBlock_{'_'.join(names)}", (TrajectoryBlock,),
-                {"__doc__": f"Home pose plus a sine on {', '.join(names)} (one frequency).", "__module__": __name__,
-                 "COORDINATES": names, "OUTPUTS": tuple(f"{c}_cmd" for c in names),
-                 "PARAMETERS": _parameters(names), "UNITS": {f"{c}_cmd": Coordinate(c).unit for c in names},
-                 "DESCRIPTIONS": {f"{c}_cmd": _TEXT[c][1] for c in names}})
+                f"TrajectoryBlock_{'_'.join(names)}",
+                (TrajectoryBlock,),
+                {
+                    "__doc__": f"Home pose plus a sine on {', '.join(names)} (one frequency).",
+                    "__module__": __name__,
+                    "COORDINATES": names,
+                    "OUTPUTS": tuple(f"{c}_cmd" for c in names),
+                    "PARAMETERS": _parameters(names),
+                    "UNITS": {f"{c}_cmd": Coordinate(c).unit for c in names},
+                    "DESCRIPTIONS": {f"{c}_cmd": _TEXT[c][1] for c in names},
+                },
+            )
         return found
 
     @classmethod

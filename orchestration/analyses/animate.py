@@ -14,6 +14,7 @@ per 1/``fps`` s of simulated time (the recorded sample nearest to it), play/paus
 (``DECIMALS``). The guides are drawn from the base to the top of their carriage's stroke (``rho_max`` of
 ``actuator_<joint>``, else the highest position the carriage reaches in the run).
 """
+
 from __future__ import annotations
 
 import json
@@ -42,8 +43,15 @@ MECHANISM = "mechanism"
 #: the component driving joint coordinate j (0-based), whose stroke bounds the drawn guide
 ACTUATOR = "actuator_{}"
 #: colours of the drawing (achieved pose), and the ghost's (commanded pose)
-COLOURS = {"base": "#9e9e9e", "guide": "#424242", "plate": "#1f77b4", "link": "#d62728", "carriage": "#ff7f0e",
-           "joint": "#2ca02c", "ghost": "#7b1fa2"}
+COLOURS = {
+    "base": "#9e9e9e",
+    "guide": "#424242",
+    "plate": "#1f77b4",
+    "link": "#d62728",
+    "carriage": "#ff7f0e",
+    "joint": "#2ca02c",
+    "ghost": "#7b1fa2",
+}
 GHOST_OPACITY = 0.3
 
 
@@ -74,8 +82,9 @@ def load(run_dir: Union[str, Path]) -> tuple[Result, dict]:
     csv_path, summary_path = folder / "results.csv", folder / "summary.json"
     for path in (csv_path, summary_path):
         if not path.is_file():
-            raise AnimateError(f"{folder}: no {path.name} (expected a `mast run` output folder: results.csv and "
-                               "summary.json)")
+            raise AnimateError(
+                f"{folder}: no {path.name} (expected a `mast run` output folder: results.csv and summary.json)"
+            )
     try:
         result = Result.read_csv(csv_path)
     except (ValueError, IndexError, UnicodeDecodeError) as exc:
@@ -98,12 +107,16 @@ def mechanism_parameters(summary: Mapping, where: str) -> dict:
     system = summary.get("system")
     parameters = system.get("parameters") if isinstance(system, Mapping) else None
     if not isinstance(parameters, Mapping):
-        raise AnimateError(f"{where}: no 'system.parameters' (the parameter values of the run's components, "
-                           "written by `mast run` since it records them): run it again to replay it")
+        raise AnimateError(
+            f"{where}: no 'system.parameters' (the parameter values of the run's components, "
+            "written by `mast run` since it records them): run it again to replay it"
+        )
     mech = parameters.get(MECHANISM)
     if not isinstance(mech, Mapping):
-        raise AnimateError(f"{where}: the run has no component '{MECHANISM}' (components: "
-                           f"{', '.join(parameters) or 'none'}): no mechanism to draw")
+        raise AnimateError(
+            f"{where}: the run has no component '{MECHANISM}' (components: "
+            f"{', '.join(parameters) or 'none'}): no mechanism to draw"
+        )
     return dict(mech)
 
 
@@ -111,8 +124,10 @@ def description_of(params: Mapping, where: str) -> Description:
     """The kinematic description of the mechanism's parameters, with its sketch; AnimateError naming what is
     missing (a geometry parameter, a detached mechanism, a description without a drawing)."""
     if params.get("attached", 1) == 0:
-        raise AnimateError(f"{where}: the mechanism is not attached (parameter 'attached' = 0: the actuators "
-                           "alone, paper Fig. 10): no mechanism geometry to draw")
+        raise AnimateError(
+            f"{where}: the mechanism is not attached (parameter 'attached' = 0: the actuators "
+            "alone, paper Fig. 10): no mechanism geometry to draw"
+        )
     try:
         desc = describe(params, MECHANISM, masses=False)
     except KeyError as exc:
@@ -147,8 +162,10 @@ def place(desc: Description, parts: Sequence[Part], q: Sequence[float]) -> tuple
     """World points [m] of every part at pose ``q`` (the description's ``evaluate``: each body's frame) and the
     joint coordinates rho [m] there."""
     ev = desc.evaluate([float(v) for v in q])
-    frames = {body.name: (np.asarray(origin, dtype=float), np.asarray(R, dtype=float))
-              for body, (origin, R) in zip(desc.bodies, ev.frames)}
+    frames = {
+        body.name: (np.asarray(origin, dtype=float), np.asarray(R, dtype=float))
+        for body, (origin, R) in zip(desc.bodies, ev.frames)
+    }
     placed = []
     for part in parts:
         points = np.asarray(part.points, dtype=float)
@@ -167,10 +184,12 @@ def replay(run_dir: Union[str, Path], fps: float = FPS) -> Replay:
     desc = description_of(params, where)
     parts = desc.sketch()
     where_csv = str(Path(run_dir) / "results.csv")
-    achieved_q = np.column_stack([_column(result, f"{MECHANISM}.{c}", "the achieved pose", where_csv)
-                                  for c in desc.coordinates])
-    commanded_q = np.column_stack([_column(result, f"{c}_cmd", "the commanded pose", where_csv)
-                                   for c in desc.coordinates])
+    achieved_q = np.column_stack(
+        [_column(result, f"{MECHANISM}.{c}", "the achieved pose", where_csv) for c in desc.coordinates]
+    )
+    commanded_q = np.column_stack(
+        [_column(result, f"{c}_cmd", "the commanded pose", where_csv) for c in desc.coordinates]
+    )
     index = frame_indices(result.time, fps)
     achieved, commanded, top = [], [], np.full(len(desc.joints), -math.inf)
     for k in index:
@@ -178,8 +197,9 @@ def replay(run_dir: Union[str, Path], fps: float = FPS) -> Replay:
             try:
                 placed, rho = place(desc, parts, q)
             except KinematicsError as exc:
-                raise AnimateError(f"{where_csv}: the {what} pose at t = {result.time[k]:g} s cannot be drawn: "
-                                   f"{exc}") from None
+                raise AnimateError(
+                    f"{where_csv}: the {what} pose at t = {result.time[k]:g} s cannot be drawn: {exc}"
+                ) from None
             into.append(placed)
             top = np.maximum(top, rho)
     strokes = summary["system"]["parameters"]
@@ -195,7 +215,9 @@ def replay(run_dir: Union[str, Path], fps: float = FPS) -> Replay:
     label = f"{Path(ssp).stem if ssp else Path(run_dir).name}: {desc.name}"
     motion = summary.get("motion")
     if isinstance(motion, Mapping) and {"axis", "amplitude", "frequency_Hz"} <= set(motion):
-        amplitude = f"{motion['amplitude']:.4g} m" if motion["axis"] == "z" else f"{math.degrees(motion['amplitude']):.4g} deg"
+        amplitude = (
+            f"{motion['amplitude']:.4g} m" if motion["axis"] == "z" else f"{math.degrees(motion['amplitude']):.4g} deg"
+        )
         label += f", {motion['axis']} sine {amplitude} at {motion['frequency_Hz']:g} Hz"
     if summary.get("error"):
         label += f" (the run stopped at {result.time[-1]:g} s: {summary['error']})"
@@ -233,6 +255,7 @@ def _mesh(outlines: Sequence[np.ndarray]) -> dict:
 
 def _moving(parts: Sequence[Part], placed: Sequence[np.ndarray], ghost: bool) -> list[dict]:
     """The moving traces of one pose: plates, links, carriages, joints (ghost: translucent, one colour)."""
+
     def of(kind):
         return [p for part, p in zip(parts, placed) if part.kind == kind and part.body is not None]
 
@@ -241,15 +264,41 @@ def _moving(parts: Sequence[Part], placed: Sequence[np.ndarray], ghost: bool) ->
     who = "commanded" if ghost else "achieved"
     traces = []
     if of("plate"):
-        traces.append(dict(type="mesh3d", name=f"{who}: plates", color=colour("plate"), opacity=opacity * 0.6,
-                           flatshading=True, hoverinfo="skip", showlegend=True, **_mesh(of("plate"))))
+        traces.append(
+            dict(
+                type="mesh3d",
+                name=f"{who}: plates",
+                color=colour("plate"),
+                opacity=opacity * 0.6,
+                flatshading=True,
+                hoverinfo="skip",
+                showlegend=True,
+                **_mesh(of("plate")),
+            )
+        )
     if of("link"):
-        traces.append(dict(type="scatter3d", mode="lines", name=f"{who}: links", opacity=opacity,
-                           line=dict(color=colour("link"), width=9), **_polylines(of("link"))))
+        traces.append(
+            dict(
+                type="scatter3d",
+                mode="lines",
+                name=f"{who}: links",
+                opacity=opacity,
+                line=dict(color=colour("link"), width=9),
+                **_polylines(of("link")),
+            )
+        )
     for kind, symbol, size in (("carriage", "square", 9), ("joint", "circle", 5)):
         if of(kind):
-            traces.append(dict(type="scatter3d", mode="markers", name=f"{who}: {kind}s", opacity=opacity,
-                               marker=dict(color=colour(kind), symbol=symbol, size=size), **_points(of(kind))))
+            traces.append(
+                dict(
+                    type="scatter3d",
+                    mode="markers",
+                    name=f"{who}: {kind}s",
+                    opacity=opacity,
+                    marker=dict(color=colour(kind), symbol=symbol, size=size),
+                    **_points(of(kind)),
+                )
+            )
     return traces
 
 
@@ -257,11 +306,28 @@ def _static(replay: Replay) -> list[dict]:
     plates = [np.asarray(p.points) for p in replay.parts if p.kind == "plate" and p.body is None]
     traces = []
     if plates:
-        traces.append(dict(type="mesh3d", name="base", color=COLOURS["base"], opacity=0.5, flatshading=True,
-                           hoverinfo="skip", showlegend=True, **_mesh(plates)))
+        traces.append(
+            dict(
+                type="mesh3d",
+                name="base",
+                color=COLOURS["base"],
+                opacity=0.5,
+                flatshading=True,
+                hoverinfo="skip",
+                showlegend=True,
+                **_mesh(plates),
+            )
+        )
     if replay.guides:
-        traces.append(dict(type="scatter3d", mode="lines", name="guides", line=dict(color=COLOURS["guide"], width=4),
-                           **_polylines(replay.guides)))
+        traces.append(
+            dict(
+                type="scatter3d",
+                mode="lines",
+                name="guides",
+                line=dict(color=COLOURS["guide"], width=4),
+                **_polylines(replay.guides),
+            )
+        )
     return traces
 
 
@@ -281,36 +347,69 @@ def figure(replay: Replay, fps: float = FPS) -> dict:
     lo, hi = everything.min(axis=0), everything.max(axis=0)
     centre, half = (lo + hi) / 2, (hi - lo).max() / 2 * 1.1
     span = np.maximum(hi - lo, 1e-3) * 1.1 / 2
-    axes = {f"{a}axis": dict(range=[centre[k] - span[k], centre[k] + span[k]], title=f"{a} [m]", autorange=False)
-            for k, a in enumerate("xyz")}
+    axes = {
+        f"{a}axis": dict(range=[centre[k] - span[k], centre[k] + span[k]], title=f"{a} [m]", autorange=False)
+        for k, a in enumerate("xyz")
+    }
     instant = dict(mode="immediate", frame=dict(duration=0, redraw=True), transition=dict(duration=0))
-    slider = dict(active=0, x=0.08, len=0.9, y=0.02, pad=dict(t=40),
-                  currentvalue=dict(prefix="t = ", suffix=" s", font=dict(size=16)),
-                  font=dict(color="rgba(0,0,0,0)"), ticklen=0, minorticklen=0,
-                  steps=[dict(method="animate", label=f["name"], args=[[f["name"]], instant]) for f in frames])
-    play = dict(frame=dict(duration=1000.0 / fps, redraw=True), transition=dict(duration=0), fromcurrent=True,
-                mode="immediate")
-    menu = dict(type="buttons", direction="left", x=0.0, y=0.02, xanchor="left", yanchor="top", pad=dict(t=40, r=10),
-                showactive=False, buttons=[dict(label="play", method="animate", args=[None, play]),
-                                           dict(label="pause", method="animate", args=[[None], instant])])
-    layout = dict(title=dict(text=f"{replay.label}; ghost: the commanded pose", x=0.02),
-                  height=660, margin=dict(l=0, r=0, t=50, b=90), showlegend=True,
-                  legend=dict(x=0.99, xanchor="right", y=0.98),
-                  scene=dict(aspectmode="manual", aspectratio={a: float(span[k] / half) for k, a in enumerate("xyz")},
-                             camera=dict(eye=dict(x=1.05, y=-1.15, z=0.45), center=dict(x=0, y=0, z=-0.1)), **axes),
-                  updatemenus=[menu], sliders=[slider])
+    slider = dict(
+        active=0,
+        x=0.08,
+        len=0.9,
+        y=0.02,
+        pad=dict(t=40),
+        currentvalue=dict(prefix="t = ", suffix=" s", font=dict(size=16)),
+        font=dict(color="rgba(0,0,0,0)"),
+        ticklen=0,
+        minorticklen=0,
+        steps=[dict(method="animate", label=f["name"], args=[[f["name"]], instant]) for f in frames],
+    )
+    play = dict(
+        frame=dict(duration=1000.0 / fps, redraw=True), transition=dict(duration=0), fromcurrent=True, mode="immediate"
+    )
+    menu = dict(
+        type="buttons",
+        direction="left",
+        x=0.0,
+        y=0.02,
+        xanchor="left",
+        yanchor="top",
+        pad=dict(t=40, r=10),
+        showactive=False,
+        buttons=[
+            dict(label="play", method="animate", args=[None, play]),
+            dict(label="pause", method="animate", args=[[None], instant]),
+        ],
+    )
+    layout = dict(
+        title=dict(text=f"{replay.label}; ghost: the commanded pose", x=0.02),
+        height=660,
+        margin=dict(l=0, r=0, t=50, b=90),
+        showlegend=True,
+        legend=dict(x=0.99, xanchor="right", y=0.98),
+        scene=dict(
+            aspectmode="manual",
+            aspectratio={a: float(span[k] / half) for k, a in enumerate("xyz")},
+            camera=dict(eye=dict(x=1.05, y=-1.15, z=0.45), center=dict(x=0, y=0, z=-0.1)),
+            **axes,
+        ),
+        updatemenus=[menu],
+        sliders=[slider],
+    )
     return dict(data=static + frames[0]["data"], layout=layout, frames=frames)
 
 
 def _frame_hook(times: np.ndarray) -> str:
     """Page script: ``#t=SECONDS`` in the address shows the frame nearest that time."""
     names = json.dumps([_frame_name(t) for t in times])
-    return ("var gd = document.getElementById('{plot_id}'); var names = " + names + ";"
-            "var m = /[#&]t=([-+0-9.eE]+)/.exec(window.location.hash); if (m) { var t = parseFloat(m[1]);"
-            "var best = 0; for (var k = 1; k < names.length; k++) {"
-            " if (Math.abs(parseFloat(names[k]) - t) < Math.abs(parseFloat(names[best]) - t)) best = k; }"
-            "return Plotly.animate(gd, [names[best]], {mode: 'immediate', frame: {duration: 0, redraw: true},"
-            " transition: {duration: 0}}); }")
+    return (
+        "var gd = document.getElementById('{plot_id}'); var names = " + names + ";"
+        "var m = /[#&]t=([-+0-9.eE]+)/.exec(window.location.hash); if (m) { var t = parseFloat(m[1]);"
+        "var best = 0; for (var k = 1; k < names.length; k++) {"
+        " if (Math.abs(parseFloat(names[k]) - t) < Math.abs(parseFloat(names[best]) - t)) best = k; }"
+        "return Plotly.animate(gd, [names[best]], {mode: 'immediate', frame: {duration: 0, redraw: true},"
+        " transition: {duration: 0}}); }"
+    )
 
 
 def page(replay: Replay, fps: float = FPS) -> str:
@@ -318,9 +417,16 @@ def page(replay: Replay, fps: float = FPS) -> str:
     import plotly.io as pio
 
     fig = figure(replay, fps)
-    return pio.to_html(fig, include_plotlyjs=True, full_html=True, auto_play=False, validate=False,
-                       post_script=_frame_hook(replay.times), config={"displaylogo": False},
-                       div_id="mast-animate")
+    return pio.to_html(
+        fig,
+        include_plotlyjs=True,
+        full_html=True,
+        auto_play=False,
+        validate=False,
+        post_script=_frame_hook(replay.times),
+        config={"displaylogo": False},
+        div_id="mast-animate",
+    )
 
 
 def write(run_dir: Union[str, Path], out: Union[str, Path], fps: float = FPS) -> dict:
@@ -333,16 +439,31 @@ def write(run_dir: Union[str, Path], out: Union[str, Path], fps: float = FPS) ->
     text = page(rep, fps).encode("utf-8")
     out.parent.mkdir(parents=True, exist_ok=True)
     atomic_write(out, text)
-    return {"out": str(out), "frames": len(rep.times), "fps": fps, "bytes": len(text),
-            "simulated_s": float(rep.times[-1] - rep.times[0]), "seconds": time.perf_counter() - start}
+    return {
+        "out": str(out),
+        "frames": len(rep.times),
+        "fps": fps,
+        "bytes": len(text),
+        "simulated_s": float(rep.times[-1] - rep.times[0]),
+        "seconds": time.perf_counter() - start,
+    }
 
 
 # ----------------------------------------------------------------------------- a picture of the page
 #: headless Chromium, offline and with a software WebGL (no GPU): what tests/test_animate.py and
 #: docs/figures/make_animate.py open the page with
-CHROMIUM_FLAGS = ("--headless", "--no-sandbox", "--disable-gpu", "--enable-unsafe-swiftshader", "--disable-quic",
-                  "--no-first-run", "--disable-background-networking", "--disable-component-update",
-                  "--disable-sync", "--virtual-time-budget=10000")
+CHROMIUM_FLAGS = (
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--enable-unsafe-swiftshader",
+    "--disable-quic",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--virtual-time-budget=10000",
+)
 
 
 def chromium() -> Optional[str]:
@@ -352,8 +473,9 @@ def chromium() -> Optional[str]:
     return shutil.which("chromium") or shutil.which("chromium-browser")
 
 
-def screenshot(page_path: Union[str, Path], png: Union[str, Path], at: Optional[float] = None,
-               size: tuple[int, int] = (1000, 760)) -> Path:
+def screenshot(
+    page_path: Union[str, Path], png: Union[str, Path], at: Optional[float] = None, size: tuple[int, int] = (1000, 760)
+) -> Path:
     """A PNG of the page (at the frame nearest ``at`` s: ``#t=``) by headless Chromium, with a fresh profile
     removed after; RuntimeError when Chromium is absent or writes no picture."""
     import subprocess
@@ -365,13 +487,36 @@ def screenshot(page_path: Union[str, Path], png: Union[str, Path], at: Optional[
     png = Path(png)
     address = Path(page_path).resolve().as_uri() + ("" if at is None else f"#t={at:g}")
     with tempfile.TemporaryDirectory(prefix="mast_chromium_") as profile:
-        run = subprocess.run([browser, *CHROMIUM_FLAGS, f"--user-data-dir={profile}",
-                              f"--window-size={size[0]},{size[1]}", f"--screenshot={png}", address],
-                             capture_output=True, text=True, timeout=300)
+        run = subprocess.run(
+            [
+                browser,
+                *CHROMIUM_FLAGS,
+                f"--user-data-dir={profile}",
+                f"--window-size={size[0]},{size[1]}",
+                f"--screenshot={png}",
+                address,
+            ],
+            capture_output=True,
+            text=True,
+            timeout=300,
+        )
     if not png.is_file():
         raise RuntimeError(f"Chromium wrote no screenshot of {address} (exit {run.returncode}): {run.stderr[-2000:]}")
     return png
 
 
-__all__ = ["AnimateError", "CHROMIUM_FLAGS", "FPS", "Replay", "chromium", "figure", "frame_indices", "load", "page",
-           "place", "replay", "screenshot", "write"]
+__all__ = [
+    "AnimateError",
+    "CHROMIUM_FLAGS",
+    "FPS",
+    "Replay",
+    "chromium",
+    "figure",
+    "frame_indices",
+    "load",
+    "page",
+    "place",
+    "replay",
+    "screenshot",
+    "write",
+]

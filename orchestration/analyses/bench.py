@@ -5,6 +5,7 @@ made it, the same system with the native FMUs (``build/ssp/native/<name>.ssp``),
 project's master. Wall and CPU time of this process. Prints figures; asserts nothing (speed is
 measured here, not in tests).
 """
+
 from __future__ import annotations
 
 import cProfile
@@ -15,8 +16,8 @@ import time
 from pathlib import Path
 from typing import Optional
 
-from ..core.run import simulate
 from ..core.motion import SineMotion
+from ..core.run import simulate
 
 
 def _one(ssp: str, stop_time: float, direct: bool) -> tuple[float, float]:
@@ -37,9 +38,11 @@ def main(args) -> int:
     stop = args.stop_time
     from ..core.exchange import library
 
-    print(f"default system, {stop:g} s simulated, z sine 10 mm at 1 Hz, default cycle times, one process; "
-          f"the master's exchange loop between FMUs {'compiled' if library() else 'in Python'} "
-          "(MAST_PYTHON_EXCHANGE=1: in Python)")
+    print(
+        f"default system, {stop:g} s simulated, z sine 10 mm at 1 Hz, default cycle times, one process; "
+        f"the master's exchange loop between FMUs {'compiled' if library() else 'in Python'} "
+        "(MAST_PYTHON_EXCHANGE=1: in Python)"
+    )
     rows = [("direct composition", args.ssp, True), ("Python FMUs", args.ssp, False)]
     native = native_variant(args.ssp)
     if native is not None:
@@ -51,8 +54,10 @@ def main(args) -> int:
     base = times["direct composition"][1]
     print(f"co-simulation / direct CPU-time ratio: Python FMUs {times['Python FMUs'][1] / base:.2f}", end="")
     if native is not None:
-        print(f", native FMUs {times['native FMUs'][1] / base:.2f}; Python / native FMUs "
-              f"{times['Python FMUs'][1] / times['native FMUs'][1]:.1f}")
+        print(
+            f", native FMUs {times['native FMUs'][1] / base:.2f}; Python / native FMUs "
+            f"{times['Python FMUs'][1] / times['native FMUs'][1]:.1f}"
+        )
     else:
         print(f"\n(no native variant {Path(args.ssp).parent / 'native' / Path(args.ssp).name}: mast build --native)")
     print(f"peak resident memory: {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f} MiB")

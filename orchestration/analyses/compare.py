@@ -41,6 +41,7 @@ sets): the robustness to a model mismatch. The table gains the payload's effect 
 bandwidth and tracking error, and each motion gets its figure motion_<axis>.png (magnitude,
 tracking error, peak torque against frequency, nominal and with the payload).
 """
+
 from __future__ import annotations
 
 import csv
@@ -58,14 +59,14 @@ from fmus.common.parameters import Value
 from fmus.mechanism.designs import KINEMATIC_PARAMETERS_NAMES, KINEMATICS, description
 from fmus.mechanism.topology import POSE, POSE_UNITS, Coordinate
 
-from . import paper, sizing
-from .workspace import STEP_TILT_DEG, STEP_Z, described, unit_text
+from ..core import ssd, ssv
 from ..core.build import default_build_dir
 from ..core.components import fmu_parameters
-from ..core import ssd, ssv
 from ..core.motion import system_axes
 from ..core.ssp import SSPArchive
+from . import paper, sizing
 from .frequency import SineCase, SineResult, bandwidth, run_cases
+from .workspace import STEP_TILT_DEG, STEP_Z, described, unit_text
 
 REPO = Path(__file__).resolve().parents[2]
 BASE_SSD = REPO / "ssp" / "MAST.ssd"
@@ -85,7 +86,7 @@ class TestSet:
     """Sine motions: for each axis, each frequency [Hz], amplitude in m (x, y, z) or rad (the angles). No
     ``axes``: every coordinate of the designs' mechanisms (``compare``; the 3PRS: z, psi, theta)."""
 
-    __test__ = False      # not a pytest test class
+    __test__ = False  # not a pytest test class
 
     axes: tuple[str, ...] = ()
     frequencies: tuple[float, ...] = (0.5, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 8.0, 10.0)
@@ -122,10 +123,10 @@ class Candidate:
     label: str
     ssp: str
     source: str
-    parameters: dict = field(default_factory=dict)   # the mechanism FMU's defaults (empty for a system)
-    payload_kg: float = 0.0                           # a payload on the platform the controller does not know
-    nominal: str = ""                                 # label of the same system without it (payload runs)
-    workspace: Optional[dict] = None                  # the design's `mast workspace` summary (designs only)
+    parameters: dict = field(default_factory=dict)  # the mechanism FMU's defaults (empty for a system)
+    payload_kg: float = 0.0  # a payload on the platform the controller does not know
+    nominal: str = ""  # label of the same system without it (payload runs)
+    workspace: Optional[dict] = None  # the design's `mast workspace` summary (designs only)
 
     def overrides(self, parameters: Optional[Mapping[str, Mapping[str, Value]]]) -> Optional[dict]:
         """The caller's overrides, plus the unknown payload on the mechanism."""
@@ -142,12 +143,12 @@ class Comparison:
 
     candidates: list[Candidate]
     test_set: TestSet
-    results: dict                 # (label, axis) -> list[SineResult], in test-set frequency order
+    results: dict  # (label, axis) -> list[SineResult], in test-set frequency order
     summary: list[dict]
     wall_time_s: float
     files: list[Path]
-    kind: str = "design"          # what the candidates are: "design" (mechanisms) or "controller"
-    parasitic: dict = field(default_factory=dict)    # label -> the pose components its mechanism does not command
+    kind: str = "design"  # what the candidates are: "design" (mechanisms) or "controller"
+    parasitic: dict = field(default_factory=dict)  # label -> the pose components its mechanism does not command
     #: mechanisms given by their description alone (``workspace.described``): not run, their workspace beside the
     #: designs' ({"label", "source", "workspace", "note"})
     descriptions: list = field(default_factory=list)
@@ -160,15 +161,16 @@ class Comparison:
 
 
 # ----------------------------------------------------------------------------- systems
-def swapped_ssd(base_text: str, fmu_name: str, params: Mapping[str, Value], label: str,
-                component_name: str = "mechanism") -> str:
+def swapped_ssd(
+    base_text: str, fmu_name: str, params: Mapping[str, Value], label: str, component_name: str = "mechanism"
+) -> str:
     """The base system's text with its ``mechanism`` (or ``controller``) swapped for the FMU (module docstring)."""
     document = ssd.read(base_text.encode("utf-8"), "the base system")
     try:
         swapped = document.system.component(component_name)
     except KeyError:
         raise ValueError(f"the base system has no component named '{component_name}' to swap") from None
-    swapped.source = f"resources/{fmu_name}"          # its own defaults replace whatever the base bound
+    swapped.source = f"resources/{fmu_name}"  # its own defaults replace whatever the base bound
     swapped.bindings = [_inline(params, f"default of {fmu_name}")]
     for comp in document.system.elements if component_name == "mechanism" else ():
         extra, why = {}, ""
@@ -179,7 +181,7 @@ def swapped_ssd(base_text: str, fmu_name: str, params: Mapping[str, Value], labe
             extra = {"g_guide": float(params["g"]) * math.cos(float(params["beta"]))}
             why = f"gravity along the guides of {fmu_name}: g cos(beta)"
         if extra:
-            comp.bindings.append(_inline(extra, why))     # bound last: it overrides
+            comp.bindings.append(_inline(extra, why))  # bound last: it overrides
     document.name = f"MAST_{label}"
     return document.to_bytes().decode("utf-8")
 
@@ -219,8 +221,13 @@ def _label(path: Path, taken: set) -> str:
     return label
 
 
-def prepare(mechanisms: Sequence[Union[str, Path]], out: Union[str, Path], base_ssd: Union[str, Path] = BASE_SSD,
-            fmu_dir: Union[str, Path] = FMU_DIR, component: str = "mechanism") -> list[Candidate]:
+def prepare(
+    mechanisms: Sequence[Union[str, Path]],
+    out: Union[str, Path],
+    base_ssd: Union[str, Path] = BASE_SSD,
+    fmu_dir: Union[str, Path] = FMU_DIR,
+    component: str = "mechanism",
+) -> list[Candidate]:
     """One runnable system per design: an FMU is swapped into ``base_ssd`` (packed into
     out/systems/<label>.ssp with the FMUs of ``fmu_dir`` for the other components); an .ssp or
     .ssd is used as it is. ``component="controller"``: the items are controllers, and a
@@ -242,8 +249,9 @@ def prepare(mechanisms: Sequence[Union[str, Path]], out: Union[str, Path], base_
                     known = f" or a mechanism description's name ({', '.join(k for k in KINEMATICS if described(k))})"
                 raise FileNotFoundError(f"{component} {path}: no such file{known}")
             if path.suffix not in (".fmu", ".ssp", ".ssd"):
-                raise ValueError(f"{component} {path}: expected an .fmu (a {component} to swap in) or an .ssp/.ssd "
-                                 "(a system)")
+                raise ValueError(
+                    f"{component} {path}: expected an .fmu (a {component} to swap in) or an .ssp/.ssd (a system)"
+                )
     for item in mechanisms:
         if str(item) in named:
             label = _label(Path(str(item)), taken)
@@ -254,7 +262,7 @@ def prepare(mechanisms: Sequence[Union[str, Path]], out: Union[str, Path], base_
         path = Path(item)
         label = _label(path, taken)
         if path.suffix in (".ssp", ".ssd"):
-            with SSPArchive(path) as archive:      # the mechanism's bound parameters (attached, geometry ...)
+            with SSPArchive(path) as archive:  # the mechanism's bound parameters (attached, geometry ...)
                 comp = archive.system.components.get("mechanism")
                 params = dict(comp.parameters) if comp is not None and component == "mechanism" else {}
             candidates.append(Candidate(label, str(path), str(path), params))
@@ -263,8 +271,7 @@ def prepare(mechanisms: Sequence[Union[str, Path]], out: Union[str, Path], base_
         own = own_system(path, params) if component == "mechanism" and base_ssd == BASE_SSD else None
         with tempfile.TemporaryDirectory(prefix="mast_compare_") as tmp:
             tmp = Path(tmp)
-            shutil.copytree(base_ssd.parent / "resources", tmp / "resources",
-                            ignore=shutil.ignore_patterns("*.fmu"))
+            shutil.copytree(base_ssd.parent / "resources", tmp / "resources", ignore=shutil.ignore_patterns("*.fmu"))
             fmus = tmp / "fmus"
             fmus.mkdir()
             for fmu in fmu_dir.glob("*.fmu"):
@@ -286,8 +293,14 @@ def _finite(x: Optional[float]) -> Optional[float]:
     return x if x is not None and math.isfinite(x) else None
 
 
-def summarize(label: str, axis: str, amplitude: float, results: Sequence[SineResult], payload_kg: float = 0.0,
-              parasitic: Sequence[str] = ("x", "y", "phi")) -> dict:
+def summarize(
+    label: str,
+    axis: str,
+    amplitude: float,
+    results: Sequence[SineResult],
+    payload_kg: float = 0.0,
+    parasitic: Sequence[str] = ("x", "y", "phi"),
+) -> dict:
     """A comparison row: one design's tests of one motion; ``parasitic``: the pose components its mechanism does
     not command (``parasitic_of``; the 3PRS's by default), their amplitudes as ``parasitic_<c>_<unit>``."""
     ok = [r for r in results if not r.error]
@@ -299,28 +312,45 @@ def summarize(label: str, axis: str, amplitude: float, results: Sequence[SineRes
     current = max((max(r.current_peak) for r in ok if r.current_peak), default=math.nan)
     par = {k: max((r.parasitic.get(k, math.nan) for r in ok), default=math.nan) for k in parasitic}
     return {
-        "design": label, "motion": axis, "amplitude": amplitude, "payload_kg": payload_kg,
+        "design": label,
+        "motion": axis,
+        "amplitude": amplitude,
+        "payload_kg": payload_kg,
         "bandwidth_Hz": bw,
-        "bandwidth_note": ("" if bw is not None else
-                           (f"above {max(freqs):g} Hz" if ok and abs(ok[-1].ratio) >= 10 ** (-3 / 20)
-                            else "not found")),
-        "torque_peak_Nm": _finite(peak), "torque_rms_Nm": _finite(rms), "current_peak_A": _finite(current),
-        "tracking_peak": _finite(track), "tracking_peak_rel": _finite(track / amplitude) if amplitude else None,
-        "tracking_peak_f_min": _finite(ok[0].tracking_peak) if ok else None,   # at the lowest frequency: quasi-static
+        "bandwidth_note": (
+            ""
+            if bw is not None
+            else (f"above {max(freqs):g} Hz" if ok and abs(ok[-1].ratio) >= 10 ** (-3 / 20) else "not found")
+        ),
+        "torque_peak_Nm": _finite(peak),
+        "torque_rms_Nm": _finite(rms),
+        "current_peak_A": _finite(current),
+        "tracking_peak": _finite(track),
+        "tracking_peak_rel": _finite(track / amplitude) if amplitude else None,
+        "tracking_peak_f_min": _finite(ok[0].tracking_peak) if ok else None,  # at the lowest frequency: quasi-static
         **{parasitic_column(k): _finite(v) for k, v in par.items()},
-        "tests": len(results), "failed": len(results) - len(ok),
+        "tests": len(results),
+        "failed": len(results) - len(ok),
         "errors": sorted({r.error for r in results if r.error}),
     }
 
 
-def compare(mechanisms: Sequence[Union[str, Path]] = (), out: Union[str, Path] = "comparison",
-            test_set: Optional[TestSet] = None,
-            quick: bool = False, workers: Optional[int] = None, direct: bool = False,
-            parameters: Optional[Mapping[str, Mapping[str, Value]]] = None, base_ssd: Union[str, Path] = BASE_SSD,
-            fmu_dir: Union[str, Path] = FMU_DIR, plots: bool = True,
-            progress: Optional[Callable[[int, int], None]] = None,
-            controllers: Sequence[Union[str, Path]] = (), payload: float = PAYLOAD_MISMATCH_KG,
-            workspace_grid: Optional[tuple[float, float]] = WORKSPACE_GRID) -> Comparison:
+def compare(
+    mechanisms: Sequence[Union[str, Path]] = (),
+    out: Union[str, Path] = "comparison",
+    test_set: Optional[TestSet] = None,
+    quick: bool = False,
+    workers: Optional[int] = None,
+    direct: bool = False,
+    parameters: Optional[Mapping[str, Mapping[str, Value]]] = None,
+    base_ssd: Union[str, Path] = BASE_SSD,
+    fmu_dir: Union[str, Path] = FMU_DIR,
+    plots: bool = True,
+    progress: Optional[Callable[[int, int], None]] = None,
+    controllers: Sequence[Union[str, Path]] = (),
+    payload: float = PAYLOAD_MISMATCH_KG,
+    workspace_grid: Optional[tuple[float, float]] = WORKSPACE_GRID,
+) -> Comparison:
     """Run the test set (``QUICK`` if ``quick``, else ``DEFAULT``) on every design, or on every controller
     (``controllers``, each also with an unknown ``payload`` [kg] unless it is 0); write DIR (module docstring).
 
@@ -346,25 +376,38 @@ def compare(mechanisms: Sequence[Union[str, Path]] = (), out: Union[str, Path] =
     # out is made once the candidates are known: a missing FMU leaves no empty folder behind
     candidates = prepare(controllers or runnable, out, base_ssd, fmu_dir, "controller" if controllers else "mechanism")
     axes_of = {}
-    for c in candidates:     # every motion a coordinate of every candidate's mechanism (its topology)
+    for c in candidates:  # every motion a coordinate of every candidate's mechanism (its topology)
         with SSPArchive(c.ssp) as archive:
             axes_of[c.label] = axes = system_axes(archive.system, c.overrides(parameters))
         test_set = for_axes(test_set, axes)
         for axis in test_set.axes:
             if axis not in axes:
-                raise ValueError(f"test set: motion {axis!r}: {c.label} has no such coordinate; its mechanism's "
-                                 f"coordinates are {', '.join(axes)}")
+                raise ValueError(
+                    f"test set: motion {axis!r}: {c.label} has no such coordinate; its mechanism's "
+                    f"coordinates are {', '.join(axes)}"
+                )
     out.mkdir(parents=True, exist_ok=True)
     if controllers and payload:
-        candidates += [Candidate(f"{c.label} +{payload:g} kg", c.ssp, c.source, c.parameters, payload, c.label)
-                       for c in candidates]
+        candidates += [
+            Candidate(f"{c.label} +{payload:g} kg", c.ssp, c.source, c.parameters, payload, c.label) for c in candidates
+        ]
         axes_of.update({c.label: axes_of[c.nominal] for c in candidates if c.nominal})
     cases, keys = [], []
     for c in candidates:
         for axis in test_set.axes:
             for f in test_set.frequencies:
-                cases.append(SineCase(c.ssp, axis, test_set.amplitudes[axis], f, c.overrides(parameters), direct,
-                                      sizing_signals(len(axes_of[c.label])), label=c.label))
+                cases.append(
+                    SineCase(
+                        c.ssp,
+                        axis,
+                        test_set.amplitudes[axis],
+                        f,
+                        c.overrides(parameters),
+                        direct,
+                        sizing_signals(len(axes_of[c.label])),
+                        label=c.label,
+                    )
+                )
                 keys.append((c.label, axis))
     results_flat = run_cases(cases, workers=workers, progress=progress)
     if kind == "design" and workspace_grid is not None:
@@ -373,13 +416,31 @@ def compare(mechanisms: Sequence[Union[str, Path]] = (), out: Union[str, Path] =
     results: dict = {}
     for key, res in zip(keys, results_flat):
         results.setdefault(key, []).append(res)
-    summary = [summarize(c.label, axis, test_set.amplitudes[axis], results[(c.label, axis)], c.payload_kg,
-                         parasitic_of(axes_of[c.label]))
-               | workspace_columns(c.workspace) | sizing_columns(c, results[(c.label, axis)], parameters)
-               for c in candidates for axis in test_set.axes]
-    comp = Comparison(candidates, test_set, results, summary, 0.0, [], kind,
-                      {label: parasitic_of(axes) for label, axes in axes_of.items()},
-                      [description_only(name, workspace_grid) for name in alone])
+    summary = [
+        summarize(
+            c.label,
+            axis,
+            test_set.amplitudes[axis],
+            results[(c.label, axis)],
+            c.payload_kg,
+            parasitic_of(axes_of[c.label]),
+        )
+        | workspace_columns(c.workspace)
+        | sizing_columns(c, results[(c.label, axis)], parameters)
+        for c in candidates
+        for axis in test_set.axes
+    ]
+    comp = Comparison(
+        candidates,
+        test_set,
+        results,
+        summary,
+        0.0,
+        [],
+        kind,
+        {label: parasitic_of(axes) for label, axes in axes_of.items()},
+        [description_only(name, workspace_grid) for name in alone],
+    )
     comp.files = write(comp, out, plots=plots)
     comp.wall_time_s = time.perf_counter() - t0
     meta = json.loads((out / "comparison.json").read_text())
@@ -391,7 +452,8 @@ def compare(mechanisms: Sequence[Union[str, Path]] = (), out: Union[str, Path] =
 def sizing_signals(n: int) -> tuple[str, ...]:
     """What the drive sizing of each test of a system with ``n`` drives needs, kept in its steady state."""
     return tuple(f"actuator_{k}.{s}" for k in range(1, n + 1) for s in sizing.SIGNALS) + tuple(
-        f"controller.i_cmd_{k}" for k in range(1, n + 1))
+        f"controller.i_cmd_{k}" for k in range(1, n + 1)
+    )
 
 
 def parasitic_of(axes: Sequence[str]) -> tuple[str, ...]:
@@ -404,8 +466,9 @@ def parasitic_column(c: str) -> str:
     return f"parasitic_{c}_{POSE_UNITS[c]}"
 
 
-def sizing_columns(c: Candidate, results: Sequence[SineResult],
-                   parameters: Optional[Mapping[str, Mapping[str, Value]]]) -> dict:
+def sizing_columns(
+    c: Candidate, results: Sequence[SineResult], parameters: Optional[Mapping[str, Mapping[str, Value]]]
+) -> dict:
     """The drives of a design over its tests of one motion (``mast sizing`` of each test's steady cycle, run
     continuously): the verdict, the limiting item (drive, item and test) and its margin, the highest test
     frequency up to which no test fails; ``sizing_note`` says why there is none."""
@@ -430,14 +493,18 @@ def sizing_columns(c: Candidate, results: Sequence[SineResult],
     order = {"pass": 0, "at limit": 1, "fail": 2}
     worst, f = min(verdicts, key=lambda vf: vf[0]["limiting"]["margin"])
     lim = worst["limiting"]
-    held = None                               # the highest test frequency up to which no test fails
+    held = None  # the highest test frequency up to which no test fails
     for v, freq in sorted(verdicts, key=lambda vf: vf[1]):
         if v["verdict"] == "fail":
             break
         held = freq
-    return {"sizing_verdict": max((v["verdict"] for v, _ in verdicts), key=order.get),
-            "sizing_limiting": f"{lim['drive']} {lim['component']} {lim['item']} at {f:g} Hz",
-            "sizing_margin": lim["margin"], "sizing_holds_up_to_Hz": held, "sizing_note": ""}
+    return {
+        "sizing_verdict": max((v["verdict"] for v, _ in verdicts), key=order.get),
+        "sizing_limiting": f"{lim['drive']} {lim['component']} {lim['item']} at {f:g} Hz",
+        "sizing_margin": lim["margin"],
+        "sizing_holds_up_to_Hz": held,
+        "sizing_note": "",
+    }
 
 
 def design_workspace(c: Candidate, grid: tuple[float, float]) -> dict:
@@ -450,16 +517,20 @@ def design_workspace(c: Candidate, grid: tuple[float, float]) -> dict:
     try:
         return workspace.summarize(workspace.compute(workspace.machine(c.ssp), grid[0], grid[1]))
     except KeyError as exc:
-        return {"error": f"no workspace: the mechanism's parameters do not describe its mechanism (no "
-                         f"{exc.args[0]!r}; `mast workspace` needs its geometry, for a 3PRS H, r, L, alpha_1..3: "
-                         "docs/workspace.md)"}
+        return {
+            "error": f"no workspace: the mechanism's parameters do not describe its mechanism (no "
+            f"{exc.args[0]!r}; `mast workspace` needs its geometry, for a 3PRS H, r, L, alpha_1..3: "
+            "docs/workspace.md)"
+        }
     except (ValueError, KinematicsError) as exc:
         return {"error": f"no workspace: {exc}"}
 
 
 #: why a mechanism given by its description alone is not run
-NOT_RUN = ("not run: a description alone has no system (its mechanism FMU and an SSD with one actuator per drive; "
-           "docs/designs/3rps.md)")
+NOT_RUN = (
+    "not run: a description alone has no system (its mechanism FMU and an SSD with one actuator per drive; "
+    "docs/designs/3rps.md)"
+)
 
 
 def description_only(name: str, grid: Optional[tuple[float, float]]) -> dict:
@@ -493,9 +564,12 @@ def workspace_columns(ws: Optional[dict]) -> dict:
     ``workspace_<unit>`` (the 3PRS: workspace_m_deg2), the margins."""
     if not ws or "error" in ws:
         return {}
-    return {"workspace_" + volume_key(ws)[len("volume_"):]: ws[volume_key(ws)], "margin_min": ws["smallest_margin"]["value"],
-            "margin_home": min(ws["home"]["margin_parallel"], ws["home"]["margin_inverse"]),
-            "singularity_distance_home_m": ws["distance_to_singularity_at_home_m"]}
+    return {
+        "workspace_" + volume_key(ws)[len("volume_") :]: ws[volume_key(ws)],
+        "margin_min": ws["smallest_margin"]["value"],
+        "margin_home": min(ws["home"]["margin_parallel"], ws["home"]["margin_inverse"]),
+        "singularity_distance_home_m": ws["distance_to_singularity_at_home_m"],
+    }
 
 
 def _attached(c: Candidate) -> Optional[bool]:
@@ -519,26 +593,66 @@ def fig10(comp: Comparison) -> Optional[dict]:
     }
 
 
-SUMMARY_COLUMNS = ("design", "motion", "amplitude", "payload_kg", "bandwidth_Hz", "bandwidth_note", "torque_peak_Nm", "torque_rms_Nm",
-                   "current_peak_A",
-                   "tracking_peak", "tracking_peak_rel", "tracking_peak_f_min", "parasitic_x_m", "parasitic_y_m", "parasitic_phi_rad",
-                   "tests", "failed", "sizing_verdict", "sizing_limiting", "sizing_margin", "sizing_holds_up_to_Hz",
-                   "sizing_note") + WORKSPACE_COLUMNS
-RUN_COLUMNS = ("design", "motion", "frequency_Hz", "amplitude", "magnitude", "magnitude_dB", "phase_deg",
-               "torque_peak_Nm", "torque_rms_Nm", "current_peak_A", "tracking_peak", "parasitic_x_m", "parasitic_y_m",
-               "parasitic_phi_rad", "error")
+SUMMARY_COLUMNS = (
+    "design",
+    "motion",
+    "amplitude",
+    "payload_kg",
+    "bandwidth_Hz",
+    "bandwidth_note",
+    "torque_peak_Nm",
+    "torque_rms_Nm",
+    "current_peak_A",
+    "tracking_peak",
+    "tracking_peak_rel",
+    "tracking_peak_f_min",
+    "parasitic_x_m",
+    "parasitic_y_m",
+    "parasitic_phi_rad",
+    "tests",
+    "failed",
+    "sizing_verdict",
+    "sizing_limiting",
+    "sizing_margin",
+    "sizing_holds_up_to_Hz",
+    "sizing_note",
+) + WORKSPACE_COLUMNS
+RUN_COLUMNS = (
+    "design",
+    "motion",
+    "frequency_Hz",
+    "amplitude",
+    "magnitude",
+    "magnitude_dB",
+    "phase_deg",
+    "torque_peak_Nm",
+    "torque_rms_Nm",
+    "current_peak_A",
+    "tracking_peak",
+    "parasitic_x_m",
+    "parasitic_y_m",
+    "parasitic_phi_rad",
+    "error",
+)
 
 
 def _run_row(label: str, r: SineResult, parasitic: Sequence[str] = ("x", "y", "phi")) -> dict:
     ok = not r.error
-    return {"design": label, "motion": r.axis, "frequency_Hz": r.frequency, "amplitude": r.amplitude,
-            "magnitude": r.magnitude if ok else None,
-            "magnitude_dB": 20 * math.log10(r.magnitude) if ok and r.magnitude > 0 else None,
-            "phase_deg": r.phase_deg if ok else None,
-            "torque_peak_Nm": max(r.torque_peak) if ok else None, "torque_rms_Nm": max(r.torque_rms) if ok else None,
-            "current_peak_A": max(r.current_peak) if ok and r.current_peak else None,
-            "tracking_peak": r.tracking_peak if ok else None,
-            **{parasitic_column(c): r.parasitic.get(c) if ok else None for c in parasitic}, "error": r.error or ""}
+    return {
+        "design": label,
+        "motion": r.axis,
+        "frequency_Hz": r.frequency,
+        "amplitude": r.amplitude,
+        "magnitude": r.magnitude if ok else None,
+        "magnitude_dB": 20 * math.log10(r.magnitude) if ok and r.magnitude > 0 else None,
+        "phase_deg": r.phase_deg if ok else None,
+        "torque_peak_Nm": max(r.torque_peak) if ok else None,
+        "torque_rms_Nm": max(r.torque_rms) if ok else None,
+        "current_peak_A": max(r.current_peak) if ok and r.current_peak else None,
+        "tracking_peak": r.tracking_peak if ok else None,
+        **{parasitic_column(c): r.parasitic.get(c) if ok else None for c in parasitic},
+        "error": r.error or "",
+    }
 
 
 def columns(base: Sequence[str], rows: Sequence[Mapping]) -> tuple[str, ...]:
@@ -579,8 +693,13 @@ def robustness(comp: Comparison) -> list[dict]:
             continue
         for axis in comp.test_set.axes:
             nom, pay = comp.row(c.nominal, axis), comp.row(c.label, axis)
-            row = {"controller": c.nominal, "motion": axis, "payload_kg": c.payload_kg,
-                   "bandwidth_Hz": nom["bandwidth_Hz"], "bandwidth_payload_Hz": pay["bandwidth_Hz"]}
+            row = {
+                "controller": c.nominal,
+                "motion": axis,
+                "payload_kg": c.payload_kg,
+                "bandwidth_Hz": nom["bandwidth_Hz"],
+                "bandwidth_payload_Hz": pay["bandwidth_Hz"],
+            }
             for key in ("tracking_peak", "tracking_peak_f_min"):
                 row[key], row[f"{key}_payload"] = nom[key], pay[key]
                 row[f"{key}_ratio"] = pay[key] / nom[key] if pay[key] and nom[key] else None
@@ -596,90 +715,147 @@ def write(comp: Comparison, out: Path, plots: bool = True) -> list[Path]:
         w = csv.DictWriter(handle, (kind,) + columns(SUMMARY_COLUMNS, comp.summary)[1:], extrasaction="ignore")
         w.writeheader()
         w.writerows(_renamed(comp.summary, kind))
-        w.writerows(_renamed([{"design": d["label"], "motion": "", "sizing_note": d["note"],
-                               **workspace_columns(d["workspace"])} for d in comp.descriptions], kind))
+        w.writerows(
+            _renamed(
+                [
+                    {"design": d["label"], "motion": "", "sizing_note": d["note"], **workspace_columns(d["workspace"])}
+                    for d in comp.descriptions
+                ],
+                kind,
+            )
+        )
     files.append(out / "comparison.csv")
-    runs = _renamed([_run_row(label, r, comp.parasitic.get(label, ("x", "y", "phi")))
-                     for (label, _), rs in comp.results.items() for r in rs], kind)
+    runs = _renamed(
+        [
+            _run_row(label, r, comp.parasitic.get(label, ("x", "y", "phi")))
+            for (label, _), rs in comp.results.items()
+            for r in rs
+        ],
+        kind,
+    )
     with open(out / "runs.csv", "w", newline="") as handle:
         w = csv.DictWriter(handle, (kind,) + columns(RUN_COLUMNS, runs)[1:])
         w.writeheader()
         w.writerows(runs)
     files.append(out / "runs.csv")
     data = {
-        f"{kind}s": [{"label": c.label, "source": c.source, "system": c.ssp, "parameters": c.parameters,
-                      "payload_kg": c.payload_kg, **({"workspace": c.workspace} if c.workspace else {})}
-                     for c in comp.candidates],
-        "test_set": {"axes": list(comp.test_set.axes), "frequencies_Hz": list(comp.test_set.frequencies),
-                     "amplitudes": dict(comp.test_set.amplitudes),
-                     "amplitude_units": {a: POSE_UNITS[a] for a in comp.test_set.amplitudes}},
-        "summary": _renamed(comp.summary, kind), "runs": runs, "fig10": fig10(comp) if kind == "design" else None,
+        f"{kind}s": [
+            {
+                "label": c.label,
+                "source": c.source,
+                "system": c.ssp,
+                "parameters": c.parameters,
+                "payload_kg": c.payload_kg,
+                **({"workspace": c.workspace} if c.workspace else {}),
+            }
+            for c in comp.candidates
+        ],
+        "test_set": {
+            "axes": list(comp.test_set.axes),
+            "frequencies_Hz": list(comp.test_set.frequencies),
+            "amplitudes": dict(comp.test_set.amplitudes),
+            "amplitude_units": {a: POSE_UNITS[a] for a in comp.test_set.amplitudes},
+        },
+        "summary": _renamed(comp.summary, kind),
+        "runs": runs,
+        "fig10": fig10(comp) if kind == "design" else None,
         "robustness": robustness(comp),
         **({"descriptions": comp.descriptions} if comp.descriptions else {}),
     }
     (out / "comparison.json").write_text(json.dumps(data, indent=2))
     files.append(out / "comparison.json")
     parasitic = [c for c in columns(SUMMARY_COLUMNS, comp.summary) if c.startswith("parasitic_")]
-    lines = [f"| {kind} | motion | bandwidth [Hz] | peak torque [N m] | RMS torque [N m] | peak current [A] "
-             "| peak tracking error | " + " | ".join(f"parasitic {c.split('_')[1]} [{c.split('_')[2]}]" for c in parasitic)
-             + " | failed | drives (mast sizing) | limiting item | margin | drives hold up to [Hz] |",
-             "|---|---|---|---|---|---|---|" + "---|" * len(parasitic) + "---|---|---|---|---|"]
+    lines = [
+        f"| {kind} | motion | bandwidth [Hz] | peak torque [N m] | RMS torque [N m] | peak current [A] "
+        "| peak tracking error | "
+        + " | ".join(f"parasitic {c.split('_')[1]} [{c.split('_')[2]}]" for c in parasitic)
+        + " | failed | drives (mast sizing) | limiting item | margin | drives hold up to [Hz] |",
+        "|---|---|---|---|---|---|---|" + "---|" * len(parasitic) + "---|---|---|---|---|",
+    ]
     for r in comp.summary:
         unit = POSE_UNITS[r["motion"]]
         bw = _fmt(r["bandwidth_Hz"]) if r["bandwidth_Hz"] is not None else r["bandwidth_note"]
-        lines.append(f"| {r['design']} | {r['motion']} | {bw} | {_fmt(r['torque_peak_Nm'])} | {_fmt(r['torque_rms_Nm'])} "
-                     f"| {_fmt(r['current_peak_A'])} "
-                     f"| {_fmt(r['tracking_peak'])} {unit} | " + " | ".join(_fmt(r.get(c)) for c in parasitic)
-                     + f" | {r['failed']}/{r['tests']} "
-                     f"| {r.get('sizing_verdict') or '-'} | {r.get('sizing_limiting') or r.get('sizing_note') or '-'} "
-                     f"| {_fmt(100 * r['sizing_margin']) + ' %' if r.get('sizing_margin') is not None else '-'} "
-                     f"| {_fmt(r.get('sizing_holds_up_to_Hz'))} |")
+        lines.append(
+            f"| {r['design']} | {r['motion']} | {bw} | {_fmt(r['torque_peak_Nm'])} | {_fmt(r['torque_rms_Nm'])} "
+            f"| {_fmt(r['current_peak_A'])} "
+            f"| {_fmt(r['tracking_peak'])} {unit} | "
+            + " | ".join(_fmt(r.get(c)) for c in parasitic)
+            + f" | {r['failed']}/{r['tests']} "
+            f"| {r.get('sizing_verdict') or '-'} | {r.get('sizing_limiting') or r.get('sizing_note') or '-'} "
+            f"| {_fmt(100 * r['sizing_margin']) + ' %' if r.get('sizing_margin') is not None else '-'} "
+            f"| {_fmt(r.get('sizing_holds_up_to_Hz'))} |"
+        )
     spaces = [(c.label, c.workspace) for c in comp.candidates if c.workspace]
     spaces += [(f"{d['label']} (description, not run)", d["workspace"]) for d in comp.descriptions]
     if spaces:
         ok = [w for _, w in spaces if "error" not in w]
         ranges = list(dict.fromkeys(k for w in ok for k in w["ranges_through_home"])) or ["z_m", "psi_deg", "theta_deg"]
         volumes = list(dict.fromkeys(volume_key(w) for w in ok)) or ["volume_m_deg2"]
-        one = len(volumes) == 1            # one unit: in the header, else in each cell
-        lines += ["", "Workspace (`mast workspace`: within the strokes, on the home branch, at least "
-                  f"{spaces[0][1].get('margin_limit', '-')} m/m from a singularity, connected to home):", "",
-                  f"| design | volume{f' [{unit_text(volumes[0][7:])}]' if one else ''} | "
-                  + " | ".join(f"{k.rpartition('_')[0]} through home [{k.rpartition('_')[2]}]" for k in ranges)
-                  + " | smallest margin [m/m] | margin at home [m/m] | home to singularity [m] | worst dexterity |",
-                  "|---|---|" + "---|" * len(ranges) + "---|---|---|---|"]
+        one = len(volumes) == 1  # one unit: in the header, else in each cell
+        lines += [
+            "",
+            "Workspace (`mast workspace`: within the strokes, on the home branch, at least "
+            f"{spaces[0][1].get('margin_limit', '-')} m/m from a singularity, connected to home):",
+            "",
+            f"| design | volume{f' [{unit_text(volumes[0][7:])}]' if one else ''} | "
+            + " | ".join(f"{k.rpartition('_')[0]} through home [{k.rpartition('_')[2]}]" for k in ranges)
+            + " | smallest margin [m/m] | margin at home [m/m] | home to singularity [m] | worst dexterity |",
+            "|---|---|" + "---|" * len(ranges) + "---|---|---|---|",
+        ]
         for label, w in spaces:
             if "error" in w:
                 lines.append(f"| {label} | {w['error']} |" + " |" * (len(ranges) + 4))
                 continue
             r = w["ranges_through_home"]
-            rng = lambda k: (f"{r[k][0]:.3g} .. {r[k][1]:.3g}" if k.endswith("_deg")     # noqa: E731
-                             else f"{r[k][0]:.4g} .. {r[k][1]:.4g}") if k in r else "-"
+            rng = lambda k: (
+                (
+                    f"{r[k][0]:.3g} .. {r[k][1]:.3g}"
+                    if k.endswith("_deg")  # noqa: E731
+                    else f"{r[k][0]:.4g} .. {r[k][1]:.4g}"
+                )
+                if k in r
+                else "-"
+            )
             cols = workspace_columns(w)
             volume = _fmt(w[volume_key(w)]) + ("" if one else f" {unit_text(volume_key(w)[7:])}")
-            lines.append(f"| {label} | {volume} | " + " | ".join(rng(k) for k in ranges)
-                         + f" | {_fmt(cols['margin_min'])} | {_fmt(cols['margin_home'])} "
-                         f"| {_fmt(cols['singularity_distance_home_m'])} | {_fmt(w['worst_dexterity']['value'])} |")
+            lines.append(
+                f"| {label} | {volume} | "
+                + " | ".join(rng(k) for k in ranges)
+                + f" | {_fmt(cols['margin_min'])} | {_fmt(cols['margin_home'])} "
+                f"| {_fmt(cols['singularity_distance_home_m'])} | {_fmt(w['worst_dexterity']['value'])} |"
+            )
     if comp.descriptions:
         lines += _static_lines(spaces) + ["", *(f"{d['label']}: {d['note']}." for d in comp.descriptions)]
     f10 = data["fig10"]
     if f10:
-        lines += ["", "Paper Fig. 10, z motion -3 dB bandwidth: "
-                  + "; ".join(f"{k} {_fmt(v)} Hz" for k, v in f10["with_mechanism"].items()) + " with the mechanism, "
-                  + "; ".join(f"{k} {_fmt(v)} Hz" for k, v in f10["actuators_alone"].items())
-                  + f" actuators alone (paper: {paper.BANDWIDTH_WITH_MAST} and {paper.BANDWIDTH_ACTUATORS_ALONE} Hz)."]
+        lines += [
+            "",
+            "Paper Fig. 10, z motion -3 dB bandwidth: "
+            + "; ".join(f"{k} {_fmt(v)} Hz" for k, v in f10["with_mechanism"].items())
+            + " with the mechanism, "
+            + "; ".join(f"{k} {_fmt(v)} Hz" for k, v in f10["actuators_alone"].items())
+            + f" actuators alone (paper: {paper.BANDWIDTH_WITH_MAST} and {paper.BANDWIDTH_ACTUATORS_ALONE} Hz).",
+        ]
     if data["robustness"]:
-        lines += ["", "Robustness: the same tests with a payload on the platform that the controllers do not know "
-                  "(their models keep the nominal sets).", "",
-                  f"| controller | motion | payload [kg] | bandwidth [Hz] | with payload [Hz] | tracking error at "
-                  f"{min(comp.test_set.frequencies):g} Hz | with payload | ratio | peak tracking error | with payload "
-                  "| ratio |", "|---|---|---|---|---|---|---|---|---|---|---|"]
+        lines += [
+            "",
+            "Robustness: the same tests with a payload on the platform that the controllers do not know "
+            "(their models keep the nominal sets).",
+            "",
+            f"| controller | motion | payload [kg] | bandwidth [Hz] | with payload [Hz] | tracking error at "
+            f"{min(comp.test_set.frequencies):g} Hz | with payload | ratio | peak tracking error | with payload "
+            "| ratio |",
+            "|---|---|---|---|---|---|---|---|---|---|---|",
+        ]
         for r in data["robustness"]:
             unit = POSE_UNITS[r["motion"]]
-            lines.append(f"| {r['controller']} | {r['motion']} | {_fmt(r['payload_kg'])} | {_fmt(r['bandwidth_Hz'])} "
-                         f"| {_fmt(r['bandwidth_payload_Hz'])} | {_fmt(r['tracking_peak_f_min'])} {unit} "
-                         f"| {_fmt(r['tracking_peak_f_min_payload'])} {unit} | {_fmt(r['tracking_peak_f_min_ratio'])} "
-                         f"| {_fmt(r['tracking_peak'])} {unit} | {_fmt(r['tracking_peak_payload'])} {unit} "
-                         f"| {_fmt(r['tracking_peak_ratio'])} |")
+            lines.append(
+                f"| {r['controller']} | {r['motion']} | {_fmt(r['payload_kg'])} | {_fmt(r['bandwidth_Hz'])} "
+                f"| {_fmt(r['bandwidth_payload_Hz'])} | {_fmt(r['tracking_peak_f_min'])} {unit} "
+                f"| {_fmt(r['tracking_peak_f_min_payload'])} {unit} | {_fmt(r['tracking_peak_f_min_ratio'])} "
+                f"| {_fmt(r['tracking_peak'])} {unit} | {_fmt(r['tracking_peak_payload'])} {unit} "
+                f"| {_fmt(r['tracking_peak_ratio'])} |"
+            )
     (out / "comparison.md").write_text("\n".join(lines) + "\n")
     files.append(out / "comparison.md")
     if plots and comp.candidates:
@@ -692,15 +868,21 @@ def write(comp: Comparison, out: Path, plots: bool = True) -> list[Path]:
 def _static_lines(spaces: Sequence[tuple[str, dict]]) -> list[str]:
     """comparison.md's table of the static actuator forces at rest (``mast workspace``'s static_forces): at home
     and the largest inside the workspace, where the workspace gives them."""
-    lines = ["", "Static forces of the mechanism on its drives at rest (`mast workspace`; a carriage the actuator model "
-                 "carries, M_load, is not in them, as the 3PRS's; one that is a body of the mechanism is, as the "
-                 "3RPS's):", "",
-             "| design | at home [N] | largest inside [N] | at |", "|---|---|---|---|"]
+    lines = [
+        "",
+        "Static forces of the mechanism on its drives at rest (`mast workspace`; a carriage the actuator model "
+        "carries, M_load, is not in them, as the 3PRS's; one that is a body of the mechanism is, as the "
+        "3RPS's):",
+        "",
+        "| design | at home [N] | largest inside [N] | at |",
+        "|---|---|---|---|",
+    ]
     for label, w in spaces:
         forces = w.get("static_forces", {}) if "error" not in w else {}
         home = next((v for k, v in forces.items() if k.startswith("home_")), None)
-        largest = next((v for k, v in forces.items() if k.startswith("largest_") and k != "largest_motor_torque_Nm"),
-                       None)
+        largest = next(
+            (v for k, v in forces.items() if k.startswith("largest_") and k != "largest_motor_torque_Nm"), None
+        )
         if home is None:
             lines.append(f"| {label} | {forces.get('not_computed', '-')} | | |")
             continue
@@ -720,9 +902,11 @@ def _motion_plots(comp: Comparison, out: Path) -> list[Path]:
     files = []
     nominal = [c for c in comp.candidates if not c.nominal]
     loaded = {c.nominal: c for c in comp.candidates if c.nominal}
-    panels = (("magnitude [dB]", lambda r: 20 * math.log10(r.magnitude)),
-              ("peak tracking error [m or rad]", lambda r: r.tracking_peak),
-              ("peak motor torque [N m]", lambda r: max(r.torque_peak)))
+    panels = (
+        ("magnitude [dB]", lambda r: 20 * math.log10(r.magnitude)),
+        ("peak tracking error [m or rad]", lambda r: r.tracking_peak),
+        ("peak motor torque [N m]", lambda r: max(r.torque_peak)),
+    )
     for axis in comp.test_set.axes:
         fig, ax = plt.subplots(1, 3, figsize=(14, 4))
         for k, c in enumerate(nominal):
@@ -732,8 +916,7 @@ def _motion_plots(comp: Comparison, out: Path) -> list[Path]:
                     continue
                 rs = [r for r in comp.results[(cand.label, axis)] if not r.error]
                 for a, (_, get) in zip(ax, panels):
-                    a.plot([r.frequency for r in rs], [get(r) for r in rs], style, color=colour, ms=3,
-                           label=cand.label)
+                    a.plot([r.frequency for r in rs], [get(r) for r in rs], style, color=colour, ms=3, label=cand.label)
         for a, (title, _) in zip(ax, panels):
             a.set_xscale("log")
             a.set_xlabel("frequency [Hz]")
@@ -743,8 +926,10 @@ def _motion_plots(comp: Comparison, out: Path) -> list[Path]:
         ax[1].set_yscale("log")
         ax[0].legend(fontsize=7)
         amplitude = comp.test_set.amplitudes[axis]
-        fig.suptitle(f"{axis} motion, amplitude {amplitude:g} {POSE_UNITS[axis]}: controllers as designed "
-                     f"(solid) and with a payload they do not know (dashed)")
+        fig.suptitle(
+            f"{axis} motion, amplitude {amplitude:g} {POSE_UNITS[axis]}: controllers as designed "
+            f"(solid) and with a payload they do not know (dashed)"
+        )
         fig.tight_layout()
         fig.savefig(out / f"motion_{axis}.png", dpi=110)
         plt.close(fig)
@@ -803,8 +988,14 @@ def _plots(comp: Comparison, out: Path) -> list[Path]:
         xs = [j + (k - (len(labels) - 1) / 2) * width for j in range(len(axes_))]
         bars = ax.bar(xs, [b if b is not None else 0.0 for b in bws], width, label=label)
         for bar, b in zip(bars, bws):
-            ax.text(bar.get_x() + bar.get_width() / 2, bar.get_height(), "n/a" if b is None else f"{b:.2f}",
-                    ha="center", va="bottom", fontsize=7)
+            ax.text(
+                bar.get_x() + bar.get_width() / 2,
+                bar.get_height(),
+                "n/a" if b is None else f"{b:.2f}",
+                ha="center",
+                va="bottom",
+                fontsize=7,
+            )
     ax.set_xticks(range(len(axes_)), [f"{a} motion" for a in axes_])
     ax.set_ylabel("-3 dB bandwidth [Hz]")
     ax.legend(fontsize=8)
@@ -815,8 +1006,9 @@ def _plots(comp: Comparison, out: Path) -> list[Path]:
     files.append(out / "bandwidth.png")
 
     def per_frequency(name, ylabel, title, getters):
-        fig, ax = plt.subplots(len(getters), len(axes_), figsize=(4.5 * len(axes_), 3.2 * len(getters)),
-                               squeeze=False, sharex=True)
+        fig, ax = plt.subplots(
+            len(getters), len(axes_), figsize=(4.5 * len(axes_), 3.2 * len(getters)), squeeze=False, sharex=True
+        )
         for i, (sub, get) in enumerate(getters):
             for j, axis in enumerate(axes_):
                 for label in labels:
@@ -834,11 +1026,20 @@ def _plots(comp: Comparison, out: Path) -> list[Path]:
         plt.close(fig)
         files.append(out / name)
 
-    per_frequency("torque.png", ["N m", "N m"], "motor torque, steady state (largest motor)",
-                  [("peak", lambda r: max(r.torque_peak)), ("RMS", lambda r: max(r.torque_rms))])
-    per_frequency("tracking.png", "m (z) / rad", "peak tracking error, steady state",
-                  [("peak error", lambda r: r.tracking_peak)])
+    per_frequency(
+        "torque.png",
+        ["N m", "N m"],
+        "motor torque, steady state (largest motor)",
+        [("peak", lambda r: max(r.torque_peak)), ("RMS", lambda r: max(r.torque_rms))],
+    )
+    per_frequency(
+        "tracking.png", "m (z) / rad", "peak tracking error, steady state", [("peak error", lambda r: r.tracking_peak)]
+    )
     parasitic = [c for c in POSE if any(c in p for p in comp.parasitic.values())] or ["x", "y", "phi"]
-    per_frequency("parasitic.png", [POSE_UNITS[c] for c in parasitic], "parasitic motions: half peak-to-peak, steady state",
-                  [(c, lambda r, c=c: r.parasitic.get(c, math.nan)) for c in parasitic])
+    per_frequency(
+        "parasitic.png",
+        [POSE_UNITS[c] for c in parasitic],
+        "parasitic motions: half peak-to-peak, steady state",
+        [(c, lambda r, c=c: r.parasitic.get(c, math.nan)) for c in parasitic],
+    )
     return files

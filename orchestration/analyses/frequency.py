@@ -6,6 +6,7 @@ of the achieved pose by least squares over whole periods; their ratio is the
 closed-loop response. Sweeps run independent tests in parallel processes
 (pythonfmu FMUs share one interpreter per process, so processes, not threads).
 """
+
 from __future__ import annotations
 
 import math
@@ -56,13 +57,13 @@ class SineResult:
     axis: str
     amplitude: float
     frequency: float
-    ratio: complex                      # achieved / commanded harmonic of the pose axis
-    torque_peak: list[float]            # per actuator, steady state [N m]
+    ratio: complex  # achieved / commanded harmonic of the pose axis
+    torque_peak: list[float]  # per actuator, steady state [N m]
     torque_rms: list[float]
-    torque_h3_h1: list[float]           # 3rd / 1st harmonic of the motor torque (square wave: 1/3)
-    tracking_peak: float                # max |command - achieved| on the axis, steady state
-    parasitic: dict[str, float]         # peak-to-peak/2 of each parasitic pose component (3PRS: x, y, phi), steady
-    current_peak: list[float] = field(default_factory=list)   # per drive, max |i_cmd| in steady state [A] (if recorded)
+    torque_h3_h1: list[float]  # 3rd / 1st harmonic of the motor torque (square wave: 1/3)
+    tracking_peak: float  # max |command - achieved| on the axis, steady state
+    parasitic: dict[str, float]  # peak-to-peak/2 of each parasitic pose component (3PRS: x, y, phi), steady
+    current_peak: list[float] = field(default_factory=list)  # per drive, max |i_cmd| in steady state [A] (if recorded)
     error: Optional[str] = None
     signals: dict = field(default_factory=dict)  # steady-state time series, if asked for
 
@@ -75,9 +76,15 @@ class SineResult:
         return math.degrees(math.atan2(self.ratio.imag, self.ratio.real))
 
 
-def sine_test(ssp: str, axis: str, amplitude: float, frequency: float,
-              parameters: Optional[Mapping[str, Mapping[str, Value]]] = None, direct: bool = False,
-              keep: Sequence[str] = ()) -> SineResult:
+def sine_test(
+    ssp: str,
+    axis: str,
+    amplitude: float,
+    frequency: float,
+    parameters: Optional[Mapping[str, Mapping[str, Value]]] = None,
+    direct: bool = False,
+    keep: Sequence[str] = (),
+) -> SineResult:
     """Run one sine test (amplitude in metres for a length, radians for an angle) and analyse it."""
     from ..core.run import simulate
     from ..core.ssp import SSPArchive
@@ -86,12 +93,23 @@ def sine_test(ssp: str, axis: str, amplitude: float, frequency: float,
     with SSPArchive(ssp) as archive:
         axes = system_axes(archive.system, parameters)
     parasitic = tuple(c for c in POSE if c not in axes)
-    record = [f"{axis}_cmd", f"mechanism.{axis}", *(f"mechanism.{c}" for c in parasitic),
-              *(f"actuator_{k}.tau_m" for k in range(1, len(axes) + 1)),
-              *(f"controller.i_cmd_{k}" for k in range(1, len(axes) + 1))]
+    record = [
+        f"{axis}_cmd",
+        f"mechanism.{axis}",
+        *(f"mechanism.{c}" for c in parasitic),
+        *(f"actuator_{k}.tau_m" for k in range(1, len(axes) + 1)),
+        *(f"controller.i_cmd_{k}" for k in range(1, len(axes) + 1)),
+    ]
     record = list(dict.fromkeys(record + list(keep)))
-    result = simulate(ssp, SineMotion(axis, amplitude, frequency), stop, parameters=parameters,
-                      record=record, record_step=record_step_of(frequency), direct=direct)
+    result = simulate(
+        ssp,
+        SineMotion(axis, amplitude, frequency),
+        stop,
+        parameters=parameters,
+        record=record,
+        record_step=record_step_of(frequency),
+        direct=direct,
+    )
     return analyse(result, axis, amplitude, frequency, start, keep, parasitic)
 
 
@@ -100,15 +118,24 @@ def drives_in(names: Sequence[str]) -> list[int]:
     found = set()
     for name in names:
         element, _, variable = name.partition(".")
-        for text in (element.rpartition("actuator_")[2] if element.startswith("actuator_") else "",
-                     variable.rpartition("_")[2] if element == "controller" else ""):
+        for text in (
+            element.rpartition("actuator_")[2] if element.startswith("actuator_") else "",
+            variable.rpartition("_")[2] if element == "controller" else "",
+        ):
             if text.isdigit():
                 found.add(int(text))
     return sorted(found)
 
 
-def analyse(result: Result, axis: str, amplitude: float, frequency: float, start: float,
-            keep: Sequence[str] = (), parasitic: Sequence[str] = ("x", "y", "phi")) -> SineResult:
+def analyse(
+    result: Result,
+    axis: str,
+    amplitude: float,
+    frequency: float,
+    start: float,
+    keep: Sequence[str] = (),
+    parasitic: Sequence[str] = ("x", "y", "phi"),
+) -> SineResult:
     """Steady-state analysis of a sine test: signals named ``<axis>_cmd``, ``mechanism.<axis>``,
     and, when recorded, ``actuator_<k>.tau_m``, ``controller.i_cmd_<k>`` of every drive k and
     ``mechanism.<c>`` of the ``parasitic`` pose components (the mechanism's ``Topology.parasitic``; by default the
@@ -123,16 +150,24 @@ def analyse(result: Result, axis: str, amplitude: float, frequency: float, start
         h1 = abs(harmonic(t, tau, frequency))
         h3h1.append(abs(harmonic(t, tau, 3 * frequency)) / h1 if h1 > 0 else float("nan"))
     return SineResult(
-        axis=axis, amplitude=amplitude, frequency=frequency,
+        axis=axis,
+        amplitude=amplitude,
+        frequency=frequency,
         ratio=harmonic(t, got, frequency) / harmonic(t, cmd, frequency),
         torque_peak=[float(np.abs(tau).max()) for tau in torques],
-        torque_rms=[float(np.sqrt(np.mean(tau ** 2))) for tau in torques],
+        torque_rms=[float(np.sqrt(np.mean(tau**2))) for tau in torques],
         torque_h3_h1=h3h1,
         tracking_peak=float(np.abs(cmd - got).max()),
-        current_peak=[float(np.abs(result[f"controller.i_cmd_{j}"][steady]).max()) for j in drives
-                      if f"controller.i_cmd_{j}" in result.signals],
-        parasitic={k: float(np.ptp(result[f"mechanism.{k}"][steady]) / 2) for k in parasitic
-                   if f"mechanism.{k}" in result.signals},
+        current_peak=[
+            float(np.abs(result[f"controller.i_cmd_{j}"][steady]).max())
+            for j in drives
+            if f"controller.i_cmd_{j}" in result.signals
+        ],
+        parasitic={
+            k: float(np.ptp(result[f"mechanism.{k}"][steady]) / 2)
+            for k in parasitic
+            if f"mechanism.{k}" in result.signals
+        },
         signals={"time": t, **{name: result[name][steady] for name in keep}} if keep else {},
     )
 
@@ -162,12 +197,23 @@ def _run_case(case: SineCase) -> SineResult:
         return sine_test(case.ssp, case.axis, case.amplitude, case.frequency, case.parameters, case.direct, case.keep)
     except Exception as err:  # a failing case is recorded, the sweep goes on
         nan = float("nan")
-        return SineResult(case.axis, case.amplitude, case.frequency, complex(nan, nan), [nan] * 3, [nan] * 3,
-                          [nan] * 3, nan, {}, error=f"{type(err).__name__}: {err}")
+        return SineResult(
+            case.axis,
+            case.amplitude,
+            case.frequency,
+            complex(nan, nan),
+            [nan] * 3,
+            [nan] * 3,
+            [nan] * 3,
+            nan,
+            {},
+            error=f"{type(err).__name__}: {err}",
+        )
 
 
-def run_cases(cases: Sequence[SineCase], workers: Optional[int] = None,
-              progress: Optional[Callable[[int, int], None]] = None) -> list[SineResult]:
+def run_cases(
+    cases: Sequence[SineCase], workers: Optional[int] = None, progress: Optional[Callable[[int, int], None]] = None
+) -> list[SineResult]:
     """Run independent sine tests, in parallel processes when workers > 1; results in input order."""
     workers = workers or min(len(cases), os.cpu_count() or 1)
     results: list[Optional[SineResult]] = [None] * len(cases)

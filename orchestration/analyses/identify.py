@@ -15,6 +15,7 @@ paper's agreement". Bounds keep the gains physical: a position loop between
 The current loop keeps its loop-shaping design (its bandwidth, 500 Hz, is far
 above what the position data can see).
 """
+
 from __future__ import annotations
 
 import math
@@ -37,7 +38,7 @@ BOUNDS = {"k_v": (2 * math.pi * 1.0, 2 * math.pi * 20.0), "k_p": (0.005, 0.5), "
 @dataclass
 class GainFit:
     gains: dict[str, float]
-    residuals: list[float]           # scaled: magnitude / 11 %, phase / 13 % of the phase lag, per fitted frequency
+    residuals: list[float]  # scaled: magnitude / 11 %, phase / 13 % of the phase lag, per fitted frequency
     responses: dict[float, tuple[float, float]]  # frequency -> (magnitude, phase deg) at the optimum
     evaluations: int
     wall_time_s: float
@@ -66,8 +67,9 @@ def resource_parameters(set_name: str) -> dict[str, float]:
 
     path = SSP_SRC / "resources" / f"{set_name}.ssv"
     if not path.exists():
-        raise FileNotFoundError(f"{path}: parameter set '{set_name}' is missing (it ships with the project's "
-                                "ssp/resources)")
+        raise FileNotFoundError(
+            f"{path}: parameter set '{set_name}' is missing (it ships with the project's ssp/resources)"
+        )
     return {name: v.value for name, v in parse_ssv(path).items()}
 
 
@@ -117,13 +119,14 @@ def _scaled_residuals(responses: dict[float, tuple[float, float]]) -> list[float
     res = []
     for f, (mag_paper, ph_paper) in fit_targets().items():
         mag, ph = responses[f]
-        res += [(mag - mag_paper) / (paper.TOLERANCE_MAGNITUDE * abs(mag_paper)),
-                (ph - ph_paper) / (paper.TOLERANCE_PHASE * abs(ph_paper))]
+        res += [
+            (mag - mag_paper) / (paper.TOLERANCE_MAGNITUDE * abs(mag_paper)),
+            (ph - ph_paper) / (paper.TOLERANCE_PHASE * abs(ph_paper)),
+        ]
     return res
 
 
-def fit_gains(ssp: str, start: dict[str, float], workers: int = 2,
-              log: Callable[[str], None] = print) -> GainFit:
+def fit_gains(ssp: str, start: dict[str, float], workers: int = 2, log: Callable[[str], None] = print) -> GainFit:
     """Bounded least squares in log-gains, starting from ``start``."""
     from scipy.optimize import least_squares
 
@@ -136,8 +139,11 @@ def fit_gains(ssp: str, start: dict[str, float], workers: int = 2,
         gains = dict(zip(GAINS, np.exp(x)))
         count[0] += 1
         r = _scaled_residuals(_responses(ssp, gains, workers))
-        log(f"  evaluation {count[0]:3d}: " + ", ".join(f"{k}={v:.4g}" for k, v in gains.items())
-            + f"  cost {float(np.sum(np.square(r))):.4f}")
+        log(
+            f"  evaluation {count[0]:3d}: "
+            + ", ".join(f"{k}={v:.4g}" for k, v in gains.items())
+            + f"  cost {float(np.sum(np.square(r))):.4f}"
+        )
         return np.array(r)
 
     x0 = np.clip(np.log([start[g] for g in GAINS]), lo + 1e-9, hi - 1e-9)
@@ -154,15 +160,24 @@ def write_ssv(fit: GainFit, path: Path, command: str) -> None:
     for f, (mag, ph) in fit.responses.items():
         mp, pp = targets[f]
         rows.append(f"z {f:g} Hz: {100 * mag:.1f} % / {ph:.1f} deg (paper {100 * mp:.1f} % / {pp:.1f} deg)")
-    provenance = (f"Fitted by '{command}' (orchestration/analyses/identify.py): bounded least squares on co-simulated z sine "
-                  f"tests ({1e3 * paper.AMPLITUDE['z']:g} mm) of the paper identified physical set ({READING_SET}.ssv "
-                  f"reading) against section 4.2, z at {' and '.join(f'{f:g}' for f in targets)} Hz only (the other "
-                  f"rows of mast reproduce are predictions); scaled cost {fit.cost:.3f} over {fit.evaluations} "
-                  f"evaluations; " + "; ".join(rows))
-    ssv.write(path, ssv.parameter_set(
-        path.stem, {g: fit.gains[g] for g in GAINS}, UNITS, dict.fromkeys(GAINS, provenance),
-        "Controller gains identified from the paper's reported position responses (section 4.2) in the paper "
-        f"reading ({READING_SET}.ssv): bound by mast reproduce, not by the default system."))
+    provenance = (
+        f"Fitted by '{command}' (orchestration/analyses/identify.py): bounded least squares on co-simulated z sine "
+        f"tests ({1e3 * paper.AMPLITUDE['z']:g} mm) of the paper identified physical set ({READING_SET}.ssv "
+        f"reading) against section 4.2, z at {' and '.join(f'{f:g}' for f in targets)} Hz only (the other "
+        f"rows of mast reproduce are predictions); scaled cost {fit.cost:.3f} over {fit.evaluations} "
+        f"evaluations; " + "; ".join(rows)
+    )
+    ssv.write(
+        path,
+        ssv.parameter_set(
+            path.stem,
+            {g: fit.gains[g] for g in GAINS},
+            UNITS,
+            dict.fromkeys(GAINS, provenance),
+            "Controller gains identified from the paper's reported position responses (section 4.2) in the paper "
+            f"reading ({READING_SET}.ssv): bound by mast reproduce, not by the default system.",
+        ),
+    )
 
 
 def start_gains(ssp: str, start_set: str = "controller_joint") -> dict[str, float]:

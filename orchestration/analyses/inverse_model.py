@@ -8,6 +8,7 @@ forward-backward), velocity and acceleration by central differences, the force d
 the same way; ordinary least squares. An independent route to the values `mast diagnose`
 finds by closed-loop re-simulation.
 """
+
 from __future__ import annotations
 
 from typing import Mapping
@@ -15,8 +16,15 @@ from typing import Mapping
 import numpy as np
 
 
-def inverse_model_ls(time: np.ndarray, q: np.ndarray, force: np.ndarray, asymmetric: bool = False,
-                     cutoff_Hz: float = 100.0, decimate: int = 10, edge_s: float = 0.05) -> Mapping[str, float]:
+def inverse_model_ls(
+    time: np.ndarray,
+    q: np.ndarray,
+    force: np.ndarray,
+    asymmetric: bool = False,
+    cutoff_Hz: float = 100.0,
+    decimate: int = 10,
+    edge_s: float = 0.05,
+) -> Mapping[str, float]:
     """Least-squares estimates and the relative force error [%] of the fitted inverse model (module docstring)."""
     from scipy.signal import butter, sosfiltfilt
 

@@ -29,6 +29,7 @@ Families (the ``outputs.metrics`` names of a batch config):
 Across cases (:func:`sweep_metrics`): ``bandwidth_Hz`` (-3 dB, :func:`mast.analyses.frequency.bandwidth`),
 ``peak_magnitude_dB`` and ``peak_frequency_Hz``, ``n_frequencies``.
 """
+
 from __future__ import annotations
 
 import math
@@ -36,11 +37,11 @@ from typing import Mapping, Optional, Sequence
 
 import numpy as np
 
-from . import sizing
 from fmus.mechanism.topology import POSE, POSE_UNITS
 
-from .frequency import analyse, bandwidth, drives_in
 from ..core.master import Result
+from . import sizing
+from .frequency import analyse, bandwidth, drives_in
 
 FAMILIES = ("tracking", "sine", "torque", "current", "saturation", "sizing")
 
@@ -49,8 +50,8 @@ def signals_for(families: Sequence[str], available: Sequence[str]) -> list[str]:
     """The signals the metric families need, among those ``available`` in the system."""
     want: list[str] = []
     have = set(available)
-    numbers = drives_in(available)       # the system's drives, 1..n
-    if "tracking" in families or "sine" in families:     # the commanded coordinates
+    numbers = drives_in(available)  # the system's drives, 1..n
+    if "tracking" in families or "sine" in families:  # the commanded coordinates
         want += [s for a in POSE if f"{a}_cmd" in have for s in (f"{a}_cmd", f"mechanism.{a}")]
     if "torque" in families or "sine" in families:
         want += [f"actuator_{k}.tau_m" for k in numbers]
@@ -60,7 +61,8 @@ def signals_for(families: Sequence[str], available: Sequence[str]) -> list[str]:
         want += [s for k in numbers for s in (f"controller.i_cmd_{k}", f"controller.u_{k}")]
     if "sizing" in families:
         want += [f"actuator_{k}.{s}" for k in numbers for s in sizing.SIGNALS] + [
-            f"controller.i_cmd_{k}" for k in numbers]
+            f"controller.i_cmd_{k}" for k in numbers
+        ]
     return [s for s in dict.fromkeys(want) if s in have]
 
 
@@ -69,14 +71,24 @@ def window(result: Result, start: float, stop: Optional[float] = None) -> Result
     mask = result.time >= start - 1e-9
     if stop is not None:
         mask &= result.time <= stop + 1e-9
-    return Result(result.time[mask], {name: values[mask] for name, values in result.signals.items()},
-                  result.wall_time_s, result.error, dict(result.stats))
+    return Result(
+        result.time[mask],
+        {name: values[mask] for name, values in result.signals.items()},
+        result.wall_time_s,
+        result.error,
+        dict(result.stats),
+    )
 
 
-def case_metrics(result: Result, families: Sequence[str] = FAMILIES, motion: Optional[Mapping] = None,
-                 start: float = 0.0, stop: Optional[float] = None,
-                 limits: Optional[Mapping[str, float]] = None,
-                 drives: Optional[Mapping[str, "sizing.Drive"]] = None) -> dict[str, float]:
+def case_metrics(
+    result: Result,
+    families: Sequence[str] = FAMILIES,
+    motion: Optional[Mapping] = None,
+    start: float = 0.0,
+    stop: Optional[float] = None,
+    limits: Optional[Mapping[str, float]] = None,
+    drives: Optional[Mapping[str, "sizing.Drive"]] = None,
+) -> dict[str, float]:
     """Metrics of one run over ``[start, stop]``.
 
     ``motion``: ``{"axis", "amplitude" (m or rad), "frequency" (Hz)}`` of a sine test (needed by
@@ -86,7 +98,7 @@ def case_metrics(result: Result, families: Sequence[str] = FAMILIES, motion: Opt
     """
     w = window(result, start, stop)
     sig = w.signals
-    numbers = drives_in(list(sig))       # the drives recorded, 1..n
+    numbers = drives_in(list(sig))  # the drives recorded, 1..n
     out: dict[str, float] = {}
     if not len(w.time):
         return out
@@ -130,7 +142,10 @@ def case_metrics(result: Result, families: Sequence[str] = FAMILIES, motion: Opt
         found = False
         for k in numbers:
             sat = np.zeros(len(w.time), dtype=bool)
-            for name, limit in ((f"controller.i_cmd_{k}", limits.get("i_max")), (f"actuator_{k}.u", limits.get("u_max"))):
+            for name, limit in (
+                (f"controller.i_cmd_{k}", limits.get("i_max")),
+                (f"actuator_{k}.u", limits.get("u_max")),
+            ):
                 if name in sig and limit:
                     sat |= np.abs(sig[name]) >= float(limit) * (1.0 - 1e-9)
                     found = True
@@ -145,11 +160,15 @@ def case_metrics(result: Result, families: Sequence[str] = FAMILIES, motion: Opt
     return out
 
 
-def sweep_metrics(frequencies: Sequence[float], magnitudes: Sequence[float],
-                  phases_deg: Sequence[float]) -> dict[str, float]:
+def sweep_metrics(
+    frequencies: Sequence[float], magnitudes: Sequence[float], phases_deg: Sequence[float]
+) -> dict[str, float]:
     """Bandwidth and resonance of the sine tests of one group (same system, axis and amplitude)."""
-    pairs = sorted((f, m, p) for f, m, p in zip(frequencies, magnitudes, phases_deg)
-                   if f and f > 0 and m is not None and math.isfinite(m) and p is not None)
+    pairs = sorted(
+        (f, m, p)
+        for f, m, p in zip(frequencies, magnitudes, phases_deg)
+        if f and f > 0 and m is not None and math.isfinite(m) and p is not None
+    )
     out: dict[str, float] = {"n_frequencies": float(len(pairs))}
     if not pairs:
         return out

@@ -17,6 +17,7 @@ logged before the injection (``tap = "before_injection"``), with the model outpu
 ``model`` + "_before_injection" (mast.data.record). Writes OUT/replay.json, OUT/replay.csv
 (time, measured and simulated columns) and OUT/replay_<test>.png.
 """
+
 from __future__ import annotations
 
 import json
@@ -66,15 +67,22 @@ def _check_taps(components: Mapping, measured: Sequence, record: Record, ssp: Un
         element, _, connector = s.model_output.rpartition(".")
         comp = components.get(element)
         if s.tap == "applied" or comp is None or connector in comp.outputs:
-            continue                              # an unknown component, or the applied tap: the master names it
-        raise RecordError(f"{record.file.name}: signal {s.name} is logged at tap {s.tap!r}: it is compared with the "
-                          f"model output {s.model_output} ({s.model} at that tap), which {Path(ssp).name} does not "
-                          f"have; the outputs of {element}: {', '.join(comp.outputs)}")
+            continue  # an unknown component, or the applied tap: the master names it
+        raise RecordError(
+            f"{record.file.name}: signal {s.name} is logged at tap {s.tap!r}: it is compared with the "
+            f"model output {s.model_output} ({s.model} at that tap), which {Path(ssp).name} does not "
+            f"have; the outputs of {element}: {', '.join(comp.outputs)}"
+        )
 
 
-def simulate_record(ssp: Union[str, Path], record: Record, parameters: Optional[Mapping[str, Mapping]] = None,
-                    direct: bool = True, extra: Sequence[str] = (), stop_time: Optional[float] = None
-                    ) -> dict[str, np.ndarray]:
+def simulate_record(
+    ssp: Union[str, Path],
+    record: Record,
+    parameters: Optional[Mapping[str, Mapping]] = None,
+    direct: bool = True,
+    extra: Sequence[str] = (),
+    stop_time: Optional[float] = None,
+) -> dict[str, np.ndarray]:
     """The model's outputs named by the record's measured signals, at the record's samples (sampled outputs
     one sample later, module docstring); keys: signal names, and the ``extra`` outputs (ELEMENT.CONNECTOR)
     at the samples. ``stop_time``: simulate the record only up to there (the samples before it)."""
@@ -91,8 +99,15 @@ def simulate_record(ssp: Union[str, Path], record: Record, parameters: Optional[
     dt = record.sample_time
     end = record.duration if stop_time is None else min(float(stop_time), record.duration)
     time = record.time[record.time <= end + 1e-9]
-    res = simulate(ssp, RecordReplay(record, inputs), float(time[-1]) + dt, parameters=params,
-                   record=sorted({s.model_output for s in measured} | set(extra)), record_step=None, direct=direct)
+    res = simulate(
+        ssp,
+        RecordReplay(record, inputs),
+        float(time[-1]) + dt,
+        parameters=params,
+        record=sorted({s.model_output for s in measured} | set(extra)),
+        record_step=None,
+        direct=direct,
+    )
     out = {}
     for s in measured:
         at = time + (dt if s.sampled else 0.0)
@@ -109,10 +124,15 @@ def compare(record: Record, simulated: Mapping[str, np.ndarray]) -> dict:
     out = {}
     for s in record.of_kind(*MEASURED):
         y, ys = record.values[s.name][keep], simulated[s.name][keep]
-        out[s.name] = {"kind": s.kind, "unit": s.unit, "model": s.model_output,
-                       **({"tap": s.tap} if s.kind == "effort" else {}),
-                       "relative_error_pct": relative_error_pct(y, ys), "fit_pct": fit_pct(y, ys),
-                       "rms_error": float(np.sqrt(np.mean((y - ys) ** 2)))}
+        out[s.name] = {
+            "kind": s.kind,
+            "unit": s.unit,
+            "model": s.model_output,
+            **({"tap": s.tap} if s.kind == "effort" else {}),
+            "relative_error_pct": relative_error_pct(y, ys),
+            "fit_pct": fit_pct(y, ys),
+            "rms_error": float(np.sqrt(np.mean((y - ys) ** 2))),
+        }
     return out
 
 
@@ -123,8 +143,9 @@ def plot_replay(record: Record, simulated: Mapping[str, np.ndarray], path: Path,
     import matplotlib.pyplot as plt
 
     measured = record.of_kind(*MEASURED)
-    fig, axes = plt.subplots(len(measured), 2, figsize=(12, 2.8 * len(measured)), squeeze=False,
-                             gridspec_kw={"width_ratios": [3, 1.2]})
+    fig, axes = plt.subplots(
+        len(measured), 2, figsize=(12, 2.8 * len(measured)), squeeze=False, gridspec_kw={"width_ratios": [3, 1.2]}
+    )
     for row, s in zip(axes, measured):
         y, ys = record.values[s.name], simulated[s.name]
         row[0].plot(record.time, y, lw=0.8, label="measured")
@@ -132,8 +153,10 @@ def plot_replay(record: Record, simulated: Mapping[str, np.ndarray], path: Path,
         row[0].plot(record.time, y - ys, lw=0.6, label="measured - model")
         row[0].set_ylabel(f"{s.name} [{s.unit}]")
         row[0].legend(loc="upper right", fontsize=7)
-        row[0].set_title(f"{s.name} ({s.kind}): relative error {relative_error_pct(y, ys):.3g} %, "
-                         f"fit {fit_pct(y, ys):.3g} %", fontsize=9)
+        row[0].set_title(
+            f"{s.name} ({s.kind}): relative error {relative_error_pct(y, ys):.3g} %, fit {fit_pct(y, ys):.3g} %",
+            fontsize=9,
+        )
         lo, hi = float(min(y.min(), ys.min())), float(max(y.max(), ys.max()))
         row[1].plot(y, ys, ",", alpha=0.5)
         row[1].plot([lo, hi], [lo, hi], "k--", lw=0.6)
@@ -147,8 +170,14 @@ def plot_replay(record: Record, simulated: Mapping[str, np.ndarray], path: Path,
     plt.close(fig)
 
 
-def replay(ssp: Union[str, Path], measured: Union[str, Path, RecordSet], out: Union[str, Path],
-           parameters: Optional[Mapping[str, Mapping]] = None, direct: bool = True, figures: bool = True) -> dict:
+def replay(
+    ssp: Union[str, Path],
+    measured: Union[str, Path, RecordSet],
+    out: Union[str, Path],
+    parameters: Optional[Mapping[str, Mapping]] = None,
+    direct: bool = True,
+    figures: bool = True,
+) -> dict:
     """Replay every test of ``measured`` on ``ssp``; write OUT/replay.json, replay.csv, figures. With one test
     ``signals`` is that test's table; with several, ``signals`` holds the first and ``tests`` every one."""
     records = measured if isinstance(measured, RecordSet) else load_records(measured)
@@ -165,7 +194,12 @@ def replay(ssp: Union[str, Path], measured: Union[str, Path, RecordSet], out: Un
         np.savetxt(out / f"replay{suffix}.csv", table, delimiter=",", header=",".join(header), comments="", fmt="%.12g")
         if figures:
             plot_replay(rec, sim, out / f"replay_{rec.name}.png", f"{Path(ssp).name} on {records.machine}: {rec.name}")
-    doc = {"model": str(ssp), "measured": str(records.folder), "machine": records.machine,
-           "signals": tests[records.tests[0].name], "tests": tests}
+    doc = {
+        "model": str(ssp),
+        "measured": str(records.folder),
+        "machine": records.machine,
+        "signals": tests[records.tests[0].name],
+        "tests": tests,
+    }
     (out / "replay.json").write_text(json.dumps(doc, indent=2))
     return doc

@@ -17,6 +17,7 @@ The reproduction is the paper's, so it is the 3PRS's on purpose: its motions z, 
 drive of Table 1. The analyses it is built from (``frequency``, ``compare``, ``metrics``) follow
 any mechanism's topology; this module does not, and runs only the MAST's own systems.
 """
+
 from __future__ import annotations
 
 import json
@@ -32,12 +33,18 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from . import paper  # noqa: E402
 from ..core.build import SSP_SRC  # noqa: E402
-from .frequency import CountProgress, SineCase, SineResult, bandwidth, harmonic, run_cases  # noqa: E402
-from .identify import (GAINS_SET, IDENTIFIED_SET, identified_parameters, manufacturer_parameters,  # noqa: E402
-                       reading_gains, resource_parameters)
 from ..core.ssp import SSPArchive  # noqa: E402
+from . import paper  # noqa: E402
+from .frequency import CountProgress, SineCase, SineResult, bandwidth, harmonic, run_cases  # noqa: E402
+from .identify import (
+    GAINS_SET,
+    IDENTIFIED_SET,
+    identified_parameters,
+    manufacturer_parameters,  # noqa: E402
+    reading_gains,
+    resource_parameters,
+)
 
 SWEEP_HZ = (0.4, 1.0, 1.5, 2.0, 2.5, 3.0, 3.5, 4.0, 4.5, 5.0, 6.0, 8.0, 10.0, 14.0, 20.0)
 TIME_DOMAIN_HZ = (0.4, 5.0, 10.0)
@@ -49,8 +56,17 @@ MOTOR_SHOWN = {"z": 1, "psi": 2, "theta": 1}
 #: forensics: extra moving mass per drive [kg] and the frequencies its z bandwidth is read from [Hz]
 EXTRA_MASS_KG = (2.27, 6.0)  # 2.27 kg: the MAST lumped on each drive, as Eqs. 21-22 do
 MASS_HZ = (2.0, 3.0, 4.0, 5.0, 6.0)
-KEEP = ("actuator_1.tau_m", "actuator_2.tau_m", "actuator_3.tau_m", "z_cmd", "psi_cmd", "theta_cmd",
-        "mechanism.z", "mechanism.psi", "mechanism.theta")
+KEEP = (
+    "actuator_1.tau_m",
+    "actuator_2.tau_m",
+    "actuator_3.tau_m",
+    "z_cmd",
+    "psi_cmd",
+    "theta_cmd",
+    "mechanism.z",
+    "mechanism.psi",
+    "mechanism.theta",
+)
 
 
 @dataclass
@@ -59,7 +75,7 @@ class Row:
 
     claim: paper.Claim
     ours: float
-    kind: str   # "fit", "reuse" or "prediction" (paper.kind)
+    kind: str  # "fit", "reuse" or "prediction" (paper.kind)
     note: str = ""
 
     @property
@@ -73,15 +89,26 @@ class Row:
     @property
     def tolerance_text(self) -> str:
         lo, hi = self.claim.band()
-        rule = ("13 % of the phase lag" if self.claim.tolerance == "phase" else "11 %")
+        rule = "13 % of the phase lag" if self.claim.tolerance == "phase" else "11 %"
         return f"{rule}: [{lo:.4g}, {hi:.4g}]"
 
     def as_dict(self) -> dict:
         c = self.claim
-        return {"key": c.key, "quantity": c.quantity, "unit": c.unit, "kind": self.kind, "paper": c.value,
-                "ours": self.ours, "difference": self.difference, "tolerance": c.tolerance,
-                "tolerance_band": list(c.band()), "within_paper_deviation": self.within,
-                "statement": c.statement, "source": c.source, "note": self.note}
+        return {
+            "key": c.key,
+            "quantity": c.quantity,
+            "unit": c.unit,
+            "kind": self.kind,
+            "paper": c.value,
+            "ours": self.ours,
+            "difference": self.difference,
+            "tolerance": c.tolerance,
+            "tolerance_band": list(c.band()),
+            "within_paper_deviation": self.within,
+            "statement": c.statement,
+            "source": c.source,
+            "note": self.note,
+        }
 
 
 def _strict(value):
@@ -106,13 +133,21 @@ def plan(ssp: str, direct: bool = False, sweep_hz: tuple[float, ...] = SWEEP_HZ)
     gains = {"controller": reading_gains()}
     ident, manuf = _merge(identified_parameters(), gains), _merge(manufacturer_parameters(), gains)
     # the sweeps with the MAST take their time-domain frequencies from the Sim. Ident. tests (the same runs)
-    groups = {f"sweep_{m}": [SineCase(ssp, m, paper.AMPLITUDE[m], f, ident, direct) for f in sweep_hz
-                             if f not in TIME_DOMAIN_HZ] for m in MOTIONS}
-    groups["sweep_z_alone"] = [SineCase(ssp, "z", paper.AMPLITUDE["z"], f, _merge(ident, NO_MECHANISM), direct)
-                               for f in sweep_hz]
+    groups = {
+        f"sweep_{m}": [
+            SineCase(ssp, m, paper.AMPLITUDE[m], f, ident, direct) for f in sweep_hz if f not in TIME_DOMAIN_HZ
+        ]
+        for m in MOTIONS
+    }
+    groups["sweep_z_alone"] = [
+        SineCase(ssp, "z", paper.AMPLITUDE["z"], f, _merge(ident, NO_MECHANISM), direct) for f in sweep_hz
+    ]
     for name, pset in (("ident", ident), ("manuf", manuf)):
-        groups[f"time_{name}"] = [SineCase(ssp, m, paper.AMPLITUDE[m], f, pset, direct, KEEP, label=f"{m} {f:g} Hz")
-                                  for m in MOTIONS for f in TIME_DOMAIN_HZ]
+        groups[f"time_{name}"] = [
+            SineCase(ssp, m, paper.AMPLITUDE[m], f, pset, direct, KEEP, label=f"{m} {f:g} Hz")
+            for m in MOTIONS
+            for f in TIME_DOMAIN_HZ
+        ]
     # forensics: what extra moving mass per drive does to the z bandwidth (docs/reproduction.md)
     m_star = ident["actuator_1"]["M_load"]
     for extra in EXTRA_MASS_KG:
@@ -121,11 +156,12 @@ def plan(ssp: str, direct: bool = False, sweep_hz: tuple[float, ...] = SWEEP_HZ)
     return groups
 
 
-def reproduce(ssp: str, out: Path, workers: int = 2, direct: bool = False,
-              sweep_hz: tuple[float, ...] = SWEEP_HZ) -> dict:
+def reproduce(
+    ssp: str, out: Path, workers: int = 2, direct: bool = False, sweep_hz: tuple[float, ...] = SWEEP_HZ
+) -> dict:
     """Run everything, write the report; return a summary (wall time, rows and predictions within tolerance)."""
     t0 = time.perf_counter()
-    with SSPArchive(ssp):   # a missing or malformed SSP stops here, before 82 runs fail and a folder is made
+    with SSPArchive(ssp):  # a missing or malformed SSP stops here, before 82 runs fail and a folder is made
         pass
     out.mkdir(parents=True, exist_ok=True)
     groups = plan(ssp, direct, sweep_hz)
@@ -133,12 +169,14 @@ def reproduce(ssp: str, out: Path, workers: int = 2, direct: bool = False,
     results = run_cases(flat, workers=workers, progress=CountProgress("reproduce: sine tests"))
     by_group, k = {}, 0
     for name, cases in groups.items():
-        by_group[name] = results[k:k + len(cases)]
+        by_group[name] = results[k : k + len(cases)]
         k += len(cases)
     for m in MOTIONS:
         shared = [r for r in by_group["time_ident"] if r.axis == m and r.frequency in sweep_hz]
         by_group[f"sweep_{m}"] = sorted(by_group[f"sweep_{m}"] + shared, key=lambda r: r.frequency)
-    failures = [f"{c.axis} {c.frequency:g} Hz ({c.label or 'sweep'}): {r.error}" for c, r in zip(flat, results) if r.error]
+    failures = [
+        f"{c.axis} {c.frequency:g} Hz ({c.label or 'sweep'}): {r.error}" for c, r in zip(flat, results) if r.error
+    ]
 
     params = _actuator_params(ssp)
     m_eq22 = float(_component_params(ssp, "actuator_1")["M_load"])  # the SSP's own carriage: Eq. 22's M_load
@@ -151,20 +189,28 @@ def reproduce(ssp: str, out: Path, workers: int = 2, direct: bool = False,
     wall = time.perf_counter() - t0
     (out / "paper_table.json").write_text(json.dumps([_strict(r.as_dict()) for r in rows], indent=2, allow_nan=False))
     summary = _summary(rows, wall, len(flat), failures)
-    _write_report(out, rows, figures, failures, summary, ssp, workers,
-                  _forensics(ssp, params, by_group, m_eq22), limits, by_group)
+    _write_report(
+        out, rows, figures, failures, summary, ssp, workers, _forensics(ssp, params, by_group, m_eq22), limits, by_group
+    )
     return summary
 
 
 def _summary(rows: list[Row], wall: float, runs: int, failures: list[str]) -> dict:
     count = {kind: [r for r in rows if r.kind == kind] for kind in ("fit", "reuse", "prediction")}
-    return {"wall_time_s": wall, "runs": runs, "rows": len(rows),
-            "within": sum(1 for r in rows if r.within), "judged": len(rows),
-            "predictions": len(count["prediction"]),
-            "predictions_within": sum(1 for r in count["prediction"] if r.within),
-            "fits": len(count["fit"]), "fits_within": sum(1 for r in count["fit"] if r.within),
-            "reuses": len(count["reuse"]), "reuses_within": sum(1 for r in count["reuse"] if r.within),
-            "failures": failures}
+    return {
+        "wall_time_s": wall,
+        "runs": runs,
+        "rows": len(rows),
+        "within": sum(1 for r in rows if r.within),
+        "judged": len(rows),
+        "predictions": len(count["prediction"]),
+        "predictions_within": sum(1 for r in count["prediction"] if r.within),
+        "fits": len(count["fit"]),
+        "fits_within": sum(1 for r in count["fit"] if r.within),
+        "reuses": len(count["reuse"]),
+        "reuses_within": sum(1 for r in count["reuse"] if r.within),
+        "failures": failures,
+    }
 
 
 # -- our values ---------------------------------------------------------------------
@@ -191,15 +237,21 @@ def _bandwidth(results: list[SineResult]) -> float:
 
 
 def _sweep_values(groups: dict) -> dict[str, float]:
-    bw = {name: _phase_crossing(groups[name], paper.BANDWIDTH_PHASE_DEG)
-          for name in ("sweep_z", "sweep_psi", "sweep_theta", "sweep_z_alone")}
+    bw = {
+        name: _phase_crossing(groups[name], paper.BANDWIDTH_PHASE_DEG)
+        for name in ("sweep_z", "sweep_psi", "sweep_theta", "sweep_z_alone")
+    }
     values = {f"bandwidth/{m}": bw[f"sweep_{m}"] for m in MOTIONS}
     values["bandwidth/z_alone"] = bw["sweep_z_alone"]
     values["bandwidth/reduction"] = bw["sweep_z_alone"] - bw["sweep_z"]
-    values["alike_below_2hz"] = max((abs(abs(a.ratio) - abs(b.ratio)) / abs(b.ratio)
-                                     for a, b in zip(groups["sweep_z"], groups["sweep_z_alone"])
-                                     if a.frequency <= paper.ALIKE_UP_TO_HZ and not (a.error or b.error)),
-                                    default=float("nan"))
+    values["alike_below_2hz"] = max(
+        (
+            abs(abs(a.ratio) - abs(b.ratio)) / abs(b.ratio)
+            for a, b in zip(groups["sweep_z"], groups["sweep_z_alone"])
+            if a.frequency <= paper.ALIKE_UP_TO_HZ and not (a.error or b.error)
+        ),
+        default=float("nan"),
+    )
     return values
 
 
@@ -234,8 +286,16 @@ def _limit_table(groups: dict, i_max: float) -> list[dict]:
     for name, variant in (("time_manuf", "Sim. Manufac."), ("time_ident", "Sim. Ident.")):
         for r in groups[name]:
             peak = max(r.current_peak) if r.current_peak and not r.error else float("nan")
-            table.append({"variant": variant, "motion": r.axis, "frequency_Hz": r.frequency, "i_peak_A": peak,
-                          "i_max_A": i_max, "at_limit": bool(peak >= i_max * (1 - 1e-6))})
+            table.append(
+                {
+                    "variant": variant,
+                    "motion": r.axis,
+                    "frequency_Hz": r.frequency,
+                    "i_peak_A": peak,
+                    "i_max_A": i_max,
+                    "at_limit": bool(peak >= i_max * (1 - 1e-6)),
+                }
+            )
     return table
 
 
@@ -243,8 +303,11 @@ def _sweep_limits(groups: dict, i_max: float) -> list[str]:
     """The sweep tests whose current command reached the drive's limit (their response is the saturated one)."""
     hits = []
     for name in ("sweep_z", "sweep_psi", "sweep_theta", "sweep_z_alone"):
-        freqs = [f"{r.frequency:g}" for r in groups[name]
-                 if r.current_peak and not r.error and max(r.current_peak) >= i_max * (1 - 1e-6)]
+        freqs = [
+            f"{r.frequency:g}"
+            for r in groups[name]
+            if r.current_peak and not r.error and max(r.current_peak) >= i_max * (1 - 1e-6)
+        ]
         if freqs:
             hits.append(f"{name.removeprefix('sweep_')} at {', '.join(freqs)} Hz")
     return hits
@@ -277,14 +340,29 @@ def _plot_bode(params: dict, out: Path, m_eq22: float) -> str:
         ax.grid(True, which="both", alpha=0.3)
     ax_m.axvline(fn["TF2"], color="k", ls=":", lw=1)
     ax_m.axvline(eq22["TF2"], color="gray", ls=":", lw=1)
-    for value, label, y in ((paper.TF2_RESONANCE_FIG7, "paper Fig. 7: TF2 ~900 Hz", 0.2),
-                            (paper.FN_TABLE1, "paper Table 1: f_n 986.5 Hz", 1.5)):
+    for value, label, y in (
+        (paper.TF2_RESONANCE_FIG7, "paper Fig. 7: TF2 ~900 Hz", 0.2),
+        (paper.FN_TABLE1, "paper Table 1: f_n 986.5 Hz", 1.5),
+    ):
         ax_m.axvline(value, color="r", ls="--", lw=1)
-        ax_m.text(value, ax_m.get_ylim()[0] * 10 ** y, f" {label}", color="r", fontsize=8)
-    ax_m.text(fn["TF2"], ax_m.get_ylim()[1], f"TF2 {fn['TF2']:.0f} Hz, f_n {fn['TF1']:.0f} Hz (M* = "
-              f"{float(params['M_load']):g} kg)  ", va="top", ha="right", fontsize=8)
-    ax_m.text(eq22["TF2"], ax_m.get_ylim()[1] / 20, f"TF2 {eq22['TF2']:.0f} Hz with Eq. 22's {m_eq22:g} kg  ",
-              va="top", ha="right", fontsize=8, color="gray")
+        ax_m.text(value, ax_m.get_ylim()[0] * 10**y, f" {label}", color="r", fontsize=8)
+    ax_m.text(
+        fn["TF2"],
+        ax_m.get_ylim()[1],
+        f"TF2 {fn['TF2']:.0f} Hz, f_n {fn['TF1']:.0f} Hz (M* = {float(params['M_load']):g} kg)  ",
+        va="top",
+        ha="right",
+        fontsize=8,
+    )
+    ax_m.text(
+        eq22["TF2"],
+        ax_m.get_ylim()[1] / 20,
+        f"TF2 {eq22['TF2']:.0f} Hz with Eq. 22's {m_eq22:g} kg  ",
+        va="top",
+        ha="right",
+        fontsize=8,
+        color="gray",
+    )
     ax_m.set_ylabel("magnitude [rad/(N m), rad/rad]")
     ax_p.set_ylabel("phase [deg]")
     ax_p.set_xlabel("frequency [Hz]")
@@ -298,8 +376,12 @@ def _plot_bode(params: dict, out: Path, m_eq22: float) -> str:
 
 def _plot_sweeps(groups: dict, out: Path) -> str:
     fig, (ax_m, ax_p) = plt.subplots(2, 1, figsize=(8, 7), sharex=True)
-    labels = {"sweep_z": "z, with MAST", "sweep_psi": "psi, with MAST", "sweep_theta": "theta, with MAST",
-              "sweep_z_alone": "z, actuators alone"}
+    labels = {
+        "sweep_z": "z, with MAST",
+        "sweep_psi": "psi, with MAST",
+        "sweep_theta": "theta, with MAST",
+        "sweep_z_alone": "z, actuators alone",
+    }
     for name, label in labels.items():
         res = [r for r in groups[name] if not r.error]
         f = [r.frequency for r in res]
@@ -312,8 +394,12 @@ def _plot_sweeps(groups: dict, out: Path) -> str:
         ax_p.plot(f, ph, ls="", ms=9, mew=2, **style)
     ax_m.plot([], [], "ks", mfc="none", label="paper 4.2, fitted on z")
     ax_m.plot([], [], "kx", label="paper 4.2, predicted")
-    ax_p.plot(paper.BANDWIDTH_WITH_MAST, paper.BANDWIDTH_PHASE_DEG, "rv", ms=9, label="paper: bandwidth with MAST 3.5 Hz")
-    ax_p.plot(paper.BANDWIDTH_ACTUATORS_ALONE, paper.BANDWIDTH_PHASE_DEG, "r^", ms=9, label="paper: actuators alone 4 Hz")
+    ax_p.plot(
+        paper.BANDWIDTH_WITH_MAST, paper.BANDWIDTH_PHASE_DEG, "rv", ms=9, label="paper: bandwidth with MAST 3.5 Hz"
+    )
+    ax_p.plot(
+        paper.BANDWIDTH_ACTUATORS_ALONE, paper.BANDWIDTH_PHASE_DEG, "r^", ms=9, label="paper: actuators alone 4 Hz"
+    )
     ax_p.axhline(paper.BANDWIDTH_PHASE_DEG, color="gray", ls=":")
     ax_p.legend(fontsize="x-small", loc="lower left")
     ax_m.axhline(-3, color="gray", ls=":")
@@ -351,8 +437,14 @@ def _plot_time(groups: dict, out: Path) -> list[str]:
                     mag, ph = paper.POSITION_RESPONSE[f]
                     c = harmonic(r.signals["time"], cmd - mean, f) * mag * np.exp(1j * math.radians(ph))
                     w = 2 * math.pi * f * r.signals["time"]
-                    axes[0, col].plot(t, c.real * np.cos(w) - c.imag * np.sin(w), color="r", lw=0.8, alpha=0.7,
-                                      label=f"paper: {100 * mag:.1f} %, {ph:g} deg")
+                    axes[0, col].plot(
+                        t,
+                        c.real * np.cos(w) - c.imag * np.sin(w),
+                        color="r",
+                        lw=0.8,
+                        alpha=0.7,
+                        label=f"paper: {100 * mag:.1f} %, {ph:g} deg",
+                    )
                 axes[0, col].plot(t, r.signals[f"mechanism.{m}"] * scale - mean, style, label=label)
                 joint = MOTOR_SHOWN[m]
                 axes[1, col].plot(t, r.signals[f"actuator_{joint}.tau_m"], style, label=f"{label}, motor {joint}")
@@ -424,22 +516,27 @@ def _forensics(ssp: str, params: dict, groups: dict, m_eq22: float) -> list[str]
     from ..core.ssv import parse_ssv
 
     mech, ctl = _component_params(ssp, "mechanism"), {**_component_params(ssp, "controller"), **reading_gains()}
-    loop = _component_params(ssp, "actuator_1")        # the drive's current loop runs in the actuators
+    loop = _component_params(ssp, "actuator_1")  # the drive's current loop runs in the actuators
     fit = parse_ssv(SSP_SRC / "resources" / f"{GAINS_SET}.ssv")["k_v"].source
     fn, eq22 = natural_frequencies(params), natural_frequencies({**params, "M_load": m_eq22})
     identified = resource_parameters(IDENTIFIED_SET)
     ident = {**params, **identified}
     i_R = transmission_ratio(params["p"], params["i_r"])
-    m_actuator = sum(two_inertia(ident)) / i_R ** 2
+    m_actuator = sum(two_inertia(ident)) / i_R**2
     rho0 = float(params["rho_0"])
-    idp = inverse_dynamics(Geometry.from_params(mech), Masses.from_params(mech), np.full(3, rho0), np.zeros(3), np.zeros(3))
+    idp = inverse_dynamics(
+        Geometry.from_params(mech), Masses.from_params(mech), np.full(3, rho0), np.zeros(3), np.zeros(3)
+    )
     m_mech = np.diag(idp.M)
     m_total = float(mech["m_platform"]) + 3 * float(mech["m_leg"])
     bw = {n: _bandwidth(groups[n]) for n in ("sweep_z", "sweep_z_alone")}
-    mass_bw = ", ".join(f"+{extra:g} kg: {_phase_crossing(groups[f'mass_{extra:g}']):.2f} Hz at -45 deg, "
-                        f"{_bandwidth(groups[f'mass_{extra:g}']):.2f} Hz at -3 dB" for extra in EXTRA_MASS_KG)
+    mass_bw = ", ".join(
+        f"+{extra:g} kg: {_phase_crossing(groups[f'mass_{extra:g}']):.2f} Hz at -45 deg, "
+        f"{_bandwidth(groups[f'mass_{extra:g}']):.2f} Hz at -3 dB"
+        for extra in EXTRA_MASS_KG
+    )
     # the paper's own three magnitudes, read as a first-order lag: where its -3 dB point lies
-    fc = [f / math.sqrt(1.0 / mag ** 2 - 1.0) for f, (mag, _) in paper.POSITION_RESPONSE.items() if f >= 5.0]
+    fc = [f / math.sqrt(1.0 / mag**2 - 1.0) for f, (mag, _) in paper.POSITION_RESPONSE.items() if f >= 5.0]
     tau_c_m = float(params["tau_c"])
     ident_t = {(r.axis, r.frequency): r for r in groups["time_ident"]}
     manuf_t = {(r.axis, r.frequency): r for r in groups["time_manuf"]}
@@ -479,8 +576,18 @@ def _forensics(ssp: str, params: dict, groups: dict, m_eq22: float) -> list[str]
     ]
 
 
-def _write_report(out: Path, rows: list[Row], figures: list[str], failures: list[str], summary: dict,
-                  ssp: str, workers: int, forensics: list[str], limits: list[dict], sweep_groups: dict) -> None:
+def _write_report(
+    out: Path,
+    rows: list[Row],
+    figures: list[str],
+    failures: list[str],
+    summary: dict,
+    ssp: str,
+    workers: int,
+    forensics: list[str],
+    limits: list[dict],
+    sweep_groups: dict,
+) -> None:
     s = summary
     lines = [
         "# Reproduction of the paper's results",
@@ -507,17 +614,31 @@ def _write_report(out: Path, rows: list[Row], figures: list[str], failures: list
     ]
     for r in rows:
         mark = "yes" if r.within else "**no**"
-        lines.append(f"| {r.claim.quantity} | {r.kind} | {r.claim.unit} | {r.claim.value:.4g} | {r.ours:.4g} | "
-                     f"{r.difference:+.3g} | {r.tolerance_text} | {mark} | {r.claim.source} | {r.note} |")
-    lines += ["", "## Where a test touches a limit", "",
-              "Largest current command in steady state against the drive's limit (drive.ssv `i_max`).", "",
-              "| variant | motion | frequency [Hz] | peak current [A] | limit [A] | on the limit |", "|---|---|---|---|---|---|"]
+        lines.append(
+            f"| {r.claim.quantity} | {r.kind} | {r.claim.unit} | {r.claim.value:.4g} | {r.ours:.4g} | "
+            f"{r.difference:+.3g} | {r.tolerance_text} | {mark} | {r.claim.source} | {r.note} |"
+        )
+    lines += [
+        "",
+        "## Where a test touches a limit",
+        "",
+        "Largest current command in steady state against the drive's limit (drive.ssv `i_max`).",
+        "",
+        "| variant | motion | frequency [Hz] | peak current [A] | limit [A] | on the limit |",
+        "|---|---|---|---|---|---|",
+    ]
     for t in limits:
-        lines.append(f"| {t['variant']} | {t['motion']} | {t['frequency_Hz']:g} | {t['i_peak_A']:.2f} | {t['i_max_A']:g} | "
-                     f"{'**yes**' if t['at_limit'] else 'no'} |")
+        lines.append(
+            f"| {t['variant']} | {t['motion']} | {t['frequency_Hz']:g} | {t['i_peak_A']:.2f} | {t['i_max_A']:g} | "
+            f"{'**yes**' if t['at_limit'] else 'no'} |"
+        )
     sweeps = _sweep_limits(sweep_groups, limits[0]["i_max_A"]) if limits else []
-    lines += ["", "Sweep tests on the current limit (Figs. 8-10; their response is the saturated one): "
-              + ("; ".join(sweeps) if sweeps else "none") + "."]
+    lines += [
+        "",
+        "Sweep tests on the current limit (Figs. 8-10; their response is the saturated one): "
+        + ("; ".join(sweeps) if sweeps else "none")
+        + ".",
+    ]
     lines += ["", "## Forensic numbers (docs/reproduction.md explains them)", ""] + forensics
     if failures:
         lines += ["", "## Runs that failed", ""] + [f"- {f}" for f in failures]

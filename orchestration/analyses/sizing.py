@@ -28,6 +28,7 @@ The ratings are a parameter set the system names per actuator (an annotation, ``
 the motor's R, k_T, k_E, u_supply, inertias and the ratio i_r and feed p are the actuator's own
 parameters, as the run bound them (with its ``--set`` overrides, recorded in summary.json).
 """
+
 from __future__ import annotations
 
 import io
@@ -73,7 +74,7 @@ RATINGS: tuple[tuple[str, str, str], ...] = (
 #: the actuator's own parameters the analysis needs
 ACTUATOR = ("R", "k_T", "k_E", "u_supply", "i_r", "p", "J_motor", "J_brake", "J_gearbox", "J1_scale")
 SIGNALS = ("tau_m", "omega_m", "i_m")
-AT_LIMIT = 1e-6          # relative: a figure this close to its limit is on it
+AT_LIMIT = 1e-6  # relative: a figure this close to its limit is on it
 RPM = 60.0 / (2.0 * math.pi)
 FILES = ("sizing.json", "sizing.md", "sizing_envelope.png", "sizing_temperature.png")
 
@@ -93,8 +94,9 @@ class Drive:
 
     def thermal_model(self) -> thermal.TwoNode:
         r = self.ratings
-        return thermal.TwoNode(r["R_th1"], r["R_th2"], r["tau_w"], r["tau_s"], self.actuator["R"], r["alpha_Cu"],
-                               r["T_ambient"])
+        return thermal.TwoNode(
+            r["R_th1"], r["R_th2"], r["tau_w"], r["tau_s"], self.actuator["R"], r["alpha_Cu"], r["T_ambient"]
+        )
 
 
 @dataclass
@@ -103,10 +105,10 @@ class Item:
 
     component: str
     name: str
-    figure: float       # in the display unit
+    figure: float  # in the display unit
     limit: float
     unit: str
-    base: float = 0.0   # the margin is taken from here (a temperature: the rise above ambient)
+    base: float = 0.0  # the margin is taken from here (a temperature: the rise above ambient)
 
     @property
     def margin(self) -> float:
@@ -119,8 +121,15 @@ class Item:
         return "at limit" if self.figure >= self.limit * (1.0 - AT_LIMIT) else "pass"
 
     def row(self) -> dict:
-        return {"component": self.component, "item": self.name, "figure": self.figure, "limit": self.limit,
-                "unit": self.unit, "margin": self.margin, "status": self.status}
+        return {
+            "component": self.component,
+            "item": self.name,
+            "figure": self.figure,
+            "limit": self.limit,
+            "unit": self.unit,
+            "margin": self.margin,
+            "status": self.status,
+        }
 
 
 @dataclass
@@ -131,9 +140,9 @@ class DriveSizing:
     items: list[Item]
     periodic: bool
     window: tuple[float, float]
-    points: dict = field(default_factory=dict)      # |tau_m| [N m], |omega_m| [rad/s] over the window
+    points: dict = field(default_factory=dict)  # |tau_m| [N m], |omega_m| [rad/s] over the window
     heat: Optional[thermal.Periodic] = None
-    heat_run: Optional[tuple[np.ndarray, np.ndarray, np.ndarray]] = None   # (t, T_w, T_s) over the run, from ambient
+    heat_run: Optional[tuple[np.ndarray, np.ndarray, np.ndarray]] = None  # (t, T_w, T_s) over the run, from ambient
 
     @property
     def limiting(self) -> Item:
@@ -141,13 +150,18 @@ class DriveSizing:
 
 
 # ----------------------------------------------------------------------------- inputs
-def drives(system: SystemSpec, parameters: Optional[Mapping[str, Mapping[str, Value]]] = None,
-           names: Optional[Sequence[str]] = None) -> dict[str, Drive]:
+def drives(
+    system: SystemSpec,
+    parameters: Optional[Mapping[str, Mapping[str, Value]]] = None,
+    names: Optional[Sequence[str]] = None,
+) -> dict[str, Drive]:
     """The drives of ``system`` (its ``actuator_<k>`` components, or ``names``): ratings and parameters.
 
     Raises SizingError naming the drive and what is missing: no ratings set named, a rating not in it,
     a rating in a unit of another dimension, an actuator parameter not bound."""
-    names = list(names) if names is not None else sorted(n for n in system.components if re.fullmatch(r"actuator_\d+", n))
+    names = (
+        list(names) if names is not None else sorted(n for n in system.components if re.fullmatch(r"actuator_\d+", n))
+    )
     if not names:
         raise SizingError(f"system {system.name}: no drives (components named actuator_<k>) to size")
     out = {}
@@ -156,24 +170,30 @@ def drives(system: SystemSpec, parameters: Optional[Mapping[str, Mapping[str, Va
         if spec is None:
             raise SizingError(f"system {system.name}: no component '{name}' to size")
         if not spec.ratings:
-            raise SizingError(f"drive {name}: system {system.name} names no ratings for it (an annotation of type "
-                              "'mast.sizing' with <mast:Ratings source=\"resources/....ssv\"/>, docs/sizing.md)")
+            raise SizingError(
+                f"drive {name}: system {system.name} names no ratings for it (an annotation of type "
+                "'mast.sizing' with <mast:Ratings source=\"resources/....ssv\"/>, docs/sizing.md)"
+            )
         try:
             values = parse_ssv(system.root / spec.ratings, origin=spec.ratings)
         except (OSError, SSPFormatError) as err:
             raise SizingError(f"drive {name}: its ratings {spec.ratings} cannot be read: {err}") from None
         missing = [r for r, _, _ in RATINGS if r not in values]
         if missing:
-            raise SizingError(f"drive {name}: its ratings {spec.ratings} lack " + ", ".join(
-                f"{r} ({what}, {unit})" for r, unit, what in RATINGS if r in missing))
+            raise SizingError(
+                f"drive {name}: its ratings {spec.ratings} lack "
+                + ", ".join(f"{r} ({what}, {unit})" for r, unit, what in RATINGS if r in missing)
+            )
         ratings = {}
         for r, unit, _ in RATINGS:
             p = values[r]
             expected = parse_unit(unit)
             given = p.si if p.si is not None else parse_unit("1")
             if given.dims != expected.dims or not isinstance(p.value, float):
-                raise SizingError(f"drive {name}: rating {r} in {spec.ratings} is {p.value!r} {p.unit or '(no unit)'}; "
-                                  f"expected a Real in {unit} or a unit of its dimension")
+                raise SizingError(
+                    f"drive {name}: rating {r} in {spec.ratings} is {p.value!r} {p.unit or '(no unit)'}; "
+                    f"expected a Real in {unit} or a unit of its dimension"
+                )
             ratings[r] = float(p.value)
         bound = {**spec.parameters, **(parameters or {}).get(name, {})}
         lacking = [k for k in ACTUATOR if k not in bound]
@@ -219,8 +239,15 @@ def duty_cycle(t: np.ndarray, frequency: float) -> Optional[slice]:
 
 
 # ----------------------------------------------------------------------------- the analysis
-def size_drive(drive: Drive, t: np.ndarray, tau_m: np.ndarray, omega_m: np.ndarray, i_m: np.ndarray,
-               cycle: Optional[slice] = None, i_cmd: Optional[np.ndarray] = None) -> DriveSizing:
+def size_drive(
+    drive: Drive,
+    t: np.ndarray,
+    tau_m: np.ndarray,
+    omega_m: np.ndarray,
+    i_m: np.ndarray,
+    cycle: Optional[slice] = None,
+    i_cmd: Optional[np.ndarray] = None,
+) -> DriveSizing:
     """The items of one drive from its signals over the run (``cycle``: the duty cycle's samples, repeated to
     steady state for the temperature; None: the run as it is, from ambient). ``i_cmd``: the controller's
     current command, if recorded: its peak against the amplifier's peak current (at limit where the
@@ -230,8 +257,8 @@ def size_drive(drive: Drive, t: np.ndarray, tau_m: np.ndarray, omega_m: np.ndarr
     alpha = np.gradient(omega_m, t)
     window = cycle or slice(0, len(t))
     tw, tau, om, cur, acc = t[window], tau_m[window], omega_m[window], i_m[window], alpha[window]
-    tau_in = tau - J_in * acc                        # at the gearhead's input
-    tau_out = a["i_r"] * tau_in                      # at its output (the model's gearhead is lossless)
+    tau_in = tau - J_in * acc  # at the gearhead's input
+    tau_out = a["i_r"] * tau_in  # at its output (the model's gearhead is lossless)
     driving = tau_in * om >= 0.0
     eta = r["eta_gear"]
     tau_lossy = J_in * acc + np.where(driving, tau_in / eta, tau_in * eta)
@@ -253,8 +280,14 @@ def size_drive(drive: Drive, t: np.ndarray, tau_m: np.ndarray, omega_m: np.ndarr
         Item("motor", "RMS current", _rms(cur), r["i_N"], "A"),
         Item("motor", "peak torque", _peak(tau), r["tau_stall"], "N m"),
         Item("motor", "peak speed", _peak(om) * RPM, r["n_max"] * RPM, "rpm"),
-        Item("motor", "winding temperature" + (", steady cycle" if cycle is not None else ", over the run"),
-             T_w_peak - C, r["T_w_max"] - C, "degC", r["T_ambient"] - C),
+        Item(
+            "motor",
+            "winding temperature" + (", steady cycle" if cycle is not None else ", over the run"),
+            T_w_peak - C,
+            r["T_w_max"] - C,
+            "degC",
+            r["T_ambient"] - C,
+        ),
         Item("gearhead", "RMS output torque", _rms(tau_out), r["tau_gear_cont"], "N m"),
         Item("gearhead", "peak output torque", _peak(tau_out), r["tau_gear_int"], "N m"),
         Item("gearhead", "peak input speed", _peak(om) * RPM, r["n_gear_max"] * RPM, "rpm"),
@@ -265,21 +298,36 @@ def size_drive(drive: Drive, t: np.ndarray, tau_m: np.ndarray, omega_m: np.ndarr
     ]
     if i_cmd is not None:
         items.append(Item("amplifier", "peak current command", _peak(i_cmd[window]), r["i_amp_peak"], "A"))
-    return DriveSizing(drive, items, cycle is not None, (float(tw[0]), float(tw[-1])),
-                       {"tau": np.abs(tau), "omega": np.abs(om), "tau_rms": _rms(tau), "omega_rms": _rms(om)},
-                       heat, heat_run)
+    return DriveSizing(
+        drive,
+        items,
+        cycle is not None,
+        (float(tw[0]), float(tw[-1])),
+        {"tau": np.abs(tau), "omega": np.abs(om), "tau_rms": _rms(tau), "omega_rms": _rms(om)},
+        heat,
+        heat_run,
+    )
 
 
-def size_signals(drive_set: Mapping[str, Drive], t: np.ndarray, signals: Mapping[str, np.ndarray],
-                 frequency: float = 0.0) -> list[DriveSizing]:
+def size_signals(
+    drive_set: Mapping[str, Drive], t: np.ndarray, signals: Mapping[str, np.ndarray], frequency: float = 0.0
+) -> list[DriveSizing]:
     """Every drive of ``drive_set`` from the recorded ``actuator_<k>.tau_m/omega_m/i_m`` (SizingError naming
     the signals not recorded), and ``controller.i_cmd_<k>`` where recorded."""
     missing = [f"{name}.{s}" for name in drive_set for s in SIGNALS if f"{name}.{s}" not in signals]
     if missing:
         raise SizingError(f"the run did not record {', '.join(missing)}, which sizing needs")
     cycle = duty_cycle(t, frequency)
-    return [size_drive(d, t, *(signals[f"{name}.{s}"] for s in SIGNALS), cycle,
-                       signals.get(f"controller.i_cmd_{name.rsplit('_', 1)[-1]}")) for name, d in drive_set.items()]
+    return [
+        size_drive(
+            d,
+            t,
+            *(signals[f"{name}.{s}"] for s in SIGNALS),
+            cycle,
+            signals.get(f"controller.i_cmd_{name.rsplit('_', 1)[-1]}"),
+        )
+        for name, d in drive_set.items()
+    ]
 
 
 def _rms(y: np.ndarray) -> float:
@@ -294,21 +342,39 @@ def verdict(sized: Sequence[DriveSizing]) -> dict:
     """{"verdict": pass / at limit / fail, "limiting": {drive, component, item, margin, ...}}."""
     statuses = {item.status for s in sized for item in s.items}
     worst = min(sized, key=lambda s: s.limiting.margin)
-    return {"verdict": "fail" if "fail" in statuses else "at limit" if "at limit" in statuses else "pass",
-            "limiting": {"drive": worst.drive.name, **worst.limiting.row()}}
+    return {
+        "verdict": "fail" if "fail" in statuses else "at limit" if "at limit" in statuses else "pass",
+        "limiting": {"drive": worst.drive.name, **worst.limiting.row()},
+    }
 
 
 def document(sized: Sequence[DriveSizing], run: str = "", ssp: str = "") -> dict:
     """What sizing.json holds."""
-    return {**verdict(sized), "run": run, "ssp": ssp,
-            "drives": {s.drive.name: {
-                "ratings": s.drive.source, "duty_cycle": "steady cycle, repeated" if s.periodic else "the run, from ambient",
-                "window_s": list(s.window), "verdict": verdict([s])["verdict"],
-                "limiting": s.limiting.row(), "items": [item.row() for item in s.items],
-                **({"cycles_to_thermal_steady_state": s.heat.cycles_to_settle,
-                    "time_to_thermal_steady_state_s": s.heat.cycles_to_settle * s.heat.cycle_s,
-                    "time_to_max_winding_temperature_s": _time_to(s.heat, s.drive.ratings["T_w_max"])} if s.heat else {}),
-            } for s in sized}}
+    return {
+        **verdict(sized),
+        "run": run,
+        "ssp": ssp,
+        "drives": {
+            s.drive.name: {
+                "ratings": s.drive.source,
+                "duty_cycle": "steady cycle, repeated" if s.periodic else "the run, from ambient",
+                "window_s": list(s.window),
+                "verdict": verdict([s])["verdict"],
+                "limiting": s.limiting.row(),
+                "items": [item.row() for item in s.items],
+                **(
+                    {
+                        "cycles_to_thermal_steady_state": s.heat.cycles_to_settle,
+                        "time_to_thermal_steady_state_s": s.heat.cycles_to_settle * s.heat.cycle_s,
+                        "time_to_max_winding_temperature_s": _time_to(s.heat, s.drive.ratings["T_w_max"]),
+                    }
+                    if s.heat
+                    else {}
+                ),
+            }
+            for s in sized
+        },
+    }
 
 
 def _time_to(heat: thermal.Periodic, T_max: float) -> Optional[float]:
@@ -320,20 +386,28 @@ def _time_to(heat: thermal.Periodic, T_max: float) -> Optional[float]:
 
 def table(doc: Mapping) -> str:
     """The margin table (markdown): one row per item and drive, the limiting item of each drive marked."""
-    lines = [f"Sizing verdict: **{doc['verdict']}**; limiting: {doc['limiting']['drive']} "
-             f"{doc['limiting']['component']} {doc['limiting']['item']}, margin {100 * doc['limiting']['margin']:.1f} %",
-             "", "| drive | component | item | figure | limit | unit | margin | status |",
-             "|---|---|---|---:|---:|---|---:|---|"]
+    lines = [
+        f"Sizing verdict: **{doc['verdict']}**; limiting: {doc['limiting']['drive']} "
+        f"{doc['limiting']['component']} {doc['limiting']['item']}, margin {100 * doc['limiting']['margin']:.1f} %",
+        "",
+        "| drive | component | item | figure | limit | unit | margin | status |",
+        "|---|---|---|---:|---:|---|---:|---|",
+    ]
     for name, d in doc["drives"].items():
         for item in d["items"]:
             mark = " (limiting)" if item == d["limiting"] else ""
-            lines.append(f"| {name} | {item['component']} | {item['item']}{mark} | {item['figure']:.4g} | "
-                         f"{item['limit']:.4g} | {item['unit']} | {100 * item['margin']:.1f} % | {item['status']} |")
+            lines.append(
+                f"| {name} | {item['component']} | {item['item']}{mark} | {item['figure']:.4g} | "
+                f"{item['limit']:.4g} | {item['unit']} | {100 * item['margin']:.1f} % | {item['status']} |"
+            )
     return "\n".join(lines) + "\n"
 
 
-def size_run(run_dir: Union[str, Path], ssp: Optional[Union[str, Path]] = None,
-             parameters: Optional[Mapping[str, Mapping[str, Value]]] = None) -> tuple[dict, list[DriveSizing]]:
+def size_run(
+    run_dir: Union[str, Path],
+    ssp: Optional[Union[str, Path]] = None,
+    parameters: Optional[Mapping[str, Mapping[str, Value]]] = None,
+) -> tuple[dict, list[DriveSizing]]:
     """Size the run in ``run_dir`` (results.csv, summary.json) against the ratings of ``ssp`` (default: the
     system summary.json names; parameters: the values the run set, recorded in summary.json, unless given)."""
     run_dir = Path(run_dir)
@@ -353,7 +427,7 @@ def size_run(run_dir: Union[str, Path], ssp: Optional[Union[str, Path]] = None,
     if not Path(ssp).exists():
         raise SizingError(f"{ssp}: no such system (.ssp or .ssd)")
     try:
-        if Path(ssp).suffix == ".ssd":         # the structure is enough: its FMUs need not be built
+        if Path(ssp).suffix == ".ssd":  # the structure is enough: its FMUs need not be built
             drive_set = drives(read_ssd(ssp), parameters)
         else:
             with SSPArchive(ssp) as archive:
@@ -382,18 +456,27 @@ def envelope_png(sized: Sequence[DriveSizing]) -> bytes:
         ax.plot([s.points["tau_rms"]], [s.points["omega_rms"] * RPM], "r*", ms=12, label="RMS point")
         ax.axvline(r["tau_N"], color="g", label=f"nominal torque {r['tau_N']:.3g} N m (continuous)")
         ax.axhline(r["n_max"] * RPM, color="k", label=f"max. speed {r['n_max'] * RPM:.0f} rpm")
-        ax.axhline(r["n_gear_max"] * RPM, color="k", ls="--", label=f"gearhead max. input {r['n_gear_max'] * RPM:.0f} rpm")
+        ax.axhline(
+            r["n_gear_max"] * RPM, color="k", ls="--", label=f"gearhead max. input {r['n_gear_max'] * RPM:.0f} rpm"
+        )
         ax.plot(torque, voltage, color="m", label=f"speed-torque line at {a['u_supply']:g} V")
-        ax.axvline(a["k_T"] * r["i_amp_peak"], color="c", ls="-.",
-                   label=f"amplifier peak current x k_T {a['k_T'] * r['i_amp_peak']:.3g} N m")
+        ax.axvline(
+            a["k_T"] * r["i_amp_peak"],
+            color="c",
+            ls="-.",
+            label=f"amplifier peak current x k_T {a['k_T'] * r['i_amp_peak']:.3g} N m",
+        )
         if r["tau_stall"] <= tau_top:
             ax.axvline(r["tau_stall"], color="r", ls=":", label="stall torque")
         ax.set_xlim(0, tau_top)
         ax.set_ylim(0, 1.1 * r["n_max"] * RPM)
         ax.set_xlabel("|motor torque| [N m]")
         ax.set_ylabel("|motor speed| [rpm]")
-        ax.set_title(f"{s.drive.name}: {verdict([s])['verdict']}\nlimiting: {s.limiting.component} {s.limiting.name}, "
-                     f"{100 * s.limiting.margin:.0f} %", fontsize=9)
+        ax.set_title(
+            f"{s.drive.name}: {verdict([s])['verdict']}\nlimiting: {s.limiting.component} {s.limiting.name}, "
+            f"{100 * s.limiting.margin:.0f} %",
+            fontsize=9,
+        )
         ax.legend(fontsize=7, loc="upper right")
     fig.tight_layout()
     return _png(fig)
@@ -410,7 +493,7 @@ def temperature_png(sized: Sequence[DriveSizing]) -> bytes:
     C = 273.15
     for s in sized:
         if s.heat is not None:
-            line, = warm.plot(s.heat.warmup_t / 60.0, s.heat.warmup_T_w - C, label=s.drive.name)
+            (line,) = warm.plot(s.heat.warmup_t / 60.0, s.heat.warmup_T_w - C, label=s.drive.name)
             t = s.heat.cycle_s * np.arange(len(s.heat.T_w)) / len(s.heat.T_w)
             cycle.plot(t, s.heat.T_w - C, color=line.get_color(), label=f"{s.drive.name} winding")
             cycle.plot(t, s.heat.T_s - C, color=line.get_color(), ls="--", label=f"{s.drive.name} housing")

@@ -8,6 +8,7 @@ logged as the drive sees them: the controller's inverse kinematics of the pose c
 each sample. Writes a measured-data folder (docs/measured-data.md) and, *outside* it, the
 truth (``DIR.truth.json`` by default): the diagnosis never reads that file.
 """
+
 from __future__ import annotations
 
 import json
@@ -43,7 +44,7 @@ class TestSpec:
     motion: str
     amplitude: float
     frequency: float
-    duration: float = 0.0     # 0: settle + 2 periods, at least 2 s
+    duration: float = 0.0  # 0: settle + 2 periods, at least 2 s
     settle: float = SETTLE_S  # the analysis starts here (at most half the test)
 
     def stop_time(self) -> float:
@@ -72,16 +73,19 @@ def parse_tests(text: str) -> list[TestSpec]:
     for item in text.split(","):
         parts = item.strip().split(":")
         if len(parts) not in (3, 4) or parts[0] not in POSE:
-            raise ValueError(f"--tests item {item!r}: expected MOTION:AMPLITUDE:FREQUENCY[:DURATION], "
-                             f"motion a pose coordinate ({', '.join(POSE)}; the 3PRS's: z, psi or theta)")
+            raise ValueError(
+                f"--tests item {item!r}: expected MOTION:AMPLITUDE:FREQUENCY[:DURATION], "
+                f"motion a pose coordinate ({', '.join(POSE)}; the 3PRS's: z, psi or theta)"
+            )
         try:
             a, f = float(parts[1]), float(parts[2])
             d = float(parts[3]) if len(parts) == 4 else 0.0
         except ValueError:
             a = f = d = math.nan
         if not (math.isfinite(a) and f > 0 and math.isfinite(f) and d >= 0 and math.isfinite(d)):
-            raise ValueError(f"--tests item {item!r}: expected a finite amplitude, a frequency > 0 Hz and a "
-                             "duration >= 0 s")
+            raise ValueError(
+                f"--tests item {item!r}: expected a finite amplitude, a frequency > 0 Hz and a duration >= 0 s"
+            )
         tests.append(TestSpec(parts[0], math.radians(a) if Coordinate(parts[0]).angular else a, f, d))
     return tests
 
@@ -107,17 +111,35 @@ def _synth_worker(args: tuple) -> dict:
     record = [*pose_inputs(axes), *(f"mechanism.{a}" for a in axes)]
     for j in AXES:
         record += [f"actuator_{j}.rho", f"actuator_{j}.tau_meas", f"actuator_{j}.tau_m"]
-    res = simulate(ssp, SineMotion(spec.motion, spec.amplitude, spec.frequency), spec.stop_time(),
-                   parameters=parameters, record=record, record_step=None, direct=direct,
-                   base_step=steps and steps[0], step_sizes=steps and steps[1])
+    res = simulate(
+        ssp,
+        SineMotion(spec.motion, spec.amplitude, spec.frequency),
+        spec.stop_time(),
+        parameters=parameters,
+        record=record,
+        record_step=None,
+        direct=direct,
+        base_step=steps and steps[0],
+        step_sizes=steps and steps[1],
+    )
     return {"time": res.time, **res.signals, "base_step": res.stats["base_step"]}
 
 
-def synthesize(ssp: str, out: Path, truth: Mapping[str, Mapping] = None, tests: Sequence[TestSpec] = DEFAULT_TESTS,
-               noise: Optional[Mapping[str, float]] = None, resolution: Optional[Mapping[str, float]] = None,
-               torque_filter_s: float = DEFAULT_TORQUE_FILTER, sample_time: float = DEFAULT_SAMPLE_TIME,
-               seed: int = 0, direct: bool = False, workers: int = 2, truth_path: Optional[Path] = None,
-               log=print) -> dict:
+def synthesize(
+    ssp: str,
+    out: Path,
+    truth: Mapping[str, Mapping] = None,
+    tests: Sequence[TestSpec] = DEFAULT_TESTS,
+    noise: Optional[Mapping[str, float]] = None,
+    resolution: Optional[Mapping[str, float]] = None,
+    torque_filter_s: float = DEFAULT_TORQUE_FILTER,
+    sample_time: float = DEFAULT_SAMPLE_TIME,
+    seed: int = 0,
+    direct: bool = False,
+    workers: int = 2,
+    truth_path: Optional[Path] = None,
+    log=print,
+) -> dict:
     """Write the measured-data folder ``out`` and the truth file; return the noise-free signals too."""
     from fmus.mechanism.kinematics import inverse_kinematics
 
@@ -139,13 +161,17 @@ def synthesize(ssp: str, out: Path, truth: Mapping[str, Mapping] = None, tests: 
         truth = expand_overrides(truth or {}, components)
         axes = system_axes(archive.system, truth)
     if len(axes) != len(AXES):
-        raise ValueError(f"{ssp}: its mechanism has {len(axes)} drives (coordinates {', '.join(axes)}); the measured-"
-                         f"data format (docs/measured-data.md, version {VERSION}) and the controller's kinematic "
-                         f"model the joint commands are logged with have {len(AXES)}")
+        raise ValueError(
+            f"{ssp}: its mechanism has {len(axes)} drives (coordinates {', '.join(axes)}); the measured-"
+            f"data format (docs/measured-data.md, version {VERSION}) and the controller's kinematic "
+            f"model the joint commands are logged with have {len(AXES)}"
+        )
     for spec in tests:
         if spec.motion not in axes:
-            raise ValueError(f"--tests motion {spec.motion!r}: {ssp} has no such coordinate; its mechanism's "
-                             f"coordinates are {', '.join(axes)}")
+            raise ValueError(
+                f"--tests motion {spec.motion!r}: {ssp} has no such coordinate; its mechanism's "
+                f"coordinates are {', '.join(axes)}"
+            )
     geometry = controller_geometry(ssp, truth)
     every = round(sample_time / base)
     if every < 1 or abs(every * base - sample_time) > 1e-9 * sample_time:
@@ -175,8 +201,13 @@ def synthesize(ssp: str, out: Path, truth: Mapping[str, Mapping] = None, tests: 
         rho = np.column_stack([run[f"actuator_{j}.rho"][idx] for j in AXES])
         tau_fine = np.column_stack([run[f"actuator_{j}.tau_meas"] for j in AXES])
         tau = measure(tau_fine, h, T=torque_filter_s, axis=0)[idx]
-        clean[spec.name] = {"time": t, "rho_cmd": rho_cmd, "rho": rho.copy(), "tau_m": tau.copy(),
-                            "tau_m_plant": np.column_stack([run[f"actuator_{j}.tau_m"][idx] for j in AXES])}
+        clean[spec.name] = {
+            "time": t,
+            "rho_cmd": rho_cmd,
+            "rho": rho.copy(),
+            "tau_m": tau.copy(),
+            "tau_m_plant": np.column_stack([run[f"actuator_{j}.tau_m"][idx] for j in AXES]),
+        }
         rho_meas = rho + noise["rho"] * rng.standard_normal(rho.shape)
         if resolution.get("rho"):
             q = resolution["rho"]
@@ -185,12 +216,19 @@ def synthesize(ssp: str, out: Path, truth: Mapping[str, Mapping] = None, tests: 
         pose = {a: run[f"mechanism.{a}"][idx] for a in axes}
         file = f"{spec.name}.csv"
         write_test_csv(out / file, t, rho_cmd, rho_meas, tau_meas, pose)
-        entries.append({"file": file, "motion": spec.motion,
-                        "amplitude": math.degrees(spec.amplitude) if Coordinate(spec.motion).angular else spec.amplitude,
-                        "amplitude_unit": "deg" if Coordinate(spec.motion).angular else "m",
-                        "frequency": spec.frequency, "settle_s": min(spec.settle, 0.5 * spec.stop_time())})
+        entries.append(
+            {
+                "file": file,
+                "motion": spec.motion,
+                "amplitude": math.degrees(spec.amplitude) if Coordinate(spec.motion).angular else spec.amplitude,
+                "amplitude_unit": "deg" if Coordinate(spec.motion).angular else "m",
+                "frequency": spec.frequency,
+                "settle_s": min(spec.settle, 0.5 * spec.stop_time()),
+            }
+        )
     meta = {
-        "format": FORMAT, "version": VERSION,
+        "format": FORMAT,
+        "version": VERSION,
         "machine": "MAST (synthetic: mast synthesize)",
         "description": "Sine tests around the home pose; joint commands as logged by the drive",
         "units": {"time": "s", "rho_cmd": "m", "rho": "m", "tau_m": "N.m", "position": "m", "angle": "rad"},
@@ -206,10 +244,16 @@ def synthesize(ssp: str, out: Path, truth: Mapping[str, Mapping] = None, tests: 
     truth_path = Path(truth_path) if truth_path else out.parent / f"{out.name}.truth.json"
     truth_doc = {
         "note": "The truth behind the synthetic measurements in the folder next to this file. "
-                "The diagnosis never reads it.",
-        "ssp": str(ssp), "parameters": truth, "seed": seed,
-        "measurement": {"noise_std": noise, "resolution": resolution, "torque_filter_s": torque_filter_s,
-                        "sample_time_s": sample_time},
+        "The diagnosis never reads it.",
+        "ssp": str(ssp),
+        "parameters": truth,
+        "seed": seed,
+        "measurement": {
+            "noise_std": noise,
+            "resolution": resolution,
+            "torque_filter_s": torque_filter_s,
+            "sample_time_s": sample_time,
+        },
         "tests": [asdict(s) for s in tests],
     }
     truth_path.write_text(json.dumps(truth_doc, indent=2))

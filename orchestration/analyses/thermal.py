@@ -16,6 +16,7 @@ step is affine in the state, so one pass over a duty cycle is an affine map x ->
 cycle repeated without end settles at x* = (I - M)^-1 c (the periodic steady state), and the
 warm-up from ambient is the map iterated, cycle by cycle.
 """
+
 from __future__ import annotations
 
 import functools
@@ -33,11 +34,11 @@ T_REF_K = 298.15
 class TwoNode:
     """The network of one motor. Temperatures in K, resistances in K/W, time constants in s."""
 
-    R_th1: float          # winding-housing [K/W]
-    R_th2: float          # housing-ambient [K/W]
-    tau_w: float          # winding time constant [s]
-    tau_s: float          # motor time constant [s]
-    R_25: float           # winding resistance at 25 degC [ohm]
+    R_th1: float  # winding-housing [K/W]
+    R_th2: float  # housing-ambient [K/W]
+    tau_w: float  # winding time constant [s]
+    tau_s: float  # motor time constant [s]
+    R_25: float  # winding resistance at 25 degC [ohm]
     alpha_Cu: float = 0.0  # temperature coefficient of R [1/K]
     T_ambient: float = T_REF_K  # [K]
 
@@ -84,13 +85,15 @@ def _sample_steps(t: np.ndarray) -> float:
     steps = np.diff(t)
     h = float(np.median(steps))
     if not h > 0 or np.max(np.abs(steps - h)) > 1e-6 * h + 1e-12:
-        raise ValueError(f"thermal model: the samples are not evenly spaced (steps {steps.min():.6g} to "
-                         f"{steps.max():.6g} s)")
+        raise ValueError(
+            f"thermal model: the samples are not evenly spaced (steps {steps.min():.6g} to {steps.max():.6g} s)"
+        )
     return h
 
 
-def run(model: TwoNode, t: np.ndarray, i: np.ndarray, start: tuple[float, float] = (0.0, 0.0)
-        ) -> tuple[np.ndarray, np.ndarray]:
+def run(
+    model: TwoNode, t: np.ndarray, i: np.ndarray, start: tuple[float, float] = (0.0, 0.0)
+) -> tuple[np.ndarray, np.ndarray]:
     """(T_w, T_s) [K] at the samples ``t`` [s] with the current ``i`` [A] held over each, starting at the
     rises ``start`` [K] above ambient at ``t[0]``."""
     t = np.asarray(t, dtype=float)
@@ -100,7 +103,7 @@ def run(model: TwoNode, t: np.ndarray, i: np.ndarray, start: tuple[float, float]
     p0, p1 = (p.tolist() for p in model.loss_coefficients(i))
     xw, xs = float(start[0]), float(start[1])
     out_w, out_s = [], []
-    for a, b in zip(p0, p1):          # scalar arithmetic: a 2-state step is faster than numpy's small arrays
+    for a, b in zip(p0, p1):  # scalar arithmetic: a 2-state step is faster than numpy's small arrays
         out_w.append(xw)
         out_s.append(xs)
         loss = a + b * xw
@@ -116,7 +119,7 @@ def cycle_map(model: TwoNode, t: np.ndarray, i: np.ndarray) -> tuple[np.ndarray,
     g1, g2 = Gamma.tolist()
     p0, p1 = (p.tolist() for p in model.loss_coefficients(i))
     m11, m12, m21, m22, c1, c2 = 1.0, 0.0, 0.0, 1.0, 0.0, 0.0
-    for a, b in zip(p0, p1):          # the step x -> S x + Gamma a, S = Phi + Gamma b e_w^T, composed
+    for a, b in zip(p0, p1):  # the step x -> S x + Gamma a, S = Phi + Gamma b e_w^T, composed
         s11, s21 = f11 + g1 * b, f21 + g2 * b
         m11, m12, m21, m22 = s11 * m11 + f12 * m21, s11 * m12 + f12 * m22, s21 * m11 + f22 * m21, s21 * m12 + f22 * m22
         c1, c2 = s11 * c1 + f12 * c2 + g1 * a, s21 * c1 + f22 * c2 + g2 * a
@@ -127,13 +130,13 @@ def cycle_map(model: TwoNode, t: np.ndarray, i: np.ndarray) -> tuple[np.ndarray,
 class Periodic:
     """The duty cycle repeated from ambient until steady state."""
 
-    cycle_s: float                 # duration of one cycle [s]
-    start: np.ndarray              # rises [K] at the start of a cycle in steady state
-    T_w: np.ndarray                # winding temperature over one steady cycle [K]
+    cycle_s: float  # duration of one cycle [s]
+    start: np.ndarray  # rises [K] at the start of a cycle in steady state
+    T_w: np.ndarray  # winding temperature over one steady cycle [K]
     T_s: np.ndarray
-    warmup_t: np.ndarray           # [s] the starts of the cycles from ambient
-    warmup_T_w: np.ndarray         # [K] the winding's temperature at those starts
-    cycles_to_settle: int          # cycles until within the tolerance (0.1 K) of the steady state
+    warmup_t: np.ndarray  # [s] the starts of the cycles from ambient
+    warmup_T_w: np.ndarray  # [K] the winding's temperature at those starts
+    cycles_to_settle: int  # cycles until within the tolerance (0.1 K) of the steady state
 
 
 def periodic(model: TwoNode, t: np.ndarray, i: np.ndarray, tolerance_K: float = 0.1) -> Periodic:
@@ -145,8 +148,10 @@ def periodic(model: TwoNode, t: np.ndarray, i: np.ndarray, tolerance_K: float = 
     h = _sample_steps(t)
     M, c = cycle_map(model, t, i)
     if max(abs(np.linalg.eigvals(M))) >= 1.0:
-        raise ValueError("thermal model: thermal runaway: the copper losses grow with the winding's temperature "
-                         "faster than the motor sheds them; there is no steady state")
+        raise ValueError(
+            "thermal model: thermal runaway: the copper losses grow with the winding's temperature "
+            "faster than the motor sheds them; there is no steady state"
+        )
     x_star = np.linalg.solve(np.eye(2) - M, c)
     # from ambient, x_k = x* - M^k x* = x* - V diag(mu^k) V^-1 x*: every cycle's start at once
     mu, V = np.linalg.eig(M)

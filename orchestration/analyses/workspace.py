@@ -29,6 +29,7 @@ Outputs (``write``): DIR/workspace.json (summary), DIR/workspace.csv (the worksp
 boundary layer, one row per sampled pose: the swept coordinates in m and deg, rho_k and F_k per
 drive), DIR/workspace.png (sections and the boundary). ``classify`` answers for one pose.
 """
+
 from __future__ import annotations
 
 import csv
@@ -42,7 +43,8 @@ from typing import Callable, Mapping, Optional, Sequence, Union
 
 import numpy as np
 
-from fmus.mechanism.designs import KINEMATICS, MASS_PARAMETERS, describe, description, engine as design_engine
+from fmus.mechanism.designs import KINEMATICS, MASS_PARAMETERS, describe, description
+from fmus.mechanism.designs import engine as design_engine
 from fmus.mechanism.engine import MARGIN, Engine, margins_of
 from fmus.mechanism.kinematics import KinematicsError
 from fmus.mechanism.topology import Coordinate, Topology
@@ -55,8 +57,14 @@ BODY_MASSES = ("m_leg", "I_leg", "m_platform", "I_px", "I_py", "I_pz")
 
 #: node status codes (``Workspace.status``)
 INSIDE, UNASSEMBLABLE, STROKE, SINGULAR, BRANCH, DISCONNECTED = range(6)
-STATUS = ("inside", "not assemblable", "outside the stroke", "within the margin of a singularity",
-          "on the other assembly branch", "not connected to home")
+STATUS = (
+    "inside",
+    "not assemblable",
+    "outside the stroke",
+    "within the margin of a singularity",
+    "on the other assembly branch",
+    "not connected to home",
+)
 #: default grid steps: 5 mm in the length coordinates (z), 1 deg in the angles (psi, theta); about 10 s per
 #: 3PRS design on one core
 STEP_Z = 0.005
@@ -121,12 +129,19 @@ def _from_system(label: str, system, mechanism: Optional[Mapping] = None, payloa
     if all(k in acts[0] for k in names) and "controller" in comps and "i_max" in comps["controller"].parameters:
         drive = {k: float(acts[0][k]) for k in names}
         drive["i_max"] = float(comps["controller"].parameters["i_max"])
-        if mechanism is not None and "beta" in mech and "g" in mech:     # an FMU swapped in: g cos(beta)
+        if mechanism is not None and "beta" in mech and "g" in mech:  # an FMU swapped in: g cos(beta)
             drive["g_guide"] = float(mech["g"]) * math.cos(float(mech["beta"]))
     if not (math.isfinite(payload) and payload >= 0.0):
         raise ValueError(f"--payload {payload!r}: expected a finite mass >= 0 kg")
-    return Machine(label, mech, tuple(float(a["rho_min"]) for a in acts), tuple(float(a["rho_max"]) for a in acts),
-                   tuple(float(a["rho_0"]) for a in acts), drive, float(payload))
+    return Machine(
+        label,
+        mech,
+        tuple(float(a["rho_min"]) for a in acts),
+        tuple(float(a["rho_max"]) for a in acts),
+        tuple(float(a["rho_0"]) for a in acts),
+        drive,
+        float(payload),
+    )
 
 
 def described(name: str) -> bool:
@@ -143,9 +158,16 @@ def _from_description(name: str, payload: float = 0.0) -> Machine:
     params = {"kinematics": name, **file.values()}
     top = describe(params, name, masses=False).topology
     rho_home = design_engine(params, name, masses=False).ik(top.home)
-    return Machine(name, params, tuple(d.stroke[0] for d in top.drives), tuple(d.stroke[1] for d in top.drives),
-                   tuple(float(v) for v in rho_home), {}, float(payload),
-                   tuple(n for n in file.traced if n not in file.kinematic))
+    return Machine(
+        name,
+        params,
+        tuple(d.stroke[0] for d in top.drives),
+        tuple(d.stroke[1] for d in top.drives),
+        tuple(float(v) for v in rho_home),
+        {},
+        float(payload),
+        tuple(n for n in file.traced if n not in file.kinematic),
+    )
 
 
 def _drive_order(name: str) -> tuple:
@@ -171,8 +193,10 @@ def machine(design: Union[str, Path], payload: float = 0.0, mechanism: Optional[
     if not path.exists() and described(text) and mechanism is None:
         return _from_description(text, payload)
     if not path.exists():
-        raise ValueError(f"design {text!r}: neither a design ({', '.join(d.name for d in DESIGNS)}), a mechanism "
-                         f"description ({', '.join(k for k in KINEMATICS if described(k))}) nor a file")
+        raise ValueError(
+            f"design {text!r}: neither a design ({', '.join(d.name for d in DESIGNS)}), a mechanism "
+            f"description ({', '.join(k for k in KINEMATICS if described(k))}) nor a file"
+        )
     if path.suffix == ".ssd":
         return _from_system(path.stem, read_ssd(path), mechanism, payload)
     if path.suffix == ".ssp":
@@ -188,9 +212,9 @@ def machine(design: Union[str, Path], payload: float = 0.0, mechanism: Optional[
 # ----------------------------------------------------------------------------- judging poses
 @dataclass
 class _Judged:
-    status: np.ndarray          # int8 status codes (INSIDE: passes every local test)
-    rho: np.ndarray             # (n, ...)
-    Jinv: np.ndarray            # (..., n, n)
+    status: np.ndarray  # int8 status codes (INSIDE: passes every local test)
+    rho: np.ndarray  # (n, ...)
+    Jinv: np.ndarray  # (..., n, n)
     det: np.ndarray
     parallel: np.ndarray
     inverse: np.ndarray
@@ -222,24 +246,24 @@ class Workspace:
     coordinate (for the 3PRS [z, psi, theta])."""
 
     machine: Machine
-    home: tuple                 # every coordinate's home value, in the topology's order and units (m, rad)
-    sign: float                 # sign of det(drho/dq) at home: the working branch
-    margin: float               # MARGIN used [m/m]
-    lengths: tuple              # the engine's coordinate lengths, every coordinate (3PRS: 1, r, r)
-    axes: tuple                 # per swept coordinate, its 1-D grid [m or rad]
+    home: tuple  # every coordinate's home value, in the topology's order and units (m, rad)
+    sign: float  # sign of det(drho/dq) at home: the working branch
+    margin: float  # MARGIN used [m/m]
+    lengths: tuple  # the engine's coordinate lengths, every coordinate (3PRS: 1, r, r)
+    axes: tuple  # per swept coordinate, its 1-D grid [m or rad]
     home_index: tuple
     status: np.ndarray
     det: np.ndarray
     parallel: np.ndarray
     inverse: np.ndarray
     dexterity: np.ndarray
-    distance: np.ndarray        # [m] to the nearest sampled singular (margin or branch) pose; inf: none in the box
-    rho: np.ndarray             # (n, ...) the drives' joints
-    forces: Optional[np.ndarray] = None    # (n, ...) static drive forces [N; N m rotary], inside only (NaN elsewhere)
-    kept: tuple = ()            # per axis, the edges of the workspace's graph (both nodes and the midpoint pass)
+    distance: np.ndarray  # [m] to the nearest sampled singular (margin or branch) pose; inf: none in the box
+    rho: np.ndarray  # (n, ...) the drives' joints
+    forces: Optional[np.ndarray] = None  # (n, ...) static drive forces [N; N m rotary], inside only (NaN elsewhere)
+    kept: tuple = ()  # per axis, the edges of the workspace's graph (both nodes and the midpoint pass)
     wall_time_s: float = 0.0
-    topology: Optional[Topology] = None    # the mechanism's (coordinates, drives); None: the 3PRS's
-    swept: tuple = (0, 1, 2)    # the indices (into the topology's coordinates) of the swept ones, in order
+    topology: Optional[Topology] = None  # the mechanism's (coordinates, drives); None: the 3PRS's
+    swept: tuple = (0, 1, 2)  # the indices (into the topology's coordinates) of the swept ones, in order
 
     @property
     def inside(self) -> np.ndarray:
@@ -286,18 +310,24 @@ def sweep_of(topology: Topology, sweep: Optional[Sequence[str]] = None, where: s
     names = topology.names
     if sweep is None:
         if len(names) > MAX_SWEPT:
-            raise ValueError(f"{where}: {topology.name} has {len(names)} coordinates ({', '.join(names)}): give the "
-                             f"(at most {MAX_SWEPT}) swept ones, the others are held at home (for example x,y,z: the "
-                             "constant-orientation workspace; psi,theta,phi: the orientation workspace)")
+            raise ValueError(
+                f"{where}: {topology.name} has {len(names)} coordinates ({', '.join(names)}): give the "
+                f"(at most {MAX_SWEPT}) swept ones, the others are held at home (for example x,y,z: the "
+                "constant-orientation workspace; psi,theta,phi: the orientation workspace)"
+            )
         return tuple(range(len(names)))
     sweep = list(sweep)
     unknown = [c for c in sweep if c not in names]
     if unknown:
-        raise ValueError(f"{where}: swept coordinate {', '.join(repr(c) for c in unknown)}: {topology.name} has no "
-                         f"such coordinate; its coordinates are {', '.join(names)}")
+        raise ValueError(
+            f"{where}: swept coordinate {', '.join(repr(c) for c in unknown)}: {topology.name} has no "
+            f"such coordinate; its coordinates are {', '.join(names)}"
+        )
     if len(set(sweep)) != len(sweep) or not 1 <= len(sweep) <= MAX_SWEPT:
-        raise ValueError(f"{where}: swept coordinates {', '.join(sweep) or '(none)'}: expected 1 to {MAX_SWEPT} "
-                         f"different ones of {', '.join(names)}")
+        raise ValueError(
+            f"{where}: swept coordinates {', '.join(sweep) or '(none)'}: expected 1 to {MAX_SWEPT} "
+            f"different ones of {', '.join(names)}"
+        )
     return tuple(sorted(names.index(c) for c in sweep))
 
 
@@ -340,8 +370,17 @@ def _poses(grids: Sequence[np.ndarray], home: Sequence[float], swept: Sequence[i
     return out
 
 
-def _fill(eng: Engine, m: Machine, home_index: tuple, sign: float, margin: float, axes: tuple,
-          progress: Optional[Callable[[float], None]], home: Sequence[float], swept: Sequence[int]) -> tuple:
+def _fill(
+    eng: Engine,
+    m: Machine,
+    home_index: tuple,
+    sign: float,
+    margin: float,
+    axes: tuple,
+    progress: Optional[Callable[[float], None]],
+    home: Sequence[float],
+    swept: Sequence[int],
+) -> tuple:
     """Judge the nodes and edge midpoints of the grid ``axes`` (of the ``swept`` coordinates, the others at
     ``home``): (nodes, status with the nodes not connected to home marked, the kept edges of the workspace per
     axis)."""
@@ -366,15 +405,19 @@ def _fill(eng: Engine, m: Machine, home_index: tuple, sign: float, margin: float
 
     parts = []
     for i in range(len(first)):
-        parts.append(judged(first[i:i + 1], *rest))
+        parts.append(judged(first[i : i + 1], *rest))
         tick()
-    nodes = _Judged(*(np.concatenate([getattr(p, f) for p in parts], axis=1 if f == "rho" else 0)
-                      for f in _Judged.__dataclass_fields__))
+    nodes = _Judged(
+        *(
+            np.concatenate([getattr(p, f) for p in parts], axis=1 if f == "rho" else 0)
+            for f in _Judged.__dataclass_fields__
+        )
+    )
     del parts
     fm = 0.5 * (first[:-1] + first[1:])
     mid_first = [np.zeros((0,) + shape[1:], dtype=bool)]
     for i in range(len(fm)):
-        mid_first.append(judged(fm[i:i + 1], *rest).status == INSIDE)
+        mid_first.append(judged(fm[i : i + 1], *rest).status == INSIDE)
         tick()
     tick()
     mids.append(np.concatenate(mid_first, axis=0))
@@ -382,7 +425,7 @@ def _fill(eng: Engine, m: Machine, home_index: tuple, sign: float, margin: float
     mid_rest = [[] for _ in rest]
     for i in range(len(first)):
         for d, am in enumerate(rest_mid):
-            grid = [first[i:i + 1], *rest]
+            grid = [first[i : i + 1], *rest]
             grid[1 + d] = am
             mid_rest[d].append(judged(*grid).status == INSIDE)
         tick(len(rest))
@@ -395,16 +438,24 @@ def _fill(eng: Engine, m: Machine, home_index: tuple, sign: float, margin: float
     _, labels = connected_components(graph, directed=False)
     home_flat = np.ravel_multi_index(home_index, shape)
     if not ok.ravel()[home_flat]:
-        raise ValueError(f"{m.label}: the home pose is not inside the workspace: {STATUS[nodes.status.ravel()[home_flat]]}")
+        raise ValueError(
+            f"{m.label}: the home pose is not inside the workspace: {STATUS[nodes.status.ravel()[home_flat]]}"
+        )
     connected = (labels == labels[home_flat]).reshape(shape)
     status = nodes.status.copy()
     status[ok & ~connected] = DISCONNECTED
     return nodes, status, _kept(status == INSIDE, kept)
 
 
-def compute(m: Machine, step_z: float = STEP_Z, step_tilt: float = STEP_TILT_DEG * DEG, margin: float = MARGIN,
-            progress: Optional[Callable[[float], None]] = None, max_tilt: float = 90 * DEG,
-            sweep: Optional[Sequence[str]] = None) -> Workspace:
+def compute(
+    m: Machine,
+    step_z: float = STEP_Z,
+    step_tilt: float = STEP_TILT_DEG * DEG,
+    margin: float = MARGIN,
+    progress: Optional[Callable[[float], None]] = None,
+    max_tilt: float = 90 * DEG,
+    sweep: Optional[Sequence[str]] = None,
+) -> Workspace:
     """The workspace of machine ``m`` (module docstring) on a grid of steps ``step_z`` [m] in the length coordinates
     (x, y, z) and ``step_tilt`` [rad] in the angles, over the coordinates ``sweep`` (``sweep_of``: default every
     coordinate of the mechanism, at most three), the others held at their home values."""
@@ -419,8 +470,10 @@ def compute(m: Machine, step_z: float = STEP_Z, step_tilt: float = STEP_TILT_DEG
     swept = sweep_of(topology, sweep, f"workspace of {m.label}")
     n = topology.n
     if not len(m.rho_home) == len(m.rho_min) == len(m.rho_max) == n:
-        raise ValueError(f"{m.label}: {len(m.rho_home)} actuators for the {n} drives of {topology.name} "
-                         f"({', '.join(topology.joints)}): expected actuator_1..actuator_{n}")
+        raise ValueError(
+            f"{m.label}: {len(m.rho_home)} actuators for the {n} drives of {topology.name} "
+            f"({', '.join(topology.joints)}): expected actuator_1..actuator_{n}"
+        )
     try:
         home = eng.dk(m.rho_home)[0]
     except KinematicsError as exc:
@@ -433,15 +486,17 @@ def compute(m: Machine, step_z: float = STEP_Z, step_tilt: float = STEP_TILT_DEG
     steps = [step_tilt if c.angular else step_z for c in coords]
     J = np.array(eng.jacobian(home)[1]).reshape(n, n)
     span = max(hi - lo for lo, hi in zip(m.rho_min, m.rho_max))
-    rate = [float(np.abs(J[k]).sum()) for k in swept]        # |dq_k/drho| summed over the drives
+    rate = [float(np.abs(J[k]).sum()) for k in swept]  # |dq_k/drho| summed over the drives
     limits, start = [], []
     for c, h, a in zip(coords, steps, rate):
-        limits += [int(max_tilt / h) if c.angular else int(4 * span * a / h)] * 2       # below, above home
+        limits += [int(max_tilt / h) if c.angular else int(4 * span * a / h)] * 2  # below, above home
         start += [int(math.ceil(35 * DEG / h)) if c.angular else int(math.ceil(0.6 * span * a / h))] * 2
     if step_z < 0.02 or step_tilt < 4 * DEG:
         rough = compute(m, 4 * step_z, 4 * step_tilt, margin, None, max_tilt, [c.name for c in coords])
         ins = rough.inside
-        first_last = [np.flatnonzero(ins.any(axis=tuple(a for a in range(ins.ndim) if a != d))) for d in range(ins.ndim)]
+        first_last = [
+            np.flatnonzero(ins.any(axis=tuple(a for a in range(ins.ndim) if a != d))) for d in range(ins.ndim)
+        ]
         extent = []
         for d, idx in enumerate(first_last):
             k = rough.home_index[d]
@@ -465,8 +520,7 @@ def compute(m: Machine, step_z: float = STEP_Z, step_tilt: float = STEP_TILT_DEG
         extent = [min(lim, int(math.ceil(e * 1.5))) if g else e for e, g, lim in zip(extent, grow, limits)]
     singular = (status == SINGULAR) | (status == BRANCH)
     sampling = tuple(h * eng.lengths[k] for k, h in zip(swept, steps))
-    distance = (distance_transform_edt(~singular, sampling=sampling) if singular.any()
-                else np.full(status.shape, np.inf))
+    distance = distance_transform_edt(~singular, sampling=sampling) if singular.any() else np.full(status.shape, np.inf)
     forces = None
     if inside.any() and not m.missing_masses:
         forces = np.full((n,) + status.shape, np.nan)
@@ -474,14 +528,39 @@ def compute(m: Machine, step_z: float = STEP_Z, step_tilt: float = STEP_TILT_DEG
         grids = _poses(np.meshgrid(*axes, indexing="ij"), home, swept)
         zero = [0.0] * n
         forces[:, inside] = eng.forces_many([g[inside] for g in grids], Jq, zero, zero)
-    return Workspace(m, tuple(home), sign, margin, eng.lengths, axes, index, status, nodes.det, nodes.parallel,
-                     nodes.inverse, nodes.dexterity, distance, nodes.rho, forces, kept, time.perf_counter() - t0,
-                     topology, swept)
+    return Workspace(
+        m,
+        tuple(home),
+        sign,
+        margin,
+        eng.lengths,
+        axes,
+        index,
+        status,
+        nodes.det,
+        nodes.parallel,
+        nodes.inverse,
+        nodes.dexterity,
+        distance,
+        nodes.rho,
+        forces,
+        kept,
+        time.perf_counter() - t0,
+        topology,
+        swept,
+    )
 
 
 # ----------------------------------------------------------------------------- one pose
-def segment_clear(eng: Engine, m: Machine, q0: Sequence[float], q1: Sequence[float], sign: float,
-                  margin: float = MARGIN, samples: int = 16) -> tuple[bool, str]:
+def segment_clear(
+    eng: Engine,
+    m: Machine,
+    q0: Sequence[float],
+    q1: Sequence[float],
+    sign: float,
+    margin: float = MARGIN,
+    samples: int = 16,
+) -> tuple[bool, str]:
     """Whether the straight path q0 -> q1 (``samples`` + 1 poses, every coordinate) stays inside the local tests;
     why not."""
     a, b = np.asarray(q0, dtype=float), np.asarray(q1, dtype=float)
@@ -496,8 +575,10 @@ def segment_clear(eng: Engine, m: Machine, q0: Sequence[float], q1: Sequence[flo
 
 
 def _fmt_pose(q, coordinates: Sequence[Coordinate]) -> str:
-    return ", ".join(f"{c.name} = {math.degrees(v):.4g} deg" if c.angular else f"{c.name} = {v:.6g} m"
-                     for c, v in zip(coordinates, q))
+    return ", ".join(
+        f"{c.name} = {math.degrees(v):.4g} deg" if c.angular else f"{c.name} = {v:.6g} m"
+        for c, v in zip(coordinates, q)
+    )
 
 
 def parse_pose(text: str, topology: Topology) -> tuple[float, ...]:
@@ -513,8 +594,10 @@ def parse_pose(text: str, topology: Topology) -> tuple[float, ...]:
         form = ",".join(f"{c.name.upper()}_DEG" if c.angular else c.name.upper() for c in coords)
         units = ", ".join("deg" if c.angular else "m" for c in coords)
         example = ",".join(f"{shown(c, v):.3g}" for c, v in zip(coords, topology.home))
-        raise ValueError(f"--pose {text!r}: expected {form}, {len(coords)} finite numbers ({units}), one per coordinate "
-                         f"of {topology.name} ({', '.join(topology.names)}), e.g. {example} (home)")
+        raise ValueError(
+            f"--pose {text!r}: expected {form}, {len(coords)} finite numbers ({units}), one per coordinate "
+            f"of {topology.name} ({', '.join(topology.names)}), e.g. {example} (home)"
+        )
     return tuple(math.radians(v) if c.angular else v for c, v in zip(coords, values))
 
 
@@ -541,20 +624,29 @@ def classify(ws: Workspace, q: Sequence[float]) -> dict:
     coords = ws.coordinates
     q = tuple(float(v) for v in q)
     if len(q) != len(coords):
-        raise ValueError(f"pose {q!r}: expected {len(coords)} values, one per coordinate "
-                         f"({', '.join(c.name for c in coords)})")
+        raise ValueError(
+            f"pose {q!r}: expected {len(coords)} values, one per coordinate ({', '.join(c.name for c in coords)})"
+        )
     off = [c.name for k, c in enumerate(coords) if k not in ws.swept and q[k] != ws.home[k]]
     if off:
-        raise ValueError(f"pose {_fmt_pose(q, coords)}: this workspace holds {', '.join(off)} at home "
-                         f"({_fmt_pose([ws.home[k] for k, c in enumerate(coords) if c.name in off], [c for c in coords if c.name in off])}); "
-                         "sweep it to ask about other values")
+        raise ValueError(
+            f"pose {_fmt_pose(q, coords)}: this workspace holds {', '.join(off)} at home "
+            f"({_fmt_pose([ws.home[k] for k, c in enumerate(coords) if c.name in off], [c for c in coords if c.name in off])}); "
+            "sweep it to ask about other values"
+        )
     j = _judge(eng, m, [np.array([v]) for v in q], ws.sign, ws.margin)
     code = int(j.status[0])
     out = {"pose": {column(c): shown(c, v) for c, v in zip(coords, q)}, "inside": False, "reason": ""}
     if code != UNASSEMBLABLE:
         out[f"rho_{_drive_suffix(ws)}"] = [float(v) for v in j.rho[:, 0]]
-        out.update({"det": float(j.det[0]), "margin_parallel": float(j.parallel[0]),
-                    "margin_inverse": float(j.inverse[0]), "dexterity": float(j.dexterity[0])})
+        out.update(
+            {
+                "det": float(j.det[0]),
+                "margin_parallel": float(j.parallel[0]),
+                "margin_inverse": float(j.inverse[0]),
+                "dexterity": float(j.dexterity[0]),
+            }
+        )
     else:
         try:
             eng.ik(q)
@@ -664,7 +756,7 @@ def summarize(ws: Workspace) -> dict:
     for c, step in zip(coords, ws.steps):
         volume *= step
         volume_deg *= shown(c, step)
-    grid = {}     # the steps of the length coordinates (--step-z) and of the angles (--step-tilt)
+    grid = {}  # the steps of the length coordinates (--step-z) and of the angles (--step-tilt)
     lengths = [step for c, step in zip(coords, ws.steps) if not c.angular]
     angles = [step for c, step in zip(coords, ws.steps) if c.angular]
     if lengths:
@@ -672,11 +764,17 @@ def summarize(ws: Workspace) -> dict:
     if angles:
         grid["step_tilt_deg"] = math.degrees(angles[0])
     if ws.held:
-        grid["held_at_home"] = {column(c): shown(c, ws.home[k]) for k, c in enumerate(ws.coordinates)
-                                if k not in ws.swept}
-    grid.update({"box": {column(c): [shown(c, ws.axes[d][0]), shown(c, ws.axes[d][-1])] for d, c in enumerate(coords)},
-                 "nodes": int(ws.status.size), "kept_edges": int(sum(k.sum() for k in ws.kept))})
-    others = lambda d: tuple(a for a in range(ins.ndim) if a != d)     # noqa: E731
+        grid["held_at_home"] = {
+            column(c): shown(c, ws.home[k]) for k, c in enumerate(ws.coordinates) if k not in ws.swept
+        }
+    grid.update(
+        {
+            "box": {column(c): [shown(c, ws.axes[d][0]), shown(c, ws.axes[d][-1])] for d, c in enumerate(coords)},
+            "nodes": int(ws.status.size),
+            "kept_edges": int(sum(k.sum() for k in ws.kept)),
+        }
+    )
+    others = lambda d: tuple(a for a in range(ins.ndim) if a != d)  # noqa: E731
     extent = {}
     for d, c in enumerate(coords):
         reached = ws.axes[d][np.flatnonzero(ins.any(axis=others(d)))]
@@ -684,9 +782,14 @@ def summarize(ws: Workspace) -> dict:
     out = {
         "design": m.label,
         "payload_kg": m.payload_kg,
-        "home": {f"rho_{joints}": list(m.rho_home), **{column(c): shown(c, v) for c, v in zip(ws.coordinates, ws.home)},
-                 "det": float(ws.det[hi_]), "margin_parallel": float(ws.parallel[hi_]),
-                 "margin_inverse": float(ws.inverse[hi_]), "dexterity": float(ws.dexterity[hi_])},
+        "home": {
+            f"rho_{joints}": list(m.rho_home),
+            **{column(c): shown(c, v) for c, v in zip(ws.coordinates, ws.home)},
+            "det": float(ws.det[hi_]),
+            "margin_parallel": float(ws.parallel[hi_]),
+            "margin_inverse": float(ws.inverse[hi_]),
+            "dexterity": float(ws.dexterity[hi_]),
+        },
         f"strokes_{joints}": {"rho_min": list(m.rho_min), "rho_max": list(m.rho_max)},
         "margin_limit": ws.margin,
         "coordinate_lengths_m": list(ws.lengths),
@@ -697,35 +800,50 @@ def summarize(ws: Workspace) -> dict:
         "ranges_through_home": {column(c): [shown(c, v) for v in _run(ws, d)] for d, c in enumerate(coords)},
         "extent": extent,
         "worst_dexterity": {"value": float(dex.max()), "at": _at(ws, int(flat[np.argmax(dex)]))},
-        "smallest_margin": {"value": float(smallest.min()), "at": _at(ws, int(flat[np.argmin(smallest)])),
-                            "kind": "parallel" if ws.parallel.ravel()[flat[np.argmin(smallest)]]
-                            <= ws.inverse.ravel()[flat[np.argmin(smallest)]] else "inverse"},
-        "smallest_distance_to_singularity_m": (None if not np.isfinite(dist.min()) else
-                                               {"value": float(dist.min()), "at": _at(ws, int(flat[np.argmin(dist)]))}),
-        "distance_to_singularity_at_home_m": (None if not np.isfinite(ws.distance[hi_])
-                                              else float(ws.distance[hi_])),
+        "smallest_margin": {
+            "value": float(smallest.min()),
+            "at": _at(ws, int(flat[np.argmin(smallest)])),
+            "kind": "parallel"
+            if ws.parallel.ravel()[flat[np.argmin(smallest)]] <= ws.inverse.ravel()[flat[np.argmin(smallest)]]
+            else "inverse",
+        },
+        "smallest_distance_to_singularity_m": (
+            None
+            if not np.isfinite(dist.min())
+            else {"value": float(dist.min()), "at": _at(ws, int(flat[np.argmin(dist)]))}
+        ),
+        "distance_to_singularity_at_home_m": (None if not np.isfinite(ws.distance[hi_]) else float(ws.distance[hi_])),
         "largest_carriage_speed_per_platform_speed": float((1.0 / ws.inverse.ravel()[flat]).max()),
         "limited_by": _boundary(ws),
         "wall_time_s": round(ws.wall_time_s, 2),
     }
     if ws.machine.missing_masses:
-        out["static_forces"] = {"not_computed": f"the mechanism's parameters give no {', '.join(ws.machine.missing_masses)}: "
-                                                "the workspace and its margins are kinematic, the static forces unknown"}
+        out["static_forces"] = {
+            "not_computed": f"the mechanism's parameters give no {', '.join(ws.machine.missing_masses)}: "
+            "the workspace and its margins are kinematic, the static forces unknown"
+        }
     if ws.forces is not None:
         F = ws.forces.reshape(len(ws.forces), -1)[:, flat]
         peak = np.abs(F).max(axis=0)
-        out["static_forces"] = {f"home_{force}": [float(v) for v in ws.forces[(slice(None),) + hi_]],
-                                f"largest_{force}": float(peak.max()), "at": _at(ws, int(flat[np.argmax(peak)]))}
+        out["static_forces"] = {
+            f"home_{force}": [float(v) for v in ws.forces[(slice(None),) + hi_]],
+            f"largest_{force}": float(peak.max()),
+            "at": _at(ws, int(flat[np.argmax(peak)])),
+        }
         d = m.drive
         if d:
             # motor torque holding the carriage and its share of the mechanism at rest (friction left out)
             tau = (np.abs(F + d["M_load"] * d["g_guide"])).max(axis=0) * d["p"] / (2 * math.pi * d["i_r"])
             peak_torque = d["k_T"] * d["i_max"]
-            out["static_forces"].update({"largest_motor_torque_Nm": float(tau.max()),
-                                         "at_largest_torque": _at(ws, int(flat[np.argmax(tau)])),
-                                         "motor_peak_torque_Nm": peak_torque,
-                                         "largest_torque_fraction_of_peak": float(tau.max() / peak_torque),
-                                         "fraction_of_poses_beyond_peak_torque": float(np.mean(tau > peak_torque))})
+            out["static_forces"].update(
+                {
+                    "largest_motor_torque_Nm": float(tau.max()),
+                    "at_largest_torque": _at(ws, int(flat[np.argmax(tau)])),
+                    "motor_peak_torque_Nm": peak_torque,
+                    "largest_torque_fraction_of_peak": float(tau.max() / peak_torque),
+                    "fraction_of_poses_beyond_peak_torque": float(np.mean(tau > peak_torque)),
+                }
+            )
     return out
 
 
@@ -734,9 +852,18 @@ def csv_columns(ws: Workspace) -> tuple[str, ...]:
     rad for a rotary drive), the margins, each drive's static force (F_k in N, or Nm). For the 3PRS: z_m,
     psi_deg, theta_deg, status, inside, rho_1_m .. rho_3_m, det, ..., F_1_N .. F_3_N."""
     drives = ws.mechanism.drives
-    return (*(column(c) for c in ws.swept_coordinates), "status", "inside",
-            *(f"{d.name}_{d.unit}" for d in drives), "det", "margin_parallel", "margin_inverse", "dexterity",
-            "distance_to_singularity_m", *(f"F_{k}_{'N' if d.kind == 'linear' else 'Nm'}" for k, d in enumerate(drives, 1)))
+    return (
+        *(column(c) for c in ws.swept_coordinates),
+        "status",
+        "inside",
+        *(f"{d.name}_{d.unit}" for d in drives),
+        "det",
+        "margin_parallel",
+        "margin_inverse",
+        "dexterity",
+        "distance_to_singularity_m",
+        *(f"F_{k}_{'N' if d.kind == 'linear' else 'Nm'}" for k, d in enumerate(drives, 1)),
+    )
 
 
 def _layer(ws: Workspace) -> np.ndarray:
@@ -778,7 +905,13 @@ def write(ws: Workspace, out: Union[str, Path], plots: bool = True) -> list[Path
     return files
 
 
-_COLOURS = {UNASSEMBLABLE: "#4d4d4d", STROKE: "#bdbdbd", SINGULAR: "#d62728", BRANCH: "#ff7f0e", DISCONNECTED: "#e377c2"}
+_COLOURS = {
+    UNASSEMBLABLE: "#4d4d4d",
+    STROKE: "#bdbdbd",
+    SINGULAR: "#d62728",
+    BRANCH: "#ff7f0e",
+    DISCONNECTED: "#e377c2",
+}
 
 
 def plot(ws: Workspace, path: Path) -> Path:
@@ -792,7 +925,7 @@ def plot(ws: Workspace, path: Path) -> Path:
     from matplotlib.patches import Patch
 
     coords = ws.swept_coordinates
-    g = [np.degrees(a) if c.angular else a for c, a in zip(coords, ws.axes)]     # the grids as shown (m, deg)
+    g = [np.degrees(a) if c.angular else a for c, a in zip(coords, ws.axes)]  # the grids as shown (m, deg)
     label = [f"{c.name} [{'deg' if c.angular else 'm'}]" for c in coords]
 
     def at(d: int, i: int) -> str:
@@ -805,8 +938,9 @@ def plot(ws: Workspace, path: Path) -> Path:
 
     def section(ax, st, val, x, y, xlabel, ylabel, title):
         ax.pcolormesh(x, y, st.T, cmap=cmap_out, vmin=-0.5, vmax=len(STATUS) - 0.5, shading="nearest")
-        im = ax.pcolormesh(x, y, np.where(st == INSIDE, val, np.nan).T, cmap="viridis", vmin=ws.margin, vmax=vmax,
-                           shading="nearest")
+        im = ax.pcolormesh(
+            x, y, np.where(st == INSIDE, val, np.nan).T, cmap="viridis", vmin=ws.margin, vmax=vmax, shading="nearest"
+        )
         ax.set_xlabel(xlabel)
         ax.set_ylabel(ylabel)
         ax.set_title(title, fontsize=9)
@@ -826,8 +960,16 @@ def plot(ws: Workspace, path: Path) -> Path:
         levels = sorted({int(v) for v in spread} | {h[0]})
         for k, i0 in enumerate(levels[:4]):
             ax = fig.add_subplot(2, 4, 5 + k)
-            section(ax, ws.status[i0], smallest[i0], g[1], g[2], label[1], label[2],
-                    at(0, i0) + (" (home)" if i0 == h[0] else ""))
+            section(
+                ax,
+                ws.status[i0],
+                smallest[i0],
+                g[1],
+                g[2],
+                label[1],
+                label[2],
+                at(0, i0) + (" (home)" if i0 == h[0] else ""),
+            )
             ax.set_aspect("equal")
         ax3 = fig.add_subplot(2, 4, (3, 4), projection="3d")
         layer = _layer(ws) & ~ws.inside
@@ -836,8 +978,15 @@ def plot(ws: Workspace, path: Path) -> Path:
             if sel.any():
                 i = np.nonzero(sel)
                 step = max(1, len(i[0]) // 4000)
-                ax3.scatter(g[1][i[1]][::step], g[2][i[2]][::step], g[0][i[0]][::step], s=2, c=colour, alpha=0.5,
-                            depthshade=False)
+                ax3.scatter(
+                    g[1][i[1]][::step],
+                    g[2][i[2]][::step],
+                    g[0][i[0]][::step],
+                    s=2,
+                    c=colour,
+                    alpha=0.5,
+                    depthshade=False,
+                )
         ax3.set_xlabel(label[1])
         ax3.set_ylabel(label[2])
         ax3.set_zlabel(label[0])
@@ -859,19 +1008,24 @@ def plot(ws: Workspace, path: Path) -> Path:
             ax.set_xlabel(label[0])
             ax.set_ylabel("smallest singularity margin [m/m]")
             ax.set_title("along the line through home", fontsize=9)
-    fig.legend(handles=[Patch(color=c, label=STATUS[k]) for k, c in _COLOURS.items()], loc="lower center", ncol=5,
-               fontsize=8)
+    fig.legend(
+        handles=[Patch(color=c, label=STATUS[k]) for k, c in _COLOURS.items()], loc="lower center", ncol=5, fontsize=8
+    )
     s = summarize(ws)
     unit = volume_unit(ws, "deg")
-    held = ", ".join(f"{c.name} = {shown(c, v):.4g} {'deg' if c.angular else 'm'}" for c, v in
-                     ((ws.coordinates[k], ws.home[k]) for k in range(len(ws.home)) if k not in ws.swept))
+    held = ", ".join(
+        f"{c.name} = {shown(c, v):.4g} {'deg' if c.angular else 'm'}"
+        for c, v in ((ws.coordinates[k], ws.home[k]) for k in range(len(ws.home)) if k not in ws.swept)
+    )
     first = coords[0]
-    fig.suptitle(f"{ws.machine.label}: workspace {s[f'volume_{unit}']:.4g} {unit_text(unit)} ({s['poses_inside']} poses), "
-                 f"home {first.name} = {shown(first, ws.home[ws.swept[0]]):.4g} {'deg' if first.angular else 'm'}"
-                 + (f" ({held} held)" if held else "")
-                 + f"; smallest margin {s['smallest_margin']['value']:.3g} m/m, "
-                 f"worst dexterity {s['worst_dexterity']['value']:.3g}; margin limit {ws.margin:g} m/m",
-                 **({} if len(coords) == 3 else {"fontsize": 8}))
+    fig.suptitle(
+        f"{ws.machine.label}: workspace {s[f'volume_{unit}']:.4g} {unit_text(unit)} ({s['poses_inside']} poses), "
+        f"home {first.name} = {shown(first, ws.home[ws.swept[0]]):.4g} {'deg' if first.angular else 'm'}"
+        + (f" ({held} held)" if held else "")
+        + f"; smallest margin {s['smallest_margin']['value']:.3g} m/m, "
+        f"worst dexterity {s['worst_dexterity']['value']:.3g}; margin limit {ws.margin:g} m/m",
+        **({} if len(coords) == 3 else {"fontsize": 8}),
+    )
     if len(coords) == 3:
         fig.subplots_adjust(left=0.05, right=0.97, top=0.92, bottom=0.1, hspace=0.3, wspace=0.35)
     else:

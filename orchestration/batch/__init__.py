@@ -35,7 +35,9 @@ thread each (``dask worker ADDRESS --nthreads 1 --nworkers N``): pythonfmu FMUs
 share one interpreter per process, so processes, not threads, run cases side
 by side.
 """
+
 from __future__ import annotations
+
 from .cases import Case, SystemInfo, expand
 from .config import BatchConfig, BatchConfigError
 from .runner import BatchResult, read_batch, run_batch
@@ -43,5 +45,19 @@ from .store import FORMAT_VERSION, STATUSES
 from .tables import describe, group_rows, summary_rows
 from .worker import run_case
 
-__all__ = ["FORMAT_VERSION", "STATUSES", "BatchConfig", "BatchConfigError", "BatchResult", "Case", "SystemInfo",
-           "describe", "expand", "group_rows", "read_batch", "run_batch", "run_case", "summary_rows"]
+__all__ = [
+    "FORMAT_VERSION",
+    "STATUSES",
+    "BatchConfig",
+    "BatchConfigError",
+    "BatchResult",
+    "Case",
+    "SystemInfo",
+    "describe",
+    "expand",
+    "group_rows",
+    "read_batch",
+    "run_batch",
+    "run_case",
+    "summary_rows",
+]

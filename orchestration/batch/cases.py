@@ -1,5 +1,6 @@
 """Cases: the config expanded into one case per system, parameter set, motion and frequency; their ids
 and digests (a resumed batch recognises its finished cases)."""
+
 from __future__ import annotations
 
 import fnmatch
@@ -13,7 +14,7 @@ from typing import Any, Mapping, Optional
 
 import numpy as np
 
-from ..analyses.frequency import record_step_of, measuring_window
+from ..analyses.frequency import measuring_window, record_step_of
 from ..core.motion import pose_inputs
 from .config import DISTRIBUTIONS, BatchConfig, BatchConfigError, as_list
 
@@ -26,10 +27,10 @@ class SystemInfo:
     sha256: str
     components: list[str]
     system_inputs: list[str]
-    nominal: dict[str, dict[str, Any]]        # component -> merged bindings
-    parameters: dict[str, list[str]]          # component -> FMU parameter names
-    signals: list[str]                        # recordable: system inputs and declared outputs
-    axes: tuple[str, ...] = ()                # its motion axes: its mechanism's coordinates (core.motion.system_axes)
+    nominal: dict[str, dict[str, Any]]  # component -> merged bindings
+    parameters: dict[str, list[str]]  # component -> FMU parameter names
+    signals: list[str]  # recordable: system inputs and declared outputs
+    axes: tuple[str, ...] = ()  # its motion axes: its mechanism's coordinates (core.motion.system_axes)
 
     @classmethod
     def read(cls, path: Path) -> "SystemInfo":
@@ -50,23 +51,36 @@ class SystemInfo:
                     md = read_model_description(str(fmu))
                     by_fmu[fmu] = [v.name for v in md.modelVariables if v.causality == "parameter"]
                 names[comp] = by_fmu[fmu]
-            return cls(path, sha256(path) if path.is_file() else "", list(system.components), list(system.system_inputs),
-                       {c: dict(s.parameters) for c, s in system.components.items()}, names, default_signals(system),
-                       system_axes(system))
+            return cls(
+                path,
+                sha256(path) if path.is_file() else "",
+                list(system.components),
+                list(system.system_inputs),
+                {c: dict(s.parameters) for c, s in system.components.items()},
+                names,
+                default_signals(system),
+                system_axes(system),
+            )
 
     def resolve(self, key: str, where: str) -> list[tuple[str, str]]:
         """``ELEMENT.PARAMETER`` (ELEMENT may hold * ? [..] wildcards) -> [(component, parameter)]."""
         pattern, dot, param = str(key).partition(".")
         if not dot or not pattern or not param:
-            raise BatchConfigError(f"{where}: '{key}' is not ELEMENT.PARAMETER (e.g. actuator_1.tau_c or actuator_*.tau_c)")
+            raise BatchConfigError(
+                f"{where}: '{key}' is not ELEMENT.PARAMETER (e.g. actuator_1.tau_c or actuator_*.tau_c)"
+            )
         matches = [c for c in self.components if fnmatch.fnmatchcase(c, pattern)]
         if not matches:
-            raise BatchConfigError(f"{where}: '{key}' matches no component of {self.path.name}; "
-                                   f"its components are {', '.join(self.components)}")
+            raise BatchConfigError(
+                f"{where}: '{key}' matches no component of {self.path.name}; "
+                f"its components are {', '.join(self.components)}"
+            )
         for comp in matches:
             if param not in self.parameters[comp]:
-                raise BatchConfigError(f"{where}: '{key}': {comp} has no parameter '{param}'; "
-                                       f"its parameters are {', '.join(sorted(self.parameters[comp]))}")
+                raise BatchConfigError(
+                    f"{where}: '{key}': {comp} has no parameter '{param}'; "
+                    f"its parameters are {', '.join(sorted(self.parameters[comp]))}"
+                )
         return [(c, param) for c in matches]
 
 
@@ -76,22 +90,32 @@ class Case:
 
     id: str
     index: int
-    ssp: str                          # variant name
-    inputs: dict[str, Any]            # what the case dimensions set, named as in the config
-    parameters: dict[str, Any]        # every override, ELEMENT.PARAMETER, wildcards expanded
-    motion: Optional[dict]            # axis, amplitude (config units: m, deg), frequency [Hz]
+    ssp: str  # variant name
+    inputs: dict[str, Any]  # what the case dimensions set, named as in the config
+    parameters: dict[str, Any]  # every override, ELEMENT.PARAMETER, wildcards expanded
+    motion: Optional[dict]  # axis, amplitude (config units: m, deg), frequency [Hz]
     sample: Optional[int]
     stop_time: float
     record_step: float
-    window: tuple[float, float]       # metrics window [s]
+    window: tuple[float, float]  # metrics window [s]
     digest: str = ""
     group: str = ""
 
     def as_dict(self) -> dict:
-        return {"id": self.id, "index": self.index, "ssp": self.ssp, "inputs": self.inputs,
-                "parameters": self.parameters, "motion": self.motion, "sample": self.sample,
-                "stop_time": self.stop_time, "record_step": self.record_step, "window": list(self.window),
-                "digest": self.digest, "group": self.group}
+        return {
+            "id": self.id,
+            "index": self.index,
+            "ssp": self.ssp,
+            "inputs": self.inputs,
+            "parameters": self.parameters,
+            "motion": self.motion,
+            "sample": self.sample,
+            "stop_time": self.stop_time,
+            "record_step": self.record_step,
+            "window": list(self.window),
+            "digest": self.digest,
+            "group": self.group,
+        }
 
 
 def expand(config: BatchConfig, systems: Optional[Mapping[str, SystemInfo]] = None) -> list[Case]:
@@ -106,8 +130,10 @@ def expand(config: BatchConfig, systems: Optional[Mapping[str, SystemInfo]] = No
     for name, info in systems.items():
         unknown = [k for k in config.keep if k not in info.signals]
         if unknown:
-            raise BatchConfigError(f"outputs.keep: {', '.join(unknown)} not in {info.path.name} (ssp '{name}'); "
-                                   f"it has the system inputs and component outputs {', '.join(info.signals)}")
+            raise BatchConfigError(
+                f"outputs.keep: {', '.join(unknown)} not in {info.path.name} (ssp '{name}'); "
+                f"it has the system inputs and component outputs {', '.join(info.signals)}"
+            )
     c = config.cases
     dims: list[list[dict]] = []
     rnd = c.get("random")
@@ -187,8 +213,10 @@ def _make_case(config: BatchConfig, info: SystemInfo, parts: dict, index: int, c
                 if isinstance(value, tuple) and value[0] == "relative":
                     nominal = info.nominal.get(comp, {}).get(param)
                     if not isinstance(nominal, (int, float)) or isinstance(nominal, bool):
-                        raise BatchConfigError(f"cases.random.{key}: 'relative' needs a numeric value of {comp}.{param} "
-                                               f"bound in {info.path.name}")
+                        raise BatchConfigError(
+                            f"cases.random.{key}: 'relative' needs a numeric value of {comp}.{param} "
+                            f"bound in {info.path.name}"
+                        )
                     v = float(nominal) * (1.0 + value[1])
                 if isinstance(v, bool) or not isinstance(v, (int, float, str)):
                     raise BatchConfigError(f"{layer} of {where}: {key} = {v!r}: expected a number or a string")
@@ -198,23 +226,31 @@ def _make_case(config: BatchConfig, info: SystemInfo, parts: dict, index: int, c
                 inputs[key] = shown
     motion = parts.get("motion")
     if motion is not None:
-        motion = {"axis": motion["axis"], "amplitude": float(motion.get("amplitude", 0.0)),
-                  "frequency": float(parts.get("frequency", motion.get("frequency", 0.0)))}
+        motion = {
+            "axis": motion["axis"],
+            "amplitude": float(motion.get("amplitude", 0.0)),
+            "frequency": float(parts.get("frequency", motion.get("frequency", 0.0))),
+        }
     elif "frequency" in parts:
         raise BatchConfigError("cases.frequency needs a cases.motion (axis and amplitude)")
     if motion is not None:
         commands = pose_inputs(info.axes)
         if motion["axis"] not in info.axes:
-            raise BatchConfigError(f"cases.motion axis {motion['axis']!r}: axis must be one of the coordinates of "
-                                   f"{info.path.name}'s mechanism: {', '.join(info.axes)}")
+            raise BatchConfigError(
+                f"cases.motion axis {motion['axis']!r}: axis must be one of the coordinates of "
+                f"{info.path.name}'s mechanism: {', '.join(info.axes)}"
+            )
         if not all(s in info.system_inputs for s in commands):
-            raise BatchConfigError(f"{info.path.name} has no pose command inputs ({', '.join(commands)}): "
-                                   "it takes no cases.motion")
+            raise BatchConfigError(
+                f"{info.path.name} has no pose command inputs ({', '.join(commands)}): it takes no cases.motion"
+            )
     f = motion["frequency"] if motion else 0.0
     if config.stop_time == "auto":
         if not f > 0:
-            raise BatchConfigError(f"{where}: run.stop_time = \"auto\" needs a sine motion with a frequency > 0; "
-                                   "give run.stop_time in seconds")
+            raise BatchConfigError(
+                f'{where}: run.stop_time = "auto" needs a sine motion with a frequency > 0; '
+                "give run.stop_time in seconds"
+            )
         start, stop = measuring_window(f)
     else:
         stop = float(config.stop_time)
@@ -225,14 +261,38 @@ def _make_case(config: BatchConfig, info: SystemInfo, parts: dict, index: int, c
     if f > 0 and (stop - start) * f >= 1 - 1e-9:  # whole periods for the harmonic fit
         end = start + math.floor((stop - start) * f + 1e-9) / f
     record_step = (record_step_of(f) if f > 0 else 1e-3) if config.record_step == "auto" else float(config.record_step)
-    case = Case(case_id, index, parts["ssp"], inputs, dict(sorted(overrides.items())), motion, parts.get("sample"),
-                float(stop), float(record_step), (float(start), float(end)))
-    defining = {"ssp": info.sha256, "parameters": case.parameters, "direct": config.direct,
-                "motion": None if motion is None else {k: v for k, v in motion.items() if k != "frequency"}}
+    case = Case(
+        case_id,
+        index,
+        parts["ssp"],
+        inputs,
+        dict(sorted(overrides.items())),
+        motion,
+        parts.get("sample"),
+        float(stop),
+        float(record_step),
+        (float(start), float(end)),
+    )
+    defining = {
+        "ssp": info.sha256,
+        "parameters": case.parameters,
+        "direct": config.direct,
+        "motion": None if motion is None else {k: v for k, v in motion.items() if k != "frequency"},
+    }
     case.group = digest_of(defining)
-    case.digest = digest_of({**defining, "motion": motion, "stop_time": case.stop_time, "record_step": case.record_step,
-                           "window": case.window, "keep": config.keep, "metrics": config.metrics,
-                           "custom": config.custom, "timeout": config.timeout})
+    case.digest = digest_of(
+        {
+            **defining,
+            "motion": motion,
+            "stop_time": case.stop_time,
+            "record_step": case.record_step,
+            "window": case.window,
+            "keep": config.keep,
+            "metrics": config.metrics,
+            "custom": config.custom,
+            "timeout": config.timeout,
+        }
+    )
     return case
 
 

@@ -3,6 +3,7 @@
 Exit codes: 0 every case ok, 1 some cases failed or crashed (the batch went on and is complete),
 2 the config or the command is wrong, 130 interrupted (resume with --resume).
 """
+
 from __future__ import annotations
 
 import sys
@@ -19,27 +20,44 @@ def main(args) -> int:
             return 0
         if args.retry_failed and not args.resume:
             raise BatchConfigError("--retry-failed goes with --resume")
-        result = run_batch(config, Path(args.out), workers=args.workers, scheduler=args.scheduler,
-                           resume=args.resume, retry_failed=args.retry_failed, plots=not args.no_plots)
+        result = run_batch(
+            config,
+            Path(args.out),
+            workers=args.workers,
+            scheduler=args.scheduler,
+            resume=args.resume,
+            retry_failed=args.retry_failed,
+            plots=not args.no_plots,
+        )
     except BatchConfigError as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print(f"\ninterrupted: the finished cases are saved in {args.out}; go on with "
-              f"`mast batch {args.config} --out {args.out} --resume`", file=sys.stderr)
+        print(
+            f"\ninterrupted: the finished cases are saved in {args.out}; go on with "
+            f"`mast batch {args.config} --out {args.out} --resume`",
+            file=sys.stderr,
+        )
         return 130
     total = len(result.records)
     ran = len(result.ran)
     rate = f", {60 * ran / result.wall_s:.1f} cases/min" if ran and result.wall_s > 0 else ""
-    print(f"{total} cases: {result.ok} ok, {result.failed} failed, {result.crashed} crashed "
-          f"({ran} run now in {result.wall_s:.0f} s{rate}, {len(result.skipped)} finished before)")
+    print(
+        f"{total} cases: {result.ok} ok, {result.failed} failed, {result.crashed} crashed "
+        f"({ran} run now in {result.wall_s:.0f} s{rate}, {len(result.skipped)} finished before)"
+    )
     for g in result.groups[:10]:
         bw = g.get("bandwidth_Hz")
         if bw is not None:
-            print(f"  sweep {g['group'][:8]} ({g['axis']}, {g['ok']}/{g['cases']} ok): bandwidth "
-                  + (f"{bw:.3g} Hz" if bw == bw else "not reached in the swept range"))
+            print(
+                f"  sweep {g['group'][:8]} ({g['axis']}, {g['ok']}/{g['cases']} ok): bandwidth "
+                + (f"{bw:.3g} Hz" if bw == bw else "not reached in the swept range")
+            )
     if len(result.groups) > 10:
         print(f"  ... {len(result.groups) - 10} more sweeps in {Path(args.out) / 'groups.csv'}")
-    print(f"wrote {Path(args.out) / 'manifest.json'}, summary.csv" + (", groups.csv" if result.groups else "")
-          + ("" if args.no_plots else ", plots/"))
+    print(
+        f"wrote {Path(args.out) / 'manifest.json'}, summary.csv"
+        + (", groups.csv" if result.groups else "")
+        + ("" if args.no_plots else ", plots/")
+    )
     return 0 if result.ok == total else 1

@@ -1,5 +1,6 @@
 """The batch config (TOML, YAML or JSON; docs/batch.md): its keys, checked with errors that say where
 and what is expected."""
+
 from __future__ import annotations
 
 import json
@@ -9,9 +10,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping, Optional, Union
 
-from ..analyses.metrics import FAMILIES
 from fmus.mechanism.topology import POSE
 
+from ..analyses.metrics import FAMILIES
 
 _DIMENSIONS = ("random", "ssp", "list", "grid", "motion", "frequency")  # outermost first
 
@@ -36,7 +37,7 @@ class BatchConfig:
     """A batch: which SSPs, which cases, which outputs (see docs/batch.md for every key)."""
 
     name: str
-    ssp: dict[str, Path]                     # variant name -> .ssp (or .ssd) path
+    ssp: dict[str, Path]  # variant name -> .ssp (or .ssd) path
     cases: dict = field(default_factory=dict)
     parameters: dict[str, Any] = field(default_factory=dict)
     stop_time: Union[str, float] = "auto"
@@ -69,7 +70,9 @@ class BatchConfig:
                 try:
                     import yaml
                 except ModuleNotFoundError:
-                    raise BatchConfigError(f"{path}: YAML configs need PyYAML (pip install 'mast-cosim[batch]')") from None
+                    raise BatchConfigError(
+                        f"{path}: YAML configs need PyYAML (pip install 'mast-cosim[batch]')"
+                    ) from None
                 data = yaml.safe_load(text)
             elif suffix == ".json":
                 data = json.loads(text)
@@ -107,7 +110,9 @@ class BatchConfig:
         metrics = list(outputs.get("metrics", FAMILIES))
         bad = [m for m in metrics if m not in FAMILIES]
         if bad:
-            raise BatchConfigError(f"outputs.metrics: unknown {', '.join(map(repr, bad))}; choose from {', '.join(FAMILIES)}")
+            raise BatchConfigError(
+                f"outputs.metrics: unknown {', '.join(map(repr, bad))}; choose from {', '.join(FAMILIES)}"
+            )
         keep = outputs.get("keep", [])
         if isinstance(keep, str):
             keep = [keep]
@@ -115,15 +120,22 @@ class BatchConfig:
         for p in plots:
             if not isinstance(p, Mapping) or set(p) - {"x", "y"} or "x" not in p or "y" not in p:
                 raise BatchConfigError(f"outputs.plots entry {p!r}: expected {{x = ..., y = ...}}")
-        config = cls(name=str(data.get("name", default_name)), ssp=paths, cases=dict(cases),
-                     parameters=dict(_table(data, "parameters")),
-                     stop_time=_auto_or_positive(run.get("stop_time", "auto"), "run.stop_time"),
-                     record_step=_auto_or_positive(run.get("record_step", "auto"), "run.record_step"),
-                     settle=_auto_or_nonnegative(run.get("settle", "auto"), "run.settle"),
-                     direct=bool(run.get("direct", False)),
-                     timeout=None if run.get("timeout") is None else _auto_or_positive(run["timeout"], "run.timeout"),
-                     keep=[str(k) for k in keep], metrics=metrics, plots=[dict(p) for p in plots],
-                     custom=outputs.get("custom"), raw=_plain(data))
+        config = cls(
+            name=str(data.get("name", default_name)),
+            ssp=paths,
+            cases=dict(cases),
+            parameters=dict(_table(data, "parameters")),
+            stop_time=_auto_or_positive(run.get("stop_time", "auto"), "run.stop_time"),
+            record_step=_auto_or_positive(run.get("record_step", "auto"), "run.record_step"),
+            settle=_auto_or_nonnegative(run.get("settle", "auto"), "run.settle"),
+            direct=bool(run.get("direct", False)),
+            timeout=None if run.get("timeout") is None else _auto_or_positive(run["timeout"], "run.timeout"),
+            keep=[str(k) for k in keep],
+            metrics=metrics,
+            plots=[dict(p) for p in plots],
+            custom=outputs.get("custom"),
+            raw=_plain(data),
+        )
         config._check_cases()
         return config
 
@@ -133,14 +145,20 @@ class BatchConfig:
             names = [c["ssp"]] if isinstance(c["ssp"], str) else c["ssp"]
             unknown = [n for n in names if n not in self.ssp]
             if unknown:
-                raise BatchConfigError(f"cases.ssp names {', '.join(map(repr, unknown))}; the [ssp] variants are {', '.join(self.ssp)}")
+                raise BatchConfigError(
+                    f"cases.ssp names {', '.join(map(repr, unknown))}; the [ssp] variants are {', '.join(self.ssp)}"
+                )
         for m in as_list(c.get("motion", [])):
             if not isinstance(m, Mapping):
-                raise BatchConfigError(f"cases.motion entry {m!r}: expected {{axis = ..., amplitude = ..., frequency = ...}}")
+                raise BatchConfigError(
+                    f"cases.motion entry {m!r}: expected {{axis = ..., amplitude = ..., frequency = ...}}"
+                )
             _check_keys(m, "motion")
-            if m.get("axis") not in POSE:     # the system's own coordinates are checked when the cases are made
-                raise BatchConfigError(f"cases.motion {dict(m)}: axis must be one of the pose components "
-                                       f"{', '.join(POSE)} (a coordinate of the system's mechanism)")
+            if m.get("axis") not in POSE:  # the system's own coordinates are checked when the cases are made
+                raise BatchConfigError(
+                    f"cases.motion {dict(m)}: axis must be one of the pose components "
+                    f"{', '.join(POSE)} (a coordinate of the system's mechanism)"
+                )
             if "frequency" in m and "frequency" in c:
                 raise BatchConfigError("give the frequency either in cases.motion or in cases.frequency, not both")
         for f in as_list(c.get("frequency", [])):
@@ -181,14 +199,16 @@ def _check_keys(data: Mapping, where: str) -> None:
     unknown = sorted(set(map(str, data)) - _KEYS[where])
     if unknown:
         place = f"[{where}]" if where else "the top level"
-        raise BatchConfigError(f"{place}: unknown key(s) {', '.join(unknown)}; expected {', '.join(sorted(_KEYS[where]))}")
+        raise BatchConfigError(
+            f"{place}: unknown key(s) {', '.join(unknown)}; expected {', '.join(sorted(_KEYS[where]))}"
+        )
 
 
 def _auto_or_positive(value, what: str):
     if value == "auto":
         return value
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 0 or not math.isfinite(value):
-        raise BatchConfigError(f"{what} = {value!r}: expected \"auto\" or a positive number of seconds")
+        raise BatchConfigError(f'{what} = {value!r}: expected "auto" or a positive number of seconds')
     return float(value)
 
 
@@ -196,24 +216,38 @@ def _auto_or_nonnegative(value, what: str):
     if value == "auto":
         return value
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not value >= 0 or not math.isfinite(value):
-        raise BatchConfigError(f"{what} = {value!r}: expected \"auto\" or a number of seconds >= 0")
+        raise BatchConfigError(f'{what} = {value!r}: expected "auto" or a number of seconds >= 0')
     return float(value)
 
 
 def _check_distribution(key: str, dist) -> None:
-    if not isinstance(dist, Mapping) or not (set(dist) & DISTRIBUTIONS) or len(set(dist) & DISTRIBUTIONS) > 1 \
-            or set(dist) - DISTRIBUTIONS - {"clip"}:
-        raise BatchConfigError(f"cases.random.{key} = {dist!r}: expected one of "
-                               "{uniform = [lo, hi]}, {loguniform = [lo, hi]}, {normal = [mean, std], clip = [lo, hi]}, "
-                               "{relative = tol} (uniform within ±tol of the SSP's value) or {choice = [a, b, ...]}")
+    if (
+        not isinstance(dist, Mapping)
+        or not (set(dist) & DISTRIBUTIONS)
+        or len(set(dist) & DISTRIBUTIONS) > 1
+        or set(dist) - DISTRIBUTIONS - {"clip"}
+    ):
+        raise BatchConfigError(
+            f"cases.random.{key} = {dist!r}: expected one of "
+            "{uniform = [lo, hi]}, {loguniform = [lo, hi]}, {normal = [mean, std], clip = [lo, hi]}, "
+            "{relative = tol} (uniform within ±tol of the SSP's value) or {choice = [a, b, ...]}"
+        )
     kind = next(iter(set(dist) & DISTRIBUTIONS))
     arg = dist[kind]
     pair = isinstance(arg, list) and len(arg) == 2 and all(isinstance(x, (int, float)) for x in arg)
-    ok = {"uniform": pair and arg[0] <= arg[1], "loguniform": pair and 0 < arg[0] <= arg[1],
-          "normal": pair and arg[1] >= 0, "relative": isinstance(arg, (int, float)) and 0 <= arg < 1,
-          "choice": isinstance(arg, list) and len(arg) > 0}[kind]
-    if "clip" in dist and not (kind == "normal" and isinstance(dist["clip"], list) and len(dist["clip"]) == 2
-                               and dist["clip"][0] < dist["clip"][1]):
+    ok = {
+        "uniform": pair and arg[0] <= arg[1],
+        "loguniform": pair and 0 < arg[0] <= arg[1],
+        "normal": pair and arg[1] >= 0,
+        "relative": isinstance(arg, (int, float)) and 0 <= arg < 1,
+        "choice": isinstance(arg, list) and len(arg) > 0,
+    }[kind]
+    if "clip" in dist and not (
+        kind == "normal"
+        and isinstance(dist["clip"], list)
+        and len(dist["clip"]) == 2
+        and dist["clip"][0] < dist["clip"][1]
+    ):
         raise BatchConfigError(f"cases.random.{key}: clip = [lo, hi] (lo < hi) goes with a normal distribution")
     if not ok:
         raise BatchConfigError(f"cases.random.{key} = {dict(dist)}: invalid {kind} arguments")

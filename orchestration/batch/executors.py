@@ -1,5 +1,6 @@
 """Executors: a pool of worker processes on this machine (a worker that dies costs only its case) or a
 Dask cluster."""
+
 from __future__ import annotations
 
 import multiprocessing
@@ -21,14 +22,16 @@ class LocalPool:
 
     def __init__(self, workers: Optional[int] = None, mp_context=None) -> None:
         self.workers = max(1, workers or os.cpu_count() or 1)
-        self.context = multiprocessing.get_context(mp_context) if isinstance(mp_context, str) or mp_context is None \
-            else mp_context
+        self.context = (
+            multiprocessing.get_context(mp_context) if isinstance(mp_context, str) or mp_context is None else mp_context
+        )
         self.restarts = 0
         self._tmp: Optional[str] = None  # the workers' temporary folder while a batch runs
 
     def _pool(self) -> ProcessPoolExecutor:
-        return ProcessPoolExecutor(max_workers=self.workers, mp_context=self.context, initializer=worker_init,
-                                   initargs=(self._tmp,))
+        return ProcessPoolExecutor(
+            max_workers=self.workers, mp_context=self.context, initializer=worker_init, initargs=(self._tmp,)
+        )
 
     def run(self, tasks: Sequence[dict], on_result: Callable[[dict], None]) -> None:
         # workers are stopped, not asked to clean up: what they extract goes to a folder removed here
@@ -113,7 +116,9 @@ class LocalPool:
             where = ""
             if stack:
                 where = "; Python stack at the crash (most recent call first):\n" + "\n".join(stack[:12])
-            return crashed_record(task, f"the worker process died ({_exit_text(proc.exitcode)}) while running this case{where}")
+            return crashed_record(
+                task, f"the worker process died ({_exit_text(proc.exitcode)}) while running this case{where}"
+            )
         return record
 
     @staticmethod
@@ -159,13 +164,21 @@ class DaskCluster:
         blobs: dict[str, Any] = {}
         for task in tasks:
             if Path(task["ssp_path"]).suffix == ".ssd":
-                raise BatchConfigError(f"{task['ssp_path']}: on a cluster, give a built .ssp (the workers get the "
-                                       "archive; an .ssd's FMUs and parameter files stay behind)")
+                raise BatchConfigError(
+                    f"{task['ssp_path']}: on a cluster, give a built .ssp (the workers get the "
+                    "archive; an .ssd's FMUs and parameter files stay behind)"
+                )
             if task["ssp_sha"] not in blobs:
-                blobs[task["ssp_sha"]] = self.client.scatter(Path(task["ssp_path"]).read_bytes(), broadcast=True, hash=False)
+                blobs[task["ssp_sha"]] = self.client.scatter(
+                    Path(task["ssp_path"]).read_bytes(), broadcast=True, hash=False
+                )
         token = os.urandom(4).hex()
-        futures = {self.client.submit(dask_run, task, blobs[task["ssp_sha"]], key=f"mast-{task['id']}-{token}",
-                                      pure=False, retries=0): task for task in tasks}
+        futures = {
+            self.client.submit(
+                dask_run, task, blobs[task["ssp_sha"]], key=f"mast-{task['id']}-{token}", pure=False, retries=0
+            ): task
+            for task in tasks
+        }
         try:
             for future in as_completed(futures):
                 task = futures[future]

@@ -1,4 +1,5 @@
 """Figures across a batch: metrics against the swept parameters, frequency responses, bandwidths."""
+
 from __future__ import annotations
 
 import math
@@ -15,8 +16,9 @@ import numpy as np  # noqa: E402
 _MOTION_KEYS = {"frequency": "frequency", "amplitude": "amplitude", "axis": "axis"}
 
 
-def plot_batch(folder: Path, records: Sequence[Mapping], groups: Sequence[Mapping],
-               requested: Sequence[Mapping] = ()) -> list[Path]:
+def plot_batch(
+    folder: Path, records: Sequence[Mapping], groups: Sequence[Mapping], requested: Sequence[Mapping] = ()
+) -> list[Path]:
     """The default plots, then the requested ``{x, y}`` ones; returns the written files."""
     folder.mkdir(parents=True, exist_ok=True)
     ok = [r for r in records if r.get("status") == "ok"]
@@ -84,8 +86,18 @@ def _varied(rows: Sequence[Mapping]) -> list[str]:
 
 def _headline(rows: Sequence[Mapping]) -> list[str]:
     have = set(k for r in rows for k in (r.get("metrics") or {}))
-    picks = [m for m in ("magnitude_dB", "tracking_z_rms_m", "tracking_psi_rms_rad", "tracking_theta_rms_rad",
-                         "tau_m_1_peak_Nm", "saturation_s") if m in have]
+    picks = [
+        m
+        for m in (
+            "magnitude_dB",
+            "tracking_z_rms_m",
+            "tracking_psi_rms_rad",
+            "tracking_theta_rms_rad",
+            "tau_m_1_peak_Nm",
+            "saturation_s",
+        )
+        if m in have
+    ]
     return picks[:3]
 
 
@@ -156,8 +168,10 @@ def _histogram(path: Path, values: np.ndarray, label: str) -> Path:
     ax.hist(values, bins=min(30, max(5, len(values) // 3)))
     ax.set_xlabel(label)
     ax.set_ylabel("groups")
-    ax.set_title(f"{label}: mean {values.mean():.3g}, std {values.std(ddof=1) if len(values) > 1 else 0:.2g}, "
-                 f"min {values.min():.3g}, max {values.max():.3g}")
+    ax.set_title(
+        f"{label}: mean {values.mean():.3g}, std {values.std(ddof=1) if len(values) > 1 else 0:.2g}, "
+        f"min {values.min():.3g}, max {values.max():.3g}"
+    )
     ax.grid(True, alpha=0.3)
     fig.tight_layout()
     fig.savefig(path, dpi=110)

@@ -1,4 +1,5 @@
 """Progress of a batch on stderr."""
+
 from __future__ import annotations
 
 import math
@@ -27,8 +28,10 @@ class BatchProgress:
         elapsed = time.perf_counter() - self.t0
         left = elapsed / ran * (total - done) if ran else float("nan")
         bar = "#" * int(25 * done / total) if total else ""
-        text = (f"batch {self.name} [{bar:<25}] {done}/{total} done, {state['ok']} ok, {state['failed']} failed, "
-                f"{state['crashed']} crashed, {_duration(elapsed)} elapsed, ~{_duration(left)} left")
+        text = (
+            f"batch {self.name} [{bar:<25}] {done}/{total} done, {state['ok']} ok, {state['failed']} failed, "
+            f"{state['crashed']} crashed, {_duration(elapsed)} elapsed, ~{_duration(left)} left"
+        )
         if self.tty:
             self.stream.write("\r" + text + ("\n" if done == total else ""))
         else:

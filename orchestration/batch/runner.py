@@ -1,5 +1,6 @@
 """The batch: expand the config, run the cases not finished yet, write each result the moment it
 arrives, then the tables and plots; read a finished batch back."""
+
 from __future__ import annotations
 
 import json
@@ -32,8 +33,8 @@ class BatchResult:
     name: str
     records: list[dict]
     groups: list[dict]
-    ran: list[str] = field(default_factory=list)       # case ids run by this call
-    skipped: list[str] = field(default_factory=list)   # finished before this call (resume)
+    ran: list[str] = field(default_factory=list)  # case ids run by this call
+    skipped: list[str] = field(default_factory=list)  # finished before this call (resume)
     wall_s: float = 0.0
     interrupted: bool = False
 
@@ -69,11 +70,19 @@ def _num(value) -> float:
     return float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) else float("nan")
 
 
-def run_batch(config: Union[str, Path, Mapping, BatchConfig], out: Union[str, Path], workers: Optional[int] = None,
-              scheduler=None, resume: bool = False, retry_failed: bool = False,
-              progress: Union[bool, Callable[[Mapping], None]] = True, plots: bool = True,
-              before_case: Optional[Callable[[Mapping], None]] = None, custom_metrics: Optional[Callable] = None,
-              mp_context=None) -> BatchResult:
+def run_batch(
+    config: Union[str, Path, Mapping, BatchConfig],
+    out: Union[str, Path],
+    workers: Optional[int] = None,
+    scheduler=None,
+    resume: bool = False,
+    retry_failed: bool = False,
+    progress: Union[bool, Callable[[Mapping], None]] = True,
+    plots: bool = True,
+    before_case: Optional[Callable[[Mapping], None]] = None,
+    custom_metrics: Optional[Callable] = None,
+    mp_context=None,
+) -> BatchResult:
     """Run every case of ``config`` and write the results to ``out`` (see the module docstring).
 
     ``workers``: local worker processes (default: the number of cores); ``scheduler``: a Dask scheduler
@@ -88,8 +97,19 @@ def run_batch(config: Union[str, Path, Mapping, BatchConfig], out: Union[str, Pa
         config = BatchConfig.load(config) if isinstance(config, (str, Path)) else BatchConfig.from_dict(config)
     Path(out).mkdir(parents=True, exist_ok=True)
     with _Lock(Path(out) / ".lock"):
-        return _run_batch(config, Path(out), workers, scheduler, resume, retry_failed, progress, plots,
-                          before_case, custom_metrics, mp_context)
+        return _run_batch(
+            config,
+            Path(out),
+            workers,
+            scheduler,
+            resume,
+            retry_failed,
+            progress,
+            plots,
+            before_case,
+            custom_metrics,
+            mp_context,
+        )
 
 
 class _Lock:
@@ -116,8 +136,19 @@ class _Lock:
         self.handle.close()  # closing releases the lock
 
 
-def _run_batch(config: BatchConfig, out: Path, workers, scheduler, resume, retry_failed, progress, plots,
-               before_case, custom_metrics, mp_context) -> BatchResult:
+def _run_batch(
+    config: BatchConfig,
+    out: Path,
+    workers,
+    scheduler,
+    resume,
+    retry_failed,
+    progress,
+    plots,
+    before_case,
+    custom_metrics,
+    mp_context,
+) -> BatchResult:
     t0 = time.perf_counter()
     store = Store(out)
     if store.exists() and not resume:
@@ -140,16 +171,20 @@ def _run_batch(config: BatchConfig, out: Path, workers, scheduler, resume, retry
                 shutil.copyfile(source, tmp)
                 os.replace(tmp, copy)
         elif Path(source).exists() and sha256(Path(source)) != sha256(copy):
-            print(f"warning: {source} changed since this batch started; the batch goes on with its copy {copy}",
-                  file=sys.stderr)
+            print(
+                f"warning: {source} changed since this batch started; the batch goes on with its copy {copy}",
+                file=sys.stderr,
+            )
         systems[name] = SystemInfo.read(copy)
     cases = expand(config, systems)
     by_id = {c.id: c for c in cases}
     finished = store.finished() if resume else {}
     for case_id, rec in finished.items():
         if case_id in by_id and rec.get("digest") != by_id[case_id].digest:
-            raise BatchConfigError(f"{store.out}: case {case_id} was run with other settings than the config gives now "
-                                   "(parameters, motion, SSP or outputs changed); start a new batch in another folder")
+            raise BatchConfigError(
+                f"{store.out}: case {case_id} was run with other settings than the config gives now "
+                "(parameters, motion, SSP or outputs changed); start a new batch in another folder"
+            )
     if retry_failed:
         finished = {k: v for k, v in finished.items() if v.get("status") == "ok"}
     records: dict[str, dict] = {k: v for k, v in finished.items() if k in by_id}
@@ -203,12 +238,26 @@ def _task(config: BatchConfig, case: Case, info: SystemInfo, before_case, custom
     motion = None
     if case.motion is not None:
         m = case.motion
-        motion = {**m, "amplitude_si": math.radians(m["amplitude"]) if Coordinate(m["axis"]).angular else m["amplitude"]}
-    return {"id": case.id, "ssp_path": str(info.path), "ssp_sha": info.sha256 or digest_of(str(info.path)),
-            "direct": config.direct, "parameters": case.parameters, "motion": motion, "stop_time": case.stop_time,
-            "record_step": case.record_step, "window": case.window, "keep": list(config.keep),
-            "metrics": list(config.metrics), "timeout": config.timeout, "before_case": before_case,
-            "custom": custom_metrics or config.custom}
+        motion = {
+            **m,
+            "amplitude_si": math.radians(m["amplitude"]) if Coordinate(m["axis"]).angular else m["amplitude"],
+        }
+    return {
+        "id": case.id,
+        "ssp_path": str(info.path),
+        "ssp_sha": info.sha256 or digest_of(str(info.path)),
+        "direct": config.direct,
+        "parameters": case.parameters,
+        "motion": motion,
+        "stop_time": case.stop_time,
+        "record_step": case.record_step,
+        "window": case.window,
+        "keep": list(config.keep),
+        "metrics": list(config.metrics),
+        "timeout": config.timeout,
+        "before_case": before_case,
+        "custom": custom_metrics or config.custom,
+    }
 
 
 def read_batch(out: Union[str, Path]) -> BatchResult:

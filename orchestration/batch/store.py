@@ -1,5 +1,6 @@
 """Results on disk: every file written all or nothing; the batch folder, its manifest and each case's
 record and kept signals."""
+
 from __future__ import annotations
 
 import io
@@ -14,7 +15,6 @@ import numpy as np
 from ..core.atomic import atomic_write
 from .cases import Case, SystemInfo
 from .config import BatchConfig
-
 
 FORMAT_VERSION = 1
 STATUSES = ("ok", "failed", "crashed")
@@ -50,12 +50,22 @@ class Store:
     def exists(self) -> bool:
         return (self.out / "batch.json").exists()
 
-    def start(self, config: BatchConfig, cases: Sequence[Case], systems: Mapping[str, SystemInfo], sources: Mapping) -> None:
+    def start(
+        self, config: BatchConfig, cases: Sequence[Case], systems: Mapping[str, SystemInfo], sources: Mapping
+    ) -> None:
         self.cases_dir.mkdir(parents=True, exist_ok=True)
-        meta = {"format": FORMAT_VERSION, "name": config.name, "created": time.strftime("%Y-%m-%dT%H:%M:%S"),
-                "config": config.to_json(), "ssp": {n: {"source": str(sources[n]), "copy": str(systems[n].path.name),
-                                                        "sha256": systems[n].sha256} for n in systems},
-                "direct": config.direct, "cases": [{"id": c.id, "digest": c.digest} for c in cases]}
+        meta = {
+            "format": FORMAT_VERSION,
+            "name": config.name,
+            "created": time.strftime("%Y-%m-%dT%H:%M:%S"),
+            "config": config.to_json(),
+            "ssp": {
+                n: {"source": str(sources[n]), "copy": str(systems[n].path.name), "sha256": systems[n].sha256}
+                for n in systems
+            },
+            "direct": config.direct,
+            "cases": [{"id": c.id, "digest": c.digest} for c in cases],
+        }
         atomic_write(self.out / "batch.json", _dumps(meta))
 
     def finished(self) -> dict[str, dict]:
@@ -79,7 +89,9 @@ class Store:
         atomic_write(self.case_file(case.id), _dumps(entry))  # last: its presence means "finished"
         return entry
 
-    def write_manifest(self, name: str, cases: Sequence[Case], records: Mapping[str, dict], force: bool = False) -> None:
+    def write_manifest(
+        self, name: str, cases: Sequence[Case], records: Mapping[str, dict], force: bool = False
+    ) -> None:
         now = time.monotonic()
         if not force and now < self._next_manifest:
             return
@@ -92,8 +104,14 @@ class Store:
                 rows.append(rec)
             else:
                 rows.append({**case.as_dict(), "status": "pending"})
-        manifest = {"name": name, "total": len(cases), **counts, "pending": len(cases) - sum(counts.values()),
-                    "updated": time.strftime("%Y-%m-%dT%H:%M:%S"), "cases": rows}
+        manifest = {
+            "name": name,
+            "total": len(cases),
+            **counts,
+            "pending": len(cases) - sum(counts.values()),
+            "updated": time.strftime("%Y-%m-%dT%H:%M:%S"),
+            "cases": rows,
+        }
         atomic_write(self.out / "manifest.json", _dumps(manifest), sync=force)
         # at most every 2 s, and never more than 5 % of the time (a manifest of 10 000 cases is large)
         self._next_manifest = time.monotonic() + max(2.0, 20.0 * (time.monotonic() - now))

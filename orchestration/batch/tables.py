@@ -1,5 +1,6 @@
 """Tables of a batch: a row per case (summary.csv), a row per frequency sweep (groups.csv); a listing
 of the cases."""
+
 from __future__ import annotations
 
 import csv
@@ -19,8 +20,15 @@ def summary_rows(records: Sequence[Mapping]) -> list[dict]:
     rows = []
     for r in records:
         motion = r.get("motion") or {}
-        row = {"id": r["id"], "status": r["status"], "ssp": r.get("ssp"), "axis": motion.get("axis"),
-               "amplitude": motion.get("amplitude"), "frequency_Hz": motion.get("frequency"), "sample": r.get("sample")}
+        row = {
+            "id": r["id"],
+            "status": r["status"],
+            "ssp": r.get("ssp"),
+            "axis": motion.get("axis"),
+            "amplitude": motion.get("amplitude"),
+            "frequency_Hz": motion.get("frequency"),
+            "sample": r.get("sample"),
+        }
         row.update({k: r.get("inputs", {}).get(k) for k in input_keys})
         row.update({k: (r.get("metrics") or {}).get(k) for k in metric_keys})
         row["case_s"] = (r.get("timing") or {}).get("case_s")
@@ -41,12 +49,23 @@ def group_rows(records: Sequence[Mapping]) -> list[dict]:
             continue
         first = members[0]
         ok = [m for m in members if m["status"] == "ok" and "magnitude" in (m.get("metrics") or {})]
-        row = {"group": key, "ssp": first.get("ssp"), "axis": first["motion"]["axis"],
-               "amplitude": first["motion"]["amplitude"], "sample": first.get("sample"),
-               **{k: v for k, v in first.get("inputs", {}).items()},
-               "cases": len(members), "ok": len(ok)}
-        row.update(sweep_metrics([m["motion"]["frequency"] for m in ok], [m["metrics"]["magnitude"] for m in ok],
-                                 [m["metrics"]["phase_deg"] for m in ok]))
+        row = {
+            "group": key,
+            "ssp": first.get("ssp"),
+            "axis": first["motion"]["axis"],
+            "amplitude": first["motion"]["amplitude"],
+            "sample": first.get("sample"),
+            **{k: v for k, v in first.get("inputs", {}).items()},
+            "cases": len(members),
+            "ok": len(ok),
+        }
+        row.update(
+            sweep_metrics(
+                [m["motion"]["frequency"] for m in ok],
+                [m["metrics"]["magnitude"] for m in ok],
+                [m["metrics"]["phase_deg"] for m in ok],
+            )
+        )
         row["frequencies_Hz"] = [m["motion"]["frequency"] for m in ok]
         row["magnitudes"] = [m["metrics"]["magnitude"] for m in ok]
         row["phases_deg"] = [m["metrics"]["phase_deg"] for m in ok]

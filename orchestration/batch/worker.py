@@ -1,5 +1,6 @@
 """The worker side: one case in a worker process, on a session per SSP kept between cases, with a
 timeout; the entry points of the local pool, of an isolated re-run and of a Dask task."""
+
 from __future__ import annotations
 
 import faulthandler
@@ -16,7 +17,6 @@ from typing import Any, Callable, Mapping, Optional
 
 from ..analyses.metrics import FAMILIES, case_metrics, signals_for
 from .store import atomic_write
-
 
 _LOCAL = threading.local()  # per thread: {(ssp path, direct): Session}
 
@@ -75,9 +75,14 @@ def run_case(task: Mapping) -> dict:
     from ..core.run import default_signals
 
     t_case, cpu_case = time.perf_counter(), time.process_time()
-    record: dict[str, Any] = {"id": task["id"], "status": "ok", "error": None, "metrics": {},
-                              "worker": {"pid": os.getpid(), "host": socket.gethostname()},
-                              "started": time.time()}
+    record: dict[str, Any] = {
+        "id": task["id"],
+        "status": "ok",
+        "error": None,
+        "metrics": {},
+        "worker": {"pid": os.getpid(), "host": socket.gethostname()},
+        "started": time.time(),
+    }
     timing = {"setup_s": 0.0, "init_s": 0.0, "step_s": 0.0, "metrics_s": 0.0}
     result = None
     try:
@@ -88,16 +93,21 @@ def run_case(task: Mapping) -> dict:
         if motion is not None:
             stimulus = SineMotion(motion["axis"], motion["amplitude_si"], motion["frequency"])
         elif all(s in session.system.system_inputs for s in pose_inputs(system_axes(session.system))):
-            stimulus = PoseStep({})   # no motion: the system holds its home pose (docs/batch.md)
+            stimulus = PoseStep({})  # no motion: the system holds its home pose (docs/batch.md)
         else:
-            stimulus = None           # a system without inputs (its own trajectory component)
+            stimulus = None  # a system without inputs (its own trajectory component)
         families = task.get("metrics", FAMILIES)
         wanted = signals_for(families, default_signals(session.system))
         record_names = list(dict.fromkeys(wanted + list(task.get("keep", ()))))
         try:
-            result = session.run(stimulus, task["stop_time"], parameters=_nest(task["parameters"]),
-                                 record=record_names, record_step=task["record_step"],
-                                 progress=_deadline(task.get("timeout")))
+            result = session.run(
+                stimulus,
+                task["stop_time"],
+                parameters=_nest(task["parameters"]),
+                record=record_names,
+                record_step=task["record_step"],
+                progress=_deadline(task.get("timeout")),
+            )
         except SimulationError as err:
             result = err.result
             raise
@@ -108,8 +118,15 @@ def run_case(task: Mapping) -> dict:
                 timing["step_s"] = max(0.0, result.wall_time_s - timing["init_s"])
         t_m = time.perf_counter()
         limits = _limits(session.system, task["parameters"])
-        metrics = case_metrics(result, families, _motion_si(motion), task["window"][0], task["window"][1], limits,
-                               _drives(session.system, task["parameters"]) if "sizing" in families else None)
+        metrics = case_metrics(
+            result,
+            families,
+            _motion_si(motion),
+            task["window"][0],
+            task["window"][1],
+            limits,
+            _drives(session.system, task["parameters"]) if "sizing" in families else None,
+        )
         custom = task.get("custom")
         if custom:
             func = _import_function(custom) if isinstance(custom, str) else custom
@@ -144,8 +161,10 @@ def _limits(system, flat: Mapping[str, Any]) -> dict[str, float]:
     for component, name in (("controller", "i_max"), ("actuator_1", "u_max")):
         if component not in system.components:
             continue
-        merged = {**system.components[component].parameters,
-                  **{k.split(".", 1)[1]: v for k, v in flat.items() if k.startswith(f"{component}.")}}
+        merged = {
+            **system.components[component].parameters,
+            **{k.split(".", 1)[1]: v for k, v in flat.items() if k.startswith(f"{component}.")},
+        }
         if isinstance(merged.get(name), (int, float)):
             out[name] = float(merged[name])
     return out
@@ -189,6 +208,7 @@ def _deadline(seconds: Optional[float]) -> Optional[Callable[[float], None]]:
     def check(_fraction: float) -> None:
         if time.perf_counter() > deadline:
             raise CaseTimeout(f"timed out after {seconds:g} s (run.timeout)")
+
     return check
 
 
@@ -224,5 +244,13 @@ def dask_run(task: Mapping, ssp_bytes: bytes) -> dict:
 
 
 def crashed_record(task: Mapping, why: str) -> dict:
-    return {"id": task["id"], "status": "crashed", "error": why, "metrics": {}, "worker": {},
-            "timing": {}, "started": None, "finished": time.time()}
+    return {
+        "id": task["id"],
+        "status": "crashed",
+        "error": why,
+        "metrics": {},
+        "worker": {},
+        "timing": {},
+        "started": None,
+        "finished": time.time(),
+    }

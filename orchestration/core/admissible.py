@@ -13,6 +13,7 @@ stroke that does not stop the model, runs to the end on nonsense.
 This is the simple, exact check of the commanded extremes; what a design can reach
 altogether is a workspace analysis of its own.
 """
+
 from __future__ import annotations
 
 import math
@@ -31,8 +32,9 @@ def _show(axis: str, value: float) -> str:
     return f"{axis}_cmd = {value:.6g} rad ({math.degrees(value):.4g} deg)"
 
 
-def _plant(system, params: Mapping[str, Mapping],
-           mechanism: str) -> Optional[tuple[str, object, list[tuple[str, float, float, str]]]]:
+def _plant(
+    system, params: Mapping[str, Mapping], mechanism: str
+) -> Optional[tuple[str, object, list[tuple[str, float, float, str]]]]:
     """(mechanism name, its kinematic engine, [(actuator, rho_min, rho_max, unit)] per drive) or None."""
     from fmus.mechanism.designs import kinematic_engine
 
@@ -63,8 +65,9 @@ def trajectory_parameters(axes: Sequence[str]) -> tuple[str, ...]:
     return (*(f"{a}_home" for a in axes), *(f"amplitude_{a}" for a in axes), "frequency")
 
 
-def trajectory_extremes(system, params: Mapping[str, Mapping],
-                        t0: float, t1: float) -> Optional[tuple[list[float], list[list[float]]]]:
+def trajectory_extremes(
+    system, params: Mapping[str, Mapping], t0: float, t1: float
+) -> Optional[tuple[list[float], list[list[float]]]]:
     """The extreme poses a trajectory component of ``system`` commands between t0 and t1 (None: none), on the
     system's motion axes (``motion.system_axes``)."""
     axes = system_axes(system, params)
@@ -74,7 +77,7 @@ def trajectory_extremes(system, params: Mapping[str, Mapping],
         p = params.get(name, {})
         if all(f"{a}_cmd" in spec.outputs for a in axes) and all(k in p for k in names):
             home = [float(p[k]) for k in names[:n]]
-            amplitude = [float(p[k]) for k in names[n:2 * n]]
+            amplitude = [float(p[k]) for k in names[n : 2 * n]]
             return sine_extremes(home, amplitude, 2.0 * math.pi * float(p["frequency"]) * max(t1 - t0, 0.0))
     return None
 
@@ -89,13 +92,20 @@ def _violation(eng, strokes, pose: Sequence[float]) -> Optional[str]:
         return str(err)
     for i, (actuator, lo, hi, u) in enumerate(strokes):
         if not lo <= rho[i] <= hi:
-            return (f"carriage {i + 1} would be at rho_{i + 1} = {rho[i]:.6g} {u}, beyond the stroke "
-                    f"[{lo:g}, {hi:g}] {u} of {actuator}")
+            return (
+                f"carriage {i + 1} would be at rho_{i + 1} = {rho[i]:.6g} {u}, beyond the stroke "
+                f"[{lo:g}, {hi:g}] {u} of {actuator}"
+            )
     return None
 
 
-def check_commands(system, params: Mapping[str, Mapping], home: Sequence[float],
-                   extremes: Sequence[Sequence[float]], mechanism: str = "mechanism") -> None:
+def check_commands(
+    system,
+    params: Mapping[str, Mapping],
+    home: Sequence[float],
+    extremes: Sequence[Sequence[float]],
+    mechanism: str = "mechanism",
+) -> None:
     """Raise CommandError if a pose of ``extremes`` (the mechanism's coordinates, in its order and units: for
     the 3PRS z [m], psi, theta [rad]) is outside the workspace of ``mechanism`` (the component whose pose
     outputs the stimulus reads as the home pose)."""
@@ -128,4 +138,5 @@ def check_commands(system, params: Mapping[str, Mapping], home: Sequence[float],
         side = "largest" if pose[k] > home[k] else "smallest"
         raise CommandError(
             f"{_show(axis, pose[k])} is outside the workspace of '{name}': {why}. The {side} reachable "
-            f"{axis}_cmd on the way from the home pose ({_show(axis, home[k])}) is {limit:.6g} {unit(axis)}")
+            f"{axis}_cmd on the way from the home pose ({_show(axis, home[k])}) is {limit:.6g} {unit(axis)}"
+        )

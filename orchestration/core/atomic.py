@@ -1,4 +1,5 @@
 """Files written all or nothing: a reader sees the whole file or none, never a part."""
+
 from __future__ import annotations
 
 import os

@@ -25,6 +25,7 @@ bindings merged in order, with their units and descriptions, all named
 ``FLAT_SET_NAME``. Third-party hosts need this: libcosim applies only the first
 parameter set of a component, ecos applies one named set (``--parameterSet``).
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -67,7 +68,7 @@ def default_build_dir() -> Path:
 @dataclass(frozen=True)
 class FmuSpec:
     model_identifier: str  # class name in fmus/<package>/fmu.py and the FMU file name
-    package: str           # sub-package of fmus/
+    package: str  # sub-package of fmus/
 
 
 FMUS = (
@@ -96,8 +97,11 @@ FMUS = (
 #: written to resources/requirements.txt for `pythonfmu deploy`. tests/test_fmi_behaviour.py
 #: checks it against the imports of fmus/ and the project's own dependencies, markers included (pip, which
 #: `pythonfmu deploy` runs on the file, honours them).
-FMU_REQUIREMENTS = ("numpy>=1.24", "scipy>=1.10",
-                    "tomli>=1.1; python_version < '3.11'")   # tomli: the description files on Python 3.10
+FMU_REQUIREMENTS = (
+    "numpy>=1.24",
+    "scipy>=1.10",
+    "tomli>=1.1; python_version < '3.11'",
+)  # tomli: the description files on Python 3.10
 
 #: name of the one parameter set per component in a built SSP (ecos: --parameterSet default)
 FLAT_SET_NAME = "default"
@@ -124,9 +128,10 @@ def _compiled_front(source: bytes, fmi_version: int) -> tuple[Optional[bytes], s
 
     with tempfile.TemporaryDirectory(prefix="mast_front_") as tmp:
         target = Path(tmp) / "front.so"
-        try:   # the version first; #line keeps the compiler's line numbers those of the file
-            compile_shared({FRONT_SOURCE.name: f"#define FMI_VERSION {fmi_version}\n#line 1\n".encode() + source},
-                           target)
+        try:  # the version first; #line keeps the compiler's line numbers those of the file
+            compile_shared(
+                {FRONT_SOURCE.name: f"#define FMI_VERSION {fmi_version}\n#line 1\n".encode() + source}, target
+            )
         except NativeBuildError as err:
             return None, str(err)
         return target.read_bytes(), ""
@@ -135,9 +140,14 @@ def _compiled_front(source: bytes, fmi_version: int) -> tuple[Optional[bytes], s
 def front_note(fmi_version: int = 2) -> Optional[str]:
     """What a build without the C front should tell its user (None: the front is built)."""
     front, why = status_front(fmi_version)
-    return None if front is not None else (
-        f"note: the Python FMUs (FMI {fmi_version}.0) keep pythonfmu's binary, which answers a call FMI does not "
-        f"allow with fmi{fmi_version}Fatal instead of fmi{fmi_version}Error ({why})")
+    return (
+        None
+        if front is not None
+        else (
+            f"note: the Python FMUs (FMI {fmi_version}.0) keep pythonfmu's binary, which answers a call FMI does not "
+            f"allow with fmi{fmi_version}Fatal instead of fmi{fmi_version}Error ({why})"
+        )
+    )
 
 
 def _put_front(items: dict[str, bytes], identifier: str, fmi_version: int = 2) -> bool:
@@ -153,7 +163,7 @@ def _put_front(items: dict[str, bytes], identifier: str, fmi_version: int = 2) -
 
 def _source_hash(extra: bytes) -> str:
     digest = hashlib.sha256(extra)
-    for file in sorted([*FMUS_SRC.rglob("*.py"), *FMUS_SRC.rglob("*.toml")]):   # the code and the descriptions
+    for file in sorted([*FMUS_SRC.rglob("*.py"), *FMUS_SRC.rglob("*.toml")]):  # the code and the descriptions
         digest.update(file.relative_to(FMUS_SRC).as_posix().encode())
         digest.update(file.read_bytes())
     return digest.hexdigest()[:10]
@@ -179,16 +189,20 @@ def _first_use(model_identifier: str, ssd: Optional[Path] = None):
         for name, comp in system.components.items():
             if Path(comp.source).stem == model_identifier:
                 return system, name
-    raise ValueError(f"{', '.join(map(str, candidates))}: no component uses {model_identifier}.fmu, "
-                     "so it gives no default parameters")
+    raise ValueError(
+        f"{', '.join(map(str, candidates))}: no component uses {model_identifier}.fmu, "
+        "so it gives no default parameters"
+    )
 
 
 def default_parameters(model_identifier: str, ssd: Optional[Path] = None) -> dict:
     """Bindings of the first component using the FMU (``_first_use``): merged in order and restricted to the FMU's
     own parameters (``ssp.applicable_parameters``)."""
     system, name = _first_use(model_identifier, ssd)
-    units = {c: {p.name: p.unit for p in block_class(Path(s.source).stem).for_parameters(s.parameters).PARAMETERS}
-             for c, s in system.components.items()}
+    units = {
+        c: {p.name: p.unit for p in block_class(Path(s.source).stem).for_parameters(s.parameters).PARAMETERS}
+        for c, s in system.components.items()
+    }
     return applicable_parameters(system, units, units)[name]
 
 
@@ -200,9 +214,11 @@ def default_experiment(model_identifier: str) -> tuple[float, float, float]:
     system, name = _first_use(model_identifier)
     step = system.components[name].step_size or system.base_step
     if step is None or system.stop_time is None:
-        raise ValueError(f"system '{system.name}': no {'step size' if step is None else 'stop time'} for '{name}' "
-                         f"(osp:StepSizeHint or baseStepSize; ssd:DefaultExperiment stopTime), which "
-                         f"{model_identifier}.fmu's DefaultExperiment takes")
+        raise ValueError(
+            f"system '{system.name}': no {'step size' if step is None else 'stop time'} for '{name}' "
+            f"(osp:StepSizeHint or baseStepSize; ssd:DefaultExperiment stopTime), which "
+            f"{model_identifier}.fmu's DefaultExperiment takes"
+        )
     return (system.start_time, system.stop_time, step)
 
 
@@ -247,9 +263,15 @@ def build_fmu(spec: FmuSpec, out_dir: Path, parameters: Optional[dict] = None) -
             "# pythonfmu 0.7.0 re-executes this file at every instantiation and then releases one reference\n"
             "# to this module's globals it never took (findClass: Py_DECREF on PyModule_GetDict); holding one\n"
             "# more reference per execution keeps the count balanced, so instances can come and go.\n"
-            "keep_alive(globals())\n")
-        fmu = FmuBuilder.build_FMU(script, dest=out_dir / f"{spec.model_identifier}.fmu",
-                                   project_files=files, needsExecutionTool=False, canGetAndSetFMUstate=True)
+            "keep_alive(globals())\n"
+        )
+        fmu = FmuBuilder.build_FMU(
+            script,
+            dest=out_dir / f"{spec.model_identifier}.fmu",
+            project_files=files,
+            needsExecutionTool=False,
+            canGetAndSetFMUstate=True,
+        )
     _complete(Path(fmu), spec, parameters)
     return Path(fmu)
 
@@ -284,10 +306,16 @@ def build_fmu3(spec: FmuSpec, out_dir: Path, parameters: Optional[dict] = None) 
             f"    block_class = {block.__name__}\n"
             f"    experiment = {default_experiment(spec.model_identifier)!r}\n"
             f"    author = {getattr(wrapper, 'author', None)!r}\n"
-            f"    version = {getattr(wrapper, 'version', None)!r}\n")
-        fmu = Fmu3Builder.build_FMU(script, dest=tmp / "out",
-                                    project_files=files, needsExecutionTool=False, canGetAndSetFMUState=True,
-                                    canHandleVariableCommunicationStepSize=True)
+            f"    version = {getattr(wrapper, 'version', None)!r}\n"
+        )
+        fmu = Fmu3Builder.build_FMU(
+            script,
+            dest=tmp / "out",
+            project_files=files,
+            needsExecutionTool=False,
+            canGetAndSetFMUState=True,
+            canHandleVariableCommunicationStepSize=True,
+        )
         target = out_dir / f"{spec.model_identifier}.fmu"
         shutil.move(str(fmu), target)
     _rewrite(target, lambda items: _put_front(items, spec.model_identifier, 3))
@@ -296,6 +324,7 @@ def build_fmu3(spec: FmuSpec, out_dir: Path, parameters: Optional[dict] = None) 
 
 def _complete(fmu: Path, spec: FmuSpec, parameters: Optional[dict] = None) -> None:
     """The FMU pythonfmu wrote, with its model description completed and the C front as its linux64 binary."""
+
     def complete(items: dict[str, bytes]) -> None:
         items["modelDescription.xml"] = _complete_model_description(items["modelDescription.xml"], spec, parameters)
         _put_front(items, spec.model_identifier)
@@ -354,11 +383,12 @@ def build_ssp(ssd: Path, fmu_dir: Path, out_dir: Path) -> Path:
         fmu = fmu_dir / Path(spec.source).name
         if not fmu.exists():
             raise FileNotFoundError(f"{ssd}: component source {spec.source} needs {fmu}, which was not built")
-        names[comp] = {v.name: v.unit or "" for v in read_model_description(str(fmu)).modelVariables
-                       if v.causality == "parameter"}
+        names[comp] = {
+            v.name: v.unit or "" for v in read_model_description(str(fmu)).modelVariables if v.causality == "parameter"
+        }
     structure, parameter_sets = flatten_bindings(ssd, names)
     ratings = sorted({c.ratings for c in system.components.values() if c.ratings} - set(parameter_sets))
-    for source in ratings:   # the ratings (mast sizing) the system names, packed as they are
+    for source in ratings:  # the ratings (mast sizing) the system names, packed as they are
         if not (ssd.parent / source).is_file():
             raise FileNotFoundError(f"{ssd}: its drives name the ratings {source}, which does not exist")
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -377,8 +407,9 @@ def build_ssp(ssd: Path, fmu_dir: Path, out_dir: Path) -> Path:
     return target
 
 
-def flatten_bindings(ssd_path: Path, parameter_names: Mapping[str, Union[Iterable[str], Mapping[str, str]]]
-                     ) -> tuple[bytes, dict[str, bytes]]:
+def flatten_bindings(
+    ssd_path: Path, parameter_names: Mapping[str, Union[Iterable[str], Mapping[str, str]]]
+) -> tuple[bytes, dict[str, bytes]]:
     """``ssd_path`` with each component's bindings replaced by one: (SystemStructure.ssd, {archive path: .ssv}).
 
     Values merge in binding order (later bindings override), each keeping the
@@ -392,7 +423,7 @@ def flatten_bindings(ssd_path: Path, parameter_names: Mapping[str, Union[Iterabl
     (libcosim, ecos) then read the right value.
     """
     declared = {c: dict(n) for c, n in parameter_names.items() if isinstance(n, Mapping)}
-    bound = applicable_parameters(read_ssd(ssd_path), parameter_names, declared)   # the typo and unit checks
+    bound = applicable_parameters(read_ssd(ssd_path), parameter_names, declared)  # the typo and unit checks
     document = ssd.read(ssd_path)
     sets: dict[str, bytes] = {}
     for comp in document.system.elements:
@@ -408,7 +439,7 @@ def flatten_bindings(ssd_path: Path, parameter_names: Mapping[str, Union[Iterabl
             else:
                 values = binding.values
                 sources.append("inline values")
-                units.update(document.units)   # written into the flattened set if its values use them
+                units.update(document.units)  # written into the flattened set if its values use them
             merged.update(values.parameters)
             units.update(values.units)
         own = set(parameter_names[comp.name])
@@ -418,12 +449,17 @@ def flatten_bindings(ssd_path: Path, parameter_names: Mapping[str, Union[Iterabl
                 merged[k] = dataclasses.replace(p, value=bound[comp.name][k], unit=declared[comp.name][k], written=None)
         used = dict.fromkeys(p.unit for p in merged.values() if p.unit)
         path = f"resources/parameters/{comp.name}.ssv"
-        sets[path] = ssv.ParameterSet(FLAT_SET_NAME, merged, {u: units[u] for u in used if u in units},
-                                      f"Parameters of '{comp.name}' in {ssd_path.name}: {', '.join(sources)} merged "
-                                      "in this order by mast build").to_bytes()
+        sets[path] = ssv.ParameterSet(
+            FLAT_SET_NAME,
+            merged,
+            {u: units[u] for u in used if u in units},
+            f"Parameters of '{comp.name}' in {ssd_path.name}: {', '.join(sources)} merged in this order by mast build",
+        ).to_bytes()
         comp.bindings = [ssd.ParameterBinding(path)]
-    document.comments.append(f"Built by mast build from {ssd_path.name}: each component's parameter bindings are "
-                             f"flattened into one set, resources/parameters/<component>.ssv, named '{FLAT_SET_NAME}'.")
+    document.comments.append(
+        f"Built by mast build from {ssd_path.name}: each component's parameter bindings are "
+        f"flattened into one set, resources/parameters/<component>.ssv, named '{FLAT_SET_NAME}'."
+    )
     return document.to_bytes(), sets
 
 

@@ -4,6 +4,7 @@ Both adapters offer the same small interface, so the master runs the very same
 schedule on either; the direct route is the check that the FMI wrappers and the
 SSP wiring are right (results equal to rounding) and the speed reference.
 """
+
 from __future__ import annotations
 
 import ctypes
@@ -42,7 +43,15 @@ class FMUComponent:
 
     def __init__(self, name: str, fmu: Path, unzip_dir: Path) -> None:
         from fmpy import read_model_description
-        from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE, calloc, free
+        from fmpy.fmi2 import (
+            FMU2Slave,
+            calloc,
+            fmi2CallbackAllocateMemoryTYPE,
+            fmi2CallbackFreeMemoryTYPE,
+            fmi2CallbackFunctions,
+            fmi2CallbackLoggerTYPE,
+            free,
+        )
 
         self.name = name
         self.messages: list[str] = []
@@ -55,10 +64,17 @@ class FMUComponent:
         self.variables = {v.name: v for v in self.md.modelVariables}
         self.parameter_names = frozenset(v.name for v in self.md.modelVariables if v.causality == "parameter")
         #: the unit each parameter declares (modelDescription), for the unit check of parameter sets
-        self.parameter_units = {v.name: v.unit or (v.declaredType.unit if v.declaredType else None) or ""
-                                for v in self.md.modelVariables if v.causality == "parameter"}
-        self._slave = FMU2Slave(guid=self.md.guid, unzipDirectory=str(unzip_dir),
-                                modelIdentifier=self.md.coSimulation.modelIdentifier, instanceName=name)
+        self.parameter_units = {
+            v.name: v.unit or (v.declaredType.unit if v.declaredType else None) or ""
+            for v in self.md.modelVariables
+            if v.causality == "parameter"
+        }
+        self._slave = FMU2Slave(
+            guid=self.md.guid,
+            unzipDirectory=str(unzip_dir),
+            modelIdentifier=self.md.coSimulation.modelIdentifier,
+            instanceName=name,
+        )
 
         def logger(_env, _instance, status, category, message):
             text = (message or b"").decode(errors="replace")
@@ -94,7 +110,9 @@ class FMUComponent:
             var = self.variables.get(name)
             if var is None or var.causality not in causalities:
                 have = sorted(v.name for v in self.md.modelVariables if v.causality in causalities)
-                raise ComponentError(f"{self.name}: no {'/'.join(causalities)} variable named '{name}'; it has: {', '.join(have)}")
+                raise ComponentError(
+                    f"{self.name}: no {'/'.join(causalities)} variable named '{name}'; it has: {', '.join(have)}"
+                )
             refs.append(var.valueReference)
         return refs
 
@@ -107,13 +125,18 @@ class FMUComponent:
             if var is None or var.causality != "parameter":
                 have = sorted(v.name for v in self.md.modelVariables if v.causality == "parameter")
                 raise ComponentError(f"{self.name}: unknown parameter '{name}'; its parameters are: {', '.join(have)}")
-            setter = {"Real": self._slave.setReal, "Integer": self._slave.setInteger,
-                      "Boolean": self._slave.setBoolean, "String": self._slave.setString}[var.type]
+            setter = {
+                "Real": self._slave.setReal,
+                "Integer": self._slave.setInteger,
+                "Boolean": self._slave.setBoolean,
+                "String": self._slave.setString,
+            }[var.type]
             try:
                 converted = _FMI_VALUE[var.type](value)
             except (TypeError, ValueError, OverflowError) as err:
-                raise ComponentError(f"{self.name}: parameter '{name}' = {value!r} is not a valid {var.type} "
-                                     f"({err})") from None
+                raise ComponentError(
+                    f"{self.name}: parameter '{name}' = {value!r} is not a valid {var.type} ({err})"
+                ) from None
             self._call(f"setting parameter {name}", lambda: setter([var.valueReference], [converted]))
 
     def exit_initialization(self) -> None:
@@ -148,8 +171,13 @@ class FMUComponent:
     def c_functions(self) -> tuple[int, int, int, int]:
         """(instance, fmi2SetReal, fmi2GetReal, fmi2DoStep) as C addresses, for the compiled exchange loop."""
         dll = self._slave.dll
-        return (self._component, *(ctypes.cast(getattr(dll, name), ctypes.c_void_p).value
-                                   for name in ("fmi2SetReal", "fmi2GetReal", "fmi2DoStep")))
+        return (
+            self._component,
+            *(
+                ctypes.cast(getattr(dll, name), ctypes.c_void_p).value
+                for name in ("fmi2SetReal", "fmi2GetReal", "fmi2DoStep")
+            ),
+        )
 
     def input_references(self, names: Sequence[str]) -> list[int]:
         return self._refs(names, ("input", "parameter"))
@@ -168,6 +196,7 @@ class FMUComponent:
             buf[:] = values
             if raw(comp, vr, size, buf) > 1:
                 raise self._error("setReal", None)
+
         return set_values
 
     def getter(self, names: Sequence[str]) -> Callable[[], list[float]]:
@@ -181,6 +210,7 @@ class FMUComponent:
             if raw(comp, vr, size, buf) > 1:
                 raise self._error("getReal", None)
             return buf[:]
+
         return get_values
 
     def stepper(self) -> Callable[[float, float], None]:
@@ -189,6 +219,7 @@ class FMUComponent:
         def do_step(t: float, h: float) -> None:
             if raw(comp, t, h, 1) > 1:
                 raise self._error("doStep", t)
+
         return do_step
 
     def reset(self) -> None:
@@ -292,6 +323,7 @@ class BlockComponent:
                     evaluate()
                 except Exception as err:
                     raise ComponentError(f"{self.name}: evaluating the outputs: {type(err).__name__}: {err}") from None
+
         return set_values
 
     def getter(self, names: Sequence[str]) -> Callable[[], list[float]]:
@@ -302,6 +334,7 @@ class BlockComponent:
             if self._in_init:
                 self._tentative()
             return [values[i] for i in idx]
+
         return get_values
 
     def _tentative(self) -> None:
@@ -321,6 +354,7 @@ class BlockComponent:
                 step(t, h)
             except Exception as err:
                 raise ComponentError(f"{self.name}: doStep at t={t:.6g} s: {type(err).__name__}: {err}") from None
+
         return do_step
 
     def reset(self) -> None:
@@ -339,8 +373,13 @@ def fmu_parameters(fmu: Union[str, Path]) -> dict[str, Value]:
 
     check_archive(fmu)  # a file the user gave: no zip bomb in its modelDescription.xml
     md = read_model_description(str(fmu))
-    convert = {"Real": float, "Integer": int, "Enumeration": int, "String": str,
-               "Boolean": lambda s: str(s).strip().lower() in ("true", "1")}
+    convert = {
+        "Real": float,
+        "Integer": int,
+        "Enumeration": int,
+        "String": str,
+        "Boolean": lambda s: str(s).strip().lower() in ("true", "1"),
+    }
     out: dict[str, Value] = {}
     for v in md.modelVariables:
         if v.causality == "parameter" and v.start is not None:

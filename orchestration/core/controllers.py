@@ -16,6 +16,7 @@ system (``systems.MAST``) with, and only with, the controller component's
 designs' (tests check they are up to date); ``mast build`` builds each controller FMU with the defaults of its
 system.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -35,9 +36,9 @@ class ControllerVariant:
     name: str
     model_identifier: str
     title: str
-    sets: tuple[str, ...] = ()                  # bound after every other set
-    drop_sets: tuple[str, ...] = ()             # default controller sets it does not take
-    plant_model: bool = False                   # bind the plant's sets too (its own inverse dynamic model)
+    sets: tuple[str, ...] = ()  # bound after every other set
+    drop_sets: tuple[str, ...] = ()  # default controller sets it does not take
+    plant_model: bool = False  # bind the plant's sets too (its own inverse dynamic model)
 
     @property
     def ssd(self) -> Path:
@@ -46,13 +47,27 @@ class ControllerVariant:
 
 CONTROLLERS = (
     ControllerVariant("joint", CONTROLLER_FMU, "joint-space cascade (the paper, Fig. 2)"),
-    ControllerVariant("workspace", "MastWorkspaceController", "workspace position control (paper Fig. 3a)",
-                      sets=("resources/controller_workspace.ssv",)),
-    ControllerVariant("feedforward", "MastFeedForwardController",
-                      "joint-space cascade with inverse-dynamics torque feed-forward",
-                      sets=("resources/controller_feedforward.ssv",), plant_model=True),
-    ControllerVariant("computed_torque", "MastComputedTorqueController", "computed torque control (paper Fig. 3b)",
-                      sets=("resources/controller_computed_torque.ssv",), drop_sets=CASCADE_SETS, plant_model=True),
+    ControllerVariant(
+        "workspace",
+        "MastWorkspaceController",
+        "workspace position control (paper Fig. 3a)",
+        sets=("resources/controller_workspace.ssv",),
+    ),
+    ControllerVariant(
+        "feedforward",
+        "MastFeedForwardController",
+        "joint-space cascade with inverse-dynamics torque feed-forward",
+        sets=("resources/controller_feedforward.ssv",),
+        plant_model=True,
+    ),
+    ControllerVariant(
+        "computed_torque",
+        "MastComputedTorqueController",
+        "computed torque control (paper Fig. 3b)",
+        sets=("resources/controller_computed_torque.ssv",),
+        drop_sets=CASCADE_SETS,
+        plant_model=True,
+    ),
 )
 
 
@@ -74,17 +89,27 @@ def variant(c: ControllerVariant, base: SystemDescription = MAST) -> SystemDescr
         f"Controller {c.name}: {c.title} (docs/controller.md).\n"
         f"     Written by `python -m mast.core.variants` from {base.name}.ssd: it differs from it only in the "
         f"controller's\n     source ({c.model_identifier}.fmu) and parameter sets"
-        + (f" (without {', '.join(c.drop_sets)})" if c.drop_sets else "") + ".\n"
-        + (f"     The plant's sets come first ({', '.join(plant)}): the controller's model is the plant's, and the\n"
-           f"     controller's own sets, bound after them, win on shared names (L: winding inductance / leg length).\n"
-           if plant else "")
+        + (f" (without {', '.join(c.drop_sets)})" if c.drop_sets else "")
+        + ".\n"
+        + (
+            f"     The plant's sets come first ({', '.join(plant)}): the controller's model is the plant's, and the\n"
+            f"     controller's own sets, bound after them, win on shared names (L: winding inductance / leg length).\n"
+            if plant
+            else ""
+        )
         + (f"     Its own: {', '.join(c.sets)}, bound last.\n" if c.sets else "")
         + "     Components may be swapped by editing their `source`; parameter sets are bound in order, later ones "
-          "override.")
+        "override."
+    )
     return dataclasses.replace(
-        base, name=f"{base.name}_{c.name}", description=f"{base.description} - controller {c.name}: {c.title}",
-        comment=comment, controller=dataclasses.replace(base.controller, fmu=f"{c.model_identifier}.fmu",
-                                                        bindings=tuple(plant + own) + c.sets))
+        base,
+        name=f"{base.name}_{c.name}",
+        description=f"{base.description} - controller {c.name}: {c.title}",
+        comment=comment,
+        controller=dataclasses.replace(
+            base.controller, fmu=f"{c.model_identifier}.fmu", bindings=tuple(plant + own) + c.sets
+        ),
+    )
 
 
 def variant_ssd(c: ControllerVariant) -> bytes:

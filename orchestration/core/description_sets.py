@@ -21,6 +21,7 @@ it lives in the hand-written ``attached.ssv`` (and ``actuators_only.ssv`` overri
 ``differences`` names what a committed set holds that its description does not give
 (tests/test_systems.py).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -48,40 +49,63 @@ def _unit(unit: str) -> str:
 def geometry(file: DescriptionFile) -> tuple[list[Row], str]:
     """The geometry set's rows (``kinematics``, then the kinematic parameters) and its comment."""
     origin = f", from {file.extends}" if file.extends else ""
-    rows: list[Row] = [("kinematics", file.name, "",
-                        f"The mechanism of {file.path.name} (its [mechanism] name{origin}): {file.title}")]
-    rows += [(n, file.parameters[n].value, _unit(file.parameters[n].unit), file.parameters[n].source)
-             for n in file.kinematic]
-    return rows, (f"Geometry of design {file.path.stem}: {file.title}. Bound to the mechanism and to the controller "
-                  "(its kinematic model).")
+    rows: list[Row] = [
+        ("kinematics", file.name, "", f"The mechanism of {file.path.name} (its [mechanism] name{origin}): {file.title}")
+    ]
+    rows += [
+        (n, file.parameters[n].value, _unit(file.parameters[n].unit), file.parameters[n].source) for n in file.kinematic
+    ]
+    return rows, (
+        f"Geometry of design {file.path.stem}: {file.title}. Bound to the mechanism and to the controller "
+        "(its kinematic model)."
+    )
 
 
 def masses(file: DescriptionFile) -> tuple[list[Row], str]:
     """The mass set's rows: every parameter that is not the geometry's (bodies, gravity, payload), and its comment."""
-    rows: list[Row] = [(p.name, p.value, _unit(p.unit), p.source) for p in file.parameters.values()
-                       if p.name not in file.kinematic]
-    return rows, (f"Masses, inertias, gravity and payload of design {file.path.stem}: {file.title}. Bound to the "
-                  "mechanism (its `attached`: attached.ssv).")
+    rows: list[Row] = [
+        (p.name, p.value, _unit(p.unit), p.source) for p in file.parameters.values() if p.name not in file.kinematic
+    ]
+    return rows, (
+        f"Masses, inertias, gravity and payload of design {file.path.stem}: {file.title}. Bound to the "
+        "mechanism (its `attached`: attached.ssv)."
+    )
 
 
 def home(file: DescriptionFile) -> tuple[list[Row], str]:
     """The home pose's rows (``<c>_home`` for each coordinate c, [mechanism.home]) and the set's comment."""
     pose = file.describe().topology.home
-    rows: list[Row] = [(f"{c}_home", value, POSE_UNITS[c],
-                        f"Home pose, derived from {file.path.name}: [mechanism.home] {c} = {expr.source}")
-                       for c, value, expr in zip(file.coordinates, pose, file.home)]
-    return rows, (f"Home pose of design {file.path.stem}: {file.title}. Where the pose command of "
-                  "MAST_standalone.ssd starts (every slider at mid-stroke).")
+    rows: list[Row] = [
+        (
+            f"{c}_home",
+            value,
+            POSE_UNITS[c],
+            f"Home pose, derived from {file.path.name}: [mechanism.home] {c} = {expr.source}",
+        )
+        for c, value, expr in zip(file.coordinates, pose, file.home)
+    ]
+    return rows, (
+        f"Home pose of design {file.path.stem}: {file.title}. Where the pose command of "
+        "MAST_standalone.ssd starts (every slider at mid-stroke)."
+    )
 
 
 def guide(file: DescriptionFile) -> tuple[list[Row], str]:
     """The actuators' gravity along the guides (``g_guide`` = ``GUIDE_GRAVITY``) and the set's comment."""
     expression = Expression(GUIDE_GRAVITY, f"{file.path.name}: g_guide", file.units)
     expression.check(file.units, "m/s2")
-    rows: list[Row] = [("g_guide", float(expression(file.values())), "m/s2",
-                        f"Gravity along the guides, derived from {file.path.name}: {GUIDE_GRAVITY}")]
-    return rows, (f"Actuators of design {file.path.stem}: {file.title}. Gravity along its guides; bind after "
-                  "actuator_manufacturer.ssv.")
+    rows: list[Row] = [
+        (
+            "g_guide",
+            float(expression(file.values())),
+            "m/s2",
+            f"Gravity along the guides, derived from {file.path.name}: {GUIDE_GRAVITY}",
+        )
+    ]
+    return rows, (
+        f"Actuators of design {file.path.stem}: {file.title}. Gravity along its guides; bind after "
+        "actuator_manufacturer.ssv."
+    )
 
 
 def _stroke_rows(file: DescriptionFile) -> list[Row]:
@@ -90,22 +114,31 @@ def _stroke_rows(file: DescriptionFile) -> list[Row]:
     set serves every leg)."""
     strokes = {leg.stroke for leg in file.legs}
     if len(strokes) != 1:
-        raise DescriptionError(f"{file.path.name}: drive strokes {sorted(strokes)}: one actuator set serves every "
-                               "leg, expected one stroke")
-    (lo, hi), = strokes
+        raise DescriptionError(
+            f"{file.path.name}: drive strokes {sorted(strokes)}: one actuator set serves every leg, expected one stroke"
+        )
+    ((lo, hi),) = strokes
     unit = "m" if file.legs[0].kind == "linear" else "rad"
     where = f"derived from {file.path.name}: [leg] drive stroke [{lo:g}, {hi:g}] {unit}"
-    return [("rho_0", 0.5 * (lo + hi), unit, f"Initial joint position, the middle of the stroke (home: every drive at "
-                                             f"mid-stroke), {where}"),
-            ("rho_min", lo, unit, f"Lower end of the stroke, {where}"),
-            ("rho_max", hi, unit, f"Upper end of the stroke, {where}")]
+    return [
+        (
+            "rho_0",
+            0.5 * (lo + hi),
+            unit,
+            f"Initial joint position, the middle of the stroke (home: every drive at mid-stroke), {where}",
+        ),
+        ("rho_min", lo, unit, f"Lower end of the stroke, {where}"),
+        ("rho_max", hi, unit, f"Upper end of the stroke, {where}"),
+    ]
 
 
 def stroke(file: DescriptionFile) -> tuple[list[Row], str]:
     """The actuators' stroke (``rho_min``, ``rho_max``) and start (``rho_0``, mid-stroke) from the description's drive
     stroke, and the set's comment."""
-    return _stroke_rows(file), (f"Stroke of the actuators of design {file.path.stem}: {file.title}. Bound to every "
-                                "actuator after actuator_manufacturer.ssv.")
+    return _stroke_rows(file), (
+        f"Stroke of the actuators of design {file.path.stem}: {file.title}. Bound to every "
+        "actuator after actuator_manufacturer.ssv."
+    )
 
 
 def leg_actuator(file: DescriptionFile) -> tuple[list[Row], str]:
@@ -113,11 +146,14 @@ def leg_actuator(file: DescriptionFile) -> tuple[list[Row], str]:
     carriage mass and no gravity in the actuator (``M_load`` = 0, ``g_guide`` = 0: the mechanism's inverse dynamics
     carries both), its stroke and start (``stroke``), and the set's comment."""
     where = f"{file.path.name}: the carriage is each leg's driven part's body, in the mechanism's inverse dynamics"
-    rows: list[Row] = [("M_load", 0.0, "kg", f"No carriage on the belt: {where} (docs/designs/3rps.md)"),
-                       ("g_guide", 0.0, "m/s2", f"No gravity in the actuator: {where}, its weight along the leaning "
-                                               "leg included")]
-    return rows + _stroke_rows(file), (f"Actuators on the legs of design {file.path.stem}: {file.title}. Bound to "
-                                       "every actuator after actuator_manufacturer.ssv.")
+    rows: list[Row] = [
+        ("M_load", 0.0, "kg", f"No carriage on the belt: {where} (docs/designs/3rps.md)"),
+        ("g_guide", 0.0, "m/s2", f"No gravity in the actuator: {where}, its weight along the leaning leg included"),
+    ]
+    return rows + _stroke_rows(file), (
+        f"Actuators on the legs of design {file.path.stem}: {file.title}. Bound to "
+        "every actuator after actuator_manufacturer.ssv."
+    )
 
 
 @dataclass(frozen=True)
@@ -138,10 +174,13 @@ class DescribedSet:
         file = load(self.description)
         rows, comment = self.content(file)
         return ssv.parameter_set(
-            self.name, {n: v for n, v, _, _ in rows}, {n: u for n, _, u, _ in rows if u},
+            self.name,
+            {n: v for n, v, _, _ in rows},
+            {n: u for n, _, u, _ in rows if u},
             {n: s for n, _, _, s in rows},
             f"{comment} Written by `python -m mast.core.variants` from fmus/mechanism/descriptions/{file.path.name}: "
-            "edit that file, not this one.")
+            "edit that file, not this one.",
+        )
 
 
 #: the sets written from description files (the designs' geometry: mast.core.designs)
@@ -185,11 +224,14 @@ def differences(described: DescribedSet, path: Optional[Path] = None) -> list[st
             continue
         shown = got.value if got.written is None else got.written
         if (type(shown), shown, got.unit) != (type(want.value), want.value, want.unit):
-            out.append(f"{origin}: parameter '{name}' is {shown!r} {got.unit}, the description gives "
-                       f"{want.value!r} {want.unit}")
+            out.append(
+                f"{origin}: parameter '{name}' is {shown!r} {got.unit}, the description gives "
+                f"{want.value!r} {want.unit}"
+            )
         if got.source != want.source:
-            out.append(f"{origin}: parameter '{name}': description {got.source!r}, its source in the file is "
-                       f"{want.source!r}")
+            out.append(
+                f"{origin}: parameter '{name}': description {got.source!r}, its source in the file is {want.source!r}"
+            )
     if not out and path.read_bytes() != expected.to_bytes():
         out.append(f"{origin}: same parameters, but not the file the generator writes (order, units or comment)")
     return out

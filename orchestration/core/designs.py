@@ -19,6 +19,7 @@ controller's parameters and kinematic model are its description's, ``designs.par
 variants of ``controllers.py`` (tests check they are up to date); ``mast build`` builds each
 design's FMU with the defaults of its system.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -42,12 +43,12 @@ class Design:
     model_identifier: str
     title: str
     geometry: str = DEFAULT_GEOMETRY
-    mechanism_sets: tuple[str, ...] = ()      # bound to the mechanism after its other sets
-    actuator_sets: tuple[str, ...] = ()       # bound to every actuator after its other sets
-    masses: str = DEFAULT_MASSES              # in place of the 3PRS's mass set
-    stroke: str = DEFAULT_STROKE              # in place of the 3PRS's actuator stroke set
-    controller: str = ""                      # the controller FMU's model identifier ("": the base system's)
-    native: bool = True                       # whether `mast build --native` builds its FMUs and system
+    mechanism_sets: tuple[str, ...] = ()  # bound to the mechanism after its other sets
+    actuator_sets: tuple[str, ...] = ()  # bound to every actuator after its other sets
+    masses: str = DEFAULT_MASSES  # in place of the 3PRS's mass set
+    stroke: str = DEFAULT_STROKE  # in place of the 3PRS's actuator stroke set
+    controller: str = ""  # the controller FMU's model identifier ("": the base system's)
+    native: bool = True  # whether `mast build --native` builds its FMUs and system
 
     @property
     def ssd(self) -> Path:
@@ -61,18 +62,34 @@ class Design:
 DESIGNS = (
     Design("3PRS_T", MECHANISM_FMU, "3PRS, T layout, vertical guides (the paper)"),
     Design("3PRS_120", "Mast3PRS120", "3PRS, guides at 120 deg", geometry="resources/geometry_3prs_120.ssv"),
-    Design("3PRS_inclined", "Mast3PRSInclined", "3PRS, T layout, guides inclined 15 deg",
-           geometry="resources/geometry_3prs_inclined.ssv", actuator_sets=("resources/guide_inclined.ssv",)),
-    Design("actuators_only", "MastActuatorsOnly", "actuators alone (paper Fig. 10, without the MAST)",
-           mechanism_sets=("resources/actuators_only.ssv",)),
+    Design(
+        "3PRS_inclined",
+        "Mast3PRSInclined",
+        "3PRS, T layout, guides inclined 15 deg",
+        geometry="resources/geometry_3prs_inclined.ssv",
+        actuator_sets=("resources/guide_inclined.ssv",),
+    ),
+    Design(
+        "actuators_only",
+        "MastActuatorsOnly",
+        "actuators alone (paper Fig. 10, without the MAST)",
+        mechanism_sets=("resources/actuators_only.ssv",),
+    ),
 )
 
 
 #: designs of another mechanism than the 3PRS: systems of their own (module docstring)
 MECHANISMS = (
-    Design("3RPS", "Mast3RPS", "3-RPS, 120 deg, the paper's belt axes as legs", geometry="resources/geometry_3rps.ssv",
-           masses="resources/mass_3rps.ssv", stroke="resources/actuator_3rps.ssv", controller="Mast3RPSController",
-           native=False),   # the native runtime (orchestration/core/native) generates the 3PRS's models only yet
+    Design(
+        "3RPS",
+        "Mast3RPS",
+        "3-RPS, 120 deg, the paper's belt axes as legs",
+        geometry="resources/geometry_3rps.ssv",
+        masses="resources/mass_3rps.ssv",
+        stroke="resources/actuator_3rps.ssv",
+        controller="Mast3RPSController",
+        native=False,
+    ),  # the native runtime (orchestration/core/native) generates the 3PRS's models only yet
 )
 
 
@@ -94,8 +111,9 @@ def variant(d: Design, base: SystemDescription = MAST) -> SystemDescription:
     """The system of design ``d``: ``base`` with the mechanism swapped (module docstring)."""
     swaps = {DEFAULT_GEOMETRY: d.geometry, DEFAULT_MASSES: d.masses, DEFAULT_STROKE: d.stroke}
     swaps = {k: v for k, v in swaps.items() if k != v}
-    sets = ", ".join((d.geometry, *(v for k, v in swaps.items() if k != DEFAULT_GEOMETRY)) + d.mechanism_sets
-                     + d.actuator_sets)
+    sets = ", ".join(
+        (d.geometry, *(v for k, v in swaps.items() if k != DEFAULT_GEOMETRY)) + d.mechanism_sets + d.actuator_sets
+    )
 
     def geometry(part):
         return dataclasses.replace(part, bindings=tuple(swaps.get(s, s) for s in part.bindings))
@@ -105,17 +123,23 @@ def variant(d: Design, base: SystemDescription = MAST) -> SystemDescription:
     if d.controller:
         controller = dataclasses.replace(controller, fmu=f"{d.controller}.fmu")
     return dataclasses.replace(
-        base, name=f"{base.name}_{d.name}", description=f"{base.description} - design {d.name}: {d.title}",
+        base,
+        name=f"{base.name}_{d.name}",
+        description=f"{base.description} - design {d.name}: {d.title}",
         comment=f"Design {d.name}: {d.title} (docs/designs/{d.name}.md).\n"
-                f"     Written by `python -m mast.core.variants` from {base.name}.ssd: it differs from it only in the "
-                f"mechanism's\n     source ({d.model_identifier}.fmu{f', the controller {d.controller}.fmu' if d.controller else ''})"
-                f" and the design's parameter sets\n     ({sets}).\n"
-                "     Components may be swapped by editing their `source`; parameter sets are bound in order, later "
-                "ones override.",
+        f"     Written by `python -m mast.core.variants` from {base.name}.ssd: it differs from it only in the "
+        f"mechanism's\n     source ({d.model_identifier}.fmu{f', the controller {d.controller}.fmu' if d.controller else ''})"
+        f" and the design's parameter sets\n     ({sets}).\n"
+        "     Components may be swapped by editing their `source`; parameter sets are bound in order, later "
+        "ones override.",
         controller=controller,
-        mechanism=dataclasses.replace(mechanism, fmu=f"{d.model_identifier}.fmu",
-                                      bindings=mechanism.bindings + d.mechanism_sets),
-        actuator=dataclasses.replace(geometry(base.actuator), bindings=geometry(base.actuator).bindings + d.actuator_sets))
+        mechanism=dataclasses.replace(
+            mechanism, fmu=f"{d.model_identifier}.fmu", bindings=mechanism.bindings + d.mechanism_sets
+        ),
+        actuator=dataclasses.replace(
+            geometry(base.actuator), bindings=geometry(base.actuator).bindings + d.actuator_sets
+        ),
+    )
 
 
 def variant_ssd(d: Design) -> bytes:

@@ -9,6 +9,7 @@ every component is an FMU (``FMUComponent``) and a C compiler is there (``mast.c
 otherwise, and with ``MAST_PYTHON_EXCHANGE=1``, the Python loop. The library is compiled once per
 machine into ``cache_dir()`` (a fraction of a second).
 """
+
 from __future__ import annotations
 
 import ctypes
@@ -86,12 +87,24 @@ CALLS = ("setReal", "getReal", "doStep")
 
 
 class _Unit(ctypes.Structure):
-    _fields_ = [("comp", ctypes.c_void_p), ("set", ctypes.c_void_p), ("get", ctypes.c_void_p),
-                ("step", ctypes.c_void_p), ("multiple", ctypes.c_long), ("h", ctypes.c_double),
-                ("feedthrough", ctypes.c_int), ("n_in", ctypes.c_int), ("vr_in", ctypes.c_void_p),
-                ("src", ctypes.c_void_p), ("in_buf", ctypes.c_void_p), ("n_out", ctypes.c_int),
-                ("vr_out", ctypes.c_void_p), ("offset", ctypes.c_int), ("pending", ctypes.c_void_p),
-                ("phase", ctypes.c_long)]
+    _fields_ = [
+        ("comp", ctypes.c_void_p),
+        ("set", ctypes.c_void_p),
+        ("get", ctypes.c_void_p),
+        ("step", ctypes.c_void_p),
+        ("multiple", ctypes.c_long),
+        ("h", ctypes.c_double),
+        ("feedthrough", ctypes.c_int),
+        ("n_in", ctypes.c_int),
+        ("vr_in", ctypes.c_void_p),
+        ("src", ctypes.c_void_p),
+        ("in_buf", ctypes.c_void_p),
+        ("n_out", ctypes.c_int),
+        ("vr_out", ctypes.c_void_p),
+        ("offset", ctypes.c_int),
+        ("pending", ctypes.c_void_p),
+        ("phase", ctypes.c_long),
+    ]
 
 
 def cache_dir() -> Path:
@@ -121,17 +134,31 @@ def library() -> Optional[ctypes.CDLL]:
             with tempfile.TemporaryDirectory(prefix="mast_exchange_") as tmp:
                 source, built = Path(tmp) / "exchange.c", Path(tmp) / "exchange.so"
                 source.write_text(SOURCE)
-                done = subprocess.run([compiler(), "-O2", "-shared", "-fPIC", "-o", str(built), str(source)],
-                                      capture_output=True, text=True)
+                done = subprocess.run(
+                    [compiler(), "-O2", "-shared", "-fPIC", "-o", str(built), str(source)],
+                    capture_output=True,
+                    text=True,
+                )
                 if done.returncode == 0:
                     os.replace(built, target)  # atomic: a concurrent process sees the whole library or none
         if target.exists():
             lib = ctypes.CDLL(str(target))
             lib.mast_ticks.restype = ctypes.c_int
-            lib.mast_ticks.argtypes = [ctypes.c_void_p, ctypes.c_int, ctypes.c_void_p, ctypes.c_int, ctypes.c_void_p,
-                                       ctypes.c_int, ctypes.c_long, ctypes.c_long, ctypes.c_double, ctypes.c_double,
-                                       ctypes.POINTER(ctypes.c_long), ctypes.POINTER(ctypes.c_int),
-                                       ctypes.POINTER(ctypes.c_int)]
+            lib.mast_ticks.argtypes = [
+                ctypes.c_void_p,
+                ctypes.c_int,
+                ctypes.c_void_p,
+                ctypes.c_int,
+                ctypes.c_void_p,
+                ctypes.c_int,
+                ctypes.c_long,
+                ctypes.c_long,
+                ctypes.c_double,
+                ctypes.c_double,
+                ctypes.POINTER(ctypes.c_long),
+                ctypes.POINTER(ctypes.c_int),
+                ctypes.POINTER(ctypes.c_int),
+            ]
     except (OSError, NativeBuildError):
         lib = None
     _LIBRARY.append(lib)
@@ -147,8 +174,9 @@ class CompiledLoop:
     ``hold_gil``: the loop keeps the GIL (a pythonfmu FMU among the units: each of its calls takes the GIL
     to run Python, an uncontended re-entry instead of a take and release per call); else it releases it."""
 
-    def __init__(self, lib: ctypes.CDLL, units: Sequence[tuple], flat: Sequence[float], n_out: int,
-                 hold_gil: bool = False) -> None:
+    def __init__(
+        self, lib: ctypes.CDLL, units: Sequence[tuple], flat: Sequence[float], n_out: int, hold_gil: bool = False
+    ) -> None:
         self._ticks = lib.mast_ticks
         if hold_gil:
             fn = lib.mast_ticks
@@ -169,7 +197,7 @@ class CompiledLoop:
         self.pending = []
         for u, (functions, multiple, step, feedthrough, vr_in, src, vr_out, offset) in zip(self._units, units):
             comp, set_real, get_real, do_step = functions
-            pending = (ctypes.c_double * max(1, len(vr_out)))(*flat[offset:offset + len(vr_out)])
+            pending = (ctypes.c_double * max(1, len(vr_out)))(*flat[offset : offset + len(vr_out)])
             self.pending.append(pending)
             u.comp, u.set, u.get, u.step = comp, set_real, get_real, do_step
             u.multiple, u.h, u.feedthrough = multiple, step, int(feedthrough)
@@ -190,9 +218,21 @@ class CompiledLoop:
         if self.n_stim:
             stim = []
             for n in range(n0, n1 + 1):
-                stim.extend(stimulus(t0 + n * h) if n > n0 else self.flat[self.n_out:])
+                stim.extend(stimulus(t0 + n * h) if n > n0 else self.flat[self.n_out :])
             self._stim[:size] = stim
-        code = self._ticks(self._units, len(self._units), self.flat, self.n_out, self._stim, self.n_stim,
-                                    n0, n1, t0, h, ctypes.byref(self._at), ctypes.byref(self._which),
-                                    ctypes.byref(self._call))
+        code = self._ticks(
+            self._units,
+            len(self._units),
+            self.flat,
+            self.n_out,
+            self._stim,
+            self.n_stim,
+            n0,
+            n1,
+            t0,
+            h,
+            ctypes.byref(self._at),
+            ctypes.byref(self._which),
+            ctypes.byref(self._call),
+        )
         return None if code == 0 else (self._at.value, self._which.value, CALLS[self._call.value])

@@ -28,6 +28,7 @@ reading any output it needs (for example the platform's home pose); pose command
 that would leave the workspace are refused there, before any step (``admissible.py``);
 the whole system is iterated to a consistent point before leaving initialization.
 """
+
 from __future__ import annotations
 
 import math
@@ -80,7 +81,11 @@ class Result:
 
     def write_csv(self, path) -> None:
         names = list(self.signals)
-        table = np.column_stack([self.time] + [self.signals[n] for n in names]) if len(self.time) else np.zeros((0, len(names) + 1))
+        table = (
+            np.column_stack([self.time] + [self.signals[n] for n in names])
+            if len(self.time)
+            else np.zeros((0, len(names) + 1))
+        )
         np.savetxt(path, table, delimiter=",", header=",".join(["time"] + names), comments="", fmt="%.12g")
 
     @classmethod
@@ -121,8 +126,14 @@ def _gather(indices: Sequence[int]) -> Callable[[Sequence[float]], tuple]:
 class Master:
     """Runs a SystemSpec whose components are FMUComponent or BlockComponent objects."""
 
-    def __init__(self, system: SystemSpec, components: Mapping[str, object], base_step: Optional[float] = None,
-                 step_sizes: Optional[Mapping[str, float]] = None, own_components: bool = True) -> None:
+    def __init__(
+        self,
+        system: SystemSpec,
+        components: Mapping[str, object],
+        base_step: Optional[float] = None,
+        step_sizes: Optional[Mapping[str, float]] = None,
+        own_components: bool = True,
+    ) -> None:
         """``own_components=False``: the caller keeps the components (e.g. a Session resets and reuses
         them across runs); ``run`` then leaves them open instead of closing them at the end."""
         self.system = system
@@ -137,7 +148,9 @@ class Master:
             h = h or self.base_step
             m = round(h / self.base_step)
             if m < 1 or abs(m * self.base_step - h) > 1e-9 * h:
-                raise ValueError(f"component '{name}': step size {h:g} s is not a whole multiple of the base step {self.base_step:g} s")
+                raise ValueError(
+                    f"component '{name}': step size {h:g} s is not a whole multiple of the base step {self.base_step:g} s"
+                )
             self.multiples[name] = m
         self.exchange_order = self._exchange_order()
 
@@ -155,22 +168,35 @@ class Master:
             ready = [name for name in names if name not in order and after[name] <= set(order)]
             if not ready:
                 rest = [name for name in names if name not in order]
-                raise ValueError(f"system '{self.system.name}': an algebraic loop through the direct feedthrough of "
-                                 f"{', '.join(rest)} (each waits for another's feedthrough output at the same "
-                                 "communication point)")
+                raise ValueError(
+                    f"system '{self.system.name}': an algebraic loop through the direct feedthrough of "
+                    f"{', '.join(rest)} (each waits for another's feedthrough output at the same "
+                    "communication point)"
+                )
             order.append(ready[0])
         return order
 
     # -- initialization -----------------------------------------------------------
-    def _initialize(self, t0: float, t1: float, parameters: Mapping[str, Mapping[str, Value]], stimulus: Stimulus,
-                    record: Sequence[str]) -> tuple[list[_Wiring], list[list[float]], list[str]]:
+    def _initialize(
+        self,
+        t0: float,
+        t1: float,
+        parameters: Mapping[str, Mapping[str, Value]],
+        stimulus: Stimulus,
+        record: Sequence[str],
+    ) -> tuple[list[_Wiring], list[list[float]], list[str]]:
         system = self.system
         unknown = sorted(set(parameters) - set(system.components))
         if unknown:
-            raise ValueError(f"parameter overrides name unknown component(s) {', '.join(unknown)}; components: {', '.join(system.components)}")
+            raise ValueError(
+                f"parameter overrides name unknown component(s) {', '.join(unknown)}; components: {', '.join(system.components)}"
+            )
         order = list(system.components)
-        bound = applicable_parameters(system, {name: self.components[name].parameter_names for name in order},
-                                      {name: getattr(self.components[name], "parameter_units", {}) for name in order})
+        bound = applicable_parameters(
+            system,
+            {name: self.components[name].parameter_names for name in order},
+            {name: getattr(self.components[name], "parameter_units", {}) for name in order},
+        )
         merged = {name: {**bound[name], **parameters.get(name, {})} for name in order}
         self.parameters_set = merged
         for name in order:
@@ -198,14 +224,28 @@ class Master:
         for name in order:
             comp = self.components[name]
             incoming = [c for c in system.connections if c.end_element == name]
-            sources = [(-1, system.system_inputs.index(c.start_connector)) if not c.start_element
-                       else (slots[c.start_element], published_names[c.start_element].index(c.start_connector))
-                       for c in incoming]
+            sources = [
+                (-1, system.system_inputs.index(c.start_connector))
+                if not c.start_element
+                else (slots[c.start_element], published_names[c.start_element].index(c.start_connector))
+                for c in incoming
+            ]
             m = self.multiples[name]
             feedthrough = bool(set(getattr(comp, "feedthrough", {})) & set(published_names[name]))
-            wirings.append(_Wiring(name, m, m * self.base_step, sources, feedthrough, [c.end_connector for c in incoming],
-                                   comp.setter([c.end_connector for c in incoming]),
-                                   comp.getter(published_names[name]), comp.stepper(), published_names[name]))
+            wirings.append(
+                _Wiring(
+                    name,
+                    m,
+                    m * self.base_step,
+                    sources,
+                    feedthrough,
+                    [c.end_connector for c in incoming],
+                    comp.setter([c.end_connector for c in incoming]),
+                    comp.getter(published_names[name]),
+                    comp.stepper(),
+                    published_names[name],
+                )
+            )
 
         published = [[self.components[w.name].start_value(n) for n in w.output_names] for w in wirings]
         plant = [k for k, w in enumerate(wirings) if all(s >= 0 for s, _ in w.sources)]
@@ -230,8 +270,14 @@ class Master:
         return wirings, published, record
 
     @staticmethod
-    def _settle(wirings: Sequence[_Wiring], members: Sequence[int], published: list[list[float]],
-                sys_values: Sequence[float], passes: int = 1000, tol: float = 1e-13) -> None:
+    def _settle(
+        wirings: Sequence[_Wiring],
+        members: Sequence[int],
+        published: list[list[float]],
+        sys_values: Sequence[float],
+        passes: int = 1000,
+        tol: float = 1e-13,
+    ) -> None:
         """Jacobi passes over the members' initial values until they stop changing. A loop through an actuator and
         the mechanism contracts by the ratio of the mechanism's joint-space mass to the actuator's load-side mass per
         two passes: 0.25 for the 3PRS, 0.83 for the 3-RPS whose carriages are the mechanism's (350 passes to 1e-13)."""
@@ -247,11 +293,19 @@ class Master:
                 published[k] = new
             if not changed:
                 return
-        raise RuntimeError(f"initialization: the initial values of {', '.join(changed)} did not settle in {passes} passes "
-                           "(an algebraic loop that does not converge)")
+        raise RuntimeError(
+            f"initialization: the initial values of {', '.join(changed)} did not settle in {passes} passes "
+            "(an algebraic loop that does not converge)"
+        )
 
-    def _compiled_loop(self, wirings: Sequence[_Wiring], flat: Sequence[float], n_out: int, sources: Sequence[int],
-                       offsets: Sequence[int]):
+    def _compiled_loop(
+        self,
+        wirings: Sequence[_Wiring],
+        flat: Sequence[float],
+        n_out: int,
+        sources: Sequence[int],
+        offsets: Sequence[int],
+    ):
         """The exchange loop in C (exchange.py) when every component is an FMU and the library is there; else None."""
         from .components import FMUComponent
         from .exchange import CompiledLoop, library
@@ -264,31 +318,53 @@ class Master:
             return None
         units, at = [], 0
         for k, (w, comp) in enumerate(zip(wirings, comps)):
-            src = list(sources[at:at + len(w.sources)])
+            src = list(sources[at : at + len(w.sources)])
             at += len(w.sources)
-            units.append((comp.c_functions(), w.multiple, w.step, w.feedthrough, comp.input_references(w.input_names),
-                          src, comp.output_references(w.output_names), offsets[k]))
+            units.append(
+                (
+                    comp.c_functions(),
+                    w.multiple,
+                    w.step,
+                    w.feedthrough,
+                    comp.input_references(w.input_names),
+                    src,
+                    comp.output_references(w.output_names),
+                    offsets[k],
+                )
+            )
         return CompiledLoop(lib, units, flat, n_out, hold_gil=any(c.runs_python for c in comps))
 
     # -- run ----------------------------------------------------------------------
-    def run(self, stop_time: float, stimulus: Stimulus, record: Sequence[str] = (), record_step: Optional[float] = None,
-            parameters: Optional[Mapping[str, Mapping[str, Value]]] = None, start_time: Optional[float] = None,
-            progress: Optional[Callable[[float], None]] = None) -> Result:
+    def run(
+        self,
+        stop_time: float,
+        stimulus: Stimulus,
+        record: Sequence[str] = (),
+        record_step: Optional[float] = None,
+        parameters: Optional[Mapping[str, Mapping[str, Value]]] = None,
+        start_time: Optional[float] = None,
+        progress: Optional[Callable[[float], None]] = None,
+    ) -> Result:
         """Simulate from the SSD start time to ``stop_time`` (rounded up to a base tick); see the module docstring."""
         t0 = self.system.start_time if start_time is None else start_time
         h = self.base_step
         if not isinstance(stop_time, (int, float)) or not math.isfinite(stop_time):
             raise ValueError(f"stop time {stop_time!r} s: expected a finite number of seconds")
-        if record_step is not None and (not isinstance(record_step, (int, float)) or not record_step > 0
-                                        or not math.isfinite(record_step)):
+        if record_step is not None and (
+            not isinstance(record_step, (int, float)) or not record_step > 0 or not math.isfinite(record_step)
+        ):
             raise ValueError(f"record step {record_step!r} s: expected a positive, finite number of seconds")
         n_ticks = math.ceil((stop_time - t0) / h - 1e-9)  # a stop time between ticks ends at the next tick
         if n_ticks < 1:
-            raise ValueError(f"stop time {stop_time:g} s: expected at least one base step ({h:g} s) after the start {t0:g} s")
+            raise ValueError(
+                f"stop time {stop_time:g} s: expected at least one base step ({h:g} s) after the start {t0:g} s"
+            )
         record_every = 1 if record_step is None else round(record_step / h)
         if record_step is not None and (record_every < 1 or abs(record_every * h - record_step) > 1e-9 * record_step):
-            raise ValueError(f"record step {record_step!r} s: expected a whole multiple of the base step {h:g} s "
-                             "(None: every base step)")
+            raise ValueError(
+                f"record step {record_step!r} s: expected a whole multiple of the base step {h:g} s "
+                "(None: every base step)"
+            )
         wall0 = time.perf_counter()
         wirings, published, record = self._initialize(t0, stop_time, parameters or {}, stimulus, record)
         init_s = time.perf_counter() - wall0
@@ -296,8 +372,11 @@ class Master:
         rec_paths = []
         for signal in record:
             element, _, connector = signal.rpartition(".")
-            rec_paths.append((-1, self.system.system_inputs.index(signal)) if not element
-                             else (slot[element], wirings[slot[element]].output_names.index(connector)))
+            rec_paths.append(
+                (-1, self.system.system_inputs.index(signal))
+                if not element
+                else (slot[element], wirings[slot[element]].output_names.index(connector))
+            )
         cycle = math.lcm(*[w.multiple for w in wirings])
         # The hot loop works on one flat list: every component's published outputs, then the system
         # inputs; each component's inputs and the recorded signals are gathered from it by itemgetter.
@@ -308,9 +387,24 @@ class Master:
         n_out = len(flat)
         flat.extend(stimulus(t0))
         index = lambda s, j: n_out + j if s < 0 else offsets[s] + j  # noqa: E731
-        due = [[(k, offsets[k], offsets[k] + len(w.output_names), _gather([index(s, j) for s, j in w.sources]),
-                 w.set_inputs, w.do_step, w.get_outputs, w.step, w.feedthrough)
-                for k, w in enumerate(wirings) if phase % w.multiple == 0] for phase in range(cycle)]
+        due = [
+            [
+                (
+                    k,
+                    offsets[k],
+                    offsets[k] + len(w.output_names),
+                    _gather([index(s, j) for s, j in w.sources]),
+                    w.set_inputs,
+                    w.do_step,
+                    w.get_outputs,
+                    w.step,
+                    w.feedthrough,
+                )
+                for k, w in enumerate(wirings)
+                if phase % w.multiple == 0
+            ]
+            for phase in range(cycle)
+        ]
         recorded = _gather([index(s, j) for s, j in rec_paths])
         recorded_at = np.array([index(s, j) for s, j in rec_paths], dtype=np.intp)
         pending = [list(p) for p in published]
@@ -321,14 +415,15 @@ class Master:
         report_every = max(1, n_ticks // 100)
         error = None
         n = 0
-        compiled = self._compiled_loop(wirings, flat, n_out, [index(s, j) for w in wirings for s, j in w.sources],
-                                       offsets)
-        self.exchange = compiled   # the last run's compiled loop (None: the Python loop), for hosts/c_host.py
+        compiled = self._compiled_loop(
+            wirings, flat, n_out, [index(s, j) for w in wirings for s, j in w.sources], offsets
+        )
+        self.exchange = compiled  # the last run's compiled loop (None: the Python loop), for hosts/c_host.py
 
         def record_tick(values) -> None:
             nonlocal rows
             times[rows] = t
-            if isinstance(values, np.ndarray):   # the compiled loop's vector: gathered and summed by numpy
+            if isinstance(values, np.ndarray):  # the compiled loop's vector: gathered and summed by numpy
                 data[rows] = values[recorded_at]
                 total = values[:n_out].sum()
             else:
@@ -337,7 +432,7 @@ class Master:
             rows += 1
             if total - total != 0.0:
                 for k, w in enumerate(wirings):
-                    bad = [name for name, v in zip(w.output_names, values[offsets[k]:]) if not math.isfinite(v)]
+                    bad = [name for name, v in zip(w.output_names, values[offsets[k] :]) if not math.isfinite(v)]
                     if bad:
                         raise RuntimeError(f"{w.name} at t={t:.6g} s: the run diverged: non-finite {', '.join(bad)}")
             if progress and n % report_every == 0:
@@ -345,7 +440,7 @@ class Master:
 
         try:
             if compiled is not None:  # the same schedule in C between recorded ticks (exchange.py)
-                shared = np.frombuffer(compiled.flat, dtype=float)   # the C loop's vector itself, not a copy
+                shared = np.frombuffer(compiled.flat, dtype=float)  # the C loop's vector itself, not a copy
                 while True:
                     t = t0 + n * h
                     if n % record_every == 0:
@@ -365,7 +460,7 @@ class Master:
                 recording = n % record_every == 0
                 if n and (now or recording):  # a tick where nothing is due and nothing recorded costs nothing
                     for item in now:
-                        flat[item[1]:item[2]] = pending[item[0]]
+                        flat[item[1] : item[2]] = pending[item[0]]
                     flat[n_out:] = stimulus(t)
                 if recording:
                     record_tick(flat)
@@ -384,11 +479,19 @@ class Master:
             if self.own_components:
                 for name in self.components:
                     self.components[name].close()
-        result = Result(times[:rows].copy(), {name: data[:rows, j].copy() for j, name in enumerate(record)},
-                        wall_time_s=time.perf_counter() - wall0, error=error,
-                        stats={"base_step": h, "ticks": n, "multiples": dict(self.multiples), "init_s": init_s,
-                               "parameters": self.parameters_set})
+        result = Result(
+            times[:rows].copy(),
+            {name: data[:rows, j].copy() for j, name in enumerate(record)},
+            wall_time_s=time.perf_counter() - wall0,
+            error=error,
+            stats={
+                "base_step": h,
+                "ticks": n,
+                "multiples": dict(self.multiples),
+                "init_s": init_s,
+                "parameters": self.parameters_set,
+            },
+        )
         if error:
             raise SimulationError(error, result)
         return result
-

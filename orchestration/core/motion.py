@@ -6,6 +6,7 @@ motion axes: for the 3PRS z, psi, theta (``AXES``), the system inputs ``z_cmd``,
 and ``Session.run`` bind it to them (``system_axes``, ``bind``); one made for a coordinate the
 system lacks is refused, naming the coordinate and the ones the system has.
 """
+
 from __future__ import annotations
 
 import math
@@ -29,8 +30,9 @@ def unit(axis: str) -> str:
     return Coordinate(axis).unit
 
 
-def system_axes(system, parameters: Optional[Mapping[str, Mapping]] = None,
-                mechanism: str = "mechanism") -> tuple[str, ...]:
+def system_axes(
+    system, parameters: Optional[Mapping[str, Mapping]] = None, mechanism: str = "mechanism"
+) -> tuple[str, ...]:
     """The motion axes of ``system`` (an SSD's ``System``): the coordinates of its mechanism's topology (the
     ``mechanism`` component's bound parameters, with ``parameters``' overrides), else the coordinates of its
     ``<c>_cmd`` system inputs, else ``AXES``."""
@@ -43,7 +45,7 @@ def system_axes(system, parameters: Optional[Mapping[str, Mapping]] = None,
             return describe(params, mechanism, masses=False).topology.names
         except Exception:  # noqa: BLE001 - a mechanism this project does not describe (a third-party FMU)
             pass
-    commanded = tuple(s[:-len("_cmd")] for s in system.system_inputs if s.endswith("_cmd"))
+    commanded = tuple(s[: -len("_cmd")] for s in system.system_inputs if s.endswith("_cmd"))
     return commanded or AXES
 
 
@@ -58,8 +60,10 @@ def bind(stimulus, axes: Sequence[str], where: str = "the system") -> None:
 def _refuse_missing(moved: Sequence[str], axes: Sequence[str], what: str, where: str) -> None:
     missing = [a for a in moved if a not in axes]
     if missing:
-        raise ValueError(f"{what} {', '.join(repr(a) for a in missing)}: {where} has no such coordinate; its "
-                         f"mechanism's coordinates are {', '.join(axes)}")
+        raise ValueError(
+            f"{what} {', '.join(repr(a) for a in missing)}: {where} has no such coordinate; its "
+            f"mechanism's coordinates are {', '.join(axes)}"
+        )
 
 
 @dataclass
@@ -126,7 +130,9 @@ class SineMotion:
         if self.axis not in self.axes:
             raise ValueError(f"motion axis '{self.axis}': expected one of {', '.join(self.axes)}")
         if not (math.isfinite(self.amplitude) and math.isfinite(self.frequency) and self.frequency >= 0):
-            raise ValueError(f"motion amplitude {self.amplitude!r} / frequency {self.frequency!r}: expected finite values, frequency >= 0 Hz")
+            raise ValueError(
+                f"motion amplitude {self.amplitude!r} / frequency {self.frequency!r}: expected finite values, frequency >= 0 Hz"
+            )
         self._k = self.axes.index(self.axis)
         self._omega = 2 * math.pi * self.frequency
         self._t0 = 0.0
@@ -156,8 +162,9 @@ class SineMotion:
         return values
 
 
-def sine_extremes(home: Sequence[float], amplitude: Sequence[float],
-                  phase: float) -> tuple[list[float], list[list[float]]]:
+def sine_extremes(
+    home: Sequence[float], amplitude: Sequence[float], phase: float
+) -> tuple[list[float], list[list[float]]]:
     """(home, the extreme poses of home + amplitude sin(p) for p from 0 to ``phase`` [rad])."""
     high = 1.0 if phase >= math.pi / 2 else math.sin(phase)
     low = -1.0 if phase >= 3 * math.pi / 2 else min(0.0, math.sin(phase))

@@ -1,4 +1,5 @@
 """Figures of a run: commanded vs achieved motion, joint tracking, motor torques."""
+
 from __future__ import annotations
 
 import math
@@ -16,8 +17,18 @@ from .motion import unit as axis_unit  # noqa: E402
 def plot_run(result: Result, axis: str, path: Path) -> None:
     t = result.time
     scale, unit = (1e3, "mm") if axis_unit(axis) == "m" else (180 / math.pi, "deg")
-    drives = range(1, 1 + max((j for j in range(1, 100) if f"actuator_{j}.rho" in result.signals
-                                or f"actuator_{j}.tau_m" in result.signals), default=0))
+    drives = range(
+        1,
+        1
+        + max(
+            (
+                j
+                for j in range(1, 100)
+                if f"actuator_{j}.rho" in result.signals or f"actuator_{j}.tau_m" in result.signals
+            ),
+            default=0,
+        ),
+    )
     fig, axes = plt.subplots(3, 1, figsize=(9, 9), sharex=True)
     ax = axes[0]
     if f"{axis}_cmd" in result.signals:
@@ -30,7 +41,7 @@ def plot_run(result: Result, axis: str, path: Path) -> None:
     ax = axes[1]
     for j in drives:
         if f"controller.rho_cmd_{j}" in result.signals and f"actuator_{j}.rho" in result.signals:
-            line, = ax.plot(t, result[f"actuator_{j}.rho"] * 1e3, label=f"rho_{j}")
+            (line,) = ax.plot(t, result[f"actuator_{j}.rho"] * 1e3, label=f"rho_{j}")
             ax.plot(t, result[f"controller.rho_cmd_{j}"] * 1e3, "--", color=line.get_color(), label=f"rho_cmd_{j}")
     ax.set_ylabel("guide position [mm]")
     _legend(ax, ncol=3)

@@ -1,4 +1,5 @@
 """Python API: run an SSP with the project's master, through FMI or directly."""
+
 from __future__ import annotations
 
 import json
@@ -54,12 +55,18 @@ def parse_overrides(items: Sequence[str]) -> dict[str, dict[str, Value]]:
     return overrides
 
 
-def simulate(ssp: Union[str, Path], stimulus: Optional[Stimulus], stop_time: float,
-             parameters: Optional[Mapping[str, Mapping[str, Value]]] = None,
-             record: Optional[Sequence[str]] = None, record_step: Optional[float] = 1e-3,
-             direct: bool = False, base_step: Optional[float] = None,
-             step_sizes: Optional[Mapping[str, float]] = None,
-             progress: Optional[Callable[[float], None]] = None) -> Result:
+def simulate(
+    ssp: Union[str, Path],
+    stimulus: Optional[Stimulus],
+    stop_time: float,
+    parameters: Optional[Mapping[str, Mapping[str, Value]]] = None,
+    record: Optional[Sequence[str]] = None,
+    record_step: Optional[float] = 1e-3,
+    direct: bool = False,
+    base_step: Optional[float] = None,
+    step_sizes: Optional[Mapping[str, float]] = None,
+    progress: Optional[Callable[[float], None]] = None,
+) -> Result:
     """Run ``ssp`` (a built .ssp, or a .ssd whose FMUs exist) and return the recorded signals.
 
     ``direct=True`` runs the same schedule on the model objects the FMUs wrap
@@ -73,7 +80,7 @@ def simulate(ssp: Union[str, Path], stimulus: Optional[Stimulus], stop_time: flo
             if system.system_inputs:
                 raise ValueError(f"{ssp}: the system has inputs ({', '.join(system.system_inputs)}): give a stimulus")
             stimulus = NoStimulus()
-        else:   # the stimulus commands the coordinates of the system's mechanism
+        else:  # the stimulus commands the coordinates of the system's mechanism
             bind(stimulus, system_axes(system, parameters), str(ssp))
         components = {}
         unzipped: dict[Path, Path] = {}
@@ -88,25 +95,32 @@ def simulate(ssp: Union[str, Path], stimulus: Optional[Stimulus], stop_time: flo
 
                     fmu = for_parameters(fmu, {**spec.parameters, **(parameters or {}).get(name, {})})
                     if fmu not in unzipped:
-                        unzipped[fmu] = safe_extract(fmu, Path(unzip_root) / f"{len(unzipped)}_{fmu.stem}",
-                                                     system.fmu_label(name))
+                        unzipped[fmu] = safe_extract(
+                            fmu, Path(unzip_root) / f"{len(unzipped)}_{fmu.stem}", system.fmu_label(name)
+                        )
                     components[name] = FMUComponent(name, fmu, unzipped[fmu])
             master = Master(system, components, base_step=base_step, step_sizes=step_sizes)
         except Exception:
             for comp in components.values():
                 comp.close()
             raise
-        return master.run(stop_time, stimulus, record=default_signals(system) if record is None else record,
-                          record_step=record_step, parameters=parameters, progress=progress)
+        return master.run(
+            stop_time,
+            stimulus,
+            record=default_signals(system) if record is None else record,
+            record_step=record_step,
+            parameters=parameters,
+            progress=progress,
+        )
 
 
-def motion_from_cli(axis: str, amplitude: float, frequency: float, axes: Optional[Sequence[str]] = None,
-                    where: str = "the system") -> SineMotion:
+def motion_from_cli(
+    axis: str, amplitude: float, frequency: float, axes: Optional[Sequence[str]] = None, where: str = "the system"
+) -> SineMotion:
     """CLI units: metres for x, y, z, degrees for the angles. ``axes``: the coordinates of the system ``where``
     (``motion.system_axes``; None: the 3PRS's); a coordinate it lacks is refused (ValueError naming it and the
     system's)."""
-    motion = SineMotion(axis, amplitude if unit(axis) == "m" else math.radians(amplitude), frequency,
-                        axes=(axis,))
+    motion = SineMotion(axis, amplitude if unit(axis) == "m" else math.radians(amplitude), frequency, axes=(axis,))
     bind(motion, AXES if axes is None else axes, where)
     return motion
 
@@ -118,21 +132,27 @@ def summarize(result: Result, stop_time: float, motion: SineMotion, ssp: Optiona
         "wall_time_s": round(result.wall_time_s, 4),
         "simulated_time_s": stop_time,
         "real_time_factor": round(stop_time / result.wall_time_s, 3) if result.wall_time_s > 0 else None,
-        "motion": {"axis": motion.axis, "amplitude": motion.amplitude, "frequency_Hz": motion.frequency,
-                   "home": dict(zip(motion.axes, motion.home))},
+        "motion": {
+            "axis": motion.axis,
+            "amplitude": motion.amplitude,
+            "frequency_Hz": motion.frequency,
+            "home": dict(zip(motion.axes, motion.home)),
+        },
         "base_step_s": result.stats.get("base_step"),
         "step_multiples": result.stats.get("multiples"),
         "error": result.error,
-        "system": {"ssp": None if ssp is None else str(Path(ssp).resolve()),
-                   "parameters": result.stats.get("parameters")},
+        "system": {
+            "ssp": None if ssp is None else str(Path(ssp).resolve()),
+            "parameters": result.stats.get("parameters"),
+        },
     }
     cmd, got = f"{motion.axis}_cmd", f"mechanism.{motion.axis}"
     if cmd in result.signals and got in result.signals and len(result.time):
         err = result[cmd] - result[got]
         summary["tracking_error_peak"] = float(abs(err).max())
-        summary["tracking_error_rms"] = float((err ** 2).mean() ** 0.5)
+        summary["tracking_error_rms"] = float((err**2).mean() ** 0.5)
     j = 1
-    while f"actuator_{j}.tau_m" in result.signals:   # every drive's motor (actuator_k, the connector convention)
+    while f"actuator_{j}.tau_m" in result.signals:  # every drive's motor (actuator_k, the connector convention)
         name = f"actuator_{j}.tau_m"
         if len(result.time):
             summary[f"tau_m_{j}_peak_Nm"] = float(abs(result[name]).max())
@@ -141,8 +161,9 @@ def summarize(result: Result, stop_time: float, motion: SineMotion, ssp: Optiona
     return summary
 
 
-def write_outputs(result: Result, out: Path, stop_time: float, motion: SineMotion,
-                  ssp: Optional[Union[str, Path]] = None) -> dict:
+def write_outputs(
+    result: Result, out: Path, stop_time: float, motion: SineMotion, ssp: Optional[Union[str, Path]] = None
+) -> dict:
     """results.csv, summary.json and plot.png into ``out`` (``ssp``: the system run, recorded in the summary)."""
     from .plots import plot_run
 

@@ -19,6 +19,7 @@ pythonfmu FMUs share one interpreter per process: use one session per process
 open when the interpreter exits is closed first (instances freed): pythonfmu
 instances left alive through interpreter shutdown were seen to corrupt the heap.
 """
+
 from __future__ import annotations
 
 import tempfile
@@ -39,8 +40,13 @@ from .ssp import SSPArchive, safe_extract
 class Session:
     """Runs one SSP many times in this process; use as a context manager or call ``close``."""
 
-    def __init__(self, ssp: Union[str, Path], direct: bool = False, base_step: Optional[float] = None,
-                 step_sizes: Optional[Mapping[str, float]] = None) -> None:
+    def __init__(
+        self,
+        ssp: Union[str, Path],
+        direct: bool = False,
+        base_step: Optional[float] = None,
+        step_sizes: Optional[Mapping[str, float]] = None,
+    ) -> None:
         self.ssp = Path(ssp)
         self.direct = direct
         self.base_step = base_step
@@ -62,8 +68,9 @@ class Session:
         if fmu not in self._unzipped:
             if self._unzip_root is None:
                 self._unzip_root = tempfile.TemporaryDirectory(prefix="mast_session_")
-            self._unzipped[fmu] = safe_extract(fmu, Path(self._unzip_root.name) / f"{len(self._unzipped)}_{fmu.stem}",
-                                               label)
+            self._unzipped[fmu] = safe_extract(
+                fmu, Path(self._unzip_root.name) / f"{len(self._unzipped)}_{fmu.stem}", label
+            )
         return self._unzipped[fmu]
 
     def _instantiate(self) -> dict[str, object]:
@@ -73,7 +80,8 @@ class Session:
                 fmu = self.system.fmu_path(name)
                 if self.direct:
                     components[name] = BlockComponent(
-                        name, BlockComponent.class_for(fmu.stem, self.system.components[name].parameters))
+                        name, BlockComponent.class_for(fmu.stem, self.system.components[name].parameters)
+                    )
                 else:
                     components[name] = FMUComponent(name, fmu, self._extract(fmu, self.system.fmu_label(name)))
         except Exception:
@@ -101,25 +109,39 @@ class Session:
         _free(self._live)
 
     # -- runs ------------------------------------------------------------------------------
-    def run(self, stimulus: Optional[Stimulus], stop_time: float,
-            parameters: Optional[Mapping[str, Mapping[str, Value]]] = None,
-            record: Optional[Sequence[str]] = None, record_step: Optional[float] = 1e-3,
-            progress: Optional[Callable[[float], None]] = None) -> Result:
+    def run(
+        self,
+        stimulus: Optional[Stimulus],
+        stop_time: float,
+        parameters: Optional[Mapping[str, Mapping[str, Value]]] = None,
+        record: Optional[Sequence[str]] = None,
+        record_step: Optional[float] = 1e-3,
+        progress: Optional[Callable[[float], None]] = None,
+    ) -> Result:
         """Same arguments and result as ``mast.core.run.simulate`` (the SSP and route are the session's)."""
         if stimulus is None:
             if self.system.system_inputs:
-                raise ValueError(f"{self.ssp}: the system has inputs ({', '.join(self.system.system_inputs)}): give a stimulus")
+                raise ValueError(
+                    f"{self.ssp}: the system has inputs ({', '.join(self.system.system_inputs)}): give a stimulus"
+                )
             stimulus = NoStimulus()
-        else:   # the stimulus commands the coordinates of the system's mechanism
+        else:  # the stimulus commands the coordinates of the system's mechanism
             bind(stimulus, system_axes(self.system, parameters), str(self.ssp))
         t0 = time.perf_counter()
         components = self._acquire()
         self.last_setup_s = time.perf_counter() - t0
         try:
-            master = Master(self.system, components, base_step=self.base_step, step_sizes=self.step_sizes,
-                            own_components=False)
-            result = master.run(stop_time, stimulus, record=default_signals(self.system) if record is None else record,
-                                record_step=record_step, parameters=parameters, progress=progress)
+            master = Master(
+                self.system, components, base_step=self.base_step, step_sizes=self.step_sizes, own_components=False
+            )
+            result = master.run(
+                stop_time,
+                stimulus,
+                record=default_signals(self.system) if record is None else record,
+                record_step=record_step,
+                parameters=parameters,
+                progress=progress,
+            )
         except BaseException:
             self._discard()  # a failed run (or an interrupted one) does not hand its instances on
             raise

@@ -22,6 +22,7 @@ those parts and is refused. Every .ssd the project writes goes through here (``m
 generates ssp/*.ssd; ``mast build``, ``mast compare`` and ``mast diagnose`` edit systems with it);
 ``mast.core.ssp`` resolves a document's parameter sets and archives.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -138,8 +139,12 @@ class Connection:
 
     def to_element(self) -> etree._Element:
         element = etree.Element(_q("ssd", "Connection"))
-        for attribute, value in (("startElement", self.start_element), ("startConnector", self.start_connector),
-                                 ("endElement", self.end_element), ("endConnector", self.end_connector)):
+        for attribute, value in (
+            ("startElement", self.start_element),
+            ("startConnector", self.start_connector),
+            ("endElement", self.end_element),
+            ("endConnector", self.end_connector),
+        ):
             if value:
                 element.set(attribute, value)
         return element
@@ -160,7 +165,9 @@ class System:
         for c in self.elements:
             if c.name == name:
                 return c
-        raise KeyError(f"system '{self.name}' has no component '{name}' (it has {', '.join(c.name for c in self.elements)})")
+        raise KeyError(
+            f"system '{self.name}' has no component '{name}' (it has {', '.join(c.name for c in self.elements)})"
+        )
 
     def bind(self, source: str, accept: Callable[[str], bool]) -> None:
         """Bind the parameter set ``source`` last (it overrides) to every component whose name ``accept`` takes."""
@@ -198,10 +205,14 @@ class DefaultExperiment:
         if self.stop_time is not None:
             element.set("stopTime", repr(float(self.stop_time)))
         if self.base_step is not None:
-            annotation = etree.SubElement(etree.SubElement(element, _q("ssd", "Annotations")), _q("ssc", "Annotation"),
-                                          type=OSP_ANNOTATION)
-            etree.SubElement(etree.SubElement(annotation, _q("osp", "Algorithm")), _q("osp", "FixedStepAlgorithm"),
-                             baseStepSize=repr(float(self.base_step)))
+            annotation = etree.SubElement(
+                etree.SubElement(element, _q("ssd", "Annotations")), _q("ssc", "Annotation"), type=OSP_ANNOTATION
+            )
+            etree.SubElement(
+                etree.SubElement(annotation, _q("osp", "Algorithm")),
+                _q("osp", "FixedStepAlgorithm"),
+                baseStepSize=repr(float(self.base_step)),
+            )
         return element
 
 
@@ -222,8 +233,10 @@ class SystemStructureDescription:
     def to_bytes(self) -> bytes:
         """The .ssd document; SSPFormatError if it was read with parts this model does not hold."""
         if self.unmodelled:
-            raise SSPFormatError(f"system '{self.name}': writing it would drop {', '.join(self.unmodelled)}, "
-                                 "which this tool does not model")
+            raise SSPFormatError(
+                f"system '{self.name}': writing it would drop {', '.join(self.unmodelled)}, "
+                "which this tool does not model"
+            )
         ratings = any(c.ratings for c in self.system.elements)
         nsmap = {k: v for k, v in NS.items() if k != "mast" or ratings}
         root = etree.Element(_q("ssd", "SystemStructureDescription"), nsmap=nsmap, version=self.version, name=self.name)
@@ -233,7 +246,7 @@ class SystemStructureDescription:
         if self.default_experiment is not None:
             root.append(self.default_experiment.to_element())
         indent(root)
-        etree.cleanup_namespaces(root, top_nsmap=nsmap, keep_ns_prefixes=list(nsmap))   # inline sets declare none
+        etree.cleanup_namespaces(root, top_nsmap=nsmap, keep_ns_prefixes=list(nsmap))  # inline sets declare none
         return xml_document(root, self.comments)
 
 
@@ -253,8 +266,11 @@ def read(source: Union[str, Path, bytes], origin: Optional[str] = None) -> Syste
         else:
             doc = etree.parse(str(source)).getroot()
     except (etree.XMLSyntaxError, OSError) as err:
-        text = str(err) if isinstance(source, bytes) else str(err).replace(f"{source}:", "").replace(
-            str(source), Path(source).name)
+        text = (
+            str(err)
+            if isinstance(source, bytes)
+            else str(err).replace(f"{source}:", "").replace(str(source), Path(source).name)
+        )
         raise SSPFormatError(f"{where}: cannot read the system structure: {text.strip()}") from None
     return _Reader(where).document(doc)
 
@@ -323,37 +339,56 @@ class _Reader:
         by_name = {c.name: c for c in components}
         connections = []
         for con in system.findall("ssd:Connections/ssd:Connection", NS):
-            c = Connection(con.get("startElement", ""), self.need(con, "startConnector", "a connection"),
-                           con.get("endElement", ""), self.need(con, "endConnector", "a connection"))
+            c = Connection(
+                con.get("startElement", ""),
+                self.need(con, "startConnector", "a connection"),
+                con.get("endElement", ""),
+                self.need(con, "endConnector", "a connection"),
+            )
             self.check_end(c.start_element, c.start_connector, "output", by_name, inputs)
             self.check_end(c.end_element, c.end_connector, "input", by_name, inputs)
             self.note(con, ())
             connections.append(c)
         comments = [c.text for c in doc.itersiblings(preceding=True) if c.tag is etree.Comment][::-1]
-        return SystemStructureDescription(doc.get("name", ""), System(system.get("name", ""), system.get("description", ""),
-                                          connectors, components, connections), self.experiment(doc), units,
-                                          comments, doc.get("version", "1.0"), self.unmodelled)
+        return SystemStructureDescription(
+            doc.get("name", ""),
+            System(system.get("name", ""), system.get("description", ""), connectors, components, connections),
+            self.experiment(doc),
+            units,
+            comments,
+            doc.get("version", "1.0"),
+            self.unmodelled,
+        )
 
     def connector(self, element, system: bool = False) -> Connector:
         kind = element.get("kind", "")
-        name = self.need(element, "name", "a system connector") if system and kind in INPUT_KINDS else element.get("name")
+        name = (
+            self.need(element, "name", "a system connector") if system and kind in INPUT_KINDS else element.get("name")
+        )
         typed = [c for c in element if isinstance(c.tag, str) and c.tag.startswith(f"{{{NS['ssc']}}}")]
-        return Connector(name, kind, etree.QName(typed[0]).localname if typed else None,
-                         typed[0].get("unit") if typed else None)
+        return Connector(
+            name, kind, etree.QName(typed[0]).localname if typed else None, typed[0].get("unit") if typed else None
+        )
 
     def component(self, comp, units: dict[str, Unit]) -> Component:
         name = self.need(comp, "name", "a component")
         connectors = [self.connector(c) for c in comp.findall("ssd:Connectors/ssd:Connector", NS)]
         source = self.need(comp, "source", f"component '{name}'")
         if comp.get("type", FMU_TYPE) != FMU_TYPE:
-            raise SSPFormatError(f"{self.where}: component '{name}' has type '{comp.get('type')}': only FMUs "
-                                 f"({FMU_TYPE}) are supported")
+            raise SSPFormatError(
+                f"{self.where}: component '{name}' has type '{comp.get('type')}': only FMUs ({FMU_TYPE}) are supported"
+            )
         self.note(comp, ("ssd:Connectors", "ssd:ParameterBindings", "ssd:Annotations"))
         previous = comp.getprevious()
-        return Component(name, source, connectors,
-                         [self.binding(b, name, units) for b in comp.findall("ssd:ParameterBindings/ssd:ParameterBinding", NS)],
-                         self.step_size_hint(comp, name), self.ratings(comp, name),
-                         previous.text if previous is not None and previous.tag is etree.Comment else "")
+        return Component(
+            name,
+            source,
+            connectors,
+            [self.binding(b, name, units) for b in comp.findall("ssd:ParameterBindings/ssd:ParameterBinding", NS)],
+            self.step_size_hint(comp, name),
+            self.ratings(comp, name),
+            previous.text if previous is not None and previous.tag is etree.Comment else "",
+        )
 
     def step_size_hint(self, comp, name: str) -> Optional[float]:
         for annotation in comp.findall("ssd:Annotations/ssc:Annotation", NS):
@@ -368,46 +403,71 @@ class _Reader:
             return None
         source = found[0].get("source")
         if len(found) > 1 or not source:
-            raise SSPFormatError(f"{self.where}: component '{name}' needs one mast:Ratings with a 'source' in its "
-                                 f"'{RATINGS_ANNOTATION}' annotation (line {found[0].sourceline})")
+            raise SSPFormatError(
+                f"{self.where}: component '{name}' needs one mast:Ratings with a 'source' in its "
+                f"'{RATINGS_ANNOTATION}' annotation (line {found[0].sourceline})"
+            )
         return source
 
     def binding(self, binding, component: str, units: dict[str, Unit]) -> ParameterBinding:
-        unsupported = [what for what, present in (
-            (f"prefix={binding.get('prefix')!r}", binding.get("prefix")),
-            ("an ssd:ParameterMapping", binding.find("ssd:ParameterMapping", NS) is not None),
-            (f"type={binding.get('type')!r}", binding.get("type", SSV_TYPE) != SSV_TYPE)) if present]
+        unsupported = [
+            what
+            for what, present in (
+                (f"prefix={binding.get('prefix')!r}", binding.get("prefix")),
+                ("an ssd:ParameterMapping", binding.find("ssd:ParameterMapping", NS) is not None),
+                (f"type={binding.get('type')!r}", binding.get("type", SSV_TYPE) != SSV_TYPE),
+            )
+            if present
+        ]
         if unsupported:  # applying the values without them would be silently wrong
-            raise SSPFormatError(f"{self.where}: a parameter binding of '{component}' has {' and '.join(unsupported)}, "
-                                 f"which this reader does not support (line {binding.sourceline})")
+            raise SSPFormatError(
+                f"{self.where}: a parameter binding of '{component}' has {' and '.join(unsupported)}, "
+                f"which this reader does not support (line {binding.sourceline})"
+            )
         source = binding.get("source")
         if source:
             return ParameterBinding(source)
         inline = binding.find("ssd:ParameterValues/ssv:ParameterSet", NS)
         if inline is None:
             raise SSPFormatError(f"{self.where}: a parameter binding of '{component}' has neither a source nor values")
-        return ParameterBinding(None, read_parameter_set(inline, f"{self.where} (inline values of '{component}')", units))
+        return ParameterBinding(
+            None, read_parameter_set(inline, f"{self.where} (inline values of '{component}')", units)
+        )
 
     def experiment(self, doc) -> Optional[DefaultExperiment]:
         experiment = doc.find("ssd:DefaultExperiment", NS)
         if experiment is None:
             return None
         start = self.number(experiment.get("startTime", "0"), "DefaultExperiment startTime")
-        stop = self.number(experiment.get("stopTime"), "DefaultExperiment stopTime") if experiment.get("stopTime") else None
-        algo = experiment.find(f"ssd:Annotations/ssc:Annotation[@type='{OSP_ANNOTATION}']/osp:Algorithm/osp:FixedStepAlgorithm", NS)
-        base = None if algo is None else self.positive(self.need(algo, "baseStepSize", "osp:FixedStepAlgorithm"),
-                                                        "baseStepSize")
+        stop = (
+            self.number(experiment.get("stopTime"), "DefaultExperiment stopTime")
+            if experiment.get("stopTime")
+            else None
+        )
+        algo = experiment.find(
+            f"ssd:Annotations/ssc:Annotation[@type='{OSP_ANNOTATION}']/osp:Algorithm/osp:FixedStepAlgorithm", NS
+        )
+        base = (
+            None
+            if algo is None
+            else self.positive(self.need(algo, "baseStepSize", "osp:FixedStepAlgorithm"), "baseStepSize")
+        )
         return DefaultExperiment(start, stop, base)
 
-    def check_end(self, element: str, connector: str, kind: str, components: dict[str, Component],
-                  system_inputs: list[str]) -> None:
+    def check_end(
+        self, element: str, connector: str, kind: str, components: dict[str, Component], system_inputs: list[str]
+    ) -> None:
         if element == "":
             if connector not in system_inputs:
-                raise SSPFormatError(f"{self.where}: connection names system connector '{connector}', which is not declared")
+                raise SSPFormatError(
+                    f"{self.where}: connection names system connector '{connector}', which is not declared"
+                )
             return
         if element not in components:
             raise SSPFormatError(f"{self.where}: connection names component '{element}', which does not exist")
         declared = components[element].outputs if kind == "output" else components[element].inputs
         if connector not in declared:
-            raise SSPFormatError(f"{self.where}: connection names {kind} '{element}.{connector}', which is not a "
-                                 f"declared {kind} connector")
+            raise SSPFormatError(
+                f"{self.where}: connection names {kind} '{element}.{connector}', which is not a "
+                f"declared {kind} connector"
+            )

@@ -17,6 +17,7 @@ The document itself (its classes, its structural checks, writing it) is ``mast.c
 parameter sets ``mast.core.ssv``. Here every source must stay inside the SSP (or the folder of the
 .ssd), and an archive is checked before a byte of it is extracted.
 """
+
 from __future__ import annotations
 
 import shutil
@@ -74,11 +75,11 @@ class SystemSpec:
 
 
 #: what an untrusted archive (SSP or FMU) may expand to; beyond, extraction is refused before a byte is written
-MAX_ARCHIVE_BYTES = 1 << 30        # all entries together, uncompressed
-MAX_ENTRY_BYTES = 512 << 20        # one entry, uncompressed
+MAX_ARCHIVE_BYTES = 1 << 30  # all entries together, uncompressed
+MAX_ENTRY_BYTES = 512 << 20  # one entry, uncompressed
 MAX_ENTRIES = 20_000
-MAX_RATIO = 200                    # uncompressed / compressed, for an entry of more than RATIO_FLOOR bytes
-RATIO_FLOOR = 1 << 20              # small entries (XML, JSON) may compress better without filling a disk
+MAX_RATIO = 200  # uncompressed / compressed, for an entry of more than RATIO_FLOOR bytes
+RATIO_FLOOR = 1 << 20  # small entries (XML, JSON) may compress better without filling a disk
 
 
 def check_archive(archive: Union[str, Path], label: Optional[str] = None) -> None:
@@ -114,8 +115,10 @@ def safe_extract(archive: Union[str, Path], target: Union[str, Path], label: Opt
                     while chunk := src.read(1 << 20):
                         written += len(chunk)
                         if written > MAX_ARCHIVE_BYTES:
-                            raise SSPFormatError(f"{name}: entry '{info.filename}' expands beyond the "
-                                                 f"{MAX_ARCHIVE_BYTES >> 20} MiB an archive may hold")
+                            raise SSPFormatError(
+                                f"{name}: entry '{info.filename}' expands beyond the "
+                                f"{MAX_ARCHIVE_BYTES >> 20} MiB an archive may hold"
+                            )
                         dst.write(chunk)
             except (zipfile.BadZipFile, zlib.error, EOFError, NotImplementedError) as err:
                 raise SSPFormatError(f"{name}: entry '{info.filename}' cannot be extracted ({err})") from None
@@ -140,18 +143,24 @@ def _check_members(members: list, name: str) -> None:
         _check_size(name, info.filename, info.file_size, info.compress_size)
         total += info.file_size
         if total > MAX_ARCHIVE_BYTES:
-            raise SSPFormatError(f"{name}: expands to more than {MAX_ARCHIVE_BYTES >> 20} MiB "
-                                 f"(reached at entry '{info.filename}'): refused as a possible zip bomb")
+            raise SSPFormatError(
+                f"{name}: expands to more than {MAX_ARCHIVE_BYTES >> 20} MiB "
+                f"(reached at entry '{info.filename}'): refused as a possible zip bomb"
+            )
 
 
 def _check_size(name: str, entry: str, size: int, compressed: int) -> None:
     if size > MAX_ENTRY_BYTES:
-        raise SSPFormatError(f"{name}: entry '{entry}' expands to {size >> 20} MiB, more than the "
-                             f"{MAX_ENTRY_BYTES >> 20} MiB an entry may: refused as a possible zip bomb")
+        raise SSPFormatError(
+            f"{name}: entry '{entry}' expands to {size >> 20} MiB, more than the "
+            f"{MAX_ENTRY_BYTES >> 20} MiB an entry may: refused as a possible zip bomb"
+        )
     if size > RATIO_FLOOR and size > MAX_RATIO * max(compressed, 1):
-        raise SSPFormatError(f"{name}: entry '{entry}' is compressed {size / max(compressed, 1):.0f} times "
-                             f"({compressed} bytes expand to {size >> 20} MiB), more than {MAX_RATIO}: "
-                             "refused as a possible zip bomb")
+        raise SSPFormatError(
+            f"{name}: entry '{entry}' is compressed {size / max(compressed, 1):.0f} times "
+            f"({compressed} bytes expand to {size >> 20} MiB), more than {MAX_RATIO}: "
+            "refused as a possible zip bomb"
+        )
 
 
 def path_inside(root: Path, reference: str) -> Optional[Path]:
@@ -208,10 +217,16 @@ def read_ssd(path: Union[str, Path], root: Optional[Path] = None, archive: Optio
     for comp in document.system.elements:
         name = comp.name
         _inside(root, comp.source, str(path), f"component '{name}' source", within)
-        if comp.ratings:   # read by mast sizing, which names it if absent
+        if comp.ratings:  # read by mast sizing, which names it if absent
             _inside(root, comp.ratings, str(path), f"component '{name}' ratings", within)
-        spec = ComponentSpec(name=name, source=comp.source, step_size=comp.step_size_hint, ratings=comp.ratings,
-                             inputs=comp.inputs, outputs=comp.outputs)
+        spec = ComponentSpec(
+            name=name,
+            source=comp.source,
+            step_size=comp.step_size_hint,
+            ratings=comp.ratings,
+            inputs=comp.inputs,
+            outputs=comp.outputs,
+        )
         for binding in comp.bindings:
             parsed = _binding_values(binding, root, path, name, within)
             source = binding.source or f"inline values of '{name}'"
@@ -222,9 +237,17 @@ def read_ssd(path: Union[str, Path], root: Optional[Path] = None, archive: Optio
         components[name] = spec
     experiment = document.default_experiment or ssd.DefaultExperiment()
     system = document.system
-    return SystemSpec(system.name or ssd_path.stem, root, components, list(system.connections),
-                      [c.name for c in system.connectors if c.kind in ssd.INPUT_KINDS], experiment.base_step,
-                      experiment.start_time, experiment.stop_time, archive)
+    return SystemSpec(
+        system.name or ssd_path.stem,
+        root,
+        components,
+        list(system.connections),
+        [c.name for c in system.connectors if c.kind in ssd.INPUT_KINDS],
+        experiment.base_step,
+        experiment.start_time,
+        experiment.stop_time,
+        archive,
+    )
 
 
 class _Origin:
@@ -242,8 +265,9 @@ class _Origin:
         return self.entry(self.path)
 
 
-def _binding_values(binding: ssd.ParameterBinding, root: Path, path: _Origin, component: str,
-                    within: str) -> dict[str, ParameterValue]:
+def _binding_values(
+    binding: ssd.ParameterBinding, root: Path, path: _Origin, component: str, within: str
+) -> dict[str, ParameterValue]:
     if binding.values is not None:
         return binding.values.parameters
     file = _inside(root, binding.source, str(path), f"component '{component}' binds parameter set", within)
@@ -252,8 +276,11 @@ def _binding_values(binding: ssd.ParameterBinding, root: Path, path: _Origin, co
     return parse_ssv(file.read_bytes(), origin=path.entry(file))
 
 
-def applicable_parameters(system: SystemSpec, parameter_names: Mapping[str, Iterable[str]],
-                          parameter_units: Optional[Mapping[str, Mapping[str, str]]] = None) -> dict[str, dict[str, Value]]:
+def applicable_parameters(
+    system: SystemSpec,
+    parameter_names: Mapping[str, Iterable[str]],
+    parameter_units: Optional[Mapping[str, Mapping[str, str]]] = None,
+) -> dict[str, dict[str, Value]]:
     """Each component's bound values restricted to its own parameters (``parameter_names``).
 
     SSP 1.0 ignores a bound name the component does not have; here that is allowed only
@@ -276,8 +303,10 @@ def applicable_parameters(system: SystemSpec, parameter_names: Mapping[str, Iter
             unused = sorted(k for k in values if k not in users[source])
             if unused:
                 bound = sorted(c for c, s in system.components.items() if any(src == source for src, _ in s.bindings))
-                raise SSPFormatError(f"parameter set {source}: {', '.join(map(repr, unused))} is a parameter of no "
-                                     f"component it is bound to ({', '.join(bound)})")
+                raise SSPFormatError(
+                    f"parameter set {source}: {', '.join(map(repr, unused))} is a parameter of no "
+                    f"component it is bound to ({', '.join(bound)})"
+                )
     out = {}
     for comp, spec in system.components.items():
         values = {k: v for k, v in spec.parameters.items() if k in names[comp]}
@@ -291,8 +320,9 @@ def applicable_parameters(system: SystemSpec, parameter_names: Mapping[str, Iter
     return out
 
 
-def _in_declared_unit(value: float, given: tuple[str, Unit], declared: Optional[str], source: str, name: str,
-                      comp: str) -> float:
+def _in_declared_unit(
+    value: float, given: tuple[str, Unit], declared: Optional[str], source: str, name: str, comp: str
+) -> float:
     """``value`` (coherent SI of the ``given`` unit's dimension) in the unit the component declares."""
     text, unit = given
     target = None
@@ -303,16 +333,20 @@ def _in_declared_unit(value: float, given: tuple[str, Unit], declared: Optional[
             target = None
     if target is None:
         if unit.factor != 1.0 or unit.offset:
-            raise SSPFormatError(f"parameter set {source}: '{name}' is given in '{text}', but component '{comp}' "
-                                 f"declares no unit this tool knows for it ({declared or 'none'}): give it in "
-                                 "coherent SI units")
+            raise SSPFormatError(
+                f"parameter set {source}: '{name}' is given in '{text}', but component '{comp}' "
+                f"declares no unit this tool knows for it ({declared or 'none'}): give it in "
+                "coherent SI units"
+            )
         return value
     try:
         return convert(value, Unit(dims=unit.dims), target)
     except UnitError:
-        raise SSPFormatError(f"parameter set {source}: '{name}' is given in '{text}' (dimension {unit.dimension()}), "
-                             f"but component '{comp}' declares it in '{declared}' (dimension "
-                             f"{target.dimension()})") from None
+        raise SSPFormatError(
+            f"parameter set {source}: '{name}' is given in '{text}' (dimension {unit.dimension()}), "
+            f"but component '{comp}' declares it in '{declared}' (dimension "
+            f"{target.dimension()})"
+        ) from None
 
 
 class SSPArchive:
@@ -336,8 +370,9 @@ class SSPArchive:
                 self.system = read_ssd(self.ssd, archive=self.path)
             for name in self.system.components:
                 if not self.system.fmu_path(name).is_file():
-                    raise SSPFormatError(f"{self.path}: component '{name}' source "
-                                         f"{self.system.components[name].source} is missing")
+                    raise SSPFormatError(
+                        f"{self.path}: component '{name}' source {self.system.components[name].source} is missing"
+                    )
         except BaseException:  # nothing extracted stays behind a refused archive
             self.close()
             raise

@@ -13,6 +13,7 @@ one whose dimension is not the parameter's. Units come from the set's own defini
 (``ssv:Units``, SSP 1.0) or the notation of ``mast.core.units``; an unknown unit is an error naming
 the set, the parameter and the unit.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -39,10 +40,10 @@ class ParameterValue:
     """An ``ssv:Parameter``: its name, typed value, unit and description (``source``)."""
 
     name: str
-    value: Value       # a Real with a unit: in the coherent SI unit of that unit's dimension
-    unit: str          # as written in the set ("" if none)
+    value: Value  # a Real with a unit: in the coherent SI unit of that unit's dimension
+    unit: str  # as written in the set ("" if none)
     source: str
-    si: Optional[Unit] = None   # the parsed ``unit`` (None: no unit given)
+    si: Optional[Unit] = None  # the parsed ``unit`` (None: no unit given)
     written: Optional[Value] = None  # the value as written in the set, in ``unit`` (None: ``value``)
 
 
@@ -59,8 +60,9 @@ class ParameterSet:
 
     def to_element(self) -> etree._Element:
         """The ``ssv:ParameterSet`` element (no layout: ``indent`` gives it one)."""
-        root = etree.Element(f"{{{SSV_NS}}}ParameterSet", nsmap={"ssv": SSV_NS, "ssc": SSC_NS},
-                             version=self.version, name=self.name)
+        root = etree.Element(
+            f"{{{SSV_NS}}}ParameterSet", nsmap={"ssv": SSV_NS, "ssc": SSC_NS}, version=self.version, name=self.name
+        )
         if self.comment:
             root.append(etree.Comment(f" {self.comment.strip().replace('--', '- -')} "))
         params = etree.SubElement(root, f"{{{SSV_NS}}}Parameters")
@@ -68,7 +70,7 @@ class ParameterSet:
             par = etree.SubElement(params, f"{{{SSV_NS}}}Parameter", name=p.name)
             if p.source:
                 par.set("description", p.source)
-            kind, text = typed_value(p.value if p.written is None else p.written)   # in p.unit, as written
+            kind, text = typed_value(p.value if p.written is None else p.written)  # in p.unit, as written
             typed = etree.SubElement(par, f"{{{SSV_NS}}}{kind}", value=text)
             if p.unit and kind == "Real":
                 typed.set("unit", p.unit)
@@ -92,8 +94,13 @@ def write(path: Union[str, Path], parameter_set: ParameterSet) -> Path:
     return path
 
 
-def parameter_set(name: str, values: Mapping[str, Value], units: Optional[Mapping[str, str]] = None,
-                  descriptions: Optional[Mapping[str, str]] = None, comment: str = "") -> ParameterSet:
+def parameter_set(
+    name: str,
+    values: Mapping[str, Value],
+    units: Optional[Mapping[str, str]] = None,
+    descriptions: Optional[Mapping[str, str]] = None,
+    comment: str = "",
+) -> ParameterSet:
     """A set of plain ``values`` [in ``units``, by name; a name without a unit: none], each with its
     description; every unit a value uses is defined in the set's ``ssv:Units`` (``mast.core.units``
     notation). An int stays an Integer, a bool a Boolean, a str a String, anything else is a Real."""
@@ -126,8 +133,7 @@ def unit_element(name: str, unit: Unit) -> etree._Element:
 def xml_document(root: etree._Element, comments: Sequence[str] = ()) -> bytes:
     """The UTF-8 document of ``root``, after the XML declaration and ``comments`` (one a line, before the root)."""
     head = "".join(f"<!-- {text.strip().replace('--', '- -')} -->\n" for text in comments)
-    return (f'<?xml version="1.0" encoding="UTF-8"?>\n{head}'.encode() + etree.tostring(root, encoding="UTF-8")
-            + b"\n")
+    return f'<?xml version="1.0" encoding="UTF-8"?>\n{head}'.encode() + etree.tostring(root, encoding="UTF-8") + b"\n"
 
 
 def indent(element: etree._Element, level: int = 0) -> None:
@@ -161,8 +167,9 @@ def typed_value(value: Value) -> tuple[str, str]:
     return "String", str(value)
 
 
-def read(data: Union[bytes, str, Path, etree._Element], origin: str = "",
-         units: Optional[Mapping[str, Unit]] = None) -> ParameterSet:
+def read(
+    data: Union[bytes, str, Path, etree._Element], origin: str = "", units: Optional[Mapping[str, Unit]] = None
+) -> ParameterSet:
     """The parameter set of an .ssv document (bytes, text, a path or a parsed ``ssv:ParameterSet``).
 
     ``units``: unit definitions in scope besides the set's own (an inline set in an .ssd sees the
@@ -205,8 +212,10 @@ def read(data: Union[bytes, str, Path, etree._Element], origin: str = "",
         unit, written = None, value
         if unit_text:
             if kind != "Real":
-                raise SSPFormatError(f"{origin}: parameter '{name}': a unit ('{unit_text}') on a {kind} value; "
-                                     "SSP gives units to Real values only")
+                raise SSPFormatError(
+                    f"{origin}: parameter '{name}': a unit ('{unit_text}') on a {kind} value; "
+                    "SSP gives units to Real values only"
+                )
             try:
                 unit = parse_unit(unit_text, defined)
             except UnitError as err:
@@ -217,8 +226,9 @@ def read(data: Union[bytes, str, Path, etree._Element], origin: str = "",
     return ParameterSet(root.get("name", ""), values, own, comments[0] if comments else "", root.get("version", "1.0"))
 
 
-def parse_ssv(data: Union[bytes, str, Path, etree._Element], origin: str = "",
-              units: Optional[Mapping[str, Unit]] = None) -> dict[str, ParameterValue]:
+def parse_ssv(
+    data: Union[bytes, str, Path, etree._Element], origin: str = "", units: Optional[Mapping[str, Unit]] = None
+) -> dict[str, ParameterValue]:
     """The parameters of an .ssv document, by name (``read``)."""
     return read(data, origin, units).parameters
 
@@ -235,7 +245,9 @@ def unit_definitions(root, origin: str) -> dict[str, Unit]:
             dims = tuple(int(base.get(b, "0")) for b in BASE)
             defined[name] = Unit(float(base.get("factor", "1")), dims, float(base.get("offset", "0")))
         except ValueError:
-            raise SSPFormatError(f"{origin}: unit '{name}': its ssc:BaseUnit has a value that is not a number") from None
+            raise SSPFormatError(
+                f"{origin}: unit '{name}': its ssc:BaseUnit has a value that is not a number"
+            ) from None
     return defined
 
 

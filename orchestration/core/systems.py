@@ -22,6 +22,7 @@ same with its own pose command (ssp/MAST_standalone.ssd); the design and control
 (``mast.core.designs``, ``mast.core.controllers``) are descriptions derived from ``MAST``.
 ``python -m mast.core.variants`` writes them all (tests check the committed files are what it writes).
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -111,44 +112,84 @@ def system_ssd(description: SystemDescription, shape: Topology) -> ssd.SystemStr
     joints = [_joint(d.unit) for d in shape.drives]
     ks = range(1, shape.n + 1)
 
-    def component(name: str, part: Part, connectors: list[ssd.Connector], ratings: Optional[str] = None,
-                  **words: str) -> ssd.Component:
-        return ssd.Component(name, part.source, connectors, [ssd.ParameterBinding(s) for s in part.bindings],
-                             part.step, ratings, part.comment.format(**names, **words))
+    def component(
+        name: str, part: Part, connectors: list[ssd.Connector], ratings: Optional[str] = None, **words: str
+    ) -> ssd.Component:
+        return ssd.Component(
+            name,
+            part.source,
+            connectors,
+            [ssd.ParameterBinding(s) for s in part.bindings],
+            part.step,
+            ratings,
+            part.comment.format(**names, **words),
+        )
 
-    controller = component("controller", description.controller, commands + [
-        *(ssd.Connector(f"rho_{k}", "input", unit=j["rho"]) for k, j in zip(ks, joints)),
-        *(ssd.Connector(f"omega_m_{k}", "input", unit="rad/s") for k in ks),
-        *(ssd.Connector(f"rho_cmd_{k}", "output", unit=j["rho"]) for k, j in zip(ks, joints)),
-        *(ssd.Connector(f"omega_cmd_{k}", "output", unit="rad/s") for k in ks),
-        *(ssd.Connector(f"i_cmd_{k}", "output", unit="A") for k in ks)])
-    actuators = [component(f"actuator_{k}", description.actuator, [
-        ssd.Connector("i_cmd", "input", unit="A"), ssd.Connector("F", "input", unit=j["F"]),
-        *(ssd.Connector(q, "output", unit=j[q]) for q in ("rho", "rho_dot", "rho_ddot")),
-        *(ssd.Connector(q, "output", unit=u) for q, u in ACTUATOR_SIGNALS)],
-        description.ratings, k=str(k), kind=d.kind.capitalize()) for k, d, j in zip(ks, shape.drives, joints)]
-    mechanism = component("mechanism", description.mechanism, [
-        *(ssd.Connector(f"{q}_{k}", "input", unit=j[q]) for q in ("rho", "rho_dot", "rho_ddot")
-          for k, j in zip(ks, joints)),
-        *(ssd.Connector(f"F_{k}", "output", unit=j["F"]) for k, j in zip(ks, joints)),
-        *(ssd.Connector(p, "output", unit=POSE_UNITS[p]) for p in POSE)])
+    controller = component(
+        "controller",
+        description.controller,
+        commands
+        + [
+            *(ssd.Connector(f"rho_{k}", "input", unit=j["rho"]) for k, j in zip(ks, joints)),
+            *(ssd.Connector(f"omega_m_{k}", "input", unit="rad/s") for k in ks),
+            *(ssd.Connector(f"rho_cmd_{k}", "output", unit=j["rho"]) for k, j in zip(ks, joints)),
+            *(ssd.Connector(f"omega_cmd_{k}", "output", unit="rad/s") for k in ks),
+            *(ssd.Connector(f"i_cmd_{k}", "output", unit="A") for k in ks),
+        ],
+    )
+    actuators = [
+        component(
+            f"actuator_{k}",
+            description.actuator,
+            [
+                ssd.Connector("i_cmd", "input", unit="A"),
+                ssd.Connector("F", "input", unit=j["F"]),
+                *(ssd.Connector(q, "output", unit=j[q]) for q in ("rho", "rho_dot", "rho_ddot")),
+                *(ssd.Connector(q, "output", unit=u) for q, u in ACTUATOR_SIGNALS),
+            ],
+            description.ratings,
+            k=str(k),
+            kind=d.kind.capitalize(),
+        )
+        for k, d, j in zip(ks, shape.drives, joints)
+    ]
+    mechanism = component(
+        "mechanism",
+        description.mechanism,
+        [
+            *(
+                ssd.Connector(f"{q}_{k}", "input", unit=j[q])
+                for q in ("rho", "rho_dot", "rho_ddot")
+                for k, j in zip(ks, joints)
+            ),
+            *(ssd.Connector(f"F_{k}", "output", unit=j["F"]) for k, j in zip(ks, joints)),
+            *(ssd.Connector(p, "output", unit=POSE_UNITS[p]) for p in POSE),
+        ],
+    )
     source = ""
     elements = [controller, *actuators, mechanism]
     if description.trajectory is not None:
         source = "trajectory"
-        elements.insert(0, component("trajectory", description.trajectory,
-                                     [dataclasses.replace(c, kind="output") for c in commands]))
+        elements.insert(
+            0,
+            component("trajectory", description.trajectory, [dataclasses.replace(c, kind="output") for c in commands]),
+        )
     connections = [ssd.Connection(source, c.name, "controller", c.name) for c in commands]
     for k in ks:
-        connections += [ssd.Connection("controller", f"i_cmd_{k}", f"actuator_{k}", "i_cmd"),
-                        ssd.Connection(f"actuator_{k}", "rho", "controller", f"rho_{k}"),
-                        ssd.Connection(f"actuator_{k}", "omega_m", "controller", f"omega_m_{k}"),
-                        *(ssd.Connection(f"actuator_{k}", q, "mechanism", f"{q}_{k}") for q in ("rho", "rho_dot", "rho_ddot")),
-                        ssd.Connection("mechanism", f"F_{k}", f"actuator_{k}", "F")]
+        connections += [
+            ssd.Connection("controller", f"i_cmd_{k}", f"actuator_{k}", "i_cmd"),
+            ssd.Connection(f"actuator_{k}", "rho", "controller", f"rho_{k}"),
+            ssd.Connection(f"actuator_{k}", "omega_m", "controller", f"omega_m_{k}"),
+            *(ssd.Connection(f"actuator_{k}", q, "mechanism", f"{q}_{k}") for q in ("rho", "rho_dot", "rho_ddot")),
+            ssd.Connection("mechanism", f"F_{k}", f"actuator_{k}", "F"),
+        ]
     system = ssd.System(description.system, description.description, [] if source else commands, elements, connections)
     return ssd.SystemStructureDescription(
-        description.name, system, ssd.DefaultExperiment(description.start_time, description.stop_time,
-                                                        description.base_step), comments=[description.comment])
+        description.name,
+        system,
+        ssd.DefaultExperiment(description.start_time, description.stop_time, description.base_step),
+        comments=[description.comment],
+    )
 
 
 def generate(description: SystemDescription) -> bytes:
@@ -158,33 +199,61 @@ def generate(description: SystemDescription) -> bytes:
 
 #: the default system: the MAST with joint-space position control (ssp/MAST.ssd)
 MAST = SystemDescription(
-    name="MAST", system="MAST", description="3PRS Multi-Axial Simulation Table, joint-space cascade control",
+    name="MAST",
+    system="MAST",
+    description="3PRS Multi-Axial Simulation Table, joint-space cascade control",
     comment="The MAST with joint-space position control (paper Fig. 1 and 2).\n"
-            "     Sources: `mast build` packs this file with the FMUs and the parameter sets into build/ssp/MAST.ssp.\n"
-            "     Components may be swapped by editing their `source`; parameter sets are bound in order, later ones "
-            "override.\n"
-            "     Step sizes: OSP annotations (honoured by libcosim/ecos and by the project's master).",
-    controller=Part("MastController.fmu", ("resources/transmission.ssv", "resources/geometry_3prs.ssv",
-                                           "resources/drive.ssv", "resources/controller_joint.ssv",
-                                           "resources/controller_paper_fit.ssv"), 0.001,
-                    "Joint-space cascade for the {n} axes (position and velocity loops, 1 ms); its commands are "
-                    "direct feedthrough"),
-    actuator=Part("MastActuator.fmu", ("resources/transmission.ssv", "resources/actuator_manufacturer.ssv",
-                                       "resources/stroke_3prs.ssv", "resources/drive.ssv"), 0.001,
-                  "{kind} axis {k} with its drive's current loop (T_cur = 100 us inside the FMU): current command in"),
-    mechanism=Part("MastMechanism.fmu", ("resources/geometry_3prs.ssv", "resources/mass_3prs.ssv",
-                                         "resources/attached.ssv"), 0.001,
-                   "{mechanism} inverse dynamics: a disturbance to the actuators, stepped at the position/velocity cycle"),
-    ratings="resources/drive_ratings.ssv")
+    "     Sources: `mast build` packs this file with the FMUs and the parameter sets into build/ssp/MAST.ssp.\n"
+    "     Components may be swapped by editing their `source`; parameter sets are bound in order, later ones "
+    "override.\n"
+    "     Step sizes: OSP annotations (honoured by libcosim/ecos and by the project's master).",
+    controller=Part(
+        "MastController.fmu",
+        (
+            "resources/transmission.ssv",
+            "resources/geometry_3prs.ssv",
+            "resources/drive.ssv",
+            "resources/controller_joint.ssv",
+            "resources/controller_paper_fit.ssv",
+        ),
+        0.001,
+        "Joint-space cascade for the {n} axes (position and velocity loops, 1 ms); its commands are direct feedthrough",
+    ),
+    actuator=Part(
+        "MastActuator.fmu",
+        (
+            "resources/transmission.ssv",
+            "resources/actuator_manufacturer.ssv",
+            "resources/stroke_3prs.ssv",
+            "resources/drive.ssv",
+        ),
+        0.001,
+        "{kind} axis {k} with its drive's current loop (T_cur = 100 us inside the FMU): current command in",
+    ),
+    mechanism=Part(
+        "MastMechanism.fmu",
+        ("resources/geometry_3prs.ssv", "resources/mass_3prs.ssv", "resources/attached.ssv"),
+        0.001,
+        "{mechanism} inverse dynamics: a disturbance to the actuators, stepped at the position/velocity cycle",
+    ),
+    ratings="resources/drive_ratings.ssv",
+)
 
 #: the default system driven by its own pose command (ssp/MAST_standalone.ssd): hosts without system inputs run it
 STANDALONE = dataclasses.replace(
-    MAST, name="MAST_standalone", system="MAST_standalone", description=MAST.description + ", with its pose command",
+    MAST,
+    name="MAST_standalone",
+    system="MAST_standalone",
+    description=MAST.description + ", with its pose command",
     comment="The MAST with joint-space position control (paper Fig. 1 and 2), driven by its own pose command:\n"
-            "     the system MAST.ssd with a MastTrajectory component in place of the system inputs, so that any\n"
-            "     co-simulation host runs it as it is (libcosim and ecos accept no system-level connectors).\n"
-            "     Everything else is MAST.ssd (tests/test_hosts.py checks they agree).\n"
-            + MAST.comment.split("\n", 1)[1],
-    trajectory=Part("MastTrajectory.fmu", ("resources/home_3prs.ssv", "resources/trajectory_z.ssv"), 0.001,
-                    "Pose command: home pose (home_3prs.ssv) + sine (trajectory_z.ssv: 10 mm at 1 Hz on z); stepped "
-                    "with the controller"))
+    "     the system MAST.ssd with a MastTrajectory component in place of the system inputs, so that any\n"
+    "     co-simulation host runs it as it is (libcosim and ecos accept no system-level connectors).\n"
+    "     Everything else is MAST.ssd (tests/test_hosts.py checks they agree).\n" + MAST.comment.split("\n", 1)[1],
+    trajectory=Part(
+        "MastTrajectory.fmu",
+        ("resources/home_3prs.ssv", "resources/trajectory_z.ssv"),
+        0.001,
+        "Pose command: home pose (home_3prs.ssv) + sine (trajectory_z.ssv: 10 mm at 1 Hz on z); stepped "
+        "with the controller",
+    ),
+)

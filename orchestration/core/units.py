@@ -9,6 +9,7 @@ parentheses, integer exponents written after the symbol (``kg.m2``, ``m/s2``, ``
 (``deg``, ``min``, ``h``, ``rpm``). An .ssv file may define its own units (``ssv:Units``);
 those take precedence over the notation.
 """
+
 from __future__ import annotations
 
 import math
@@ -35,7 +36,7 @@ class Unit:
         return Unit(self.factor * other.factor, tuple(a + b for a, b in zip(self.dims, other.dims)))
 
     def __pow__(self, n: int) -> "Unit":
-        return Unit(self.factor ** n, tuple(a * n for a in self.dims))
+        return Unit(self.factor**n, tuple(a * n for a in self.dims))
 
     def dimension(self) -> str:
         text = ".".join(f"{b}{e if e != 1 else ''}" for b, e in zip(BASE, self.dims) if e)
@@ -48,28 +49,89 @@ def _u(factor: float = 1.0, **exponents: int) -> Unit:
 
 #: symbols without prefix (g is the gram: kg is k + g)
 SYMBOLS: dict[str, Unit] = {
-    "1": _u(), "m": _u(m=1), "g": _u(1e-3, kg=1), "s": _u(s=1), "A": _u(A=1), "K": _u(K=1), "mol": _u(mol=1),
-    "cd": _u(cd=1), "rad": _u(rad=1), "N": _u(kg=1, m=1, s=-2), "J": _u(kg=1, m=2, s=-2),
-    "W": _u(kg=1, m=2, s=-3), "V": _u(kg=1, m=2, s=-3, A=-1), "ohm": _u(kg=1, m=2, s=-3, A=-2),
-    "Ohm": _u(kg=1, m=2, s=-3, A=-2), "\u03a9": _u(kg=1, m=2, s=-3, A=-2), "H": _u(kg=1, m=2, s=-2, A=-2),
-    "F": _u(kg=-1, m=-2, s=4, A=2), "C": _u(A=1, s=1), "Wb": _u(kg=1, m=2, s=-2, A=-1),
-    "T": _u(kg=1, s=-2, A=-1), "Pa": _u(kg=1, m=-1, s=-2), "Hz": _u(s=-1),
-    "deg": _u(math.pi / 180.0, rad=1), "min": _u(60.0, s=1), "h": _u(3600.0, s=1),
-    "rpm": _u(2.0 * math.pi / 60.0, rad=1, s=-1), "l": _u(1e-3, m=3), "L": _u(1e-3, m=3),
+    "1": _u(),
+    "m": _u(m=1),
+    "g": _u(1e-3, kg=1),
+    "s": _u(s=1),
+    "A": _u(A=1),
+    "K": _u(K=1),
+    "mol": _u(mol=1),
+    "cd": _u(cd=1),
+    "rad": _u(rad=1),
+    "N": _u(kg=1, m=1, s=-2),
+    "J": _u(kg=1, m=2, s=-2),
+    "W": _u(kg=1, m=2, s=-3),
+    "V": _u(kg=1, m=2, s=-3, A=-1),
+    "ohm": _u(kg=1, m=2, s=-3, A=-2),
+    "Ohm": _u(kg=1, m=2, s=-3, A=-2),
+    "\u03a9": _u(kg=1, m=2, s=-3, A=-2),
+    "H": _u(kg=1, m=2, s=-2, A=-2),
+    "F": _u(kg=-1, m=-2, s=4, A=2),
+    "C": _u(A=1, s=1),
+    "Wb": _u(kg=1, m=2, s=-2, A=-1),
+    "T": _u(kg=1, s=-2, A=-1),
+    "Pa": _u(kg=1, m=-1, s=-2),
+    "Hz": _u(s=-1),
+    "deg": _u(math.pi / 180.0, rad=1),
+    "min": _u(60.0, s=1),
+    "h": _u(3600.0, s=1),
+    "rpm": _u(2.0 * math.pi / 60.0, rad=1, s=-1),
+    "l": _u(1e-3, m=3),
+    "L": _u(1e-3, m=3),
 }
-PREFIXES = {"T": 1e12, "G": 1e9, "M": 1e6, "k": 1e3, "h": 1e2, "da": 1e1, "d": 1e-1, "c": 1e-2, "m": 1e-3,
-            "u": 1e-6, "\u00b5": 1e-6, "\u03bc": 1e-6, "n": 1e-9, "p": 1e-12}
-_PREFIXABLE = {"m", "g", "s", "A", "K", "mol", "cd", "rad", "N", "J", "W", "V", "ohm", "Ohm", "\u03a9", "H", "F",
-               "C", "Wb", "T", "Pa", "Hz", "l", "L"}
-_TOKEN = re.compile(r"(?P<open>\()|(?P<close>\))|(?P<op>[./*\u00b7])"
-                    r"|(?P<atom>[A-Za-z\u00b5\u03bc\u03a9]+|1)(?:\^?(?P<exp>[+-]?\d+))?")
+PREFIXES = {
+    "T": 1e12,
+    "G": 1e9,
+    "M": 1e6,
+    "k": 1e3,
+    "h": 1e2,
+    "da": 1e1,
+    "d": 1e-1,
+    "c": 1e-2,
+    "m": 1e-3,
+    "u": 1e-6,
+    "\u00b5": 1e-6,
+    "\u03bc": 1e-6,
+    "n": 1e-9,
+    "p": 1e-12,
+}
+_PREFIXABLE = {
+    "m",
+    "g",
+    "s",
+    "A",
+    "K",
+    "mol",
+    "cd",
+    "rad",
+    "N",
+    "J",
+    "W",
+    "V",
+    "ohm",
+    "Ohm",
+    "\u03a9",
+    "H",
+    "F",
+    "C",
+    "Wb",
+    "T",
+    "Pa",
+    "Hz",
+    "l",
+    "L",
+}
+_TOKEN = re.compile(
+    r"(?P<open>\()|(?P<close>\))|(?P<op>[./*\u00b7])"
+    r"|(?P<atom>[A-Za-z\u00b5\u03bc\u03a9]+|1)(?:\^?(?P<exp>[+-]?\d+))?"
+)
 
 
 def _symbol(text: str, unit: str) -> Unit:
     if text in SYMBOLS:
         return SYMBOLS[text]
     for prefix, factor in PREFIXES.items():
-        rest = text[len(prefix):]
+        rest = text[len(prefix) :]
         if text.startswith(prefix) and rest in _PREFIXABLE:
             return Unit(factor * SYMBOLS[rest].factor, SYMBOLS[rest].dims)
     raise UnitError(f"unit '{unit}': '{text}' is not a known unit symbol")
@@ -98,7 +160,7 @@ def parse_unit(text: str, defined: Optional[Mapping[str, Unit]] = None) -> Unit:
             op = tokens[k].group("op")
             k += 1
             right = factor()
-            result = result * (right ** -1 if op == "/" else right)
+            result = result * (right**-1 if op == "/" else right)
         return result
 
     def factor() -> Unit:

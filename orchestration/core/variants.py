@@ -4,6 +4,7 @@ along inclined guides), then every system SSD of ssp/ that ``mast.core.systems``
 default system (ssp/MAST.ssd), the standalone one (ssp/MAST_standalone.ssd), the mechanism designs'
 (``mast.core.designs``) and the controllers' (``mast.core.controllers``). ssp/EMPS_bench.ssd, a
 single-axis bench and not a mechanism with n drives, is written by hand."""
+
 from __future__ import annotations
 
 import sys

@@ -24,6 +24,7 @@ NO_STEPS_T; between: undecided (the input's step is of the order of the effort's
 sample-to-sample change), no verdict. Edges are the samples where the input jumps by at least
 half its range: a pulse train has them, a smooth input (a chirp) has none and is not tested.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -42,12 +43,12 @@ AFTER_EDGE = 3
 class EdgeSteps:
     """The effort's steps at the injected input's edges (module docstring)."""
 
-    edges: int             # number of edges of the input
-    amplitude: float       # median |jump| of the input at its edges [input unit]
-    gain: float            # least-squares step of the effort per unit jump of the input [effort unit / input unit]
-    t: float               # gain / its standard error
-    share: float           # the share of the effort's changes at the edges the steps explain
-    spread: float          # std of the effort's one-sample change away from the edges [effort unit]
+    edges: int  # number of edges of the input
+    amplitude: float  # median |jump| of the input at its edges [input unit]
+    gain: float  # least-squares step of the effort per unit jump of the input [effort unit / input unit]
+    t: float  # gain / its standard error
+    share: float  # the share of the effort's changes at the edges the steps explain
+    spread: float  # std of the effort's one-sample change away from the edges [effort unit]
 
     @property
     def step(self) -> float:
@@ -82,6 +83,7 @@ def edge_steps(effort: np.ndarray, injected: np.ndarray) -> Optional[EdgeSteps]:
     energy = float(du_e @ du_e)
     gain = float(dy_e @ du_e) / energy
     changes = float(dy_e @ dy_e)
-    share = gain ** 2 * energy / changes if changes > 0 else 0.0
-    return EdgeSteps(int(edge.sum()), float(np.median(np.abs(du_e))), gain, gain / (spread / np.sqrt(energy)),
-                     share, spread)
+    share = gain**2 * energy / changes if changes > 0 else 0.0
+    return EdgeSteps(
+        int(edge.sum()), float(np.median(np.abs(du_e))), gain, gain / (spread / np.sqrt(energy)), share, spread
+    )

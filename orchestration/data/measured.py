@@ -12,6 +12,7 @@ recorded joint commands into the pose commands the SSP's controller takes (direc
 kinematics with the controller's own geometry), so that the controller's inverse
 kinematics gives back the recorded rho_cmd (to 1e-12 m) at its position-loop ticks.
 """
+
 from __future__ import annotations
 
 import copy
@@ -38,19 +39,26 @@ UNITS: dict[str, dict[str, float]] = {
     "angle": {"rad": 1.0, "deg": math.pi / 180.0, "mrad": 1e-3},
 }
 #: the unit key in meta.json of each column group, and its quantity
-UNIT_KEYS = {"time": "time", "rho_cmd": "length", "rho": "length", "tau_m": "torque", "i_m": "current",
-             "position": "length", "angle": "angle"}
+UNIT_KEYS = {
+    "time": "time",
+    "rho_cmd": "length",
+    "rho": "length",
+    "tau_m": "torque",
+    "i_m": "current",
+    "position": "length",
+    "angle": "angle",
+}
 #: plausibility limits after conversion to SI (catch a wrong unit)
-MAX_TORQUE = 10.0      # N m at the motor shaft (Maxon RE 40: 2.5 N m stall torque)
-MIN_TORQUE = 1e-4      # N m: the largest |tau| of a test must exceed this
-MAX_CURRENT = 100.0    # A
-MIN_STEP, MAX_STEP = 1e-5, 0.05   # s between samples
-JITTER = 0.01          # relative deviation of a sampling step from the median
+MAX_TORQUE = 10.0  # N m at the motor shaft (Maxon RE 40: 2.5 N m stall torque)
+MIN_TORQUE = 1e-4  # N m: the largest |tau| of a test must exceed this
+MAX_CURRENT = 100.0  # A
+MIN_STEP, MAX_STEP = 1e-5, 0.05  # s between samples
+JITTER = 0.01  # relative deviation of a sampling step from the median
 MIN_SAMPLES = 50
-MAX_TRACKING = 0.01    # m: median |rho - rho_cmd| above this is no tracking error but a unit mismatch
+MAX_TRACKING = 0.01  # m: median |rho - rho_cmd| above this is no tracking error but a unit mismatch
 #: the commanded joint swing per unit of commanded pose amplitude: z moves every carriage 1:1 (vertical
 #: guides; less on inclined ones), psi/theta move the carriages about (platform radius) x angle
-SWING_PER_AMPLITUDE = {"z": (0.2, 5.0), "psi": (0.01, 3.0), "theta": (0.01, 3.0)}   # m/m, m/rad
+SWING_PER_AMPLITUDE = {"z": (0.2, 5.0), "psi": (0.01, 3.0), "theta": (0.01, 3.0)}  # m/m, m/rad
 
 
 class MeasuredDataError(ValueError):
@@ -79,17 +87,17 @@ class MeasuredTest(Sampled):
 
     name: str
     file: Path
-    time: np.ndarray                 # (n,) s, from 0
-    rho_cmd: np.ndarray              # (n, 3) m
-    rho: np.ndarray                  # (n, 3) m
-    tau_m: np.ndarray                # (n, 3) N m (from i_m * k_T when the data hold currents)
+    time: np.ndarray  # (n,) s, from 0
+    rho_cmd: np.ndarray  # (n, 3) m
+    rho: np.ndarray  # (n, 3) m
+    tau_m: np.ndarray  # (n, 3) N m (from i_m * k_T when the data hold currents)
     motion: Optional[str] = None
-    amplitude: Optional[float] = None   # m for z, rad for psi/theta
-    frequency: Optional[float] = None   # Hz (sine tests)
-    role: Optional[str] = None          # "training" / "held-out" / None (the diagnosis decides)
-    settle_s: float = 1.0               # analysis starts here
+    amplitude: Optional[float] = None  # m for z, rad for psi/theta
+    frequency: Optional[float] = None  # Hz (sine tests)
+    role: Optional[str] = None  # "training" / "held-out" / None (the diagnosis decides)
+    settle_s: float = 1.0  # analysis starts here
     pose: dict[str, np.ndarray] = field(default_factory=dict)
-    time_offset: float = 0.0            # the file's first time stamp [s]
+    time_offset: float = 0.0  # the file's first time stamp [s]
 
     def label(self) -> str:
         if self.motion and self.frequency:
@@ -102,8 +110,8 @@ class MeasuredData:
     folder: Path
     meta: dict
     tests: list[MeasuredTest]
-    torque_filter_s: float = 0.0        # the drive's documented torque filter (first-order) [s]
-    torque_delay_s: float = 0.0         # documented logging delay [s]
+    torque_filter_s: float = 0.0  # the drive's documented torque filter (first-order) [s]
+    torque_delay_s: float = 0.0  # documented logging delay [s]
 
     def test(self, name: str) -> MeasuredTest:
         for t in self.tests:
@@ -118,12 +126,14 @@ class MeasuredData:
 def _unit_factor(meta_units: Mapping[str, str], key: str, where: str) -> float:
     quantity = UNIT_KEYS[key]
     if key not in meta_units:
-        raise MeasuredDataError(f"{where}: meta.json 'units' has no entry for '{key}' "
-                                f"(one of {', '.join(UNITS[quantity])})")
+        raise MeasuredDataError(
+            f"{where}: meta.json 'units' has no entry for '{key}' (one of {', '.join(UNITS[quantity])})"
+        )
     unit = str(meta_units[key]).strip()
     if unit not in UNITS[quantity]:
-        raise MeasuredDataError(f"{where}: unit '{unit}' for '{key}' is not known; expected one of "
-                                f"{', '.join(UNITS[quantity])}")
+        raise MeasuredDataError(
+            f"{where}: unit '{unit}' for '{key}' is not known; expected one of {', '.join(UNITS[quantity])}"
+        )
     return UNITS[quantity][unit]
 
 
@@ -159,8 +169,9 @@ def read_csv(path: Path) -> tuple[list[str], np.ndarray]:
             try:
                 data[i, j] = float(cell) if cell else np.nan
             except ValueError:
-                raise MeasuredDataError(f"{path.name}: column {header[j]}: {cell!r} on line {i + 2} "
-                                        "is not a number") from None
+                raise MeasuredDataError(
+                    f"{path.name}: column {header[j]}: {cell!r} on line {i + 2} is not a number"
+                ) from None
     return header, data
 
 
@@ -169,8 +180,10 @@ def check_finite(name: str, column: str, values: np.ndarray, time: Optional[np.n
     if bad.any():
         k = int(np.argmax(bad))
         at = f" (t = {time[k]:.6g} s)" if time is not None and np.isfinite(time[k]) else ""
-        raise MeasuredDataError(f"{name}: column {column}: {int(bad.sum())} missing or non-finite value(s), "
-                                f"the first on data row {k + 1}{at}")
+        raise MeasuredDataError(
+            f"{name}: column {column}: {int(bad.sum())} missing or non-finite value(s), "
+            f"the first on data row {k + 1}{at}"
+        )
 
 
 def check_sampling(name: str, t: np.ndarray) -> None:
@@ -179,22 +192,29 @@ def check_sampling(name: str, t: np.ndarray) -> None:
     dt = np.diff(t)
     if (dt <= 0).any():
         k = int(np.argmax(dt <= 0))
-        raise MeasuredDataError(f"{name}: column time: not increasing at data row {k + 2} "
-                                f"(t = {t[k]:.9g} s then {t[k + 1]:.9g} s)")
+        raise MeasuredDataError(
+            f"{name}: column time: not increasing at data row {k + 2} (t = {t[k]:.9g} s then {t[k + 1]:.9g} s)"
+        )
     step = float(np.median(dt))
     if not MIN_STEP <= step <= MAX_STEP:
-        raise MeasuredDataError(f"{name}: column time: sampling step {step:.3g} s is implausible for a dynamic "
-                                f"test (expected {MIN_STEP:g} to {MAX_STEP:g} s): check units.time")
+        raise MeasuredDataError(
+            f"{name}: column time: sampling step {step:.3g} s is implausible for a dynamic "
+            f"test (expected {MIN_STEP:g} to {MAX_STEP:g} s): check units.time"
+        )
     dev = np.abs(dt - step) / step
     if (dev > JITTER).any():
         k = int(np.argmax(dev))
         if dt[k] > 1.5 * step:
-            raise MeasuredDataError(f"{name}: column time: gap of {dt[k]:.6g} s after t = {t[k]:.9g} s "
-                                    f"(data row {k + 1}); the sampling step is {step:.6g} s. Regular sampling "
-                                    "without gaps is required: split the test or fill the gap in the source")
-        raise MeasuredDataError(f"{name}: column time: irregular sampling: step {dt[k]:.6g} s at t = {t[k]:.9g} s "
-                                f"(data row {k + 1}) against the median {step:.6g} s (tolerance {100 * JITTER:g} %); "
-                                "resample to a regular grid first")
+            raise MeasuredDataError(
+                f"{name}: column time: gap of {dt[k]:.6g} s after t = {t[k]:.9g} s "
+                f"(data row {k + 1}); the sampling step is {step:.6g} s. Regular sampling "
+                "without gaps is required: split the test or fill the gap in the source"
+            )
+        raise MeasuredDataError(
+            f"{name}: column time: irregular sampling: step {dt[k]:.6g} s at t = {t[k]:.9g} s "
+            f"(data row {k + 1}) against the median {step:.6g} s (tolerance {100 * JITTER:g} %); "
+            "resample to a regular grid first"
+        )
 
 
 def load(folder: Union[str, Path], stroke: tuple[float, float] = (0.0, 0.3)) -> MeasuredData:
@@ -219,8 +239,9 @@ def load(folder: Union[str, Path], stroke: tuple[float, float] = (0.0, 0.3)) -> 
         raise MeasuredDataError(f"meta.json: format {meta.get('format')!r}, expected {FORMAT!r}")
     units = meta.get("units")
     if not isinstance(units, dict):
-        raise MeasuredDataError("meta.json: no 'units' object (e.g. {\"time\": \"s\", \"rho_cmd\": \"m\", "
-                                "\"rho\": \"m\", \"tau_m\": \"N.m\"})")
+        raise MeasuredDataError(
+            'meta.json: no \'units\' object (e.g. {"time": "s", "rho_cmd": "m", "rho": "m", "tau_m": "N.m"})'
+        )
     tests_meta = meta.get("tests")
     if not isinstance(tests_meta, list) or not tests_meta:
         raise MeasuredDataError("meta.json: 'tests' must be a non-empty list of {\"file\": ..., ...}")
@@ -229,8 +250,9 @@ def load(folder: Union[str, Path], stroke: tuple[float, float] = (0.0, 0.3)) -> 
         if not isinstance(entry, dict) or "file" not in entry:
             raise MeasuredDataError(f"meta.json: tests[{k}] has no 'file'")
         if path_inside(folder, str(entry["file"])) is None:
-            raise MeasuredDataError(f"{meta_path}: tests[{k}] file {str(entry['file'])!r} is not a relative path "
-                                    f"inside {folder}: refused")
+            raise MeasuredDataError(
+                f"{meta_path}: tests[{k}] file {str(entry['file'])!r} is not a relative path inside {folder}: refused"
+            )
         listed.append(str(entry["file"]))
     for csv_file in sorted(folder.glob("*.csv")):
         if csv_file.name not in listed:
@@ -261,12 +283,18 @@ def _load_test(folder: Path, entry: dict, units: Mapping[str, str], k_T, stroke)
     torque_cols = [f"tau_m_{j}" for j in AXES]
     current_cols = [f"i_m_{j}" for j in AXES]
     use_current = not all(c in col for c in torque_cols) and all(c in col for c in current_cols)
-    needed = ["time"] + [f"rho_cmd_{j}" for j in AXES] + [f"rho_{j}" for j in AXES] + \
-        (current_cols if use_current else torque_cols)
+    needed = (
+        ["time"]
+        + [f"rho_cmd_{j}" for j in AXES]
+        + [f"rho_{j}" for j in AXES]
+        + (current_cols if use_current else torque_cols)
+    )
     missing = [c for c in needed if c not in col]
     if missing:
-        raise MeasuredDataError(f"{name}: missing column(s) {', '.join(missing)}; expected time, rho_cmd_1..3, "
-                                "rho_1..3 and tau_m_1..3 (or i_m_1..3 with k_T in meta.json)")
+        raise MeasuredDataError(
+            f"{name}: missing column(s) {', '.join(missing)}; expected time, rho_cmd_1..3, "
+            "rho_1..3 and tau_m_1..3 (or i_m_1..3 with k_T in meta.json)"
+        )
     if len(data) == 0:
         raise MeasuredDataError(f"{name}: no data rows")
     t_raw = data[:, col["time"]]
@@ -286,9 +314,11 @@ def _load_test(folder: Path, entry: dict, units: Mapping[str, str], k_T, stroke)
             v = v * factor
             if v.min() < lo or v.max() > hi:
                 bad = v.max() if v.max() > hi else v.min()
-                raise MeasuredDataError(f"{name}: column {c}: {bad:.6g} m lies outside the stroke "
-                                        f"[{stroke[0]:g}, {stroke[1]:g}] m: check units.{group} "
-                                        f"(now '{units.get(group)}')")
+                raise MeasuredDataError(
+                    f"{name}: column {c}: {bad:.6g} m lies outside the stroke "
+                    f"[{stroke[0]:g}, {stroke[1]:g}] m: check units.{group} "
+                    f"(now '{units.get(group)}')"
+                )
             cols.append(v)
         out[group] = np.column_stack(cols)
     if use_current:
@@ -307,8 +337,10 @@ def _load_test(folder: Path, entry: dict, units: Mapping[str, str], k_T, stroke)
             check_finite(name, c, v, t)
             v = v * f_cur
             if np.abs(v).max() > MAX_CURRENT:
-                raise MeasuredDataError(f"{name}: column {c}: |i| up to {np.abs(v).max():.6g} A is implausible "
-                                        f"(> {MAX_CURRENT:g} A): check units.i_m (now '{units.get('i_m')}')")
+                raise MeasuredDataError(
+                    f"{name}: column {c}: |i| up to {np.abs(v).max():.6g} A is implausible "
+                    f"(> {MAX_CURRENT:g} A): check units.i_m (now '{units.get('i_m')}')"
+                )
             cols.append(v * kT)
         tau = np.column_stack(cols)
         tcols = current_cols
@@ -325,11 +357,15 @@ def _load_test(folder: Path, entry: dict, units: Mapping[str, str], k_T, stroke)
         peak = float(np.abs(tau[:, j]).max())
         unit_key = "i_m" if use_current else "tau_m"
         if peak > MAX_TORQUE:
-            raise MeasuredDataError(f"{name}: column {c}: motor torque up to {peak:.6g} N.m is implausible "
-                                    f"(> {MAX_TORQUE:g} N.m): check units.{unit_key} (now '{units.get(unit_key)}')")
+            raise MeasuredDataError(
+                f"{name}: column {c}: motor torque up to {peak:.6g} N.m is implausible "
+                f"(> {MAX_TORQUE:g} N.m): check units.{unit_key} (now '{units.get(unit_key)}')"
+            )
         if peak < MIN_TORQUE:
-            raise MeasuredDataError(f"{name}: column {c}: motor torque never exceeds {peak:.3g} N.m: "
-                                    f"check units.{unit_key} (now '{units.get(unit_key)}')")
+            raise MeasuredDataError(
+                f"{name}: column {c}: motor torque never exceeds {peak:.3g} N.m: "
+                f"check units.{unit_key} (now '{units.get(unit_key)}')"
+            )
     pose = {}
     for c in POSE_COLUMNS:
         if c in col:
@@ -356,15 +392,34 @@ def _load_test(folder: Path, entry: dict, units: Mapping[str, str], k_T, stroke)
         raise MeasuredDataError(f"meta.json: test {name}: role {role!r}: expected 'training' or 'held-out'")
     settle = _number(entry.get("settle_s", min(1.0, 0.3 * (t[-1] - t[0]))), f"tests[{name}].settle_s", "s")
     if not 0 <= settle < t[-1] - t[0]:
-        raise MeasuredDataError(f"meta.json: test {name}: settle_s = {settle!r} s: expected 0 <= settle_s < "
-                                f"duration {t[-1] - t[0]:.6g} s")
-    return MeasuredTest(name=Path(name).stem, file=path, time=t - t[0], rho_cmd=out["rho_cmd"], rho=out["rho"],
-                        tau_m=tau, motion=motion, amplitude=amplitude, frequency=frequency, role=role,
-                        settle_s=settle, pose=pose, time_offset=float(t[0]))
+        raise MeasuredDataError(
+            f"meta.json: test {name}: settle_s = {settle!r} s: expected 0 <= settle_s < duration {t[-1] - t[0]:.6g} s"
+        )
+    return MeasuredTest(
+        name=Path(name).stem,
+        file=path,
+        time=t - t[0],
+        rho_cmd=out["rho_cmd"],
+        rho=out["rho"],
+        tau_m=tau,
+        motion=motion,
+        amplitude=amplitude,
+        frequency=frequency,
+        role=role,
+        settle_s=settle,
+        pose=pose,
+        time_offset=float(t[0]),
+    )
 
 
-def _check_positions(name: str, rho_cmd: np.ndarray, rho: np.ndarray, units: Mapping[str, str],
-                     motion: Optional[str], amplitude: Optional[float]) -> None:
+def _check_positions(
+    name: str,
+    rho_cmd: np.ndarray,
+    rho: np.ndarray,
+    units: Mapping[str, str],
+    motion: Optional[str],
+    amplitude: Optional[float],
+) -> None:
     """Catch a length unit that is off (m declared as mm or um, or the reverse) though inside the stroke:
     measured positions must follow their commands, and the commands must swing as the test says."""
     now = f"units.rho = '{units.get('rho')}', units.rho_cmd = '{units.get('rho_cmd')}'"
@@ -375,7 +430,8 @@ def _check_positions(name: str, rho_cmd: np.ndarray, rho: np.ndarray, units: Map
             raise MeasuredDataError(
                 f"{name}: column rho_{j + 1} differs from rho_cmd_{j + 1} by {1e3 * dev:.3g} mm (median), far more "
                 f"than a tracking error (< {1e3 * MAX_TRACKING:g} mm): the positions are {scale:.3g} times the "
-                f"commands; check the unit of one of them ({now})")
+                f"commands; check the unit of one of them ({now})"
+            )
     if motion in SWING_PER_AMPLITUDE and amplitude:
         swing = float(np.max(np.ptp(rho_cmd, axis=0))) / 2.0
         ratio = swing / abs(amplitude)
@@ -385,14 +441,21 @@ def _check_positions(name: str, rho_cmd: np.ndarray, rho: np.ndarray, units: Map
             raise MeasuredDataError(
                 f"{name}: columns rho_cmd_1..3 swing by +-{swing:.3g} m while meta.json gives a {motion} amplitude of "
                 f"{abs(amplitude):.3g} {per}: {ratio:.3g} m per {per}, expected {low:g} to {high:g}; check "
-                f"units.rho_cmd (now '{units.get('rho_cmd')}') or the test's amplitude and amplitude_unit")
+                f"units.rho_cmd (now '{units.get('rho_cmd')}') or the test's amplitude and amplitude_unit"
+            )
 
 
 # --------------------------------------------------------------------------------------
 # writing (synthesize, and labs converting their logs)
 # --------------------------------------------------------------------------------------
-def write_test_csv(path: Path, time: np.ndarray, rho_cmd: np.ndarray, rho: np.ndarray, tau_m: np.ndarray,
-                   pose: Optional[Mapping[str, np.ndarray]] = None) -> None:
+def write_test_csv(
+    path: Path,
+    time: np.ndarray,
+    rho_cmd: np.ndarray,
+    rho: np.ndarray,
+    tau_m: np.ndarray,
+    pose: Optional[Mapping[str, np.ndarray]] = None,
+) -> None:
     names = ["time"] + [f"rho_cmd_{j}" for j in AXES] + [f"rho_{j}" for j in AXES] + [f"tau_m_{j}" for j in AXES]
     cols = [time, *rho_cmd.T, *rho.T, *tau_m.T]
     for k, v in (pose or {}).items():
@@ -431,7 +494,7 @@ class CommandReplay:
             q = direct_kinematics(geometry, rho_cmd[k], guess=guess, tol=1e-13)
             poses[k] = q
             guess = q
-        for k in range(0, n, max(1, n // 50)):   # spot check the round trip
+        for k in range(0, n, max(1, n // 50)):  # spot check the round trip
             worst = max(worst, float(np.abs(inverse_kinematics(geometry, *poses[k]) - rho_cmd[k]).max()))
         if worst > 1e-9:
             raise MeasuredDataError(f"command replay: IK(DK(rho_cmd)) differs from rho_cmd by {worst:.3g} m")
@@ -471,8 +534,9 @@ class CommandReplay:
         return [a[0] + f * (b[0] - a[0]), a[1] + f * (b[1] - a[1]), a[2] + f * (b[2] - a[2])]
 
 
-def controller_geometry(ssp: Union[str, Path], overrides: Optional[Mapping[str, Mapping]] = None,
-                        controller: str = "controller"):
+def controller_geometry(
+    ssp: Union[str, Path], overrides: Optional[Mapping[str, Mapping]] = None, controller: str = "controller"
+):
     """The Geometry the SSP binds to its controller (with ``overrides``)."""
     from fmus.mechanism.kinematics import Geometry
 

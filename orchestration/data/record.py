@@ -20,6 +20,7 @@ and one CSV per test (``time`` then the signals, SI units). The simulation of a 
 driven by its command and injected columns (``RecordReplay``); the other kinds are compared.
 Every problem is a RecordError naming the file and the column.
 """
+
 from __future__ import annotations
 
 import bisect
@@ -30,15 +31,20 @@ from typing import Mapping, Optional, Sequence, Union
 
 import numpy as np
 
-from .measured import FORMAT, VERSION, MeasuredDataError, Sampled, check_sampling, check_finite, read_csv
+from .measured import FORMAT, VERSION, MeasuredDataError, Sampled, check_finite, check_sampling, read_csv
 
 #: kinds of signals: what drives the model, and what is compared
 DRIVING = ("command", "injected")
 MEASURED = ("position", "velocity", "effort")
 KINDS = DRIVING + MEASURED
 #: SI units a column of each kind may carry
-SI_UNITS = {"command": ("m", "rad", "V", "N", "N.m", "A"), "injected": ("V", "N", "N.m", "A"),
-            "position": ("m", "rad"), "velocity": ("m/s", "rad/s"), "effort": ("N", "N.m", "V", "A")}
+SI_UNITS = {
+    "command": ("m", "rad", "V", "N", "N.m", "A"),
+    "injected": ("V", "N", "N.m", "A"),
+    "position": ("m", "rad"),
+    "velocity": ("m/s", "rad/s"),
+    "effort": ("N", "N.m", "V", "A"),
+}
 #: where an effort is logged: what the drive applies (the default), or the controller's output before the
 #: injected inputs are added (compared with the model output named ``model`` + "_before_injection")
 TAPS = ("applied", "before_injection")
@@ -55,11 +61,11 @@ class SignalSpec:
     name: str
     kind: str
     unit: str
-    input: Optional[str] = None       # system input of the model (command, injected)
-    model: Optional[str] = None       # model output ELEMENT.CONNECTOR (position, velocity, effort)
-    sampled: bool = False             # a sampled controller's output (docstring)
+    input: Optional[str] = None  # system input of the model (command, injected)
+    model: Optional[str] = None  # model output ELEMENT.CONNECTOR (position, velocity, effort)
+    sampled: bool = False  # a sampled controller's output (docstring)
     description: str = ""
-    tap: str = "applied"              # effort: where the drive command is logged (TAPS, docstring)
+    tap: str = "applied"  # effort: where the drive command is logged (TAPS, docstring)
 
     def to_json(self) -> dict:
         out = {"kind": self.kind, "unit": self.unit}
@@ -94,21 +100,37 @@ def parse_signals(raw: object, where: str) -> dict[str, SignalSpec]:
             raise RecordError(f"{where}: signal {name}: kind {kind!r}, expected one of {', '.join(KINDS)}")
         unit = str(entry.get("unit", ""))
         if unit not in SI_UNITS[kind]:
-            raise RecordError(f"{where}: signal {name}: unit {unit!r} for a {kind} signal, expected one of "
-                              f"{', '.join(SI_UNITS[kind])} (SI: `mast import` converts)")
+            raise RecordError(
+                f"{where}: signal {name}: unit {unit!r} for a {kind} signal, expected one of "
+                f"{', '.join(SI_UNITS[kind])} (SI: `mast import` converts)"
+            )
         tap = entry.get("tap", "applied")
         if tap not in TAPS:
-            raise RecordError(f"{where}: signal {name}: tap {tap!r}, expected one of {', '.join(TAPS)} (where the "
-                              "drive command is logged: after the injected inputs are added, or before)")
+            raise RecordError(
+                f"{where}: signal {name}: tap {tap!r}, expected one of {', '.join(TAPS)} (where the "
+                "drive command is logged: after the injected inputs are added, or before)"
+            )
         if tap != "applied" and kind != "effort":
             raise RecordError(f"{where}: signal {name}: tap {tap!r} on a {kind} signal: only an effort has a tap")
-        spec = SignalSpec(name, kind, unit, entry.get("input"), entry.get("model"), bool(entry.get("sampled", False)),
-                          str(entry.get("description", "")), tap)
+        spec = SignalSpec(
+            name,
+            kind,
+            unit,
+            entry.get("input"),
+            entry.get("model"),
+            bool(entry.get("sampled", False)),
+            str(entry.get("description", "")),
+            tap,
+        )
         if kind in DRIVING and not spec.input:
-            raise RecordError(f"{where}: signal {name}: a {kind} signal needs 'input', the model's system input it drives")
+            raise RecordError(
+                f"{where}: signal {name}: a {kind} signal needs 'input', the model's system input it drives"
+            )
         if kind in MEASURED and (not spec.model or "." not in spec.model):
-            raise RecordError(f"{where}: signal {name}: a {kind} signal needs 'model', the model output it is "
-                              "compared with (ELEMENT.CONNECTOR)")
+            raise RecordError(
+                f"{where}: signal {name}: a {kind} signal needs 'model', the model output it is "
+                "compared with (ELEMENT.CONNECTOR)"
+            )
         specs[name] = spec
     if not any(s.kind == "command" for s in specs.values()):
         raise RecordError(f"{where}: no signal of kind 'command': the model cannot be driven")
@@ -194,8 +216,10 @@ def _load_test(folder: Path, entry: Mapping, specs: Mapping[str, SignalSpec]) ->
     col = {h: j for j, h in enumerate(header)}
     missing = [c for c in ["time", *specs] if c not in col]
     if missing:
-        raise RecordError(f"{name}: missing column(s) {', '.join(missing)}; meta.json 'signals' names "
-                          f"{', '.join(specs)} (and the time column 'time')")
+        raise RecordError(
+            f"{name}: missing column(s) {', '.join(missing)}; meta.json 'signals' names "
+            f"{', '.join(specs)} (and the time column 'time')"
+        )
     t = data[:, col["time"]]
     check_finite(name, "time", t, None)
     check_sampling(name, t)
@@ -209,14 +233,28 @@ def _load_test(folder: Path, entry: Mapping, specs: Mapping[str, SignalSpec]) ->
         raise RecordError(f"meta.json: test {name}: role {role!r}: expected 'training' or 'held-out'")
     settle = float(entry.get("settle_s", 0.0))
     if not 0 <= settle < t[-1] - t[0]:
-        raise RecordError(f"meta.json: test {name}: settle_s = {settle!r} s: expected 0 <= settle_s < "
-                          f"duration {t[-1] - t[0]:.6g} s")
-    return Record(Path(name).stem, path, t - t[0], values, dict(specs), role, settle,
-                  str(entry.get("description", "")), float(t[0]))
+        raise RecordError(
+            f"meta.json: test {name}: settle_s = {settle!r} s: expected 0 <= settle_s < duration {t[-1] - t[0]:.6g} s"
+        )
+    return Record(
+        Path(name).stem,
+        path,
+        t - t[0],
+        values,
+        dict(specs),
+        role,
+        settle,
+        str(entry.get("description", "")),
+        float(t[0]),
+    )
 
 
-def write_records(folder: Union[str, Path], specs: Mapping[str, SignalSpec], tests: Sequence[Mapping],
-                  meta_extra: Optional[Mapping] = None) -> Path:
+def write_records(
+    folder: Union[str, Path],
+    specs: Mapping[str, SignalSpec],
+    tests: Sequence[Mapping],
+    meta_extra: Optional[Mapping] = None,
+) -> Path:
     """Write a record folder: ``tests`` = [{"name", "time", "values": {signal: array}, ...test keys}]."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
@@ -229,8 +267,13 @@ def write_records(folder: Union[str, Path], specs: Mapping[str, SignalSpec], tes
         entry = {"file": file}
         entry.update({k: v for k, v in test.items() if k not in ("name", "time", "values")})
         entries.append(entry)
-    meta = {"format": FORMAT, "version": VERSION, **(meta_extra or {}),
-            "signals": {n: s.to_json() for n, s in specs.items()}, "tests": entries}
+    meta = {
+        "format": FORMAT,
+        "version": VERSION,
+        **(meta_extra or {}),
+        "signals": {n: s.to_json() for n, s in specs.items()},
+        "tests": entries,
+    }
     (folder / "meta.json").write_text(json.dumps(meta, indent=2))
     return folder
 
@@ -249,11 +292,13 @@ class RecordReplay:
         driving = record.of_kind(*DRIVING)
         unknown = [s.input for s in driving if s.input not in system_inputs]
         if unknown:
-            raise RecordError(f"{record.file.name}: signal(s) drive input(s) {', '.join(unknown)} the model does not "
-                              f"have; its system inputs: {', '.join(system_inputs) or 'none'}")
+            raise RecordError(
+                f"{record.file.name}: signal(s) drive input(s) {', '.join(unknown)} the model does not "
+                f"have; its system inputs: {', '.join(system_inputs) or 'none'}"
+            )
         self.time = record.time
         self._times = [float(x) for x in record.time]
-        self._tol = 0.01 * record.sample_time          # sampling jitter (< 1 %, checked on loading)
+        self._tol = 0.01 * record.sample_time  # sampling jitter (< 1 %, checked on loading)
         table = np.zeros((len(record.time), len(system_inputs)))
         for s in driving:
             table[:, list(system_inputs).index(s.input)] = record.values[s.name]
@@ -266,6 +311,6 @@ class RecordReplay:
 
     def __call__(self, t: float) -> list[float]:
         k, times, at = self._k, self._times, t + self._tol
-        if not (times[k] <= at and (k + 1 == self._n or times[k + 1] > at)):     # not the last sample's hold
+        if not (times[k] <= at and (k + 1 == self._n or times[k + 1] > at)):  # not the last sample's hold
             k = self._k = min(max(bisect.bisect_right(times, at) - 1, 0), self._n - 1)
         return self._rows[k]

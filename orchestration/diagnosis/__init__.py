@@ -22,8 +22,8 @@ add it, show the gap shrink (docs/diagnose.md).
    an unexplained residual (shown, never forced onto a name).
 """
 
-from .resimulation import DiagnosisError
 from .options import Options
+from .resimulation import DiagnosisError
 from .workflow import diagnose
 
 __all__ = ["DiagnosisError", "Options", "diagnose"]

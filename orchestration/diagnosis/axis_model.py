@@ -6,6 +6,7 @@ component's parameters changed (cached, counted); ``Diagnosis``: the state of on
 model, band, noise floor) with the band-limited regression of a point's residual and the fit by
 re-simulation (Gauss-Newton).
 """
+
 from __future__ import annotations
 
 import math
@@ -30,9 +31,9 @@ class Case:
     """A test with its training and held-out samples."""
 
     record: Record
-    train: np.ndarray          # bool per sample
-    held: np.ndarray           # bool per sample
-    efforts: list[str]         # measured effort signals (compared, scored)
+    train: np.ndarray  # bool per sample
+    held: np.ndarray  # bool per sample
+    efforts: list[str]  # measured effort signals (compared, scored)
 
     @property
     def name(self) -> str:
@@ -48,20 +49,21 @@ class Case:
 class Point:
     """The model at a parameter set, simulated on every case (whole or up to the training end)."""
 
-    values: dict                                   # the plant component's diagnosed parameters
-    sims: dict[str, dict[str, np.ndarray]]         # case -> signal -> samples
+    values: dict  # the plant component's diagnosed parameters
+    sims: dict[str, dict[str, np.ndarray]]  # case -> signal -> samples
     whole: bool
 
     def residual(self, case: Case, signal: str) -> np.ndarray:
         y = case.record.values[signal]
-        return y[:len(self.sims[case.name][signal])] - self.sims[case.name][signal]
+        return y[: len(self.sims[case.name][signal])] - self.sims[case.name][signal]
 
 
 class AxisModel:
     """Simulates the cases with the plant component's parameters changed (cached)."""
 
-    def __init__(self, ssp: str, cases: Sequence[Case], component: str, base: Mapping[str, Mapping],
-                 direct: bool = True) -> None:
+    def __init__(
+        self, ssp: str, cases: Sequence[Case], component: str, base: Mapping[str, Mapping], direct: bool = True
+    ) -> None:
         self.ssp, self.cases, self.component, self.base, self.direct = ssp, list(cases), component, base, direct
         self.count, self.seconds = 0, 0.0
         self._cache: dict = {}
@@ -72,9 +74,17 @@ class AxisModel:
             t0 = time.perf_counter()
             params = {k: dict(v) for k, v in self.base.items()}
             params.setdefault(self.component, {}).update(values)
-            sims = {c.name: simulate_record(self.ssp, c.record, params, self.direct,
-                                            extra=(f"{self.component}.q_dot",),
-                                            stop_time=None if whole else c.train_end) for c in self.cases}
+            sims = {
+                c.name: simulate_record(
+                    self.ssp,
+                    c.record,
+                    params,
+                    self.direct,
+                    extra=(f"{self.component}.q_dot",),
+                    stop_time=None if whole else c.train_end,
+                )
+                for c in self.cases
+            }
             self.count += len(self.cases)
             self.seconds += time.perf_counter() - t0
             self._cache[key] = Point(dict(values), sims, whole)
@@ -109,7 +119,7 @@ class Diagnosis:
         q = self.band.decimation(dt)
         n = x.shape[0]
         tr, ho = case.train[::q][:n].copy(), case.held[::q][:n].copy()
-        margin = max(1, int(0.05 / (dt * q)))     # the filter's settling at both ends of a part
+        margin = max(1, int(0.05 / (dt * q)))  # the filter's settling at both ends of a part
         for mask in (tr, ho):
             idx = np.flatnonzero(mask)
             if len(idx) > 2 * margin:
@@ -128,8 +138,9 @@ class Diagnosis:
                 a_tr, a_ho = self._split(c, Ab)
                 x_tr, x_ho = self._split(c, rb)
                 A_tr.append(a_tr), A_ho.append(a_ho), r_tr.append(x_tr), r_ho.append(x_ho)
-        return Regression(atoms, np.vstack(A_tr), np.concatenate(r_tr), np.vstack(A_ho), np.concatenate(r_ho),
-                          self.sigma_b)
+        return Regression(
+            atoms, np.vstack(A_tr), np.concatenate(r_tr), np.vstack(A_ho), np.concatenate(r_ho), self.sigma_b
+        )
 
     def band_rss(self, pt: Point) -> tuple[float, int, float, int]:
         """(RSS, n) of the band-limited effort residual on the training and on the held-out samples."""
@@ -144,19 +155,26 @@ class Diagnosis:
         return tr, n_tr, ho, n_ho
 
     # -- fit by re-simulation ------------------------------------------------------------------
-    def fit(self, start: Mapping[str, float], free: Sequence[str], bounds: Mapping[str, tuple[float, float]]
-            ) -> tuple[dict, dict]:
+    def fit(
+        self, start: Mapping[str, float], free: Sequence[str], bounds: Mapping[str, tuple[float, float]]
+    ) -> tuple[dict, dict]:
         """Gauss-Newton on the full-band training residual of the efforts, re-simulating the training part;
         returns (values, info with the covariance's standard deviations)."""
         x = dict(start)
 
         def residual(pt: Point) -> np.ndarray:
-            return np.concatenate([pt.residual(c, s)[c.train[:len(pt.sims[c.name][s])]]
-                                   for c in self.cases for s in c.efforts])
+            return np.concatenate(
+                [pt.residual(c, s)[c.train[: len(pt.sims[c.name][s])]] for c in self.cases for s in c.efforts]
+            )
 
         def jacobian(pt: Point) -> np.ndarray:
-            return np.vstack([self.model.columns(pt, c, free)[c.train[:len(pt.sims[c.name][s])]]
-                              for c in self.cases for s in c.efforts])
+            return np.vstack(
+                [
+                    self.model.columns(pt, c, free)[c.train[: len(pt.sims[c.name][s])]]
+                    for c in self.cases
+                    for s in c.efforts
+                ]
+            )
 
         pt = self.model.point(x, whole=False)
         r = residual(pt)
@@ -167,7 +185,7 @@ class Diagnosis:
             scale = np.linalg.norm(J, axis=0)
             scale[scale == 0] = 1.0
             step = np.linalg.lstsq(J / scale, r, rcond=None)[0] / scale
-            predicted = float(np.sum((J @ step) ** 2))     # the cost reduction the linearisation promises
+            predicted = float(np.sum((J @ step) ** 2))  # the cost reduction the linearisation promises
             if predicted < FIT_COST_TOL * cost:
                 break
             accepted = False
@@ -185,8 +203,10 @@ class Diagnosis:
             rel = max((abs(trial[p] - x[p]) / max(abs(x[p]), abs(trial[p]), 1e-6) for p in free), default=0.0)
             x, pt, r, cost = trial, tp, tr, tc
             history.append(cost)
-            self.log(f"diagnose: fit iteration {it + 1}: force RSS {cost:.6g} N^2, "
-                     + ", ".join(f"{p} {x[p]:.6g}" for p in free))
+            self.log(
+                f"diagnose: fit iteration {it + 1}: force RSS {cost:.6g} N^2, "
+                + ", ".join(f"{p} {x[p]:.6g}" for p in free)
+            )
             if rel < FIT_TOL or history[-2] - cost < FIT_COST_TOL * history[-2]:
                 break
         J = jacobian(pt)

@@ -13,6 +13,7 @@ noise floor (full band, every test). Otherwise nothing is named and the members 
 (``unexplained.hints`` of diagnosis.json, report.md), never as names; the structure they absorbed is a residual
 left (``structure_left``), whatever its RMS (workflow._named_only_if_explained).
 """
+
 from __future__ import annotations
 
 import math
@@ -47,8 +48,11 @@ def _columns(ctx: Context, state: State, params: Sequence[str]) -> dict[str, dic
     for p in params:
         if p in steps:
             pt1 = model.trial({**state.changes, p: state.changes[p] + steps[p]}, names, "consistency")
-            cols[p] = ({n: (pt1.obs[n] - pt.obs[n]) / steps[p] for n in names} if pt1 is not None else
-                       {n: np.zeros_like(pt.obs[n]) for n in names})
+            cols[p] = (
+                {n: (pt1.obs[n] - pt.obs[n]) / steps[p] for n in names}
+                if pt1 is not None
+                else {n: np.zeros_like(pt.obs[n]) for n in names}
+            )
         else:
             cols[p] = model.columns(pt, names, p)
     return cols
@@ -59,8 +63,13 @@ def per_test_estimates(ctx: Context, state: State) -> dict:
     the change each test alone asks for on top of the fitted value (in the band, all selected parameters
     together), with its standard deviation from that test's own residual (lag-1 inflated), and whether the
     tests that inform it agree."""
-    params = [p for a in state.selected if not a.effect.phase_free for p in fitted_parameters(a, state.changes)
-              if p in state.changes]
+    params = [
+        p
+        for a in state.selected
+        if not a.effect.phase_free
+        for p in fitted_parameters(a, state.changes)
+        if p in state.changes
+    ]
     if not params:
         return {}
     cols = _columns(ctx, state, params)
@@ -75,7 +84,7 @@ def per_test_estimates(ctx: Context, state: State) -> dict:
         Al = A[:, live]
         coef, *_ = np.linalg.lstsq(Al, r, rcond=None)
         e = r - Al @ coef
-        s2 = max(float(e @ e) / max(len(r) - len(live), 1), ctx.sigma_b ** 2)
+        s2 = max(float(e @ e) / max(len(r) - len(live), 1), ctx.sigma_b**2)
         x = e - e.mean()
         rho1 = float(x[1:] @ x[:-1]) / float(x @ x) if float(x @ x) > 0 else 0.0
         inflate = (1 + rho1) / (1 - rho1) if 0.0 < rho1 < 0.99 else 1.0
@@ -86,22 +95,31 @@ def per_test_estimates(ctx: Context, state: State) -> dict:
     for p in params:
         fitted = float(state.changes[p]) - float(ctx.nominal[p])
         informative = {n: v for n, v in est[p].items() if v["std"] * INFORMATIVE < abs(fitted)}
-        disagree = [n for n, v in informative.items()
-                    if abs(v["change"]) > max(Z_AGREE * v["std"], REL_AGREE * abs(fitted))]
-        out[p] = {"fitted_change": fitted, "per_test": est[p], "informative_tests": sorted(informative),
-                  "disagreeing_tests": disagree, "consistent": not disagree and len(informative) >= 2,
-                  "rule": f"two or more tests inform it (each alone tells the fitted change from zero at "
-                          f"{INFORMATIVE:g} std), and each one's own estimate is within max({Z_AGREE:g} std, "
-                          f"{REL_AGREE:.0%} of the fitted change) of the fitted value"}
+        disagree = [
+            n for n, v in informative.items() if abs(v["change"]) > max(Z_AGREE * v["std"], REL_AGREE * abs(fitted))
+        ]
+        out[p] = {
+            "fitted_change": fitted,
+            "per_test": est[p],
+            "informative_tests": sorted(informative),
+            "disagreeing_tests": disagree,
+            "consistent": not disagree and len(informative) >= 2,
+            "rule": f"two or more tests inform it (each alone tells the fitted change from zero at "
+            f"{INFORMATIVE:g} std), and each one's own estimate is within max({Z_AGREE:g} std, "
+            f"{REL_AGREE:.0%} of the fitted change) of the fitted value",
+        }
     return out
 
 
 def excess_explained(ctx: Context, before, after) -> float:
     """Share of the residual power above the noise floor (full band, every test) that the model ``after``
     removes from the model ``before``: 1 = down to the floor, 0 = nothing."""
+
     def excess(pt) -> float:
-        return sum(float(np.sum((ctx.model.tests[n].y - pt.obs[n]) ** 2)) - ctx.sigma ** 2 * ctx.model.tests[n].y.size
-                   for n in ctx.names)
+        return sum(
+            float(np.sum((ctx.model.tests[n].y - pt.obs[n]) ** 2)) - ctx.sigma**2 * ctx.model.tests[n].y.size
+            for n in ctx.names
+        )
 
     e0 = excess(before)
     return 1.0 - max(excess(after), 0.0) / e0 if e0 > 0 else 1.0
@@ -160,57 +178,101 @@ def only_consistent(ctx: Context, state: State, named: Sequence[dict], steps: li
     from .stages import fit_state
 
     why: dict = {}
-    checks: dict = {}     # every member's check, as it stood when it was kept or taken out
+    checks: dict = {}  # every member's check, as it stood when it was kept or taken out
     kept = state
     while kept.selected:
         latest = per_test_estimates(ctx, kept)
         checks.update(latest)
         for p, c in latest.items():
-            ctx.log(f"diagnose:   per-test {p}: fitted change {c['fitted_change']:+.4g}; "
-                    + ", ".join(f"{n} {v['change']:+.3g} (std {v['std']:.2g})" for n, v in c["per_test"].items())
-                    + ("" if c["consistent"] else f": disagree on {', '.join(c['disagreeing_tests'])}"
-                       if c["disagreeing_tests"] else f": {len(c['informative_tests'])} test(s) inform it"))
-        bad = {a.effect.key: latest[p] for a in kept.selected for p in fitted_parameters(a, kept.changes)
-               if p in latest and not latest[p]["consistent"]}
+            ctx.log(
+                f"diagnose:   per-test {p}: fitted change {c['fitted_change']:+.4g}; "
+                + ", ".join(f"{n} {v['change']:+.3g} (std {v['std']:.2g})" for n, v in c["per_test"].items())
+                + (
+                    ""
+                    if c["consistent"]
+                    else f": disagree on {', '.join(c['disagreeing_tests'])}"
+                    if c["disagreeing_tests"]
+                    else f": {len(c['informative_tests'])} test(s) inform it"
+                )
+            )
+        bad = {
+            a.effect.key: latest[p]
+            for a in kept.selected
+            for p in fitted_parameters(a, kept.changes)
+            if p in latest and not latest[p]["consistent"]
+        }
         if not bad:
             break
-        why.update({k: (f"its per-test estimates disagree ({', '.join(c['disagreeing_tests'])}): a plant or drive "
-                        "parameter is one value whatever the test" if c["disagreeing_tests"] else
-                        f"{'only one test tells' if c['informative_tests'] else 'no test alone tells'} it from "
-                        "zero: its value cannot be checked across tests") for k, c in bad.items()})
+        why.update(
+            {
+                k: (
+                    f"its per-test estimates disagree ({', '.join(c['disagreeing_tests'])}): a plant or drive "
+                    "parameter is one value whatever the test"
+                    if c["disagreeing_tests"]
+                    else f"{'only one test tells' if c['informative_tests'] else 'no test alone tells'} it from "
+                    "zero: its value cannot be checked across tests"
+                )
+                for k, c in bad.items()
+            }
+        )
         before, keep = kept, tuple(a for a in kept.selected if a.effect.key not in bad)
         while keep:
             kept = fit_state(ctx, keep, dict(before.changes)) or State((), {}, nominal_pt)
             moved = _moved(ctx, before, kept, latest, keep)
             if not moved:
                 break
-            why.update({k: f"its value moves by {m} when {', '.join(bad)} (not named) is taken out: it was fitted "
-                           "together with a stand-in, and shares what that one absorbed" for k, m in moved.items()})
+            why.update(
+                {
+                    k: f"its value moves by {m} when {', '.join(bad)} (not named) is taken out: it was fitted "
+                    "together with a stand-in, and shares what that one absorbed"
+                    for k, m in moved.items()
+                }
+            )
             keep = tuple(a for a in keep if a.effect.key not in moved)
         if not keep:
             kept = State((), {}, nominal_pt)
     share = excess_explained(ctx, nominal_pt, kept.pt)
     if kept.selected:
-        ctx.log(f"diagnose:   the selection kept ({', '.join(a.label for a in kept.selected)}) removes "
-                f"{100 * share:.0f} % of the residual power above the noise floor")
+        ctx.log(
+            f"diagnose:   the selection kept ({', '.join(a.label for a in kept.selected)}) removes "
+            f"{100 * share:.0f} % of the residual power above the noise floor"
+        )
     if kept.selected and share < EXPLAINED_SHARE:
-        why.update({a.effect.key: f"the selection kept ({', '.join(b.label for b in kept.selected)}) removes only "
-                                  f"{100 * share:.0f} % of the residual power above the noise floor (< "
-                                  f"{100 * EXPLAINED_SHARE:.0f} %): the gap is mostly a cause outside the library, "
-                                  "which it may only stand in for" for a in kept.selected})
+        why.update(
+            {
+                a.effect.key: f"the selection kept ({', '.join(b.label for b in kept.selected)}) removes only "
+                f"{100 * share:.0f} % of the residual power above the noise floor (< "
+                f"{100 * EXPLAINED_SHARE:.0f} %): the gap is mostly a cause outside the library, "
+                "which it may only stand in for"
+                for a in kept.selected
+            }
+        )
         kept = State((), {}, nominal_pt)
     kept.info["consistency"] = {p: c for p, c in checks.items() if p in kept.changes}
     kept.info["excess_explained"] = share
     kept.info["structure_left"] = structure_left(ctx, state, kept)
     if not why:
         return kept, []
-    hints = [{**e, "consistency": {p: checks[p] for p in e["parameters"] if p in checks},
-              "excess_explained": share, "why_not_named": why[e["key"]]}
-             for e in named if e["key"] in why]
-    steps.append({"how": "named only if explained", "from": [a.label for a in state.selected],
-                  "to": [a.label for a in kept.selected], "accepted": True,
-                  "structure_left_delta_bic": kept.info["structure_left"],
-                  "note": "a residual is left above the noise floor, or several effects share the gap; not named: "
-                          + "; ".join(f"{k} ({w})" for k, w in why.items())})
+    hints = [
+        {
+            **e,
+            "consistency": {p: checks[p] for p in e["parameters"] if p in checks},
+            "excess_explained": share,
+            "why_not_named": why[e["key"]],
+        }
+        for e in named
+        if e["key"] in why
+    ]
+    steps.append(
+        {
+            "how": "named only if explained",
+            "from": [a.label for a in state.selected],
+            "to": [a.label for a in kept.selected],
+            "accepted": True,
+            "structure_left_delta_bic": kept.info["structure_left"],
+            "note": "a residual is left above the noise floor, or several effects share the gap; not named: "
+            + "; ".join(f"{k} ({w})" for k, w in why.items()),
+        }
+    )
     ctx.log(f"diagnose:   not named (hints only): {', '.join(why)}")
     return kept, hints

@@ -36,6 +36,7 @@ measurement model (T_meas, delay_meas, tau_offset; fmus/actuator/sensor.py) and 
 measurement chain the data's meta.json documents (the drive's torque filter). Columns go
 through the same linear chain and are sampled at the data's time stamps.
 """
+
 from __future__ import annotations
 
 import math
@@ -128,8 +129,10 @@ class Chain:
 
 def chain_for(params: Mapping, h: float, drive_T: float, drive_delay: float) -> Chain:
     """The chain of a parameter set: the all-axes measurement values plus each axis's increments."""
-    values = {p: tuple(float(params[p]) + float(params.get(f"{p}_axis{j}", 0.0)) for j in (1, 2, 3))
-              for p in MEASUREMENT_PARAMETERS}
+    values = {
+        p: tuple(float(params[p]) + float(params.get(f"{p}_axis{j}", 0.0)) for j in (1, 2, 3))
+        for p in MEASUREMENT_PARAMETERS
+    }
     return Chain(h, drive_T, drive_delay, **values)
 
 
@@ -147,13 +150,13 @@ def _col_viscous(s: SimSignals, p: Mapping, grid: Optional[float]) -> np.ndarray
 def _col_stribeck(s: SimSignals, p: Mapping, grid: Optional[float]) -> np.ndarray:
     w = s.derived("omega_N", p)
     ws = float(grid if grid is not None else p["omega_s"])
-    return np.exp(-(w / ws) ** 2) * np.tanh(w / float(p["omega_c"]))
+    return np.exp(-((w / ws) ** 2)) * np.tanh(w / float(p["omega_c"]))
 
 
 def _col_omega_s(s: SimSignals, p: Mapping, grid: Optional[float]) -> np.ndarray:
     w = s.derived("omega_N", p)
     ws = float(p["omega_s"])
-    return float(p["tau_s"]) * np.exp(-(w / ws) ** 2) * 2.0 * w ** 2 / ws ** 3 * np.tanh(w / float(p["omega_c"]))
+    return float(p["tau_s"]) * np.exp(-((w / ws) ** 2)) * 2.0 * w**2 / ws**3 * np.tanh(w / float(p["omega_c"]))
 
 
 def _col_inertia_motor(s: SimSignals, p: Mapping, grid: Optional[float]) -> np.ndarray:
@@ -167,13 +170,18 @@ def _col_inertia_guide(s: SimSignals, p: Mapping, grid: Optional[float]) -> np.n
 
 def _col_mass(s: SimSignals, p: Mapping, grid: Optional[float]) -> np.ndarray:
     i_R = transmission_ratio(p["p"], p["i_r"])
-    return i_R ** 2 * s.derived("acc_N", p) + i_R * float(p["g_guide"])
+    return i_R**2 * s.derived("acc_N", p) + i_R * float(p["g_guide"])
 
 
 #: plant columns per parameter (for the Jacobian of the fit)
 PLANT_COLUMNS: dict[str, Callable] = {
-    "tau_c": _col_coulomb, "b_v": _col_viscous, "tau_s": _col_stribeck, "omega_s": _col_omega_s,
-    "J1_scale": _col_inertia_motor, "J_guide": _col_inertia_guide, "M_load": _col_mass,
+    "tau_c": _col_coulomb,
+    "b_v": _col_viscous,
+    "tau_s": _col_stribeck,
+    "omega_s": _col_omega_s,
+    "J1_scale": _col_inertia_motor,
+    "J_guide": _col_inertia_guide,
+    "M_load": _col_mass,
 }
 
 
@@ -181,21 +189,21 @@ PLANT_COLUMNS: dict[str, Callable] = {
 class Effect:
     key: str
     title: str
-    parameters: tuple[str, ...]          # FMU parameters (the first one is the regression coefficient)
-    kind: str                            # "plant", "controller" (re-simulated like the plant) or "measurement"
+    parameters: tuple[str, ...]  # FMU parameters (the first one is the regression coefficient)
+    kind: str  # "plant", "controller" (re-simulated like the plant) or "measurement"
     signature: str
     bounds: dict[str, tuple[float, float]]
-    regression: bool = True              # False: scored by re-simulation only (no linear selection)
-    phase_free: bool = False             # scored by the phase-free score (phasefree.py), not sample by sample
-    scan: tuple[float, ...] = ()         # phase-free effects: the values of the first scan (log-spaced, ratio 2)
-    step: float = 0.0                    # plant effects: parameter step of the re-simulated sensitivity
-    group: Optional[str] = None          # effects in one group are alternatives (not separable)
-    preferred: bool = True               # within a group: the one named when the data cannot tell
-    grid: tuple[float, ...] = ()         # values of the second (nonlinear) parameter tried in the regression
-    cost: int = 1                        # parameters counted by the information criterion
-    refines: Optional[str] = None        # an asymmetry of this effect: tried only once it is named
-    quantum: Optional[str] = None        # a discrete parameter: integer multiples (>= 1) of this one (a cycle time)
-    after_stand_ins: bool = False        # re-simulation only, tried when the check "named only if explained" has
+    regression: bool = True  # False: scored by re-simulation only (no linear selection)
+    phase_free: bool = False  # scored by the phase-free score (phasefree.py), not sample by sample
+    scan: tuple[float, ...] = ()  # phase-free effects: the values of the first scan (log-spaced, ratio 2)
+    step: float = 0.0  # plant effects: parameter step of the re-simulated sensitivity
+    group: Optional[str] = None  # effects in one group are alternatives (not separable)
+    preferred: bool = True  # within a group: the one named when the data cannot tell
+    grid: tuple[float, ...] = ()  # values of the second (nonlinear) parameter tried in the regression
+    cost: int = 1  # parameters counted by the information criterion
+    refines: Optional[str] = None  # an asymmetry of this effect: tried only once it is named
+    quantum: Optional[str] = None  # a discrete parameter: integer multiples (>= 1) of this one (a cycle time)
+    after_stand_ins: bool = False  # re-simulation only, tried when the check "named only if explained" has
     #                                      refused stand-ins: its trace in the band is what the linear effects mimic
 
     @property
@@ -204,53 +212,156 @@ class Effect:
 
 
 LIBRARY: tuple[Effect, ...] = (
-    Effect("coulomb", "Coulomb friction", ("tau_c",), "plant",
-           "in phase with sign(velocity), flat in frequency, a square wave (3rd/1st harmonic about 1/3), "
-           "dominant at low frequency", {"tau_c": (0.0, 1.0)}, step=0.01),
-    Effect("viscous", "viscous friction", ("b_v",), "plant",
-           "in phase with velocity, amplitude grows with f", {"b_v": (0.0, 0.05)}, step=1e-4),
-    Effect("stribeck", "Stribeck friction", ("tau_s", "omega_s"), "plant",
-           "at low speed, right after velocity reversals; decays within omega_s of standstill",
-           {"tau_s": (0.0, 0.5), "omega_s": (0.6, 40.0)}, regression=False, cost=2),
-    Effect("inertia_motor", "inertia mismatch, motor side", ("J1_scale",), "plant",
-           "in phase with acceleration, amplitude grows with f^2", {"J1_scale": (0.05, 20.0)},
-           group="inertia", preferred=True, step=-0.1),
-    Effect("inertia_guide", "inertia mismatch, guide side", ("J_guide",), "plant",
-           "in phase with acceleration, amplitude grows with f^2 (same as the motor side below the "
-           "transmission resonance)", {"J_guide": (1e-7, 0.02)}, group="inertia", preferred=False, step=1e-4),
-    Effect("carriage_mass", "carriage or payload mass", ("M_load",), "plant",
-           "in phase with acceleration plus a bias (the weight) in the fixed ratio g", {"M_load": (0.01, 100.0)},
-           step=0.5),
-    Effect("velocity_gain", "velocity-loop gain of the drive (controller side)", ("k_p",), "controller",
-           "the loop follows less (or more) tightly: a torque change in phase with the tracking error, "
-           "largest at the higher frequencies", {"k_p": (0.005, 0.5)}, step=-0.1 * 0.062),
-    Effect("position_gain", "position-loop gain of the drive (controller side)", ("k_v",), "controller",
-           "a slower (or faster) position loop: tracking error and torque phase change at low frequency",
-           {"k_v": (1.0, 200.0)}, step=-0.1 * 21.5),
-    Effect("velocity_integral", "velocity-loop integral gain of the drive (controller side)", ("k_i",), "controller",
-           "the loop recovers its speed error more slowly (or faster): a torque change lagging the tracking "
-           "error, largest around the cascade's bandwidth", {"k_i": (0.01, 200.0)}, step=-0.1 * 3.79),
-    Effect("velocity_cycle", "velocity-loop cycle time of the drive (controller side)", ("T_vel",), "controller",
-           "more (or less) delay inside the velocity loop: its phase margin changes, a torque change growing "
-           "with f (a multiple of the current-loop cycle T_cur)", {"T_vel": (1e-4, 0.02)}, step=1e-3,
-           quantum="T_cur"),
-    Effect("current_limit", "current limit of the drive (controller side)", ("i_max",), "controller",
-           "the torque is flat-topped at k_T i_max wherever the model's exceeds it (the peaks of the fastest "
-           "tests); no effect below the limit", {"i_max": (0.05, 100.0)}, regression=False),
-    Effect("stiffness", "transmission stiffness (two-inertia spring)", ("K_t",), "plant",
-           "a softer (or stiffer) transmission: the guide lags the motor by the spring's deflection (a phase lag "
-           "inside the position loop, growing with f, which gains, cycle times and inertia mimic in the band), and "
-           "the transmission mode sqrt(K_t (J1 + J2) / (J1 J2)) moves", {"K_t": (1.0, 1000.0)}, regression=False,
-           after_stand_ins=True),
-    Effect("offset", "constant torque offset", ("tau_offset",), "measurement",
-           "a bias, the same in every test", {"tau_offset": (-1.0, 1.0)}),
-    Effect("lag", "measurement low-pass filter or delay", ("T_meas",), "measurement",
-           "phase lag growing with frequency (a filter and a delay look alike at low f)",
-           {"T_meas": (0.0, 0.05), "delay_meas": (0.0, 0.05)}),
-    Effect("backlash", "backlash", ("backlash",), "plant",
-           "at torque reversals: the motor crosses the dead zone unloaded, then an impact",
-           {"backlash": (0.0, 0.2)}, regression=False, phase_free=True,
-           scan=tuple(5e-4 * 2.0 ** k for k in range(8))),
+    Effect(
+        "coulomb",
+        "Coulomb friction",
+        ("tau_c",),
+        "plant",
+        "in phase with sign(velocity), flat in frequency, a square wave (3rd/1st harmonic about 1/3), "
+        "dominant at low frequency",
+        {"tau_c": (0.0, 1.0)},
+        step=0.01,
+    ),
+    Effect(
+        "viscous",
+        "viscous friction",
+        ("b_v",),
+        "plant",
+        "in phase with velocity, amplitude grows with f",
+        {"b_v": (0.0, 0.05)},
+        step=1e-4,
+    ),
+    Effect(
+        "stribeck",
+        "Stribeck friction",
+        ("tau_s", "omega_s"),
+        "plant",
+        "at low speed, right after velocity reversals; decays within omega_s of standstill",
+        {"tau_s": (0.0, 0.5), "omega_s": (0.6, 40.0)},
+        regression=False,
+        cost=2,
+    ),
+    Effect(
+        "inertia_motor",
+        "inertia mismatch, motor side",
+        ("J1_scale",),
+        "plant",
+        "in phase with acceleration, amplitude grows with f^2",
+        {"J1_scale": (0.05, 20.0)},
+        group="inertia",
+        preferred=True,
+        step=-0.1,
+    ),
+    Effect(
+        "inertia_guide",
+        "inertia mismatch, guide side",
+        ("J_guide",),
+        "plant",
+        "in phase with acceleration, amplitude grows with f^2 (same as the motor side below the "
+        "transmission resonance)",
+        {"J_guide": (1e-7, 0.02)},
+        group="inertia",
+        preferred=False,
+        step=1e-4,
+    ),
+    Effect(
+        "carriage_mass",
+        "carriage or payload mass",
+        ("M_load",),
+        "plant",
+        "in phase with acceleration plus a bias (the weight) in the fixed ratio g",
+        {"M_load": (0.01, 100.0)},
+        step=0.5,
+    ),
+    Effect(
+        "velocity_gain",
+        "velocity-loop gain of the drive (controller side)",
+        ("k_p",),
+        "controller",
+        "the loop follows less (or more) tightly: a torque change in phase with the tracking error, "
+        "largest at the higher frequencies",
+        {"k_p": (0.005, 0.5)},
+        step=-0.1 * 0.062,
+    ),
+    Effect(
+        "position_gain",
+        "position-loop gain of the drive (controller side)",
+        ("k_v",),
+        "controller",
+        "a slower (or faster) position loop: tracking error and torque phase change at low frequency",
+        {"k_v": (1.0, 200.0)},
+        step=-0.1 * 21.5,
+    ),
+    Effect(
+        "velocity_integral",
+        "velocity-loop integral gain of the drive (controller side)",
+        ("k_i",),
+        "controller",
+        "the loop recovers its speed error more slowly (or faster): a torque change lagging the tracking "
+        "error, largest around the cascade's bandwidth",
+        {"k_i": (0.01, 200.0)},
+        step=-0.1 * 3.79,
+    ),
+    Effect(
+        "velocity_cycle",
+        "velocity-loop cycle time of the drive (controller side)",
+        ("T_vel",),
+        "controller",
+        "more (or less) delay inside the velocity loop: its phase margin changes, a torque change growing "
+        "with f (a multiple of the current-loop cycle T_cur)",
+        {"T_vel": (1e-4, 0.02)},
+        step=1e-3,
+        quantum="T_cur",
+    ),
+    Effect(
+        "current_limit",
+        "current limit of the drive (controller side)",
+        ("i_max",),
+        "controller",
+        "the torque is flat-topped at k_T i_max wherever the model's exceeds it (the peaks of the fastest "
+        "tests); no effect below the limit",
+        {"i_max": (0.05, 100.0)},
+        regression=False,
+    ),
+    Effect(
+        "stiffness",
+        "transmission stiffness (two-inertia spring)",
+        ("K_t",),
+        "plant",
+        "a softer (or stiffer) transmission: the guide lags the motor by the spring's deflection (a phase lag "
+        "inside the position loop, growing with f, which gains, cycle times and inertia mimic in the band), and "
+        "the transmission mode sqrt(K_t (J1 + J2) / (J1 J2)) moves",
+        {"K_t": (1.0, 1000.0)},
+        regression=False,
+        after_stand_ins=True,
+    ),
+    Effect(
+        "offset",
+        "constant torque offset",
+        ("tau_offset",),
+        "measurement",
+        "a bias, the same in every test",
+        {"tau_offset": (-1.0, 1.0)},
+    ),
+    Effect(
+        "lag",
+        "measurement low-pass filter or delay",
+        ("T_meas",),
+        "measurement",
+        "phase lag growing with frequency (a filter and a delay look alike at low f)",
+        {"T_meas": (0.0, 0.05), "delay_meas": (0.0, 0.05)},
+    ),
+    Effect(
+        "backlash",
+        "backlash",
+        ("backlash",),
+        "plant",
+        "at torque reversals: the motor crosses the dead zone unloaded, then an impact",
+        {"backlash": (0.0, 0.2)},
+        regression=False,
+        phase_free=True,
+        scan=tuple(5e-4 * 2.0**k for k in range(8)),
+    ),
 )
 #: effects available on one axis (a worn guide, one heavier carriage, one drive's torque reading): the
 #: change of the all-axes parameter on axis j only, parameter "<name>_axis<j>" (an increment added to that
@@ -266,9 +377,17 @@ PER_AXIS = ("tau_c", "b_v", "J1_scale", "J_guide", "M_load", "tau_offset", "T_me
 
 def _per_axis(e: Effect, j: int) -> Effect:
     bounds = {f"{p}_axis{j}": (-hi, hi) for p, (lo, hi) in e.bounds.items()}
-    return Effect(f"{e.key}_axis{j}", f"{e.title}, axis {j} only", tuple(f"{p}_axis{j}" for p in e.parameters),
-                  e.kind, f"{e.signature}; on actuator {j} only", bounds, step=e.step,
-                  group=f"{e.group}_axis{j}" if e.group else None, preferred=e.preferred)
+    return Effect(
+        f"{e.key}_axis{j}",
+        f"{e.title}, axis {j} only",
+        tuple(f"{p}_axis{j}" for p in e.parameters),
+        e.kind,
+        f"{e.signature}; on actuator {j} only",
+        bounds,
+        step=e.step,
+        group=f"{e.group}_axis{j}" if e.group else None,
+        preferred=e.preferred,
+    )
 
 
 LIBRARY = LIBRARY + tuple(_per_axis(e, j) for e in LIBRARY if e.parameter in PER_AXIS for j in (1, 2, 3))
@@ -276,8 +395,9 @@ BY_KEY = {e.key: e for e in LIBRARY}
 BY_PARAMETER = {p: e for e in LIBRARY for p in e.parameters}
 BOUNDS = {name: b for e in LIBRARY for name, b in e.bounds.items()}
 #: per-axis parameter -> (the all-axes parameter, 0-based axis)
-AXIS_OF: dict[str, tuple[str, int]] = {name: (name.rsplit("_axis", 1)[0], int(name[-1]) - 1)
-                                       for name in BOUNDS if "_axis" in name}
+AXIS_OF: dict[str, tuple[str, int]] = {
+    name: (name.rsplit("_axis", 1)[0], int(name[-1]) - 1) for name in BOUNDS if "_axis" in name
+}
 #: every parameter of the measurement model, all-axes and per axis (no re-simulation when they change)
 MEASUREMENT = frozenset(MEASUREMENT_PARAMETERS) | {k for k, (p, _) in AXIS_OF.items() if p in MEASUREMENT_PARAMETERS}
 
@@ -303,26 +423,62 @@ def axis_values(plant: Mapping[str, float], nominal: Mapping, j: int) -> dict[st
             out[base] = float(plant.get(base, nominal[base])) + float(v)
     return out
 
+
 #: The library of a drive axis seen from the load, force-driven (fmus/actuator/load_axis.py: single-axis
 #: benches such as EMPS). The effort compared is the drive force; columns d F / d parameter (axis_column)
 #: are the inverse-dynamics signatures along the simulated motion. The asymmetries refine a named
 #: friction: dF_c differs from the offset only at standstill (both shift the force by a constant while
 #: the axis moves), so the two are alternatives and the offset is preferred when the data cannot tell.
 AXIS_LIBRARY: tuple[Effect, ...] = (
-    Effect("mass", "moving mass", ("M",), "plant", "in phase with acceleration (the bang-bang phases)",
-           {"M": (0.1, 1e4)}),
-    Effect("viscous", "viscous friction", ("F_v",), "plant", "in phase with velocity (the constant-velocity "
-           "plateaus, growing with speed)", {"F_v": (0.0, 1e5)}),
-    Effect("coulomb", "Coulomb friction", ("F_c",), "plant", "in phase with sign(velocity): a step at every "
-           "reversal, the same on every plateau", {"F_c": (0.0, 1e4)}),
-    Effect("offset", "constant force offset", ("F_offset",), "plant", "a bias, moving or not",
-           {"F_offset": (-1e4, 1e4)}, group="bias", preferred=True),
-    Effect("viscous_asymmetry", "asymmetric viscous friction", ("dF_v",), "plant",
-           "in phase with |velocity|: the plateaus of one direction need more force per speed than the other",
-           {"dF_v": (-1e5, 1e5)}, refines="viscous"),
-    Effect("coulomb_asymmetry", "asymmetric Coulomb friction", ("dF_c",), "plant",
-           "a bias while moving, none at standstill (the same as an offset while the axis moves)",
-           {"dF_c": (-1e4, 1e4)}, refines="coulomb", group="bias", preferred=False),
+    Effect(
+        "mass", "moving mass", ("M",), "plant", "in phase with acceleration (the bang-bang phases)", {"M": (0.1, 1e4)}
+    ),
+    Effect(
+        "viscous",
+        "viscous friction",
+        ("F_v",),
+        "plant",
+        "in phase with velocity (the constant-velocity plateaus, growing with speed)",
+        {"F_v": (0.0, 1e5)},
+    ),
+    Effect(
+        "coulomb",
+        "Coulomb friction",
+        ("F_c",),
+        "plant",
+        "in phase with sign(velocity): a step at every reversal, the same on every plateau",
+        {"F_c": (0.0, 1e4)},
+    ),
+    Effect(
+        "offset",
+        "constant force offset",
+        ("F_offset",),
+        "plant",
+        "a bias, moving or not",
+        {"F_offset": (-1e4, 1e4)},
+        group="bias",
+        preferred=True,
+    ),
+    Effect(
+        "viscous_asymmetry",
+        "asymmetric viscous friction",
+        ("dF_v",),
+        "plant",
+        "in phase with |velocity|: the plateaus of one direction need more force per speed than the other",
+        {"dF_v": (-1e5, 1e5)},
+        refines="viscous",
+    ),
+    Effect(
+        "coulomb_asymmetry",
+        "asymmetric Coulomb friction",
+        ("dF_c",),
+        "plant",
+        "a bias while moving, none at standstill (the same as an offset while the axis moves)",
+        {"dF_c": (-1e4, 1e4)},
+        refines="coulomb",
+        group="bias",
+        preferred=False,
+    ),
 )
 
 
@@ -330,19 +486,34 @@ def axis_column(param: str, q_dot: np.ndarray, q_ddot: np.ndarray) -> np.ndarray
     """d F / d parameter of the load-side axis along a motion (q_dot [m/s], q_ddot [m/s^2]): the inverse
     dynamics F = M q'' + F_f(q') + F_offset differentiated (load_axis.py)."""
     s = np.sign(q_dot)
-    columns = {"M": q_ddot, "F_v": q_dot, "F_c": s, "F_offset": np.ones_like(q_dot), "dF_v": np.abs(q_dot),
-               "dF_c": np.abs(s)}
+    columns = {
+        "M": q_ddot,
+        "F_v": q_dot,
+        "F_c": s,
+        "F_offset": np.ones_like(q_dot),
+        "dF_v": np.abs(q_dot),
+        "dF_c": np.abs(s),
+    }
     if param not in columns:
         raise KeyError(f"no load-axis column for parameter {param!r}; known: {', '.join(columns)}")
     return columns[param]
 
 
-def column(effect_or_param: str, signals: SimSignals, params: Mapping, chain: Chain,
-           grid: Optional[float] = None, eps: float = 2e-4) -> np.ndarray:
+def column(
+    effect_or_param: str,
+    signals: SimSignals,
+    params: Mapping,
+    chain: Chain,
+    grid: Optional[float] = None,
+    eps: float = 2e-4,
+) -> np.ndarray:
     """d tau_obs / d parameter on the base grid (through the chain), for a plant or measurement parameter
     (all axes, or "<name>_axis<j>": that axis's column, zero on the others)."""
-    base, axes = (AXIS_OF[effect_or_param][0], [AXIS_OF[effect_or_param][1]]) if effect_or_param in AXIS_OF \
+    base, axes = (
+        (AXIS_OF[effect_or_param][0], [AXIS_OF[effect_or_param][1]])
+        if effect_or_param in AXIS_OF
         else (effect_or_param, [0, 1, 2])
+    )
     if base in PLANT_COLUMNS:
         c = PLANT_COLUMNS[base](signals, params, grid)
     elif base == "tau_offset":
@@ -353,8 +524,10 @@ def column(effect_or_param: str, signals: SimSignals, params: Mapping, chain: Ch
         lo[axes] = np.maximum(0.0, v[axes] - eps)
         hi = v.copy()
         hi[axes] = lo[axes] + 2 * eps
-        c = (chain.with_(**{base: tuple(hi)}).linear(signals.tau_m)
-             - chain.with_(**{base: tuple(lo)}).linear(signals.tau_m)) / (2 * eps)
+        c = (
+            chain.with_(**{base: tuple(hi)}).linear(signals.tau_m)
+            - chain.with_(**{base: tuple(lo)}).linear(signals.tau_m)
+        ) / (2 * eps)
     else:
         raise KeyError(f"no regression column for parameter {effect_or_param!r}")
     if len(axes) < 3:
@@ -401,8 +574,9 @@ def harmonic(t: np.ndarray, y: np.ndarray, f: float) -> complex:
     return complex(c[1], -c[2])
 
 
-def localise(t: np.ndarray, r: np.ndarray, omega: np.ndarray, acc: np.ndarray, frequency: Optional[float],
-             sigma: float) -> dict:
+def localise(
+    t: np.ndarray, r: np.ndarray, omega: np.ndarray, acc: np.ndarray, frequency: Optional[float], sigma: float
+) -> dict:
     """Where in the cycle the residual r (n, 3) concentrates.
 
     Energy shares of the residual near velocity reversals (|omega| < 15 % of its peak) and
@@ -411,16 +585,24 @@ def localise(t: np.ndarray, r: np.ndarray, omega: np.ndarray, acc: np.ndarray, f
     correlation with sign(velocity), velocity and acceleration, and for sine tests the
     residual's harmonics.
     """
-    e = r ** 2
+    e = r**2
     total = float(e.sum()) or 1e-300
-    out: dict = {"rms": float(np.sqrt(e.mean())), "rms_over_noise": float(np.sqrt(e.mean()) / sigma) if sigma > 0 else None}
-    zones = {"velocity reversals": np.abs(omega) < 0.15 * np.abs(omega).max(axis=0),
-             "peak acceleration": np.abs(acc) > 0.7 * np.abs(acc).max(axis=0)}
+    out: dict = {
+        "rms": float(np.sqrt(e.mean())),
+        "rms_over_noise": float(np.sqrt(e.mean()) / sigma) if sigma > 0 else None,
+    }
+    zones = {
+        "velocity reversals": np.abs(omega) < 0.15 * np.abs(omega).max(axis=0),
+        "peak acceleration": np.abs(acc) > 0.7 * np.abs(acc).max(axis=0),
+    }
     for name, mask in zones.items():
         share_e = float(e[mask].sum()) / total
         share_t = float(mask.mean())
-        out[name] = {"energy_share": round(share_e, 4), "time_share": round(share_t, 4),
-                     "concentration": round(share_e / share_t, 3) if share_t > 0 else None}
+        out[name] = {
+            "energy_share": round(share_e, 4),
+            "time_share": round(share_t, 4),
+            "concentration": round(share_e / share_t, 3) if share_t > 0 else None,
+        }
     out["bias_share"] = round(float((r.mean(axis=0) ** 2).sum() / (e.mean(axis=0).sum() or 1e-300)), 4)
 
     def corr(a: np.ndarray) -> float:

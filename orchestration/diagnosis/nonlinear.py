@@ -1,5 +1,6 @@
 """Effects fitted by re-simulation only: Stribeck friction (sample by sample, started from a grid) and
 backlash, which makes the loop hunt (on the phase-free score of phasefree.py)."""
+
 from __future__ import annotations
 
 import math
@@ -11,13 +12,21 @@ from .effects import Effect
 from .phasefree import ENSEMBLE, GRID_REALISATIONS, POOL_RATIO, PhaseFreeScore, estimate, pooled, search
 from .resimulation import Point
 from .selection import DELTA_BIC, Atom, atom_labels
-from .stages import (FLOOR_FACTOR, Context, State, band_rss, failed_step, fit_state, residual_at_floor,
-                     training_bic, verify)
-
+from .stages import (
+    FLOOR_FACTOR,
+    Context,
+    State,
+    band_rss,
+    failed_step,
+    fit_state,
+    residual_at_floor,
+    training_bic,
+    verify,
+)
 
 #: the phase-free value: the minimum of a parabola through the smoothed deviances on the fine grid within this
 #: ratio of the best one (phasefree.search)
-PARABOLA_SPAN = 2.0 ** 0.25
+PARABOLA_SPAN = 2.0**0.25
 #: a phase-free effect is named present with its value "not determined on this plan" (and left out of the augmented
 #: model) when its 95 % interval reaches beyond this ratio either side (the deviance has no curvature there: the
 #: parabola fell back to the grid's best value). A test in a quieter regime of the hunting than the re-simulations
@@ -27,8 +36,9 @@ PARABOLA_SPAN = 2.0 ** 0.25
 DETERMINED_RATIO = 1.25
 
 
-def nonlinear_stage(ctx: Context, state: State, effects: Sequence[Effect], rejected: set, steps: list
-                     ) -> Optional[State]:
+def nonlinear_stage(
+    ctx: Context, state: State, effects: Sequence[Effect], rejected: set, steps: list
+) -> Optional[State]:
     """Effects whose signature does not linearise (Stribeck friction, the drive's current limit): fitted and
     scored by re-simulation, each tried only where the residual shows its trace (``GATES``)."""
     best: Optional[State] = None
@@ -39,8 +49,15 @@ def nonlinear_stage(ctx: Context, state: State, effects: Sequence[Effect], rejec
         if shows:
             tried.append(e)
             continue
-        steps.append({"how": "re-simulation candidates", "from": [a.label for a in state.selected], "to": [e.key],
-                      "accepted": False, "note": f"not tried: {why}"})
+        steps.append(
+            {
+                "how": "re-simulation candidates",
+                "from": [a.label for a in state.selected],
+                "to": [e.key],
+                "accepted": False,
+                "note": f"not tried: {why}",
+            }
+        )
         ctx.log(f"diagnose: {e.title} not tried: {why}")
     effects = tried
     for e in effects:
@@ -52,7 +69,9 @@ def nonlinear_stage(ctx: Context, state: State, effects: Sequence[Effect], rejec
         start = dict(state.changes)
         start.update(_nonlinear_start(ctx, state, e))
         atom = Atom(e, start.get("omega_s") if e.key == "stribeck" else None)
-        ctx.log(f"diagnose: trying {e.title} by re-simulation (start {', '.join(f'{p} = {start[p]:.3g}' for p in e.parameters)})")
+        ctx.log(
+            f"diagnose: trying {e.title} by re-simulation (start {', '.join(f'{p} = {start[p]:.3g}' for p in e.parameters)})"
+        )
         cand = fit_state(ctx, tuple(state.selected) + (atom,), start, anchor=state.changes)
         if cand is None:
             failed_step(ctx, state, tuple(state.selected) + (atom,), steps, "re-simulation")
@@ -61,7 +80,7 @@ def nonlinear_stage(ctx: Context, state: State, effects: Sequence[Effect], rejec
             if bic < best_bic:
                 best, best_bic = cand, bic
             if residual_at_floor(ctx, cand.pt):
-                break       # explained: no need to try the others
+                break  # explained: no need to try the others
         else:
             rejected.add(labels)
             rejected.add(("refuted", e.key))
@@ -70,8 +89,9 @@ def nonlinear_stage(ctx: Context, state: State, effects: Sequence[Effect], rejec
 
 #: start grids of the nonlinear effects (the Stribeck cost has a narrow curved valley in omega_s)
 START_GRIDS = {
-    "stribeck": [{"tau_s": ts, "omega_s": ws} for ts in (0.012, 0.03)
-                 for ws in (1.0, 1.3, 1.7, 2.2, 2.9, 3.7, 4.8, 6.3, 8.2)],
+    "stribeck": [
+        {"tau_s": ts, "omega_s": ws} for ts in (0.012, 0.03) for ws in (1.0, 1.3, 1.7, 2.2, 2.9, 3.7, 4.8, 6.3, 8.2)
+    ],
 }
 
 
@@ -83,8 +103,10 @@ CLIP_GATE = 5.0
 
 def _reversal_gate(ctx: Context, pt: Point) -> tuple[bool, str]:
     where = _reversal_concentration(ctx, pt)
-    return where >= REVERSAL_GATE, (f"the residual does not concentrate at velocity reversals ({where:.2f} x its "
-                                    f"share of time < {REVERSAL_GATE:g}), where it acts")
+    return where >= REVERSAL_GATE, (
+        f"the residual does not concentrate at velocity reversals ({where:.2f} x its "
+        f"share of time < {REVERSAL_GATE:g}), where it acts"
+    )
 
 
 def _peaks(ctx: Context, pt: Point) -> tuple[float, float]:
@@ -99,7 +121,8 @@ def _clip_gate(ctx: Context, pt: Point) -> tuple[bool, str]:
     measured, model = _peaks(ctx, pt)
     return model - measured >= CLIP_GATE * ctx.sigma, (
         f"the model's torque peak ({model:.4g} N.m) does not exceed the data's ({measured:.4g} N.m) by "
-        f"{CLIP_GATE:g} noise deviations: nothing is clipped")
+        f"{CLIP_GATE:g} noise deviations: nothing is clipped"
+    )
 
 
 def _stand_in_gate(ctx: Context, pt: Point) -> tuple[bool, str]:
@@ -117,12 +140,12 @@ def _reversal_concentration(ctx: Context, pt: Point) -> float:
     best = 0.0
     for n in ctx.names:
         r = ctx.model.tests[n].y - pt.obs[n]
-        if float(np.sqrt(np.mean(r ** 2))) <= FLOOR_FACTOR * ctx.sigma:
+        if float(np.sqrt(np.mean(r**2))) <= FLOOR_FACTOR * ctx.sigma:
             continue
         omega = ctx.model.signals(pt, n)[0]
         mask = np.abs(omega) < 0.15 * np.abs(omega).max(axis=0)
         if mask.any():
-            best = max(best, float((r[mask] ** 2).sum() / (r ** 2).sum()) / float(mask.mean()))
+            best = max(best, float((r[mask] ** 2).sum() / (r**2).sum()) / float(mask.mean()))
     return best
 
 
@@ -133,9 +156,9 @@ def _nonlinear_start(ctx: Context, state: State, e: Effect) -> dict:
     batch."""
     if e.key == "current_limit":
         return {"i_max": _peaks(ctx, state.pt)[0] / float(ctx.nominal["k_T"])}
-    if e.key == "stiffness":   # the spring's compliance is what the loop feels: a log grid, on every training test
+    if e.key == "stiffness":  # the spring's compliance is what the loop feels: a log grid, on every training test
         k0 = float(state.changes.get("K_t", ctx.nominal["K_t"]))
-        grid = [{"K_t": k0 * 2.0 ** k} for k in (1, -1, -2, -3, -4, -5)]
+        grid = [{"K_t": k0 * 2.0**k} for k in (1, -1, -2, -3, -4, -5)]
         probe = list(ctx.train)
     else:
         grid = START_GRIDS[e.key]
@@ -178,42 +201,68 @@ def phase_free_stage(ctx: Context, state: State, effect: Effect, steps: list) ->
     """
     model, p = ctx.model, effect.parameter
     try:
-        score = PhaseFreeScore({n: model.tests[n].y for n in ctx.names}, state.pt.obs,
-                               {n: model.tests[n].test.sample_time for n in ctx.names}, ctx.sigma)
-    except ValueError as err:   # sampled too slowly for the bands
-        steps.append({"how": "phase-free score", "from": [a.label for a in state.selected],
-                      "to": [a.label for a in state.selected] + [effect.key], "accepted": False,
-                      "note": f"not tried: {err}"})
+        score = PhaseFreeScore(
+            {n: model.tests[n].y for n in ctx.names},
+            state.pt.obs,
+            {n: model.tests[n].test.sample_time for n in ctx.names},
+            ctx.sigma,
+        )
+    except ValueError as err:  # sampled too slowly for the bands
+        steps.append(
+            {
+                "how": "phase-free score",
+                "from": [a.label for a in state.selected],
+                "to": [a.label for a in state.selected] + [effect.key],
+                "accepted": False,
+                "note": f"not tried: {err}",
+            }
+        )
         ctx.log(f"diagnose: {effect.title} not tried: {err}")
         return state
     ensembles: dict[float, Optional[dict]] = {}
     current = float(state.changes.get(p, ctx.nominal[p]))
 
-    def changes(v: float) -> dict:   # the current model as it is (its simulations are cached)
+    def changes(v: float) -> dict:  # the current model as it is (its simulations are cached)
         return dict(state.changes) if v == current else {**state.changes, p: v}
 
     def simulate(values: Sequence[float], realisations: int = ENSEMBLE) -> None:
         new = [v for v in values if not any(abs(v - u) <= 1e-9 * abs(u) for u in ensembles)]
         model.sim.prefetch([changes(v) for v in new], ctx.names, range(realisations))
         for v in new:
-            pts = [model.trial(changes(v), [n], f"{effect.key} phase-free ensemble", r)
-                   for n in ctx.names for r in range(realisations)]
-            ensembles[v] = None if any(q is None for q in pts) else {
-                n: np.array([score.powers(n, pts[k * realisations + r].obs[n]) for r in range(realisations)])
-                for k, n in enumerate(ctx.names)}
+            pts = [
+                model.trial(changes(v), [n], f"{effect.key} phase-free ensemble", r)
+                for n in ctx.names
+                for r in range(realisations)
+            ]
+            ensembles[v] = (
+                None
+                if any(q is None for q in pts)
+                else {
+                    n: np.array([score.powers(n, pts[k * realisations + r].obs[n]) for r in range(realisations)])
+                    for k, n in enumerate(ctx.names)
+                }
+            )
 
     def deviance(v: float, names: Sequence[str]) -> float:
         return score.fit(ensembles[v], names).deviance if ensembles[v] is not None else math.inf
 
-    ctx.log(f"diagnose: trying {effect.title} on the phase-free score ({len(effect.scan)} values x {ENSEMBLE} "
-            f"realisations of every test)")
+    ctx.log(
+        f"diagnose: trying {effect.title} on the phase-free score ({len(effect.scan)} values x {ENSEMBLE} "
+        f"realisations of every test)"
+    )
     simulate([current, *effect.scan])
     scan_all = {v: deviance(v, ctx.names) for v in effect.scan}
     v_all = min(scan_all, key=scan_all.get)
     if ensembles[current] is None or not math.isfinite(scan_all[v_all]):
-        steps.append({"how": "phase-free score", "from": [a.label for a in state.selected],
-                      "to": [a.label for a in state.selected] + [effect.key], "accepted": False,
-                      "note": "not tried: every simulation of its scan failed (see failed_simulations)"})
+        steps.append(
+            {
+                "how": "phase-free score",
+                "from": [a.label for a in state.selected],
+                "to": [a.label for a in state.selected] + [effect.key],
+                "accepted": False,
+                "note": "not tried: every simulation of its scan failed (see failed_simulations)",
+            }
+        )
         ctx.log(f"diagnose: {effect.title} not tried: every simulation of its scan failed")
         return state
     before_all = score.fit(ensembles[current], ctx.names)
@@ -222,17 +271,29 @@ def phase_free_stage(ctx: Context, state: State, effect: Effect, steps: list) ->
     dcv = sum(f["deviance_change"] for f in folds.values())
     ok = dbic <= -DELTA_BIC and dcv <= -DELTA_BIC
     labels = [a.label for a in state.selected]
-    steps.append({"how": "phase-free score", "from": labels, "to": labels + [effect.key], "parameters": {p: v_all},
-                  "delta_bic": dbic, "cross_validated_deviance_change": dcv, "leave_one_out": folds,
-                  "accepted": bool(ok),
-                  "note": "the best value of the scan on all tests, band powers of the residual against ensembles of "
-                          "re-simulations; leave-one-test-out: each test predicted at the scan value best on the "
-                          "others" + ("" if ok else f": refused (dBIC and cross-validated deviance change must be "
-                                                    f"<= -{DELTA_BIC:g})")})
-    ctx.log(f"diagnose:   {effect.key} = {v_all:.3g} (scan, all tests): phase-free dBIC {dbic:+.0f}, leave-one-test-out "
-            f"deviance {dcv:+.0f} (" + ", ".join(f"{n} {f['deviance_change']:+.0f} at {f['value']:.3g}"
-                                                  for n, f in folds.items()) + ")"
-            + (": confirmed" if ok else ": refused"))
+    steps.append(
+        {
+            "how": "phase-free score",
+            "from": labels,
+            "to": labels + [effect.key],
+            "parameters": {p: v_all},
+            "delta_bic": dbic,
+            "cross_validated_deviance_change": dcv,
+            "leave_one_out": folds,
+            "accepted": bool(ok),
+            "note": "the best value of the scan on all tests, band powers of the residual against ensembles of "
+            "re-simulations; leave-one-test-out: each test predicted at the scan value best on the "
+            "others"
+            + ("" if ok else f": refused (dBIC and cross-validated deviance change must be <= -{DELTA_BIC:g})"),
+        }
+    )
+    ctx.log(
+        f"diagnose:   {effect.key} = {v_all:.3g} (scan, all tests): phase-free dBIC {dbic:+.0f}, leave-one-test-out "
+        f"deviance {dcv:+.0f} ("
+        + ", ".join(f"{n} {f['deviance_change']:+.0f} at {f['value']:.3g}" for n, f in folds.items())
+        + ")"
+        + (": confirmed" if ok else ": refused")
+    )
     if not ok:
         return state
     # the tests that disagree: each predicted at the scan value best on the others fits worse than without the effect.
@@ -263,9 +324,16 @@ def phase_free_stage(ctx: Context, state: State, effect: Effect, steps: list) ->
             value = min(points, key=points.get)
         ensemble = pooled(ensembles, value, POOL_RATIO)
         if ensemble is None:
-            steps.append({"how": "phase-free score: value on all tests", "from": labels, "to": labels + [effect.key],
-                          "accepted": False, "profile": {v: points[v] for v in sorted(points)},
-                          "note": "not named: the simulations around its best value failed (see failed_simulations)"})
+            steps.append(
+                {
+                    "how": "phase-free score: value on all tests",
+                    "from": labels,
+                    "to": labels + [effect.key],
+                    "accepted": False,
+                    "profile": {v: points[v] for v in sorted(points)},
+                    "note": "not named: the simulations around its best value failed (see failed_simulations)",
+                }
+            )
             ctx.log(f"diagnose:   {effect.key}: the simulations around its best value failed, not named")
             return state
         final = score.fit(ensemble, fitted)
@@ -282,8 +350,10 @@ def phase_free_stage(ctx: Context, state: State, effect: Effect, steps: list) ->
         rest = [n for n in fitted if not quiet or n != quiet[0]]
         if not quiet or len(rest) < 2 or not any(before.per_test[n] > floors[n] for n in rest):
             break
-        ctx.log(f"diagnose:   {effect.key} = {value:.4g}: {quiet[0]} stays above its floor ({per_test[quiet[0]]:.0f}) "
-                "with less power than the re-simulations: fitted again without it")
+        ctx.log(
+            f"diagnose:   {effect.key} = {value:.4g}: {quiet[0]} stays above its floor ({per_test[quiet[0]]:.0f}) "
+            "with less power than the re-simulations: fitted again without it"
+        )
         fitted = rest
     # a test outside the fit at the floor with the value agrees after all (its disagreement was the scan's coarse
     # grid); one above it is not reproduced, which only a quieter regime of the hunting may explain
@@ -292,58 +362,111 @@ def phase_free_stage(ctx: Context, state: State, effect: Effect, steps: list) ->
     above = [n for n in fitted if per_test[n] > floors[n]] + unlike
     realisations = len(next(iter(ensemble.values())))
     on = "all tests" if fitted == list(ctx.names) else ", ".join(fitted)
-    steps.append({"how": "phase-free score: value on all tests", "from": labels, "to": labels + [effect.key],
-                  "parameters": {p: value}, "delta_bic": dbic, "deviance_per_test": per_test, "fitted_on": fitted,
-                  "floor_per_test": floors, "profile": {v: points[v] for v in sorted(points)},
-                  "profile_mid_grid": {v: mid[v] for v in sorted(mid)}, "accepted": not above,
-                  "note": ("every test's band powers at the floor with it" if not above and not unreproduced else
-                           f"the band powers of the tests it is fitted on at the floor with it; {', '.join(unreproduced)} "
-                           f"in a quieter regime of the hunting than its {realisations} re-simulations"
-                           if not above else
-                           f"not named: with it the band powers of {', '.join(above)} stay above the floor "
-                           + ("(it would explain only part of the residual)" if not unlike else
-                              f"({', '.join(unlike)}: more power in a band than every re-simulation with it, or no "
-                              "trace of the effect at all: at its floor without it)"))})
-    ctx.log(f"diagnose:   {effect.key} = {value:.4g} on {on} (deviance per test "
-            + ", ".join(f"{n} {d:.1f}" for n, d in per_test.items()) + ")"
-            + (f": above the floor on {', '.join(above)}, not named" if above else ": named"))
+    steps.append(
+        {
+            "how": "phase-free score: value on all tests",
+            "from": labels,
+            "to": labels + [effect.key],
+            "parameters": {p: value},
+            "delta_bic": dbic,
+            "deviance_per_test": per_test,
+            "fitted_on": fitted,
+            "floor_per_test": floors,
+            "profile": {v: points[v] for v in sorted(points)},
+            "profile_mid_grid": {v: mid[v] for v in sorted(mid)},
+            "accepted": not above,
+            "note": (
+                "every test's band powers at the floor with it"
+                if not above and not unreproduced
+                else f"the band powers of the tests it is fitted on at the floor with it; {', '.join(unreproduced)} "
+                f"in a quieter regime of the hunting than its {realisations} re-simulations"
+                if not above
+                else f"not named: with it the band powers of {', '.join(above)} stay above the floor "
+                + (
+                    "(it would explain only part of the residual)"
+                    if not unlike
+                    else f"({', '.join(unlike)}: more power in a band than every re-simulation with it, or no "
+                    "trace of the effect at all: at its floor without it)"
+                )
+            ),
+        }
+    )
+    ctx.log(
+        f"diagnose:   {effect.key} = {value:.4g} on {on} (deviance per test "
+        + ", ".join(f"{n} {d:.1f}" for n, d in per_test.items())
+        + ")"
+        + (f": above the floor on {', '.join(above)}, not named" if above else ": named")
+    )
     if above:
         return state
-    why_not = ([f"95 % interval {value * math.exp(-1.96 * s_log):.3g} to {value * math.exp(1.96 * s_log):.3g}"]
-               if 1.96 * s_log > math.log(DETERMINED_RATIO) else [])
-    quieter = [f"{n} is in a regime of the hunting that none of the {realisations} re-simulations within "
-               f"{100 * (POOL_RATIO - 1):.0f} % of the value visits (deviance {per_test[n]:.0f} > {floors[n]:.1f}, with "
-               f"less power in every band than the loudest of them): one realisation of the hunting, not fitted; the "
-               f"value is fitted on {on}" for n in unreproduced]
+    why_not = (
+        [f"95 % interval {value * math.exp(-1.96 * s_log):.3g} to {value * math.exp(1.96 * s_log):.3g}"]
+        if 1.96 * s_log > math.log(DETERMINED_RATIO)
+        else []
+    )
+    quieter = [
+        f"{n} is in a regime of the hunting that none of the {realisations} re-simulations within "
+        f"{100 * (POOL_RATIO - 1):.0f} % of the value visits (deviance {per_test[n]:.0f} > {floors[n]:.1f}, with "
+        f"less power in every band than the loudest of them): one realisation of the hunting, not fitted; the "
+        f"value is fitted on {on}"
+        for n in unreproduced
+    ]
     if quieter:
         ctx.log(f"diagnose:   {effect.key}: {'; '.join(quieter)}")
     if why_not:
-        ctx.log(f"diagnose:   {effect.key}: present, its value is not determined on this plan (not written into the "
-                f"augmented model): {'; '.join(why_not)}")
+        ctx.log(
+            f"diagnose:   {effect.key}: present, its value is not determined on this plan (not written into the "
+            f"augmented model): {'; '.join(why_not)}"
+        )
     nf = {n: score.bands[n].noise_fraction for n in ctx.names}
-    info = {**state.info, "phase_free": {
-        "parameter": p, "value": value, "std": value * s_log, "value_determined": not why_not,
-        "value_not_determined_because": why_not, "fitted_on": fitted, "not_reproduced": unreproduced,
-        "not_reproduced_because": quieter,
-        "ci95": [value * math.exp(-1.96 * s_log), value * math.exp(1.96 * s_log)],
-        "scan_value": v_all, "delta_bic": dbic, "cross_validated_deviance_change": dcv, "leave_one_out": folds,
-        "deviance_per_test": {"before": before.per_test, "after": per_test}, "floor_per_test": floors,
-        "noise_std_Nm": final.sigma, "bands_Hz": {n: score.bands[n].bands for n in ctx.names},
-        "ensemble": ENSEMBLE, "pooled_realisations": realisations,
-        "pool_ratio": POOL_RATIO,
-        "band_powers_Nm_squared": {n: {"measured": score.measured[n].tolist(),
-                                 "with": (ensemble[n].mean(axis=0) + final.sigma ** 2 * nf[n]).tolist(),
-                                 "without": (ensembles[current][n].mean(axis=0) + before.sigma ** 2 * nf[n]).tolist()}
-                             for n in ctx.names},
-        "profile": {v: points[v] for v in sorted(points)}, "profile_mid_grid": {v: mid[v] for v in sorted(mid)}}}
+    info = {
+        **state.info,
+        "phase_free": {
+            "parameter": p,
+            "value": value,
+            "std": value * s_log,
+            "value_determined": not why_not,
+            "value_not_determined_because": why_not,
+            "fitted_on": fitted,
+            "not_reproduced": unreproduced,
+            "not_reproduced_because": quieter,
+            "ci95": [value * math.exp(-1.96 * s_log), value * math.exp(1.96 * s_log)],
+            "scan_value": v_all,
+            "delta_bic": dbic,
+            "cross_validated_deviance_change": dcv,
+            "leave_one_out": folds,
+            "deviance_per_test": {"before": before.per_test, "after": per_test},
+            "floor_per_test": floors,
+            "noise_std_Nm": final.sigma,
+            "bands_Hz": {n: score.bands[n].bands for n in ctx.names},
+            "ensemble": ENSEMBLE,
+            "pooled_realisations": realisations,
+            "pool_ratio": POOL_RATIO,
+            "band_powers_Nm_squared": {
+                n: {
+                    "measured": score.measured[n].tolist(),
+                    "with": (ensemble[n].mean(axis=0) + final.sigma**2 * nf[n]).tolist(),
+                    "without": (ensembles[current][n].mean(axis=0) + before.sigma**2 * nf[n]).tolist(),
+                }
+                for n in ctx.names
+            },
+            "profile": {v: points[v] for v in sorted(points)},
+            "profile_mid_grid": {v: mid[v] for v in sorted(mid)},
+        },
+    }
     pt = model.trial(changes(value), ctx.names, f"{effect.key} value on every test")
     if pt is None:
         return state
     return State(tuple(state.selected) + (Atom(effect),), changes(value), pt, info)
 
 
-def leave_one_out(score: PhaseFreeScore, ensembles: Mapping[float, Optional[dict]], current: float,
-                  scan: Sequence[float], names: Sequence[str]) -> dict[str, dict]:
+def leave_one_out(
+    score: PhaseFreeScore,
+    ensembles: Mapping[float, Optional[dict]],
+    current: float,
+    scan: Sequence[float],
+    names: Sequence[str],
+) -> dict[str, dict]:
     """Every test predicted at the scan value best on the other tests: that value, and the test's deviance
     change against the current model (negative: the prediction fits it better). A test alone (no others)
     is predicted at the best value on itself."""

@@ -1,5 +1,6 @@
 """What ``mast diagnose`` is asked to do (``Options``) and the nominal model's overrides (``--model``): shared by
 the workflow on measured data (``workflow``) and on record folders (``records``) and by the report."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -15,12 +16,12 @@ class Options:
     measured: Path
     out: Path
     ssp: str
-    model: Optional[str] = None           # a parameter set (.ssv path or name in the SSP's resources)
+    model: Optional[str] = None  # a parameter set (.ssv path or name in the SSP's resources)
     holdout: Optional[Sequence[str]] = None
-    holdout_fraction: Optional[float] = None   # records (mast import) without held-out tests: the share held out
+    holdout_fraction: Optional[float] = None  # records (mast import) without held-out tests: the share held out
     workers: int = 2
     direct: bool = True
-    native: bool = False                  # re-simulate on the SSP's native variant (compiled FMUs, mast build --native)
+    native: bool = False  # re-simulate on the SSP's native variant (compiled FMUs, mast build --native)
     library: Sequence[str] = tuple(e.key for e in LIBRARY)
     figures: bool = True
 
@@ -44,7 +45,7 @@ def model_overrides(ssp: str, model: Optional[str]) -> dict:
         for candidate in (res / name, res / "parameters" / name, sources / name):
             if candidate.exists():
                 return {k: v.value for k, v in parse_ssv(candidate).items()}
-        have = sorted({p.stem for p in res.rglob("*.ssv")} |
-                      {p.stem for p in sources.glob("*.ssv")})
-    raise DiagnosisError(f"--model {model}: neither a file nor a parameter set of the SSP or of ssp/resources "
-                         f"(known: {', '.join(have)})")
+        have = sorted({p.stem for p in res.rglob("*.ssv")} | {p.stem for p in sources.glob("*.ssv")})
+    raise DiagnosisError(
+        f"--model {model}: neither a file nor a parameter set of the SSP or of ssp/resources (known: {', '.join(have)})"
+    )

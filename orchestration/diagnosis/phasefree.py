@@ -23,6 +23,7 @@ The value: where the hunting is periodic (short records) a value's band powers j
 percent apart, and so does its deviance; the value is the minimum of the deviance pooled over the values within
 POOL_RATIO (``pooled``), found on a grid (``search``) and by a parabola (``estimate``).
 """
+
 from __future__ import annotations
 
 import math
@@ -51,8 +52,9 @@ class BandPowers:
         fs = 1.0 / dt
         edges = [e for e in BAND_EDGES_HZ if e < 0.8 * fs / 2]
         if not edges:
-            raise ValueError(f"sample time {dt:g} s: too slow for the phase-free score (bands from "
-                             f"{BAND_EDGES_HZ[0]:g} Hz)")
+            raise ValueError(
+                f"sample time {dt:g} s: too slow for the phase-free score (bands from {BAND_EDGES_HZ[0]:g} Hz)"
+            )
         self.bands = list(zip([0.0] + edges, edges + [fs / 2]))
         self.sos = []
         for lo, hi in self.bands:
@@ -78,7 +80,7 @@ class BandPowers:
             rho = np.correlate(h, h, mode="full") / energy
             self.noise_fraction[k] = energy
             self.dof_per_sample[k] = 1.0 / float(rho @ rho)
-            outside = energy - np.cumsum(h[half:] ** 2 + np.concatenate([[0.0], h[half - 1::-1] ** 2]))
+            outside = energy - np.cumsum(h[half:] ** 2 + np.concatenate([[0.0], h[half - 1 :: -1] ** 2]))
             self.margin[k] = int(np.argmax(outside < 1e-4 * energy))
 
     def samples(self, n: int) -> np.ndarray:
@@ -90,22 +92,27 @@ class BandPowers:
         out = []
         for sos, keep in zip(self.sos, self.samples(len(x))):
             m = (len(x) - keep) // 2
-            out.append(float(np.mean(self._filt(sos, x, axis=0)[m:m + keep] ** 2)))
+            out.append(float(np.mean(self._filt(sos, x, axis=0)[m : m + keep] ** 2)))
         return np.array(out)
 
 
 @dataclass
 class Fit:
-    deviance: float                  # summed over the tests
+    deviance: float  # summed over the tests
     per_test: dict[str, float]
-    sigma: float                     # the profiled noise standard deviation
+    sigma: float  # the profiled noise standard deviation
 
 
 class PhaseFreeScore:
     """Band powers of the measured residual (against a fixed reference) and the deviance of ensembles."""
 
-    def __init__(self, measured: Mapping[str, np.ndarray], reference: Mapping[str, np.ndarray],
-                 dt: Mapping[str, float], sigma_floor: float) -> None:
+    def __init__(
+        self,
+        measured: Mapping[str, np.ndarray],
+        reference: Mapping[str, np.ndarray],
+        dt: Mapping[str, float],
+        sigma_floor: float,
+    ) -> None:
         self.reference = dict(reference)
         self.sigma_floor = sigma_floor
         by_step: dict[float, BandPowers] = {}
@@ -114,8 +121,9 @@ class PhaseFreeScore:
                 by_step[round(dt[n], 12)] = BandPowers(dt[n])
         self.bands = {n: by_step[round(dt[n], 12)] for n in measured}
         self.measured = {n: self.powers(n, y) for n, y in measured.items()}
-        self.dof = {n: self.bands[n].samples(len(y)) * y.shape[1] * self.bands[n].dof_per_sample
-                    for n, y in measured.items()}
+        self.dof = {
+            n: self.bands[n].samples(len(y)) * y.shape[1] * self.bands[n].dof_per_sample for n, y in measured.items()
+        }
 
     def powers(self, name: str, observed: np.ndarray) -> np.ndarray:
         """Band powers of a torque (n, 3) of test ``name`` against the reference."""
@@ -133,14 +141,14 @@ class PhaseFreeScore:
         from scipy.special import logsumexp
 
         m, nu = self.measured[name], self.dof[name]
-        mu = ensemble + s2 * self.bands[name].noise_fraction          # (realisations, bands)
+        mu = ensemble + s2 * self.bands[name].noise_fraction  # (realisations, bands)
         q = m / mu
         loglik = -0.5 * (nu * (q - 1.0 - np.log(q))).sum(axis=1)
         return float(-2.0 * (logsumexp(loglik) - math.log(len(loglik))))
 
     def deviances(self, ensembles: Mapping[str, np.ndarray], names: Sequence[str], sigma: float) -> dict[str, float]:
         """Deviance of every test ``names`` at a given noise standard deviation (one profiled on other tests)."""
-        return {n: self._test_deviance(n, ensembles[n], sigma ** 2) for n in names}
+        return {n: self._test_deviance(n, ensembles[n], sigma**2) for n in names}
 
     def quieter(self, name: str, ensemble: np.ndarray, sigma: float, z: float = 3.0) -> bool:
         """Whether the measured band powers of test ``name`` are nowhere above what the ensemble's loudest
@@ -149,7 +157,7 @@ class PhaseFreeScore:
         record hunts less than, or as much as, the re-simulations, never more in any band. A cause the effect
         does not make adds power somewhere; a regime of the hunting the ensemble did not visit (fewer or weaker
         episodes in the record's window) only takes it away."""
-        loudest = ensemble.max(axis=0) + sigma ** 2 * self.bands[name].noise_fraction
+        loudest = ensemble.max(axis=0) + sigma**2 * self.bands[name].noise_fraction
         return bool(np.all(self.measured[name] <= loudest * (1.0 + z * np.sqrt(2.0 / self.dof[name]))))
 
     def fit(self, ensembles: Mapping[str, np.ndarray], names: Sequence[str]) -> Fit:
@@ -169,7 +177,7 @@ class PhaseFreeScore:
 
 #: the value's search after the scan (ratio 2): a grid at ratio 2^(1/4) between the scan's best value's neighbours,
 #: then one at 2^(1/16) (4.4 %) around the best of those, 2^(1/4) either side
-MID_RATIO = 2.0 ** 0.25
+MID_RATIO = 2.0**0.25
 FINE_RATIO = 2.0 ** (1.0 / 16.0)
 FINE_STEPS = 4
 #: realisations of every value of the mid and fine grids (the scan's have ENSEMBLE): the pooling window holds five
@@ -183,8 +191,9 @@ POOL_RATIO = 2.0 ** (1.0 / 8.0)
 MAX_EXTENSIONS = 4
 
 
-def pooled(ensembles: Mapping[float, Optional[Mapping[str, np.ndarray]]], value: float, ratio: float
-           ) -> Optional[dict[str, np.ndarray]]:
+def pooled(
+    ensembles: Mapping[float, Optional[Mapping[str, np.ndarray]]], value: float, ratio: float
+) -> Optional[dict[str, np.ndarray]]:
     """The realisations of every value simulated within ``ratio`` of ``value`` (positive values only), as one
     ensemble per test: a mixture over the value's last few percent, as the ensemble is one over the commands'
     last digits. Where the hunting is periodic its band powers jump between neighbouring values (2 % more
@@ -198,8 +207,12 @@ def pooled(ensembles: Mapping[float, Optional[Mapping[str, np.ndarray]]], value:
     return {n: np.concatenate([ensembles[u][n] for u in near]) for n in names}
 
 
-def search(simulate: Callable[[Sequence[float]], None], smoothed: Callable[[float, float], float], best: float,
-           bounds: tuple[float, float]) -> tuple[dict[float, float], dict[float, float]]:
+def search(
+    simulate: Callable[[Sequence[float]], None],
+    smoothed: Callable[[float, float], float],
+    best: float,
+    bounds: tuple[float, float],
+) -> tuple[dict[float, float], dict[float, float]]:
     """A bounded 1-D search for the minimum of the smoothed deviance ``smoothed(value, pooling ratio)`` around
     ``best`` (the scan's best value, ratio 2 from its neighbours): the grid at MID_RATIO between the
     neighbours, smoothed over one mid step, picks the centre of a grid at FINE_RATIO (FINE_STEPS either side),
@@ -210,7 +223,7 @@ def search(simulate: Callable[[Sequence[float]], None], smoothed: Callable[[floa
     margin = round(math.log(POOL_RATIO) / math.log(FINE_RATIO))
 
     def grid(centre: float, ratio: float, steps: Sequence[int]) -> list[float]:
-        return [v for v in (centre * ratio ** k for k in steps) if lo <= v <= hi]
+        return [v for v in (centre * ratio**k for k in steps) if lo <= v <= hi]
 
     mid_values = grid(best, MID_RATIO, range(-4, 5))
     simulate(mid_values)
@@ -222,7 +235,7 @@ def search(simulate: Callable[[Sequence[float]], None], smoothed: Callable[[floa
         simulate(values)
         fine = {v: smoothed(v, POOL_RATIO) for v in values}
         k = values.index(min(fine, key=fine.get))
-        low = k < margin and values[0] / FINE_RATIO >= lo           # the window about the minimum is cut short
+        low = k < margin and values[0] / FINE_RATIO >= lo  # the window about the minimum is cut short
         high = k > len(values) - 1 - margin and values[-1] * FINE_RATIO <= hi
         if not (low or high):
             break
@@ -243,7 +256,7 @@ def estimate(points: Mapping[float, float], span: float) -> tuple[float, float]:
     d = np.array([points[v] for v in near])
     if len(near) < 3:
         return best, math.log(span)
-    X = np.column_stack([np.ones_like(x), x, x ** 2])
+    X = np.column_stack([np.ones_like(x), x, x**2])
     c, *_ = np.linalg.lstsq(X, d, rcond=None)
     if c[2] <= 0:
         return best, math.log(span)

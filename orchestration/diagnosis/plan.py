@@ -6,6 +6,7 @@ rotation), and its role. The thresholds follow the effects' signatures (effects.
 cascade's bandwidth (about 4 Hz, ssp/resources/controller_joint.ssv); the frequencies are
 engineering judgement, stated with each requirement.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -20,9 +21,9 @@ class Excitation:
 
     name: str
     role: str
-    frequency: float      # Hz: reversals per second / 2 (0 without reversals)
-    alike: bool           # the three axes move alike (a z motion)
-    moving: tuple = (True, True, True)   # which axes move
+    frequency: float  # Hz: reversals per second / 2 (0 without reversals)
+    alike: bool  # the three axes move alike (a z motion)
+    moving: tuple = (True, True, True)  # which axes move
 
     def on_axis(self, j: int) -> "Excitation":
         """The test as seen by axis j (0-based): no reversals if that axis stands still."""
@@ -32,9 +33,12 @@ class Excitation:
 def excitation(name: str, role: str, t: np.ndarray, rho_cmd: np.ndarray) -> Excitation:
     v = np.gradient(rho_cmd, t, axis=0)
     scale = np.abs(v).max(axis=0)
-    moving = scale > 1e-3 * float(scale.max())    # an axis that stands still (its commands' rounding is no motion)
-    reversals = [int(np.count_nonzero(np.diff(np.sign(v[np.abs(v[:, j]) > 0.05 * scale[j], j])) != 0))
-                 for j in range(rho_cmd.shape[1]) if moving[j]]
+    moving = scale > 1e-3 * float(scale.max())  # an axis that stands still (its commands' rounding is no motion)
+    reversals = [
+        int(np.count_nonzero(np.diff(np.sign(v[np.abs(v[:, j]) > 0.05 * scale[j], j])) != 0))
+        for j in range(rho_cmd.shape[1])
+        if moving[j]
+    ]
     duration = float(t[-1] - t[0]) or 1.0
     frequency = max(reversals) / (2 * duration) if reversals else 0.0
     spread = np.ptp(rho_cmd, axis=0)
@@ -51,9 +55,15 @@ def _both_roles(tests: Sequence[Excitation], ok: Callable[[Excitation], bool]) -
 
 def _two(tests: Sequence[Excitation], ok: Callable[[Excitation], bool]) -> Optional[str]:
     have = [x.name for x in tests if ok(x)]
-    return None if len(have) >= 2 else ("no such test in the plan" if not have else
-                                         f"only one such test in the plan ({have[0]}): one to fit it and another "
-                                         "to check it are needed")
+    return (
+        None
+        if len(have) >= 2
+        else (
+            "no such test in the plan"
+            if not have
+            else f"only one such test in the plan ({have[0]}): one to fit it and another to check it are needed"
+        )
+    )
 
 
 @dataclass(frozen=True)
@@ -78,9 +88,13 @@ def _fast(tests: Sequence[Excitation]) -> Optional[str]:
     fast = [x for x in tests if x.frequency >= FAST_HZ]
     if max(sum(x.alike == kind for x in fast) for kind in (True, False)) >= 2:
         return None
-    return (f"no test at {FAST_HZ:g} Hz or above" if not fast else
-            f"only one test at {FAST_HZ:g} Hz or above ({fast[0].name})" if len(fast) == 1 else
-            f"one z and one rotation test at {FAST_HZ:g} Hz or above, not two of one kind")
+    return (
+        f"no test at {FAST_HZ:g} Hz or above"
+        if not fast
+        else f"only one test at {FAST_HZ:g} Hz or above ({fast[0].name})"
+        if len(fast) == 1
+        else f"one z and one rotation test at {FAST_HZ:g} Hz or above, not two of one kind"
+    )
 
 
 #: reversal rate [Hz] from which a test is fast for backlash (near the cascade's bandwidth, about 4 Hz, the
@@ -95,40 +109,68 @@ def _speeds(tests: Sequence[Excitation]) -> Optional[str]:
 
 def _kinds(tests: Sequence[Excitation]) -> Optional[str]:
     kinds = {x.alike for x in tests if x.frequency > 0}
-    return None if kinds == {True, False} else ("only motions of the axes alike (z)" if kinds == {True}
-                                                else "no motion of the axes alike (z)")
+    return (
+        None
+        if kinds == {True, False}
+        else ("only motions of the axes alike (z)" if kinds == {True} else "no motion of the axes alike (z)")
+    )
 
 
 #: effect keys -> (what the plan must excite, the check: None when met, else why not)
 REQUIREMENTS: dict[tuple[str, ...], tuple[str, Callable[[Sequence[Excitation]], Optional[str]]]] = {
-    ("coulomb", "offset"): ("velocity reversals in a training and a held-out test",
-                            InBothRoles(lambda x: x.frequency > 0)),
-    ("viscous",): ("reversal rates (speeds) differing by 2 x or more across tests: viscous grows with speed, "
-                   "Coulomb friction does not", _speeds),
-    ("stribeck",): ("a slow test (<= 1 Hz), where the motion lingers near standstill at each reversal",
-                    lambda ts: None if any(0 < x.frequency <= 1.0 for x in ts) else "no test at 1 Hz or below"),
-    ("inertia_motor", "inertia_guide"): ("a training and a held-out test at >= 2 Hz: the inertia torque grows "
-                                         "with f^2 and is small below", InBothRoles(lambda x: x.frequency >= 2.0)),
-    ("carriage_mass",): ("motions of the axes alike (z) and differently (a rotation): on z alone a heavier "
-                         "carriage and more inertia plus an offset look alike", _kinds),
-    ("lag",): ("a test at >= 3 Hz: the phase lag grows with f", lambda ts: None if any(x.frequency >= 3.0 for x in ts)
-               else "no test at 3 Hz or above"),
-    ("velocity_gain", "position_gain", "velocity_integral"): ("a training and a held-out test at >= 2 Hz, near the cascade's bandwidth "
-                                         "(about 4 Hz): well below it the loop follows whatever its gains",
-                                         InBothRoles(lambda x: x.frequency >= 2.0)),
-    ("velocity_cycle",): ("a training and a held-out test at >= 2 Hz: a longer cycle is a delay inside the velocity "
-                          "loop, which grows as the tests approach the cascade's bandwidth (about 4 Hz)",
-                          InBothRoles(lambda x: x.frequency >= 2.0)),
-    ("stiffness",): ("a training and a held-out test at >= 2 Hz: the spring's deflection (a phase lag inside the "
-                     "position loop) grows as the tests approach the cascade's bandwidth (about 4 Hz)",
-                     InBothRoles(lambda x: x.frequency >= 2.0)),
-    ("current_limit",): ("tests whose torque reaches the limit (the fastest, largest motions): below it the limit "
-                         "leaves no trace (and does no harm to that plan); the commands alone cannot tell whether a "
-                         "test reaches it, the diagnosis tries it when the data's torque peak stays below the "
-                         "model's", lambda ts: None),
-    ("backlash",): (f"two or more tests at >= {FAST_HZ:g} Hz of one kind of motion (z, or rotations), in any "
-                    "roles: the loop hunts on the fast tests, and leave-one-test-out predicts each from another",
-                    _fast),
+    ("coulomb", "offset"): (
+        "velocity reversals in a training and a held-out test",
+        InBothRoles(lambda x: x.frequency > 0),
+    ),
+    ("viscous",): (
+        "reversal rates (speeds) differing by 2 x or more across tests: viscous grows with speed, "
+        "Coulomb friction does not",
+        _speeds,
+    ),
+    ("stribeck",): (
+        "a slow test (<= 1 Hz), where the motion lingers near standstill at each reversal",
+        lambda ts: None if any(0 < x.frequency <= 1.0 for x in ts) else "no test at 1 Hz or below",
+    ),
+    ("inertia_motor", "inertia_guide"): (
+        "a training and a held-out test at >= 2 Hz: the inertia torque grows with f^2 and is small below",
+        InBothRoles(lambda x: x.frequency >= 2.0),
+    ),
+    ("carriage_mass",): (
+        "motions of the axes alike (z) and differently (a rotation): on z alone a heavier "
+        "carriage and more inertia plus an offset look alike",
+        _kinds,
+    ),
+    ("lag",): (
+        "a test at >= 3 Hz: the phase lag grows with f",
+        lambda ts: None if any(x.frequency >= 3.0 for x in ts) else "no test at 3 Hz or above",
+    ),
+    ("velocity_gain", "position_gain", "velocity_integral"): (
+        "a training and a held-out test at >= 2 Hz, near the cascade's bandwidth "
+        "(about 4 Hz): well below it the loop follows whatever its gains",
+        InBothRoles(lambda x: x.frequency >= 2.0),
+    ),
+    ("velocity_cycle",): (
+        "a training and a held-out test at >= 2 Hz: a longer cycle is a delay inside the velocity "
+        "loop, which grows as the tests approach the cascade's bandwidth (about 4 Hz)",
+        InBothRoles(lambda x: x.frequency >= 2.0),
+    ),
+    ("stiffness",): (
+        "a training and a held-out test at >= 2 Hz: the spring's deflection (a phase lag inside the "
+        "position loop) grows as the tests approach the cascade's bandwidth (about 4 Hz)",
+        InBothRoles(lambda x: x.frequency >= 2.0),
+    ),
+    ("current_limit",): (
+        "tests whose torque reaches the limit (the fastest, largest motions): below it the limit "
+        "leaves no trace (and does no harm to that plan); the commands alone cannot tell whether a "
+        "test reaches it, the diagnosis tries it when the data's torque peak stays below the "
+        "model's",
+        lambda ts: None,
+    ),
+    ("backlash",): (
+        f"two or more tests at >= {FAST_HZ:g} Hz of one kind of motion (z, or rotations), in any "
+        "roles: the loop hunts on the fast tests, and leave-one-test-out predicts each from another",
+        _fast,
+    ),
 }
 #: effects on one axis only ("<key>_axis<j>") need what the all-axes effect needs, in tests where that axis moves
 PER_AXIS_NOTE = "; in tests where that axis moves"
@@ -146,8 +188,13 @@ def identifiability(tests: Sequence[Excitation], library: Sequence[str]) -> dict
                 seen = [x.on_axis(int(axis) - 1) for x in tests] if axis else list(tests)
                 whole = check.whole(seen) if isinstance(check, InBothRoles) else check(seen)
                 split = check(seen) if whole is None else whole
-                out[key] = {"requires": needs + (PER_AXIS_NOTE if axis else ""), "plan_meets": whole is None,
-                            "why_not": whole, "split_meets": split is None, "split_why_not": split}
+                out[key] = {
+                    "requires": needs + (PER_AXIS_NOTE if axis else ""),
+                    "plan_meets": whole is None,
+                    "why_not": whole,
+                    "split_meets": split is None,
+                    "split_why_not": split,
+                }
     return out
 
 
@@ -168,19 +215,29 @@ def choose_split(tests: Sequence[Excitation], library: Sequence[str]) -> dict[st
     names = [x.name for x in tests]
     wanted = [k for k, p in identifiability(tests, library).items() if p["plan_meets"]]
     n_held = sum(r == "held-out" for r in default.values())
-    keep = {max((x for x in tests if x.role != "held-out" and x.alike == kind), key=lambda x: x.frequency).name
-            for kind in (True, False) if any(x.role != "held-out" and x.alike == kind for x in tests)}
+    keep = {
+        max((x for x in tests if x.role != "held-out" and x.alike == kind), key=lambda x: x.frequency).name
+        for kind in (True, False)
+        if any(x.role != "held-out" and x.alike == kind for x in tests)
+    }
 
     def rank(roles: Mapping[str, str]) -> tuple:
         split = [Excitation(x.name, roles[x.name], x.frequency, x.alike, x.moving) for x in tests]
         met = [k for k, p in identifiability(split, wanted).items() if p["split_meets"]]
         held = sum(r == "held-out" for r in roles.values())
-        return (-sum("_axis" not in k for k in met), -sum("_axis" in k for k in met),
-                sum(roles[n] != default[n] for n in names), abs(held - n_held))
+        return (
+            -sum("_axis" not in k for k in met),
+            -sum("_axis" in k for k in met),
+            sum(roles[n] != default[n] for n in names),
+            abs(held - n_held),
+        )
 
     best = rank(default)
-    if best[:2] == (-sum("_axis" not in k for k in wanted), -sum("_axis" in k for k in wanted)) \
-            or len(names) > MAX_SPLIT_SEARCH or n_held < 1:
+    if (
+        best[:2] == (-sum("_axis" not in k for k in wanted), -sum("_axis" in k for k in wanted))
+        or len(names) > MAX_SPLIT_SEARCH
+        or n_held < 1
+    ):
         return default
     chosen = default
     for mask in range(1, 2 ** len(names) - 1):

@@ -32,6 +32,7 @@ Held-out data: the tests named by ``--holdout``, else those the record's meta.js
 ``held-out``, else the last third of every test (``--holdout-fraction``; the first two
 thirds train: the same machine, later in the record).
 """
+
 from __future__ import annotations
 
 import json
@@ -63,8 +64,11 @@ def _cases(records: RecordSet, fraction: float, holdout: Sequence[str] = ()) -> 
     if holdout and len(holdout) == len(names):
         raise DiagnosisError("--holdout names every test: nothing is left to train on")
     cases = []
-    roles = {t.name: ("held-out" if t.name in holdout else "training") for t in records.tests} if holdout else \
-        {t.name: t.role for t in records.tests}
+    roles = (
+        {t.name: ("held-out" if t.name in holdout else "training") for t in records.tests}
+        if holdout
+        else {t.name: t.role for t in records.tests}
+    )
     marked = any(roles.values())
     for rec in records.tests:
         efforts = [s.name for s in rec.of_kind("effort")]
@@ -78,8 +82,13 @@ def _cases(records: RecordSet, fraction: float, holdout: Sequence[str] = ()) -> 
             cut = rec.time[keep][0] + (1.0 - fraction) * (rec.duration - rec.time[keep][0])
             train, held = keep & (rec.time < cut), keep & (rec.time >= cut)
         cases.append(Case(rec, train, held, efforts))
-    how = (f"the tests {', '.join(holdout)} (--holdout)" if holdout else "the tests meta.json marks held-out" if marked else
-           f"the last {fraction:.3g} of every test (t >= {(1 - fraction):.3g} x its duration); the rest trains")
+    how = (
+        f"the tests {', '.join(holdout)} (--holdout)"
+        if holdout
+        else "the tests meta.json marks held-out"
+        if marked
+        else f"the last {fraction:.3g} of every test (t >= {(1 - fraction):.3g} x its duration); the rest trains"
+    )
     return cases, how
 
 
@@ -91,8 +100,10 @@ def _plant(ssp: str, library: Sequence[Effect]) -> tuple[str, dict]:
         for name, comp in archive.system.components.items():
             if needed <= set(comp.parameters):
                 return name, dict(comp.parameters)
-    raise DiagnosisError(f"{ssp}: no component has the load-axis parameters {', '.join(sorted(needed))} "
-                         "(fmus/actuator/load_axis.py, e.g. build/ssp/EMPS_bench.ssp)")
+    raise DiagnosisError(
+        f"{ssp}: no component has the load-axis parameters {', '.join(sorted(needed))} "
+        "(fmus/actuator/load_axis.py, e.g. build/ssp/EMPS_bench.ssp)"
+    )
 
 
 def gap(cases: Sequence[Case], pt: Point) -> dict:
@@ -104,12 +115,13 @@ def gap(cases: Sequence[Case], pt: Point) -> dict:
         for s in rec.of_kind("position", "velocity", "effort"):
             y, ys = rec.values[s.name], pt.sims[c.name][s.name]
             row = {"kind": s.kind}
-            for part, mask in (("training", c.train), ("held-out", c.held),
-                               ("whole", c.train | c.held)):
+            for part, mask in (("training", c.train), ("held-out", c.held), ("whole", c.train | c.held)):
                 if mask.any():
-                    row[part] = {"relative_error_pct": relative_error_pct(y[mask], ys[mask]),
-                                 "fit_pct": fit_pct(y[mask], ys[mask]),
-                                 "rms": float(np.sqrt(np.mean((y[mask] - ys[mask]) ** 2)))}
+                    row[part] = {
+                        "relative_error_pct": relative_error_pct(y[mask], ys[mask]),
+                        "fit_pct": fit_pct(y[mask], ys[mask]),
+                        "rms": float(np.sqrt(np.mean((y[mask] - ys[mask]) ** 2))),
+                    }
             table[s.name] = row
         out[c.name] = table
     return out
@@ -129,13 +141,16 @@ def _verdict(diag: Diagnosis, after: dict, localised: dict, effects: Sequence[di
     worst = max(ratios.values())
     if worst <= AT_FLOOR:
         status = "explained" if effects else "nothing missing"
-        text = (f"held-out effort residual within {AT_FLOOR:g} x the noise floor"
-                + (f" with {', '.join(e['effect'] for e in effects)}" if effects else ""))
+        text = f"held-out effort residual within {AT_FLOOR:g} x the noise floor" + (
+            f" with {', '.join(e['effect'] for e in effects)}" if effects else ""
+        )
     else:
         status = "unexplained residual"
         where = "; ".join(f"{k}: {v['summary']}" for k, v in localised.items())
-        text = (f"after {', '.join(e['effect'] for e in effects) or 'nothing named'}, the held-out effort residual is "
-                f"{worst:.3g} x the noise floor, outside the library: {where}")
+        text = (
+            f"after {', '.join(e['effect'] for e in effects) or 'nothing named'}, the held-out effort residual is "
+            f"{worst:.3g} x the noise floor, outside the library: {where}"
+        )
     return {"status": status, "text": text, "residual_over_noise_held_out": ratios}
 
 
@@ -168,15 +183,17 @@ def diagnose_records(opt, log: Callable[[str], None] = print) -> dict:
     base = {component: dict(model_over)} if model_over else {}
     model = AxisModel(opt.ssp, cases, component, base, direct=opt.direct)
     diag = Diagnosis(model, cases, Band(), log)
-    log(f"diagnose: {records.machine}: {len(cases)} test(s), held out: {holdout_how}; force noise floor "
-        f"{diag.sigma:.3g} N")
+    log(
+        f"diagnose: {records.machine}: {len(cases)} test(s), held out: {holdout_how}; force noise floor "
+        f"{diag.sigma:.3g} N"
+    )
 
     steps: list = []
     values = dict(nominal)
     pt0 = model.point(values)
     before = gap(cases, pt0)
     localised_before = _localise(diag, pt0)
-    named: list[str] = []          # effect keys, in the order named
+    named: list[str] = []  # effect keys, in the order named
     stds: dict = {}
     symmetric = None
     stage_sets = (("name", [e for e in library if not e.refines]), ("refine", list(library)))
@@ -190,11 +207,18 @@ def diagnose_records(opt, log: Callable[[str], None] = print) -> dict:
             best, fits = select(reg, values, max_size=len(atoms), exclude=frozenset(rejected), library=library)
             keys = [a.effect.key for a in best.atoms]
             new = [k for k in keys if k not in named]
-            proposal = {a.effect.key: {"parameter": a.effect.parameter, "change": float(c)}
-                        for a, c in zip(best.atoms, best.coef)}
-            step = {"stage": stage, "proposed": keys, "new": new, "regression": proposal,
-                    "delta_bic_regression": float(reg.fit(()).bic - best.bic),
-                    "admissible_subsets": sum(f.admissible for f in fits)}
+            proposal = {
+                a.effect.key: {"parameter": a.effect.parameter, "change": float(c)}
+                for a, c in zip(best.atoms, best.coef)
+            }
+            step = {
+                "stage": stage,
+                "proposed": keys,
+                "new": new,
+                "regression": proposal,
+                "delta_bic_regression": float(reg.fit(()).bic - best.bic),
+                "admissible_subsets": sum(f.admissible for f in fits),
+            }
             if not new:
                 step["result"] = "nothing new"
                 steps.append(step)
@@ -216,26 +240,38 @@ def diagnose_records(opt, log: Callable[[str], None] = print) -> dict:
             new_tr, _, new_ho, _ = diag.band_rss(new_pt)
             k_old = len(named)
             k_new = len(trial_named)
-            dbic = (n_tr * math.log(new_tr / n_tr) + k_new * math.log(n_tr)) - \
-                (n_tr * math.log(old_tr / n_tr) + k_old * math.log(n_tr))
+            dbic = (n_tr * math.log(new_tr / n_tr) + k_new * math.log(n_tr)) - (
+                n_tr * math.log(old_tr / n_tr) + k_old * math.log(n_tr)
+            )
             needed = reg.held_out_needed(old_ho) if n_ho else 0.0
             confirmed = dbic <= -DELTA_BIC and (not n_ho or old_ho - new_ho >= needed)
-            step.update({"fitted": {p: fitted[p] for p in free}, "fit": info,
-                         "delta_bic_training": dbic,
-                         "held_out_rss_change_percent": 100.0 * (new_ho - old_ho) / old_ho if n_ho else None,
-                         "confirmed": confirmed})
+            step.update(
+                {
+                    "fitted": {p: fitted[p] for p in free},
+                    "fit": info,
+                    "delta_bic_training": dbic,
+                    "held_out_rss_change_percent": 100.0 * (new_ho - old_ho) / old_ho if n_ho else None,
+                    "confirmed": confirmed,
+                }
+            )
             steps.append(step)
             held = f", held-out {step['held_out_rss_change_percent']:+.1f} %" if n_ho else ""
-            log(f"diagnose: {stage}: proposed {', '.join(keys)}; re-simulation dBIC {dbic:.1f}{held}: "
-                f"{'confirmed' if confirmed else 'refused'}")
+            log(
+                f"diagnose: {stage}: proposed {', '.join(keys)}; re-simulation dBIC {dbic:.1f}{held}: "
+                f"{'confirmed' if confirmed else 'refused'}"
+            )
             if not confirmed:
                 rejected.add(tuple(sorted(keys)))
                 break
             named, values, stds = trial_named, fitted, info["std"]
         if stage == "name":
             pt_sym = model.point(values)
-            symmetric = {"named": list(named), "values": {by_key[k].parameter: values[by_key[k].parameter] for k in named},
-                         "std": dict(stds), "gap": gap(cases, pt_sym)}
+            symmetric = {
+                "named": list(named),
+                "values": {by_key[k].parameter: values[by_key[k].parameter] for k in named},
+                "std": dict(stds),
+                "gap": gap(cases, pt_sym),
+            }
 
     final = model.point(values)
     after = gap(cases, final)
@@ -243,32 +279,62 @@ def diagnose_records(opt, log: Callable[[str], None] = print) -> dict:
     for k in named:
         e = by_key[k]
         p = e.parameter
-        effects_doc.append({"effect": e.title, "key": k, "parameters": {p: values[p]}, "nominal": {p: nominal[p]},
-                            "uncertainty": {p: {"std": stds.get(p), "ci95": [values[p] - 1.96 * stds[p],
-                                                                              values[p] + 1.96 * stds[p]]
-                                                if stds.get(p) is not None else None}},
-                            "signature": e.signature})
+        effects_doc.append(
+            {
+                "effect": e.title,
+                "key": k,
+                "parameters": {p: values[p]},
+                "nominal": {p: nominal[p]},
+                "uncertainty": {
+                    p: {
+                        "std": stds.get(p),
+                        "ci95": [values[p] - 1.96 * stds[p], values[p] + 1.96 * stds[p]]
+                        if stds.get(p) is not None
+                        else None,
+                    }
+                },
+                "signature": e.signature,
+            }
+        )
     asym = {}
     for k, mean, delta in (("viscous", "F_v", "dF_v"), ("coulomb", "F_c", "dF_c")):
-        asym[k] = {"asymmetric": any(e["key"] == f"{k}_asymmetry" for e in effects_doc),
-                   "positive_velocity": values[mean] + values[delta], "negative_velocity": values[mean] - values[delta]}
+        asym[k] = {
+            "asymmetric": any(e["key"] == f"{k}_asymmetry" for e in effects_doc),
+            "positive_velocity": values[mean] + values[delta],
+            "negative_velocity": values[mean] - values[delta],
+        }
     floor_pct = {}
     for c in cases:
         for s in c.efforts:
             y = c.record.values[s][c.held] if c.held.any() else c.record.values[s]
-            floor_pct[f"{c.name}.{s}"] = 100.0 * diag.sigma / float(np.sqrt(np.mean(y ** 2)))
+            floor_pct[f"{c.name}.{s}"] = 100.0 * diag.sigma / float(np.sqrt(np.mean(y**2)))
     localised_after = _localise(diag, final)
     verdict = _verdict(diag, after, localised_after, effects_doc)
     wall = time.perf_counter() - t_start
-    doc = {"measured": str(opt.measured), "ssp": str(opt.ssp), "machine": records.machine, "component": component,
-           "model": opt.model or "the SSP's bindings", "held_out": holdout_how,
-           "noise_floor": {"effort_std": diag.sigma, "method": "robust (MAD) third differences of the measured "
-                           "effort", "band_Hz": diag.band.fc, "relative_error_pct": floor_pct},
-           "named_effects": effects_doc, "asymmetry": asym, "symmetric_model": symmetric,
-           "gap": {"before": before, "after": after},
-           "localise": {"before": localised_before, "after": localised_after}, "verdict": verdict,
-           "steps": steps, "values": values, "nominal": nominal,
-           "timing": {"wall_s": round(wall, 1), "simulations": model.count, "simulation_wall_s": round(model.seconds, 1)}}
+    doc = {
+        "measured": str(opt.measured),
+        "ssp": str(opt.ssp),
+        "machine": records.machine,
+        "component": component,
+        "model": opt.model or "the SSP's bindings",
+        "held_out": holdout_how,
+        "noise_floor": {
+            "effort_std": diag.sigma,
+            "method": "robust (MAD) third differences of the measured effort",
+            "band_Hz": diag.band.fc,
+            "relative_error_pct": floor_pct,
+        },
+        "named_effects": effects_doc,
+        "asymmetry": asym,
+        "symmetric_model": symmetric,
+        "gap": {"before": before, "after": after},
+        "localise": {"before": localised_before, "after": localised_after},
+        "verdict": verdict,
+        "steps": steps,
+        "values": values,
+        "nominal": nominal,
+        "timing": {"wall_s": round(wall, 1), "simulations": model.count, "simulation_wall_s": round(model.seconds, 1)},
+    }
     opt.out.mkdir(parents=True, exist_ok=True)
     from .records_report import write_outputs
 

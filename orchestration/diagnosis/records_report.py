@@ -1,4 +1,5 @@
 """Outputs of `mast diagnose` on a record (records.py): the augmented parameter set and SSP, figures, report.md."""
+
 from __future__ import annotations
 
 import zipfile
@@ -11,8 +12,16 @@ from ..core import ssd, ssv
 from .axis_model import AxisModel, Case, Diagnosis, Point
 
 
-def write_outputs(opt, doc: dict, component: str, model: "AxisModel", cases: Sequence["Case"], before: "Point",
-                  after: "Point", diag: "Diagnosis") -> dict:
+def write_outputs(
+    opt,
+    doc: dict,
+    component: str,
+    model: "AxisModel",
+    cases: Sequence["Case"],
+    before: "Point",
+    after: "Point",
+    diag: "Diagnosis",
+) -> dict:
     from fmus.actuator.load_axis import LOAD_AXIS_PARAMETERS
 
     units = {p.name: p.unit for p in LOAD_AXIS_PARAMETERS}
@@ -25,12 +34,23 @@ def write_outputs(opt, doc: dict, component: str, model: "AxisModel", cases: Seq
         else:
             why[p] = f"nominal model ({doc['model']}): not named by the diagnosis"
     name = f"{component}_diagnosed"
-    ssv_path = ssv.write(opt.out / f"{name}.ssv", ssv.parameter_set(
-        name, doc["values"], units, why, f"Written by mast diagnose from {Path(opt.measured).name}: the nominal model "
-        f"({doc['model']}) plus the named effects; bind it after the other parameter sets of '{component}' (the SSP "
-        "next to it does)."))
-    out = {"parameter_set": str(ssv_path), "values": dict(doc["values"]),
-           "use": f"bind resources/{name}.ssv after the other parameter sets of '{component}'"}
+    ssv_path = ssv.write(
+        opt.out / f"{name}.ssv",
+        ssv.parameter_set(
+            name,
+            doc["values"],
+            units,
+            why,
+            f"Written by mast diagnose from {Path(opt.measured).name}: the nominal model "
+            f"({doc['model']}) plus the named effects; bind it after the other parameter sets of '{component}' (the SSP "
+            "next to it does).",
+        ),
+    )
+    out = {
+        "parameter_set": str(ssv_path),
+        "values": dict(doc["values"]),
+        "use": f"bind resources/{name}.ssv after the other parameter sets of '{component}'",
+    }
     src = Path(opt.ssp)
     if src.suffix == ".ssp" and src.exists():
         dst = opt.out / f"{src.stem}_diagnosed.ssp"
@@ -49,8 +69,15 @@ def write_outputs(opt, doc: dict, component: str, model: "AxisModel", cases: Seq
     return out
 
 
-def plot(out: Path, model: "AxisModel", cases: Sequence["Case"], before: "Point", after: "Point",
-         diag: "Diagnosis", doc: dict) -> dict:
+def plot(
+    out: Path,
+    model: "AxisModel",
+    cases: Sequence["Case"],
+    before: "Point",
+    after: "Point",
+    diag: "Diagnosis",
+    doc: dict,
+) -> dict:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -93,19 +120,35 @@ def plot(out: Path, model: "AxisModel", cases: Sequence["Case"], before: "Point"
     ff = y - vals["M"] * a - vals["F_offset"]
     plateau = np.abs(a) < 0.05 * np.abs(a).max()
     fig, ax = plt.subplots(figsize=(7, 4.5))
-    ax.plot(v[plateau], ff[plateau], ".", ms=1.5, alpha=0.4, color="0.3",
-            label="measured - M q'' - offset (|q''| < 5 % of its peak)")
+    ax.plot(
+        v[plateau],
+        ff[plateau],
+        ".",
+        ms=1.5,
+        alpha=0.4,
+        color="0.3",
+        label="measured - M q'' - offset (|q''| < 5 % of its peak)",
+    )
     vv = np.linspace(v.min(), v.max(), 400)
     from fmus.actuator.load_axis import load_friction
 
-    ax.plot(vv, load_friction(vv, vals["F_c"], vals["F_v"], vals["dF_c"], vals["dF_v"]), color="C2",
-            label="diagnosed friction")
+    ax.plot(
+        vv,
+        load_friction(vv, vals["F_c"], vals["F_v"], vals["dF_c"], vals["dF_v"]),
+        color="C2",
+        label="diagnosed friction",
+    )
     sym = doc.get("symmetric_model") or {}
     if sym.get("values"):
         sv = {**vals, **sym["values"]}
-        shift = sv.get("F_offset", 0.0) - vals["F_offset"]       # the same offset subtracted from the points
-        ax.plot(vv, load_friction(vv, sv.get("F_c", 0.0), sv.get("F_v", 0.0)) + shift * (vv != 0), "--", color="C1",
-                label="symmetric model (stage 'name'), its offset relative to the diagnosed one")
+        shift = sv.get("F_offset", 0.0) - vals["F_offset"]  # the same offset subtracted from the points
+        ax.plot(
+            vv,
+            load_friction(vv, sv.get("F_c", 0.0), sv.get("F_v", 0.0)) + shift * (vv != 0),
+            "--",
+            color="C1",
+            label="symmetric model (stage 'name'), its offset relative to the diagnosed one",
+        )
     ax.set_xlabel("simulated velocity [m/s]")
     ax.set_ylabel(f"friction [{unit}]")
     ax.legend(fontsize=7)
@@ -121,49 +164,84 @@ def _fmt(x, digits: int = 4) -> str:
 
 
 def write_report(out: Path, doc: dict, figs: dict) -> None:
-    lines = [f"# Diagnosis of {doc['machine']}", "",
-             f"Model `{doc['ssp']}` (component `{doc['component']}`, nominal: {doc['model']}), record "
-             f"`{doc['measured']}`. Held out: {doc['held_out']}.", "",
-             f"**Verdict: {doc['verdict']['status']}.** {doc['verdict']['text']}", "",
-             "## Named effects", "", "| effect | parameter | nominal | fitted | std |", "|---|---|---|---|---|"]
+    lines = [
+        f"# Diagnosis of {doc['machine']}",
+        "",
+        f"Model `{doc['ssp']}` (component `{doc['component']}`, nominal: {doc['model']}), record "
+        f"`{doc['measured']}`. Held out: {doc['held_out']}.",
+        "",
+        f"**Verdict: {doc['verdict']['status']}.** {doc['verdict']['text']}",
+        "",
+        "## Named effects",
+        "",
+        "| effect | parameter | nominal | fitted | std |",
+        "|---|---|---|---|---|",
+    ]
     for e in doc["named_effects"]:
         for p, v in e["parameters"].items():
             std = (e["uncertainty"][p] or {}).get("std")
             lines.append(f"| {e['effect']} | `{p}` | {_fmt(e['nominal'][p])} | {_fmt(v, 6)} | {_fmt(std, 2)} |")
     lines += ["", "Friction per direction (positive / negative velocity):", ""]
     for k, a in doc["asymmetry"].items():
-        lines.append(f"- {k}: {_fmt(a['positive_velocity'], 5)} / {_fmt(a['negative_velocity'], 5)} "
-                     f"({'asymmetric: named' if a['asymmetric'] else 'symmetric (no asymmetry named)'})")
+        lines.append(
+            f"- {k}: {_fmt(a['positive_velocity'], 5)} / {_fmt(a['negative_velocity'], 5)} "
+            f"({'asymmetric: named' if a['asymmetric'] else 'symmetric (no asymmetry named)'})"
+        )
     sym = doc.get("symmetric_model")
     if sym:
-        lines += ["", "## The symmetric model (stage 'name', before the asymmetries were tried)", "",
-                  ", ".join(f"`{p}` = {_fmt(v, 6)}" for p, v in sym["values"].items())]
-    lines += ["", "## The gap", "", "| test | signal | part | relative error % before | after | fit % before | after |",
-              "|---|---|---|---|---|---|---|"]
+        lines += [
+            "",
+            "## The symmetric model (stage 'name', before the asymmetries were tried)",
+            "",
+            ", ".join(f"`{p}` = {_fmt(v, 6)}" for p, v in sym["values"].items()),
+        ]
+    lines += [
+        "",
+        "## The gap",
+        "",
+        "| test | signal | part | relative error % before | after | fit % before | after |",
+        "|---|---|---|---|---|---|---|",
+    ]
     for test, table in doc["gap"]["after"].items():
         for sig, row in table.items():
             for part in ("training", "held-out", "whole"):
                 if part in row:
                     b = doc["gap"]["before"][test][sig][part]
-                    lines.append(f"| {test} | {sig} ({row['kind']}) | {part} | {_fmt(b['relative_error_pct'])} | "
-                                 f"{_fmt(row[part]['relative_error_pct'])} | {_fmt(b['fit_pct'])} | "
-                                 f"{_fmt(row[part]['fit_pct'])} |")
+                    lines.append(
+                        f"| {test} | {sig} ({row['kind']}) | {part} | {_fmt(b['relative_error_pct'])} | "
+                        f"{_fmt(row[part]['relative_error_pct'])} | {_fmt(b['fit_pct'])} | "
+                        f"{_fmt(row[part]['fit_pct'])} |"
+                    )
     nf = doc["noise_floor"]
-    lines += ["", f"Noise floor of the effort: {_fmt(nf['effort_std'])} (third differences), i.e. "
-              + ", ".join(f"{k} {_fmt(v, 3)} %" for k, v in nf["relative_error_pct"].items()) + " relative error.", "",
-              "## Where the residual is", ""]
+    lines += [
+        "",
+        f"Noise floor of the effort: {_fmt(nf['effort_std'])} (third differences), i.e. "
+        + ", ".join(f"{k} {_fmt(v, 3)} %" for k, v in nf["relative_error_pct"].items())
+        + " relative error.",
+        "",
+        "## Where the residual is",
+        "",
+    ]
     for when in ("before", "after"):
         for k, loc in doc["localise"][when].items():
-            lines.append(f"- {when}, {k}: {loc['summary']} (correlation: "
-                         + ", ".join(f"{n} {v:+.2f}" for n, v in loc["correlation"].items()) + ")")
+            lines.append(
+                f"- {when}, {k}: {loc['summary']} (correlation: "
+                + ", ".join(f"{n} {v:+.2f}" for n, v in loc["correlation"].items())
+                + ")"
+            )
     lines += ["", "## Steps", ""]
     for st in doc["steps"]:
         txt = f"- {st['stage']}: regression proposes {', '.join(st['proposed']) or 'nothing'}"
         if "confirmed" in st:
-            held = (f"held-out band RSS {st['held_out_rss_change_percent']:+.1f} %: "
-                    if st["held_out_rss_change_percent"] is not None else "")
-            txt += (f"; fitted by re-simulation ({st['fit']['steps']} Gauss-Newton step(s)): "
-                    f"dBIC {st['delta_bic_training']:.1f}, {held}{'confirmed' if st['confirmed'] else 'refused'}")
+            held = (
+                f"held-out band RSS {st['held_out_rss_change_percent']:+.1f} %: "
+                if st["held_out_rss_change_percent"] is not None
+                else ""
+            )
+            txt += (
+                f"; fitted by re-simulation ({st['fit']['steps']} Gauss-Newton step(s)): "
+                f"dBIC {st['delta_bic_training']:.1f}, {held}{'confirmed' if st['confirmed'] else 'refused'}"
+            )
         lines.append(txt)
     for key, title in (("residual", "Effort and residual"), ("friction", "Friction against velocity")):
         if key in figs:

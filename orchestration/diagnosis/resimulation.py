@@ -1,5 +1,6 @@
 """Re-simulation of measured tests: the co-simulation driven by their recorded commands, in a pool of
 workers, cached per parameter set; the model's observed torque and the effect signatures at a point."""
+
 from __future__ import annotations
 
 import time
@@ -10,8 +11,7 @@ from typing import Mapping, Optional, Sequence
 import numpy as np
 
 from ..data.measured import AXES, CommandReplay, MeasuredTest
-from .effects import (CONTROLLER_PARAMETERS, MEASUREMENT, Chain, SimSignals, axis_values, chain_for,
-                      column)
+from .effects import CONTROLLER_PARAMETERS, MEASUREMENT, Chain, SimSignals, axis_values, chain_for, column
 from .phasefree import COMMAND_JITTER
 
 
@@ -36,8 +36,17 @@ def sim_job(args: tuple) -> dict:
     for j in AXES:
         record += [f"actuator_{j}.tau_m", f"actuator_{j}.rho", f"actuator_{j}.rho_dot", f"actuator_{j}.omega_m"]
     try:
-        res = simulate(ssp, replay, stop, parameters=parameters, record=record, record_step=None, direct=direct,
-                       base_step=steps and steps[0], step_sizes=steps and steps[1])
+        res = simulate(
+            ssp,
+            replay,
+            stop,
+            parameters=parameters,
+            record=record,
+            record_step=None,
+            direct=direct,
+            base_step=steps and steps[0],
+            step_sizes=steps and steps[1],
+        )
     except SimulationError as err:
         return {"name": name, "error": str(err)}
     except Exception as err:  # parameters the model rejects, ...
@@ -56,9 +65,9 @@ class Prepared:
     role: str
     replay: CommandReplay
     mask: np.ndarray
-    t: np.ndarray            # data times in the window
-    y: np.ndarray            # measured torque in the window (n, 3)
-    e: np.ndarray            # measured tracking error rho - rho_cmd in the window (n, 3)
+    t: np.ndarray  # data times in the window
+    y: np.ndarray  # measured torque in the window (n, 3)
+    e: np.ndarray  # measured tracking error rho - rho_cmd in the window (n, 3)
 
     @property
     def name(self) -> str:
@@ -68,10 +77,18 @@ class Prepared:
 class Simulator:
     """Runs the measured tests on the SSP (direct composition by default), in parallel, cached."""
 
-    def __init__(self, ssp: str, tests: Mapping[str, Prepared], base: Mapping[str, Mapping], actuators: Sequence[str],
-                 direct: bool = True, workers: int = 2, nominal: Optional[Mapping[str, float]] = None) -> None:
+    def __init__(
+        self,
+        ssp: str,
+        tests: Mapping[str, Prepared],
+        base: Mapping[str, Mapping],
+        actuators: Sequence[str],
+        direct: bool = True,
+        workers: int = 2,
+        nominal: Optional[Mapping[str, float]] = None,
+    ) -> None:
         self.ssp, self.tests, self.base, self.actuators, self.direct = ssp, tests, base, list(actuators), direct
-        self.nominal = dict(nominal or {})     # the all-axes values per-axis increments add to
+        self.nominal = dict(nominal or {})  # the all-axes values per-axis increments add to
         self.workers = max(1, workers)
         self._pool: Optional[ProcessPoolExecutor] = None
         self._cache: dict = {}
@@ -80,7 +97,7 @@ class Simulator:
         from ..core.run import drive_tick_steps
         from ..core.ssp import SSPArchive
 
-        with SSPArchive(ssp) as archive:   # exchanged every T_cur: the torque chain restated at that record step
+        with SSPArchive(ssp) as archive:  # exchanged every T_cur: the torque chain restated at that record step
             self.steps = drive_tick_steps(archive.system)
 
     def __enter__(self) -> "Simulator":
@@ -107,8 +124,9 @@ class Simulator:
     def _key(plant: Mapping[str, float]) -> tuple:
         return tuple(sorted((k, float(v)) for k, v in plant.items() if k not in MEASUREMENT))
 
-    def prefetch(self, plants: Sequence[Mapping[str, float]], names: Sequence[str],
-                 realisations: Sequence[int] = (0,)) -> None:
+    def prefetch(
+        self, plants: Sequence[Mapping[str, float]], names: Sequence[str], realisations: Sequence[int] = (0,)
+    ) -> None:
         """Simulate every (parameter set, test, realisation) not cached yet, all in one parallel batch.
 
         Realisation 0 replays the recorded commands; realisation r > 0 replays them perturbed far
@@ -116,17 +134,22 @@ class Simulator:
         todo = []
         for plant in plants:
             key = self._key(plant)
-            todo += [(key, n, r) for n in names for r in realisations
-                     if (key, n, r) not in self._cache and (key, n, r) not in todo]
+            todo += [
+                (key, n, r)
+                for n in names
+                for r in realisations
+                if (key, n, r) not in self._cache and (key, n, r) not in todo
+            ]
         if not todo:
             return
         t0 = time.perf_counter()
         jobs = []
         for key, n, r in todo:
             params = self.parameters(dict(key), self.tests[n])
-            jobs.append((self.ssp, n, self._replay(n, r), self.tests[n].test.duration + 1e-12, params, self.direct,
-                         self.steps))
-        order = sorted(range(len(jobs)), key=lambda k: -jobs[k][3])   # longest first keeps the workers busy
+            jobs.append(
+                (self.ssp, n, self._replay(n, r), self.tests[n].test.duration + 1e-12, params, self.direct, self.steps)
+            )
+        order = sorted(range(len(jobs)), key=lambda k: -jobs[k][3])  # longest first keeps the workers busy
         if self._pool and len(jobs) > 1:
             results = dict(zip(order, self._pool.map(sim_job, [jobs[k] for k in order])))
         else:
@@ -134,12 +157,15 @@ class Simulator:
         self.count += len(jobs)
         self.seconds += time.perf_counter() - t0
         if len(self._cache) + len(jobs) > 400:
-            for k in list(self._cache)[:len(self._cache) // 2]:
+            for k in list(self._cache)[: len(self._cache) // 2]:
                 del self._cache[k]
         for k, entry in enumerate(todo):
             r = results[k]
-            self._cache[entry] = r["error"] if "error" in r else SimSignals(
-                r["time"], r["h"], r["tau_m"], r["rho"], r["rho_dot"], r["omega_m"])
+            self._cache[entry] = (
+                r["error"]
+                if "error" in r
+                else SimSignals(r["time"], r["h"], r["tau_m"], r["rho"], r["rho_dot"], r["omega_m"])
+            )
 
     def _replay(self, name: str, realisation: int) -> CommandReplay:
         replay = self.tests[name].replay
@@ -169,25 +195,27 @@ def resample(sim: SimSignals, values: np.ndarray, t: np.ndarray) -> np.ndarray:
 class Point:
     """A model (actuator parameters, shared by the axes) evaluated on a set of tests."""
 
-    params: dict                      # full actuator parameters
+    params: dict  # full actuator parameters
     sims: dict[str, SimSignals]
     chain: Chain
-    obs: dict[str, np.ndarray] = field(default_factory=dict)       # observed torque in the window
-    err: dict[str, np.ndarray] = field(default_factory=dict)       # simulated tracking error in the window
+    obs: dict[str, np.ndarray] = field(default_factory=dict)  # observed torque in the window
+    err: dict[str, np.ndarray] = field(default_factory=dict)  # simulated tracking error in the window
 
 
 class Model:
     """Evaluates parameter sets on the prepared tests (simulation + observation chain)."""
 
-    def __init__(self, sim: Simulator, nominal: Mapping, tests: Mapping[str, Prepared], drive_T: float,
-                 drive_delay: float) -> None:
+    def __init__(
+        self, sim: Simulator, nominal: Mapping, tests: Mapping[str, Prepared], drive_T: float, drive_delay: float
+    ) -> None:
         self.sim, self.nominal, self.tests = sim, dict(nominal), tests
         self.drive_T, self.drive_delay = drive_T, drive_delay
         #: trial simulations that failed: where in the workflow, the parameters, the error (for the report)
         self.failures: list[dict] = []
 
-    def trial(self, changes: Mapping[str, float], names: Sequence[str], where: str,
-              realisation: int = 0) -> Optional[Point]:
+    def trial(
+        self, changes: Mapping[str, float], names: Sequence[str], where: str, realisation: int = 0
+    ) -> Optional[Point]:
         """``point`` for a trial value: None if a simulation fails (recorded in ``failures``, once per
         stage and parameter set). Every stage evaluates its trial values through here; a failure tells
         the stage the value is wrong (reject the proposal, shrink the step), never stops the diagnosis."""
@@ -206,7 +234,7 @@ class Model:
         h = next(iter(sims.values())).h
         try:
             chain = chain_for(params, h, self.drive_T, self.drive_delay)
-        except ValueError as err:     # a measurement value the model rejects (a negative lag)
+        except ValueError as err:  # a measurement value the model rejects (a negative lag)
             raise SimulationFailed(f"measurement model with {dict(changes)}: {err}") from None
         pt = Point(params, sims, chain)
         for n in names:
@@ -215,7 +243,9 @@ class Model:
             pt.err[n] = resample(s, s.rho, prep.t) - prep.test.rho_cmd[prep.mask]
         return pt
 
-    def columns(self, pt: Point, names: Sequence[str], param: str, grid: Optional[float] = None) -> dict[str, np.ndarray]:
+    def columns(
+        self, pt: Point, names: Sequence[str], param: str, grid: Optional[float] = None
+    ) -> dict[str, np.ndarray]:
         out = {}
         for n in names:
             s = pt.sims[n]
@@ -225,5 +255,8 @@ class Model:
     def signals(self, pt: Point, n: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(guide speed at the motor shaft, its acceleration, carriage position) in the window."""
         s, prep = pt.sims[n], self.tests[n]
-        return (resample(s, s.derived("omega_N", pt.params), prep.t), resample(s, s.derived("acc_N", pt.params), prep.t),
-                resample(s, s.rho, prep.t))
+        return (
+            resample(s, s.derived("omega_N", pt.params), prep.t),
+            resample(s, s.derived("acc_N", pt.params), prep.t),
+            resample(s, s.rho, prep.t),
+        )

@@ -1,5 +1,6 @@
 """Selection of effects: regression of the residual on the effect signatures in a frequency band, best
 subset by BIC, each member needed on the training (BIC) and held-out data."""
+
 from __future__ import annotations
 
 import itertools
@@ -10,7 +11,6 @@ from typing import Mapping, Optional, Sequence
 import numpy as np
 
 from .effects import LIBRARY, Effect, physical_bounds
-
 
 #: a member of a selection must lower BIC by at least this much ("very strong" evidence)
 DELTA_BIC = 10.0
@@ -37,7 +37,7 @@ class Atom:
 @dataclass
 class SubsetFit:
     atoms: tuple[Atom, ...]
-    coef: np.ndarray          # per atom, in parameter units (change of the first parameter)
+    coef: np.ndarray  # per atom, in parameter units (change of the first parameter)
     rss_tr: float
     rss_ho: float
     bic: float
@@ -97,8 +97,15 @@ class Band:
 class Regression:
     """Least squares of a residual on the atoms' columns, for every subset, from Gram matrices."""
 
-    def __init__(self, atoms: Sequence[Atom], A_tr: np.ndarray, r_tr: np.ndarray, A_ho: np.ndarray, r_ho: np.ndarray,
-                 sigma: float) -> None:
+    def __init__(
+        self,
+        atoms: Sequence[Atom],
+        A_tr: np.ndarray,
+        r_tr: np.ndarray,
+        A_ho: np.ndarray,
+        r_ho: np.ndarray,
+        sigma: float,
+    ) -> None:
         self.atoms = list(atoms)
         scale = np.linalg.norm(A_tr, axis=0)
         scale[scale == 0] = 1.0
@@ -107,7 +114,7 @@ class Regression:
         self.G, self.g, self.rr = Atr.T @ Atr, Atr.T @ r_tr, float(r_tr @ r_tr)
         self.Gh, self.gh, self.rrh = Aho.T @ Aho, Aho.T @ r_ho, float(r_ho @ r_ho)
         self.n_tr, self.n_ho = len(r_tr), len(r_ho)
-        self.sigma = sigma          # noise standard deviation in the band
+        self.sigma = sigma  # noise standard deviation in the band
         self._fits: dict = {}
 
     def fit(self, idx: tuple[int, ...]) -> SubsetFit:
@@ -139,13 +146,13 @@ class Regression:
 
     def held_out_needed(self, rss_ho_without: float) -> float:
         """The held-out RSS an effect must remove: a share of the noise and of what is left to explain."""
-        noise = self.sigma ** 2 * self.n_ho
+        noise = self.sigma**2 * self.n_ho
         return max(PRACTICAL * noise, RELATIVE * max(rss_ho_without - noise, 0.0))
 
 
 def _in_bounds(effect: Effect, nominal: Mapping, change: float) -> bool:
     name = effect.parameter
-    lo, hi = physical_bounds(name, nominal, effect.bounds[name])   # a records library's effects have their own
+    lo, hi = physical_bounds(name, nominal, effect.bounds[name])  # a records library's effects have their own
     value = float(nominal[name]) + change
     return lo - 1e-12 <= value <= hi + 1e-12
 
@@ -161,8 +168,13 @@ def atom_labels(atoms: Sequence[Atom]) -> tuple[str, ...]:
     return tuple(sorted(a.effect.key for a in atoms))
 
 
-def select(reg: Regression, nominal: Mapping, max_size: int, exclude: frozenset = frozenset(),
-           library: Sequence[Effect] = LIBRARY) -> tuple[SubsetFit, list[SubsetFit]]:
+def select(
+    reg: Regression,
+    nominal: Mapping,
+    max_size: int,
+    exclude: frozenset = frozenset(),
+    library: Sequence[Effect] = LIBRARY,
+) -> tuple[SubsetFit, list[SubsetFit]]:
     """The admissible subset with the lowest BIC (at most ``max_size`` effects, one per group).
 
     Admissible: every member is needed (removing it raises BIC by >= DELTA_BIC on the
@@ -176,9 +188,9 @@ def select(reg: Regression, nominal: Mapping, max_size: int, exclude: frozenset 
     # small terms that only soak up the linearisation error of the big ones wait for the next round
     empty = reg.fit(())
     if reg.n_ho:
-        floor_total = SHARE_OF_GAP * max(empty.rss_ho - reg.sigma ** 2 * reg.n_ho, 0.0)
+        floor_total = SHARE_OF_GAP * max(empty.rss_ho - reg.sigma**2 * reg.n_ho, 0.0)
     else:
-        floor_total = SHARE_OF_GAP * max(empty.rss_tr - reg.sigma ** 2 * reg.n_tr, 0.0)
+        floor_total = SHARE_OF_GAP * max(empty.rss_tr - reg.sigma**2 * reg.n_tr, 0.0)
     by_effect: dict[str, list[int]] = {}
     for i, a in enumerate(reg.atoms):
         by_effect.setdefault(a.effect.key, []).append(i)
@@ -197,7 +209,7 @@ def select(reg: Regression, nominal: Mapping, max_size: int, exclude: frozenset 
                     if not _in_bounds(a.effect, nominal, c):
                         reasons.append(f"{a.effect.parameter} outside its bounds")
                 for m in range(len(idx)):
-                    rest = reg.fit(idx[:m] + idx[m + 1:])
+                    rest = reg.fit(idx[:m] + idx[m + 1 :])
                     dbic = rest.bic - fit.bic
                     dho = rest.rss_ho - fit.rss_ho
                     if dbic < DELTA_BIC:

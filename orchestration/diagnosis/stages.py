@@ -1,5 +1,6 @@
 """The stages of the search: the regression loop (select, fit by re-simulation, verify), the alias check
 between the two sides of the transmission, pruning, and the bounded least-squares fit (polish)."""
+
 from __future__ import annotations
 
 import math
@@ -12,7 +13,6 @@ import numpy as np
 from .effects import AXIS_OF, BOUNDS, BY_PARAMETER, LIBRARY, MEASUREMENT, Chain, physical_bounds
 from .resimulation import Model, Point, resample
 from .selection import DELTA_BIC, PRACTICAL, RELATIVE, Atom, Band, Regression, atom_labels, select
-
 
 #: re-simulation steps (finite differences) for the parameters whose signature does not linearise well
 FD_STEP = {"tau_s": 2e-3, "omega_s": 0.3, "k_p": 6e-4, "k_v": 0.2, "k_i": 0.04, "i_max": 0.05, "K_t": 0.05}
@@ -77,7 +77,7 @@ def regression_loop(ctx: Context, state: State, atoms, rejected: set, steps: lis
         if all(a.label in labels for a in current):
             now = reg.fit(tuple(labels.index(a.label) for a in current))
             if math.isfinite(now.bic) and reg.score(best) >= reg.score(now):
-                break       # the regression sees nothing better than the current model
+                break  # the regression sees nothing better than the current model
         ctx.log(f"diagnose: proposed by regression: {[a.label for a in proposal] or 'none'}")
         start = dict(state.changes)
         for a, c in zip(best.atoms, best.coef):
@@ -102,9 +102,14 @@ def regression_loop(ctx: Context, state: State, atoms, rejected: set, steps: lis
 BACK_OFF = 4
 
 
-def fit_state(ctx: Context, selected: Sequence[Atom], start: Mapping[str, float],
-              columns: Optional[Mapping] = None, anchor: Optional[Mapping[str, float]] = None,
-              lag_form: bool = False) -> Optional[State]:
+def fit_state(
+    ctx: Context,
+    selected: Sequence[Atom],
+    start: Mapping[str, float],
+    columns: Optional[Mapping] = None,
+    anchor: Optional[Mapping[str, float]] = None,
+    lag_form: bool = False,
+) -> Optional[State]:
     """The selection fitted by re-simulation from ``start``; None if no value near it simulates on every test.
     A lag is fitted in the form ``start`` holds it (``fitted_parameters``); ``lag_form``: a fitted filter is then
     compared with a delay fitted alone, the others fixed (polish; a first guess, no re-simulation; the form is
@@ -116,14 +121,16 @@ def fit_state(ctx: Context, selected: Sequence[Atom], start: Mapping[str, float]
     start = {p: start.get(p, float(ctx.nominal[p])) for p in free}
     base = {p: float((anchor or {}).get(p, ctx.nominal[p])) for p in free}
     for k in range(BACK_OFF + 1):
-        trial = _snap(ctx, {p: base[p] + (start[p] - base[p]) * 0.5 ** k for p in free})
+        trial = _snap(ctx, {p: base[p] + (start[p] - base[p]) * 0.5**k for p in free})
         if ctx.model.trial(trial, ctx.train, "fit start") is not None:
             break
     else:
         return None
     if k:
-        ctx.log(f"diagnose:   the proposed values do not simulate: fit started {k} halving(s) back towards the "
-                "current model")
+        ctx.log(
+            f"diagnose:   the proposed values do not simulate: fit started {k} halving(s) back towards the "
+            "current model"
+        )
     fixed = _discrete_fit(ctx, trial)
     changes, info = polish(ctx, selected, {**trial, **fixed}, columns or {}, fixed, lag_form)
     pt = ctx.model.trial(changes, ctx.names, "fitted values on every test")
@@ -167,8 +174,15 @@ def _discrete_fit(ctx: Context, trial: Mapping[str, float]) -> dict[str, float]:
 
 def failed_step(ctx: Context, old: State, selected: Sequence[Atom], steps: list, how: str) -> None:
     """A proposal whose fitted model does not simulate: refuted, recorded as a step."""
-    steps.append({"how": how, "from": [a.label for a in old.selected], "to": [a.label for a in selected],
-                  "accepted": False, "note": "refuted: its re-simulation failed (see failed_simulations)"})
+    steps.append(
+        {
+            "how": how,
+            "from": [a.label for a in old.selected],
+            "to": [a.label for a in selected],
+            "accepted": False,
+            "note": "refuted: its re-simulation failed (see failed_simulations)",
+        }
+    )
     ctx.log(f"diagnose:   refuted by re-simulation: {[a.label for a in selected]} (its simulation failed)")
 
 
@@ -177,7 +191,7 @@ def band_rss(ctx: Context, pt: Point, names: Sequence[str]) -> tuple[float, int]
     for name in names:
         prep = ctx.model.tests[name]
         r = ctx.band.apply(prep.y - pt.obs[name], prep.test.sample_time)
-        rss += float(np.sum(r ** 2))
+        rss += float(np.sum(r**2))
         n += r.size
     return rss, n
 
@@ -198,7 +212,7 @@ def verify(ctx: Context, old: State, new: State, steps: list, how: str) -> bool:
     k0, k1 = selection_cost(old.selected), selection_cost(new.selected)
     ho0, nh = band_rss(ctx, old.pt, ctx.held) if ctx.held else (0.0, 0)
     ho1, _ = band_rss(ctx, new.pt, ctx.held) if ctx.held else (0.0, 0)
-    noise = ctx.sigma_b ** 2 * nh
+    noise = ctx.sigma_b**2 * nh
     need = max(PRACTICAL * noise, RELATIVE * max(ho0 - noise, 0.0))
     # no held-out test may get markedly worse: a true effect improves every test or leaves it alone
     worse, per_test = [], {}
@@ -206,28 +220,39 @@ def verify(ctx: Context, old: State, new: State, steps: list, how: str) -> bool:
         a, m = band_rss(ctx, old.pt, [name])
         b, _ = band_rss(ctx, new.pt, [name])
         per_test[name] = 100 * (b - a) / a if a > 0 else None
-        if b > a + max(PRACTICAL * ctx.sigma_b ** 2 * m, RELATIVE * a, 3.0 * math.sqrt(2.0 * m) * ctx.sigma_b ** 2):
+        if b > a + max(PRACTICAL * ctx.sigma_b**2 * m, RELATIVE * a, 3.0 * math.sqrt(2.0 * m) * ctx.sigma_b**2):
             worse.append(name)
     if k1 > k0:
         ok = bic1 <= bic0 - DELTA_BIC and (not ctx.held or ho0 - ho1 >= need) and not worse
-    else:   # fewer or as many parameters: kept effects must have been strongly needed
+    else:  # fewer or as many parameters: kept effects must have been strongly needed
         ok = bic1 < bic0 + (DELTA_BIC if k1 < k0 else 0.0) and (not ctx.held or ho1 <= ho0 + need)
-    step = {"how": how, "from": [a.label for a in old.selected], "to": [a.label for a in new.selected],
-            "parameters": dict(new.changes), "delta_bic_training": bic1 - bic0,
-            "held_out_rss_change_percent": 100 * (ho1 - ho0) / ho0 if ho0 > 0 else None,
-            "held_out_rss_needed_percent": -100 * need / ho0 if ho0 > 0 else None,
-            "held_out_tests_worse": worse, "held_out_rss_change_percent_per_test": per_test,
-            "accepted": bool(ok), "fit": new.info}
+    step = {
+        "how": how,
+        "from": [a.label for a in old.selected],
+        "to": [a.label for a in new.selected],
+        "parameters": dict(new.changes),
+        "delta_bic_training": bic1 - bic0,
+        "held_out_rss_change_percent": 100 * (ho1 - ho0) / ho0 if ho0 > 0 else None,
+        "held_out_rss_needed_percent": -100 * need / ho0 if ho0 > 0 else None,
+        "held_out_tests_worse": worse,
+        "held_out_rss_change_percent_per_test": per_test,
+        "accepted": bool(ok),
+        "fit": new.info,
+    }
     steps.append(step)
-    ctx.log(f"diagnose:   {'accepted' if ok else 'refuted by re-simulation'}: {step['to'] or 'none'} "
-            f"(dBIC {bic1 - bic0:+.0f}, held-out RSS {step['held_out_rss_change_percent'] or 0:+.1f} %"
-            + (f"; worse on {', '.join(worse)}" if worse else "") + ")")
+    ctx.log(
+        f"diagnose:   {'accepted' if ok else 'refuted by re-simulation'}: {step['to'] or 'none'} "
+        f"(dBIC {bic1 - bic0:+.0f}, held-out RSS {step['held_out_rss_change_percent'] or 0:+.1f} %"
+        + (f"; worse on {', '.join(worse)}" if worse else "")
+        + ")"
+    )
     return ok
 
 
 def residual_at_floor(ctx: Context, pt: Point) -> bool:
-    return all(float(np.sqrt(np.mean((ctx.model.tests[n].y - pt.obs[n]) ** 2))) <= FLOOR_FACTOR * ctx.sigma
-               for n in ctx.names)
+    return all(
+        float(np.sqrt(np.mean((ctx.model.tests[n].y - pt.obs[n]) ** 2))) <= FLOOR_FACTOR * ctx.sigma for n in ctx.names
+    )
 
 
 def alias_check(ctx: Context, state: State, last_fit, steps: list) -> State:
@@ -240,13 +265,20 @@ def alias_check(ctx: Context, state: State, last_fit, steps: list) -> State:
                 continue
             start = {k: v for k, v in state.changes.items() if k not in a.effect.parameters}
             # the equivalent value of the other side: the same change of reflected inertia
-            start[other.parameter] = _equivalent(ctx.nominal, a.effect.parameter, state.changes[a.effect.parameter],
-                                                 other.parameter)
+            start[other.parameter] = _equivalent(
+                ctx.nominal, a.effect.parameter, state.changes[a.effect.parameter], other.parameter
+            )
             lo, hi = BOUNDS[other.parameter]
             if not lo <= start[other.parameter] <= hi:
-                steps.append({"how": "alias check", "from": [x.label for x in state.selected],
-                              "to": f"{other.key} instead of {a.effect.key}", "accepted": False,
-                              "note": f"the equivalent {other.parameter} = {start[other.parameter]:.3g} is outside its bounds"})
+                steps.append(
+                    {
+                        "how": "alias check",
+                        "from": [x.label for x in state.selected],
+                        "to": f"{other.key} instead of {a.effect.key}",
+                        "accepted": False,
+                        "note": f"the equivalent {other.parameter} = {start[other.parameter]:.3g} is outside its bounds",
+                    }
+                )
                 continue
             swapped = tuple(x for x in state.selected if x is not a) + (Atom(other),)
             # the equivalent value must itself reproduce the data's stable run: if it does not simulate
@@ -255,12 +287,20 @@ def alias_check(ctx: Context, state: State, last_fit, steps: list) -> State:
             if ctx.model.trial(start, ctx.train, "alias check") is not None:
                 cand = fit_state(ctx, swapped, start)
             if cand is None:
-                steps.append({"how": "alias check", "from": [x.label for x in state.selected],
-                              "to": [x.label for x in swapped], "accepted": False,
-                              "note": f"the equivalent {other.parameter} = {start[other.parameter]:.3g} does not "
-                                      "simulate (see failed_simulations): the data, which ran, refute it"})
-                ctx.log(f"diagnose:   alias check {a.effect.key} -> {other.key}: the equivalent value does not "
-                        "simulate: kept")
+                steps.append(
+                    {
+                        "how": "alias check",
+                        "from": [x.label for x in state.selected],
+                        "to": [x.label for x in swapped],
+                        "accepted": False,
+                        "note": f"the equivalent {other.parameter} = {start[other.parameter]:.3g} does not "
+                        "simulate (see failed_simulations): the data, which ran, refute it",
+                    }
+                )
+                ctx.log(
+                    f"diagnose:   alias check {a.effect.key} -> {other.key}: the equivalent value does not "
+                    "simulate: kept"
+                )
                 continue
             rss0, n = band_rss(ctx, state.pt, ctx.train)
             rss1, _ = band_rss(ctx, cand.pt, ctx.train)
@@ -269,20 +309,39 @@ def alias_check(ctx: Context, state: State, last_fit, steps: list) -> State:
             nf = sum(ctx.model.tests[m].y.size for m in ctx.train)
             dbic_full = nf * math.log(full1 / full0)
             better = dbic_full <= -DELTA_BIC
-            steps.append({"how": "alias check", "from": [x.label for x in state.selected],
-                          "to": [x.label for x in swapped], "parameters": dict(cand.changes),
-                          "delta_bic_band": n * math.log(rss1 / rss0), "delta_bic_full_band": dbic_full,
-                          "accepted": bool(better),
-                          "note": "full band (the transmission's ringing) decides; in the band the two are alike"})
-            ctx.log(f"diagnose:   alias check {a.effect.key} -> {other.key}: dBIC (full band) {dbic_full:+.0f}"
-                    + (": swapped" if better else ": kept"))
-            state.info.setdefault("alias", []).append({"effect": other.key, "parameters": dict(cand.changes),
-                                                        "delta_bic_full_band": dbic_full,
-                                                        "delta_bic_band": n * math.log(rss1 / rss0)})
+            steps.append(
+                {
+                    "how": "alias check",
+                    "from": [x.label for x in state.selected],
+                    "to": [x.label for x in swapped],
+                    "parameters": dict(cand.changes),
+                    "delta_bic_band": n * math.log(rss1 / rss0),
+                    "delta_bic_full_band": dbic_full,
+                    "accepted": bool(better),
+                    "note": "full band (the transmission's ringing) decides; in the band the two are alike",
+                }
+            )
+            ctx.log(
+                f"diagnose:   alias check {a.effect.key} -> {other.key}: dBIC (full band) {dbic_full:+.0f}"
+                + (": swapped" if better else ": kept")
+            )
+            state.info.setdefault("alias", []).append(
+                {
+                    "effect": other.key,
+                    "parameters": dict(cand.changes),
+                    "delta_bic_full_band": dbic_full,
+                    "delta_bic_band": n * math.log(rss1 / rss0),
+                }
+            )
             if better:
-                cand.info.setdefault("alias", []).append({"effect": a.effect.key, "parameters": dict(state.changes),
-                                                           "delta_bic_full_band": -dbic_full,
-                                                           "delta_bic_band": -n * math.log(rss1 / rss0)})
+                cand.info.setdefault("alias", []).append(
+                    {
+                        "effect": a.effect.key,
+                        "parameters": dict(state.changes),
+                        "delta_bic_full_band": -dbic_full,
+                        "delta_bic_band": -n * math.log(rss1 / rss0),
+                    }
+                )
                 return cand
     return state
 
@@ -324,7 +383,7 @@ def lag_form_check(ctx: Context, state: State, steps: list) -> State:
         as_delay = fitted_parameters(a, state.changes)[0] == D
         cur, other = (D, T) if as_delay else (T, D)
         start = {k: v for k, v in state.changes.items() if k != cur}
-        start[other] = float(state.changes[cur])    # the same phase slope at low frequency
+        start[other] = float(state.changes[cur])  # the same phase slope at low frequency
         cand = fit_state(ctx, state.selected, start, anchor=state.changes)
         if cand is None:
             failed_step(ctx, state, state.selected, steps, "delay or filter")
@@ -332,8 +391,10 @@ def lag_form_check(ctx: Context, state: State, steps: list) -> State:
         delay, filt = (state, cand) if as_delay else (cand, state)
 
         def full(pt: Point, names: Sequence[str]) -> tuple[float, int]:
-            return (sum(float(np.sum((ctx.model.tests[m].y - pt.obs[m]) ** 2)) for m in names),
-                    sum(ctx.model.tests[m].y.size for m in names))
+            return (
+                sum(float(np.sum((ctx.model.tests[m].y - pt.obs[m]) ** 2)) for m in names),
+                sum(ctx.model.tests[m].y.size for m in names),
+            )
 
         (rd, n), (rf, _) = full(delay.pt, ctx.train), full(filt.pt, ctx.train)
         dbic = n * math.log(rd / rf)
@@ -344,31 +405,56 @@ def lag_form_check(ctx: Context, state: State, steps: list) -> State:
             dho = 0.0
         bd, nb = band_rss(ctx, delay.pt, ctx.train)
         bf, _ = band_rss(ctx, filt.pt, ctx.train)
-        diff = math.sqrt(sum(float(np.sum((delay.pt.obs[m] - filt.pt.obs[m]) ** 2)) for m in ctx.names)
-                         / sum(ctx.model.tests[m].y.size for m in ctx.names))
+        diff = math.sqrt(
+            sum(float(np.sum((delay.pt.obs[m] - filt.pt.obs[m]) ** 2)) for m in ctx.names)
+            / sum(ctx.model.tests[m].y.size for m in ctx.names)
+        )
         choice = lag_form(dbic, dho)
         keep = delay if (choice == "delay_meas" or choice == "not distinguishable" and dbic < 0) else filt
         d_val, T_val = float(delay.changes[D]), float(filt.changes[T])
-        table = {f: {"filter_magnitude": 1.0 / math.sqrt(1.0 + (2 * math.pi * f * T_val) ** 2),
-                     "phase_difference_rad": 2 * math.pi * f * d_val - math.atan(2 * math.pi * f * T_val)}
-                 for f in LAG_TABLE_HZ}
+        table = {
+            f: {
+                "filter_magnitude": 1.0 / math.sqrt(1.0 + (2 * math.pi * f * T_val) ** 2),
+                "phase_difference_rad": 2 * math.pi * f * d_val - math.atan(2 * math.pi * f * T_val),
+            }
+            for f in LAG_TABLE_HZ
+        }
         freqs = sorted({ctx.model.tests[m].test.frequency for m in ctx.names if ctx.model.tests[m].test.frequency})
-        text = ({"delay_meas": "a delay (the training tests and the held-out tests prefer it)",
-                 "T_meas": "a first-order filter (the training tests and the held-out tests prefer it)"}.get(choice)
-                or "delay or filter: not distinguishable on this plan")
-        steps.append({"how": "delay or filter", "effect": a.effect.key, "from": [x.label for x in state.selected],
-                      "to": [x.label for x in keep.selected], "accepted": True,
-                      "filter_parameter": T, "delay_parameter": D, "T_meas": T_val, "delay_meas": d_val,
-                      "delta_bic_delay_vs_filter": dbic, "held_out_deviance_delay_vs_filter": dho,
-                      "delta_bic_band_delay_vs_filter": nb * math.log(bd / bf),
-                      "choice": choice, "separable": choice != "not distinguishable", "text": text,
-                      "prediction_difference_over_noise": diff / ctx.sigma, "test_frequencies_Hz": freqs,
-                      "filter_vs_delay_at_Hz": table, "kept": D if keep is delay else T,
-                      "parameters_filter": dict(filt.changes), "parameters_delay": dict(delay.changes),
-                      "note": "both forms fitted by re-simulation with every parameter of the selection free; full "
-                              "band (a filter damps the torque's fast content, a delay only shifts it)"})
-        ctx.log(f"diagnose:   delay or filter ({a.effect.key}): {D} = {1e3 * d_val:.3g} ms against {T} = "
-                f"{1e3 * T_val:.3g} ms: dBIC (delay - filter) training {dbic:+.0f}, held-out {dho:+.0f}: {text}")
+        text = {
+            "delay_meas": "a delay (the training tests and the held-out tests prefer it)",
+            "T_meas": "a first-order filter (the training tests and the held-out tests prefer it)",
+        }.get(choice) or "delay or filter: not distinguishable on this plan"
+        steps.append(
+            {
+                "how": "delay or filter",
+                "effect": a.effect.key,
+                "from": [x.label for x in state.selected],
+                "to": [x.label for x in keep.selected],
+                "accepted": True,
+                "filter_parameter": T,
+                "delay_parameter": D,
+                "T_meas": T_val,
+                "delay_meas": d_val,
+                "delta_bic_delay_vs_filter": dbic,
+                "held_out_deviance_delay_vs_filter": dho,
+                "delta_bic_band_delay_vs_filter": nb * math.log(bd / bf),
+                "choice": choice,
+                "separable": choice != "not distinguishable",
+                "text": text,
+                "prediction_difference_over_noise": diff / ctx.sigma,
+                "test_frequencies_Hz": freqs,
+                "filter_vs_delay_at_Hz": table,
+                "kept": D if keep is delay else T,
+                "parameters_filter": dict(filt.changes),
+                "parameters_delay": dict(delay.changes),
+                "note": "both forms fitted by re-simulation with every parameter of the selection free; full "
+                "band (a filter damps the torque's fast content, a delay only shifts it)",
+            }
+        )
+        ctx.log(
+            f"diagnose:   delay or filter ({a.effect.key}): {D} = {1e3 * d_val:.3g} ms against {T} = "
+            f"{1e3 * T_val:.3g} ms: dBIC (delay - filter) training {dbic:+.0f}, held-out {dho:+.0f}: {text}"
+        )
         state = keep
     return state
 
@@ -464,27 +550,34 @@ def regression_at(ctx: Context, state: State, atoms: Sequence[Atom], sensitiviti
     """
     model, pt, names = ctx.model, state.pt, ctx.names
     if any(a.effect.kind == "controller" for a in tuple(atoms) + tuple(state.selected)):
-        sensitivities = True    # a controller gain has no signature: its column is the closed loop's response
+        sensitivities = True  # a controller gain has no signature: its column is the closed loop's response
     cols = {}
     steps = _steps(ctx, state, atoms) if sensitivities else {}
     if steps:
-        model.sim.prefetch([{**state.changes, a.effect.parameter: v0 + st} for a in atoms if a.label in steps
-                            for v0, st in [steps[a.label]]], names)
+        model.sim.prefetch(
+            [
+                {**state.changes, a.effect.parameter: v0 + st}
+                for a in atoms
+                if a.label in steps
+                for v0, st in [steps[a.label]]
+            ],
+            names,
+        )
     for a in atoms:
-        if a.label in steps:   # re-simulated sensitivity: the closed loop's own response
+        if a.label in steps:  # re-simulated sensitivity: the closed loop's own response
             p0 = a.effect.parameter
             v0, step = steps[a.label]
             pt1 = model.trial({**state.changes, p0: v0 + step}, names, "sensitivity")
             if pt1 is not None:
                 cols[a.label] = {n: (pt1.obs[n] - pt.obs[n]) / step for n in names}
-            elif a.effect.kind == "controller":    # no signature: a zero column, which the selection skips
+            elif a.effect.kind == "controller":  # no signature: a zero column, which the selection skips
                 cols[a.label] = {n: np.zeros_like(pt.obs[n]) for n in names}
             else:
                 cols[a.label] = model.columns(pt, names, p0, a.grid)
         elif a.effect.parameter not in AXIS_OF:
             cols[a.label] = model.columns(pt, names, a.effect.parameter, a.grid if a not in state.selected else None)
     sensitivity = {atom.effect.parameter: atom.label for atom in atoms if atom.label in steps}
-    for a in atoms:   # per-axis effects: the all-axes sensitivity on that axis where it was re-simulated
+    for a in atoms:  # per-axis effects: the all-axes sensitivity on that axis where it was re-simulated
         if a.effect.parameter in AXIS_OF:
             base, j = AXIS_OF[a.effect.parameter]
             if base in sensitivity and sensitivity[base] in cols:
@@ -500,19 +593,28 @@ def regression_at(ctx: Context, state: State, atoms: Sequence[Atom], sensitiviti
             if pname in state.changes:
                 delta = state.changes[pname] - float(ctx.nominal[pname])
                 if delta:
-                    c = cols[a.label] if (pname == a.effect.parameter and a.label in cols) else \
-                        model.columns(pt, names, pname)
+                    c = (
+                        cols[a.label]
+                        if (pname == a.effect.parameter and a.label in cols)
+                        else model.columns(pt, names, pname)
+                    )
                     for n in names:
                         resid[n] = resid[n] + c[n] * delta
 
     def banded(d: Mapping[str, np.ndarray], ns: Sequence[str]) -> np.ndarray:
-        return np.concatenate([ctx.band.apply(d[n], model.tests[n].test.sample_time).ravel() for n in ns]) \
-            if ns else np.zeros(0)
+        return (
+            np.concatenate([ctx.band.apply(d[n], model.tests[n].test.sample_time).ravel() for n in ns])
+            if ns
+            else np.zeros(0)
+        )
 
     A_tr = np.column_stack([banded(cols[a.label], ctx.train) for a in atoms]) if atoms else np.zeros((0, 0))
-    A_ho = np.column_stack([banded(cols[a.label], ctx.held) for a in atoms]) if ctx.held and atoms else \
-        np.zeros((0, len(atoms)))
-    if not atoms:    # a library without regression effects (--library backlash): nothing to propose
+    A_ho = (
+        np.column_stack([banded(cols[a.label], ctx.held) for a in atoms])
+        if ctx.held and atoms
+        else np.zeros((0, len(atoms)))
+    )
+    if not atoms:  # a library without regression effects (--library backlash): nothing to propose
         A_tr = np.zeros((len(banded(resid, ctx.train)), 0))
         A_ho = np.zeros((len(banded(resid, ctx.held)), 0))
     reg = Regression(atoms, A_tr, banded(resid, ctx.train), A_ho, banded(resid, ctx.held), ctx.sigma_b)
@@ -534,8 +636,12 @@ def fitted_parameters(a: Atom, changes: Mapping[str, float]) -> tuple[str, ...]:
     """The parameters of ``a`` as the model ``changes`` holds them: a measurement lag (T_meas, T_meas_axis<j>: a
     first-order filter) held as a delay (delay_meas, delay_meas_axis<j>) when ``changes`` has the delay and not the
     filter."""
-    return tuple(p.replace("T_meas", "delay_meas") if _is_lag(p) and p not in changes
-                 and p.replace("T_meas", "delay_meas") in changes else p for p in a.effect.parameters)
+    return tuple(
+        p.replace("T_meas", "delay_meas")
+        if _is_lag(p) and p not in changes and p.replace("T_meas", "delay_meas") in changes
+        else p
+        for p in a.effect.parameters
+    )
 
 
 def _free_parameters(selected: Sequence[Atom], start: Mapping[str, float]) -> list[str]:
@@ -545,9 +651,14 @@ def _free_parameters(selected: Sequence[Atom], start: Mapping[str, float]) -> li
     return out
 
 
-def polish(ctx: Context, selected: Sequence[Atom], start: Mapping[str, float],
-            columns: Mapping[str, Mapping[str, np.ndarray]], fixed: Optional[Mapping[str, float]] = None,
-            lag_form: bool = False) -> tuple[dict, dict]:
+def polish(
+    ctx: Context,
+    selected: Sequence[Atom],
+    start: Mapping[str, float],
+    columns: Mapping[str, Mapping[str, np.ndarray]],
+    fixed: Optional[Mapping[str, float]] = None,
+    lag_form: bool = False,
+) -> tuple[dict, dict]:
     """Bounded least squares of the selected parameters on the training tests, re-simulating.
 
     Jacobian: the measurement parameters' columns are exact (no simulation); plant
@@ -558,7 +669,7 @@ def polish(ctx: Context, selected: Sequence[Atom], start: Mapping[str, float],
     from scipy.optimize import least_squares
 
     model, train, sigma = ctx.model, ctx.train, ctx.sigma
-    fixed = dict(fixed or {})     # discrete parameters, fitted on their grid (_discrete_fit)
+    fixed = dict(fixed or {})  # discrete parameters, fitted on their grid (_discrete_fit)
     free = [p for p in _free_parameters(selected, start) if p not in fixed]
     if not free:
         return fixed, {"simulations_of_the_training_tests": 0, "note": "only discrete parameters: fitted on their grid"}
@@ -636,22 +747,30 @@ def polish(ctx: Context, selected: Sequence[Atom], start: Mapping[str, float],
         return J
 
     t0 = time.perf_counter()
-    sol = least_squares(fun, x0, jac=jac, bounds=(lo, hi), x_scale=scale, method="trf", xtol=1e-4, ftol=1e-5,
-                        max_nfev=12)
-    if at(sol.x) is None:    # never worse than the start, which simulates
+    sol = least_squares(
+        fun, x0, jac=jac, bounds=(lo, hi), x_scale=scale, method="trf", xtol=1e-4, ftol=1e-5, max_nfev=12
+    )
+    if at(sol.x) is None:  # never worse than the start, which simulates
         sol.x = x0
     values = {**fixed, **dict(zip(free, map(float, sol.x)))}
-    info = {"simulations_of_the_training_tests": count[0], "cost": float(sol.cost),
-            "wall_s": round(time.perf_counter() - t0, 1), "status": sol.message,
-            "jacobian": "exact columns (measurement), re-simulated sensitivities with Broyden updates (plant)"}
-    for p in [p for p in values if lag_form and _is_lag(p)]:   # a filter or a delay? (a first guess, no re-simulation)
+    info = {
+        "simulations_of_the_training_tests": count[0],
+        "cost": float(sol.cost),
+        "wall_s": round(time.perf_counter() - t0, 1),
+        "status": sol.message,
+        "jacobian": "exact columns (measurement), re-simulated sensitivities with Broyden updates (plant)",
+    }
+    for p in [p for p in values if lag_form and _is_lag(p)]:  # a filter or a delay? (a first guess, no re-simulation)
         key = BY_PARAMETER[p].key
         info[key] = _filter_or_delay(model, at(sol.x), p, values[p], train)
         if info[key]["choice"] == "delay_meas":
             values.pop(p)
             values[info[key]["delay_parameter"]] = info[key]["delay_meas"]
-    ctx.log("diagnose:   fit " + ", ".join(f"{k} = {v:.5g}" for k, v in values.items())
-            + f" ({count[0]} simulations of the training tests, {info['wall_s']:.0f} s)")
+    ctx.log(
+        "diagnose:   fit "
+        + ", ".join(f"{k} = {v:.5g}" for k, v in values.items())
+        + f" ({count[0]} simulations of the training tests, {info['wall_s']:.0f} s)"
+    )
     return values, info
 
 
@@ -665,26 +784,36 @@ def _filter_or_delay(model: Model, pt: Point, param: str, value: float, train: S
     delay_param = param.replace("T_meas", "delay_meas")
 
     def rss(chain: Chain) -> float:
-        yh = np.concatenate([resample(pt.sims[n], chain.observe(pt.sims[n].tau_m), model.tests[n].t).ravel()
-                             for n in train])
+        yh = np.concatenate(
+            [resample(pt.sims[n], chain.observe(pt.sims[n].tau_m), model.tests[n].t).ravel() for n in train]
+        )
         return float(np.sum((y - yh) ** 2))
 
     T = np.array(pt.chain.T_meas)
-    T[axes] -= value                               # the filter removed ...
+    T[axes] -= value  # the filter removed ...
     D = np.array(pt.chain.delay_meas)
     D[axes] -= float(pt.params.get(delay_param, 0.0))
 
-    def delayed(d: float) -> Chain:                # ... and a delay d on the same axes
+    def delayed(d: float) -> Chain:  # ... and a delay d on the same axes
         Dd = D.copy()
         Dd[axes] += d
         return pt.chain.with_(T_meas=tuple(np.maximum(T, 0.0)), delay_meas=tuple(Dd))
 
     rss_filter = rss(pt.chain)
-    res = minimize_scalar(lambda d: rss(delayed(d)), bounds=(0.0, 4 * value + 1e-4), method="bounded",
-                          options={"xatol": 1e-6})
+    res = minimize_scalar(
+        lambda d: rss(delayed(d)), bounds=(0.0, 4 * value + 1e-4), method="bounded", options={"xatol": 1e-6}
+    )
     n = len(y)
     dbic = n * math.log(res.fun / rss_filter)
     choice = "delay_meas" if dbic < -DELTA_BIC else "T_meas"
-    return {"T_meas": value, "rss_filter": rss_filter, "delay_meas": float(res.x), "rss_delay": float(res.fun),
-            "delta_bic_delay_vs_filter": dbic, "choice": choice, "separable": abs(dbic) >= DELTA_BIC,
-            "filter_parameter": param, "delay_parameter": delay_param}
+    return {
+        "T_meas": value,
+        "rss_filter": rss_filter,
+        "delay_meas": float(res.x),
+        "rss_delay": float(res.fun),
+        "delta_bic_delay_vs_filter": dbic,
+        "choice": choice,
+        "separable": abs(dbic) >= DELTA_BIC,
+        "filter_parameter": param,
+        "delay_parameter": delay_param,
+    }

@@ -1,4 +1,5 @@
 """``mast diagnose``: the workflow from the measured data to diagnosis.json and report.md."""
+
 from __future__ import annotations
 
 import json
@@ -9,6 +10,7 @@ from typing import Callable, Optional, Sequence
 import numpy as np
 
 from ..data.measured import CommandReplay, MeasuredData, controller_geometry, load
+from .consistency import needs_check, only_consistent
 from .effects import AXIS_OF, BY_KEY, CONTROLLER_PARAMETERS, LIBRARY, noise_std
 from .nonlinear import nonlinear_stage, phase_free_stage
 from .options import Options, model_overrides
@@ -16,9 +18,17 @@ from .plan import choose_split, excitation, excitations, identifiability
 from .report import jsonable, plot_figures, write_model, write_report
 from .resimulation import DiagnosisError, Model, Prepared, Simulator
 from .selection import DELTA_BIC, Atom, Band
-from .consistency import needs_check, only_consistent
-from .stages import (MAX_EFFECTS, NONLINEAR_FIRST, Context, State, alias_check, lag_form_check, prune, regression_loop,
-                     residual_at_floor)
+from .stages import (
+    MAX_EFFECTS,
+    NONLINEAR_FIRST,
+    Context,
+    State,
+    alias_check,
+    lag_form_check,
+    prune,
+    regression_loop,
+    residual_at_floor,
+)
 from .verdict import gap_table, gap_trend, judge, localise_test, named_effects
 
 
@@ -41,16 +51,22 @@ def _split(data: MeasuredData, holdout: Optional[Sequence[str]], library: Sequen
         return {t.name: "training" for t in order}, "fewer than three tests: all training"
     chosen = choose_split([excitation(t.name, roles[t.name], t.time, t.rho_cmd) for t in data.tests], library)
     moved = sorted(n for n in names if chosen[n] != roles[n])
-    return chosen, ("every second test in frequency order held out" if not moved else
-                    "every second test in frequency order held out, but " + ", ".join(f"{n} {chosen[n]}" for n in moved)
-                    + ": so that every effect the whole plan can identify has a training and a held-out test of "
-                      "what it needs (identifiability table)")
+    return chosen, (
+        "every second test in frequency order held out"
+        if not moved
+        else "every second test in frequency order held out, but "
+        + ", ".join(f"{n} {chosen[n]}" for n in moved)
+        + ": so that every effect the whole plan can identify has a training and a held-out test of "
+        "what it needs (identifiability table)"
+    )
 
 
 #: how the re-simulations run: (on the native variant, direct composition) -> words
-_SIMULATORS = {(True, False): "the native FMUs (compiled C; the Python models to 1e-9, tests/test_native.py)",
-               (False, True): "the direct composition of the Python models (the reference)",
-               (False, False): "the FMUs"}
+_SIMULATORS = {
+    (True, False): "the native FMUs (compiled C; the Python models to 1e-9, tests/test_native.py)",
+    (False, True): "the direct composition of the Python models (the reference)",
+    (False, False): "the FMUs",
+}
 
 
 def _simulated_ssp(opt: Options) -> tuple[str, bool]:
@@ -63,8 +79,10 @@ def _simulated_ssp(opt: Options) -> tuple[str, bool]:
 
     native = native_variant(str(opt.ssp))
     if native is None:
-        raise DiagnosisError(f"{opt.ssp}: no native variant beside it ({Path(opt.ssp).parent / 'native'}): "
-                             "build it with `mast build --native`, or re-simulate without --native")
+        raise DiagnosisError(
+            f"{opt.ssp}: no native variant beside it ({Path(opt.ssp).parent / 'native'}): "
+            "build it with `mast build --native`, or re-simulate without --native"
+        )
     return str(native), False
 
 
@@ -72,8 +90,9 @@ def _simulated_ssp(opt: Options) -> tuple[str, bool]:
 TORQUE_SCALE_LIMIT = 10.0
 
 
-def _check_torque_scale(prepared: dict[str, Prepared], simulated: dict[str, np.ndarray], names: Sequence[str],
-                        units: dict) -> None:
+def _check_torque_scale(
+    prepared: dict[str, Prepared], simulated: dict[str, np.ndarray], names: Sequence[str], units: dict
+) -> None:
     """Before the search: a measured torque 1000 times off what the nominal model needs to follow the
     recorded commands (gravity, inertia, friction) is a unit declared wrong (mN.m for N.m), not an effect."""
     for n in names:
@@ -86,11 +105,13 @@ def _check_torque_scale(prepared: dict[str, Prepared], simulated: dict[str, np.n
                     f"{prepared[n].test.file.name}: column {key}_{j + 1}: the measured torque (rms {measured:.3g} N.m) "
                     f"is {measured / needed:.3g} times what the nominal model needs to follow the recorded commands "
                     f"(rms {needed:.3g} N.m): check units.{key} (now '{units.get(key)}')"
-                    + (" and k_T" if key == "i_m" else ""))
+                    + (" and k_T" if key == "i_m" else "")
+                )
 
 
-def _named_only_if_explained(ctx: Context, state: State, last_fit, steps: list, nominal_pt, library,
-                             rejected: set) -> tuple:
+def _named_only_if_explained(
+    ctx: Context, state: State, last_fit, steps: list, nominal_pt, library, rejected: set
+) -> tuple:
     """The verdict on the search's selection, and what of it is named (consistency.py): when a residual is left,
     or several effects share the gap, only effects that are one value whatever the test keep their name. When
     members were refused as stand-ins and the structure they absorbed is left (training BIC +DELTA_BIC without
@@ -106,7 +127,7 @@ def _named_only_if_explained(ctx: Context, state: State, last_fit, steps: list, 
     if hints and later and state.info["structure_left"] >= DELTA_BIC and len(state.selected) < MAX_EFFECTS:
         ctx.log("diagnose: stand-ins refused, their structure left: trying " + ", ".join(e.title for e in later))
         tried = nonlinear_stage(ctx, state, later, rejected, steps)
-        if tried is not None:   # accepted beside the members kept (refitted with it): checked again, once
+        if tried is not None:  # accepted beside the members kept (refitted with it): checked again, once
             state = tried
             named = named_effects(ctx, state, last_fit, steps)
             verdict, unexplained = judge(ctx, state, last_fit, steps)
@@ -121,11 +142,14 @@ def _named_only_if_explained(ctx: Context, state: State, last_fit, steps: list, 
         verdict, unexplained = judge(ctx, state, last_fit, steps, state.info["structure_left"])
         where = "unexplained" if unexplained is not None else "verdict"
         (unexplained if unexplained is not None else verdict)["hints"] = hints
-        verdict["text"] += ("; hints, not named (they may only stand in for a cause outside the library: "
-                            f"{where}.hints): " + ", ".join(h["effect"] for h in hints))
-    for e in named:     # named after the check: the evidence that allowed it
-        e["evidence"]["per_test"] = {p: state.info["consistency"][p] for p in e["parameters"]
-                                     if p in state.info["consistency"]}
+        verdict["text"] += (
+            "; hints, not named (they may only stand in for a cause outside the library: "
+            f"{where}.hints): " + ", ".join(h["effect"] for h in hints)
+        )
+    for e in named:  # named after the check: the evidence that allowed it
+        e["evidence"]["per_test"] = {
+            p: state.info["consistency"][p] for p in e["parameters"] if p in state.info["consistency"]
+        }
         e["evidence"]["excess_explained"] = state.info["excess_explained"]
     return state, named, verdict, unexplained
 
@@ -136,7 +160,7 @@ def diagnose(opt: Options, log: Callable[[str], None] = print) -> dict:
     diagnosis (the content of diagnosis.json)."""
     from ..data.record import is_record_folder
 
-    if is_record_folder(opt.measured):     # a record of any machine (mast import): a drive axis on a bench
+    if is_record_folder(opt.measured):  # a record of any machine (mast import): a drive axis on a bench
         from .records import diagnose_records
 
         return diagnose_records(opt, log)
@@ -167,21 +191,32 @@ def diagnose(opt: Options, log: Callable[[str], None] = print) -> dict:
     prepared: dict[str, Prepared] = {}
     for t in data.tests:
         mask = t.time >= t.settle_s - 1e-12
-        prepared[t.name] = Prepared(t, roles[t.name], CommandReplay(t.time, t.rho_cmd, geometry), mask, t.time[mask],
-                                    t.tau_m[mask], (t.rho - t.rho_cmd)[mask])
+        prepared[t.name] = Prepared(
+            t,
+            roles[t.name],
+            CommandReplay(t.time, t.rho_cmd, geometry),
+            mask,
+            t.time[mask],
+            t.tau_m[mask],
+            (t.rho - t.rho_cmd)[mask],
+        )
     names = [t.name for t in data.tests]
     plan = identifiability(excitations(prepared, roles), list(opt.library))
     for key, p in plan.items():
         if not p["plan_meets"] and "_axis" not in key:
             log(f"diagnose: this plan cannot tell {BY_KEY[key].title}: it needs {p['requires']} ({p['why_not']})")
         elif p["plan_meets"] and not p["split_meets"]:
-            log(f"diagnose: this split ({split_how}) cannot check {BY_KEY[key].title}, the plan could: it needs "
-                f"{p['requires']} ({p['split_why_not']})")
-    for j in (1, 2, 3):     # effects on one axis: one line per axis
+            log(
+                f"diagnose: this split ({split_how}) cannot check {BY_KEY[key].title}, the plan could: it needs "
+                f"{p['requires']} ({p['split_why_not']})"
+            )
+    for j in (1, 2, 3):  # effects on one axis: one line per axis
         blind = [k.rsplit("_axis", 1)[0] for k, p in plan.items() if k.endswith(f"_axis{j}") and not p["plan_meets"]]
         if blind:
-            log(f"diagnose: this plan cannot tell effects on axis {j} alone ({', '.join(blind)}): they need "
-                "what the all-axes effect needs, in tests where that axis moves")
+            log(
+                f"diagnose: this plan cannot tell effects on axis {j} alone ({', '.join(blind)}): they need "
+                "what the all-axes effect needs, in tests where that axis moves"
+            )
     train = [n for n in names if roles[n] == "training"]
     held = [n for n in names if roles[n] == "held-out"]
     sigma = float(np.median([noise_std(prepared[n].y[:, j]) for n in names for j in range(3)]))
@@ -190,8 +225,10 @@ def diagnose(opt: Options, log: Callable[[str], None] = print) -> dict:
     resolution = float(data.meta.get("measurement", {}).get("rho_resolution_m", 0.0) or 0.0)
     band = Band()
     sigma_b = sigma * float(np.median([band.noise_factor(prepared[n].test.sample_time) for n in names]))
-    log(f"diagnose: {len(names)} tests ({len(train)} training, {len(held)} held-out: {', '.join(held) or 'none'}; "
-        f"{split_how}), torque noise floor {1e3 * sigma:.3g} mN.m")
+    log(
+        f"diagnose: {len(names)} tests ({len(train)} training, {len(held)} held-out: {', '.join(held) or 'none'}; "
+        f"{split_how}), torque noise floor {1e3 * sigma:.3g} mN.m"
+    )
 
     log(f"diagnose: re-simulating on {_SIMULATORS[(sim_ssp != opt.ssp, direct)]} ({sim_ssp})")
     with Simulator(sim_ssp, prepared, base, actuators, direct=direct, workers=opt.workers, nominal=nominal) as sim:
@@ -206,15 +243,23 @@ def diagnose(opt: Options, log: Callable[[str], None] = print) -> dict:
         # controller-side effects need the SSP's controller (its gains k_p, k_v)
         # per-axis effects the plan cannot tell (an axis that does not move in both roles) are not offered:
         # the held-out check would refuse them, and each costs the subset search a column
-        library = [BY_KEY[k] for k in opt.library if (BY_KEY[k].kind != "controller"
-                   or all(p in ssp_drive for p in BY_KEY[k].parameters + ((BY_KEY[k].quantum,) if BY_KEY[k].quantum else ())))
-                   and ("_axis" not in k or plan.get(k, {}).get("split_meets", True))]
+        library = [
+            BY_KEY[k]
+            for k in opt.library
+            if (
+                BY_KEY[k].kind != "controller"
+                or all(
+                    p in ssp_drive for p in BY_KEY[k].parameters + ((BY_KEY[k].quantum,) if BY_KEY[k].quantum else ())
+                )
+            )
+            and ("_axis" not in k or plan.get(k, {}).get("split_meets", True))
+        ]
         atoms = [Atom(e, g) for e in library if e.regression for g in (e.grid or (None,))]
         state = State((), {}, nominal_pt)
         steps: list = []
         rejected: set = set()
         state, last_fit = regression_loop(ctx, state, atoms, rejected, steps)
-        for _ in range(2):   # nonlinear candidates, then the regression loop again around the new model
+        for _ in range(2):  # nonlinear candidates, then the regression loop again around the new model
             if residual_at_floor(ctx, state.pt) or len(state.selected) >= MAX_EFFECTS:
                 break
             tried = nonlinear_stage(ctx, state, [e for e in library if e.key in NONLINEAR_FIRST], rejected, steps)
@@ -224,11 +269,12 @@ def diagnose(opt: Options, log: Callable[[str], None] = print) -> dict:
         state = alias_check(ctx, state, last_fit, steps)
         state = prune(ctx, state, steps)
         state = lag_form_check(ctx, state, steps)
-        for e in library:   # effects that make the loop hunt: last, on the phase-free score
+        for e in library:  # effects that make the loop hunt: last, on the phase-free score
             if e.phase_free and not residual_at_floor(ctx, state.pt) and len(state.selected) < MAX_EFFECTS:
                 state = phase_free_stage(ctx, state, e, steps)
         state, named, verdict, unexplained = _named_only_if_explained(
-            ctx, state, last_fit, steps, nominal_pt, library, rejected)
+            ctx, state, last_fit, steps, nominal_pt, library, rejected
+        )
         final_pt = state.pt
         after = gap_table(prepared, final_pt, names, sigma, resolution)
         final_local = {n: localise_test(model, final_pt, prepared[n], sigma) for n in names}
@@ -238,15 +284,29 @@ def diagnose(opt: Options, log: Callable[[str], None] = print) -> dict:
     outputs = write_model(opt, state.changes, named, nominal, model_over)
     wall = time.perf_counter() - t_start
     doc = {
-        "measured": str(opt.measured), "ssp": str(opt.ssp), "model": opt.model or "the SSP's bindings",
-        "tests": [{"name": n, "label": prepared[n].test.label(), "role": roles[n],
-                   "frequency_Hz": prepared[n].test.frequency, "motion": prepared[n].test.motion,
-                   "localise_before": localised[n], "localise_after": final_local[n]} for n in names],
-        "noise_floor": {"torque_std_Nm": sigma,
-                        "method": "robust (MAD) third differences of the measured torques, median over tests and axes",
-                        "torque_std_in_band_Nm": sigma_b, "band_Hz": band.fc,
-                        "position_resolution_m": resolution or None,
-                        "per_test_torque_nrmse_percent": {n: before[n]["torque_floor_percent"] for n in names}},
+        "measured": str(opt.measured),
+        "ssp": str(opt.ssp),
+        "model": opt.model or "the SSP's bindings",
+        "tests": [
+            {
+                "name": n,
+                "label": prepared[n].test.label(),
+                "role": roles[n],
+                "frequency_Hz": prepared[n].test.frequency,
+                "motion": prepared[n].test.motion,
+                "localise_before": localised[n],
+                "localise_after": final_local[n],
+            }
+            for n in names
+        ],
+        "noise_floor": {
+            "torque_std_Nm": sigma,
+            "method": "robust (MAD) third differences of the measured torques, median over tests and axes",
+            "torque_std_in_band_Nm": sigma_b,
+            "band_Hz": band.fc,
+            "position_resolution_m": resolution or None,
+            "per_test_torque_nrmse_percent": {n: before[n]["torque_floor_percent"] for n in names},
+        },
         "named_effects": named,
         "gap": {n: {"role": roles[n], "before": before[n], "after": after[n]} for n in names},
         "frequency_trend": gap_trend(prepared, localised, final_local, names),
@@ -257,14 +317,30 @@ def diagnose(opt: Options, log: Callable[[str], None] = print) -> dict:
         "identifiability": plan,
         "split": {"how": split_how, "held_out": held, "training": train},
         "augmented_model": outputs,
-        "timing": {"wall_s": round(wall, 1), "simulations": n_sims, "simulation_wall_s": round(sim_seconds, 1),
-                   "workers": opt.workers, "direct": direct,
-                   "simulator": _SIMULATORS[(sim_ssp != opt.ssp, direct)], "simulated_ssp": str(sim_ssp)},
+        "timing": {
+            "wall_s": round(wall, 1),
+            "simulations": n_sims,
+            "simulation_wall_s": round(sim_seconds, 1),
+            "workers": opt.workers,
+            "direct": direct,
+            "simulator": _SIMULATORS[(sim_ssp != opt.ssp, direct)],
+            "simulated_ssp": str(sim_ssp),
+        },
     }
     (opt.out / "diagnosis.json").write_text(json.dumps(jsonable(doc), indent=2))
     if opt.figures:
-        figs = plot_figures(opt.out, model, prepared, names, nominal_pt, final_pt, sigma, roles, unexplained is not None,
-                        state.info.get("phase_free"))
+        figs = plot_figures(
+            opt.out,
+            model,
+            prepared,
+            names,
+            nominal_pt,
+            final_pt,
+            sigma,
+            roles,
+            unexplained is not None,
+            state.info.get("phase_free"),
+        )
     else:
         figs = {}
     write_report(opt.out, doc, figs)

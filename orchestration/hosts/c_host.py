@@ -8,6 +8,7 @@ docs/native.md).
 
 The plan file the host reads is written here (``write_plan``; its format: mast_host.c's header comment).
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -43,19 +44,19 @@ ARM64_SYSROOT = Path("/usr/aarch64-linux-gnu")
 class MasterRun:
     """A run of our master on a native SSP: what the C host needs to follow it, and its trajectories."""
 
-    names: list[str]             # the components in exchange order
-    folders: dict[str, Path]     # component -> its FMU unpacked (binaries/, sources/, resources/)
+    names: list[str]  # the components in exchange order
+    folders: dict[str, Path]  # component -> its FMU unpacked (binaries/, sources/, resources/)
     identifiers: dict[str, str]  # component -> model identifier
     guids: dict[str, str]
-    parameters: dict[str, list[tuple[str, int, object]]]   # component -> (type, value reference, value)
-    units: list[tuple]           # exchange.CompiledLoop.units
-    inputs: list[list[float]]    # per unit, the inputs the master set last in initialization mode
+    parameters: dict[str, list[tuple[str, int, object]]]  # component -> (type, value reference, value)
+    units: list[tuple]  # exchange.CompiledLoop.units
+    inputs: list[list[float]]  # per unit, the inputs the master set last in initialization mode
     t0: float
     h: float
     n_ticks: int
     record_every: int
-    flat_names: list[str]        # the signal at each position of the flat vector's outputs
-    outputs: dict[str, np.ndarray]   # our master's recorded trajectories, every published output
+    flat_names: list[str]  # the signal at each position of the flat vector's outputs
+    outputs: dict[str, np.ndarray]  # our master's recorded trajectories, every published output
 
 
 def master_run(ssp: Path, stop_time: float, folder: Path, record_step: float = 1e-3) -> MasterRun:
@@ -65,8 +66,10 @@ def master_run(ssp: Path, stop_time: float, folder: Path, record_step: float = 1
     with SSPArchive(ssp) as archive:
         system = archive.system
         if system.system_inputs:
-            raise ValueError(f"{ssp}: the C host runs systems without inputs (this one has "
-                             f"{', '.join(system.system_inputs)}); e.g. MAST_standalone.ssp")
+            raise ValueError(
+                f"{ssp}: the C host runs systems without inputs (this one has "
+                f"{', '.join(system.system_inputs)}); e.g. MAST_standalone.ssp"
+            )
         components, folders = {}, {}
         try:
             for name in system.components:
@@ -79,27 +82,49 @@ def master_run(ssp: Path, stop_time: float, folder: Path, record_step: float = 1
                 comp.close()
             raise
         order = list(system.components)
-        bound = applicable_parameters(system, {n: components[n].parameter_names for n in order},
-                                      {n: components[n].parameter_units for n in order})   # as Master binds them
-        parameters = {n: [(components[n].variables[k].type, components[n].variables[k].valueReference, v)
-                          for k, v in bound[n].items()] for n in order}
+        bound = applicable_parameters(
+            system, {n: components[n].parameter_names for n in order}, {n: components[n].parameter_units for n in order}
+        )  # as Master binds them
+        parameters = {
+            n: [
+                (components[n].variables[k].type, components[n].variables[k].valueReference, v)
+                for k, v in bound[n].items()
+            ]
+            for n in order
+        }
         identifiers = {n: components[n].md.coSimulation.modelIdentifier for n in order}
         guids = {n: components[n].md.guid for n in order}
         h = master.base_step
         record_every = round(record_step / h)
         n_ticks = round((stop_time - system.start_time) / h) // record_every * record_every
-        published = list(dict.fromkeys(f"{c.start_element}.{c.start_connector}" for c in system.connections
-                                       if c.start_element))
+        published = list(
+            dict.fromkeys(f"{c.start_element}.{c.start_connector}" for c in system.connections if c.start_element)
+        )
         result = master.run(system.start_time + n_ticks * h, NoStimulus(), record=published, record_step=record_step)
         loop = master.exchange
         if loop is None:
-            raise ValueError("our master ran its Python exchange loop (no C compiler, or MAST_PYTHON_EXCHANGE=1): "
-                             "the C host follows the compiled one")
+            raise ValueError(
+                "our master ran its Python exchange loop (no C compiler, or MAST_PYTHON_EXCHANGE=1): "
+                "the C host follows the compiled one"
+            )
         names = output_names(master.exchange_order, loop.units, components)
         outputs = {name: result[name] for name in published}
     inputs = [components[name].initial_inputs for name in master.exchange_order]
-    return MasterRun(list(master.exchange_order), folders, identifiers, guids, parameters, loop.units, inputs,
-                     system.start_time, h, n_ticks, record_every, names, outputs)
+    return MasterRun(
+        list(master.exchange_order),
+        folders,
+        identifiers,
+        guids,
+        parameters,
+        loop.units,
+        inputs,
+        system.start_time,
+        h,
+        n_ticks,
+        record_every,
+        names,
+        outputs,
+    )
 
 
 class _Initialized(FMUComponent):
@@ -115,6 +140,7 @@ class _Initialized(FMUComponent):
             if self._initializing:
                 self.initial_inputs = [float(v) for v in values]
             set_values(values)
+
         return kept
 
     def exit_initialization(self) -> None:
@@ -126,8 +152,7 @@ def output_names(order: Sequence[str], units: Sequence[tuple], components) -> li
     """The signal ("component.output") at each position of the flat vector's outputs."""
     names = []
     for name, unit in zip(order, units):
-        variables = {v.valueReference: v.name for v in components[name].md.modelVariables
-                     if v.causality == "output"}
+        variables = {v.valueReference: v.name for v in components[name].md.modelVariables if v.causality == "output"}
         names += [f"{name}.{variables[vr]}" for vr in unit[5]]
     return names
 
@@ -139,13 +164,24 @@ def build_host(platform: str, out_dir: Path) -> Path:
     target = out_dir / f"mast_host{EXE[platform]}"
     with tempfile.TemporaryDirectory(prefix="mast_c_host_") as tmp:
         (Path(tmp) / "mast_exchange.c").write_text(EXCHANGE_SOURCE)
-        cmd = [*c_compiler(platform), "-O2", "-ffp-contract=off", "-std=c99", "-D_POSIX_C_SOURCE=200809L",
-               f"-I{fmi_headers()}", f"-I{tmp}", "-o", str(target), str(HOST_SOURCE),
-               *(["-ldl"] if platform != "win64" else [])]
+        cmd = [
+            *c_compiler(platform),
+            "-O2",
+            "-ffp-contract=off",
+            "-std=c99",
+            "-D_POSIX_C_SOURCE=200809L",
+            f"-I{fmi_headers()}",
+            f"-I{tmp}",
+            "-o",
+            str(target),
+            str(HOST_SOURCE),
+            *(["-ldl"] if platform != "win64" else []),
+        ]
         done = subprocess.run(cmd, capture_output=True, text=True)
     if done.returncode != 0:
-        raise NativeBuildError(f"{HOST_SOURCE.name}: the C compiler failed ({' '.join(cmd[:4])} ...):\n"
-                               f"{done.stderr.strip()[-4000:]}")
+        raise NativeBuildError(
+            f"{HOST_SOURCE.name}: the C compiler failed ({' '.join(cmd[:4])} ...):\n{done.stderr.strip()[-4000:]}"
+        )
     return target
 
 
@@ -192,7 +228,7 @@ def _library(folder: Path, identifier: str, platform: str, recompile: bool) -> P
         target.parent.mkdir(parents=True, exist_ok=True)
         with tempfile.TemporaryDirectory(prefix="mast_c_host_", dir=target.parent) as tmp:
             compile_shared(sources, Path(tmp) / own.name, platform)
-            os.replace(Path(tmp) / own.name, target)   # whole or absent for a concurrent process
+            os.replace(Path(tmp) / own.name, target)  # whole or absent for a concurrent process
     return target
 
 
@@ -208,28 +244,42 @@ def _bits(value: float) -> str:
 def write_plan(run: MasterRun, platform: str, folder: Path, cycles: int, recompile: bool = False) -> Path:
     """The plan ``mast_host`` reads (format: mast_host.c) into ``folder``; the FMUs' ``platform`` binaries
     compiled from their sources where they have none, or with ``recompile`` (``_library``)."""
-    lines = ["mast-host-plan 1", f"cycles {cycles}",
-             f"run {_bits(run.t0)} {_bits(run.h)} {run.n_ticks} {run.record_every}",
-             f"flat {len(run.flat_names)}",
-             f"units {len(run.names)}"]
+    lines = [
+        "mast-host-plan 1",
+        f"cycles {cycles}",
+        f"run {_bits(run.t0)} {_bits(run.h)} {run.n_ticks} {run.record_every}",
+        f"flat {len(run.flat_names)}",
+        f"units {len(run.names)}",
+    ]
     for name, unit, inputs in zip(run.names, run.units, run.inputs):
         multiple, step, feedthrough, vr_in, src, vr_out, offset = unit
         unpacked = run.folders[name]
         library = _library(unpacked, run.identifiers[name], platform, recompile)
-        resources = (unpacked / "resources").as_uri() if platform != "win64" else \
-            "file:///Z:" + (unpacked / "resources").as_posix()
-        typed = {kind: [(vr, v) for t, vr, v in run.parameters[name] if t == kind]
-                 for kind in ("Real", "Integer", "String", "Boolean")}
+        resources = (
+            (unpacked / "resources").as_uri()
+            if platform != "win64"
+            else "file:///Z:" + (unpacked / "resources").as_posix()
+        )
+        typed = {
+            kind: [(vr, v) for t, vr, v in run.parameters[name] if t == kind]
+            for kind in ("Real", "Integer", "String", "Boolean")
+        }
         if typed["Boolean"]:
             raise ValueError(f"{name}: Boolean parameters are not in the plan's format (mast_host.c)")
-        lines += [f"unit {name}", f"library {_host_path(library, platform)}", f"guid {run.guids[name]}",
-                  f"resources {resources}", f"schedule {multiple} {_bits(step)} {int(feedthrough)}",
-                  f"reals {len(typed['Real'])} " + " ".join(f"{vr} {_bits(v)}" for vr, v in typed["Real"]),
-                  f"integers {len(typed['Integer'])} " + " ".join(f"{vr} {int(v)}" for vr, v in typed["Integer"]),
-                  f"strings {len(typed['String'])}", *(f"string {vr} {v}" for vr, v in typed["String"]),
-                  f"inputs {len(vr_in)} " + " ".join(map(str, [*vr_in, *src])),
-                  "initial " + " ".join(_bits(v) for v in inputs),
-                  f"outputs {len(vr_out)} " + " ".join(map(str, vr_out)) + f" {offset}"]
+        lines += [
+            f"unit {name}",
+            f"library {_host_path(library, platform)}",
+            f"guid {run.guids[name]}",
+            f"resources {resources}",
+            f"schedule {multiple} {_bits(step)} {int(feedthrough)}",
+            f"reals {len(typed['Real'])} " + " ".join(f"{vr} {_bits(v)}" for vr, v in typed["Real"]),
+            f"integers {len(typed['Integer'])} " + " ".join(f"{vr} {int(v)}" for vr, v in typed["Integer"]),
+            f"strings {len(typed['String'])}",
+            *(f"string {vr} {v}" for vr, v in typed["String"]),
+            f"inputs {len(vr_in)} " + " ".join(map(str, [*vr_in, *src])),
+            "initial " + " ".join(_bits(v) for v in inputs),
+            f"outputs {len(vr_out)} " + " ".join(map(str, vr_out)) + f" {offset}",
+        ]
         if any("\n" in str(v) for _, v in typed["String"]):
             raise ValueError(f"{name}: a String parameter with a line break is not in the plan's format")
     plan = folder / "plan.txt"
@@ -248,8 +298,9 @@ class HostRun:
     log: str
 
 
-def run_c_host(run: MasterRun, host: Path, platform: str, cycles: int = 200, recompile: bool = False,
-               timeout: float = 600.0) -> HostRun:
+def run_c_host(
+    run: MasterRun, host: Path, platform: str, cycles: int = 200, recompile: bool = False, timeout: float = 600.0
+) -> HostRun:
     """Run ``host`` (``build_host``) on ``run``'s system and FMUs for ``platform`` (``launcher``; win64: Wine's
     prefix $WINEPREFIX, else ~/.cache/mast/wine); ``recompile``: the FMUs' binaries compiled from their sources
     here (``write_plan``). RuntimeError with the host's output when it fails or cannot run here."""
@@ -260,8 +311,10 @@ def run_c_host(run: MasterRun, host: Path, platform: str, cycles: int = 200, rec
         cmd, env = [str(host), _host_path(plan, platform), _host_path(result, platform)], dict(os.environ)
         prefix = launcher(platform)
         if prefix is None:
-            raise RuntimeError(f"{platform} programs do not run here (Debian: apt-get install "
-                               f"{'wine64' if platform == 'win64' else 'qemu-user libc6-arm64-cross'})")
+            raise RuntimeError(
+                f"{platform} programs do not run here (Debian: apt-get install "
+                f"{'wine64' if platform == 'win64' else 'qemu-user libc6-arm64-cross'})"
+            )
         cmd = prefix + cmd
         if platform == "win64":
             env.setdefault("WINEPREFIX", str(Path.home() / ".cache" / "mast" / "wine"))

@@ -17,6 +17,7 @@ parameters describe none is checked against the 3PRS's interface):
    declares them) maps the reported pose back to the joint positions;
 7. refusal, not NaN: an unreachable joint position or a non-finite input makes doStep fail.
 """
+
 from __future__ import annotations
 
 import functools
@@ -60,9 +61,9 @@ class Check:
 class _Subject:
     """What the checks drive: set the 3 n inputs, step, read the n + 6 outputs."""
 
-    variables: dict            # name -> (causality, unit or None)
-    parameters: dict           # name -> default value
-    init_outputs: Optional[list] = None   # outputs read in initialization mode (FMUs only)
+    variables: dict  # name -> (causality, unit or None)
+    parameters: dict  # name -> default value
+    init_outputs: Optional[list] = None  # outputs read in initialization mode (FMUs only)
 
     @functools.cached_property
     def topology(self):
@@ -81,8 +82,9 @@ class _Subject:
 
         topology = self.topology
         if topology is None:
-            return Variables(MechanismBlock.INPUTS, MechanismBlock.OUTPUTS, MechanismBlock.UNITS,
-                             MechanismBlock.DESCRIPTIONS)
+            return Variables(
+                MechanismBlock.INPUTS, MechanismBlock.OUTPUTS, MechanismBlock.UNITS, MechanismBlock.DESCRIPTIONS
+            )
         return Variables.of_topology(topology)
 
     def start(self, inputs: Sequence[float]) -> list[float]: ...
@@ -96,8 +98,10 @@ class BlockSubject(_Subject):
     def __init__(self, block_class, parameters: Mapping) -> None:
         self.block_class, self.parameters = block_class, dict(parameters)
         units = getattr(block_class, "UNITS", {})
-        self.variables = {**{n: ("input", units.get(n)) for n in block_class.INPUTS},
-                          **{n: ("output", units.get(n)) for n in block_class.OUTPUTS}}
+        self.variables = {
+            **{n: ("input", units.get(n)) for n in block_class.INPUTS},
+            **{n: ("output", units.get(n)) for n in block_class.OUTPUTS},
+        }
         self.block = None
 
     def _io(self):
@@ -149,12 +153,22 @@ class FMUSubject(_Subject):
             self.dispose()
             raise
         self.vars = {v.name: v for v in self.md.modelVariables}
-        self.variables = {v.name: (v.causality, v.unit or (v.declaredType.unit if v.declaredType else None))
-                          for v in self.md.modelVariables}
-        convert = {"Real": float, "Integer": int, "Enumeration": int, "String": str,
-                   "Boolean": lambda s: str(s).lower() in ("true", "1")}
-        self.parameters = {v.name: convert.get(v.type, str)(v.start) for v in self.md.modelVariables
-                           if v.causality == "parameter" and v.start is not None}
+        self.variables = {
+            v.name: (v.causality, v.unit or (v.declaredType.unit if v.declaredType else None))
+            for v in self.md.modelVariables
+        }
+        convert = {
+            "Real": float,
+            "Integer": int,
+            "Enumeration": int,
+            "String": str,
+            "Boolean": lambda s: str(s).lower() in ("true", "1"),
+        }
+        self.parameters = {
+            v.name: convert.get(v.type, str)(v.start)
+            for v in self.md.modelVariables
+            if v.causality == "parameter" and v.start is not None
+        }
         self.messages: list[str] = []
         self._n = 0
 
@@ -166,14 +180,18 @@ class FMUSubject(_Subject):
 
         self.close()
         self._n += 1
-        self.slave = FMU2Slave(guid=self.md.guid, unzipDirectory=self.unzip,
-                               modelIdentifier=self.md.coSimulation.modelIdentifier, instanceName=f"check{self._n}")
+        self.slave = FMU2Slave(
+            guid=self.md.guid,
+            unzipDirectory=self.unzip,
+            modelIdentifier=self.md.coSimulation.modelIdentifier,
+            instanceName=f"check{self._n}",
+        )
         self.slave.instantiate(loggingOn=False)
         self.slave.setupExperiment(startTime=0.0)
         self.slave.enterInitializationMode()
         io = self.expected
         self.slave.setReal(self._vr(io.inputs), list(inputs))
-        try:      # hosts read outputs in initialization mode (the master reads the home pose there)
+        try:  # hosts read outputs in initialization mode (the master reads the home pose there)
             self.init_outputs = list(self.slave.getReal(self._vr(io.outputs)))
         except Exception:
             self.init_outputs = None
@@ -189,7 +207,7 @@ class FMUSubject(_Subject):
             self.slave.setReal(self._vr(io.inputs), list(inputs))
             self.slave.doStep(currentCommunicationPoint=t, communicationStepSize=STEP)
             return list(self.slave.getReal(self._vr(io.outputs)))
-        except Exception as err:      # fmpy raises on a status above fmi2Warning
+        except Exception as err:  # fmpy raises on a status above fmi2Warning
             raise Refused(str(err)) from None
 
     def close(self):
@@ -217,8 +235,11 @@ def _controller_ik(parameters: Mapping) -> tuple[Callable, str]:
     base = read_ssd(Path(__file__).resolve().parents[2] / "ssp" / "MAST.ssd").components["controller"].parameters
     own = {k: parameters[k] for k in KINEMATIC_PARAMETERS_NAMES if k in parameters}
     geometry = {**{k: base[k] for k in KINEMATIC_PARAMETERS_NAMES}, **own}
-    where = "the mechanism's own geometry parameters" if len(own) == len(KINEMATIC_PARAMETERS_NAMES) else \
-        "the default system's controller geometry" + (f" with {', '.join(own)} from the mechanism" if own else "")
+    where = (
+        "the mechanism's own geometry parameters"
+        if len(own) == len(KINEMATIC_PARAMETERS_NAMES)
+        else "the default system's controller geometry" + (f" with {', '.join(own)} from the mechanism" if own else "")
+    )
     return kinematic_engine(geometry, "controller").ik, where
 
 
@@ -228,21 +249,34 @@ def check(subject: _Subject, rho0: Optional[float] = None, amplitude: float = 0.
     out: list[Check] = []
     rng = np.random.default_rng(seed)
     topology, io = subject.topology, subject.expected
-    n = (len(io.outputs) - 6)
+    n = len(io.outputs) - 6
     zero = [0.0] * n
     words = {3: "nine"}
-    count_in, count_out = words.get(len(io.inputs), str(len(io.inputs))), words.get(len(io.outputs), str(len(io.outputs)))
+    count_in, count_out = (
+        words.get(len(io.inputs), str(len(io.inputs))),
+        words.get(len(io.outputs), str(len(io.outputs))),
+    )
     units = {io.units[f"rho_{k}"] for k in range(1, n + 1)}
     u = units.pop() if len(units) == 1 else "(m or rad)"
 
     # 1. interface
-    missing = [v for v in io.inputs if subject.variables.get(v, (None,))[0] != "input"] + \
-        [v for v in io.outputs if subject.variables.get(v, (None,))[0] != "output"]
-    wrong_units = [f"{v} [{subject.variables[v][1]}] (expected {io.units[v]})" for v in io.inputs + io.outputs
-                   if v in subject.variables and subject.variables[v][1] not in (None, "", io.units[v])]
-    out.append(Check("interface", not missing and not wrong_units,
-                     f"all {count_in} inputs and {count_out} outputs, units as specified" if not missing and not wrong_units else
-                     f"missing or wrong causality: {', '.join(missing) or 'none'}; units: {', '.join(wrong_units) or 'ok'}"))
+    missing = [v for v in io.inputs if subject.variables.get(v, (None,))[0] != "input"] + [
+        v for v in io.outputs if subject.variables.get(v, (None,))[0] != "output"
+    ]
+    wrong_units = [
+        f"{v} [{subject.variables[v][1]}] (expected {io.units[v]})"
+        for v in io.inputs + io.outputs
+        if v in subject.variables and subject.variables[v][1] not in (None, "", io.units[v])
+    ]
+    out.append(
+        Check(
+            "interface",
+            not missing and not wrong_units,
+            f"all {count_in} inputs and {count_out} outputs, units as specified"
+            if not missing and not wrong_units
+            else f"missing or wrong causality: {', '.join(missing) or 'none'}; units: {', '.join(wrong_units) or 'ok'}",
+        )
+    )
     if missing:
         return out
 
@@ -256,13 +290,19 @@ def check(subject: _Subject, rho0: Optional[float] = None, amplitude: float = 0.
     try:
         y0 = subject.start(home + zero + zero)
         ok = all(math.isfinite(v) for v in y0)
-        detail = (f"at rest at rho = {shown} {u}: F = ({', '.join(f'{v:.4g}' for v in y0[:n])}) "
-                  f"{io.units['F_1']}, z = {y0[z]:.6g} m" if ok else f"non-finite outputs {y0}")
+        detail = (
+            f"at rest at rho = {shown} {u}: F = ({', '.join(f'{v:.4g}' for v in y0[:n])}) "
+            f"{io.units['F_1']}, z = {y0[z]:.6g} m"
+            if ok
+            else f"non-finite outputs {y0}"
+        )
         early = subject.init_outputs
         if early is not None and not np.allclose(early, y0, rtol=1e-9, atol=1e-12):
             ok = False
-            detail += (f"; but in initialization mode, with the same inputs, the outputs were {early}: they must "
-                       f"follow the inputs there (hosts read the home pose before leaving initialization)")
+            detail += (
+                f"; but in initialization mode, with the same inputs, the outputs were {early}: they must "
+                f"follow the inputs there (hosts read the home pose before leaving initialization)"
+            )
         out.append(Check("home", ok, detail))
     except Refused as err:
         out.append(Check("home", False, f"refused at rest at rho = {shown} {u}: {err}"))
@@ -288,8 +328,14 @@ def check(subject: _Subject, rho0: Optional[float] = None, amplitude: float = 0.
             worst_sym = max(worst_sym, np.abs(M - M.T).max())
             min_eig = min(min_eig, np.linalg.eigvalsh(0.5 * (M + M.T)).min())
         ok = worst_lin <= 1e-6 * scale * 5 + 1e-9 and worst_sym <= 1e-6 * scale + 1e-12 and min_eig >= -1e-9 * scale
-        out.append(Check("mass matrix", ok, f"affine in rho_ddot to {worst_lin:.2g} N, M = dF/drho_ddot symmetric to "
-                                            f"{worst_sym:.2g} kg, smallest eigenvalue {min_eig:.4g} kg"))
+        out.append(
+            Check(
+                "mass matrix",
+                ok,
+                f"affine in rho_ddot to {worst_lin:.2g} N, M = dF/drho_ddot symmetric to "
+                f"{worst_sym:.2g} kg, smallest eigenvalue {min_eig:.4g} kg",
+            )
+        )
 
         # 4. quadratic in rho_dot
         worst, ref = 0.0, 1e-12
@@ -299,8 +345,13 @@ def check(subject: _Subject, rho0: Optional[float] = None, amplitude: float = 0.
             f0, f1, f2 = (F(rho, k * v, zero)[:n] for k in (0, 1, 2))
             worst = max(worst, np.abs((f2 - f0) - 4 * (f1 - f0)).max())
             ref = max(ref, np.abs(f1 - f0).max())
-        out.append(Check("velocity terms", worst <= 1e-6 * ref + 1e-9,
-                         f"F(2v) - F(0) = 4 (F(v) - F(0)) to {worst:.2g} N (velocity terms up to {ref:.3g} N)"))
+        out.append(
+            Check(
+                "velocity terms",
+                worst <= 1e-6 * ref + 1e-9,
+                f"F(2v) - F(0) = 4 (F(v) - F(0)) to {worst:.2g} N (velocity terms up to {ref:.3g} N)",
+            )
+        )
 
         # 5. closed cycle, rest to rest: no net work
         T = 0.4
@@ -313,8 +364,11 @@ def check(subject: _Subject, rho0: Optional[float] = None, amplitude: float = 0.
         powers = []
         for s in ts:
             x = s / T
-            tau, taud, taudd = 10 * x ** 3 - 15 * x ** 4 + 6 * x ** 5, (30 * x ** 2 - 60 * x ** 3 + 30 * x ** 4) / T, \
-                (60 * x - 180 * x ** 2 + 120 * x ** 3) / T ** 2
+            tau, taud, taudd = (
+                10 * x**3 - 15 * x**4 + 6 * x**5,
+                (30 * x**2 - 60 * x**3 + 30 * x**4) / T,
+                (60 * x - 180 * x**2 + 120 * x**3) / T**2,
+            )
             ph = 2 * math.pi * tau
             pos = np.array(home) + du * math.sin(ph) + dw * (1 - math.cos(ph))
             dpos = du * math.cos(ph) + dw * math.sin(ph)
@@ -326,9 +380,13 @@ def check(subject: _Subject, rho0: Optional[float] = None, amplitude: float = 0.
         h = T / samples
         work = h / 3 * (powers[0] + powers[-1] + 4 * powers[1:-1:2].sum() + 2 * powers[2:-1:2].sum())
         gross = np.abs(powers).sum() * h
-        out.append(Check("closed cycle", abs(work) <= 1e-5 * gross + 1e-9,
-                         f"net work {work:.3g} J around a joint-space loop from rest to rest "
-                         f"(gross {gross:.3g} J)"))
+        out.append(
+            Check(
+                "closed cycle",
+                abs(work) <= 1e-5 * gross + 1e-9,
+                f"net work {work:.3g} J around a joint-space loop from rest to rest (gross {gross:.3g} J)",
+            )
+        )
 
         # 6. the pose fits the controller's kinematic model
         ik, where = _controller_ik(subject.parameters)
@@ -338,9 +396,13 @@ def check(subject: _Subject, rho0: Optional[float] = None, amplitude: float = 0.
             rho = np.array(home) + rng.uniform(-amplitude, amplitude, n)
             pose = F(rho, zero, zero)[n:]
             worst = max(worst, np.abs(np.array(ik([pose[k] for k in coordinates])) - rho).max())
-        out.append(Check("controller kinematics", worst < 1e-9,
-                         f"the controller's inverse kinematics ({where}) maps the reported pose back to rho "
-                         f"to {worst:.2g} {u}"))
+        out.append(
+            Check(
+                "controller kinematics",
+                worst < 1e-9,
+                f"the controller's inverse kinematics ({where}) maps the reported pose back to rho to {worst:.2g} {u}",
+            )
+        )
     except Refused as err:
         out.append(Check("inside the workspace", False, f"a step near home was refused: {err}"))
         subject.close()
@@ -350,21 +412,26 @@ def check(subject: _Subject, rho0: Optional[float] = None, amplitude: float = 0.
     refusals = []
     far = list(home)
     far[1 % n] += 10.0
-    for label, inputs in (("unreachable rho", far + zero + zero),
-                          ("non-finite input", home + [math.nan] + zero[1:] + zero)):
+    for label, inputs in (
+        ("unreachable rho", far + zero + zero),
+        ("non-finite input", home + [math.nan] + zero[1:] + zero),
+    ):
         try:
             subject.start(home + zero + zero)
             y = subject.step(0.0, inputs)
             refusals.append(f"{label}: accepted, outputs {'finite' if all(map(math.isfinite, y)) else 'not finite'}")
         except Refused:
             refusals.append(f"{label}: refused")
-    out.append(Check("refuses what it cannot compute", all(r.endswith("refused") for r in refusals), "; ".join(refusals)))
+    out.append(
+        Check("refuses what it cannot compute", all(r.endswith("refused") for r in refusals), "; ".join(refusals))
+    )
     subject.close()
     return out
 
 
-def check_mechanism(target: Union[str, Path], parameters: Optional[Mapping] = None, isolate: bool = True,
-                    **kwargs) -> list[Check]:
+def check_mechanism(
+    target: Union[str, Path], parameters: Optional[Mapping] = None, isolate: bool = True, **kwargs
+) -> list[Check]:
     """Checks of an FMU file, or of this project's mechanism model with ``parameters``.
 
     An FMU runs in a child process (``isolate``): an FMU that crashes its host fails the check
@@ -376,13 +443,23 @@ def check_mechanism(target: Union[str, Path], parameters: Optional[Mapping] = No
         return check(BlockSubject(MechanismBlock, parameters), **kwargs)
     if isolate:  # the child's temporary files go to a folder removed here, even if the child crashes
         with tempfile.TemporaryDirectory(prefix="mast_check_") as tmp:
-            proc = subprocess.run([sys.executable, "-m", "mast.hosts.conformance", "--json", str(target)],
-                                  capture_output=True, text=True, timeout=600, env={**os.environ, "TMPDIR": tmp})
+            proc = subprocess.run(
+                [sys.executable, "-m", "mast.hosts.conformance", "--json", str(target)],
+                capture_output=True,
+                text=True,
+                timeout=600,
+                env={**os.environ, "TMPDIR": tmp},
+            )
         try:
             return [Check(**c) for c in json.loads(proc.stdout.strip().splitlines()[-1])]
         except (IndexError, ValueError, TypeError):
-            return [Check("runs in a host", False, f"the checking process ended with code {proc.returncode}: "
-                                                   f"{proc.stderr.strip()[-1000:]}")]
+            return [
+                Check(
+                    "runs in a host",
+                    False,
+                    f"the checking process ended with code {proc.returncode}: {proc.stderr.strip()[-1000:]}",
+                )
+            ]
     subject = FMUSubject(target)
     try:
         return check(subject, **kwargs)

@@ -29,6 +29,7 @@ By hand: ``mast hosts --show ecos`` prints the environment and the ecos command 
 component at every base step, which costs more than the simulation); from Python,
 ``import_ecospy()`` loads ecospy without ``LD_LIBRARY_PATH``.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -65,8 +66,10 @@ class HostUnavailable(HostError):
 def _libpython() -> Path:
     """The shared libpython a C/C++ host must preload for pythonfmu FMUs."""
     if not sysconfig.get_config_var("Py_ENABLE_SHARED"):
-        raise HostUnavailable(f"{sys.executable} is a Python built without --enable-shared: there is no libpython "
-                              "for a C/C++ host to preload, so pythonfmu FMUs cannot run in one")
+        raise HostUnavailable(
+            f"{sys.executable} is a Python built without --enable-shared: there is no libpython "
+            "for a C/C++ host to preload, so pythonfmu FMUs cannot run in one"
+        )
     libdir = Path(sysconfig.get_config_var("LIBDIR") or "")
     for name in (sysconfig.get_config_var("INSTSONAME"), sysconfig.get_config_var("LDLIBRARY")):
         if name and (libdir / name).exists():
@@ -156,8 +159,16 @@ def import_ecospy():
     return ecospy
 
 
-def ecos_command(ssp: Path, stop_time: float, signals: Sequence[str], sample_step: float, workdir: Path,
-                 base_step: Optional[float] = None, fmu_log: bool = False, executable: str = "ecos") -> list[str]:
+def ecos_command(
+    ssp: Path,
+    stop_time: float,
+    signals: Sequence[str],
+    sample_step: float,
+    workdir: Path,
+    base_step: Optional[float] = None,
+    fmu_log: bool = False,
+    executable: str = "ecos",
+) -> list[str]:
     """The ecos command line for ``ssp`` (its CSV configuration written to ``workdir/csv.xml``).
 
     The options that matter: ``--parameterSet default`` (ecos applies bindings only by name),
@@ -167,9 +178,20 @@ def ecos_command(ssp: Path, stop_time: float, signals: Sequence[str], sample_ste
     """
     base_step = base_step or _base_step(ssp)
     _write_ecos_csv_config(workdir / "csv.xml", signals, _decimation(sample_step, base_step))
-    command = [executable, "simulate", "--path", str(ssp), "--stepSize", repr(base_step),
-               "--stopTime", repr(stop_time + 0.5 * base_step),  # ecos truncates stop/step
-               "--parameterSet", FLAT_SET_NAME, "--csvConfig", str(workdir / "csv.xml")]
+    command = [
+        executable,
+        "simulate",
+        "--path",
+        str(ssp),
+        "--stepSize",
+        repr(base_step),
+        "--stopTime",
+        repr(stop_time + 0.5 * base_step),  # ecos truncates stop/step
+        "--parameterSet",
+        FLAT_SET_NAME,
+        "--csvConfig",
+        str(workdir / "csv.xml"),
+    ]
     return command + (["--debugLogging", "--logLevel", "debug"] if fmu_log else ["--logLevel", "warn"])
 
 
@@ -185,18 +207,28 @@ def show(host: str, ssp: Union[str, Path], stop_time: float, signals: Sequence[s
     if host == "ecos":
         binary = _package_dir("ecospy", "ecospy") / "binaries" / "ecos"
         lines.append(f"# ecos ships without the executable bit: cp {binary} . && chmod +x ecos")
-        lines.append(shlex.join(ecos_command(Path(ssp).resolve(), stop_time, signals, 1e-3, workdir,
-                                             executable="./ecos")))
+        lines.append(
+            shlex.join(ecos_command(Path(ssp).resolve(), stop_time, signals, 1e-3, workdir, executable="./ecos"))
+        )
     elif host == "ecospy":
         lines.append("# then `import ecospy` works; or, without the export, from mast.hosts.cosim import import_ecospy")
     return "\n".join(lines)
 
 
 # -- running ----------------------------------------------------------------------------
-def run_host(host: str, ssp: Union[str, Path], stop_time: float, signals: Sequence[str],
-             sample_step: float = 1e-3, timeout: float = 600.0, fmu_log: bool = False,
-             base_step: Optional[float] = None, python_free: bool = False,
-             worker_threads: Optional[int] = None, wrapper: Sequence[str] = ()) -> Result:
+def run_host(
+    host: str,
+    ssp: Union[str, Path],
+    stop_time: float,
+    signals: Sequence[str],
+    sample_step: float = 1e-3,
+    timeout: float = 600.0,
+    fmu_log: bool = False,
+    base_step: Optional[float] = None,
+    python_free: bool = False,
+    worker_threads: Optional[int] = None,
+    wrapper: Sequence[str] = (),
+) -> Result:
     """Run the built ``ssp`` in ``host`` until ``stop_time`` and return ``signals`` every ``sample_step``.
 
     ``signals`` are ``element.connector`` names (parameters too). Raises
@@ -230,14 +262,26 @@ def run_host(host: str, ssp: Union[str, Path], stop_time: float, signals: Sequen
         work = Path(tmp)
         out = work / "result.csv"
         if host == "ecos":
-            command = ecos_command(ssp, stop_time, signals, sample_step, work, base_step, fmu_log,
-                                   str(_ecos_binary(work)))
+            command = ecos_command(
+                ssp, stop_time, signals, sample_step, work, base_step, fmu_log, str(_ecos_binary(work))
+            )
             command = [*wrapper, *command]
             if python_free:
                 command = ["env", "-i", f"LD_LIBRARY_PATH={_tbb_dir()}", *command]
         else:
-            command = [sys.executable, "-m", "mast.hosts.cosim", host, str(ssp), "--stop-time", repr(stop_time),
-                       "--sample-step", repr(sample_step), "--out", str(out)]
+            command = [
+                sys.executable,
+                "-m",
+                "mast.hosts.cosim",
+                host,
+                str(ssp),
+                "--stop-time",
+                repr(stop_time),
+                "--sample-step",
+                repr(sample_step),
+                "--out",
+                str(out),
+            ]
             for s in signals:
                 command += ["--signal", s]
         env = _environment(host)
@@ -259,8 +303,12 @@ def run_host(host: str, ssp: Union[str, Path], stop_time: float, signals: Sequen
                 result = _read_ecos_csv(out, signals) if host == "ecos" else Result.read_csv(out)
             except ValueError:  # a line cut short: the host died while writing
                 result = None
-        if result is None or proc.returncode > 0 or not len(result.time) or \
-                result.time[-1] < stop_time - 0.5 * sample_step:  # ecos writes its CSV as it goes
+        if (
+            result is None
+            or proc.returncode > 0
+            or not len(result.time)
+            or result.time[-1] < stop_time - 0.5 * sample_step
+        ):  # ecos writes its CSV as it goes
             raise HostError(f"{host} failed on {ssp.name} ({_describe(proc.returncode)}):\n{_tail(log)}")
         result.stats["log"] = log
         threads = [line.split()[-1] for line in log.splitlines() if line.startswith(THREADS_LINE)]
@@ -288,11 +336,12 @@ def _concurrency_library() -> Path:
         target.parent.mkdir(parents=True, exist_ok=True)
         with tempfile.TemporaryDirectory(prefix="mast_concurrency_", dir=target.parent) as tmp:
             built = Path(tmp) / target.name
-            done = subprocess.run([compiler(), "-O2", "-shared", "-fPIC", "-o", str(built), str(source)],
-                                  capture_output=True, text=True)
+            done = subprocess.run(
+                [compiler(), "-O2", "-shared", "-fPIC", "-o", str(built), str(source)], capture_output=True, text=True
+            )
             if done.returncode != 0:
                 raise NativeBuildError(f"{source.name}: the C compiler failed:\n{done.stderr[-2000:]}")
-            os.replace(built, target)   # whole or absent for a concurrent process
+            os.replace(built, target)  # whole or absent for a concurrent process
     return target
 
 
@@ -332,7 +381,9 @@ def write_csv(result: Result, path: Path) -> None:
 # -- agreement with the project's master ------------------------------------------------------
 #: signals compared between a host and the project's master, with their unit
 COMPARED = {
-    "mechanism.z": "m", "mechanism.psi": "rad", "mechanism.theta": "rad",
+    "mechanism.z": "m",
+    "mechanism.psi": "rad",
+    "mechanism.theta": "rad",
     **{f"actuator_{k}.rho": "m" for k in (1, 2, 3)},
     **{f"actuator_{k}.i_m": "A" for k in (1, 2, 3)},
     **{f"mechanism.F_{k}": "N" for k in (1, 2, 3)},
@@ -356,15 +407,20 @@ TOLERANCES = {
 def deviations(host: Result, reference: Result, signals: Sequence[str]) -> dict[str, float]:
     """Largest |host - reference| of each signal over the samples both have (matched by time)."""
     index = np.searchsorted(reference.time, host.time - 1e-9)
-    ok = (index < len(reference.time))
+    ok = index < len(reference.time)
     ok[ok] &= np.abs(reference.time[index[ok]] - host.time[ok]) < 1e-9
     if not ok.any():
         raise ValueError("the host's samples and the reference's share no time")
     return {s: float(np.max(np.abs(host[s][ok] - reference[s][index[ok]]))) for s in signals}
 
 
-def cross_check(ssp: Union[str, Path], stop_time: float, hosts: Sequence[str] = HOSTS,
-                signals: Optional[Sequence[str]] = None, log=print) -> list[dict]:
+def cross_check(
+    ssp: Union[str, Path],
+    stop_time: float,
+    hosts: Sequence[str] = HOSTS,
+    signals: Optional[Sequence[str]] = None,
+    log=print,
+) -> list[dict]:
     """Run ``ssp`` in the project's master and in each host; one row per host (deviations, tolerances, times).
 
     A host that cannot run here gets a row with its reason and no deviations.
@@ -386,17 +442,24 @@ def cross_check(ssp: Union[str, Path], stop_time: float, hosts: Sequence[str] = 
             continue
         wall = time.perf_counter()
         result = run_host(host, ssp, stop_time, signals)
-        row = {"host": host, "wall_time_s": time.perf_counter() - wall,
-               "deviation": deviations(result, reference, signals)}
+        row = {
+            "host": host,
+            "wall_time_s": time.perf_counter() - wall,
+            "deviation": deviations(result, reference, signals),
+        }
         units = {s: COMPARED.get(s) for s in signals}
-        row["failed"] = [s for s, d in row["deviation"].items()
-                         if units[s] and not d <= TOLERANCES[host][units[s]]]
+        row["failed"] = [s for s, d in row["deviation"].items() if units[s] and not d <= TOLERANCES[host][units[s]]]
         rows.append(row)
-        log(f"{host}: {row['wall_time_s']:.1f} s; largest deviation by unit: " + ", ".join(
-            f"{max(d for s, d in row['deviation'].items() if units[s] == u):.2g} {u} (tolerance {t:g})"
-            for u, t in TOLERANCES[host].items() if any(units[s] == u for s in signals))
+        log(
+            f"{host}: {row['wall_time_s']:.1f} s; largest deviation by unit: "
+            + ", ".join(
+                f"{max(d for s, d in row['deviation'].items() if units[s] == u):.2g} {u} (tolerance {t:g})"
+                for u, t in TOLERANCES[host].items()
+                if any(units[s] == u for s in signals)
+            )
             + (f"; OUT OF TOLERANCE: {', '.join(row['failed'])}" if row["failed"] else "")
-            + (f"; {result.stats['exit_signal']} after the run" if "exit_signal" in result.stats else ""))
+            + (f"; {result.stats['exit_signal']} after the run" if "exit_signal" in result.stats else "")
+        )
     return rows
 
 
@@ -408,12 +471,18 @@ def _write_ecos_csv_config(path: Path, signals: Sequence[str], decimation: int) 
         if not element:
             raise ValueError(f"signal '{s}': expected element.connector")
         by_component.setdefault(element, []).append(connector)
-    lines = ['<?xml version="1.0" encoding="UTF-8"?>',
-             '<ecos:CsvConfig xmlns:ecos="http://github.com/Ecos-platform/libecos/resources/schema/CsvConfig" '
-             f'decimationFactor="{decimation}">', "  <ecos:components>"]
+    lines = [
+        '<?xml version="1.0" encoding="UTF-8"?>',
+        '<ecos:CsvConfig xmlns:ecos="http://github.com/Ecos-platform/libecos/resources/schema/CsvConfig" '
+        f'decimationFactor="{decimation}">',
+        "  <ecos:components>",
+    ]
     for element, connectors in by_component.items():
-        lines.append(f'    <ecos:component name="{element}">'
-                     + "".join(f'<ecos:variable name="{c}"/>' for c in connectors) + "</ecos:component>")
+        lines.append(
+            f'    <ecos:component name="{element}">'
+            + "".join(f'<ecos:variable name="{c}"/>' for c in connectors)
+            + "</ecos:component>"
+        )
     lines += ["  </ecos:components>", "</ecos:CsvConfig>", ""]
     path.write_text("\n".join(lines), encoding="utf-8")
 
@@ -427,16 +496,17 @@ def _read_ecos_csv(path: Path, signals: Sequence[str]) -> Result:
     missing = [s for s in signals if s not in columns]
     if missing:
         raise HostError(f"ecos: {path.name} has no column for {', '.join(missing)} (header: {', '.join(header)})")
-    return Result(table[:, columns["time"]].copy(), {s: table[:, columns[s]].copy() for s in signals},
-                  stats={"decimals": 6})
+    return Result(
+        table[:, columns["time"]].copy(), {s: table[:, columns[s]].copy() for s in signals}, stats={"decimals": 6}
+    )
 
 
 # -- the child processes ---------------------------------------------------------------------
 def _child_libcosim(ssp: Path, stop_time: float, signals: Sequence[str], sample_step: float) -> Result:
+    from libcosimpy._internal import get_last_error_message
     from libcosimpy.CosimExecution import CosimExecution
     from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
     from libcosimpy.CosimObserver import CosimObserver
-    from libcosimpy._internal import get_last_error_message
 
     log_output_level(CosimLogLevel.WARNING)
     try:
@@ -460,8 +530,9 @@ def _child_libcosim(ssp: Path, stop_time: float, signals: Sequence[str], sample_
     times, rows = [], []
     for _ in range(n_samples):
         if not execution.step(m):
-            raise HostError(f"libcosim: step failed at t={execution.status().current_time * 1e-9:.6g} s: "
-                            f"{get_last_error_message()}")
+            raise HostError(
+                f"libcosim: step failed at t={execution.status().current_time * 1e-9:.6g} s: {get_last_error_message()}"
+            )
         times.append(execution.status().current_time * 1e-9)
         rows.append([observer.last_real_values(index, [ref])[0] for index, ref in paths])
     data = np.array(rows).reshape(len(rows), len(paths))
@@ -498,8 +569,9 @@ def _child_ecospy(ssp: Path, stop_time: float, signals: Sequence[str], sample_st
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m mast.hosts.cosim",
-                                     description="run a built SSP in a third-party co-simulation host")
+    parser = argparse.ArgumentParser(
+        prog="python -m mast.hosts.cosim", description="run a built SSP in a third-party co-simulation host"
+    )
     parser.add_argument("host", choices=("libcosim", "ecospy"))
     parser.add_argument("ssp")
     parser.add_argument("--stop-time", type=float, required=True)

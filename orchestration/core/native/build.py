@@ -23,6 +23,7 @@ with a larger n_dof carries that chain too (``models.actuator_structures``), whi
 runs a larger one (``for_parameters``). Each native SSP carries FMUs built for its own bindings (their start
 values).
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -46,10 +47,21 @@ REPO = Path(__file__).resolve().parents[3]
 SUPPORT = REPO / "fmus" / "common" / "native"
 #: the runtime every native FMU carries (the FMI glue, the model interface, the scalar and matrix helpers, the
 #: direct kinematics); a kind of model adds its own (``models.RUNTIME``)
-SUPPORT_FILES = ("fmi2_wrapper.c", "mast_model.h", "mast_native.h", "mast_ranges.c", "mast_ranges.h",
-                 "mast_linalg.c", "mast_linalg.h", "mast_dk.c", "mast_dk.h")
+SUPPORT_FILES = (
+    "fmi2_wrapper.c",
+    "mast_model.h",
+    "mast_native.h",
+    "mast_ranges.c",
+    "mast_ranges.h",
+    "mast_linalg.c",
+    "mast_linalg.h",
+    "mast_dk.c",
+    "mast_dk.h",
+)
 #: what a native FMU was generated for (its parameter set), inside the archive
 GENERATED_FOR = "resources/mast_native.json"
+
+
 def read_variables(model_description: bytes) -> list[Variable]:
     """The ScalarVariables of a modelDescription.xml, in document order."""
     root = etree.fromstring(model_description)
@@ -58,14 +70,16 @@ def read_variables(model_description: bytes) -> list[Variable]:
         typed = next(iter(sv))
         start = typed.get("start")
         kind = typed.tag
-        value = {"Real": lambda s: float(s or 0.0), "Integer": lambda s: int(s or 0),
-                 "String": lambda s: s or ""}[kind](start)
+        value = {"Real": lambda s: float(s or 0.0), "Integer": lambda s: int(s or 0), "String": lambda s: s or ""}[
+            kind
+        ](start)
         out.append(Variable(sv.get("name"), int(sv.get("valueReference")), kind, sv.get("causality"), value))
     return out
 
 
-def native_sources(identifier: str, block_class: type, parameters: Mapping[str, object],
-                   model_description: bytes) -> tuple[dict[str, bytes], bytes]:
+def native_sources(
+    identifier: str, block_class: type, parameters: Mapping[str, object], model_description: bytes
+) -> tuple[dict[str, bytes], bytes]:
     """({file name: C source}, native modelDescription.xml) for the Python FMU's ``model_description``."""
     variables = read_variables(model_description)
     model_file = f"{identifier}_model.c"
@@ -92,8 +106,13 @@ def native_sources(identifier: str, block_class: type, parameters: Mapping[str, 
     return sources, xml
 
 
-def build_native_fmu(identifier: str, python_fmu: Path, out_dir: Path, parameters: Mapping[str, object],
-                     platforms: Sequence[str] = ("linux64",)) -> Path:
+def build_native_fmu(
+    identifier: str,
+    python_fmu: Path,
+    out_dir: Path,
+    parameters: Mapping[str, object],
+    platforms: Sequence[str] = ("linux64",),
+) -> Path:
     """The native form of the Python FMU ``python_fmu`` (model ``identifier``) with ``parameters``, into
     ``out_dir``. ``python_fmu``
     may also be a native FMU of the same model (its modelDescription is the Python one's). ``platforms``:
@@ -117,8 +136,10 @@ def build_native_fmu(identifier: str, python_fmu: Path, out_dir: Path, parameter
             zout.writestr("modelDescription.xml", xml)
             for name, library in libraries.items():
                 zout.write(library, name)
-            zout.writestr(GENERATED_FOR, json.dumps({"identifier": identifier, "parameters": dict(parameters)},
-                                                    indent=1, sort_keys=True))
+            zout.writestr(
+                GENERATED_FOR,
+                json.dumps({"identifier": identifier, "parameters": dict(parameters)}, indent=1, sort_keys=True),
+            )
             for name, data in sorted(sources.items()):
                 zout.writestr(f"sources/{name}", data)
         shutil.move(str(partial), target)
@@ -149,8 +170,13 @@ def _component_sets(ssd: Path) -> dict[str, tuple[str, dict]]:
     return out
 
 
-def build_native_all(out: Path, ssds: Sequence[Path], log=print, fmus: Optional[Sequence[str]] = None,
-                     platforms: Sequence[str] = ("linux64",)) -> list[Path]:
+def build_native_all(
+    out: Path,
+    ssds: Sequence[Path],
+    log=print,
+    fmus: Optional[Sequence[str]] = None,
+    platforms: Sequence[str] = ("linux64",),
+) -> list[Path]:
     """Native FMUs into ``out/fmus/native`` (each for its default parameter set; ``fmus``: only these
     identifiers, default every FMU with a native form) and, for every SSD whose components all have a
     native form, ``out/ssp/native/<name>.ssp`` binding native FMUs built for its own parameter sets.
@@ -174,7 +200,9 @@ def build_native_all(out: Path, ssds: Sequence[Path], log=print, fmus: Optional[
 
     for spec in FMUS:
         if has_native_form(spec.model_identifier) and (fmus is None or spec.model_identifier in fmus):
-            written.append(native(spec.model_identifier, default_parameters(spec.model_identifier), out / "fmus" / "native"))
+            written.append(
+                native(spec.model_identifier, default_parameters(spec.model_identifier), out / "fmus" / "native")
+            )
             log(f"built {written[-1]}")
     for ssd, comps in sets.items():
         missing = sorted({ident for ident, _ in comps.values() if not has_native_form(ident)})
@@ -184,8 +212,10 @@ def build_native_all(out: Path, ssds: Sequence[Path], log=print, fmus: Optional[
         by_source: dict[str, dict] = {}
         for comp, (ident, params) in comps.items():
             if by_source.setdefault(ident, params) != params:
-                raise NativeBuildError(f"{ssd}: the components using {ident}.fmu have different parameter sets; a "
-                                       "native FMU is built for one set (models.py), so this system has no native form")
+                raise NativeBuildError(
+                    f"{ssd}: the components using {ident}.fmu have different parameter sets; a "
+                    "native FMU is built for one set (models.py), so this system has no native form"
+                )
         with tempfile.TemporaryDirectory(prefix="mast_native_ssp_") as tmp:
             for ident, params in by_source.items():
                 native(ident, params, Path(tmp))
@@ -215,8 +245,9 @@ def for_parameters(fmu: Path, parameters: Mapping[str, object]) -> Path:
     and overrides over the FMU's own set) as they are (``models.to_generate``: an actuator's n_dof above the chains
     it carries, ``models.N_MAX``), the same model generated for them too (kept in ``cache_dir()``): how the
     project's master runs native FMUs with any parameter set."""
-    from ..build import block_class
     from fmus.common.parameters import ParameterError, validate
+
+    from ..build import block_class
 
     made = generated_for(fmu)
     if made is None:
@@ -225,18 +256,19 @@ def for_parameters(fmu: Path, parameters: Mapping[str, object]) -> Path:
     specs = block_class(ident).PARAMETERS
     try:
         wanted = validate(specs, {**made["parameters"], **parameters}, ident)
-    except ParameterError:   # the FMU names the bad value at initialisation, as every FMU does
+    except ParameterError:  # the FMU names the bad value at initialisation, as every FMU does
         return fmu
     own = validate(specs, made["parameters"], ident)
-    structure = to_generate(block_class(ident), own, wanted)    # the others are set at run time
+    structure = to_generate(block_class(ident), own, wanted)  # the others are set at run time
     if not structure:
         return fmu
     key = hashlib.sha256(json.dumps([ident, own, structure], sort_keys=True, default=str).encode())
-    for file in sorted([*(REPO / "fmus").rglob("*.py"), *(REPO / "fmus").rglob("*.[ch]"),
-                        *Path(__file__).parent.glob("*.py")]):   # the model and generator code
+    for file in sorted(
+        [*(REPO / "fmus").rglob("*.py"), *(REPO / "fmus").rglob("*.[ch]"), *Path(__file__).parent.glob("*.py")]
+    ):  # the model and generator code
         key.update(file.read_bytes())
     folder = cache_dir() / key.hexdigest()[:16]
     target = folder / f"{ident}.fmu"
     if not target.exists():
-        build_native_fmu(ident, fmu, folder, {**own, **structure})   # start values: the FMU's own
+        build_native_fmu(ident, fmu, folder, {**own, **structure})  # start values: the FMU's own
     return target

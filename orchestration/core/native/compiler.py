@@ -2,6 +2,7 @@
 
 Apart from ``build`` so that ``mast.core.build`` (the Python FMUs' C front) compiles with it without importing
 what builds native FMUs from the models."""
+
 from __future__ import annotations
 
 import os
@@ -12,9 +13,19 @@ import tempfile
 from pathlib import Path
 from typing import Mapping
 
-CFLAGS = ("-O2", "-ffp-contract=off", "-fPIC", "-shared", "-std=c99", "-D_POSIX_C_SOURCE=200809L",
-          "-Wall", "-Wno-unused-variable", "-Wno-unused-function", "-Wno-maybe-uninitialized", "-Wno-format-truncation")
-
+CFLAGS = (
+    "-O2",
+    "-ffp-contract=off",
+    "-fPIC",
+    "-shared",
+    "-std=c99",
+    "-D_POSIX_C_SOURCE=200809L",
+    "-Wall",
+    "-Wno-unused-variable",
+    "-Wno-unused-function",
+    "-Wno-maybe-uninitialized",
+    "-Wno-format-truncation",
+)
 
 
 class NativeBuildError(RuntimeError):
@@ -27,8 +38,9 @@ def compiler() -> str:
         found = shutil.which(name.split()[0])
         if found:
             return found
-    raise NativeBuildError("mast build --native needs a C compiler: none of $CC, cc, gcc is on PATH "
-                           "(install gcc or clang, or set CC)")
+    raise NativeBuildError(
+        "mast build --native needs a C compiler: none of $CC, cc, gcc is on PATH (install gcc or clang, or set CC)"
+    )
 
 
 def fmi_headers() -> Path:
@@ -45,8 +57,12 @@ def fmi_headers() -> Path:
 GLIBC_FLOOR = (2, 17)
 #: binaries/ folder -> (zig target, library suffix); "aarch64-linux" is FMI 3.0's name, which fmpy also reads
 #: for FMI 2.0 (FMI 2.0 names no ARM platform)
-PLATFORMS = {"linux64": ("x86_64-linux-gnu.2.17", ".so"), "aarch64-linux": ("aarch64-linux-gnu.2.17", ".so"),
-             "win64": ("x86_64-windows-gnu", ".dll"), "darwin64": ("x86_64-macos", ".dylib")}
+PLATFORMS = {
+    "linux64": ("x86_64-linux-gnu.2.17", ".so"),
+    "aarch64-linux": ("aarch64-linux-gnu.2.17", ".so"),
+    "win64": ("x86_64-windows-gnu", ".dll"),
+    "darwin64": ("x86_64-macos", ".dylib"),
+}
 
 
 def has_zig() -> bool:
@@ -79,9 +95,18 @@ def compile_shared(sources: Mapping[str, bytes], target: Path, platform: str = "
         for name, data in sources.items():
             (tmp / name).write_bytes(data)
         c_files = sorted(str(tmp / n) for n in sources if n.endswith(".c"))
-        cmd = [*cc, *CFLAGS, f"-I{fmi_headers()}", f"-I{tmp}", "-o", str(target), *c_files,
-               *(["-lm"] if platform != "win64" else [])]
+        cmd = [
+            *cc,
+            *CFLAGS,
+            f"-I{fmi_headers()}",
+            f"-I{tmp}",
+            "-o",
+            str(target),
+            *c_files,
+            *(["-lm"] if platform != "win64" else []),
+        ]
         done = subprocess.run(cmd, capture_output=True, text=True)
         if done.returncode != 0:
-            raise NativeBuildError(f"{target.name}: the C compiler failed ({' '.join(cmd[:2])} ...):\n"
-                                   f"{done.stderr.strip()[-4000:]}")
+            raise NativeBuildError(
+                f"{target.name}: the C compiler failed ({' '.join(cmd[:2])} ...):\n{done.stderr.strip()[-4000:]}"
+            )

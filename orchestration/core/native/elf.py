@@ -5,6 +5,7 @@ A library linked against glibc records, per needed library, the versions of the 
 library on a glibc older than the newest of them. ``objdump -T`` shows the same; this reads the ELF itself
 (64-bit, little-endian: x86_64 and aarch64), so the check needs no binutils.
 """
+
 from __future__ import annotations
 
 import struct
@@ -50,7 +51,7 @@ def glibc_versions(data: bytes) -> list[tuple[int, ...]]:
             for _ in range(n_aux):
                 _, _, _, name, after = struct.unpack_from("<IHHII", data, entry)
                 end = data.index(b"\0", strings + name)
-                text = data[strings + name:end].decode("ascii", "replace")
+                text = data[strings + name : end].decode("ascii", "replace")
                 if text.startswith("GLIBC_") and text[6:7].isdigit():
                     found.add(tuple(int(p) for p in text[6:].split(".")))
                 entry += after

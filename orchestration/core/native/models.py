@@ -58,6 +58,7 @@ times, transmission, geometry, the inverse model's bodies and its actuator const
 above the chains an actuator carries is refused there with a message naming it and ``N_MAX``; the project's
 master generates the model with that chain when it needs one (``to_generate``, ``build.for_parameters``).
 """
+
 from __future__ import annotations
 
 import math
@@ -69,8 +70,21 @@ from fmus.controller.tick import DK_FAILED, LAYOUT, MODEL_FAILED, SIZE, tick_sou
 
 from .translate import c_double, split_invariants, to_c
 
-__all__ = ["Variable", "emit_model", "emit_mechanism", "mechanism_model", "mechanism_variables", "mechanism_guess",
-           "c_string", "to_generate", "actuator_structures", "N_MAX", "RUNTIME", "runtime_files"]
+__all__ = [
+    "Variable",
+    "emit_model",
+    "emit_mechanism",
+    "mechanism_model",
+    "mechanism_variables",
+    "mechanism_guess",
+    "c_string",
+    "to_generate",
+    "actuator_structures",
+    "N_MAX",
+    "RUNTIME",
+    "runtime_files",
+]
+
 
 @dataclass(frozen=True)
 class Variable:
@@ -78,8 +92,8 @@ class Variable:
 
     name: str
     vr: int
-    type: str          # "Real", "Integer", "String"
-    causality: str     # "input", "output", "parameter"
+    type: str  # "Real", "Integer", "String"
+    causality: str  # "input", "output", "parameter"
     start: object
 
 
@@ -109,9 +123,21 @@ def _literal(text: str) -> str:
 # ----------------------------------------------------------------------------------- shared parts
 def _why_function(name: str, checks: Mapping[str, object], static: bool = True) -> str:
     """``const char *name(int check)``: the message of the traced check ``_check<N>`` (its c_message)."""
-    cases = [f"    case {int(k.replace('_check', ''))}: return {_literal(v.c_message)};" for k, v in sorted(checks.items())]
-    return "\n".join([f"{'static ' if static else ''}const char *{name}(int check)", "{", "    switch (check) {", *cases,
-                      "    default: return \"a check of the description failed\";", "    }", "}", ""])
+    cases = [
+        f"    case {int(k.replace('_check', ''))}: return {_literal(v.c_message)};" for k, v in sorted(checks.items())
+    ]
+    return "\n".join(
+        [
+            f"{'static ' if static else ''}const char *{name}(int check)",
+            "{",
+            "    switch (check) {",
+            *cases,
+            '    default: return "a check of the description failed";',
+            "    }",
+            "}",
+            "",
+        ]
+    )
 
 
 def _variable_table(variables: Sequence[Variable]) -> str:
@@ -126,31 +152,54 @@ def _variable_table(variables: Sequence[Variable]) -> str:
     return "static const mast_variable VARIABLES[] = {\n" + "\n".join(rows) + "\n};\n"
 
 
-def _check_function(params: Sequence[Param], vrs: Mapping[str, int], extra: Sequence[str] = (),
-                    model_check: bool = False) -> str:
+def _check_function(
+    params: Sequence[Param], vrs: Mapping[str, int], extra: Sequence[str] = (), model_check: bool = False
+) -> str:
     """``check``: the Python model's range checks (``Param.check``, the same messages) by the runtime's
     ``mast_check_ranges`` over a table of the parameters' ranges, then the C lines ``extra`` (the model's own
     checks across parameters); ``model_check``: then the model's own checks of the set (``model_check``, in the
     model's part of the file)."""
-    bound = lambda x: c_double(x) if math.isfinite(x) else ("INFINITY" if x > 0 else "-INFINITY")   # noqa: E731
-    rows = [f"    {{{_literal(spec.name)}, {vrs[spec.name]}, {int(spec.kind is int)}, {bound(spec.minimum)}, "
-            f"{bound(spec.maximum)}, {int(bool(spec.exclusive))}, {_literal(spec.expected())}}},"
-            for spec in params if spec.kind is not str]
-    lines = ["static const mast_range RANGES[] = {", *(rows or ['    {"", 0, 0, 0.0, 0.0, 0, ""},']), "};", "",
-             "static int check(const mast_parameters *p, char *msg, size_t size)", "{",
-             f"    if (mast_check_ranges(RANGES, {len(rows)}, p, msg, size)) return MAST_PARAMETER_ERROR;",
-             *extra, "    return model_check(p, msg, size);" if model_check else "    return MAST_OK;", "}", ""]
+    bound = lambda x: c_double(x) if math.isfinite(x) else ("INFINITY" if x > 0 else "-INFINITY")  # noqa: E731
+    rows = [
+        f"    {{{_literal(spec.name)}, {vrs[spec.name]}, {int(spec.kind is int)}, {bound(spec.minimum)}, "
+        f"{bound(spec.maximum)}, {int(bool(spec.exclusive))}, {_literal(spec.expected())}}},"
+        for spec in params
+        if spec.kind is not str
+    ]
+    lines = [
+        "static const mast_range RANGES[] = {",
+        *(rows or ['    {"", 0, 0, 0.0, 0.0, 0, ""},']),
+        "};",
+        "",
+        "static int check(const mast_parameters *p, char *msg, size_t size)",
+        "{",
+        f"    if (mast_check_ranges(RANGES, {len(rows)}, p, msg, size)) return MAST_PARAMETER_ERROR;",
+        *extra,
+        "    return model_check(p, msg, size);" if model_check else "    return MAST_OK;",
+        "}",
+        "",
+    ]
     prototype = ["static int model_check(const mast_parameters *p, char *msg, size_t size);", ""] if model_check else []
     return "\n".join(prototype + lines)
 
 
-def _model_struct(identifier: str, guid: str, variables: Sequence[Variable], n_inputs: int, n_io: int,
-                  feedthrough: bool, state: str = "State", functions: str = "") -> str:
+def _model_struct(
+    identifier: str,
+    guid: str,
+    variables: Sequence[Variable],
+    n_inputs: int,
+    n_io: int,
+    feedthrough: bool,
+    state: str = "State",
+    functions: str = "",
+) -> str:
     """MAST_MODEL: the model's table row; ``state``: its state's type, ``functions``: the prefix of its initialize
     and do_step (a runtime's, e.g. ``mast_mechanism_``)."""
-    return (f"const mast_model MAST_MODEL = {{{_literal(identifier)}, {_literal(guid)}, {len(variables)}, VARIABLES, "
-            f"{n_inputs}, {n_io}, sizeof({state}), check, {functions}initialize, {functions}do_step, "
-            f"{'evaluate' if feedthrough else 'NULL'}}};\n")
+    return (
+        f"const mast_model MAST_MODEL = {{{_literal(identifier)}, {_literal(guid)}, {len(variables)}, VARIABLES, "
+        f"{n_inputs}, {n_io}, sizeof({state}), check, {functions}initialize, {functions}do_step, "
+        f"{'evaluate' if feedthrough else 'NULL'}}};\n"
+    )
 
 
 _HEAD = """/* Generated by mast build --native from the {what} (mast.core.native.models): do not edit. */
@@ -160,8 +209,11 @@ _HEAD = """/* Generated by mast build --native from the {what} (mast.core.native
 {more}
 """
 #: the runtime files (fmus/common/native) a kind of model runs on besides those every model has (build.SUPPORT_FILES)
-RUNTIME = {"mechanism": ("mast_mechanism.c", "mast_mechanism.h"), "trajectory": ("mast_trajectory.c", "mast_trajectory.h"),
-           "actuator": ("mast_actuator.c", "mast_actuator.h")}
+RUNTIME = {
+    "mechanism": ("mast_mechanism.c", "mast_mechanism.h"),
+    "trajectory": ("mast_trajectory.c", "mast_trajectory.h"),
+    "actuator": ("mast_actuator.c", "mast_actuator.h"),
+}
 #: and a drive's (an actuator with its current loop: DriveActuatorBlock)
 DRIVE = ("mast_drive.c", "mast_drive.h")
 
@@ -236,10 +288,11 @@ def _actuator_variants(block) -> list[tuple[str, dict, bool]]:
     out = []
     for friction, (tau_c, tau_s) in (("none", (0.0, 0.0)), ("coulomb", (1.0, 0.0)), ("stribeck", (1.0, 1.0))):
         for ripple in (0.0, 1.0):
-            for backlash in ((0.0, 1e-3) if block.N == 2 else (0.0,)):
+            for backlash in (0.0, 1e-3) if block.N == 2 else (0.0,):
                 name = f"{friction}{'_ripple' if ripple else ''}{'_backlash' if backlash else ''}"
-                out.append((name, {"tau_c": tau_c, "tau_s": tau_s, "tau_ripple": ripple, "backlash": backlash},
-                            backlash > 0.0))
+                out.append(
+                    (name, {"tau_c": tau_c, "tau_s": tau_s, "tau_ripple": ripple, "backlash": backlash}, backlash > 0.0)
+                )
     return out
 
 
@@ -264,17 +317,20 @@ def _actuator(block, vrs: Mapping[str, int]) -> tuple[str, str]:
         ins = {n: g.input(n) for n in names}
         fc = am.friction_constants(ins, ins["b"], stribeck)
         friction_keys[kind] = list(fc)
-        fn = compile_function(f"friction_{kind}", names, [lift(g, v) for v in fc.values()], g,
-                              label=f"actuator {kind} friction")
+        fn = compile_function(
+            f"friction_{kind}", names, [lift(g, v) for v in fc.values()], g, label=f"actuator {kind} friction"
+        )
         code.append(to_c(fn.source, f"act_friction_{kind}", static=False))
     # --- the torque measurement and the substep rule (ActuatorBlock._substeps): the model's own functions
     limits = {"MAX_PHASE_PER_SUBSTEP": am.MAX_PHASE_PER_SUBSTEP, "BACKLASH_SUBSTEP": am.BACKLASH_SUBSTEP}
-    for fn, name, arrays, constants in ((sensor.filter_coefficients, "filter_coefficients", (), {}),
-                                        (sensor.delay_split, "delay_split", (), {}),
-                                        (sensor.relayout, "relayout", ("old", "line"), {}),
-                                        (sensor.measurement_step, "measurement_step", ("line",), {}),
-                                        (am.substep_rule, "substep_rule", (), limits),
-                                        (am.substeps_enough, "substeps_enough", (), {})):
+    for fn, name, arrays, constants in (
+        (sensor.filter_coefficients, "filter_coefficients", (), {}),
+        (sensor.delay_split, "delay_split", (), {}),
+        (sensor.relayout, "relayout", ("old", "line"), {}),
+        (sensor.measurement_step, "measurement_step", ("line",), {}),
+        (am.substep_rule, "substep_rule", (), limits),
+        (am.substeps_enough, "substeps_enough", (), {}),
+    ):
         code.append(to_c(inspect.getsource(fn), f"act_{name}", arrays=arrays, constants=constants, static=False))
     reals = [spec.name for spec in block.PARAMETERS if spec.kind is float]
     kernels, chains, sizes, shared = [], [], [], None
@@ -290,38 +346,71 @@ def _actuator(block, vrs: Mapping[str, int]) -> tuple[str, str]:
         chains.append(chain_row)
         sizes.append((2 * N + 1, nq, nh, 3 * N - 2))
     nx, nq, nh, lists = [max(s) for s in zip(*sizes)]
-    row = lambda items: ", ".join(str(v) for v in items)     # noqa: E731
+    row = lambda items: ", ".join(str(v) for v in items)  # noqa: E731
     tables = [
         "/* each kernel of every chain: its structure (friction 0 none, 1 Coulomb, 2 Stribeck; ripple; backlash), where",
         "   its friction numbers start in H (mast_actuator.h) */",
-        "const mast_actuator_kernel ACTUATOR_KERNELS[] = {", *(f"    {{{row(r)}}}," for r in kernels), "};",
+        "const mast_actuator_kernel ACTUATOR_KERNELS[] = {",
+        *(f"    {{{row(r)}}}," for r in kernels),
+        "};",
         "/* each chain: n_dof, its numbers, its kernels (first, count), the slots in Q of A, B, J, K, Ag, B3, bw, hb */",
-        "const mast_actuator_chain ACTUATOR_CHAINS[] = {", *(f"    {{{row(r)}}}," for r in chains), "};",
+        "const mast_actuator_chain ACTUATOR_CHAINS[] = {",
+        *(f"    {{{row(r)}}}," for r in chains),
+        "};",
         f"const int ACTUATOR_N_CHAINS = {len(chains)};",
-        f"const int ACTUATOR_REAL_VR[ACT_N_REALS] = {{{row(vrs[n] for n in reals)}}};   /* {', '.join(reals)} */", ""]
+        f"const int ACTUATOR_REAL_VR[ACT_N_REALS] = {{{row(vrs[n] for n in reals)}}};   /* {', '.join(reals)} */",
+        "",
+    ]
     drive = ("k_pc", "k_ic", "T_cur", "u_max") if "k_pc" in vrs else ()
-    config = "\n".join([
-        f"/* Generated by mast build --native for {block.name} (mast.core.native.models): the sizes of this actuator "
-        "and the value references its runtime reads (mast_actuator.h) */",
-        "#ifndef CONFIG_H", "#define CONFIG_H",
-        f"#define ACT_NX {nx}", f"#define ACT_NQ {nq}", f"#define ACT_NH {nh}", f"#define ACT_N_REALS {len(reals)}",
-        f"#define ACT_N_LISTS {max(1, lists)}", f"#define ACT_KEPT {DISCRETISATIONS_KEPT}",
-        f"#define ACT_SENSOR_SAMPLES {SENSOR_SAMPLES}", f"#define ACT_N_MAX {N_MAX}",
-        *(f"#define ACT_Q_{k.upper()} {i}" for k, i in shared.items()),
-        *(f"#define ACT_VR_{n.upper()} {vrs[n]}" for n in ("n_dof", "J_chain", "K_chain", "C_chain", "rho_min",
-                                                           "rho_max", "rho_0", "backlash", "T_meas", "delay_meas",
-                                                           "tau_offset", *drive)),
-        "#endif", ""])
+    config = "\n".join(
+        [
+            f"/* Generated by mast build --native for {block.name} (mast.core.native.models): the sizes of this actuator "
+            "and the value references its runtime reads (mast_actuator.h) */",
+            "#ifndef CONFIG_H",
+            "#define CONFIG_H",
+            f"#define ACT_NX {nx}",
+            f"#define ACT_NQ {nq}",
+            f"#define ACT_NH {nh}",
+            f"#define ACT_N_REALS {len(reals)}",
+            f"#define ACT_N_LISTS {max(1, lists)}",
+            f"#define ACT_KEPT {DISCRETISATIONS_KEPT}",
+            f"#define ACT_SENSOR_SAMPLES {SENSOR_SAMPLES}",
+            f"#define ACT_N_MAX {N_MAX}",
+            *(f"#define ACT_Q_{k.upper()} {i}" for k, i in shared.items()),
+            *(
+                f"#define ACT_VR_{n.upper()} {vrs[n]}"
+                for n in (
+                    "n_dof",
+                    "J_chain",
+                    "K_chain",
+                    "C_chain",
+                    "rho_min",
+                    "rho_max",
+                    "rho_0",
+                    "backlash",
+                    "T_meas",
+                    "delay_meas",
+                    "tau_offset",
+                    *drive,
+                )
+            ),
+            "#endif",
+            "",
+        ]
+    )
     if drive:
         from fmus.actuator.drive import current_gains, pi_step
 
-        code += [to_c(inspect.getsource(pi_step), "act_pi_step", static=False),
-                 to_c(inspect.getsource(current_gains), "act_current_gains", static=False)]
+        code += [
+            to_c(inspect.getsource(pi_step), "act_pi_step", static=False),
+            to_c(inspect.getsource(current_gains), "act_current_gains", static=False),
+        ]
     return "\n".join(code + tables), config
 
 
-def _actuator_chain(block, reals: Sequence[str], friction_keys: Mapping[str, list], first: int
-                    ) -> tuple[list[str], list[tuple], tuple, int, int]:
+def _actuator_chain(
+    block, reals: Sequence[str], friction_keys: Mapping[str, list], first: int
+) -> tuple[list[str], list[tuple], tuple, int, int]:
     """The generated part of the chain n_dof = ``block.N``, each from the model's own code:
 
     - ``constants_n<N>(reals, lists, Q)``: the parameters' numbers (``kernel_constants``, the state matrices A, B
@@ -342,8 +431,11 @@ def _actuator_chain(block, reals: Sequence[str], friction_keys: Mapping[str, lis
     # --- the parameters' numbers, traced through the model's relations
     g = Graph()
     traced = {**block.params, **{name: g.input(name) for name in reals}}
-    lists = {name: [g.input(f"{name}_{k}") for k in range(_chain_count(name, N))] for name in CHAIN_LISTS} \
-        if N >= 3 else None
+    lists = (
+        {name: [g.input(f"{name}_{k}") for k in range(_chain_count(name, N))] for name in CHAIN_LISTS}
+        if N >= 3
+        else None
+    )
     items = [e.value for values in (lists or {}).values() for e in values]
     J, K, C = am.chain(traced, lists)
     A, B, _ = am.state_matrices(traced, (J, K, C))
@@ -373,8 +465,9 @@ def _actuator_chain(block, reals: Sequence[str], friction_keys: Mapping[str, lis
             blocks = [("PC", (5, 5)), ("GC", (5, 3)), ("PG", (5, 5)), ("GG", (5, 3))]
             prefixes = ("FC_", "FG_")
         else:
-            source = am.kernel_source(vb, am.name_grid("P", (nx, nx)), am.name_grid("G", (nx, 2)), 1, named=True,
-                                       symbolic=True)
+            source = am.kernel_source(
+                vb, am.name_grid("P", (nx, nx)), am.name_grid("G", (nx, 2)), 1, named=True, symbolic=True
+            )
             blocks = [("P", (nx, nx)), ("G", (nx, 2))]
             prefixes = ("F_",)
         for prefix, shape in blocks:
@@ -384,14 +477,27 @@ def _actuator_chain(block, reals: Sequence[str], friction_keys: Mapping[str, lis
             friction_at.append(len(h_names))
             h_names += [prefix + k for k in (friction_keys[friction] if friction else [])]
         slots.update({n: ("H", k) for k, n in enumerate(h_names)})
-        code.append(to_c(_indexed(source, slots, ("H", "Q", "M_SUB")), f"kernel_n{N}_{name}",
-                         arrays=("values", "x", "H", "Q")))
+        code.append(
+            to_c(_indexed(source, slots, ("H", "Q", "M_SUB")), f"kernel_n{N}_{name}", arrays=("values", "x", "H", "Q"))
+        )
         ripple = int(chosen["tau_ripple"] > 0.0)
         rows.append((f"kernel_n{N}_{name}", fr_code[friction], ripple, int(backlash), friction_at[0], friction_at[-1]))
         sizes.append(len(h_names))
     keys = list(constants)
-    chain = (N, f"constants_n{N}", first, len(rows), offsets["A"], offsets["B"], offsets["J"], offsets["K"],
-             offsets["Ag"], offsets["B3"], keys.index("bw"), keys.index("hb") if N == 2 else -1)
+    chain = (
+        N,
+        f"constants_n{N}",
+        first,
+        len(rows),
+        offsets["A"],
+        offsets["B"],
+        offsets["J"],
+        offsets["K"],
+        offsets["Ag"],
+        offsets["B3"],
+        keys.index("bw"),
+        keys.index("hb") if N == 2 else -1,
+    )
     return code, rows, chain, len(outputs), max(sizes)
 
 
@@ -402,17 +508,27 @@ def _ikjac_c(eng, name: str, checks: Mapping[str, object]) -> str:
     ``name_m``, the same as mast_dk's ``mast_ikjac`` (its model: P)."""
     args = "".join(f", P[{k}]" for k in range(len(eng.parameters)))
     q = ", ".join(f"q{k}" for k in range(eng.n))
-    return "\n".join([to_c(eng._fn("ikjac").source, name, checks=checks),
-                      f"static int {name}_p(const double *P, {', '.join(f'double q{k}' for k in range(eng.n))}, double *out)",
-                      "{", "    (void)P;", f"    return {name}({q}{args}, out);", "}",
-                      f"static int {name}_m(const void *P, const double *q, double *out) {{ return {name}_p(P, "
-                      f"{', '.join(f'q[{k}]' for k in range(eng.n))}, out); }}", ""])
+    return "\n".join(
+        [
+            to_c(eng._fn("ikjac").source, name, checks=checks),
+            f"static int {name}_p(const double *P, {', '.join(f'double q{k}' for k in range(eng.n))}, double *out)",
+            "{",
+            "    (void)P;",
+            f"    return {name}({q}{args}, out);",
+            "}",
+            f"static int {name}_m(const void *P, const double *q, double *out) {{ return {name}_p(P, "
+            f"{', '.join(f'q[{k}]' for k in range(eng.n))}, out); }}",
+            "",
+        ]
+    )
 
 
 def _dk_call(eng, model: str, names: str, lengths: str, q: str, J: str, text: str) -> str:
     """C: mast_dk of the engine ``eng`` (``ikjac_m``, ``why``) for rho, from and into ``q``, J into ``J``."""
-    return (f"mast_dk(&(mast_dk_problem){{{eng.n}, ikjac_m, {model}, why, {names}, {lengths}, {c_double(eng.margin)}, "
-            f"{c_double(eng.cond_limit)}, 1e-12, 50}}, rho, {q}, {J}, {text})")
+    return (
+        f"mast_dk(&(mast_dk_problem){{{eng.n}, ikjac_m, {model}, why, {names}, {lengths}, {c_double(eng.margin)}, "
+        f"{c_double(eng.cond_limit)}, 1e-12, 50}}, rho, {q}, {J}, {text})"
+    )
 
 
 def _traced_parameters_c(vrs: Mapping[str, int]) -> str:
@@ -420,9 +536,18 @@ def _traced_parameters_c(vrs: Mapping[str, int]) -> str:
     the FMU does not have: a kinematic model's masses and g, ``PRS3.traced(masses=False)``)."""
     from fmus.mechanism.designs import TRACED_PARAMETERS
 
-    return "\n".join(["static void traced_parameters(const mast_parameters *p, double *P)", "{",
-                      *[f"    P[{k}] = {f'p->real[{vrs[n]}]' if n in vrs else '0.0'};   /* {n} */"
-                        for k, n in enumerate(TRACED_PARAMETERS)], "}", ""])
+    return "\n".join(
+        [
+            "static void traced_parameters(const mast_parameters *p, double *P)",
+            "{",
+            *[
+                f"    P[{k}] = {f'p->real[{vrs[n]}]' if n in vrs else '0.0'};   /* {n} */"
+                for k, n in enumerate(TRACED_PARAMETERS)
+            ],
+            "}",
+            "",
+        ]
+    )
 
 
 def _describe_checks_c(vrs: Mapping[str, int], payload: bool, why: str = "why", mechanism: bool = False) -> list[str]:
@@ -434,38 +559,53 @@ def _describe_checks_c(vrs: Mapping[str, int], payload: bool, why: str = "why", 
 
     P = {name: f"P[{k}]" for k, name in enumerate(TRACED_PARAMETERS)}
     params = ", ".join(f"P[{k}]" for k in range(len(TRACED_PARAMETERS)))
-    kind = f"p->string[{vrs['kinematics']}] ? p->string[{vrs['kinematics']}] : \"\""
+    kind = f'p->string[{vrs["kinematics"]}] ? p->string[{vrs["kinematics"]}] : ""'
     R = {n: f"mast_repr({P[n]}, {n.lower()}, sizeof {n.lower()})" for n in ("H", "r", "L", "beta")}
     lines = [
         f"    double P[{len(TRACED_PARAMETERS)}], out[12], inv[9], det;",
         "    char h[40], r[40], l[40], beta[40], a1[40], a2[40], a3[40];",
         "    traced_parameters(p, P);",
-        *(f"    if (strcmp({kind}, \"{name}\") == 0) {{ snprintf(msg, size, \"parameter 'kinematics' = '%s': this native "
-          f"FMU computes the 3PRS it was generated from\", {kind}); return MAST_PARAMETER_ERROR; }}"
-          for name in KINEMATICS if name != "3PRS"),
-        f"    if (strcmp({kind}, \"3PRS\") != 0) {{",
+        *(
+            f"    if (strcmp({kind}, \"{name}\") == 0) {{ snprintf(msg, size, \"parameter 'kinematics' = '%s': this native "
+            f'FMU computes the 3PRS it was generated from", {kind}); return MAST_PARAMETER_ERROR; }}'
+            for name in KINEMATICS
+            if name != "3PRS"
+        ),
+        f'    if (strcmp({kind}, "3PRS") != 0) {{',
         f"        snprintf(msg, size, \"parameter 'kinematics' = '%s': expected one of {', '.join(KINEMATICS)}\", {kind});",
-        "        return MAST_PARAMETER_ERROR;", "    }",
+        "        return MAST_PARAMETER_ERROR;",
+        "    }",
         f"    double cb = cos({P['beta']}), sb = sin({P['beta']});",
         f"    double z = level_height(0.0, 0.0, 0.0, {P['H']}, {P['r']}, {P['L']}, cb, sb);",
-        *(["    double K[MECH_NK_IKJAC], level[3] = {z, 0.0, 0.0};", "    mech_ikjac_invariants(P, K);",
-           "    int code = mech_ikjac(level, P, K, out);"] if mechanism else
-          ["    int code = ikjac(z, 0.0, 0.0, " + params + ", out);"]),
+        *(
+            [
+                "    double K[MECH_NK_IKJAC], level[3] = {z, 0.0, 0.0};",
+                "    mech_ikjac_invariants(P, K);",
+                "    int code = mech_ikjac(level, P, K, out);",
+            ]
+            if mechanism
+            else ["    int code = ikjac(z, 0.0, 0.0, " + params + ", out);"]
+        ),
         f"    if ({P['beta']} == 0.0) {{   /* kinematics.Geometry.checked */",
         f"        if (!({P['r']} < {P['H']})) {{",
         f"            snprintf(msg, size, \"parameter 'r' = %s: must be < H = %s m (working assembly: the spherical joints "
-        f"lie inside the guide radius)\", {R['r']}, {R['H']});",
-        "            return MAST_PARAMETER_ERROR;", "        }",
+        f'lie inside the guide radius)", {R["r"]}, {R["H"]});',
+        "            return MAST_PARAMETER_ERROR;",
+        "        }",
         f"        if (!({P['H']} - {P['r']} < {P['L']})) {{",
         f"            snprintf(msg, size, \"parameter 'L' = %s: must exceed H - r = %s m, or the legs cannot reach the "
-        f"platform\", {R['L']}, mast_repr({P['H']} - {P['r']}, h, sizeof h));",
-        "            return MAST_PARAMETER_ERROR;", "        }",
+        f'platform", {R["L"]}, mast_repr({P["H"]} - {P["r"]}, h, sizeof h));',
+        "            return MAST_PARAMETER_ERROR;",
+        "        }",
         "        if (code || !mast_inv(3, out + 3, inv, &det)) {",
         "            snprintf(msg, size, \"parameters 'alpha_1', 'alpha_2', 'alpha_3' = (%s, %s, %s) rad: the mechanism "
-        "cannot be assembled at the level pose: %s\", "
+        'cannot be assembled at the level pose: %s", '
         f"mast_repr({P['alpha_1']}, a1, sizeof a1), mast_repr({P['alpha_2']}, a2, sizeof a2), "
-        f"mast_repr({P['alpha_3']}, a3, sizeof a3), code ? {why}(-code) : \"singular configuration\");",
-        "            return MAST_PARAMETER_ERROR;", "        }", "    }"]
+        f'mast_repr({P["alpha_3"]}, a3, sizeof a3), code ? {why}(-code) : "singular configuration");',
+        "            return MAST_PARAMETER_ERROR;",
+        "        }",
+        "    }",
+    ]
     if payload:
         names = ("I_payload_xx", "I_payload_xy", "I_payload_xz", "I_payload_yy", "I_payload_yz", "I_payload_zz")
         I = [P[n] for n in names]
@@ -478,14 +618,18 @@ def _describe_checks_c(vrs: Mapping[str, int], payload: bool, why: str = "why", 
             "    for (int k = 0; k < 9; k++) any = any || tensor[k] != 0.0;",
             "    if (any && mast_sym3_min_eig(tensor) < -1e-12 * big) {",
             "        snprintf(msg, size, \"parameters 'I_payload_*': body payload: inertia tensor is not positive "
-            "semi-definite\");",
-            "        return MAST_PARAMETER_ERROR;", "    }"]
+            'semi-definite");',
+            "        return MAST_PARAMETER_ERROR;",
+            "    }",
+        ]
     lines += [
         f"    if ({P['beta']} != 0.0 && code) {{   /* designs._check_inclined */",
         "        snprintf(msg, size, \"parameters 'H', 'r', 'L', 'beta' = %s m, %s m, %s m, %s rad: the mechanism cannot be "
-        "assembled at the level pose with the sliders at the foot of their guides: %s\", "
+        'assembled at the level pose with the sliders at the foot of their guides: %s", '
         f"{R['H']}, {R['r']}, {R['L']}, {R['beta']}, {why}(-code));",
-        "        return MAST_PARAMETER_ERROR;", "    }"]
+        "        return MAST_PARAMETER_ERROR;",
+        "    }",
+    ]
     return lines
 
 
@@ -506,24 +650,44 @@ def _mechanism(block, vrs: Mapping[str, int]) -> tuple[str, str]:
     from fmus.mechanism.designs import TRACED_PARAMETERS, traced_engine
 
     eng = traced_engine(block.params, block.name)
-    if tuple(eng.parameters) != TRACED_PARAMETERS or len(eng.lengths) != 3 \
-            or eng.lengths != (1.0, block.params["r"], block.params["r"]):
-        raise ValueError(f"{block.name}: the native mechanism expects the 3PRS traced with {TRACED_PARAMETERS} and "
-                         "the coordinate lengths (1, r, r)")
+    if (
+        tuple(eng.parameters) != TRACED_PARAMETERS
+        or len(eng.lengths) != 3
+        or eng.lengths != (1.0, block.params["r"], block.params["r"])
+    ):
+        raise ValueError(
+            f"{block.name}: the native mechanism expects the 3PRS traced with {TRACED_PARAMETERS} and "
+            "the coordinate lengths (1, r, r)"
+        )
     r = TRACED_PARAMETERS.index("r")
     joints = ", ".join(f"r{k}" for k in range(eng.n))
     # PRS3.guess: the level pose for the mean slider position, its cosines from beta as PRS3 computes them
-    guess = (f"def guess({joints}, {', '.join(TRACED_PARAMETERS)}):\n"
-             f"    return (level_height({joints}, H, r, L, cos(beta), sin(beta)), 0.0, 0.0)\n")
-    model, config = mechanism_model(eng, [vrs.get(name, -1) for name in TRACED_PARAMETERS], (-1, r, r),
-                                    vrs["attached"], guess, block.INPUTS, [_level_height_c()])
-    return "\n".join([
-        model,
-        _traced_parameters_c(vrs),
-        "/* designs.describe's checks of a parameter set (after the ranges), with its messages */",
-        "static int model_check(const mast_parameters *p, char *msg, size_t size)", "{",
-        *_describe_checks_c(vrs, payload=True, why="mech_why", mechanism=True),
-        "    return MAST_OK;", "}", ""]), config
+    guess = (
+        f"def guess({joints}, {', '.join(TRACED_PARAMETERS)}):\n"
+        f"    return (level_height({joints}, H, r, L, cos(beta), sin(beta)), 0.0, 0.0)\n"
+    )
+    model, config = mechanism_model(
+        eng,
+        [vrs.get(name, -1) for name in TRACED_PARAMETERS],
+        (-1, r, r),
+        vrs["attached"],
+        guess,
+        block.INPUTS,
+        [_level_height_c()],
+    )
+    return "\n".join(
+        [
+            model,
+            _traced_parameters_c(vrs),
+            "/* designs.describe's checks of a parameter set (after the ranges), with its messages */",
+            "static int model_check(const mast_parameters *p, char *msg, size_t size)",
+            "{",
+            *_describe_checks_c(vrs, payload=True, why="mech_why", mechanism=True),
+            "    return MAST_OK;",
+            "}",
+            "",
+        ]
+    ), config
 
 
 def mechanism_guess(eng) -> str:
@@ -536,12 +700,14 @@ def mechanism_guess(eng) -> str:
     for rho in ([0.0] * n, [1.0] * n):
         try:
             poses.append(tuple(float(v) for v in d.guess(rho)))
-        except Exception as err:   # noqa: BLE001 (the description's own code: any failure means no constant guess)
+        except Exception as err:  # noqa: BLE001 (the description's own code: any failure means no constant guess)
             raise ValueError(f"{d.name}: its guess fails at rho = {rho}: {err}") from None
     if poses[0] != poses[1] or len(poses[0]) != n:
-        raise ValueError(f"{d.name}: its guess {poses[0]} at rho = 0 and {poses[1]} at rho = 1 m is not one pose of "
-                         f"{n} coordinates: the native mechanism takes a constant cold start (or one written as a "
-                         "generated function)")
+        raise ValueError(
+            f"{d.name}: its guess {poses[0]} at rho = 0 and {poses[1]} at rho = 1 m is not one pose of "
+            f"{n} coordinates: the native mechanism takes a constant cold start (or one written as a "
+            "generated function)"
+        )
     args = ", ".join([f"r{k}" for k in range(n)] + list(eng.parameters))
     return f"def guess({args}):\n    return ({', '.join(c_double(v) for v in poses[0])},)\n"
 
@@ -553,12 +719,21 @@ def mechanism_variables(n: int) -> list[Variable]:
 
     inputs = [f"{kind}_{k}" for kind in ("rho", "rho_dot", "rho_ddot") for k in range(1, n + 1)]
     outputs = [f"F_{k}" for k in range(1, n + 1)] + list(POSE)
-    return [Variable(name, vr, "Real", "input" if vr < len(inputs) else "output", 0.0)
-            for vr, name in enumerate(inputs + outputs)]
+    return [
+        Variable(name, vr, "Real", "input" if vr < len(inputs) else "output", 0.0)
+        for vr, name in enumerate(inputs + outputs)
+    ]
 
 
-def mechanism_model(eng, traced_vrs: Sequence[int], length_parameters: Sequence[int], attached_vr: int, guess: str,
-                    inputs: Sequence[str], support: Sequence[str] = ()) -> tuple[str, str]:
+def mechanism_model(
+    eng,
+    traced_vrs: Sequence[int],
+    length_parameters: Sequence[int],
+    attached_vr: int,
+    guess: str,
+    inputs: Sequence[str],
+    support: Sequence[str] = (),
+) -> tuple[str, str]:
     """The generated part of a native mechanism (mast_mechanism.h) for the engine ``eng`` of any description: its
     traced kernels (inverse kinematics with its Jacobian, dynamics, pose), each split into what the parameters
     alone fix (``split_invariants``: computed at initialisation, not at every step) and the rest, with a fixed
@@ -576,41 +751,77 @@ def mechanism_model(eng, traced_vrs: Sequence[int], length_parameters: Sequence[
     fns = {name: eng._fn(key) for name, key in (("ikjac", "ikjac"), ("dynamics", "forces"), ("pose", "pose"))}
     checks = {k: v for fn in fns.values() for k, v in fn.namespace.items() if k.startswith("_check")}
     q = [f"q{j}" for j in range(n)]
-    groups = {"q": q, "J": [f"J{j}{k}" for j in range(n) for k in range(n)], "rho_dot": [f"rd{k}" for k in range(n)],
-              "rho_ddot": [f"rdd{k}" for k in range(n)], "P": names}
+    groups = {
+        "q": q,
+        "J": [f"J{j}{k}" for j in range(n) for k in range(n)],
+        "rho_dot": [f"rd{k}" for k in range(n)],
+        "rho_ddot": [f"rdd{k}" for k in range(n)],
+        "P": names,
+    }
     code, sizes = [], {}
     for name, fn in fns.items():
         invariants, main, sizes[name] = split_invariants(fn.source, names)
-        code += [to_c(invariants, f"mech_{name}_invariants", packed={"P": names}, static=False),
-                 to_c(main, f"mech_{name}", arrays=("K",), checks=checks, static=False,
-                      packed={k: v for k, v in groups.items() if k in ("q", "P") or name == "dynamics"})]
+        code += [
+            to_c(invariants, f"mech_{name}_invariants", packed={"P": names}, static=False),
+            to_c(
+                main,
+                f"mech_{name}",
+                arrays=("K",),
+                checks=checks,
+                static=False,
+                packed={k: v for k, v in groups.items() if k in ("q", "P") or name == "dynamics"},
+            ),
+        ]
     args = list(inspect.signature(restarted_dk).parameters)
-    joints = args[:args.index("warm")]
+    joints = args[: args.index("warm")]
     packing = {"rho": joints} if joints != ["rho"] else {}
-    code += [to_c(inspect.getsource(restarted_dk), "mech_restarted_dk", arrays=("S", "out", *(() if packing else ("rho",))),
-                  calls={"dk": "mast_mechanism_dk"}, constants={"SINGULAR": SINGULAR}, packed=packing, static=False),
-             *support,
-             to_c(guess, "mech_guess", packed={"rho": [f"r{k}" for k in range(n)], "P": names}, static=False,
-                  values=("level_height",)),
-             _why_function("mech_why", checks, static=False)]
+    code += [
+        to_c(
+            inspect.getsource(restarted_dk),
+            "mech_restarted_dk",
+            arrays=("S", "out", *(() if packing else ("rho",))),
+            calls={"dk": "mast_mechanism_dk"},
+            constants={"SINGULAR": SINGULAR},
+            packed=packing,
+            static=False,
+        ),
+        *support,
+        to_c(
+            guess,
+            "mech_guess",
+            packed={"rho": [f"r{k}" for k in range(n)], "P": names},
+            static=False,
+            values=("level_height",),
+        ),
+        _why_function("mech_why", checks, static=False),
+    ]
     lengths = [c_double(v if k < 0 else 0.0) for v, k in zip(eng.lengths, length_parameters)]
-    row = lambda items: ", ".join(str(v) for v in items)     # noqa: E731
+    row = lambda items: ", ".join(str(v) for v in items)  # noqa: E731
     tables = [
         "/* the tables of this mechanism (mast_mechanism.h) */",
         f"const int MECH_TRACED_VR[MECH_NP] = {{{row(traced_vrs or [-1])}}};   /* {', '.join(names) or 'none'} */",
         f"const int MECH_LENGTH_PARAMETER[MECH_N] = {{{row(length_parameters)}}};",
         f"const double MECH_LENGTH_VALUE[MECH_N] = {{{row(lengths)}}};",
         f"const char *const MECH_COORDINATES[MECH_N] = {{{row(_literal(c) for c in eng.description.coordinates)}}};",
-        f"const char *const MECH_INPUT_NAMES[3 * MECH_N] = {{{row(_literal(i) for i in inputs)}}};", ""]
-    config = "\n".join([
-        f"/* Generated by mast build --native from the description {eng.description.name} "
-        "(mast.core.native.models): the sizes of this mechanism (mast_mechanism.h) */",
-        "#ifndef CONFIG_H", "#define CONFIG_H",
-        f"#define MECH_N {n}", f"#define MECH_NP {max(1, len(names))}",
-        *[f"#define MECH_NK_{name.upper()} {max(1, k)}" for name, k in sizes.items()],
-        f"#define MECH_ATTACHED_VR {attached_vr}",
-        f"#define MECH_MARGIN {c_double(eng.margin)}", f"#define MECH_COND_LIMIT {c_double(eng.cond_limit)}",
-        "#endif", ""])
+        f"const char *const MECH_INPUT_NAMES[3 * MECH_N] = {{{row(_literal(i) for i in inputs)}}};",
+        "",
+    ]
+    config = "\n".join(
+        [
+            f"/* Generated by mast build --native from the description {eng.description.name} "
+            "(mast.core.native.models): the sizes of this mechanism (mast_mechanism.h) */",
+            "#ifndef CONFIG_H",
+            "#define CONFIG_H",
+            f"#define MECH_N {n}",
+            f"#define MECH_NP {max(1, len(names))}",
+            *[f"#define MECH_NK_{name.upper()} {max(1, k)}" for name, k in sizes.items()],
+            f"#define MECH_ATTACHED_VR {attached_vr}",
+            f"#define MECH_MARGIN {c_double(eng.margin)}",
+            f"#define MECH_COND_LIMIT {c_double(eng.cond_limit)}",
+            "#endif",
+            "",
+        ]
+    )
     return "\n".join(code + tables), config
 
 
@@ -622,24 +833,41 @@ def _workspace_dk(block) -> str:
     eng = block.kinematics
     coordinates = ", ".join(_literal(n) for n in eng.description.coordinates)
     W, G, A = LAYOUT["warm"], LAYOUT["guess"], LAYOUT["model_args"]
-    return "\n".join([
-        f"static const char *const K_COORDINATES[] = {{{coordinates}}};", "",
-        "static int wsdk_eval(const double *rho, double *S, double *q, char *msg, size_t size)", "{",
-        "    double J[9];",
-        f"    if (S[{W}] == 1.0) {{ for (int k = 0; k < 3; k++) q[k] = S[{G} + k]; }} else guess(S, rho, q);",
-        f"    int code = {_dk_call(eng, 'S + ' + str(LAYOUT['P']), 'K_COORDINATES', 'LENGTHS(S)', 'q', 'J', 'msg, size')};",
-        "    if (code) return code;",
-        f"    for (int k = 0; k < 3; k++) S[{G} + k] = q[k];", f"    S[{W}] = 1.0;", "    return 0;", "}", "",
-        "static int wsdk(double r0, double r1, double r2, double *S, double *out)", "{",
-        "    double rho[3] = {r0, r1, r2};", "    char text[1024];",
-        "    return wsdk_eval(rho, S, out, text, sizeof text);", "}", "",
-        "static int dk_error(double *S, double t, char *msg, size_t size)", "{",
-        "    double q[3];", "    char text[1024], r0[40], r1[40], r2[40], ts[40];",
-        f"    wsdk_eval(S + {A}, S, q, text, sizeof text);",
-        "    snprintf(msg, size, \"direct kinematics of the measured joints rho = (%s, %s, %s) m failed at t = %s s: %s\", "
-        f"mast_repr(S[{A}], r0, sizeof r0), mast_repr(S[{A} + 1], r1, sizeof r1), mast_repr(S[{A} + 2], r2, sizeof r2), "
-        "mast_repr(t, ts, sizeof ts), text);",
-        "    return MAST_KINEMATICS_ERROR;", "}", ""])
+    return "\n".join(
+        [
+            f"static const char *const K_COORDINATES[] = {{{coordinates}}};",
+            "",
+            "static int wsdk_eval(const double *rho, double *S, double *q, char *msg, size_t size)",
+            "{",
+            "    double J[9];",
+            f"    if (S[{W}] == 1.0) {{ for (int k = 0; k < 3; k++) q[k] = S[{G} + k]; }} else guess(S, rho, q);",
+            f"    int code = {_dk_call(eng, 'S + ' + str(LAYOUT['P']), 'K_COORDINATES', 'LENGTHS(S)', 'q', 'J', 'msg, size')};",
+            "    if (code) return code;",
+            f"    for (int k = 0; k < 3; k++) S[{G} + k] = q[k];",
+            f"    S[{W}] = 1.0;",
+            "    return 0;",
+            "}",
+            "",
+            "static int wsdk(double r0, double r1, double r2, double *S, double *out)",
+            "{",
+            "    double rho[3] = {r0, r1, r2};",
+            "    char text[1024];",
+            "    return wsdk_eval(rho, S, out, text, sizeof text);",
+            "}",
+            "",
+            "static int dk_error(double *S, double t, char *msg, size_t size)",
+            "{",
+            "    double q[3];",
+            "    char text[1024], r0[40], r1[40], r2[40], ts[40];",
+            f"    wsdk_eval(S + {A}, S, q, text, sizeof text);",
+            '    snprintf(msg, size, "direct kinematics of the measured joints rho = (%s, %s, %s) m failed at t = %s s: %s", '
+            f"mast_repr(S[{A}], r0, sizeof r0), mast_repr(S[{A} + 1], r1, sizeof r1), mast_repr(S[{A} + 2], r2, sizeof r2), "
+            "mast_repr(t, ts, sizeof ts), text);",
+            "    return MAST_KINEMATICS_ERROR;",
+            "}",
+            "",
+        ]
+    )
 
 
 def _joint_controller(block, vrs: Mapping[str, int]) -> str:
@@ -650,27 +878,34 @@ def _joint_controller(block, vrs: Mapping[str, int]) -> str:
 
     if type(block) not in native_controllers():
         raise ValueError(f"{type(block).__name__} has no native form yet")
-    model = hasattr(block, "model")     # the feed-forward and computed-torque controllers' inverse model
+    model = hasattr(block, "model")  # the feed-forward and computed-torque controllers' inverse model
     cascade = type(block) is not native_controllers()[2]
     workspace = type(block) is native_controllers()[3]
 
     def P(name: str) -> str:
         return f"p->real[{vrs[name]}]"
 
-    laws = type(block).LAWS     # the laws' arithmetic the tick calls, translated from their own source
+    laws = type(block).LAWS  # the laws' arithmetic the tick calls, translated from their own source
     # the controller's own gains, by its own function (FeedForwardController, ComputedTorque, Workspace)
     own, own_call = None, ""
     if type(block) is native_controllers()[1]:
         from fmus.controller.feedforward import feedforward_gains as own
-        own_call = (f"    feedforward_gains({P('k_ff_v')}, {P('k_ff_tau')}, transmission_ratio({P('p')}, {P('i_r')}), "
-                    f"s->S + {LAYOUT['own']});")
+
+        own_call = (
+            f"    feedforward_gains({P('k_ff_v')}, {P('k_ff_tau')}, transmission_ratio({P('p')}, {P('i_r')}), "
+            f"s->S + {LAYOUT['own']});"
+        )
     elif not cascade:
         from fmus.controller.computed_torque import error_gains as own
+
         own_call = f"    error_gains({P('omega_n')}, {P('zeta')}, s->S + {LAYOUT['own']});"
     elif workspace:
         from fmus.controller.workspace import pose_gain as own
-        own_call = "\n".join(f"    s->S[{LAYOUT['own'] + k}] = pose_gain({P('k_v')}, {P(f'k_v_scale_{c}')});"
-                              for k, c in enumerate(block.COORDINATES))
+
+        own_call = "\n".join(
+            f"    s->S[{LAYOUT['own'] + k}] = pose_gain({P('k_v')}, {P(f'k_v_scale_{c}')});"
+            for k, c in enumerate(block.COORDINATES)
+        )
     # the kinematic model (and the inverse model's dynamics): the engine traced with the controller's
     # geometry (and bodies) as inputs, read at initialisation (designs.traced_engine)
     from fmus.mechanism.designs import TRACED_PARAMETERS, traced_engine
@@ -682,152 +917,251 @@ def _joint_controller(block, vrs: Mapping[str, int]) -> str:
     checks = {k: v for fn in fns for k, v in fn.namespace.items() if k.startswith("_check")}
     PO = LAYOUT["P"]
     args = ", ".join(f"S[{PO + k}]" for k in range(len(TRACED_PARAMETERS)))
-    start, laws_source, steps = tick_sources(type(block))     # pose mode only: the modes are no FMU variables
+    start, laws_source, steps = tick_sources(type(block))  # pose mode only: the modes are no FMU variables
     inputs = ", ".join(_literal(n) for n in block.INPUTS)
-    ratios = "".join(f"    if (ratio_check({_literal(name)}, {P(name)}, {P('T_cur')}, msg, size)) return MAST_PARAMETER_ERROR;\n"
-                     for name in ("T_pos", "T_vel"))
-    return "\n".join([
-        f"typedef struct {{ double S[{SIZE}]; double before[{SIZE}]; double evaluated; char text[1024]; }} State;",
-        "/* before: S before the laws of the tick evaluated; text: the message of a failed direct kinematics */", "",
-        f"#define LENGTHS(S) ((S) + {SIZE - 3})   /* Engine.lengths (1, r, r) [m]: the margins compare motions */", "",
-        _traced_parameters_c(vrs),
-        to_c(ik.source, "ik", checks=checks),
-        "static int ik_s(double *S, double q0, double q1, double q2, double *out)", "{",
-        f"    return ik(q0, q1, q2, {args}, out);", "}", "",
-        _ikjac_c(eng, "ikjac", checks),
-        "static int ikjac_s(double *S, double q0, double q1, double q2, double *out)", "{",
-        f"    return ikjac_p(S + {PO}, q0, q1, q2, out);", "}", "",
-        _level_height_c(),
-        "/* PRS3.guess: the level pose for the mean carriage position (the direct kinematics' cold start) */",
-        "static void guess(const double *S, const double *rho, double *out)", "{",
-        f"    out[0] = level_height(rho[0], rho[1], rho[2], S[{PO}], S[{PO + 1}], S[{PO + 2}], S[{LAYOUT['cb']}], "
-        f"S[{LAYOUT['sb']}]);",
-        "    out[1] = 0.0;", "    out[2] = 0.0;", "}", "",
-        _why_function("why", checks),
-        "/* DriveController._ratio: a loop's cycle time an integer multiple of T_cur */",
-        "static int ratio_check(const char *name, double T, double T_cur, char *msg, size_t size)", "{",
-        "    char a[40], b[40];",
-        "    double ratio = T / T_cur, n = nearbyint(ratio);",
-        "    if (n < 1.0 || fabs(ratio - n) > 1e-6 * n) {",
-        "        snprintf(msg, size, \"parameter '%s' = %s s must be an integer multiple of T_cur = %s s (ratio %.9g)\", "
-        "name, mast_repr(T, a, sizeof a), mast_repr(T_cur, b, sizeof b), ratio);",
-        "        return 1;", "    }", "    return 0;", "}", "",
-        "/* the controller's checks of its parameter set after the ranges (DriveController, designs.describe) */",
-        "static int model_check(const mast_parameters *p, char *msg, size_t size)", "{",
-        ratios + "\n".join(_describe_checks_c(vrs, payload=model)),
-        "    return MAST_OK;", "}", "",
-        to_c(inspect.getsource(pi_step), "pi_step"),
-        to_c(inspect.getsource(transmission_ratio), "transmission_ratio"),
-        to_c(inspect.getsource(cascade_gains), "cascade_gains"),
-        _inverse_model(eng, vrs) if model else "",
-        to_c(inspect.getsource(own), own.__name__) if own else "",
-        to_c(start, "start", arrays=("values", "S", "R"), calls=("ik_s",)),
-        _workspace_dk(block) if workspace else "",
-        *[to_c(inspect.getsource(law), law.__name__) for law in laws],
-        to_c(laws_source, "laws", arrays=("values", "S", "R", "CUR", "QM", "JK"),
-             calls=("ik_s", "pi_step", "rates", "currents", "wsdk", "ikjac_s"), values=[law.__name__ for law in laws]),
-        to_c(steps, "steps", arrays=("values", "S", "R", "CUR", "QM", "JK"), calls=("laws",)),
-        f"static const char *const INPUT_NAMES[] = {{{inputs}}};", "",
-        "static int input_error(const double *values, double t, char *msg, size_t size)", "{",
-        "    char v[40], w[40];",
-        "    for (int k = 0; k < 9; k++) {",
-        "        if (!isfinite(values[k])) {",
-        "            snprintf(msg, size, \"input '%s' = %s is not finite at t = %s s\", INPUT_NAMES[k], "
-        "mast_repr(values[k], v, sizeof v), mast_repr(t, w, sizeof w));",
-        "            return MAST_MODEL_ERROR;", "        }", "    }", "    return MAST_OK;", "}", "",
-        "static int ik_error(const double *values, double t, int check, char *msg, size_t size)", "{",
-        "    char a[40], b[40], c[40], d[40];",
-        "    snprintf(msg, size, \"inverse kinematics of the pose command z = %s m, psi = %s rad, theta = %s rad failed "
-        "at t = %s s: %s\", mast_repr(values[0], a, sizeof a), mast_repr(values[1], b, sizeof b), "
-        "mast_repr(values[2], c, sizeof c), mast_repr(t, d, sizeof d), why(check));",
-        "    return MAST_KINEMATICS_ERROR;", "}", "",
-        "static int initialize(void *state, double *values, const mast_parameters *p, double t0, char *msg, size_t size)",
-        "{", "    State *s = state;", "    double R[3];",
-        f"    for (int k = 0; k < {SIZE}; k++) s->S[k] = 0.0;",
-        "    s->evaluated = -1.0;",
-        f"    s->S[{LAYOUT['t0']}] = t0;",
-        "    /* the schedule, the transmission and the kinematic model from the parameters (checked by model_check) */",
-        f"    s->S[{LAYOUT['T_cur']}] = {P('T_cur')};", f"    s->S[{LAYOUT['T_pos']}] = {P('T_pos')};",
-        f"    s->S[{LAYOUT['N_pos']}] = nearbyint({P('T_pos')} / {P('T_cur')});",
-        f"    s->S[{LAYOUT['N_vel']}] = nearbyint({P('T_vel')} / {P('T_cur')});",
-        f"    s->S[{LAYOUT['i_R']}] = transmission_ratio({P('p')}, {P('i_r')});",
-        f"    traced_parameters(p, s->S + {PO});",
-        f"    s->S[{LAYOUT['cb']}] = cos(s->S[{PO + TRACED_PARAMETERS.index('beta')}]);",
-        f"    s->S[{LAYOUT['sb']}] = sin(s->S[{PO + TRACED_PARAMETERS.index('beta')}]);",
-        *([f"    s->S[{LAYOUT['attached']}] = p->integer[{vrs['attached']}];",
-           f"    model_constants(p, s->S + {LAYOUT['model']});"] if model else []),
-        f"    LENGTHS(s->S)[0] = 1.0; LENGTHS(s->S)[1] = s->S[{PO + 1}]; LENGTHS(s->S)[2] = s->S[{PO + 1}];",
-        "    /* the gains from the parameters, by the controller's own functions */",
-        *([f"    cascade_gains({P('k_v')}, {P('k_p')}, {P('k_i')}, {P('T_vel')}, "
-           f"transmission_ratio({P('p')}, {P('i_r')}), s->S + {LAYOUT['gains']});"] if cascade else []),
-        f"    s->S[{LAYOUT['gains'] + 3}] = {P('i_max')};",
-        *([own_call] if own_call else []),
-        "    if (input_error(values, t0, msg, size)) return MAST_MODEL_ERROR;",
-        "    int code = start(values, s->S, R);",
-        "    return code ? ik_error(values, t0, -code, msg, size) : MAST_OK;", "}", "",
-        "/* the message of the tick's failure code (DriveController._failed) */",
-        "static int tick_error(State *s, double *values, int code, char *msg, size_t size)", "{",
-        f"    double T = s->S[{LAYOUT['T_cur']}], t0 = s->S[{LAYOUT['t0']}];",
-        *([f"    if (code == {MODEL_FAILED}) return model_error(s->S, msg, size);"] if model else []),
-        *([f"    if (code == {DK_FAILED}) return dk_error(s->S, t0 + s->S[{LAYOUT['failed']}] * T, msg, size);"]
-          if workspace else []),
-        f"    return ik_error(values, t0 + s->S[{LAYOUT['failed']}] * T, -code, msg, size);", "}", "",
-        "/* DriveController._laws of tick n (the outputs too); 0, or an error code with msg */",
-        "static int run_laws(State *s, double *values, double n, char *msg, size_t size)", "{",
-        "    double R[3], CUR[3], QM[3], JK[12];",
-        "    int code = laws(values, s->S, R, CUR, QM, JK, n);",
-        "    return code ? tick_error(s, values, code, msg, size) : MAST_OK;", "}", "",
-        "/* DriveController.evaluate: the laws of the communication point's tick, once per tick */",
-        "static int evaluate(void *state, double *values, const mast_parameters *p, char *msg, size_t size)", "{",
-        "    State *s = state;", "    (void)p;",
-        f"    double n = s->S[{LAYOUT['n']}];",
-        "    if (s->evaluated == n) memcpy(s->S, s->before, sizeof s->S);",
-        "    else { memcpy(s->before, s->S, sizeof s->S); s->evaluated = n; }",
-        f"    double t = s->S[{LAYOUT['t0']}] + n * s->S[{LAYOUT['T_cur']}];",
-        "    double sum = 0.0;",
-        "    for (int k = 0; k < 9; k++) sum += values[k];",
-        "    if (sum - sum != 0.0 && input_error(values, t, msg, size)) return MAST_MODEL_ERROR;",
-        "    return run_laws(s, values, n, msg, size);", "}", "",
-        "static int do_step(void *state, double *values, const mast_parameters *p, double t, double h, char *msg, size_t size)",
-        "{", "    State *s = state;",
-        "    char a[40], b[40], c[40];",
-        f"    double T = s->S[{LAYOUT['T_cur']}];",
-        "    double m = nearbyint(h / T);",
-        f"    if (m < 1.0 || fabs(h - m * T) > 1e-6 * T) {{",
-        "        snprintf(msg, size, \"step size h = %s s is not a positive integer multiple of T_cur = %s s\", "
-        f"mast_repr(h, a, sizeof a), mast_repr(T, b, sizeof b));",
-        "        return MAST_MODEL_ERROR;", "    }",
-        f"    double n = s->S[{LAYOUT['n']}], t0 = s->S[{LAYOUT['t0']}];",
-        f"    if (fabs(t - (t0 + n * T)) > 0.5 * T) {{",
-        "        snprintf(msg, size, \"do_step at t = %s s, but tick %.0f belongs to t = %s s (steps must be contiguous "
-        f"from initialize)\", mast_repr(t, a, sizeof a), n, mast_repr(t0 + n * T, c, sizeof c));",
-        "        return MAST_MODEL_ERROR;", "    }",
-        "    int code;",
-        "    if (s->evaluated != n && (code = evaluate(s, values, p, msg, size))) return code;",
-        "    double R[3], CUR[3], QM[3], JK[12];",
-        "    if ((code = steps(values, s->S, R, CUR, QM, JK, n, m))) return tick_error(s, values, code, msg, size);",
-        f"    s->S[{LAYOUT['n']}] = n + m;",
-        "    return MAST_OK;", "}", ""])
+    ratios = "".join(
+        f"    if (ratio_check({_literal(name)}, {P(name)}, {P('T_cur')}, msg, size)) return MAST_PARAMETER_ERROR;\n"
+        for name in ("T_pos", "T_vel")
+    )
+    return "\n".join(
+        [
+            f"typedef struct {{ double S[{SIZE}]; double before[{SIZE}]; double evaluated; char text[1024]; }} State;",
+            "/* before: S before the laws of the tick evaluated; text: the message of a failed direct kinematics */",
+            "",
+            f"#define LENGTHS(S) ((S) + {SIZE - 3})   /* Engine.lengths (1, r, r) [m]: the margins compare motions */",
+            "",
+            _traced_parameters_c(vrs),
+            to_c(ik.source, "ik", checks=checks),
+            "static int ik_s(double *S, double q0, double q1, double q2, double *out)",
+            "{",
+            f"    return ik(q0, q1, q2, {args}, out);",
+            "}",
+            "",
+            _ikjac_c(eng, "ikjac", checks),
+            "static int ikjac_s(double *S, double q0, double q1, double q2, double *out)",
+            "{",
+            f"    return ikjac_p(S + {PO}, q0, q1, q2, out);",
+            "}",
+            "",
+            _level_height_c(),
+            "/* PRS3.guess: the level pose for the mean carriage position (the direct kinematics' cold start) */",
+            "static void guess(const double *S, const double *rho, double *out)",
+            "{",
+            f"    out[0] = level_height(rho[0], rho[1], rho[2], S[{PO}], S[{PO + 1}], S[{PO + 2}], S[{LAYOUT['cb']}], "
+            f"S[{LAYOUT['sb']}]);",
+            "    out[1] = 0.0;",
+            "    out[2] = 0.0;",
+            "}",
+            "",
+            _why_function("why", checks),
+            "/* DriveController._ratio: a loop's cycle time an integer multiple of T_cur */",
+            "static int ratio_check(const char *name, double T, double T_cur, char *msg, size_t size)",
+            "{",
+            "    char a[40], b[40];",
+            "    double ratio = T / T_cur, n = nearbyint(ratio);",
+            "    if (n < 1.0 || fabs(ratio - n) > 1e-6 * n) {",
+            "        snprintf(msg, size, \"parameter '%s' = %s s must be an integer multiple of T_cur = %s s (ratio %.9g)\", "
+            "name, mast_repr(T, a, sizeof a), mast_repr(T_cur, b, sizeof b), ratio);",
+            "        return 1;",
+            "    }",
+            "    return 0;",
+            "}",
+            "",
+            "/* the controller's checks of its parameter set after the ranges (DriveController, designs.describe) */",
+            "static int model_check(const mast_parameters *p, char *msg, size_t size)",
+            "{",
+            ratios + "\n".join(_describe_checks_c(vrs, payload=model)),
+            "    return MAST_OK;",
+            "}",
+            "",
+            to_c(inspect.getsource(pi_step), "pi_step"),
+            to_c(inspect.getsource(transmission_ratio), "transmission_ratio"),
+            to_c(inspect.getsource(cascade_gains), "cascade_gains"),
+            _inverse_model(eng, vrs) if model else "",
+            to_c(inspect.getsource(own), own.__name__) if own else "",
+            to_c(start, "start", arrays=("values", "S", "R"), calls=("ik_s",)),
+            _workspace_dk(block) if workspace else "",
+            *[to_c(inspect.getsource(law), law.__name__) for law in laws],
+            to_c(
+                laws_source,
+                "laws",
+                arrays=("values", "S", "R", "CUR", "QM", "JK"),
+                calls=("ik_s", "pi_step", "rates", "currents", "wsdk", "ikjac_s"),
+                values=[law.__name__ for law in laws],
+            ),
+            to_c(steps, "steps", arrays=("values", "S", "R", "CUR", "QM", "JK"), calls=("laws",)),
+            f"static const char *const INPUT_NAMES[] = {{{inputs}}};",
+            "",
+            "static int input_error(const double *values, double t, char *msg, size_t size)",
+            "{",
+            "    char v[40], w[40];",
+            "    for (int k = 0; k < 9; k++) {",
+            "        if (!isfinite(values[k])) {",
+            "            snprintf(msg, size, \"input '%s' = %s is not finite at t = %s s\", INPUT_NAMES[k], "
+            "mast_repr(values[k], v, sizeof v), mast_repr(t, w, sizeof w));",
+            "            return MAST_MODEL_ERROR;",
+            "        }",
+            "    }",
+            "    return MAST_OK;",
+            "}",
+            "",
+            "static int ik_error(const double *values, double t, int check, char *msg, size_t size)",
+            "{",
+            "    char a[40], b[40], c[40], d[40];",
+            '    snprintf(msg, size, "inverse kinematics of the pose command z = %s m, psi = %s rad, theta = %s rad failed '
+            'at t = %s s: %s", mast_repr(values[0], a, sizeof a), mast_repr(values[1], b, sizeof b), '
+            "mast_repr(values[2], c, sizeof c), mast_repr(t, d, sizeof d), why(check));",
+            "    return MAST_KINEMATICS_ERROR;",
+            "}",
+            "",
+            "static int initialize(void *state, double *values, const mast_parameters *p, double t0, char *msg, size_t size)",
+            "{",
+            "    State *s = state;",
+            "    double R[3];",
+            f"    for (int k = 0; k < {SIZE}; k++) s->S[k] = 0.0;",
+            "    s->evaluated = -1.0;",
+            f"    s->S[{LAYOUT['t0']}] = t0;",
+            "    /* the schedule, the transmission and the kinematic model from the parameters (checked by model_check) */",
+            f"    s->S[{LAYOUT['T_cur']}] = {P('T_cur')};",
+            f"    s->S[{LAYOUT['T_pos']}] = {P('T_pos')};",
+            f"    s->S[{LAYOUT['N_pos']}] = nearbyint({P('T_pos')} / {P('T_cur')});",
+            f"    s->S[{LAYOUT['N_vel']}] = nearbyint({P('T_vel')} / {P('T_cur')});",
+            f"    s->S[{LAYOUT['i_R']}] = transmission_ratio({P('p')}, {P('i_r')});",
+            f"    traced_parameters(p, s->S + {PO});",
+            f"    s->S[{LAYOUT['cb']}] = cos(s->S[{PO + TRACED_PARAMETERS.index('beta')}]);",
+            f"    s->S[{LAYOUT['sb']}] = sin(s->S[{PO + TRACED_PARAMETERS.index('beta')}]);",
+            *(
+                [
+                    f"    s->S[{LAYOUT['attached']}] = p->integer[{vrs['attached']}];",
+                    f"    model_constants(p, s->S + {LAYOUT['model']});",
+                ]
+                if model
+                else []
+            ),
+            f"    LENGTHS(s->S)[0] = 1.0; LENGTHS(s->S)[1] = s->S[{PO + 1}]; LENGTHS(s->S)[2] = s->S[{PO + 1}];",
+            "    /* the gains from the parameters, by the controller's own functions */",
+            *(
+                [
+                    f"    cascade_gains({P('k_v')}, {P('k_p')}, {P('k_i')}, {P('T_vel')}, "
+                    f"transmission_ratio({P('p')}, {P('i_r')}), s->S + {LAYOUT['gains']});"
+                ]
+                if cascade
+                else []
+            ),
+            f"    s->S[{LAYOUT['gains'] + 3}] = {P('i_max')};",
+            *([own_call] if own_call else []),
+            "    if (input_error(values, t0, msg, size)) return MAST_MODEL_ERROR;",
+            "    int code = start(values, s->S, R);",
+            "    return code ? ik_error(values, t0, -code, msg, size) : MAST_OK;",
+            "}",
+            "",
+            "/* the message of the tick's failure code (DriveController._failed) */",
+            "static int tick_error(State *s, double *values, int code, char *msg, size_t size)",
+            "{",
+            f"    double T = s->S[{LAYOUT['T_cur']}], t0 = s->S[{LAYOUT['t0']}];",
+            *([f"    if (code == {MODEL_FAILED}) return model_error(s->S, msg, size);"] if model else []),
+            *(
+                [f"    if (code == {DK_FAILED}) return dk_error(s->S, t0 + s->S[{LAYOUT['failed']}] * T, msg, size);"]
+                if workspace
+                else []
+            ),
+            f"    return ik_error(values, t0 + s->S[{LAYOUT['failed']}] * T, -code, msg, size);",
+            "}",
+            "",
+            "/* DriveController._laws of tick n (the outputs too); 0, or an error code with msg */",
+            "static int run_laws(State *s, double *values, double n, char *msg, size_t size)",
+            "{",
+            "    double R[3], CUR[3], QM[3], JK[12];",
+            "    int code = laws(values, s->S, R, CUR, QM, JK, n);",
+            "    return code ? tick_error(s, values, code, msg, size) : MAST_OK;",
+            "}",
+            "",
+            "/* DriveController.evaluate: the laws of the communication point's tick, once per tick */",
+            "static int evaluate(void *state, double *values, const mast_parameters *p, char *msg, size_t size)",
+            "{",
+            "    State *s = state;",
+            "    (void)p;",
+            f"    double n = s->S[{LAYOUT['n']}];",
+            "    if (s->evaluated == n) memcpy(s->S, s->before, sizeof s->S);",
+            "    else { memcpy(s->before, s->S, sizeof s->S); s->evaluated = n; }",
+            f"    double t = s->S[{LAYOUT['t0']}] + n * s->S[{LAYOUT['T_cur']}];",
+            "    double sum = 0.0;",
+            "    for (int k = 0; k < 9; k++) sum += values[k];",
+            "    if (sum - sum != 0.0 && input_error(values, t, msg, size)) return MAST_MODEL_ERROR;",
+            "    return run_laws(s, values, n, msg, size);",
+            "}",
+            "",
+            "static int do_step(void *state, double *values, const mast_parameters *p, double t, double h, char *msg, size_t size)",
+            "{",
+            "    State *s = state;",
+            "    char a[40], b[40], c[40];",
+            f"    double T = s->S[{LAYOUT['T_cur']}];",
+            "    double m = nearbyint(h / T);",
+            "    if (m < 1.0 || fabs(h - m * T) > 1e-6 * T) {",
+            '        snprintf(msg, size, "step size h = %s s is not a positive integer multiple of T_cur = %s s", '
+            "mast_repr(h, a, sizeof a), mast_repr(T, b, sizeof b));",
+            "        return MAST_MODEL_ERROR;",
+            "    }",
+            f"    double n = s->S[{LAYOUT['n']}], t0 = s->S[{LAYOUT['t0']}];",
+            "    if (fabs(t - (t0 + n * T)) > 0.5 * T) {",
+            '        snprintf(msg, size, "do_step at t = %s s, but tick %.0f belongs to t = %s s (steps must be contiguous '
+            'from initialize)", mast_repr(t, a, sizeof a), n, mast_repr(t0 + n * T, c, sizeof c));',
+            "        return MAST_MODEL_ERROR;",
+            "    }",
+            "    int code;",
+            "    if (s->evaluated != n && (code = evaluate(s, values, p, msg, size))) return code;",
+            "    double R[3], CUR[3], QM[3], JK[12];",
+            "    if ((code = steps(values, s->S, R, CUR, QM, JK, n, m))) return tick_error(s, values, code, msg, size);",
+            f"    s->S[{LAYOUT['n']}] = n + m;",
+            "    return MAST_OK;",
+            "}",
+            "",
+        ]
+    )
 
 
 def _model_constants_c(vrs: Mapping[str, int]) -> str:
     """``model_constants(p, out)``: the inverse model's actuator constants (``inverse_model.CONSTANTS``) from
     the parameters, by ``inverse_model.model_constants`` traced (``two_inertia``, ``transmission_ratio``)."""
-    from fmus.controller.inverse_model import CONSTANTS, model_constants
     from fmus.common.tracer import Graph, compile_function, lift
+    from fmus.controller.inverse_model import CONSTANTS, model_constants
 
     g = Graph()
-    names = ("J_motor", "J_gearbox", "J_coupling", "J_brake", "J1_scale", "J_guide", "M_load", "i_r", "p", "b_v",
-             "g_guide", "tau_c", "omega_c", "tau_s", "omega_s", "k_T")
+    names = (
+        "J_motor",
+        "J_gearbox",
+        "J_coupling",
+        "J_brake",
+        "J1_scale",
+        "J_guide",
+        "M_load",
+        "i_r",
+        "p",
+        "b_v",
+        "g_guide",
+        "tau_c",
+        "omega_c",
+        "tau_s",
+        "omega_s",
+        "k_T",
+    )
     constants = model_constants({n: g.input(n) for n in names})
     assert tuple(constants) == CONSTANTS
-    fn = compile_function("traced_model_constants", names, [lift(g, v) for v in constants.values()], g,
-                          label="inverse model constants")
+    fn = compile_function(
+        "traced_model_constants", names, [lift(g, v) for v in constants.values()], g, label="inverse model constants"
+    )
     args = ", ".join(f"p->real[{vrs[n]}]" for n in names)
-    return "\n".join([to_c(fn.source, "traced_model_constants"),
-                      "/* InverseModel's actuator constants (inverse_model.CONSTANTS) at initialisation */",
-                      "static void model_constants(const mast_parameters *p, double *out)", "{",
-                      f"    traced_model_constants({args}, out);", "}", ""])
+    return "\n".join(
+        [
+            to_c(fn.source, "traced_model_constants"),
+            "/* InverseModel's actuator constants (inverse_model.CONSTANTS) at initialisation */",
+            "static void model_constants(const mast_parameters *p, double *out)",
+            "{",
+            f"    traced_model_constants({args}, out);",
+            "}",
+            "",
+        ]
+    )
 
 
 def _inverse_model(eng, vrs: Mapping[str, int]) -> str:
@@ -852,47 +1186,76 @@ def _inverse_model(eng, vrs: Mapping[str, int]) -> str:
     dk = _dk_call(eng, f"S + {PO}", "M_COORDINATES", "LENGTHS(S)", "out", "out + 3", "s->text, sizeof s->text")
     coordinates = ", ".join(_literal(n) for n in eng.description.coordinates)
     checks = {k: v for k, v in eng._fn("forces").namespace.items() if k.startswith("_check")}
-    return "\n".join([
-        _model_constants_c(vrs),
-        to_c(eng._fn("forces").source, "forces", checks=checks),
-        to_c(inspect.getsource(rates), "rates"),
-        to_c(inspect.getsource(guide_friction), "guide_friction"),
-        to_c(inspect.getsource(motor_torque), "motor_torque", values=("guide_friction",)),
-        f"static const char *const M_COORDINATES[] = {{{coordinates}}};", "",
-        "/* mechanism.model.dk for the inverse model: one attempt from its last solution (warm), else from the",
-        "   description's guess; S: the instance's state (State's first member), out: q, then J = dq/drho */",
-        "static int dk(double *rho, double warm, double *S, double *out)", "{",
-        "    State *s = (State *)S;",
-        f"    if (warm == 1.0) {{ for (int k = 0; k < 3; k++) out[k] = S[{G} + k]; }} else guess(S, rho, out);",
-        f"    return {dk};", "}", "",
-        to_c(inspect.getsource(restarted_dk), "restarted_dk", arrays=("rho", "S", "out"), calls=("dk",),
-             constants={"SINGULAR": SINGULAR}),
-        "/* InverseModel.currents at a = (rho, rho_dot, rho_ddot); 0, or an error code with msg */",
-        "static int model_eval(const double *a, double *S, double *out, char *msg, size_t size)", "{",
-        "    double qJ[12], *q = qJ, *J = qJ + 3, F[12] = {0.0, 0.0, 0.0};",
-        f"    if (S[{LAYOUT['attached']}] != 0.0) {{",
-        f"        int code = restarted_dk((double *)a, S[{W}], S, qJ);   /* rho: a[0..2] */",
-        "        if (code) {", "            snprintf(msg, size, \"%s\", ((State *)S)->text);", "            return code;",
-        "        }",
-        "        code = forces(q[0], q[1], q[2], J[0], J[1], J[2], J[3], J[4], J[5], J[6], J[7], J[8], "
-        f"a[3], a[4], a[5], a[6], a[7], a[8], {params}, F);",
-        "        if (code) {", "            snprintf(msg, size, \"%s\", why(-code));",
-        "            return MAST_KINEMATICS_ERROR;", "        }",
-        f"        for (int k = 0; k < 3; k++) S[{G} + k] = q[k];", f"        S[{W}] = 1.0;", "    }",
-        f"    for (int j = 0; j < 3; j++) out[j] = motor_torque(a[3 + j], a[6 + j], F[j], {torque}) / "
-        f"S[{MC + CONSTANTS.index('k_T')}];",
-        "    return 0;", "}", "",
-        "static int currents(double r0, double r1, double r2, double v0, double v1, double v2, double a0, double a1, "
-        "double a2, double *S, double *out)", "{",
-        "    double a[9] = {r0, r1, r2, v0, v1, v2, a0, a1, a2};", "    char text[1024];",
-        "    return model_eval(a, S, out, text, sizeof text);", "}", "",
-        "static int model_error(double *S, char *msg, size_t size)", "{",
-        "    double out[3], a[9];", "    char text[1024], r0[40], r1[40], r2[40];",
-        f"    for (int k = 0; k < 9; k++) a[k] = S[{A} + k];",
-        "    model_eval(a, S, out, text, sizeof text);",
-        "    snprintf(msg, size, \"inverse dynamic model at rho = (%s, %s, %s) m: %s\", mast_repr(a[0], r0, sizeof r0), "
-        "mast_repr(a[1], r1, sizeof r1), mast_repr(a[2], r2, sizeof r2), text);",
-        "    return MAST_KINEMATICS_ERROR;", "}", ""])
+    return "\n".join(
+        [
+            _model_constants_c(vrs),
+            to_c(eng._fn("forces").source, "forces", checks=checks),
+            to_c(inspect.getsource(rates), "rates"),
+            to_c(inspect.getsource(guide_friction), "guide_friction"),
+            to_c(inspect.getsource(motor_torque), "motor_torque", values=("guide_friction",)),
+            f"static const char *const M_COORDINATES[] = {{{coordinates}}};",
+            "",
+            "/* mechanism.model.dk for the inverse model: one attempt from its last solution (warm), else from the",
+            "   description's guess; S: the instance's state (State's first member), out: q, then J = dq/drho */",
+            "static int dk(double *rho, double warm, double *S, double *out)",
+            "{",
+            "    State *s = (State *)S;",
+            f"    if (warm == 1.0) {{ for (int k = 0; k < 3; k++) out[k] = S[{G} + k]; }} else guess(S, rho, out);",
+            f"    return {dk};",
+            "}",
+            "",
+            to_c(
+                inspect.getsource(restarted_dk),
+                "restarted_dk",
+                arrays=("rho", "S", "out"),
+                calls=("dk",),
+                constants={"SINGULAR": SINGULAR},
+            ),
+            "/* InverseModel.currents at a = (rho, rho_dot, rho_ddot); 0, or an error code with msg */",
+            "static int model_eval(const double *a, double *S, double *out, char *msg, size_t size)",
+            "{",
+            "    double qJ[12], *q = qJ, *J = qJ + 3, F[12] = {0.0, 0.0, 0.0};",
+            f"    if (S[{LAYOUT['attached']}] != 0.0) {{",
+            f"        int code = restarted_dk((double *)a, S[{W}], S, qJ);   /* rho: a[0..2] */",
+            "        if (code) {",
+            '            snprintf(msg, size, "%s", ((State *)S)->text);',
+            "            return code;",
+            "        }",
+            "        code = forces(q[0], q[1], q[2], J[0], J[1], J[2], J[3], J[4], J[5], J[6], J[7], J[8], "
+            f"a[3], a[4], a[5], a[6], a[7], a[8], {params}, F);",
+            "        if (code) {",
+            '            snprintf(msg, size, "%s", why(-code));',
+            "            return MAST_KINEMATICS_ERROR;",
+            "        }",
+            f"        for (int k = 0; k < 3; k++) S[{G} + k] = q[k];",
+            f"        S[{W}] = 1.0;",
+            "    }",
+            f"    for (int j = 0; j < 3; j++) out[j] = motor_torque(a[3 + j], a[6 + j], F[j], {torque}) / "
+            f"S[{MC + CONSTANTS.index('k_T')}];",
+            "    return 0;",
+            "}",
+            "",
+            "static int currents(double r0, double r1, double r2, double v0, double v1, double v2, double a0, double a1, "
+            "double a2, double *S, double *out)",
+            "{",
+            "    double a[9] = {r0, r1, r2, v0, v1, v2, a0, a1, a2};",
+            "    char text[1024];",
+            "    return model_eval(a, S, out, text, sizeof text);",
+            "}",
+            "",
+            "static int model_error(double *S, char *msg, size_t size)",
+            "{",
+            "    double out[3], a[9];",
+            "    char text[1024], r0[40], r1[40], r2[40];",
+            f"    for (int k = 0; k < 9; k++) a[k] = S[{A} + k];",
+            "    model_eval(a, S, out, text, sizeof text);",
+            '    snprintf(msg, size, "inverse dynamic model at rho = (%s, %s, %s) m: %s", mast_repr(a[0], r0, sizeof r0), '
+            "mast_repr(a[1], r1, sizeof r1), mast_repr(a[2], r2, sizeof r2), text);",
+            "    return MAST_KINEMATICS_ERROR;",
+            "}",
+            "",
+        ]
+    )
 
 
 def native_kind(block_class: type) -> Optional[str]:
@@ -903,8 +1266,12 @@ def native_kind(block_class: type) -> Optional[str]:
     from fmus.mechanism.model import MechanismBlock
     from fmus.trajectory.model import TrajectoryBlock
 
-    for kind, classes in (("actuator", (ActuatorBlock, DriveActuatorBlock)), ("mechanism", (MechanismBlock,)),
-                          ("trajectory", (TrajectoryBlock,)), ("controller", native_controllers())):
+    for kind, classes in (
+        ("actuator", (ActuatorBlock, DriveActuatorBlock)),
+        ("mechanism", (MechanismBlock,)),
+        ("trajectory", (TrajectoryBlock,)),
+        ("controller", native_controllers()),
+    ):
         if block_class in classes or (kind != "controller" and issubclass(block_class, classes)):
             return kind
     return None
@@ -925,12 +1292,16 @@ def _trajectory(block, vrs: Mapping[str, int]) -> str:
     """TrajectoryBlock's tables (mast_trajectory.h): per output <c>_cmd, the value references of <c>_home and
     amplitude_<c>; the frequency's."""
     coordinates = [name.removesuffix("_cmd") for name in block.OUTPUTS]
-    row = lambda items: ", ".join(str(v) for v in items)     # noqa: E731
-    return "\n".join([
-        f"const int TRAJECTORY_N = {len(coordinates)};   /* {', '.join(block.OUTPUTS)} */",
-        f"const int TRAJECTORY_HOME_VR[] = {{{row(vrs[f'{c}_home'] for c in coordinates)}}};",
-        f"const int TRAJECTORY_AMPLITUDE_VR[] = {{{row(vrs[f'amplitude_{c}'] for c in coordinates)}}};",
-        f"const int TRAJECTORY_FREQUENCY_VR = {vrs['frequency']};", ""])
+    row = lambda items: ", ".join(str(v) for v in items)  # noqa: E731
+    return "\n".join(
+        [
+            f"const int TRAJECTORY_N = {len(coordinates)};   /* {', '.join(block.OUTPUTS)} */",
+            f"const int TRAJECTORY_HOME_VR[] = {{{row(vrs[f'{c}_home'] for c in coordinates)}}};",
+            f"const int TRAJECTORY_AMPLITUDE_VR[] = {{{row(vrs[f'amplitude_{c}'] for c in coordinates)}}};",
+            f"const int TRAJECTORY_FREQUENCY_VR = {vrs['frequency']};",
+            "",
+        ]
+    )
 
 
 # ----------------------------------------------------------------------------------- entry point
@@ -943,8 +1314,9 @@ def to_generate(block_class: type, generated: Mapping[str, object], wanted: Mapp
     return {}
 
 
-def emit_model(identifier: str, guid: str, block_class: type, parameters: Mapping[str, object],
-               variables: Sequence[Variable]) -> dict[str, str]:
+def emit_model(
+    identifier: str, guid: str, block_class: type, parameters: Mapping[str, object], variables: Sequence[Variable]
+) -> dict[str, str]:
     """The generated C files of the FMU ``identifier`` (its modelDescription ``variables``), from ``block_class``
     built with ``parameters``: ``<identifier>_model.c`` (the kernels and tables), and a mechanism's ``config.h``
     (its sizes); the runtime they run on: ``RUNTIME``."""
@@ -952,17 +1324,21 @@ def emit_model(identifier: str, guid: str, block_class: type, parameters: Mappin
     n_inputs, n_io = len(block_class.INPUTS), len(block_class.INPUTS) + len(block_class.OUTPUTS)
     expected = list(block_class.INPUTS + block_class.OUTPUTS) + [p.name for p in block_class.PARAMETERS]
     if [v.name for v in variables] != expected or [v.vr for v in variables] != list(range(len(variables))):
-        raise ValueError(f"{identifier}: the modelDescription's variables are not the block's inputs, outputs and "
-                         "parameters in value-reference order")
+        raise ValueError(
+            f"{identifier}: the modelDescription's variables are not the block's inputs, outputs and "
+            "parameters in value-reference order"
+        )
     block = block_class(dict(parameters), name=identifier)
     # parameter starts: the exact values (the XML prints 16 digits; the Python FMU starts from parameters.json)
-    variables = [Variable(v.name, v.vr, v.type, v.causality, block.params[v.name]) if v.causality == "parameter"
-                 else v for v in variables]
+    variables = [
+        Variable(v.name, v.vr, v.type, v.causality, block.params[v.name]) if v.causality == "parameter" else v
+        for v in variables
+    ]
     kind = native_kind(block_class)
     extra: list[str] = []
     files, more, state, functions = {}, "", "State", ""
     if kind == "actuator":
-        axis = getattr(block, "axis", block)         # DriveActuatorBlock: the axis behind its current loop
+        axis = getattr(block, "axis", block)  # DriveActuatorBlock: the axis behind its current loop
         body, files["config.h"] = _actuator(axis, vrs)
         extra = ["    if (mast_actuator_check(p, msg, size)) return MAST_PARAMETER_ERROR;"]
         runtime = "drive" if axis is not block else "actuator"
@@ -977,12 +1353,18 @@ def emit_model(identifier: str, guid: str, block_class: type, parameters: Mappin
         more, state, functions = '#include "mast_trajectory.h"\n', "mast_trajectory_state", "mast_trajectory_"
     else:
         raise ValueError(f"{identifier}: {block_class.__name__} has no native form yet")
-    files[f"{identifier}_model.c"] = "".join([
-        _HEAD.format(what=f"{block_class.__module__}.{block_class.__name__}", more=more),
-        _variable_table(variables), "\n",
-        _check_function(block_class.PARAMETERS, vrs, extra, kind in ("mechanism", "controller")),
-        "\n", body, "\n",
-        _model_struct(identifier, guid, variables, n_inputs, n_io, bool(block_class.FEEDTHROUGH), state, functions)])
+    files[f"{identifier}_model.c"] = "".join(
+        [
+            _HEAD.format(what=f"{block_class.__module__}.{block_class.__name__}", more=more),
+            _variable_table(variables),
+            "\n",
+            _check_function(block_class.PARAMETERS, vrs, extra, kind in ("mechanism", "controller")),
+            "\n",
+            body,
+            "\n",
+            _model_struct(identifier, guid, variables, n_inputs, n_io, bool(block_class.FEEDTHROUGH), state, functions),
+        ]
+    )
     return files
 
 
@@ -991,13 +1373,34 @@ def emit_mechanism(identifier: str, guid: str, eng) -> dict[str, str]:
     numbers as constants (no parameters; ``mechanism_variables`` its variables): ``<identifier>_model.c`` and
     ``config.h`` (``mechanism_model``, with the description's constant cold start, ``mechanism_guess``)."""
     if eng.parameters:
-        raise ValueError(f"{identifier}: {eng.description.name} is traced with parameters {eng.parameters}: a "
-                         "mechanism with parameters is generated from its block (emit_model)")
+        raise ValueError(
+            f"{identifier}: {eng.description.name} is traced with parameters {eng.parameters}: a "
+            "mechanism with parameters is generated from its block (emit_model)"
+        )
     variables = mechanism_variables(eng.n)
     inputs = [v.name for v in variables if v.causality == "input"]
     model, config = mechanism_model(eng, [], [-1] * eng.n, -1, mechanism_guess(eng), inputs)
-    return {"config.h": config, f"{identifier}_model.c": "".join([
-        _HEAD.format(what=f"description {eng.description.name}", more='#include "mast_mechanism.h"\n'),
-        _variable_table(variables), "\n", _check_function((), {}), "\n", model, "\n",
-        _model_struct(identifier, guid, variables, len(inputs), len(variables), False, "mast_mechanism_state",
-                      "mast_mechanism_")])}
+    return {
+        "config.h": config,
+        f"{identifier}_model.c": "".join(
+            [
+                _HEAD.format(what=f"description {eng.description.name}", more='#include "mast_mechanism.h"\n'),
+                _variable_table(variables),
+                "\n",
+                _check_function((), {}),
+                "\n",
+                model,
+                "\n",
+                _model_struct(
+                    identifier,
+                    guid,
+                    variables,
+                    len(inputs),
+                    len(variables),
+                    False,
+                    "mast_mechanism_state",
+                    "mast_mechanism_",
+                ),
+            ]
+        ),
+    }

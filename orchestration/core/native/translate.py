@@ -36,6 +36,7 @@ A generated Python function becomes ``static int NAME(...)``:
   -N;`` with ``cond`` the check's ``c_condition`` (a C expression of ``a0, a1, ...``); the
   caller reports which check failed, with the message the check's ``c_message`` gives.
 """
+
 from __future__ import annotations
 
 import ast
@@ -47,10 +48,24 @@ __all__ = ["TranslationError", "to_c", "c_double", "split_invariants", "pack"]
 
 #: Python names of the scalar functions the generators call -> C (libm or support/mast_native.h)
 FUNCTIONS = {
-    "tanh": "tanh", "exp": "exp", "sin": "sin", "cos": "cos", "sqrt": "sqrt",
-    "_sin": "sin", "_cos": "cos", "_sqrt": "sqrt", "_atan2": "atan2", "_hypot": "mast_hypot",
-    "_sign": "mast_sign", "_sgn0": "mast_sgn0", "_abs": "fabs", "abs": "fabs", "float": "(double)",
-    "floor": "floor", "ceil": "ceil", "int": "trunc",     # int(x) of a float: its integer part, kept as a double
+    "tanh": "tanh",
+    "exp": "exp",
+    "sin": "sin",
+    "cos": "cos",
+    "sqrt": "sqrt",
+    "_sin": "sin",
+    "_cos": "cos",
+    "_sqrt": "sqrt",
+    "_atan2": "atan2",
+    "_hypot": "mast_hypot",
+    "_sign": "mast_sign",
+    "_sgn0": "mast_sgn0",
+    "_abs": "fabs",
+    "abs": "fabs",
+    "float": "(double)",
+    "floor": "floor",
+    "ceil": "ceil",
+    "int": "trunc",  # int(x) of a float: its integer part, kept as a double
 }
 #: module constants a model's own source may use (``math.pi``)
 CONSTANTS = {("math", "pi"): math.pi, ("math", "e"): math.e}
@@ -77,24 +92,33 @@ def c_double(value: float) -> str:
 
 
 class _Writer:
-    def __init__(self, name: str, arrays: Sequence[str], checks: Mapping[str, object],
-                 calls: Sequence[str] = (), values: Sequence[str] = (), constants: Mapping[str, float] = ()) -> None:
+    def __init__(
+        self,
+        name: str,
+        arrays: Sequence[str],
+        checks: Mapping[str, object],
+        calls: Sequence[str] = (),
+        values: Sequence[str] = (),
+        constants: Mapping[str, float] = (),
+    ) -> None:
         self.name = name
         self.constants = dict(constants)
-        self.calls = dict(calls) if isinstance(calls, Mapping) else {c: c for c in calls}   # Python -> C name
+        self.calls = dict(calls) if isinstance(calls, Mapping) else {c: c for c in calls}  # Python -> C name
         self.values = set(values)
         self.arrays = set(arrays)
         self.checks = checks
         self.locals: dict[str, None] = {}
-        self.scratch: dict[str, int] = {}      # the arrays that receive a called function's tuple, and their sizes
+        self.scratch: dict[str, int] = {}  # the arrays that receive a called function's tuple, and their sizes
         self.lines: list[str] = []
         self.loops = 0
         self.returns_tuple = False
         self.returns_value = False
 
     def fail(self, node: ast.AST, what: str) -> None:
-        raise TranslationError(f"{self.name}: line {getattr(node, 'lineno', '?')}: {what}: "
-                               f"{ast.unparse(node) if isinstance(node, ast.AST) else node}")
+        raise TranslationError(
+            f"{self.name}: line {getattr(node, 'lineno', '?')}: {what}: "
+            f"{ast.unparse(node) if isinstance(node, ast.AST) else node}"
+        )
 
     # -------------------------------------------------------------------------- expressions
     def expr(self, node: ast.AST) -> str:
@@ -106,10 +130,13 @@ class _Writer:
             if node.id in self.arrays:
                 self.fail(node, "an array used as a number")
             return c_double(self.constants[node.id]) if node.id in self.constants else node.id
-        if isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name) \
-                and (node.value.id, node.attr) in CONSTANTS:
+        if (
+            isinstance(node, ast.Attribute)
+            and isinstance(node.value, ast.Name)
+            and (node.value.id, node.attr) in CONSTANTS
+        ):
             return c_double(CONSTANTS[node.value.id, node.attr])
-        if isinstance(node, ast.BinOp) and isinstance(node.op, ast.Mod):   # tick counters (>= 0): as Python
+        if isinstance(node, ast.BinOp) and isinstance(node.op, ast.Mod):  # tick counters (>= 0): as Python
             return f"mast_mod({self.expr(node.left)}, {self.expr(node.right)})"
         if isinstance(node, ast.BinOp) and type(node.op) in _BINOPS:
             return f"({self.expr(node.left)} {_BINOPS[type(node.op)]} {self.expr(node.right)})"
@@ -122,7 +149,7 @@ class _Writer:
                 return f"(!{self.expr(node.operand)})"
         if isinstance(node, ast.Compare):
             parts, left = [], node.left
-            for op, right in zip(node.ops, node.comparators):   # a < b < c: (a < b) && (b < c), as Python
+            for op, right in zip(node.ops, node.comparators):  # a < b < c: (a < b) && (b < c), as Python
                 if type(op) not in _CMPOPS:
                     self.fail(node, "comparison operator")
                 parts.append(f"({self.expr(left)} {_CMPOPS[type(op)]} {self.expr(right)})")
@@ -133,16 +160,30 @@ class _Writer:
             return "(" + op.join(self.expr(v) for v in node.values) + ")"
         if isinstance(node, ast.IfExp):
             return f"({self.expr(node.test)} ? {self.expr(node.body)} : {self.expr(node.orelse)})"
-        if isinstance(node, ast.BinOp) and isinstance(node.op, ast.Pow):     # Python's float ** is libm's pow
+        if isinstance(node, ast.BinOp) and isinstance(node.op, ast.Pow):  # Python's float ** is libm's pow
             return f"pow({self.expr(node.left)}, {self.expr(node.right)})"
-        if isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) and isinstance(node.func.value, ast.Name) \
-                and node.func.value.id == "math" and node.func.attr in FUNCTIONS and not node.keywords:
+        if (
+            isinstance(node, ast.Call)
+            and isinstance(node.func, ast.Attribute)
+            and isinstance(node.func.value, ast.Name)
+            and node.func.value.id == "math"
+            and node.func.attr in FUNCTIONS
+            and not node.keywords
+        ):
             return f"{FUNCTIONS[node.func.attr]}({', '.join(self.expr(a) for a in node.args)})"
-        if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and not node.keywords \
-                and (node.func.id in FUNCTIONS or node.func.id in self.values):
+        if (
+            isinstance(node, ast.Call)
+            and isinstance(node.func, ast.Name)
+            and not node.keywords
+            and (node.func.id in FUNCTIONS or node.func.id in self.values)
+        ):
             return f"{FUNCTIONS.get(node.func.id, node.func.id)}({', '.join(self.expr(a) for a in node.args)})"
-        if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id in self.calls \
-                and not node.keywords:     # another generated function: status code, results in its array argument
+        if (
+            isinstance(node, ast.Call)
+            and isinstance(node.func, ast.Name)
+            and node.func.id in self.calls
+            and not node.keywords
+        ):  # another generated function: status code, results in its array argument
             args = [a.id if isinstance(a, ast.Name) and a.id in self.arrays else self.expr(a) for a in node.args]
             return f"{self.calls[node.func.id]}({', '.join(args)})"
         if isinstance(node, ast.Subscript) and isinstance(node.value, ast.Name) and node.value.id in self.arrays:
@@ -167,11 +208,18 @@ class _Writer:
 
     def store_slice(self, target: ast.Subscript, value: ast.AST, indent: str, node: ast.AST) -> None:
         sl = target.slice
-        if not (isinstance(target.value, ast.Name) and target.value.id in self.arrays and isinstance(sl, ast.Slice)
-                and sl.step is None and isinstance(value, ast.Tuple)):
+        if not (
+            isinstance(target.value, ast.Name)
+            and target.value.id in self.arrays
+            and isinstance(sl, ast.Slice)
+            and sl.step is None
+            and isinstance(value, ast.Tuple)
+        ):
             self.fail(node, "slice assignment (only ARRAY[k:] = (a, b, ...) or ARRAY[k:k + n] = (n numbers))")
         start = 0 if sl.lower is None else sl.lower.value
-        if sl.upper is not None and not (isinstance(sl.upper, ast.Constant) and sl.upper.value == start + len(value.elts)):
+        if sl.upper is not None and not (
+            isinstance(sl.upper, ast.Constant) and sl.upper.value == start + len(value.elts)
+        ):
             self.fail(node, "slice assignment whose length is not the tuple's")
         # values first, then stores: the right-hand side may read the array (then through temporaries)
         temps = [self.expr(e) for e in value.elts]
@@ -187,8 +235,13 @@ class _Writer:
             target, value = node.targets[0], node.value
             if isinstance(target, ast.Name):
                 self.assign_local(target.id, self.expr(value), indent)
-            elif isinstance(target, ast.Tuple) and isinstance(value, ast.Call) and isinstance(value.func, ast.Name) \
-                    and value.func.id in self.calls and all(isinstance(e, ast.Name) for e in target.elts):
+            elif (
+                isinstance(target, ast.Tuple)
+                and isinstance(value, ast.Call)
+                and isinstance(value.func, ast.Name)
+                and value.func.id in self.calls
+                and all(isinstance(e, ast.Name) for e in target.elts)
+            ):
                 # a, b = f(...): another generated function returning a tuple, its results through a scratch array
                 scratch = f"ret{len(self.scratch)}"
                 self.scratch[scratch] = len(target.elts)
@@ -197,18 +250,25 @@ class _Writer:
                 self.lines.append(f"{indent}{call[:-1]}{', ' if value.args else ''}{scratch});")
                 for k, elt in enumerate(target.elts):
                     self.assign_local(elt.id, f"{scratch}[{k}]", indent)
-            elif isinstance(target, ast.Subscript) and isinstance(target.value, ast.Name) \
-                    and target.value.id in self.arrays and not isinstance(target.slice, ast.Slice):   # ARRAY[k] = x
+            elif (
+                isinstance(target, ast.Subscript)
+                and isinstance(target.value, ast.Name)
+                and target.value.id in self.arrays
+                and not isinstance(target.slice, ast.Slice)
+            ):  # ARRAY[k] = x
                 self.lines.append(f"{indent}{target.value.id}[{self.index(target.slice)}] = {self.expr(value)};")
             elif isinstance(target, ast.Tuple) and isinstance(value, ast.Name) and value.id in self.arrays:
-                for k, elt in enumerate(target.elts):      # x0, x1, ..., = x
+                for k, elt in enumerate(target.elts):  # x0, x1, ..., = x
                     self.assign_local(elt.id, f"{value.id}[{k}]", indent)
             elif isinstance(target, ast.Tuple) and isinstance(value, ast.Tuple) and len(target.elts) == len(value.elts):
                 # a, b = c, d: every right-hand side before any store (through temporaries when they read targets)
                 names = [e.id for e in target.elts]
                 texts = [self.expr(e) for e in value.elts]
-                if all(t not in names for t in texts) and all(isinstance(e, ast.Name) for e in value.elts) \
-                        and not set(names) & {e.id for e in value.elts}:
+                if (
+                    all(t not in names for t in texts)
+                    and all(isinstance(e, ast.Name) for e in value.elts)
+                    and not set(names) & {e.id for e in value.elts}
+                ):
                     for n, t in zip(names, texts):
                         self.assign_local(n, t, indent)
                 else:
@@ -228,7 +288,7 @@ class _Writer:
             for s in node.body:
                 self.stmt(s, indent + "    ")
             orelse = node.orelse
-            while len(orelse) == 1 and isinstance(orelse[0], ast.If):   # elif chains
+            while len(orelse) == 1 and isinstance(orelse[0], ast.If):  # elif chains
                 self.lines.append(f"{indent}}} else if ({self.expr(orelse[0].test)}) {{")
                 for s in orelse[0].body:
                     self.stmt(s, indent + "    ")
@@ -240,9 +300,16 @@ class _Writer:
             self.lines.append(f"{indent}}}")
         elif isinstance(node, ast.For):
             it = node.iter
-            if not (isinstance(node.target, ast.Name) and node.target.id == "_" and isinstance(it, ast.Call)
-                    and isinstance(it.func, ast.Name) and it.func.id == "range" and len(it.args) == 1
-                    and isinstance(it.args[0], (ast.Constant, ast.Name)) and not node.orelse):
+            if not (
+                isinstance(node.target, ast.Name)
+                and node.target.id == "_"
+                and isinstance(it, ast.Call)
+                and isinstance(it.func, ast.Name)
+                and it.func.id == "range"
+                and len(it.args) == 1
+                and isinstance(it.args[0], (ast.Constant, ast.Name))
+                and not node.orelse
+            ):
                 self.fail(node, "loop (only 'for _ in range(N)')")
             var = f"k{self.loops}"
             self.loops += 1
@@ -261,15 +328,19 @@ class _Writer:
                 self.lines.append(f"{indent}return 0;")
             elif isinstance(value, ast.Constant) and isinstance(value.value, int):
                 self.lines.append(f"{indent}return {value.value};")
-            elif isinstance(value, ast.Name) and value.id in self.locals:   # a status another function returned
+            elif isinstance(value, ast.Name) and value.id in self.locals:  # a status another function returned
                 self.lines.append(f"{indent}return (int){value.id};")
-            elif isinstance(value, (ast.BinOp, ast.Call, ast.Attribute, ast.IfExp)):   # a value function
+            elif isinstance(value, (ast.BinOp, ast.Call, ast.Attribute, ast.IfExp)):  # a value function
                 self.returns_value = True
                 self.lines.append(f"{indent}return {self.expr(value)};")
             else:
                 self.fail(node, "return (only a tuple, an integer status or one computed number)")
-        elif isinstance(node, ast.Expr) and isinstance(node.value, ast.Call) and isinstance(node.value.func, ast.Name) \
-                and node.value.func.id in self.checks:
+        elif (
+            isinstance(node, ast.Expr)
+            and isinstance(node.value, ast.Call)
+            and isinstance(node.value.func, ast.Name)
+            and node.value.func.id in self.checks
+        ):
             self.check(node.value, indent)
         else:
             self.fail(node, "statement")
@@ -282,14 +353,22 @@ class _Writer:
         number = int(key.replace("_check", ""))
         args = {f"a{k}": self.expr(a) for k, a in enumerate(call.args)}
         text = condition
-        for k in sorted(args, key=lambda s: -int(s[1:])):   # a10 before a1
+        for k in sorted(args, key=lambda s: -int(s[1:])):  # a10 before a1
             text = text.replace(k, args[k])
         self.lines.append(f"{indent}if (!({text})) return -{number};")
 
 
-def to_c(source: str, name: str, arrays: Sequence[str] = (), checks: Mapping[str, Callable] = (),
-         static: bool = True, calls: Sequence[str] | Mapping[str, str] = (), values: Sequence[str] = (),
-         constants: Mapping[str, float] = (), packed: Mapping[str, Sequence[str]] = ()) -> str:
+def to_c(
+    source: str,
+    name: str,
+    arrays: Sequence[str] = (),
+    checks: Mapping[str, Callable] = (),
+    static: bool = True,
+    calls: Sequence[str] | Mapping[str, str] = (),
+    values: Sequence[str] = (),
+    constants: Mapping[str, float] = (),
+    packed: Mapping[str, Sequence[str]] = (),
+) -> str:
     """C of the one generated Python function in ``source`` (module docstring), named ``name``;
     ``calls``: other generated functions it may call (``status = f(..., ARRAY)``; a mapping: their C names);
     ``values``: value functions (one computed number) it may call in an expression; ``constants``: the
@@ -305,9 +384,13 @@ def to_c(source: str, name: str, arrays: Sequence[str] = (), checks: Mapping[str
         arrays = (*arrays, *packed)
     w = _Writer(name, arrays, dict(checks or {}), calls, values, constants)
     body = fn.body
-    if body and isinstance(body[0], ast.Expr) and isinstance(body[0].value, ast.Constant) \
-            and isinstance(body[0].value.value, str):
-        body = body[1:]      # the docstring of a model function translated from its own source
+    if (
+        body
+        and isinstance(body[0], ast.Expr)
+        and isinstance(body[0].value, ast.Constant)
+        and isinstance(body[0].value.value, str)
+    ):
+        body = body[1:]  # the docstring of a model function translated from its own source
     for s in body:
         w.stmt(s, "    ")
     args = [f"double *{a.arg}" if a.arg in w.arrays else f"double {a.arg}" for a in fn.args.args]
@@ -317,9 +400,9 @@ def to_c(source: str, name: str, arrays: Sequence[str] = (), checks: Mapping[str
         raise TranslationError(f"{name}: returns a number on one path and a status or tuple on another")
     head = f"{'static ' if static else ''}{'double' if w.returns_value else 'int'} {name}({', '.join(args)})"
     decl = [f"    double {a}[{n}];" for a, n in w.scratch.items()]
-    names = [n for n in w.locals if n not in {a.arg for a in fn.args.args}]   # scalar arguments are assignable
+    names = [n for n in w.locals if n not in {a.arg for a in fn.args.args}]  # scalar arguments are assignable
     for k in range(0, len(names), 8):
-        decl.append("    double " + ", ".join(names[k:k + 8]) + ";")
+        decl.append("    double " + ", ".join(names[k : k + 8]) + ";")
     return "\n".join([head, "{"] + decl + w.lines + ["}", ""])
 
 
@@ -333,7 +416,7 @@ def pack(fn: ast.FunctionDef, packed: Mapping[str, Sequence[str]], name: str, ca
     out: list[str] = []
     i = 0
     while i < len(args):
-        group = next((a for a, names in packed.items() if names and args[i:i + len(names)] == list(names)), None)
+        group = next((a for a, names in packed.items() if names and args[i : i + len(names)] == list(names)), None)
         if group is None and args[i] in where:
             raise TranslationError(f"{name}: argument {args[i]} is not in the order of its group {where[args[i]][0]}")
         out.append(group or args[i])
@@ -351,9 +434,9 @@ def pack(fn: ast.FunctionDef, packed: Mapping[str, Sequence[str]], name: str, ca
             for array, group in packed.items() if called else ():
                 n = len(group)
                 for k in range(len(names) - n + 1) if n else ():
-                    if names[k:k + n] == list(group):
-                        node.args[k:k + n] = [ast.Name(array, ast.Load())]
-                        names[k:k + n] = [array]
+                    if names[k : k + n] == list(group):
+                        node.args[k : k + n] = [ast.Name(array, ast.Load())]
+                        names[k : k + n] = [array]
             return self.generic_visit(node)
 
         def visit_Name(self, node: ast.Name) -> ast.AST:
@@ -384,16 +467,24 @@ def split_invariants(source: str, invariant: Sequence[str]) -> tuple[str, str, i
     for node in ast.walk(fn):
         if isinstance(node, ast.Name) and isinstance(node.ctx, ast.Store):
             assigned[node.id] = assigned.get(node.id, 0) + 1
-    known = {a for a in invariant if a not in assigned}   # an argument the function reassigns varies
+    known = {a for a in invariant if a not in assigned}  # an argument the function reassigns varies
     hoisted: list[ast.Assign] = []
     for stmt in fn.body:
-        if not (isinstance(stmt, ast.Assign) and len(stmt.targets) == 1 and isinstance(stmt.targets[0], ast.Name)
-                and assigned[stmt.targets[0].id] == 1):
+        if not (
+            isinstance(stmt, ast.Assign)
+            and len(stmt.targets) == 1
+            and isinstance(stmt.targets[0], ast.Name)
+            and assigned[stmt.targets[0].id] == 1
+        ):
             continue
         calls = [n for n in ast.walk(stmt.value) if isinstance(n, ast.Call)]
         pure = all(isinstance(c.func, ast.Name) and c.func.id in FUNCTIONS and not c.keywords for c in calls)
         names = {n.id for n in ast.walk(stmt.value) if isinstance(n, ast.Name)} - {c.func.id for c in calls}
-        if pure and names <= known and not any(isinstance(n, (ast.Subscript, ast.Attribute)) for n in ast.walk(stmt.value)):
+        if (
+            pure
+            and names <= known
+            and not any(isinstance(n, (ast.Subscript, ast.Attribute)) for n in ast.walk(stmt.value))
+        ):
             hoisted.append(stmt)
             known.add(stmt.targets[0].id)
     moved = {id(s) for s in hoisted}
@@ -401,9 +492,13 @@ def split_invariants(source: str, invariant: Sequence[str]) -> tuple[str, str, i
     read = {n.id for s in rest for n in ast.walk(s) if isinstance(n, ast.Name) and isinstance(n.ctx, ast.Load)}
     kept = [s.targets[0].id for s in hoisted if s.targets[0].id in read]
     args = [a.arg for a in fn.args.args]
-    invariants = "\n".join([f"def {fn.name}_invariants({', '.join(a for a in args if a in invariant)}):",
-                            *(f"    {ast.unparse(s)}" for s in hoisted),
-                            f"    return ({''.join(f'{k}, ' for k in kept)})"])
+    invariants = "\n".join(
+        [
+            f"def {fn.name}_invariants({', '.join(a for a in args if a in invariant)}):",
+            *(f"    {ast.unparse(s)}" for s in hoisted),
+            f"    return ({''.join(f'{k}, ' for k in kept)})",
+        ]
+    )
     body = [f"    {k} = K[{j}]" for j, k in enumerate(kept)] + [textwrap.indent(ast.unparse(s), "    ") for s in rest]
     main = "\n".join([f"def {fn.name}({', '.join(args + ['K'])}):", *body])
     return invariants, main, len(kept)
