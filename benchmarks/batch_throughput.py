@@ -105,7 +105,7 @@ def single_run(ssp: str, stop: float, repeats: int) -> dict:
             _calls(key)
             session.run(motion(), 0.05, record=RECORD)
         physics.install()
-        for rep in range(repeats):
+        for _rep in range(repeats):
             for key, session in sessions.items():
                 _calls(key)
                 result = session.run(motion(), stop, record=RECORD)

@@ -66,12 +66,12 @@ FIGURES: dict[str, Figure] = {
     },
     # the default system's controller gains (ssp/MAST.ssd, docs/controller.md)
     **{
-        f"ssd.controller.{g}": Figure("ssd", (lambda g: lambda v: v["controller"][g])(g), "{:.4g}")
+        f"ssd.controller.{g}": Figure("ssd", (lambda v, g=g: v["controller"][g]), "{:.4g}")
         for g in ("k_v", "k_p", "k_i")
     },
     # the designs' workspaces (`mast workspace DESIGN`, docs/workspace.md; the --quick grid of `mast compare`, README)
     **{
-        f"{grid}.{d}.{what}": Figure(grid, (lambda d, w: lambda v: v[d][w])(d, what), fmt, tol)
+        f"{grid}.{d}.{what}": Figure(grid, (lambda v, d=d, w=what: v[d][w]), fmt, tol)
         # a volume may differ by a grid node or two between machines (a node on the margin's edge): 0.005 m deg^2
         # each on the default grid, 0.4 on the quick one
         for grid, fmt_volume, cells in (("workspace", "{:.0f}", 0.5), ("workspace_quick", "{:.1f}", 0.8))
@@ -84,7 +84,7 @@ FIGURES: dict[str, Figure] = {
     },
     # the designs' singularity margins at home (docs/mechanism.md)
     **{
-        f"designs.{d}.{what}": Figure("designs", (lambda d, w: lambda v: v[d][w])(d, what), fmt, 0.005)
+        f"designs.{d}.{what}": Figure("designs", (lambda v, d=d, w=what: v[d][w]), fmt, 0.005)
         for d in ("3PRS_T", "3PRS_120", "3PRS_inclined")
         for what, fmt in (("parallel", "{:.3g}"), ("inverse", "{:.3g}"), ("dexterity", "{:.3g}"))
     },
@@ -305,7 +305,7 @@ def write(values: Mapping[str, dict], paths: list[Path] | None = None) -> list[s
     for path in paths or pages():
         text = path.read_text()
 
-        def replace(match: re.Match) -> str:
+        def replace(match: re.Match, text: str = text, path: Path = path) -> str:
             figure = FIGURES.get(match["key"])
             if figure is None or figure.source not in values:
                 return match[0]

@@ -291,7 +291,7 @@ def test_breakaway_torque(actuator_params):
         # torque then applied (quasi-static: inertia negligible on this ramp)
         j = k // 2
         net = out["tau_m"][j] - weight
-        creep = brentq(lambda w: p["tau_c"] * math.tanh(w / p["omega_c"]) + p["b_v"] * w - net, -50, 50)
+        creep = brentq(lambda w, net=net: p["tau_c"] * math.tanh(w / p["omega_c"]) + p["b_v"] * w - net, -50, 50)
         assert abs(creep) < p["omega_c"]
         assert out["rho_dot"][j] == pytest.approx(i_R * creep, rel=0.01)
 

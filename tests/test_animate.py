@@ -118,7 +118,6 @@ def test_page_draws_the_mechanism_where_the_run_put_it(runs, pages, design):
     times = np.array([float(f["name"]) for f in frames])
     assert len(frames) == int(0.5 * animate.FPS) + 1
     np.testing.assert_allclose(np.diff(times), 1.0 / animate.FPS, atol=1e-9)
-    h = result.time[1] - result.time[0]
     psi_seen = []
     for frame in frames:
         traces = {names[i]: trace for i, trace in zip(frame["traces"], frame["data"])}

@@ -265,7 +265,7 @@ def test_a_3rps_from_a_file_gives_the_leg_lengths_with_its_parasitic_motion(tmp_
     for q in [(0.45, 0.0, 0.0), (0.43, 0.08, -0.05), (0.5, -0.1, 0.12)]:
         z, psi, theta = q
 
-        def S(x, y, phi):
+        def S(x, y, phi, z=z, psi=psi, theta=theta):
             R = rot(psi, theta, phi)
             return [np.array([x, y, z]) + R @ (0.25 * np.array([math.cos(a), math.sin(a), 0.0])) for a in alpha]
 

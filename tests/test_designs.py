@@ -232,7 +232,10 @@ def test_power_balance_along_random_trajectories(case):
     name, params, eng, own = case
     for seed in (1, 2):
         path = Path3(own, seed)
-        energy = lambda s: own.kinetic(path.q(s), path.qd(s)) + own.potential(path.q(s))  # noqa: E731
+
+        def energy(s, path=path):
+            return own.kinetic(path.q(s), path.qd(s)) + own.potential(path.q(s))
+
         powers, balances = [], []
         for t in np.linspace(0.0, 0.3, 5):
             rho, rd, rdd = joint_motion(own, path, t)

@@ -79,7 +79,7 @@ def test_no_prediction_is_a_number_a_fit_used(report):
     out, _ = report
     rows = json.loads((out / "paper_table.json").read_text())
     used = set()
-    for f, (mag, ph) in fit_targets().items():
+    for f, (mag, _ph) in fit_targets().items():
         used |= {
             paper.CLAIM[paper.position_key("magnitude", "z", f)].statement,
             paper.CLAIM[paper.position_key("phase", "z", f)].statement,

@@ -68,7 +68,7 @@ def main() -> None:
     # ---- radial plane of leg 1 at home
     ax2 = fig.add_subplot(1, 2, 2)
     home = full_pose(geom, 0.405147, 0.0, 0.0)
-    H, r, L = geom.H, geom.r, geom.L
+    H, r = geom.H, geom.r
     B, S = home.sliders[0], home.S[0]
     ax2.plot([H, H], [0, 0.5], color="0.6", lw=4, label="guide 1 (vertical)")
     ax2.plot([0, 0], [0, 0.5], color="k", lw=0.8, ls="-.")

@@ -42,10 +42,10 @@ class BlockSlave(BlockWrapper, Fmi2Slave):
         self._wrap(kwargs)
         self._register_block()
 
-    def to_xml(self, model_options=dict()):
+    def to_xml(self, model_options: dict | None = None):
         """pythonfmu's modelDescription, with the direct feedthrough (``Block.FEEDTHROUGH``) declared in
         ModelStructure/Outputs: each output lists the inputs it depends on (none: an empty list)."""
-        root = super().to_xml(model_options)
+        root = super().to_xml({} if model_options is None else model_options)
         index = {vr: k + 1 for k, vr in enumerate(self.vars)}  # FMI 2.0 names variables by their position
         dependencies = {index[out]: ins for out, ins in self._output_dependencies().items()}
         for unknown in root.iterfind("ModelStructure/Outputs/Unknown"):

@@ -58,11 +58,11 @@ class BlockSlave3(BlockWrapper, Fmi3Slave):
             )
         )
 
-    def to_xml(self, model_options=dict()):
+    def to_xml(self, model_options: dict | None = None):
         """pythonfmu3's modelDescription, with the direct feedthrough (``Block.FEEDTHROUGH``) declared in
         ModelStructure: each Output lists the inputs it depends on by value reference (none: an empty list;
         an absent list would claim every input)."""
-        root = super().to_xml(model_options)
+        root = super().to_xml({} if model_options is None else model_options)
         dependencies = self._output_dependencies()
         for output in root.iterfind("ModelStructure/Output"):
             inputs = dependencies[int(output.get("valueReference"))]

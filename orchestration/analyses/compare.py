@@ -807,15 +807,14 @@ def write(comp: Comparison, out: Path, plots: bool = True) -> list[Path]:
                 lines.append(f"| {label} | {w['error']} |" + " |" * (len(ranges) + 4))
                 continue
             r = w["ranges_through_home"]
-            rng = lambda k: (
-                (
-                    f"{r[k][0]:.3g} .. {r[k][1]:.3g}"
-                    if k.endswith("_deg")  # noqa: E731
-                    else f"{r[k][0]:.4g} .. {r[k][1]:.4g}"
-                )
-                if k in r
-                else "-"
-            )
+
+            def rng(k: str, r: dict = r) -> str:
+                if k not in r:
+                    return "-"
+                if k.endswith("_deg"):
+                    return f"{r[k][0]:.3g} .. {r[k][1]:.3g}"
+                return f"{r[k][0]:.4g} .. {r[k][1]:.4g}"
+
             cols = workspace_columns(w)
             volume = _fmt(w[volume_key(w)]) + ("" if one else f" {unit_text(volume_key(w)[7:])}")
             lines.append(

@@ -61,21 +61,27 @@ class TwoNode:
         A = np.array([[-g1 / C_w, g1 / C_w], [g1 / C_s, -(g1 + g2) / C_s]])
         return A, np.array([1.0 / C_w, 0.0])
 
-    @functools.lru_cache(maxsize=16)
     def discrete(self, h: float) -> tuple[np.ndarray, np.ndarray]:
         """(Phi, Gamma) over a step of h [s], the loss held: the exact ZOH discretisation (kept per model and
         step: the drives of a system share one)."""
-        A, B = self.system()
-        block = np.zeros((3, 3))
-        block[:2, :2], block[:2, 2] = A * h, B * h
-        E = expm(block)
-        return E[:2, :2], E[:2, 2]
+        return _zoh(self, h)
 
     def loss_coefficients(self, i: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(p0, p1) per sample: P = p0 + p1 (T_w - T_a) [W, W/K]: the copper losses, affine in the winding's rise."""
         i2 = np.square(np.asarray(i, dtype=float))
         p0 = self.R_25 * i2 * (1.0 + self.alpha_Cu * (self.T_ambient - T_REF_K))
         return p0, self.R_25 * self.alpha_Cu * i2
+
+
+@functools.lru_cache(maxsize=16)
+def _zoh(model: TwoNode, h: float) -> tuple[np.ndarray, np.ndarray]:
+    """``TwoNode.discrete``, cached on (model, h) at module level (a cache on the method would hold every
+    instance through ``self``, unbounded by the instance's life)."""
+    A, B = model.system()
+    block = np.zeros((3, 3))
+    block[:2, :2], block[:2, 2] = A * h, B * h
+    E = expm(block)
+    return E[:2, :2], E[:2, 2]
 
 
 def _sample_steps(t: np.ndarray) -> float:

@@ -480,7 +480,7 @@ def build_all(out: Optional[Path] = None, ssds: Iterable[Path] = (), log=print, 
         if fmi3:
             written.append(build_fmu3(spec, out / "fmus3"))
             log(f"built {written[-1]}")
-    for ssd in list(ssds) or sorted(SSP_SRC.glob("*.ssd")):
-        written.append(build_ssp(Path(ssd), out / "fmus", out / "ssp"))
+    for ssd_file in list(ssds) or sorted(SSP_SRC.glob("*.ssd")):
+        written.append(build_ssp(Path(ssd_file), out / "fmus", out / "ssp"))
         log(f"built {written[-1]}")
     return written

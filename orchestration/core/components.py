@@ -8,6 +8,7 @@ SSP wiring are right (results equal to rounding) and the speed reference.
 from __future__ import annotations
 
 import ctypes
+import functools
 import numbers
 from pathlib import Path
 from typing import Callable, Mapping, Optional, Sequence, Union
@@ -137,7 +138,7 @@ class FMUComponent:
                 raise ComponentError(
                     f"{self.name}: parameter '{name}' = {value!r} is not a valid {var.type} ({err})"
                 ) from None
-            self._call(f"setting parameter {name}", lambda: setter([var.valueReference], [converted]))
+            self._call(f"setting parameter {name}", functools.partial(setter, [var.valueReference], [converted]))
 
     def exit_initialization(self) -> None:
         logged = len(self.messages)

@@ -466,11 +466,11 @@ class Master:
                     record_tick(flat)
                 if n == n_ticks:
                     break
-                for k, lo, hi, gather, set_inputs, do_step, get_outputs, step, feedthrough in now:
+                for _, lo, hi, gather, set_inputs, _, get_outputs, _, feedthrough in now:
                     set_inputs(gather(flat))
                     if feedthrough:  # its outputs at t, from the inputs just set, for the components after it
                         flat[lo:hi] = get_outputs()
-                for k, lo, hi, gather, set_inputs, do_step, get_outputs, step, feedthrough in now:
+                for k, _, _, _, _, do_step, get_outputs, step, _ in now:
                     do_step(t, step)
                     pending[k] = get_outputs()
         except Exception as err:  # keep what was computed, then report the failure

@@ -298,7 +298,7 @@ def applicable_parameters(
     for comp, spec in system.components.items():
         for source, values in spec.bindings:
             users.setdefault(source, set()).update(k for k in values if k in names[comp])
-    for comp, spec in system.components.items():
+    for _comp, spec in system.components.items():
         for source, values in spec.bindings:
             unused = sorted(k for k in values if k not in users[source])
             if unused:

@@ -9,7 +9,7 @@ from typing import Mapping, Optional, Sequence
 import numpy as np
 
 from .effects import Effect
-from .phasefree import ENSEMBLE, GRID_REALISATIONS, POOL_RATIO, PhaseFreeScore, estimate, pooled, search
+from .phasefree import ENSEMBLE, GRID_REALISATIONS, POOL_RATIO, Fit, PhaseFreeScore, estimate, pooled, search
 from .resimulation import Point
 from .selection import DELTA_BIC, Atom, atom_labels
 from .stages import (
@@ -313,7 +313,7 @@ def phase_free_stage(ctx: Context, state: State, effect: Effect, steps: list) ->
         on_tests = list(fitted)
         start = min(effect.scan, key=lambda v: deviance(v, on_tests)) if on_tests != list(ctx.names) else v_all
 
-        def smoothed(v: float, ratio: float) -> float:
+        def smoothed(v: float, ratio: float, on_tests: list[str] = on_tests) -> float:
             ensemble = pooled(ensembles, v, ratio)
             return score.fit(ensemble, on_tests).deviance if ensemble is not None else math.inf
 
@@ -339,7 +339,7 @@ def phase_free_stage(ctx: Context, state: State, effect: Effect, steps: list) ->
         final = score.fit(ensemble, fitted)
         per_test = {**score.deviances(ensemble, ctx.names, final.sigma), **final.per_test}
 
-        def quieter_regime(n: str) -> bool:
+        def quieter_regime(n: str, ensemble: Mapping[str, np.ndarray] = ensemble, final: Fit = final) -> bool:
             """Test n's record shows the effect (above its floor without it) but hunts less than every realisation
             with it, in every band: a regime of the hunting the ensemble did not visit. A record with no trace of
             it, or with more power in a band than the effect makes, is evidence against the effect."""

@@ -228,7 +228,7 @@ def diagnose_records(opt, log: Callable[[str], None] = print) -> dict:
             trial_named = [k for k in named if k in keys or by_key[k].group not in groups] + new
             free = [by_key[k].parameter for k in trial_named]
             start = dict(values)
-            for k, change in proposal.items():
+            for _k, change in proposal.items():
                 p = change["parameter"]
                 start[p] = float(np.clip(values[p] + change["change"], *bounds[p]))
             for k in named:

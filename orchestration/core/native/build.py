@@ -210,7 +210,7 @@ def build_native_all(
             log(f"skipped {ssd.name}: no native form yet for {', '.join(missing)}")
             continue
         by_source: dict[str, dict] = {}
-        for comp, (ident, params) in comps.items():
+        for _comp, (ident, params) in comps.items():
             if by_source.setdefault(ident, params) != params:
                 raise NativeBuildError(
                     f"{ssd}: the components using {ident}.fmu have different parameter sets; a "
