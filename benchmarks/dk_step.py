@@ -57,7 +57,8 @@ def main() -> None:
                 blk.do_step(k * 1e-3, 1e-3)
             best_step = min(best_step, (time.process_time() - t0) / len(inputs))
         print(
-            f"{d.name:14s} dk (warm) {best_dk * 1e6:6.1f} us/call   MechanismBlock.do_step {best_step * 1e6:6.1f} us/step"
+            f"{d.name:14s} dk (warm) {best_dk * 1e6:6.1f} us/call   MechanismBlock.do_step {best_step * 1e6:6.1f} "
+            "us/step"
         )
 
 

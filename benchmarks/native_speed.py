@@ -185,7 +185,8 @@ def hosts(native: Path, stop: float, repeats: int) -> None:
             ""
             if label == "our master"
             else (
-                f"   {label}/ours CPU {cpu / ours[0]:.2f}, ours/{label} {ours[0] / cpu:.2f}; wall {wall / ours[1]:.2f}, "
+                f"   {label}/ours CPU {cpu / ours[0]:.2f}, ours/{label} {ours[0] / cpu:.2f}; wall "
+                f"{wall / ours[1]:.2f}, "
                 f"{ours[1] / wall:.2f}"
             )
         )
@@ -374,7 +375,8 @@ def main() -> int:
     )
     for route in before:
         print(
-            f"  {route} after / before ({args.before}) CPU time: {best[route] / best[f'{route}, before (--before)']:.2f}"
+            f"  {route} after / before ({args.before}) CPU time: "
+            f"{best[route] / best[f'{route}, before (--before)']:.2f}"
         )
     if args.profile:
         for ssp in [native] + ([before["native FMUs"]] if before else []):

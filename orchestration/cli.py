@@ -456,7 +456,8 @@ def cmd_workspace(args) -> int:
             f"{m.label}: {s['poses_inside']} poses inside, volume {shown[-1]}"
             + (f" ({shown[0]})" if len(shown) > 1 else "")
             + f"; through home {through}; "
-            f"smallest margin {s['smallest_margin']['value']:.3g} m/m, worst dexterity {s['worst_dexterity']['value']:.3g}"
+            f"smallest margin {s['smallest_margin']['value']:.3g} m/m, worst dexterity "
+            f"{s['worst_dexterity']['value']:.3g}"
         )
         print(f"wrote {', '.join(str(f) for f in files)}")
     if pose is None:

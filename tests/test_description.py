@@ -204,7 +204,8 @@ def _com_heights(eng, q):
 
 def test_a_6pus_from_a_file_gives_the_slider_positions(tmp_path):
     text = changed('template = "UPS"', 'template = "PUS"', HEXAPOD).replace(
-        'bodies.cylinder = { mass = "m_c", com = [0.15, 0.0, 0.0], inertia = [[0.001, 0, 0], [0, 0.01, 0], [0, 0, 0.01]] }\n'
+        'bodies.cylinder = { mass = "m_c", com = [0.15, 0.0, 0.0], inertia = [[0.001, 0, 0], [0, 0.01, 0], [0, 0, '
+        "0.01]] }\n"
         'bodies.rod = { mass = "0.5 * m_c", com = [-0.1, 0.0, 0.0] }',
         'bodies.link = { mass = "m_c", com = [0.3, 0, 0] }',
     )
@@ -290,7 +291,8 @@ def test_a_3rps_from_a_file_gives_the_leg_lengths_with_its_parasitic_motion(tmp_
         (
             'name = "leg_1"',
             'name = "leg_1"\nbase_radius = "H + L"',
-            r"bad.toml: leg 'leg_1' \(PRS\) does not close at the home pose \(z = 0.405147 m, psi = 0 rad, theta = 0 rad\): "
+            r"bad.toml: leg 'leg_1' \(PRS\) does not close at the home pose \(z = 0.405147 m, psi = 0 rad, theta = 0 "
+            r"rad\): "
             r"pose unreachable: leg 1 would need a horizontal reach of 0.31 m > L = 0.26 m",
         ),
         # the driven joint missing, doubled, or not drivable
@@ -301,7 +303,8 @@ def test_a_3rps_from_a_file_gives_the_leg_lengths_with_its_parasitic_motion(tmp_
         ),
         (
             'drive = { joint = "P", kind = "linear", stroke = [0.0, 0.3] }',
-            'drives = [{ joint = "P", kind = "linear", stroke = [0.0, 0.3] }, { joint = "R", kind = "rotary", stroke = [-1, 1] }]',
+            'drives = [{ joint = "P", kind = "linear", stroke = [0.0, 0.3] }, { joint = "R", kind = "rotary", stroke '
+            "= [-1, 1] }]",
             r"bad.toml: leg 'leg_1' \(PRS\): 2 driven joints: expected exactly one",
         ),
         (
@@ -318,7 +321,8 @@ def test_a_3rps_from_a_file_gives_the_leg_lengths_with_its_parasitic_motion(tmp_
         (
             'coordinates = ["z", "psi", "theta"]',
             'coordinates = ["z", "psi"]',
-            r"bad.toml: 3 drives \(one per leg\) for 2 coordinates \(z, psi\): expected one driven joint per coordinate",
+            r"bad.toml: 3 drives \(one per leg\) for 2 coordinates \(z, psi\): expected one driven joint per "
+            r"coordinate",
         ),
         (
             'coordinates = ["z", "psi", "theta"]',
@@ -336,7 +340,8 @@ def test_a_3rps_from_a_file_gives_the_leg_lengths_with_its_parasitic_motion(tmp_
         (
             'I_leg = { value = 0.0003943333333333334, unit = "kg.m2"',
             'I_leg = { value = 0.0003943333333333334, unit = "kg"',
-            r"bad.toml: leg 'leg_1' \(PRS\): body 'leg_1' \(part link\): inertia row 2\[1\]: expression 'I_leg' is in kg: "
+            r"bad.toml: leg 'leg_1' \(PRS\): body 'leg_1' \(part link\): inertia row 2\[1\]: expression 'I_leg' is in "
+            r"kg: "
             r"expected kg.m2",
         ),
         (
@@ -375,7 +380,8 @@ def test_a_3rps_from_a_file_gives_the_leg_lengths_with_its_parasitic_motion(tmp_
         (
             'length = "L"',
             'length = "L_leg"',
-            r"bad.toml: leg 'leg_1' \(PRS\): length: expression 'L_leg': unknown parameter 'L_leg' \(parameters: H, r, L,",
+            r"bad.toml: leg 'leg_1' \(PRS\): length: expression 'L_leg': unknown parameter 'L_leg' \(parameters: H, "
+            r"r, L,",
         ),
         (
             'com = ["payload_x", "payload_y", "payload_z"]',

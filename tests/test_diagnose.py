@@ -28,7 +28,8 @@ PLAN = (
     Spec("z", 0.005, 7.0, 0.8, 0.3),
 )
 IDENTIFIED = {"tau_c": 0.0718, "J1_scale": 1 / 1.56}
-#: a smaller plan of other frequencies, amplitudes and axes: z 1.2 Hz 4 mm, psi 2.5 Hz 0.6 deg, z 5 Hz 3 mm (psi held out)
+#: a smaller plan of other frequencies, amplitudes and axes: z 1.2 Hz 4 mm, psi 2.5 Hz 0.6 deg, z 5 Hz 3 mm (psi held
+#: out)
 SMALL = (
     Spec("z", 0.004, 1.2, 1.1, 0.3),
     Spec("psi", math.radians(0.6), 2.5, 0.8, 0.3),

@@ -174,7 +174,8 @@ def test_effects_on_one_axis_and_in_the_drive_are_named(built_ssp, tmp_path, cas
     """One actuator heavier on its motor side or lighter on its carriage, one drive reading its torque with an
     offset, a drive whose velocity-loop integral gain is 40 % low (before k_i was in the library: named as
     motor-side inertia plus k_p and k_v), that runs its velocity loop at half the documented rate or limits the
-    current below its documentation: each named as itself (the per-axis effect on that axis, the controller-side effect: never a
+    current below its documentation: each named as itself (the per-axis effect on that axis, the controller-side
+    effect: never a
     plant name), its value within 5 %, the augmented model binding it to that actuator or to the controller.
     (When the axes agree the all-axes effect is named: the all-axes cases above and in test_diagnose.py.)"""
     from mast.core.ssp import SSPArchive

@@ -58,7 +58,8 @@ def test_ssv_units_are_converted_to_the_declared_unit(tmp_path, unit, value, si)
     [
         (
             "s",
-            r"mass_3prs.ssv: 'm_platform' is given in 's' \(dimension s\), but component 'mechanism' declares it in 'kg'",
+            r"mass_3prs.ssv: 'm_platform' is given in 's' \(dimension s\), but component 'mechanism' declares it in "
+            r"'kg'",
         ),
         ("furlong", r"mass_3prs.ssv: parameter 'm_platform': unit 'furlong': 'furlong' is not a known unit symbol"),
     ],

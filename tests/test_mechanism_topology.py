@@ -127,7 +127,8 @@ def test_a_two_drive_mechanism_block(planar):
     assert out["F_1"] == pytest.approx(0.5 * weight, rel=1e-12) and out["F_2"] == pytest.approx(0.5 * weight, rel=1e-12)
     assert out["theta"] == pytest.approx(0.0, abs=1e-14)
     assert out["z"] == pytest.approx(0.15 + math.sqrt(0.26**2 - 0.05**2), rel=1e-12)
-    # tilted (the +x side higher: theta < 0, R = Ry(theta)): the direct kinematics' pose maps back to the joints by the closed form (Planar2.evaluate)
+    # tilted (the +x side higher: theta < 0, R = Ry(theta)): the direct kinematics' pose maps back to the joints by
+    # the closed form (Planar2.evaluate)
     blk.set(rho_1=0.16, rho_2=0.13, rho_dot_1=0.05, rho_ddot_2=-1.0)
     blk.do_step(0.0, 1e-3)
     out = blk.outputs()

@@ -1031,7 +1031,8 @@ def _chain_lists(n: int) -> dict:
 
 
 def _start_with(inst: Instance, parameters: dict) -> int:
-    """setupExperiment, enterInitializationMode, the parameters by type (Integer, String, Real), exitInitializationMode."""
+    """setupExperiment, enterInitializationMode, the parameters by type (Integer, String, Real),
+    exitInitializationMode."""
     inst.slave.setupExperiment(startTime=0.0)
     inst.slave.enterInitializationMode()
     for name, value in parameters.items():
@@ -1043,7 +1044,8 @@ def _start_with(inst: Instance, parameters: dict) -> int:
 def test_one_native_actuator_runs_every_n_dof_up_to_n_max_set_at_run_time_as_the_python_fmu(built):
     """n_dof is read at run time (docs/native.md): the one native MastActuator set to 1, 2, 3 and N_MAX before
     initialisation, with other parameters on top, against the Python FMU with the same settings (measured: at
-    most 1.4e-11 relative, at n_dof = N_MAX: the expm, docs/native.md); bad chain lists get the Python FMU's messages; N_MAX + 1 is refused with a message
+    most 1.4e-11 relative, at n_dof = N_MAX: the expm, docs/native.md); bad chain lists get the Python FMU's messages;
+    N_MAX + 1 is refused with a message
     naming it, N_MAX and what to do."""
     from mast.core.native.models import N_MAX
 
@@ -1150,7 +1152,8 @@ class _Climb:
 @pytest.mark.parametrize("route", ["native", "python"])
 def test_the_compiled_exchange_loop_is_the_python_loop_call_for_call(built, route, monkeypatch):
     """mast.core.exchange against the master's Python loop on the same FMUs: the same floats (a 10 Hz sine,
-    recorded every base step; native: also every third), and (native) a run that fails stops with the same message and keeps the same
+    recorded every base step; native: also every third), and (native) a run that fails stops with the same message and
+    keeps the same
     partial results."""
     from mast.core.exchange import library
     from mast.core.master import SimulationError

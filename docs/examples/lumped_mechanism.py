@@ -13,7 +13,7 @@ Build it (from the repository root):
     mast compare --mechanism build/fmus/MastMechanism.fmu build/fmus/LumpedMechanism.fmu --out results/lumped --quick
 
 It needs nothing of this project: numpy and pythonfmu only.
-"""
+"""  # noqa: E501 (a shell command, whole to be copied)
 
 from __future__ import annotations
 

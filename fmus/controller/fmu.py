@@ -17,7 +17,7 @@ from .workspace import WorkspaceController
 
 
 class MastController(BlockSlave):
-    """Joint-space cascade control of the three MAST axes: P position, PI velocity; current commands to the actuators' current loops (paper Fig. 2 and 6)."""
+    """Joint-space cascade control of the three MAST axes: P position, PI velocity; current commands to the actuators' current loops (paper Fig. 2 and 6)."""  # noqa: E501 (one line: the FMU's description)
 
     block_class = ControllerBlock
     author = "MAST co-simulation project"
@@ -25,29 +25,29 @@ class MastController(BlockSlave):
 
 
 class MastWorkspaceController(MastController):
-    """Workspace position control of the MAST (paper Fig. 3a): pose error through the direct kinematics, velocity command through the inverse Jacobian, PI velocity loop per axis."""
+    """Workspace position control of the MAST (paper Fig. 3a): pose error through the direct kinematics, velocity command through the inverse Jacobian, PI velocity loop per axis."""  # noqa: E501 (one line: the FMU's description)
 
     block_class = WorkspaceController
 
 
 class MastFeedForwardController(MastController):
-    """Joint-space cascade of the MAST with velocity and inverse-dynamics torque feed-forward (the controller's own model of actuators and mechanism)."""
+    """Joint-space cascade of the MAST with velocity and inverse-dynamics torque feed-forward (the controller's own model of actuators and mechanism)."""  # noqa: E501 (one line: the FMU's description)
 
     block_class = FeedForwardController
 
 
 class MastComputedTorqueController(MastController):
-    """Computed torque control of the MAST (paper Fig. 3b): PD error dynamics through the controller's own inverse dynamic model; current commands to the actuators' current loops."""
+    """Computed torque control of the MAST (paper Fig. 3b): PD error dynamics through the controller's own inverse dynamic model; current commands to the actuators' current loops."""  # noqa: E501 (one line: the FMU's description)
 
     block_class = ComputedTorqueController
 
 
 class Mast3RPSController(MastController):
-    """Joint-space cascade control of the three legs of the 3-RPS (design 3RPS): its own inverse kinematics from the 3-RPS's geometry; current commands to the actuators' current loops."""
+    """Joint-space cascade control of the three legs of the 3-RPS (design 3RPS): its own inverse kinematics from the 3-RPS's geometry; current commands to the actuators' current loops."""  # noqa: E501 (one line: the FMU's description)
 
 
 class MastEmpsController(BlockSlave):
-    """Sampled P position loop into a P velocity loop of one drive axis, FIR velocity estimate, drive command saturation and gain (the EMPS benchmark's controller)."""
+    """Sampled P position loop into a P velocity loop of one drive axis, FIR velocity estimate, drive command saturation and gain (the EMPS benchmark's controller)."""  # noqa: E501 (one line: the FMU's description)
 
     block_class = EmpsController
     author = "MAST co-simulation project"

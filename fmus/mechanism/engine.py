@@ -745,7 +745,8 @@ class Engine:
         """The solution on the start's branch and at least ``margin`` from a singularity (SingularityError)."""
         if (det > 0.0) != (det0 > 0.0):
             raise SingularityError(
-                f"direct kinematics for rho = ({_shown(rho)}) m: the solution {self._fmt_q(q)} lies on another assembly "
+                f"direct kinematics for rho = ({_shown(rho)}) m: the solution {self._fmt_q(q)} lies on another "
+                "assembly "
                 f"branch than the start {self._fmt_q(start)} (det(drho/dq) = {det:+.3g} there, {det0:+.3g} at the "
                 f"start): the joints crossed a parallel singularity; refused rather than jump to the other branch"
             )
@@ -763,7 +764,8 @@ class Engine:
                 else "inverse (a joint could move without moving the platform)"
             )
             raise SingularityError(
-                f"direct kinematics for rho = ({_shown(rho)}) m: the solution {self._fmt_q(q)} is within the margin of a "
+                f"direct kinematics for rho = ({_shown(rho)}) m: the solution {self._fmt_q(q)} is within the margin "
+                "of a "
                 f"{kind} singularity: margins parallel {mg.parallel:.3g}, inverse {mg.inverse:.3g} < {m:g} m/m "
                 f"(det(drho/dq) = {det:+.3g}; docs/mechanism.md, 'Singularities and the assembly branch')"
             )

@@ -15,7 +15,7 @@ from .model import MechanismBlock
 
 
 class MastMechanism(BlockSlave):
-    """3PRS mechanism of the MAST: kinematics and inverse dynamics, the disturbance forces on the actuators (paper section 3.3)."""
+    """3PRS mechanism of the MAST: kinematics and inverse dynamics, the disturbance forces on the actuators (paper section 3.3)."""  # noqa: E501 (one line: the FMU's description)
 
     block_class = MechanismBlock
     author = "MAST co-simulation project"
@@ -23,19 +23,19 @@ class MastMechanism(BlockSlave):
 
 
 class Mast3PRS120(MastMechanism):
-    """3PRS mechanism with its guides at 120 degrees (design 3PRS_120): kinematics and inverse dynamics, the disturbance forces on the actuators."""
+    """3PRS mechanism with its guides at 120 degrees (design 3PRS_120): kinematics and inverse dynamics, the disturbance forces on the actuators."""  # noqa: E501 (one line: the FMU's description)
 
 
 class Mast3PRSInclined(MastMechanism):
-    """3PRS mechanism, T layout, guides inclined 15 degrees towards the axis (design 3PRS_inclined): kinematics and inverse dynamics, the disturbance forces on the actuators."""
+    """3PRS mechanism, T layout, guides inclined 15 degrees towards the axis (design 3PRS_inclined): kinematics and inverse dynamics, the disturbance forces on the actuators."""  # noqa: E501 (one line: the FMU's description)
 
 
 class MastActuatorsOnly(MastMechanism):
-    """No mechanism attached (design actuators_only, paper Fig. 10): zero force on the actuators; the pose outputs are the kinematics of the massless 3PRS."""
+    """No mechanism attached (design actuators_only, paper Fig. 10): zero force on the actuators; the pose outputs are the kinematics of the massless 3PRS."""  # noqa: E501 (one line: the FMU's description)
 
 
 class Mast3RPS(MastMechanism):
-    """3-RPS mechanism (design 3RPS, descriptions/3RPS.toml: the paper's belt axes as legs): kinematics and inverse dynamics, the forces on the actuators along the legs."""
+    """3-RPS mechanism (design 3RPS, descriptions/3RPS.toml: the paper's belt axes as legs): kinematics and inverse dynamics, the forces on the actuators along the legs."""  # noqa: E501 (one line: the FMU's description)
 
 
 #: every mechanism FMU built from this model (model identifier -> class)

@@ -22,7 +22,8 @@ Families (the ``outputs.metrics`` names of a batch config):
                temperature), ``sizing_<k>_margin`` per drive, ``sizing_fail`` and ``sizing_at_limit`` (1 or 0);
                left out for a system that names no ratings
 ``saturation`` ``saturation_<k>_s``: time drive k spends at its current limit (``|i_cmd_k| = i_max``)
-               or voltage limit (``|u| = u_max`` of ``actuator_<k>``, the drive's current loop), sampled at the record step;
+               or voltage limit (``|u| = u_max`` of ``actuator_<k>``, the drive's current loop), sampled at the record
+               step;
                ``saturation_s``: time any drive is saturated; ``saturation_fraction``: that time
                over the window
 

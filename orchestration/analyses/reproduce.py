@@ -568,7 +568,8 @@ def _forensics(ssp: str, params: dict, groups: dict, m_eq22: float) -> list[str]
         "- Torque at 10 Hz, with the drive's torque low-pass on the measured (identified) torque, manufacturer minus "
         "measured, peak-to-peak: " + ("; ".join(lp) if lp else "(no signals)") + ".",
         f"- Controller: k_v = {float(ctl['k_v']):.4g} 1/s, k_p = {float(ctl['k_p']):.4g} A s/rad, k_i = "
-        f"{float(ctl['k_i']):.4g} A/rad (fitted), k_pc = {float(loop['k_pc']):.4g} V/A, k_ic = {float(loop['k_ic']):.4g} "
+        f"{float(ctl['k_i']):.4g} A/rad (fitted), k_pc = {float(loop['k_pc']):.4g} V/A, k_ic = "
+        f"{float(loop['k_ic']):.4g} "
         f"V/(A s), cycle times {1e6 * float(ctl['T_cur']):.0f} us / {1e3 * float(ctl['T_vel']):g} ms / "
         f"{1e3 * float(ctl['T_pos']):g} ms (current / velocity / position); limits {float(ctl['i_max']):g} A, "
         f"{float(loop['u_max']):g} V.",
@@ -599,7 +600,8 @@ def _write_report(
         f"simulation-vs-experiment deviation ({paper.TOLERANCE_SENTENCE}: 11 % of a magnitude, 13 % of a phase lag). "
         f"Fitted: {s['fits_within']} of {s['fits']} (the controller gains k_v, k_p, k_i were fitted to these, "
         f"`mast fit-gains`); reused: {s['reuses_within']} of {s['reuses']} (the paper gives one number per frequency "
-        "for all motions; z's was fitted, so psi and theta at those frequencies check the model, they predict nothing).",
+        "for all motions; z's was fitted, so psi and theta at those frequencies check the model, they predict "
+        "nothing).",
         "",
         "Conditions: sine amplitudes (not in the paper, assumed) "
         f"{1e3 * paper.AMPLITUDE['z']:g} mm in z and {math.degrees(paper.AMPLITUDE['psi']):g} deg in psi and theta; "

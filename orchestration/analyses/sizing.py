@@ -19,7 +19,8 @@ guide      the belt's axial force 2 pi tau_out / p (the gearhead's output torque
 amplifier  RMS current against its continuous current, peak current (and the controller's current
            command, where recorded) against its peak current
 
-Margin = 1 - figure / limit (the temperature's: of the rise above ambient). An item passes below its limit, is "at limit" on it (a drive that
+Margin = 1 - figure / limit (the temperature's: of the rise above ambient). An item passes below its limit, is "at
+limit" on it (a drive that
 holds its current at the amplifier's peak: the motion asked for more than the drive gives), and
 fails above it. The verdict: fail if any item fails, at limit if any is on its limit, else pass;
 the limiting item is the one with the smallest margin.

@@ -80,7 +80,8 @@ MAX_SWEPT = 3
 class Machine:
     """What the workspace needs of a design: the mechanism's parameters, the strokes, home, the drives.
 
-    rho_min, rho_max, rho_home: per drive joint, in its unit (m; rad for a rotary drive); drive: per-joint-identical actuator data for the
+    rho_min, rho_max, rho_home: per drive joint, in its unit (m; rad for a rotary drive); drive: per-joint-identical
+    actuator data for the
     static motor torque (M_load [kg], g_guide [m/s^2], p [m], i_r [-], k_T [N m/A], i_max [A]),
     empty when the system does not give them.
     """
@@ -629,9 +630,10 @@ def classify(ws: Workspace, q: Sequence[float]) -> dict:
         )
     off = [c.name for k, c in enumerate(coords) if k not in ws.swept and q[k] != ws.home[k]]
     if off:
+        held = [c for c in coords if c.name in off]
         raise ValueError(
             f"pose {_fmt_pose(q, coords)}: this workspace holds {', '.join(off)} at home "
-            f"({_fmt_pose([ws.home[k] for k, c in enumerate(coords) if c.name in off], [c for c in coords if c.name in off])}); "
+            f"({_fmt_pose([ws.home[k] for k, c in enumerate(coords) if c.name in off], held)}); "
             "sweep it to ask about other values"
         )
     j = _judge(eng, m, [np.array([v]) for v in q], ws.sign, ws.margin)

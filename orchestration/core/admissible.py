@@ -5,7 +5,8 @@ Before the first step the master hands the extreme poses the stimulus will comma
 ``check_commands``. Each goes through the inverse kinematics of the plant's mechanism
 (the component whose inputs ``rho_1..n`` the actuators feed, with its own bound
 parameters; n and the coordinates from its description's topology) and the joint positions
-are compared with the strokes ``[rho_min, rho_max]`` of the actuators feeding it. A pose that is unreachable or drives a carriage off its
+are compared with the strokes ``[rho_min, rho_max]`` of the actuators feeding it. A pose that is unreachable or drives
+a carriage off its
 stroke refuses the run, naming the command, its value and the limit along that axis
 (found by bisection from the home pose), instead of a run that fails part-way or, with a
 stroke that does not stop the model, runs to the end on nonsense.

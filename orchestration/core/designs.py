@@ -128,7 +128,8 @@ def variant(d: Design, base: SystemDescription = MAST) -> SystemDescription:
         description=f"{base.description} - design {d.name}: {d.title}",
         comment=f"Design {d.name}: {d.title} (docs/designs/{d.name}.md).\n"
         f"     Written by `python -m mast.core.variants` from {base.name}.ssd: it differs from it only in the "
-        f"mechanism's\n     source ({d.model_identifier}.fmu{f', the controller {d.controller}.fmu' if d.controller else ''})"
+        "mechanism's\n     source "
+        f"({d.model_identifier}.fmu{f', the controller {d.controller}.fmu' if d.controller else ''})"
         f" and the design's parameter sets\n     ({sets}).\n"
         "     Components may be swapped by editing their `source`; parameter sets are bound in order, later "
         "ones override.",

@@ -69,7 +69,9 @@ int mast_ticks(mast_unit *units, int n_units, double *flat, int n_out, const dou
             mast_unit *u = units + k;
             if (u->phase) continue;
             if (u->step(u->comp, t, u->h, 1) > 1) { *at = n; *which = k; *call = 2; return 1; }
-            if (u->get(u->comp, u->vr_out, (size_t)u->n_out, u->pending) > 1) { *at = n; *which = k; *call = 1; return 1; }
+            if (u->get(u->comp, u->vr_out, (size_t)u->n_out, u->pending) > 1) {
+                *at = n; *which = k; *call = 1; return 1;
+            }
         }
         long m = n + 1;
         for (int k = 0; k < n_units; k++) {          /* phase of tick m; due then: publish its last step */

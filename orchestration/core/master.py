@@ -149,7 +149,8 @@ class Master:
             m = round(h / self.base_step)
             if m < 1 or abs(m * self.base_step - h) > 1e-9 * h:
                 raise ValueError(
-                    f"component '{name}': step size {h:g} s is not a whole multiple of the base step {self.base_step:g} s"
+                    f"component '{name}': step size {h:g} s is not a whole multiple of the base step "
+                    f"{self.base_step:g} s"
                 )
             self.multiples[name] = m
         self.exchange_order = self._exchange_order()
@@ -189,7 +190,8 @@ class Master:
         unknown = sorted(set(parameters) - set(system.components))
         if unknown:
             raise ValueError(
-                f"parameter overrides name unknown component(s) {', '.join(unknown)}; components: {', '.join(system.components)}"
+                f"parameter overrides name unknown component(s) {', '.join(unknown)}; components: "
+                f"{', '.join(system.components)}"
             )
         order = list(system.components)
         bound = applicable_parameters(

@@ -131,7 +131,8 @@ class SineMotion:
             raise ValueError(f"motion axis '{self.axis}': expected one of {', '.join(self.axes)}")
         if not (math.isfinite(self.amplitude) and math.isfinite(self.frequency) and self.frequency >= 0):
             raise ValueError(
-                f"motion amplitude {self.amplitude!r} / frequency {self.frequency!r}: expected finite values, frequency >= 0 Hz"
+                f"motion amplitude {self.amplitude!r} / frequency {self.frequency!r}: expected finite values, "
+                "frequency >= 0 Hz"
             )
         self._k = self.axes.index(self.axis)
         self._omega = 2 * math.pi * self.frequency

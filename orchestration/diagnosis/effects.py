@@ -35,7 +35,7 @@ The observed torque is tau_obs = drive(sensor(tau_m)), where sensor is the FMU's
 measurement model (T_meas, delay_meas, tau_offset; fmus/actuator/sensor.py) and drive the
 measurement chain the data's meta.json documents (the drive's torque filter). Columns go
 through the same linear chain and are sampled at the data's time stamps.
-"""
+"""  # noqa: E501 (a Markdown table, one row a line)
 
 from __future__ import annotations
 

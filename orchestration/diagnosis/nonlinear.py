@@ -70,7 +70,8 @@ def nonlinear_stage(
         start.update(_nonlinear_start(ctx, state, e))
         atom = Atom(e, start.get("omega_s") if e.key == "stribeck" else None)
         ctx.log(
-            f"diagnose: trying {e.title} by re-simulation (start {', '.join(f'{p} = {start[p]:.3g}' for p in e.parameters)})"
+            f"diagnose: trying {e.title} by re-simulation (start "
+            f"{', '.join(f'{p} = {start[p]:.3g}' for p in e.parameters)})"
         )
         cand = fit_state(ctx, tuple(state.selected) + (atom,), start, anchor=state.changes)
         if cand is None:

@@ -42,7 +42,8 @@ def write_outputs(
             units,
             why,
             f"Written by mast diagnose from {Path(opt.measured).name}: the nominal model "
-            f"({doc['model']}) plus the named effects; bind it after the other parameter sets of '{component}' (the SSP "
+            f"({doc['model']}) plus the named effects; bind it after the other parameter sets of '{component}' (the "
+            "SSP "
             "next to it does).",
         ),
     )

@@ -83,7 +83,8 @@ def write_model(
             values,
             units,
             {name: why.get(name, f"nominal model ({opt.model})") for name in values},
-            f"Written by mast diagnose from {Path(opt.measured).name}: the nominal model ({opt.model or 'SSP bindings'}) "
+            f"Written by mast diagnose from {Path(opt.measured).name}: the nominal model "
+            f"({opt.model or 'SSP bindings'}) "
             "plus the named effects; bind it after the actuators' other parameter sets (MAST_diagnosed.ssp does).",
         ),
     )

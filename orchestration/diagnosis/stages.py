@@ -276,7 +276,8 @@ def alias_check(ctx: Context, state: State, last_fit, steps: list) -> State:
                         "from": [x.label for x in state.selected],
                         "to": f"{other.key} instead of {a.effect.key}",
                         "accepted": False,
-                        "note": f"the equivalent {other.parameter} = {start[other.parameter]:.3g} is outside its bounds",
+                        "note": f"the equivalent {other.parameter} = {start[other.parameter]:.3g} is outside its "
+                        "bounds",
                     }
                 )
                 continue
@@ -373,7 +374,8 @@ def lag_form_check(ctx: Context, state: State, steps: list) -> State:
     parameter of the selection free: the others had adapted to the first), and the two are compared by the same
     information criterion (training BIC, full band: the same number of parameters) and held-out test (held-out
     deviance n ln(RSS_delay / RSS_filter), full band). The delay is named if both prefer it and their sum (the
-    selection's score) by DELTA_BIC or more, the filter likewise (``lag_form``); otherwise the lag is named with its value and "delay or filter: not
+    selection's score) by DELTA_BIC or more, the filter likewise (``lag_form``); otherwise the lag is named with its
+    value and "delay or filter: not
     distinguishable on this plan", the form fitting the training tests better kept in the model. The decision is
     a step ``how: delay or filter`` (named_effects reads it)."""
     for a in state.selected:

@@ -338,7 +338,8 @@ def judge(
             (
                 (f"with {others} named, " if others else "")
                 + f"{hunting} is present, its value not determined on this plan "
-                f"({'; '.join(pf['value_not_determined_because'])}); the residual is at the noise floor sample by sample on "
+                f"({'; '.join(pf['value_not_determined_because'])}); the residual is at the noise floor sample by "
+                "sample on "
                 f"{', '.join(n for n in names if n not in by_bands and n not in unreproduced) or 'no test'}"
                 + (f", in the band powers of the hunting on {', '.join(by_bands)}" if by_bands else "")
                 + f"; `{pf['parameter']}` is left out of the augmented model"

@@ -8,8 +8,10 @@ A native FMU is made from the Python FMU of the same model (``mast.core.build``)
 - its C is the runtime of fmus/common/native, the same for every model: the wrapper ``fmi2_wrapper.c`` (the FMI
   glue) against the model interface ``mast_model.h``, the scalar helpers ``mast_native.h``, the parameters' range
   checks ``mast_ranges.c``, the matrix helpers
-  ``mast_linalg.c`` and the direct kinematics ``mast_dk.c`` (``SUPPORT_FILES``), and its kind's (``models.runtime_files``:
-  ``mast_actuator.c`` and a drive's ``mast_drive.c``, ``mast_mechanism.c``, ``mast_trajectory.c``); and what is generated for the model (``models.emit_model``): one model file of traced
+  ``mast_linalg.c`` and the direct kinematics ``mast_dk.c`` (``SUPPORT_FILES``), and its kind's
+  (``models.runtime_files``:
+  ``mast_actuator.c`` and a drive's ``mast_drive.c``, ``mast_mechanism.c``, ``mast_trajectory.c``); and what is
+  generated for the model (``models.emit_model``): one model file of traced
   straight-line kernels and tables, and an actuator's or a mechanism's ``config.h`` (its sizes);
 - the sources travel in ``sources/`` so a host on another platform can compile them (with the
   FMI 2.0 headers, which every importer has); the binary is ``binaries/linux64/<id>.so``, compiled

@@ -410,7 +410,8 @@ def pack(fn: ast.FunctionDef, packed: Mapping[str, Sequence[str]], name: str, ca
     """``fn`` rewritten in place to take each array of ``packed`` ({array: its scalar arguments, in order}) instead
     of its scalars: the array at the first scalar's place (an array with no scalars right after the previous array,
     or first), each read of a scalar an index into its array, and each run of a whole group in the arguments of a
-    call of ``calls`` (other generated functions) the array. A scalar out of its group's order, or assigned, is refused (TranslationError)."""
+    call of ``calls`` (other generated functions) the array. A scalar out of its group's order, or assigned, is
+    refused (TranslationError)."""
     where = {arg: (array, k) for array, names in packed.items() for k, arg in enumerate(names)}
     args = [a.arg for a in fn.args.args]
     out: list[str] = []
