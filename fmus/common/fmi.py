@@ -12,15 +12,12 @@ from typing import List
 from pythonfmu import DefaultExperiment, Fmi2Causality, Fmi2Initial, Fmi2Slave, Fmi2Variability, Integer, Real, String
 from pythonfmu.enums import Fmi2Status
 
-from .slave import (
-    INSTANTIATED,
-    STEPPING,
-    BlockWrapper,
-    FmiVocabulary,
-    fast_get,  # noqa: F401
-    fast_set,
-    fmi_call,
-)  # PARAMETERS_FILE, keep_alive, load_defaults: re-exported
+from .slave import INSTANTIATED, STEPPING, BlockWrapper, FmiVocabulary, fast_get, fast_set, fmi_call
+
+# re-exported: the generated FMU entry module imports keep_alive from here (mast.core.build)
+from .slave import PARAMETERS_FILE as PARAMETERS_FILE
+from .slave import keep_alive as keep_alive
+from .slave import load_defaults as load_defaults
 
 
 class BlockSlave(BlockWrapper, Fmi2Slave):
