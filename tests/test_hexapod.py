@@ -18,7 +18,6 @@ share no code with the engine.
 
 from __future__ import annotations
 
-import json
 import math
 
 import newton_euler as ne
@@ -36,12 +35,26 @@ HOME = np.asarray(HEX.describe().topology.home)
 LO, HI = 0.45, 0.75  # the stroke, pin to pin [m] (the paper's 300 mm from 0.45 m retracted)
 SPREAD = (0.08, 0.08, 0.08, 0.25, 0.25, 0.25)
 LEGS_FREE = dict(
-    m_cylinder=0.0, I_cylinder_xx=0.0, I_cylinder_yy=0.0, I_cylinder_zz=0.0, I_cylinder_xz=0.0, m_rod=0.0,
-    I_rod_xx=0.0, I_rod=0.0,
+    m_cylinder=0.0,
+    I_cylinder_xx=0.0,
+    I_cylinder_yy=0.0,
+    I_cylinder_zz=0.0,
+    I_cylinder_xz=0.0,
+    m_rod=0.0,
+    I_rod_xx=0.0,
+    I_rod=0.0,
 )
 PAYLOAD = dict(
-    m_payload=5.0, payload_x=0.03, payload_y=-0.02, payload_z=0.12, I_payload_xx=0.06, I_payload_yy=0.05,
-    I_payload_zz=0.08, I_payload_xy=0.002, I_payload_xz=-0.001, I_payload_yz=0.003,
+    m_payload=5.0,
+    payload_x=0.03,
+    payload_y=-0.02,
+    payload_z=0.12,
+    I_payload_xx=0.06,
+    I_payload_yy=0.05,
+    I_payload_zz=0.08,
+    I_payload_xy=0.002,
+    I_payload_xz=-0.001,
+    I_payload_yz=0.003,
 )
 
 
@@ -204,7 +217,7 @@ def test_6ups_inverse_dynamics_agree_with_newton_euler(legs, g, payload):
 
 
 def test_6ups_oracle_sees_the_cylinders_product_of_inertia_and_the_rod():
-    """Without the motor's offset (I_xz, z_cylinder) or the rod's mass the oracle disagrees: the check above sees them."""
+    """Without the motor's offset (I_xz, z_cylinder) or the rod's mass the oracle disagrees: the check sees them."""
     eng = engine()
     mech = oracle()
     q, rd, rdd = random_states(eng, mech, np.random.default_rng(43), 1)[0]
@@ -321,7 +334,7 @@ def kinetic(mech: ne.Mechanism, rho, rho_dot, guess, eps: float = 1e-5) -> float
     rho, rho_dot = np.asarray(rho, float), np.asarray(rho_dot, float)
     before, now, after = (body_poses(mech, pose_of(mech, rho + k * eps * rho_dot, guess)) for k in (-1, 0, 1))
     T = 0.0
-    for (body, o0, R0), (_, o1, R1), (_, o2, R2) in zip(before, now, after):
+    for (body, o0, R0), (_, _, R1), (_, o2, R2) in zip(before, now, after):
         c = np.asarray(body.com, float)
         v = ((o2 + R2 @ c) - (o0 + R0 @ c)) / (2 * eps)
         w = vee(R1.T @ (R2 - R0) / (2 * eps))  # body frame
@@ -358,6 +371,94 @@ def test_6ups_power_balance_along_leg_trajectories():
     np.testing.assert_allclose(powers, balances, atol=1e-6 * scale)
     # and the balance sees a missing body: without the rods' kinetic and potential energy it fails
     bare = engine(m_rod=0.0, I_rod_xx=0.0, I_rod=0.0)
-    missing = [bare.inverse_dynamics_at_pose(pose_of(mech, legs(t)[0], HOME), *legs(t)[1:]).t_rho @ legs(t)[1]
-               for t in np.linspace(0.0, 0.3, 7)]
+    missing = [
+        bare.inverse_dynamics_at_pose(pose_of(mech, legs(t)[0], HOME), *legs(t)[1:]).t_rho @ legs(t)[1]
+        for t in np.linspace(0.0, 0.3, 7)
+    ]
     assert np.max(np.abs(np.array(missing) - balances)) > 1e-3 * scale
+
+
+# ----------------------------------------------------------------------------- singularities and the workspace
+def test_6ups_margins_at_home():
+    """By the oracle's own drho/dq (central differences), scaled as the engine scales: the angles by r."""
+    J = oracle_jacobian(oracle(), HOME, 1e-6)
+    sv = np.linalg.svd(J / np.array([1.0, 1.0, 1.0, 0.35, 0.35, 0.35]), compute_uv=False)
+    m = engine().margins(HOME)
+    assert m.parallel == pytest.approx(sv[-1], rel=1e-7) and m.inverse == pytest.approx(1.0 / sv[0], rel=1e-7)
+    assert m.det < 0 and min(m.parallel, m.inverse) > 5 * MARGIN
+    assert (m.parallel, m.inverse, m.dexterity) == pytest.approx((0.7391, 0.4533, 2.985), abs=1e-3)  # docs
+
+
+def through_home_by_hand(ws, d: int) -> tuple[float, float]:
+    """The run of grid nodes through home along swept axis d whose six leg lengths (the oracle's) are within the
+    stroke, in the summary's units; asserts that the next node on each side is outside it."""
+    from mast.analyses.workspace import shown
+
+    mech = oracle()
+    axis, k = ws.axes[d], ws.swept[d]
+    home = ws.home_index[d]
+
+    def within(i: int) -> bool:
+        q = np.array(ws.home, dtype=float)
+        q[k] = axis[i]
+        rho = ne.joints(mech, q)
+        return bool(np.all(rho >= LO - 1e-12) and np.all(rho <= HI + 1e-12))
+
+    lo = hi = home
+    while lo > 0 and within(lo - 1):
+        lo -= 1
+    while hi < len(axis) - 1 and within(hi + 1):
+        hi += 1
+    assert 0 < lo and hi < len(axis) - 1 and not within(lo - 1) and not within(hi + 1)  # the stroke ends it
+    c = ws.coordinates[k]
+    return shown(c, axis[lo]), shown(c, axis[hi])
+
+
+@pytest.mark.parametrize("sweep", [("x", "y", "z"), ("psi", "theta", "phi")])
+def test_6ups_workspace_ranges_through_home_are_the_leg_strokes_by_hand(sweep):
+    """`mast workspace 6UPS --sweep x,y,z` / `psi,theta,phi` (coarse grid): through home the strokes bound every
+    range, at the grid nodes the legs' lengths by hand put there; the static forces at home and inside are the
+    oracle's at rest; the other coordinates held at home."""
+    from mast.analyses import workspace as W
+
+    m = W.machine("6UPS")
+    assert (m.rho_min, m.rho_max) == ((LO,) * 6, (HI,) * 6) and m.rho_home == pytest.approx((0.6,) * 6)
+    assert m.missing_masses == ()
+    ws = W.compute(m, 0.02, math.radians(3.0), sweep=sweep)
+    s = W.summarize(ws)
+    assert [c.name for c in ws.swept_coordinates] == list(sweep)
+    for d, c in enumerate(ws.swept_coordinates):
+        assert s["ranges_through_home"][W.column(c)] == pytest.approx(through_home_by_hand(ws, d), abs=1e-12)
+    assert s["limited_by"] == {"outside the stroke": 1.0}
+    assert s["static_forces"]["home_N"] == pytest.approx([14.95233353, 13.09014153] * 3, rel=1e-8)
+    mech = oracle()
+    inside_nodes = np.argwhere(ws.status == W.INSIDE)
+    for k in np.random.default_rng(5).choice(len(inside_nodes), 5, replace=False):
+        i = tuple(inside_nodes[k])
+        at_rest = ne.forces(mech, ws.pose(i), np.zeros(6), np.zeros(6))
+        np.testing.assert_allclose(ws.forces[(slice(None),) + i], at_rest, rtol=1e-9)
+
+
+def test_6ups_pose_takes_six_numbers(capsys):
+    """--pose with six numbers: the grid over the coordinates it moves (the translations, or the angles), inside or
+    not by the strokes; a pose that moves four coordinates is refused naming them."""
+    from mast.analyses.workspace import sweep_for_pose
+    from mast.cli import main as cli_main
+
+    top = HEX.describe().topology
+    home_z = repr(float(HOME[2]))
+    assert sweep_for_pose(top, (0.1, 0.0, HOME[2], 0.0, 0.0, 0.0)) == ("x", "y", "z")
+    assert sweep_for_pose(top, (0.0, 0.0, HOME[2], 0.1, 0.0, 0.2)) == ("psi", "theta", "phi")
+    assert sweep_for_pose(top, (0.1, 0.0, HOME[2], 0.1, 0.0, 0.0)) == ("x", "psi")
+    with pytest.raises(
+        ValueError, match=r"leaves home in 4 coordinates \(x, y, z, psi\); a workspace sweeps at most 3"
+    ):
+        sweep_for_pose(top, (0.1, 0.1, 0.5, 0.1, 0.0, 0.0))
+    coarse = ["--step-z", "0.02", "--step-tilt", "3"]
+    assert cli_main(["workspace", "6UPS", "--pose", f"0,0,{home_z},10,5,20", *coarse]) == 0
+    assert '"inside": true' in capsys.readouterr().out
+    # z = 0.72 m level: every leg sqrt(0.72^2 + d^2) = 0.766 m > 0.75 m, by hand
+    d2 = 0.4**2 + 0.35**2 - 2 * 0.4 * 0.35 * math.cos(math.radians(40.0))
+    assert math.sqrt(0.72**2 + d2) > HI
+    assert cli_main(["workspace", "6UPS", "--pose", "0,0,0.72,0,0,0", *coarse]) == 1
+    assert '"reason": "outside the stroke"' in capsys.readouterr().out
