@@ -136,7 +136,8 @@ PARAMETERS: tuple[Param, ...] = (
     nonnegative("J_brake", "kg.m2", "brake inertia, on the motor shaft: added to J1"),
     positive("J1_scale", "1", "multiplier on J1 (paper identified set: 1/1.56); scales J_chain[0] when n_dof >= 3"),
     positive("J_guide", "kg.m2", "linear guide inertia at its input shaft (Eq. 21)"),
-    positive("M_load", "kg", "drive carriage mass (Eqs. 21-22); its weight acts on the guide"),
+    nonnegative("M_load", "kg", "drive carriage mass (Eqs. 21-22); its weight acts on the guide (0: the carriage is a "
+                "body of the mechanism, a 3-RPS's leg: docs/designs/3rps.md)"),
     positive("K_t", "N.m/rad", "transmission stiffness, motor side (Eqs. 2-3, Table 1)"),
     nonnegative("C_t", "N.m.s/rad", "transmission damping, motor side (Eqs. 2-3, Table 1)"),
     nonnegative("tau_c", "N.m", "guide Coulomb friction referred to the motor shaft (Eq. 23)"),

@@ -25,6 +25,7 @@ inverse dynamics per evaluation, about 0.1 ms.
 """
 from __future__ import annotations
 
+import dataclasses
 from typing import Mapping, Optional, Sequence
 
 from ..actuator.model import PARAMETERS as ACTUATOR_PARAMETERS
@@ -39,8 +40,12 @@ _ACTUATOR = {p.name: p for p in ACTUATOR_PARAMETERS}
 
 #: the model's parameters: the plant's own declarations (bind the plant's sets to the controller)
 MODEL_PARAMETERS = (
-    *(_ACTUATOR[n] for n in ("k_T", "J_motor", "J_gearbox", "J_coupling", "J_brake", "J1_scale", "J_guide",
-                             "M_load", "tau_c", "omega_c", "b_v", "tau_s", "omega_s", "g_guide")),
+    *(_ACTUATOR[n] for n in ("k_T", "J_motor", "J_gearbox", "J_coupling", "J_brake", "J1_scale", "J_guide")),
+    # the model's plant is the 3PRS's actuator, whose carriage rides the belt (an actuator may have none: a 3-RPS's
+    # carriage is a body of its mechanism, docs/designs/3rps.md, where the joint cascade runs)
+    dataclasses.replace(_ACTUATOR["M_load"], minimum=0.0, exclusive=True,
+                        description="drive carriage mass (Eqs. 21-22); its weight acts on the guide"),
+    *(_ACTUATOR[n] for n in ("tau_c", "omega_c", "b_v", "tau_s", "omega_s", "g_guide")),
     *MASS_PARAMETERS,
     *PAYLOAD_PARAMETERS,
 )

@@ -65,7 +65,8 @@ from ..common.block import Block, ModelError
 from ..common.parameters import ParameterError, Value, nonnegative, positive
 from ..actuator.drive import pi_step
 from ..actuator.model import transmission_ratio
-from ..mechanism.designs import KINEMATIC_PARAMETERS, TRACED_PARAMETERS, describe, description, kinematic_engine
+from ..mechanism.designs import (KINEMATIC_PARAMETERS, TRACED_PARAMETERS, describe, description, kinematic_engine,
+                                parameters_for)
 from ..mechanism.engine import Engine
 from ..mechanism.kinematics import KinematicsError
 from ..mechanism.topology import POSE_UNITS, Topology, TopologyError
@@ -171,6 +172,9 @@ class DriveController(Block):
     FEEDFORWARD_CURRENT = False
     #: the laws' arithmetic the tick calls (value functions in the generated-code subset)
     LAWS: tuple = ()
+    #: the description whose parameters ``PARAMETERS`` holds ("3PRS": a controller takes those of the description
+    #: its geometry set's ``kinematics`` names, ``designs.parameters_for``; another: ``for_parameters``' class)
+    MECHANISM: str = "3PRS"
 
     def __init_subclass__(cls, **kwargs) -> None:
         super().__init_subclass__(**kwargs)
@@ -204,11 +208,14 @@ class DriveController(Block):
             topology = describe(params, masses=False).topology
         except Exception:   # noqa: BLE001 - the block's own construction reports what is wrong with them
             return cls
-        return cls.for_topology(topology)
+        return _with_parameters(cls.for_topology(topology), params.get("kinematics", "3PRS"))
 
     def __init__(self, params: Mapping[str, Value], name: str = "", kinematics: Optional[Engine] = None) -> None:
         """``kinematics``: the controller's kinematic model, by default the description its geometry parameter
-        set selects (designs.kinematic_engine); its topology must have this class's axes (``for_topology``)."""
+        set selects (designs.kinematic_engine); its topology must have this class's axes (``for_topology``). The
+        parameters of that description are the controller's (``MECHANISM``)."""
+        if self.MECHANISM == "3PRS":
+            self.PARAMETERS = parameters_for(self.PARAMETERS, params.get("kinematics", "3PRS"))
         super().__init__(params, name)
         P = self.params
         T_cur = float(P["T_cur"])
@@ -490,6 +497,17 @@ def _specialised(cls: type, coordinates: tuple[str, ...]) -> type:
     return type(cls.__name__, (cls,), {"COORDINATES": coordinates, "__module__": cls.__module__,
                                        "__qualname__": f"{cls.__qualname__}[{', '.join(coordinates)}]",
                                        "__doc__": cls.__doc__})
+
+
+@lru_cache(maxsize=None)
+def _with_parameters(cls: type, kind: str) -> type:
+    """``cls`` with the parameters of the description ``kind`` in place of the 3PRS's (``parameters_for``; what an
+    FMU registers): itself for the 3PRS's, else its subclass of the same name, made once per class and kind."""
+    parameters = parameters_for(cls.PARAMETERS, kind) if cls.MECHANISM == "3PRS" else cls.PARAMETERS
+    if parameters == cls.PARAMETERS:
+        return cls
+    return type(cls.__name__, (cls,), {"PARAMETERS": parameters, "MECHANISM": kind, "__module__": cls.__module__,
+                                       "__qualname__": f"{cls.__qualname__}[{kind}]", "__doc__": cls.__doc__})
 
 
 class ControllerBlock(DriveController):

@@ -221,12 +221,14 @@ class Expression:
 @dataclass(frozen=True)
 class Parameter:
     """A parameter of a description: ``value`` in ``unit``, and its ``source`` (paper table or equation,
-    datasheet, measured data, or "assumed: reason")."""
+    datasheet, measured data, or "assumed: reason"); ``range``: the values a parameter set may give it
+    (inclusive bounds, the file's optional ``range = [lower, upper]``; none: any finite number)."""
 
     name: str
     value: float
     unit: str
     source: str
+    range: tuple[float, float] = (-math.inf, math.inf)
 
 
 def _table(data, where: str, required: Sequence[str], optional: Sequence[str] = ()) -> dict:
@@ -357,10 +359,18 @@ class DescriptionFile:
             w = f"{where}: parameter {name!r}"
             if not name.isidentifier() or name in FUNCTIONS or name == "pi":
                 raise DescriptionError(f"{w}: expected a name (letters, digits, _), not a function's")
-            _table(entry, w, ("value", "unit", "source"))
+            _table(entry, w, ("value", "unit", "source"), ("range",))
             value = entry["value"]
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
                 raise DescriptionError(f"{w}: value {value!r}: expected a finite number")
+            bounds = entry.get("range", [-math.inf, math.inf])
+            if not (isinstance(bounds, list) and len(bounds) == 2 and all(
+                    isinstance(b, (int, float)) and not isinstance(b, bool) and not math.isnan(b) for b in bounds)
+                    and bounds[0] < bounds[1]):
+                raise DescriptionError(f"{w}: range {bounds!r}: expected [lower, upper] with lower < upper "
+                                       f"(inf for no bound)")
+            if not bounds[0] <= value <= bounds[1]:
+                raise DescriptionError(f"{w}: value {value!r} outside its range [{bounds[0]:g}, {bounds[1]:g}]")
             try:
                 dimension(str(entry["unit"]))
             except ValueError:
@@ -369,7 +379,8 @@ class DescriptionFile:
             if not str(entry["source"]).strip():
                 raise DescriptionError(f"{w}: expected its source (paper table or equation, datasheet, measured data,"
                                        f" or 'assumed: reason')")
-            out[name] = Parameter(name, float(value), str(entry["unit"]), str(entry["source"]))
+            out[name] = Parameter(name, float(value), str(entry["unit"]), str(entry["source"]),
+                                  (float(bounds[0]), float(bounds[1])))
         return out
 
     def _expr(self, source, where: str, unit: str) -> Expression:

@@ -22,7 +22,8 @@ same floats.
 from __future__ import annotations
 
 import math
-from typing import Mapping
+from pathlib import Path
+from typing import Mapping, Sequence
 
 from ..common.codegen import largest_parameters
 from ..common.parameters import Param, ParameterError, nonnegative
@@ -32,8 +33,8 @@ from .kinematics import GEOMETRY_PARAMETERS, Geometry, KinematicsError
 from .legs import level_height
 
 __all__ = ["KINEMATICS", "KINEMATIC_PARAMETERS", "KINEMATIC_PARAMETERS_NAMES", "MASS_PARAMETERS", "PAYLOAD_PARAMETERS",
-           "TRACED_PARAMETERS", "describe", "description", "engine", "kinematic_engine", "level_height",
-           "traced_engine"]
+           "TRACED_PARAMETERS", "describe", "description", "description_parameters", "engine", "kinematic_engine",
+           "level_height", "parameters_for", "traced_engine"]
 
 
 #: the geometry parameter set: bound to the mechanism and to the controller (its kinematic model)
@@ -86,6 +87,45 @@ def description(kind: str = "3PRS", owner: str = "") -> DescriptionFile:
         raise ParameterError(f"{owner or 'mechanism'}: parameter 'kinematics' = {kind!r}: expected one of "
                              f"{', '.join(KINEMATICS)}")
     return load(KINEMATICS[kind])
+
+
+def description_parameters(kind: str) -> tuple[tuple[Param, ...], tuple[Param, ...]]:
+    """The parameter schema of the mechanism ``kind``'s description file: (its geometry's, ``kinematic``; the
+    others: bodies, gravity, payload), each ``Param(name, unit, description = its source, range = the file's
+    range)`` in the file's order."""
+    file = description(kind)
+
+    def param(p) -> Param:
+        return Param(p.name, p.unit, p.source, p.range[0], p.range[1])
+
+    return (tuple(param(p) for n, p in file.parameters.items() if n in file.kinematic),
+            tuple(param(p) for n, p in file.parameters.items() if n not in file.kinematic))
+
+
+def parameters_for(schema: Sequence[Param], kind: object) -> tuple[Param, ...]:
+    """``schema`` (a block's parameters, written for the 3PRS: ``KINEMATIC_PARAMETERS``, ``MASS_PARAMETERS``,
+    ``PAYLOAD_PARAMETERS`` among its own) for the mechanism ``kind`` (the ``kinematics`` parameter's value): the
+    3PRS's description parameters replaced by ``kind``'s (``description_parameters``), its geometry's where the
+    3PRS's geometry starts, its others where the 3PRS's bodies start (a schema with geometry only, a controller's,
+    takes the geometry's alone). The 3PRS's (and a mechanism described in Python, a test's) is ``schema``."""
+    if kind == "3PRS" or not isinstance(kind, str) or not isinstance(KINEMATICS.get(kind), Path):
+        return tuple(schema)
+    base = description("3PRS")
+    geometry, others = description_parameters(kind)
+    out: list[Param] = []
+    placed = set()
+    for p in schema:
+        if p.name == "kinematics":
+            out.append(Param("kinematics", "", f"Kinematic model of the mechanism: {kind} "
+                                               f"({description(kind).title})", kind=str))
+        elif p.name in base.parameters:
+            group = "geometry" if p.name in base.kinematic else "others"
+            if group not in placed:
+                placed.add(group)
+                out += geometry if group == "geometry" else others
+        else:
+            out.append(p)
+    return tuple(out)
 
 
 #: the names of the parameters the 3PRS traces as inputs (``traced_engine``), in argument order: the parameters

@@ -2,7 +2,9 @@
 
 One model, several FMUs: each design is the same ``MechanismBlock`` with the default
 parameters of its own system (``ssp/MAST_<design>.ssd``, written into the FMU by ``mast
-build``); the classes below only give each FMU its model identifier and description.
+build``); the classes below only give each FMU its model identifier and description. Its
+variables and parameters follow the description its built-in parameters name (``Mast3RPS``: the
+3-RPS's, ``MechanismBlock.for_parameters``).
 Swap a design by the mechanism component's ``source`` and its parameter sets in the SSP.
 """
 from __future__ import annotations
@@ -31,5 +33,9 @@ class MastActuatorsOnly(MastMechanism):
     """No mechanism attached (design actuators_only, paper Fig. 10): zero force on the actuators; the pose outputs are the kinematics of the massless 3PRS."""
 
 
+class Mast3RPS(MastMechanism):
+    """3-RPS mechanism (design 3RPS, descriptions/3RPS.toml: the paper's belt axes as legs): kinematics and inverse dynamics, the forces on the actuators along the legs."""
+
+
 #: every mechanism FMU built from this model (model identifier -> class)
-VARIANTS = {cls.__name__: cls for cls in (MastMechanism, Mast3PRS120, Mast3PRSInclined, MastActuatorsOnly)}
+VARIANTS = {cls.__name__: cls for cls in (MastMechanism, Mast3PRS120, Mast3PRSInclined, MastActuatorsOnly, Mast3RPS)}

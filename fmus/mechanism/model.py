@@ -21,7 +21,15 @@ from typing import ClassVar, Mapping, Sequence
 
 from ..common.block import Block, ModelError
 from ..common.parameters import ParameterError, Value
-from .designs import KINEMATIC_PARAMETERS, MASS_PARAMETERS, PAYLOAD_PARAMETERS, describe, description, engine
+from .designs import (
+    KINEMATIC_PARAMETERS,
+    MASS_PARAMETERS,
+    PAYLOAD_PARAMETERS,
+    describe,
+    description,
+    engine,
+    parameters_for,
+)
 from .engine import SingularityError
 from .kinematics import KinematicsError
 from .topology import DRIVE_UNITS, POSE, POSE_UNITS, Topology
@@ -129,9 +137,10 @@ class MechanismBlock(Block):
     platform pose.
 
     Its variables follow the topology of its description (``Variables``, ``Topology``): n drives give 3 n
-    inputs and n + 6 outputs. The class's own are the 3PRS's; a block of another topology has its own
-    (instance attributes), and a class made for one topology (``for_topology``: an FMU's, whose variables
-    are fixed when it is built) refuses parameters of another.
+    inputs and n + 6 outputs. Its parameters are its description file's (``designs.parameters_for``: name,
+    unit, source, range), with ``kinematics`` and ``attached``. The class's own are the 3PRS's; a block of
+    another mechanism has its own (instance attributes), and a class made for one topology and schema
+    (``for_topology``: an FMU's, whose variables are fixed when it is built) refuses parameters of another.
     """
 
     INPUTS = _PRS3.inputs
@@ -141,13 +150,18 @@ class MechanismBlock(Block):
     DESCRIPTIONS = _PRS3.descriptions
     #: True for a class whose variables are fixed to one topology (``for_topology``)
     fixed: ClassVar[bool] = False
+    #: the description whose parameters ``PARAMETERS`` holds ("3PRS": a block takes those of the description its
+    #: ``kinematics`` names, ``parameters_for``)
+    MECHANISM: ClassVar[str] = "3PRS"
     _classes: ClassVar[dict] = {}
 
     @classmethod
-    def for_topology(cls, topology: Topology) -> type["MechanismBlock"]:
-        """The block class with the variables of ``topology`` (one per set of variables)."""
+    def for_topology(cls, topology: Topology, kind: str = "3PRS") -> type["MechanismBlock"]:
+        """The block class with the variables of ``topology`` and the parameters of the description ``kind``
+        (``parameters_for``; one class per set of variables and parameters)."""
         io = Variables.of_topology(topology)
-        key = (io.inputs, tuple(io.units.items()))
+        parameters = parameters_for(MechanismBlock.PARAMETERS, kind)
+        key = (io.inputs, tuple(io.units.items()), parameters)
         found = cls._classes.get(key)
         if found is None:
             found = cls._classes[key] = type(
@@ -155,21 +169,24 @@ class MechanismBlock(Block):
                 {"__doc__": f"{cls.__doc__.strip().splitlines()[0]} Variables of {topology.name}: drives "
                             f"{', '.join(topology.joints)}, coordinates {', '.join(topology.names)}.",
                  "__module__": __name__, "INPUTS": io.inputs, "OUTPUTS": io.outputs, "UNITS": io.units,
-                 "DESCRIPTIONS": io.descriptions, "fixed": True})
+                 "DESCRIPTIONS": io.descriptions, "fixed": True, "PARAMETERS": parameters,
+                 "MECHANISM": kind if parameters != MechanismBlock.PARAMETERS else "3PRS"})
         return found
 
     @classmethod
     def for_parameters(cls, params: Mapping[str, Value]) -> type["MechanismBlock"]:
-        """The class whose variables a block of ``params`` has (``for_topology`` of their description); this
-        class when they describe no mechanism (the block built with them says why)."""
+        """The class whose variables and parameters a block of ``params`` has (``for_topology`` of their
+        description); this class when they describe no mechanism (the block built with them says why)."""
         if not params:
             return cls
         try:
-            return cls.for_topology(describe(params, masses=False).topology)
+            return cls.for_topology(describe(params, masses=False).topology, params.get("kinematics", "3PRS"))
         except Exception:   # noqa: BLE001 - the block's own construction reports what is wrong with them
             return cls
 
     def __init__(self, params: Mapping[str, Value], name: str = "") -> None:
+        if self.MECHANISM == "3PRS":    # the parameters of the description the set names (``parameters_for``)
+            self.PARAMETERS = parameters_for(self.PARAMETERS, params.get("kinematics", "3PRS"))
         super().__init__(params, name)
         self.engine = engine(self.params, self.name)
         self.topology = self.engine.description.topology

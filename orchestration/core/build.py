@@ -83,6 +83,10 @@ FMUS = (
     FmuSpec("Mast3PRS120", "mechanism"),
     FmuSpec("Mast3PRSInclined", "mechanism"),
     FmuSpec("MastActuatorsOnly", "mechanism"),
+    # other mechanisms: a system of their own each, ssp/MAST_<design>.ssd (mast.core.designs.MECHANISMS), with a
+    # controller built for it (its parameters and kinematic model the description's)
+    FmuSpec("Mast3RPS", "mechanism"),
+    FmuSpec("Mast3RPSController", "controller"),
     # single-axis test benches (ssp/EMPS_bench.ssd)
     FmuSpec("MastLoadAxis", "actuator"),
     FmuSpec("MastEmpsController", "controller"),
@@ -183,7 +187,7 @@ def default_parameters(model_identifier: str, ssd: Optional[Path] = None) -> dic
     """Bindings of the first component using the FMU (``_first_use``): merged in order and restricted to the FMU's
     own parameters (``ssp.applicable_parameters``)."""
     system, name = _first_use(model_identifier, ssd)
-    units = {c: {p.name: p.unit for p in block_class(Path(s.source).stem).PARAMETERS}
+    units = {c: {p.name: p.unit for p in block_class(Path(s.source).stem).for_parameters(s.parameters).PARAMETERS}
              for c, s in system.components.items()}
     return applicable_parameters(system, units, units)[name]
 

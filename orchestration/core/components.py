@@ -9,7 +9,7 @@ from __future__ import annotations
 import ctypes
 import numbers
 from pathlib import Path
-from typing import Callable, Mapping, Sequence, Union
+from typing import Callable, Mapping, Optional, Sequence, Union
 
 import numpy as np
 
@@ -239,12 +239,14 @@ class BlockComponent:
         self._t0 = 0.0
 
     @staticmethod
-    def class_for(model_identifier: str) -> type[Block]:
-        """The Block class an FMU of this project wraps (fmus/<package>/fmu.py)."""
+    def class_for(model_identifier: str, parameters: Optional[Mapping[str, Value]] = None) -> type[Block]:
+        """The Block class an FMU of this project wraps (fmus/<package>/fmu.py), with the variables and parameters
+        that ``parameters`` (the component's bound set) give it, as the FMU built with them has
+        (``Block.for_parameters``: a 3-RPS's mechanism and controller take the 3-RPS's)."""
         from .build import block_class
 
         try:
-            return block_class(model_identifier)
+            return block_class(model_identifier).for_parameters(parameters or {})
         except ValueError as err:
             raise ComponentError(str(err)) from None
 
@@ -298,9 +300,18 @@ class BlockComponent:
 
         def get_values() -> list[float]:
             if self._in_init:
-                self._refresh()
+                self._tentative()
             return [values[i] for i in idx]
         return get_values
+
+    def _tentative(self) -> None:
+        """Outputs read during initialization, as the FMU's (slave.BlockWrapper._tentative_outputs): a failure may be
+        an input the master has not settled yet (a 3-RPS's leg length 0 before its actuator's start is passed on), so
+        the outputs keep their last values and ``exit_initialization`` decides with the settled inputs."""
+        try:
+            self._refresh()
+        except ComponentError:
+            pass
 
     def stepper(self) -> Callable[[float, float], None]:
         step = self.block.do_step

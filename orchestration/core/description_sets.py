@@ -10,8 +10,10 @@ SSDs bind are written from it (``python -m mast.core.variants``), never by hand:
 - a mass set (bound to the mechanism): every other parameter of the description (bodies, gravity,
   payload);
 - sets of numbers derived from a description: the home pose (``<c>_home`` for each coordinate, the
-  pose command's starting point) and the gravity along inclined guides (``g_guide``), each with its
-  source "derived from <file>: <expression>".
+  pose command's starting point), the gravity along inclined guides (``g_guide``), the actuators'
+  stroke and start from the drives' stroke (``rho_min``, ``rho_max``, ``rho_0``) and the actuator on a
+  leg that carries its carriage as a body of the mechanism (``M_load`` = ``g_guide`` = 0, the 3-RPS),
+  each with its source "derived from <file>: ...".
 
 Each parameter's description is its source in the file and its unit the file's. ``attached`` (does
 the mechanism block load the actuators) is a setting of the block in a system, not of a mechanism:
@@ -25,7 +27,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Optional
 
-from fmus.mechanism.description import DescriptionFile, Expression, load
+from fmus.mechanism.description import DescriptionError, DescriptionFile, Expression, load
 from fmus.mechanism.topology import POSE_UNITS
 
 from . import ssv
@@ -82,6 +84,42 @@ def guide(file: DescriptionFile) -> tuple[list[Row], str]:
                   "actuator_manufacturer.ssv.")
 
 
+def _stroke_rows(file: DescriptionFile) -> list[Row]:
+    """rho_min, rho_max and rho_0 of every drive of ``file`` (its legs' one stroke; rho_0 its middle, where the home
+    pose puts every drive: tests/test_rps_system.py). DescriptionError when the legs' strokes differ (one actuator
+    set serves every leg)."""
+    strokes = {leg.stroke for leg in file.legs}
+    if len(strokes) != 1:
+        raise DescriptionError(f"{file.path.name}: drive strokes {sorted(strokes)}: one actuator set serves every "
+                               "leg, expected one stroke")
+    (lo, hi), = strokes
+    unit = "m" if file.legs[0].kind == "linear" else "rad"
+    where = f"derived from {file.path.name}: [leg] drive stroke [{lo:g}, {hi:g}] {unit}"
+    return [("rho_0", 0.5 * (lo + hi), unit, f"Initial joint position, the middle of the stroke (home: every drive at "
+                                             f"mid-stroke), {where}"),
+            ("rho_min", lo, unit, f"Lower end of the stroke, {where}"),
+            ("rho_max", hi, unit, f"Upper end of the stroke, {where}")]
+
+
+def stroke(file: DescriptionFile) -> tuple[list[Row], str]:
+    """The actuators' stroke (``rho_min``, ``rho_max``) and start (``rho_0``, mid-stroke) from the description's drive
+    stroke, and the set's comment."""
+    return _stroke_rows(file), (f"Stroke of the actuators of design {file.path.stem}: {file.title}. Bound to every "
+                                "actuator after actuator_manufacturer.ssv.")
+
+
+def leg_actuator(file: DescriptionFile) -> tuple[list[Row], str]:
+    """The actuator on a leg whose carriage is a body of the mechanism (a 3-RPS's rod, docs/designs/3rps.md): no
+    carriage mass and no gravity in the actuator (``M_load`` = 0, ``g_guide`` = 0: the mechanism's inverse dynamics
+    carries both), its stroke and start (``stroke``), and the set's comment."""
+    where = f"{file.path.name}: the carriage is each leg's driven part's body, in the mechanism's inverse dynamics"
+    rows: list[Row] = [("M_load", 0.0, "kg", f"No carriage on the belt: {where} (docs/designs/3rps.md)"),
+                       ("g_guide", 0.0, "m/s2", f"No gravity in the actuator: {where}, its weight along the leaning "
+                                               "leg included")]
+    return rows + _stroke_rows(file), (f"Actuators on the legs of design {file.path.stem}: {file.title}. Bound to "
+                                       "every actuator after actuator_manufacturer.ssv.")
+
+
 @dataclass(frozen=True)
 class DescribedSet:
     """A parameter set of ssp/resources (``name``.ssv) written by ``content`` from the description file
@@ -114,6 +152,10 @@ SETS = (
     DescribedSet("mass_3prs", "3PRS_T", masses),
     DescribedSet("home_3prs", "3PRS_T", home),
     DescribedSet("guide_inclined", "3PRS_inclined", guide),
+    DescribedSet("stroke_3prs", "3PRS_T", stroke),
+    DescribedSet("geometry_3rps", "3RPS", geometry),
+    DescribedSet("mass_3rps", "3RPS", masses),
+    DescribedSet("actuator_3rps", "3RPS", leg_actuator),
 )
 
 

@@ -9,6 +9,12 @@ system (``systems.MAST``) with, and only with:
   must be the machine's) replaced by the design's;
 - the design's extra sets bound after the others (mechanism, actuators).
 
+``DESIGNS`` are the 3PRS's (parameter variants of the default system). ``MECHANISMS`` are designs of
+another mechanism (a description file that extends no other: the 3-RPS), each a system of its own
+made the same way, with also its mass set and its actuators' set (stroke, carriage: written from its
+description, ``description_sets``) in place of the 3PRS's, and its own controller FMU (the
+controller's parameters and kinematic model are its description's, ``designs.parameters_for``).
+
 ``python -m mast.core.variants`` writes those files (``systems.generate``), with the controller
 variants of ``controllers.py`` (tests check they are up to date); ``mast build`` builds each
 design's FMU with the defaults of its system.
@@ -22,6 +28,8 @@ from pathlib import Path
 from .systems import MAST, REPO, SSP_SRC, SystemDescription, generate
 
 DEFAULT_GEOMETRY = "resources/geometry_3prs.ssv"
+DEFAULT_MASSES = "resources/mass_3prs.ssv"
+DEFAULT_STROKE = "resources/stroke_3prs.ssv"
 MECHANISM_FMU = "MastMechanism"
 ACTUATOR_FMU = "MastActuator"
 
@@ -36,6 +44,9 @@ class Design:
     geometry: str = DEFAULT_GEOMETRY
     mechanism_sets: tuple[str, ...] = ()      # bound to the mechanism after its other sets
     actuator_sets: tuple[str, ...] = ()       # bound to every actuator after its other sets
+    masses: str = DEFAULT_MASSES              # in place of the 3PRS's mass set
+    stroke: str = DEFAULT_STROKE              # in place of the 3PRS's actuator stroke set
+    controller: str = ""                      # the controller FMU's model identifier ("": the base system's)
 
     @property
     def ssd(self) -> Path:
@@ -56,32 +67,46 @@ DESIGNS = (
 )
 
 
+#: designs of another mechanism than the 3PRS: systems of their own (module docstring)
+MECHANISMS = (
+    Design("3RPS", "Mast3RPS", "3-RPS, 120 deg, the paper's belt axes as legs", geometry="resources/geometry_3rps.ssv",
+           masses="resources/mass_3rps.ssv", stroke="resources/actuator_3rps.ssv", controller="Mast3RPSController"),
+)
+
+
 def design(name_or_identifier: str) -> Design:
-    for d in DESIGNS:
+    for d in DESIGNS + MECHANISMS:
         if name_or_identifier in (d.name, d.model_identifier):
             return d
-    raise KeyError(f"no design {name_or_identifier!r}; designs: {', '.join(d.name for d in DESIGNS)}")
+    raise KeyError(f"no design {name_or_identifier!r}; designs: {', '.join(d.name for d in DESIGNS + MECHANISMS)}")
 
 
 def variant(d: Design, base: SystemDescription = MAST) -> SystemDescription:
     """The system of design ``d``: ``base`` with the mechanism swapped (module docstring)."""
-    sets = ", ".join((d.geometry,) + d.mechanism_sets + d.actuator_sets)
+    swaps = {DEFAULT_GEOMETRY: d.geometry, DEFAULT_MASSES: d.masses, DEFAULT_STROKE: d.stroke}
+    swaps = {k: v for k, v in swaps.items() if k != v}
+    sets = ", ".join((d.geometry, *(v for k, v in swaps.items() if k != DEFAULT_GEOMETRY)) + d.mechanism_sets
+                     + d.actuator_sets)
 
     def geometry(part):
-        return dataclasses.replace(part, bindings=tuple(d.geometry if s == DEFAULT_GEOMETRY else s for s in part.bindings))
+        return dataclasses.replace(part, bindings=tuple(swaps.get(s, s) for s in part.bindings))
 
     mechanism = geometry(base.mechanism)
+    controller = geometry(base.controller)
+    if d.controller:
+        controller = dataclasses.replace(controller, fmu=f"{d.controller}.fmu")
     return dataclasses.replace(
         base, name=f"{base.name}_{d.name}", description=f"{base.description} - design {d.name}: {d.title}",
         comment=f"Design {d.name}: {d.title} (docs/designs/{d.name}.md).\n"
                 f"     Written by `python -m mast.core.variants` from {base.name}.ssd: it differs from it only in the "
-                f"mechanism's\n     source ({d.model_identifier}.fmu) and the design's parameter sets\n     ({sets}).\n"
+                f"mechanism's\n     source ({d.model_identifier}.fmu{f', the controller {d.controller}.fmu' if d.controller else ''})"
+                f" and the design's parameter sets\n     ({sets}).\n"
                 "     Components may be swapped by editing their `source`; parameter sets are bound in order, later "
                 "ones override.",
-        controller=geometry(base.controller),
+        controller=controller,
         mechanism=dataclasses.replace(mechanism, fmu=f"{d.model_identifier}.fmu",
                                       bindings=mechanism.bindings + d.mechanism_sets),
-        actuator=dataclasses.replace(base.actuator, bindings=base.actuator.bindings + d.actuator_sets))
+        actuator=dataclasses.replace(geometry(base.actuator), bindings=geometry(base.actuator).bindings + d.actuator_sets))
 
 
 def variant_ssd(d: Design) -> bytes:
@@ -90,9 +115,9 @@ def variant_ssd(d: Design) -> bytes:
 
 
 def write_variants() -> list[Path]:
-    """(Re)write ssp/MAST_<design>.ssd for every design but the default one."""
+    """(Re)write ssp/MAST_<design>.ssd for every design but the default one, and for every other mechanism's."""
     written = []
-    for d in DESIGNS:
+    for d in DESIGNS + MECHANISMS:
         if d.model_identifier == MECHANISM_FMU:
             continue
         d.ssd.write_bytes(variant_ssd(d))

@@ -81,7 +81,7 @@ def simulate(ssp: Union[str, Path], stimulus: Optional[Stimulus], stop_time: flo
             for name, spec in system.components.items():
                 fmu = system.fmu_path(name)
                 if direct:
-                    components[name] = BlockComponent(name, BlockComponent.class_for(fmu.stem))
+                    components[name] = BlockComponent(name, BlockComponent.class_for(fmu.stem, spec.parameters))
                 else:
                     # a native actuator with an n_dof above the chains it carries: the model generated with it
                     from .native.build import for_parameters

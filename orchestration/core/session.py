@@ -72,7 +72,8 @@ class Session:
             for name in self.system.components:
                 fmu = self.system.fmu_path(name)
                 if self.direct:
-                    components[name] = BlockComponent(name, BlockComponent.class_for(fmu.stem))
+                    components[name] = BlockComponent(
+                        name, BlockComponent.class_for(fmu.stem, self.system.components[name].parameters))
                 else:
                     components[name] = FMUComponent(name, fmu, self._extract(fmu, self.system.fmu_label(name)))
         except Exception:

@@ -170,7 +170,7 @@ MAST = SystemDescription(
                     "Joint-space cascade for the {n} axes (position and velocity loops, 1 ms); its commands are "
                     "direct feedthrough"),
     actuator=Part("MastActuator.fmu", ("resources/transmission.ssv", "resources/actuator_manufacturer.ssv",
-                                       "resources/drive.ssv"), 0.001,
+                                       "resources/stroke_3prs.ssv", "resources/drive.ssv"), 0.001,
                   "{kind} axis {k} with its drive's current loop (T_cur = 100 us inside the FMU): current command in"),
     mechanism=Part("MastMechanism.fmu", ("resources/geometry_3prs.ssv", "resources/mass_3prs.ssv",
                                          "resources/attached.ssv"), 0.001,
