@@ -255,3 +255,31 @@ def test_the_3rps_block_s_power_balance_along_smooth_motions():
         scale = np.max(np.abs(powers))
         assert scale > 1.0  # watts flow: a real balance
         np.testing.assert_allclose(powers, rates, atol=2e-5 * scale)
+
+
+def test_compare_swaps_the_3rps_fmu_into_its_own_system(rps_system, tmp_path):
+    """`mast compare --mechanism .../Mast3RPS.fmu`: the FMU goes into ssp/MAST_3RPS.ssd (its controller and actuators
+    are the 3-RPS's), its controller bound to the FMU's geometry (R_b, r, alpha_k, not the 3PRS's names)."""
+    from mast.analyses.compare import kinematic_names, own_system, prepare
+    from mast.core.components import fmu_parameters
+    from mast.core.designs import design
+    from mast.core.ssp import SSPArchive
+
+    fmus = rps_system.parent.parent / "fmus"
+    params = fmu_parameters(fmus / "Mast3RPS.fmu")
+    assert own_system(fmus / "Mast3RPS.fmu", params) == design("3RPS").ssd
+    assert own_system(fmus / "MastActuator.fmu", {"kinematics": "3PRS"}) is None
+    assert kinematic_names(params) == ("kinematics", *RPS.kinematic)
+    assert kinematic_names({"kinematics": "3PRS"}) == designs.KINEMATIC_PARAMETERS_NAMES
+    (candidate,) = prepare([fmus / "Mast3RPS.fmu"], tmp_path, fmu_dir=fmus)
+    with SSPArchive(candidate.ssp) as archive:
+        comps = archive.system.components
+        assert comps["controller"].parameters["R_b"] == RPS.parameters["R_b"].value
+        assert comps["actuator_2"].parameters["M_load"] == 0.0 and comps["actuator_2"].parameters["rho_0"] > 0.4
+
+
+def test_the_native_build_skips_the_3rps_until_its_runtime_lands():
+    from mast.core.designs import design, without_native_form
+
+    ssds, fmus = without_native_form()
+    assert ssds == [design("3RPS").ssd] and fmus == ["Mast3RPS", "Mast3RPSController"]

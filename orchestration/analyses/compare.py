@@ -7,8 +7,13 @@ would swap it by hand in the SSP (docs/interfaces.md, "Writing a mechanism FMU")
 - the ``mechanism`` component's source is the FMU, bound to the FMU's own default parameters
   (the design is what the FMU says it is);
 - the controller's kinematic model (``kinematics``, H, r, L, alpha_1..3, beta: the FMU's
-  values of the geometry parameters it declares) is bound after the controller's sets;
+  values of the geometry parameters it declares, those of its description: ``kinematic_names``) is
+  bound after the controller's sets;
 - the actuators' gravity along the guides is g cos(beta) when the FMU declares ``beta``.
+
+A mechanism FMU of another mechanism with a system of its own (``mast.core.designs.MECHANISMS``: the
+3-RPS's Mast3RPS.fmu) is swapped into that system instead (``own_system``: its controller and
+actuators are built for it).
 
 The test set is pure sine motions on every coordinate of the designs' mechanisms (their topology:
 for the 3PRS z, psi and theta) at several frequencies around the home pose (paper section 4.1;
@@ -50,7 +55,7 @@ from pathlib import Path
 from typing import Callable, Mapping, Optional, Sequence, Union
 
 from fmus.common.parameters import Value
-from fmus.mechanism.designs import KINEMATIC_PARAMETERS_NAMES, KINEMATICS
+from fmus.mechanism.designs import KINEMATIC_PARAMETERS_NAMES, KINEMATICS, description
 from fmus.mechanism.topology import POSE, POSE_UNITS, Coordinate
 
 from . import paper, sizing
@@ -168,7 +173,7 @@ def swapped_ssd(base_text: str, fmu_name: str, params: Mapping[str, Value], labe
     for comp in document.system.elements if component_name == "mechanism" else ():
         extra, why = {}, ""
         if comp.name == "controller":
-            extra = {k: params[k] for k in KINEMATIC_NAMES if k in params}
+            extra = {k: params[k] for k in kinematic_names(params) if k in params}
             why = f"the controller's kinematic model: the geometry of {fmu_name}"
         elif Path(comp.source).stem == "MastActuator" and "beta" in params and "g" in params:
             extra = {"g_guide": float(params["g"]) * math.cos(float(params["beta"]))}
@@ -177,6 +182,27 @@ def swapped_ssd(base_text: str, fmu_name: str, params: Mapping[str, Value], labe
             comp.bindings.append(_inline(extra, why))     # bound last: it overrides
     document.name = f"MAST_{label}"
     return document.to_bytes().decode("utf-8")
+
+
+def kinematic_names(params: Mapping[str, Value]) -> tuple[str, ...]:
+    """The geometry parameters of the mechanism ``params`` describe (``kinematics`` and its description's kinematic
+    ones: the 3PRS's ``KINEMATIC_NAMES``, the 3-RPS's R_b, r, alpha_k), which the controller's model takes."""
+    kind = params.get("kinematics", "3PRS")
+    if isinstance(kind, str) and isinstance(KINEMATICS.get(kind), Path):
+        return ("kinematics", *description(kind).kinematic)
+    return KINEMATIC_NAMES
+
+
+def own_system(fmu: Path, params: Mapping[str, Value]) -> Optional[Path]:
+    """The system of another mechanism (``designs.MECHANISMS``, ssp/MAST_<design>.ssd) that the mechanism FMU ``fmu``
+    (its default ``params``) belongs in: its controller and actuators are that mechanism's, so the FMU is swapped
+    into it rather than into the 3PRS's base system; None for a 3PRS."""
+    from ..core.designs import MECHANISMS
+
+    for d in MECHANISMS:
+        if fmu.stem == d.model_identifier or params.get("kinematics") == d.name:
+            return d.ssd
+    return None
 
 
 def _inline(values: Mapping[str, Value], why: str) -> ssd.ParameterBinding:
@@ -234,6 +260,7 @@ def prepare(mechanisms: Sequence[Union[str, Path]], out: Union[str, Path], base_
             candidates.append(Candidate(label, str(path), str(path), params))
             continue
         params = fmu_parameters(path)
+        own = own_system(path, params) if component == "mechanism" and base_ssd == BASE_SSD else None
         with tempfile.TemporaryDirectory(prefix="mast_compare_") as tmp:
             tmp = Path(tmp)
             shutil.copytree(base_ssd.parent / "resources", tmp / "resources",
@@ -247,7 +274,8 @@ def prepare(mechanisms: Sequence[Union[str, Path]], out: Union[str, Path], base_
                 target.unlink()
             target.symlink_to(path.resolve())
             ssd = tmp / f"{label}.ssd"
-            ssd.write_text(swapped_ssd(base_text, path.name, params, label, component), encoding="utf-8")
+            text = own.read_text(encoding="utf-8") if own is not None else base_text
+            ssd.write_text(swapped_ssd(text, path.name, params, label, component), encoding="utf-8")
             ssp = build_ssp(ssd, fmus, out / "systems")
         candidates.append(Candidate(label, str(ssp), str(path), params if component == "mechanism" else {}))
     return candidates

@@ -47,6 +47,7 @@ class Design:
     masses: str = DEFAULT_MASSES              # in place of the 3PRS's mass set
     stroke: str = DEFAULT_STROKE              # in place of the 3PRS's actuator stroke set
     controller: str = ""                      # the controller FMU's model identifier ("": the base system's)
+    native: bool = True                       # whether `mast build --native` builds its FMUs and system
 
     @property
     def ssd(self) -> Path:
@@ -70,8 +71,16 @@ DESIGNS = (
 #: designs of another mechanism than the 3PRS: systems of their own (module docstring)
 MECHANISMS = (
     Design("3RPS", "Mast3RPS", "3-RPS, 120 deg, the paper's belt axes as legs", geometry="resources/geometry_3rps.ssv",
-           masses="resources/mass_3rps.ssv", stroke="resources/actuator_3rps.ssv", controller="Mast3RPSController"),
+           masses="resources/mass_3rps.ssv", stroke="resources/actuator_3rps.ssv", controller="Mast3RPSController",
+           native=False),   # the native runtime (orchestration/core/native) generates the 3PRS's models only yet
 )
+
+
+def without_native_form() -> tuple[list[Path], list[str]]:
+    """The systems (ssp/MAST_<design>.ssd) and FMUs (model identifiers) of the designs that `mast build --native`
+    skips (``Design.native``)."""
+    skipped = [d for d in DESIGNS + MECHANISMS if not d.native]
+    return [d.ssd for d in skipped], [i for d in skipped for i in (d.model_identifier, d.controller) if i]
 
 
 def design(name_or_identifier: str) -> Design:
