@@ -87,6 +87,8 @@ FMUS = (
     # controller built for it (its parameters and kinematic model the description's)
     FmuSpec("Mast3RPS", "mechanism"),
     FmuSpec("Mast3RPSController", "controller"),
+    FmuSpec("Mast6UPS", "mechanism"),
+    FmuSpec("Mast6UPSController", "controller"),
     # single-axis test benches (ssp/EMPS_bench.ssd)
     FmuSpec("MastLoadAxis", "actuator"),
     FmuSpec("MastEmpsController", "controller"),

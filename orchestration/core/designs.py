@@ -73,6 +73,9 @@ MECHANISMS = (
     Design("3RPS", "Mast3RPS", "3-RPS, 120 deg, the paper's belt axes as legs", geometry="resources/geometry_3rps.ssv",
            masses="resources/mass_3rps.ssv", stroke="resources/actuator_3rps.ssv", controller="Mast3RPSController",
            native=False),   # the native runtime (orchestration/core/native) generates the 3PRS's models only yet
+    Design("6UPS", "Mast6UPS", "6-UPS hexapod, the paper's motor and gearhead on ball-screw legs",
+           geometry="resources/geometry_6ups.ssv", masses="resources/mass_6ups.ssv",
+           stroke="resources/actuator_6ups.ssv", controller="Mast6UPSController", native=False),
 )
 
 
