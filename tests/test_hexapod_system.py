@@ -105,3 +105,56 @@ def test_the_6ups_mechanism_fmu_in_the_loop_against_the_newton_euler_oracle(hexa
         np.testing.assert_allclose(ne.joints(mech, q[k + 1]), rho[k], rtol=0.0, atol=1e-10)
         worst = max(worst, float(np.max(np.abs(ne.forces(mech, q[k + 1], rd[k], rdd[k]) - F[k + 1]))))
     assert worst < 1e-9 * np.max(np.abs(F))
+
+
+# ----------------------------------------------------------------------------- the 6-PUS: the paper's actuators as they are
+@pytest.fixture(scope="module")
+def pus_system(tmp_path_factory):
+    """MAST_6PUS.ssp built with its FMUs (the Python ones)."""
+    return build_mechanism_system("6PUS", tmp_path_factory.mktemp("pus"))
+
+
+def test_the_6pus_system_binds_its_description_and_the_paper_s_actuators():
+    """ssp/MAST_6PUS.ssd: the description's values, the controller's geometry, six actuators as the 3PRS's (the
+    carriage and its weight on the vertical guide in the actuator, paper Eq. 22; the stroke from the description)."""
+    from test_hexapod import PUS
+
+    from mast.core.designs import design, variant_ssd
+    from mast.core.ssp import read_ssd
+
+    d = design("6PUS")
+    assert d.ssd.read_bytes() == variant_ssd(d), f"{d.ssd.name} is stale: run python -m mast.core.variants"
+    system = read_ssd(d.ssd)
+    mech = dict(system.components["mechanism"].parameters)
+    assert (mech.pop("kinematics"), mech.pop("attached")) == ("6PUS", 1) and mech == PUS.values()
+    assert system.components["controller"].source.endswith("Mast6PUSController.fmu")
+    mast = read_ssd(design("3PRS_T").ssd).components["actuator_1"].parameters
+    for k in range(1, 7):
+        act = system.components[f"actuator_{k}"].parameters
+        assert act == mast  # M_load 2.27 kg, g_guide 9.81 m/s2, stroke 0..0.3 m, rho_0 0.15 m
+    assert len(system.connections) == 6 + 7 * 6
+
+
+@pytest.mark.parametrize("axis, amplitude", [("x", 0.005), ("phi", math.radians(0.8))])
+def test_a_6pus_run_against_the_newton_euler_oracle(pus_system, axis, amplitude):
+    """The system runs as it is (Python FMUs, 2 Hz, 1 s) and tracks as the MAST does; the mechanism's pose and forces
+    at every recorded state against the oracle's (its outputs at t + h: the actuators' motion at t)."""
+    from test_hexapod import pus_oracle
+
+    from mast.core.motion import SineMotion
+    from mast.core.run import simulate
+
+    mech = pus_oracle()
+    res = simulate(pus_system, SineMotion(axis=axis, amplitude=amplitude, frequency=2.0, axes=ne.POSE), 1.0)
+    rho, rd, rdd = (
+        np.column_stack([res[f"actuator_{k}.{v}"] for k in range(1, 7)]) for v in ("rho", "rho_dot", "rho_ddot")
+    )
+    F = np.column_stack([res[f"mechanism.F_{k}"] for k in range(1, 7)])
+    q = np.column_stack([res[f"mechanism.{c}"] for c in ne.POSE])
+    moved = q[:, ne.POSE.index(axis)] - q[0, ne.POSE.index(axis)]
+    assert 0.7 * amplitude < np.max(np.abs(moved)) < 1.2 * amplitude  # it follows the sine (the MAST's lag)
+    worst = 0.0
+    for k in range(len(res.time) - 1):
+        np.testing.assert_allclose(ne.joints(mech, q[k + 1]), rho[k], rtol=0.0, atol=1e-10)
+        worst = max(worst, float(np.max(np.abs(ne.forces(mech, q[k + 1], rd[k], rdd[k]) - F[k + 1]))))
+    assert worst < 1e-9 * np.max(np.abs(F))

@@ -49,6 +49,10 @@ class Mast6UPSController(MastController):
     """Joint-space cascade control of the six legs of the 6-UPS hexapod (design 6UPS): its own inverse kinematics from the hexapod's geometry; current commands to the actuators' current loops."""
 
 
+class Mast6PUSController(MastController):
+    """Joint-space cascade control of the six carriages of the 6-PUS hexapod (design 6PUS): its own inverse kinematics from the hexapod's geometry; current commands to the actuators' current loops."""
+
+
 class MastEmpsController(BlockSlave):
     """Sampled P position loop into a P velocity loop of one drive axis, FIR velocity estimate, drive command saturation and gain (the EMPS benchmark's controller)."""
 

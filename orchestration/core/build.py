@@ -89,6 +89,8 @@ FMUS = (
     FmuSpec("Mast3RPSController", "controller"),
     FmuSpec("Mast6UPS", "mechanism"),
     FmuSpec("Mast6UPSController", "controller"),
+    FmuSpec("Mast6PUS", "mechanism"),
+    FmuSpec("Mast6PUSController", "controller"),
     # single-axis test benches (ssp/EMPS_bench.ssd)
     FmuSpec("MastLoadAxis", "actuator"),
     FmuSpec("MastEmpsController", "controller"),

@@ -159,6 +159,9 @@ SETS = (
     DescribedSet("geometry_6ups", "6UPS", geometry),
     DescribedSet("mass_6ups", "6UPS", masses),
     DescribedSet("actuator_6ups", "6UPS", leg_actuator),
+    DescribedSet("geometry_6pus", "6PUS", geometry),
+    DescribedSet("mass_6pus", "6PUS", masses),
+    DescribedSet("stroke_6pus", "6PUS", stroke),
 )
 
 
