@@ -107,7 +107,7 @@ def test_the_6ups_mechanism_fmu_in_the_loop_against_the_newton_euler_oracle(hexa
     assert worst < 1e-9 * np.max(np.abs(F))
 
 
-# ----------------------------------------------------------------------------- the 6-PUS: the paper's actuators as they are
+# ---------------------------------------------------------------------- the 6-PUS: the paper's actuators as they are
 @pytest.fixture(scope="module")
 def pus_system(tmp_path_factory):
     """MAST_6PUS.ssp built with its FMUs (the Python ones)."""

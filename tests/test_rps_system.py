@@ -276,5 +276,5 @@ def test_the_native_build_skips_the_3rps_until_its_runtime_lands():
     from mast.core.designs import design, without_native_form
 
     ssds, fmus = without_native_form()
-    assert ssds == [design("3RPS").ssd, design("6UPS").ssd]
-    assert fmus == ["Mast3RPS", "Mast3RPSController", "Mast6UPS", "Mast6UPSController"]
+    assert ssds == [design(name).ssd for name in ("3RPS", "6UPS", "6PUS")]
+    assert fmus == [f"Mast{name}{role}" for name in ("3RPS", "6UPS", "6PUS") for role in ("", "Controller")]
