@@ -131,7 +131,26 @@ FIGURES: dict[str, Figure] = {
         for model in ("published", "nominal")
         for what, fmt, tol in (("q_m", "{:.3g}", 0.0002), ("force", "{:.3g}", 0.02), ("force_fit", "{:.1f}", 0.05))
     },
+    # the 6-UPS hexapod (docs/designs/6ups.md): margins and static forces at home, its workspaces on the coarse grid
+    # HEXAPOD_GRID (a volume may differ by a grid node or two between machines)
+    **{
+        f"hexapod.{what}": Figure("hexapod", (lambda w: lambda v: v[w])(what), fmt, tol)
+        for what, fmt, tol in (
+            ("parallel", "{:.3f}", 0.0),
+            ("inverse", "{:.3f}", 0.0),
+            ("dexterity", "{:.2f}", 0.0),
+            ("F_home_odd", "{:.2f}", 0.0),
+            ("F_home_even", "{:.2f}", 0.0),
+            ("F_home_massless", "{:.3f}", 0.0),
+            ("volume_xyz_L", "{:.1f}", 0.02),
+            ("volume_angles_deg3", "{:.0f}", 60.0),
+            ("volume_z_psi_theta_m_deg2", "{:.0f}", 0.4),
+        )
+    },
 }
+
+#: the coarse grid of the hexapod's figures (step in m, step in deg): about 6 s for its three workspaces
+HEXAPOD_GRID = (0.02, 3.0)
 
 #: the EMPS benchmark's published inverse-model least-squares estimates (the EMPS README; docs/emps.md)
 EMPS_PUBLISHED = {"M": 95.11, "F_v": 203.5, "F_c": 20.39, "F_offset": -3.16}
@@ -238,6 +257,48 @@ def source_workspace(quick: bool = False) -> dict:
     return out
 
 
+def source_hexapod() -> dict:
+    """The 6-UPS's margins and static forces at home (its description's values) and its workspaces on HEXAPOD_GRID:
+    x, y, z at the home orientation [L], psi, theta, phi at the home position [deg^3], z, psi, theta [m deg^2]."""
+    from fmus.mechanism.description import load
+    from fmus.mechanism.engine import Engine
+    from mast.analyses.workspace import compute, machine, summarize
+
+    m = machine("6UPS")
+    eng = m.engine()
+    home = m.topology.home
+    margins = eng.margins(home)
+    F = eng.inverse_dynamics_at_pose(home, [0.0] * 6, [0.0] * 6).t_rho
+    file = load("6UPS")
+    legs = (
+        "m_cylinder",
+        "I_cylinder_xx",
+        "I_cylinder_yy",
+        "I_cylinder_zz",
+        "I_cylinder_xz",
+        "m_rod",
+        "I_rod_xx",
+        "I_rod",
+    )
+    F_bare = Engine(file.describe({**file.values(), **dict.fromkeys(legs, 0.0)}), g=file.values()["g"])
+    step, tilt = HEXAPOD_GRID[0], math.radians(HEXAPOD_GRID[1])
+    volume = {
+        sweep: summarize(compute(m, step, tilt, sweep=sweep.split(",")))
+        for sweep in ("x,y,z", "psi,theta,phi", "z,psi,theta")
+    }
+    return {
+        "parallel": margins.parallel,
+        "inverse": margins.inverse,
+        "dexterity": margins.dexterity,
+        "F_home_odd": float(F[0]),
+        "F_home_even": float(F[1]),
+        "F_home_massless": float(F_bare.inverse_dynamics_at_pose(home, [0.0] * 6, [0.0] * 6).t_rho[0]),
+        "volume_xyz_L": 1e3 * volume["x,y,z"]["volume_m3"],
+        "volume_angles_deg3": volume["psi,theta,phi"]["volume_deg3"],
+        "volume_z_psi_theta_m_deg2": volume["z,psi,theta"]["volume_m_deg2"],
+    }
+
+
 SOURCES: dict[str, Callable[[], dict]] = {
     "reproduce": source_reproduce,
     "ssd": source_ssd,
@@ -247,6 +308,7 @@ SOURCES: dict[str, Callable[[], dict]] = {
     "emps": source_emps,
     "workspace": source_workspace,
     "workspace_quick": lambda: source_workspace(quick=True),
+    "hexapod": source_hexapod,
 }
 
 

@@ -430,7 +430,7 @@ def cmd_compare(args) -> int:
 def cmd_workspace(args) -> int:
     import math
 
-    from .analyses.workspace import classify, compute, machine, parse_pose, summarize, unit_text, write
+    from .analyses.workspace import classify, compute, machine, parse_pose, summarize, sweep_for_pose, unit_text, write
 
     if not args.out and not args.pose:
         raise ValueError(
@@ -440,6 +440,8 @@ def cmd_workspace(args) -> int:
     m = machine(args.design, args.payload)
     sweep = args.sweep.split(",") if args.sweep else None
     pose = parse_pose(args.pose, m.topology) if args.pose else None
+    if pose is not None and sweep is None:
+        sweep = sweep_for_pose(m.topology, pose)
     ws = compute(
         m, args.step_z, math.radians(args.step_tilt), progress=Progress(f"workspace of {m.label}"), sweep=sweep
     )
@@ -828,7 +830,9 @@ def main(argv=None) -> int:
         "--pose",
         metavar="Z,PSI_DEG,THETA_DEG",
         help="answer for one pose, one number per coordinate of the mechanism (m, deg; the 3PRS: z, psi, "
-        "theta): inside (exit 0) or not (exit 1), with its margins",
+        "theta; a hexapod: x, y, z, psi, theta, phi, the grid then over the ones it moves from home "
+        "unless --sweep): "
+        "inside (exit 0) or not (exit 1), with its margins",
     )
     p.add_argument(
         "--sweep",

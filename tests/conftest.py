@@ -62,3 +62,16 @@ def built_native(tmp_path_factory) -> Path:
     build_all(out, log=lambda *_: None)
     build_native_all(out, sorted(SSP_SRC.glob("*.ssd")), log=lambda *_: None)
     return out
+
+
+def build_mechanism_system(name: str, out: Path) -> Path:
+    """``build/ssp/MAST_<name>.ssp`` of another mechanism's design (``mast.core.designs.MECHANISMS``) built into
+    ``out`` with the Python FMUs it needs alone: the actuator, its mechanism and its controller."""
+    from mast.core.build import FMUS, build_fmu, build_ssp
+    from mast.core.designs import design
+
+    d = design(name)
+    for spec in FMUS:
+        if spec.model_identifier in ("MastActuator", d.model_identifier, d.controller):
+            build_fmu(spec, out / "fmus")
+    return build_ssp(d.ssd, out / "fmus", out / "ssp")

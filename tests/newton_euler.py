@@ -32,6 +32,10 @@ Legs (``Leg``), base to platform, s the platform point (platform frame) of its s
   cylinder, normal to t and to the leg: y = unit(t cross x)), cylinder, driven prismatic, piston, S; frames
   x along the leg, y the second axis, z = x cross y; rho = |S - base| - ``length``.
 
+- ``"PUS"``: a PRS whose revolute on the slider is a universal joint (first axis ``t`` fixed to the slider,
+  second axis in the rod, normal to t and to the rod: y = unit(t cross x)); rod frame x along the rod slider
+  -> S, y that second axis (bodies: ``slider``, ``rod``).
+
 A PRS or RPS leg constrains S to the plane through its base normal to t: (S - base) . t = 0.
 
 Forces: F_k the force actuator k applies along its joint (on the slider or piston along +axis, the
@@ -60,10 +64,10 @@ class Inertia:
 
 @dataclass(frozen=True)
 class Leg:
-    """One leg (module docstring): ``kind`` "PRS" | "RPS" | "UPS"; ``base`` [m] (world); ``axis`` (PRS: guide
-    direction); ``t`` (the revolute axis, or the universal joint's first axis); ``s`` [m] platform frame;
-    ``length`` [m] (PRS: rod length; RPS, UPS: leg length at rho = 0); ``bodies``: the leg's two bodies in
-    order (PRS: slider, rod; RPS, UPS: cylinder, piston)."""
+    """One leg (module docstring): ``kind`` "PRS" | "RPS" | "UPS" | "PUS"; ``base`` [m] (world); ``axis`` (PRS,
+    PUS: guide direction); ``t`` (the revolute axis, or the universal joint's first axis); ``s`` [m] platform frame;
+    ``length`` [m] (PRS, PUS: rod length; RPS, UPS: leg length at rho = 0); ``bodies``: the leg's two bodies in
+    order (PRS, PUS: slider, rod; RPS, UPS: cylinder, piston)."""
 
     kind: str
     base: tuple
@@ -136,7 +140,7 @@ def joints(mech: Mechanism, pose: Sequence[float]) -> np.ndarray:
     out = []
     for leg, S in zip(mech.legs, points(mech, pose)):
         d = S - _v(leg.base)
-        if leg.kind == "PRS":
+        if leg.kind in ("PRS", "PUS"):
             a = _unit(leg.axis)
             along = d @ a
             out.append(along - math.sqrt(leg.length**2 - (d @ d - along * along)))
@@ -199,7 +203,7 @@ def _rows(mech: Mechanism, pose, twist=None):
             t = _unit(leg.t)
             con_rows.append(np.concatenate((t, np.cross(r, t))))
             con_bias.append(None if v is None else t @ cen)
-        if leg.kind == "PRS":
+        if leg.kind in ("PRS", "PUS"):
             a = _unit(leg.axis)
             n = S - (_v(leg.base) + rk * a)
             k = n @ a
@@ -273,6 +277,18 @@ def _frame(x: np.ndarray, y: np.ndarray) -> np.ndarray:
     return np.column_stack((x, y, np.cross(x, y)))
 
 
+def _universal(t, y, u, ud, udd) -> tuple[np.ndarray, np.ndarray]:
+    """Angular velocity and acceleration of a body on a universal joint (first axis t fixed, second axis y) whose
+    unit vector u moves with u_dot = ud, u_ddot = udd: w = th1 t + th2 y, u_dot = w x u; alpha = th1dd t + th2dd y
+    + th2 (th1 t x y)."""
+    G = np.column_stack((np.cross(t, u), np.cross(y, u)))
+    th1, th2 = np.linalg.lstsq(G, ud, rcond=None)[0]
+    w = th1 * t + th2 * y
+    extra = th2 * th1 * np.cross(t, y)
+    th1dd, th2dd = np.linalg.lstsq(G, udd - np.cross(w, ud) - np.cross(extra, u), rcond=None)[0]
+    return w, th1dd * t + th2dd * y + extra
+
+
 def _leg_bodies(leg: Leg, k: int, S, vS, aS, rho, rd, rdd, first: int):
     """The two bodies of leg k and its three joints (body indices from ``first``; the platform is body 0)."""
     B = _v(leg.base)
@@ -293,6 +309,23 @@ def _leg_bodies(leg: Leg, k: int, S, vS, aS, rho, rd, rdd, first: int):
             _Joint(first + 1, 0, S, np.eye(3), np.zeros((3, 0))),
         ]
         return [slider, rod], joints
+    if leg.kind == "PUS":
+        a = _unit(leg.axis)
+        C = B + rho * a
+        L = leg.length
+        e = (S - C) / L
+        ed = (vS - rd * a) / L
+        edd = (aS - rdd * a) / L
+        y = _unit(np.cross(t, e))  # the universal joint's second axis: normal to t and to the link
+        w, alpha = _universal(t, y, e, ed, edd)
+        slider = _Body(leg.bodies[0], np.eye(3), C, rdd * a, np.zeros(3), np.zeros(3))
+        rod = _Body(leg.bodies[1], _frame(e, y), C, rdd * a, w, alpha)
+        joints = [
+            _Joint(None, first, C, _normals(a), np.eye(3), drive=k, drive_axis=a),
+            _Joint(first, first + 1, C, np.eye(3), _unit(np.cross(t, y)).reshape(3, 1)),
+            _Joint(first + 1, 0, S, np.eye(3), np.zeros((3, 0))),
+        ]
+        return [slider, rod], joints
     d = S - B
     ln = np.linalg.norm(d)
     u = d / ln
@@ -304,16 +337,10 @@ def _leg_bodies(leg: Leg, k: int, S, vS, aS, rho, rd, rdd, first: int):
         base_joint = _Joint(None, first, B, np.eye(3), _normals(t))
     elif leg.kind == "UPS":
         y = _unit(np.cross(t, u))  # second axis: normal to t and to the leg
-        # w = th1 t + th2 y, u_dot = w x u; alpha = th1dd t + th2dd y + th2 (th1 t x y)
-        G = np.column_stack((np.cross(t, u), np.cross(y, u)))
-        th1, th2 = np.linalg.lstsq(G, ud, rcond=None)[0]
-        w = th1 * t + th2 * y
-        extra = th2 * th1 * np.cross(t, y)
-        th1dd, th2dd = np.linalg.lstsq(G, udd - np.cross(w, ud) - np.cross(extra, u), rcond=None)[0]
-        alpha = th1dd * t + th2dd * y + extra
+        w, alpha = _universal(t, y, u, ud, udd)
         base_joint = _Joint(None, first, B, np.eye(3), _unit(np.cross(t, y)).reshape(3, 1))
     else:
-        raise ValueError(f"leg {k + 1}: kind {leg.kind!r}: expected PRS, RPS or UPS")
+        raise ValueError(f"leg {k + 1}: kind {leg.kind!r}: expected PRS, RPS, UPS or PUS")
     Rl = _frame(u, y)
     cylinder = _Body(leg.bodies[0], Rl, B, np.zeros(3), w, alpha)
     piston = _Body(leg.bodies[1], Rl, S, aS, w, alpha)

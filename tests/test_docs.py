@@ -328,9 +328,15 @@ def test_marked_emps_replay_figures_agree():
     assert not problems, "\n".join(problems)
 
 
+def test_marked_hexapod_figures_agree():
+    """docs/designs/6ups.md: the 6-UPS's margins and static forces at home, its workspaces on a coarse grid."""
+    problems = figures.check({"hexapod": figures.source_hexapod()})
+    assert not problems, "\n".join(problems)
+
+
 def test_every_figure_source_is_checked_by_a_test():
     """A source added to docs/figures.py is compared with the pages somewhere (here or tests/test_reproduce.py)."""
-    checked = {"ssd", "designs", "workspace", "workspace_quick", "reproduce", "ratings", "build", "emps"}
+    checked = {"ssd", "designs", "workspace", "workspace_quick", "reproduce", "ratings", "build", "emps", "hexapod"}
     assert set(figures.SOURCES) == checked, f"sources no test compares: {set(figures.SOURCES) - checked}"
 
 

@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 
 import pytest
+from conftest import build_mechanism_system
 
 from fmus.common.parameters import ParameterError
 from fmus.controller.feedforward import FeedForwardController
@@ -126,14 +127,7 @@ def test_the_3rps_system_binds_its_description_everywhere():
 @pytest.fixture(scope="module")
 def rps_system(tmp_path_factory):
     """MAST_3RPS.ssp built with its FMUs (the Python ones)."""
-    from mast.core.build import FMUS, build_fmu, build_ssp
-    from mast.core.designs import design
-
-    out = tmp_path_factory.mktemp("rps")
-    for spec in FMUS:
-        if spec.model_identifier in ("MastActuator", "Mast3RPS", "Mast3RPSController"):
-            build_fmu(spec, out / "fmus")
-    return build_ssp(design("3RPS").ssd, out / "fmus", out / "ssp")
+    return build_mechanism_system("3RPS", tmp_path_factory.mktemp("rps"))
 
 
 def test_the_3rps_fmus_have_the_description_s_parameters(rps_system):
@@ -282,4 +276,5 @@ def test_the_native_build_skips_the_3rps_until_its_runtime_lands():
     from mast.core.designs import design, without_native_form
 
     ssds, fmus = without_native_form()
-    assert ssds == [design("3RPS").ssd] and fmus == ["Mast3RPS", "Mast3RPSController"]
+    assert ssds == [design(name).ssd for name in ("3RPS", "6UPS", "6PUS")]
+    assert fmus == [f"Mast{name}{role}" for name in ("3RPS", "6UPS", "6PUS") for role in ("", "Controller")]

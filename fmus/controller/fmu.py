@@ -46,6 +46,14 @@ class Mast3RPSController(MastController):
     """Joint-space cascade control of the three legs of the 3-RPS (design 3RPS): its own inverse kinematics from the 3-RPS's geometry; current commands to the actuators' current loops."""  # noqa: E501 (one line: the FMU's description)
 
 
+class Mast6UPSController(MastController):
+    """Joint-space cascade control of the six legs of the 6-UPS hexapod (design 6UPS): its own inverse kinematics from the hexapod's geometry; current commands to the actuators' current loops."""  # noqa: E501 (one line: the FMU's description)
+
+
+class Mast6PUSController(MastController):
+    """Joint-space cascade control of the six carriages of the 6-PUS hexapod (design 6PUS): its own inverse kinematics from the hexapod's geometry; current commands to the actuators' current loops."""  # noqa: E501 (one line: the FMU's description)
+
+
 class MastEmpsController(BlockSlave):
     """Sampled P position loop into a P velocity loop of one drive axis, FIR velocity estimate, drive command saturation and gain (the EMPS benchmark's controller)."""  # noqa: E501 (one line: the FMU's description)
 

@@ -38,5 +38,16 @@ class Mast3RPS(MastMechanism):
     """3-RPS mechanism (design 3RPS, descriptions/3RPS.toml: the paper's belt axes as legs): kinematics and inverse dynamics, the forces on the actuators along the legs."""  # noqa: E501 (one line: the FMU's description)
 
 
+class Mast6UPS(MastMechanism):
+    """6-UPS hexapod (design 6UPS, descriptions/6UPS.toml): kinematics and inverse dynamics of the six legs, the forces on the actuators along them."""  # noqa: E501 (one line: the FMU's description)
+
+
+class Mast6PUS(MastMechanism):
+    """6-PUS hexapod (design 6PUS, descriptions/6PUS.toml: the paper's belt axes as six vertical guides): kinematics and inverse dynamics, the disturbance forces on the actuators."""  # noqa: E501 (one line: the FMU's description)
+
+
 #: every mechanism FMU built from this model (model identifier -> class)
-VARIANTS = {cls.__name__: cls for cls in (MastMechanism, Mast3PRS120, Mast3PRSInclined, MastActuatorsOnly, Mast3RPS)}
+VARIANTS = {
+    cls.__name__: cls
+    for cls in (MastMechanism, Mast3PRS120, Mast3PRSInclined, MastActuatorsOnly, Mast3RPS, Mast6UPS, Mast6PUS)
+}

@@ -203,7 +203,15 @@ class MechanismBlock(Block):
 
     def __init__(self, params: Mapping[str, Value], name: str = "") -> None:
         if self.MECHANISM == "3PRS":  # the parameters of the description the set names (``parameters_for``)
-            self.PARAMETERS = parameters_for(self.PARAMETERS, params.get("kinematics", "3PRS"))
+            kind = params.get("kinematics", "3PRS")
+            self.PARAMETERS = parameters_for(self.PARAMETERS, kind)
+            foreign = sorted(set(params) - {p.name for p in self.PARAMETERS})
+            if kind != "3PRS" and foreign:
+                raise ParameterError(
+                    f"{name or type(self).__name__}: unknown parameter(s) {', '.join(foreign)}; expected names: "
+                    f"{', '.join(sorted(p.name for p in self.PARAMETERS))} (those of the mechanism parameter "
+                    f"'kinematics' = {kind!r} names: a set of another mechanism's parameters?)"
+                )
         super().__init__(params, name)
         self.engine = engine(self.params, self.name)
         self.topology = self.engine.description.topology

@@ -332,6 +332,27 @@ def sweep_of(topology: Topology, sweep: Optional[Sequence[str]] = None, where: s
     return tuple(sorted(names.index(c) for c in sweep))
 
 
+def sweep_for_pose(topology: Topology, q: Sequence[float]) -> Optional[tuple[str, ...]]:
+    """The coordinates to sweep to answer for pose ``q`` (``--pose`` without ``--sweep``): None (every one) for a
+    mechanism of at most ``MAX_SWEPT`` coordinates; else the group of the coordinates q moves from home (the lengths
+    x, y, z: the constant-orientation workspace; the angles: the orientation one) when they are of one kind, the
+    moved coordinates themselves otherwise (the lengths when q is home). ValueError naming them when q moves more
+    than ``MAX_SWEPT``."""
+    coords = topology.coordinates
+    if len(coords) <= MAX_SWEPT:
+        return None
+    moved = [c for c, v, h in zip(coords, q, topology.home) if v != h]
+    if len(moved) > MAX_SWEPT:
+        raise ValueError(
+            f"pose {_fmt_pose(q, coords)}: it leaves home in {len(moved)} coordinates "
+            f"({', '.join(c.name for c in moved)}); a workspace sweeps at most {MAX_SWEPT}, the "
+            f"others held at home: move at most {MAX_SWEPT} of {', '.join(topology.names)} from home"
+        )
+    kinds = {c.angular for c in moved} or {False}
+    group = [c for c in coords if c.angular in kinds]
+    return tuple(c.name for c in (group if len(kinds) == 1 and len(group) <= MAX_SWEPT else moved))
+
+
 def _axis(centre: float, step: float, below: int, above: int) -> np.ndarray:
     return centre + step * np.arange(-below, above + 1, dtype=float)
 

@@ -88,6 +88,10 @@ FMUS = (
     # controller built for it (its parameters and kinematic model the description's)
     FmuSpec("Mast3RPS", "mechanism"),
     FmuSpec("Mast3RPSController", "controller"),
+    FmuSpec("Mast6UPS", "mechanism"),
+    FmuSpec("Mast6UPSController", "controller"),
+    FmuSpec("Mast6PUS", "mechanism"),
+    FmuSpec("Mast6PUSController", "controller"),
     # single-axis test benches (ssp/EMPS_bench.ssd)
     FmuSpec("MastLoadAxis", "actuator"),
     FmuSpec("MastEmpsController", "controller"),

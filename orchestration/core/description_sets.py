@@ -147,7 +147,7 @@ def leg_actuator(file: DescriptionFile) -> tuple[list[Row], str]:
     carries both), its stroke and start (``stroke``), and the set's comment."""
     where = f"{file.path.name}: the carriage is each leg's driven part's body, in the mechanism's inverse dynamics"
     rows: list[Row] = [
-        ("M_load", 0.0, "kg", f"No carriage on the belt: {where} (docs/designs/3rps.md)"),
+        ("M_load", 0.0, "kg", f"No carriage on the belt: {where} (docs/designs/{file.path.stem.lower()}.md)"),
         ("g_guide", 0.0, "m/s2", f"No gravity in the actuator: {where}, its weight along the leaning leg included"),
     ]
     return rows + _stroke_rows(file), (
@@ -195,6 +195,12 @@ SETS = (
     DescribedSet("geometry_3rps", "3RPS", geometry),
     DescribedSet("mass_3rps", "3RPS", masses),
     DescribedSet("actuator_3rps", "3RPS", leg_actuator),
+    DescribedSet("geometry_6ups", "6UPS", geometry),
+    DescribedSet("mass_6ups", "6UPS", masses),
+    DescribedSet("actuator_6ups", "6UPS", leg_actuator),
+    DescribedSet("geometry_6pus", "6PUS", geometry),
+    DescribedSet("mass_6pus", "6PUS", masses),
+    DescribedSet("stroke_6pus", "6PUS", stroke),
 )
 
 

@@ -90,6 +90,26 @@ MECHANISMS = (
         controller="Mast3RPSController",
         native=False,
     ),  # the native runtime (orchestration/core/native) generates the 3PRS's models only yet
+    Design(
+        "6UPS",
+        "Mast6UPS",
+        "6-UPS hexapod, the paper's motor and gearhead on ball-screw legs",
+        geometry="resources/geometry_6ups.ssv",
+        masses="resources/mass_6ups.ssv",
+        stroke="resources/actuator_6ups.ssv",
+        controller="Mast6UPSController",
+        native=False,
+    ),
+    Design(
+        "6PUS",
+        "Mast6PUS",
+        "6-PUS hexapod, the paper's belt axes as vertical guides",
+        geometry="resources/geometry_6pus.ssv",
+        masses="resources/mass_6pus.ssv",
+        stroke="resources/stroke_6pus.ssv",
+        controller="Mast6PUSController",
+        native=False,
+    ),
 )
 
 
