@@ -18,7 +18,7 @@ import pytest
 from lxml import etree
 
 import mast.core.build as build
-from mast.core.build import FMUS, block_class, build_all, build_ssp
+from mast.core.build import FMUS, block_class, build_all, build_ssp, default_parameters
 from mast.core.ssp import read_ssd
 from mast.hosts.cosim import HostError, availability, run_host
 
@@ -136,7 +136,8 @@ def test_fmi3_fmus_validate_declare_state_units_time_and_feedthrough_and_fmpy_si
         outputs = [v for v in md.modelVariables if v.causality == "output"]
         assert outputs and all(v.unit for v in outputs)
         assert {u.name for u in md.unitDefinitions} >= {v.unit for v in outputs}
-        feedthrough = block_class(identifier).FEEDTHROUGH
+        # the class the FMU wraps: its variables follow its built-in parameters (Block.for_parameters)
+        feedthrough = block_class(identifier).for_parameters(default_parameters(identifier)).FEEDTHROUGH
         expected = {v.name: sorted(feedthrough.get(v.name, ())) for v in outputs}
         for md_version in (md, read_model_description(str(built / "fmus" / f"{identifier}.fmu"))):
             declared = {u.variable.name: sorted(d.name for d in u.dependencies) for u in md_version.outputs}
@@ -480,11 +481,12 @@ def test_feedthrough_outputs_of_the_mast_fmi3_fmus_follow_their_inputs_as_the_mo
 
     checked = []
     for spec in FMUS:
-        identifier, cls = spec.model_identifier, block_class(spec.model_identifier)
+        identifier, defaults = spec.model_identifier, build.default_parameters(spec.model_identifier)
+        cls = block_class(identifier).for_parameters(defaults)  # the FMU's class (its built-in parameters')
         if not cls.FEEDTHROUGH:
             continue
         inst = Instance3(built / "fmus3" / f"{identifier}.fmu", "feedthrough")
-        block = cls(build.default_parameters(identifier), name="direct")
+        block = cls(defaults, name="direct")
         inputs = {name: _input(name, 0.0, 0.0) for name in cls.INPUTS}
         inst.start(inputs=inputs)
         block.set(**inputs)

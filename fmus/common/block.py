@@ -61,6 +61,12 @@ class Block:
         its built-in parameters (``slave.BlockWrapper``)."""
         return cls
 
+    @classmethod
+    def input_starts(cls, params: Mapping[str, Value]) -> dict[str, float]:
+        """The inputs whose start value is not 0 for a block of ``params`` (an FMU declares them, FMI 3.0, and
+        starts from them when a host leaves the inputs unset): none by default."""
+        return {}
+
     # -- convenience accessors by name (not for hot paths) -------------------
     def index(self, name: str) -> int:
         try:

@@ -248,7 +248,9 @@ class BlockWrapper:
         self.block_class = cls = type(self).block_class.for_parameters(defaults)
         self.description = (type(self).__doc__ or cls.__doc__ or "").strip().split("\n")[0] or None
         self._n_io = len(cls.INPUTS) + len(cls.OUTPUTS)
-        self._values: List[float] = [0.0] * self._n_io
+        #: the inputs' start values (Block.input_starts; the others start at 0)
+        self._input_starts = cls.input_starts(defaults) if defaults else {}
+        self._values: List[float] = [self._input_starts.get(n, 0.0) for n in cls.INPUTS] + [0.0] * len(cls.OUTPUTS)
         self._block: Optional[Block] = None
         self._dirty = True
         self._t0 = 0.0
@@ -276,8 +278,8 @@ class BlockWrapper:
         def unit(name: str) -> dict:
             return {"unit": units[name]} if name in units else {}
 
-        start = {} if input_start is None else {"start": input_start}
         for name in cls.INPUTS:
+            start = {} if input_start is None else {"start": self._input_starts.get(name, input_start)}
             self.register_variable(
                 real(
                     name,

@@ -216,6 +216,19 @@ class DriveController(Block):
         return _specialised(cls, topology.names)
 
     @classmethod
+    def input_starts(cls, params: Mapping[str, Value]) -> dict[str, float]:
+        """The pose commands at the home pose of the mechanism ``params`` describe, the joints at its inverse
+        kinematics: a host that leaves the inputs at their start values commands home (a pose of zeros may be
+        no pose at all)."""
+        desc = describe(params, masses=False)
+        top = desc.topology
+        rho = desc.evaluate(list(top.home)).rho
+        return {
+            **{f"{c}_cmd": v for c, v in zip(top.names, top.home)},
+            **{j: float(r) for j, r in zip(top.joints, rho)},
+        }
+
+    @classmethod
     def for_parameters(cls, params: Mapping[str, Value]) -> type:
         """The class whose variables a controller of ``params`` has: ``for_topology`` of the mechanism their
         geometry set describes (an FMU fixes its variables with its built-in parameters, ``Block.for_parameters``);

@@ -201,6 +201,15 @@ class MechanismBlock(Block):
         except Exception:  # noqa: BLE001 - the block's own construction reports what is wrong with them
             return cls
 
+    @classmethod
+    def input_starts(cls, params: Mapping[str, Value]) -> dict[str, float]:
+        """The joints at the home pose (``Topology.home``'s inverse kinematics): a host that leaves the joint
+        inputs at their start values finds the mechanism at home (a joint coordinate of 0 may be no pose at
+        all, a leg of zero length)."""
+        desc = describe(params, masses=False)
+        top = desc.topology
+        return dict(zip(top.joints, (float(v) for v in desc.evaluate(list(top.home)).rho)))
+
     def __init__(self, params: Mapping[str, Value], name: str = "") -> None:
         if self.MECHANISM == "3PRS":  # the parameters of the description the set names (``parameters_for``)
             kind = params.get("kinematics", "3PRS")
