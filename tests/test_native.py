@@ -472,7 +472,7 @@ def test_every_mechanism_parameter_is_tunable_in_any_host(built, ident, tuned):
     [
         ("MastMechanism", {"r": 0.45}, "parameter 'r' = 0.45: must be < H = 0.4 m"),
         ("MastMechanism", {"L": 0.04}, "parameter 'L' = 0.04: must exceed H - r"),
-        ("MastMechanism", {"kinematics": "6UPS"}, "parameter 'kinematics' = '6UPS': expected one of"),
+        ("MastMechanism", {"kinematics": "9XYZ"}, "parameter 'kinematics' = '9XYZ': expected one of"),
         (
             "MastMechanism",
             {"m_payload": 1.0, "I_payload_xx": 0.01, "I_payload_xy": 0.5},

@@ -154,6 +154,10 @@ def has_native_form(identifier: str) -> bool:
     from ..build import block_class
     from .models import native_kind
 
+    from ..designs import without_native_form
+
+    if identifier in without_native_form()[1]:  # another mechanism than the 3PRS: Design.native
+        return False
     return native_kind(block_class(identifier)) is not None
 
 
@@ -186,8 +190,9 @@ def build_native_all(
     binaries each FMU carries (``build_native_fmu``)."""
     from ..build import FMUS, build_ssp, default_parameters
 
+    from ..ssp import read_ssd
+
     python_dir = out / "fmus"
-    sets = {Path(ssd): _component_sets(Path(ssd)) for ssd in ssds}
     written = []
     cache: dict[str, Path] = {}
 
@@ -206,11 +211,13 @@ def build_native_all(
                 native(spec.model_identifier, default_parameters(spec.model_identifier), out / "fmus" / "native")
             )
             log(f"built {written[-1]}")
-    for ssd, comps in sets.items():
-        missing = sorted({ident for ident, _ in comps.values() if not has_native_form(ident)})
+    for ssd in map(Path, ssds):
+        used = {Path(spec.source).stem for spec in read_ssd(ssd).components.values()}
+        missing = sorted(ident for ident in used if not has_native_form(ident))
         if missing:
             log(f"skipped {ssd.name}: no native form yet for {', '.join(missing)}")
             continue
+        comps = _component_sets(ssd)
         by_source: dict[str, dict] = {}
         for _comp, (ident, params) in comps.items():
             if by_source.setdefault(ident, params) != params:
