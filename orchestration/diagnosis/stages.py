@@ -493,6 +493,7 @@ def regression_at(ctx: Context, state: State, atoms: Sequence[Atom], sensitiviti
             else:
                 cols[a.label] = model.columns(pt, names, a.effect.parameter)
     resid = {n: model.tests[n].y - pt.obs[n] for n in names}
+    now = dict(resid)       # the current model's residual (the gap each proposal's members must carry a share of)
     for a in state.selected:
         if a.effect.key in NONLINEAR:
             continue
@@ -515,7 +516,8 @@ def regression_at(ctx: Context, state: State, atoms: Sequence[Atom], sensitiviti
     if not atoms:    # a library without regression effects (--library backlash): nothing to propose
         A_tr = np.zeros((len(banded(resid, ctx.train)), 0))
         A_ho = np.zeros((len(banded(resid, ctx.held)), 0))
-    reg = Regression(atoms, A_tr, banded(resid, ctx.train), A_ho, banded(resid, ctx.held), ctx.sigma_b)
+    current = tuple(float(np.sum(banded(now, ns) ** 2)) for ns in (ctx.train, ctx.held))
+    reg = Regression(atoms, A_tr, banded(resid, ctx.train), A_ho, banded(resid, ctx.held), ctx.sigma_b, current)
     reg.columns = {a.effect.parameter: cols[a.label] for a in atoms if a.label in steps}
     return reg
 
