@@ -461,17 +461,17 @@ def _cross_validation_lines(cv: Mapping) -> list[str]:
              f"Every test held out once and trained on in the other folds ({cv['how']}; {cv['simulations']} test "
              "simulations). Held-out residual sum of squares in the band [N^2 m^2] with the selection, and the change "
              "without each effect (a fold whose training tests cannot identify an effect does not judge it: -):", "",
-             "| held out | with the selection | " + " | ".join(f"without {k}" for k in keys) + " |",
-             "|---|---|" + "---|" * len(keys)]
+             "| held out | refitted on the others | with the selection | " + " | ".join(f"without {k}" for k in keys)
+             + " |", "|---|---|---|" + "---|" * len(keys)]
     for f in cv["folds"]:
         w = f["with"]
         cells = []
         for k in keys:
             wo = f["without"].get(k)
-            cells.append("-" if k not in f["checks"] else "does not simulate" if wo is None or w is None else
+            cells.append("-" if k not in f["checks"] else "does not simulate" if wo is None else
                          f"{wo['band_rss']:.3g} ({100 * (wo['band_rss'] / w['band_rss'] - 1):+.0f} %)")
-        lines.append(f"| {', '.join(f['held_out'])} | {'does not simulate' if w is None else format(w['band_rss'], '.3g')}"
-                     f" | " + " | ".join(cells) + " |")
+        values = ", ".join(f"`{p}` {v:.4g}" for p, v in f["values"].items())
+        lines.append(f"| {', '.join(f['held_out'])} | {values} | {w['band_rss']:.3g} | " + " | ".join(cells) + " |")
     lines += ["", "| effect | folds judging it | held-out RSS with / without | needed | named by the folds |",
               "|---|---|---|---|---|"]
     for k, v in cv["effects"].items():

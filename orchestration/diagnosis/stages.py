@@ -307,6 +307,13 @@ def lag_form(dbic: float, dho: float) -> str:
     return "not distinguishable"
 
 
+def lag_form_text(choice: str) -> str:
+    """The words of a lag's form (``lag_form``) in the verdict and the report."""
+    return ({"delay_meas": "a delay (the training tests and the held-out tests prefer it)",
+             "T_meas": "a first-order filter (the training tests and the held-out tests prefer it)"}.get(choice)
+            or "delay or filter: not distinguishable on this plan")
+
+
 def lag_form_check(ctx: Context, state: State, steps: list) -> State:
     """A measurement lag: a pure delay (unit magnitude, phase -omega d growing linearly with frequency) or a
     first-order filter (magnitude 1/sqrt(1 + (omega T)^2) dropping, phase -atan(omega T) bending)? Both alike at
@@ -353,9 +360,7 @@ def lag_form_check(ctx: Context, state: State, steps: list) -> State:
                      "phase_difference_rad": 2 * math.pi * f * d_val - math.atan(2 * math.pi * f * T_val)}
                  for f in LAG_TABLE_HZ}
         freqs = sorted({ctx.model.tests[m].test.frequency for m in ctx.names if ctx.model.tests[m].test.frequency})
-        text = ({"delay_meas": "a delay (the training tests and the held-out tests prefer it)",
-                 "T_meas": "a first-order filter (the training tests and the held-out tests prefer it)"}.get(choice)
-                or "delay or filter: not distinguishable on this plan")
+        text = lag_form_text(choice)
         steps.append({"how": "delay or filter", "effect": a.effect.key, "from": [x.label for x in state.selected],
                       "to": [x.label for x in keep.selected], "accepted": True,
                       "filter_parameter": T, "delay_parameter": D, "T_meas": T_val, "delay_meas": d_val,
