@@ -211,7 +211,8 @@ def _lag_form(decided: dict, record: list) -> dict:
         dho += d["n_full"] * math.log(d["full_rss"] / f["full_rss"])
         used.append(", ".join(r["held_out"]))
     choice = lag_form(decided["delta_bic_delay_vs_filter"], dho) if used else decided["choice"]
-    return {"held_out_deviance_delay_vs_filter": dho, "folds": used, "choice": choice}
+    return {"held_out_deviance_delay_vs_filter": dho, "folds": used, "choice": choice,
+            "choice_one_split": decided["choice"], "changed": choice != decided["choice"]}
 
 
 def _keep_form(ctx: Context, state: State, decided: dict, form: dict) -> State:

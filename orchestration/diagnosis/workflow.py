@@ -251,7 +251,8 @@ def diagnose(opt: Options, log: Callable[[str], None] = print) -> dict:
             ctx, state, last_fit, steps, nominal_pt, library, atoms, rejected)
         judged = state
         state, cv = cross_validate(ctx, state, steps, excitations(prepared, roles))
-        if state is not judged:     # a member the folds do not confirm removed, or the lag's form changed: judged again
+        if state is not judged or cv.get("lag_form", {}).get("changed"):
+            # a member the folds do not confirm removed, or the lag's form decided otherwise: judged again
             state, named, verdict, unexplained, last_fit = _named_only_if_explained(
                 ctx, state, last_fit, steps, nominal_pt, library, atoms, rejected)
         for e in named:     # the folds' evidence for each named effect (crossvalidation.py)
