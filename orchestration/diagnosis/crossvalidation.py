@@ -6,7 +6,8 @@ training tests and predicts its held-out tests; so is the selection without each
 lag, the selection with the lag in the other form. A fold's refit is one Gauss-Newton step, in the band, from a
 re-simulated model on the re-simulated sensitivities of its parameters: the fold's least-squares optimum to
 first order in the parameter change, whatever the tests the start was fitted on (the search's values are fitted
-on the split's training tests; a fold's differ from them by a few per cent). The model without a member is
+on the split's training tests; a fold's differ from them by a few per cent); a step beyond the sensitivities'
+reach (STEP_LIMIT) is shortened to it. The model without a member is
 re-simulated with that member at its nominal value and the others at the search's values, then refitted the
 same way; the other form of a lag is the one stages.lag_form_check fitted by re-simulation. Cost: one simulation
 of every test per plant parameter, per member and for the lag's other form, not a search per fold.
@@ -30,6 +31,14 @@ from .plan import Excitation, folds
 from .resimulation import Point
 from .selection import PRACTICAL, RELATIVE, Atom
 from .stages import FD_STEP, Context, State, fit_state, fitted_parameters, lag_form, lag_form_text
+
+
+#: a fold's Gauss-Newton step moves no parameter by more than this share of its value (or of its change from the
+#: nominal value, when larger): beyond it the sensitivities, taken at the search's values, do not hold (a stiffness's
+#: trace goes with 1/K_t^2), and a step that long means the fold's training tests hardly inform that parameter
+#: (a flat valley, which a re-simulated fit would not cross in one step either); the step is shortened, as a
+#: whole, to that reach
+STEP_LIMIT = 0.2
 
 
 def _fitted(selected: Sequence[Atom], changes: Mapping[str, float]) -> list[str]:
@@ -74,6 +83,9 @@ class _Variant:
 
     def __init__(self, ctx: Context, pt: Point, params: Sequence[str], columns: Mapping) -> None:
         self.params = [p for p in params if p in columns]
+        # the range in which a parameter's sensitivity holds: STEP_LIMIT of its value or of its change
+        self.reach = np.array([STEP_LIMIT * max(abs(float(pt.params[p])), abs(float(pt.params[p]) - float(ctx.nominal[p])))
+                               or math.inf for p in self.params])
         self.r, self.A, self.r_full, self.A_full = {}, {}, {}, {}
         for n in ctx.names:
             dt, y = ctx.model.tests[n].test.sample_time, ctx.model.tests[n].y
@@ -90,11 +102,13 @@ class _Variant:
         A = np.vstack([self.A[n] for n in train])
         r = np.concatenate([self.r[n] for n in train])
         step = np.linalg.lstsq(A, r, rcond=None)[0] if A.shape[1] else np.zeros(0)
+        shortened = min(1.0, float(np.min(self.reach / np.maximum(np.abs(step), 1e-300)))) if len(step) else 1.0
+        step = step * shortened
         rss = sum(float(np.sum((self.r[n] - self.A[n] @ step) ** 2)) for n in held)
         full = sum(float(np.sum((self.r_full[n] - self.A_full[n] @ step) ** 2)) for n in held)
         return {"band_rss": rss, "n": sum(len(self.r[n]) for n in held), "full_rss": full,
                 "n_full": sum(len(self.r_full[n]) for n in held),
-                "step": dict(zip(self.params, map(float, step)))}
+                "step": dict(zip(self.params, map(float, step))), "step_shortened_to": shortened}
 
 
 def _without(selected: Sequence[Atom], changes: Mapping[str, float], a: Atom) -> tuple[tuple, dict]:

@@ -95,11 +95,11 @@ def _named_only_if_explained(ctx: Context, state: State, last_fit, steps: list, 
     """The verdict on the search's selection, and what of it is named (consistency.py): when a residual is left,
     or several effects share the gap, only effects that are one value whatever the test keep their name. When
     members were refused as stand-ins and the structure they absorbed is left (training BIC +DELTA_BIC without
-    them), the regression loop runs again from the model kept without the refused stand-ins among its candidates
+    them), the effects whose trace the linear ones mimic (``after_stand_ins``: the transmission stiffness) are
+    tried by re-simulation from the model kept (the members kept refitted with them); if the structure is still
+    left, the regression loop runs again from the model kept without the refused stand-ins among its candidates
     (the cause they stood in for may be another effect of the library, which they had crowded out: a measurement
-    delay beside the drive's gains), then, if the structure is still left, the effects whose trace the linear ones
-    mimic (``after_stand_ins``: the transmission stiffness) are tried by re-simulation from the model kept (the
-    members kept refitted with them); what is accepted is checked again. Returns (state, named effects, verdict,
+    delay beside a heavier motor side, SMALL seed 332). What is accepted is checked again. Returns (state, named effects, verdict,
     unexplained, last_fit)."""
     named = named_effects(ctx, state, last_fit, steps)
     verdict, unexplained = judge(ctx, state, last_fit, steps)
@@ -116,6 +116,14 @@ def _named_only_if_explained(ctx: Context, state: State, last_fit, steps: list, 
         known = {x["key"] for x in again} | {a.effect.key for a in tried.selected}
         return tried, again + [h for h in hints if h["key"] not in known], None
 
+    later = [e for e in library if e.after_stand_ins and not any(a.effect.key == e.key for a in state.selected)]
+    if hints and later and state.info["structure_left"] >= DELTA_BIC and len(state.selected) < MAX_EFFECTS:
+        ctx.log("diagnose: stand-ins refused, their structure left: trying " + ", ".join(e.title for e in later))
+        tried = nonlinear_stage(ctx, state, later, rejected, steps)
+        if tried is not None:   # accepted beside the members kept (refitted with it): checked again, once
+            state, hints, done = recheck(tried, hints)
+            if done:
+                return (state, *done, last_fit)
     refused = {h["key"] for h in hints}
     if hints and state.info["structure_left"] >= DELTA_BIC and len(state.selected) < MAX_EFFECTS:
         ctx.log("diagnose: stand-ins refused (" + ", ".join(sorted(refused)) + "), their structure left: the "
@@ -125,14 +133,6 @@ def _named_only_if_explained(ctx: Context, state: State, last_fit, steps: list, 
         if atom_labels(tried.selected) != before:
             tried = lag_form_check(ctx, prune(ctx, tried, steps), steps)
             last_fit = fit
-            state, hints, done = recheck(tried, hints)
-            if done:
-                return (state, *done, last_fit)
-    later = [e for e in library if e.after_stand_ins and not any(a.effect.key == e.key for a in state.selected)]
-    if hints and later and state.info["structure_left"] >= DELTA_BIC and len(state.selected) < MAX_EFFECTS:
-        ctx.log("diagnose: stand-ins refused, their structure left: trying " + ", ".join(e.title for e in later))
-        tried = nonlinear_stage(ctx, state, later, rejected, steps)
-        if tried is not None:   # accepted beside the members kept (refitted with it): checked again, once
             state, hints, done = recheck(tried, hints)
             if done:
                 return (state, *done, last_fit)
