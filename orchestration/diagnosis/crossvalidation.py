@@ -22,6 +22,7 @@ held-out deviance summed over the folds in place of the one split's.
 from __future__ import annotations
 
 import math
+import time
 from typing import Mapping, Optional, Sequence
 
 import numpy as np
@@ -125,7 +126,7 @@ def cross_validate(ctx: Context, state: State, steps: list, tests: Sequence[Exci
     members = [a for a in state.selected if not a.effect.phase_free]
     if not members or len(ctx.names) < 2:
         return state, {}
-    sims0 = ctx.model.sim.count
+    sims0, t0 = ctx.model.sim.count, time.perf_counter()
     keys = [a.effect.key for a in members]
     params = _fitted(state.selected, state.changes)
     columns = _columns(ctx, state, params)
@@ -172,7 +173,7 @@ def cross_validate(ctx: Context, state: State, steps: list, tests: Sequence[Exci
     for key, v in verdicts.items():
         if v["confirmed"] is False:
             state = _remove(ctx, state, key, v, steps)
-    out["simulations"] = ctx.model.sim.count - sims0
+    out["simulations"], out["wall_s"] = ctx.model.sim.count - sims0, round(time.perf_counter() - t0, 1)
     return state, out
 
 

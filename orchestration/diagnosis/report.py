@@ -459,7 +459,7 @@ def _cross_validation_lines(cv: Mapping) -> list[str]:
     keys = list(cv["effects"])
     lines = ["## Cross-validation", "",
              f"Every test held out once and trained on in the other folds ({cv['how']}; {cv['simulations']} test "
-             "simulations). Held-out residual sum of squares in the band [N^2 m^2] with the selection, and the change "
+             f"simulations, {cv['wall_s']:g} s). Held-out residual sum of squares in the band [N^2 m^2] with the selection, and the change "
              "without each effect (a fold whose training tests cannot identify an effect does not judge it: -):", "",
              "| held out | refitted on the others | with the selection | " + " | ".join(f"without {k}" for k in keys)
              + " |", "|---|---|---|" + "---|" * len(keys)]
