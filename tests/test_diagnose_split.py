@@ -131,6 +131,24 @@ def test_a_per_axis_effect_beside_an_all_axes_one_is_found_whatever_the_default_
     assert set(doc["split"]["held_out"]) & moving_fast
     report = (tmp_path / "out" / "report.md").read_text()
     assert "(held-out evidence)" in report and "Split: " in report
+    cross_validated(doc, report)
+    # the per-axis inertia is judged on the folds holding out a fast test that moves that axis, never on the others
+    assert set(effects[key]["evidence"]["cross_validation"]["folds"]) <= moving_fast
+
+
+def cross_validated(doc: dict, report: str) -> None:
+    """Every test held out in one fold and trained on in the others; every named effect confirmed by the held-out
+    residual summed over the folds that can check it (crossvalidation.py), with the figures per fold in the report."""
+    cv = doc["cross_validation"]
+    names = [t["name"] for t in doc["tests"]]
+    assert sorted(n for f in cv["folds"] for n in f["held_out"]) == sorted(names)
+    for f in cv["folds"]:
+        assert set(f["training"]) == set(names) - set(f["held_out"])
+    for e in doc["named_effects"]:
+        ev = e["evidence"]["cross_validation"]
+        assert ev["confirmed"] and ev["folds"], (e["key"], ev)
+        assert ev["held_out_rss_without"] - ev["held_out_rss_with"] >= ev["needed"]
+    assert "## Cross-validation" in report and all(f"without {e['key']}" in report for e in doc["named_effects"])
 
 
 #: a lag inside two- and three-effect combinations, as a delay and as a filter: (truth, plan, seed, form named)
@@ -139,6 +157,10 @@ LAGS = {
     "coulomb-inertia-filter": ({"tau_c": 0.05, "J1_scale": 0.75, "T_meas": 0.0025}, PLAN, 322, "T_meas"),
     "viscous-delay": ({"b_v": 1.5e-4, "delay_meas": 0.0017}, SMALL, 323, "delay_meas"),
     "viscous-filter": ({"b_v": 1.5e-4, "T_meas": 0.0017}, SMALL, 324, "T_meas"),
+    # the issue's two cases left wrong (docs/diagnose.md): a 1.2-1.5 ms delay carried less than 1 % of the nominal
+    # model's gap and was never proposed (a stiffness K_t 4.95 named instead; "unexplained residual")
+    "coulomb-inertia-delay-A": ({"tau_c": 0.045, "J1_scale": 0.8, "delay_meas": 0.0012}, PLAN_A, 331, "delay_meas"),
+    "coulomb-heavier-delay-small": ({"tau_c": 0.04, "J1_scale": 1.2, "delay_meas": 0.0015}, SMALL, 332, "delay_meas"),
 }
 KEYS = {"tau_c": "coulomb", "J1_scale": "inertia_motor", "b_v": "viscous", "delay_meas": "lag", "T_meas": "lag"}
 
@@ -169,6 +191,66 @@ def test_a_lag_among_other_effects_is_named_a_delay_or_a_filter_as_it_is(built_s
     assert effects["lag"]["form"] in doc["verdict"]["text"]
     if decided["choice"] == "not distinguishable":
         assert "delay or filter: not distinguishable on this plan" in doc["verdict"]["text"]
+    cross_validated(doc, (tmp_path / "out" / "report.md").read_text())
+    assert doc["cross_validation"]["lag_form"]["choice"] == decided["choice"]
+
+
+def test_the_named_effects_do_not_depend_on_the_split(built_ssp, tmp_path):
+    """The same data diagnosed with the default split (psi 2.5 Hz held out) and with another one (z 5 Hz held out):
+    the same effects named, the same values within 2 %, every test held out in one fold of the cross-validation
+    whatever the split (SMALL: Coulomb friction, a heavier motor side and a 1.5 ms delay, seed 333)."""
+    truth = {"tau_c": 0.042, "J1_scale": 1.15, "delay_meas": 0.0015}
+    data = tmp_path / "data"
+    synthesize(built_ssp, data, {"actuator": truth}, tests=SMALL, direct=True, seed=333, log=lambda *_: None)
+    docs = [
+        diagnose(
+            Options(data, tmp_path / f"out{k}", compiled(built_ssp), figures=False, direct=False, holdout=holdout),
+            log=lambda *_: None,
+        )
+        for k, holdout in enumerate((None, ["z_5Hz"]))
+    ]
+    assert docs[0]["split"]["held_out"] == ["psi_2.5Hz"] and docs[1]["split"]["held_out"] == ["z_5Hz"]
+    first, second = named(docs[0]), named(docs[1])
+    assert set(first) == set(second) == {"coulomb", "inertia_motor", "lag"}, (first, second)
+    for key, e in first.items():
+        for p, v in e["parameters"].items():
+            assert second[key]["parameters"][p] == pytest.approx(v, rel=0.02), (p, e, second[key])
+            truth_value = truth.get(p, truth.get("delay_meas"))
+            assert v == pytest.approx(truth_value, rel=0.05), (p, v)
+    for doc in docs:
+        assert doc["verdict"]["status"] == "explained"
+        assert sorted(n for f in doc["cross_validation"]["folds"] for n in f["held_out"]) == sorted(
+            n for n in doc["gap"]
+        )
+
+
+def test_the_folds_hold_every_test_out_once_and_check_what_their_training_tests_identify():
+    """No simulation: leave-one-test-out whatever the order of the tests; a fold judges an effect only when its
+    training tests identify it and its held-out test can check it (plan.fold_meets): on PLAN_A inertia on axis 2
+    alone is judged by the folds holding out z 3.3 or 5.8 Hz (the fast tests that move actuator 2, the other one
+    in training), never by psi 1.7 Hz; on SMALL inertia on axis 1 by no fold (one fast test moves it: the plan
+    cannot identify it, as the identifiability table says)."""
+    from mast.diagnosis.plan import folds
+
+    keys = ["coulomb", "viscous", "inertia_motor", "inertia_motor_axis1", "inertia_motor_axis2", "lag"]
+    tests = excitations(PLAN_A)
+    out = folds(tests, keys)
+    names = sorted(x.name for x in tests)
+    assert sorted(n for f in out for n in f["held_out"]) == names
+    for f in out:
+        assert sorted(f["training"] + f["held_out"]) == names
+    judged = {f["held_out"][0]: f["checks"] for f in out}
+    assert {n for n, c in judged.items() if "inertia_motor_axis2" in c} == {"z_3.3Hz", "z_5.8Hz"}
+    assert all("coulomb" in c for c in judged.values())
+    assert all("lag" in c for c in judged.values())  # theta 4.2 Hz trains it when z 5.8 Hz is held out
+
+    def as_sets(fs):
+        return sorted((tuple(f["held_out"]), frozenset(f["training"]), frozenset(f["checks"])) for f in fs)
+
+    assert as_sets(folds(list(reversed(tests)), keys)) == as_sets(out)
+    small = folds(excitations(SMALL), keys)
+    assert not any("inertia_motor_axis1" in f["checks"] for f in small)
+    assert {f["held_out"][0] for f in small if "lag" in f["checks"]} == {"z_1.2Hz", "psi_2.5Hz"}  # z 5 Hz trains it
 
 
 def test_delay_or_filter_not_distinguishable_is_said_not_picked():

@@ -252,5 +252,59 @@ def choose_split(tests: Sequence[Excitation], library: Sequence[str]) -> dict[st
     return chosen
 
 
+#: at most this many folds: a plan of more tests is cut into MAX_FOLDS groups (every MAX_FOLDS-th test in frequency
+#: order together), each held out once
+MAX_FOLDS = 8
+
+
+def fold_meets(tests: Sequence[Excitation], keys: Sequence[str]) -> dict[str, Optional[str]]:
+    """For one fold (``tests`` with their roles in it): None for every effect of ``keys`` the fold can check, else
+    why not. It can when its training tests alone identify the effect (what the whole plan must excite,
+    ``REQUIREMENTS``, met by the training tests; for a requirement of both roles, a training test of that kind) and
+    its held-out tests include one of the kind a requirement of both roles names."""
+    training = [x for x in tests if x.role != "held-out"]
+    out: dict[str, Optional[str]] = {}
+    for key in keys:
+        base, _, axis = key.partition("_axis")
+        for group, (_, check) in REQUIREMENTS.items():
+            if base not in group:
+                continue
+            seen = [x.on_axis(int(axis) - 1) for x in tests] if axis else list(tests)
+            if isinstance(check, InBothRoles):
+                out[key] = check(seen)
+            else:
+                why = check([x for x in seen if x.role != "held-out"])
+                out[key] = None if why is None else f"its training tests: {why}"
+    for key in keys:
+        out.setdefault(key, None if training else "no training test")
+    return out
+
+
+def folds(tests: Sequence[Excitation], keys: Sequence[str]) -> list[dict]:
+    """The folds of the cross-validation: every test held out in one fold and trained on in all the others
+    (leave-one-test-out; plans of more than MAX_FOLDS tests in MAX_FOLDS groups). Each fold: its held-out and
+    training tests, and which effects of ``keys`` it can check (``fold_meets``): an effect is judged on the folds
+    whose training tests identify it; a plan that cannot identify it has no such fold."""
+    order = sorted(tests, key=lambda x: (x.frequency, x.name))
+    k = min(len(order), MAX_FOLDS)
+    out = []
+    for g in range(k):
+        held = [x.name for i, x in enumerate(order) if i % k == g]
+        seen = [
+            Excitation(x.name, "held-out" if x.name in held else "training", x.frequency, x.alike, x.moving)
+            for x in tests
+        ]
+        meets = fold_meets(seen, keys)
+        out.append(
+            {
+                "held_out": held,
+                "training": [x.name for x in tests if x.name not in held],
+                "checks": [key for key in keys if meets[key] is None],
+                "cannot_check": {key: why for key, why in meets.items() if why is not None},
+            }
+        )
+    return out
+
+
 def excitations(prepared: Mapping, roles: Mapping[str, str]) -> list[Excitation]:
     return [excitation(n, roles[n], p.test.time, p.test.rho_cmd) for n, p in prepared.items()]

@@ -415,6 +415,9 @@ def write_report(out: Path, doc: dict, figs: Mapping[str, str]) -> None:
         lines.append("")
     if doc.get("split"):
         lines += [f"Split: {doc['split']['how']}.", ""]
+    cv = doc.get("cross_validation") or {}
+    if cv.get("folds"):
+        lines += _cross_validation_lines(cv)
     lines += [
         "## Gap per test (torque NRMSE %, lower is better)",
         "",
@@ -552,3 +555,54 @@ def write_report(out: Path, doc: dict, figs: Mapping[str, str]) -> None:
         "",
     ]
     (out / "report.md").write_text("\n".join(lines))
+
+
+def _cross_validation_lines(cv: Mapping) -> list[str]:
+    """report.md's "Cross-validation" section: per fold the held-out residual (band) with the selection refitted on
+    the fold's training tests and without each member, then per effect the sums and the decision."""
+    keys = list(cv["effects"])
+    lines = [
+        "## Cross-validation",
+        "",
+        f"Every test held out once and trained on in the other folds ({cv['how']}; {cv['simulations']} test "
+        f"simulations, {cv['wall_s']:g} s). Held-out residual sum of squares in the band [N^2 m^2] with the "
+        "selection, and the change without each effect (a fold whose training tests cannot identify an effect "
+        "does not judge it: -):",
+        "",
+        "| held out | refitted on the others | with the selection | " + " | ".join(f"without {k}" for k in keys) + " |",
+        "|---|---|---|" + "---|" * len(keys),
+    ]
+    for f in cv["folds"]:
+        w = f["with"]
+        cells = []
+        for k in keys:
+            wo = f["without"].get(k)
+            cells.append(
+                "-"
+                if k not in f["checks"]
+                else "does not simulate"
+                if wo is None
+                else f"{wo['band_rss']:.3g} ({100 * (wo['band_rss'] / w['band_rss'] - 1):+.0f} %)"
+            )
+        values = ", ".join(f"`{p}` {v:.4g}" for p, v in f["values"].items())
+        lines.append(f"| {', '.join(f['held_out'])} | {values} | {w['band_rss']:.3g} | " + " | ".join(cells) + " |")
+    lines += [
+        "",
+        "| effect | folds judging it | held-out RSS with / without | needed | named by the folds |",
+        "|---|---|---|---|---|",
+    ]
+    for k, v in cv["effects"].items():
+        if not v["folds"]:
+            lines.append(f"| {k} | none | | | {v['note']} |")
+            continue
+        lines.append(
+            f"| {k} | {len(v['folds'])} | {v['held_out_rss_with']:.3g} / {v['held_out_rss_without']:.3g} | "
+            f"{v['needed']:.3g} | {'yes' if v['confirmed'] else 'no: ' + v.get('note', 'removed')} |"
+        )
+    if "lag_form" in cv:
+        lf = cv["lag_form"]
+        lines.append(
+            f"\nDelay or filter over {len(lf['folds'])} folds: held-out deviance (delay - filter, full band) "
+            f"{lf['held_out_deviance_delay_vs_filter']:+.0f}: {lf['choice']}."
+        )
+    return lines + [""]

@@ -18,7 +18,10 @@ DELTA_BIC = 10.0
 PRACTICAL = 0.05
 #: ... and at least this fraction of the held-out residual left above the noise
 RELATIVE = 0.1
-#: ... and at least this share of the whole gap of the current model (above the noise)
+#: ... and at least this share of the whole gap of the current model (above the noise): far from the data (the first
+#: round, the nominal model) small terms that only soak up the linearisation error of the big ones wait; near it
+#: (the gap left by the effects fitted) a small true effect (a millisecond delay) is not measured against the
+#: nominal model's gap, which the effects already fitted have removed
 SHARE_OF_GAP = 0.01
 #: at most this many effects on one axis only in a subset (two worn axes at once, not a per-axis refit of all)
 MAX_PER_AXIS = 2
@@ -105,7 +108,10 @@ class Regression:
         A_ho: np.ndarray,
         r_ho: np.ndarray,
         sigma: float,
+        current: Optional[tuple[float, float]] = None,
     ) -> None:
+        """``current``: the residual sum of squares (training, held-out) of the current model (the residual
+        ``r_tr``, ``r_ho`` are taken back to the nominal model); the nominal model's if None."""
         self.atoms = list(atoms)
         scale = np.linalg.norm(A_tr, axis=0)
         scale[scale == 0] = 1.0
@@ -115,6 +121,7 @@ class Regression:
         self.Gh, self.gh, self.rrh = Aho.T @ Aho, Aho.T @ r_ho, float(r_ho @ r_ho)
         self.n_tr, self.n_ho = len(r_tr), len(r_ho)
         self.sigma = sigma  # noise standard deviation in the band
+        self.current = current if current is not None else (self.rr, self.rrh)
         self._fits: dict = {}
 
     def fit(self, idx: tuple[int, ...]) -> SubsetFit:
@@ -184,13 +191,12 @@ def select(
     """
     by_key = {e.key: e for e in library}
     fits = []
-    # far from the data (the first rounds), each member must also carry a share of the whole gap:
+    # each member must also carry a share of the current model's gap: far from the data (the first rounds)
     # small terms that only soak up the linearisation error of the big ones wait for the next round
-    empty = reg.fit(())
     if reg.n_ho:
-        floor_total = SHARE_OF_GAP * max(empty.rss_ho - reg.sigma**2 * reg.n_ho, 0.0)
+        floor_total = SHARE_OF_GAP * max(reg.current[1] - reg.sigma**2 * reg.n_ho, 0.0)
     else:
-        floor_total = SHARE_OF_GAP * max(empty.rss_tr - reg.sigma**2 * reg.n_tr, 0.0)
+        floor_total = SHARE_OF_GAP * max(reg.current[0] - reg.sigma**2 * reg.n_tr, 0.0)
     by_effect: dict[str, list[int]] = {}
     for i, a in enumerate(reg.atoms):
         by_effect.setdefault(a.effect.key, []).append(i)

@@ -367,6 +367,14 @@ def lag_form(dbic: float, dho: float) -> str:
     return "not distinguishable"
 
 
+def lag_form_text(choice: str) -> str:
+    """The words of a lag's form (``lag_form``) in the verdict and the report."""
+    return {
+        "delay_meas": "a delay (the training tests and the held-out tests prefer it)",
+        "T_meas": "a first-order filter (the training tests and the held-out tests prefer it)",
+    }.get(choice) or "delay or filter: not distinguishable on this plan"
+
+
 def lag_form_check(ctx: Context, state: State, steps: list) -> State:
     """A measurement lag: a pure delay (unit magnitude, phase -omega d growing linearly with frequency) or a
     first-order filter (magnitude 1/sqrt(1 + (omega T)^2) dropping, phase -atan(omega T) bending)? Both alike at
@@ -422,10 +430,7 @@ def lag_form_check(ctx: Context, state: State, steps: list) -> State:
             for f in LAG_TABLE_HZ
         }
         freqs = sorted({ctx.model.tests[m].test.frequency for m in ctx.names if ctx.model.tests[m].test.frequency})
-        text = {
-            "delay_meas": "a delay (the training tests and the held-out tests prefer it)",
-            "T_meas": "a first-order filter (the training tests and the held-out tests prefer it)",
-        }.get(choice) or "delay or filter: not distinguishable on this plan"
+        text = lag_form_text(choice)
         steps.append(
             {
                 "how": "delay or filter",
@@ -588,6 +593,7 @@ def regression_at(ctx: Context, state: State, atoms: Sequence[Atom], sensitiviti
             else:
                 cols[a.label] = model.columns(pt, names, a.effect.parameter)
     resid = {n: model.tests[n].y - pt.obs[n] for n in names}
+    now = dict(resid)  # the current model's residual (the gap each proposal's members must carry a share of)
     for a in state.selected:
         if a.effect.key in NONLINEAR:
             continue
@@ -619,7 +625,8 @@ def regression_at(ctx: Context, state: State, atoms: Sequence[Atom], sensitiviti
     if not atoms:  # a library without regression effects (--library backlash): nothing to propose
         A_tr = np.zeros((len(banded(resid, ctx.train)), 0))
         A_ho = np.zeros((len(banded(resid, ctx.held)), 0))
-    reg = Regression(atoms, A_tr, banded(resid, ctx.train), A_ho, banded(resid, ctx.held), ctx.sigma_b)
+    current = tuple(float(np.sum(banded(now, ns) ** 2)) for ns in (ctx.train, ctx.held))
+    reg = Regression(atoms, A_tr, banded(resid, ctx.train), A_ho, banded(resid, ctx.held), ctx.sigma_b, current)
     reg.columns = {a.effect.parameter: cols[a.label] for a in atoms if a.label in steps}
     return reg
 

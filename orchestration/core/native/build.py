@@ -152,9 +152,8 @@ def build_native_fmu(
 def has_native_form(identifier: str) -> bool:
     """Whether ``mast build --native`` can make this FMU (the models of ``models.emit_model``)."""
     from ..build import block_class
-    from .models import native_kind
-
     from ..designs import without_native_form
+    from .models import native_kind
 
     if identifier in without_native_form()[1]:  # another mechanism than the 3PRS: Design.native
         return False
@@ -189,7 +188,6 @@ def build_native_all(
     Needs the Python FMUs of those FMUs and SSDs in ``out/fmus`` (``mast build``); ``platforms``: the
     binaries each FMU carries (``build_native_fmu``)."""
     from ..build import FMUS, build_ssp, default_parameters
-
     from ..ssp import read_ssd
 
     python_dir = out / "fmus"
