@@ -23,6 +23,7 @@ import math
 import newton_euler as ne
 import numpy as np
 import pytest
+from branch_walk import walk_keeps_branch
 
 from fmus.mechanism.description import load
 from fmus.mechanism.engine import MARGIN, Engine
@@ -291,24 +292,9 @@ def test_6ups_statics_at_rest_carry_the_weight():
 # ----------------------------------------------------------------------------- direct kinematics
 def test_6ups_direct_kinematics_keep_their_branch_along_random_walks():
     eng, mech = engine(), oracle()
-    det_home = eng.margins(HOME).det
-    rng = np.random.default_rng(53)
-    steps = 0
-    for _ in range(5):
-        rho = ne.joints(mech, HOME)
-        q = HOME
-        for _ in range(50):
-            step = rng.normal(0.0, 0.008, 6)
-            if np.any(rho + step < LO) or np.any(rho + step > HI):
-                continue
-            try:
-                q_next = np.asarray(eng.dk(rho + step, guess=q)[0])
-            except KinematicsError:  # a refusal (the margin) is allowed; a jump is not
-                continue
-            rho, q, steps = rho + step, q_next, steps + 1
-            np.testing.assert_allclose(ne.joints(mech, q), rho, rtol=0.0, atol=1e-11)
-            assert np.sign(eng.margins(q).det) == np.sign(det_home)
-            np.testing.assert_allclose(eng.dk(rho)[0], q, rtol=0.0, atol=1e-9)  # a cold start finds it too
+    steps = walk_keeps_branch(
+        eng, lambda q: ne.joints(mech, q), HOME, (LO, HI), sigma=0.008, seed=53, walks=5, length=50
+    )
     assert steps > 150
 
 
@@ -522,22 +508,17 @@ def test_6pus_statics_and_direct_kinematics():
     np.testing.assert_allclose(bare, 2.06 * 9.81 / 6, rtol=1e-12)
     assert home == pytest.approx([4.2925] * 6, abs=1e-4)  # docs/designs/6ups.md
     eng, mech = pus_engine(), pus_oracle()
-    det_home = eng.margins(PUS_HOME).det
-    rng = np.random.default_rng(67)
-    steps = 0
-    for _ in range(4):
-        rho, q = ne.joints(mech, PUS_HOME), PUS_HOME
-        for _ in range(40):
-            step = rng.normal(0.0, 0.006, 6)
-            if np.any(rho + step < 0.0) or np.any(rho + step > 0.3):
-                continue
-            try:
-                q_next = np.asarray(eng.dk(rho + step, guess=q)[0])
-            except KinematicsError:
-                continue
-            rho, q, steps = rho + step, q_next, steps + 1
-            np.testing.assert_allclose(ne.joints(mech, q), rho, rtol=0.0, atol=1e-11)
-            assert np.sign(eng.margins(q).det) == np.sign(det_home)
+    steps = walk_keeps_branch(
+        eng,
+        lambda q: ne.joints(mech, q),
+        PUS_HOME,
+        (0.0, 0.3),
+        sigma=0.006,
+        seed=67,
+        walks=4,
+        length=40,
+        cold_start=False,
+    )
     assert steps > 100
 
 

@@ -20,6 +20,7 @@ import math
 import newton_euler as ne
 import numpy as np
 import pytest
+from branch_walk import walk_keeps_branch
 
 from fmus.mechanism import dynamics
 from fmus.mechanism.description import load
@@ -276,25 +277,10 @@ def test_3rps_direct_kinematics_keep_their_branch_along_random_walks():
     eng = rps_engine()
     mech = oracle_3rps()
     home = np.asarray(eng.description.topology.home)
-    det_home = eng.margins(home).det
-    lo, hi = eng.description.topology.drives[0].stroke
-    rng = np.random.default_rng(23)
-    steps = 0
-    for _ in range(6):
-        rho = ne.joints(mech, ne.full_pose(mech, home))
-        q = home
-        for _ in range(60):
-            step = rng.normal(0.0, 0.006, 3)
-            if np.any(rho + step < lo) or np.any(rho + step > hi):
-                continue
-            try:
-                q_next = np.asarray(eng.dk(rho + step, guess=q)[0])
-            except KinematicsError:  # a refusal (the margin) is allowed; a jump is not
-                continue
-            rho, q, steps = rho + step, q_next, steps + 1
-            np.testing.assert_allclose(ne.joints(mech, ne.full_pose(mech, q)), rho, rtol=0.0, atol=1e-11)
-            assert np.sign(eng.margins(q).det) == np.sign(det_home)
-            np.testing.assert_allclose(eng.dk(rho)[0], q, rtol=0.0, atol=1e-9)  # a cold start finds it too
+    stroke = eng.description.topology.drives[0].stroke
+    steps = walk_keeps_branch(
+        eng, lambda q: ne.joints(mech, ne.full_pose(mech, q)), home, stroke, sigma=0.006, seed=23, walks=6, length=60
+    )
     assert steps > 200
 
 

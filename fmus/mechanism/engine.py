@@ -473,15 +473,19 @@ class Engine:
             f"{self.description.name} ik+jacobian, kept for the forces",
         )
 
-    def _build_forces_kept(self) -> Callable:
+    def _forces_inputs(self) -> list[str]:
+        """The force functions' own arguments: q, J = dq/drho (row-major), rho_dot, rho_ddot."""
         n = self.n
-        shared, done = self._kept()
-        inputs = (
+        return (
             self._qnames()
             + [f"J{j}{k}" for j in range(n) for k in range(n)]
             + [f"rd{k}" for k in range(n)]
             + [f"rdd{k}" for k in range(n)]
         )
+
+    def _build_forces_kept(self) -> Callable:
+        shared, done = self._kept()
+        inputs = self._forces_inputs()
         return compile_function(
             "forces_kept",
             self._args(inputs),
@@ -511,13 +515,7 @@ class Engine:
 
     def _build_forces_many(self) -> Callable:
         t = self._dynamics_graph(False)[0]
-        n = self.n
-        inputs = (
-            self._qnames()
-            + [f"J{j}{k}" for j in range(n) for k in range(n)]
-            + [f"rd{k}" for k in range(n)]
-            + [f"rdd{k}" for k in range(n)]
-        )
+        inputs = self._forces_inputs()
         return compile_function(
             "forces",
             self._args(inputs),
@@ -594,13 +592,7 @@ class Engine:
         return t, It, c, gt, M, terms, kin, qd, qdd0
 
     def _build_forces(self) -> Callable:
-        n = self.n
-        inputs = (
-            self._qnames()
-            + [f"J{j}{k}" for j in range(n) for k in range(n)]
-            + [f"rd{k}" for k in range(n)]
-            + [f"rdd{k}" for k in range(n)]
-        )
+        inputs = self._forces_inputs()
         return compile_function(
             "forces", self._args(inputs), self._forces_outputs(), self._graph, f"{self.description.name} forces"
         )
@@ -614,12 +606,7 @@ class Engine:
             outs += list(Itb) + list(ctb) + list(gtb) + list(Irb) + list(crb)
             outs += [x for row in Jv for x in row] + [x for row in Jw for x in row] + list(a0) + list(wd0)
             outs += list(v) + list(w)
-        inputs = (
-            self._qnames()
-            + [f"J{j}{k}" for j in range(n) for k in range(n)]
-            + [f"rd{k}" for k in range(n)]
-            + [f"rdd{k}" for k in range(n)]
-        )
+        inputs = self._forces_inputs()
         return compile_function("detailed", self._args(inputs), outs, self._graph, f"{self.description.name} detailed")
 
     # -------------------------------------------------------------------------- kinematics
