@@ -1,12 +1,11 @@
 """The 6-UPS hexapod as a system (ssp/MAST_6UPS.ssd, docs/designs/6ups.md): six actuator FMUs, its mechanism FMU
 Mast6UPS and controller Mast6UPSController (Python FMUs; the native runtime generates the 3PRS's models only yet).
 
-With the paper's belt-axis actuator on every leg the system does not start: the Jacobi passes over the initial
-values (and the steps after them) carry the mechanism's force, computed from the actuators' accelerations, back into
-the actuators, a loop whose gain is the mechanism's joint-space mass over the actuator's load-side mass: 11.7 kg
-(the hexapod's stiffest horizontal modes at home) over 3.6 kg (J_guide (2 pi / p)^2). With a ball screw of 5 mm
-lead (its own J_guide) the load side weighs 36 kg and the system starts and runs: its mechanism's outputs are then
-checked against the Newton-Euler oracle at every recorded state (the closed loop itself is not tuned for screws yet).
+Its legs are electric cylinders of the paper's kind: the paper's motor, gearhead and drive turning a ball screw of
+16 mm lead (transmission_screw.ssv, actuator_screw.ssv). With the paper's belt axis in their place the initial loop
+through the actuators and the mechanism has the gain of the mechanism's joint-space mass over the actuator's
+load-side mass, 11.7 kg (the hexapod's stiffest horizontal modes at home) over 3.6 kg (J_guide (2 pi / p)^2): the
+master's Jacobi passes diverge and its Newton solve (mast.core.initial) finds the consistent initial point.
 """
 
 from __future__ import annotations
@@ -19,8 +18,8 @@ import pytest
 from conftest import build_mechanism_system
 from test_hexapod import HEX, oracle
 
-#: a ball screw of 5 mm lead (assumed, docs/designs/6ups.md): its spin inertia pi rho l d^4 / 32 (16 mm x 0.36 m)
-SCREW_LEAD = 0.005
+#: the ball screw's lead [m] and spin inertia [kg m2] (ssp/resources/transmission_screw.ssv, actuator_screw.ssv)
+SCREW_LEAD = 0.016
 J_SCREW = math.pi * 7850.0 * 0.36 * 0.016**4 / 32
 
 
@@ -32,7 +31,8 @@ def hexapod_system(tmp_path_factory):
 
 def test_the_6ups_system_binds_its_description_everywhere():
     """ssp/MAST_6UPS.ssd (python -m mast.core.variants): the mechanism gets the description's values, the controller
-    its geometry, six actuators the stroke and no carriage; six command inputs, seven connections per drive."""
+    its geometry and the screw's lead, six actuators the stroke, no carriage and the screw; six command inputs, seven
+    connections per drive."""
     from mast.core.designs import design, variant_ssd
     from mast.core.ssp import read_ssd
 
@@ -45,11 +45,14 @@ def test_the_6ups_system_binds_its_description_everywhere():
     assert ctrl.source.endswith("Mast6UPSController.fmu")
     assert {k: ctrl.parameters[k] for k in HEX.kinematic} == {k: HEX.values()[k] for k in HEX.kinematic}
     assert set(HEX.kinematic) == {"R_b", "r", "gamma_b", "gamma_p"} and "H" not in ctrl.parameters
+    assert ctrl.parameters["p"] == SCREW_LEAD
     for k in range(1, 7):
         act = system.components[f"actuator_{k}"].parameters
         assert (act["M_load"], act["g_guide"], act["rho_min"], act["rho_max"], act["rho_0"]) == pytest.approx(
             (0.0, 0.0, 0.45, 0.75, 0.6), abs=1e-15
         )
+        assert act["p"] == SCREW_LEAD and act["n_dof"] == 1
+        assert act["J_guide"] == pytest.approx(J_SCREW + 2 * 0.5 * 2700 * math.pi * 0.016**4 * 0.015, rel=0.01)
     assert "actuator_7" not in system.components
     assert system.system_inputs == [f"{c}_cmd" for c in ne.POSE]
     assert len(system.connections) == 6 + 7 * 6
@@ -65,35 +68,50 @@ def test_the_6ups_fmus_have_the_description_s_parameters(hexapod_system):
     assert set(HEX.kinematic) <= set(ctrl) and ctrl["kinematics"] == "6UPS"
 
 
-def test_with_the_belt_axis_the_6ups_system_does_not_settle(hexapod_system):
-    """The loop gain above one (module docstring): refused at initialization, naming the mechanism."""
+def test_with_the_belt_axis_the_initial_loop_of_gain_3_is_solved(hexapod_system):
+    """The paper's belt axis on every leg (its transmission and manufacturer sets in place of the screw's): the
+    joint-space mass at home (the oracle's, by finite differences) exceeds the actuator's load-side mass 3.6 kg, so
+    plain Jacobi passes diverge; the master starts anyway, and its initial values satisfy both sides of the loop: the
+    mechanism's forces are the oracle's inverse dynamics at the recorded accelerations, and each actuator's
+    acceleration is the force's on its load side, -F (2 pi / p)^2 / J_guide (at rest, no current, spring
+    undeflected)."""
     from mast.core.motion import SineMotion
     from mast.core.run import simulate
+    from mast.core.ssv import read_values
+    from mast.core.systems import SSP_SRC
 
-    with pytest.raises(Exception, match=r"initial values of mechanism did not settle"):
-        simulate(hexapod_system, SineMotion(axis="z", amplitude=0.002, frequency=2.0), 0.05)
-
-
-def screw(**more) -> dict:
-    """Overrides: every actuator a ball screw of SCREW_LEAD (its feed and spin inertia), the controller's feed too."""
-    acts = {f"actuator_{k}": {"p": SCREW_LEAD, "J_guide": J_SCREW, **more} for k in range(1, 7)}
-    return {"controller": {"p": SCREW_LEAD}, **acts}
+    res_dir = SSP_SRC / "resources"
+    belt = read_values(*(res_dir / f for f in ("transmission.ssv", "actuator_manufacturer.ssv", "actuator_6ups.ssv")))
+    m_load = belt["J_guide"] * (2 * math.pi / belt["p"]) ** 2
+    mech = oracle()
+    res = simulate(
+        hexapod_system,
+        SineMotion(axis="z", amplitude=0.001, frequency=2.0, axes=ne.POSE),
+        0.002,
+        {"controller": {"p": belt["p"]}, **{f"actuator_{k}": belt for k in range(1, 7)}},
+    )
+    q0 = np.array([res[f"mechanism.{c}"][0] for c in ne.POSE])
+    zero = np.zeros(6)
+    joint_mass = np.column_stack([ne.forces(mech, q0, zero, e) - ne.forces(mech, q0, zero, zero) for e in np.eye(6)])
+    assert np.max(np.linalg.eigvalsh(0.5 * (joint_mass + joint_mass.T))) / m_load > 3.0  # the loop gain
+    rdd = np.array([res[f"actuator_{k}.rho_ddot"][0] for k in range(1, 7)])
+    F = np.array([res[f"mechanism.F_{k}"][0] for k in range(1, 7)])
+    assert np.max(np.abs(rdd)) > 0.1  # the platform starts to fall: a loop with something in it
+    np.testing.assert_allclose(ne.forces(mech, q0, zero, rdd), F, rtol=0.0, atol=1e-9 * np.max(np.abs(F)))
+    np.testing.assert_allclose(rdd, -F / m_load, rtol=1e-9)
 
 
 def test_the_6ups_mechanism_fmu_in_the_loop_against_the_newton_euler_oracle(hexapod_system):
-    """A run with screws (Python FMUs, 3 mm at 2 Hz in z, 0.2 s): the pose and the forces the mechanism reports for
-    every recorded state against the oracle's kinematics and inverse dynamics at that state (the mechanism's outputs
-    at t + h are its direct kinematics and inverse dynamics of the actuators' motion at t); six drives recorded.
-    This checks the mechanism FMU in the loop, not the loop: the paper's controller gains are not retuned for the
-    screws (the current saturates in z, x chatters, the rotations diverge after 0.35 s: docs/designs/6ups.md)."""
+    """A run as the system is (Python FMUs, 3 mm at 2 Hz in z, 0.2 s): the pose and the forces the mechanism reports
+    for every recorded state against the oracle's kinematics and inverse dynamics at that state (the mechanism's
+    outputs at t + h are its direct kinematics and inverse dynamics of the actuators' motion at t); six drives
+    recorded; it follows the command."""
     axis, amplitude = "z", 0.003
     from mast.core.motion import SineMotion
     from mast.core.run import simulate
 
     mech = oracle()
-    res = simulate(
-        hexapod_system, SineMotion(axis=axis, amplitude=amplitude, frequency=2.0, axes=ne.POSE), 0.2, screw()
-    )
+    res = simulate(hexapod_system, SineMotion(axis=axis, amplitude=amplitude, frequency=2.0, axes=ne.POSE), 0.2)
     rho, rd, rdd = (
         np.column_stack([res[f"actuator_{k}.{v}"] for k in range(1, 7)]) for v in ("rho", "rho_dot", "rho_ddot")
     )

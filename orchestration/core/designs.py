@@ -7,7 +7,9 @@ system (``systems.MAST``) with, and only with:
 - the mechanism component's FMU replaced by the design's;
 - the geometry set (bound to the mechanism *and* the controller, whose inverse kinematics
   must be the machine's) replaced by the design's;
-- the design's extra sets bound after the others (mechanism, actuators).
+- the design's extra sets bound after the others (mechanism, actuators);
+- the transmission set (gear ratio and feed, bound to the actuators and the controller) replaced by the
+  design's (the 6-UPS's ball screws: ``transmission_screw.ssv``).
 
 ``DESIGNS`` are the 3PRS's (parameter variants of the default system). ``MECHANISMS`` are designs of
 another mechanism (a description file that extends no other: the 3-RPS), each a system of its own
@@ -31,6 +33,7 @@ from .systems import MAST, REPO, SSP_SRC, SystemDescription, generate
 DEFAULT_GEOMETRY = "resources/geometry_3prs.ssv"
 DEFAULT_MASSES = "resources/mass_3prs.ssv"
 DEFAULT_STROKE = "resources/stroke_3prs.ssv"
+DEFAULT_TRANSMISSION = "resources/transmission.ssv"
 MECHANISM_FMU = "MastMechanism"
 ACTUATOR_FMU = "MastActuator"
 
@@ -47,6 +50,7 @@ class Design:
     actuator_sets: tuple[str, ...] = ()  # bound to every actuator after its other sets
     masses: str = DEFAULT_MASSES  # in place of the 3PRS's mass set
     stroke: str = DEFAULT_STROKE  # in place of the 3PRS's actuator stroke set
+    transmission: str = DEFAULT_TRANSMISSION  # gear ratio and feed (actuators and controller): the belt axis's
     controller: str = ""  # the controller FMU's model identifier ("": the base system's)
     native: bool = True  # whether `mast build --native` builds its FMUs and system
 
@@ -97,6 +101,8 @@ MECHANISMS = (
         geometry="resources/geometry_6ups.ssv",
         masses="resources/mass_6ups.ssv",
         stroke="resources/actuator_6ups.ssv",
+        actuator_sets=("resources/actuator_screw.ssv",),
+        transmission="resources/transmission_screw.ssv",
         controller="Mast6UPSController",
         native=False,
     ),
@@ -129,7 +135,12 @@ def design(name_or_identifier: str) -> Design:
 
 def variant(d: Design, base: SystemDescription = MAST) -> SystemDescription:
     """The system of design ``d``: ``base`` with the mechanism swapped (module docstring)."""
-    swaps = {DEFAULT_GEOMETRY: d.geometry, DEFAULT_MASSES: d.masses, DEFAULT_STROKE: d.stroke}
+    swaps = {
+        DEFAULT_GEOMETRY: d.geometry,
+        DEFAULT_MASSES: d.masses,
+        DEFAULT_STROKE: d.stroke,
+        DEFAULT_TRANSMISSION: d.transmission,
+    }
     swaps = {k: v for k, v in swaps.items() if k != v}
     sets = ", ".join(
         (d.geometry, *(v for k, v in swaps.items() if k != DEFAULT_GEOMETRY)) + d.mechanism_sets + d.actuator_sets

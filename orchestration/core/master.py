@@ -23,7 +23,8 @@ its last step left it).
 Initialization. All components enter initialization mode and get their
 parameters (bindings in SSD order, then the caller's overrides). Components
 fed by no system input are brought to a consistent initial point first
-(repeated Jacobi passes until values stop changing); then the stimulus starts,
+(``initial.settle``: repeated Jacobi passes until values stop changing, Newton's method
+on a loop where the passes do not contract); then the stimulus starts,
 reading any output it needs (for example the platform's home pose); pose commands
 that would leave the workspace are refused there, before any step (``admissible.py``);
 the whole system is iterated to a consistent point before leaving initialization.
@@ -42,6 +43,7 @@ import numpy as np
 from fmus.common.parameters import Value
 
 from .admissible import check_commands, trajectory_extremes
+from .initial import settle
 from .ssp import SystemSpec, applicable_parameters
 
 
@@ -277,28 +279,28 @@ class Master:
         members: Sequence[int],
         published: list[list[float]],
         sys_values: Sequence[float],
-        passes: int = 1000,
-        tol: float = 1e-13,
     ) -> None:
-        """Jacobi passes over the members' initial values until they stop changing. A loop through an actuator and
-        the mechanism contracts by the ratio of the mechanism's joint-space mass to the actuator's load-side mass per
-        two passes: 0.25 for the 3PRS, 0.83 for the 3-RPS whose carriages are the mechanism's (350 passes to 1e-13)."""
-        for _ in range(passes):
-            inputs = [[sys_values[j] if s < 0 else published[s][j] for s, j in wirings[k].sources] for k in members]
-            for k, values in zip(members, inputs):
-                wirings[k].set_inputs(values)
-            changed = []
+        """The members' consistent initial values (``initial.settle``: Jacobi passes while they contract, Newton on a
+        loop that does not, such as an actuator's load-side mass lighter than the mechanism's joint-space mass), in
+        ``published``; RuntimeError naming the components whose values did not settle."""
+        members = list(members)
+        sizes = [len(published[k]) for k in members]
+        at = dict(zip(members, np.cumsum([0] + sizes[:-1]).tolist()))
+        owners = [wirings[k].name for k, size in zip(members, sizes) for _ in range(size)]
+        read = sorted({at[s] + j for k in members for s, j in wirings[k].sources if s in at})
+
+        def evaluate(values: Sequence[float]) -> list[float]:
             for k in members:
-                new = wirings[k].get_outputs()
-                if any(abs(a - b) > tol * (1.0 + abs(b)) for a, b in zip(new, published[k])):
-                    changed.append(wirings[k].name)
-                published[k] = new
-            if not changed:
-                return
-        raise RuntimeError(
-            f"initialization: the initial values of {', '.join(changed)} did not settle in {passes} passes "
-            "(an algebraic loop that does not converge)"
-        )
+                published[k] = list(values[at[k] : at[k] + len(published[k])])
+            inputs = [[sys_values[j] if s < 0 else published[s][j] for s, j in wirings[k].sources] for k in members]
+            for k, given in zip(members, inputs):
+                wirings[k].set_inputs(given)
+            return [v for k in members for v in wirings[k].get_outputs()]
+
+        values = settle(evaluate, [v for k in members for v in published[k]], owners, read)
+        # the last evaluation's outputs, with the inputs it set (as the plain passes always left them)
+        for k in members:
+            published[k] = list(values[at[k] : at[k] + len(published[k])])
 
     def _compiled_loop(
         self,
