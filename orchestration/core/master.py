@@ -41,6 +41,7 @@ from typing import Callable, Mapping, Optional, Protocol, Sequence
 import numpy as np
 
 from fmus.common.parameters import Value
+from fmus.mechanism.topology import POSE
 
 from .admissible import check_commands, trajectory_extremes
 from .initial import settle
@@ -80,6 +81,17 @@ class Result:
 
     def __getitem__(self, name: str) -> np.ndarray:
         return self.signals[name]
+
+    def drives(self) -> list[int]:
+        """The drives k = 1..n recorded (``actuator_k.rho`` or ``actuator_k.tau_m``: the connector convention)."""
+        ks: list[int] = []
+        while any(f"actuator_{len(ks) + 1}.{s}" in self.signals for s in ("rho", "tau_m")):
+            ks.append(len(ks) + 1)
+        return ks
+
+    def coordinates(self) -> list[str]:
+        """The coordinates commanded (the system inputs ``<c>_cmd`` recorded), in the pose's order x .. phi."""
+        return [c for c in POSE if f"{c}_cmd" in self.signals]
 
     def write_csv(self, path) -> None:
         names = list(self.signals)

@@ -151,13 +151,22 @@ def summarize(result: Result, stop_time: float, motion: SineMotion, ssp: Optiona
         err = result[cmd] - result[got]
         summary["tracking_error_peak"] = float(abs(err).max())
         summary["tracking_error_rms"] = float((err**2).mean() ** 0.5)
-    j = 1
-    while f"actuator_{j}.tau_m" in result.signals:  # every drive's motor (actuator_k, the connector convention)
-        name = f"actuator_{j}.tau_m"
-        if len(result.time):
-            summary[f"tau_m_{j}_peak_Nm"] = float(abs(result[name]).max())
-            summary[f"tau_m_{j}_rms_Nm"] = float((result[name] ** 2).mean() ** 0.5)
-        j += 1
+    if len(result.time):  # every coordinate commanded (the moved one and the held ones), in m or rad
+        summary["coordinates"] = {
+            c: {
+                "unit": unit(c),
+                "error_peak": float(abs(result[f"{c}_cmd"] - result[f"mechanism.{c}"]).max()),
+                "error_rms": float(((result[f"{c}_cmd"] - result[f"mechanism.{c}"]) ** 2).mean() ** 0.5),
+            }
+            for c in result.coordinates()
+            if f"mechanism.{c}" in result.signals
+        }
+    for j in result.drives():  # every drive's motor (actuator_k, the connector convention)
+        for signal, key in (("tau_m", f"tau_m_{j}_{{}}_Nm"), ("i_m", f"i_m_{j}_{{}}_A")):
+            name = f"actuator_{j}.{signal}"
+            if name in result.signals and len(result.time):
+                summary[key.format("peak")] = float(abs(result[name]).max())
+                summary[key.format("rms")] = float((result[name] ** 2).mean() ** 0.5)
     return summary
 
 
