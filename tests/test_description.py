@@ -10,6 +10,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
 
@@ -436,3 +437,30 @@ def test_expressions_evaluate_in_the_subset_with_their_dimensions():
     Expression("m * L**2 / 12", "here", units).check(units, "kg.m2")
     with pytest.raises(DescriptionError, match="sin of kg"):
         Expression("sin(m)", "here", units).check(units, "1")
+
+
+def test_a_parameter_in_deg_reaches_the_description_in_deg_through_a_set(tmp_path, monkeypatch):
+    """A description parameter in deg (the test hexapod's gap, 12 deg) written to its geometry set with that unit:
+    the SSP reader gives the value in coherent SI (rad), but the description's expressions read it in degrees; the
+    system's topology (its home pose: z = R_b cos(gap) here) read from the sets is the file's own."""
+    from fmus.mechanism import designs
+    from mast.core import description_sets, ssv
+    from mast.core.systems import MAST, Part, topology
+
+    text = HEXAPOD.replace('name = "6UPS"', 'name = "6UPS_gap"').replace('z = "h0"', 'z = "Rb * cos(radians(gap))"')
+    path = tmp_path / "6UPS_gap.toml"
+    path.write_text(text + hexapod_legs("UPS"), encoding="utf-8")
+    monkeypatch.setitem(designs.KINEMATICS, "6UPS_gap", path)
+    file = load(path)
+    (tmp_path / "resources").mkdir()
+    for name, content in (("geometry", description_sets.geometry), ("masses", description_sets.masses)):
+        rows, comment = content(file)
+        ssv.write(
+            tmp_path / "resources" / f"{name}.ssv",
+            ssv.parameter_set(name, {n: v for n, v, _, _ in rows}, {n: u for n, _, u, _ in rows if u}, {}, comment),
+        )
+    assert ssv.read_values(tmp_path / "resources" / "geometry.ssv")["gap"] == pytest.approx(math.radians(12.0))
+    system = dataclasses.replace(MAST, mechanism=Part("X.fmu", ("resources/geometry.ssv", "resources/masses.ssv")))
+    home = topology(system, tmp_path).home
+    assert home[2] == pytest.approx(0.5 * math.cos(math.radians(12.0)), rel=1e-14)
+    assert home == file.describe().topology.home

@@ -131,6 +131,16 @@ def description_parameters(kind: str) -> tuple[tuple[Param, ...], tuple[Param, .
     )
 
 
+def parameter_units(params: Mapping[str, object]) -> dict[str, str]:
+    """The unit of each description parameter of the mechanism ``params`` name (its ``kinematics``, the 3PRS's by
+    default): the unit its block declares and its expressions read the value in (an angle in deg: in degrees);
+    empty for a mechanism without a description file (one written in Python, an unknown name)."""
+    kind = params.get("kinematics", "3PRS")
+    if not isinstance(kind, str) or not isinstance(KINEMATICS.get(kind), Path):
+        return {}
+    return {name: p.unit for name, p in description(kind).parameters.items()}
+
+
 def parameters_for(schema: Sequence[Param], kind: object) -> tuple[Param, ...]:
     """``schema`` (a block's parameters, written for the 3PRS: ``KINEMATIC_PARAMETERS``, ``MASS_PARAMETERS``,
     ``PAYLOAD_PARAMETERS`` among its own) for the mechanism ``kind`` (the ``kinematics`` parameter's value): the

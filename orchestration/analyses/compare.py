@@ -63,7 +63,7 @@ from ..core import ssd, ssv
 from ..core.build import default_build_dir
 from ..core.components import fmu_parameters
 from ..core.motion import system_axes
-from ..core.ssp import SSPArchive
+from ..core.ssp import SSPArchive, mechanism_parameters
 from . import paper, sizing
 from .frequency import SineCase, SineResult, bandwidth, run_cases
 from .workspace import STEP_TILT_DEG, STEP_Z, described, unit_text
@@ -264,7 +264,7 @@ def prepare(
         if path.suffix in (".ssp", ".ssd"):
             with SSPArchive(path) as archive:  # the mechanism's bound parameters (attached, geometry ...)
                 comp = archive.system.components.get("mechanism")
-                params = dict(comp.parameters) if comp is not None and component == "mechanism" else {}
+                params = mechanism_parameters(comp) if comp is not None and component == "mechanism" else {}
             candidates.append(Candidate(label, str(path), str(path), params))
             continue
         params = fmu_parameters(path)

@@ -117,8 +117,10 @@ class Machine:
 
 
 def _from_system(label: str, system, mechanism: Optional[Mapping] = None, payload: float = 0.0) -> Machine:
+    from ..core.ssp import mechanism_parameters
+
     comps = system.components
-    mech = dict(mechanism if mechanism is not None else comps["mechanism"].parameters)
+    mech = dict(mechanism if mechanism is not None else mechanism_parameters(comps["mechanism"]))
     acts = [comps[n].parameters for n in sorted((n for n in comps if n.startswith("actuator")), key=_drive_order)]
     if not acts:
         raise ValueError(f"{label}: the system has no actuator components (needed for the strokes)")

@@ -38,9 +38,11 @@ def system_axes(
     ``<c>_cmd`` system inputs, else ``AXES``."""
     from fmus.mechanism.designs import describe
 
+    from .ssp import mechanism_parameters
+
     spec = system.components.get(mechanism)
     if spec is not None:
-        params = {**spec.parameters, **((parameters or {}).get(mechanism, {}))}
+        params = {**mechanism_parameters(spec), **((parameters or {}).get(mechanism, {}))}
         try:
             return describe(params, mechanism, masses=False).topology.names
         except Exception:  # noqa: BLE001 - a mechanism this project does not describe (a third-party FMU)

@@ -31,6 +31,7 @@ from typing import Iterable, Mapping, Optional, Union
 from lxml import etree
 
 from fmus.common.parameters import Value
+from fmus.mechanism.designs import parameter_units
 
 from . import ssd
 from .ssd import Connection
@@ -318,6 +319,29 @@ def applicable_parameters(
                 values[k] = _in_declared_unit(values[k], given, declared.get(k), setter[k], k, comp)
         out[comp] = values
     return out
+
+
+def declared_values(
+    values: Mapping[str, Value], given: Mapping[str, tuple[str, Unit, str]], declared: Mapping[str, str], comp: str
+) -> dict[str, Value]:
+    """``values`` as the reader gives them (a Real given with a unit: in that unit's coherent SI unit) in the units
+    ``declared`` (by name; a name not declared keeps its value); ``given``: per name the unit text, the parsed unit and
+    the set that gave it. A unit of another dimension is refused (SSPFormatError naming the set and ``comp``)."""
+    return {
+        k: _in_declared_unit(v, given[k][:2], declared[k], given[k][2], k, comp) if k in given and k in declared else v
+        for k, v in values.items()
+    }
+
+
+def mechanism_parameters(spec: ComponentSpec) -> dict[str, Value]:
+    """A mechanism component's bound values in the units its description declares (``parameter_units``: an angle
+    the description gives in deg in degrees, as the mechanism's block and its expressions read it), the form
+    ``fmus.mechanism.designs.describe`` takes; the reader's ``spec.parameters`` are in coherent SI units."""
+    setter = {k: source for source, bound in spec.bindings for k in bound}
+    given = {
+        k: (*spec.units[setter[k]][k], setter[k]) for k in spec.parameters if k in spec.units.get(setter.get(k, ""), {})
+    }
+    return declared_values(spec.parameters, given, parameter_units(spec.parameters), spec.name)
 
 
 def _in_declared_unit(

@@ -30,11 +30,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Optional
 
-from fmus.mechanism.designs import describe
+from fmus.mechanism.designs import describe, parameter_units
 from fmus.mechanism.topology import POSE, POSE_UNITS, Topology
 
 from . import ssd
-from .ssv import read_values
+from .ssp import declared_values
+from .ssv import parse_ssv
 
 REPO = Path(__file__).resolve().parents[2]
 SSP_SRC = REPO / "ssp"
@@ -91,8 +92,16 @@ class SystemDescription:
 
 def topology(description: SystemDescription, root: Path = SSP_SRC) -> Topology:
     """The topology of the mechanism the sets bound to ``description``'s mechanism describe
-    (``describe``; their sources relative to ``root``)."""
-    values = read_values(*(root / source for source in description.mechanism.bindings))
+    (``describe``; their sources relative to ``root``; their values in the units the description declares)."""
+    values: dict = {}
+    given: dict = {}
+    for source in description.mechanism.bindings:
+        for name, p in parse_ssv(root / source).items():
+            values[name] = p.value
+            given.pop(name, None)
+            if p.si is not None:
+                given[name] = (p.unit, p.si, source)
+    values = declared_values(values, given, parameter_units(values), description.name)  # as the block reads them
     return describe(values, owner=description.name, masses=False).topology
 
 
