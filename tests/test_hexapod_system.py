@@ -138,6 +138,57 @@ def test_the_6ups_mechanism_fmu_in_the_loop_against_the_newton_euler_oracle(hexa
     assert worst < 1e-9 * np.max(np.abs(F))
 
 
+@pytest.mark.parametrize("axis, amplitude", [("x", 0.4), ("psi", math.radians(40.0))])
+def test_a_pose_command_outside_the_hexapod_s_workspace_is_refused_before_the_first_step(
+    hexapod_system, axis, amplitude
+):
+    """A sine whose extreme leaves the strokes: refused at initialization, naming the coordinate, its value and the
+    reachable limit along it (a leg's stroke)."""
+    from mast.core.admissible import CommandError
+    from mast.core.motion import SineMotion
+    from mast.core.run import simulate
+
+    with pytest.raises(
+        CommandError,
+        match=rf"{axis}_cmd = .* is outside the workspace .* beyond the stroke "
+        rf"\[0.45, 0.75\] m .* The (largest|smallest) reachable {axis}_cmd on the way from the home pose",
+    ):
+        simulate(hexapod_system, SineMotion(axis=axis, amplitude=amplitude, frequency=1.0, axes=ne.POSE), 1.0)
+
+
+def test_a_seventh_coordinate_is_refused_naming_the_hexapod_s_six():
+    from mast.core.motion import PoseStep, SineMotion
+    from mast.core.run import motion_from_cli
+
+    six = ", ".join(ne.POSE)
+    with pytest.raises(ValueError, match=rf"coordinate 'chi': expected one of the pose components {six}"):
+        motion_from_cli("chi", 1.0, 1.0, ne.POSE, "MAST_6UPS.ssp")
+    with pytest.raises(ValueError, match=rf"motion axis 'chi': expected one of {six}"):
+        SineMotion(axis="chi", amplitude=0.01, frequency=1.0, axes=ne.POSE)
+    with pytest.raises(ValueError, match=rf"pose step 'chi' = 0.01: expected finite offsets of {six}"):
+        PoseStep({"chi": 0.01}, axes=ne.POSE)
+
+
+def test_a_leg_stroke_that_excludes_home_is_refused_before_the_first_step(hexapod_system):
+    """actuator_3's stroke cut to 0.45 .. 0.55 m (its start moved inside it): the home pose needs leg 3 at 0.6 m;
+    refused naming the actuator, the joint, its length at home and the limit."""
+    from mast.core.admissible import StrokeError
+    from mast.core.motion import SineMotion
+    from mast.core.run import simulate
+
+    with pytest.raises(
+        StrokeError,
+        match=r"actuator_3: stroke \[0.45, 0.55\] m excludes the home pose .* z = 0.540363 m"
+        r".* rho_3 = 0.6 m: rho_max = 0.55 m",
+    ):
+        simulate(
+            hexapod_system,
+            SineMotion(axis="z", amplitude=0.001, frequency=1.0, axes=ne.POSE),
+            0.1,
+            {"actuator_3": {"rho_max": 0.55, "rho_0": 0.5}},
+        )
+
+
 # ---------------------------------------------------------------------- the 6-PUS: the paper's actuators as they are
 @pytest.fixture(scope="module")
 def pus_system(tmp_path_factory):

@@ -27,6 +27,10 @@ class CommandError(ValueError):
     """A commanded pose outside the workspace of the system's mechanism."""
 
 
+class StrokeError(ValueError):
+    """An actuator's stroke that excludes its drive's position at the mechanism's home pose."""
+
+
 def _show(axis: str, value: float) -> str:
     if unit(axis) == "m":
         return f"{axis}_cmd = {value:.6g} m"
@@ -100,6 +104,22 @@ def _violation(eng, strokes, pose: Sequence[float]) -> Optional[str]:
     return None
 
 
+def check_strokes(name: str, eng, strokes: Sequence[tuple[str, float, float, str]]) -> None:
+    """Raise StrokeError if an actuator's stroke [rho_min, rho_max] (``strokes``, per drive) excludes the position
+    of its drive at the home pose of the mechanism ``name`` (its description's, ``eng``): the message names the
+    actuator, the joint, its position at home and the limit it passes."""
+    topology = eng.description.topology
+    rho = eng.ik(list(topology.home))
+    for k, (actuator, lo, hi, u) in enumerate(strokes):
+        if not lo <= rho[k] <= hi:
+            limit = f"rho_min = {lo:g} {u}" if rho[k] < lo else f"rho_max = {hi:g} {u}"
+            pose = ", ".join(f"{c} = {v:.6g} {unit(c)}" for c, v in zip(topology.names, topology.home))
+            raise StrokeError(
+                f"{actuator}: stroke [{lo:g}, {hi:g}] {u} excludes the home pose of '{name}' ({pose}), where its "
+                f"joint rho_{k + 1} = {rho[k]:.6g} {u}: {limit} leaves home out of reach"
+            )
+
+
 def check_commands(
     system,
     params: Mapping[str, Mapping],
@@ -109,11 +129,13 @@ def check_commands(
 ) -> None:
     """Raise CommandError if a pose of ``extremes`` (the mechanism's coordinates, in its order and units: for
     the 3PRS z [m], psi, theta [rad]) is outside the workspace of ``mechanism`` (the component whose pose
-    outputs the stimulus reads as the home pose)."""
+    outputs the stimulus reads as the home pose); StrokeError first if an actuator's stroke excludes the
+    description's home pose (``check_strokes``)."""
     plant = _plant(system, params, mechanism)
     if plant is None:
         return
     name, eng, strokes = plant
+    check_strokes(name, eng, strokes)
     axes = eng.description.topology.names
     if _violation(eng, strokes, home) is not None:
         return  # the home pose itself is the initial state's business (the mechanism reports it)
