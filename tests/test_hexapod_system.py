@@ -138,6 +138,49 @@ def test_the_6ups_mechanism_fmu_in_the_loop_against_the_newton_euler_oracle(hexa
     assert worst < 1e-9 * np.max(np.abs(F))
 
 
+def test_a_6ups_system_run_balances_energy_and_carries_the_weight_at_rest(hexapod_system):
+    """Over a run (z, 3 mm at 2 Hz, 0.4 s): the work the n drives do on the mechanism, the integral of sum_k F_k
+    rho_dot_k (the forces the mechanism returns for the actuators' motion of the step before), is the change of the
+    mechanism's kinetic and potential energy computed by the oracle's bodies from the actuators' recorded state
+    (direct kinematics and velocities by differences: no inverse dynamics), to the trapezoid rule's error bound
+    (t - t0) h^2 / 12 max |P''| at the record step h. Held at home (0.4 s, the command still): the forces are the
+    weight's by virtual work, J^-T dV/dq, the potential energy's gradient through the oracle's leg lengths."""
+    from test_hexapod import kinetic, oracle_jacobian, pose_of, potential
+
+    from mast.core.motion import SineMotion
+    from mast.core.run import simulate
+
+    mech = oracle()
+    res = simulate(hexapod_system, SineMotion(axis="z", amplitude=0.003, frequency=2.0, axes=ne.POSE), 0.4)
+    n = len(res.drives())
+    assert n == 6
+    t = res.time
+    rho, rd = (np.column_stack([res[f"actuator_{k}.{v}"] for k in range(1, n + 1)]) for v in ("rho", "rho_dot"))
+    F = np.column_stack([res[f"mechanism.F_{k}"] for k in range(1, n + 1)])
+    q = np.column_stack([res[f"mechanism.{c}"] for c in ne.POSE])
+    power = np.einsum("ij,ij->i", F[1:], rd[:-1])  # at t[:-1]: the forces of the actuators' state there
+    h = t[1] - t[0]
+    work = np.concatenate(([0.0], np.cumsum(0.5 * (power[1:] + power[:-1]) * h)))
+    bound = (t[:-1] - t[0]) / 12.0 * np.max(np.abs(np.diff(power, 2)))  # trapezoid: (t - t0) h^2 / 12 max|P''|
+
+    def energy(j: int) -> float:
+        pose = pose_of(mech, rho[j], q[j + 1])
+        return kinetic(mech, rho[j], rd[j], pose) + potential(mech, pose)
+
+    e0 = energy(0)
+    checked = range(50, len(t) - 1, 70)
+    gaps = [abs(energy(j) - e0 - work[j]) for j in checked]
+    assert np.max(np.abs(power)) > 0.05 and np.max(np.abs(work)) > 1e-3  # power flows both ways, work is done
+    assert all(gap <= 2.0 * bound[j] + 1e-9 for gap, j in zip(gaps, checked)), (gaps, [bound[j] for j in checked])
+
+    still = simulate(hexapod_system, SineMotion(axis="z", amplitude=0.0, frequency=0.0, axes=ne.POSE), 0.4)
+    pose = np.array([still[f"mechanism.{c}"][-1] for c in ne.POSE])
+    held = np.array([still[f"mechanism.F_{k}"][-1] for k in range(1, n + 1)])
+    e = 1e-5
+    dV = np.array([(potential(mech, pose + e * d) - potential(mech, pose - e * d)) / (2 * e) for d in np.eye(6)])
+    np.testing.assert_allclose(held, np.linalg.solve(oracle_jacobian(mech, pose, e).T, dV), rtol=0.0, atol=1e-3)
+
+
 @pytest.mark.parametrize("axis, amplitude", [("x", 0.4), ("psi", math.radians(40.0))])
 def test_a_pose_command_outside_the_hexapod_s_workspace_is_refused_before_the_first_step(
     hexapod_system, axis, amplitude
