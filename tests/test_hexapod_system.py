@@ -232,6 +232,22 @@ def test_a_leg_stroke_that_excludes_home_is_refused_before_the_first_step(hexapo
         )
 
 
+def test_compare_sets_the_hexapod_beside_3_dof_designs_on_their_common_motions(hexapod_system):
+    """`mast compare --mechanism` with the 3PRS, the 3-RPS and the 6-UPS: the motions every design has (z, psi,
+    theta) are the test set, the hexapod's x, y, phi are listed as its extra motions, and its workspace is swept
+    over the common ones (the others held at home), in the 3-DOF designs' unit (m deg^2)."""
+    from mast.analyses.compare import Candidate, common_axes, design_workspace, extra_motions
+
+    designs = [("z", "psi", "theta"), ("z", "psi", "theta"), ne.POSE]
+    assert common_axes(designs) == ("z", "psi", "theta")
+    assert [extra_motions(a, designs) for a in designs] == [(), (), ("x", "y", "phi")]
+    ws = design_workspace(
+        Candidate("6UPS", str(hexapod_system), "6UPS"), (0.025, math.radians(4.0)), common_axes(designs)
+    )
+    assert "error" not in ws, ws
+    assert set(ws["ranges_through_home"]) == {"z_m", "psi_deg", "theta_deg"} and ws["volume_m_deg2"] > 100.0
+
+
 # ---------------------------------------------------------------------- the 6-PUS: the paper's actuators as they are
 @pytest.fixture(scope="module")
 def pus_system(tmp_path_factory):

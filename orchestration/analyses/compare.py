@@ -53,7 +53,7 @@ import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, Mapping, Optional, Sequence, Union
+from typing import Callable, Iterable, Mapping, Optional, Sequence, Union
 
 from fmus.common.parameters import Value
 from fmus.mechanism.designs import KINEMATIC_PARAMETERS_NAMES, KINEMATICS, description
@@ -152,6 +152,9 @@ class Comparison:
     #: mechanisms given by their description alone (``workspace.described``): not run, their workspace beside the
     #: designs' ({"label", "source", "workspace", "note"})
     descriptions: list = field(default_factory=list)
+    #: label -> the coordinates of its mechanism that another candidate's lacks (the hexapod's x, y, phi beside the
+    #: 3-DOF designs'): not in the common test set, listed beside it
+    extra: dict = field(default_factory=dict)
 
     def row(self, label: str, axis: str) -> dict:
         for r in self.summary:
@@ -411,8 +414,9 @@ def compare(
                 keys.append((c.label, axis))
     results_flat = run_cases(cases, workers=workers, progress=progress)
     if kind == "design" and workspace_grid is not None:
+        common = common_axes(axes_of.values())
         for c in candidates:
-            c.workspace = design_workspace(c, workspace_grid)
+            c.workspace = design_workspace(c, workspace_grid, common if len(axes_of[c.label]) > 3 else None)
     results: dict = {}
     for key, res in zip(keys, results_flat):
         results.setdefault(key, []).append(res)
@@ -440,6 +444,7 @@ def compare(
         kind,
         {label: parasitic_of(axes) for label, axes in axes_of.items()},
         [description_only(name, workspace_grid) for name in alone],
+        {label: extra for label, axes in axes_of.items() if (extra := extra_motions(axes, axes_of.values()))},
     )
     comp.files = write(comp, out, plots=plots)
     comp.wall_time_s = time.perf_counter() - t0
@@ -447,6 +452,18 @@ def compare(
     meta["wall_time_s"] = round(comp.wall_time_s, 2)
     (out / "comparison.json").write_text(json.dumps(meta, indent=2))
     return comp
+
+
+def common_axes(axes: Iterable[Sequence[str]]) -> tuple[str, ...]:
+    """The coordinates every candidate's mechanism has (``axes``: each one's), in the pose's order."""
+    sets = [set(a) for a in axes]
+    return tuple(c for c in POSE if sets and all(c in s for s in sets))
+
+
+def extra_motions(axes: Sequence[str], every: Iterable[Sequence[str]]) -> tuple[str, ...]:
+    """The coordinates of ``axes`` not common to ``every`` candidate's (``common_axes``)."""
+    common = common_axes(every)
+    return tuple(c for c in axes if c not in common)
 
 
 def sizing_signals(n: int) -> tuple[str, ...]:
@@ -507,15 +524,16 @@ def sizing_columns(
     }
 
 
-def design_workspace(c: Candidate, grid: tuple[float, float]) -> dict:
-    """The `mast workspace` summary of a design's system (its mechanism and its actuators' strokes), or
-    {"error": why} when the system does not define them."""
+def design_workspace(c: Candidate, grid: tuple[float, float], sweep: Optional[Sequence[str]] = None) -> dict:
+    """The `mast workspace` summary of a design's system (its mechanism and its actuators' strokes) over the
+    coordinates ``sweep`` (None: every coordinate of its mechanism; a hexapod's: the ones common to the designs
+    compared, the others held at home), or {"error": why} when the system does not define them."""
     from fmus.mechanism.kinematics import KinematicsError
 
     from . import workspace
 
     try:
-        return workspace.summarize(workspace.compute(workspace.machine(c.ssp), grid[0], grid[1]))
+        return workspace.summarize(workspace.compute(workspace.machine(c.ssp), grid[0], grid[1], sweep=sweep))
     except KeyError as exc:
         return {
             "error": f"no workspace: the mechanism's parameters do not describe its mechanism (no "
@@ -761,6 +779,7 @@ def write(comp: Comparison, out: Path, plots: bool = True) -> list[Path]:
         "fig10": fig10(comp) if kind == "design" else None,
         "robustness": robustness(comp),
         **({"descriptions": comp.descriptions} if comp.descriptions else {}),
+        **({"extra_motions": {k: list(v) for k, v in comp.extra.items()}} if comp.extra else {}),
     }
     (out / "comparison.json").write_text(json.dumps(data, indent=2))
     files.append(out / "comparison.json")
@@ -785,6 +804,12 @@ def write(comp: Comparison, out: Path, plots: bool = True) -> list[Path]:
             f"| {_fmt(100 * r['sizing_margin']) + ' %' if r.get('sizing_margin') is not None else '-'} "
             f"| {_fmt(r.get('sizing_holds_up_to_Hz'))} |"
         )
+    if comp.extra:
+        lines += [
+            "",
+            "Motions beyond the common ones (not in the test set; a 3-DOF design's parasitic motions there): "
+            + "; ".join(f"{label}: {', '.join(extra)}" for label, extra in comp.extra.items()),
+        ]
     spaces = [(c.label, c.workspace) for c in comp.candidates if c.workspace]
     spaces += [(f"{d['label']} (description, not run)", d["workspace"]) for d in comp.descriptions]
     if spaces:
