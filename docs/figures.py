@@ -147,7 +147,21 @@ FIGURES: dict[str, Figure] = {
             ("volume_z_psi_theta_m_deg2", "{:.0f}", 0.4),
         )
     },
+    # the 6-UPS as a system (docs/designs/6ups.md): its run z, 3 mm at 2 Hz, 0.4 s, Python FMUs (HEXAPOD_RUN);
+    # checked by tests/test_hexapod_system.py on the run it makes; tolerances: another machine's floats in a closed loop
+    **{
+        f"hexapod_run.{what}": Figure("hexapod_run", (lambda w: lambda v: v[w])(what), fmt, tol)
+        for what, fmt, tol in (
+            ("z_error_mm", "{:.3f}", 0.002),
+            ("current_peak_A", "{:.2f}", 0.01),
+            ("torque_peak_mNm", "{:.1f}", 0.2),
+            ("phi_error_urad", "{:.2f}", 0.02),
+        )
+    },
 }
+
+#: the 6-UPS system run of docs/designs/6ups.md: (axis, amplitude [m], frequency [Hz], stop time [s])
+HEXAPOD_RUN = ("z", 0.003, 2.0, 0.4)
 
 #: the coarse grid of the hexapod's figures (step in m, step in deg): about 6 s for its three workspaces
 HEXAPOD_GRID = (0.02, 3.0)
@@ -299,6 +313,31 @@ def source_hexapod() -> dict:
     }
 
 
+def hexapod_run_values(summary: Mapping) -> dict:
+    """The figures of the 6-UPS system run (HEXAPOD_RUN) from its summary (``mast.core.run.summarize``): the peak
+    tracking error in z [mm], the largest peak motor current [A] and torque [mN m] of the six drives, the held yaw's
+    peak error [urad]."""
+    drives = range(1, 7)
+    return {
+        "z_error_mm": 1e3 * summary["coordinates"]["z"]["error_peak"],
+        "current_peak_A": max(summary[f"i_m_{k}_peak_A"] for k in drives),
+        "torque_peak_mNm": 1e3 * max(summary[f"tau_m_{k}_peak_Nm"] for k in drives),
+        "phi_error_urad": 1e6 * summary["coordinates"]["phi"]["error_peak"],
+    }
+
+
+def source_hexapod_run() -> dict:
+    """HEXAPOD_RUN on build/ssp/MAST_6UPS.ssp (`mast build` first)."""
+    from fmus.mechanism.topology import POSE
+    from mast.core.motion import SineMotion
+    from mast.core.run import simulate, summarize
+
+    axis, amplitude, frequency, stop = HEXAPOD_RUN
+    motion = SineMotion(axis=axis, amplitude=amplitude, frequency=frequency, axes=POSE)
+    result = simulate(ROOT / "build" / "ssp" / "MAST_6UPS.ssp", motion, stop)
+    return hexapod_run_values(summarize(result, stop, motion))
+
+
 SOURCES: dict[str, Callable[[], dict]] = {
     "reproduce": source_reproduce,
     "ssd": source_ssd,
@@ -309,6 +348,7 @@ SOURCES: dict[str, Callable[[], dict]] = {
     "workspace": source_workspace,
     "workspace_quick": lambda: source_workspace(quick=True),
     "hexapod": source_hexapod,
+    "hexapod_run": source_hexapod_run,
 }
 
 

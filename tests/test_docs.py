@@ -335,8 +335,10 @@ def test_marked_hexapod_figures_agree():
 
 
 def test_every_figure_source_is_checked_by_a_test():
-    """A source added to docs/figures.py is compared with the pages somewhere (here or tests/test_reproduce.py)."""
+    """A source added to docs/figures.py is compared with the pages somewhere (here, tests/test_reproduce.py or
+    tests/test_hexapod_system.py)."""
     checked = {"ssd", "designs", "workspace", "workspace_quick", "reproduce", "ratings", "build", "emps", "hexapod"}
+    checked.add("hexapod_run")  # tests/test_hexapod_system.py, on the run it makes
     assert set(figures.SOURCES) == checked, f"sources no test compares: {set(figures.SOURCES) - checked}"
 
 

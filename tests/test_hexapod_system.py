@@ -23,6 +23,18 @@ SCREW_LEAD = 0.016
 J_SCREW = math.pi * 7850.0 * 0.36 * 0.016**4 / 32
 
 
+def docs_figures():
+    """docs/figures.py as a module (the figures the pages state)."""
+    import importlib.util
+    import sys
+    from pathlib import Path
+
+    spec = importlib.util.spec_from_file_location("docs_figures", Path(__file__).parents[1] / "docs" / "figures.py")
+    module = sys.modules[spec.name] = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
 @pytest.fixture(scope="module")
 def hexapod_system(tmp_path_factory):
     """MAST_6UPS.ssp built with its FMUs (the Python ones)."""
@@ -139,19 +151,26 @@ def test_the_6ups_mechanism_fmu_in_the_loop_against_the_newton_euler_oracle(hexa
 
 
 def test_a_6ups_system_run_balances_energy_and_carries_the_weight_at_rest(hexapod_system):
-    """Over a run (z, 3 mm at 2 Hz, 0.4 s): the work the n drives do on the mechanism, the integral of sum_k F_k
-    rho_dot_k (the forces the mechanism returns for the actuators' motion of the step before), is the change of the
-    mechanism's kinetic and potential energy computed by the oracle's bodies from the actuators' recorded state
-    (direct kinematics and velocities by differences: no inverse dynamics), to the trapezoid rule's error bound
-    (t - t0) h^2 / 12 max |P''| at the record step h. Held at home (0.4 s, the command still): the forces are the
-    weight's by virtual work, J^-T dV/dq, the potential energy's gradient through the oracle's leg lengths."""
+    """Over a run (docs/figures.py HEXAPOD_RUN: z, 3 mm at 2 Hz, 0.4 s): the work the n drives do on the
+    mechanism, the integral of sum_k F_k rho_dot_k (the forces the mechanism returns for the actuators' motion of the
+    step before), is the change of the mechanism's kinetic and potential energy computed by the oracle's bodies from
+    the actuators' recorded state (direct kinematics and velocities by differences: no inverse dynamics), to the
+    trapezoid rule's error bound (t - t0) h^2 / 12 max |P''| at the record step h. Held at home (0.4 s, the command
+    still): the forces are the weight's by virtual work, J^-T dV/dq, the potential energy's gradient through the
+    oracle's leg lengths. The run's figures are docs/designs/6ups.md's (`python docs/figures.py --source
+    hexapod_run`)."""
     from test_hexapod import kinetic, oracle_jacobian, pose_of, potential
 
     from mast.core.motion import SineMotion
-    from mast.core.run import simulate
+    from mast.core.run import simulate, summarize
 
+    figures = docs_figures()
+    axis, amplitude, frequency, stop = figures.HEXAPOD_RUN
     mech = oracle()
-    res = simulate(hexapod_system, SineMotion(axis="z", amplitude=0.003, frequency=2.0, axes=ne.POSE), 0.4)
+    motion = SineMotion(axis=axis, amplitude=amplitude, frequency=frequency, axes=ne.POSE)
+    res = simulate(hexapod_system, motion, stop)
+    problems = figures.check({"hexapod_run": figures.hexapod_run_values(summarize(res, stop, motion))})
+    assert not problems, "\n".join(problems)
     n = len(res.drives())
     assert n == 6
     t = res.time
