@@ -61,6 +61,18 @@ def test_thermal_steady_state_with_the_copper_coefficient_is_the_closed_form():
     assert 4 * 809 / 3 < heat.warmup_t[-1] < 10 * 809  # on the motor's time constant
 
 
+def test_a_steady_rise_just_above_the_tolerance_is_reached_by_the_warm_up():
+    """A light duty cycle whose steady rise (0.15 K) is above the 0.1 K tolerance while each of the network's two
+    modes alone is below it (a 6-UPS leg in a 5 mm x motion at 1 Hz): the warm-up runs until it is within it
+    (it stopped at the first cycle, with no cycle within the tolerance: an IndexError)."""
+    model = thermal.TwoNode(**NET)
+    current = math.sqrt(0.15 / (NET["R_25"] * (NET["R_th1"] + NET["R_th2"])))
+    t = np.arange(0.0, 1.0, 1e-3)
+    heat = thermal.periodic(model, t, np.full(len(t), current))
+    assert heat.start[0] == pytest.approx(0.15, rel=1e-9)
+    assert heat.cycles_to_settle > 0 and abs(heat.warmup_T_w[heat.cycles_to_settle] - model.T_ambient - 0.15) <= 0.1
+
+
 def test_thermal_runaway_is_refused():
     model = thermal.TwoNode(**NET, alpha_Cu=0.0039)
     t = np.arange(0.0, 1.0, 1e-3)

@@ -162,7 +162,7 @@ def periodic(model: TwoNode, t: np.ndarray, i: np.ndarray, tolerance_K: float = 
     # from ambient, x_k = x* - M^k x* = x* - V diag(mu^k) V^-1 x*: every cycle's start at once
     mu, V = np.linalg.eig(M)
     weights = np.linalg.solve(V, x_star)
-    size = float(np.max(np.abs(V[0] * weights)))
+    size = float(np.sum(np.abs(V[0] * weights)))  # bounds |rise_w - x*_w| = |sum mu^k V0 w| by size max|mu|^k
     k_max = 0 if size <= tolerance_K else math.ceil(math.log(tolerance_K / size) / math.log(max(abs(mu)))) + 1
     k = np.arange(k_max + 1)
     rise_w = np.real(x_star[0] - (np.power.outer(mu, k).T * (V[0] * weights)).sum(axis=1))
