@@ -9,13 +9,13 @@ outputs). ``settle`` finds it:
    (rho_ddot -> F -> rho_ddot) has the gain -M/m, the mechanism's joint-space mass M over the
    actuator's load-side mass m (paper Eq. 1: m = J_2 / i_R^2): 0.25 for the 3PRS, 0.83 for the
    3-RPS; the passes converge when |M/m| < 1, and then give the values they always gave.
-2. When the passes stop contracting (the change grows over ``GROWING`` passes in a row; a 6-UPS on
-   the paper's belt axes: M/m = 11.68 kg / 3.6 kg) or the pass budget runs out: Newton's method on
-   the residual r(v) = G(v) - v from the start values, its Jacobian by forward differences (one
-   evaluation per unknown), which solves a linear loop of any gain in one step and a nonlinear one
-   in a few.
+2. When the passes stop contracting (a pass's change exceeds the one two passes before, ``GROWING``
+   passes in a row; a 6-UPS on the paper's belt axes: M/m = 11.68 kg / 3.6 kg) or the pass budget
+   runs out: Newton's method on the residual r(v) = G(v) - v from the start values, its Jacobian by
+   forward differences (one evaluation per unknown), which solves a linear loop of any gain in one
+   step and a nonlinear one in a few.
 
-The unknowns are only the values some member reads; G is evaluated on them.
+The Jacobian's columns are computed only for the values some member reads (the others' are zero).
 """
 
 from __future__ import annotations
