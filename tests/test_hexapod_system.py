@@ -261,7 +261,7 @@ def test_compare_sets_the_hexapod_beside_3_dof_designs_on_their_common_motions(h
     assert common_axes(designs) == ("z", "psi", "theta")
     assert [extra_motions(a, designs) for a in designs] == [(), (), ("x", "y", "phi")]
     ws = design_workspace(
-        Candidate("6UPS", str(hexapod_system), "6UPS"), (0.025, math.radians(4.0)), common_axes(designs)
+        Candidate("6UPS", str(hexapod_system), "6UPS"), (0.05, math.radians(8.0)), common_axes(designs)
     )
     assert "error" not in ws, ws
     assert set(ws["ranges_through_home"]) == {"z_m", "psi_deg", "theta_deg"} and ws["volume_m_deg2"] > 100.0
