@@ -147,7 +147,23 @@ FIGURES: dict[str, Figure] = {
             ("volume_z_psi_theta_m_deg2", "{:.0f}", 0.4),
         )
     },
+    # `mast animate`'s page for the default system's `make run` motion (docs/animate.md): frames, sizes [MB, kB]; a
+    # size may move by a few bytes between machines (a coordinate's rounding to 1 um flipping)
+    "animate.frames": Figure("animate", lambda v: v["frames"], "{:d}"),
+    **{
+        f"animate.{what}": Figure("animate", (lambda w: lambda v: v[w])(what), fmt, tol)
+        for what, fmt, tol in (
+            ("page_MB", "{:.2f}", 0.01),
+            ("plotly_MB", "{:.2f}", 0.0),
+            ("figure_MB", "{:.2f}", 0.01),
+            ("frame_kB", "{:.0f}", 0.5),
+            ("minute_MB", "{:.0f}", 0.5),
+        )
+    },
 }
+
+#: the run of the animate figures: the default system's `make run` motion (z sine, 0.01 m at 1 Hz) for 3 s
+ANIMATE_RUN = ("z", 0.01, 1.0, 3.0)
 
 #: the coarse grid of the hexapod's figures (step in m, step in deg): about 6 s for its three workspaces
 HEXAPOD_GRID = (0.02, 3.0)
@@ -227,6 +243,39 @@ def source_emps() -> dict:
                 "force_fit": signals["force"]["fit_pct"],
             }
     return out
+
+
+def source_animate(ssp: Path | None = None) -> dict:
+    """`mast animate`'s page of ANIMATE_RUN on ``ssp`` (default: MAST.ssp built into a temporary folder), at the
+    default frame rate: its frames and size [MB], how much of it is plotly.js and the figure, the figure's size per
+    frame [kB] and what a minute of motion would weigh [MB]; seconds."""
+    import plotly.offline
+
+    from mast.analyses import animate
+    from mast.core.build import FMUS, SSP_SRC, build_fmu, build_ssp
+    from mast.core.run import motion_from_cli, simulate, write_outputs
+
+    motion, amplitude, frequency, stop = ANIMATE_RUN
+    with tempfile.TemporaryDirectory(prefix="mast_figures_") as tmp:
+        tmp = Path(tmp)
+        if ssp is None:
+            for spec in FMUS:
+                if spec.model_identifier in ("MastActuator", "MastController", "MastMechanism"):
+                    build_fmu(spec, tmp / "fmus")
+            ssp = build_ssp(SSP_SRC / "MAST.ssd", tmp / "fmus", tmp / "ssp")
+        command = motion_from_cli(motion, amplitude, frequency)
+        write_outputs(simulate(ssp, command, stop, direct=True), tmp / "run", stop, command, ssp)
+        done = animate.write(tmp / "run", tmp / animate.PAGE)
+    library = len(plotly.offline.get_plotlyjs().encode("utf-8"))
+    figure = done["bytes"] - library
+    return {
+        "frames": done["frames"],
+        "page_MB": done["bytes"] / 1e6,
+        "plotly_MB": library / 1e6,
+        "figure_MB": figure / 1e6,
+        "frame_kB": figure / done["frames"] / 1e3,
+        "minute_MB": (library + figure / done["frames"] * (60 * animate.FPS + 1)) / 1e6,
+    }
 
 
 def source_designs() -> dict:
@@ -309,6 +358,7 @@ SOURCES: dict[str, Callable[[], dict]] = {
     "workspace": source_workspace,
     "workspace_quick": lambda: source_workspace(quick=True),
     "hexapod": source_hexapod,
+    "animate": source_animate,
 }
 
 

@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from docs_figures import figures
 
 from mast.analyses import animate
 from mast.cli import main as cli_main
@@ -171,6 +172,13 @@ def test_a_part_is_checked_when_described():
         Part("guide", None, [(0.0, 0.0, 0.0), (0.0, 0.0, 1.0)])
     with pytest.raises(ValueError, match="points must be finite"):
         Part("link", "leg_1", [(0.0, 0.0, math.nan), (0.26, 0.0, 0.0)])
+
+
+def test_the_docs_state_this_pages_size(runs):
+    """docs/animate.md's frames and sizes are those of the page of ANIMATE_RUN on the system the runs above were made
+    with (`python docs/figures.py --source animate` writes them)."""
+    problems = figures.check({"animate": figures.source_animate(runs["3PRS_T"].parent / "ssp" / "MAST.ssp")})
+    assert not problems, "\n".join(problems)
 
 
 # ----------------------------------------------------------------------------- bad input

@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import importlib.util
 import io
 import os
 import re
@@ -35,6 +34,7 @@ from pathlib import Path
 from typing import Iterator
 
 import pytest
+from docs_figures import figures
 
 from mast import cli
 
@@ -47,17 +47,6 @@ HOW = (
     "mark it on the line before its fence: <!-- run -->, <!-- run: OLD => NEW --> (a short variant) or "
     "<!-- not run: REASON --> (tests/test_docs.py)"
 )
-
-
-def _figures():
-    spec = importlib.util.spec_from_file_location("docs_figures", ROOT / "docs" / "figures.py")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module
-    spec.loader.exec_module(module)
-    return module
-
-
-figures = _figures()
 
 
 @dataclass
@@ -358,7 +347,18 @@ def test_marked_hexapod_figures_agree():
 
 def test_every_figure_source_is_checked_by_a_test():
     """A source added to docs/figures.py is compared with the pages somewhere (here or tests/test_reproduce.py)."""
-    checked = {"ssd", "designs", "workspace", "workspace_quick", "reproduce", "ratings", "build", "emps", "hexapod"}
+    checked = {
+        "ssd",
+        "designs",
+        "workspace",
+        "workspace_quick",
+        "reproduce",
+        "ratings",
+        "build",
+        "emps",
+        "hexapod",
+        "animate",  # tests/test_animate.py
+    }
     assert set(figures.SOURCES) == checked, f"sources no test compares: {set(figures.SOURCES) - checked}"
 
 
