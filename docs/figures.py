@@ -291,6 +291,68 @@ def source_controllers_short() -> dict:
         return controllers_values(json.loads((Path(tmp) / "out" / "comparison.json").read_text()))
 
 
+#: the short variant of `mast compare --mechanism` docs/designs/README.md states and tests/test_compare.py runs: (the
+#: designs' mechanism FMUs, motions, frequencies [Hz]), through the FMUs
+DESIGNS_SHORT = (("MastMechanism", "MastActuatorsOnly"), ("z",), (2.0, 8.0))
+# its figures per design: -3 dB bandwidth [Hz] (interpolated between the two frequencies), peak and RMS motor torque
+# [N m], peak tracking error [mm], each to its printed digit (what another machine's floats move stays far below)
+FIGURES.update(
+    {
+        f"designs_short.{d}.{what}": Figure("designs_short", (lambda n, w: lambda v: v[n][w])(d, what), fmt, tol)
+        for d in DESIGNS_SHORT[0]
+        for what, fmt, tol in (
+            ("bandwidth_Hz", "{:.2f}", 0.005),
+            ("torque_peak_Nm", "{:.3f}", 0.0005),
+            ("torque_rms_Nm", "{:.3f}", 0.0005),
+            ("tracking_mm", "{:.2f}", 0.005),
+        )
+    }
+)
+
+
+def designs_values(comparison: Mapping) -> dict:
+    """The designs_short figures of a design comparison (its comparison.json as a dict), the first motion."""
+    motion = DESIGNS_SHORT[1][0]
+    return {
+        r["design"]: {
+            "bandwidth_Hz": r["bandwidth_Hz"],
+            "torque_peak_Nm": r["torque_peak_Nm"],
+            "torque_rms_Nm": r["torque_rms_Nm"],
+            "tracking_mm": 1e3 * r["tracking_peak"],
+        }
+        for r in comparison["summary"]
+        if r["motion"] == motion
+    }
+
+
+def run_designs_short(fmus: Path, out: Path) -> dict:
+    """DESIGNS_SHORT by `mast.analyses.compare.compare` on the FMUs in ``fmus`` (the actuator's, the controller's and
+    the designs'), 2 workers, the quick workspace grid: its comparison.json as a dict."""
+    from mast.analyses.compare import WORKSPACE_GRID_QUICK, TestSet, compare
+
+    designs, motions, frequencies = DESIGNS_SHORT
+    compare(
+        [fmus / f"{d}.fmu" for d in designs],
+        out,
+        TestSet(axes=motions, frequencies=frequencies),
+        workers=2,
+        fmu_dir=fmus,
+        workspace_grid=WORKSPACE_GRID_QUICK,
+    )
+    return json.loads((out / "comparison.json").read_text())
+
+
+def source_designs_short() -> dict:
+    """DESIGNS_SHORT on the FMUs built into a temporary folder."""
+    from mast.core.build import FMUS, build_fmu
+
+    with tempfile.TemporaryDirectory(prefix="mast_figures_") as tmp:
+        for spec in FMUS:
+            if spec.model_identifier in ("MastActuator", "MastController", *DESIGNS_SHORT[0]):
+                build_fmu(spec, Path(tmp) / "fmus")
+        return designs_values(run_designs_short(Path(tmp) / "fmus", Path(tmp) / "out"))
+
+
 #: the run of the animate figures: the default system's `make run` motion (z sine, 0.01 m at 1 Hz) for 3 s
 ANIMATE_RUN = ("z", 0.01, 1.0, 3.0)
 
@@ -553,6 +615,7 @@ SOURCES: dict[str, Callable[[], dict]] = {
     "hexapod": source_hexapod,
     "animate": source_animate,
     "controllers_short": source_controllers_short,
+    "designs_short": source_designs_short,
     **{f"diagnose_{case}": functools.partial(source_diagnose, case) for case in DIAGNOSE_CASES},
 }
 

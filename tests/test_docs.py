@@ -359,6 +359,7 @@ def test_every_figure_source_is_checked_by_a_test():
         "hexapod",
         "animate",  # tests/test_animate.py
         "controllers_short",  # tests/test_controllers.py
+        "designs_short",  # tests/test_compare.py
         *(f"diagnose_{case}" for case in figures.DIAGNOSE_CASES),  # tests/test_diagnose.py
     }
     assert set(figures.SOURCES) == checked, f"sources no test compares: {set(figures.SOURCES) - checked}"
