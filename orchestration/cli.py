@@ -883,6 +883,7 @@ def main(argv=None) -> int:
     p.add_argument(
         "--out",
         type=animate_folder,
+        metavar="DIR",
         help=f"folder for the page, DIR/{PAGE} (default: RUN_DIR)",
     )
 
