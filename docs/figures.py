@@ -15,9 +15,12 @@ run it makes anyway) and fail with the page, the line, both values and this comm
 from __future__ import annotations
 
 import argparse
+import atexit
+import functools
 import json
 import math
 import re
+import shutil
 import sys
 import tempfile
 from dataclasses import dataclass
@@ -80,6 +83,20 @@ FIGURES: dict[str, Figure] = {
             ("volume_m_deg2", fmt_volume, cells),
             ("smallest_margin", "{:.3f}", 0.0),
             ("worst_dexterity", "{:.1f}", 0.0),
+        )
+    },
+    # the designs' workspaces through home and their margins at home on the default grid (docs/designs/README.md): a
+    # range through home may move by one grid node (1 deg) between machines, like the volume
+    **{
+        f"workspace.{d}.{what}": Figure("workspace", (lambda v, d=d, w=what: v[d][w]), fmt, tol)
+        for d in ("3PRS_T", "3PRS_120", "3PRS_inclined")
+        for what, fmt, tol in (
+            ("psi_home_lo_deg", "{:.0f}", 1.0),
+            ("psi_home_hi_deg", "{:.0f}", 1.0),
+            ("theta_home_lo_deg", "{:.0f}", 1.0),
+            ("theta_home_hi_deg", "{:.0f}", 1.0),
+            ("margin_home", "{:.3f}", 0.0),
+            ("singularity_home_m", "{:.3f}", 0.0),
         )
     },
     # the designs' singularity margins at home (docs/mechanism.md)
@@ -158,10 +175,199 @@ FIGURES: dict[str, Figure] = {
             ("phi_error_urad", "{:.2f}", 0.02),
         )
     },
+    # `mast animate`'s page for the default system's `make run` motion (docs/animate.md): frames, sizes [MB, kB]; a
+    # size may move by a few bytes between machines (a coordinate's rounding to 1 um flipping)
+    "animate.frames": Figure("animate", lambda v: v["frames"], "{:d}"),
+    **{
+        f"animate.{what}": Figure("animate", (lambda w: lambda v: v[w])(what), fmt, tol)
+        for what, fmt, tol in (
+            ("page_MB", "{:.2f}", 0.01),
+            ("plotly_MB", "{:.2f}", 0.0),
+            ("figure_MB", "{:.2f}", 0.01),
+            ("frame_kB", "{:.0f}", 0.5),
+            ("minute_MB", "{:.0f}", 0.5),
+        )
+    },
 }
 
 #: the 6-UPS system run of docs/designs/6ups.md: (axis, amplitude [m], frequency [Hz], stop time [s])
 HEXAPOD_RUN = ("z", 0.003, 2.0, 0.4)
+#: the compact test plan of docs/diagnose.md's "Every effect alone" and of tests/test_diagnose.py: (motion, amplitude
+#: [m or rad], frequency [Hz], duration [s], settling [s]) of each test, every second in frequency order held out
+DIAGNOSE_PLAN = (
+    ("z", 0.005, 0.6, 2.0, 0.3),
+    ("theta", math.radians(0.8), 1.5, 1.0, 0.3),
+    ("z", 0.005, 3.0, 1.0, 0.3),
+    ("z", 0.005, 7.0, 0.8, 0.3),
+)
+#: the effects hidden alone on DIAGNOSE_PLAN (docs/diagnose.md, tests/test_diagnose.py): case -> (the truth set on
+#: every actuator, the seed of the synthetic noise)
+DIAGNOSE_CASES = {
+    "nothing": ({}, 3),
+    "paper": ({"tau_c": 0.0718, "J1_scale": 1 / 1.56}, 1),
+    "coulomb": ({"tau_c": 0.035}, 10),
+    "stribeck": ({"tau_s": 0.02, "omega_s": 3.0}, 12),
+    "inertia_motor": ({"J1_scale": 0.8}, 13),
+    "inertia_guide": ({"J_guide": 6.8e-4}, 14),
+    "carriage_mass": ({"M_load": 3.5}, 15),
+    "offset": ({"tau_offset": 0.01}, 16),
+}
+# their figures: each fitted parameter to 0.1 % of its truth (far above what another machine's floats move in a fit by
+# re-simulation, 1e-6, below the fit's own error the table shows), the held-out tests' torque NRMSE [%] before and
+# after and its noise floor to the printed digit
+FIGURES.update(
+    {
+        **{
+            f"diagnose_{case}.{name}": Figure(
+                f"diagnose_{case}", (lambda n: lambda v: v["fitted"][n])(name), "{:.4g}", 1e-3 * abs(truth)
+            )
+            for case, (truths, _) in DIAGNOSE_CASES.items()
+            for name, truth in truths.items()
+        },
+        **{
+            f"diagnose_{case}.held_out_{k}_{what}": Figure(
+                f"diagnose_{case}", (lambda n, w: lambda v: v["held_out"][n][w])(k, what), "{:.1f}", 0.05
+            )
+            for case in DIAGNOSE_CASES
+            for k in (1, 2)
+            for what in ("before", "after", "floor")
+        },
+    }
+)
+
+#: the short variant of `mast compare --controller` docs/controller.md states and tests/test_controllers.py runs:
+#: (controllers, motions, frequencies [Hz], the payload the controllers do not know [kg])
+CONTROLLERS_SHORT = (("joint", "computed_torque"), ("z",), (1.0, 3.0), 3.0)
+# its figures: per controller, the peak tracking error at the lowest frequency without and with the payload [mm] (to
+# the printed digit, 5e-5 mm: a closed loop's floats move far less between machines) and their ratio
+FIGURES.update(
+    {
+        f"controllers_short.{c}.{what}": Figure(
+            "controllers_short", (lambda n, w: lambda v: v[n][w])(c, what), fmt, tol
+        )
+        for c in CONTROLLERS_SHORT[0]
+        for what, fmt, tol in (
+            ("tracking_mm", "{:.3g}", 5e-5),
+            ("tracking_payload_mm", "{:.3g}", 5e-5),
+            ("ratio", "{:.1f}", 0.05),
+        )
+    }
+)
+
+
+def controllers_short_argv(out: Path, fmus: Path) -> list[str]:
+    """`mast compare` arguments of CONTROLLERS_SHORT (the direct composition, 2 workers), the FMUs from ``fmus``."""
+    controllers, motions, frequencies, payload = CONTROLLERS_SHORT
+    return [
+        "compare",
+        "--controller",
+        *controllers,
+        "--motions",
+        *motions,
+        "--frequencies",
+        *(f"{f:g}" for f in frequencies),
+        "--payload",
+        f"{payload:g}",
+        "--out",
+        str(out),
+        "--direct",
+        "--workers",
+        "2",
+        "--fmus",
+        str(fmus),
+    ]
+
+
+def controllers_values(comparison: Mapping) -> dict:
+    """The controllers_short figures of a controller comparison (its comparison.json as a dict), the first motion."""
+    motion = CONTROLLERS_SHORT[1][0]
+    return {
+        r["controller"]: {
+            "tracking_mm": 1e3 * r["tracking_peak_f_min"],
+            "tracking_payload_mm": 1e3 * r["tracking_peak_f_min_payload"],
+            "ratio": r["tracking_peak_f_min_ratio"],
+        }
+        for r in comparison["robustness"]
+        if r["motion"] == motion
+    }
+
+
+def source_controllers_short() -> dict:
+    """CONTROLLERS_SHORT run by `mast compare` on the Python FMUs built into a temporary folder."""
+    from mast.cli import main as cli_main
+    from mast.core.build import build_all
+
+    with tempfile.TemporaryDirectory(prefix="mast_figures_") as tmp:
+        build_all(Path(tmp) / "build", log=lambda *_: None)
+        if cli_main(controllers_short_argv(Path(tmp) / "out", Path(tmp) / "build" / "fmus")) != 0:
+            raise RuntimeError("mast compare --controller failed (its message above)")
+        return controllers_values(json.loads((Path(tmp) / "out" / "comparison.json").read_text()))
+
+
+#: the short variant of `mast compare --mechanism` docs/designs/README.md states and tests/test_compare.py runs: (the
+#: designs' mechanism FMUs, motions, frequencies [Hz]), through the FMUs
+DESIGNS_SHORT = (("MastMechanism", "MastActuatorsOnly"), ("z",), (2.0, 8.0))
+# its figures per design: -3 dB bandwidth [Hz] (interpolated between the two frequencies), peak and RMS motor torque
+# [N m], peak tracking error [mm], each to its printed digit (what another machine's floats move stays far below)
+FIGURES.update(
+    {
+        f"designs_short.{d}.{what}": Figure("designs_short", (lambda n, w: lambda v: v[n][w])(d, what), fmt, tol)
+        for d in DESIGNS_SHORT[0]
+        for what, fmt, tol in (
+            ("bandwidth_Hz", "{:.2f}", 0.005),
+            ("torque_peak_Nm", "{:.3f}", 0.0005),
+            ("torque_rms_Nm", "{:.3f}", 0.0005),
+            ("tracking_mm", "{:.2f}", 0.005),
+        )
+    }
+)
+
+
+def designs_values(comparison: Mapping) -> dict:
+    """The designs_short figures of a design comparison (its comparison.json as a dict), the first motion."""
+    motion = DESIGNS_SHORT[1][0]
+    return {
+        r["design"]: {
+            "bandwidth_Hz": r["bandwidth_Hz"],
+            "torque_peak_Nm": r["torque_peak_Nm"],
+            "torque_rms_Nm": r["torque_rms_Nm"],
+            "tracking_mm": 1e3 * r["tracking_peak"],
+        }
+        for r in comparison["summary"]
+        if r["motion"] == motion
+    }
+
+
+def run_designs_short(fmus: Path, out: Path) -> dict:
+    """DESIGNS_SHORT by `mast.analyses.compare.compare` on the FMUs in ``fmus`` (the actuator's, the controller's and
+    the designs'), 2 workers, the quick workspace grid: its comparison.json as a dict."""
+    from mast.analyses.compare import WORKSPACE_GRID_QUICK, TestSet, compare
+
+    designs, motions, frequencies = DESIGNS_SHORT
+    compare(
+        [fmus / f"{d}.fmu" for d in designs],
+        out,
+        TestSet(axes=motions, frequencies=frequencies),
+        workers=2,
+        fmu_dir=fmus,
+        workspace_grid=WORKSPACE_GRID_QUICK,
+    )
+    return json.loads((out / "comparison.json").read_text())
+
+
+def source_designs_short() -> dict:
+    """DESIGNS_SHORT on the FMUs built into a temporary folder."""
+    from mast.core.build import FMUS, build_fmu
+
+    with tempfile.TemporaryDirectory(prefix="mast_figures_") as tmp:
+        for spec in FMUS:
+            if spec.model_identifier in ("MastActuator", "MastController", *DESIGNS_SHORT[0]):
+                build_fmu(spec, Path(tmp) / "fmus")
+        return designs_values(run_designs_short(Path(tmp) / "fmus", Path(tmp) / "out"))
+
+
+#: the run of the animate figures: the default system's `make run` motion (z sine, 0.01 m at 1 Hz) for 3 s
+ANIMATE_RUN = ("z", 0.01, 1.0, 3.0)
 
 #: the coarse grid of the hexapod's figures (step in m, step in deg): about 6 s for its three workspaces
 HEXAPOD_GRID = (0.02, 3.0)
@@ -243,6 +449,96 @@ def source_emps() -> dict:
     return out
 
 
+def source_animate(ssp: Path | None = None) -> dict:
+    """`mast animate`'s page of ANIMATE_RUN on ``ssp`` (default: MAST.ssp built into a temporary folder), at the
+    default frame rate: its frames and size [MB], how much of it is plotly.js and the figure, the figure's size per
+    frame [kB] and what a minute of motion would weigh [MB]; seconds."""
+    import plotly.offline
+
+    from mast.analyses import animate
+    from mast.core.build import FMUS, SSP_SRC, build_fmu, build_ssp
+    from mast.core.run import motion_from_cli, simulate, write_outputs
+
+    motion, amplitude, frequency, stop = ANIMATE_RUN
+    with tempfile.TemporaryDirectory(prefix="mast_figures_") as tmp:
+        tmp = Path(tmp)
+        if ssp is None:
+            for spec in FMUS:
+                if spec.model_identifier in ("MastActuator", "MastController", "MastMechanism"):
+                    build_fmu(spec, tmp / "fmus")
+            ssp = build_ssp(SSP_SRC / "MAST.ssd", tmp / "fmus", tmp / "ssp")
+        command = motion_from_cli(motion, amplitude, frequency)
+        write_outputs(simulate(ssp, command, stop, direct=True), tmp / "run", stop, command, ssp)
+        done = animate.write(tmp / "run", tmp / animate.PAGE)
+    library = len(plotly.offline.get_plotlyjs().encode("utf-8"))
+    figure = done["bytes"] - library
+    return {
+        "frames": done["frames"],
+        "page_MB": done["bytes"] / 1e6,
+        "plotly_MB": library / 1e6,
+        "figure_MB": figure / 1e6,
+        "frame_kB": figure / done["frames"] / 1e3,
+        "minute_MB": (library + figure / done["frames"] * (60 * animate.FPS + 1)) / 1e6,
+    }
+
+
+def diagnose_values(doc: Mapping) -> dict:
+    """A diagnosis' figures (its diagnosis.json as a dict): the fitted parameters of the named effects (and of their
+    equivalent alternatives), and per held-out test (1, 2, ... in the plan's order) the torque NRMSE [%] before and
+    after and its noise floor."""
+    fitted: dict = {}
+    for effect in doc["named_effects"]:
+        for alternative in effect["evidence"].get("alternatives", []):
+            fitted.update(alternative.get("parameters", {}))
+        fitted.update(effect["parameters"])
+    held_out = [g for g in doc["gap"].values() if g["role"] == "held-out"]
+    return {
+        "fitted": fitted,
+        "held_out": {
+            k: {
+                "before": g["before"]["torque_nrmse_percent"],
+                "after": g["after"]["torque_nrmse_percent"],
+                "floor": g["before"]["torque_floor_percent"],
+            }
+            for k, g in enumerate(held_out, 1)
+        },
+    }
+
+
+@functools.lru_cache(maxsize=None)
+def _diagnose_build() -> Path:
+    """MAST.ssp's Python FMUs (which synthesize) and its native form (which the diagnoses re-simulate), built once per
+    process into a temporary folder removed at exit."""
+    from mast.core.build import build_all
+    from mast.core.native.build import build_native_all
+
+    folder = Path(tempfile.mkdtemp(prefix="mast_figures_"))
+    atexit.register(shutil.rmtree, folder, ignore_errors=True)
+    build_all(folder, log=lambda *_: None)
+    build_native_all(folder, [ROOT / "ssp" / "MAST.ssd"], log=lambda *_: None)
+    return folder / "ssp"
+
+
+def source_diagnose(case: str) -> dict:
+    """`mast diagnose` of DIAGNOSE_CASES[case] hidden by `mast synthesize` on DIAGNOSE_PLAN (the Python models
+    synthesize, the native variant re-simulates, as tests/test_diagnose.py runs it): its diagnose_values."""
+    from mast.analyses.synthesize import TestSpec, synthesize
+    from mast.diagnosis import Options, diagnose
+
+    truth, seed = DIAGNOSE_CASES[case]
+    ssp = _diagnose_build()
+    with tempfile.TemporaryDirectory(prefix="mast_figures_") as tmp:
+        data, plan = Path(tmp) / "data", tuple(TestSpec(*t) for t in DIAGNOSE_PLAN)
+        synthesize(
+            str(ssp / "MAST.ssp"), data, {"actuator": truth}, tests=plan, direct=True, seed=seed, log=lambda *_: None
+        )
+        doc = diagnose(
+            Options(data, Path(tmp) / "out", str(ssp / "native" / "MAST.ssp"), figures=False, direct=False),
+            log=lambda *_: None,
+        )
+    return diagnose_values(doc)
+
+
 def source_designs() -> dict:
     from mast.analyses.workspace import machine
 
@@ -263,10 +559,17 @@ def source_workspace(quick: bool = False) -> dict:
     out = {}
     for name in ("3PRS_T", "3PRS_120", "3PRS_inclined"):
         s = summarize(compute(machine(name), *(WORKSPACE_GRID_QUICK if quick else WORKSPACE_GRID)))
+        through_home = s["ranges_through_home"]
         out[name] = {
             "volume_m_deg2": s["volume_m_deg2"],
             "smallest_margin": s["smallest_margin"]["value"],
             "worst_dexterity": s["worst_dexterity"]["value"],
+            "psi_home_lo_deg": through_home["psi_deg"][0],
+            "psi_home_hi_deg": through_home["psi_deg"][1],
+            "theta_home_lo_deg": through_home["theta_deg"][0],
+            "theta_home_hi_deg": through_home["theta_deg"][1],
+            "margin_home": min(s["home"]["margin_parallel"], s["home"]["margin_inverse"]),
+            "singularity_home_m": s["distance_to_singularity_at_home_m"],
         }
     return out
 
@@ -349,6 +652,10 @@ SOURCES: dict[str, Callable[[], dict]] = {
     "workspace_quick": lambda: source_workspace(quick=True),
     "hexapod": source_hexapod,
     "hexapod_run": source_hexapod_run,
+    "animate": source_animate,
+    "controllers_short": source_controllers_short,
+    "designs_short": source_designs_short,
+    **{f"diagnose_{case}": functools.partial(source_diagnose, case) for case in DIAGNOSE_CASES},
 }
 
 

@@ -83,12 +83,17 @@ def folder(text: str) -> str:
     return text
 
 
-def output_file(text: str) -> str:
-    """argparse type: a file to write, whose folder exists (or can be made) and which is not a folder."""
-    if Path(text).is_dir():
-        raise argparse.ArgumentTypeError(f"{text!r} is a folder; expected a file name")
-    folder(str(Path(text).parent))
-    return text
+def animate_folder(text: str) -> str:
+    """argparse type: `mast animate`'s output folder; a page's name (the option's former meaning) is refused with
+    the new form."""
+    if text.lower().endswith((".html", ".htm")):
+        from .analyses.animate import PAGE
+
+        raise argparse.ArgumentTypeError(
+            f"{text!r}: --out names a folder, like every --out (it named the page before): "
+            f"mast animate RUN_DIR --out DIR writes DIR/{PAGE}"
+        )
+    return folder(text)
 
 
 def _number(text: str) -> float:
@@ -316,7 +321,7 @@ def cmd_synthesize(args) -> int:
         seed=args.seed,
         direct=args.direct,
         workers=args.workers,
-        truth_path=Path(args.truth) if args.truth else None,
+        truth_path=Path(args.truth_out) / f"{Path(args.out).name}.truth.json" if args.truth_out else None,
     )
     return 0
 
@@ -470,9 +475,9 @@ def cmd_workspace(args) -> int:
 
 
 def cmd_animate(args) -> int:
-    from .analyses.animate import write
+    from .analyses.animate import PAGE, write
 
-    done = write(args.run_dir, args.out, args.fps)
+    done = write(args.run_dir, Path(args.out or args.run_dir) / PAGE, args.fps)
     print(
         f"wrote {done['out']}: {done['frames']} frames ({done['fps']:g} per simulated second over "
         f"{done['simulated_s']:.3g} s), {done['bytes'] / 1e6:.2f} MB, in {done['seconds']:.2f} s"
@@ -659,7 +664,17 @@ def main(argv=None) -> int:
     )
     p.add_argument("--seed", type=int, default=0, help="seed of the noise")
     p.add_argument(
-        "--truth", type=output_file, help="where to write the truth (default: next to the folder, DIR.truth.json)"
+        "--truth-out",
+        type=folder,
+        metavar="DIR",
+        help="folder for the truth, DIR/NAME.truth.json with NAME the --out folder's name (default: the folder "
+        "that holds --out, so the truth lies next to the data)",
+    )
+    p.add_argument(
+        "--truth",
+        action=Renamed,
+        instead="--truth-out DIR names a folder, like every --out: the truth goes to DIR/NAME.truth.json "
+        "(NAME: the --out folder's name)",
     )
     p.add_argument("--direct", action="store_true", help="run the model objects without FMI (same numbers, faster)")
     p.add_argument("--workers", type=count, default=2, help="parallel processes")
@@ -863,8 +878,14 @@ def main(argv=None) -> int:
         "the commanded pose as a ghost (docs/animate.md)",
     )
     p.add_argument("run_dir", help="a `mast run` output folder (results.csv, summary.json)")
-    p.add_argument("--out", type=output_file, required=True, help="the HTML page to write")
-    from .analyses.animate import FPS
+    from .analyses.animate import FPS, PAGE
+
+    p.add_argument(
+        "--out",
+        type=animate_folder,
+        metavar="DIR",
+        help=f"folder for the page, DIR/{PAGE} (default: RUN_DIR)",
+    )
 
     p.add_argument(
         "--fps",

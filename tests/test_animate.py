@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from docs_figures import figures
 
 from mast.analyses import animate
 from mast.cli import main as cli_main
@@ -56,8 +57,8 @@ def pages(runs, tmp_path_factory) -> dict[str, Path]:
     out = tmp_path_factory.mktemp("pages")
     written = {}
     for name, folder in runs.items():
-        written[name] = out / f"{name}.html"
-        assert cli_main(["animate", str(folder), "--out", str(written[name])]) == 0
+        written[name] = out / name / animate.PAGE
+        assert cli_main(["animate", str(folder), "--out", str(out / name)]) == 0
     return written
 
 
@@ -173,6 +174,13 @@ def test_a_part_is_checked_when_described():
         Part("link", "leg_1", [(0.0, 0.0, math.nan), (0.26, 0.0, 0.0)])
 
 
+def test_the_docs_state_this_pages_size(runs):
+    """docs/animate.md's frames and sizes are those of the page of ANIMATE_RUN on the system the runs above were made
+    with (`python docs/figures.py --source animate` writes them)."""
+    problems = figures.check({"animate": figures.source_animate(runs["3PRS_T"].parent / "ssp" / "MAST.ssp")})
+    assert not problems, "\n".join(problems)
+
+
 # ----------------------------------------------------------------------------- bad input
 def copy_run(runs, tmp_path) -> Path:
     folder = tmp_path / "run"
@@ -181,17 +189,31 @@ def copy_run(runs, tmp_path) -> Path:
 
 
 def refused(capsys, folder: Path, out: Path) -> str:
+    """The error of `mast animate FOLDER --out OUT` (exit 2), which wrote no page and no temporary file."""
     assert cli_main(["animate", str(folder), "--out", str(out)]) == 2
     err = capsys.readouterr().err
-    assert not out.exists()
-    assert not [p for p in out.parent.iterdir() if p.name.endswith(".tmp")]
+    assert not (out / animate.PAGE).exists()
+    assert not [p for p in out.parent.rglob("*.tmp")]
     return err
+
+
+def test_out_is_a_folder_the_former_page_name_is_refused_naming_the_new_form(runs, tmp_path, capsys):
+    """`--out` names a folder in every subcommand: a page's name (animate's former meaning) is refused before anything
+    runs, with the form to use; without --out the page goes into the run folder."""
+    folder = copy_run(runs, tmp_path)
+    with pytest.raises(SystemExit) as stop:
+        cli_main(["animate", str(folder), "--out", str(tmp_path / "page.html")])
+    assert stop.value.code == 2
+    assert f"mast animate RUN_DIR --out DIR writes DIR/{animate.PAGE}" in capsys.readouterr().err
+    assert not (tmp_path / "page.html").exists()
+    assert cli_main(["animate", str(folder)]) == 0
+    assert "Plotly.newPlot(" in (folder / animate.PAGE).read_text()
 
 
 def test_a_folder_without_results_is_refused_by_name(runs, tmp_path, capsys):
     folder = copy_run(runs, tmp_path)
     (folder / "results.csv").unlink()
-    assert "no results.csv" in refused(capsys, folder, tmp_path / "page.html")
+    assert "no results.csv" in refused(capsys, folder, tmp_path / "pages")
 
 
 def test_a_missing_pose_column_is_refused_by_name(runs, tmp_path, capsys):
@@ -199,7 +221,7 @@ def test_a_missing_pose_column_is_refused_by_name(runs, tmp_path, capsys):
     result = Result.read_csv(folder / "results.csv")
     del result.signals["mechanism.theta"]
     result.write_csv(folder / "results.csv")
-    assert "no column 'mechanism.theta'" in refused(capsys, folder, tmp_path / "page.html")
+    assert "no column 'mechanism.theta'" in refused(capsys, folder, tmp_path / "pages")
 
 
 def test_a_mechanism_without_geometry_is_refused_by_name(runs, tmp_path, capsys):
@@ -208,13 +230,13 @@ def test_a_mechanism_without_geometry_is_refused_by_name(runs, tmp_path, capsys)
     mechanism = summary["system"]["parameters"]["mechanism"]
     del mechanism["L"]
     (folder / "summary.json").write_text(json.dumps(summary))
-    assert "'L'" in refused(capsys, folder, tmp_path / "page.html")
+    assert "'L'" in refused(capsys, folder, tmp_path / "pages")
     mechanism["L"], mechanism["attached"] = 0.26, 0  # the actuators_only design: no mechanism attached
     (folder / "summary.json").write_text(json.dumps(summary))
-    assert "not attached (parameter 'attached' = 0" in refused(capsys, folder, tmp_path / "page.html")
+    assert "not attached (parameter 'attached' = 0" in refused(capsys, folder, tmp_path / "pages")
     del summary["system"]  # a run folder from before the record
     (folder / "summary.json").write_text(json.dumps(summary))
-    assert "no 'system.parameters'" in refused(capsys, folder, tmp_path / "page.html")
+    assert "no 'system.parameters'" in refused(capsys, folder, tmp_path / "pages")
 
 
 def test_a_failed_write_leaves_the_old_page_and_no_temporary_file(runs, tmp_path, monkeypatch):

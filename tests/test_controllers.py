@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from docs_figures import figures
 
 from fmus.common.parameters import ParameterError
 from fmus.controller.computed_torque import ComputedTorqueController
@@ -325,28 +326,9 @@ def test_compare_controllers_tabulates_and_plots_with_an_unknown_payload(systems
 
     fmus = Path(systems["joint"]).parents[1] / "fmus"
     out = tmp_path / "cmp"
-    code = cli_main(
-        [
-            "compare",
-            "--controller",
-            "joint",
-            "computed_torque",
-            "--motions",
-            "z",
-            "--frequencies",
-            "1",
-            "3",
-            "--payload",
-            "3",
-            "--out",
-            str(out),
-            "--direct",
-            "--workers",
-            "2",
-            "--fmus",
-            str(fmus),
-        ]
-    )
+    # docs/figures.py's short variant (joint and computed_torque, z at 1 and 3 Hz, 3 kg), whose figures
+    # docs/controller.md states
+    code = cli_main(figures.controllers_short_argv(out, fmus))
     assert code == 0
     for name in (
         "comparison.csv",
@@ -369,6 +351,8 @@ def test_compare_controllers_tabulates_and_plots_with_an_unknown_payload(systems
     assert robust["computed_torque"]["tracking_peak_f_min_ratio"] > 2.0
     assert robust["joint"]["tracking_peak_f_min_ratio"] < 1.2
     assert list(csv.DictReader(open(out / "comparison.csv")))[0]["controller"] == "joint"
+    problems = figures.check({"controllers_short": figures.controllers_values(data)})
+    assert not problems, "\n".join(problems)
 
 
 def test_compare_rejects_an_unknown_controller(tmp_path):

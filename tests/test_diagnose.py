@@ -14,6 +14,7 @@ import math
 from pathlib import Path
 
 import pytest
+from docs_figures import figures
 
 from mast.analyses.synthesize import TestSpec as Spec
 from mast.analyses.synthesize import synthesize
@@ -21,13 +22,9 @@ from mast.diagnosis import Options, diagnose
 
 ROOT = Path(__file__).resolve().parents[1]
 
-PLAN = (
-    Spec("z", 0.005, 0.6, 2.0, 0.3),
-    Spec("theta", math.radians(0.8), 1.5, 1.0, 0.3),
-    Spec("z", 0.005, 3.0, 1.0, 0.3),
-    Spec("z", 0.005, 7.0, 0.8, 0.3),
-)
-IDENTIFIED = {"tau_c": 0.0718, "J1_scale": 1 / 1.56}
+#: the compact plan and the cases hidden alone are docs/figures.py's: docs/diagnose.md states the figures of these runs
+PLAN = tuple(Spec(*test) for test in figures.DIAGNOSE_PLAN)
+IDENTIFIED = figures.DIAGNOSE_CASES["paper"][0]
 #: a smaller plan of other frequencies, amplitudes and axes: z 1.2 Hz 4 mm, psi 2.5 Hz 0.6 deg, z 5 Hz 3 mm (psi held
 #: out)
 SMALL = (
@@ -76,6 +73,8 @@ def test_paper_case(built_ssp, tmp_path, seed):
     mismatch are named, both recovered within 5 %, the held-out torque gap falls from tens of percent
     to the noise floor."""
     doc = run_case(built_ssp, tmp_path, IDENTIFIED, seed, figures=seed == 1)
+    if seed == figures.DIAGNOSE_CASES["paper"][1]:
+        assert_the_docs_state(doc, "paper")
     effects = named(doc)
     assert set(effects) == {"coulomb", "inertia_motor"}
     assert effects["coulomb"]["parameters"]["tau_c"] == pytest.approx(0.0718, rel=0.05)
@@ -102,26 +101,26 @@ def test_paper_case(built_ssp, tmp_path, seed):
         assert p["J1_scale"] == pytest.approx(effects["inertia_motor"]["parameters"]["J1_scale"], rel=1e-12)
 
 
-CASES = {  # effect key: (truth, parameters to recover)
-    "coulomb": ({"tau_c": 0.035}, ("tau_c",)),
-    # viscous friction: beside an inertia change on one axis, on two plans, in tests/test_diagnose_split.py
-    "stribeck": ({"tau_s": 0.02, "omega_s": 3.0}, ("tau_s", "omega_s")),
-    "inertia_motor": ({"J1_scale": 0.8}, ("J1_scale",)),
-    "inertia_guide": ({"J_guide": 6.8e-4}, ("J_guide",)),
-    "carriage_mass": ({"M_load": 3.5}, ("M_load",)),
-    "offset": ({"tau_offset": 0.01}, ("tau_offset",)),
-    # the measurement lag, as a filter and as a delay: beside another effect in tests/test_diagnose_split.py
-}
+def assert_the_docs_state(doc: dict, case: str) -> None:
+    """docs/diagnose.md's figures of this case ("Every effect alone") are this diagnosis' (`python docs/figures.py
+    --source diagnose_CASE` writes them)."""
+    problems = figures.check({f"diagnose_{case}": figures.diagnose_values(doc)})
+    assert not problems, "\n".join(problems)
 
 
-#: the seed of each case (those it had when the cases were numbered 10, 11, ... in the order of issue 5's library)
-SEEDS = {"coulomb": 10, "stribeck": 12, "inertia_motor": 13, "inertia_guide": 14, "carriage_mass": 15, "offset": 16}
+#: the effects hidden alone (docs/figures.py DIAGNOSE_CASES: the truth and the seed, those the cases had when they were
+#: numbered 10, 11, ... in the order of issue 5's library). Viscous friction: beside an inertia change on one axis, on
+#: two plans, in tests/test_diagnose_split.py; the measurement lag, as a filter and as a delay: beside another effect
+#: there
+CASES = ("coulomb", "stribeck", "inertia_motor", "inertia_guide", "carriage_mass", "offset")
 
 
-@pytest.mark.parametrize("case", list(CASES))
+@pytest.mark.parametrize("case", CASES)
 def test_each_library_effect_hidden_alone_is_named(built_ssp, tmp_path, case):
-    truth, params = CASES[case]
-    doc = run_case(built_ssp, tmp_path, truth, seed=SEEDS[case])
+    truth, seed = figures.DIAGNOSE_CASES[case]
+    params = tuple(truth)
+    doc = run_case(built_ssp, tmp_path, truth, seed=seed)
+    assert_the_docs_state(doc, case)
     effects = named(doc)
     assert len(effects) == 1, effects
     ((key, effect),) = effects.items()
@@ -147,6 +146,8 @@ def test_each_library_effect_hidden_alone_is_named(built_ssp, tmp_path, case):
 )
 def test_nothing_hidden_names_nothing(built_ssp, tmp_path, plan, seed):
     doc = run_case(built_ssp, tmp_path, {}, seed, plan=plan)
+    if plan is PLAN and seed == figures.DIAGNOSE_CASES["nothing"][1]:
+        assert_the_docs_state(doc, "nothing")
     assert doc["named_effects"] == []
     assert doc["verdict"]["status"] == "nothing missing"
     assert doc["unexplained"] is None

@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import importlib.util
 import io
 import os
 import re
@@ -35,6 +34,7 @@ from pathlib import Path
 from typing import Iterator
 
 import pytest
+from docs_figures import figures
 
 from mast import cli
 
@@ -47,17 +47,6 @@ HOW = (
     "mark it on the line before its fence: <!-- run -->, <!-- run: OLD => NEW --> (a short variant) or "
     "<!-- not run: REASON --> (tests/test_docs.py)"
 )
-
-
-def _figures():
-    spec = importlib.util.spec_from_file_location("docs_figures", ROOT / "docs" / "figures.py")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module
-    spec.loader.exec_module(module)
-    return module
-
-
-figures = _figures()
 
 
 @dataclass
@@ -293,6 +282,28 @@ def test_one_meaning_per_option_name_model_is_a_parameter_set():
     assert "--model" in _options(subs["diagnose"]) and "--model" not in _options(subs["replay"])
 
 
+def test_one_meaning_per_option_name_every_out_is_a_folder():
+    """`--out` (and `--truth-out`) name a folder in every subcommand, checked as one before anything runs; the former
+    file spellings (`animate --out PAGE.html`, `synthesize --truth FILE`) are refused, naming the new form."""
+    files = [
+        f"mast {name} {'/'.join(a.option_strings)}"
+        for name, sub in _subparsers(_full_parser()).items()
+        for a in sub._actions
+        if any(o.endswith("-out") or o == "--out" for o in a.option_strings)
+        and a.help is not argparse.SUPPRESS
+        and a.type not in (cli.folder, cli.animate_folder)
+    ]
+    assert not files, f"output options that do not name a folder: {files}"
+    for argv, says in (
+        (["animate", "run", "--out", "page.html"], "mast animate RUN_DIR --out DIR writes DIR/motion.html"),
+        (["synthesize", "--out", "d", "--truth", "t.json"], "--truth was renamed: --truth-out DIR"),
+    ):
+        err = io.StringIO()
+        with contextlib.redirect_stderr(err), pytest.raises(SystemExit) as stop:
+            cli.main(argv)
+        assert stop.value.code == 2 and says in err.getvalue(), err.getvalue()
+
+
 # -- figures ------------------------------------------------------------------------------------------------
 def test_every_marked_figure_is_known():
     problems = [p for p in figures.check({}) if "is not in docs/figures.py" in p]
@@ -335,10 +346,24 @@ def test_marked_hexapod_figures_agree():
 
 
 def test_every_figure_source_is_checked_by_a_test():
-    """A source added to docs/figures.py is compared with the pages somewhere (here, tests/test_reproduce.py or
-    tests/test_hexapod_system.py)."""
-    checked = {"ssd", "designs", "workspace", "workspace_quick", "reproduce", "ratings", "build", "emps", "hexapod"}
-    checked.add("hexapod_run")  # tests/test_hexapod_system.py, on the run it makes
+    """A source added to docs/figures.py is compared with the pages somewhere (here, tests/test_reproduce.py or the
+    tests named beside them)."""
+    checked = {
+        "ssd",
+        "designs",
+        "workspace",
+        "workspace_quick",
+        "reproduce",
+        "ratings",
+        "build",
+        "emps",
+        "hexapod",
+        "hexapod_run",  # tests/test_hexapod_system.py, on the run it makes
+        "animate",  # tests/test_animate.py
+        "controllers_short",  # tests/test_controllers.py
+        "designs_short",  # tests/test_compare.py
+        *(f"diagnose_{case}" for case in figures.DIAGNOSE_CASES),  # tests/test_diagnose.py
+    }
     assert set(figures.SOURCES) == checked, f"sources no test compares: {set(figures.SOURCES) - checked}"
 
 
@@ -351,9 +376,10 @@ def test_the_headline_figures_are_marked():
 
 # -- timings ------------------------------------------------------------------------------------------------
 # A timing (wall time of a command, a real-time factor, "x times faster", cases per second) depends on the machine
-# and its load: a page states one only beside the benchmark that measures it (benchmarks/*.py, `mast bench`,
-# `make bench...`), in the same paragraph or table row. Figures of simulated time (a 10 s run, a 1 ms cycle) are
-# not timings and do not match.
+# and its load: a page states one only with the command that measured it (a benchmark: benchmarks/*.py, `mast
+# bench`, `make bench...`; or the command timed, `` `time mast ...` ``) and the machine it ran on (the project's
+# 2-core development VM, an AMD EPYC), both in the same paragraph or table row. Figures of simulated time (a 10 s
+# run, a 1 ms cycle) are not timings and do not match.
 _SECONDS = r"\d+(?:\.\d+)?\s*(?:s|ms|min|minutes?|seconds?|h|hours?)\b"
 TIMING = re.compile(
     r"\b(?:takes?|took|taking|runs? in|ran in|wall(?:[- ]clock| time)?|elapsed)\b[^.;|]{0,30}?"
@@ -362,25 +388,12 @@ TIMING = re.compile(
     + _SECONDS
     + r"[^.;|]{0,25}?\b(?:on (?:\d+|two|one|a|this|the) (?:cores?|CPUs?|machine|laptop)|wall|"
     r"per (?:case|run|simulation|co-simulation))\b"
-    r"|real[- ]time factor[^.;|]{0,20}?\d|\d+(?:\.\d+)?\s*(?:x|times) (?:faster|slower|quicker)"
+    r"|real[- ]time factor[^.;|]{0,20}?\d|\d+(?:\.\d+)?\s*(?:x|times) (?:faster|slower|quicker|cheaper)"
     r"|\d+(?:\.\d+)?\s*(?:cases|simulations|runs|steps)/s\b",
     re.I,
 )
-BENCHMARK = re.compile(r"benchmarks/\w+\.py|mast bench|make bench")
-#: the bare timings the pages still state (issue 30): a page may hold at most this many; a timing moved beside its
-#: benchmark lowers the count here (the test says so), a new bare one fails
-KNOWN_BARE_TIMINGS = {
-    "README.md": 2,
-    "docs/batch.md": 3,
-    "docs/controller.md": 1,
-    "docs/designs/README.md": 1,
-    "docs/diagnose.md": 6,
-    "docs/emps.md": 1,
-    "docs/interfaces.md": 1,
-    "docs/native.md": 3,
-    "docs/reproduction.md": 2,
-    "docs/using-the-fmus.md": 1,
-}
+MEASURED_BY = re.compile(r"benchmarks/\w+\.py|mast bench|make bench|`time [^`]+`")
+MACHINE = re.compile(r"development (?:VM|machine)|AMD EPYC|shared 2-core machine")
 
 
 def _prose(text: str) -> Iterator[tuple[int, str]]:
@@ -404,32 +417,33 @@ def _prose(text: str) -> Iterator[tuple[int, str]]:
 
 
 def bare_timings(text: str) -> list[tuple[int, str]]:
-    """(line, the timing) of every paragraph or table row of ``text`` stating a timing without naming a benchmark."""
-    return [(n, m[0]) for n, para in _prose(text) if (m := TIMING.search(para)) and not BENCHMARK.search(para)]
+    """(line, the timing) of every paragraph or table row of ``text`` stating a timing without naming both the
+    command that measured it and the machine."""
+    return [
+        (n, m[0])
+        for n, para in _prose(text)
+        if (m := TIMING.search(para)) and not (MEASURED_BY.search(para) and MACHINE.search(para))
+    ]
 
 
 def test_bare_timings_are_refused():
-    """No page states a timing without the benchmark that measures it (beyond the known ones still to move)."""
-    problems = []
-    for page in PAGES:
-        name = str(page.relative_to(ROOT))
-        found = bare_timings(page.read_text())
-        known = KNOWN_BARE_TIMINGS.get(name, 0)
-        if len(found) > known:
-            problems.append(
-                f"{name}: {len(found)} timings with no benchmark named beside them (known {known}): "
-                + "; ".join(f"line {n}: {t!r}" for n, t in found)
-                + " -- name the benchmark (benchmarks/*.py, mast bench) and its machine in the paragraph"
-            )
-        elif len(found) < known:
-            problems.append(f"{name}: {len(found)} bare timings, KNOWN_BARE_TIMINGS says {known}: lower it")
-    assert not problems, "\n".join(problems)
+    """No page states a timing without the command that measured it and the machine it ran on."""
+    problems = [f"{page.relative_to(ROOT)}:{n}: {t!r}" for page in PAGES for n, t in bare_timings(page.read_text())]
+    assert not problems, (
+        "timings stated without the command that measured them (benchmarks/*.py, mast bench, `time COMMAND`) and "
+        "the machine (the 2-core development VM, AMD EPYC) in the same paragraph or table row: name both, or "
+        "state the cost as a count (simulations, steps), or drop it:\n" + "\n".join(problems)
+    )
 
 
 def test_the_timing_check_tells_a_timing_from_simulated_time():
     assert bare_timings("The sweep took 152 s on 2 cores.\n") == [(1, "took 152 s")]
     assert bare_timings("| design | 105 s wall |\n") == [(1, "105 s wall")]
-    assert bare_timings("Native real-time factor 105 (`python benchmarks/realtime.py`).\n") == []
+    vm = "on the 2-core development VM (AMD EPYC)"
+    assert bare_timings(f"Native real-time factor 105 (`python benchmarks/realtime.py`, {vm}).\n") == []
+    assert bare_timings(f"It took 152 s (`time mast reproduce`, {vm}).\n") == []
+    assert bare_timings("It took 152 s (`time mast reproduce`).\n") == [(1, "took 152 s")]  # which machine?
+    assert bare_timings(f"It took 152 s {vm}.\n") == [(1, "took 152 s")]  # measured how?
     assert bare_timings("A 10 s run with a 1 ms position cycle and a 100 us current cycle.\n") == []
     assert bare_timings("```\ntook 3 s\n```\n") == []
 

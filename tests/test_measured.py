@@ -252,6 +252,22 @@ def test_synthesize_cli(built_ssp, tmp_path):
     assert main(["synthesize", built_ssp, "--out", str(out), "--set", "nowhere.x=1", "--direct"]) == 2
 
 
+def test_synthesize_truth_out_is_a_folder_and_the_former_truth_file_is_refused(built_ssp, tmp_path, capsys):
+    """`--truth-out DIR` (a folder like every --out) puts DIR/NAME.truth.json; the former `--truth FILE` stops before
+    anything runs, naming the new option."""
+    from mast.cli import main
+
+    with pytest.raises(SystemExit) as stop:
+        main(["synthesize", built_ssp, "--out", str(tmp_path / "d"), "--truth", str(tmp_path / "t.json")])
+    assert stop.value.code == 2 and "--truth was renamed: --truth-out DIR" in capsys.readouterr().err
+    assert not (tmp_path / "d").exists() and not (tmp_path / "t.json").exists()
+    out = tmp_path / "d"
+    argv = ["--tests", "z:0.005:4:0.2", "--direct", "--workers", "1", "--truth-out", str(tmp_path / "truths")]
+    assert main(["synthesize", built_ssp, "--out", str(out), *argv]) == 0
+    assert json.loads((tmp_path / "truths" / "d.truth.json").read_text())["parameters"] == {}
+    assert not (tmp_path / "d.truth.json").exists()
+
+
 def test_diagnose_refuses_torques_whose_unit_is_a_thousand_times_off_before_searching(built_ssp, tmp_path, capsys):
     """Torques in N.m declared as mN.m pass every plausibility bound of the loader; the nominal model's
     torque (gravity, inertia, friction of the recorded motion) shows the factor 1000 at once."""

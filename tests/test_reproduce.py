@@ -3,14 +3,13 @@ tolerance it is judged by and its source; no prediction is a number a fit used; 
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import math
-import sys
 from dataclasses import replace
 from pathlib import Path
 
 import pytest
+from docs_figures import figures
 
 from mast.analyses import paper
 from mast.analyses.identify import fit_targets
@@ -50,9 +49,6 @@ def test_the_docs_state_this_runs_figures(report):
     """docs/reproduction.md's marked figures (the headline count, the 10 Hz positions) are this run's: a change
     that moves one fails here until the page says the new figure (`python docs/figures.py --source reproduce`)."""
     out, summary = report
-    spec = importlib.util.spec_from_file_location("docs_figures", ROOT / "docs" / "figures.py")
-    figures = sys.modules[spec.name] = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(figures)
     values = figures.reproduce_values(summary, json.loads((out / "paper_table.json").read_text()))
     problems = figures.check({"reproduce": values})
     assert not problems, "\n".join(problems)

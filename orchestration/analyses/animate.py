@@ -36,6 +36,8 @@ from ..core.master import Result
 
 #: frames per second of simulated time (the recorded sample nearest to each frame time is shown)
 FPS = 40.0
+#: the page `mast animate` writes into its --out folder
+PAGE = "motion.html"
 #: decimals of the coordinates [m] written in the page (1 micrometre)
 DECIMALS = 6
 #: the component whose outputs are the pose and whose parameters describe the mechanism
@@ -434,7 +436,7 @@ def write(run_dir: Union[str, Path], out: Union[str, Path], fps: float = FPS) ->
     start = time.perf_counter()
     out = Path(out)
     if out.is_dir():
-        raise AnimateError(f"--out {out}: a folder; expected an HTML file name")
+        raise AnimateError(f"{out}: a folder; expected the page's file name")
     rep = replay(run_dir, fps)
     text = page(rep, fps).encode("utf-8")
     out.parent.mkdir(parents=True, exist_ok=True)

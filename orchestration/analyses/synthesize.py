@@ -243,8 +243,7 @@ def synthesize(
     (out / "meta.json").write_text(json.dumps(meta, indent=2))
     truth_path = Path(truth_path) if truth_path else out.parent / f"{out.name}.truth.json"
     truth_doc = {
-        "note": "The truth behind the synthetic measurements in the folder next to this file. "
-        "The diagnosis never reads it.",
+        "note": f"The truth behind the synthetic measurements in the folder {out}. The diagnosis never reads it.",
         "ssp": str(ssp),
         "parameters": truth,
         "seed": seed,
@@ -256,6 +255,7 @@ def synthesize(
         },
         "tests": [asdict(s) for s in tests],
     }
+    truth_path.parent.mkdir(parents=True, exist_ok=True)
     truth_path.write_text(json.dumps(truth_doc, indent=2))
     log(f"wrote {len(tests)} tests to {out} (meta.json), the truth to {truth_path}")
     return {"folder": out, "truth": truth_path, "clean": clean}
