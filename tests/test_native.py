@@ -246,7 +246,7 @@ def test_calls_out_of_order_return_error_with_a_logged_message_and_the_instance_
         ("MastMechanism", "m_platform", -1.0),
         ("MastActuator", "R", 0.0),
         ("MastController", "k_v", -2.5),
-        ("MastFeedForwardController", "M_load", 0.0),
+        ("MastFeedForwardController", "M_load", -1.0),
         ("MastComputedTorqueController", "k_T", -0.3),
     ],
 )
