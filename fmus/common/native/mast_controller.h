@@ -33,6 +33,12 @@ typedef struct {
     char text[1024];           /* the message of a failed direct kinematics */
 } mast_controller_state;
 
+/* the functions below are the model's own: hidden from the library's exports, so that the runtime's calls into
+ * the generated tick are direct (no PLT) and the compiler may inline between them */
+#if defined(__GNUC__) && !defined(_WIN32)
+#pragma GCC visibility push(hidden)
+#endif
+
 /* ---- generated (<id>_model.c) */
 /* the numbers the parameters fix, into S (schedule, transmission, kinematic model, gains; DriveController._constants) */
 void ctrl_constants(const mast_parameters *p, double *S);
@@ -73,5 +79,9 @@ int mast_controller_initialize(void *state, double *values, const mast_parameter
 int mast_controller_evaluate(void *state, double *values, const mast_parameters *p, char *msg, size_t size);
 int mast_controller_do_step(void *state, double *values, const mast_parameters *p, double t, double h, char *msg,
                             size_t size);
+
+#if defined(__GNUC__) && !defined(_WIN32)
+#pragma GCC visibility pop
+#endif
 
 #endif
