@@ -1065,23 +1065,28 @@ def _joint_controller(block, vrs: Mapping[str, int]) -> tuple[str, str]:
             to_c(inspect.getsource(own), own.__name__) if own else "",
             *constants,
             *(_packing("wsdk", [f"r{k}" for k in range(n)], "", "mast_controller_wsdk") if workspace else []),
-            to_c(start, "ctrl_start", arrays=("values", "S", "R"), calls=("ik_s",), static=False),
+            to_c(start, "start", arrays=("values", "S", "R"), calls=("ik_s",)),
             *[to_c(inspect.getsource(law), law.__name__) for law in laws],
             to_c(
                 laws_source,
-                "ctrl_laws",
+                "laws",
                 arrays=("values", "S", "R", "CUR", "QM", "JK"),
                 calls=("ik_s", "pi_step", "rates", "currents", "wsdk", "ikjac_s"),
                 values=[law.__name__ for law in laws],
-                static=False,
             ),
-            to_c(
-                steps,
-                "ctrl_steps",
-                arrays=("values", "S", "R", "CUR", "QM", "JK"),
-                calls={"laws": "ctrl_laws"},
-                static=False,
-            ),
+            to_c(steps, "steps", arrays=("values", "S", "R", "CUR", "QM", "JK"), calls=("laws",)),
+            "/* the tick for the runtime (static above: the compiler specialises laws for steps, inlines steps) */",
+            "int ctrl_start(double *values, double *S, double *R) { return start(values, S, R); }",
+            "int ctrl_laws(double *values, double *S, double *R, double *CUR, double *QM, double *JK, double n)",
+            "{",
+            "    return laws(values, S, R, CUR, QM, JK, n);",
+            "}",
+            "int ctrl_steps(double *values, double *S, double *R, double *CUR, double *QM, double *JK, double n, "
+            "double m)",
+            "{",
+            "    return steps(values, S, R, CUR, QM, JK, n, m);",
+            "}",
+            "",
         ]
     )
     return body, _controller_config(block, eng, model, workspace)
