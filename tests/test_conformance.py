@@ -12,7 +12,7 @@ from fmus.common.block import Block
 from fmus.mechanism import designs
 from fmus.mechanism.model import MechanismBlock
 from mast.cli import main as cli_main
-from mast.core.designs import DESIGNS
+from mast.core.designs import DESIGNS, MECHANISMS
 from mast.core.ssp import read_ssd
 from mast.hosts.conformance import BlockSubject, check, check_mechanism
 
@@ -21,8 +21,10 @@ def verdicts(results) -> dict:
     return {c.name: c.passed for c in results}
 
 
-@pytest.mark.parametrize("design", DESIGNS, ids=lambda d: d.name)
+@pytest.mark.parametrize("design", DESIGNS + MECHANISMS, ids=lambda d: d.name)
 def test_every_design_passes(design):
+    """The 3PRS designs and the other mechanisms' (3-RPS, 6-UPS, 6-PUS: their own interface and controller
+    kinematics, the description's geometry)."""
     params = read_ssd(design.ssd).components["mechanism"].parameters
     results = check_mechanism("", parameters=params)
     assert all(c.passed for c in results), "\n".join(map(str, results))

@@ -240,3 +240,30 @@ def test_motion_and_admissibility_on_the_system_coordinates(planar):
         check_commands(system, params, home, [[0.6, 0.0]])
     extremes = trajectory_extremes(system, params, 0.0, 1.0)
     assert extremes == ([0.405, 0.0], [[0.405, -0.3], [0.405, 0.3]])
+
+
+def test_the_trajectory_fmu_commands_a_description_s_coordinates_python_and_native(tmp_path):
+    """MastTrajectory built with the 6-PUS's home pose (six coordinates): its Python and native FMUs have the six
+    outputs <c>_cmd and give home + amplitude sin(2 pi f t), written out here."""
+    from fmpy import simulate_fmu
+
+    from fmus.mechanism.designs import description
+    from mast.core.build import FMUS, build_fmu
+    from mast.core.native.build import build_native_fmu
+
+    top = description("6PUS").describe(masses=False).topology
+    amplitudes = [0.001 * (k + 1) for k in range(top.n)]
+    params = {
+        **{f"{c}_home": v for c, v in zip(top.names, top.home)},
+        **{f"amplitude_{c}": a for c, a in zip(top.names, amplitudes)},
+        "frequency": 2.0,
+    }
+    spec = next(s for s in FMUS if s.model_identifier == "MastTrajectory")
+    python = build_fmu(spec, tmp_path, parameters=params)
+    native = build_native_fmu("MastTrajectory", python, tmp_path / "native", params)
+    for fmu in (python, native):
+        result = simulate_fmu(str(fmu), stop_time=0.2, output_interval=0.01)
+        assert result.dtype.names == ("time", *(f"{c}_cmd" for c in top.names))
+        for c, home, a in zip(top.names, top.home, amplitudes):
+            expected = [home + a * math.sin(2.0 * math.pi * 2.0 * t) for t in result["time"]]
+            np.testing.assert_allclose(result[f"{c}_cmd"], expected, rtol=1e-14, atol=1e-16, err_msg=f"{fmu}: {c}")

@@ -8,8 +8,9 @@ referred to the motor shaft through i_R = p / (2 pi i_r) (paper Eq. 1):
 J = J1 + J2 is the actuator's inertia with its transmission taken rigid (Eqs. 20-22; the
 733 Hz transmission mode lies far above any control bandwidth here), tau_f the guide
 friction (Eq. 23, with the Stribeck excess when the set has one), M_load g_guide the
-carriage's weight along the guide, and F_j the force the mechanism needs from actuator j:
-its inverse dynamics (Eq. 32, the engine of ``fmus/mechanism``, with the payload; zero
+carriage's weight along the guide (M_load = 0: an actuator whose moving part is a body of the
+mechanism, as a 3-RPS's or 6-UPS's leg, which is then in F), and F_j the force the mechanism
+needs from actuator j: its inverse dynamics (Eq. 32, the engine of ``fmus/mechanism``, with the payload; zero
 when ``attached`` = 0).
 
 How the controller gets the model: its own copy. The same model code as the mechanism FMU
@@ -26,7 +27,6 @@ inverse dynamics per evaluation, about 0.1 ms.
 
 from __future__ import annotations
 
-import dataclasses
 from typing import Mapping, Optional, Sequence
 
 from ..actuator.model import PARAMETERS as ACTUATOR_PARAMETERS
@@ -42,14 +42,9 @@ _ACTUATOR = {p.name: p for p in ACTUATOR_PARAMETERS}
 #: the model's parameters: the plant's own declarations (bind the plant's sets to the controller)
 MODEL_PARAMETERS = (
     *(_ACTUATOR[n] for n in ("k_T", "J_motor", "J_gearbox", "J_coupling", "J_brake", "J1_scale", "J_guide")),
-    # the model's plant is the 3PRS's actuator, whose carriage rides the belt (an actuator may have none: a 3-RPS's
-    # carriage is a body of its mechanism, docs/designs/3rps.md, where the joint cascade runs)
-    dataclasses.replace(
-        _ACTUATOR["M_load"],
-        minimum=0.0,
-        exclusive=True,
-        description="drive carriage mass (Eqs. 21-22); its weight acts on the guide",
-    ),
+    # the actuator's own carriage on its guide (0: an actuator without one, e.g. a 3-RPS's or 6-UPS's leg, whose
+    # moving part is a body of the mechanism and so in its inverse dynamics F: docs/designs/3rps.md)
+    _ACTUATOR["M_load"],
     *(_ACTUATOR[n] for n in ("tau_c", "omega_c", "b_v", "tau_s", "omega_s", "g_guide")),
     *MASS_PARAMETERS,
     *PAYLOAD_PARAMETERS,

@@ -226,19 +226,26 @@ class FMUSubject(_Subject):
 
 
 def _controller_ik(parameters: Mapping) -> tuple[Callable, str]:
-    """The controller's inverse kinematics for this mechanism: its geometry parameters when it
-    declares them, else the default system's geometry (what the controller would use)."""
-    from fmus.mechanism.designs import KINEMATIC_PARAMETERS_NAMES, kinematic_engine
+    """The controller's inverse kinematics for this mechanism (the description its ``kinematics`` names, the 3PRS
+    without one): its geometry parameters when it declares them all, else the default system's controller geometry
+    (the 3PRS) or the description file's values (another mechanism), with those it declares."""
+    from fmus.mechanism.designs import KINEMATIC_PARAMETERS, description, kinematic_engine, parameters_for
 
     from ..core.ssp import read_ssd
 
-    base = read_ssd(Path(__file__).resolve().parents[2] / "ssp" / "MAST.ssd").components["controller"].parameters
-    own = {k: parameters[k] for k in KINEMATIC_PARAMETERS_NAMES if k in parameters}
-    geometry = {**{k: base[k] for k in KINEMATIC_PARAMETERS_NAMES}, **own}
+    kind = parameters.get("kinematics", "3PRS")
+    names = [p.name for p in parameters_for(KINEMATIC_PARAMETERS, kind) if p.name != "kinematics"]
+    if kind == "3PRS":
+        base = read_ssd(Path(__file__).resolve().parents[2] / "ssp" / "MAST.ssd").components["controller"].parameters
+        fallback = "the default system's controller geometry"
+    else:
+        base, fallback = description(kind).values(), f"the {kind} description file's geometry"
+    own = {k: parameters[k] for k in names if k in parameters}
+    geometry = {"kinematics": kind, **{k: base[k] for k in names}, **own}
     where = (
         "the mechanism's own geometry parameters"
-        if len(own) == len(KINEMATIC_PARAMETERS_NAMES)
-        else "the default system's controller geometry" + (f" with {', '.join(own)} from the mechanism" if own else "")
+        if len(own) == len(names)
+        else fallback + (f" with {', '.join(own)} from the mechanism" if own else "")
     )
     return kinematic_engine(geometry, "controller").ik, where
 
@@ -440,7 +447,7 @@ def check_mechanism(
     if parameters is not None:
         from fmus.mechanism.model import MechanismBlock
 
-        return check(BlockSubject(MechanismBlock, parameters), **kwargs)
+        return check(BlockSubject(MechanismBlock.for_parameters(parameters), parameters), **kwargs)
     if isolate:  # the child's temporary files go to a folder removed here, even if the child crashes
         with tempfile.TemporaryDirectory(prefix="mast_check_") as tmp:
             proc = subprocess.run(

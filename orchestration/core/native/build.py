@@ -82,7 +82,10 @@ def read_variables(model_description: bytes) -> list[Variable]:
 def native_sources(
     identifier: str, block_class: type, parameters: Mapping[str, object], model_description: bytes
 ) -> tuple[dict[str, bytes], bytes]:
-    """({file name: C source}, native modelDescription.xml) for the Python FMU's ``model_description``."""
+    """({file name: C source}, native modelDescription.xml) for the Python FMU's ``model_description``, whose
+    variables are those of ``block_class`` built with ``parameters`` (``Block.for_parameters``: a trajectory of six
+    coordinates, a mechanism of another description)."""
+    block_class = block_class.for_parameters(parameters)
     variables = read_variables(model_description)
     model_file = f"{identifier}_model.c"
     generated = emit_model(identifier, "GUID", block_class, parameters, variables)

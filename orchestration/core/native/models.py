@@ -2,9 +2,10 @@
 
 A native FMU runs on the runtime of fmus/common/native, C written by hand and the same for every model of a kind
 (the FMI glue, the matrix helpers, the direct kinematics for n coordinates, and per kind: mast_actuator.c and
-mast_drive.c, mast_mechanism.c, mast_trajectory.c; ``runtime_files``), against one fixed interface per kind. What
-is generated here for one model is its traced straight-line kernels, its tables (variables, parameter ranges,
-chains and kernels, which parameter feeds which traced input) and the sizes in its ``config.h``.
+mast_drive.c, mast_mechanism.c, mast_controller.c, mast_trajectory.c; ``runtime_files``), against one fixed
+interface per kind. What is generated here for one model is its traced straight-line kernels, its tables
+(variables, parameter ranges, chains and kernels, which parameter feeds which traced input) and the sizes in its
+``config.h``.
 
 Each emitter builds the Python block with the FMU's parameter set and takes its generated
 code, which ``translate.to_c`` writes as C:
@@ -24,7 +25,7 @@ code, which ``translate.to_c`` writes as C:
   bodies, payload, g) as a named input (``designs.traced_engine``), so one C file serves every
   parameter set;
 - controllers (``native_controllers``: the joint cascade, feed-forward, computed torque,
-  workspace): the same traced engine of their own geometry (inverse kinematics; the feed-forward
+  workspace; on mast_controller.c): the same traced engine of their own geometry (inverse kinematics; the feed-forward
   and computed-torque controllers' inverse model: direct kinematics and dynamics; the workspace
   controller's direct kinematics and Jacobian), and the tick the Python controllers run
   (``fmus.controller.tick.tick_sources``: ``DriveController``'s schedule, the IK cache, the
@@ -43,11 +44,12 @@ start, never after a singularity) is ``mechanism.model.restarted_dk``, which ``M
 What the models' generators do not cover is restated in C, held to the Python model by
 tests/test_native.py: in the runtime, the outputs of the actuator at rest, its doubling of its substeps around
 ``mast_expm`` and the allocation of its delay line, the mechanism's restart and messages
-(``MechanismBlock._compute``); still in this module's strings (the next step of issue 25): the one attempt of
-the direct kinematics each controller's C file makes (``dk``: ``mast_dk`` from its guess) and the messages
-around it (``InverseModel.torques``, ``WorkspaceController._wsdk``), the controllers' ``evaluate`` and
-``do_step`` around the tick (once per communication point, the step's checks and messages), and the 3PRS
-design's checks of a parameter set (``designs.describe``'s).
+(``MechanismBlock._compute``), the controllers' life cycle for n axes (mast_controller.c: ``initialize``,
+``evaluate`` once per communication point, ``do_step`` over the ticks of a step, the inverse model's and the
+workspace controller's direct kinematics, ``InverseModel.currents``, ``WorkspaceController._wsdk``, and the
+messages of their failures) on the state layout of ``tick.layout`` (config.h: CTRL_N, CTRL_<FIELD>); still in this
+module: the 3PRS design's checks of a parameter set (``designs.describe``'s) and its cold start (``level_height``),
+which the controllers share with the mechanism.
 
 Parameters: all read at run time, with what depends on them computed at initialisation: the
 trajectory's, the actuator's (n_dof too: the chains 1..``N_MAX`` are all in the binary; a parameter set with
@@ -66,7 +68,7 @@ from dataclasses import dataclass
 from typing import Mapping, Optional, Sequence
 
 from fmus.common.parameters import Param
-from fmus.controller.tick import DK_FAILED, LAYOUT, MODEL_FAILED, SIZE, tick_sources
+from fmus.controller.tick import DK_FAILED, MODEL_FAILED, tick_sources
 
 from .translate import c_double, split_invariants, to_c
 
@@ -198,7 +200,7 @@ def _model_struct(
     return (
         f"const mast_model MAST_MODEL = {{{_literal(identifier)}, {_literal(guid)}, {len(variables)}, VARIABLES, "
         f"{n_inputs}, {n_io}, sizeof({state}), check, {functions}initialize, {functions}do_step, "
-        f"{'evaluate' if feedthrough else 'NULL'}}};\n"
+        f"{functions + 'evaluate' if feedthrough else 'NULL'}}};\n"
     )
 
 
@@ -213,6 +215,7 @@ RUNTIME = {
     "mechanism": ("mast_mechanism.c", "mast_mechanism.h"),
     "trajectory": ("mast_trajectory.c", "mast_trajectory.h"),
     "actuator": ("mast_actuator.c", "mast_actuator.h"),
+    "controller": ("mast_controller.c", "mast_controller.h"),
 }
 #: and a drive's (an actuator with its current loop: DriveActuatorBlock)
 DRIVE = ("mast_drive.c", "mast_drive.h")
@@ -833,64 +836,68 @@ def mechanism_model(
 
 
 # ----------------------------------------------------------------------------------- controller
-def _workspace_dk(block) -> str:
-    """The workspace controller's direct kinematics of the measured joints in C (Engine.dk from the last
-    solution, else from the description's guess, as WorkspaceController._wsdk); ``dk_error`` makes the
-    message of a failure by running it again (the guess is only updated on success)."""
-    eng = block.kinematics
-    coordinates = ", ".join(_literal(n) for n in eng.description.coordinates)
-    W, G, A = LAYOUT["warm"], LAYOUT["guess"], LAYOUT["model_args"]
-    dk_call = _dk_call(eng, "S + " + str(LAYOUT["P"]), "K_COORDINATES", "LENGTHS(S)", "q", "J", "msg, size")
+def _controller_config(block, eng, model: bool, workspace: bool) -> str:
+    """config.h of a native controller (mast_controller.h): its axes, its state's layout (``tick.layout``: each
+    field as CTRL_<FIELD>, the tick counter ``n`` as CTRL_TICK), what it has (an inverse model, the workspace
+    direct kinematics), the tick's failure codes and the traced forces' output count."""
+    import ast
+
+    from fmus.controller.inverse_model import CONSTANTS
+
+    fields = [("TICK" if k == "n" else k.upper(), v) for k, v in type(block).LAYOUT.items()]
+    forces = len(ast.parse(eng._fn("forces").source).body[0].body[-1].value.elts) if model else block.n
     return "\n".join(
         [
-            f"static const char *const K_COORDINATES[] = {{{coordinates}}};",
-            "",
-            "static int wsdk_eval(const double *rho, double *S, double *q, char *msg, size_t size)",
-            "{",
-            "    double J[9];",
-            f"    if (S[{W}] == 1.0) {{ for (int k = 0; k < 3; k++) q[k] = S[{G} + k]; }} else guess(S, rho, q);",
-            f"    int code = {dk_call};",
-            "    if (code) return code;",
-            f"    for (int k = 0; k < 3; k++) S[{G} + k] = q[k];",
-            f"    S[{W}] = 1.0;",
-            "    return 0;",
-            "}",
-            "",
-            "static int wsdk(double r0, double r1, double r2, double *S, double *out)",
-            "{",
-            "    double rho[3] = {r0, r1, r2};",
-            "    char text[1024];",
-            "    return wsdk_eval(rho, S, out, text, sizeof text);",
-            "}",
-            "",
-            "static int dk_error(double *S, double t, char *msg, size_t size)",
-            "{",
-            "    double q[3];",
-            "    char text[1024], r0[40], r1[40], r2[40], ts[40];",
-            f"    wsdk_eval(S + {A}, S, q, text, sizeof text);",
-            '    snprintf(msg, size, "direct kinematics of the measured joints rho = (%s, %s, %s) m failed at t = %s '
-            's: %s", '
-            f"mast_repr(S[{A}], r0, sizeof r0), mast_repr(S[{A} + 1], r1, sizeof r1), mast_repr(S[{A} + 2], r2, "
-            "sizeof r2), "
-            "mast_repr(t, ts, sizeof ts), text);",
-            "    return MAST_KINEMATICS_ERROR;",
-            "}",
+            f"/* Generated by mast build --native for {type(block).__name__} of {', '.join(block.COORDINATES)} "
+            "(mast.core.native.models): do not edit. */",
+            "#ifndef CONFIG_H",
+            "#define CONFIG_H",
+            f"#define CTRL_N {block.n}",
+            *(f"#define CTRL_{name} {value}" for name, value in fields),
+            f"#define CTRL_K_T {CONSTANTS.index('k_T')}   /* k_T's place in inverse_model.CONSTANTS */",
+            f"#define CTRL_INVERSE_MODEL {int(model)}",
+            f"#define CTRL_WORKSPACE {int(workspace)}",
+            f"#define CTRL_FORCES_OUT {forces}",
+            f"#define CTRL_MODEL_FAILED {MODEL_FAILED}",
+            f"#define CTRL_DK_FAILED {DK_FAILED}",
+            "#endif",
             "",
         ]
     )
 
 
-def _joint_controller(block, vrs: Mapping[str, int]) -> str:
+def _packing(name: str, scalars: Sequence[str], first: str, target: str) -> list[str]:
+    """C: ``static int name(double <scalars>..., double *S, double *out)`` (``first``: "S": S comes first) calling
+    ``target(array of the scalars, S, out)``: the tick calls with n numbers, the runtime takes an array."""
+    numbers = ", ".join(f"double {a}" for a in scalars)
+    params = f"double *S, {numbers}, double *out" if first == "S" else f"{numbers}, double *S, double *out"
+    return [
+        f"static int {name}({params})",
+        "{",
+        f"    double a[{len(scalars)}] = {{{', '.join(scalars)}}};",
+        f"    return {target}(a, S, out);",
+        "}",
+        "",
+    ]
+
+
+def _joint_controller(block, vrs: Mapping[str, int]) -> tuple[str, str]:
+    """A controller of ``native_controllers`` on the runtime mast_controller.c: (model file, config.h). Generated:
+    the traced kernels of its kinematic model (and its inverse model's dynamics), the tick translated
+    (``tick_sources``), the functions it calls translated from their own source, what the parameters fix
+    (``ctrl_constants``) and the checks of a parameter set; the tables of its inputs and coordinates."""
     import inspect
 
     from fmus.actuator.model import transmission_ratio
     from fmus.controller.model import cascade_gains, pi_step
+    from fmus.mechanism.topology import POSE_UNITS
 
     if type(block) not in native_controllers():
         raise ValueError(f"{type(block).__name__} has no native form yet")
     model = hasattr(block, "model")  # the feed-forward and computed-torque controllers' inverse model
     cascade = type(block) is not native_controllers()[2]
     workspace = type(block) is native_controllers()[3]
+    L = type(block).LAYOUT
 
     def P(name: str) -> str:
         return f"p->real[{vrs[name]}]"
@@ -903,17 +910,17 @@ def _joint_controller(block, vrs: Mapping[str, int]) -> str:
 
         own_call = (
             f"    feedforward_gains({P('k_ff_v')}, {P('k_ff_tau')}, transmission_ratio({P('p')}, {P('i_r')}), "
-            f"s->S + {LAYOUT['own']});"
+            f"S + {L['own']});"
         )
     elif not cascade:
         from fmus.controller.computed_torque import error_gains as own
 
-        own_call = f"    error_gains({P('omega_n')}, {P('zeta')}, s->S + {LAYOUT['own']});"
+        own_call = f"    error_gains({P('omega_n')}, {P('zeta')}, S + {L['own']});"
     elif workspace:
         from fmus.controller.workspace import pose_gain as own
 
         own_call = "\n".join(
-            f"    s->S[{LAYOUT['own'] + k}] = pose_gain({P('k_v')}, {P(f'k_v_scale_{c}')});"
+            f"    S[{L['own'] + k}] = pose_gain({P('k_v')}, {P(f'k_v_scale_{c}')});"
             for k, c in enumerate(block.COORDINATES)
         )
     # the kinematic model (and the inverse model's dynamics): the engine traced with the controller's
@@ -923,60 +930,126 @@ def _joint_controller(block, vrs: Mapping[str, int]) -> str:
     eng = traced_engine(block.params, block.name, masses=model)
     if tuple(eng.parameters) != TRACED_PARAMETERS:
         raise ValueError(f"{block.name}: the native controller expects the 3PRS traced with {TRACED_PARAMETERS}")
+    n, PO = eng.n, L["P"]
     ik, fns = eng._fn("ik"), [eng._fn("ik"), eng._fn("ikjac")] + ([eng._fn("forces")] if model else [])
     checks = {k: v for fn in fns for k, v in fn.namespace.items() if k.startswith("_check")}
-    PO = LAYOUT["P"]
     args = ", ".join(f"S[{PO + k}]" for k in range(len(TRACED_PARAMETERS)))
+    q = [f"q{k}" for k in range(n)]
     start, laws_source, steps = tick_sources(type(block))  # pose mode only: the modes are no FMU variables
-    inputs = ", ".join(_literal(n) for n in block.INPUTS)
     ratios = "".join(
-        f"    if (ratio_check({_literal(name)}, {P(name)}, {P('T_cur')}, msg, size)) return MAST_PARAMETER_ERROR;\n"
+        f"    if (mast_controller_ratio_check({_literal(name)}, {P(name)}, {P('T_cur')}, msg, size)) "
+        "return MAST_PARAMETER_ERROR;\n"
         for name in ("T_pos", "T_vel")
     )
-    return "\n".join(
+    table = lambda items: ", ".join(_literal(v) for v in items)  # noqa: E731
+    coordinates = table(eng.description.coordinates)
+    dk = _dk_call(eng, f"S + {PO}", "CTRL_COORDINATES", f"S + {L['lengths']}", "q", "J", "msg, size")
+    inverse_model = []
+    if model:
+        from fmus.actuator.model import guide_friction
+        from fmus.controller.inverse_model import CONSTANTS, motor_torque
+        from fmus.controller.reference import rates
+        from fmus.mechanism.model import SINGULAR, restarted_dk
+
+        params = ", ".join(f"S[{PO + k}]" for k in range(len(eng.parameters)))
+        J = ", ".join(f"J[{k}]" for k in range(n * n))
+        motion = ", ".join(f"a[{k}]" for k in range(n, 3 * n))
+        inverse_model = [
+            _model_constants_c(vrs),
+            to_c(eng._fn("forces").source, "forces", checks=checks),
+            "int ctrl_forces(const double *q, const double *J, const double *a, const double *S, double *F)",
+            "{",
+            f"    return forces({', '.join(f'q[{k}]' for k in range(n))}, {J}, {motion}, {params}, F);",
+            "}",
+            "",
+            to_c(inspect.getsource(rates), "rates"),
+            to_c(inspect.getsource(guide_friction), "guide_friction"),
+            to_c(inspect.getsource(motor_torque), "motor_torque", values=("guide_friction",)),
+            "double ctrl_motor_torque(double rho_dot, double rho_ddot, double F, const double *c)",
+            "{",
+            "    return motor_torque(rho_dot, rho_ddot, F, "
+            f"{', '.join(f'c[{k}]' for k in range(CONSTANTS.index('k_T')))});",
+            "}",
+            "",
+            to_c(
+                inspect.getsource(restarted_dk),
+                "ctrl_restarted_dk",
+                arrays=("rho", "S", "out"),
+                calls={"dk": "mast_controller_dk"},
+                constants={"SINGULAR": SINGULAR},
+                static=False,
+            ),
+            *_packing("currents", [f"a{k}" for k in range(3 * n)], "", "mast_controller_currents"),
+        ]
+    constants = [
+        "/* DriveController._constants: the schedule, the transmission, the kinematic model and the gains from the",
+        "   parameters (checked by model_check) */",
+        "void ctrl_constants(const mast_parameters *p, double *S)",
+        "{",
+        f"    S[{L['T_cur']}] = {P('T_cur')};",
+        f"    S[{L['T_pos']}] = {P('T_pos')};",
+        f"    S[{L['N_pos']}] = nearbyint({P('T_pos')} / {P('T_cur')});",
+        f"    S[{L['N_vel']}] = nearbyint({P('T_vel')} / {P('T_cur')});",
+        f"    S[{L['i_R']}] = transmission_ratio({P('p')}, {P('i_r')});",
+        f"    traced_parameters(p, S + {PO});",
+        f"    S[{L['cb']}] = cos(S[{PO + TRACED_PARAMETERS.index('beta')}]);",
+        f"    S[{L['sb']}] = sin(S[{PO + TRACED_PARAMETERS.index('beta')}]);",
+        *(
+            [f"    S[{L['attached']}] = p->integer[{vrs['attached']}];", f"    model_constants(p, S + {L['model']});"]
+            if model
+            else []
+        ),
+        f"    S[{L['lengths']}] = 1.0; S[{L['lengths'] + 1}] = S[{PO + 1}]; S[{L['lengths'] + 2}] = S[{PO + 1}];",
+        "    /* the gains, by the controller's own functions */",
+        *(
+            [
+                f"    cascade_gains({P('k_v')}, {P('k_p')}, {P('k_i')}, {P('T_vel')}, "
+                f"transmission_ratio({P('p')}, {P('i_r')}), S + {L['gains']});"
+            ]
+            if cascade
+            else []
+        ),
+        f"    S[{L['gains'] + 3}] = {P('i_max')};",
+        *([own_call] if own_call else []),
+        "}",
+        "",
+    ]
+    body = "\n".join(
         [
-            f"typedef struct {{ double S[{SIZE}]; double before[{SIZE}]; double evaluated; char text[1024]; }} State;",
-            "/* before: S before the laws of the tick evaluated; text: the message of a failed direct kinematics */",
-            "",
-            f"#define LENGTHS(S) ((S) + {SIZE - 3})   /* Engine.lengths (1, r, r) [m]: the margins compare motions */",
-            "",
             _traced_parameters_c(vrs),
             to_c(ik.source, "ik", checks=checks),
-            "static int ik_s(double *S, double q0, double q1, double q2, double *out)",
+            f"static int ik_s(double *S, {', '.join(f'double {a}' for a in q)}, double *out)",
             "{",
-            f"    return ik(q0, q1, q2, {args}, out);",
+            f"    return ik({', '.join(q)}, {args}, out);",
             "}",
             "",
             _ikjac_c(eng, "ikjac", checks),
-            "static int ikjac_s(double *S, double q0, double q1, double q2, double *out)",
+            f"static int ikjac_s(double *S, {', '.join(f'double {a}' for a in q)}, double *out)",
             "{",
-            f"    return ikjac_p(S + {PO}, q0, q1, q2, out);",
+            f"    return ikjac_p(S + {PO}, {', '.join(q)}, out);",
             "}",
             "",
             _level_height_c(),
             "/* PRS3.guess: the level pose for the mean carriage position (the direct kinematics' cold start) */",
-            "static void guess(const double *S, const double *rho, double *out)",
+            "void ctrl_guess(const double *S, const double *rho, double *out)",
             "{",
-            f"    out[0] = level_height(rho[0], rho[1], rho[2], S[{PO}], S[{PO + 1}], S[{PO + 2}], S[{LAYOUT['cb']}], "
-            f"S[{LAYOUT['sb']}]);",
+            f"    out[0] = level_height(rho[0], rho[1], rho[2], S[{PO}], S[{PO + 1}], S[{PO + 2}], S[{L['cb']}], "
+            f"S[{L['sb']}]);",
             "    out[1] = 0.0;",
             "    out[2] = 0.0;",
             "}",
             "",
             _why_function("why", checks),
-            "/* DriveController._ratio: a loop's cycle time an integer multiple of T_cur */",
-            "static int ratio_check(const char *name, double T, double T_cur, char *msg, size_t size)",
+            "const char *ctrl_why(int check) { return why(check); }",
+            "",
+            "int ctrl_dk(const double *rho, double *S, double *q, double *J, char *msg, size_t size)",
             "{",
-            "    char a[40], b[40];",
-            "    double ratio = T / T_cur, n = nearbyint(ratio);",
-            "    if (n < 1.0 || fabs(ratio - n) > 1e-6 * n) {",
-            "        snprintf(msg, size, \"parameter '%s' = %s s must be an integer multiple of T_cur = %s s (ratio "
-            '%.9g)", '
-            "name, mast_repr(T, a, sizeof a), mast_repr(T_cur, b, sizeof b), ratio);",
-            "        return 1;",
-            "    }",
-            "    return 0;",
+            f"    return {dk};",
             "}",
+            "",
+            f"const char *const CTRL_INPUT_NAMES[] = {{{table(block.INPUTS)}}};",
+            f"const char *const CTRL_COORDINATES[] = {{{coordinates}}};",
+            f"const char *const CTRL_UNITS[] = {{{table(POSE_UNITS[c] for c in block.COORDINATES)}}};",
             "",
             "/* the controller's checks of its parameter set after the ranges (DriveController, designs.describe) */",
             "static int model_check(const mast_parameters *p, char *msg, size_t size)",
@@ -988,10 +1061,11 @@ def _joint_controller(block, vrs: Mapping[str, int]) -> str:
             to_c(inspect.getsource(pi_step), "pi_step"),
             to_c(inspect.getsource(transmission_ratio), "transmission_ratio"),
             to_c(inspect.getsource(cascade_gains), "cascade_gains"),
-            _inverse_model(eng, vrs) if model else "",
+            *inverse_model,
             to_c(inspect.getsource(own), own.__name__) if own else "",
+            *constants,
+            *(_packing("wsdk", [f"r{k}" for k in range(n)], "", "mast_controller_wsdk") if workspace else []),
             to_c(start, "start", arrays=("values", "S", "R"), calls=("ik_s",)),
-            _workspace_dk(block) if workspace else "",
             *[to_c(inspect.getsource(law), law.__name__) for law in laws],
             to_c(
                 laws_source,
@@ -1001,140 +1075,21 @@ def _joint_controller(block, vrs: Mapping[str, int]) -> str:
                 values=[law.__name__ for law in laws],
             ),
             to_c(steps, "steps", arrays=("values", "S", "R", "CUR", "QM", "JK"), calls=("laws",)),
-            f"static const char *const INPUT_NAMES[] = {{{inputs}}};",
-            "",
-            "static int input_error(const double *values, double t, char *msg, size_t size)",
+            "/* the tick for the runtime (static above: the compiler specialises laws for steps, inlines steps) */",
+            "int ctrl_start(double *values, double *S, double *R) { return start(values, S, R); }",
+            "int ctrl_laws(double *values, double *S, double *R, double *CUR, double *QM, double *JK, double n)",
             "{",
-            "    char v[40], w[40];",
-            "    for (int k = 0; k < 9; k++) {",
-            "        if (!isfinite(values[k])) {",
-            "            snprintf(msg, size, \"input '%s' = %s is not finite at t = %s s\", INPUT_NAMES[k], "
-            "mast_repr(values[k], v, sizeof v), mast_repr(t, w, sizeof w));",
-            "            return MAST_MODEL_ERROR;",
-            "        }",
-            "    }",
-            "    return MAST_OK;",
+            "    return laws(values, S, R, CUR, QM, JK, n);",
             "}",
-            "",
-            "static int ik_error(const double *values, double t, int check, char *msg, size_t size)",
+            "int ctrl_steps(double *values, double *S, double *R, double *CUR, double *QM, double *JK, double n, "
+            "double m)",
             "{",
-            "    char a[40], b[40], c[40], d[40];",
-            '    snprintf(msg, size, "inverse kinematics of the pose command z = %s m, psi = %s rad, theta = %s rad '
-            "failed "
-            'at t = %s s: %s", mast_repr(values[0], a, sizeof a), mast_repr(values[1], b, sizeof b), '
-            "mast_repr(values[2], c, sizeof c), mast_repr(t, d, sizeof d), why(check));",
-            "    return MAST_KINEMATICS_ERROR;",
-            "}",
-            "",
-            "static int initialize(void *state, double *values, const mast_parameters *p, double t0, char *msg, "
-            "size_t size)",
-            "{",
-            "    State *s = state;",
-            "    double R[3];",
-            f"    for (int k = 0; k < {SIZE}; k++) s->S[k] = 0.0;",
-            "    s->evaluated = -1.0;",
-            f"    s->S[{LAYOUT['t0']}] = t0;",
-            "    /* the schedule, the transmission and the kinematic model from the parameters (checked by "
-            "model_check) */",
-            f"    s->S[{LAYOUT['T_cur']}] = {P('T_cur')};",
-            f"    s->S[{LAYOUT['T_pos']}] = {P('T_pos')};",
-            f"    s->S[{LAYOUT['N_pos']}] = nearbyint({P('T_pos')} / {P('T_cur')});",
-            f"    s->S[{LAYOUT['N_vel']}] = nearbyint({P('T_vel')} / {P('T_cur')});",
-            f"    s->S[{LAYOUT['i_R']}] = transmission_ratio({P('p')}, {P('i_r')});",
-            f"    traced_parameters(p, s->S + {PO});",
-            f"    s->S[{LAYOUT['cb']}] = cos(s->S[{PO + TRACED_PARAMETERS.index('beta')}]);",
-            f"    s->S[{LAYOUT['sb']}] = sin(s->S[{PO + TRACED_PARAMETERS.index('beta')}]);",
-            *(
-                [
-                    f"    s->S[{LAYOUT['attached']}] = p->integer[{vrs['attached']}];",
-                    f"    model_constants(p, s->S + {LAYOUT['model']});",
-                ]
-                if model
-                else []
-            ),
-            f"    LENGTHS(s->S)[0] = 1.0; LENGTHS(s->S)[1] = s->S[{PO + 1}]; LENGTHS(s->S)[2] = s->S[{PO + 1}];",
-            "    /* the gains from the parameters, by the controller's own functions */",
-            *(
-                [
-                    f"    cascade_gains({P('k_v')}, {P('k_p')}, {P('k_i')}, {P('T_vel')}, "
-                    f"transmission_ratio({P('p')}, {P('i_r')}), s->S + {LAYOUT['gains']});"
-                ]
-                if cascade
-                else []
-            ),
-            f"    s->S[{LAYOUT['gains'] + 3}] = {P('i_max')};",
-            *([own_call] if own_call else []),
-            "    if (input_error(values, t0, msg, size)) return MAST_MODEL_ERROR;",
-            "    int code = start(values, s->S, R);",
-            "    return code ? ik_error(values, t0, -code, msg, size) : MAST_OK;",
-            "}",
-            "",
-            "/* the message of the tick's failure code (DriveController._failed) */",
-            "static int tick_error(State *s, double *values, int code, char *msg, size_t size)",
-            "{",
-            f"    double T = s->S[{LAYOUT['T_cur']}], t0 = s->S[{LAYOUT['t0']}];",
-            *([f"    if (code == {MODEL_FAILED}) return model_error(s->S, msg, size);"] if model else []),
-            *(
-                [f"    if (code == {DK_FAILED}) return dk_error(s->S, t0 + s->S[{LAYOUT['failed']}] * T, msg, size);"]
-                if workspace
-                else []
-            ),
-            f"    return ik_error(values, t0 + s->S[{LAYOUT['failed']}] * T, -code, msg, size);",
-            "}",
-            "",
-            "/* DriveController._laws of tick n (the outputs too); 0, or an error code with msg */",
-            "static int run_laws(State *s, double *values, double n, char *msg, size_t size)",
-            "{",
-            "    double R[3], CUR[3], QM[3], JK[12];",
-            "    int code = laws(values, s->S, R, CUR, QM, JK, n);",
-            "    return code ? tick_error(s, values, code, msg, size) : MAST_OK;",
-            "}",
-            "",
-            "/* DriveController.evaluate: the laws of the communication point's tick, once per tick */",
-            "static int evaluate(void *state, double *values, const mast_parameters *p, char *msg, size_t size)",
-            "{",
-            "    State *s = state;",
-            "    (void)p;",
-            f"    double n = s->S[{LAYOUT['n']}];",
-            "    if (s->evaluated == n) memcpy(s->S, s->before, sizeof s->S);",
-            "    else { memcpy(s->before, s->S, sizeof s->S); s->evaluated = n; }",
-            f"    double t = s->S[{LAYOUT['t0']}] + n * s->S[{LAYOUT['T_cur']}];",
-            "    double sum = 0.0;",
-            "    for (int k = 0; k < 9; k++) sum += values[k];",
-            "    if (sum - sum != 0.0 && input_error(values, t, msg, size)) return MAST_MODEL_ERROR;",
-            "    return run_laws(s, values, n, msg, size);",
-            "}",
-            "",
-            "static int do_step(void *state, double *values, const mast_parameters *p, double t, double h, char *msg, "
-            "size_t size)",
-            "{",
-            "    State *s = state;",
-            "    char a[40], b[40], c[40];",
-            f"    double T = s->S[{LAYOUT['T_cur']}];",
-            "    double m = nearbyint(h / T);",
-            "    if (m < 1.0 || fabs(h - m * T) > 1e-6 * T) {",
-            '        snprintf(msg, size, "step size h = %s s is not a positive integer multiple of T_cur = %s s", '
-            "mast_repr(h, a, sizeof a), mast_repr(T, b, sizeof b));",
-            "        return MAST_MODEL_ERROR;",
-            "    }",
-            f"    double n = s->S[{LAYOUT['n']}], t0 = s->S[{LAYOUT['t0']}];",
-            "    if (fabs(t - (t0 + n * T)) > 0.5 * T) {",
-            '        snprintf(msg, size, "do_step at t = %s s, but tick %.0f belongs to t = %s s (steps must be '
-            "contiguous "
-            'from initialize)", mast_repr(t, a, sizeof a), n, mast_repr(t0 + n * T, c, sizeof c));',
-            "        return MAST_MODEL_ERROR;",
-            "    }",
-            "    int code;",
-            "    if (s->evaluated != n && (code = evaluate(s, values, p, msg, size))) return code;",
-            "    double R[3], CUR[3], QM[3], JK[12];",
-            "    if ((code = steps(values, s->S, R, CUR, QM, JK, n, m)))",
-            "        return tick_error(s, values, code, msg, size);",
-            f"    s->S[{LAYOUT['n']}] = n + m;",
-            "    return MAST_OK;",
+            "    return steps(values, S, R, CUR, QM, JK, n, m);",
             "}",
             "",
         ]
     )
+    return body, _controller_config(block, eng, model, workspace)
 
 
 def _model_constants_c(vrs: Mapping[str, int]) -> str:
@@ -1175,102 +1130,6 @@ def _model_constants_c(vrs: Mapping[str, int]) -> str:
             "static void model_constants(const mast_parameters *p, double *out)",
             "{",
             f"    traced_model_constants({args}, out);",
-            "}",
-            "",
-        ]
-    )
-
-
-def _inverse_model(eng, vrs: Mapping[str, int]) -> str:
-    """FeedForwardController's inverse model (InverseModel.currents) in C: the engine's direct
-    kinematics (``mechanism.model.restarted_dk``, translated, as InverseModel.torques runs it) and traced
-    dynamics (``eng``, the traced engine of the controller's parameters: ``ikjac_p`` and ``forces`` with them read at
-    initialisation; no forces when ``attached`` = 0), then ``motor_torque`` and ``guide_friction`` translated from their
-    own source, with the actuator's constants computed at initialisation (``model_constants``, into
-    S[model]). ``currents`` is what the tick calls; ``model_error`` makes the message of a failed
-    evaluation by running it again (the guess is only updated on success, so it fails the same way)."""
-    import inspect
-
-    from fmus.actuator.model import guide_friction
-    from fmus.controller.inverse_model import CONSTANTS, motor_torque
-    from fmus.controller.reference import rates
-    from fmus.mechanism.model import SINGULAR, restarted_dk
-
-    MC = LAYOUT["model"]
-    torque = ", ".join(f"S[{MC + k}]" for k in range(CONSTANTS.index("k_T")))
-    W, G, A, PO = LAYOUT["warm"], LAYOUT["guess"], LAYOUT["model_args"], LAYOUT["P"]
-    params = ", ".join(f"S[{PO + k}]" for k in range(len(eng.parameters)))
-    dk = _dk_call(eng, f"S + {PO}", "M_COORDINATES", "LENGTHS(S)", "out", "out + 3", "s->text, sizeof s->text")
-    coordinates = ", ".join(_literal(n) for n in eng.description.coordinates)
-    checks = {k: v for k, v in eng._fn("forces").namespace.items() if k.startswith("_check")}
-    return "\n".join(
-        [
-            _model_constants_c(vrs),
-            to_c(eng._fn("forces").source, "forces", checks=checks),
-            to_c(inspect.getsource(rates), "rates"),
-            to_c(inspect.getsource(guide_friction), "guide_friction"),
-            to_c(inspect.getsource(motor_torque), "motor_torque", values=("guide_friction",)),
-            f"static const char *const M_COORDINATES[] = {{{coordinates}}};",
-            "",
-            "/* mechanism.model.dk for the inverse model: one attempt from its last solution (warm), else from the",
-            "   description's guess; S: the instance's state (State's first member), out: q, then J = dq/drho */",
-            "static int dk(double *rho, double warm, double *S, double *out)",
-            "{",
-            "    State *s = (State *)S;",
-            f"    if (warm == 1.0) {{ for (int k = 0; k < 3; k++) out[k] = S[{G} + k]; }} else guess(S, rho, out);",
-            f"    return {dk};",
-            "}",
-            "",
-            to_c(
-                inspect.getsource(restarted_dk),
-                "restarted_dk",
-                arrays=("rho", "S", "out"),
-                calls=("dk",),
-                constants={"SINGULAR": SINGULAR},
-            ),
-            "/* InverseModel.currents at a = (rho, rho_dot, rho_ddot); 0, or an error code with msg */",
-            "static int model_eval(const double *a, double *S, double *out, char *msg, size_t size)",
-            "{",
-            "    double qJ[12], *q = qJ, *J = qJ + 3, F[12] = {0.0, 0.0, 0.0};",
-            f"    if (S[{LAYOUT['attached']}] != 0.0) {{",
-            f"        int code = restarted_dk((double *)a, S[{W}], S, qJ);   /* rho: a[0..2] */",
-            "        if (code) {",
-            '            snprintf(msg, size, "%s", ((State *)S)->text);',
-            "            return code;",
-            "        }",
-            "        code = forces(q[0], q[1], q[2], J[0], J[1], J[2], J[3], J[4], J[5], J[6], J[7], J[8], "
-            f"a[3], a[4], a[5], a[6], a[7], a[8], {params}, F);",
-            "        if (code) {",
-            '            snprintf(msg, size, "%s", why(-code));',
-            "            return MAST_KINEMATICS_ERROR;",
-            "        }",
-            f"        for (int k = 0; k < 3; k++) S[{G} + k] = q[k];",
-            f"        S[{W}] = 1.0;",
-            "    }",
-            f"    for (int j = 0; j < 3; j++) out[j] = motor_torque(a[3 + j], a[6 + j], F[j], {torque}) / "
-            f"S[{MC + CONSTANTS.index('k_T')}];",
-            "    return 0;",
-            "}",
-            "",
-            "static int currents(double r0, double r1, double r2, double v0, double v1, double v2, double a0, double "
-            "a1, "
-            "double a2, double *S, double *out)",
-            "{",
-            "    double a[9] = {r0, r1, r2, v0, v1, v2, a0, a1, a2};",
-            "    char text[1024];",
-            "    return model_eval(a, S, out, text, sizeof text);",
-            "}",
-            "",
-            "static int model_error(double *S, char *msg, size_t size)",
-            "{",
-            "    double out[3], a[9];",
-            "    char text[1024], r0[40], r1[40], r2[40];",
-            f"    for (int k = 0; k < 9; k++) a[k] = S[{A} + k];",
-            "    model_eval(a, S, out, text, sizeof text);",
-            '    snprintf(msg, size, "inverse dynamic model at rho = (%s, %s, %s) m: %s", mast_repr(a[0], r0, sizeof '
-            "r0), "
-            "mast_repr(a[1], r1, sizeof r1), mast_repr(a[2], r2, sizeof r2), text);",
-            "    return MAST_KINEMATICS_ERROR;",
             "}",
             "",
         ]
@@ -1366,7 +1225,8 @@ def emit_model(
         body, files["config.h"] = _mechanism(block, vrs)
         more, state, functions = '#include "mast_mechanism.h"\n', "mast_mechanism_state", "mast_mechanism_"
     elif kind == "controller":
-        body = _joint_controller(block, vrs)
+        body, files["config.h"] = _joint_controller(block, vrs)
+        more, state, functions = '#include "mast_controller.h"\n', "mast_controller_state", "mast_controller_"
     elif kind == "trajectory":
         body = _trajectory(block, vrs)
         more, state, functions = '#include "mast_trajectory.h"\n', "mast_trajectory_state", "mast_trajectory_"
