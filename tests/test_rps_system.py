@@ -272,9 +272,11 @@ def test_compare_swaps_the_3rps_fmu_into_its_own_system(rps_system, tmp_path):
         assert comps["actuator_2"].parameters["M_load"] == 0.0 and comps["actuator_2"].parameters["rho_0"] > 0.4
 
 
-def test_the_native_build_skips_the_3rps_until_its_runtime_lands():
-    from mast.core.designs import design, without_native_form
+def test_the_native_build_skips_the_3rps_controller_until_its_runtime_lands():
+    """The mechanisms of every description have a native form; the controllers of another mechanism than the 3PRS
+    not yet (their systems' native SSPs carry their Python FMUs: tests/test_native_mechanisms.py)."""
+    from mast.core.designs import without_native_form
+    from mast.core.native.build import has_native_form
 
-    ssds, fmus = without_native_form()
-    assert ssds == [design(name).ssd for name in ("3RPS", "6UPS", "6PUS")]
-    assert fmus == [f"Mast{name}{role}" for name in ("3RPS", "6UPS", "6PUS") for role in ("", "Controller")]
+    assert without_native_form() == [f"Mast{name}Controller" for name in ("3RPS", "6UPS", "6PUS")]
+    assert all(has_native_form(f"Mast{name}") for name in ("3RPS", "6UPS", "6PUS"))

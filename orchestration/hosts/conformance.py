@@ -230,10 +230,13 @@ def _controller_ik(parameters: Mapping) -> tuple[Callable, str]:
     declares them, else the default system's geometry (what the controller would use)."""
     from fmus.mechanism.designs import KINEMATIC_PARAMETERS_NAMES, kinematic_engine
 
+    from ..analyses.compare import kinematic_names
     from ..core.ssp import read_ssd
 
+    own = {k: parameters[k] for k in kinematic_names(parameters) if k in parameters}
+    if len(own) == len(kinematic_names(parameters)):  # every design's FMU declares its geometry (a 3-RPS's too)
+        return kinematic_engine(own, "controller").ik, "the mechanism's own geometry parameters"
     base = read_ssd(Path(__file__).resolve().parents[2] / "ssp" / "MAST.ssd").components["controller"].parameters
-    own = {k: parameters[k] for k in KINEMATIC_PARAMETERS_NAMES if k in parameters}
     geometry = {**{k: base[k] for k in KINEMATIC_PARAMETERS_NAMES}, **own}
     where = (
         "the mechanism's own geometry parameters"
