@@ -254,7 +254,8 @@ def test_the_3rps_block_s_power_balance_along_smooth_motions():
 def test_compare_swaps_the_3rps_fmu_into_its_own_system(rps_system, tmp_path):
     """`mast compare --mechanism .../Mast3RPS.fmu`: the FMU goes into ssp/MAST_3RPS.ssd (its controller and actuators
     are the 3-RPS's), its controller bound to the FMU's geometry (R_b, r, alpha_k, not the 3PRS's names)."""
-    from mast.analyses.compare import kinematic_names, own_system, prepare
+    from fmus.mechanism.designs import kinematic_names
+    from mast.analyses.compare import own_system, prepare
     from mast.core.components import fmu_parameters
     from mast.core.designs import design
     from mast.core.ssp import SSPArchive

@@ -48,6 +48,7 @@ __all__ = [
     "description_parameters",
     "engine",
     "kinematic_engine",
+    "kinematic_names",
     "level_height",
     "parameters_for",
     "traced_engine",
@@ -161,6 +162,16 @@ def parameters_for(schema: Sequence[Param], kind: object) -> tuple[Param, ...]:
         else:
             out.append(p)
     return tuple(out)
+
+
+def kinematic_names(params: Mapping[str, object]) -> tuple[str, ...]:
+    """The geometry parameters of the mechanism ``params`` describe (``kinematics`` and its description's kinematic
+    ones: the 3PRS's ``KINEMATIC_PARAMETERS_NAMES``, the 3-RPS's R_b, r, alpha_k), which the controller's model
+    takes."""
+    kind = params.get("kinematics", "3PRS")
+    if isinstance(kind, str) and isinstance(KINEMATICS.get(kind), Path):
+        return ("kinematics", *description(kind).kinematic)
+    return KINEMATIC_PARAMETERS_NAMES
 
 
 #: the names of the parameters the 3PRS traces as inputs (``traced_engine``), in argument order: the parameters

@@ -228,9 +228,8 @@ class FMUSubject(_Subject):
 def _controller_ik(parameters: Mapping) -> tuple[Callable, str]:
     """The controller's inverse kinematics for this mechanism: its geometry parameters when it
     declares them, else the default system's geometry (what the controller would use)."""
-    from fmus.mechanism.designs import KINEMATIC_PARAMETERS_NAMES, kinematic_engine
+    from fmus.mechanism.designs import KINEMATIC_PARAMETERS_NAMES, kinematic_engine, kinematic_names
 
-    from ..analyses.compare import kinematic_names
     from ..core.ssp import read_ssd
 
     own = {k: parameters[k] for k in kinematic_names(parameters) if k in parameters}

@@ -18,9 +18,11 @@ code, which ``translate.to_c`` writes as C:
   (``substep_rule``, ``substeps_enough``); the torque measurement's filter and delay line
   (sensor.py: ``filter_coefficients``, ``delay_split``, ``measurement_step``, ``relayout``); a drive's
   ``pi_step`` and ``current_gains``;
-- mechanism (every design): the engine's traced functions (inverse kinematics with its
+- mechanism (every description, ``mechanism_model``): the engine's traced functions (inverse kinematics with its
   Jacobian, inverse dynamics, pose), driven by the engine's Newton direct kinematics
-  (mast_dk.c); the engine traces the description with every parameter (geometry,
+  (mast_dk.c), and what the parameters alone give as traced kernels with their tables (the cold start,
+  ``Described.guess_rule``; the platform points of the lengths; the bodies; ``designs.CHECKS``), the checks and
+  the messages in mast_mechanism.c; the engine traces the description with every parameter (geometry,
   bodies, payload, g) as a named input (``designs.traced_engine``), so one C file serves every
   parameter set;
 - controllers (``native_controllers``: the joint cascade, feed-forward, computed torque,
@@ -43,11 +45,12 @@ start, never after a singularity) is ``mechanism.model.restarted_dk``, which ``M
 What the models' generators do not cover is restated in C, held to the Python model by
 tests/test_native.py: in the runtime, the outputs of the actuator at rest, its doubling of its substeps around
 ``mast_expm`` and the allocation of its delay line, the mechanism's restart and messages
-(``MechanismBlock._compute``); still in this module's strings (the next step of issue 25): the one attempt of
-the direct kinematics each controller's C file makes (``dk``: ``mast_dk`` from its guess) and the messages
-around it (``InverseModel.torques``, ``WorkspaceController._wsdk``), the controllers' ``evaluate`` and
-``do_step`` around the tick (once per communication point, the step's checks and messages), and the 3PRS
-design's checks of a parameter set (``designs.describe``'s).
+(``MechanismBlock._compute``) and its checks of a parameter set (``designs.describe``'s, over tables); still in
+this module's strings (the next step of issue 25): the one attempt of the direct kinematics each controller's C
+file makes (``dk``: ``mast_dk`` from its guess) and the messages around it (``InverseModel.torques``,
+``WorkspaceController._wsdk``), the controllers' ``evaluate`` and ``do_step`` around the tick (once per
+communication point, the step's checks and messages), and the controllers' copy of the 3PRS design's checks of
+a parameter set (``_describe_checks_c``).
 
 Parameters: all read at run time, with what depends on them computed at initialisation: the
 trajectory's, the actuator's (n_dof too: the chains 1..``N_MAX`` are all in the binary; a parameter set with
