@@ -69,7 +69,7 @@ def test_a_body_the_parameters_make_wrong_is_refused_with_the_python_fmus_messag
     messages = []
     for fmu in (built_native / "fmus" / "Mast3RPS.fmu", built_native / "fmus" / "native" / "Mast3RPS.fmu"):
         inst = Instance(fmu, "legs")
-        assert inst.start(tuned) == ERROR
+        inst.start(tuned)  # logged at exitInitializationMode, every step refused after (fmi2_wrapper.c)
         messages.append(next(m for s, m in inst.log if s == ERROR and "exitInitializationMode" in m))
         inst.close()
     assert "parameters 'I_payload_*': body payload: inertia tensor is not positive semi-definite" in messages[1]
