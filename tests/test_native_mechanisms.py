@@ -62,15 +62,32 @@ def test_native_mechanisms_of_every_description_declare_the_python_fmus_variable
     assert results and all(c.passed for c in results), "\n".join(map(str, results))
 
 
-def test_a_body_the_parameters_make_wrong_is_refused_with_the_python_fmus_message(built_native):
-    """The 3-RPS's payload with an inertia tensor that is not positive semi-definite (engine.Body): the runtime's
-    check over the generated table of bodies gives the Python model's words."""
-    tuned = {"m_payload": 1.0, "I_payload_xx": 0.01, "I_payload_xy": 0.5}
+@pytest.mark.parametrize(
+    "ident, tuned, words",
+    [
+        # the 3-RPS's payload, an inertia tensor that is not positive semi-definite (engine.Body: the table of bodies)
+        (
+            "Mast3RPS",
+            {"m_payload": 1.0, "I_payload_xx": 0.01, "I_payload_xy": 0.5},
+            "parameters 'I_payload_*': body payload: inertia tensor is not positive semi-definite",
+        ),
+        # the 3PRS's guides in one plane: designs.CHECKS' assembly row (Geometry.checked's message)
+        (
+            "MastMechanism",
+            {"alpha_1": 0.0, "alpha_2": 0.0, "alpha_3": 0.0},
+            "parameters 'alpha_1', 'alpha_2', 'alpha_3' = (0.0, 0.0, 0.0) rad: the mechanism cannot be assembled at "
+            "the level pose: singular configuration",
+        ),
+    ],
+)
+def test_a_parameter_set_the_description_refuses_gets_the_python_fmus_message(built_native, ident, tuned, words):
+    """The runtime's checks over the generated tables (bodies, designs.CHECKS) give the Python model's words (a
+    failed admissibility check's without its values, as C gives them: docs/native.md)."""
     messages = []
-    for fmu in (built_native / "fmus" / "Mast3RPS.fmu", built_native / "fmus" / "native" / "Mast3RPS.fmu"):
+    for fmu in (built_native / "fmus" / f"{ident}.fmu", built_native / "fmus" / "native" / f"{ident}.fmu"):
         inst = Instance(fmu, "legs")
         inst.start(tuned)  # logged at exitInitializationMode, every step refused after (fmi2_wrapper.c)
         messages.append(next(m for s, m in inst.log if s == ERROR and "exitInitializationMode" in m))
         inst.close()
-    assert "parameters 'I_payload_*': body payload: inertia tensor is not positive semi-definite" in messages[1]
-    assert messages[0] == messages[1]
+    assert words in messages[1] and "ParameterError" in messages[1]
+    assert messages[0].startswith(messages[1])

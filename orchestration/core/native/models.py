@@ -795,16 +795,17 @@ def mechanism_model(eng, vrs: Mapping[str, int], inputs: Sequence[str]) -> tuple
     env: dict[str, object] = dict(getattr(d, "params", {}))
     env.update({p: graph.input(p) for p in names})
     rule, numbers = _guess(eng, env)
-    if rule is not None:
-        rule_args = list(inspect.signature(rule).parameters)
+    if rule is not None:  # translated from its own source, with the value function it may call
+        rule_args, source = list(inspect.signature(rule).parameters), inspect.getsource(rule)
+        calls = [f for f in (level_height,) if f"{f.__name__}(" in source]
         code += [
-            to_c(inspect.getsource(level_height), "level_height"),
+            *(to_c(inspect.getsource(f), f.__name__) for f in calls),
             to_c(
-                inspect.getsource(rule),
+                source,
                 "mech_guess_rule",
                 packed={"rho": rule_args[:n], "G": rule_args[n:]},
                 static=False,
-                values=("level_height",),
+                values=tuple(f.__name__ for f in calls),
             ),
         ]
     legs = d.legs_at(env, True) if file is not None else []
@@ -819,7 +820,7 @@ def mechanism_model(eng, vrs: Mapping[str, int], inputs: Sequence[str]) -> tuple
         _parameter_kernel("mech_bodies", inputs_p, graph, bodies),
         _parameter_kernel("mech_check_values", inputs_p, graph, values),
     ]
-    radius = getattr(d, "radius_scaled", (False,) * n) if file is not None else (False,) * n
+    radius = d.radius_scaled if file is not None else (False,) * n  # a description in Python: constant lengths
     lengths = [c_double(1.0 if scaled else v) for v, scaled in zip(eng.lengths, radius)]
     row = lambda items: ", ".join(str(v) for v in items)  # noqa: E731
     body_rows = [
