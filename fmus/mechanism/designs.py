@@ -23,20 +23,21 @@ same floats.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import replace
 from pathlib import Path
 from typing import Mapping, Sequence
 
 from ..common.codegen import largest_parameters
 from ..common.parameters import Param, ParameterError, nonnegative
+from .checks import Check
 from .description import Described, DescriptionFile, kinematics, load
 from .engine import Engine
-from .kinematics import GEOMETRY_PARAMETERS, Geometry, KinematicsError
+from .kinematics import GEOMETRY_CHECKS, GEOMETRY_PARAMETERS, Geometry, KinematicsError
 from .legs import level_height
 
 __all__ = [
     "CHECKS",
-    "Check",
+    "INCLINED_CHECK",
     "KINEMATICS",
     "KINEMATIC_PARAMETERS",
     "KINEMATIC_PARAMETERS_NAMES",
@@ -209,67 +210,23 @@ def _check_3prs(file: DescriptionFile, values: Mapping[str, float], owner: str) 
     try:
         desc.evaluate(list(desc.guess((0.0, 0.0, 0.0))))  # plain floats: the checks run at once
     except KinematicsError as exc:
-        raise ParameterError(
-            f"{owner}: parameters 'H', 'r', 'L', 'beta' = {values['H']!r} m, {values['r']!r} m, "
-            f"{values['L']!r} m, {beta!r} rad: the mechanism cannot be assembled at the level pose "
-            f"with the sliders at the foot of their guides: {exc}"
-        ) from None
+        shown = (repr(float(values[n])) for n in INCLINED_CHECK.shown)
+        raise ParameterError(f"{owner}: {INCLINED_CHECK.message.format(*shown, exc)}") from None
 
 
-@dataclass(frozen=True)
-class Check:
-    """A check a description makes of a parameter set beyond its parameters' ranges and its bodies, as data: the
-    native mechanism runs these rows (mast_mechanism.c) with the messages the Python model gives (``_check_3prs``;
-    tests/test_native.py compares them). Expressions are in the description files' subset of their parameters.
-
-    ``kind``: "less" (``operands[0] < operands[1]``) or "assembles" (the mechanism assembles at its cold start for
-    every joint at 0: its inverse kinematics admits that pose; ``regular``: with an invertible Jacobian too);
-    ``when``: (expression, "zero" | "nonzero"): the check applies when the expression is (not) 0, ("", "") always;
-    ``message``: its text, one ``{}`` per ``shown`` expression (their values as Python writes floats), and for
-    "assembles" a last ``{}``: why the pose is refused."""
-
-    kind: str
-    message: str
-    shown: tuple[str, ...]
-    operands: tuple[str, ...] = ()
-    when: tuple[str, str] = ("", "")
-    regular: bool = False
-
+#: the inclined guides' check (``_check_3prs``)
+INCLINED_CHECK = Check(
+    "assembles",
+    "parameters 'H', 'r', 'L', 'beta' = {} m, {} m, {} m, {} rad: the mechanism cannot be assembled at the level "
+    "pose with the sliders at the foot of their guides: {}",
+    ("H", "r", "L", "beta"),
+    when=("beta", "nonzero"),
+)
 
 #: per mechanism (the ``kinematics`` value), its checks of a parameter set in the order the Python model makes them
+#: (the 3PRS's: ``Geometry.checked``'s for vertical guides, ``_check_3prs``'s for inclined ones)
 CHECKS: dict[str, tuple[Check, ...]] = {
-    "3PRS": (
-        Check(  # kinematics.Geometry.checked (vertical guides)
-            "less",
-            "parameter 'r' = {}: must be < H = {} m (working assembly: the spherical joints lie inside the guide "
-            "radius)",
-            ("r", "H"),
-            ("r", "H"),
-            ("beta", "zero"),
-        ),
-        Check(
-            "less",
-            "parameter 'L' = {}: must exceed H - r = {} m, or the legs cannot reach the platform",
-            ("L", "H - r"),
-            ("H - r", "L"),
-            ("beta", "zero"),
-        ),
-        Check(
-            "assembles",
-            "parameters 'alpha_1', 'alpha_2', 'alpha_3' = ({}, {}, {}) rad: the mechanism cannot be assembled at "
-            "the level pose: {}",
-            ("alpha_1", "alpha_2", "alpha_3"),
-            when=("beta", "zero"),
-            regular=True,
-        ),
-        Check(  # _check_3prs (inclined guides)
-            "assembles",
-            "parameters 'H', 'r', 'L', 'beta' = {} m, {} m, {} m, {} rad: the mechanism cannot be assembled at the "
-            "level pose with the sliders at the foot of their guides: {}",
-            ("H", "r", "L", "beta"),
-            when=("beta", "nonzero"),
-        ),
-    ),
+    "3PRS": (*(replace(c, when=("beta", "zero")) for c in GEOMETRY_CHECKS), INCLINED_CHECK),
 }
 
 
