@@ -4,6 +4,8 @@ routes with the master's exchange loop compiled (the default, mast.core.exchange
 
     python benchmarks/native_speed.py [--ssp build/ssp/MAST.ssp] [--stop-time 10] [--repeats 3]
                                       [--before DIR] # also: another build's SSPs (DIR = its build/ssp)
+                                      [--native-only] # only the native FMUs' route (and --before's)
+                                      [--mechanisms] # also: each native mechanism FMU alone, CPU per step
                                       [--profile]  # also: instructions per FMU and call (callgrind)
                                       [--cycles]   # also: 200 instantiate/free cycles under valgrind
                                       [--hosts]    # also: our master vs libcosim and the ecos CLI, native SSP
@@ -18,6 +20,11 @@ native FMU and prints its memory figures, under valgrind with --cycles.
 main built with ``make build && mast build --native``): its Python FMUs ``DIR/<ssp name>`` and native
 FMUs ``DIR/native/<ssp name>``, timed interleaved with this build's in the same repeats, both printed:
 the before/after figures of a change.
+
+``--mechanisms``: every native mechanism FMU of the build (build/fmus/native: the 3PRS designs, the 3-RPS, the
+hexapods) alone in fmpy, ``--mechanism-steps`` steps of 1 ms with its joints on 1 mm sines about their start
+values (the home pose): CPU time per step, fmpy's Python call overhead (setReal, doStep) included, and the
+real-time factor of the mechanism alone at the systems' 1 ms communication step.
 
 ``--profile``: 1 s of the native SSP under callgrind (valgrind) in a child: per FMU binary and FMI
 call, the calls and the instructions they execute (inclusive: the model's code, libm, the FMI
@@ -67,6 +74,40 @@ def cpu_run(ssp: Path, stop: float, direct: bool = False, python_loop: bool = Fa
 
 
 PROFILED = ("fmi2SetReal", "fmi2GetReal", "fmi2DoStep")
+
+
+def mechanism_step(fmu: Path, steps: int) -> float:
+    """CPU time per doStep [s] of the mechanism FMU ``fmu`` alone (fmpy), its joints rho_k on 1 mm sines about
+    their start values, steps of 1 ms."""
+    import math
+
+    from fmpy import extract, read_model_description
+    from fmpy.fmi2 import FMU2Slave
+
+    md = read_model_description(str(fmu))
+    unzip = extract(str(fmu))
+    try:
+        start = {v.name: float(v.start) for v in md.modelVariables if v.causality == "input"}
+        joints = [n for n in start if re.fullmatch(r"rho_\d+", n)]
+        refs = [next(v.valueReference for v in md.modelVariables if v.name == n) for n in joints]
+        slave = FMU2Slave(
+            guid=md.guid, unzipDirectory=unzip, modelIdentifier=md.coSimulation.modelIdentifier, instanceName="bench"
+        )
+        slave.instantiate()
+        slave.setupExperiment(startTime=0.0)
+        slave.enterInitializationMode()
+        slave.exitInitializationMode()
+        begin = time.process_time()
+        for k in range(steps):
+            t = k * 1e-3
+            slave.setReal(refs, [start[n] + 1e-3 * math.sin(2.0 * math.pi * t + i) for i, n in enumerate(joints)])
+            slave.doStep(t, 1e-3)
+        cpu = time.process_time() - begin
+        slave.terminate()
+        slave.freeInstance()
+    finally:
+        shutil.rmtree(unzip, ignore_errors=True)
+    return cpu / steps
 
 
 def call_costs(callgrind_out: Path) -> dict[tuple[str, str], list[int]]:
@@ -324,6 +365,11 @@ def main() -> int:
         metavar="DIR",
         help="also time another build's SSPs: DIR/<ssp name> (Python FMUs) and DIR/native/<ssp name> (native FMUs)",
     )
+    parser.add_argument(
+        "--native-only", action="store_true", help="time the native FMUs alone (and --before's): a short run"
+    )
+    parser.add_argument("--mechanisms", action="store_true", help="also: each native mechanism FMU alone")
+    parser.add_argument("--mechanism-steps", type=int, default=10000, help="steps of 1 ms of --mechanisms")
     parser.add_argument("--profile", action="store_true", help="also: the native run's instructions per FMU and call")
     parser.add_argument("--cycles", action="store_true", help="also run the C host's cycles under valgrind")
     parser.add_argument("--hosts", action="store_true", help="also run the native SSP in libcosim and the ecos CLI")
@@ -353,6 +399,9 @@ def main() -> int:
     if missing:
         print(f"{', '.join(missing)} missing (--before: another build's build/ssp folder)", file=sys.stderr)
         return 2
+    if args.native_only:
+        rows = {"native FMUs": rows["native FMUs"]}
+        before = {k: v for k, v in before.items() if k == "native FMUs"}
     rows.update({f"{route}, before (--before)": (ssp, False, False) for route, ssp in before.items()})
     best = {label: float("inf") for label in rows}
     for _ in range(args.repeats):
@@ -363,21 +412,32 @@ def main() -> int:
     )
     for label, cpu in best.items():
         print(f"  {label:36s} {cpu:7.2f} s CPU   real-time factor {stop / cpu:7.2f}")
-    print(f"  Python FMUs / native FMUs CPU time: {best['Python FMUs'] / best['native FMUs']:.1f}")
-    print(
-        f"  native co-simulation / direct composition: "
-        f"{best['native FMUs'] / best['direct composition (Python models)']:.2f}"
-    )
-    print(
-        f"  compiled / Python exchange loop CPU time: Python FMUs "
-        f"{best['Python FMUs'] / best['Python FMUs, exchange loop in Python']:.2f}, native FMUs "
-        f"{best['native FMUs'] / best['native FMUs, exchange loop in Python']:.2f}"
-    )
+    if not args.native_only:
+        print(f"  Python FMUs / native FMUs CPU time: {best['Python FMUs'] / best['native FMUs']:.1f}")
+        print(
+            f"  native co-simulation / direct composition: "
+            f"{best['native FMUs'] / best['direct composition (Python models)']:.2f}"
+        )
+        print(
+            f"  compiled / Python exchange loop CPU time: Python FMUs "
+            f"{best['Python FMUs'] / best['Python FMUs, exchange loop in Python']:.2f}, native FMUs "
+            f"{best['native FMUs'] / best['native FMUs, exchange loop in Python']:.2f}"
+        )
     for route in before:
         print(
             f"  {route} after / before ({args.before}) CPU time: "
             f"{best[route] / best[f'{route}, before (--before)']:.2f}"
         )
+    if args.mechanisms:
+        from mast.core.build import FMUS
+
+        print(f"native mechanism FMUs alone (fmpy), {args.mechanism_steps} steps of 1 ms, best of {args.repeats}")
+        for spec in FMUS:
+            fmu = default_build_dir() / "fmus" / "native" / f"{spec.model_identifier}.fmu"
+            if spec.package == "mechanism" and fmu.exists():
+                cpu = min(mechanism_step(fmu, args.mechanism_steps) for _ in range(args.repeats))
+                name = spec.model_identifier
+                print(f"  {name:18s} {cpu * 1e6:7.1f} us CPU per step   real-time factor {1e-3 / cpu:8.1f}")
     if args.profile:
         for ssp in [native] + ([before["native FMUs"]] if before else []):
             profile(ssp, 1.0)

@@ -132,16 +132,15 @@ def cmd_build(args) -> int:
         from .core.native.build import build_native_all
 
         platforms = ("linux64", "aarch64-linux", "win64", "darwin64") if args.cross else ("linux64",)
-        skipped_ssds, skipped_fmus = without_native_form()
-        if skipped_ssds:
+        skipped_fmus = without_native_form()
+        if skipped_fmus:
             print(
-                f"skipped {', '.join([p.name for p in skipped_ssds] + [f'{i}.fmu' for i in skipped_fmus])}: the "
-                "native runtime generates the 3PRS's mechanism and controllers only yet (issue 25); their Python "
-                "FMUs run"
+                f"skipped {', '.join(f'{i}.fmu' for i in skipped_fmus)}: the native runtime generates the 3PRS's "
+                "controllers only yet (issue 25); their systems' native SSPs carry their Python FMUs"
             )
         build_native_all(
             Path(args.out),
-            [p for p in sorted(SSP_SRC.glob("*.ssd")) if p not in skipped_ssds],
+            sorted(SSP_SRC.glob("*.ssd")),
             fmus=[s.model_identifier for s in FMUS if s.model_identifier not in skipped_fmus],
             platforms=platforms,
         )

@@ -20,7 +20,17 @@ SMOKE = {
     "variable_step.py": ["--steps", "40", "--repeats", "1"],
     "dk_step.py": ["--steps", "20", "--repeat", "1"],
     "batch_throughput.py": ["--ssp", "{ssp}", "--cases", "2", "--stop-time", "0.02", "--repeats", "1"],
-    "native_speed.py": ["--ssp", "{ssp}", "--stop-time", "0.02", "--repeats", "1"],
+    "native_speed.py": [
+        "--ssp",
+        "{ssp}",
+        "--stop-time",
+        "0.02",
+        "--repeats",
+        "1",
+        "--mechanisms",
+        "--mechanism-steps",
+        "5",
+    ],
     "animate_page.py": ["--ssp", "{ssp}", "--stop-time", "0.2", "--repeat", "1"],
     "backlash_regimes.py": ["--ssp", "{ssp}", "--runs", "1", "--duration", "0.3", "--settle", "0.1"],
 }

@@ -254,7 +254,8 @@ def test_the_3rps_block_s_power_balance_along_smooth_motions():
 def test_compare_swaps_the_3rps_fmu_into_its_own_system(rps_system, tmp_path):
     """`mast compare --mechanism .../Mast3RPS.fmu`: the FMU goes into ssp/MAST_3RPS.ssd (its controller and actuators
     are the 3-RPS's), its controller bound to the FMU's geometry (R_b, r, alpha_k, not the 3PRS's names)."""
-    from mast.analyses.compare import kinematic_names, own_system, prepare
+    from fmus.mechanism.designs import kinematic_names
+    from mast.analyses.compare import own_system, prepare
     from mast.core.components import fmu_parameters
     from mast.core.designs import design
     from mast.core.ssp import SSPArchive
@@ -272,9 +273,11 @@ def test_compare_swaps_the_3rps_fmu_into_its_own_system(rps_system, tmp_path):
         assert comps["actuator_2"].parameters["M_load"] == 0.0 and comps["actuator_2"].parameters["rho_0"] > 0.4
 
 
-def test_the_native_build_skips_the_3rps_until_its_runtime_lands():
-    from mast.core.designs import design, without_native_form
+def test_the_native_build_skips_the_3rps_controller_until_its_runtime_lands():
+    """The mechanisms of every description have a native form; the controllers of another mechanism than the 3PRS
+    not yet (their systems' native SSPs carry their Python FMUs: tests/test_native_mechanisms.py)."""
+    from mast.core.designs import without_native_form
+    from mast.core.native.build import has_native_form
 
-    ssds, fmus = without_native_form()
-    assert ssds == [design(name).ssd for name in ("3RPS", "6UPS", "6PUS")]
-    assert fmus == [f"Mast{name}{role}" for name in ("3RPS", "6UPS", "6PUS") for role in ("", "Controller")]
+    assert without_native_form() == [f"Mast{name}Controller" for name in ("3RPS", "6UPS", "6PUS")]
+    assert all(has_native_form(f"Mast{name}") for name in ("3RPS", "6UPS", "6PUS"))

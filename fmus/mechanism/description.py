@@ -22,12 +22,12 @@ import functools
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Mapping, Optional, Sequence, Union
+from typing import Callable, Mapping, Optional, Sequence, Union
 
 from ..common.parameters import ParameterError
 from ..common.tracer import cos, sin, sqrt, traced_input
 from .engine import Body, Description, Engine, Evaluation, KinematicsError, TracedBody
-from .legs import FAMILIES, OPTIONAL_FIELDS, TEMPLATES, Leg, level_height
+from .legs import FAMILIES, OPTIONAL_FIELDS, TEMPLATES, Leg, prs_guess, rps_guess
 from .topology import POSE_UNITS, Coordinate, Drive, Topology
 
 try:
@@ -44,6 +44,7 @@ __all__ = [
     "Parameter",
     "kinematics",
     "load",
+    "named_parameters",
 ]
 
 #: the folder of the shipped description files (package data)
@@ -613,27 +614,31 @@ class Described(Description):
         self.name = file.name
         self.coordinates = file.coordinates
         self.joints = tuple(f"rho_{k + 1}" for k in range(len(file.legs)))
-        self.legs = self._legs(self.params, False)
+        self.legs = self.legs_at(self.params, False)
         self.bodies = tuple(self._bodies(self.params, owner))
         radius = max(math.hypot(*leg.platform_point()) for leg in self.legs)
-        #: a tilt moves the spherical joints by their largest distance from P times the angle
-        self.lengths = tuple(1.0 if POSE_UNITS[c] == "m" else radius for c in self.coordinates)
+        #: per coordinate, whether its length is the platform's radius: a tilt moves the spherical joints by their
+        #: largest distance from P times the angle (else 1 m)
+        self.radius_scaled = tuple(POSE_UNITS[c] != "m" for c in self.coordinates)
+        self.lengths = tuple(radius if scaled else 1.0 for scaled in self.radius_scaled)
         #: the parameter values when traced as inputs (``Evaluation.parameters``), in the file's ``traced`` order
         self.values = {n: self.params[n] for n in file.traced} if traced else None
 
-    def _legs(self, env: Mapping[str, object], traced: bool) -> list[Leg]:
+    def legs_at(self, env: Mapping[str, object], traced: bool) -> list[Leg]:
+        """The legs with the parameters ``env`` (floats, or traced numbers: ``traced``)."""
         out = []
         for k, spec in enumerate(self.file.legs):
             geometry = {f: tuple(x(env) for x in e) if isinstance(e, tuple) else e(env) for f, e in spec.fields.items()}
             out.append(Leg(spec.template, k, geometry, traced))
         return out
 
-    def _specs(self):
+    def body_specs(self) -> list:
+        """The bodies as the file gives them (name, mass, com, inertia as expressions; ``optional``), legs' first."""
         return [b for leg in self.file.legs for b in leg.bodies] + list(self.file.bodies)
 
     def _bodies(self, env: Mapping[str, float], owner: str) -> list[Body]:
         out = []
-        for spec in self._specs():
+        for spec in self.body_specs():
             mass = spec.mass(env)
             com = tuple(e(env) for e in spec.com)
             inertia = tuple(tuple(e(env) for e in row) for row in spec.inertia)
@@ -644,7 +649,7 @@ class Described(Description):
             except ValueError as exc:
                 blamed = [e for row in spec.inertia for e in row] if "inertia" in str(exc) else [spec.mass]
                 names = sorted({n for e in blamed for n in e.names})
-                raise ParameterError(f"{owner}: parameters {_named(names)}: {exc}") from None
+                raise ParameterError(f"{owner}: parameters {named_parameters(names)}: {exc}") from None
         return out
 
     def key(self) -> tuple:
@@ -656,7 +661,7 @@ class Described(Description):
         else:
             env = {n: traced_input(q[0], n) for n in self.file.traced}
             env.update({n: v for n, v in self.params.items() if n not in env})
-            legs = self._legs(env, True)
+            legs = self.legs_at(env, True)
             bodies = [
                 TracedBody(
                     s.name,
@@ -664,7 +669,7 @@ class Described(Description):
                     tuple(e(env) for e in s.com),
                     tuple(tuple(e(env) for e in row) for row in s.inertia),
                 )
-                for s in self._specs()
+                for s in self.body_specs()
             ]
         pose, R, S = self.file.family.pose(q, legs)
         rho, frames = [], []
@@ -674,29 +679,29 @@ class Described(Description):
             frames += parts
         frames += [((pose[0], pose[1], pose[2]), R)] * len(self.file.bodies)
         present = {b.name for b in (bodies if bodies is not None else self.bodies)}
-        frames = [f for spec, f in zip(self._specs(), frames) if spec.name in present]
+        frames = [f for spec, f in zip(self.body_specs(), frames) if spec.name in present]
         if self.values is None:
             return Evaluation(rho, pose, frames)
         return Evaluation(rho, pose, frames, bodies, self.values, self.file.gravity(env))
 
     def guess(self, rho: Sequence[float]) -> tuple[float, ...]:
-        """Level pose for the mean joint coordinate (3PRS: ``level_height``), else the home pose."""
-        legs = self.legs
+        """Level pose for the mean joint coordinate (3PRS: ``level_height``), else the home pose (``guess_rule``)."""
+        rule, numbers = self.guess_rule(self.legs, self.params)
+        return rule(*rho, *numbers) if rule else tuple(float(v) for v in numbers)
+
+    def guess_rule(self, legs: Sequence[Leg], env: Mapping[str, object]) -> tuple[Optional[Callable], tuple]:
+        """The direct kinematics' cold start as (rule, numbers): ``rule(rho_1, .., rho_n, *numbers)`` (a function of
+        the generated-code subset, legs.py) with the ``numbers`` the geometry gives it, or (None, the guess
+        itself), for ``legs`` and the parameters ``env`` (floats, or traced numbers: the native mechanism computes
+        the numbers from the parameters a host sets and translates the rule). 3PRS: the level pose for the mean
+        slider position (``legs.prs_guess``); 3-RPS: the level pose for the mean leg length (``legs.rps_guess``);
+        otherwise the home pose."""
+        g = legs[0]
         if self.file.family.name == "plane" and all(leg.template.name == "PRS" for leg in legs):
-            g = legs[0]
-            return (
-                level_height(
-                    rho[0], rho[1], rho[2], g.g["base_radius"], g.g["platform_radius"], g.g["length"], g.cb, g.sb
-                ),
-                0.0,
-                0.0,
-            )
+            return prs_guess, (g.g["base_radius"], g.g["platform_radius"], g.g["length"], g.cb, g.sb)
         if self.file.family.name == "plane":  # RPS: the leg length is the distance in the leg's plane
-            g = legs[0]
-            mean = sum(rho) / len(rho)
-            gap = g.g["base_radius"] - g.g["platform_radius"]
-            return (sqrt(max(mean * mean - gap * gap, 0.0)), 0.0, 0.0)
-        return self.topology.home
+            return rps_guess, (g.g["base_radius"] - g.g["platform_radius"],)
+        return None, tuple(e(env) for e in self.file.home)
 
     @property
     def topology(self) -> Topology:
@@ -732,7 +737,7 @@ class Described(Description):
 _RIM_POINTS = 48
 
 
-def _named(names: Sequence[str]) -> str:
+def named_parameters(names: Sequence[str]) -> str:
     """Parameters as an error names them: 'I_payload_*' for several of one prefix, else each."""
     if len(names) > 1:
         prefix = names[0]

@@ -23,17 +23,21 @@ same floats.
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from pathlib import Path
 from typing import Mapping, Sequence
 
 from ..common.codegen import largest_parameters
 from ..common.parameters import Param, ParameterError, nonnegative
+from .checks import Check
 from .description import Described, DescriptionFile, kinematics, load
 from .engine import Engine
-from .kinematics import GEOMETRY_PARAMETERS, Geometry, KinematicsError
+from .kinematics import GEOMETRY_CHECKS, GEOMETRY_PARAMETERS, Geometry, KinematicsError
 from .legs import level_height
 
 __all__ = [
+    "CHECKS",
+    "INCLINED_CHECK",
     "KINEMATICS",
     "KINEMATIC_PARAMETERS",
     "KINEMATIC_PARAMETERS_NAMES",
@@ -45,6 +49,7 @@ __all__ = [
     "description_parameters",
     "engine",
     "kinematic_engine",
+    "kinematic_names",
     "level_height",
     "parameters_for",
     "traced_engine",
@@ -170,6 +175,16 @@ def parameters_for(schema: Sequence[Param], kind: object) -> tuple[Param, ...]:
     return tuple(out)
 
 
+def kinematic_names(params: Mapping[str, object]) -> tuple[str, ...]:
+    """The geometry parameters of the mechanism ``params`` describe (``kinematics`` and its description's kinematic
+    ones: the 3PRS's ``KINEMATIC_PARAMETERS_NAMES``, the 3-RPS's R_b, r, alpha_k), which the controller's model
+    takes."""
+    kind = params.get("kinematics", "3PRS")
+    if isinstance(kind, str) and isinstance(KINEMATICS.get(kind), Path):
+        return ("kinematics", *description(kind).kinematic)
+    return KINEMATIC_PARAMETERS_NAMES
+
+
 #: the names of the parameters the 3PRS traces as inputs (``traced_engine``), in argument order: the parameters
 #: of its description file that its geometry, bodies and gravity use
 TRACED_PARAMETERS = description("3PRS").traced
@@ -205,11 +220,24 @@ def _check_3prs(file: DescriptionFile, values: Mapping[str, float], owner: str) 
     try:
         desc.evaluate(list(desc.guess((0.0, 0.0, 0.0))))  # plain floats: the checks run at once
     except KinematicsError as exc:
-        raise ParameterError(
-            f"{owner}: parameters 'H', 'r', 'L', 'beta' = {values['H']!r} m, {values['r']!r} m, "
-            f"{values['L']!r} m, {beta!r} rad: the mechanism cannot be assembled at the level pose "
-            f"with the sliders at the foot of their guides: {exc}"
-        ) from None
+        shown = (repr(float(values[n])) for n in INCLINED_CHECK.shown)
+        raise ParameterError(f"{owner}: {INCLINED_CHECK.message.format(*shown, exc)}") from None
+
+
+#: the inclined guides' check (``_check_3prs``)
+INCLINED_CHECK = Check(
+    "assembles",
+    "parameters 'H', 'r', 'L', 'beta' = {} m, {} m, {} m, {} rad: the mechanism cannot be assembled at the level "
+    "pose with the sliders at the foot of their guides: {}",
+    ("H", "r", "L", "beta"),
+    when=("beta", "nonzero"),
+)
+
+#: per mechanism (the ``kinematics`` value), its checks of a parameter set in the order the Python model makes them
+#: (the 3PRS's: ``Geometry.checked``'s for vertical guides, ``_check_3prs``'s for inclined ones)
+CHECKS: dict[str, tuple[Check, ...]] = {
+    "3PRS": (*(replace(c, when=("beta", "zero")) for c in GEOMETRY_CHECKS), INCLINED_CHECK),
+}
 
 
 _ENGINES: dict = {}

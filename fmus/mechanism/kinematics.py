@@ -39,8 +39,10 @@ import numpy as np
 
 from ..common.block import ModelError
 from ..common.parameters import Param, ParameterError, positive
+from .checks import Check
 
 __all__ = [
+    "GEOMETRY_CHECKS",
     "Geometry",
     "KinematicsError",
     "PoseSolution",
@@ -85,6 +87,31 @@ class KinematicsError(ModelError):
 
 
 # --------------------------------------------------------------------------- geometry
+
+#: ``Geometry.checked``'s checks as data, with its messages (the native mechanism runs the same rows: designs.CHECKS)
+GEOMETRY_CHECKS = (
+    Check(
+        "less",
+        "parameter 'r' = {}: must be < H = {} m (working assembly: the spherical joints lie inside the guide radius)",
+        ("r", "H"),
+        ("r", "H"),
+    ),
+    Check(
+        "less",
+        "parameter 'L' = {}: must exceed H - r = {} m, or the legs cannot reach the platform",
+        ("L", "H - r"),
+        ("H - r", "L"),
+    ),
+    Check(
+        "assembles",
+        "parameters 'alpha_1', 'alpha_2', 'alpha_3' = ({}, {}, {}) rad: the mechanism cannot be assembled at the "
+        "level pose: {}",
+        ("alpha_1", "alpha_2", "alpha_3"),
+        regular=True,
+    ),
+)
+
+
 @dataclass(frozen=True)
 class Geometry:
     """3PRS geometry.
@@ -137,23 +164,15 @@ class Geometry:
         """
         geom = cls.from_params(params)
         H, r, L = geom.H, geom.r, geom.L
+        inside, reach, assembled = GEOMETRY_CHECKS
         if not r < H:
-            raise ParameterError(
-                f"{owner}: parameter 'r' = {r!r}: must be < H = {H!r} m (working assembly: the "
-                f"spherical joints lie inside the guide radius)"
-            )
+            raise ParameterError(f"{owner}: {inside.message.format(repr(r), repr(H))}")
         if not H - r < L:
-            raise ParameterError(
-                f"{owner}: parameter 'L' = {L!r}: must exceed H - r = {H - r!r} m, or the legs "
-                f"cannot reach the platform"
-            )
+            raise ParameterError(f"{owner}: {reach.message.format(repr(L), repr(H - r))}")
         try:
             first_order(geom, frame_at(geom, geom.home_reach, 0.0, 0.0))
         except KinematicsError as exc:
-            raise ParameterError(
-                f"{owner}: parameters 'alpha_1', 'alpha_2', 'alpha_3' = {geom.alpha} rad: the "
-                f"mechanism cannot be assembled at the level pose: {exc}"
-            ) from None
+            raise ParameterError(f"{owner}: {assembled.message.format(*map(repr, geom.alpha), exc)}") from None
         return geom
 
     @property

@@ -36,7 +36,7 @@ from ..common.tracer import atan2, cos, hypot, require, sign, sin, sqrt
 from .engine import Part
 from .kinematics import MAX_TILT, KinematicsError, det3
 
-__all__ = ["FREE", "PLANE", "TEMPLATES", "Family", "Template", "level_height"]
+__all__ = ["FREE", "PLANE", "TEMPLATES", "Family", "Template", "level_height", "prs_guess", "rps_guess"]
 
 
 def _fmt(v: float) -> str:
@@ -188,6 +188,23 @@ def level_height(rho_1, rho_2, rho_3, H, r, L, cb, sb):
     if 0.0 > w2:
         w2 = 0.0
     return mean * cb + sqrt(w2)
+
+
+def prs_guess(rho_1, rho_2, rho_3, H, r, L, cb, sb):
+    """The 3PRS's cold start (z, psi, theta): the level pose for the mean slider position (``level_height``; H, r,
+    L, cb, sb: leg 1's base radius, platform radius, length, cos and sin of its inclination). In the
+    generated-code subset: the native mechanism translates it."""
+    return (level_height(rho_1, rho_2, rho_3, H, r, L, cb, sb), 0.0, 0.0)
+
+
+def rps_guess(rho_1, rho_2, rho_3, gap):
+    """A 3-RPS's cold start (z, psi, theta): the level pose for the mean leg length, the leg's length being the
+    distance in its plane (gap: leg 1's base radius minus its platform radius). In the generated-code subset."""
+    mean = (rho_1 + rho_2 + rho_3) / 3.0
+    w2 = mean * mean - gap * gap
+    if 0.0 > w2:
+        w2 = 0.0
+    return (sqrt(w2), 0.0, 0.0)
 
 
 # ----------------------------------------------------------------------------- templates

@@ -56,7 +56,7 @@ from pathlib import Path
 from typing import Callable, Iterable, Mapping, Optional, Sequence, Union
 
 from fmus.common.parameters import Value
-from fmus.mechanism.designs import KINEMATIC_PARAMETERS_NAMES, KINEMATICS, description
+from fmus.mechanism.designs import KINEMATIC_PARAMETERS_NAMES, KINEMATICS, kinematic_names
 from fmus.mechanism.topology import POSE, POSE_UNITS, Coordinate
 
 from ..core import ssd, ssv
@@ -187,15 +187,6 @@ def swapped_ssd(
             comp.bindings.append(_inline(extra, why))  # bound last: it overrides
     document.name = f"MAST_{label}"
     return document.to_bytes().decode("utf-8")
-
-
-def kinematic_names(params: Mapping[str, Value]) -> tuple[str, ...]:
-    """The geometry parameters of the mechanism ``params`` describe (``kinematics`` and its description's kinematic
-    ones: the 3PRS's ``KINEMATIC_NAMES``, the 3-RPS's R_b, r, alpha_k), which the controller's model takes."""
-    kind = params.get("kinematics", "3PRS")
-    if isinstance(kind, str) and isinstance(KINEMATICS.get(kind), Path):
-        return ("kinematics", *description(kind).kinematic)
-    return KINEMATIC_NAMES
 
 
 def own_system(fmu: Path, params: Mapping[str, Value]) -> Optional[Path]:

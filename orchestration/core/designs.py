@@ -52,7 +52,7 @@ class Design:
     stroke: str = DEFAULT_STROKE  # in place of the 3PRS's actuator stroke set
     transmission: str = DEFAULT_TRANSMISSION  # gear ratio and feed (actuators and controller): the belt axis's
     controller: str = ""  # the controller FMU's model identifier ("": the base system's)
-    native: bool = True  # whether `mast build --native` builds its FMUs and system
+    native_controller: bool = True  # whether its controller has a native form yet (`mast build --native`)
 
     @property
     def ssd(self) -> Path:
@@ -92,8 +92,8 @@ MECHANISMS = (
         masses="resources/mass_3rps.ssv",
         stroke="resources/actuator_3rps.ssv",
         controller="Mast3RPSController",
-        native=False,
-    ),  # the native runtime (orchestration/core/native) generates the 3PRS's models only yet
+        native_controller=False,
+    ),  # the native controllers (orchestration/core/native/models.py) are the 3PRS's only yet
     Design(
         "6UPS",
         "Mast6UPS",
@@ -104,7 +104,7 @@ MECHANISMS = (
         actuator_sets=("resources/actuator_screw.ssv",),
         transmission="resources/transmission_screw.ssv",
         controller="Mast6UPSController",
-        native=False,
+        native_controller=False,
     ),
     Design(
         "6PUS",
@@ -114,16 +114,16 @@ MECHANISMS = (
         masses="resources/mass_6pus.ssv",
         stroke="resources/stroke_6pus.ssv",
         controller="Mast6PUSController",
-        native=False,
+        native_controller=False,
     ),
 )
 
 
-def without_native_form() -> tuple[list[Path], list[str]]:
-    """The systems (ssp/MAST_<design>.ssd) and FMUs (model identifiers) of the designs that `mast build --native`
-    skips (``Design.native``)."""
-    skipped = [d for d in DESIGNS + MECHANISMS if not d.native]
-    return [d.ssd for d in skipped], [i for d in skipped for i in (d.model_identifier, d.controller) if i]
+def without_native_form() -> list[str]:
+    """The FMUs (model identifiers) of the designs that `mast build --native` has no native form for yet: the
+    controllers of the designs whose ``Design.native_controller`` is False (their systems' native SSPs carry their
+    Python FMUs)."""
+    return [d.controller for d in DESIGNS + MECHANISMS if not d.native_controller and d.controller]
 
 
 def design(name_or_identifier: str) -> Design:

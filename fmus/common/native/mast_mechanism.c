@@ -4,6 +4,7 @@
 #include <stdio.h>
 #include <string.h>
 
+#include "mast_linalg.h"
 #include "mast_mechanism.h"
 #include "mast_native.h"
 
@@ -14,13 +15,24 @@ static int ikjac_of(const void *model, const double *q, double *out)
     return mech_ikjac((double *)q, s->P, s->K_ikjac, out);
 }
 
+/* the description's cold start of the direct kinematics (Described.guess) */
+static void guess(const mast_mechanism_state *s, double *rho, double *q)
+{
+#if MECH_GUESS_RULE
+    mech_guess_rule(rho, (double *)s->G, q);
+#else
+    (void)rho;
+    for (int k = 0; k < MECH_N; k++) q[k] = s->G[k];
+#endif
+}
+
 int mast_mechanism_dk(double *rho, double warm, double *S, double *out)
 {
     mast_mechanism_state *s = (mast_mechanism_state *)S;
     if (warm == 1.0) {
         for (int k = 0; k < MECH_N; k++) out[k] = s->q[k];
     } else {
-        mech_guess(rho, s->P, out);
+        guess(s, rho, out);
     }
     mast_dk_problem dk = {MECH_N, ikjac_of, s, mech_why, MECH_COORDINATES, s->lengths, MECH_MARGIN, MECH_COND_LIMIT,
                           1e-12, 50};
@@ -69,18 +81,141 @@ static int compute(mast_mechanism_state *s, double *values, const mast_parameter
     return MAST_OK;
 }
 
-int mast_mechanism_initialize(void *state, double *values, const mast_parameters *p, double t0, char *msg,
-                              size_t size)
+/* what the parameters the host set alone fix: P, the kernels' invariants, the cold start's numbers, the lengths */
+static void setup(mast_mechanism_state *s, const mast_parameters *p)
 {
-    mast_mechanism_state *s = state;
     s->warm = 0;
     for (int k = 0; k < MECH_NP; k++) s->P[k] = MECH_TRACED_VR[k] >= 0 ? p->real[MECH_TRACED_VR[k]] : 0.0;
     mech_ikjac_invariants(s->P, s->K_ikjac);
     mech_dynamics_invariants(s->P, s->K_dynamics);
     mech_pose_invariants(s->P, s->K_pose);
-    for (int k = 0; k < MECH_N; k++)
-        s->lengths[k] = MECH_LENGTH_PARAMETER[k] >= 0 ? s->P[MECH_LENGTH_PARAMETER[k]] : MECH_LENGTH_VALUE[k];
+    mech_guess_numbers(s->P, s->G);
+    double radius = 0.0;
+#if MECH_NL
+    double points[3 * MECH_NL];
+    mech_platform(s->P, points);
+    for (int k = 0; k < MECH_NL; k++) {
+        const double *a = points + 3 * k;
+        double d = sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
+        if (d > radius) radius = d;
+    }
+#endif
+    for (int k = 0; k < MECH_N; k++) s->lengths[k] = MECH_LENGTH_RADIUS[k] ? radius : MECH_LENGTH_VALUE[k];
+}
+
+int mast_mechanism_initialize(void *state, double *values, const mast_parameters *p, double t0, char *msg,
+                              size_t size)
+{
+    mast_mechanism_state *s = state;
+    setup(s, p);
     return compute(s, values, p, t0, msg, size);
+}
+
+/* designs.describe: the mechanism the parameter 'kinematics' names must be this one */
+static int check_kinematics(const mast_parameters *p, char *msg, size_t size)
+{
+#if MECH_KINEMATICS_VR >= 0
+    const char *kind = p->string[MECH_KINEMATICS_VR] ? p->string[MECH_KINEMATICS_VR] : "";
+    if (strcmp(kind, MECH_NAME) == 0) return MAST_OK;
+    char known[1024] = "";
+    for (int k = 0; k < MECH_NKINEMATICS; k++) {
+        if (strcmp(kind, MECH_KINEMATICS[k]) == 0) {
+            snprintf(msg, size, "parameter 'kinematics' = '%s': this native FMU computes the %s it was generated from",
+                     kind, MECH_NAME);
+            return MAST_PARAMETER_ERROR;
+        }
+        if (k) strncat(known, ", ", sizeof known - strlen(known) - 1);
+        strncat(known, MECH_KINEMATICS[k], sizeof known - strlen(known) - 1);
+    }
+    snprintf(msg, size, "parameter 'kinematics' = '%s': expected one of %s", kind, known);
+    return MAST_PARAMETER_ERROR;
+#else
+    (void)p, (void)msg, (void)size;
+    return MAST_OK;
+#endif
+}
+
+/* engine.Body: a finite symmetric inertia tensor, a finite mass >= 0, the tensor positive semi-definite */
+static int check_bodies(const mast_mechanism_state *s, char *msg, size_t size)
+{
+#if MECH_NB
+    double B[10 * MECH_NB];
+    char v[40];
+    mech_bodies((double *)s->P, B);
+    for (int b = 0; b < MECH_NB; b++) {
+        const double m = B[10 * b], *I = B + 10 * b + 1;
+        const mast_mechanism_body *body = MECH_BODY + b;
+        int any = m != 0.0, finite = 1;
+        double big = 1.0;
+        for (int k = 0; k < 9; k++) {
+            any = any || I[k] != 0.0;
+            finite = finite && isfinite(I[k]);
+            if (fabs(I[k]) > big) big = fabs(I[k]);
+        }
+        if (body->optional && !any) continue;
+        if (!finite || I[1] != I[3] || I[2] != I[6] || I[5] != I[7]) {
+            snprintf(msg, size, "parameters %s: body %s: inertia must be a finite symmetric 3x3 tensor",
+                     body->inertia_by, body->name);
+            return MAST_PARAMETER_ERROR;
+        }
+        if (!(isfinite(m) && m >= 0.0)) {
+            snprintf(msg, size, "parameters %s: body %s: mass %s must be finite and >= 0", body->mass_by, body->name,
+                     mast_repr(m, v, sizeof v));
+            return MAST_PARAMETER_ERROR;
+        }
+        if (mast_sym3_min_eig(I) < -1e-12 * big) {
+            snprintf(msg, size, "parameters %s: body %s: inertia tensor is not positive semi-definite",
+                     body->inertia_by, body->name);
+            return MAST_PARAMETER_ERROR;
+        }
+    }
+#else
+    (void)s, (void)msg, (void)size;
+#endif
+    return MAST_OK;
+}
+
+/* designs.CHECKS: the description's own checks, with the Python model's messages */
+static int check_rows(mast_mechanism_state *s, char *msg, size_t size)
+{
+    double V[MECH_NV];
+    mech_check_values(s->P, V);
+    for (int c = 0; c < MECH_NCHECK; c++) {
+        const mast_parameter_check *row = MECH_CHECK + c;
+        if (row->when >= 0 && (V[row->when] == 0.0) != row->when_zero) continue;
+        const char *why = NULL;
+        if (!row->assembles) {
+            if (V[row->a] < V[row->b]) continue;
+        } else {
+            double rho[MECH_N] = {0.0}, q[MECH_N], out[MECH_N + MECH_N * MECH_N], inv[MECH_N * MECH_N], det;
+            guess(s, rho, q);
+            int code = mech_ikjac(q, s->P, s->K_ikjac, out);
+            if (code) {
+                why = mech_why(-code);
+            } else if (row->regular && !mast_inv(MECH_N, out + MECH_N, inv, &det)) {
+                why = "singular configuration";
+            } else {
+                continue;
+            }
+        }
+        char shown[6][40];
+        const char *text[7] = {"", "", "", "", "", "", ""};
+        for (int k = 0; k < row->n_shown; k++) text[k] = mast_repr(V[row->shown[k]], shown[k], sizeof shown[k]);
+        if (why) text[row->n_shown] = why;
+        snprintf(msg, size, row->format, text[0], text[1], text[2], text[3], text[4], text[5], text[6]);
+        return MAST_PARAMETER_ERROR;
+    }
+    return MAST_OK;
+}
+
+int mast_mechanism_check(const mast_parameters *p, char *msg, size_t size)
+{
+    int code = check_kinematics(p, msg, size);
+    if (code) return code;
+    mast_mechanism_state s;
+    setup(&s, p);
+    if ((code = check_rows(&s, msg, size))) return code;
+    return check_bodies(&s, msg, size);
 }
 
 int mast_mechanism_do_step(void *state, double *values, const mast_parameters *p, double t, double h, char *msg,

@@ -16,7 +16,14 @@
  *   MECH_N            the drives = the coordinates (Engine.n)
  *   MECH_NP           the traced parameters (Engine.parameters; at least 1: a slot no kernel reads)
  *   MECH_NK_IKJAC, MECH_NK_DYNAMICS, MECH_NK_POSE   what the parameters alone fix of each kernel (at least 1)
+ *   MECH_NG           the numbers the cold start takes from the parameters (Described.guess_rule; at least 1)
+ *   MECH_GUESS_RULE   1: the cold start is mech_guess_rule(rho, numbers), 0: the numbers are the cold start
+ *   MECH_NL           the platform points the coordinates' lengths come from (Described.lengths; 0: constants)
+ *   MECH_NB           the bodies the parameters make (Described.body_specs; 0: none, their numbers constants)
+ *   MECH_NV           the numbers the description's checks compare and show (designs.CHECKS; at least 1)
+ *   MECH_NCHECK       those checks (designs.CHECKS of this mechanism)
  *   MECH_ATTACHED_VR  the value reference of the Integer parameter 'attached' (0: kinematics only), or -1
+ *   MECH_KINEMATICS_VR  the value reference of the String parameter 'kinematics', or -1
  *   MECH_MARGIN       Engine.margin [m/m];  MECH_COND_LIMIT  Engine.cond_limit */
 
 /* the instance's state: plain data (the wrapper snapshots it), q first (restarted_dk's S) */
@@ -26,6 +33,7 @@ typedef struct {
     double K_ikjac[MECH_NK_IKJAC];       /* what they alone fix, per kernel (computed at initialisation) */
     double K_dynamics[MECH_NK_DYNAMICS];
     double K_pose[MECH_NK_POSE];
+    double G[MECH_NG];                   /* the cold start's numbers (mech_guess_numbers) */
     double lengths[MECH_N];              /* Engine.lengths [m]: the singularity margins compare motions */
     int warm;                            /* q is a solution to start from */
     char why_text[1024];                 /* the message of a failed direct kinematics */
@@ -41,21 +49,56 @@ int mech_dynamics(double *q, double *J, double *rho_dot, double *rho_ddot, doubl
                   double *out);                                          /* F (n), then the pose (6) */
 int mech_pose_invariants(double *P, double *K);
 int mech_pose(double *q, double *P, double *K, double *out);             /* the pose (6) */
-int mech_guess(double *rho, double *P, double *out);                     /* the description's cold start q */
 int mech_restarted_dk(double *rho, double warm, double *S, double *out);  /* mechanism.model.restarted_dk */
 const char *mech_why(int check);
+/* what the parameters alone give (traced from the description with the parameters P as inputs) */
+int mech_guess_numbers(double *P, double *out);   /* the cold start's numbers (MECH_NG) */
+int mech_platform(double *P, double *out);        /* the platform points s_k (3 MECH_NL, platform frame [m]) */
+int mech_bodies(double *P, double *out);          /* per body: mass [kg], inertia (9, row-major) [kg m^2] */
+int mech_check_values(double *P, double *out);    /* the numbers the checks compare and show (MECH_NV) */
+#if MECH_GUESS_RULE
+int mech_guess_rule(double *rho, double *G, double *out);  /* the cold start q of rho (legs.py, translated) */
+#endif
 /* per traced parameter, its Real value reference, or -1 when this FMU has no such parameter (then 0.0) */
 extern const int MECH_TRACED_VR[MECH_NP];
-/* per coordinate, the traced parameter that is its length, or -1: its length is MECH_LENGTH_VALUE's */
-extern const int MECH_LENGTH_PARAMETER[MECH_N];
+/* per coordinate: 1 when its length is the platform's radius (the largest |s_k|), else MECH_LENGTH_VALUE's */
+extern const int MECH_LENGTH_RADIUS[MECH_N];
 extern const double MECH_LENGTH_VALUE[MECH_N];
 extern const char *const MECH_COORDINATES[MECH_N];
 extern const char *const MECH_INPUT_NAMES[3 * MECH_N];
+/* the mechanism's name (the parameter 'kinematics' it computes), and every name that parameter may take */
+extern const char *const MECH_NAME;
+extern const char *const MECH_KINEMATICS[];
+extern const int MECH_NKINEMATICS;
+
+/* a body the parameters make (engine.Body's checks, with the Python model's messages) */
+typedef struct {
+    const char *name;
+    int optional;          /* left out when its mass and inertia are 0 */
+    const char *mass_by;   /* the parameters its mass comes from, as the message names them */
+    const char *inertia_by;
+} mast_mechanism_body;
+extern const mast_mechanism_body MECH_BODY[];
+
+/* a check of a parameter set (designs.Check): its numbers are mech_check_values' */
+typedef struct {
+    int assembles;       /* 0: value a < value b; 1: the mechanism assembles at its cold start for every joint 0 */
+    int regular;         /* assembles: with an invertible Jacobian too */
+    int when;            /* -1: always; else the value that decides whether it applies */
+    int when_zero;       /* 1: it applies when that value is 0, 0: when it is not */
+    int a, b;
+    int n_shown;
+    int shown[6];        /* the values the message shows, in order */
+    const char *format;  /* a %s per value shown, then (assembles) a %s for why the pose is refused */
+} mast_parameter_check;
+extern const mast_parameter_check MECH_CHECK[];
 
 /* ---- the runtime (mast_mechanism.c) */
 /* mechanism.model.dk: one attempt of the direct kinematics of rho from the last solution (warm = 1.0) or from
  * the description's cold start; S: the instance, out: q, then J = dq/drho; a failure's message in why_text */
 int mast_mechanism_dk(double *rho, double warm, double *S, double *out);
+/* MAST_OK, or MAST_PARAMETER_ERROR with ``msg``: the parameter 'kinematics', the bodies, the checks (designs.py) */
+int mast_mechanism_check(const mast_parameters *p, char *msg, size_t size);
 int mast_mechanism_initialize(void *state, double *values, const mast_parameters *p, double t0, char *msg,
                               size_t size);
 int mast_mechanism_do_step(void *state, double *values, const mast_parameters *p, double t, double h, char *msg,

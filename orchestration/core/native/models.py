@@ -19,9 +19,11 @@ code, which ``translate.to_c`` writes as C:
   (``substep_rule``, ``substeps_enough``); the torque measurement's filter and delay line
   (sensor.py: ``filter_coefficients``, ``delay_split``, ``measurement_step``, ``relayout``); a drive's
   ``pi_step`` and ``current_gains``;
-- mechanism (every design): the engine's traced functions (inverse kinematics with its
+- mechanism (every description, ``mechanism_model``): the engine's traced functions (inverse kinematics with its
   Jacobian, inverse dynamics, pose), driven by the engine's Newton direct kinematics
-  (mast_dk.c); the engine traces the description with every parameter (geometry,
+  (mast_dk.c), and what the parameters alone give as traced kernels with their tables (the cold start,
+  ``Described.guess_rule``; the platform points of the lengths; the bodies; ``designs.CHECKS``), the checks and
+  the messages in mast_mechanism.c; the engine traces the description with every parameter (geometry,
   bodies, payload, g) as a named input (``designs.traced_engine``), so one C file serves every
   parameter set;
 - controllers (``native_controllers``: the joint cascade, feed-forward, computed torque,
@@ -44,12 +46,13 @@ start, never after a singularity) is ``mechanism.model.restarted_dk``, which ``M
 What the models' generators do not cover is restated in C, held to the Python model by
 tests/test_native.py: in the runtime, the outputs of the actuator at rest, its doubling of its substeps around
 ``mast_expm`` and the allocation of its delay line, the mechanism's restart and messages
-(``MechanismBlock._compute``), the controllers' life cycle for n axes (mast_controller.c: ``initialize``,
+(``MechanismBlock._compute``) and its checks of a parameter set (``designs.describe``'s, over tables:
+``mast_mechanism_check``), the controllers' life cycle for n axes (mast_controller.c: ``initialize``,
 ``evaluate`` once per communication point, ``do_step`` over the ticks of a step, the inverse model's and the
 workspace controller's direct kinematics, ``InverseModel.currents``, ``WorkspaceController._wsdk``, and the
 messages of their failures) on the state layout of ``tick.layout`` (config.h: CTRL_N, CTRL_<FIELD>); still in this
-module: the 3PRS design's checks of a parameter set (``designs.describe``'s) and its cold start (``level_height``),
-which the controllers share with the mechanism.
+module: the controllers' copy of the 3PRS design's checks of a parameter set (``_describe_checks_c``) and its cold
+start (``level_height``).
 
 Parameters: all read at run time, with what depends on them computed at initialisation: the
 trajectory's, the actuator's (n_dof too: the chains 1..``N_MAX`` are all in the binary; a parameter set with
@@ -78,7 +81,6 @@ __all__ = [
     "emit_mechanism",
     "mechanism_model",
     "mechanism_variables",
-    "mechanism_guess",
     "c_string",
     "to_generate",
     "actuator_structures",
@@ -217,6 +219,8 @@ RUNTIME = {
     "actuator": ("mast_actuator.c", "mast_actuator.h"),
     "controller": ("mast_controller.c", "mast_controller.h"),
 }
+#: a mechanism's checks of a parameter set after its ranges (the runtime's: designs.describe's, from the tables)
+MECHANISM_CHECK = "    if (mast_mechanism_check(p, msg, size)) return MAST_PARAMETER_ERROR;"
 #: and a drive's (an actuator with its current loop: DriveActuatorBlock)
 DRIVE = ("mast_drive.c", "mast_drive.h")
 
@@ -555,11 +559,11 @@ def _traced_parameters_c(vrs: Mapping[str, int]) -> str:
     )
 
 
-def _describe_checks_c(vrs: Mapping[str, int], payload: bool, why: str = "why", mechanism: bool = False) -> list[str]:
+def _describe_checks_c(vrs: Mapping[str, int], payload: bool, why: str = "why") -> list[str]:
     """C lines (in a function with ``p``, ``msg``, ``size``) of ``designs.describe``'s checks of a parameter set
     after its ranges, with its messages: the kinematics, kinematics.Geometry.checked (beta = 0), the payload's
-    inertia tensor (``payload``: engine.Body), designs._check_inclined (beta != 0). Needs ``ikjac`` (traced), or, in a
-    ``mechanism``, its hoisted kernels (mast_mechanism.h); ``why``: the message function of its checks."""
+    inertia tensor (``payload``: engine.Body), designs._check_inclined (beta != 0). Needs ``ikjac`` (traced);
+    ``why``: the message function of its checks. (The controllers'; the mechanism's are the runtime's.)"""
     from fmus.mechanism.designs import KINEMATICS, TRACED_PARAMETERS
 
     P = {name: f"P[{k}]" for k, name in enumerate(TRACED_PARAMETERS)}
@@ -584,15 +588,7 @@ def _describe_checks_c(vrs: Mapping[str, int], payload: bool, why: str = "why", 
         "    }",
         f"    double cb = cos({P['beta']}), sb = sin({P['beta']});",
         f"    double z = level_height(0.0, 0.0, 0.0, {P['H']}, {P['r']}, {P['L']}, cb, sb);",
-        *(
-            [
-                "    double K[MECH_NK_IKJAC], level[3] = {z, 0.0, 0.0};",
-                "    mech_ikjac_invariants(P, K);",
-                "    int code = mech_ikjac(level, P, K, out);",
-            ]
-            if mechanism
-            else ["    int code = ikjac(z, 0.0, 0.0, " + params + ", out);"]
-        ),
+        "    int code = ikjac(z, 0.0, 0.0, " + params + ", out);",
         f"    if ({P['beta']} == 0.0) {{   /* kinematics.Geometry.checked */",
         f"        if (!({P['r']} < {P['H']})) {{",
         "            snprintf(msg, size, \"parameter 'r' = %s: must be < H = %s m (working assembly: the spherical "
@@ -653,73 +649,14 @@ def _level_height_c() -> str:
 
 
 def _mechanism(block, vrs: Mapping[str, int]) -> tuple[str, str]:
-    """MechanismBlock for every parameter set of the 3PRS: the engine traced with the geometry, the bodies, the
-    payload and g as named inputs (``designs.traced_engine``), their values read at initialisation
-    (``mechanism_model``); the geometry checks of ``designs.describe`` (the same messages) at
-    exitInitializationMode. (model file, config.h)"""
-    from fmus.mechanism.designs import TRACED_PARAMETERS, traced_engine
+    """MechanismBlock of any description for every parameter set: the engine traced with the description's
+    parameters (geometry, bodies, payload, g) as named inputs (``designs.traced_engine``), their values read at
+    initialisation (``mechanism_model``), the checks of ``designs.describe`` (the same messages) by the runtime
+    (``mast_mechanism_check``) at exitInitializationMode. (model file, config.h)"""
+    from fmus.mechanism.designs import traced_engine
 
     eng = traced_engine(block.params, block.name)
-    if (
-        tuple(eng.parameters) != TRACED_PARAMETERS
-        or len(eng.lengths) != 3
-        or eng.lengths != (1.0, block.params["r"], block.params["r"])
-    ):
-        raise ValueError(
-            f"{block.name}: the native mechanism expects the 3PRS traced with {TRACED_PARAMETERS} and "
-            "the coordinate lengths (1, r, r)"
-        )
-    r = TRACED_PARAMETERS.index("r")
-    joints = ", ".join(f"r{k}" for k in range(eng.n))
-    # PRS3.guess: the level pose for the mean slider position, its cosines from beta as PRS3 computes them
-    guess = (
-        f"def guess({joints}, {', '.join(TRACED_PARAMETERS)}):\n"
-        f"    return (level_height({joints}, H, r, L, cos(beta), sin(beta)), 0.0, 0.0)\n"
-    )
-    model, config = mechanism_model(
-        eng,
-        [vrs.get(name, -1) for name in TRACED_PARAMETERS],
-        (-1, r, r),
-        vrs["attached"],
-        guess,
-        block.INPUTS,
-        [_level_height_c()],
-    )
-    return "\n".join(
-        [
-            model,
-            _traced_parameters_c(vrs),
-            "/* designs.describe's checks of a parameter set (after the ranges), with its messages */",
-            "static int model_check(const mast_parameters *p, char *msg, size_t size)",
-            "{",
-            *_describe_checks_c(vrs, payload=True, why="mech_why", mechanism=True),
-            "    return MAST_OK;",
-            "}",
-            "",
-        ]
-    ), config
-
-
-def mechanism_guess(eng) -> str:
-    """The Python source of ``guess(r0, ..., <the traced parameters>)``: the description's cold start of the
-    direct kinematics when it does not depend on rho (the same pose for rho = 0 and rho = 1 m); ValueError
-    naming the description otherwise (a guess that moves with rho has a native form when written as one, as
-    the 3PRS's level pose: ``_mechanism``)."""
-    n, d = eng.n, eng.description
-    poses = []
-    for rho in ([0.0] * n, [1.0] * n):
-        try:
-            poses.append(tuple(float(v) for v in d.guess(rho)))
-        except Exception as err:  # noqa: BLE001 (the description's own code: any failure means no constant guess)
-            raise ValueError(f"{d.name}: its guess fails at rho = {rho}: {err}") from None
-    if poses[0] != poses[1] or len(poses[0]) != n:
-        raise ValueError(
-            f"{d.name}: its guess {poses[0]} at rho = 0 and {poses[1]} at rho = 1 m is not one pose of "
-            f"{n} coordinates: the native mechanism takes a constant cold start (or one written as a "
-            "generated function)"
-        )
-    args = ", ".join([f"r{k}" for k in range(n)] + list(eng.parameters))
-    return f"def guess({args}):\n    return ({', '.join(c_double(v) for v in poses[0])},)\n"
+    return mechanism_model(eng, vrs, block.INPUTS)
 
 
 def mechanism_variables(n: int) -> list[Variable]:
@@ -735,29 +672,86 @@ def mechanism_variables(n: int) -> list[Variable]:
     ]
 
 
-def mechanism_model(
-    eng,
-    traced_vrs: Sequence[int],
-    length_parameters: Sequence[int],
-    attached_vr: int,
-    guess: str,
-    inputs: Sequence[str],
-    support: Sequence[str] = (),
-) -> tuple[str, str]:
-    """The generated part of a native mechanism (mast_mechanism.h) for the engine ``eng`` of any description: its
-    traced kernels (inverse kinematics with its Jacobian, dynamics, pose), each split into what the parameters
-    alone fix (``split_invariants``: computed at initialisation, not at every step) and the rest, with a fixed
-    interface (``packed``: q, J, rho_dot, rho_ddot, the parameters P as arrays); the restart policy
-    (``mechanism.model.restarted_dk``) and the cold start ``guess`` (Python source of the generated subset)
-    translated; the tables. ``traced_vrs``: per traced parameter (``eng.parameters``), its value reference or
-    -1; ``length_parameters``: per coordinate, the traced parameter that is its length (``Engine.lengths``) or
-    -1 (then the engine's number); ``attached_vr``: the value reference of 'attached', or -1; ``inputs``: the
-    FMU's input names; ``support``: C the guess calls (value functions). (model part, config.h)"""
+def _parameter_kernel(name: str, inputs: Sequence[str], graph, outputs: Sequence[object]) -> str:
+    """``int name(double *P, double *out)``: ``outputs`` (numbers, or expressions traced in ``graph`` from its inputs
+    ``inputs``, the traced parameters P) as straight-line C (at least one output: 0.0 when there is none)."""
+    from fmus.common.tracer import compile_function, lift
+
+    fn = compile_function(name, inputs, [lift(graph, v) for v in (list(outputs) or [0.0])], graph, label=name)
+    return to_c(fn.source, name, packed={"P": list(inputs)}, static=False)
+
+
+def _guess(eng, env: Mapping[str, object]) -> tuple[Optional[object], tuple]:
+    """The description's cold start as (rule, its numbers with the parameters ``env``): ``Described.guess_rule``,
+    or, for a description written in Python (tests' scratch mechanisms), its guess when it does not depend on rho
+    (the same pose for rho = 0 and rho = 1 m; ValueError naming the description otherwise)."""
+    n, d = eng.n, eng.description
+    if hasattr(d, "guess_rule"):
+        return d.guess_rule(d.legs_at(env, True), env)
+    poses = []
+    for rho in ([0.0] * n, [1.0] * n):
+        try:
+            poses.append(tuple(float(v) for v in d.guess(rho)))
+        except Exception as err:  # noqa: BLE001 (the description's own code: any failure means no constant guess)
+            raise ValueError(f"{d.name}: its guess fails at rho = {rho}: {err}") from None
+    if poses[0] != poses[1] or len(poses[0]) != n:
+        raise ValueError(
+            f"{d.name}: its guess {poses[0]} at rho = 0 and {poses[1]} at rho = 1 m is not one pose of "
+            f"{n} coordinates: the native mechanism takes a constant cold start or a rule (Described.guess_rule)"
+        )
+    return None, poses[0]
+
+
+def _check_rows(name: str, units: Mapping[str, str], env: Mapping[str, object]) -> tuple[list[str], list[object]]:
+    """The rows of ``designs.CHECKS[name]`` (mast_mechanism_check) and the values they compare and show
+    (expressions of the parameters ``env``)."""
+    from fmus.mechanism.description import Expression
+    from fmus.mechanism.designs import CHECKS
+
+    values: list[object] = []
+    index: dict[str, int] = {}
+
+    def at(source: str) -> int:
+        if source not in index:
+            index[source] = len(values)
+            values.append(Expression(source, f"designs.CHECKS[{name!r}]", units)(env))
+        return index[source]
+
+    rows = []
+    for check in CHECKS.get(name, ()):
+        shown = [at(x) for x in check.shown]
+        a, b = (at(x) for x in check.operands) if check.kind == "less" else (0, 0)
+        when = at(check.when[0]) if check.when[0] else -1
+        fmt = c_string(check.message).replace("{}", "%s")
+        rows.append(
+            f"    {{{int(check.kind == 'assembles')}, {int(check.regular)}, {when}, {int(check.when[1] == 'zero')}, "
+            f"{a}, {b}, {len(shown)}, {{{', '.join(str(k) for k in shown) or '0'}}}, {fmt}}},"
+        )
+    return rows, values
+
+
+def mechanism_model(eng, vrs: Mapping[str, int], inputs: Sequence[str]) -> tuple[str, str]:
+    """The generated part of a native mechanism (mast_mechanism.h) for the engine ``eng`` of any description
+    (traced with its parameters as named inputs, ``designs.traced_engine``, or with its numbers as constants: a
+    description written in Python): its traced kernels (inverse kinematics with its Jacobian, dynamics, pose),
+    each split into what the parameters alone fix (``split_invariants``: computed at initialisation) and the rest,
+    with a fixed interface (``packed``: q, J, rho_dot, rho_ddot, the parameters P as arrays); what the parameters
+    alone give, traced (the cold start's numbers, ``Described.guess_rule``; the platform points the coordinates'
+    lengths come from; the bodies; the values of the description's checks, ``designs.CHECKS``); the restart policy
+    (``mechanism.model.restarted_dk``) and the cold start's rule translated from their own source; the tables
+    (value references, names, bodies, checks). ``vrs``: the FMU's value references by name (the parameters, with
+    'kinematics' and 'attached'; {} for a mechanism without parameters); ``inputs``: the FMU's input names.
+    (model part, config.h)"""
     import inspect
 
+    from fmus.common.tracer import Graph
+    from fmus.mechanism.description import named_parameters
+    from fmus.mechanism.designs import KINEMATICS
+    from fmus.mechanism.legs import level_height
     from fmus.mechanism.model import SINGULAR, restarted_dk
 
     n, names = eng.n, list(eng.parameters)
+    d = eng.description
     fns = {name: eng._fn(key) for name, key in (("ikjac", "ikjac"), ("dynamics", "forces"), ("pose", "pose"))}
     checks = {k: v for fn in fns.values() for k, v in fn.namespace.items() if k.startswith("_check")}
     q = [f"q{j}" for j in range(n)]
@@ -795,37 +789,85 @@ def mechanism_model(
             packed=packing,
             static=False,
         ),
-        *support,
-        to_c(
-            guess,
-            "mech_guess",
-            packed={"rho": [f"r{k}" for k in range(n)], "P": names},
-            static=False,
-            values=("level_height",),
-        ),
         _why_function("mech_why", checks, static=False),
     ]
-    lengths = [c_double(v if k < 0 else 0.0) for v, k in zip(eng.lengths, length_parameters)]
+    # what the parameters alone give, traced from the description with the parameters as inputs
+    graph = Graph()
+    inputs_p = names or ["P0"]  # a mechanism without parameters: one slot no kernel reads (MECH_NP >= 1)
+    file = getattr(d, "file", None)
+    env: dict[str, object] = dict(getattr(d, "params", {}))
+    env.update({p: graph.input(p) for p in names})
+    rule, numbers = _guess(eng, env)
+    if rule is not None:  # translated from its own source, with the value function it may call
+        rule_args, source = list(inspect.signature(rule).parameters), inspect.getsource(rule)
+        calls = [f for f in (level_height,) if f"{f.__name__}(" in source]
+        code += [
+            *(to_c(inspect.getsource(f), f.__name__) for f in calls),
+            to_c(
+                source,
+                "mech_guess_rule",
+                packed={"rho": rule_args[:n], "G": rule_args[n:]},
+                static=False,
+                values=tuple(f.__name__ for f in calls),
+            ),
+        ]
+    legs = d.legs_at(env, True) if file is not None else []
+    points = [x for leg in legs for x in leg.platform_point()]
+    specs = d.body_specs() if file is not None else []
+    bodies = [v for b in specs for v in (b.mass(env), *(e(env) for row in b.inertia for e in row))]
+    units = {p: file.parameters[p].unit for p in file.parameters} if file is not None else {}
+    rows, values = _check_rows(d.name, units, env) if file is not None else ([], [])
+    code += [
+        _parameter_kernel("mech_guess_numbers", inputs_p, graph, numbers),
+        _parameter_kernel("mech_platform", inputs_p, graph, points),
+        _parameter_kernel("mech_bodies", inputs_p, graph, bodies),
+        _parameter_kernel("mech_check_values", inputs_p, graph, values),
+    ]
+    radius = d.radius_scaled if file is not None else (False,) * n  # a description in Python: constant lengths
+    lengths = [c_double(1.0 if scaled else v) for v, scaled in zip(eng.lengths, radius)]
     row = lambda items: ", ".join(str(v) for v in items)  # noqa: E731
+    body_rows = [
+        f"    {{{_literal(b.name)}, {int(b.optional)}, {_literal(named_parameters(sorted(b.mass.names)))}, "
+        f"{_literal(named_parameters(sorted({x for r in b.inertia for e in r for x in e.names})))}}},"
+        for b in specs
+    ]
+    kinematics = [k for k in KINEMATICS if isinstance(k, str)]
     tables = [
         "/* the tables of this mechanism (mast_mechanism.h) */",
-        f"const int MECH_TRACED_VR[MECH_NP] = {{{row(traced_vrs or [-1])}}};   /* {', '.join(names) or 'none'} */",
-        f"const int MECH_LENGTH_PARAMETER[MECH_N] = {{{row(length_parameters)}}};",
+        f"const int MECH_TRACED_VR[MECH_NP] = {{{row([vrs.get(p, -1) for p in names] or [-1])}}};   "
+        f"/* {', '.join(names) or 'none'} */",
+        f"const int MECH_LENGTH_RADIUS[MECH_N] = {{{row(int(r) for r in radius)}}};",
         f"const double MECH_LENGTH_VALUE[MECH_N] = {{{row(lengths)}}};",
-        f"const char *const MECH_COORDINATES[MECH_N] = {{{row(_literal(c) for c in eng.description.coordinates)}}};",
+        f"const char *const MECH_COORDINATES[MECH_N] = {{{row(_literal(c) for c in d.coordinates)}}};",
         f"const char *const MECH_INPUT_NAMES[3 * MECH_N] = {{{row(_literal(i) for i in inputs)}}};",
+        f"const char *const MECH_NAME = {_literal(d.name)};",
+        f"const char *const MECH_KINEMATICS[] = {{{row(_literal(k) for k in kinematics)}}};",
+        f"const int MECH_NKINEMATICS = {len(kinematics)};",
+        "const mast_mechanism_body MECH_BODY[] = {",
+        *(body_rows or ['    {"", 0, "", ""},']),
+        "};",
+        "const mast_parameter_check MECH_CHECK[] = {",
+        *(rows or ['    {0, 0, -1, 0, 0, 0, 0, {0}, ""},']),
+        "};",
         "",
     ]
     config = "\n".join(
         [
-            f"/* Generated by mast build --native from the description {eng.description.name} "
+            f"/* Generated by mast build --native from the description {d.name} "
             "(mast.core.native.models): the sizes of this mechanism (mast_mechanism.h) */",
             "#ifndef CONFIG_H",
             "#define CONFIG_H",
             f"#define MECH_N {n}",
-            f"#define MECH_NP {max(1, len(names))}",
+            f"#define MECH_NP {len(inputs_p)}",
             *[f"#define MECH_NK_{name.upper()} {max(1, k)}" for name, k in sizes.items()],
-            f"#define MECH_ATTACHED_VR {attached_vr}",
+            f"#define MECH_NG {max(1, len(numbers))}",
+            f"#define MECH_GUESS_RULE {int(rule is not None)}",
+            f"#define MECH_NL {len(legs)}",
+            f"#define MECH_NB {len(specs)}",
+            f"#define MECH_NV {max(1, len(values))}",
+            f"#define MECH_NCHECK {len(rows)}",
+            f"#define MECH_ATTACHED_VR {vrs.get('attached', -1)}",
+            f"#define MECH_KINEMATICS_VR {vrs.get('kinematics', -1)}",
             f"#define MECH_MARGIN {c_double(eng.margin)}",
             f"#define MECH_COND_LIMIT {c_double(eng.cond_limit)}",
             "#endif",
@@ -1199,6 +1241,9 @@ def emit_model(
     built with ``parameters``: ``<identifier>_model.c`` (the kernels and tables), and a mechanism's ``config.h``
     (its sizes); the runtime they run on: ``RUNTIME``."""
     vrs = {v.name: v.vr for v in variables}
+    kind = native_kind(block_class)
+    if kind == "mechanism":  # its variables and parameters: its description's (as the Python FMU's, slave.py)
+        block_class = block_class.for_parameters(parameters)
     n_inputs, n_io = len(block_class.INPUTS), len(block_class.INPUTS) + len(block_class.OUTPUTS)
     expected = list(block_class.INPUTS + block_class.OUTPUTS) + [p.name for p in block_class.PARAMETERS]
     if [v.name for v in variables] != expected or [v.vr for v in variables] != list(range(len(variables))):
@@ -1212,7 +1257,6 @@ def emit_model(
         Variable(v.name, v.vr, v.type, v.causality, block.params[v.name]) if v.causality == "parameter" else v
         for v in variables
     ]
-    kind = native_kind(block_class)
     extra: list[str] = []
     files, more, state, functions = {}, "", "State", ""
     if kind == "actuator":
@@ -1223,6 +1267,7 @@ def emit_model(
         more, state, functions = f'#include "mast_{runtime}.h"\n', f"mast_{runtime}_state", f"mast_{runtime}_"
     elif kind == "mechanism":
         body, files["config.h"] = _mechanism(block, vrs)
+        extra = [MECHANISM_CHECK]
         more, state, functions = '#include "mast_mechanism.h"\n', "mast_mechanism_state", "mast_mechanism_"
     elif kind == "controller":
         body, files["config.h"] = _joint_controller(block, vrs)
@@ -1237,7 +1282,7 @@ def emit_model(
             _HEAD.format(what=f"{block_class.__module__}.{block_class.__name__}", more=more),
             _variable_table(variables),
             "\n",
-            _check_function(block_class.PARAMETERS, vrs, extra, kind in ("mechanism", "controller")),
+            _check_function(block_class.PARAMETERS, vrs, extra, kind == "controller"),
             "\n",
             body,
             "\n",
@@ -1250,7 +1295,7 @@ def emit_model(
 def emit_mechanism(identifier: str, guid: str, eng) -> dict[str, str]:
     """The generated C files of a native mechanism FMU for the engine ``eng`` of a description traced with its
     numbers as constants (no parameters; ``mechanism_variables`` its variables): ``<identifier>_model.c`` and
-    ``config.h`` (``mechanism_model``, with the description's constant cold start, ``mechanism_guess``)."""
+    ``config.h`` (``mechanism_model``, as for a mechanism with parameters, ``emit_model``)."""
     if eng.parameters:
         raise ValueError(
             f"{identifier}: {eng.description.name} is traced with parameters {eng.parameters}: a "
@@ -1258,7 +1303,7 @@ def emit_mechanism(identifier: str, guid: str, eng) -> dict[str, str]:
         )
     variables = mechanism_variables(eng.n)
     inputs = [v.name for v in variables if v.causality == "input"]
-    model, config = mechanism_model(eng, [], [-1] * eng.n, -1, mechanism_guess(eng), inputs)
+    model, config = mechanism_model(eng, {}, inputs)
     return {
         "config.h": config,
         f"{identifier}_model.c": "".join(
@@ -1266,7 +1311,7 @@ def emit_mechanism(identifier: str, guid: str, eng) -> dict[str, str]:
                 _HEAD.format(what=f"description {eng.description.name}", more='#include "mast_mechanism.h"\n'),
                 _variable_table(variables),
                 "\n",
-                _check_function((), {}),
+                _check_function((), {}, [MECHANISM_CHECK]),
                 "\n",
                 model,
                 "\n",
