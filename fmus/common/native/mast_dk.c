@@ -92,7 +92,7 @@ static ALWAYS_INLINE int newton(const mast_dk_problem *dk, const int n, const do
         for (int i = 0; i < n; i++) e[i] = out[i] - rho[i];
         res = fabs(e[0]);
         for (int i = 1; i < n; i++) if (fabs(e[i]) > res) res = fabs(e[i]);
-        if (!mast_inv(n, out + n, J, &det)) {
+        if (!(n == 3 ? mast_inv3(out + n, J, &det) : mast_inv(n, out + n, J, &det))) {
             snprintf(msg, size, "direct kinematics did not converge for rho = (%s) m: iteration %d reached %s, where: "
                      "singular configuration: drho/dq is singular at %s", fmt_rho(n, rho, shown, sizeof shown), it,
                      mast_fmt_q(n, dk->names, q, qs, sizeof qs), qs);
