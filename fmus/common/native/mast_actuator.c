@@ -10,6 +10,13 @@
 
 #define MATH_PI 3.141592653589793   /* math.pi */
 
+/* off the step's path (a new step size, a failure): not inlined, so do_step stays small */
+#if defined(__GNUC__)
+#define COLD __attribute__((noinline, cold))
+#else
+#define COLD
+#endif
+
 static const char *const INPUT_NAMES[] = {"u", "F"};   /* actuator.model.INPUT_ERRORS */
 
 /* the chain lists' names, whether their numbers must be > 0 (else >= 0), their value references */
@@ -238,7 +245,7 @@ static int sensor_step(mast_actuator_state *s, double u, double h, const mast_pa
 
 /* the discretisation of another step size h than the last step's: one kept (ActuatorBlock._select's key), or a new
  * one in the oldest slot; NULL with msg for a step size that is not finite and positive or cannot be discretised */
-static mast_actuator_disc *select(mast_actuator_state *s, double h, char *msg, size_t size)
+static COLD mast_actuator_disc *select(mast_actuator_state *s, double h, char *msg, size_t size)
 {
     char v[40], key_text[40];
     if (!(h > 0.0 && isfinite(h))) {
@@ -306,24 +313,38 @@ int mast_actuator_initialize(void *state, double *values, const mast_parameters 
     return MAST_OK;
 }
 
-int mast_actuator_do_step(void *state, double *values, const mast_parameters *p, double t, double h, char *msg,
-                          size_t size)
+/* the message of a kernel's failure ``code`` in the step from t to t + h */
+static COLD int step_error(const mast_actuator_state *s, const double *values, int code, double t, double h,
+                           char *msg, size_t size)
 {
-    mast_actuator_state *s = state;
-    /* do_step selects only for another h than the last step's (h_last: NaN until a step, equal to no h) */
-    mast_actuator_disc *d = h == s->h_last ? &s->disc[s->last] : select(s, h, msg, size);
-    if (!d) return MAST_MODEL_ERROR;
-    int code = ACTUATOR_KERNELS[s->variant].step(values, s->x, d->H, s->Q, d->m);
     if (code == 1 || code == 2) return input_error(values, code, t, msg, size);
     if (code == 3) {
         snprintf(msg, size, "diverged at t=%.9g s (non-finite state)", t + h);
         return MAST_MODEL_ERROR;
     }
-    if (code == 4) {
-        snprintf(msg, size, "carriage left the stroke [%g, %g] m: rho = %.6g m at t=%.9g s", s->Q[ACT_Q_RMIN],
-                 s->Q[ACT_Q_RMAX], s->Q[ACT_Q_RHO0] + s->Q[ACT_Q_IR] * s->x[s->N], t + h);
-        return MAST_MODEL_ERROR;
-    }
-    if (s->sensor) return sensor_step(s, values[8], h, p, values + 9, msg, size);
-    return MAST_OK;
+    snprintf(msg, size, "carriage left the stroke [%g, %g] m: rho = %.6g m at t=%.9g s", s->Q[ACT_Q_RMIN],
+             s->Q[ACT_Q_RMAX], s->Q[ACT_Q_RHO0] + s->Q[ACT_Q_IR] * s->x[s->N], t + h);
+    return MAST_MODEL_ERROR;
+}
+
+mast_actuator_disc *mast_actuator_select(mast_actuator_state *s, double h, char *msg, size_t size)
+{
+    /* do_step selects only for another h than the last step's (h_last: NaN until a step, equal to no h) */
+    return h == s->h_last ? &s->disc[s->last] : select(s, h, msg, size);
+}
+
+int mast_actuator_finish(mast_actuator_state *s, double *values, int code, const mast_parameters *p, double t, double h,
+                         char *msg, size_t size)
+{
+    if (code) return step_error(s, values, code, t, h, msg, size);
+    return s->sensor ? sensor_step(s, values[8], h, p, values + 9, msg, size) : MAST_OK;
+}
+
+int mast_actuator_do_step(void *state, double *values, const mast_parameters *p, double t, double h, char *msg,
+                          size_t size)
+{
+    mast_actuator_state *s = state;
+    mast_actuator_disc *d = mast_actuator_select(s, h, msg, size);
+    if (!d) return MAST_MODEL_ERROR;
+    return mast_actuator_advance(s, d, values, p, t, h, msg, size);
 }

@@ -85,4 +85,17 @@ int mast_actuator_initialize(void *state, double *values, const mast_parameters 
 int mast_actuator_do_step(void *state, double *values, const mast_parameters *p, double t, double h, char *msg,
                           size_t size);
 
+/* do_step in two parts, for the drive's ticks of one step size: the discretisation of h (the last step's, or one
+ * kept or made: ActuatorBlock._select; NULL with msg), then the step with it (inline: the kernel, then
+ * mast_actuator_finish only for a failure or the torque measurement) */
+mast_actuator_disc *mast_actuator_select(mast_actuator_state *s, double h, char *msg, size_t size);
+int mast_actuator_finish(mast_actuator_state *s, double *values, int code, const mast_parameters *p, double t, double h,
+                         char *msg, size_t size);
+static inline int mast_actuator_advance(mast_actuator_state *s, mast_actuator_disc *d, double *values,
+                                        const mast_parameters *p, double t, double h, char *msg, size_t size)
+{
+    int code = ACTUATOR_KERNELS[s->variant].step(values, s->x, d->H, s->Q, d->m);
+    return code || s->sensor ? mast_actuator_finish(s, values, code, p, t, h, msg, size) : MAST_OK;
+}
+
 #endif

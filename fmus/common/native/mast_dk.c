@@ -9,6 +9,13 @@
 #include "mast_linalg.h"
 #include "mast_model.h"
 
+/* the functions inlined with a constant n (mast_dk's cases): the compiler unrolls their loops */
+#if defined(__GNUC__)
+#define ALWAYS_INLINE inline __attribute__((always_inline))
+#else
+#define ALWAYS_INLINE inline
+#endif
+
 const char *mast_fmt_q(int n, const char *const *names, const double *q, char *buf, size_t size)
 {
     size_t used = 0;
@@ -41,10 +48,9 @@ static const char *fmt_rho(int n, const double *rho, char *buf, size_t size)
 /* Engine._check_branch's margins: 0 when the solution is at least ``margin`` [m/m] from a singularity (the
  * singular values of drho/dq with the coordinates scaled by ``lengths``, engine.margins_of), else
  * MAST_SINGULARITY_ERROR with ``msg`` (rho and q written only then: formatting costs more than the iteration) */
-static int check_margin(const mast_dk_problem *dk, const double *Jinv, const double *J, double det,
-                        const double *rho, const double *q, char *msg, size_t size)
+static ALWAYS_INLINE int check_margin(const mast_dk_problem *dk, const int n, const double *Jinv, const double *J,
+                                      double det, const double *rho, const double *q, char *msg, size_t size)
 {
-    int n = dk->n;
     const double *l = dk->lengths;
     double fa = 0.0, fb = 0.0, a[MAST_DK_N_MAX * MAST_DK_N_MAX], par, big, m = dk->margin;
     char shown[256], qs[512];
@@ -67,17 +73,13 @@ static int check_margin(const mast_dk_problem *dk, const double *Jinv, const dou
     return MAST_SINGULARITY_ERROR;
 }
 
-int mast_dk(const mast_dk_problem *dk, const double *rho, double *q, double *J, char *msg, size_t size)
+/* mast_dk for n coordinates (ALWAYS_INLINE) */
+static ALWAYS_INLINE int newton(const mast_dk_problem *dk, const int n, const double *rho, double *q, double *J,
+                                char *msg, size_t size)
 {
     enum { NM = MAST_DK_N_MAX };
-    int n = dk->n;
     double out[NM + NM * NM], e[NM], start[NM], res = INFINITY, det = 0.0, det0 = 0.0, cond;
     char shown[256], qs[512], q0s[512];   /* the messages' texts, written only on a failure */
-    if (n < 1 || n > NM) {
-        snprintf(msg, size, "direct kinematics: %d coordinates, this native runtime takes 1 to %d (MAST_DK_N_MAX)",
-                 n, NM);
-        return MAST_KINEMATICS_ERROR;
-    }
     for (int k = 0; k < n; k++) start[k] = q[k];
     for (int it = 0; it <= dk->max_iter; it++) {
         int check = dk->ikjac(dk->model, q, out);
@@ -90,7 +92,7 @@ int mast_dk(const mast_dk_problem *dk, const double *rho, double *q, double *J, 
         for (int i = 0; i < n; i++) e[i] = out[i] - rho[i];
         res = fabs(e[0]);
         for (int i = 1; i < n; i++) if (fabs(e[i]) > res) res = fabs(e[i]);
-        if (!mast_inv(n, out + n, J, &det)) {
+        if (!(n == 3 ? mast_inv3(out + n, J, &det) : mast_inv(n, out + n, J, &det))) {
             snprintf(msg, size, "direct kinematics did not converge for rho = (%s) m: iteration %d reached %s, where: "
                      "singular configuration: drho/dq is singular at %s", fmt_rho(n, rho, shown, sizeof shown), it,
                      mast_fmt_q(n, dk->names, q, qs, sizeof qs), qs);
@@ -122,7 +124,7 @@ int mast_dk(const mast_dk_problem *dk, const double *rho, double *q, double *J, 
                          mast_fmt_q(n, dk->names, start, q0s, sizeof q0s), det, det0);
                 return MAST_SINGULARITY_ERROR;
             }
-            return check_margin(dk, out + n, J, det, rho, q, msg, size);
+            return check_margin(dk, n, out + n, J, det, rho, q, msg, size);
         }
         if (it == dk->max_iter) break;
         for (int j = 0; j < n; j++) {
@@ -135,4 +137,18 @@ int mast_dk(const mast_dk_problem *dk, const double *rho, double *q, double *J, 
              "= %.3g m > tol = %.3g m (last %s)", fmt_rho(n, rho, shown, sizeof shown), dk->max_iter, res, dk->tol,
              mast_fmt_q(n, dk->names, q, qs, sizeof qs));
     return MAST_KINEMATICS_ERROR;
+}
+
+int mast_dk(const mast_dk_problem *dk, const double *rho, double *q, double *J, char *msg, size_t size)
+{
+    switch (dk->n) {     /* the 3-drive and 6-drive mechanisms with n a constant: their loops unrolled */
+    case 3: return newton(dk, 3, rho, q, J, msg, size);
+    case 6: return newton(dk, 6, rho, q, J, msg, size);
+    }
+    if (dk->n < 1 || dk->n > MAST_DK_N_MAX) {
+        snprintf(msg, size, "direct kinematics: %d coordinates, this native runtime takes 1 to %d (MAST_DK_N_MAX)",
+                 dk->n, MAST_DK_N_MAX);
+        return MAST_KINEMATICS_ERROR;
+    }
+    return newton(dk, dk->n, rho, q, J, msg, size);
 }

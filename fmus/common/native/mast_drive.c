@@ -47,11 +47,13 @@ int mast_drive_do_step(void *state, double *values, const mast_parameters *p, do
         return MAST_MODEL_ERROR;
     }
     if (!isfinite(values[0])) return command_error(values, t, msg, size);
+    mast_actuator_disc *d = mast_actuator_select(&s->a, T, msg, size);     /* the same for every tick */
+    if (!d) return MAST_MODEL_ERROR;
     for (int k = 0; k < (int)m; k++) {      /* the PI on i_m at this tick; its voltage from the next one */
         act_pi_step(values[0] - s->av[2 + I_M], s->x_c, s->gains[0], s->gains[1], s->gains[2], 0.0, PI);
         s->x_c = PI[1];
         s->av[0] = s->u; s->av[1] = values[1];
-        int code = mast_actuator_do_step(&s->a, s->av, p, t + k * T, T, msg, size);
+        int code = mast_actuator_advance(&s->a, d, s->av, p, t + k * T, T, msg, size);
         if (code) return code;
         s->u = PI[0];
     }

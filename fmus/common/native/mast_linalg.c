@@ -5,24 +5,9 @@
 
 #include "mast_linalg.h"
 
-/* kinematics.inv3: cofactors, then 1 / det */
-static int inv3(const double *m, double *inv, double *det_out)
-{
-    double a = m[0], b = m[1], c = m[2], d = m[3], e = m[4], f = m[5], g = m[6], h = m[7], i = m[8];
-    double A = e * i - f * h, B = f * g - d * i, C = d * h - e * g;
-    double det = a * A + b * B + c * C;
-    if (det == 0.0) return 0;
-    double k = 1.0 / det;
-    inv[0] = A * k; inv[1] = (c * h - b * i) * k; inv[2] = (b * f - c * e) * k;
-    inv[3] = B * k; inv[4] = (a * i - c * g) * k; inv[5] = (c * d - a * f) * k;
-    inv[6] = C * k; inv[7] = (b * g - a * h) * k; inv[8] = (a * e - b * d) * k;
-    *det_out = det;
-    return 1;
-}
-
 int mast_inv(int n, const double *m, double *inv, double *det_out)
 {
-    if (n == 3) return inv3(m, inv, det_out);
+    if (n == 3) return mast_inv3(m, inv, det_out);
     if (n < 1 || n > MAST_LINALG_N_MAX) return 0;
     double a[MAST_LINALG_N_MAX][2 * MAST_LINALG_N_MAX], det = 1.0;
     for (int r = 0; r < n; r++)           /* [m | I] */
@@ -49,14 +34,6 @@ int mast_inv(int n, const double *m, double *inv, double *det_out)
         for (int c = 0; c < n; c++) inv[r * n + c] = a[r][n + c];
     *det_out = det;
     return 1;
-}
-
-double mast_cond(const double *m, const double *minv, int n2)
-{
-    double s = 0.0, t = 0.0;
-    for (int k = 0; k < n2; k++) s += m[k] * m[k];
-    for (int k = 0; k < n2; k++) t += minv[k] * minv[k];
-    return sqrt(s) * sqrt(t);
 }
 
 void mast_sv_extremes(int n, const double *a, double *smin, double *smax)
