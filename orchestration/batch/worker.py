@@ -91,7 +91,8 @@ def run_case(task: Mapping) -> dict:
         session = _session(task["ssp_path"], bool(task.get("direct")))
         motion = task.get("motion")
         if motion is not None:
-            stimulus = SineMotion(motion["axis"], motion["amplitude_si"], motion["frequency"])
+            # any coordinate of the case's system (checked when the cases were made); the session binds the rest
+            stimulus = SineMotion(motion["axis"], motion["amplitude_si"], motion["frequency"], axes=(motion["axis"],))
         elif all(s in session.system.system_inputs for s in pose_inputs(system_axes(session.system))):
             stimulus = PoseStep({})  # no motion: the system holds its home pose (docs/batch.md)
         else:

@@ -60,7 +60,7 @@ def write_model(
             ).items()
             if base not in shared or v != shared[base]
         }
-        for j in range(3)
+        for j in sorted({AXIS_OF[k][1] for k in nominal if k in AXIS_OF})  # the system's drives (0-based)
     }
     axes = {j: a for j, a in axes.items() if a}
     why = {}
