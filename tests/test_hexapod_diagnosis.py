@@ -107,6 +107,14 @@ def test_a_folder_missing_a_drive_or_with_an_impossible_count_is_refused(hexapod
     (folder / "meta.json").write_text(json.dumps({**meta, "drives": 7}))
     with pytest.raises(MeasuredDataError, match="drives = 7: expected a whole number from 1 to 6"):
         load(folder)
+    # without 'drives' the header's highest drive counts: a missing command column is named, never fewer drives
+    del meta["drives"]
+    (folder / "meta.json").write_text(json.dumps(meta))
+    keep = [k for k, c in enumerate(header.split(",")) if c != "rho_cmd_2"]
+    lines = [",".join(line.split(",")[k] for k in keep) for line in [header, *rows]]
+    (folder / "z_5Hz.csv").write_text("\n".join(lines) + "\n")
+    with pytest.raises(MeasuredDataError, match=r"missing column\(s\) rho_cmd_2; expected time, rho_cmd_1..6"):
+        load(folder)
 
 
 def test_the_replay_of_the_six_drive_commands_gives_back_the_noise_free_torques(hexapod_ssp, hexapod_data):

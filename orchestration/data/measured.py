@@ -2,7 +2,7 @@
 
 Format (docs/measured-data.md): columns ``time``, ``rho_cmd_1..n``, ``rho_1..n`` and
 ``tau_m_1..n`` (or ``i_m_1..n`` with ``k_T`` in meta.json) for the n drives of the machine (the
-3PRS's three; n from meta.json's ``drives``, else from the header), optional pose columns
+3PRS's three; n from meta.json's ``drives``, else the highest k of the header's columns), optional pose columns
 ``x, y, z, psi, theta, phi``; meta.json names the tests, their units and the measurement
 chain the lab knows (the drive's torque filter). Every problem (irregular sampling, gaps,
 NaNs, missing columns, units that are unknown or give implausible values) is a
@@ -20,6 +20,7 @@ import copy
 import csv
 import json
 import math
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Mapping, Optional, Sequence, Union
@@ -310,12 +311,10 @@ def load(folder: Union[str, Path], stroke: tuple[float, float] = (0.0, 0.3)) -> 
 
 
 def drive_count(header: Sequence[str]) -> int:
-    """The drives a header holds: rho_cmd_1, rho_cmd_2, ... up to the first one missing (the 3PRS's three if
-    there is none)."""
-    n = 0
-    while n < MAX_DRIVES and f"rho_cmd_{n + 1}" in header:
-        n += 1
-    return n or len(AXES)
+    """The drives a header holds: the highest k of its columns rho_cmd_k, rho_k, tau_m_k and i_m_k (the 3PRS's
+    three if it has none; a column missing below that k is then named as missing, never taken as fewer drives)."""
+    found = [int(m.group(2)) for h in header if (m := re.fullmatch(r"(rho_cmd|rho|tau_m|i_m)_([1-9][0-9]*)", h))]
+    return max(found, default=len(AXES))
 
 
 def _load_test(folder: Path, entry: dict, units: Mapping[str, str], k_T, stroke, drives: Optional[int]) -> MeasuredTest:
@@ -326,6 +325,10 @@ def _load_test(folder: Path, entry: dict, units: Mapping[str, str], k_T, stroke,
     header, data = read_csv(path)
     col = {h: j for j, h in enumerate(header)}
     n = drives or drive_count(header)
+    if n > MAX_DRIVES:
+        raise MeasuredDataError(
+            f"{name}: columns of drive {n}: a machine has at most {MAX_DRIVES} drives (one per pose coordinate)"
+        )
     axes = range(1, n + 1)
     torque_cols = [f"tau_m_{j}" for j in axes]
     current_cols = [f"i_m_{j}" for j in axes]
@@ -341,7 +344,6 @@ def _load_test(folder: Path, entry: dict, units: Mapping[str, str], k_T, stroke,
         raise MeasuredDataError(
             f"{name}: missing column(s) {', '.join(missing)}; expected time, rho_cmd_1..{n}, "
             f"rho_1..{n} and tau_m_1..{n} (or i_m_1..{n} with k_T in meta.json)"
-            + ("" if drives else " (the drives counted from the rho_cmd_k columns; meta.json has no 'drives')")
         )
     if len(data) == 0:
         raise MeasuredDataError(f"{name}: no data rows")

@@ -375,7 +375,7 @@ LIBRARY: tuple[Effect, ...] = (
 #: re-simulates. They cost one parameter each, so when the axes agree the all-axes effect (one
 #: parameter) wins on BIC. Inertia on the two sides of one axis's transmission are alternatives, as
 #: for all axes (group "inertia_axis<j>"). The platform payload is not in this list: under rotation it
-#: loads the three actuators through the mechanism, not as a mass on one carriage.
+#: loads every actuator through the mechanism, not as a mass on one carriage.
 PER_AXIS = ("tau_c", "b_v", "J1_scale", "J_guide", "M_load", "tau_offset", "T_meas")
 #: the most drives a mechanism has: one per pose component (a fully actuated mechanism, topology.py)
 MAX_DRIVES = len(POSE)
