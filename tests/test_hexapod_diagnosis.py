@@ -213,8 +213,11 @@ def test_a_batch_of_hexapod_cases_gives_the_torques_its_symmetries_require(hexap
         },
         "outputs": {"metrics": ["tracking", "torque"]},
     }
-    result = run_batch(config, tmp_path / "batch", workers=2, progress=False, plots=False)
+    result = run_batch(config, tmp_path / "batch", workers=2, progress=False)
     assert (result.ok, result.failed, result.crashed) == (6, 0, 0)
+    # the headline figures: the tracking of the coordinates the cases move, against the varied friction
+    plots = sorted(p.name for p in (tmp_path / "batch" / "plots").glob("tracking_*.png"))
+    assert len(plots) == 3 and all(any(f"tracking_{a}_" in p for p in plots) for a in ("x", "phi", "z")), plots
     with (tmp_path / "batch" / "summary.csv").open() as f:
         rows = list(csv.DictReader(f))
     pairs = {"z": [(0, k) for k in range(1, 6)], "phi": [(0, 2), (0, 4), (1, 3), (1, 5)], "x": [(0, 1), (2, 5), (3, 4)]}
