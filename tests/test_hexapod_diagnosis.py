@@ -148,10 +148,10 @@ def test_the_diagnosis_names_the_friction_of_drive_5_within_5_percent(
 ):
     """Offered the actuator-side effects on all axes and on each drive alone (35 effects), the diagnosis names
     Coulomb friction on drive 5 alone, its increment within 5 % of the truth's, and writes the augmented model
-    with drive 5's own parameter set."""
+    with drive 5's own parameter set, the report and its figures."""
     library = EFFECTS + tuple(f"{e}_axis{j}" for e in EFFECTS for j in range(1, 7))
     doc = diagnose(
-        Options(hexapod_data["folder"], tmp_path / "out", hexapod_ssp, figures=False, direct=True, library=library),
+        Options(hexapod_data["folder"], tmp_path / "out", hexapod_ssp, direct=True, library=library),
         log=lambda *_: None,
     )
     named = {e["key"]: e for e in doc["named_effects"]}
@@ -165,6 +165,8 @@ def test_the_diagnosis_names_the_friction_of_drive_5_within_5_percent(
     assert sorted(p.name for p in (tmp_path / "out").glob("actuator_*_diagnosed.ssv")) == [
         f"actuator_{DRIVE}_diagnosed.ssv"
     ]
+    for fig in ("fig_time.png", "fig_residual_signals.png", "fig_residual_frequency.png"):
+        assert (tmp_path / "out" / fig).stat().st_size > 10_000 and fig in (tmp_path / "out" / "report.md").read_text()
 
 
 def test_data_of_another_drive_count_and_effects_of_drives_the_system_lacks_are_refused(hexapod_ssp, tmp_path):
