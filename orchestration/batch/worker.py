@@ -157,7 +157,7 @@ def _motion_si(motion: Optional[Mapping]) -> Optional[dict]:
 
 def _limits(system, flat: Mapping[str, Any]) -> dict[str, float]:
     """The drive's limits: i_max of the controller's current command, u_max of the current loop in the actuators
-    (actuator_1's: one drive type for the three axes)."""
+    (actuator_1's: one drive type for every axis)."""
     out = {}
     for component, name in (("controller", "i_max"), ("actuator_1", "u_max")):
         if component not in system.components:
