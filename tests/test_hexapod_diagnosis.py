@@ -5,7 +5,7 @@ friction 0.05 N m on drive 5 alone (the manufacturer's 0.0193 N m on the others)
 x (x_2.5Hz held out). The measured-data folder has six drives and all six pose coordinates; replaying its
 commands with the truth gives back the noise-free torques; the diagnosis names the friction of drive 5, an axis
 the 3PRS does not have, within 5 %. A batch of hexapod cases gives the drive torques the hexapod's symmetries
-require. The system is a parameter (``SYSTEM``): the tests use nothing of the 6-PUS but its file name.
+require. The system is a parameter (``SYSTEM``): the tests use nothing of the 6-PUS but its design's name.
 """
 
 from __future__ import annotations
@@ -17,17 +17,18 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import build_mechanism_system
 
 from mast.analyses.synthesize import TestSpec as Spec
 from mast.analyses.synthesize import synthesize
-from mast.core.build import FMUS, SSP_SRC, build_fmu, build_ssp
-from mast.core.ssp import SSPArchive, read_ssd
+from mast.core.ssp import SSPArchive
 from mast.data.measured import MeasuredDataError, load
 from mast.diagnosis import Options, diagnose
 from mast.diagnosis.effects import LIBRARY, drive_of, for_drives
 from mast.diagnosis.resimulation import DiagnosisError
 
-SYSTEM = "MAST_6PUS.ssd"
+ROOT = Path(__file__).resolve().parents[1]
+SYSTEM = "6PUS"  # the design (mast.core.designs): ssp/MAST_6PUS.ssd
 #: short tests where Coulomb friction stays identifiable (reversals in a training and a held-out test, every
 #: drive moving in both): z 1.2 Hz 4 mm, x 2.5 Hz 4 mm (held out), z 5 Hz 3 mm; 2.5 s simulated in all
 PLAN = (
@@ -44,12 +45,7 @@ SEED = 5
 @pytest.fixture(scope="module")
 def hexapod_ssp(tmp_path_factory) -> str:
     """The system's SSP with the Python FMUs it needs, built from this tree."""
-    out = tmp_path_factory.mktemp("hexapod_build")
-    needed = {Path(c.source).stem for c in read_ssd(SSP_SRC / SYSTEM).components.values()}
-    for spec in FMUS:
-        if spec.model_identifier in needed:
-            build_fmu(spec, out / "fmus")
-    return str(build_ssp(SSP_SRC / SYSTEM, out / "fmus", out / "ssp"))
+    return str(build_mechanism_system(SYSTEM, tmp_path_factory.mktemp("hexapod_build")))
 
 
 @pytest.fixture(scope="module")
@@ -195,26 +191,14 @@ def test_data_of_another_drive_count_and_effects_of_drives_the_system_lacks_are_
 
 
 def test_a_batch_of_hexapod_cases_gives_the_torques_its_symmetries_require(hexapod_ssp, tmp_path):
-    """x, phi and z sines on the hexapod's six drives, two friction values: every case runs; the drives' torques
+    """examples/hexapod_sweep.toml: x, phi and z sines on the hexapod's six drives, two friction values: every case
+    runs; the drives' torques
     follow the geometry's symmetries (an independent check of the six channels the batch records): z loads the
     six alike, phi (about the axis of three-fold symmetry) legs 1, 3, 5 alike and 2, 4, 6 alike, x the mirror pairs
     about the x axis (1-2, 3-6, 4-5); and the friction raises every drive's RMS torque."""
-    from mast.batch import run_batch
+    from mast.batch import BatchConfig, run_batch
 
-    config = {
-        "name": "hexapod",
-        "ssp": hexapod_ssp,
-        "run": {"stop_time": 0.3, "record_step": 0.001},
-        "cases": {
-            "motion": [
-                {"axis": "x", "amplitude": 0.002, "frequency": 5},
-                {"axis": "phi", "amplitude": 0.3, "frequency": 5},
-                {"axis": "z", "amplitude": 0.002, "frequency": 5},
-            ],
-            "grid": {"actuator_*.tau_c": [0.0193, 0.0718]},
-        },
-        "outputs": {"metrics": ["tracking", "torque"]},
-    }
+    config = {**BatchConfig.load(ROOT / "examples" / "hexapod_sweep.toml").raw, "ssp": hexapod_ssp}
     result = run_batch(config, tmp_path / "batch", workers=2, progress=False)
     assert (result.ok, result.failed, result.crashed) == (6, 0, 0)
     # the headline figures: the tracking of the coordinates the cases move, against the varied friction
