@@ -25,7 +25,6 @@ from mast.core.ssp import SSPArchive
 from mast.data.measured import MeasuredDataError, load
 from mast.diagnosis import Options, diagnose
 from mast.diagnosis.effects import LIBRARY, drive_of, for_drives
-from mast.diagnosis.resimulation import DiagnosisError
 
 ROOT = Path(__file__).resolve().parents[1]
 SYSTEM = "6PUS"  # the design (mast.core.designs): ssp/MAST_6PUS.ssd
@@ -55,6 +54,14 @@ def nominal_tau_c(hexapod_ssp) -> float:
 
 
 @pytest.fixture(scope="module")
+def stroke(hexapod_ssp) -> tuple[float, float]:
+    """The drives' stroke [m] (the plausibility bounds of the positions in the data)."""
+    with SSPArchive(hexapod_ssp) as archive:
+        p = archive.system.components["actuator_1"].parameters
+        return float(p["rho_min"]), float(p["rho_max"])
+
+
+@pytest.fixture(scope="module")
 def hexapod_data(hexapod_ssp, tmp_path_factory) -> dict:
     """The measured-data folder of the plan with the hidden friction, and the noise-free signals."""
     folder = tmp_path_factory.mktemp("hexapod_data") / "data"
@@ -69,8 +76,8 @@ def hexapod_data(hexapod_ssp, tmp_path_factory) -> dict:
     )
 
 
-def test_the_folder_holds_six_drives_and_the_six_coordinates(hexapod_data):
-    data = load(hexapod_data["folder"])
+def test_the_folder_holds_six_drives_and_the_six_coordinates(hexapod_data, stroke):
+    data = load(hexapod_data["folder"], stroke, drives=6)
     meta = json.loads((hexapod_data["folder"] / "meta.json").read_text())
     assert meta["drives"] == data.drives == 6
     assert [t.name for t in data.tests] == ["z_1.2Hz", "x_2.5Hz", "z_5Hz"]
@@ -87,7 +94,7 @@ def test_the_folder_holds_six_drives_and_the_six_coordinates(hexapod_data):
     assert np.abs(x.rho_cmd[:, 0] - x.rho_cmd[:, 2]).max() > 1e-4
 
 
-def test_a_folder_missing_a_drive_or_with_an_impossible_count_is_refused(hexapod_data, tmp_path):
+def test_a_folder_missing_a_drive_or_with_an_impossible_count_is_refused(hexapod_data, stroke, tmp_path):
     src = hexapod_data["folder"]
     meta = json.loads((src / "meta.json").read_text())
     folder = tmp_path / "broken"
@@ -99,10 +106,10 @@ def test_a_folder_missing_a_drive_or_with_an_impossible_count_is_refused(hexapod
     meta["tests"] = [e for e in meta["tests"] if e["file"] == "z_5Hz.csv"]
     (folder / "meta.json").write_text(json.dumps(meta))
     with pytest.raises(MeasuredDataError, match=r"z_5Hz.csv: missing column\(s\) tau_m_6; expected .*tau_m_1..6"):
-        load(folder)
+        load(folder, stroke)
     (folder / "meta.json").write_text(json.dumps({**meta, "drives": 7}))
     with pytest.raises(MeasuredDataError, match="drives = 7: expected a whole number from 1 to 6"):
-        load(folder)
+        load(folder, stroke)
     # without 'drives' the header's highest drive counts: a missing command column is named, never fewer drives
     del meta["drives"]
     (folder / "meta.json").write_text(json.dumps(meta))
@@ -110,10 +117,10 @@ def test_a_folder_missing_a_drive_or_with_an_impossible_count_is_refused(hexapod
     lines = [",".join(line.split(",")[k] for k in keep) for line in [header, *rows]]
     (folder / "z_5Hz.csv").write_text("\n".join(lines) + "\n")
     with pytest.raises(MeasuredDataError, match=r"missing column\(s\) rho_cmd_2; expected time, rho_cmd_1..6"):
-        load(folder)
+        load(folder, stroke)
 
 
-def test_the_replay_of_the_six_drive_commands_gives_back_the_noise_free_torques(hexapod_ssp, hexapod_data):
+def test_the_replay_of_the_six_drive_commands_gives_back_the_noise_free_torques(hexapod_ssp, hexapod_data, stroke):
     """The recorded joint commands, turned into pose commands with the controller's kinematic model (its engine's
     direct kinematics) and replayed with the truth: the torques before noise to 1e-9 N m, positions to 1e-12 m."""
     from fmus.actuator.sensor import measure
@@ -121,7 +128,7 @@ def test_the_replay_of_the_six_drive_commands_gives_back_the_noise_free_torques(
     from mast.data.measured import CommandReplay, controller_kinematics
     from mast.diagnosis.resimulation import sim_job
 
-    data = load(hexapod_data["folder"])
+    data = load(hexapod_data["folder"], stroke)
     t = data.test("x_2.5Hz")
     kinematics = controller_kinematics(hexapod_ssp)
     assert kinematics.names == ("x", "y", "z", "psi", "theta", "phi")
@@ -180,8 +187,11 @@ def test_data_of_another_drive_count_and_effects_of_drives_the_system_lacks_are_
     )
     units = {"time": "s", "rho_cmd": "m", "rho": "m", "tau_m": "N.m"}
     (folder / "meta.json").write_text(json.dumps({"units": units, "tests": [{"file": "z.csv"}]}))
-    assert load(folder).drives == 3
-    with pytest.raises(DiagnosisError, match="the tests have 3 drives .* has 6 actuators"):
+    assert load(folder).drives == 3  # the 3PRS's stroke, the default
+    with pytest.raises(
+        MeasuredDataError,
+        match=r"z.csv: the test has 3 drives \(rho_cmd_1..3, counted from its columns\), the system has 6",
+    ):
         diagnose(Options(folder, tmp_path / "out", hexapod_ssp, direct=True), log=lambda *_: None)
     every = [e.key for e in LIBRARY]
     assert for_drives(every, 3) == [k for k in every if (drive_of(k) or 0) <= 3]
@@ -190,12 +200,21 @@ def test_data_of_another_drive_count_and_effects_of_drives_the_system_lacks_are_
         for_drives(["coulomb", "coulomb_axis5"], 3)
 
 
+#: drives (0-based) whose torques a case's motion loads alike, by the designs' symmetries. Both hexapods have the
+#: three-fold symmetry about z: under z and phi legs 1, 3, 5 alike and 2, 4, 6 alike. The 6-PUS's legs are also
+#: mirror images of each other in pairs (z: all six alike; x, mirror symmetric about the x axis: 1-2, 3-6, 4-5);
+#: the 6-UPS's are not (every motor on the same side of its leg, docs/designs/6ups.md)
+THREE_FOLD = [(0, 2), (0, 4), (1, 3), (1, 5)]
+SYMMETRIES = {
+    "6PUS": {"z": [(0, k) for k in range(1, 6)], "phi": THREE_FOLD, "x": [(0, 1), (2, 5), (3, 4)]},
+    "6UPS": {"z": THREE_FOLD, "phi": THREE_FOLD, "x": []},
+}
+
+
 def test_a_batch_of_hexapod_cases_gives_the_torques_its_symmetries_require(hexapod_ssp, tmp_path):
     """examples/hexapod_sweep.toml: x, phi and z sines on the hexapod's six drives, two friction values: every case
-    runs; the drives' torques
-    follow the geometry's symmetries (an independent check of the six channels the batch records): z loads the
-    six alike, phi (about the axis of three-fold symmetry) legs 1, 3, 5 alike and 2, 4, 6 alike, x the mirror pairs
-    about the x axis (1-2, 3-6, 4-5); and the friction raises every drive's RMS torque."""
+    runs; the drives' torques follow the design's symmetries (``SYMMETRIES``: an independent check of the six
+    channels the batch records), and the friction raises every drive's RMS torque."""
     from mast.batch import BatchConfig, run_batch
 
     config = {**BatchConfig.load(ROOT / "examples" / "hexapod_sweep.toml").raw, "ssp": hexapod_ssp}
@@ -206,7 +225,7 @@ def test_a_batch_of_hexapod_cases_gives_the_torques_its_symmetries_require(hexap
     assert len(plots) == 3 and all(any(f"tracking_{a}_" in p for p in plots) for a in ("x", "phi", "z")), plots
     with (tmp_path / "batch" / "summary.csv").open() as f:
         rows = list(csv.DictReader(f))
-    pairs = {"z": [(0, k) for k in range(1, 6)], "phi": [(0, 2), (0, 4), (1, 3), (1, 5)], "x": [(0, 1), (2, 5), (3, 4)]}
+    pairs = SYMMETRIES[SYSTEM]
     rms = {}
     for row in rows:
         tau = np.array([float(row[f"tau_m_{k}_rms_Nm"]) for k in range(1, 7)])

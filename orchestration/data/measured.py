@@ -244,11 +244,14 @@ def check_sampling(name: str, t: np.ndarray) -> None:
         )
 
 
-def load(folder: Union[str, Path], stroke: tuple[float, float] = (0.0, 0.3)) -> MeasuredData:
+def load(
+    folder: Union[str, Path], stroke: tuple[float, float] = (0.0, 0.3), drives: Optional[int] = None
+) -> MeasuredData:
     """Read and validate a measured-data folder (SI units, time from 0 in every test).
 
     ``stroke`` [m]: carriage positions outside it (with 10 mm margin) are reported as a
-    unit problem.
+    unit problem. ``drives``: the number of drives of the machine the data must have (the system's actuators),
+    checked before any test's values.
     """
     from ..core.ssp import path_inside
 
@@ -293,10 +296,10 @@ def load(folder: Union[str, Path], stroke: tuple[float, float] = (0.0, 0.3)) -> 
     if filt < 0 or delay < 0:
         raise MeasuredDataError("meta.json: measurement.torque_filter_s and torque_delay_s must be finite and >= 0")
     k_T = meta.get("k_T")
-    drives = meta.get("drives")
-    if drives is not None and (isinstance(drives, bool) or drives not in range(1, MAX_DRIVES + 1)):
-        raise MeasuredDataError(f"meta.json: drives = {drives!r}: expected a whole number from 1 to {MAX_DRIVES}")
-    tests = [_load_test(folder, entry, units, k_T, stroke, drives) for entry in tests_meta]
+    declared = meta.get("drives")
+    if declared is not None and (isinstance(declared, bool) or declared not in range(1, MAX_DRIVES + 1)):
+        raise MeasuredDataError(f"meta.json: drives = {declared!r}: expected a whole number from 1 to {MAX_DRIVES}")
+    tests = [_load_test(folder, entry, units, k_T, stroke, declared, drives) for entry in tests_meta]
     names = [t.name for t in tests]
     if len(set(names)) != len(names):
         raise MeasuredDataError("meta.json: two tests have the same name")
@@ -317,17 +320,32 @@ def drive_count(header: Sequence[str]) -> int:
     return max(found, default=len(AXES))
 
 
-def _load_test(folder: Path, entry: dict, units: Mapping[str, str], k_T, stroke, drives: Optional[int]) -> MeasuredTest:
+def _load_test(
+    folder: Path,
+    entry: dict,
+    units: Mapping[str, str],
+    k_T,
+    stroke,
+    declared: Optional[int],
+    expected: Optional[int],
+) -> MeasuredTest:
     name = str(entry["file"])
     path = folder / name
     if not path.exists():
         raise MeasuredDataError(f"{name}: listed in meta.json but not in {folder}")
     header, data = read_csv(path)
     col = {h: j for j, h in enumerate(header)}
-    n = drives or drive_count(header)
+    n = declared or drive_count(header)
     if n > MAX_DRIVES:
         raise MeasuredDataError(
             f"{name}: columns of drive {n}: a machine has at most {MAX_DRIVES} drives (one per pose coordinate)"
+        )
+    if expected is not None and n != expected:
+        raise MeasuredDataError(
+            f"{name}: the test has {n} drives (rho_cmd_1..{n}"
+            + ("" if declared else ", counted from its columns")
+            + f"), the system has {expected} (actuator_1..{expected}): give the SSP of the machine the data were "
+            "measured on"
         )
     axes = range(1, n + 1)
     torque_cols = [f"tau_m_{j}" for j in axes]
