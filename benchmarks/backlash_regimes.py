@@ -31,7 +31,7 @@ from mast.core.build import default_build_dir
 from mast.core.motion import SineMotion
 from mast.core.run import drive_tick_steps, simulate
 from mast.core.ssp import SSPArchive
-from mast.data.measured import AXES, CommandReplay, controller_geometry, load
+from mast.data.measured import AXES, CommandReplay, controller_kinematics, load
 from mast.diagnosis.phasefree import COMMAND_JITTER, BandPowers
 
 
@@ -76,7 +76,7 @@ def main() -> None:
         out = synthesize(args.ssp, Path(tmp) / "data", truth, tests=[spec], direct=True, seed=0, log=lambda *_: None)
         test = load(Path(tmp) / "data").tests[0]
     clean = out["clean"][spec.name]["tau_m"]
-    replay = CommandReplay(test.time, test.rho_cmd, controller_geometry(args.ssp))
+    replay = CommandReplay(test.time, test.rho_cmd, controller_kinematics(args.ssp))
     reference = observed(replay, str(native), {}, False)
     keep = test.time >= test.settle_s - 1e-12
     bands = BandPowers(1e-3)

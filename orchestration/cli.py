@@ -659,7 +659,9 @@ def main(argv=None) -> int:
     )
     p.add_argument("--sample-time", type=seconds, default=1e-3, help="log sampling step [s]")
     p.add_argument(
-        "--tests", help="MOTION:AMPLITUDE:FREQUENCY[,...] (m for z, degrees for psi/theta; default: 7 tests)"
+        "--tests",
+        help="MOTION:AMPLITUDE:FREQUENCY[,...] (a coordinate of the system: m for x, y, z, degrees for the angles; "
+        "default: 7 tests of the 3PRS)",
     )
     p.add_argument("--seed", type=int, default=0, help="seed of the noise")
     p.add_argument(

@@ -54,7 +54,7 @@ def test_a_per_axis_lag_and_offset_match_the_fmus_sensor_on_that_axis():
         "delay_meas_axis2": 2.35e-3,
         "tau_offset_axis3": -0.007,
     }
-    chain = chain_for(params, H, 5e-4, 0.0)
+    chain = chain_for(params, H, 5e-4, 0.0, 3)
     got = chain.observe(s.tau_m)
     per_axis = [(2.1e-3, 0.0, 0.0), (4e-4, 2.35e-3, 0.0), (4e-4, 0.0, -0.007)]
     for j, (T, d, off) in enumerate(per_axis):
@@ -68,7 +68,7 @@ def test_a_per_axis_lag_and_offset_match_the_fmus_sensor_on_that_axis():
 
 def test_a_negative_lag_on_one_axis_is_refused_by_name():
     with pytest.raises(ValueError, match=r"T_meas of actuator\(s\) \[2\]"):
-        chain_for({**NOMINAL, "T_meas_axis2": -1e-3}, H, 0.0, 0.0)
+        chain_for({**NOMINAL, "T_meas_axis2": -1e-3}, H, 0.0, 0.0, 3)
 
 
 def test_a_per_axis_increment_that_makes_its_axis_unphysical_is_out_of_bounds():
@@ -93,7 +93,7 @@ def test_a_per_axis_increment_that_makes_its_axis_unphysical_is_out_of_bounds():
 @pytest.mark.parametrize("param", ["tau_c", "J1_scale", "M_load", "tau_offset", "T_meas"])
 def test_per_axis_columns_are_the_all_axes_column_on_that_axis(param):
     s = signals()
-    chain = chain_for({**NOMINAL, "T_meas": 1e-3}, H, 5e-4, 0.0)
+    chain = chain_for({**NOMINAL, "T_meas": 1e-3}, H, 5e-4, 0.0, 3)
     whole = column(param, s, NOMINAL, chain)
     parts = [column(f"{param}_axis{j}", s, NOMINAL, chain) for j in (1, 2, 3)]
     for j, c in enumerate(parts):

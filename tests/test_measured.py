@@ -183,7 +183,7 @@ def test_replay_reproduces_the_noise_free_signals(built_ssp, tmp_path):
     from mast.analyses.synthesize import synthesize
     from mast.core.run import drive_tick_steps
     from mast.core.ssp import SSPArchive
-    from mast.data.measured import CommandReplay, controller_geometry
+    from mast.data.measured import CommandReplay, controller_kinematics
     from mast.diagnosis.resimulation import sim_job
 
     truth = {"actuator": {"tau_c": 0.0718, "J1_scale": 0.641, "T_meas": 2e-3}}
@@ -201,13 +201,13 @@ def test_replay_reproduces_the_noise_free_signals(built_ssp, tmp_path):
     assert "tau_c" not in (tmp_path / "data" / "meta.json").read_text()
     data = load(tmp_path / "data")
     t = data.tests[0]
-    replay = CommandReplay(t.time, t.rho_cmd, controller_geometry(built_ssp))
+    replay = CommandReplay(t.time, t.rho_cmd, controller_kinematics(built_ssp))
     params = {f"actuator_{j}": {**truth["actuator"], "rho_0": float(t.rho_cmd[0, j - 1])} for j in (1, 2, 3)}
     # exchanged every T_cur as synthesize and the diagnosis do (mast.core.run.drive_tick_steps)
     with SSPArchive(built_ssp) as archive:
         steps = drive_tick_steps(archive.system)
     assert steps[0] == 1e-4
-    run = sim_job((built_ssp, t.name, replay, t.duration + 1e-12, params, True, steps))
+    run = sim_job((built_ssp, t.name, replay, t.duration + 1e-12, params, True, steps, list(params)))
     obs = measure(measure(run["tau_m"], run["h"], T=2e-3, axis=0), run["h"], T=data.torque_filter_s, axis=0)
     idx = np.round(t.time / run["h"]).astype(int)
     clean = res["clean"][t.name]

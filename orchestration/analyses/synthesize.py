@@ -24,7 +24,7 @@ from fmus.actuator.sensor import measure
 from fmus.mechanism.topology import POSE, Coordinate
 
 from ..core.motion import pose_inputs, system_axes
-from ..data.measured import AXES, FORMAT, VERSION, controller_geometry, write_test_csv
+from ..data.measured import FORMAT, VERSION, controller_kinematics, write_test_csv
 
 #: the drive's torque filter that every synthetic measurement goes through [s] (about 320 Hz)
 DEFAULT_TORQUE_FILTER = 5e-4
@@ -109,11 +109,11 @@ def _synth_worker(args: tuple) -> dict:
 
     ssp, spec, parameters, direct, steps, axes = args
     record = [*pose_inputs(axes), *(f"mechanism.{a}" for a in axes)]
-    for j in AXES:
+    for j in range(1, len(axes) + 1):
         record += [f"actuator_{j}.rho", f"actuator_{j}.tau_meas", f"actuator_{j}.tau_m"]
     res = simulate(
         ssp,
-        SineMotion(spec.motion, spec.amplitude, spec.frequency),
+        SineMotion(spec.motion, spec.amplitude, spec.frequency, axes=axes),
         spec.stop_time(),
         parameters=parameters,
         record=record,
@@ -140,9 +140,10 @@ def synthesize(
     truth_path: Optional[Path] = None,
     log=print,
 ) -> dict:
-    """Write the measured-data folder ``out`` and the truth file; return the noise-free signals too."""
-    from fmus.mechanism.kinematics import inverse_kinematics
+    """Write the measured-data folder ``out`` and the truth file; return the noise-free signals too.
 
+    The system's mechanism may have any drives and coordinates (its topology): the tests' motions are its
+    coordinates, the folder holds one rho_cmd_k, rho_k, tau_m_k column per drive (meta.json's ``drives``)."""
     from ..core.ssp import SSPArchive
 
     out = Path(out)
@@ -160,19 +161,20 @@ def synthesize(
         base = steps[0] if steps else archive.system.base_step
         truth = expand_overrides(truth or {}, components)
         axes = system_axes(archive.system, truth)
-    if len(axes) != len(AXES):
+        system_name = archive.system.name
+    kinematics = controller_kinematics(ssp, truth)
+    if kinematics.names != tuple(axes):
         raise ValueError(
-            f"{ssp}: its mechanism has {len(axes)} drives (coordinates {', '.join(axes)}); the measured-"
-            f"data format (docs/measured-data.md, version {VERSION}) and the controller's kinematic "
-            f"model the joint commands are logged with have {len(AXES)}"
+            f"{ssp}: its mechanism's coordinates are {', '.join(axes)}, its controller's kinematic model's "
+            f"{', '.join(kinematics.names)}: the joint commands are logged with the controller's model"
         )
+    drives = range(1, len(axes) + 1)
     for spec in tests:
         if spec.motion not in axes:
             raise ValueError(
                 f"--tests motion {spec.motion!r}: {ssp} has no such coordinate; its mechanism's "
                 f"coordinates are {', '.join(axes)}"
             )
-    geometry = controller_geometry(ssp, truth)
     every = round(sample_time / base)
     if every < 1 or abs(every * base - sample_time) > 1e-9 * sample_time:
         raise ValueError(f"--sample-time {sample_time:g} s: expected a whole multiple of the base step {base:g} s")
@@ -197,16 +199,16 @@ def synthesize(
         idx = np.arange(0, len(run["time"]), every)
         t = run["time"][idx]
         poses = np.column_stack([run[f"{a}_cmd"][idx] for a in axes])
-        rho_cmd = np.array([inverse_kinematics(geometry, *q) for q in poses])
-        rho = np.column_stack([run[f"actuator_{j}.rho"][idx] for j in AXES])
-        tau_fine = np.column_stack([run[f"actuator_{j}.tau_meas"] for j in AXES])
+        rho_cmd = np.array([kinematics.ik(q) for q in poses])
+        rho = np.column_stack([run[f"actuator_{j}.rho"][idx] for j in drives])
+        tau_fine = np.column_stack([run[f"actuator_{j}.tau_meas"] for j in drives])
         tau = measure(tau_fine, h, T=torque_filter_s, axis=0)[idx]
         clean[spec.name] = {
             "time": t,
             "rho_cmd": rho_cmd,
             "rho": rho.copy(),
             "tau_m": tau.copy(),
-            "tau_m_plant": np.column_stack([run[f"actuator_{j}.tau_m"][idx] for j in AXES]),
+            "tau_m_plant": np.column_stack([run[f"actuator_{j}.tau_m"][idx] for j in drives]),
         }
         rho_meas = rho + noise["rho"] * rng.standard_normal(rho.shape)
         if resolution.get("rho"):
@@ -229,7 +231,8 @@ def synthesize(
     meta = {
         "format": FORMAT,
         "version": VERSION,
-        "machine": "MAST (synthetic: mast synthesize)",
+        "machine": f"{system_name} (synthetic: mast synthesize)",
+        "drives": len(drives),
         "description": "Sine tests around the home pose; joint commands as logged by the drive",
         "units": {"time": "s", "rho_cmd": "m", "rho": "m", "tau_m": "N.m", "position": "m", "angle": "rad"},
         "measurement": {

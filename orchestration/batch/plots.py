@@ -13,6 +13,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from fmus.mechanism.topology import POSE, POSE_UNITS  # noqa: E402
+
 _MOTION_KEYS = {"frequency": "frequency", "amplitude": "amplitude", "axis": "axis"}
 
 
@@ -85,19 +87,12 @@ def _varied(rows: Sequence[Mapping]) -> list[str]:
 
 
 def _headline(rows: Sequence[Mapping]) -> list[str]:
+    """Up to three metrics to plot against the varied inputs: the response, the tracking of the coordinates the
+    cases move (of every coordinate in pose order when none moves), the first drive's torque, saturation."""
     have = set(k for r in rows for k in (r.get("metrics") or {}))
-    picks = [
-        m
-        for m in (
-            "magnitude_dB",
-            "tracking_z_rms_m",
-            "tracking_psi_rms_rad",
-            "tracking_theta_rms_rad",
-            "tau_m_1_peak_Nm",
-            "saturation_s",
-        )
-        if m in have
-    ]
+    moved = list(dict.fromkeys(r["motion"]["axis"] for r in rows if r.get("motion")))
+    tracking = [f"tracking_{a}_rms_{POSE_UNITS[a]}" for a in (moved or POSE)]
+    picks = [m for m in ("magnitude_dB", *tracking, "tau_m_1_peak_Nm", "saturation_s") if m in have]
     return picks[:3]
 
 

@@ -91,7 +91,8 @@ def run_case(task: Mapping) -> dict:
         session = _session(task["ssp_path"], bool(task.get("direct")))
         motion = task.get("motion")
         if motion is not None:
-            stimulus = SineMotion(motion["axis"], motion["amplitude_si"], motion["frequency"])
+            # any coordinate of the case's system (checked when the cases were made); the session binds the rest
+            stimulus = SineMotion(motion["axis"], motion["amplitude_si"], motion["frequency"], axes=(motion["axis"],))
         elif all(s in session.system.system_inputs for s in pose_inputs(system_axes(session.system))):
             stimulus = PoseStep({})  # no motion: the system holds its home pose (docs/batch.md)
         else:
@@ -156,7 +157,7 @@ def _motion_si(motion: Optional[Mapping]) -> Optional[dict]:
 
 def _limits(system, flat: Mapping[str, Any]) -> dict[str, float]:
     """The drive's limits: i_max of the controller's current command, u_max of the current loop in the actuators
-    (actuator_1's: one drive type for the three axes)."""
+    (actuator_1's: one drive type for every axis)."""
     out = {}
     for component, name in (("controller", "i_max"), ("actuator_1", "u_max")):
         if component not in system.components:

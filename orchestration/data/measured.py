@@ -1,7 +1,8 @@
 """Measured data: a folder of tests (one CSV each) and a meta.json; loading, validation, replay.
 
-Format (docs/measured-data.md): columns ``time``, ``rho_cmd_1..3``, ``rho_1..3`` and
-``tau_m_1..3`` (or ``i_m_1..3`` with ``k_T`` in meta.json), optional pose columns
+Format (docs/measured-data.md): columns ``time``, ``rho_cmd_1..n``, ``rho_1..n`` and
+``tau_m_1..n`` (or ``i_m_1..n`` with ``k_T`` in meta.json) for the n drives of the machine (the
+3PRS's three; n from meta.json's ``drives``, else the highest k of the header's columns), optional pose columns
 ``x, y, z, psi, theta, phi``; meta.json names the tests, their units and the measurement
 chain the lab knows (the drive's torque filter). Every problem (irregular sampling, gaps,
 NaNs, missing columns, units that are unknown or give implausible values) is a
@@ -19,15 +20,22 @@ import copy
 import csv
 import json
 import math
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Mapping, Optional, Sequence, Union
+from typing import Callable, Mapping, Optional, Sequence, Union
 
 import numpy as np
 
+from fmus.mechanism.topology import POSE_UNITS
+
 FORMAT = "mast-measured-data"
 VERSION = 1
+#: the drives of the format's first machine, the 3PRS (a folder without ``drives`` in meta.json and without any
+#: column of a drive to count has these)
 AXES = (1, 2, 3)
+#: the most drives a folder can have: one per pose component (a fully actuated mechanism, topology.py)
+MAX_DRIVES = 6
 POSE_COLUMNS = ("x", "y", "z", "psi", "theta", "phi")
 
 #: accepted unit strings -> factor to SI, per quantity
@@ -58,7 +66,16 @@ MIN_SAMPLES = 50
 MAX_TRACKING = 0.01  # m: median |rho - rho_cmd| above this is no tracking error but a unit mismatch
 #: the commanded joint swing per unit of commanded pose amplitude: z moves every carriage 1:1 (vertical
 #: guides; less on inclined ones), psi/theta move the carriages about (platform radius) x angle
-SWING_PER_AMPLITUDE = {"z": (0.2, 5.0), "psi": (0.01, 3.0), "theta": (0.01, 3.0)}  # m/m, m/rad
+#: (x, y: the legs of a hexapod lean, at home 1.10 m/m on the 6-PUS, 0.43 on the 6-UPS; phi: 0.39 and 0.15 m/rad;
+#: the bounds catch a unit off by 10^3, as for z, psi and theta)
+SWING_PER_AMPLITUDE = {
+    "x": (0.05, 5.0),
+    "y": (0.05, 5.0),
+    "z": (0.2, 5.0),
+    "psi": (0.01, 3.0),
+    "theta": (0.01, 3.0),
+    "phi": (0.01, 3.0),
+}  # m/m, m/rad
 
 
 class MeasuredDataError(ValueError):
@@ -99,6 +116,11 @@ class MeasuredTest(Sampled):
     pose: dict[str, np.ndarray] = field(default_factory=dict)
     time_offset: float = 0.0  # the file's first time stamp [s]
 
+    @property
+    def drives(self) -> int:
+        """The number of drives (columns rho_cmd_1..n)."""
+        return int(self.rho_cmd.shape[1])
+
     def label(self) -> str:
         if self.motion and self.frequency:
             return f"{self.motion} {self.frequency:g} Hz"
@@ -112,6 +134,11 @@ class MeasuredData:
     tests: list[MeasuredTest]
     torque_filter_s: float = 0.0  # the drive's documented torque filter (first-order) [s]
     torque_delay_s: float = 0.0  # documented logging delay [s]
+
+    @property
+    def drives(self) -> int:
+        """The number of drives of every test."""
+        return self.tests[0].drives
 
     def test(self, name: str) -> MeasuredTest:
         for t in self.tests:
@@ -217,11 +244,14 @@ def check_sampling(name: str, t: np.ndarray) -> None:
         )
 
 
-def load(folder: Union[str, Path], stroke: tuple[float, float] = (0.0, 0.3)) -> MeasuredData:
+def load(
+    folder: Union[str, Path], stroke: tuple[float, float] = (0.0, 0.3), drives: Optional[int] = None
+) -> MeasuredData:
     """Read and validate a measured-data folder (SI units, time from 0 in every test).
 
     ``stroke`` [m]: carriage positions outside it (with 10 mm margin) are reported as a
-    unit problem.
+    unit problem. ``drives``: the number of drives of the machine the data must have (the system's actuators),
+    checked before any test's values.
     """
     from ..core.ssp import path_inside
 
@@ -266,34 +296,72 @@ def load(folder: Union[str, Path], stroke: tuple[float, float] = (0.0, 0.3)) -> 
     if filt < 0 or delay < 0:
         raise MeasuredDataError("meta.json: measurement.torque_filter_s and torque_delay_s must be finite and >= 0")
     k_T = meta.get("k_T")
-    tests = [_load_test(folder, entry, units, k_T, stroke) for entry in tests_meta]
+    declared = meta.get("drives")
+    if declared is not None and (isinstance(declared, bool) or declared not in range(1, MAX_DRIVES + 1)):
+        raise MeasuredDataError(f"meta.json: drives = {declared!r}: expected a whole number from 1 to {MAX_DRIVES}")
+    tests = [_load_test(folder, entry, units, k_T, stroke, declared, drives) for entry in tests_meta]
     names = [t.name for t in tests]
     if len(set(names)) != len(names):
         raise MeasuredDataError("meta.json: two tests have the same name")
+    counts = {t.drives for t in tests}
+    if len(counts) > 1:
+        raise MeasuredDataError(
+            "meta.json: the tests have different numbers of drives ("
+            + ", ".join(f"{t.file.name} {t.drives}" for t in tests)
+            + "): one folder holds the tests of one machine"
+        )
     return MeasuredData(folder, meta, tests, filt, delay)
 
 
-def _load_test(folder: Path, entry: dict, units: Mapping[str, str], k_T, stroke) -> MeasuredTest:
+def drive_count(header: Sequence[str]) -> int:
+    """The drives a header holds: the highest k of its columns rho_cmd_k, rho_k, tau_m_k and i_m_k (the 3PRS's
+    three if it has none; a column missing below that k is then named as missing, never taken as fewer drives)."""
+    found = [int(m.group(2)) for h in header if (m := re.fullmatch(r"(rho_cmd|rho|tau_m|i_m)_([1-9][0-9]*)", h))]
+    return max(found, default=len(AXES))
+
+
+def _load_test(
+    folder: Path,
+    entry: dict,
+    units: Mapping[str, str],
+    k_T,
+    stroke,
+    declared: Optional[int],
+    expected: Optional[int],
+) -> MeasuredTest:
     name = str(entry["file"])
     path = folder / name
     if not path.exists():
         raise MeasuredDataError(f"{name}: listed in meta.json but not in {folder}")
     header, data = read_csv(path)
     col = {h: j for j, h in enumerate(header)}
-    torque_cols = [f"tau_m_{j}" for j in AXES]
-    current_cols = [f"i_m_{j}" for j in AXES]
+    n = declared or drive_count(header)
+    if n > MAX_DRIVES:
+        raise MeasuredDataError(
+            f"{name}: columns of drive {n}: a machine has at most {MAX_DRIVES} drives (one per pose coordinate)"
+        )
+    if expected is not None and n != expected:
+        raise MeasuredDataError(
+            f"{name}: the test has {n} drives (rho_cmd_1..{n}"
+            + ("" if declared else ", counted from its columns")
+            + f"), the system has {expected} (actuator_1..{expected}): give the SSP of the machine the data were "
+            "measured on"
+        )
+    axes = range(1, n + 1)
+    torque_cols = [f"tau_m_{j}" for j in axes]
+    current_cols = [f"i_m_{j}" for j in axes]
     use_current = not all(c in col for c in torque_cols) and all(c in col for c in current_cols)
     needed = (
         ["time"]
-        + [f"rho_cmd_{j}" for j in AXES]
-        + [f"rho_{j}" for j in AXES]
+        + [f"rho_cmd_{j}" for j in axes]
+        + [f"rho_{j}" for j in axes]
         + (current_cols if use_current else torque_cols)
     )
     missing = [c for c in needed if c not in col]
     if missing:
         raise MeasuredDataError(
-            f"{name}: missing column(s) {', '.join(missing)}; expected time, rho_cmd_1..3, "
-            "rho_1..3 and tau_m_1..3 (or i_m_1..3 with k_T in meta.json)"
+            f"{name}: missing column(s) {', '.join(missing)}; expected time, rho_cmd_1..{n}, "
+            f"rho_1..{n} and tau_m_1..{n} (or i_m_1..{n} with k_T in meta.json)"
         )
     if len(data) == 0:
         raise MeasuredDataError(f"{name}: no data rows")
@@ -307,7 +375,7 @@ def _load_test(folder: Path, entry: dict, units: Mapping[str, str], k_T, stroke)
     lo, hi = stroke[0] - 0.01, stroke[1] + 0.01
     for group, factor in (("rho_cmd", f_len), ("rho", f_rho)):
         cols = []
-        for j in AXES:
+        for j in axes:
             c = f"{group}_{j}"
             v = data[:, col[c]]
             check_finite(name, c, v, t)
@@ -324,7 +392,7 @@ def _load_test(folder: Path, entry: dict, units: Mapping[str, str], k_T, stroke)
     if use_current:
         f_cur = _unit_factor(units, "i_m", name)
         if k_T is None:
-            raise MeasuredDataError(f"{name}: columns i_m_1..3 need the torque constant 'k_T' [N.m/A] in meta.json")
+            raise MeasuredDataError(f"{name}: columns i_m_1..{n} need the torque constant 'k_T' [N.m/A] in meta.json")
         try:
             kT = float(k_T)
         except (TypeError, ValueError):
@@ -376,7 +444,7 @@ def _load_test(folder: Path, entry: dict, units: Mapping[str, str], k_T, stroke)
     motion = entry.get("motion")
     amplitude = entry.get("amplitude")
     if amplitude is not None:
-        unit = entry.get("amplitude_unit", "m" if motion == "z" else "rad")
+        unit = entry.get("amplitude_unit", POSE_UNITS.get(motion, "rad"))
         quantity = "length" if unit in UNITS["length"] else "angle"
         if unit not in UNITS[quantity]:
             raise MeasuredDataError(f"meta.json: test {name}: amplitude_unit '{unit}' is not known")
@@ -437,11 +505,12 @@ def _check_positions(
         ratio = swing / abs(amplitude)
         low, high = SWING_PER_AMPLITUDE[motion]
         if not low <= ratio <= high:
-            per = "m" if motion == "z" else "rad"
+            per = POSE_UNITS[motion]
             raise MeasuredDataError(
-                f"{name}: columns rho_cmd_1..3 swing by +-{swing:.3g} m while meta.json gives a {motion} amplitude of "
-                f"{abs(amplitude):.3g} {per}: {ratio:.3g} m per {per}, expected {low:g} to {high:g}; check "
-                f"units.rho_cmd (now '{units.get('rho_cmd')}') or the test's amplitude and amplitude_unit"
+                f"{name}: columns rho_cmd_1..{rho_cmd.shape[1]} swing by +-{swing:.3g} m while meta.json gives a "
+                f"{motion} amplitude of {abs(amplitude):.3g} {per}: {ratio:.3g} m per {per}, expected {low:g} to "
+                f"{high:g}; check units.rho_cmd (now '{units.get('rho_cmd')}') or the test's amplitude and "
+                "amplitude_unit"
             )
 
 
@@ -456,46 +525,73 @@ def write_test_csv(
     tau_m: np.ndarray,
     pose: Optional[Mapping[str, np.ndarray]] = None,
 ) -> None:
-    names = ["time"] + [f"rho_cmd_{j}" for j in AXES] + [f"rho_{j}" for j in AXES] + [f"tau_m_{j}" for j in AXES]
+    """One test's CSV: time, then rho_cmd_1..n, rho_1..n, tau_m_1..n for the n columns of the (samples, n)
+    arrays, then the ``pose`` columns."""
+    n = rho_cmd.shape[1]
+    if rho.shape[1] != n or tau_m.shape[1] != n:
+        raise ValueError(f"{path.name}: rho_cmd, rho and tau_m have {n}, {rho.shape[1]}, {tau_m.shape[1]} columns")
+    axes = range(1, n + 1)
+    names = ["time"] + [f"rho_cmd_{j}" for j in axes] + [f"rho_{j}" for j in axes] + [f"tau_m_{j}" for j in axes]
     cols = [time, *rho_cmd.T, *rho.T, *tau_m.T]
     for k, v in (pose or {}).items():
         names.append(k)
         cols.append(v)
     table = np.column_stack(cols)
-    fmt = ["%.9f"] + ["%.12g"] * 3 + ["%.12g"] * 3 + ["%.9g"] * 3 + ["%.9g"] * len(pose or {})
+    fmt = ["%.9f"] + ["%.12g"] * n + ["%.12g"] * n + ["%.9g"] * n + ["%.9g"] * len(pose or {})
     np.savetxt(path, table, delimiter=",", header=",".join(names), comments="", fmt=fmt)
 
 
 # --------------------------------------------------------------------------------------
 # replay: drive the co-simulation by the recorded joint commands
 # --------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class ReplayKinematics:
+    """The controller's kinematic model as the replay needs it: ``ik(q)`` rho of a pose command q (one value per
+    coordinate of ``names``) and ``dk(rho, guess)`` its inverse (Newton to ``DK_TOL``)."""
+
+    names: tuple[str, ...]
+    ik: Callable[[Sequence[float]], Sequence[float]]
+    dk: Callable[[Sequence[float], Optional[Sequence[float]]], Sequence[float]]
+
+    @property
+    def n(self) -> int:
+        return len(self.names)
+
+
+#: the replay's direct kinematics stops when max |rho(q) - rho_cmd| is below this [m]
+DK_TOL = 1e-13
+
+
 class CommandReplay:
     """Stimulus (mast.core.master.Stimulus) replaying recorded joint commands as pose commands.
 
     The controller of the SSP takes pose commands and converts them with its own inverse
     kinematics; the recorded rho_cmd are turned into poses once, with the direct
-    kinematics of the same geometry (warm-started Newton, 1e-13 m), and the pose is
-    interpolated linearly in time between samples. At the samples (and so at the
+    kinematics of the same model (``controller_kinematics``: warm-started Newton, 1e-13 m), and
+    the pose is interpolated linearly in time between samples. At the samples (and so at the
     controller's position ticks when the data are logged at the position-loop rate or a
     divisor of it) the controller's IK returns the recorded rho_cmd to 1e-12 m.
     """
 
     reads: Sequence[str] = ()
 
-    def __init__(self, time: np.ndarray, rho_cmd: np.ndarray, geometry) -> None:
-        from fmus.mechanism.kinematics import direct_kinematics, inverse_kinematics
-
+    def __init__(self, time: np.ndarray, rho_cmd: np.ndarray, kinematics: ReplayKinematics) -> None:
         self.time = np.asarray(time, dtype=float)
         n = len(self.time)
-        poses = np.empty((n, 3))
+        if rho_cmd.shape[1] != kinematics.n:
+            raise MeasuredDataError(
+                f"command replay: {rho_cmd.shape[1]} joint commands per sample, the controller's kinematic model "
+                f"has {kinematics.n} drives (coordinates {', '.join(kinematics.names)})"
+            )
+        poses = np.empty((n, kinematics.n))
         guess = None
         worst = 0.0
         for k in range(n):
-            q = direct_kinematics(geometry, rho_cmd[k], guess=guess, tol=1e-13)
+            q = kinematics.dk(rho_cmd[k], guess)
             poses[k] = q
             guess = q
         for k in range(0, n, max(1, n // 50)):  # spot check the round trip
-            worst = max(worst, float(np.abs(inverse_kinematics(geometry, *poses[k]) - rho_cmd[k]).max()))
+            worst = max(worst, float(np.abs(np.asarray(kinematics.ik(poses[k])) - rho_cmd[k]).max()))
         if worst > 1e-9:
             raise MeasuredDataError(f"command replay: IK(DK(rho_cmd)) differs from rho_cmd by {worst:.3g} m")
         self.poses = poses
@@ -531,21 +627,37 @@ class CommandReplay:
         b = self._rows[k + 1]
         if f > 1.0 - 1e-9:
             return list(b)
-        return [a[0] + f * (b[0] - a[0]), a[1] + f * (b[1] - a[1]), a[2] + f * (b[2] - a[2])]
+        return [x + f * (y - x) for x, y in zip(a, b)]
 
 
-def controller_geometry(
+def controller_kinematics(
     ssp: Union[str, Path], overrides: Optional[Mapping[str, Mapping]] = None, controller: str = "controller"
-):
-    """The Geometry the SSP binds to its controller (with ``overrides``)."""
-    from fmus.mechanism.kinematics import Geometry
+) -> ReplayKinematics:
+    """The kinematic model the SSP binds to its controller (with ``overrides``): the description its geometry set
+    selects (``kinematics``), massless, as the controller builds it; the 3PRS with vertical guides by its closed
+    form (fmus/mechanism/kinematics.py, the controller's to 1e-12 m), with which the replays of the 3PRS's data
+    were made and its diagnoses' figures computed."""
+    from fmus.mechanism.designs import kinematic_engine
+    from fmus.mechanism.kinematics import Geometry, direct_kinematics, inverse_kinematics
 
     from ..core.ssp import SSPArchive
 
     with SSPArchive(ssp) as archive:
         params = dict(archive.system.components[controller].parameters)
     params.update((overrides or {}).get(controller, {}))
-    return Geometry.checked(params, controller)
+    if params.get("kinematics", "3PRS") == "3PRS" and float(params.get("beta", 0.0)) == 0.0:
+        geometry = Geometry.checked(params, controller)
+        return ReplayKinematics(
+            ("z", "psi", "theta"),
+            lambda q: inverse_kinematics(geometry, *q),
+            lambda rho, guess: direct_kinematics(geometry, rho, guess=guess, tol=DK_TOL),
+        )
+    engine = kinematic_engine(params, controller)
+    return ReplayKinematics(
+        engine.description.topology.names,
+        engine.ik,
+        lambda rho, guess: engine.dk(rho, guess, tol=DK_TOL)[0],
+    )
 
 
 def actuator_names(ssp: Union[str, Path]) -> list[str]:

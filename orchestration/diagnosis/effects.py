@@ -23,7 +23,8 @@ motor torque per unit change of its first parameter, computed from a simulation
 | transmission stiffness | K_t | none: re-simulated only, from a log scan (1/K_t, not K_t, is what the loop feels), tried when stand-ins were refused |
 
 Plant and measurement effects also exist on one axis only ("<parameter>_axis<j>", an increment on
-actuator j; ``PER_AXIS``).
+actuator j; ``PER_AXIS``), for every drive a mechanism can have (``MAX_DRIVES``); a system's library is
+that of its own drives (``for_drives``).
 
 In the selection, plant effects use re-simulated sensitivities (a simulation with the
 parameter stepped by ``Effect.step``: the exact linearisation of the closed loop, which
@@ -47,6 +48,7 @@ import numpy as np
 
 from fmus.actuator.model import transmission_ratio, two_inertia
 from fmus.actuator.sensor import measure
+from fmus.mechanism.topology import POSE
 
 #: parameters of the measurement model (no re-simulation needed when they change)
 MEASUREMENT_PARAMETERS = ("T_meas", "delay_meas", "tau_offset")
@@ -57,7 +59,7 @@ CONTROLLER_PARAMETERS = ("k_v", "k_p", "k_i", "T_vel", "i_max")
 
 @dataclass
 class SimSignals:
-    """One simulated test on the base-step grid (arrays (m, 3): one column per actuator)."""
+    """One simulated test on the base-step grid (arrays (m, drives): one column per actuator)."""
 
     time: np.ndarray
     h: float
@@ -83,33 +85,34 @@ class SimSignals:
         return self._cache[key]
 
 
-def per_axis(value) -> tuple[float, float, float]:
-    """A measurement parameter as three per-axis values (a scalar applies to every axis)."""
-    v = tuple(float(x) for x in np.broadcast_to(np.asarray(value, dtype=float), (3,)))
-    return v  # type: ignore[return-value]
+def per_axis(value, drives: int) -> tuple[float, ...]:
+    """A measurement parameter as one value per drive (a scalar applies to every drive)."""
+    return tuple(float(x) for x in np.broadcast_to(np.asarray(value, dtype=float), (drives,)))
 
 
 @dataclass
 class Chain:
-    """The observation chain: FMU measurement model (per axis), then the documented drive filter, then sampling."""
+    """The observation chain: FMU measurement model (per axis), then the documented drive filter, then sampling;
+    ``drives`` columns (one per actuator)."""
 
     h: float
     drive_T: float
     drive_delay: float
-    T_meas: tuple = (0.0, 0.0, 0.0)
-    delay_meas: tuple = (0.0, 0.0, 0.0)
-    tau_offset: tuple = (0.0, 0.0, 0.0)
+    drives: int
+    T_meas: tuple = (0.0,)
+    delay_meas: tuple = (0.0,)
+    tau_offset: tuple = (0.0,)
 
     def __post_init__(self) -> None:
         for name in MEASUREMENT_PARAMETERS:
-            setattr(self, name, per_axis(getattr(self, name)))
+            setattr(self, name, per_axis(getattr(self, name), self.drives))
         for name in ("T_meas", "delay_meas"):
             bad = [j + 1 for j, v in enumerate(getattr(self, name)) if not v >= 0.0]
             if bad:
                 raise ValueError(f"{name} of actuator(s) {bad}: {getattr(self, name)} s; expected >= 0")
 
     def linear(self, u: np.ndarray) -> np.ndarray:
-        """The linear part (no offset) on the base grid; u (m, 3), one column per actuator."""
+        """The linear part (no offset) on the base grid; u (m, drives), one column per actuator."""
         out = np.empty_like(np.asarray(u, dtype=float))
         groups: dict = {}
         for j, key in enumerate(zip(self.T_meas, self.delay_meas)):
@@ -127,13 +130,14 @@ class Chain:
         return Chain(**d)
 
 
-def chain_for(params: Mapping, h: float, drive_T: float, drive_delay: float) -> Chain:
-    """The chain of a parameter set: the all-axes measurement values plus each axis's increments."""
+def chain_for(params: Mapping, h: float, drive_T: float, drive_delay: float, drives: int) -> Chain:
+    """The chain of a parameter set on ``drives`` actuators: the all-axes measurement values plus each axis's
+    increments."""
     values = {
-        p: tuple(float(params[p]) + float(params.get(f"{p}_axis{j}", 0.0)) for j in (1, 2, 3))
+        p: tuple(float(params[p]) + float(params.get(f"{p}_axis{j}", 0.0)) for j in range(1, drives + 1))
         for p in MEASUREMENT_PARAMETERS
     }
-    return Chain(h, drive_T, drive_delay, **values)
+    return Chain(h, drive_T, drive_delay, drives, **values)
 
 
 # --------------------------------------------------------------------------------------
@@ -371,8 +375,10 @@ LIBRARY: tuple[Effect, ...] = (
 #: re-simulates. They cost one parameter each, so when the axes agree the all-axes effect (one
 #: parameter) wins on BIC. Inertia on the two sides of one axis's transmission are alternatives, as
 #: for all axes (group "inertia_axis<j>"). The platform payload is not in this list: under rotation it
-#: loads the three actuators through the mechanism, not as a mass on one carriage.
+#: loads every actuator through the mechanism, not as a mass on one carriage.
 PER_AXIS = ("tau_c", "b_v", "J1_scale", "J_guide", "M_load", "tau_offset", "T_meas")
+#: the most drives a mechanism has: one per pose component (a fully actuated mechanism, topology.py)
+MAX_DRIVES = len(POSE)
 
 
 def _per_axis(e: Effect, j: int) -> Effect:
@@ -390,7 +396,7 @@ def _per_axis(e: Effect, j: int) -> Effect:
     )
 
 
-LIBRARY = LIBRARY + tuple(_per_axis(e, j) for e in LIBRARY if e.parameter in PER_AXIS for j in (1, 2, 3))
+LIBRARY = LIBRARY + tuple(_per_axis(e, j) for e in LIBRARY if e.parameter in PER_AXIS for j in range(1, MAX_DRIVES + 1))
 BY_KEY = {e.key: e for e in LIBRARY}
 BY_PARAMETER = {p: e for e in LIBRARY for p in e.parameters}
 BOUNDS = {name: b for e in LIBRARY for name, b in e.bounds.items()}
@@ -400,6 +406,24 @@ AXIS_OF: dict[str, tuple[str, int]] = {
 }
 #: every parameter of the measurement model, all-axes and per axis (no re-simulation when they change)
 MEASUREMENT = frozenset(MEASUREMENT_PARAMETERS) | {k for k, (p, _) in AXIS_OF.items() if p in MEASUREMENT_PARAMETERS}
+
+
+def drive_of(key: str) -> Optional[int]:
+    """The drive (1-based) an effect or parameter of one axis acts on ("..._axis<j>"), None for all axes."""
+    return int(key.rsplit("_axis", 1)[1]) if "_axis" in key else None
+
+
+def for_drives(keys: Sequence[str], drives: int) -> list[str]:
+    """The effects of ``keys`` a system with ``drives`` actuators has: all-axes effects and those of its own axes.
+
+    The library holds per-axis effects for every drive a mechanism can have (``MAX_DRIVES``): those of drives the
+    system lacks are left out when ``keys`` hold all of them (the whole library), and refused (ValueError naming
+    them) when some are named on their own."""
+    kept = [k for k in keys if (drive_of(k) or 0) <= drives]
+    beyond = sorted(k for k in keys if k not in kept)
+    if beyond and beyond != sorted(e.key for e in LIBRARY if (drive_of(e.key) or 0) > drives):
+        raise ValueError(f"effects {', '.join(beyond)}: the system has {drives} drives (actuator_1..{drives})")
+    return kept
 
 
 def physical_bounds(name: str, nominal: Mapping, own: Optional[tuple[float, float]] = None) -> tuple[float, float]:
@@ -512,7 +536,7 @@ def column(
     base, axes = (
         (AXIS_OF[effect_or_param][0], [AXIS_OF[effect_or_param][1]])
         if effect_or_param in AXIS_OF
-        else (effect_or_param, [0, 1, 2])
+        else (effect_or_param, list(range(chain.drives)))
     )
     if base in PLANT_COLUMNS:
         c = PLANT_COLUMNS[base](signals, params, grid)
@@ -530,7 +554,7 @@ def column(
         ) / (2 * eps)
     else:
         raise KeyError(f"no regression column for parameter {effect_or_param!r}")
-    if len(axes) < 3:
+    if len(axes) < chain.drives:
         only = np.zeros_like(c)
         only[:, axes] = c[:, axes]
         c = only
@@ -577,7 +601,7 @@ def harmonic(t: np.ndarray, y: np.ndarray, f: float) -> complex:
 def localise(
     t: np.ndarray, r: np.ndarray, omega: np.ndarray, acc: np.ndarray, frequency: Optional[float], sigma: float
 ) -> dict:
-    """Where in the cycle the residual r (n, 3) concentrates.
+    """Where in the cycle the residual r (samples, drives) concentrates.
 
     Energy shares of the residual near velocity reversals (|omega| < 15 % of its peak) and
     near peak acceleration (|acc| > 70 % of its peak), against the share of time spent

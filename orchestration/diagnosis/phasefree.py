@@ -126,7 +126,7 @@ class PhaseFreeScore:
         }
 
     def powers(self, name: str, observed: np.ndarray) -> np.ndarray:
-        """Band powers of a torque (n, 3) of test ``name`` against the reference."""
+        """Band powers of a torque (samples, drives) of test ``name`` against the reference."""
         return self.bands[name].powers(observed - self.reference[name])
 
     def floor(self, name: str) -> float:

@@ -1,8 +1,8 @@
 """What a test plan must excite for each effect to be identifiable, and whether the user's plan does.
 
 Read from the commanded joint motion of every test (not from its labels): its reversal frequency
-(velocity sign changes per second / 2), whether the three axes move alike (z) or differently (a
-rotation), and its role. The thresholds follow the effects' signatures (effects.py) and the
+(velocity sign changes per second / 2), whether the axes (drives) move alike (z) or differently (a
+rotation, a sideways motion), and its role. The thresholds follow the effects' signatures (effects.py) and the
 cascade's bandwidth (about 4 Hz, ssp/resources/controller_joint.ssv); the frequencies are
 engineering judgement, stated with each requirement.
 """
@@ -22,12 +22,14 @@ class Excitation:
     name: str
     role: str
     frequency: float  # Hz: reversals per second / 2 (0 without reversals)
-    alike: bool  # the three axes move alike (a z motion)
-    moving: tuple = (True, True, True)  # which axes move
+    alike: bool  # every axis moves alike (a z motion)
+    moving: tuple = (True, True, True)  # which axes move (one flag per drive)
 
     def on_axis(self, j: int) -> "Excitation":
-        """The test as seen by axis j (0-based): no reversals if that axis stands still."""
-        return Excitation(self.name, self.role, self.frequency if self.moving[j] else 0.0, self.alike, self.moving)
+        """The test as seen by axis j (0-based): no reversals if that axis stands still or the machine has no
+        axis j (a per-axis effect of a drive it lacks: no test excites it)."""
+        moves = j < len(self.moving) and self.moving[j]
+        return Excitation(self.name, self.role, self.frequency if moves else 0.0, self.alike, self.moving)
 
 
 def excitation(name: str, role: str, t: np.ndarray, rho_cmd: np.ndarray) -> Excitation:

@@ -10,7 +10,7 @@ from typing import Mapping, Optional, Sequence
 
 import numpy as np
 
-from ..data.measured import AXES, CommandReplay, MeasuredTest
+from ..data.measured import CommandReplay, MeasuredTest
 from .effects import CONTROLLER_PARAMETERS, MEASUREMENT, Chain, SimSignals, axis_values, chain_for, column
 from .phasefree import COMMAND_JITTER
 
@@ -31,10 +31,8 @@ def sim_job(args: tuple) -> dict:
     from ..core.master import SimulationError
     from ..core.run import simulate
 
-    ssp, name, replay, stop, parameters, direct, steps = args
-    record = []
-    for j in AXES:
-        record += [f"actuator_{j}.tau_m", f"actuator_{j}.rho", f"actuator_{j}.rho_dot", f"actuator_{j}.omega_m"]
+    ssp, name, replay, stop, parameters, direct, steps, actuators = args
+    record = [f"{a}.{sig}" for a in actuators for sig in ("tau_m", "rho", "rho_dot", "omega_m")]
     try:
         res = simulate(
             ssp,
@@ -53,7 +51,7 @@ def sim_job(args: tuple) -> dict:
         return {"name": name, "error": f"{type(err).__name__}: {err}"}
     out = {"name": name, "time": res.time, "h": res.stats["base_step"]}
     for sig in ("tau_m", "rho", "rho_dot", "omega_m"):
-        out[sig] = np.column_stack([res[f"actuator_{j}.{sig}"] for j in AXES])
+        out[sig] = np.column_stack([res[f"{a}.{sig}"] for a in actuators])
     return out
 
 
@@ -66,8 +64,8 @@ class Prepared:
     replay: CommandReplay
     mask: np.ndarray
     t: np.ndarray  # data times in the window
-    y: np.ndarray  # measured torque in the window (n, 3)
-    e: np.ndarray  # measured tracking error rho - rho_cmd in the window (n, 3)
+    y: np.ndarray  # measured torque in the window (samples, drives)
+    e: np.ndarray  # measured tracking error rho - rho_cmd in the window (samples, drives)
 
     @property
     def name(self) -> str:
@@ -147,7 +145,16 @@ class Simulator:
         for key, n, r in todo:
             params = self.parameters(dict(key), self.tests[n])
             jobs.append(
-                (self.ssp, n, self._replay(n, r), self.tests[n].test.duration + 1e-12, params, self.direct, self.steps)
+                (
+                    self.ssp,
+                    n,
+                    self._replay(n, r),
+                    self.tests[n].test.duration + 1e-12,
+                    params,
+                    self.direct,
+                    self.steps,
+                    self.actuators,
+                )
             )
         order = sorted(range(len(jobs)), key=lambda k: -jobs[k][3])  # longest first keeps the workers busy
         if self._pool and len(jobs) > 1:
@@ -184,7 +191,7 @@ class Simulator:
 
 
 def resample(sim: SimSignals, values: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """Base-grid values (m, 3) at the data times t (linear interpolation)."""
+    """Base-grid values (m, drives) at the data times t (linear interpolation)."""
     return np.column_stack([np.interp(t, sim.time, values[:, j]) for j in range(values.shape[1])])
 
 
@@ -233,7 +240,7 @@ class Model:
         sims = self.sim.run(changed_plant, names, realisation)
         h = next(iter(sims.values())).h
         try:
-            chain = chain_for(params, h, self.drive_T, self.drive_delay)
+            chain = chain_for(params, h, self.drive_T, self.drive_delay, len(self.sim.actuators))
         except ValueError as err:  # a measurement value the model rejects (a negative lag)
             raise SimulationFailed(f"measurement model with {dict(changes)}: {err}") from None
         pt = Point(params, sims, chain)

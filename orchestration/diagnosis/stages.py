@@ -789,7 +789,7 @@ def _filter_or_delay(model: Model, pt: Point, param: str, value: float, train: S
     from scipy.optimize import minimize_scalar
 
     y = np.concatenate([model.tests[n].y.ravel() for n in train])
-    axes = [AXIS_OF[param][1]] if param in AXIS_OF else [0, 1, 2]
+    axes = [AXIS_OF[param][1]] if param in AXIS_OF else list(range(pt.chain.drives))
     delay_param = param.replace("T_meas", "delay_meas")
 
     def rss(chain: Chain) -> float:

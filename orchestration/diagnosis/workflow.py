@@ -9,10 +9,10 @@ from typing import Callable, Optional, Sequence
 
 import numpy as np
 
-from ..data.measured import CommandReplay, MeasuredData, controller_geometry, load
+from ..data.measured import CommandReplay, MeasuredData, controller_kinematics, load
 from .consistency import needs_check, only_consistent
 from .crossvalidation import cross_validate
-from .effects import AXIS_OF, BY_KEY, CONTROLLER_PARAMETERS, LIBRARY, noise_std
+from .effects import AXIS_OF, BY_KEY, CONTROLLER_PARAMETERS, LIBRARY, drive_of, for_drives, noise_std
 from .nonlinear import nonlinear_stage, phase_free_stage
 from .options import Options, model_overrides
 from .plan import choose_split, excitation, excitations, identifiability
@@ -194,8 +194,11 @@ def diagnose(opt: Options, log: Callable[[str], None] = print) -> dict:
     with SSPArchive(opt.ssp) as archive:
         system = archive.system
         actuators = [n for n in system.components if n.startswith("actuator_")]
-        if len(actuators) != 3:
-            raise DiagnosisError(f"{opt.ssp}: expected three actuator_k components, found {', '.join(actuators)}")
+        if sorted(actuators) != [f"actuator_{k}" for k in range(1, len(actuators) + 1)]:
+            raise DiagnosisError(
+                f"{opt.ssp}: expected actuator components actuator_1..n, one per drive, found {', '.join(actuators)}"
+            )
+        actuators = [f"actuator_{k}" for k in range(1, len(actuators) + 1)]
         # its own parameters: a set bound to the actuators and the controller (drive.ssv) holds both's
         own = {p.name for p in block_class(Path(system.components[actuators[0]].source).stem).PARAMETERS}
         ssp_actuator = {k: v for k, v in system.components[actuators[0]].parameters.items() if k in own}
@@ -204,26 +207,31 @@ def diagnose(opt: Options, log: Callable[[str], None] = print) -> dict:
         wanted = set(CONTROLLER_PARAMETERS) | {e.quantum for e in LIBRARY if e.kind == "controller" and e.quantum}
         ssp_drive = {k: float(drive.parameters[k]) for k in wanted if drive is not None and k in drive.parameters}
     stroke = (float(ssp_actuator["rho_min"]), float(ssp_actuator["rho_max"]))
-    data = load(opt.measured, stroke=stroke)
+    drives = len(actuators)
+    data = load(opt.measured, stroke=stroke, drives=drives)
+    try:
+        keys = for_drives(opt.library, drives)
+    except ValueError as err:
+        raise DiagnosisError(f"library: {err} ({opt.ssp})") from None
     model_over = model_overrides(opt.ssp, opt.model)
-    nominal = {**ssp_drive, **ssp_actuator, **model_over, **{p: 0.0 for p in AXIS_OF}}
+    nominal = {**ssp_drive, **ssp_actuator, **model_over, **{p: 0.0 for p in AXIS_OF if drive_of(p) <= drives}}
     base = {a: dict(model_over) for a in actuators} if model_over else {}
-    geometry = controller_geometry(opt.ssp)
-    roles, split_how = _split(data, opt.holdout, list(opt.library))
+    kinematics = controller_kinematics(opt.ssp)
+    roles, split_how = _split(data, opt.holdout, keys)
     prepared: dict[str, Prepared] = {}
     for t in data.tests:
         mask = t.time >= t.settle_s - 1e-12
         prepared[t.name] = Prepared(
             t,
             roles[t.name],
-            CommandReplay(t.time, t.rho_cmd, geometry),
+            CommandReplay(t.time, t.rho_cmd, kinematics),
             mask,
             t.time[mask],
             t.tau_m[mask],
             (t.rho - t.rho_cmd)[mask],
         )
     names = [t.name for t in data.tests]
-    plan = identifiability(excitations(prepared, roles), list(opt.library))
+    plan = identifiability(excitations(prepared, roles), keys)
     for key, p in plan.items():
         if not p["plan_meets"] and "_axis" not in key:
             log(f"diagnose: this plan cannot tell {BY_KEY[key].title}: it needs {p['requires']} ({p['why_not']})")
@@ -232,7 +240,7 @@ def diagnose(opt: Options, log: Callable[[str], None] = print) -> dict:
                 f"diagnose: this split ({split_how}) cannot check {BY_KEY[key].title}, the plan could: it needs "
                 f"{p['requires']} ({p['split_why_not']})"
             )
-    for j in (1, 2, 3):  # effects on one axis: one line per axis
+    for j in range(1, drives + 1):  # effects on one axis: one line per axis
         blind = [k.rsplit("_axis", 1)[0] for k, p in plan.items() if k.endswith(f"_axis{j}") and not p["plan_meets"]]
         if blind:
             log(
@@ -241,7 +249,7 @@ def diagnose(opt: Options, log: Callable[[str], None] = print) -> dict:
             )
     train = [n for n in names if roles[n] == "training"]
     held = [n for n in names if roles[n] == "held-out"]
-    sigma = float(np.median([noise_std(prepared[n].y[:, j]) for n in names for j in range(3)]))
+    sigma = float(np.median([noise_std(prepared[name].y[:, j]) for name in names for j in range(drives)]))
     if not sigma > 0:
         raise DiagnosisError("the torque noise floor came out as 0: are the torques quantised coarsely or constant?")
     resolution = float(data.meta.get("measurement", {}).get("rho_resolution_m", 0.0) or 0.0)
@@ -267,7 +275,7 @@ def diagnose(opt: Options, log: Callable[[str], None] = print) -> dict:
         # the held-out check would refuse them, and each costs the subset search a column
         library = [
             BY_KEY[k]
-            for k in opt.library
+            for k in keys
             if (
                 BY_KEY[k].kind != "controller"
                 or all(
