@@ -1,11 +1,12 @@
-"""The hexapod (6-PUS: six drives, six coordinates) in batch and diagnosis (issue 26).
+"""The hexapod (6-UPS: six drives, six coordinates) in batch and diagnosis (issue 26).
 
-One synthesized data set, shared by the tests (module fixture ``hexapod_data``): the 6-PUS system with Coulomb
-friction 0.05 N m on drive 5 alone (the manufacturer's 0.0193 N m on the others), three short sine tests, z and
+One synthesized data set, shared by the tests (module fixture ``hexapod_data``): the 6-UPS system with Coulomb
+friction 0.05 N m on drive 5 alone (its actuator set's nominal value on the others), three short sine tests, z and
 x (x_2.5Hz held out). The measured-data folder has six drives and all six pose coordinates; replaying its
 commands with the truth gives back the noise-free torques; the diagnosis names the friction of drive 5, an axis
 the 3PRS does not have, within 5 %. A batch of hexapod cases gives the drive torques the hexapod's symmetries
-require. The system is a parameter (``SYSTEM``): the tests use nothing of the 6-PUS but its design's name.
+require. The system is a parameter (``SYSTEM``, "6PUS" runs them on the 6-PUS): the tests use nothing of the
+hexapod but its design's name.
 """
 
 from __future__ import annotations
@@ -27,7 +28,7 @@ from mast.diagnosis import Options, diagnose
 from mast.diagnosis.effects import LIBRARY, drive_of, for_drives
 
 ROOT = Path(__file__).resolve().parents[1]
-SYSTEM = "6PUS"  # the design (mast.core.designs): ssp/MAST_6PUS.ssd
+SYSTEM = "6UPS"  # the design (mast.core.designs): ssp/MAST_6UPS.ssd
 #: short tests where Coulomb friction stays identifiable (reversals in a training and a held-out test, every
 #: drive moving in both): z 1.2 Hz 4 mm, x 2.5 Hz 4 mm (held out), z 5 Hz 3 mm; 2.5 s simulated in all
 PLAN = (
