@@ -26,8 +26,13 @@ validate: build
 run: validate
 	$(BIN)/mast run build/ssp/MAST.ssp --motion z --amplitude 0.01 --frequency 1 --stop-time 3 --out results/z_1Hz
 
+# The suite on every core (pytest-xdist): a test file runs whole on one worker, so its module fixtures (builds,
+# shared simulations) are made once; `make test PYTEST_WORKERS=0` runs it in this one process.
+PYTEST_WORKERS ?= auto
+PYTEST_XDIST = -n $(PYTEST_WORKERS) --dist loadfile
+
 test: $(BIN)/mast
-	$(BIN)/python -m pytest
+	$(BIN)/python -m pytest $(PYTEST_XDIST)
 
 bench: build
 	$(BIN)/mast bench

@@ -2,9 +2,13 @@
 
 from __future__ import annotations
 
+import os
+import shutil
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
+from filelock import FileLock
 
 from fmus.actuator.model import ActuatorBlock
 from fmus.controller.model import ControllerBlock
@@ -51,6 +55,29 @@ def controller_params() -> dict:
     return load_params("controller")
 
 
+def build_once(tmp_path_factory: pytest.TempPathFactory, name: str, build: Callable[[Path], object]) -> Path:
+    """The folder ``name`` that ``build(folder)`` fills, built once per test session however many pytest-xdist
+    workers ask for it (xdist's docs, "Making session-scoped fixtures execute only once").
+
+    Under xdist the folder lies in the basetemp's parent, which the workers share; the first worker builds it
+    while it holds a file lock, and marks it complete last: a worker that asks meanwhile waits for the lock, and
+    no worker reads a half-written build (a build that raised is built again by the next one that asks). Without
+    xdist: a fresh folder of this session's basetemp."""
+    if os.environ.get("PYTEST_XDIST_WORKER") is None:
+        out = tmp_path_factory.mktemp(name)
+        build(out)
+        return out
+    shared = tmp_path_factory.getbasetemp().parent
+    out, complete = shared / name, shared / f"{name}.complete"
+    with FileLock(shared / f"{name}.lock"):
+        if not complete.exists():
+            shutil.rmtree(out, ignore_errors=True)
+            out.mkdir()
+            build(out)
+            complete.touch()
+    return out
+
+
 @pytest.fixture(scope="session")
 def built_native(tmp_path_factory) -> Path:
     """A build folder with the Python FMUs and SSPs and their native variants (``mast build --native``),
@@ -58,10 +85,11 @@ def built_native(tmp_path_factory) -> Path:
     from mast.core.build import SSP_SRC, build_all
     from mast.core.native.build import build_native_all
 
-    out = tmp_path_factory.mktemp("build_native")
-    build_all(out, log=lambda *_: None)
-    build_native_all(out, sorted(SSP_SRC.glob("*.ssd")), log=lambda *_: None)
-    return out
+    def build(out: Path) -> None:
+        build_all(out, log=lambda *_: None)
+        build_native_all(out, sorted(SSP_SRC.glob("*.ssd")), log=lambda *_: None)
+
+    return build_once(tmp_path_factory, "build_native", build)
 
 
 def build_mechanism_system(name: str, out: Path) -> Path:

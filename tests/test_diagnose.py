@@ -34,18 +34,13 @@ SMALL = (
 )
 
 
-@pytest.fixture(scope="module")
-def built_ssp(tmp_path_factory) -> str:
+@pytest.fixture(scope="session")
+def built_ssp(built_native) -> str:
     """The Python FMUs' MAST.ssp, which synthesizes the measured data (the reference models), and beside it
     its native form (``compiled``), which the diagnoses re-simulate: the same models to 1e-9 relative
-    (tests/test_native.py), cheaper through the compiled exchange loop."""
-    from mast.core.build import build_all
-    from mast.core.native.build import build_native_all
-
-    out = tmp_path_factory.mktemp("build")
-    build_all(out, log=lambda *_: None)
-    build_native_all(out, [ROOT / "ssp" / "MAST.ssd"], log=lambda *_: None)
-    return str(out / "ssp" / "MAST.ssp")
+    (tests/test_native.py), cheaper through the compiled exchange loop. The session's build (conftest.py,
+    ``built_native``), built once for every module and worker that diagnoses."""
+    return str(built_native / "ssp" / "MAST.ssp")
 
 
 def compiled(ssp: str) -> str:
