@@ -73,6 +73,23 @@ def test_native_mechanisms_of_every_description_declare_the_python_fmus_variable
             {"m_payload": 1.0, "I_payload_xx": 0.01, "I_payload_xy": 0.5},
             "parameters 'I_payload_*': body payload: inertia tensor is not positive semi-definite",
         ),
+        # a controller's checks are its kinematic model's, by the mechanism's runtime (mast_mechanism_check)
+        (
+            "Mast3RPSController",
+            {"kinematics": "9XYZ"},
+            "parameter 'kinematics' = '9XYZ': expected one of 3PRS, 3RPS, 6PUS, 6UPS",
+        ),
+        (
+            "Mast6UPSController",
+            {"kinematics": "9XYZ"},
+            "parameter 'kinematics' = '9XYZ': expected one of 3PRS, 3RPS, 6PUS, 6UPS",
+        ),
+        # the feed-forward controller's inverse model: its bodies' checks (the table of bodies, as the mechanism's)
+        (
+            "MastFeedForwardController",
+            {"m_payload": 1.0, "I_payload_xx": 0.01, "I_payload_xy": 0.5},
+            "parameters 'I_payload_*': body payload: inertia tensor is not positive semi-definite",
+        ),
         # the 3PRS's guides in one plane: designs.CHECKS' assembly row (Geometry.checked's message)
         (
             "MastMechanism",
