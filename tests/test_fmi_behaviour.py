@@ -91,11 +91,13 @@ class Instance:
         self.dll, self.c = self.slave.dll, self.slave.component
 
     def start(self, parameters: dict | None = None, t0: float = 0.0) -> int:
-        """setupExperiment, enterInitializationMode, parameters, exitInitializationMode: the last status."""
+        """setupExperiment, enterInitializationMode, parameters (a str by setString, else setReal),
+        exitInitializationMode: the last status."""
         self.slave.setupExperiment(startTime=t0)
         self.slave.enterInitializationMode()
         for name, value in (parameters or {}).items():
-            self.slave.setReal([self.vr[name]], [value])
+            setter = self.slave.setString if isinstance(value, str) else self.slave.setReal
+            setter([self.vr[name]], [value])
         return self.dll.fmi2ExitInitializationMode(self.c)
 
     def set(self, **values: float) -> None:

@@ -1,9 +1,9 @@
-"""Native mechanism FMUs of every description (mast build --native, docs/native.md): the 3-RPS's and the hexapods'
-from the same generator and runtime as the 3PRS's (mast.core.native.models.mechanism_model, mast_mechanism.c).
+"""Native mechanism and controller FMUs of every description (mast build --native, docs/native.md): the 3-RPS's
+and the hexapods' from the same generators and runtimes as the 3PRS's (mast.core.native.models.mechanism_model,
+mast_mechanism.c; the controllers' kinematic model on the same tables, mast_controller.c).
 
-Against the Python FMUs: the same variables, the same trajectories in their systems (the native actuators and
-mechanism with the controller's Python FMU, which has no native form yet for these mechanisms), the conformance
-checks, the Python model's message for a body the parameters make wrong. Uses the session's native build
+Against the Python FMUs: the same variables, the same trajectories in their systems (every FMU native), the
+conformance checks, the Python model's message for a body the parameters make wrong. Uses the session's native build
 (conftest.built_native, which tests/test_docs.py and test_benchmarks.py share): nothing compiled here.
 """
 
@@ -29,16 +29,18 @@ def _variables(fmu) -> list[bytes]:
         return [etree.tostring(v) for v in etree.fromstring(z.read("modelDescription.xml")).iter("ScalarVariable")]
 
 
-@pytest.mark.parametrize("system", ["MAST_3RPS", "MAST_6PUS"])
+@pytest.mark.parametrize("system", ["MAST_3RPS", "MAST_6PUS", "MAST_6UPS"])
 def test_a_native_system_of_another_mechanism_reproduces_the_python_fmus(built_native, system):
-    """0.3 s of a 10 mm sine in z: every recorded signal within 1e-9 of its largest value (or of 1e-6 of its unit
-    for a signal that stays below: a parasitic coordinate at rounding level)."""
+    """0.3 s of a 10 mm sine in z, every FMU native (the controller too): every recorded signal within 1e-9 of its
+    largest value (or of 1e-6 of its unit for a signal that stays below: a parasitic coordinate at rounding level)."""
     native_ssp = built_native / "ssp" / "native" / f"{system}.ssp"
-    with zipfile.ZipFile(native_ssp) as z:  # the mechanism and the actuators are the native FMUs
-        mechanism = next(n for n in z.namelist() if n.startswith("resources/Mast") and "Controller" not in n)
-        with z.open(mechanism) as f, zipfile.ZipFile(f) as fmu:
-            assert any(n.startswith("binaries/linux64/") and n.endswith(".so") for n in fmu.namelist())
-            assert b"native" in fmu.read("modelDescription.xml")
+    with zipfile.ZipFile(native_ssp) as z:
+        fmus = [n for n in z.namelist() if n.startswith("resources/") and n.endswith(".fmu")]
+        assert any("Controller" in n for n in fmus) and len(fmus) >= 3, fmus
+        for name in fmus:
+            with z.open(name) as f, zipfile.ZipFile(f) as fmu:
+                assert any(n.startswith("binaries/linux64/") and n.endswith(".so") for n in fmu.namelist()), name
+                assert b"mast build --native" in fmu.read("modelDescription.xml"), name  # generationTool
     stimulus = SineMotion("z", 0.01, 1.0)
     python = simulate(built_native / "ssp" / f"{system}.ssp", stimulus, 0.3)
     native = simulate(native_ssp, stimulus, 0.3)
@@ -68,6 +70,23 @@ def test_native_mechanisms_of_every_description_declare_the_python_fmus_variable
         # the 3-RPS's payload, an inertia tensor that is not positive semi-definite (engine.Body: the table of bodies)
         (
             "Mast3RPS",
+            {"m_payload": 1.0, "I_payload_xx": 0.01, "I_payload_xy": 0.5},
+            "parameters 'I_payload_*': body payload: inertia tensor is not positive semi-definite",
+        ),
+        # a controller's checks are its kinematic model's, by the mechanism's runtime (mast_mechanism_check)
+        (
+            "Mast3RPSController",
+            {"kinematics": "9XYZ"},
+            "parameter 'kinematics' = '9XYZ': expected one of 3PRS, 3RPS, 6PUS, 6UPS",
+        ),
+        (
+            "Mast6UPSController",
+            {"kinematics": "9XYZ"},
+            "parameter 'kinematics' = '9XYZ': expected one of 3PRS, 3RPS, 6PUS, 6UPS",
+        ),
+        # the feed-forward controller's inverse model: its bodies' checks (the table of bodies, as the mechanism's)
+        (
+            "MastFeedForwardController",
             {"m_payload": 1.0, "I_payload_xx": 0.01, "I_payload_xy": 0.5},
             "parameters 'I_payload_*': body payload: inertia tensor is not positive semi-definite",
         ),

@@ -124,7 +124,7 @@ def interface(coordinates: Sequence[str]) -> dict:
         **{f"omega_cmd_{j}": f"Motor speed command of axis {j} (position loop output)" for j in axes},
         **{f"i_cmd_{j}": f"Current command of axis {j} (velocity loop output)" for j in axes},
     }
-    state = layout(n, len(TRACED_PARAMETERS))
+    state = layout(n, len(TRACED_PARAMETERS))  # the tick's fields (a native FMU sizes its parameter slot itself)
     return {
         "INPUTS": inputs,
         "OUTPUTS": outputs,

@@ -45,9 +45,10 @@ def layout(n: int, parameters: int) -> dict[str, int]:
     pose: n) and the arguments of a failed evaluation (3n: rho, rho_dot, rho_ddot); the reference's rates
     (rho_dot_ref, rho_ddot_ref: 2n), kept between ticks; the controller's own gains computed at initialisation
     (feedforward_gains: 2, error_gains: 2, pose_gains: n); from the parameters at initialisation: the schedule
-    (T_pos / T_cur, T_vel / T_cur, T_cur, T_pos), the transmission i_R, cos and sin of beta (the 3PRS's cold
-    start), attached (the inverse model's) and the kinematic model's traced parameters (``parameters`` of them,
-    the arguments of its generated functions), then the inverse model's actuator constants
+    (T_pos / T_cur, T_vel / T_cur, T_cur, T_pos), the transmission i_R, two places "cb", "sb" no one writes
+    now (the 3PRS's cold start's, before the native controllers took the mechanism's), attached (the inverse
+    model's) and the kinematic model's traced parameters (``parameters`` of them, the arguments of its generated
+    functions), then the inverse model's actuator constants
     (inverse_model.CONSTANTS, by its model_constants), then the coordinates' lengths (Engine.lengths: n, the
     native FMUs'). For n = 3 and the 3PRS's 24 traced parameters: the state every 3PRS controller has had
     (the free places kept: the native FMUs' state is the same). ``size(n, parameters)``: its length."""
@@ -101,7 +102,8 @@ def size(n: int, parameters: int) -> int:
     return layout(n, parameters)["size"]
 
 
-#: the 3PRS's layout (n = 3, designs.TRACED_PARAMETERS), the one the native controllers are generated on
+#: the 3PRS's layout (n = 3, designs.TRACED_PARAMETERS), the Python controllers' (their tick reads no field from "P"
+#: on; a native controller sizes that slot by its own traced parameters: mast.core.native.models)
 LAYOUT = layout(3, len(TRACED_PARAMETERS))
 #: the state's size (the native FMUs keep the coordinate lengths in the last three)
 SIZE = size(3, len(TRACED_PARAMETERS))

@@ -92,8 +92,7 @@ MECHANISMS = (
         masses="resources/mass_3rps.ssv",
         stroke="resources/actuator_3rps.ssv",
         controller="Mast3RPSController",
-        native_controller=False,
-    ),  # the native controllers (orchestration/core/native/models.py) are the 3PRS's only yet
+    ),
     Design(
         "6UPS",
         "Mast6UPS",
@@ -104,7 +103,6 @@ MECHANISMS = (
         actuator_sets=("resources/actuator_screw.ssv",),
         transmission="resources/transmission_screw.ssv",
         controller="Mast6UPSController",
-        native_controller=False,
     ),
     Design(
         "6PUS",
@@ -114,7 +112,6 @@ MECHANISMS = (
         masses="resources/mass_6pus.ssv",
         stroke="resources/stroke_6pus.ssv",
         controller="Mast6PUSController",
-        native_controller=False,
     ),
 )
 

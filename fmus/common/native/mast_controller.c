@@ -66,7 +66,7 @@ int mast_controller_dk(double *rho, double warm, double *S, double *out)
     if (warm == 1.0) {
         for (int k = 0; k < CTRL_N; k++) out[k] = S[CTRL_GUESS + k];
     } else
-        ctrl_guess(S, rho, out);
+        mast_mechanism_guess(&s->mech, rho, out);
     return ctrl_dk(rho, S, out, out + CTRL_N, s->text, sizeof s->text);
 }
 
@@ -120,7 +120,7 @@ static int wsdk_eval(const double *rho, double *S, double *q, char *msg, size_t 
     if (S[CTRL_WARM] == 1.0) {
         for (int k = 0; k < CTRL_N; k++) q[k] = S[CTRL_GUESS + k];
     } else
-        ctrl_guess(S, rho, q);
+        mast_mechanism_guess(&((mast_controller_state *)S)->mech, (double *)rho, q);
     int code = ctrl_dk(rho, S, q, J, msg, size);
     if (code) return code;
     for (int k = 0; k < CTRL_N; k++) S[CTRL_GUESS + k] = q[k];
@@ -153,6 +153,10 @@ int mast_controller_initialize(void *state, double *values, const mast_parameter
     for (int k = 0; k < CTRL_SIZE; k++) s->S[k] = 0.0;
     s->evaluated = -1.0;
     s->S[CTRL_T0] = t0;
+    /* the kinematic model: its traced parameters and the coordinates' lengths (the arguments of the kernels) */
+    mast_mechanism_setup(&s->mech, p);
+    for (int k = 0; k < MECH_NP; k++) s->S[CTRL_P + k] = s->mech.P[k];
+    for (int k = 0; k < CTRL_N; k++) s->S[CTRL_LENGTHS + k] = s->mech.lengths[k];
     ctrl_constants(p, s->S); /* checked by the model's check at exitInitializationMode */
     if (input_error(values, t0, msg, size)) return MAST_MODEL_ERROR;
     int code = ctrl_start(values, s->S, R);

@@ -13,11 +13,13 @@
 #define MAST_CONTROLLER_H
 
 #include "config.h"
+#include "mast_mechanism.h"
 #include "mast_model.h"
 
-/* config.h defines:
+/* config.h defines the sizes of the controller's kinematic model (its description's, mast_mechanism.h: MECH_*;
+ * its cold start, lengths and checks of a parameter set are the native mechanism's, mast_mechanism.c) and:
  *   CTRL_N             the axes (the mechanism's coordinates, one linear drive each)
- *   CTRL_SIZE          the state's doubles (tick.layout(CTRL_N, traced parameters)["size"])
+ *   CTRL_SIZE          the state's doubles (tick.layout(CTRL_N, MECH_NP)["size"])
  *   CTRL_<FIELD>       the offset of each field of that layout (CTRL_T0, CTRL_T_CUR, CTRL_FAILED, ...)
  *   CTRL_INVERSE_MODEL 1: the controller has an inverse model (feed-forward, computed torque)
  *   CTRL_WORKSPACE     1: the controller measures the pose by the direct kinematics (workspace control)
@@ -31,6 +33,7 @@ typedef struct {
     double before[CTRL_SIZE];  /* S before the laws of the tick evaluated */
     double evaluated;          /* the tick whose laws ran at its communication point, or -1 */
     char text[1024];           /* the message of a failed direct kinematics */
+    mast_mechanism_state mech; /* the kinematic model's parameters, cold start and lengths (mast_mechanism.c) */
 } mast_controller_state;
 
 /* the functions below are the model's own: hidden from the library's exports, so that the runtime's calls into
@@ -49,8 +52,6 @@ int ctrl_laws(double *values, double *S, double *R, double *CUR, double *QM, dou
 int ctrl_steps(double *values, double *S, double *R, double *CUR, double *QM, double *JK, double n, double m);
 /* the message of the traced kernels' check ``check`` */
 const char *ctrl_why(int check);
-/* the description's cold start of the direct kinematics for rho */
-void ctrl_guess(const double *S, const double *rho, double *out);
 /* one attempt of the direct kinematics (mast_dk) of rho from q (into q), dq/drho into J; the message of a failure
  * into msg */
 int ctrl_dk(const double *rho, double *S, double *q, double *J, char *msg, size_t size);

@@ -16,7 +16,7 @@ static int ikjac_of(const void *model, const double *q, double *out)
 }
 
 /* the description's cold start of the direct kinematics (Described.guess) */
-static void guess(const mast_mechanism_state *s, double *rho, double *q)
+void mast_mechanism_guess(const mast_mechanism_state *s, double *rho, double *q)
 {
 #if MECH_GUESS_RULE
     mech_guess_rule(rho, (double *)s->G, q);
@@ -32,7 +32,7 @@ int mast_mechanism_dk(double *rho, double warm, double *S, double *out)
     if (warm == 1.0) {
         for (int k = 0; k < MECH_N; k++) out[k] = s->q[k];
     } else {
-        guess(s, rho, out);
+        mast_mechanism_guess(s, rho, out);
     }
     mast_dk_problem dk = {MECH_N, ikjac_of, s, mech_why, MECH_COORDINATES, s->lengths, MECH_MARGIN, MECH_COND_LIMIT,
                           1e-12, 50};
@@ -82,7 +82,7 @@ static int compute(mast_mechanism_state *s, double *values, const mast_parameter
 }
 
 /* what the parameters the host set alone fix: P, the kernels' invariants, the cold start's numbers, the lengths */
-static void setup(mast_mechanism_state *s, const mast_parameters *p)
+void mast_mechanism_setup(mast_mechanism_state *s, const mast_parameters *p)
 {
     s->warm = 0;
     for (int k = 0; k < MECH_NP; k++) s->P[k] = MECH_TRACED_VR[k] >= 0 ? p->real[MECH_TRACED_VR[k]] : 0.0;
@@ -107,7 +107,7 @@ int mast_mechanism_initialize(void *state, double *values, const mast_parameters
                               size_t size)
 {
     mast_mechanism_state *s = state;
-    setup(s, p);
+    mast_mechanism_setup(s, p);
     return compute(s, values, p, t0, msg, size);
 }
 
@@ -188,7 +188,7 @@ static int check_rows(mast_mechanism_state *s, char *msg, size_t size)
             if (V[row->a] < V[row->b]) continue;
         } else {
             double rho[MECH_N] = {0.0}, q[MECH_N], out[MECH_N + MECH_N * MECH_N], inv[MECH_N * MECH_N], det;
-            guess(s, rho, q);
+            mast_mechanism_guess(s, rho, q);
             int code = mech_ikjac(q, s->P, s->K_ikjac, out);
             if (code) {
                 why = mech_why(-code);
@@ -213,7 +213,7 @@ int mast_mechanism_check(const mast_parameters *p, char *msg, size_t size)
     int code = check_kinematics(p, msg, size);
     if (code) return code;
     mast_mechanism_state s;
-    setup(&s, p);
+    mast_mechanism_setup(&s, p);
     if ((code = check_rows(&s, msg, size))) return code;
     return check_bodies(&s, msg, size);
 }

@@ -93,7 +93,12 @@ typedef struct {
 } mast_parameter_check;
 extern const mast_parameter_check MECH_CHECK[];
 
-/* ---- the runtime (mast_mechanism.c) */
+/* ---- the runtime (mast_mechanism.c; a native controller's kinematic model runs on it too, mast_controller.c) */
+/* what the parameters the host set alone fix, into s: the traced parameters P, the kernels' invariants, the cold
+ * start's numbers, the coordinates' lengths (Engine.lengths) */
+void mast_mechanism_setup(mast_mechanism_state *s, const mast_parameters *p);
+/* the description's cold start q of the direct kinematics for rho (Described.guess) */
+void mast_mechanism_guess(const mast_mechanism_state *s, double *rho, double *q);
 /* mechanism.model.dk: one attempt of the direct kinematics of rho from the last solution (warm = 1.0) or from
  * the description's cold start; S: the instance, out: q, then J = dq/drho; a failure's message in why_text */
 int mast_mechanism_dk(double *rho, double warm, double *S, double *out);

@@ -35,8 +35,10 @@ code, which ``translate.to_c`` writes as C:
   ticks inside a step),
   translated; what it calls is translated from the models' own source (``pi_step``,
   ``drive_gains``, ``cascade_gains``, ``transmission_ratio``, the controllers' ``LAWS``,
-  ``reference.rates``, ``inverse_model.motor_torque``, ``guide_friction``,
-  ``designs.level_height``);
+  ``reference.rates``, ``inverse_model.motor_torque``, ``guide_friction``); their kinematic model's parameters,
+  cold start, coordinate lengths and checks of a parameter set are the native mechanism's (``mechanism_model``'s
+  tables and kernels for the controller's engine, run by mast_mechanism.c: ``mast_mechanism_setup``,
+  ``mast_mechanism_guess``, ``mast_mechanism_check``), for every description;
 - trajectory: the tables of the sine about the home pose (mast_trajectory.c; its parameters read at run time).
 
 The direct kinematics' restart policy (warm start, else cold; a cold restart after a failed warm
@@ -50,9 +52,8 @@ tests/test_native.py: in the runtime, the outputs of the actuator at rest, its d
 ``mast_mechanism_check``), the controllers' life cycle for n axes (mast_controller.c: ``initialize``,
 ``evaluate`` once per communication point, ``do_step`` over the ticks of a step, the inverse model's and the
 workspace controller's direct kinematics, ``InverseModel.currents``, ``WorkspaceController._wsdk``, and the
-messages of their failures) on the state layout of ``tick.layout`` (config.h: CTRL_N, CTRL_<FIELD>); still in this
-module: the controllers' copy of the 3PRS design's checks of a parameter set (``_describe_checks_c``) and its cold
-start (``level_height``).
+messages of their failures) on the state layout of ``tick.layout`` (config.h: CTRL_N, CTRL_<FIELD>, its parameter
+slot sized by the controller's traced parameters).
 
 Parameters: all read at run time, with what depends on them computed at initialisation: the
 trajectory's, the actuator's (n_dof too: the chains 1..``N_MAX`` are all in the binary; a parameter set with
@@ -71,7 +72,7 @@ from dataclasses import dataclass
 from typing import Mapping, Optional, Sequence
 
 from fmus.common.parameters import Param
-from fmus.controller.tick import DK_FAILED, MODEL_FAILED, tick_sources
+from fmus.controller.tick import DK_FAILED, MODEL_FAILED, layout, tick_sources
 
 from .translate import c_double, split_invariants, to_c
 
@@ -217,7 +218,7 @@ RUNTIME = {
     "mechanism": ("mast_mechanism.c", "mast_mechanism.h"),
     "trajectory": ("mast_trajectory.c", "mast_trajectory.h"),
     "actuator": ("mast_actuator.c", "mast_actuator.h"),
-    "controller": ("mast_controller.c", "mast_controller.h"),
+    "controller": ("mast_controller.c", "mast_controller.h", "mast_mechanism.c", "mast_mechanism.h"),
 }
 #: a mechanism's checks of a parameter set after its ranges (the runtime's: designs.describe's, from the tables)
 MECHANISM_CHECK = "    if (mast_mechanism_check(p, msg, size)) return MAST_PARAMETER_ERROR;"
@@ -540,114 +541,6 @@ def _dk_call(eng, model: str, names: str, lengths: str, q: str, J: str, text: st
     )
 
 
-def _traced_parameters_c(vrs: Mapping[str, int]) -> str:
-    """``traced_parameters(p, P)``: the values of ``designs.TRACED_PARAMETERS`` as the host set them (0 for those
-    the FMU does not have: a kinematic model's masses and g, ``PRS3.traced(masses=False)``)."""
-    from fmus.mechanism.designs import TRACED_PARAMETERS
-
-    return "\n".join(
-        [
-            "static void traced_parameters(const mast_parameters *p, double *P)",
-            "{",
-            *[
-                f"    P[{k}] = {f'p->real[{vrs[n]}]' if n in vrs else '0.0'};   /* {n} */"
-                for k, n in enumerate(TRACED_PARAMETERS)
-            ],
-            "}",
-            "",
-        ]
-    )
-
-
-def _describe_checks_c(vrs: Mapping[str, int], payload: bool, why: str = "why") -> list[str]:
-    """C lines (in a function with ``p``, ``msg``, ``size``) of ``designs.describe``'s checks of a parameter set
-    after its ranges, with its messages: the kinematics, kinematics.Geometry.checked (beta = 0), the payload's
-    inertia tensor (``payload``: engine.Body), designs._check_inclined (beta != 0). Needs ``ikjac`` (traced);
-    ``why``: the message function of its checks. (The controllers'; the mechanism's are the runtime's.)"""
-    from fmus.mechanism.designs import KINEMATICS, TRACED_PARAMETERS
-
-    P = {name: f"P[{k}]" for k, name in enumerate(TRACED_PARAMETERS)}
-    params = ", ".join(f"P[{k}]" for k in range(len(TRACED_PARAMETERS)))
-    kind = f'p->string[{vrs["kinematics"]}] ? p->string[{vrs["kinematics"]}] : ""'
-    R = {n: f"mast_repr({P[n]}, {n.lower()}, sizeof {n.lower()})" for n in ("H", "r", "L", "beta")}
-    lines = [
-        f"    double P[{len(TRACED_PARAMETERS)}], out[12], inv[9], det;",
-        "    char h[40], r[40], l[40], beta[40], a1[40], a2[40], a3[40];",
-        "    traced_parameters(p, P);",
-        *(
-            f"    if (strcmp({kind}, \"{name}\") == 0) {{ snprintf(msg, size, \"parameter 'kinematics' = '%s': this "
-            "native "
-            f'FMU computes the 3PRS it was generated from", {kind}); return MAST_PARAMETER_ERROR; }}'
-            for name in KINEMATICS
-            if name != "3PRS"
-        ),
-        f'    if (strcmp({kind}, "3PRS") != 0) {{',
-        f"        snprintf(msg, size, \"parameter 'kinematics' = '%s': expected one of {', '.join(KINEMATICS)}\", "
-        f"{kind});",
-        "        return MAST_PARAMETER_ERROR;",
-        "    }",
-        f"    double cb = cos({P['beta']}), sb = sin({P['beta']});",
-        f"    double z = level_height(0.0, 0.0, 0.0, {P['H']}, {P['r']}, {P['L']}, cb, sb);",
-        "    int code = ikjac(z, 0.0, 0.0, " + params + ", out);",
-        f"    if ({P['beta']} == 0.0) {{   /* kinematics.Geometry.checked */",
-        f"        if (!({P['r']} < {P['H']})) {{",
-        "            snprintf(msg, size, \"parameter 'r' = %s: must be < H = %s m (working assembly: the spherical "
-        "joints "
-        f'lie inside the guide radius)", {R["r"]}, {R["H"]});',
-        "            return MAST_PARAMETER_ERROR;",
-        "        }",
-        f"        if (!({P['H']} - {P['r']} < {P['L']})) {{",
-        f"            snprintf(msg, size, \"parameter 'L' = %s: must exceed H - r = %s m, or the legs cannot reach the "
-        f'platform", {R["L"]}, mast_repr({P["H"]} - {P["r"]}, h, sizeof h));',
-        "            return MAST_PARAMETER_ERROR;",
-        "        }",
-        "        if (code || !mast_inv(3, out + 3, inv, &det)) {",
-        "            snprintf(msg, size, \"parameters 'alpha_1', 'alpha_2', 'alpha_3' = (%s, %s, %s) rad: the "
-        "mechanism "
-        'cannot be assembled at the level pose: %s", '
-        f"mast_repr({P['alpha_1']}, a1, sizeof a1), mast_repr({P['alpha_2']}, a2, sizeof a2), "
-        f'mast_repr({P["alpha_3"]}, a3, sizeof a3), code ? {why}(-code) : "singular configuration");',
-        "            return MAST_PARAMETER_ERROR;",
-        "        }",
-        "    }",
-    ]
-    if payload:
-        names = ("I_payload_xx", "I_payload_xy", "I_payload_xz", "I_payload_yy", "I_payload_yz", "I_payload_zz")
-        I = [P[n] for n in names]
-        tensor = ", ".join(I[k] for k in (0, 1, 2, 1, 3, 4, 2, 4, 5))
-        lines += [
-            "    /* the payload's inertia tensor (engine.Body), when there is a payload */",
-            f"    double tensor[9] = {{{tensor}}}, big = 1.0;",
-            "    for (int k = 0; k < 9; k++) if (fabs(tensor[k]) > big) big = fabs(tensor[k]);",
-            f"    int any = {P['m_payload']} != 0.0;",
-            "    for (int k = 0; k < 9; k++) any = any || tensor[k] != 0.0;",
-            "    if (any && mast_sym3_min_eig(tensor) < -1e-12 * big) {",
-            "        snprintf(msg, size, \"parameters 'I_payload_*': body payload: inertia tensor is not positive "
-            'semi-definite");',
-            "        return MAST_PARAMETER_ERROR;",
-            "    }",
-        ]
-    lines += [
-        f"    if ({P['beta']} != 0.0 && code) {{   /* designs._check_inclined */",
-        "        snprintf(msg, size, \"parameters 'H', 'r', 'L', 'beta' = %s m, %s m, %s m, %s rad: the mechanism "
-        "cannot be "
-        'assembled at the level pose with the sliders at the foot of their guides: %s", '
-        f"{R['H']}, {R['r']}, {R['L']}, {R['beta']}, {why}(-code));",
-        "        return MAST_PARAMETER_ERROR;",
-        "    }",
-    ]
-    return lines
-
-
-def _level_height_c() -> str:
-    """``designs.level_height`` (the direct kinematics' cold start), translated from its own source."""
-    import inspect
-
-    from fmus.mechanism.designs import level_height
-
-    return to_c(inspect.getsource(level_height), "level_height")
-
-
 def _mechanism(block, vrs: Mapping[str, int]) -> tuple[str, str]:
     """MechanismBlock of any description for every parameter set: the engine traced with the description's
     parameters (geometry, bodies, payload, g) as named inputs (``designs.traced_engine``), their values read at
@@ -730,7 +623,7 @@ def _check_rows(name: str, units: Mapping[str, str], env: Mapping[str, object]) 
     return rows, values
 
 
-def mechanism_model(eng, vrs: Mapping[str, int], inputs: Sequence[str]) -> tuple[str, str]:
+def mechanism_model(eng, vrs: Mapping[str, int], inputs: Sequence[str], bodies: bool = True) -> tuple[str, str]:
     """The generated part of a native mechanism (mast_mechanism.h) for the engine ``eng`` of any description
     (traced with its parameters as named inputs, ``designs.traced_engine``, or with its numbers as constants: a
     description written in Python): its traced kernels (inverse kinematics with its Jacobian, dynamics, pose),
@@ -740,7 +633,8 @@ def mechanism_model(eng, vrs: Mapping[str, int], inputs: Sequence[str]) -> tuple
     lengths come from; the bodies; the values of the description's checks, ``designs.CHECKS``); the restart policy
     (``mechanism.model.restarted_dk``) and the cold start's rule translated from their own source; the tables
     (value references, names, bodies, checks). ``vrs``: the FMU's value references by name (the parameters, with
-    'kinematics' and 'attached'; {} for a mechanism without parameters); ``inputs``: the FMU's input names.
+    'kinematics' and 'attached'; {} for a mechanism without parameters); ``inputs``: the FMU's input names;
+    ``bodies``: whether the checks include the bodies' (not for a kinematic model: its bodies are none).
     (model part, config.h)"""
     import inspect
 
@@ -813,7 +707,7 @@ def mechanism_model(eng, vrs: Mapping[str, int], inputs: Sequence[str]) -> tuple
         ]
     legs = d.legs_at(env, True) if file is not None else []
     points = [x for leg in legs for x in leg.platform_point()]
-    specs = d.body_specs() if file is not None else []
+    specs = d.body_specs() if file is not None and bodies else []
     bodies = [v for b in specs for v in (b.mass(env), *(e(env) for row in b.inertia for e in row))]
     units = {p: file.parameters[p].unit for p in file.parameters} if file is not None else {}
     rows, values = _check_rows(d.name, units, env) if file is not None else ([], [])
@@ -878,15 +772,17 @@ def mechanism_model(eng, vrs: Mapping[str, int], inputs: Sequence[str]) -> tuple
 
 
 # ----------------------------------------------------------------------------------- controller
-def _controller_config(block, eng, model: bool, workspace: bool) -> str:
-    """config.h of a native controller (mast_controller.h): its axes, its state's layout (``tick.layout``: each
-    field as CTRL_<FIELD>, the tick counter ``n`` as CTRL_TICK), what it has (an inverse model, the workspace
-    direct kinematics), the tick's failure codes and the traced forces' output count."""
+def _controller_config(block, eng, L: Mapping[str, int], model: bool, workspace: bool, mechanism: str) -> str:
+    """config.h of a native controller (mast_controller.h): its axes, its state's layout ``L`` (``tick.layout``:
+    each field as CTRL_<FIELD>, the tick counter ``n`` as CTRL_TICK), what it has (an inverse model, the workspace
+    direct kinematics), the tick's failure codes and the traced forces' output count; and the sizes of its
+    kinematic model (``mechanism``: the config.h ``mechanism_model`` writes)."""
     import ast
 
     from fmus.controller.inverse_model import CONSTANTS
 
-    fields = [("TICK" if k == "n" else k.upper(), v) for k, v in type(block).LAYOUT.items()]
+    fields = [("TICK" if k == "n" else k.upper(), v) for k, v in L.items()]
+    sizes = [line for line in mechanism.splitlines() if line.startswith("#define MECH_")]
     forces = len(ast.parse(eng._fn("forces").source).body[0].body[-1].value.elts) if model else block.n
     return "\n".join(
         [
@@ -902,6 +798,8 @@ def _controller_config(block, eng, model: bool, workspace: bool) -> str:
             f"#define CTRL_FORCES_OUT {forces}",
             f"#define CTRL_MODEL_FAILED {MODEL_FAILED}",
             f"#define CTRL_DK_FAILED {DK_FAILED}",
+            "/* its kinematic model's (mast_mechanism.h) */",
+            *sizes,
             "#endif",
             "",
         ]
@@ -934,12 +832,24 @@ def _joint_controller(block, vrs: Mapping[str, int]) -> tuple[str, str]:
     from fmus.controller.model import cascade_gains, pi_step
     from fmus.mechanism.topology import POSE_UNITS
 
-    if type(block) not in native_controllers():
+    kind = native_controller(type(block))
+    if kind is None:
         raise ValueError(f"{type(block).__name__} has no native form yet")
     model = hasattr(block, "model")  # the feed-forward and computed-torque controllers' inverse model
-    cascade = type(block) is not native_controllers()[2]
-    workspace = type(block) is native_controllers()[3]
-    L = type(block).LAYOUT
+    cascade = kind is not native_controllers()[2]
+    workspace = kind is native_controllers()[3]
+    # the kinematic model (and the inverse model's dynamics): the engine traced with the controller's
+    # geometry (and bodies) as inputs, read at initialisation (designs.traced_engine); its parameters, cold start,
+    # lengths and checks of a parameter set are the native mechanism's (mechanism_model, mast_mechanism.c)
+    from fmus.mechanism.designs import traced_engine
+
+    eng = traced_engine(block.params, block.name, masses=model)
+    mech_code, mech_config = mechanism_model(
+        eng, vrs, [v.name for v in mechanism_variables(eng.n)[: 3 * eng.n]], bodies=model
+    )
+    L = layout(block.n, len(eng.parameters))  # the state's parameter slot: this engine's traced parameters
+    if any(L[k] != v for k, v in type(block).LAYOUT.items() if v < L["P"]):
+        raise ValueError(f"{block.name}: the tick's state layout differs from tick.layout before its parameters")
 
     def P(name: str) -> str:
         return f"p->real[{vrs[name]}]"
@@ -947,7 +857,7 @@ def _joint_controller(block, vrs: Mapping[str, int]) -> tuple[str, str]:
     laws = type(block).LAWS  # the laws' arithmetic the tick calls, translated from their own source
     # the controller's own gains, by its own function (FeedForwardController, ComputedTorque, Workspace)
     own, own_call = None, ""
-    if type(block) is native_controllers()[1]:
+    if kind is native_controllers()[1]:
         from fmus.controller.feedforward import feedforward_gains as own
 
         own_call = (
@@ -965,17 +875,10 @@ def _joint_controller(block, vrs: Mapping[str, int]) -> tuple[str, str]:
             f"    S[{L['own'] + k}] = pose_gain({P('k_v')}, {P(f'k_v_scale_{c}')});"
             for k, c in enumerate(block.COORDINATES)
         )
-    # the kinematic model (and the inverse model's dynamics): the engine traced with the controller's
-    # geometry (and bodies) as inputs, read at initialisation (designs.traced_engine)
-    from fmus.mechanism.designs import TRACED_PARAMETERS, traced_engine
-
-    eng = traced_engine(block.params, block.name, masses=model)
-    if tuple(eng.parameters) != TRACED_PARAMETERS:
-        raise ValueError(f"{block.name}: the native controller expects the 3PRS traced with {TRACED_PARAMETERS}")
     n, PO = eng.n, L["P"]
     ik, fns = eng._fn("ik"), [eng._fn("ik"), eng._fn("ikjac")] + ([eng._fn("forces")] if model else [])
     checks = {k: v for fn in fns for k, v in fn.namespace.items() if k.startswith("_check")}
-    args = ", ".join(f"S[{PO + k}]" for k in range(len(TRACED_PARAMETERS)))
+    args = ", ".join(f"S[{PO + k}]" for k in range(len(eng.parameters)))
     q = [f"q{k}" for k in range(n)]
     start, laws_source, steps = tick_sources(type(block))  # pose mode only: the modes are no FMU variables
     ratios = "".join(
@@ -1033,15 +936,11 @@ def _joint_controller(block, vrs: Mapping[str, int]) -> tuple[str, str]:
         f"    S[{L['N_pos']}] = nearbyint({P('T_pos')} / {P('T_cur')});",
         f"    S[{L['N_vel']}] = nearbyint({P('T_vel')} / {P('T_cur')});",
         f"    S[{L['i_R']}] = transmission_ratio({P('p')}, {P('i_r')});",
-        f"    traced_parameters(p, S + {PO});",
-        f"    S[{L['cb']}] = cos(S[{PO + TRACED_PARAMETERS.index('beta')}]);",
-        f"    S[{L['sb']}] = sin(S[{PO + TRACED_PARAMETERS.index('beta')}]);",
         *(
             [f"    S[{L['attached']}] = p->integer[{vrs['attached']}];", f"    model_constants(p, S + {L['model']});"]
             if model
             else []
         ),
-        f"    S[{L['lengths']}] = 1.0; S[{L['lengths'] + 1}] = S[{PO + 1}]; S[{L['lengths'] + 2}] = S[{PO + 1}];",
         "    /* the gains, by the controller's own functions */",
         *(
             [
@@ -1058,7 +957,7 @@ def _joint_controller(block, vrs: Mapping[str, int]) -> tuple[str, str]:
     ]
     body = "\n".join(
         [
-            _traced_parameters_c(vrs),
+            mech_code,
             to_c(ik.source, "ik", checks=checks),
             f"static int ik_s(double *S, {', '.join(f'double {a}' for a in q)}, double *out)",
             "{",
@@ -1069,16 +968,6 @@ def _joint_controller(block, vrs: Mapping[str, int]) -> tuple[str, str]:
             f"static int ikjac_s(double *S, {', '.join(f'double {a}' for a in q)}, double *out)",
             "{",
             f"    return ikjac_p(S + {PO}, {', '.join(q)}, out);",
-            "}",
-            "",
-            _level_height_c(),
-            "/* PRS3.guess: the level pose for the mean carriage position (the direct kinematics' cold start) */",
-            "void ctrl_guess(const double *S, const double *rho, double *out)",
-            "{",
-            f"    out[0] = level_height(rho[0], rho[1], rho[2], S[{PO}], S[{PO + 1}], S[{PO + 2}], S[{L['cb']}], "
-            f"S[{L['sb']}]);",
-            "    out[1] = 0.0;",
-            "    out[2] = 0.0;",
             "}",
             "",
             _why_function("why", checks),
@@ -1096,7 +985,7 @@ def _joint_controller(block, vrs: Mapping[str, int]) -> tuple[str, str]:
             "/* the controller's checks of its parameter set after the ranges (DriveController, designs.describe) */",
             "static int model_check(const mast_parameters *p, char *msg, size_t size)",
             "{",
-            ratios + "\n".join(_describe_checks_c(vrs, payload=model)),
+            ratios + MECHANISM_CHECK,
             "    return MAST_OK;",
             "}",
             "",
@@ -1131,7 +1020,7 @@ def _joint_controller(block, vrs: Mapping[str, int]) -> tuple[str, str]:
             "",
         ]
     )
-    return body, _controller_config(block, eng, model, workspace)
+    return body, _controller_config(block, eng, L, model, workspace, mech_config)
 
 
 def _model_constants_c(vrs: Mapping[str, int]) -> str:
@@ -1192,8 +1081,27 @@ def native_kind(block_class: type) -> Optional[str]:
         ("trajectory", (TrajectoryBlock,)),
         ("controller", native_controllers()),
     ):
-        if block_class in classes or (kind != "controller" and issubclass(block_class, classes)):
+        if native_controller(block_class) if kind == "controller" else issubclass(block_class, classes):
             return kind
+    return None
+
+
+#: what a controller's class made for a mechanism's axes and parameters sets (``DriveController.for_parameters``:
+#: ``_specialised``, ``_with_parameters``, ``_declare``); a subclass setting more has no native form
+_SPECIALISED = frozenset(
+    {"COORDINATES", "PARAMETERS", "MECHANISM", "INPUTS", "OUTPUTS", "UNITS", "DESCRIPTIONS", "FEEDTHROUGH", "LAYOUT"}
+    | {"SIZE", "__module__", "__qualname__", "__doc__", "__dict__", "__weakref__"}
+)
+
+
+def native_controller(block_class: type) -> Optional[type]:
+    """The controller of ``native_controllers`` that ``block_class`` is, or is made from for a mechanism's axes and
+    parameters (its subclasses setting nothing else); None if none."""
+    for cls in block_class.__mro__:
+        if cls in native_controllers():
+            return cls
+        if not set(vars(cls)) <= _SPECIALISED:
+            return None
     return None
 
 
