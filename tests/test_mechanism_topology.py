@@ -183,7 +183,14 @@ def test_trajectory_block_for_the_coordinates():
 def _system(params):
     """A system of the scratch mechanism, two actuators feeding its joints, pose command inputs."""
     comps = {
-        "mechanism": SimpleNamespace(inputs=list(MechanismBlock(params).INPUTS), outputs=[], parameters=params),
+        "mechanism": SimpleNamespace(
+            name="mechanism",
+            inputs=list(MechanismBlock(params).INPUTS),
+            outputs=[],
+            parameters=params,
+            bindings=[],  # the values as the description declares them: no set converted them
+            units={},
+        ),
         "trajectory": SimpleNamespace(inputs=[], outputs=["z_cmd", "theta_cmd"], parameters={}),
         **{f"actuator_{k}": SimpleNamespace(inputs=[], outputs=["rho"], parameters={}) for k in (1, 2)},
     }
