@@ -276,10 +276,10 @@ def cmd_reproduce(args) -> int:
 
 
 def cmd_hosts(args) -> int:
-    from .hosts.cosim import COMPARED, HOSTS, cross_check, show
+    from .hosts.cosim import HOSTS, compared_signals, cross_check, show
 
     if args.show:
-        print(show(args.show, args.ssp, args.stop_time, list(COMPARED), Path.cwd()))
+        print(show(args.show, args.ssp, args.stop_time, list(compared_signals(args.ssp)), Path.cwd()))
         return 0
     rows = cross_check(args.ssp, args.stop_time, args.host or HOSTS)
     return 1 if any(row.get("failed") for row in rows) else 0

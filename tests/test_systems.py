@@ -14,7 +14,7 @@ from fmus.mechanism.description import load
 from fmus.mechanism.topology import POSE, Coordinate, Drive, Topology
 from mast.core import ssd, ssv
 from mast.core.description_sets import SETS, differences
-from mast.core.designs import DESIGNS, variant
+from mast.core.designs import DESIGNS, STANDALONES, variant
 from mast.core.ssp import read_ssd, validate_ssd_schema
 from mast.core.ssv import SSPFormatError
 from mast.core.systems import MAST, STANDALONE, generate, system_ssd, topology
@@ -41,7 +41,7 @@ def _semantics(system) -> tuple:
     return (comps, system.connections, system.system_inputs, system.base_step, system.start_time, system.stop_time)
 
 
-@pytest.mark.parametrize("description", [MAST, STANDALONE], ids=lambda d: d.name)
+@pytest.mark.parametrize("description", [MAST, STANDALONE, *STANDALONES], ids=lambda d: d.name)
 def test_committed_system_is_what_the_generator_writes(description):
     assert description.path.read_bytes() == generate(description), (
         f"{description.path.name} is stale: run python -m mast.core.variants"

@@ -17,3 +17,7 @@ class MastTrajectory(BlockSlave):
     block_class = TrajectoryBlock
     author = "MAST co-simulation project"
     version = "0.1.0"
+
+
+class Mast6UPSTrajectory(MastTrajectory):
+    """Pose command for the 6-UPS hexapod (design 6UPS): home pose plus a sine on x, y, z, psi, theta and phi, for hosts without a Python stimulus."""  # noqa: E501 (one line: the FMU's description)

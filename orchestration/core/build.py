@@ -90,6 +90,7 @@ FMUS = (
     FmuSpec("Mast3RPSController", "controller"),
     FmuSpec("Mast6UPS", "mechanism"),
     FmuSpec("Mast6UPSController", "controller"),
+    FmuSpec("Mast6UPSTrajectory", "trajectory"),  # the pose command of ssp/MAST_6UPS_standalone.ssd
     FmuSpec("Mast6PUS", "mechanism"),
     FmuSpec("Mast6PUSController", "controller"),
     # single-axis test benches (ssp/EMPS_bench.ssd)

@@ -85,8 +85,8 @@ def home(file: DescriptionFile) -> tuple[list[Row], str]:
         for c, value, expr in zip(file.coordinates, pose, file.home)
     ]
     return rows, (
-        f"Home pose of design {file.path.stem}: {file.title}. Where the pose command of "
-        "MAST_standalone.ssd starts (every slider at mid-stroke)."
+        f"Home pose of design {file.path.stem}: {file.title}. Where the pose command of its standalone "
+        "system starts (every drive at mid-stroke)."
     )
 
 
@@ -198,6 +198,7 @@ SETS = (
     DescribedSet("geometry_6ups", "6UPS", geometry),
     DescribedSet("mass_6ups", "6UPS", masses),
     DescribedSet("actuator_6ups", "6UPS", leg_actuator),
+    DescribedSet("home_6ups", "6UPS", home),
     DescribedSet("geometry_6pus", "6PUS", geometry),
     DescribedSet("mass_6pus", "6PUS", masses),
     DescribedSet("stroke_6pus", "6PUS", stroke),

@@ -28,7 +28,7 @@ import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 
-from .systems import MAST, REPO, SSP_SRC, SystemDescription, generate
+from .systems import MAST, REPO, SSP_SRC, STANDALONE, Part, SystemDescription, generate
 
 DEFAULT_GEOMETRY = "resources/geometry_3prs.ssv"
 DEFAULT_MASSES = "resources/mass_3prs.ssv"
@@ -185,3 +185,39 @@ def write_variants() -> list[Path]:
         d.ssd.write_bytes(variant_ssd(d))
         written.append(d.ssd)
     return written
+
+
+def standalone(d: Design, home: str, motion: str) -> SystemDescription:
+    """The system of design ``d`` driven by its own pose command (as ssp/MAST_standalone.ssd is the default
+    system's): ``variant(d, STANDALONE)`` with its FMU ``Mast<design>Trajectory`` (the coordinates of ``d``'s
+    description) bound to the home pose ``home`` and the motion ``motion`` (parameter sets of ssp/resources)."""
+    system = variant(d, STANDALONE)
+    name = f"MAST_{d.name}_standalone"
+    return dataclasses.replace(
+        system,
+        name=name,
+        system=name,
+        comment=f"Design {d.name}: {d.title} (docs/designs/{d.name}.md), driven by its own pose command.\n"
+        f"     Written by `python -m mast.core.variants`: MAST_{d.name}.ssd with a {d.model_identifier}Trajectory "
+        "component in place\n     of the system inputs, so that any co-simulation host runs it as it is "
+        "(libcosim and ecos accept no\n     system-level connectors).\n"
+        "     Components may be swapped by editing their `source`; parameter sets are bound in order, later "
+        "ones override.",
+        trajectory=Part(
+            f"{d.model_identifier}Trajectory.fmu",
+            (home, motion),
+            STANDALONE.trajectory.step,
+            f"Pose command: home pose ({Path(home).name}) + sine ({Path(motion).name}); stepped with the controller",
+        ),
+    )
+
+
+#: the standalone systems of other mechanisms (hosts without system inputs run them: mast hosts)
+STANDALONES = (standalone(design("6UPS"), "resources/home_6ups.ssv", "resources/trajectory_6ups.ssv"),)
+
+
+def write_standalones() -> list[Path]:
+    """(Re)write ssp/MAST_<design>_standalone.ssd of ``STANDALONES``."""
+    for system in STANDALONES:
+        system.path.write_bytes(generate(system))
+    return [system.path for system in STANDALONES]

@@ -2,8 +2,9 @@
 mechanism description files (``mast.core.description_sets``: geometry, masses, home pose, gravity
 along inclined guides), then every system SSD of ssp/ that ``mast.core.systems`` generates: the
 default system (ssp/MAST.ssd), the standalone one (ssp/MAST_standalone.ssd), the mechanism designs'
-(``mast.core.designs``) and the controllers' (``mast.core.controllers``). ssp/EMPS_bench.ssd, a
-single-axis bench and not a mechanism with n drives, is written by hand."""
+(``mast.core.designs``, with the standalone systems of other mechanisms: ssp/MAST_6UPS_standalone.ssd) and
+the controllers' (``mast.core.controllers``). ssp/EMPS_bench.ssd, a single-axis bench and not a mechanism with
+n drives, is written by hand."""
 
 from __future__ import annotations
 
@@ -22,7 +23,7 @@ def write_all() -> list[Path]:
     for description in (MAST, STANDALONE):
         description.path.write_bytes(generate(description))
         written.append(description.path)
-    return written + designs.write_variants() + controllers.write_variants()
+    return written + designs.write_variants() + designs.write_standalones() + controllers.write_variants()
 
 
 def main() -> int:

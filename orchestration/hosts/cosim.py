@@ -42,11 +42,15 @@ import subprocess
 import sys
 import sysconfig
 import tempfile
+import zipfile
 from pathlib import Path
 from typing import Optional, Sequence, Union
 
 import numpy as np
 
+from fmus.mechanism.topology import POSE
+
+from ..core import ssd
 from ..core.build import FLAT_SET_NAME  # the one parameter set per component of a built SSP: ecos applies it by name
 from ..core.master import Result
 from ..core.ssp import SSPArchive
@@ -379,7 +383,8 @@ def write_csv(result: Result, path: Path) -> None:
 
 
 # -- agreement with the project's master ------------------------------------------------------
-#: signals compared between a host and the project's master, with their unit
+#: signals compared between a host and the project's master for the 3PRS (MAST_standalone.ssp), with their unit:
+#: ``compared_signals`` of that system; other systems' come from their own SSD
 COMPARED = {
     "mechanism.z": "m",
     "mechanism.psi": "rad",
@@ -402,6 +407,40 @@ TOLERANCES = {
     "ecospy": {"m": 1e-4, "rad": 1.5e-4, "A": 0.6, "N": 2.0},
     "ecos": {"m": 1e-4, "rad": 1.5e-4, "A": 0.6, "N": 2.0},
 }
+
+
+def compared_signals(ssp: Union[str, Path]) -> dict[str, str]:
+    """The signals compared between a host and the project's master for the system ``ssp`` (a built .ssp or an
+    .ssd), with the unit its SSD gives each: the mechanism's pose components the pose command drives (every
+    ``<c>_cmd`` input of the controller: the 3PRS's z, psi, theta, a hexapod's six), then every drive k's
+    ``actuator_k.rho`` and ``actuator_k.i_m`` and ``mechanism.F_k``."""
+    path = Path(ssp)
+    if path.suffix == ".ssp":
+        with zipfile.ZipFile(path) as archive:
+            document = ssd.read(archive.read("SystemStructure.ssd"), origin=f"{path} (entry SystemStructure.ssd)")
+    else:
+        document = ssd.read(path)
+    connectors = {(e.name, c.name): c.unit for e in document.system.elements for c in e.connectors}
+    missing = [n for n in ("controller", "mechanism") if not any(e == n for e, _ in connectors)]
+    if missing:
+        raise ValueError(f"{ssp}: no component {' or '.join(missing)}: expected a system of the MAST's layout")
+    pose = [c[: -len("_cmd")] for e, c in connectors if e == "controller" and c.endswith("_cmd") and c[:-4] in POSE]
+    drives = sorted(
+        (int(e.rpartition("_")[2]) for e, c in connectors if e.startswith("actuator_") and c == "rho"),
+    )
+    names = (
+        [("mechanism", c) for c in pose]
+        + [(f"actuator_{k}", "rho") for k in drives]
+        + [(f"actuator_{k}", "i_m") for k in drives]
+        + [("mechanism", f"F_{k}") for k in drives]
+    )
+    absent = [f"{e}.{c}" for e, c in names if (e, c) not in connectors]
+    if absent or not pose or not drives:
+        raise ValueError(
+            f"{ssp}: signals {', '.join(absent) or 'of the pose and the drives'} are not in the system: expected "
+            "a controller with pose commands <c>_cmd, actuator_k with rho and i_m, a mechanism with F_k and the pose"
+        )
+    return {f"{e}.{c}": connectors[e, c] for e, c in names}
 
 
 def deviations(host: Result, reference: Result, signals: Sequence[str]) -> dict[str, float]:
@@ -429,7 +468,8 @@ def cross_check(
 
     from ..core.run import simulate
 
-    signals = list(COMPARED) if signals is None else list(signals)
+    units = compared_signals(ssp)
+    signals = list(units) if signals is None else list(signals)
     wall = time.perf_counter()
     reference = simulate(ssp, None, stop_time, record=signals)
     rows = [{"host": "mast (reference)", "wall_time_s": time.perf_counter() - wall}]
@@ -447,15 +487,17 @@ def cross_check(
             "wall_time_s": time.perf_counter() - wall,
             "deviation": deviations(result, reference, signals),
         }
-        units = {s: COMPARED.get(s) for s in signals}
-        row["failed"] = [s for s, d in row["deviation"].items() if units[s] and not d <= TOLERANCES[host][units[s]]]
+        unknown = {units[s] for s in signals if units.get(s)} - TOLERANCES[host].keys()
+        if unknown:
+            raise ValueError(f"{host}: no tolerance for {', '.join(sorted(unknown))} (TOLERANCES: {TOLERANCES[host]})")
+        row["failed"] = [s for s, d in row["deviation"].items() if units.get(s) and not d <= TOLERANCES[host][units[s]]]
         rows.append(row)
         log(
             f"{host}: {row['wall_time_s']:.1f} s; largest deviation by unit: "
             + ", ".join(
-                f"{max(d for s, d in row['deviation'].items() if units[s] == u):.2g} {u} (tolerance {t:g})"
+                f"{max(d for s, d in row['deviation'].items() if units.get(s) == u):.2g} {u} (tolerance {t:g})"
                 for u, t in TOLERANCES[host].items()
-                if any(units[s] == u for s in signals)
+                if any(units.get(s) == u for s in signals)
             )
             + (f"; OUT OF TOLERANCE: {', '.join(row['failed'])}" if row["failed"] else "")
             + (f"; {result.stats['exit_signal']} after the run" if "exit_signal" in result.stats else "")

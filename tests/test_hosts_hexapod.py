@@ -1,0 +1,102 @@
+"""The hexapod's standalone system (ssp/MAST_6UPS_standalone.ssd) in third-party co-simulation hosts.
+
+What is checked:
+- the standalone SSD is the 6-UPS system (ssp/MAST_6UPS.ssd) with its own pose command in place of the system
+  inputs, the command's home pose the mechanism's;
+- the signals compared with our master are the system's (six pose components, six drives), the 3PRS's those of
+  mast.hosts.cosim.COMPARED;
+- libcosim, ecospy and the ecos command line run the native SSP (``mast build --native``) and match our master
+  within the documented tolerance (mast.hosts.cosim.TOLERANCES: the hosts apply the controller's current command
+  one exchange later than our master), on the commanded motion.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from fmus.mechanism.designs import description
+from mast.core.run import simulate
+from mast.core.ssp import read_ssd, validate_ssd_schema
+from mast.hosts.cosim import COMPARED, TOLERANCES, availability, compared_signals, deviations, run_host
+
+ROOT = Path(__file__).resolve().parents[1]
+SSP_SRC = ROOT / "ssp"
+STOP = 0.3  # s of simulated time in the host comparisons
+AMPLITUDE_Z = 0.01  # m: ssp/resources/trajectory_6ups.ssv, 1 Hz
+
+
+def needs(host: str):
+    reason = availability(host)
+    return pytest.mark.skipif(reason is not None, reason=f"{host}: {reason}")
+
+
+def _shape(system, component):
+    c = system.components[component]
+    return c.source, c.step_size, c.inputs, c.outputs, c.parameters
+
+
+def test_hexapod_standalone_ssd_is_the_6ups_system_with_its_own_pose_command():
+    hexapod, alone = read_ssd(SSP_SRC / "MAST_6UPS.ssd"), read_ssd(SSP_SRC / "MAST_6UPS_standalone.ssd")
+    assert validate_ssd_schema(SSP_SRC / "MAST_6UPS_standalone.ssd") == []
+    assert alone.system_inputs == [] and set(alone.components) == set(hexapod.components) | {"trajectory"}
+    for name in hexapod.components:
+        assert _shape(alone, name) == _shape(hexapod, name), f"{name} differs from MAST_6UPS.ssd"
+    edges = {(c.start_element, c.start_connector, c.end_element, c.end_connector) for c in alone.connections}
+    inputs = {(c.end_element, c.end_connector) for c in hexapod.connections if not c.start_element}
+    assert len(inputs) == 6 and edges == (
+        {
+            (c.start_element, c.start_connector, c.end_element, c.end_connector)
+            for c in hexapod.connections
+            if c.start_element
+        }
+        | {("trajectory", connector, element, connector) for element, connector in inputs}
+    )
+    top = description("6UPS").describe(masses=False).topology
+    traj = alone.components["trajectory"].parameters
+    assert [traj[f"{c}_home"] for c in top.names] == pytest.approx(top.home, abs=1e-12)
+    assert traj["amplitude_z"] == AMPLITUDE_Z and traj["frequency"] == 1.0
+
+
+def test_the_compared_signals_are_the_system_s():
+    assert compared_signals(SSP_SRC / "MAST_standalone.ssd") == COMPARED
+    hexapod = compared_signals(SSP_SRC / "MAST_6UPS_standalone.ssd")
+    drives = range(1, 7)
+    assert list(hexapod) == [
+        *(f"mechanism.{c}" for c in ("x", "y", "z", "psi", "theta", "phi")),
+        *(f"actuator_{k}.rho" for k in drives),
+        *(f"actuator_{k}.i_m" for k in drives),
+        *(f"mechanism.F_{k}" for k in drives),
+    ]
+    assert set(hexapod.values()) == {"m", "rad", "A", "N"}  # ball-screw legs: linear drives
+
+
+@pytest.fixture(scope="module")
+def native_ssp(built_native) -> Path:
+    return built_native / "ssp" / "native" / "MAST_6UPS_standalone.ssp"
+
+
+@pytest.fixture(scope="module")
+def reference(native_ssp):
+    return simulate(native_ssp, None, STOP, record=list(compared_signals(native_ssp)))
+
+
+@pytest.mark.parametrize("host", [pytest.param(h, marks=needs(h)) for h in ("libcosim", "ecospy", "ecos")])
+def test_host_runs_the_native_hexapod_like_our_master(host, native_ssp, reference):
+    units = compared_signals(native_ssp)
+    result = run_host(host, native_ssp, STOP, list(units), python_free=host == "ecos")
+    assert result.time[-1] == pytest.approx(STOP) and np.all(np.diff(result.time) == pytest.approx(1e-3))
+    dev = deviations(result, reference, list(units))
+    over = {
+        s: f"{d:.3g} > {TOLERANCES[host][units[s]]:g} {units[s]}"
+        for s, d in dev.items()
+        if not d <= TOLERANCES[host][units[s]]
+    }
+    assert not over, f"{host} differs from our master on the hexapod: {over}"
+    # the commanded motion: z from home up 10 mm sin(2 pi t), every leg moving
+    z = result["mechanism.z"]
+    assert np.ptp(z) == pytest.approx(np.ptp(reference["mechanism.z"]), rel=1e-2)
+    assert 0.9 * AMPLITUDE_Z < np.ptp(z) < 1.01 * AMPLITUDE_Z
+    assert all(np.ptp(result[f"actuator_{k}.rho"]) > 1e-3 for k in range(1, 7))
