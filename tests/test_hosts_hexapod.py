@@ -20,7 +20,15 @@ import pytest
 from fmus.mechanism.designs import description
 from mast.core.run import simulate
 from mast.core.ssp import read_ssd, validate_ssd_schema
-from mast.hosts.cosim import COMPARED, TOLERANCES, availability, compared_signals, deviations, run_host
+from mast.hosts.cosim import (
+    COMPARED,
+    TOLERANCES,
+    availability,
+    compared_signals,
+    cross_check,
+    deviations,
+    run_host,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 SSP_SRC = ROOT / "ssp"
@@ -100,3 +108,11 @@ def test_host_runs_the_native_hexapod_like_our_master(host, native_ssp, referenc
     assert np.ptp(z) == pytest.approx(np.ptp(reference["mechanism.z"]), rel=1e-2)
     assert 0.9 * AMPLITUDE_Z < np.ptp(z) < 1.01 * AMPLITUDE_Z
     assert all(np.ptp(result[f"actuator_{k}.rho"]) > 1e-3 for k in range(1, 7))
+
+
+@needs("libcosim")
+def test_mast_hosts_compares_the_hexapod_on_its_own_signals(native_ssp):
+    """What `mast hosts` runs (cross_check): the system's signals, each judged by the tolerance of its unit."""
+    rows = cross_check(native_ssp, 0.1, hosts=["libcosim"], log=lambda *_: None)
+    assert [r["host"] for r in rows] == ["mast (reference)", "libcosim"]
+    assert list(rows[1]["deviation"]) == list(compared_signals(native_ssp)) and rows[1]["failed"] == []
