@@ -55,6 +55,13 @@ def controller_params() -> dict:
     return load_params("controller")
 
 
+def component_shape(system, component: str) -> tuple:
+    """What a component of a read SSD is apart from its name: FMU source, step size, connectors, merged bindings
+    (the standalone systems' checks: the same component as in the system they stand in for)."""
+    c = system.components[component]
+    return c.source, c.step_size, c.inputs, c.outputs, c.parameters
+
+
 def build_once(tmp_path_factory: pytest.TempPathFactory, name: str, build: Callable[[Path], object]) -> Path:
     """The folder ``name`` that ``build(folder)`` fills, built once per test session however many pytest-xdist
     workers ask for it (xdist's docs, "Making session-scoped fixtures execute only once").

@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import component_shape
 
 from fmus.mechanism.kinematics import Geometry, home_pose
 from mast.core.build import FLAT_SET_NAME, build_all, build_ssp
@@ -111,9 +112,6 @@ def reference(bound):
 
 
 # -- the standalone system and the built archives ------------------------------------------------
-def _shape(system, component):
-    c = system.components[component]
-    return c.source, c.step_size, c.inputs, c.outputs, c.parameters
 
 
 def test_standalone_ssd_is_the_default_system_with_its_own_pose_command():
@@ -121,7 +119,9 @@ def test_standalone_ssd_is_the_default_system_with_its_own_pose_command():
     assert validate_ssd_schema(SSP_SRC / "MAST_standalone.ssd") == []
     assert alone.system_inputs == [] and set(alone.components) == set(mast.components) | {"trajectory"}
     for name in mast.components:  # same FMUs, connectors, step sizes and merged bindings
-        assert _shape(alone, name) == _shape(mast, name), f"{name} differs between MAST.ssd and MAST_standalone.ssd"
+        assert component_shape(alone, name) == component_shape(mast, name), (
+            f"{name} differs between MAST.ssd and MAST_standalone.ssd"
+        )
     pose = {(c.end_element, c.end_connector) for c in mast.connections if not c.start_element}
     assert {(c.start_element, c.start_connector, c.end_element, c.end_connector) for c in alone.connections} == (
         {

@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import component_shape
 
 from fmus.mechanism.designs import description
 from mast.core.run import simulate
@@ -41,17 +42,12 @@ def needs(host: str):
     return pytest.mark.skipif(reason is not None, reason=f"{host}: {reason}")
 
 
-def _shape(system, component):
-    c = system.components[component]
-    return c.source, c.step_size, c.inputs, c.outputs, c.parameters
-
-
 def test_hexapod_standalone_ssd_is_the_6ups_system_with_its_own_pose_command():
     hexapod, alone = read_ssd(SSP_SRC / "MAST_6UPS.ssd"), read_ssd(SSP_SRC / "MAST_6UPS_standalone.ssd")
     assert validate_ssd_schema(SSP_SRC / "MAST_6UPS_standalone.ssd") == []
     assert alone.system_inputs == [] and set(alone.components) == set(hexapod.components) | {"trajectory"}
     for name in hexapod.components:
-        assert _shape(alone, name) == _shape(hexapod, name), f"{name} differs from MAST_6UPS.ssd"
+        assert component_shape(alone, name) == component_shape(hexapod, name), f"{name} differs from MAST_6UPS.ssd"
     edges = {(c.start_element, c.start_connector, c.end_element, c.end_connector) for c in alone.connections}
     inputs = {(c.end_element, c.end_connector) for c in hexapod.connections if not c.start_element}
     assert len(inputs) == 6 and edges == (
