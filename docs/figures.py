@@ -56,6 +56,11 @@ def _magnitude_pct(motion: str) -> Callable[[Mapping], float]:
     return lambda values: 100 * values["rows"][f"position_magnitude/{motion}/10Hz"]["ours"]
 
 
+def _named(source: str, rows: tuple[tuple[str, str, float], ...]) -> dict[str, Figure]:
+    """``source.<name>`` for each (name, fmt, tolerance) of ``rows``: the value ``name`` of the source's flat dict."""
+    return {f"{source}.{name}": Figure(source, (lambda n: lambda v: v[n])(name), fmt, tol) for name, fmt, tol in rows}
+
+
 FIGURES: dict[str, Figure] = {
     # mast reproduce (docs/reproduction.md): the headline counts and the 10 Hz positions
     **{
@@ -150,9 +155,9 @@ FIGURES: dict[str, Figure] = {
     },
     # the 6-UPS hexapod (docs/designs/6ups.md): margins and static forces at home, its workspaces on the coarse grid
     # HEXAPOD_GRID (a volume may differ by a grid node or two between machines)
-    **{
-        f"hexapod.{what}": Figure("hexapod", (lambda w: lambda v: v[w])(what), fmt, tol)
-        for what, fmt, tol in (
+    **_named(
+        "hexapod",
+        (
             ("parallel", "{:.3f}", 0.0),
             ("inverse", "{:.3f}", 0.0),
             ("dexterity", "{:.2f}", 0.0),
@@ -162,32 +167,32 @@ FIGURES: dict[str, Figure] = {
             ("volume_xyz_L", "{:.1f}", 0.02),
             ("volume_angles_deg3", "{:.0f}", 60.0),
             ("volume_z_psi_theta_m_deg2", "{:.0f}", 0.4),
-        )
-    },
+        ),
+    ),
     # the 6-UPS as a system (docs/designs/6ups.md): its run z, 3 mm at 2 Hz, 0.4 s, Python FMUs (HEXAPOD_RUN);
     # checked by tests/test_hexapod_system.py on the run it makes; tolerances: another machine's floats in a closed loop
-    **{
-        f"hexapod_run.{what}": Figure("hexapod_run", (lambda w: lambda v: v[w])(what), fmt, tol)
-        for what, fmt, tol in (
+    **_named(
+        "hexapod_run",
+        (
             ("z_error_mm", "{:.3f}", 0.002),
             ("current_peak_A", "{:.2f}", 0.01),
             ("torque_peak_mNm", "{:.1f}", 0.2),
             ("phi_error_urad", "{:.2f}", 0.02),
-        )
-    },
+        ),
+    ),
     # `mast animate`'s page for the default system's `make run` motion (docs/animate.md): frames, sizes [MB, kB]; a
     # size may move by a few bytes between machines (a coordinate's rounding to 1 um flipping)
     "animate.frames": Figure("animate", lambda v: v["frames"], "{:d}"),
-    **{
-        f"animate.{what}": Figure("animate", (lambda w: lambda v: v[w])(what), fmt, tol)
-        for what, fmt, tol in (
+    **_named(
+        "animate",
+        (
             ("page_MB", "{:.2f}", 0.01),
             ("plotly_MB", "{:.2f}", 0.0),
             ("figure_MB", "{:.2f}", 0.01),
             ("frame_kB", "{:.0f}", 0.5),
             ("minute_MB", "{:.0f}", 0.5),
-        )
-    },
+        ),
+    ),
 }
 
 #: the 6-UPS system run of docs/designs/6ups.md: (axis, amplitude [m], frequency [Hz], stop time [s])
