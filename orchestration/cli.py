@@ -127,23 +127,10 @@ def cmd_build(args) -> int:
 
     build_all(Path(args.out), fmi3=args.fmi3)
     if args.native:
-        from .core.build import FMUS
-        from .core.designs import without_native_form
         from .core.native.build import build_native_all
 
         platforms = ("linux64", "aarch64-linux", "win64", "darwin64") if args.cross else ("linux64",)
-        skipped_fmus = without_native_form()
-        if skipped_fmus:
-            print(
-                f"skipped {', '.join(f'{i}.fmu' for i in skipped_fmus)}: the native runtime generates the 3PRS's "
-                "controllers only yet (issue 25); their systems' native SSPs carry their Python FMUs"
-            )
-        build_native_all(
-            Path(args.out),
-            sorted(SSP_SRC.glob("*.ssd")),
-            fmus=[s.model_identifier for s in FMUS if s.model_identifier not in skipped_fmus],
-            platforms=platforms,
-        )
+        build_native_all(Path(args.out), sorted(SSP_SRC.glob("*.ssd")), platforms=platforms)
     return 0
 
 

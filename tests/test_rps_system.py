@@ -277,10 +277,8 @@ def test_every_design_s_mechanism_and_controller_have_a_native_form():
     """The mechanisms of every description and their controllers (on the native mechanism's cold start, lengths and
     checks: mast_controller.c, mast_mechanism.c): their systems' native SSPs are native throughout
     (tests/test_native_mechanisms.py). The EMPS bench's models have none (the generator knows no such block)."""
-    from mast.core.designs import without_native_form
     from mast.core.native.build import has_native_form
 
-    assert without_native_form() == []
     names = ("3RPS", "6UPS", "6PUS")
     assert all(has_native_form(f"Mast{name}") and has_native_form(f"Mast{name}Controller") for name in names)
     assert not has_native_form("MastEmpsController")

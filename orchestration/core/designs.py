@@ -52,7 +52,6 @@ class Design:
     stroke: str = DEFAULT_STROKE  # in place of the 3PRS's actuator stroke set
     transmission: str = DEFAULT_TRANSMISSION  # gear ratio and feed (actuators and controller): the belt axis's
     controller: str = ""  # the controller FMU's model identifier ("": the base system's)
-    native_controller: bool = True  # whether its controller has a native form yet (`mast build --native`)
 
     @property
     def ssd(self) -> Path:
@@ -114,13 +113,6 @@ MECHANISMS = (
         controller="Mast6PUSController",
     ),
 )
-
-
-def without_native_form() -> list[str]:
-    """The FMUs (model identifiers) of the designs that `mast build --native` has no native form for yet: the
-    controllers of the designs whose ``Design.native_controller`` is False (their systems' native SSPs carry their
-    Python FMUs)."""
-    return [d.controller for d in DESIGNS + MECHANISMS if not d.native_controller and d.controller]
 
 
 def design(name_or_identifier: str) -> Design:

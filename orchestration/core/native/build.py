@@ -155,11 +155,8 @@ def build_native_fmu(
 def has_native_form(identifier: str) -> bool:
     """Whether ``mast build --native`` can make this FMU (the models of ``models.emit_model``)."""
     from ..build import block_class
-    from ..designs import without_native_form
     from .models import native_kind
 
-    if identifier in without_native_form():  # another mechanism's controller: Design.native_controller
-        return False
     return native_kind(block_class(identifier)) is not None
 
 
@@ -190,12 +187,11 @@ def build_native_all(
 ) -> list[Path]:
     """Native FMUs into ``out/fmus/native`` (each for its default parameter set; ``fmus``: only these
     identifiers, default every FMU with a native form) and, for every SSD, ``out/ssp/native/<name>.ssp`` binding
-    native FMUs built for its own parameter sets (a controller without a native form yet, ``without_native_form``:
-    its Python FMU, named in the log; a system with a model no generator knows is skipped). Needs the Python FMUs
+    native FMUs built for its own parameter sets (a system with a model no generator knows is skipped, named in the
+    log). Needs the Python FMUs
     of those FMUs and SSDs in ``out/fmus`` (``mast build``); ``platforms``: the binaries each FMU carries
     (``build_native_fmu``)."""
     from ..build import FMUS, build_ssp, default_parameters
-    from ..designs import without_native_form
     from ..ssp import read_ssd
 
     python_dir = out / "fmus"
@@ -220,15 +216,12 @@ def build_native_all(
     for ssd in map(Path, ssds):
         used = {Path(spec.source).stem for spec in read_ssd(ssd).components.values()}
         missing = sorted(ident for ident in used if not has_native_form(ident))
-        unknown = sorted(set(missing) - set(without_native_form()))  # models no generator knows (EMPS bench)
-        if unknown:
-            log(f"skipped {ssd.name}: no native form for {', '.join(unknown)}")
+        if missing:  # models no generator knows (the EMPS bench's)
+            log(f"skipped {ssd.name}: no native form for {', '.join(missing)}")
             continue
         comps = _component_sets(ssd)
         by_source: dict[str, dict] = {}
         for _comp, (ident, params) in comps.items():
-            if ident in missing:
-                continue
             if by_source.setdefault(ident, params) != params:
                 raise NativeBuildError(
                     f"{ssd}: the components using {ident}.fmu have different parameter sets; a "
@@ -237,10 +230,8 @@ def build_native_all(
         with tempfile.TemporaryDirectory(prefix="mast_native_ssp_") as tmp:
             for ident, params in by_source.items():
                 native(ident, params, Path(tmp))
-            for ident in missing:
-                shutil.copy2(python_dir / f"{ident}.fmu", Path(tmp) / f"{ident}.fmu")
             written.append(build_ssp(ssd, Path(tmp), out / "ssp" / "native"))
-        log(f"built {written[-1]}" + (f" (Python FMUs, no native form yet: {', '.join(missing)})" if missing else ""))
+        log(f"built {written[-1]}")
     return written
 
 
