@@ -110,6 +110,18 @@ FIGURES: dict[str, Figure] = {
         for d in ("3PRS_T", "3PRS_120", "3PRS_inclined")
         for what, fmt in (("parallel", "{:.3g}"), ("inverse", "{:.3g}"), ("dexterity", "{:.3g}"))
     },
+    # paper Fig. 10's argument (docs/designs/README.md): the inertias per axis and the mechanism's mass matrix at home
+    **_named(
+        "inertias",
+        (
+            ("motor_side_kg", "{:.1f}", 0.0),
+            ("guide_side_kg", "{:.1f}", 0.0),
+            ("M_min_kg", "{:.2f}", 0.0),
+            ("M_max_kg", "{:.1f}", 0.0),
+            ("M_min_pct", "{:.1f}", 0.0),
+            ("M_max_pct", "{:.1f}", 0.0),
+        ),
+    ),
     # the drives' datasheet ratings as docs/sizing.md restates them, in the page's units, from the set mast sizing
     # reads (ssp/resources/drive_ratings.ssv, SI): the same number, no tolerance (a unit conversion's rounding
     # stays below the printed digit)
@@ -323,24 +335,33 @@ FIGURES.update(
             ("torque_peak_Nm", "{:.3f}", 0.0005),
             ("torque_rms_Nm", "{:.3f}", 0.0005),
             ("tracking_mm", "{:.2f}", 0.005),
+            ("sizing_margin_pct", "{:.0f}", 0.5),
+            ("sizing_holds_up_to_Hz", "{:g}", 0.0),
         )
     }
 )
+# paper Fig. 10 on the short variant: the bandwidth with the mechanism against the actuators alone [%]
+FIGURES["designs_short.fig10.rise_pct"] = Figure("designs_short", lambda v: v["fig10"]["rise_pct"], "{:.0f}", 0.5)
 
 
 def designs_values(comparison: Mapping) -> dict:
     """The designs_short figures of a design comparison (its comparison.json as a dict), the first motion."""
     motion = DESIGNS_SHORT[1][0]
-    return {
+    out = {
         r["design"]: {
             "bandwidth_Hz": r["bandwidth_Hz"],
             "torque_peak_Nm": r["torque_peak_Nm"],
             "torque_rms_Nm": r["torque_rms_Nm"],
             "tracking_mm": 1e3 * r["tracking_peak"],
+            "sizing_margin_pct": 100 * r["sizing_margin"],
+            "sizing_holds_up_to_Hz": r["sizing_holds_up_to_Hz"],
         }
         for r in comparison["summary"]
         if r["motion"] == motion
     }
+    alone, with_mechanism = (out[d]["bandwidth_Hz"] for d in ("MastActuatorsOnly", "MastMechanism"))
+    out["fig10"] = {"rise_pct": 100 * (with_mechanism / alone - 1)}
+    return out
 
 
 def run_designs_short(fmus: Path, out: Path) -> dict:
@@ -403,6 +424,35 @@ def source_ssd() -> dict:
     from mast.core.ssp import read_ssd
 
     return {"controller": dict(read_ssd(ROOT / "ssp" / "MAST.ssd").components["controller"].parameters)}
+
+
+def source_inertias() -> dict:
+    """Paper Fig. 10's argument (docs/designs/README.md): per axis, the inertia the position loop moves [kg, at the
+    guide], motor side J1 / i_R^2 and guide side J2 / i_R^2 (``fmus.actuator.model.two_inertia`` of actuator_1 in
+    ssp/MAST.ssd), and the T layout's mass matrix at home, its smallest and largest eigenvalue [kg] and their share of
+    the axis' inertia [%]."""
+    import numpy as np
+
+    from fmus.actuator.model import transmission_ratio, two_inertia
+    from mast.analyses.workspace import machine
+    from mast.core.ssp import read_ssd
+
+    params = read_ssd(ROOT / "ssp" / "MAST.ssd").components["actuator_1"].parameters
+    J1, J2 = two_inertia(params)
+    i_R = transmission_ratio(float(params["p"]), float(params["i_r"]))
+    m = machine("3PRS_T")
+    n = len(m.topology.drives)
+    M = m.engine().inverse_dynamics_at_pose(m.topology.home, [0.0] * n, [0.0] * n).M
+    eig = np.linalg.eigvalsh(M)
+    axis = (J1 + J2) / i_R**2
+    return {
+        "motor_side_kg": J1 / i_R**2,
+        "guide_side_kg": J2 / i_R**2,
+        "M_min_kg": float(eig[0]),
+        "M_max_kg": float(eig[-1]),
+        "M_min_pct": 100 * float(eig[0]) / axis,
+        "M_max_pct": 100 * float(eig[-1]) / axis,
+    }
 
 
 def source_ratings() -> dict:
@@ -651,6 +701,7 @@ SOURCES: dict[str, Callable[[], dict]] = {
     "ssd": source_ssd,
     "designs": source_designs,
     "ratings": source_ratings,
+    "inertias": source_inertias,
     "build": source_build,
     "emps": source_emps,
     "workspace": source_workspace,

@@ -312,13 +312,15 @@ def test_every_marked_figure_is_known():
 
 def test_marked_figures_of_the_system_files_and_designs_agree():
     """The gains MAST.ssd binds (docs/controller.md), the designs' margins at home (docs/mechanism.md), the drive
-    ratings (docs/sizing.md), the FMUs mast build writes and the archive limits (README, docs/interfaces.md)."""
+    ratings (docs/sizing.md), the FMUs mast build writes and the archive limits (README, docs/interfaces.md), the
+    inertias of paper Fig. 10's argument (docs/designs/README.md)."""
     problems = figures.check(
         {
             "ssd": figures.source_ssd(),
             "designs": figures.source_designs(),
             "ratings": figures.source_ratings(),
             "build": figures.source_build(),
+            "inertias": figures.source_inertias(),
         }
     )
     assert not problems, "\n".join(problems)
@@ -356,6 +358,7 @@ def test_every_figure_source_is_checked_by_a_test():
         "reproduce",
         "ratings",
         "build",
+        "inertias",
         "emps",
         "hexapod",
         "hexapod_run",  # tests/test_hexapod_system.py, on the run it makes
