@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import scipy.io
+from docs_figures import figures
 
 from fmus.actuator.load_axis import LoadAxisBlock, load_friction
 from fmus.common.parameters import ParameterError
@@ -267,6 +268,11 @@ def test_diagnose_names_friction_offset_and_asymmetry_on_the_emps_record(tmp_pat
     import_file(EMPS, MAP, tmp_path / "rec")
     out = tmp_path / "diag"
     doc = diagnose(Options(tmp_path / "rec", out, str(bench)), log=lambda *_: None)
+    # docs/emps.md's figures of this diagnosis (`python docs/figures.py --source emps_diagnose` writes them)
+    problems = figures.check(
+        {"emps_diagnose": figures.emps_diagnose_values(doc, load_records(tmp_path / "rec").tests[0])}
+    )
+    assert not problems, "\n".join(problems)
     sym = doc["symmetric_model"]
     assert set(sym["named"]) == {"mass", "viscous", "coulomb", "offset"}
     for p in ("M", "F_v", "F_c"):
