@@ -313,7 +313,8 @@ def test_every_marked_figure_is_known():
 def test_marked_figures_of_the_system_files_and_designs_agree():
     """The gains MAST.ssd binds (docs/controller.md), the designs' margins at home (docs/mechanism.md), the drive
     ratings (docs/sizing.md), the FMUs mast build writes and the archive limits (README, docs/interfaces.md), the
-    inertias of paper Fig. 10's argument (docs/designs/README.md)."""
+    inertias of paper Fig. 10's argument (docs/designs/README.md), the tests `mast synthesize` writes by default
+    (README)."""
     problems = figures.check(
         {
             "ssd": figures.source_ssd(),
@@ -321,6 +322,7 @@ def test_marked_figures_of_the_system_files_and_designs_agree():
             "ratings": figures.source_ratings(),
             "build": figures.source_build(),
             "inertias": figures.source_inertias(),
+            "defaults": figures.source_defaults(),
         }
     )
     assert not problems, "\n".join(problems)
@@ -331,6 +333,12 @@ def test_marked_workspace_figures_agree():
     problems = figures.check(
         {"workspace": figures.source_workspace(), "workspace_quick": figures.source_workspace(quick=True)}
     )
+    assert not problems, "\n".join(problems)
+
+
+def test_marked_sizing_figures_agree(built_native):
+    """docs/sizing.md: the drives of the default run and of the paper's 10 Hz z test against their ratings."""
+    problems = figures.check({"sizing": figures.source_sizing(built_native / "ssp" / "MAST.ssp")})
     assert not problems, "\n".join(problems)
 
 
@@ -359,13 +367,18 @@ def test_every_figure_source_is_checked_by_a_test():
         "ratings",
         "build",
         "inertias",
+        "defaults",
+        "sizing",
         "emps",
+        "emps_diagnose",  # tests/test_emps.py, on the diagnosis it runs
         "hexapod",
         "hexapod_run",  # tests/test_hexapod_system.py, on the run it makes
         "animate",  # tests/test_animate.py
         "controllers_short",  # tests/test_controllers.py
         "designs_short",  # tests/test_compare.py
         *(f"diagnose_{case}" for case in figures.DIAGNOSE_CASES),  # tests/test_diagnose.py
+        *(f"diagnose_{case}" for case in figures.DIAGNOSE_HEAVIER_LIGHTER),  # tests/test_diagnose_unseen.py
+        *(f"diagnose_{case}" for case in figures.DIAGNOSE_CROSS_VALIDATED),  # tests/test_diagnose_split.py
     }
     assert set(figures.SOURCES) == checked, f"sources no test compares: {set(figures.SOURCES) - checked}"
 
