@@ -363,20 +363,32 @@ FIGURES.update(
         },
         **{
             f"diagnose_delay_plan_a.without_{key}": Figure(
-                "diagnose_delay_plan_a", (lambda k: lambda v: v["cross_validation"][k])(key), "{:.3g}", 0.0
+                "diagnose_delay_plan_a", (lambda k: lambda v: v["cross_validation"][k])(key), fmt, tol
             )
-            for key in ("lag", "inertia_motor", "coulomb")
+            for key, fmt, tol in (("lag", "{:.1f}", 0.05), ("inertia_motor", "{:.0f}", 0.5), ("coulomb", "{:.0f}", 0.5))
         },
-        # backlash: its std and 95 % interval, to 0.1 % of the truth as the value
+        # backlash: its value, std and 95 % interval to the test's own tolerance, 5 % of the truth: the loop hunts
+        # chaotically, and which regime a record falls into depends on the floats' last bits (tests/test_diagnose.py,
+        # marker "regime"); this replaces the value's 0.1 % above
         **{
-            f"diagnose_{case}.backlash_{what}": Figure(
+            f"diagnose_{case}.backlash{what}": Figure(
                 f"diagnose_{case}",
-                (lambda w: lambda v: v["std"]["backlash"] if w == "std" else v["ci95"]["backlash"][w == "hi"])(what),
-                "{:.3g}",
-                1e-3 * DIAGNOSE_CASES[case][0]["backlash"],
+                (
+                    lambda w: (
+                        lambda v: (
+                            v["fitted"]["backlash"]
+                            if not w
+                            else v["std"]["backlash"]
+                            if w == "_std"
+                            else v["ci95"]["backlash"][w == "_hi"]
+                        )
+                    )
+                )(what),
+                "{:.4g}" if not what else "{:.3g}",
+                0.05 * DIAGNOSE_CASES[case][0]["backlash"],
             )
             for case in ("backlash", "backlash_small")
-            for what in ("std", "lo", "hi")
+            for what in ("", "_std", "_lo", "_hi")
         },
         # the paper's case in full (docs/diagnose.md "The paper's case"): every test's NRMSE, the fitted values' std (to
         # the printed digit: a tenth of its last digit's unit moves the fit's covariance far more than floats do)
