@@ -405,11 +405,12 @@ CHECKED_ELSEWHERE = {
 }
 
 
-def _documented_rows() -> dict[str, str]:
-    """docs/measured-data.md's validation table: problem -> its first example message (the first code span)."""
+def documented_messages(heading: str) -> dict[str, str]:
+    """The table under ``heading`` in docs/measured-data.md: problem -> its first example message (the first code
+    span of its last column)."""
     text = PAGE.read_text()
-    table = text[text.index("### Validation: every problem names the file and the column") :]
-    table = table[table.index("| problem |") : table.index("\n\n", table.index("| problem |"))]
+    table = text[text.index(heading) :]
+    table = table[table.index("\n|") + 1 : table.index("\n\n", table.index("\n|"))]
     rows = {}
     for line in table.splitlines()[2:]:
         problem, message = line.strip("|").split(" | ", 1)
@@ -417,16 +418,23 @@ def _documented_rows() -> dict[str, str]:
     return rows
 
 
+def documented_mismatches(documented: dict[str, str], actual: dict[str, str]) -> list[str]:
+    """The rows whose documented message is not the actual one (``...`` stands for any text, DIR for a folder; a
+    message may start with the file's folder)."""
+    problems = []
+    for problem, message in actual.items():
+        pattern = re.escape(documented[problem]).replace(re.escape("..."), ".*").replace("DIR", ".+")
+        if not re.fullmatch(f"(?:.*/)?{pattern}", message, re.S):
+            problems.append(f"{problem}: the page says {documented[problem]!r}, the code {message!r}")
+    return problems
+
+
 def test_the_documented_messages_are_the_codes(tmp_path):
     """Every example message of docs/measured-data.md's validation table is what the code says for that problem
     (``...`` standing for the rest of the text, DIR for the folder), and every row is checked (here or by the test
     named in CHECKED_ELSEWHERE)."""
-    rows = _documented_rows()
+    rows = documented_messages("### Validation: every problem names the file and the column")
     assert set(rows) == set(DOCUMENTED) | set(CHECKED_ELSEWHERE), set(rows) ^ (set(DOCUMENTED) | set(CHECKED_ELSEWHERE))
-    problems = []
-    for k, (problem, make) in enumerate(DOCUMENTED.items()):
-        actual = make(tmp_path / f"d{k}")
-        pattern = re.escape(rows[problem]).replace(re.escape("..."), ".*").replace("DIR", ".+")
-        if not re.fullmatch(pattern, actual, re.S):
-            problems.append(f"{problem}: the page says {rows[problem]!r}, the code {actual!r}")
+    actual = {problem: make(tmp_path / f"d{k}") for k, (problem, make) in enumerate(DOCUMENTED.items())}
+    problems = documented_mismatches(rows, actual)
     assert not problems, "docs/measured-data.md's validation table (update the page):\n" + "\n".join(problems)
