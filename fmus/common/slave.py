@@ -239,10 +239,14 @@ class BlockWrapper:
         # pythonfmu's C layer passes its logger; the builders and Python callers do not
         self._native = "logger" in kwargs
         _drop_repeated_path(self.resources)
+        #: the C front's exchange buffer (``_exchange_buffer``): None until the first step, False: none
+        self._exchange = None
+        self._front_exchange = None
         if self._native:
             front = _pythonfmu_behind_front(self.resources, type(self).__name__)
             self._illegal_is_error = front is not None
             _defuse_pythonfmu_teardown(self.resources, front)
+            self._front_exchange = _front_exchange(front)
         defaults = load_defaults(self.resources)
         # the variables of the built-in parameters (a mechanism's follow its topology: Block.for_parameters)
         self.block_class = cls = type(self).block_class.for_parameters(defaults)
@@ -471,8 +475,29 @@ class BlockWrapper:
             self._log_error(f"exitInitializationMode: {self._init_error}")
         self._phase = STEPPING
 
+    def _exchange_buffer(self):
+        """The C front's buffer of the inputs and outputs (``pythonfmu_shim.c``, FMI 2.0), taken at the first step
+        and filled with the values here; False without a front that offers one, or for a block with direct
+        feedthrough (its outputs follow a set: the front forwards every call)."""
+        take = self._front_exchange
+        if take is None or self.block_class.FEEDTHROUGH:
+            return False
+        address = take(len(self.block_class.INPUTS), self._n_io)
+        if not address:
+            return False
+        buffer = (ctypes.c_double * self._n_io).from_address(address)
+        buffer[:] = self._values
+        return buffer
+
     def _step(self, current_time: float, step_size: float) -> bool:
-        """Advance the block; a model failure is logged and reported as a refused step (Discard)."""
+        """Advance the block; a model failure is logged and reported as a refused step (Discard). Behind the
+        C front the inputs come from its buffer and the outputs go back into it (``_exchange_buffer``)."""
+        buffer = self._exchange
+        if buffer is None:
+            buffer = self._exchange = self._exchange_buffer()
+        n_in = len(self.block_class.INPUTS)
+        if buffer:
+            self._values[:n_in] = buffer[:n_in]
         try:
             if self._init_error is not None:
                 raise RuntimeError(f"the instance did not initialise: {self._init_error}")
@@ -484,6 +509,9 @@ class BlockWrapper:
         except Exception as err:  # the host decides what to do; the instance stays usable for terminate/free
             self._log_error(f"doStep at t={current_time:.6g} s: {type(err).__name__}: {err}")
             return False
+        finally:
+            if buffer:
+                buffer[n_in:] = self._values[n_in:]
         return True
 
     # -- FMU state (get/set FMU state) -------------------------------------------------
@@ -559,6 +587,20 @@ def _pythonfmu_behind_front(resources: Optional[str], identifier: str) -> Option
         if os.path.exists(library):
             return library
     return None
+
+
+def _front_exchange(library: Optional[str]) -> Optional[Callable]:
+    """``mast_front_exchange(n_in, n_io)`` of the C front in front of pythonfmu's ``library`` (the front's own
+    library, loaded by the host already), or None where it offers none (FMI 3.0, an older front)."""
+    if library is None:
+        return None
+    try:
+        take = ctypes.CDLL(library.replace(PYTHONFMU_LIBRARY_SUFFIX + ".so", ".so")).mast_front_exchange
+    except (OSError, AttributeError):
+        return None
+    take.restype = ctypes.c_void_p
+    take.argtypes = (ctypes.c_size_t, ctypes.c_size_t)
+    return take
 
 
 def _defuse_pythonfmu_teardown(resources: Optional[str], library: Optional[str] = None) -> None:

@@ -8,6 +8,11 @@ docs/mechanism.md) and the forces F_i = t_rho_i each actuator applies to the mec
 guide, positive upward (inverse dynamics). The actuators feel -F_i: the mechanism is
 their disturbance (paper section 2).
 
+Update period ``T_mech`` [s] (a setting of the block in a system, ssp/resources/attached.ssv): the block
+samples its inputs and recomputes its outputs at t0 + k T_mech only, a step starting between those instants
+holds them (zero-order hold), so a host may step it with the drive's fast cycle at the cost of one check per
+step. T_mech = 0 (a set that does not name it): at every step, the algebraic block itself.
+
 The mechanism is the one its parameters describe (``designs.py``: the geometry set with its
 ``kinematics`` model, the bodies, an optional payload), computed by the generic engine
 (``engine.py``). With ``attached = 0`` (actuators alone, paper Fig. 10) the block exerts no
@@ -21,7 +26,7 @@ from dataclasses import dataclass
 from typing import ClassVar, Mapping, Sequence
 
 from ..common.block import Block, ModelError
-from ..common.parameters import ParameterError, Value
+from ..common.parameters import Param, ParameterError, Value
 from .designs import (
     KINEMATIC_PARAMETERS,
     MASS_PARAMETERS,
@@ -34,6 +39,16 @@ from .designs import (
 from .engine import SingularityError
 from .kinematics import KinematicsError
 from .topology import DRIVE_UNITS, POSE, POSE_UNITS, Topology
+
+#: the block's update period (module docstring); a set without it updates at every step (T_mech = 0)
+UPDATE_PERIOD = Param(
+    "T_mech",
+    "s",
+    "Update period of the block: inputs sampled and forces and pose recomputed at t0 + k T_mech, held between "
+    "(0: at every step)",
+    minimum=0.0,
+    maximum=1.0,
+)
 
 #: the code of a direct kinematics refused at (or near) a singularity (mast_model.h: MAST_SINGULARITY_ERROR)
 SINGULAR = 4
@@ -153,7 +168,7 @@ class MechanismBlock(Block):
 
     INPUTS = _PRS3.inputs
     OUTPUTS = _PRS3.outputs
-    PARAMETERS = (*KINEMATIC_PARAMETERS, *MASS_PARAMETERS, *PAYLOAD_PARAMETERS)
+    PARAMETERS = (*KINEMATIC_PARAMETERS, *MASS_PARAMETERS, *PAYLOAD_PARAMETERS, UPDATE_PERIOD)
     UNITS = _PRS3.units
     DESCRIPTIONS = _PRS3.descriptions
     #: True for a class whose variables are fixed to one topology (``for_topology``)
@@ -221,7 +236,7 @@ class MechanismBlock(Block):
                     f"{', '.join(sorted(p.name for p in self.PARAMETERS))} (those of the mechanism parameter "
                     f"'kinematics' = {kind!r} names: a set of another mechanism's parameters?)"
                 )
-        super().__init__(params, name)
+        super().__init__({UPDATE_PERIOD.name: 0.0, **params}, name)
         self.engine = engine(self.params, self.name)
         self.topology = self.engine.description.topology
         io = Variables.of_topology(self.topology)
@@ -239,6 +254,7 @@ class MechanismBlock(Block):
         self.attached = bool(self.params["attached"])
         self._guess = None
         self._found = self._failure = None  # the last direct kinematics' solution, or failure (``dk``)
+        self._t0 = 0.0  # update instants t0 + k T_mech (module docstring)
 
     # -------------------------------------------------------------------------------------
     def _compute(self, t: float) -> None:
@@ -275,8 +291,15 @@ class MechanismBlock(Block):
     def initialize(self, t0: float) -> None:
         """Outputs at t0 from the current inputs (direct kinematics from the level pose)."""
         self._guess = None
+        self._t0 = float(t0)
         self._compute(t0)
 
     def do_step(self, t: float, h: float) -> None:
-        """Outputs at t + h for the inputs held (algebraic: DK warm-started, then IDP)."""
+        """Outputs at t + h for the inputs held (algebraic: DK warm-started, then IDP) if the step [t, t + h)
+        holds an update instant (``T_mech``, module docstring); else the outputs held."""
+        T = self.params[UPDATE_PERIOD.name]
+        if T > 0.0:
+            eps = 1e-6 * min(h, T)
+            if self._t0 + math.ceil((t - self._t0 - eps) / T) * T >= t + h - eps:
+                return
         self._compute(t + h)

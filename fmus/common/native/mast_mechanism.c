@@ -74,6 +74,7 @@ int mast_mechanism_initialize(void *state, double *values, const mast_parameters
 {
     mast_mechanism_state *s = state;
     s->warm = 0;
+    s->t0 = t0;
     for (int k = 0; k < MECH_NP; k++) s->P[k] = MECH_TRACED_VR[k] >= 0 ? p->real[MECH_TRACED_VR[k]] : 0.0;
     mech_ikjac_invariants(s->P, s->K_ikjac);
     mech_dynamics_invariants(s->P, s->K_dynamics);
@@ -83,8 +84,15 @@ int mast_mechanism_initialize(void *state, double *values, const mast_parameters
     return compute(s, values, p, t0, msg, size);
 }
 
+/* MechanismBlock.do_step: recomputed when the step [t, t + h) holds an update instant t0 + k T_mech, else held */
 int mast_mechanism_do_step(void *state, double *values, const mast_parameters *p, double t, double h, char *msg,
                            size_t size)
 {
+    mast_mechanism_state *s = state;
+    double T = MECH_UPDATE_VR < 0 ? 0.0 : p->real[MECH_UPDATE_VR];
+    if (T > 0.0) {
+        double eps = 1e-6 * (h < T ? h : T);
+        if (s->t0 + ceil((t - s->t0 - eps) / T) * T >= t + h - eps) return MAST_OK;
+    }
     return compute(state, values, p, t + h, msg, size);
 }

@@ -17,6 +17,7 @@
  *   MECH_NP           the traced parameters (Engine.parameters; at least 1: a slot no kernel reads)
  *   MECH_NK_IKJAC, MECH_NK_DYNAMICS, MECH_NK_POSE   what the parameters alone fix of each kernel (at least 1)
  *   MECH_ATTACHED_VR  the value reference of the Integer parameter 'attached' (0: kinematics only), or -1
+ *   MECH_UPDATE_VR    the value reference of the Real parameter 'T_mech' (the update period), or -1 (every step)
  *   MECH_MARGIN       Engine.margin [m/m];  MECH_COND_LIMIT  Engine.cond_limit */
 
 /* the instance's state: plain data (the wrapper snapshots it), q first (restarted_dk's S) */
@@ -28,6 +29,7 @@ typedef struct {
     double K_pose[MECH_NK_POSE];
     double lengths[MECH_N];              /* Engine.lengths [m]: the singularity margins compare motions */
     int warm;                            /* q is a solution to start from */
+    double t0;                           /* the start time: update instants t0 + k T_mech (MechanismBlock.do_step) */
     char why_text[1024];                 /* the message of a failed direct kinematics */
 } mast_mechanism_state;
 

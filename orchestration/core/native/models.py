@@ -681,6 +681,7 @@ def _mechanism(block, vrs: Mapping[str, int]) -> tuple[str, str]:
         guess,
         block.INPUTS,
         [_level_height_c()],
+        vrs.get("T_mech", -1),
     )
     return "\n".join(
         [
@@ -740,6 +741,7 @@ def mechanism_model(
     guess: str,
     inputs: Sequence[str],
     support: Sequence[str] = (),
+    update_vr: int = -1,
 ) -> tuple[str, str]:
     """The generated part of a native mechanism (mast_mechanism.h) for the engine ``eng`` of any description: its
     traced kernels (inverse kinematics with its Jacobian, dynamics, pose), each split into what the parameters
@@ -749,7 +751,8 @@ def mechanism_model(
     translated; the tables. ``traced_vrs``: per traced parameter (``eng.parameters``), its value reference or
     -1; ``length_parameters``: per coordinate, the traced parameter that is its length (``Engine.lengths``) or
     -1 (then the engine's number); ``attached_vr``: the value reference of 'attached', or -1; ``inputs``: the
-    FMU's input names; ``support``: C the guess calls (value functions). (model part, config.h)"""
+    FMU's input names; ``support``: C the guess calls (value functions); ``update_vr``: the value reference of
+    the update period 'T_mech' (mechanism.model.UPDATE_PERIOD), or -1: every step. (model part, config.h)"""
     import inspect
 
     from fmus.mechanism.model import SINGULAR, restarted_dk
@@ -823,6 +826,7 @@ def mechanism_model(
             f"#define MECH_NP {max(1, len(names))}",
             *[f"#define MECH_NK_{name.upper()} {max(1, k)}" for name, k in sizes.items()],
             f"#define MECH_ATTACHED_VR {attached_vr}",
+            f"#define MECH_UPDATE_VR {update_vr}",
             f"#define MECH_MARGIN {c_double(eng.margin)}",
             f"#define MECH_COND_LIMIT {c_double(eng.cond_limit)}",
             "#endif",
