@@ -251,6 +251,7 @@ class BlockWrapper:
         # the variables of the built-in parameters (a mechanism's follow its topology: Block.for_parameters)
         self.block_class = cls = type(self).block_class.for_parameters(defaults)
         self.description = (type(self).__doc__ or cls.__doc__ or "").strip().split("\n")[0] or None
+        self._n_in = len(cls.INPUTS)
         self._n_io = len(cls.INPUTS) + len(cls.OUTPUTS)
         #: the inputs' start values (Block.input_starts; the others start at 0)
         self._input_starts = cls.input_starts(defaults) if defaults else {}
@@ -482,7 +483,7 @@ class BlockWrapper:
         take = self._front_exchange
         if take is None or self.block_class.FEEDTHROUGH:
             return False
-        address = take(len(self.block_class.INPUTS), self._n_io)
+        address = take(self._n_in, self._n_io)
         if not address:
             return False
         buffer = (ctypes.c_double * self._n_io).from_address(address)
@@ -495,8 +496,8 @@ class BlockWrapper:
         buffer = self._exchange
         if buffer is None:
             buffer = self._exchange = self._exchange_buffer()
-        n_in = len(self.block_class.INPUTS)
-        if buffer:
+        n_in = self._n_in
+        if buffer is not False:
             self._values[:n_in] = buffer[:n_in]
         try:
             if self._init_error is not None:
@@ -510,7 +511,7 @@ class BlockWrapper:
             self._log_error(f"doStep at t={current_time:.6g} s: {type(err).__name__}: {err}")
             return False
         finally:
-            if buffer:
+            if buffer is not False:
                 buffer[n_in:] = self._values[n_in:]
         return True
 
