@@ -369,3 +369,30 @@ def test_inverse_dynamics_input_errors(geom, masses):
 def test_bad_parameters_are_named(mechanism_params, change, name):
     with pytest.raises(ParameterError, match=name):
         MechanismBlock({**mechanism_params, **change})
+
+
+def test_the_block_updates_its_outputs_every_update_period(mechanism_params):
+    """T_mech (mechanism.model.UPDATE_PERIOD): stepped every 100 us with T_mech = 1 ms, the block's outputs change
+    only at the steps that start on the 1 ms grid, and there equal those of a block without one (T_mech = 0)
+    stepped every 1 ms with the inputs of the same instants; between, they hold whatever the inputs do."""
+    assert mechanism_params["T_mech"] == 1e-3  # the systems' (attached.ssv)
+    fast = MechanismBlock(mechanism_params)
+    every = MechanismBlock({**mechanism_params, "T_mech": 0.0})
+    for blk in (fast, every):
+        blk.set(rho_1=0.15, rho_2=0.15, rho_3=0.15)
+        blk.initialize(0.0)
+    updates = 0
+    for n in range(40):
+        t = n * 1e-4
+        inputs = {"rho_1": 0.15 + 0.002 * math.sin(30 * t), "rho_dot_1": 0.06 * math.cos(30 * t), "rho_ddot_2": 0.3}
+        held = fast.outputs()
+        fast.set(**inputs)
+        fast.do_step(t, 1e-4)
+        if n % 10:
+            assert fast.outputs() == held, t
+        else:
+            every.set(**inputs)
+            every.do_step(t, 1e-3)
+            assert fast.outputs() == every.outputs(), t
+            updates += fast.outputs() != held
+    assert updates == 4
