@@ -185,6 +185,7 @@ typedef struct {
     size_t n_in, n_io;                /* value references 0 .. n_in - 1 are the inputs, n_in .. n_io - 1 the outputs */
     int stepping;                     /* step mode, no failure since: the buffer answers */
     int dirty;                        /* inputs set in the buffer the Python side has not read yet */
+    void *py_step;                    /* the glue's step for the fast path (a Python callable), or NULL */
 #endif
 } Shim;
 
@@ -360,7 +361,41 @@ static Status settled(const Shim *s, Status status)
  * through the glue then are copied into the buffer too, which the glue reads at every step). */
 static __thread Shim *stepping_now;
 
-__attribute__((visibility("default"))) double *mast_front_exchange(size_t n_in, size_t n_io)
+/* the Python C API the fast step calls, from pythonfmu's library and the interpreter it links (resolved once) */
+typedef struct {
+    int (*ensure)(void);                             /* PyGILState_Ensure */
+    void (*release)(int);                            /* PyGILState_Release */
+    void *(*call)(void *, const char *, ...);        /* PyObject_CallFunction */
+    long (*as_long)(void *);                         /* PyLong_AsLong */
+    void (*incref)(void *), (*decref)(void *);       /* Py_IncRef, Py_DecRef */
+    void (*clear)(void);                             /* PyErr_Clear */
+} PythonApi;
+static PythonApi python;
+
+static int resolve_python_in(void *where)
+{
+    PythonApi p;
+    *(void **)&p.ensure = dlsym(where, "PyGILState_Ensure");
+    *(void **)&p.release = dlsym(where, "PyGILState_Release");
+    *(void **)&p.call = dlsym(where, "PyObject_CallFunction");
+    *(void **)&p.as_long = dlsym(where, "PyLong_AsLong");
+    *(void **)&p.incref = dlsym(where, "Py_IncRef");
+    *(void **)&p.decref = dlsym(where, "Py_DecRef");
+    *(void **)&p.clear = dlsym(where, "PyErr_Clear");
+    if (!p.ensure || !p.release || !p.call || !p.as_long || !p.incref || !p.decref || !p.clear) return 0;
+    python = p;
+    return 1;
+}
+
+/* pythonfmu's library and what it links (a C host: libpython), else the process (a Python host's interpreter) */
+static int resolve_python(void *library)
+{
+    return python.ensure || resolve_python_in(library) || resolve_python_in(RTLD_DEFAULT);
+}
+
+/* called by the glue (holding the GIL) inside its first step: the buffer, and its step for the fast path below
+ * (`step`: a callable (t, h) -> code, kept for the instance's life; NULL: none) */
+__attribute__((visibility("default"))) double *mast_front_exchange(size_t n_in, size_t n_io, void *step)
 {
     Shim *s = stepping_now;
     if (!s || n_in > n_io) return NULL;
@@ -369,7 +404,12 @@ __attribute__((visibility("default"))) double *mast_front_exchange(size_t n_in, 
         s->n_in = n_in;
         s->n_io = n_io;
     }
-    return s->io && s->n_in == n_in && s->n_io == n_io ? s->io : NULL;
+    if (!s->io || s->n_in != n_in || s->n_io != n_io) return NULL;
+    if (step && !s->py_step && resolve_python(s->library)) {
+        python.incref(step);
+        s->py_step = step;
+    }
+    return s->io;
 }
 
 static int buffered(const Shim *s) { return s->io && s->stepping && s->n_io <= 1024; }
@@ -442,6 +482,29 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean noSet
     Shim *outer = stepping_now;
     stepping_now = s;
     s->model_status = -1;
+    if (buffered(s) && s->py_step) {
+        /* the fast path: the glue's step called here (slave.py, `_front_step`), not through pythonfmu's
+         * fmi2DoStep: 0 stepped, 3 stepped with messages, 4 refused with messages (pythonfmu passes them on at
+         * its next call: a call without values), 2 not stepped (refused before the step: pythonfmu steps) */
+        int gil = python.ensure();
+        void *result = python.call(s->py_step, "dd", t, h);
+        long code = 2;
+        if (result) {
+            code = python.as_long(result);
+            python.decref(result);
+        } else {
+            python.clear();
+        }
+        python.release(gil);
+        if (code == 0 || code == 3 || code == 4) {
+            stepping_now = outer;
+            s->dirty = 0;
+            if (code != 0) s->api.GetReal(s->inner, io_refs, 0, NULL);
+            if (code == 4) s->stepping = 0;
+            return code == 4 ? fmi2Discard : fmi2OK;
+        }
+        s->model_status = -1;
+    }
     fmi2Status status = settled(s, s->api.DoStep(s->inner, t, h, noSetFMUStatePriorToCurrentPoint));
     stepping_now = outer;
     s->dirty = 0;

@@ -483,12 +483,24 @@ class BlockWrapper:
         take = self._front_exchange
         if take is None or self.block_class.FEEDTHROUGH:
             return False
-        address = take(self._n_in, self._n_io)
+        address = take(self._n_in, self._n_io, self._front_step)
         if not address:
             return False
         buffer = (ctypes.c_double * self._n_io).from_address(address)
         buffer[:] = self._values
         return buffer
+
+    def _front_step(self, current_time: float, step_size: float) -> int:
+        """fmi2DoStep as the C front calls it (``pythonfmu_shim.c``, the fast path; pythonfmu's ``do_step`` with
+        its checks, ``fmi_call``): 0 stepped; 3 stepped, 4 refused (Discard), each with messages logged, which
+        the front has pythonfmu pass on; 2 not stepped (the instance failed earlier, or is not in step mode):
+        the front calls pythonfmu's fmi2DoStep, which says why."""
+        if self._failed is not None or self._phase != STEPPING:
+            return 2
+        ok = self._step(current_time, step_size)
+        if self.log_queue:
+            return 3 if ok else 4
+        return 0 if ok else 4
 
     def _step(self, current_time: float, step_size: float) -> bool:
         """Advance the block; a model failure is logged and reported as a refused step (Discard). Behind the
@@ -591,16 +603,16 @@ def _pythonfmu_behind_front(resources: Optional[str], identifier: str) -> Option
 
 
 def _front_exchange(library: Optional[str]) -> Optional[Callable]:
-    """``mast_front_exchange(n_in, n_io)`` of the C front in front of pythonfmu's ``library`` (the front's own
+    """``mast_front_exchange(n_in, n_io, step)`` of the C front in front of pythonfmu's ``library`` (the front's own
     library, loaded by the host already), or None where it offers none (FMI 3.0, an older front)."""
     if library is None:
         return None
-    try:
-        take = ctypes.CDLL(library.replace(PYTHONFMU_LIBRARY_SUFFIX + ".so", ".so")).mast_front_exchange
+    try:  # PyDLL: the call keeps the GIL (the front takes a reference to the step it is given)
+        take = ctypes.PyDLL(library.replace(PYTHONFMU_LIBRARY_SUFFIX + ".so", ".so")).mast_front_exchange
     except (OSError, AttributeError):
         return None
     take.restype = ctypes.c_void_p
-    take.argtypes = (ctypes.c_size_t, ctypes.c_size_t)
+    take.argtypes = (ctypes.c_size_t, ctypes.c_size_t, ctypes.py_object)
     return take
 
 

@@ -255,6 +255,7 @@ class MechanismBlock(Block):
         self._guess = None
         self._found = self._failure = None  # the last direct kinematics' solution, or failure (``dk``)
         self._t0 = 0.0  # update instants t0 + k T_mech (module docstring)
+        self._T_mech = float(self.params[UPDATE_PERIOD.name])
 
     # -------------------------------------------------------------------------------------
     def _compute(self, t: float) -> None:
@@ -297,9 +298,9 @@ class MechanismBlock(Block):
     def do_step(self, t: float, h: float) -> None:
         """Outputs at t + h for the inputs held (algebraic: DK warm-started, then IDP) if the step [t, t + h)
         holds an update instant (``T_mech``, module docstring); else the outputs held."""
-        T = self.params[UPDATE_PERIOD.name]
+        T = self._T_mech
         if T > 0.0:
-            eps = 1e-6 * min(h, T)
+            eps = 1e-6 * (h if h < T else T)
             if self._t0 + math.ceil((t - self._t0 - eps) / T) * T >= t + h - eps:
                 return
         self._compute(t + h)
