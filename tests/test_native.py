@@ -1171,14 +1171,14 @@ def test_the_compiled_exchange_loop_is_the_python_loop_call_for_call(built, rout
         monkeypatch.setenv("MAST_PYTHON_EXCHANGE", loop)
         every_tick = simulate(ssp, SineMotion("z", 0.002, 10.0), stop, record_step=None)
         failed = None
-        if route == "native":  # and a record step that does not divide the run: 200 ticks, every third
-            thirds = simulate(ssp, SineMotion("z", 0.002, 10.0), stop, record_step=3e-3)
-            every_tick.signals.update({f"{name} (every 3 ms)": v for name, v in thirds.signals.items()})
+        if route == "native":  # and a record step that does not divide the run: 2000 ticks, every third
+            thirds = simulate(ssp, SineMotion("z", 0.002, 10.0), stop, record_step=3e-4)
+            every_tick.signals.update({f"{name} (every 0.3 ms)": v for name, v in thirds.signals.items()})
             with pytest.raises(SimulationError) as failed:  # a carriage leaves its stroke
                 simulate(ssp, _Climb(), 0.2, parameters={f"actuator_{k}": {"rho_max": 0.152} for k in (1, 2, 3)})
         runs[loop] = every_tick, failed
     (python, p_fail), (compiled, c_fail) = runs["1"], runs["0"]
-    assert len(python.time) == round(stop / 1e-3) + 1 and list(python.signals) == list(compiled.signals)
+    assert len(python.time) == round(stop / 1e-4) + 1 and list(python.signals) == list(compiled.signals)
     for name in python.signals:
         np.testing.assert_array_equal(compiled[name], python[name], err_msg=name)
     if route == "native":

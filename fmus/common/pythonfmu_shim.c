@@ -64,10 +64,9 @@ typedef fmi2Component Instance;
     X(GetStatus, (const fmi2StatusKind kind, fmi2Status *value), (kind, value)) \
     X(GetRealStatus, (const fmi2StatusKind kind, fmi2Real *value), (kind, value)) \
     X(GetIntegerStatus, (const fmi2StatusKind kind, fmi2Integer *value), (kind, value)) \
-    X(GetBooleanStatus, (const fmi2StatusKind kind, fmi2Boolean *value), (kind, value)) \
     X(GetStringStatus, (const fmi2StatusKind kind, fmi2String *value), (kind, value))
 /* the functions of pythonfmu's library this front calls from functions written by hand, below */
-#define HANDWRITTEN(X) X(Instantiate) X(FreeInstance) X(GetReal) X(SetReal) X(DoStep)
+#define HANDWRITTEN(X) X(Instantiate) X(FreeInstance) X(GetReal) X(SetReal) X(DoStep) X(GetBooleanStatus)
 #define STATUS_OK fmi2OK
 #define STATUS_ERROR fmi2Error
 #define STATUS_FATAL fmi2Fatal
@@ -186,6 +185,7 @@ typedef struct {
     int stepping;                     /* step mode, no failure since: the buffer answers */
     int dirty;                        /* inputs set in the buffer the Python side has not read yet */
     void *py_step;                    /* the glue's step for the fast path (a Python callable), or NULL */
+    int refused;                      /* the fast path's last step was refused: fmi2Terminated is true */
 #endif
 } Shim;
 
@@ -393,20 +393,25 @@ static int resolve_python(void *library)
     return python.ensure || resolve_python_in(library) || resolve_python_in(RTLD_DEFAULT);
 }
 
-/* called by the glue (holding the GIL) inside its first step: the buffer, and its step for the fast path below
- * (`step`: a callable (t, h) -> code, kept for the instance's life; NULL: none) */
-__attribute__((visibility("default"))) double *mast_front_exchange(size_t n_in, size_t n_io, void *step)
+/* called by the glue (holding the GIL) inside the first step of each of its Python objects (pythonfmu makes a
+ * new one at fmi2Reset): the buffer (*fresh = 1: just made, the glue fills it; 0: it holds the inputs set
+ * since), and the object's step for the fast path below (`step`: a callable (t, h) -> code, kept until the
+ * next object's; NULL: none) */
+__attribute__((visibility("default"))) double *mast_front_exchange(size_t n_in, size_t n_io, void *step, int *fresh)
 {
     Shim *s = stepping_now;
+    *fresh = 0;
     if (!s || n_in > n_io) return NULL;
     if (!s->io) {
         s->io = calloc(n_io ? n_io : 1, sizeof(double));
         s->n_in = n_in;
         s->n_io = n_io;
+        *fresh = 1;
     }
     if (!s->io || s->n_in != n_in || s->n_io != n_io) return NULL;
-    if (step && !s->py_step && resolve_python(s->library)) {
-        python.incref(step);
+    if (step != s->py_step && resolve_python(s->library)) {
+        if (s->py_step) python.decref(s->py_step);
+        if (step) python.incref(step);
         s->py_step = step;
     }
     return s->io;
@@ -431,6 +436,7 @@ static Status after_call(Shim *s, const char *fn, Status status)
     } else if (!strcmp(fn, "ExitInitializationMode")) {
         s->stepping = 1;
     }
+    if (!strcmp(fn, "Reset") || !strcmp(fn, "ExitInitializationMode")) s->refused = 0;
     if (buffered(s)) s->api.GetReal(s->inner, io_refs, s->n_io, s->io);
     return status;
 }
@@ -500,7 +506,7 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean noSet
             stepping_now = outer;
             s->dirty = 0;
             if (code != 0) s->api.GetReal(s->inner, io_refs, 0, NULL);
-            if (code == 4) s->stepping = 0;
+            if (code == 4) s->stepping = 0, s->refused = 1;
             return code == 4 ? fmi2Discard : fmi2OK;
         }
         s->model_status = -1;
@@ -510,6 +516,19 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean noSet
     s->dirty = 0;
     if (status > fmi2Warning) s->stepping = 0;
     return status;
+}
+/* after a step the fast path saw refused, fmi2Terminated is true, as pythonfmu says after one it refused */
+fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind kind, fmi2Boolean *value)
+{
+    Shim *s = c;
+    if (!s) return fmi2Error;
+    if (s->refused && kind == fmi2Terminated) {
+        *value = fmi2True;
+        return fmi2OK;
+    }
+    before_call(s);
+    s->model_status = -1;
+    return after_call(s, "GetBooleanStatus", settled(s, s->api.GetBooleanStatus(s->inner, kind, value)));
 }
 #else
 #define before_call(s) ((void)(s))

@@ -483,11 +483,13 @@ class BlockWrapper:
         take = self._front_exchange
         if take is None or self.block_class.FEEDTHROUGH:
             return False
-        address = take(self._n_in, self._n_io, self._front_step)
+        fresh = ctypes.c_int(0)
+        address = take(self._n_in, self._n_io, self._front_step, ctypes.byref(fresh))
         if not address:
             return False
         buffer = (ctypes.c_double * self._n_io).from_address(address)
-        buffer[:] = self._values
+        if fresh.value:  # else it holds the inputs set since this object's initialisation (after fmi2Reset)
+            buffer[:] = self._values
         return buffer
 
     def _front_step(self, current_time: float, step_size: float) -> int:
@@ -603,8 +605,8 @@ def _pythonfmu_behind_front(resources: Optional[str], identifier: str) -> Option
 
 
 def _front_exchange(library: Optional[str]) -> Optional[Callable]:
-    """``mast_front_exchange(n_in, n_io, step)`` of the C front in front of pythonfmu's ``library`` (the front's own
-    library, loaded by the host already), or None where it offers none (FMI 3.0, an older front)."""
+    """``mast_front_exchange(n_in, n_io, step, fresh)`` of the C front in front of pythonfmu's ``library`` (the
+    front's own library, loaded by the host already), or None where it offers none (FMI 3.0, an older front)."""
     if library is None:
         return None
     try:  # PyDLL: the call keeps the GIL (the front takes a reference to the step it is given)
@@ -612,7 +614,7 @@ def _front_exchange(library: Optional[str]) -> Optional[Callable]:
     except (OSError, AttributeError):
         return None
     take.restype = ctypes.c_void_p
-    take.argtypes = (ctypes.c_size_t, ctypes.c_size_t, ctypes.py_object)
+    take.argtypes = (ctypes.c_size_t, ctypes.c_size_t, ctypes.py_object, ctypes.POINTER(ctypes.c_int))
     return take
 
 
