@@ -376,7 +376,7 @@ KNOWN_BARE_TIMINGS = {
     "docs/emps.md": 1,
     "docs/interfaces.md": 1,
     "docs/native.md": 3,
-    "docs/reproduction.md": 2,
+    "docs/reproduction.md": 1,
     "docs/using-the-fmus.md": 1,
 }
 
