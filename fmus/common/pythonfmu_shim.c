@@ -396,7 +396,7 @@ static int resolve_python(void *library)
 /* called by the glue (holding the GIL) inside the first step of each of its Python objects (pythonfmu makes a
  * new one at fmi2Reset): the buffer (*fresh = 1: just made, the glue fills it; 0: it holds the inputs set
  * since), and the object's step for the fast path below (`step`: a callable (t, h) -> code, kept until the
- * next object's; NULL: none) */
+ * next object's or fmi2FreeInstance; NULL: none) */
 __attribute__((visibility("default"))) double *mast_front_exchange(size_t n_in, size_t n_io, void *step, int *fresh)
 {
     Shim *s = stepping_now;
@@ -570,6 +570,13 @@ void FMI(FreeInstance)(Instance c)
 {
     Shim *s = c;
     if (!s) return;
+#if FMI_VERSION == 2
+    if (s->py_step) {  /* the glue's step, released while the interpreter that pythonfmu's instance uses is there */
+        int gil = python.ensure();
+        python.decref(s->py_step);
+        python.release(gil);
+    }
+#endif
     s->api.FreeInstance(s->inner);
 #if FMI_VERSION == 2
     free(s->io);
