@@ -7,7 +7,7 @@ Each host runs in a child process (mast.hosts.cosim). What is checked:
 - each host runs an SSP whose bindings differ from the FMUs' built-in defaults (a file that overrides
   another, inline values) and computes what our master computes: every recorded signal to rounding
   (mast.hosts.cosim.RELATIVE), the calling sequence of FMI 2.0 and the same step sizes in every host;
-- the hosts step every component at 100 us, and the mechanism updates its outputs every 1 ms (T_mech);
+- the hosts step every component at 100 us, and the mechanism updates its outputs every 0.2 ms (T_mech);
 - the ecos command line (a C++ program, libpython preloaded) reproduces ecospy and our master to its printed
   precision (6 decimals);
 - a model failure and a bad parameter reach the host as the model's message, and the host is not killed.
@@ -269,7 +269,7 @@ def test_host_applies_the_bindings_and_matches_our_master(host, bound, reference
 )
 def test_host_steps_each_component_at_its_step_size_hint(host, bound):
     """Every component at T_cur = 100 us (docs/interfaces.md, Timing): the actuators and the pose command move at
-    every base step, the mechanism's forces every 1 ms (its update period T_mech, attached.ssv)."""
+    every base step, the mechanism's forces every 0.2 ms (its update period T_mech, attached.ssv)."""
     signals = ["mechanism.F_1", "actuator_1.rho", "trajectory.z_cmd"]
     result = run_host(host, bound, 0.02, signals, sample_step=1e-4)
     assert len(result.time) >= 200 and np.all(np.diff(result.time) == pytest.approx(1e-4))
@@ -277,7 +277,7 @@ def test_host_steps_each_component_at_its_step_size_hint(host, bound):
     for name in ("actuator_1.rho", "trajectory.z_cmd"):
         assert np.count_nonzero(np.diff(result[name])[moving]) == np.count_nonzero(moving), name
     changes = np.count_nonzero(np.diff(result["mechanism.F_1"])[moving])
-    assert changes == pytest.approx(np.count_nonzero(moving) / 10, abs=1)
+    assert changes == pytest.approx(np.count_nonzero(moving) / 2, abs=1)
 
 
 @needs("ecos")

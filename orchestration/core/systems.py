@@ -237,7 +237,7 @@ MAST = SystemDescription(
         "MastMechanism.fmu",
         ("resources/geometry_3prs.ssv", "resources/mass_3prs.ssv", "resources/attached.ssv"),
         1e-4,
-        "{mechanism} inverse dynamics: a disturbance to the actuators, stepped at T_cur, updated every T_mech = 1 ms "
+        "{mechanism} inverse dynamics: a disturbance to the actuators, stepped at T_cur, updated every T_mech = 0.2 ms "
         "(attached.ssv)",
     ),
     ratings="resources/drive_ratings.ssv",
