@@ -177,7 +177,8 @@ def test_a_6ups_system_run_balances_energy_and_carries_the_weight_at_rest(hexapo
     mechanism, the integral of sum_k F_k rho_dot_k (the forces the mechanism returns for the actuators' motion of the
     step before), is the change of the mechanism's kinetic and potential energy computed by the oracle's bodies from
     the actuators' recorded state (direct kinematics and velocities by differences: no inverse dynamics), to the
-    trapezoid rule's error bound (t - t0) h^2 / 12 max |P''| at the record step h. Held at home (0.4 s, the command
+    trapezoid rule's error bound (t - t0) h^2 / 12 max |P''| at the record step h = 100 us (measured: the gaps 8 to 15
+    times inside it; the mechanism's 1 ms hold of M and b costs less). Held at home (0.4 s, the command
     still): the forces are the weight's by virtual work, J^-T dV/dq, the potential energy's gradient through the
     oracle's leg lengths. The run's figures are docs/designs/6ups.md's (`python docs/figures.py --source
     hexapod_run`)."""
@@ -193,6 +194,7 @@ def test_a_6ups_system_run_balances_energy_and_carries_the_weight_at_rest(hexapo
     res = simulate(hexapod_system, motion, stop)
     problems = figures.check({"hexapod_run": figures.hexapod_run_values(summarize(res, stop, motion))})
     assert not problems, "\n".join(problems)
+    res = simulate(hexapod_system, motion, stop, record_step=1e-4)
     n = len(res.drives())
     assert n == 6
     t = res.time
@@ -209,7 +211,7 @@ def test_a_6ups_system_run_balances_energy_and_carries_the_weight_at_rest(hexapo
         return kinetic(mech, rho[j], rd[j], pose) + potential(mech, pose)
 
     e0 = energy(0)
-    checked = range(50, len(t) - 1, 70)
+    checked = range(500, len(t) - 1, 700)
     gaps = [abs(energy(j) - e0 - work[j]) for j in checked]
     assert np.max(np.abs(power)) > 0.05 and np.max(np.abs(work)) > 1e-3  # power flows both ways, work is done
     assert all(gap <= 2.0 * bound[j] + 1e-9 for gap, j in zip(gaps, checked)), (gaps, [bound[j] for j in checked])
