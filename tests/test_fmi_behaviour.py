@@ -537,7 +537,8 @@ def _slave_of(inst: Instance):
 
 
 def test_a_failure_nobody_foresaw_is_fatal_and_the_instance_refuses_every_later_call(built):
-    """An exception other than an illegal call (here: a defect injected into the glue) is fmi2Fatal, logged
+    """An exception other than an illegal call (here: a defect injected into the glue, on a path the C front
+    forwards: getReal of a parameter; the inputs and outputs it answers from its buffer) is fmi2Fatal, logged
     with status Fatal, and every later call is refused with fmi2Fatal until fmi2Reset."""
     inst = Instance(built / "fmus" / "MastActuator.fmu", "broken")
     assert inst.start() == OK
@@ -548,7 +549,7 @@ def test_a_failure_nobody_foresaw_is_fatal_and_the_instance_refuses_every_later_
             raise ZeroDivisionError("injected")
 
     _slave_of(inst)._io_refs = Defective()
-    assert _real(inst, "fmi2GetReal", "rho") == FATAL
+    assert _real(inst, "fmi2GetReal", "tau_c") == FATAL
     assert (FATAL, "getReal: ZeroDivisionError: injected") in inst.log
     for status in (inst.step(3e-4, 1e-4), _real(inst, "fmi2SetReal", "i_cmd", 1.0), inst.dll.fmi2Terminate(inst.c)):
         assert status == FATAL and "failed earlier (getReal: ZeroDivisionError" in inst.log[-1][1], inst.log[-2:]

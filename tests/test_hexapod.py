@@ -541,3 +541,22 @@ def test_6pus_oracle_sees_the_links_inertia():
     rd, rdd = rng.uniform(-0.5, 0.5, 6), rng.uniform(-5.0, 5.0, 6)
     right = eng.inverse_dynamics_at_pose(q, rd, rdd).t_rho
     assert relative(ne.forces(mech, q, rd, rdd), right) < TOL < 1e-3 < relative(ne.forces(wrong, q, rd, rdd), right)
+
+
+def test_6ups_inertial_split_is_newton_euler_s_mass_matrix_and_bias():
+    """Engine.inertial's M and b (what the mechanism block holds between its full updates, F = M rho_ddot + b)
+    against the oracle's: b = its forces without acceleration, M's column j = its forces of a unit acceleration of
+    drive j less b; and F = M rho_ddot + b is the engine's own t_rho of the same evaluation."""
+    eng = engine(9.81, **PAYLOAD)
+    mech = oracle(True, 9.81, True)
+    n, worst = 6, 0.0
+    for q, rd, rdd in random_states(eng, mech, np.random.default_rng(47), 10):
+        _, J, _ = eng.jacobian(q)
+        out = eng.inertial(q, J, rd, rdd)
+        t, M, b = np.array(out[:n]), np.array(out[n + 6 : n + 6 + n * n]).reshape(n, n), np.array(out[n + 6 + n * n :])
+        bias = ne.forces(mech, q, rd, np.zeros(n))
+        mass = np.column_stack([ne.forces(mech, q, rd, e) - bias for e in np.eye(n)])
+        worst = max(worst, relative(bias, b), relative(mass.ravel(), M.ravel()))
+        np.testing.assert_allclose(M @ rdd + b, t, rtol=0.0, atol=1e-12 * np.max(np.abs(t)))
+        np.testing.assert_allclose(M, M.T, rtol=0.0, atol=1e-12 * np.max(np.abs(M)))
+    assert worst < TOL

@@ -225,11 +225,12 @@ def feedthrough_loop(gain_class, m_gain: int = 1, k: float = -2.0):
 
 @pytest.mark.parametrize("m_gain", [1, 2])
 def test_feedthrough_output_reaches_the_next_component_in_the_same_exchange(m_gain):
-    """Independent route, a hand-written sampled loop: the gain samples x at its communication points and
-    the integrator applies k x(t_n) from t_n on. A command one exchange late (Jacobi) is another sequence."""
+    """With ``feedthrough=True`` (outside FMI 2.0's calling sequence). Independent route, a hand-written sampled
+    loop: the gain samples x at its communication points and the integrator applies k x(t_n) from t_n on. A
+    command one exchange late (Jacobi, the default) is another sequence."""
     h, k, n = 0.01, -2.0, 100
     spec, blocks = feedthrough_loop(SampledGain, m_gain, k)
-    master = Master(spec, blocks)
+    master = Master(spec, blocks, feedthrough=True)
     assert master.exchange_order == ["gain", "int"]
     result = master.run(1.0, Hold(), record=["int.y"])
     x, command = [1.0], None
@@ -240,13 +241,17 @@ def test_feedthrough_output_reaches_the_next_component_in_the_same_exchange(m_ga
     np.testing.assert_allclose(result["int.y"], x, rtol=0, atol=1e-15)
     late = Master(*feedthrough_loop(Gain, m_gain, k)).run(1.0, Hold(), record=["int.y"])
     assert np.max(np.abs(late["int.y"] - np.array(x))) > 1e-3
+    default = Master(*feedthrough_loop(SampledGain, m_gain, k))  # Jacobi: the declared feedthrough not used
+    assert default.exchange_order == ["int", "gain"]
+    np.testing.assert_array_equal(default.run(1.0, Hold(), record=["int.y"])["int.y"], late["int.y"])
 
 
 def test_a_loop_through_feedthrough_outputs_alone_is_refused():
     spec, _ = loop_system(0.01)
     blocks = {"int": BlockComponent("int", SampledGain), "gain": BlockComponent("gain", SampledGain)}
     with pytest.raises(ValueError, match="algebraic loop through the direct feedthrough of int, gain"):
-        Master(spec, blocks)
+        Master(spec, blocks, feedthrough=True)
+    assert Master(spec, blocks).exchange_order == ["int", "gain"]  # Jacobi by default: no loop to refuse
 
 
 def test_fmu_feedthrough_is_read_from_the_model_structure(tmp_path):

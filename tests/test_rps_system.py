@@ -28,10 +28,10 @@ def rps_parameters(**changes) -> dict:
 
 
 def test_the_mechanism_block_takes_the_parameters_of_its_description():
-    """Name, unit, description = the file's source, range where the file gives one; kinematics and attached."""
+    """Name, unit, description = the file's source, range where the file gives one; kinematics, attached, T_mech."""
     block = MechanismBlock(rps_parameters(), "rps")
     names = [p.name for p in block.PARAMETERS]
-    assert names == ["kinematics", *RPS.parameters, "attached"]
+    assert names == ["kinematics", *RPS.parameters, "attached", "T_mech"]
     by_name = {p.name: p for p in block.PARAMETERS}
     for name, p in RPS.parameters.items():
         assert (by_name[name].unit, by_name[name].description) == (p.unit, p.source)
@@ -51,7 +51,7 @@ def test_the_3prs_schema_is_its_description_file_s():
     prs = designs.description("3PRS")
     schema = MechanismBlock.PARAMETERS
     assert designs.parameters_for(schema, "3PRS") == schema
-    declared = {p.name: p.unit for p in schema if p.name not in ("kinematics", "attached")}
+    declared = {p.name: p.unit for p in schema if p.name not in ("kinematics", "attached", "T_mech")}
     assert declared == {n: p.unit for n, p in prs.parameters.items()}
     assert tuple(p.name for p in designs.KINEMATIC_PARAMETERS[1:]) == prs.kinematic
 
@@ -113,7 +113,11 @@ def test_the_3rps_system_binds_its_description_everywhere():
     assert d.ssd.read_bytes() == variant_ssd(d), f"{d.ssd.name} is stale: run python -m mast.core.variants"
     system = read_ssd(d.ssd)
     mech = dict(system.components["mechanism"].parameters)
-    assert (mech.pop("kinematics"), mech.pop("attached")) == ("3RPS", 1) and mech == RPS.values()
+    assert (mech.pop("kinematics"), mech.pop("attached"), mech.pop("T_mech")) == (
+        "3RPS",
+        1,
+        1e-3,
+    ) and mech == RPS.values()
     ctrl = system.components["controller"]
     assert ctrl.source.endswith("Mast3RPSController.fmu")
     assert {k: ctrl.parameters[k] for k in RPS.kinematic} == {k: RPS.values()[k] for k in RPS.kinematic}
@@ -135,7 +139,7 @@ def test_the_3rps_fmus_have_the_description_s_parameters(rps_system):
 
     fmus = rps_system.parent.parent / "fmus"
     mech = fmu_parameters(fmus / "Mast3RPS.fmu")
-    assert list(mech) == ["kinematics", *RPS.parameters, "attached"]
+    assert list(mech) == ["kinematics", *RPS.parameters, "attached", "T_mech"]
     assert mech["kinematics"] == "3RPS" and mech["R_b"] == RPS.parameters["R_b"].value
     ctrl = fmu_parameters(fmus / "Mast3RPSController.fmu")
     assert set(RPS.kinematic) <= set(ctrl) and "H" not in ctrl and ctrl["kinematics"] == "3RPS"
@@ -171,8 +175,9 @@ def kinetic(mech, pose, rho_dot) -> float:
 @pytest.mark.parametrize("axis, amplitude", [("z", 0.01), ("theta", math.radians(3.0))])
 def test_a_3rps_run_against_the_newton_euler_oracle(rps_system, axis, amplitude):
     """The system run (Python FMUs, 2 Hz sine): the pose and forces the mechanism reports for every recorded state
-    against the oracle's kinematics and inverse dynamics at that state (the mechanism's outputs at t + h are its
-    direct kinematics and inverse dynamics of the actuators' motion at t); at the start, at rest, the statics."""
+    (every 100 us) against the oracle's kinematics and inverse dynamics (the mechanism's outputs at t + h: its full
+    update, pose, M and b, of the actuators' positions and velocities at the last instant t0 + k T_mech, with the
+    accelerations at t, F = M rho_ddot(t) + b); at the start, at rest, the statics."""
     import newton_euler as ne
     import numpy as np
     from test_rps import oracle_3rps
@@ -181,18 +186,20 @@ def test_a_3rps_run_against_the_newton_euler_oracle(rps_system, axis, amplitude)
     from mast.core.run import simulate
 
     mech = oracle_3rps()
-    res = simulate(rps_system, SineMotion(axis=axis, amplitude=amplitude, frequency=2.0), 0.5)
+    res = simulate(rps_system, SineMotion(axis=axis, amplitude=amplitude, frequency=2.0), 0.5, record_step=1e-4)
     rho = np.column_stack([res[f"actuator_{k}.rho"] for k in (1, 2, 3)])
     rd = np.column_stack([res[f"actuator_{k}.rho_dot"] for k in (1, 2, 3)])
     rdd = np.column_stack([res[f"actuator_{k}.rho_ddot"] for k in (1, 2, 3)])
     F = np.column_stack([res[f"mechanism.F_{k}"] for k in (1, 2, 3)])
     q = np.column_stack([res[f"mechanism.{c}"] for c in ("z", "psi", "theta")])
     assert np.ptp(q[:, ("z", "psi", "theta").index(axis)]) > 0.5 * amplitude
-    worst = 0.0
-    for k in range(len(res.time) - 1):  # state k -> the mechanism's outputs at k + 1
+    ticks = np.rint(res.time / 1e-4).astype(int)
+    worst, every = 0.0, round(1e-3 / 1e-4)  # T_mech = 1 ms (attached.ssv)
+    for k in range(0, len(res.time) - 1, 7):  # state k -> the outputs at k + 1; 7: every phase of an update period
+        u = k - ticks[k] % every  # the last full update: its pose held, M and b of its positions and velocities
         pose = ne.full_pose(mech, q[k + 1])
-        np.testing.assert_allclose(ne.joints(mech, pose), rho[k], rtol=0.0, atol=1e-10)
-        expected = ne.forces(mech, pose, rd[k], rdd[k])
+        np.testing.assert_allclose(ne.joints(mech, pose), rho[u], rtol=0.0, atol=1e-10)
+        expected = ne.forces(mech, pose, rd[u], rdd[k])
         worst = max(worst, float(np.max(np.abs(F[k + 1] - expected)) / np.max(np.abs(expected))))
     assert worst < 1e-9
     # at rest (t = 0: the actuators at rho_0, still): the weight, as the oracle's statics carry it

@@ -103,7 +103,7 @@ def test_a_six_drive_topology_gives_six_actuators_and_every_connection(tmp_path,
         a = system.components[f"actuator_{k}"]
         assert (a.source, a.step_size, a.ratings) == (
             "resources/MastActuator.fmu",
-            0.001,
+            1e-4,
             "resources/drive_ratings.ssv",
         )
         assert [s for s, _ in a.bindings] == list(MAST.actuator.bindings)
@@ -209,13 +209,15 @@ def test_a_committed_set_that_differs_from_its_description_is_named(tmp_path, ed
 
 def test_every_set_bound_to_a_designs_mechanism_gives_its_description_values():
     """Read as the SSP reader reads a system: each design's mechanism gets its description file's values (the same
-    floats), the 3PRS's name as ``kinematics``, and ``attached`` from attached.ssv (0 for actuators_only only)."""
+    floats), the 3PRS's name as ``kinematics``, and ``attached`` and ``T_mech`` from attached.ssv (attached 0 for
+    actuators_only only; the update period 0.2 ms for all)."""
     for d in DESIGNS:
         file = load(d.name if d.name != "actuators_only" else "3PRS_T")
         merged = {}
         for source in variant(d).mechanism.bindings:
             merged.update({k: p.value for k, p in ssv.read(SSP / source).parameters.items()})
         assert merged.pop("kinematics") == file.name and merged.pop("attached") == int(d.name != "actuators_only")
+        assert merged.pop("T_mech") == 1e-3
         assert merged == file.values(), d.name
 
 

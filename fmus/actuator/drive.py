@@ -87,6 +87,7 @@ class DriveActuatorBlock(Block):
         self._gains = current_gains(float(P["k_pc"]), float(P["k_ic"]), self.T_cur, float(P["u_max"]))
         self._x_c = 0.0  # integrator state [V]
         self._u = 0.0  # voltage applied over the next T_cur [V]
+        self._step_ticks = (math.nan, 0)  # (the step size do_step checked last, its ticks of T_cur)
 
     def initialize(self, t0: float) -> None:
         """At rest, no voltage applied yet; the outputs from the axis' state and the inputs."""
@@ -100,24 +101,30 @@ class DriveActuatorBlock(Block):
     def do_step(self, t: float, h: float) -> None:
         """m = h / T_cur ticks of the current loop, each followed by the axis' step over T_cur."""
         T = self.T_cur
-        m = round(h / T)
-        if m < 1 or abs(h - m * T) > 1e-6 * T:
-            raise ModelError(
-                f"{self.name}: step size h = {h!r} s is not a positive integer multiple of T_cur = {T!r} s"
-            )
-        self._check(t)
-        values, axis = self.values, self.axis.values
+        if h != self._step_ticks[0]:  # checked once per step size
+            m = round(h / T)
+            if m < 1 or abs(h - m * T) > 1e-6 * T:
+                raise ModelError(
+                    f"{self.name}: step size h = {h!r} s is not a positive integer multiple of T_cur = {T!r} s"
+                )
+            self._step_ticks = (h, m)
+        m = self._step_ticks[1]
+        values, block = self.values, self.axis
+        axis = block.values
         i_cmd = values[0]
+        if i_cmd - i_cmd != 0.0:  # NaN or inf
+            self._check(t)
         axis[1] = values[1]  # F, held over the ticks (the kernel only reads it)
         kp, kiT, u_max = self._gains
         x_c, u = self._x_c, self._u
-        kernel, x, sensor = self.axis.stepper(T)  # the axis' do_step(t_k, T), without a call per tick
-        ticks = self.axis.ticks(T, pi_step)
+        kernel, x, sensor = block.stepper(T)  # the axis' do_step(t_k, T), without a call per tick
+        ticks = block.ticks(T, pi_step)
         if ticks is not None:  # the loop below in one generated function (the same arithmetic)
             code, _, x_c_end, u_end = ticks(axis, x, m, i_cmd, x_c, u, kp, kiT, u_max)
             if not code:
-                self._x_c, self._u = x_c_end, u_end
-                self._publish()
+                self._x_c = x_c_end
+                self._u = u_end
+                values[2:] = [*axis[2:], u_end]  # _publish
                 return
             # it failed and wrote nothing: the loop below fails at the same tick, with the model's message
         for k in range(m):

@@ -460,14 +460,14 @@ class ActuatorBlock(Block):
 
     # -- life cycle ------------------------------------------------------------------
     def initialize(self, t0: float) -> None:
-        """(Re)start from the initial state (rest, i = 0, springs undeflected, rho = rho_0)
-        and compute the outputs from it and the current inputs."""
+        """(Re)start from the initial state (rest, i = 0, springs undeflected, rho = rho_0), check the inputs
+        and write the outputs of rest (``_write_outputs``)."""
         self._x = [0.0] * (2 * self.N + 1)
         u, F = self.values[0], self.values[1]
         for k, v in enumerate((u, F)):
             if not math.isfinite(v):
                 raise ModelError(f"{self.name}: input '{INPUT_ERRORS[k + 1]}' = {v} at t={t0:.9g} s is not finite")
-        self._write_outputs(F)
+        self._write_outputs()
 
     def do_step(self, t: float, h: float) -> None:
         """Advance from t to t + h [s] with u [V] and F [N] held (zero-order hold)."""
@@ -521,20 +521,13 @@ class ActuatorBlock(Block):
         """Current state by name: i [A], theta_k [rad], omega_k [rad/s] (k = 1 motor .. N guide)."""
         return dict(zip(self.state_names, self._x))
 
-    def _write_outputs(self, F: float) -> None:
-        """Outputs from the state (used by initialize; do_step's kernel does the same inline)."""
+    def _write_outputs(self) -> None:
+        """The outputs of the state at rest (``initialize``): the acceleration 0 until the first step, from which on
+        the inputs act. So the initial point follows from the parameters alone: no algebraic loop with the
+        mechanism's forces (which follow the accelerations), and every host reaches the same initial point
+        whatever its initialisation passes (docs/interfaces.md, Timing)."""
         p, x, N = self.params, self._x, self.N
-        w = x[2 * N]
-        tau_f = p["tau_c"] * math.tanh(w / p["omega_c"])
-        if p["tau_s"] > 0.0:
-            tau_f += p["tau_s"] * math.exp(-((w / p["omega_s"]) ** 2)) * math.tanh(w / p["omega_c"])
-        tau_L = -self.i_R * (F + p["M_load"] * p["g_guide"]) - tau_f
-        if p["tau_ripple"] > 0.0:
-            tau_L -= p["tau_ripple"] * math.sin(2.0 * math.pi * self.i_R * x[N] / p["ripple_period"])
-        alpha = 0.0  # springs undeflected here; summed in the kernel's order (``_alpha``), no BLAS
-        for a_k, x_k in zip(self.A[2 * N].tolist(), x):
-            alpha += a_k * x_k
-        alpha += float(self.B[2 * N, 1]) * tau_L
+        w, alpha = x[2 * N], 0.0
         n_in = len(self.INPUTS)
         tau_m = p["k_T"] * x[0]
         tau_meas = tau_m if self._sensor is None else self._sensor.reset(tau_m)

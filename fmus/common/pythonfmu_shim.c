@@ -42,11 +42,9 @@ typedef fmi2Component Instance;
     X(SetupExperiment, (fmi2Boolean toleranceDefined, fmi2Real tolerance, fmi2Real startTime, \
                         fmi2Boolean stopTimeDefined, fmi2Real stopTime), \
       (toleranceDefined, tolerance, startTime, stopTimeDefined, stopTime)) \
-    X(GetReal, (const fmi2ValueReference vr[], size_t nvr, fmi2Real value[]), (vr, nvr, value)) \
     X(GetInteger, (const fmi2ValueReference vr[], size_t nvr, fmi2Integer value[]), (vr, nvr, value)) \
     X(GetBoolean, (const fmi2ValueReference vr[], size_t nvr, fmi2Boolean value[]), (vr, nvr, value)) \
     X(GetString, (const fmi2ValueReference vr[], size_t nvr, fmi2String value[]), (vr, nvr, value)) \
-    X(SetReal, (const fmi2ValueReference vr[], size_t nvr, const fmi2Real value[]), (vr, nvr, value)) \
     X(SetInteger, (const fmi2ValueReference vr[], size_t nvr, const fmi2Integer value[]), (vr, nvr, value)) \
     X(SetBoolean, (const fmi2ValueReference vr[], size_t nvr, const fmi2Boolean value[]), (vr, nvr, value)) \
     X(SetString, (const fmi2ValueReference vr[], size_t nvr, const fmi2String value[]), (vr, nvr, value)) \
@@ -63,15 +61,12 @@ typedef fmi2Component Instance;
                                 const fmi2Real value[]), (vr, nvr, order, value)) \
     X(GetRealOutputDerivatives, (const fmi2ValueReference vr[], size_t nvr, const fmi2Integer order[], \
                                  fmi2Real value[]), (vr, nvr, order, value)) \
-    X(DoStep, (fmi2Real t, fmi2Real h, fmi2Boolean noSetFMUStatePriorToCurrentPoint), \
-      (t, h, noSetFMUStatePriorToCurrentPoint)) \
     X(GetStatus, (const fmi2StatusKind kind, fmi2Status *value), (kind, value)) \
     X(GetRealStatus, (const fmi2StatusKind kind, fmi2Real *value), (kind, value)) \
     X(GetIntegerStatus, (const fmi2StatusKind kind, fmi2Integer *value), (kind, value)) \
-    X(GetBooleanStatus, (const fmi2StatusKind kind, fmi2Boolean *value), (kind, value)) \
     X(GetStringStatus, (const fmi2StatusKind kind, fmi2String *value), (kind, value))
 /* the functions of pythonfmu's library this front calls from functions written by hand, below */
-#define HANDWRITTEN(X) X(Instantiate) X(FreeInstance)
+#define HANDWRITTEN(X) X(Instantiate) X(FreeInstance) X(GetReal) X(SetReal) X(DoStep) X(GetBooleanStatus)
 #define STATUS_OK fmi2OK
 #define STATUS_ERROR fmi2Error
 #define STATUS_FATAL fmi2Fatal
@@ -184,7 +179,19 @@ typedef struct {
 #endif
     int logging_on;
     int model_status;                 /* status of the model's last message in the current call, -1: none */
+#if FMI_VERSION == 2
+    double *io;                       /* the exchange buffer (below): the inputs, then the outputs; NULL: none */
+    size_t n_in, n_io;                /* value references 0 .. n_in - 1 are the inputs, n_in .. n_io - 1 the outputs */
+    int stepping;                     /* step mode, no failure since: the buffer answers */
+    int dirty;                        /* inputs set in the buffer the Python side has not read yet */
+    void *py_step;                    /* the glue's step for the fast path (a Python callable), or NULL */
+    int refused;                      /* the fast path's last step was refused: fmi2Terminated is true */
+#endif
 } Shim;
+
+#if FMI_VERSION == 2
+static fmi2ValueReference io_refs[1024];   /* 0, 1, 2, ...: the value references of the exchange buffer */
+#endif
 
 #if FMI_VERSION == 2
 /* FMI 2.0's logger expands the message as a printf format: pythonfmu's text (not the model's, which has
@@ -327,6 +334,9 @@ static Shim *load(const char **what, const char **why)
 #undef RESOLVE
 #undef RESOLVE0
     s->model_status = -1;
+#if FMI_VERSION == 2
+    for (fmi2ValueReference vr = 0; vr < 1024; vr++) io_refs[vr] = vr;
+#endif
     return s;
 }
 
@@ -336,10 +346,200 @@ static Status settled(const Shim *s, Status status)
     return status == STATUS_FATAL && s->model_status == STATUS_ERROR ? STATUS_ERROR : status;
 }
 
+#if FMI_VERSION == 2
+/* The exchange buffer (FMI 2.0). A host that exchanges every 100 us calls fmi2SetReal, fmi2DoStep and
+ * fmi2GetReal of each FMU once per step; each call into Python costs a few microseconds before the model does
+ * anything. So the front keeps the inputs and outputs (value references 0 .. n_io - 1 of a Python FMU:
+ * fmus/common/slave.py) in a buffer of its own, which the Python glue reads and writes inside fmi2DoStep
+ * (`_step`): in step mode fmi2SetReal of inputs and fmi2GetReal of inputs and outputs are answered here,
+ * and only fmi2DoStep enters Python. The glue takes the buffer at its first step, from inside the step
+ * (mast_front_exchange below: the instance whose fmi2DoStep runs in this thread), and fills it with its
+ * values; a glue that does not take it (one with direct feedthrough, whose outputs follow a set) leaves
+ * every call forwarded. Any other call in step mode sees the same values: the inputs set here are handed
+ * over first, the buffer is read again after it (a restored FMU state, a set of another variable); a
+ * failed call or a step refused ends the buffer's answers until the next initialisation (inputs set
+ * through the glue then are copied into the buffer too, which the glue reads at every step). */
+static __thread Shim *stepping_now;
+
+/* the Python C API the fast step calls, from pythonfmu's library and the interpreter it links (resolved once) */
+typedef struct {
+    int (*ensure)(void);                             /* PyGILState_Ensure */
+    void (*release)(int);                            /* PyGILState_Release */
+    void *(*call)(void *, const char *, ...);        /* PyObject_CallFunction */
+    long (*as_long)(void *);                         /* PyLong_AsLong */
+    void (*incref)(void *), (*decref)(void *);       /* Py_IncRef, Py_DecRef */
+    void (*clear)(void);                             /* PyErr_Clear */
+} PythonApi;
+static PythonApi python;
+
+static int resolve_python_in(void *where)
+{
+    PythonApi p;
+    *(void **)&p.ensure = dlsym(where, "PyGILState_Ensure");
+    *(void **)&p.release = dlsym(where, "PyGILState_Release");
+    *(void **)&p.call = dlsym(where, "PyObject_CallFunction");
+    *(void **)&p.as_long = dlsym(where, "PyLong_AsLong");
+    *(void **)&p.incref = dlsym(where, "Py_IncRef");
+    *(void **)&p.decref = dlsym(where, "Py_DecRef");
+    *(void **)&p.clear = dlsym(where, "PyErr_Clear");
+    if (!p.ensure || !p.release || !p.call || !p.as_long || !p.incref || !p.decref || !p.clear) return 0;
+    python = p;
+    return 1;
+}
+
+/* pythonfmu's library and what it links (a C host: libpython), else the process (a Python host's interpreter) */
+static int resolve_python(void *library)
+{
+    return python.ensure || resolve_python_in(library) || resolve_python_in(RTLD_DEFAULT);
+}
+
+/* called by the glue (holding the GIL) inside the first step of each of its Python objects (pythonfmu makes a
+ * new one at fmi2Reset): the buffer (*fresh = 1: just made, the glue fills it; 0: it holds the inputs set
+ * since), and the object's step for the fast path below (`step`: a callable (t, h) -> code, kept until the
+ * next object's or fmi2FreeInstance; NULL: none) */
+__attribute__((visibility("default"))) double *mast_front_exchange(size_t n_in, size_t n_io, void *step, int *fresh)
+{
+    Shim *s = stepping_now;
+    *fresh = 0;
+    if (!s || n_in > n_io) return NULL;
+    if (!s->io) {
+        s->io = calloc(n_io ? n_io : 1, sizeof(double));
+        s->n_in = n_in;
+        s->n_io = n_io;
+        *fresh = 1;
+    }
+    if (!s->io || s->n_in != n_in || s->n_io != n_io) return NULL;
+    if (step != s->py_step && resolve_python(s->library)) {
+        if (s->py_step) python.decref(s->py_step);
+        if (step) python.incref(step);
+        s->py_step = step;
+    }
+    return s->io;
+}
+
+static int buffered(const Shim *s) { return s->io && s->stepping && s->n_io <= 1024; }
+
+/* before a call forwarded in step mode: the inputs set here, handed over */
+static void before_call(Shim *s)
+{
+    if (buffered(s) && s->dirty) {
+        s->api.SetReal(s->inner, io_refs, s->n_in, s->io);
+        s->dirty = 0;
+    }
+}
+
+/* after it: step mode begins (exitInitializationMode) or ends (a failure, terminate, reset), the buffer read again */
+static Status after_call(Shim *s, const char *fn, Status status)
+{
+    if (status > fmi2Warning || !strcmp(fn, "Terminate") || !strcmp(fn, "Reset")) {
+        s->stepping = 0;
+    } else if (!strcmp(fn, "ExitInitializationMode")) {
+        s->stepping = 1;
+    }
+    if (!strcmp(fn, "Reset") || !strcmp(fn, "ExitInitializationMode")) s->refused = 0;
+    if (buffered(s)) s->api.GetReal(s->inner, io_refs, s->n_io, s->io);
+    return status;
+}
+
+static int all_below(const fmi2ValueReference vr[], size_t nvr, size_t n)
+{
+    for (size_t i = 0; i < nvr; i++)
+        if (vr[i] >= n) return 0;
+    return 1;
+}
+
+fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Real value[])
+{
+    Shim *s = c;
+    if (!s) return fmi2Error;
+    if (buffered(s) && all_below(vr, nvr, s->n_in)) {
+        for (size_t i = 0; i < nvr; i++) s->io[vr[i]] = value[i];
+        s->dirty = 1;
+        return fmi2OK;
+    }
+    before_call(s);
+    s->model_status = -1;
+    fmi2Status status = settled(s, s->api.SetReal(s->inner, vr, nvr, value));
+    if (s->io && status <= fmi2Warning) {   /* the glue reads its inputs from the buffer at every step */
+        for (size_t i = 0; i < nvr; i++)
+            if (vr[i] < s->n_in) s->io[vr[i]] = value[i];
+    }
+    return after_call(s, "SetReal", status);
+}
+
+fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Real value[])
+{
+    Shim *s = c;
+    if (!s) return fmi2Error;
+    if (buffered(s) && all_below(vr, nvr, s->n_io)) {
+        for (size_t i = 0; i < nvr; i++) value[i] = s->io[vr[i]];
+        return fmi2OK;
+    }
+    before_call(s);
+    s->model_status = -1;
+    return after_call(s, "GetReal", settled(s, s->api.GetReal(s->inner, vr, nvr, value)));
+}
+
+/* the step: the glue reads the inputs from the buffer and writes the outputs into it (slave.py, `_step`) */
+fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean noSetFMUStatePriorToCurrentPoint)
+{
+    Shim *s = c;
+    if (!s) return fmi2Error;
+    Shim *outer = stepping_now;
+    stepping_now = s;
+    s->model_status = -1;
+    if (buffered(s) && s->py_step) {
+        /* the fast path: the glue's step called here (slave.py, `_front_step`), not through pythonfmu's
+         * fmi2DoStep: 0 stepped, 3 stepped with messages, 4 refused with messages (pythonfmu passes them on at
+         * its next call: a call without values), 2 not stepped (refused before the step: pythonfmu steps) */
+        int gil = python.ensure();
+        void *result = python.call(s->py_step, "dd", t, h);
+        long code = 2;
+        if (result) {
+            code = python.as_long(result);
+            python.decref(result);
+        } else {
+            python.clear();
+        }
+        python.release(gil);
+        if (code == 0 || code == 3 || code == 4) {
+            stepping_now = outer;
+            s->dirty = 0;
+            if (code != 0) s->api.GetReal(s->inner, io_refs, 0, NULL);
+            if (code == 4) s->stepping = 0, s->refused = 1;
+            return code == 4 ? fmi2Discard : fmi2OK;
+        }
+        s->model_status = -1;
+    }
+    fmi2Status status = settled(s, s->api.DoStep(s->inner, t, h, noSetFMUStatePriorToCurrentPoint));
+    stepping_now = outer;
+    s->dirty = 0;
+    if (status > fmi2Warning) s->stepping = 0;
+    return status;
+}
+/* after a step the fast path saw refused, fmi2Terminated is true, as pythonfmu says after one it refused */
+fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind kind, fmi2Boolean *value)
+{
+    Shim *s = c;
+    if (!s) return fmi2Error;
+    if (s->refused && kind == fmi2Terminated) {
+        *value = fmi2True;
+        return fmi2OK;
+    }
+    before_call(s);
+    s->model_status = -1;
+    return after_call(s, "GetBooleanStatus", settled(s, s->api.GetBooleanStatus(s->inner, kind, value)));
+}
+#else
+#define before_call(s) ((void)(s))
+#define after_call(s, fn, status) (status)
+#endif
+
 #define FORWARD0(fn) Status FMI(fn)(Instance c) { Shim *s = c; if (!s) { return STATUS_ERROR; } \
-    s->model_status = -1; return settled(s, s->api.fn(s->inner)); }
+    before_call(s); s->model_status = -1; return after_call(s, #fn, settled(s, s->api.fn(s->inner))); }
 #define FORWARD(fn, params, args) Status FMI(fn)(Instance c, UNPAREN params) { Shim *s = c; \
-    if (!s) { return STATUS_ERROR; } s->model_status = -1; return settled(s, s->api.fn(s->inner, UNPAREN args)); }
+    if (!s) { return STATUS_ERROR; } before_call(s); s->model_status = -1; \
+    return after_call(s, #fn, settled(s, s->api.fn(s->inner, UNPAREN args))); }
 FORWARDED0(FORWARD0)
 FORWARDED(FORWARD)
 #undef FORWARD
@@ -370,7 +570,17 @@ void FMI(FreeInstance)(Instance c)
 {
     Shim *s = c;
     if (!s) return;
+#if FMI_VERSION == 2
+    if (s->py_step) {  /* the glue's step, released while the interpreter that pythonfmu's instance uses is there */
+        int gil = python.ensure();
+        python.decref(s->py_step);
+        python.release(gil);
+    }
+#endif
     s->api.FreeInstance(s->inner);
+#if FMI_VERSION == 2
+    free(s->io);
+#endif
     release(s);
 }
 

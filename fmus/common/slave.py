@@ -239,14 +239,19 @@ class BlockWrapper:
         # pythonfmu's C layer passes its logger; the builders and Python callers do not
         self._native = "logger" in kwargs
         _drop_repeated_path(self.resources)
+        #: the C front's exchange buffer (``_exchange_buffer``): None until the first step, False: none
+        self._exchange = None
+        self._front_exchange = None
         if self._native:
             front = _pythonfmu_behind_front(self.resources, type(self).__name__)
             self._illegal_is_error = front is not None
             _defuse_pythonfmu_teardown(self.resources, front)
+            self._front_exchange = _front_exchange(front)
         defaults = load_defaults(self.resources)
         # the variables of the built-in parameters (a mechanism's follow its topology: Block.for_parameters)
         self.block_class = cls = type(self).block_class.for_parameters(defaults)
         self.description = (type(self).__doc__ or cls.__doc__ or "").strip().split("\n")[0] or None
+        self._n_in = len(cls.INPUTS)
         self._n_io = len(cls.INPUTS) + len(cls.OUTPUTS)
         #: the inputs' start values (Block.input_starts; the others start at 0)
         self._input_starts = cls.input_starts(defaults) if defaults else {}
@@ -471,8 +476,43 @@ class BlockWrapper:
             self._log_error(f"exitInitializationMode: {self._init_error}")
         self._phase = STEPPING
 
+    def _exchange_buffer(self):
+        """The C front's buffer of the inputs and outputs (``pythonfmu_shim.c``, FMI 2.0), taken at the first step
+        and filled with the values here; False without a front that offers one, or for a block with direct
+        feedthrough (its outputs follow a set: the front forwards every call)."""
+        take = self._front_exchange
+        if take is None or self.block_class.FEEDTHROUGH:
+            return False
+        fresh = ctypes.c_int(0)
+        address = take(self._n_in, self._n_io, self._front_step, ctypes.byref(fresh))
+        if not address:
+            return False
+        buffer = (ctypes.c_double * self._n_io).from_address(address)
+        if fresh.value:  # else it holds the inputs set since this object's initialisation (after fmi2Reset)
+            buffer[:] = self._values
+        return buffer
+
+    def _front_step(self, current_time: float, step_size: float) -> int:
+        """fmi2DoStep as the C front calls it (``pythonfmu_shim.c``, the fast path; pythonfmu's ``do_step`` with
+        its checks, ``fmi_call``): 0 stepped; 3 stepped, 4 refused (Discard), each with messages logged, which
+        the front has pythonfmu pass on; 2 not stepped (the instance failed earlier, or is not in step mode):
+        the front calls pythonfmu's fmi2DoStep, which says why."""
+        if self._failed is not None or self._phase != STEPPING:
+            return 2
+        ok = self._step(current_time, step_size)
+        if self.log_queue:
+            return 3 if ok else 4
+        return 0 if ok else 4
+
     def _step(self, current_time: float, step_size: float) -> bool:
-        """Advance the block; a model failure is logged and reported as a refused step (Discard)."""
+        """Advance the block; a model failure is logged and reported as a refused step (Discard). Behind the
+        C front the inputs come from its buffer and the outputs go back into it (``_exchange_buffer``)."""
+        buffer = self._exchange
+        if buffer is None:
+            buffer = self._exchange = self._exchange_buffer()
+        n_in = self._n_in
+        if buffer is not False:
+            self._values[:n_in] = buffer[:n_in]
         try:
             if self._init_error is not None:
                 raise RuntimeError(f"the instance did not initialise: {self._init_error}")
@@ -484,6 +524,9 @@ class BlockWrapper:
         except Exception as err:  # the host decides what to do; the instance stays usable for terminate/free
             self._log_error(f"doStep at t={current_time:.6g} s: {type(err).__name__}: {err}")
             return False
+        finally:
+            if buffer is not False:
+                buffer[n_in:] = self._values[n_in:]
         return True
 
     # -- FMU state (get/set FMU state) -------------------------------------------------
@@ -559,6 +602,20 @@ def _pythonfmu_behind_front(resources: Optional[str], identifier: str) -> Option
         if os.path.exists(library):
             return library
     return None
+
+
+def _front_exchange(library: Optional[str]) -> Optional[Callable]:
+    """``mast_front_exchange(n_in, n_io, step, fresh)`` of the C front in front of pythonfmu's ``library`` (the
+    front's own library, loaded by the host already), or None where it offers none (FMI 3.0, an older front)."""
+    if library is None:
+        return None
+    try:  # PyDLL: the call keeps the GIL (the front takes a reference to the step it is given)
+        take = ctypes.PyDLL(library.replace(PYTHONFMU_LIBRARY_SUFFIX + ".so", ".so")).mast_front_exchange
+    except (OSError, AttributeError):
+        return None
+    take.restype = ctypes.c_void_p
+    take.argtypes = (ctypes.c_size_t, ctypes.c_size_t, ctypes.py_object, ctypes.POINTER(ctypes.c_int))
+    return take
 
 
 def _defuse_pythonfmu_teardown(resources: Optional[str], library: Optional[str] = None) -> None:

@@ -33,15 +33,16 @@ anti-windup is conditional integration (clamping).
 Timing: the block counts ticks of T_cur n = 0, 1, 2, ... from ``initialize``
 (tick n belongs to t0 + n T_cur); tick n runs the position loop if n % N_pos == 0,
 then the velocity loop if n % N_vel == 0, each using the command just computed by the
-outer loop. The outputs are direct feedthrough (``FEEDTHROUGH``): at a communication
-point, ``evaluate()`` runs the laws of its tick from the samples just set, so the current
-command computed from the samples at t reaches the actuator's current loop at t (which
-applies its voltage one T_cur later, as a real drive does). ``evaluate`` runs once per
-tick: called again at the same point (a host that sets the inputs again, or one by one)
-it starts over from the state before the tick's laws. ``do_step(t, h)`` with h = m T_cur
-runs the laws of the tick at t if no input was set there (``evaluate``), then those of the
-ticks inside the step with the inputs held; the outputs after it are the commands of
-the last tick until the inputs at t + h are set. For the laws that use them
+outer loop. The outputs are not direct feedthrough (``FEEDTHROUGH`` empty): they change in
+``do_step`` only, so every host that follows FMI 2.0's calling sequence (no get after a set
+without a doStep) reads the same values. ``do_step(t, h)`` with h = m T_cur runs the laws of
+the tick at t from the samples set at t (``evaluate``), then those of the ticks inside the step
+with the inputs held; the outputs after it are the commands of those ticks. Stepped every
+T_cur with the actuators (the MAST systems' step sizes, docs/interfaces.md "Timing"), the
+current command computed from the samples at t reaches the actuators' current loop at
+t + T_cur, whose voltage acts one T_cur later again: the computation delays of a real drive.
+``evaluate`` runs once per tick: called again at the same point it starts over from the state
+before the tick's laws. For the laws that use them
 (``REFERENCE_RATES``), every position tick also updates the velocity and acceleration of
 the joint reference (reference.py).
 
@@ -103,7 +104,7 @@ def interface(coordinates: Sequence[str]) -> dict:
     """What a controller of the axes ``coordinates`` (the mechanism's coordinate names, topology.Topology.names;
     one linear drive each) declares: its inputs (the pose command ``<c>_cmd`` per coordinate, ``rho_k``,
     ``omega_m_k``), outputs (``rho_cmd_k``, ``omega_cmd_k``, ``i_cmd_k``), their units and descriptions, the
-    direct feedthrough, and its state's layout and size (tick.layout)."""
+    direct feedthrough (none), and its state's layout and size (tick.layout)."""
     n = len(coordinates)
     axes = range(1, n + 1)
     inputs = (*(f"{c}_cmd" for c in coordinates), *(f"rho_{j}" for j in axes), *(f"omega_m_{j}" for j in axes))
@@ -130,7 +131,7 @@ def interface(coordinates: Sequence[str]) -> dict:
         "OUTPUTS": outputs,
         "UNITS": units,
         "DESCRIPTIONS": descriptions,
-        "FEEDTHROUGH": dict.fromkeys(outputs, inputs),
+        "FEEDTHROUGH": {},  # the commands change in do_step only (module docstring: Timing)
         "LAYOUT": state,
         "SIZE": state["size"],
     }
@@ -174,8 +175,8 @@ class DriveController(Block):
     tick (``position_lines``, ``velocity_lines``: tick.py) and the constants they read (``_constants``)."""
 
     #: the axes: the coordinates of the mechanism the class controls (the 3PRS's; another mechanism's:
-    #: ``for_topology``), from which ``interface`` gives INPUTS, OUTPUTS, UNITS, DESCRIPTIONS, FEEDTHROUGH (every
-    #: command follows the samples at a communication point: the laws of its tick, ``evaluate``), LAYOUT, SIZE
+    #: ``for_topology``), from which ``interface`` gives INPUTS, OUTPUTS, UNITS, DESCRIPTIONS, FEEDTHROUGH (none:
+    #: the commands change in ``do_step``), LAYOUT, SIZE
     COORDINATES: tuple[str, ...] = description("3PRS").coordinates
     LAYOUT: dict[str, int]
     SIZE: int
@@ -431,9 +432,16 @@ class DriveController(Block):
                 f"{self.name}: do_step at t = {t!r} s, but tick {n} belongs to t = {self._t0 + n * T!r} s "
                 "(steps must be contiguous from initialize)"
             )
+        S, L = self._S, self.LAYOUT
+        if m == 1 and self._evaluated != n and n % S[L["N_pos"]] and n % S[L["N_vel"]]:
+            # a tick that runs no loop: its laws would change nothing (tick.py), the inputs are checked alone
+            s = sum(self.values[: len(self.INPUTS)])
+            if s - s != 0.0:
+                self._check_inputs(t)
+            self._n = n + 1
+            return
         if self._evaluated != n:  # no input set at this communication point: the inputs held
             self.evaluate()
-        S = self._S
         code = self._steps(self.values, S, self._R, self._CUR, self._QM, self._JK, n, m)  # the ticks inside
         if code:
             raise self._failed(code, self._t0 + S[self.LAYOUT["failed"]] * T)

@@ -461,7 +461,16 @@ class Engine:
         return list(self._rho) + [self._dq[k](self._rho[i]) for i in range(n) for k in range(n)]
 
     def _forces_outputs(self) -> list[Expr]:
-        return list(self._dynamics_graph(False)[0]) + list(self._pose)
+        """t_rho (n), the pose (6), then the inertial split of t_rho = M rho_ddot + b (``inertial``): the mass matrix
+        M in joint space (n x n, row-major) and the bias b = Coriolis/centrifugal + gravity (n), the same graph."""
+        t, _, c, gt, M = self._dynamics_graph(False)[:5]
+        n = self.n
+        return (
+            list(t)
+            + list(self._pose)
+            + [M[a][b] for a in range(n) for b in range(n)]
+            + [add(c[a], gt[a]) for a in range(n)]
+        )
 
     def _build_ikjac_kept(self) -> Callable:
         outs = self._ikjac_outputs() + self._kept()[0]
@@ -785,12 +794,20 @@ class Engine:
         self, q: Sequence[float], J: Sequence[float], rho_dot: Sequence[float], rho_ddot: Sequence[float]
     ) -> tuple[float, ...]:
         """Hot path: (t_rho..., x, y, z, psi, theta, phi) at q with J = dq/drho (from ``dk``)."""
+        return self._fn("forces")(*q, *J, *rho_dot, *rho_ddot, *self._pv)[: self.n + 6]
+
+    def inertial(
+        self, q: Sequence[float], J: Sequence[float], rho_dot: Sequence[float], rho_ddot: Sequence[float]
+    ) -> tuple[float, ...]:
+        """``forces`` with the split t_rho = M rho_ddot + b of the same evaluation: (t_rho (n), the pose (6), M (n x n,
+        row-major) [kg, kg m or kg m^2 by the drives' units], b (n) [N or N m]: Coriolis/centrifugal at rho_dot and
+        gravity). M and b depend on q and rho_dot only: a block may hold them and take rho_ddot anew."""
         return self._fn("forces")(*q, *J, *rho_dot, *rho_ddot, *self._pv)
 
     def forces_kept(
         self, kept: tuple, q: Sequence[float], J: Sequence[float], rho_dot: Sequence[float], rho_ddot: Sequence[float]
     ) -> tuple[float, ...]:
-        """``forces`` after ``dk_kept``: what it computed at q is not computed again (the same floats)."""
+        """``inertial`` after ``dk_kept``: what it computed at q is not computed again (the same floats)."""
         return self._fn("forces_kept")(kept, *q, *J, *rho_dot, *rho_ddot, *self._pv)
 
     def _detailed(self, q, J, rd, rdd):

@@ -8,6 +8,15 @@ docs/mechanism.md) and the forces F_i = t_rho_i each actuator applies to the mec
 guide, positive upward (inverse dynamics). The actuators feel -F_i: the mechanism is
 their disturbance (paper section 2).
 
+Update period ``T_mech`` [s] (a parameter of the block in a system, ssp/resources/attached.ssv): a host
+steps the block with the drive's fast cycle (T_cur), and the block splits its work by what changes fast. At
+t0 + k T_mech it samples all its inputs and makes the full update (direct kinematics, the pose, the joint-space
+mass matrix M_k and bias b_k = Coriolis/centrifugal + gravity at q_k and rho_dot_k: ``Engine.inertial``); at
+every step it returns the inertial reaction of the accelerations set now, F = M_k rho_ddot + b_k (the stiff,
+algebraic part of the coupling with the actuators), the pose held. Between updates q moves by rho_dot T_mech and
+M, b follow it slowly; the accelerations change at the current loop's rate. T_mech = 0 (a set that does not
+name it): the full update at every step, the algebraic block itself.
+
 The mechanism is the one its parameters describe (``designs.py``: the geometry set with its
 ``kinematics`` model, the bodies, an optional payload), computed by the generic engine
 (``engine.py``). With ``attached = 0`` (actuators alone, paper Fig. 10) the block exerts no
@@ -21,7 +30,7 @@ from dataclasses import dataclass
 from typing import ClassVar, Mapping, Sequence
 
 from ..common.block import Block, ModelError
-from ..common.parameters import ParameterError, Value
+from ..common.parameters import Param, ParameterError, Value
 from .designs import (
     KINEMATIC_PARAMETERS,
     MASS_PARAMETERS,
@@ -34,6 +43,16 @@ from .designs import (
 from .engine import SingularityError
 from .kinematics import KinematicsError
 from .topology import DRIVE_UNITS, POSE, POSE_UNITS, Topology
+
+#: the block's update period (module docstring); a set without it updates at every step (T_mech = 0)
+UPDATE_PERIOD = Param(
+    "T_mech",
+    "s",
+    "Update period of the block: kinematics, pose, mass matrix and bias recomputed at t0 + k T_mech; between, "
+    "the forces F = M rho_ddot + b from the accelerations of every step (0: the full update at every step)",
+    minimum=0.0,
+    maximum=1.0,
+)
 
 #: the code of a direct kinematics refused at (or near) a singularity (mast_model.h: MAST_SINGULARITY_ERROR)
 SINGULAR = 4
@@ -153,7 +172,7 @@ class MechanismBlock(Block):
 
     INPUTS = _PRS3.inputs
     OUTPUTS = _PRS3.outputs
-    PARAMETERS = (*KINEMATIC_PARAMETERS, *MASS_PARAMETERS, *PAYLOAD_PARAMETERS)
+    PARAMETERS = (*KINEMATIC_PARAMETERS, *MASS_PARAMETERS, *PAYLOAD_PARAMETERS, UPDATE_PERIOD)
     UNITS = _PRS3.units
     DESCRIPTIONS = _PRS3.descriptions
     #: True for a class whose variables are fixed to one topology (``for_topology``)
@@ -221,7 +240,7 @@ class MechanismBlock(Block):
                     f"{', '.join(sorted(p.name for p in self.PARAMETERS))} (those of the mechanism parameter "
                     f"'kinematics' = {kind!r} names: a set of another mechanism's parameters?)"
                 )
-        super().__init__(params, name)
+        super().__init__({UPDATE_PERIOD.name: 0.0, **params}, name)
         self.engine = engine(self.params, self.name)
         self.topology = self.engine.description.topology
         io = Variables.of_topology(self.topology)
@@ -239,6 +258,10 @@ class MechanismBlock(Block):
         self.attached = bool(self.params["attached"])
         self._guess = None
         self._found = self._failure = None  # the last direct kinematics' solution, or failure (``dk``)
+        self._t0 = 0.0  # update instants t0 + k T_mech (module docstring)
+        self._T_mech = float(self.params[UPDATE_PERIOD.name])
+        self._M: tuple[float, ...] = ()  # M_k (row-major) and b_k of the last full update (``inertial_forces``)
+        self._b: tuple[float, ...] = ()
 
     # -------------------------------------------------------------------------------------
     def _compute(self, t: float) -> None:
@@ -256,6 +279,8 @@ class MechanismBlock(Block):
             q, J, kept = self._found
             if self.attached:  # the forces reuse the pose's geometry the direct kinematics computed at q
                 out = eng.forces_kept(kept, q, J, vals[n : 2 * n], vals[2 * n : 3 * n])
+                self._M, self._b = out[n + 6 : n + 6 + n * n], out[n + 6 + n * n :]
+                out = out[: n + 6]
             else:
                 out = (0.0,) * n + eng.pose(q)
         except KinematicsError as exc:
@@ -275,8 +300,33 @@ class MechanismBlock(Block):
     def initialize(self, t0: float) -> None:
         """Outputs at t0 from the current inputs (direct kinematics from the level pose)."""
         self._guess = None
+        self._t0 = float(t0)
         self._compute(t0)
 
     def do_step(self, t: float, h: float) -> None:
-        """Outputs at t + h for the inputs held (algebraic: DK warm-started, then IDP)."""
+        """Outputs at t + h for the inputs held (algebraic: DK warm-started, then IDP) if the step [t, t + h)
+        holds an update instant (``T_mech``, module docstring); else the forces of the accelerations held
+        (``inertial_forces``), the pose held."""
+        T = self._T_mech
+        if T > 0.0:
+            eps = 1e-6 * (h if h < T else T)
+            if self._t0 + math.ceil((t - self._t0 - eps) / T) * T >= t + h - eps:
+                self.inertial_forces(t + h)
+                return
         self._compute(t + h)
+
+    def inertial_forces(self, t: float) -> None:
+        """F = M_k rho_ddot + b_k at ``t`` from the accelerations set now and the last full update's M_k, b_k
+        (module docstring); no force when detached."""
+        if not self.attached:
+            return
+        vals, n, M, b = self.values, self.n, self._M, self._b
+        for k in range(2 * n, 3 * n):
+            if not math.isfinite(vals[k]):
+                raise ModelError(f"{self.name}: input '{self.INPUTS[k]}' = {vals[k]!r} is not finite at t = {t!r} s")
+        rdd = vals[2 * n : 3 * n]
+        for a in range(n):
+            f = b[a]
+            for c in range(n):
+                f += M[a * n + c] * rdd[c]
+            vals[3 * n + a] = f

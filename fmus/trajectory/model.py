@@ -9,6 +9,12 @@ the same command as the project's Python stimulus ``mast.core.motion.SineMotion`
 pose is read from the mechanism at the start). ``do_step(t, h)`` leaves the values at
 t + h, so a Jacobi master hands the controller the command of the instant it samples.
 
+The time is read on a grid of ``RESOLUTION`` = 1 ns (t - t0 rounded to whole nanoseconds): hosts hand the
+same communication point over in different last bits (t0 + n h, a sum of steps, integer nanoseconds
+converted), and the command of that point is then the same number in every host. A difference of one
+bit in the command would grow to 1e-9 relative in the mechanism's forces (through the stiff transmission's
+acceleration) and break the hosts' agreement to rounding (mast.hosts.cosim.RELATIVE).
+
 ``TrajectoryBlock`` commands the 3PRS's coordinates (z, psi, theta); ``TrajectoryBlock.for_coordinates``
 gives the block of any other set of pose components, and an FMU built with the parameters of another
 set (``x_home``, ...) has that block's variables (``Block.for_parameters``).
@@ -22,6 +28,9 @@ from typing import ClassVar, Mapping, Sequence
 from ..common.block import Block, ModelError
 from ..common.parameters import Param, Value, nonnegative
 from ..mechanism.topology import POSE, Coordinate
+
+#: the resolution of the block's clock [s] (module docstring; libcosim's own clock counts nanoseconds)
+RESOLUTION = 1e-9
 
 #: per pose component: what its home value is, and what its command is
 _TEXT = {
@@ -126,7 +135,7 @@ class TrajectoryBlock(Block):
     def _write(self, t: float) -> None:
         if not math.isfinite(t):
             raise ModelError(f"{self.name}: time t = {t!r} s is not finite")
-        s = math.sin(self._omega * (t - self._t0))
+        s = math.sin(self._omega * (round((t - self._t0) / RESOLUTION) * RESOLUTION))
         self.values[:] = [h + a * s for h, a in zip(self._home, self._amplitude)]
 
     def initialize(self, t0: float) -> None:

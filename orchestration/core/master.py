@@ -9,16 +9,21 @@ last communication point) and calls doStep(t_n, h_c). This is a Jacobi scheme:
 within one tick the order of the components does not matter, and the FMU
 co-simulation and the direct composition are bit-for-bit the same computation.
 
-Direct feedthrough. An output a component declares to depend directly on its inputs
-(FMI 2.0 ModelStructure ``dependencies``; ``Block.FEEDTHROUGH`` in the direct composition)
-follows them at a communication point, without a step. At each tick the master sets the due
-components' inputs in dependency order (a component whose feedthrough output feeds another
-comes first), reads a feedthrough component's outputs right after setting its inputs and
-passes them on in the same tick; then it steps the due components. Without declared
-feedthrough (every component of this project today, and most FMUs) this is the Jacobi scheme
-above. A loop through feedthrough outputs alone is an algebraic loop: refused when the master
-is built. Recorded values at t are those before the exchange at t (a feedthrough output as
-its last step left it).
+The calling sequence of FMI 2.0 Co-Simulation (section 4.2.4): in step mode no output is read
+after an input was set without a doStep in between. The master keeps it by default: every
+component is Jacobi, whatever it declares, so any fixed-step host that follows the standard
+(libcosim, ecos) computes the same trajectories at the same step sizes (tests/test_hosts.py,
+tests/test_calling_sequence.py).
+
+Direct feedthrough, outside the standard (``feedthrough=True``). An output a component declares
+to depend directly on its inputs (FMI 2.0 ModelStructure ``dependencies``; ``Block.FEEDTHROUGH``
+in the direct composition) then follows them at a communication point, without a step: at each
+tick the master sets the due components' inputs in dependency order (a component whose
+feedthrough output feeds another comes first), reads a feedthrough component's outputs right
+after setting its inputs (the get after a set that FMI 2.0 forbids in step mode) and passes them
+on in the same tick; then it steps the due components. A loop through feedthrough outputs alone
+is an algebraic loop: refused when the master is built. Recorded values at t are those before
+the exchange at t (a feedthrough output as its last step left it).
 
 Initialization. All components enter initialization mode and get their
 parameters (bindings in SSD order, then the caller's overrides). Components
@@ -147,12 +152,16 @@ class Master:
         base_step: Optional[float] = None,
         step_sizes: Optional[Mapping[str, float]] = None,
         own_components: bool = True,
+        feedthrough: bool = False,
     ) -> None:
         """``own_components=False``: the caller keeps the components (e.g. a Session resets and reuses
-        them across runs); ``run`` then leaves them open instead of closing them at the end."""
+        them across runs); ``run`` then leaves them open instead of closing them at the end.
+        ``feedthrough=True``: pass declared direct feedthrough on within a tick, a calling sequence FMI 2.0
+        Co-Simulation forbids (module docstring); by default every component is Jacobi."""
         self.system = system
         self.components = dict(components)
         self.own_components = own_components
+        self.feedthrough = feedthrough
         steps = {name: (step_sizes or {}).get(name, spec.step_size) for name, spec in system.components.items()}
         self.base_step = base_step or system.base_step or min((h for h in steps.values() if h), default=None)
         if not self.base_step:
@@ -170,11 +179,11 @@ class Master:
         self.exchange_order = self._exchange_order()
 
     def _exchange_order(self) -> list[str]:
-        """The components in the order their inputs are set at a communication point: one whose
-        feedthrough output feeds another comes before it, SSD order otherwise (Kahn's algorithm)."""
+        """The components in the order their inputs are set at a communication point: with ``feedthrough``,
+        one whose feedthrough output feeds another comes before it, SSD order otherwise (Kahn's algorithm)."""
         names = list(self.system.components)
         after: dict[str, set[str]] = {name: set() for name in names}
-        for con in self.system.connections:
+        for con in self.system.connections if self.feedthrough else ():
             source = self.components.get(con.start_element) if con.start_element else None
             if source is not None and con.start_connector in getattr(source, "feedthrough", {}):
                 after[con.end_element].add(con.start_element)
@@ -247,7 +256,7 @@ class Master:
                 for c in incoming
             ]
             m = self.multiples[name]
-            feedthrough = bool(set(getattr(comp, "feedthrough", {})) & set(published_names[name]))
+            feedthrough = self.feedthrough and bool(set(getattr(comp, "feedthrough", {})) & set(published_names[name]))
             wirings.append(
                 _Wiring(
                     name,

@@ -26,11 +26,10 @@ def default_signals(system) -> list[str]:
 
 def drive_tick_steps(system) -> Optional[tuple[float, dict[str, float]]]:
     """(base step, step sizes) that exchange the controller and the actuators at every tick of the drive's
-    current loop (the actuators' ``T_cur``), the mechanism at its own step: the same trajectories as the
-    system's 1 ms exchange (docs/interfaces.md, Timing), recorded at the resolution of the drive's torque
-    measurement, for an analysis that restates that measurement on the record (synthesize, diagnose), and
-    with every loop tick of any cycle time on the ``T_cur`` grid sampling its own instant. None for a system
-    without actuators that have a current loop."""
+    current loop (the actuators' ``T_cur``), the mechanism at its own step: the MAST systems' own step sizes
+    (docs/interfaces.md, Timing), stated for an analysis that restates the drive's torque measurement on the
+    record (synthesize, diagnose) and must run so whatever a system's SSD says. None for a system without
+    actuators that have a current loop."""
     actuators = [n for n, c in system.components.items() if n.startswith("actuator_") and "T_cur" in c.parameters]
     if not actuators:
         return None
@@ -66,6 +65,7 @@ def simulate(
     base_step: Optional[float] = None,
     step_sizes: Optional[Mapping[str, float]] = None,
     progress: Optional[Callable[[float], None]] = None,
+    feedthrough: bool = False,
 ) -> Result:
     """Run ``ssp`` (a built .ssp, or a .ssd whose FMUs exist) and return the recorded signals.
 
@@ -73,6 +73,8 @@ def simulate(
     (no FMI): the reference the co-simulation must reproduce to rounding.
     A failing run raises SimulationError carrying the partial Result.
     ``stimulus=None`` runs a system without inputs (its command comes from a component).
+    ``feedthrough=True``: declared direct feedthrough passed on within a tick, outside FMI 2.0's calling
+    sequence (master.py).
     """
     with SSPArchive(ssp) as archive, tempfile.TemporaryDirectory(prefix="mast_fmus_") as unzip_root:
         system = archive.system
@@ -99,7 +101,7 @@ def simulate(
                             fmu, Path(unzip_root) / f"{len(unzipped)}_{fmu.stem}", system.fmu_label(name)
                         )
                     components[name] = FMUComponent(name, fmu, unzipped[fmu])
-            master = Master(system, components, base_step=base_step, step_sizes=step_sizes)
+            master = Master(system, components, base_step=base_step, step_sizes=step_sizes, feedthrough=feedthrough)
         except Exception:
             for comp in components.values():
                 comp.close()

@@ -83,7 +83,7 @@ class SystemDescription:
     trajectory: Optional[Part] = None
     start_time: float = 0.0
     stop_time: float = 2.0
-    base_step: float = 0.001
+    base_step: float = 1e-4
 
     @property
     def path(self) -> Path:
@@ -215,7 +215,9 @@ MAST = SystemDescription(
     "     Sources: `mast build` packs this file with the FMUs and the parameter sets into build/ssp/MAST.ssp.\n"
     "     Components may be swapped by editing their `source`; parameter sets are bound in order, later ones "
     "override.\n"
-    "     Step sizes: OSP annotations (honoured by libcosim/ecos and by the project's master).",
+    "     Step sizes: OSP annotations (honoured by libcosim/ecos and by the project's master): every component at\n"
+    "     the drive's T_cur = 100 us, so every host that follows FMI 2.0's calling sequence computes the same\n"
+    "     trajectories (docs/interfaces.md, Timing).",
     controller=Part(
         "MastController.fmu",
         (
@@ -225,8 +227,9 @@ MAST = SystemDescription(
             "resources/controller_joint.ssv",
             "resources/controller_paper_fit.ssv",
         ),
-        0.001,
-        "Joint-space cascade for the {n} axes (position and velocity loops, 1 ms); its commands are direct feedthrough",
+        1e-4,
+        "Joint-space cascade for the {n} axes (position and velocity loops, 1 ms), stepped at T_cur with the "
+        "actuators: a tick's current command reaches them at the next tick",
     ),
     actuator=Part(
         "MastActuator.fmu",
@@ -236,14 +239,15 @@ MAST = SystemDescription(
             "resources/stroke_3prs.ssv",
             "resources/drive.ssv",
         ),
-        0.001,
-        "{kind} axis {k} with its drive's current loop (T_cur = 100 us inside the FMU): current command in",
+        1e-4,
+        "{kind} axis {k} with its drive's current loop (T_cur = 100 us, one tick per step): current command in",
     ),
     mechanism=Part(
         "MastMechanism.fmu",
         ("resources/geometry_3prs.ssv", "resources/mass_3prs.ssv", "resources/attached.ssv"),
-        0.001,
-        "{mechanism} inverse dynamics: a disturbance to the actuators, stepped at the position/velocity cycle",
+        1e-4,
+        "{mechanism} inverse dynamics: a disturbance to the actuators, stepped at T_cur, fully updated every "
+        "T_mech = 1 ms (attached.ssv)",
     ),
     ratings="resources/drive_ratings.ssv",
 )
@@ -261,7 +265,7 @@ STANDALONE = dataclasses.replace(
     trajectory=Part(
         "MastTrajectory.fmu",
         ("resources/home_3prs.ssv", "resources/trajectory_z.ssv"),
-        0.001,
+        1e-4,
         "Pose command: home pose (home_3prs.ssv) + sine (trajectory_z.ssv: 10 mm at 1 Hz on z); stepped "
         "with the controller",
     ),

@@ -157,13 +157,15 @@ def structure_left(ctx: Context, accepted: State, kept: State) -> float:
     return training_bic(ctx, kept) - training_bic(ctx, accepted)
 
 
-def needs_check(state: State, status: str) -> bool:
+def needs_check(state: State, status: str, partner_removed: bool = False) -> bool:
     """Whether the accepted selection must pass the check before it is named: always when a residual is left
     above the floor; at the floor when several sample-by-sample effects share the gap (a cause outside the
     library can be reproduced to the floor by a combination of small stand-ins; one effect alone at the floor
-    is what the held-out check already confirmed)."""
+    is what the held-out check already confirmed), or when what is left was fitted beside a member the folds
+    did not confirm (``partner_removed``: the pair may have been stand-ins together, and the one left alone at
+    the floor is not what the held-out check confirmed)."""
     members = [a for a in state.selected if not a.effect.phase_free]
-    return bool(members) and (status == "unexplained residual" or len(members) >= 2)
+    return bool(members) and (status == "unexplained residual" or len(members) >= 2 or partner_removed)
 
 
 def only_consistent(ctx: Context, state: State, named: Sequence[dict], steps: list, nominal_pt) -> tuple[State, list]:

@@ -90,6 +90,11 @@ def _simulated_ssp(opt: Options) -> tuple[str, bool]:
 #: measured / simulated torque (rms) beyond which the nominal model is not what is off, the unit is
 TORQUE_SCALE_LIMIT = 10.0
 
+#: cross-validations at most: a selection the re-judgement after the folds changes (stand-ins refused, the
+#: regression run again without them) faces the folds again, so what is named has been cross-validated; the
+#: cap bounds the cost of a search that keeps finding new stand-ins
+CV_ROUNDS = 3
+
 
 def _check_torque_scale(
     prepared: dict[str, Prepared], simulated: dict[str, np.ndarray], names: Sequence[str], units: dict
@@ -111,7 +116,16 @@ def _check_torque_scale(
 
 
 def _named_only_if_explained(
-    ctx: Context, state: State, last_fit, steps: list, nominal_pt, library, atoms, rejected: set
+    ctx: Context,
+    state: State,
+    last_fit,
+    steps: list,
+    nominal_pt,
+    library,
+    atoms,
+    rejected: set,
+    partner_removed: bool = False,
+    excluded: frozenset = frozenset(),
 ) -> tuple:
     """The verdict on the search's selection, and what of it is named (consistency.py): when a residual is left,
     or several effects share the gap, only effects that are one value whatever the test keep their name. When
@@ -120,11 +134,13 @@ def _named_only_if_explained(
     tried by re-simulation from the model kept (the members kept refitted with them); if the structure is still
     left, the regression loop runs again from the model kept without the refused stand-ins among its candidates
     (the cause they stood in for may be another effect of the library, which they had crowded out: a measurement
-    delay beside a heavier motor side, SMALL seed 332). What is accepted is checked again. Returns (state, named
-    effects, verdict, unexplained, last_fit)."""
+    delay beside a heavier motor side, SMALL seed 332). What is accepted is checked again; ``partner_removed``:
+    the cross-validation took out a member the folds do not confirm, so what is left is checked even alone at the
+    floor (``needs_check``); ``excluded``: effects an earlier round refused or the folds did not confirm, left out
+    of the regression run again too. Returns (state, named effects, verdict, unexplained, last_fit)."""
     named = named_effects(ctx, state, last_fit, steps)
     verdict, unexplained = judge(ctx, state, last_fit, steps)
-    if not needs_check(state, verdict["status"]):
+    if not needs_check(state, verdict["status"], partner_removed):
         return state, named, verdict, unexplained, last_fit
     state, hints = only_consistent(ctx, state, named, steps, nominal_pt)
 
@@ -145,7 +161,7 @@ def _named_only_if_explained(
             state, hints, done = recheck(tried, hints)
             if done:
                 return (state, *done, last_fit)
-    refused = {h["key"] for h in hints}
+    refused = {h["key"] for h in hints} | excluded
     if hints and state.info["structure_left"] >= DELTA_BIC and len(state.selected) < MAX_EFFECTS:
         ctx.log(
             "diagnose: stand-ins refused (" + ", ".join(sorted(refused)) + "), their structure left: the "
@@ -305,13 +321,22 @@ def diagnose(opt: Options, log: Callable[[str], None] = print) -> dict:
         state, named, verdict, unexplained, last_fit = _named_only_if_explained(
             ctx, state, last_fit, steps, nominal_pt, library, atoms, rejected
         )
-        judged = state
-        state, cv = cross_validate(ctx, state, steps, excitations(prepared, roles))
-        if state is not judged or cv.get("lag_form", {}).get("changed"):
+        tests = excitations(prepared, roles)
+        excluded: frozenset = frozenset()  # refused as stand-ins or not confirmed by the folds: not tried again
+        for _ in range(CV_ROUNDS):  # what is named has faced the folds
+            judged = state
+            state, cv = cross_validate(ctx, state, steps, tests)
+            if state is judged and not cv.get("lag_form", {}).get("changed"):
+                break
             # a member the folds do not confirm removed, or the lag's form decided otherwise: judged again
+            validated = set(atom_labels(state.selected))
+            gone = {a.effect.key for a in judged.selected} - {a.effect.key for a in state.selected}
+            excluded |= gone | {h["key"] for h in (unexplained or verdict).get("hints", [])}
             state, named, verdict, unexplained, last_fit = _named_only_if_explained(
-                ctx, state, last_fit, steps, nominal_pt, library, atoms, rejected
+                ctx, state, last_fit, steps, nominal_pt, library, atoms, rejected, bool(gone), excluded
             )
+            if set(atom_labels(state.selected)) <= validated:  # nothing new the folds have not judged
+                break
         for e in named:  # the folds' evidence for each named effect (crossvalidation.py)
             if e["key"] in cv.get("effects", {}):
                 e["evidence"]["cross_validation"] = cv["effects"][e["key"]]

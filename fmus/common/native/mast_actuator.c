@@ -277,7 +277,7 @@ static int input_error(const double *values, int code, double t, char *msg, size
     return MAST_MODEL_ERROR;
 }
 
-/* ActuatorBlock.initialize: the chain n_dof selects, at rest (x = 0), the outputs from the inputs */
+/* ActuatorBlock.initialize: the chain n_dof selects, at rest (x = 0), the inputs checked, the outputs of rest */
 int mast_actuator_initialize(void *state, double *values, const mast_parameters *p, double t0, char *msg, size_t size)
 {
     mast_actuator_state *s = state;
@@ -295,17 +295,11 @@ int mast_actuator_initialize(void *state, double *values, const mast_parameters 
     if (!isfinite(u)) return input_error(values, 1, t0, msg, size);
     if (!isfinite(F)) return input_error(values, 2, t0, msg, size);
     double w = 0.0;
-    double tf = Q[ACT_Q_TAU_C] * tanh(w / Q[ACT_Q_OMEGA_C]);
-    if (Q[ACT_Q_TAU_S] > 0.0)
-        tf += Q[ACT_Q_TAU_S] * exp(-((w / Q[ACT_Q_OMEGA_S]) * (w / Q[ACT_Q_OMEGA_S]))) * tanh(w / Q[ACT_Q_OMEGA_C]);
-    double tl = -Q[ACT_Q_IR] * (F + Q[ACT_Q_MG]) - tf;
-    if (Q[ACT_Q_RIPPLE] > 0.0) tl -= Q[ACT_Q_RIPPLE] * sin(Q[ACT_Q_RK] * 0.0);
-    double al = 0.0 + s->Q[s->bw] * tl;
     double tm = Q[ACT_Q_KT] * 0.0;
     double T = p->real[ACT_VR_T_MEAS], delay = p->real[ACT_VR_DELAY_MEAS], offset = p->real[ACT_VR_TAU_OFFSET];
     values[2] = Q[ACT_Q_RHO0] + Q[ACT_Q_IR] * 0.0;
     values[3] = Q[ACT_Q_IR] * w;
-    values[4] = Q[ACT_Q_IR] * al;
+    values[4] = 0.0;   /* at rest until the first step: no loop with the mechanism's forces (ActuatorBlock) */
     values[5] = 0.0; values[6] = 0.0; values[7] = 0.0; values[8] = tm;
     s->sensor = !(T == 0.0 && delay == 0.0 && offset == 0.0);
     s->s_u0 = tm; s->s_y = tm; s->s_uprev = tm; s->s_h = NAN; s->s_len = 0; s->s_head = 0;

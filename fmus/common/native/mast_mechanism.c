@@ -70,7 +70,13 @@ static int compute(mast_mechanism_state *s, double *values, const mast_parameter
         return code;          /* MAST_KINEMATICS_ERROR, or MAST_SINGULARITY_ERROR: it stays one */
     }
     if (MECH_ATTACHED_VR < 0 || p->integer[MECH_ATTACHED_VR]) {
-        code = mech_dynamics(q, J, values + MECH_N, values + 2 * MECH_N, s->P, s->K_dynamics, values + 3 * MECH_N);
+        double out[MECH_N + 6 + MECH_N * MECH_N + MECH_N];
+        code = mech_dynamics(q, J, values + MECH_N, values + 2 * MECH_N, s->P, s->K_dynamics, out);
+        if (!code) {
+            memcpy(values + 3 * MECH_N, out, (MECH_N + 6) * sizeof(double));
+            memcpy(s->M, out + MECH_N + 6, sizeof s->M);
+            memcpy(s->b, out + MECH_N + 6 + MECH_N * MECH_N, sizeof s->b);
+        }
     } else {   /* attached = 0: no force, the kinematics of the mechanism */
         for (int k = 0; k < MECH_N; k++) values[3 * MECH_N + k] = 0.0;
         code = mech_pose(q, s->P, s->K_pose, values + 4 * MECH_N);
@@ -108,6 +114,7 @@ int mast_mechanism_initialize(void *state, double *values, const mast_parameters
 {
     mast_mechanism_state *s = state;
     mast_mechanism_setup(s, p);
+    s->t0 = t0;
     return compute(s, values, p, t0, msg, size);
 }
 
@@ -218,8 +225,40 @@ int mast_mechanism_check(const mast_parameters *p, char *msg, size_t size)
     return check_bodies(&s, msg, size);
 }
 
+/* MechanismBlock.inertial_forces: F = M rho_ddot + b from the accelerations set now (none when detached) */
+static int inertial_forces(const mast_mechanism_state *s, double *values, const mast_parameters *p, double t,
+                           char *msg, size_t size)
+{
+    char v[40], w[40];
+    if (MECH_ATTACHED_VR >= 0 && !p->integer[MECH_ATTACHED_VR]) return MAST_OK;
+    const double *rdd = values + 2 * MECH_N;
+    for (int k = 0; k < MECH_N; k++) {
+        if (!isfinite(rdd[k])) {
+            snprintf(msg, size, "input '%s' = %s is not finite at t = %s s", MECH_INPUT_NAMES[2 * MECH_N + k],
+                     mast_repr(rdd[k], v, sizeof v), mast_repr(t, w, sizeof w));
+            return MAST_MODEL_ERROR;
+        }
+    }
+    for (int a = 0; a < MECH_N; a++) {
+        double f = s->b[a];
+        for (int c = 0; c < MECH_N; c++) f += s->M[a * MECH_N + c] * rdd[c];
+        values[3 * MECH_N + a] = f;
+    }
+    return MAST_OK;
+}
+
+/* MechanismBlock.do_step: the full update when the step [t, t + h) holds an update instant t0 + k T_mech, else the
+ * inertial forces of the accelerations held (the pose held) */
 int mast_mechanism_do_step(void *state, double *values, const mast_parameters *p, double t, double h, char *msg,
                            size_t size)
 {
-    return compute(state, values, p, t + h, msg, size);
+    mast_mechanism_state *s = state;
+#if MECH_UPDATE_VR >= 0
+    const double T = p->real[MECH_UPDATE_VR];
+    if (T > 0.0) {
+        const double eps = 1e-6 * (h < T ? h : T);
+        if (s->t0 + ceil((t - s->t0 - eps) / T) * T >= t + h - eps) return inertial_forces(s, values, p, t + h, msg, size);
+    }
+#endif
+    return compute(s, values, p, t + h, msg, size);
 }

@@ -24,6 +24,8 @@
  *   MECH_NCHECK       those checks (designs.CHECKS of this mechanism)
  *   MECH_ATTACHED_VR  the value reference of the Integer parameter 'attached' (0: kinematics only), or -1
  *   MECH_KINEMATICS_VR  the value reference of the String parameter 'kinematics', or -1
+ *   MECH_UPDATE_VR    the value reference of the Real parameter 'T_mech' (the full update's period), or -1 (every
+ *                     step)
  *   MECH_MARGIN       Engine.margin [m/m];  MECH_COND_LIMIT  Engine.cond_limit */
 
 /* the instance's state: plain data (the wrapper snapshots it), q first (restarted_dk's S) */
@@ -36,6 +38,9 @@ typedef struct {
     double G[MECH_NG];                   /* the cold start's numbers (mech_guess_numbers) */
     double lengths[MECH_N];              /* Engine.lengths [m]: the singularity margins compare motions */
     int warm;                            /* q is a solution to start from */
+    double t0;                           /* the start time: full updates at t0 + k T_mech (MechanismBlock.do_step) */
+    double M[MECH_N * MECH_N];           /* the last full update's joint-space mass matrix (row-major) and bias */
+    double b[MECH_N];                    /* (Engine.inertial): between updates F = M rho_ddot + b */
     char why_text[1024];                 /* the message of a failed direct kinematics */
 } mast_mechanism_state;
 
@@ -46,7 +51,7 @@ int mech_ikjac_invariants(double *P, double *K);
 int mech_ikjac(double *q, double *P, double *K, double *out);            /* rho (n), then drho/dq (n x n) */
 int mech_dynamics_invariants(double *P, double *K);
 int mech_dynamics(double *q, double *J, double *rho_dot, double *rho_ddot, double *P, double *K,
-                  double *out);                                          /* F (n), then the pose (6) */
+                  double *out);    /* F (n), the pose (6), M (n x n), b (n): Engine.inertial */
 int mech_pose_invariants(double *P, double *K);
 int mech_pose(double *q, double *P, double *K, double *out);             /* the pose (6) */
 int mech_restarted_dk(double *rho, double warm, double *S, double *out);  /* mechanism.model.restarted_dk */

@@ -15,7 +15,7 @@ static int write(const mast_trajectory_state *s, double *values, const mast_para
         return MAST_MODEL_ERROR;
     }
     double omega = 2.0 * 3.141592653589793 * p->real[TRAJECTORY_FREQUENCY_VR];   /* 2.0 * math.pi * frequency */
-    double sn = sin(omega * (t - s->t0));
+    double sn = sin(omega * (nearbyint((t - s->t0) / 1e-9) * 1e-9));   /* RESOLUTION: whole nanoseconds */
     for (int k = 0; k < TRAJECTORY_N; k++)
         values[k] = p->real[TRAJECTORY_HOME_VR[k]] + p->real[TRAJECTORY_AMPLITUDE_VR[k]] * sn;
     return MAST_OK;

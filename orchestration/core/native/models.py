@@ -633,9 +633,9 @@ def mechanism_model(eng, vrs: Mapping[str, int], inputs: Sequence[str], bodies: 
     lengths come from; the bodies; the values of the description's checks, ``designs.CHECKS``); the restart policy
     (``mechanism.model.restarted_dk``) and the cold start's rule translated from their own source; the tables
     (value references, names, bodies, checks). ``vrs``: the FMU's value references by name (the parameters, with
-    'kinematics' and 'attached'; {} for a mechanism without parameters); ``inputs``: the FMU's input names;
-    ``bodies``: whether the checks include the bodies' (not for a kinematic model: its bodies are none).
-    (model part, config.h)"""
+    'kinematics', 'attached' and the update period 'T_mech'; {} for a mechanism without parameters); ``inputs``:
+    the FMU's input names; ``bodies``: whether the checks include the bodies' (not for a kinematic model: its bodies
+    are none). (model part, config.h)"""
     import inspect
 
     from fmus.common.tracer import Graph
@@ -762,6 +762,7 @@ def mechanism_model(eng, vrs: Mapping[str, int], inputs: Sequence[str], bodies: 
             f"#define MECH_NCHECK {len(rows)}",
             f"#define MECH_ATTACHED_VR {vrs.get('attached', -1)}",
             f"#define MECH_KINEMATICS_VR {vrs.get('kinematics', -1)}",
+            f"#define MECH_UPDATE_VR {vrs.get('T_mech', -1)}",
             f"#define MECH_MARGIN {c_double(eng.margin)}",
             f"#define MECH_COND_LIMIT {c_double(eng.cond_limit)}",
             "#endif",
