@@ -442,3 +442,28 @@ def test_the_update_period_s_forces_against_an_update_at_every_step(mechanism_pa
         peak = max(peak, *(abs(e[f"F_{k}"]) for k in (1, 2, 3)))
         assert abs(a["z"] - e["z"]) < 0.01 * 2 * math.pi * 3.0 * 1e-3, t
     assert peak > 10.0 and worst < 5e-4 * peak
+
+
+def test_the_inertial_reaction_between_updates_refuses_a_non_finite_acceleration_by_name(mechanism_params):
+    """Between full updates (T_mech) only the accelerations are read: a NaN or inf among them is refused with the
+    input's name; finite accelerations whose sum overflows (the generated reaction's quick check) still give the
+    forces F = M rho_ddot + b, the sum of the products, linear in rho_ddot."""
+    blk = MechanismBlock(mechanism_params)
+    blk.set(**_joint_motion(0.0))
+    blk.initialize(0.0)
+    blk.do_step(0.0, 1e-4)  # a full update at t = 0
+    for name, bad in (("rho_ddot_2", math.nan), ("rho_ddot_3", -math.inf)):
+        blk.set(**{**_joint_motion(1e-4), name: bad})
+        with pytest.raises(ModelError, match=rf"input '{name}' = {bad!r} is not finite at t = 0.0002 s"):
+            blk.do_step(1e-4, 1e-4)
+    forces = {}
+    for a in (1e307, 1e308):  # 1e308 + 1e308 overflows, each input is finite
+        blk.set(rho_ddot_1=a, rho_ddot_2=a, rho_ddot_3=0.0)
+        blk.do_step(1e-4, 1e-4)
+        forces[a] = [blk.outputs()[f"F_{k}"] for k in (1, 2, 3)]
+    for small, large in zip(forces[1e307], forces[1e308]):
+        assert math.isfinite(small) and small != 0.0
+        if math.isinf(large):  # M rho_ddot beyond the largest float: its sign
+            assert math.copysign(1.0, large) == math.copysign(1.0, small)
+        else:
+            assert large == pytest.approx(10.0 * small, rel=1e-12)

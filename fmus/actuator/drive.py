@@ -87,12 +87,14 @@ class DriveActuatorBlock(Block):
         self._gains = current_gains(float(P["k_pc"]), float(P["k_ic"]), self.T_cur, float(P["u_max"]))
         self._x_c = 0.0  # integrator state [V]
         self._u = 0.0  # voltage applied over the next T_cur [V]
-        self._step_ticks = (math.nan, 0)  # (the step size do_step checked last, its ticks of T_cur)
+        #: (the step size do_step checked last, its ticks of T_cur, the axis' state and ticks function: ``_prepare``)
+        self._step_ticks: tuple = (math.nan, 0, None, None)
 
     def initialize(self, t0: float) -> None:
         """At rest, no voltage applied yet; the outputs from the axis' state and the inputs."""
         self._check(t0)
         self._x_c, self._u = 0.0, 0.0
+        self._step_ticks = (math.nan, 0, None, None)  # the axis' state is a new list
         axis = self.axis.values
         axis[0], axis[1] = 0.0, self.values[1]
         self.axis.initialize(t0)
@@ -102,13 +104,8 @@ class DriveActuatorBlock(Block):
         """m = h / T_cur ticks of the current loop, each followed by the axis' step over T_cur."""
         T = self.T_cur
         if h != self._step_ticks[0]:  # checked once per step size
-            m = round(h / T)
-            if m < 1 or abs(h - m * T) > 1e-6 * T:
-                raise ModelError(
-                    f"{self.name}: step size h = {h!r} s is not a positive integer multiple of T_cur = {T!r} s"
-                )
-            self._step_ticks = (h, m)
-        m = self._step_ticks[1]
+            self._prepare(h)
+        _, m, x, ticks = self._step_ticks
         values, block = self.values, self.axis
         axis = block.values
         i_cmd = values[0]
@@ -117,8 +114,6 @@ class DriveActuatorBlock(Block):
         axis[1] = values[1]  # F, held over the ticks (the kernel only reads it)
         kp, kiT, u_max = self._gains
         x_c, u = self._x_c, self._u
-        kernel, x, sensor = block.stepper(T)  # the axis' do_step(t_k, T), without a call per tick
-        ticks = block.ticks(T, pi_step)
         if ticks is not None:  # the loop below in one generated function (the same arithmetic)
             code, _, x_c_end, u_end = ticks(axis, x, m, i_cmd, x_c, u, kp, kiT, u_max)
             if not code:
@@ -127,6 +122,7 @@ class DriveActuatorBlock(Block):
                 values[2:] = [*axis[2:], u_end]  # _publish
                 return
             # it failed and wrote nothing: the loop below fails at the same tick, with the model's message
+        kernel, x, sensor = block.stepper(T)  # the axis' do_step(t_k, T), without a call per tick
         for k in range(m):
             u_next, x_c = pi_step(i_cmd - axis[7], x_c, kp, kiT, u_max)  # axis[7]: i_m at this tick
             axis[0] = u
@@ -138,6 +134,18 @@ class DriveActuatorBlock(Block):
             u = u_next
         self._x_c, self._u = x_c, u
         self._publish()
+
+    def _prepare(self, h: float) -> None:
+        """Check the step size h [s] (a multiple m of T_cur) and keep, until the next ``initialize`` or step of
+        another size, (h, m, the axis' state, its ticks function or None: ``ActuatorBlock.stepper``, ``ticks``)."""
+        T = self.T_cur
+        m = round(h / T)
+        if m < 1 or abs(h - m * T) > 1e-6 * T:
+            raise ModelError(
+                f"{self.name}: step size h = {h!r} s is not a positive integer multiple of T_cur = {T!r} s"
+            )
+        _, x, _ = self.axis.stepper(T)
+        self._step_ticks = (h, m, x, self.axis.ticks(T, pi_step))
 
     def _check(self, t: float) -> None:
         i_cmd = self.values[0]

@@ -56,6 +56,7 @@ import functools
 import glob
 import json
 import os
+import struct
 import sys
 import types
 from dataclasses import dataclass
@@ -239,7 +240,8 @@ class BlockWrapper:
         # pythonfmu's C layer passes its logger; the builders and Python callers do not
         self._native = "logger" in kwargs
         _drop_repeated_path(self.resources)
-        #: the C front's exchange buffer (``_exchange_buffer``): None until the first step, False: none
+        #: the C front's exchange buffer (``_exchange_buffer``: its inputs' reader and outputs' writer): None until
+        #: the first step, False: none
         self._exchange = None
         self._front_exchange = None
         if self._native:
@@ -478,8 +480,10 @@ class BlockWrapper:
 
     def _exchange_buffer(self):
         """The C front's buffer of the inputs and outputs (``pythonfmu_shim.c``, FMI 2.0), taken at the first step
-        and filled with the values here; False without a front that offers one, or for a block with direct
-        feedthrough (its outputs follow a set: the front forwards every call)."""
+        and filled with the values here, as (read, write): ``read()`` the inputs (a tuple of n_in floats),
+        ``write(*outputs)`` the outputs into it (struct over the buffer's bytes: no ctypes slice per step);
+        False without a front that offers one, or for a block with direct feedthrough (its outputs follow a set:
+        the front forwards every call)."""
         take = self._front_exchange
         if take is None or self.block_class.FEEDTHROUGH:
             return False
@@ -490,7 +494,13 @@ class BlockWrapper:
         buffer = (ctypes.c_double * self._n_io).from_address(address)
         if fresh.value:  # else it holds the inputs set since this object's initialisation (after fmi2Reset)
             buffer[:] = self._values
-        return buffer
+        view = memoryview(buffer).cast("B")  # keeps the buffer object alive
+        n_in = self._n_in
+        read = functools.partial(struct.Struct(f"{n_in}d").unpack_from, view)
+        write = functools.partial(
+            struct.Struct(f"{self._n_io - n_in}d").pack_into, view, n_in * ctypes.sizeof(ctypes.c_double)
+        )
+        return read, write
 
     def _front_step(self, current_time: float, step_size: float) -> int:
         """fmi2DoStep as the C front calls it (``pythonfmu_shim.c``, the fast path; pythonfmu's ``do_step`` with
@@ -507,12 +517,12 @@ class BlockWrapper:
     def _step(self, current_time: float, step_size: float) -> bool:
         """Advance the block; a model failure is logged and reported as a refused step (Discard). Behind the
         C front the inputs come from its buffer and the outputs go back into it (``_exchange_buffer``)."""
-        buffer = self._exchange
-        if buffer is None:
-            buffer = self._exchange = self._exchange_buffer()
-        n_in = self._n_in
-        if buffer is not False:
-            self._values[:n_in] = buffer[:n_in]
+        exchange = self._exchange
+        if exchange is None:
+            exchange = self._exchange = self._exchange_buffer()
+        values = self._values
+        if exchange is not False:
+            values[: self._n_in] = exchange[0]()
         try:
             if self._init_error is not None:
                 raise RuntimeError(f"the instance did not initialise: {self._init_error}")
@@ -525,8 +535,8 @@ class BlockWrapper:
             self._log_error(f"doStep at t={current_time:.6g} s: {type(err).__name__}: {err}")
             return False
         finally:
-            if buffer is not False:
-                buffer[n_in:] = self._values[n_in:]
+            if exchange is not False:
+                exchange[1](*values[self._n_in :])
         return True
 
     # -- FMU state (get/set FMU state) -------------------------------------------------

@@ -266,6 +266,8 @@ class DriveController(Block):
         self._mode = 0
         self._override: tuple[float, ...] | None = None
         self._t0 = 0.0
+        self._step_ticks = (math.nan, 0)  # (the step size do_step checked last, its ticks of T_cur)
+        self._n_in = len(self.INPUTS)
         #: the state the tick runs on (``LAYOUT``), its scratch arrays, and the exception of a failed call
         n = self.n
         self._S = [0.0] * self.SIZE
@@ -421,27 +423,30 @@ class DriveController(Block):
 
     def do_step(self, t: float, h: float) -> None:
         T = self.T_cur
-        m = round(h / T)
-        if m < 1 or abs(h - m * T) > 1e-6 * T:
-            raise ModelError(
-                f"{self.name}: step size h = {h!r} s is not a positive integer multiple of T_cur = {T!r} s"
-            )
+        if h != self._step_ticks[0]:  # checked once per step size
+            m = round(h / T)
+            if m < 1 or abs(h - m * T) > 1e-6 * T:
+                raise ModelError(
+                    f"{self.name}: step size h = {h!r} s is not a positive integer multiple of T_cur = {T!r} s"
+                )
+            self._step_ticks = (h, m)
+        m = self._step_ticks[1]
         n = self._n
         if abs(t - (self._t0 + n * T)) > 0.5 * T:
             raise ModelError(
                 f"{self.name}: do_step at t = {t!r} s, but tick {n} belongs to t = {self._t0 + n * T!r} s "
                 "(steps must be contiguous from initialize)"
             )
-        S, L = self._S, self.LAYOUT
-        if m == 1 and self._evaluated != n and n % S[L["N_pos"]] and n % S[L["N_vel"]]:
+        if m == 1 and self._evaluated != n and n % self._N_pos and n % self._N_vel:
             # a tick that runs no loop: its laws would change nothing (tick.py), the inputs are checked alone
-            s = sum(self.values[: len(self.INPUTS)])
+            s = sum(self.values[: self._n_in])
             if s - s != 0.0:
                 self._check_inputs(t)
             self._n = n + 1
             return
         if self._evaluated != n:  # no input set at this communication point: the inputs held
             self.evaluate()
+        S = self._S
         code = self._steps(self.values, S, self._R, self._CUR, self._QM, self._JK, n, m)  # the ticks inside
         if code:
             raise self._failed(code, self._t0 + S[self.LAYOUT["failed"]] * T)

@@ -25,11 +25,13 @@ force and reports the kinematics of the mechanism as if it were massless.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
-from typing import ClassVar, Mapping, Sequence
+from typing import Callable, ClassVar, Mapping, Sequence
 
 from ..common.block import Block, ModelError
+from ..common.codegen import compile_generated
 from ..common.parameters import Param, ParameterError, Value
 from .designs import (
     KINEMATIC_PARAMETERS,
@@ -85,6 +87,27 @@ def restarted_dk(rho, warm: float, S, out) -> int:
     if c != 0 and c != SINGULAR and warm == 1.0:
         c = dk(rho, 0.0, S, out)
     return c
+
+
+@functools.cache
+def reaction(n: int) -> Callable[..., bool]:
+    """The inertial reaction of n drives in straight-line Python (``MechanismBlock.inertial_forces``):
+    ``reaction(values, M, b, checked=False)`` writes F_a = b_a + M_a1 rho_ddot_1 + ... + M_an rho_ddot_n (summed in
+    this order) into the block's ``values`` (inputs rho, rho_dot, rho_ddot, then F: n each), M row-major; it returns
+    False and writes nothing when the accelerations' sum is not finite (a NaN or inf among them), unless
+    ``checked``."""
+    r = [f"r{c}" for c in range(n)]
+    rows = ", ".join(" + ".join([f"b[{a}]", *(f"M[{a * n + c}]*r{c}" for c in range(n))]) for a in range(n))
+    source = (
+        "def reaction(values, M, b, checked=False):\n"
+        f"    {', '.join(r)}, = values[{2 * n}:{3 * n}]\n"
+        f"    s = {' + '.join(r)}\n"
+        "    if s - s != 0.0 and not checked:\n"
+        "        return False\n"
+        f"    values[{3 * n}:{4 * n}] = ({rows},)\n"
+        "    return True\n"
+    )
+    return compile_generated(source, "reaction", f"mechanism: inertial reaction of {n} drives", {})
 
 
 #: per drive kind: the units of its velocity, acceleration and of the force (torque) it takes
@@ -262,6 +285,7 @@ class MechanismBlock(Block):
         self._T_mech = float(self.params[UPDATE_PERIOD.name])
         self._M: tuple[float, ...] = ()  # M_k (row-major) and b_k of the last full update (``inertial_forces``)
         self._b: tuple[float, ...] = ()
+        self._reaction = reaction(self.n)
 
     # -------------------------------------------------------------------------------------
     def _compute(self, t: float) -> None:
@@ -320,13 +344,12 @@ class MechanismBlock(Block):
         (module docstring); no force when detached."""
         if not self.attached:
             return
-        vals, n, M, b = self.values, self.n, self._M, self._b
-        for k in range(2 * n, 3 * n):
-            if not math.isfinite(vals[k]):
-                raise ModelError(f"{self.name}: input '{self.INPUTS[k]}' = {vals[k]!r} is not finite at t = {t!r} s")
-        rdd = vals[2 * n : 3 * n]
-        for a in range(n):
-            f = b[a]
-            for c in range(n):
-                f += M[a * n + c] * rdd[c]
-            vals[3 * n + a] = f
+        vals = self.values
+        if not self._reaction(vals, self._M, self._b):
+            n = self.n
+            for k in range(2 * n, 3 * n):
+                if not math.isfinite(vals[k]):
+                    raise ModelError(
+                        f"{self.name}: input '{self.INPUTS[k]}' = {vals[k]!r} is not finite at t = {t!r} s"
+                    )
+            self._reaction(vals, self._M, self._b, True)  # finite inputs whose sum overflowed
