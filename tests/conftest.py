@@ -131,6 +131,7 @@ class SpreadLoadFile(LoadFileScheduling):
         return nodeid if Path(path).name in SPREAD else path
 
 
+@pytest.hookimpl(optionalhook=True)  # xdist's hook: unknown, and not called, under -p no:xdist
 def pytest_xdist_make_scheduler(config: pytest.Config, log) -> LoadFileScheduling | None:
     """``SpreadLoadFile`` for ``--dist loadfile`` (the Makefile's ``make test``); xdist's own for the other modes."""
     return SpreadLoadFile(config, log) if config.getvalue("dist") == "loadfile" else None
