@@ -110,6 +110,34 @@ FIGURES: dict[str, Figure] = {
         for d in ("3PRS_T", "3PRS_120", "3PRS_inclined")
         for what, fmt in (("parallel", "{:.3g}"), ("inverse", "{:.3g}"), ("dexterity", "{:.3g}"))
     },
+    # docs/sizing.md "What it says for the MAST": the limiting drive of SIZING_RUNS (direct composition: another
+    # machine's floats move these far below the printed digit)
+    **{
+        f"sizing.{run}.{name}": Figure("sizing", (lambda r, n: lambda v: v[r][n])(run, name), fmt, tol)
+        for run in ("default", "z_10Hz")
+        for name, fmt, tol in (
+            ("margin_pct", "{:.0f}", 0.5),
+            ("belt_force_N", "{:.0f}", 0.5),
+            ("rms_current_A", "{:.1f}", 0.05),
+            ("peak_current_A", "{:.1f}", 0.05),
+            ("winding_C", "{:.0f}", 0.5),
+            ("minutes_to_max", "{:.0f}", 0.5),
+        )
+    },
+    # the commands' defaults (README "First results")
+    "defaults.synthesize_tests": Figure("defaults", lambda v: v["synthesize_tests"], "{:d}"),
+    # paper Fig. 10's argument (docs/designs/README.md): the inertias per axis and the mechanism's mass matrix at home
+    **_named(
+        "inertias",
+        (
+            ("motor_side_kg", "{:.1f}", 0.0),
+            ("guide_side_kg", "{:.1f}", 0.0),
+            ("M_min_kg", "{:.2f}", 0.0),
+            ("M_max_kg", "{:.1f}", 0.0),
+            ("M_min_pct", "{:.1f}", 0.0),
+            ("M_max_pct", "{:.1f}", 0.0),
+        ),
+    ),
     # the drives' datasheet ratings as docs/sizing.md restates them, in the page's units, from the set mast sizing
     # reads (ssp/resources/drive_ratings.ssv, SI): the same number, no tolerance (a unit conversion's rounding
     # stays below the printed digit)
@@ -152,6 +180,55 @@ FIGURES: dict[str, Figure] = {
         f"emps.{model}.{what}": Figure("emps", (lambda m, w: lambda v: v[m][w])(model, what), fmt, tol)
         for model in ("published", "nominal")
         for what, fmt, tol in (("q_m", "{:.3g}", 0.0002), ("force", "{:.3g}", 0.02), ("force_fit", "{:.1f}", 0.05))
+    },
+    # `mast diagnose` on the EMPS record (docs/emps.md): each figure to its printed digit (a closed loop of 24.84 s
+    # re-simulated in a fit: what another machine's floats move stays far below)
+    **{
+        f"emps_diagnose.{name}": Figure("emps_diagnose", (lambda n: lambda v: v[n])(name), fmt, tol)
+        for name, fmt, tol in (
+            *((f"step_{k}_dbic", "{:.0f}", 0.5) for k in (1, 2, 3)),
+            *((f"step_{k}_held_out_pct", "{:.1f}", 0.05) for k in (1, 2, 3)),
+            ("sym_M", "{:.2f}", 0.005),
+            ("sym_F_v", "{:.2f}", 0.005),
+            ("sym_F_c", "{:.2f}", 0.005),
+            ("sym_F_offset", "{:.2f}", 0.005),
+            ("sym_M_std", "{:.2f}", 0.005),
+            ("sym_F_v_std", "{:.1f}", 0.05),
+            ("sym_F_c_std", "{:.2f}", 0.005),
+            ("sym_F_offset_std", "{:.2f}", 0.005),
+            ("sym_M_vs_published_pct", "{:+.1f}", 0.05),
+            ("sym_F_v_vs_published_pct", "{:+.1f}", 0.05),
+            ("sym_F_c_vs_published_pct", "{:+.1f}", 0.05),
+            ("sym_F_offset_vs_published_N", "{:+.2f}", 0.005),
+            ("ours_M", "{:.2f}", 0.005),
+            ("ours_F_v", "{:.1f}", 0.05),
+            ("ours_F_c", "{:.2f}", 0.005),
+            ("ours_F_offset", "{:.2f}", 0.005),
+            ("ours_force_pct", "{:.2f}", 0.005),
+            ("ours_F_v_pos", "{:.1f}", 0.05),
+            ("ours_F_v_neg", "{:.1f}", 0.05),
+            ("routes_pct", "{:.1f}", 0.05),
+            ("F_v_pos", "{:.1f}", 0.05),
+            ("F_v_neg", "{:.1f}", 0.05),
+            ("F_c", "{:.1f}", 0.05),
+            ("dF_v", "{:.1f}", 0.05),
+            ("F_offset", "{:.2f}", 0.005),
+            ("F_offset_std", "{:.2f}", 0.005),
+            ("residual_rms_N", "{:.1f}", 0.05),
+            ("residual_over_noise", "{:.0f}", 0.5),
+            ("noise_floor_N", "{:.2f}", 0.005),
+            ("simulations", "{:d}", 0.0),
+            *(
+                (f"{model}_{part}_force_{what}", fmt, tol)
+                for model in ("nominal", "symmetric", "diagnosed")
+                for part in ("training", "held-out", "whole")
+                for what, fmt, tol in (
+                    ("pct", "{:.1f}" if model == "nominal" else "{:.2f}", 0.05 if model == "nominal" else 0.005),
+                    ("fit", "{:.1f}", 0.05),
+                )
+            ),
+            *((f"{model}_q_m_pct", "{:.2g}", 0.00005) for model in ("nominal", "symmetric", "diagnosed")),
+        )
     },
     # the 6-UPS hexapod (docs/designs/6ups.md): margins and static forces at home, its workspaces on the coarse grid
     # HEXAPOD_GRID (a volume may differ by a grid node or two between machines)
@@ -205,6 +282,35 @@ DIAGNOSE_PLAN = (
     ("z", 0.005, 3.0, 1.0, 0.3),
     ("z", 0.005, 7.0, 0.8, 0.3),
 )
+#: a smaller plan of other frequencies, amplitudes and axes (tests/test_diagnose.py SMALL, docs/diagnose.md): z 1.2 Hz
+#: 4 mm, psi 2.5 Hz 0.6 deg (held out), z 5 Hz 3 mm; as DIAGNOSE_PLAN
+DIAGNOSE_SMALL = (
+    ("z", 0.004, 1.2, 1.1, 0.3),
+    ("psi", math.radians(0.6), 2.5, 0.8, 0.3),
+    ("z", 0.003, 5.0, 0.6, 0.2),
+)
+#: five tests of the issue's kind (tests/test_diagnose_split.py PLAN_A): z 0.8, 3.3, 5.8 Hz, psi 1.7 Hz, theta 4.2 Hz
+DIAGNOSE_PLAN_A = (
+    ("z", 0.004, 0.8, 1.1, 0.3),
+    ("psi", math.radians(0.7), 1.7, 0.8, 0.3),
+    ("z", 0.003, 3.3, 0.8, 0.2),
+    ("theta", math.radians(0.5), 4.2, 0.7, 0.2),
+    ("z", 0.0025, 5.8, 0.7, 0.2),
+)
+DIAGNOSE_PLANS = {"compact": DIAGNOSE_PLAN, "SMALL": DIAGNOSE_SMALL, "A": DIAGNOSE_PLAN_A}
+#: heavier and lighter machines on both plans (docs/diagnose.md "Heavier and lighter", tests/test_diagnose_unseen.py):
+#: case -> (the truth set on every actuator, the seed, the plan of DIAGNOSE_PLANS)
+DIAGNOSE_HEAVIER_LIGHTER = {
+    "inertia_up_small": ({"J1_scale": 1.2}, 31, "SMALL"),  # the guide-side equivalent destabilises the loop
+    "mass_up_compact": ({"M_load": 2.9}, 32, "compact"),  # nominal 2.27 kg
+    "mass_down_small": ({"M_load": 1.6}, 33, "SMALL"),
+    "inertia_up_compact": ({"J1_scale": 1.15}, 35, "compact"),
+    "mass_up_small": ({"M_load": 3.1}, 36, "SMALL"),
+    "inertia_down_small": ({"J1_scale": 0.85}, 37, "SMALL"),
+}
+#: the cross-validation of docs/diagnose.md: Coulomb friction, inertia and a 1.2 ms delay on PLAN_A
+#: (tests/test_diagnose_split.py LAGS "coulomb-inertia-delay-A"), as DIAGNOSE_HEAVIER_LIGHTER
+DIAGNOSE_CROSS_VALIDATED = {"delay_plan_a": ({"tau_c": 0.045, "J1_scale": 0.8, "delay_meas": 0.0012}, 331, "A")}
 #: the effects hidden alone on DIAGNOSE_PLAN (docs/diagnose.md, tests/test_diagnose.py): case -> (the truth set on
 #: every actuator, the seed of the synthetic noise)
 DIAGNOSE_CASES = {
@@ -216,6 +322,9 @@ DIAGNOSE_CASES = {
     "inertia_guide": ({"J_guide": 6.8e-4}, 14),
     "carriage_mass": ({"M_load": 3.5}, 15),
     "offset": ({"tau_offset": 0.01}, 16),
+    # backlash: named on the phase-free score (the loop hunts), tests/test_diagnose.py
+    "backlash": ({"backlash": 0.01}, 7),
+    "backlash_small": ({"backlash": 0.003}, 8),
 }
 # their figures: each fitted parameter to 0.1 % of its truth (far above what another machine's floats move in a fit by
 # re-simulation, 1e-6, below the fit's own error the table shows), the held-out tests' torque NRMSE [%] before and
@@ -236,6 +345,65 @@ FIGURES.update(
             for case in DIAGNOSE_CASES
             for k in (1, 2)
             for what in ("before", "after", "floor")
+        },
+        # heavier and lighter: the fitted value, as the cases above
+        **{
+            f"diagnose_{case}.{name}": Figure(
+                f"diagnose_{case}", (lambda n: lambda v: v["fitted"][n])(name), "{:.4g}", 1e-3 * abs(truth)
+            )
+            for case, (truths, _, _) in DIAGNOSE_HEAVIER_LIGHTER.items()
+            for name, truth in truths.items()
+        },
+        # the cross-validation: the held-out residual summed over the folds without each effect against with them
+        **{
+            f"diagnose_delay_plan_a.{name}": Figure(
+                "diagnose_delay_plan_a", (lambda n: lambda v: v["fitted"][n])(name), "{:.4g}", 1e-3 * abs(truth)
+            )
+            for name, truth in DIAGNOSE_CROSS_VALIDATED["delay_plan_a"][0].items()
+        },
+        **{
+            f"diagnose_delay_plan_a.without_{key}": Figure(
+                "diagnose_delay_plan_a", (lambda k: lambda v: v["cross_validation"][k])(key), fmt, tol
+            )
+            for key, fmt, tol in (("lag", "{:.1f}", 0.05), ("inertia_motor", "{:.0f}", 0.5), ("coulomb", "{:.0f}", 0.5))
+        },
+        # backlash: its value, std and 95 % interval to the test's own tolerance, 5 % of the truth: the loop hunts
+        # chaotically, and which regime a record falls into depends on the floats' last bits (tests/test_diagnose.py,
+        # marker "regime"); this replaces the value's 0.1 % above
+        **{
+            f"diagnose_{case}.backlash{what}": Figure(
+                f"diagnose_{case}",
+                (
+                    lambda w: (
+                        lambda v: (
+                            v["fitted"]["backlash"]
+                            if not w
+                            else v["std"]["backlash"]
+                            if w == "_std"
+                            else v["ci95"]["backlash"][w == "_hi"]
+                        )
+                    )
+                )(what),
+                "{:.4g}" if not what else "{:.3g}",
+                0.05 * DIAGNOSE_CASES[case][0]["backlash"],
+            )
+            for case in ("backlash", "backlash_small")
+            for what in ("", "_std", "_lo", "_hi")
+        },
+        # the paper's case in full (docs/diagnose.md "The paper's case"): every test's NRMSE, the fitted values' std (to
+        # the printed digit: a tenth of its last digit's unit moves the fit's covariance far more than floats do)
+        **{
+            f"diagnose_paper.test_{k}_{what}": Figure(
+                "diagnose_paper", (lambda n, w: lambda v: v["tests"][n][w])(k, what), "{:.1f}", 0.05
+            )
+            for k in range(1, len(DIAGNOSE_PLAN) + 1)
+            for what in ("before", "after", "floor")
+        },
+        **{
+            f"diagnose_paper.std_{name}": Figure(
+                "diagnose_paper", (lambda n: lambda v: v["std"][n])(name), "{:.2g}", tol
+            )
+            for name, tol in (("tau_c", 1e-6), ("J1_scale", 1e-5))
         },
     }
 )
@@ -323,24 +491,33 @@ FIGURES.update(
             ("torque_peak_Nm", "{:.3f}", 0.0005),
             ("torque_rms_Nm", "{:.3f}", 0.0005),
             ("tracking_mm", "{:.2f}", 0.005),
+            ("sizing_margin_pct", "{:.0f}", 0.5),
+            ("sizing_holds_up_to_Hz", "{:g}", 0.0),
         )
     }
 )
+# paper Fig. 10 on the short variant: the bandwidth with the mechanism against the actuators alone [%]
+FIGURES["designs_short.fig10.rise_pct"] = Figure("designs_short", lambda v: v["fig10"]["rise_pct"], "{:.0f}", 0.5)
 
 
 def designs_values(comparison: Mapping) -> dict:
     """The designs_short figures of a design comparison (its comparison.json as a dict), the first motion."""
     motion = DESIGNS_SHORT[1][0]
-    return {
+    out = {
         r["design"]: {
             "bandwidth_Hz": r["bandwidth_Hz"],
             "torque_peak_Nm": r["torque_peak_Nm"],
             "torque_rms_Nm": r["torque_rms_Nm"],
             "tracking_mm": 1e3 * r["tracking_peak"],
+            "sizing_margin_pct": 100 * r["sizing_margin"],
+            "sizing_holds_up_to_Hz": r["sizing_holds_up_to_Hz"],
         }
         for r in comparison["summary"]
         if r["motion"] == motion
     }
+    alone, with_mechanism = (out[d]["bandwidth_Hz"] for d in ("MastActuatorsOnly", "MastMechanism"))
+    out["fig10"] = {"rise_pct": 100 * (with_mechanism / alone - 1)}
+    return out
 
 
 def run_designs_short(fmus: Path, out: Path) -> dict:
@@ -405,6 +582,85 @@ def source_ssd() -> dict:
     return {"controller": dict(read_ssd(ROOT / "ssp" / "MAST.ssd").components["controller"].parameters)}
 
 
+def source_inertias() -> dict:
+    """Paper Fig. 10's argument (docs/designs/README.md): per axis, the inertia the position loop moves [kg, at the
+    guide], motor side J1 / i_R^2 and guide side J2 / i_R^2 (``fmus.actuator.model.two_inertia`` of actuator_1 in
+    ssp/MAST.ssd), and the T layout's mass matrix at home, its smallest and largest eigenvalue [kg] and their share of
+    the axis' inertia [%]."""
+    import numpy as np
+
+    from fmus.actuator.model import transmission_ratio, two_inertia
+    from mast.analyses.workspace import machine
+    from mast.core.ssp import read_ssd
+
+    params = read_ssd(ROOT / "ssp" / "MAST.ssd").components["actuator_1"].parameters
+    J1, J2 = two_inertia(params)
+    i_R = transmission_ratio(float(params["p"]), float(params["i_r"]))
+    m = machine("3PRS_T")
+    n = len(m.topology.drives)
+    M = m.engine().inverse_dynamics_at_pose(m.topology.home, [0.0] * n, [0.0] * n).M
+    eig = np.linalg.eigvalsh(M)
+    axis = (J1 + J2) / i_R**2
+    return {
+        "motor_side_kg": J1 / i_R**2,
+        "guide_side_kg": J2 / i_R**2,
+        "M_min_kg": float(eig[0]),
+        "M_max_kg": float(eig[-1]),
+        "M_min_pct": 100 * float(eig[0]) / axis,
+        "M_max_pct": 100 * float(eig[-1]) / axis,
+    }
+
+
+#: the runs of docs/sizing.md "What it says for the MAST": name -> (axis, amplitude [m], frequency [Hz], stop time [s]);
+#: the 10 Hz test for 1 s (its steady cycle is the same as the paper's 3 s test's: the verdict repeats a cycle)
+SIZING_RUNS = {"default": ("z", 0.01, 1.0, 3.0), "z_10Hz": ("z", 0.005, 10.0, 1.0)}
+
+
+def sizing_values(sizing: Mapping) -> dict:
+    """The figures of a run's sizing.json (`mast run` writes it): the limiting drive's items by name, its margin [%],
+    and the minutes its winding takes to reach its limit with the cycle repeated."""
+    drive = sizing["drives"][sizing["limiting"]["drive"]]
+    items = {f"{i['component']} {i['item']}": i["figure"] for i in drive["items"]}
+    return {
+        "margin_pct": 100 * sizing["limiting"]["margin"],
+        "belt_force_N": items["guide peak axial force"],
+        "rms_current_A": items["motor RMS current"],
+        "peak_current_A": items["amplifier peak current"],
+        "winding_C": items["motor winding temperature, steady cycle"],
+        "minutes_to_max": (drive.get("time_to_max_winding_temperature_s") or math.nan) / 60,
+    }
+
+
+def source_sizing(ssp: Path | None = None) -> dict:
+    """SIZING_RUNS by `mast run --direct` on ``ssp`` (default: MAST.ssp built into a temporary folder): {run:
+    sizing_values}; seconds."""
+    from mast.cli import main as cli_main
+    from mast.core.build import FMUS, SSP_SRC, build_fmu, build_ssp
+
+    out = {}
+    with tempfile.TemporaryDirectory(prefix="mast_figures_") as tmp:
+        tmp = Path(tmp)
+        if ssp is None:
+            for spec in FMUS:
+                if spec.model_identifier in ("MastActuator", "MastController", "MastMechanism"):
+                    build_fmu(spec, tmp / "fmus")
+            ssp = build_ssp(SSP_SRC / "MAST.ssd", tmp / "fmus", tmp / "ssp")
+        for name, (axis, amplitude, frequency, stop) in SIZING_RUNS.items():
+            argv = ["run", str(ssp), "--motion", axis, "--amplitude", f"{amplitude:g}", "--frequency", f"{frequency:g}"]
+            argv += ["--stop-time", f"{stop:g}", "--direct", "--out", str(tmp / name)]
+            if cli_main(argv) != 0:
+                raise RuntimeError(f"mast run {name} failed (its message above)")
+            out[name] = sizing_values(json.loads((tmp / name / "sizing.json").read_text()))
+    return out
+
+
+def source_defaults() -> dict:
+    """Counts the commands' defaults define (README "First results"): the tests `mast synthesize` writes by default."""
+    from mast.analyses.synthesize import DEFAULT_TESTS
+
+    return {"synthesize_tests": len(DEFAULT_TESTS)}
+
+
 def source_ratings() -> dict:
     """The drive ratings `mast sizing` checks against (ssp/resources/drive_ratings.ssv), SI values."""
     from mast.core.ssv import parse_ssv
@@ -454,6 +710,68 @@ def source_emps() -> dict:
     return out
 
 
+def emps_diagnose_values(doc: Mapping, record) -> dict:
+    """The figures of `mast diagnose` on the EMPS record (its diagnosis.json as a dict) and of our inverse-model least
+    squares on the same record (``record``: the imported test, mast.data.records): docs/emps.md's tables."""
+    from mast.analyses.inverse_model import inverse_model_ls
+
+    sym, after = doc["symmetric_model"], doc["values"]
+    ours = inverse_model_ls(record.time, record.values["q_m"], record.values["force"])
+    ours_asym = inverse_model_ls(record.time, record.values["q_m"], record.values["force"], asymmetric=True)
+    steps = [st for st in doc["steps"] if st.get("delta_bic_training") is not None]
+    gaps = {"nominal": doc["gap"]["before"], "symmetric": sym["gap"], "diagnosed": doc["gap"]["after"]}
+    out = {
+        **{f"step_{k}_dbic": st["delta_bic_training"] for k, st in enumerate(steps, 1)},
+        **{f"step_{k}_held_out_pct": st["held_out_rss_change_percent"] for k, st in enumerate(steps, 1)},
+        **{f"sym_{p}": sym["values"][p] for p in ("M", "F_v", "F_c", "F_offset")},
+        **{f"sym_{p}_std": sym["std"][p] for p in ("M", "F_v", "F_c", "F_offset")},
+        **{f"sym_{p}_vs_published_pct": 100 * (sym["values"][p] / EMPS_PUBLISHED[p] - 1) for p in ("M", "F_v", "F_c")},
+        "sym_F_offset_vs_published_N": sym["values"]["F_offset"] - EMPS_PUBLISHED["F_offset"],
+        **{f"ours_{p}": ours[p] for p in ("M", "F_v", "F_c", "F_offset")},
+        "ours_force_pct": ours["relative_error_pct"],
+        "ours_F_v_pos": ours_asym["F_v+"],
+        "ours_F_v_neg": ours_asym["F_v-"],
+        # the two routes: the largest relative difference of M, F_v, F_c [%]
+        "routes_pct": max(abs(100 * (sym["values"][p] / ours[p] - 1)) for p in ("M", "F_v", "F_c")),
+        "F_v_pos": doc["asymmetry"]["viscous"]["positive_velocity"],
+        "F_v_neg": doc["asymmetry"]["viscous"]["negative_velocity"],
+        "F_c": after["F_c"],
+        "dF_v": after["dF_v"],
+        "F_offset": after["F_offset"],
+        "F_offset_std": next(e for e in doc["named_effects"] if e["key"] == "offset")["uncertainty"]["F_offset"]["std"],
+        "residual_rms_N": doc["gap"]["after"]["emps"]["force"]["whole"]["rms"],
+        "residual_over_noise": doc["verdict"]["residual_over_noise_held_out"]["emps.force"],
+        "noise_floor_N": doc["noise_floor"]["effort_std"],
+        "simulations": doc["timing"]["simulations"],
+    }
+    for model, gap in gaps.items():
+        for part in ("training", "held-out", "whole"):
+            force = gap["emps"]["force"][part]
+            out[f"{model}_{part}_force_pct"] = force["relative_error_pct"]
+            out[f"{model}_{part}_force_fit"] = force["fit_pct"]
+        out[f"{model}_q_m_pct"] = gap["emps"]["q_m"]["whole"]["relative_error_pct"]
+    return out
+
+
+def source_emps_diagnose() -> dict:
+    """`mast diagnose` of the EMPS record on the bench (built into a temporary folder) from the nominal model, as
+    tests/test_emps.py runs it: its emps_diagnose_values; about a minute."""
+    from mast.core.build import FMUS, SSP_SRC, build_fmu, build_ssp
+    from mast.data.importer import import_file
+    from mast.data.record import load_records
+    from mast.diagnosis import Options, diagnose
+
+    with tempfile.TemporaryDirectory(prefix="mast_figures_") as tmp:
+        tmp = Path(tmp)
+        for spec in FMUS:
+            if spec.model_identifier in ("MastLoadAxis", "MastEmpsController"):
+                build_fmu(spec, tmp / "fmus")
+        bench = build_ssp(SSP_SRC / "EMPS_bench.ssd", tmp / "fmus", tmp / "ssp")
+        import_file(EMPS_RECORD, ROOT / "examples" / "emps" / "map.toml", tmp / "record")
+        doc = diagnose(Options(tmp / "record", tmp / "out", str(bench), figures=False), log=lambda *_: None)
+        return emps_diagnose_values(doc, load_records(tmp / "record").tests[0])
+
+
 def source_animate(ssp: Path | None = None) -> dict:
     """`mast animate`'s page of ANIMATE_RUN on ``ssp`` (default: MAST.ssp built into a temporary folder), at the
     default frame rate: its frames and size [MB], how much of it is plotly.js and the figure, the figure's size per
@@ -489,24 +807,40 @@ def source_animate(ssp: Path | None = None) -> dict:
 
 def diagnose_values(doc: Mapping) -> dict:
     """A diagnosis' figures (its diagnosis.json as a dict): the fitted parameters of the named effects (and of their
-    equivalent alternatives), and per held-out test (1, 2, ... in the plan's order) the torque NRMSE [%] before and
-    after and its noise floor."""
+    equivalent alternatives) and the standard deviations of the named ones, and per held-out test (1, 2, ... in the
+    plan's order) and per test (``tests``: every test in the plan's order) the torque NRMSE [%] before and after and
+    its noise floor."""
     fitted: dict = {}
+    std: dict = {}
+    ci95: dict = {}
     for effect in doc["named_effects"]:
         for alternative in effect["evidence"].get("alternatives", []):
             fitted.update(alternative.get("parameters", {}))
         fitted.update(effect["parameters"])
-    held_out = [g for g in doc["gap"].values() if g["role"] == "held-out"]
+        std.update({name: u["std"] for name, u in effect.get("uncertainty", {}).items()})
+        ci95.update({name: u["ci95"] for name, u in effect.get("uncertainty", {}).items()})
+
+    def nrmse(g: Mapping) -> dict:
+        before, after = g["before"], g["after"]
+        return {
+            "before": before["torque_nrmse_percent"],
+            "after": after["torque_nrmse_percent"],
+            "floor": before["torque_floor_percent"],
+        }
+
+    gaps = list(doc["gap"].values())
     return {
         "fitted": fitted,
-        "held_out": {
-            k: {
-                "before": g["before"]["torque_nrmse_percent"],
-                "after": g["after"]["torque_nrmse_percent"],
-                "floor": g["before"]["torque_floor_percent"],
-            }
-            for k, g in enumerate(held_out, 1)
+        "std": std,
+        "ci95": ci95,
+        # per effect the cross-validation judged: the held-out residual summed over its folds, without it / with it
+        "cross_validation": {
+            key: e["held_out_rss_without"] / e["held_out_rss_with"]
+            for key, e in doc.get("cross_validation", {}).get("effects", {}).items()
+            if e.get("held_out_rss_with")
         },
+        "held_out": {k: nrmse(g) for k, g in enumerate((g for g in gaps if g["role"] == "held-out"), 1)},
+        "tests": {k: nrmse(g) for k, g in enumerate(gaps, 1)},
     }
 
 
@@ -525,15 +859,20 @@ def _diagnose_build() -> Path:
 
 
 def source_diagnose(case: str) -> dict:
-    """`mast diagnose` of DIAGNOSE_CASES[case] hidden by `mast synthesize` on DIAGNOSE_PLAN (the Python models
-    synthesize, the native variant re-simulates, as tests/test_diagnose.py runs it): its diagnose_values."""
+    """`mast diagnose` of DIAGNOSE_CASES[case] (on DIAGNOSE_PLAN) or DIAGNOSE_HEAVIER_LIGHTER[case] (on its plan) hidden
+    by `mast synthesize` (the Python models synthesize, the native variant re-simulates, as tests/test_diagnose.py
+    runs it): its diagnose_values."""
     from mast.analyses.synthesize import TestSpec, synthesize
     from mast.diagnosis import Options, diagnose
 
-    truth, seed = DIAGNOSE_CASES[case]
+    truth, seed, plan_name = (
+        (*DIAGNOSE_CASES[case], "compact")
+        if case in DIAGNOSE_CASES
+        else {**DIAGNOSE_HEAVIER_LIGHTER, **DIAGNOSE_CROSS_VALIDATED}[case]
+    )
     ssp = _diagnose_build()
     with tempfile.TemporaryDirectory(prefix="mast_figures_") as tmp:
-        data, plan = Path(tmp) / "data", tuple(TestSpec(*t) for t in DIAGNOSE_PLAN)
+        data, plan = Path(tmp) / "data", tuple(TestSpec(*t) for t in DIAGNOSE_PLANS[plan_name])
         synthesize(
             str(ssp / "MAST.ssp"), data, {"actuator": truth}, tests=plan, direct=True, seed=seed, log=lambda *_: None
         )
@@ -651,8 +990,12 @@ SOURCES: dict[str, Callable[[], dict]] = {
     "ssd": source_ssd,
     "designs": source_designs,
     "ratings": source_ratings,
+    "inertias": source_inertias,
+    "defaults": source_defaults,
+    "sizing": source_sizing,
     "build": source_build,
     "emps": source_emps,
+    "emps_diagnose": source_emps_diagnose,
     "workspace": source_workspace,
     "workspace_quick": lambda: source_workspace(quick=True),
     "hexapod": source_hexapod,
@@ -660,7 +1003,10 @@ SOURCES: dict[str, Callable[[], dict]] = {
     "animate": source_animate,
     "controllers_short": source_controllers_short,
     "designs_short": source_designs_short,
-    **{f"diagnose_{case}": functools.partial(source_diagnose, case) for case in DIAGNOSE_CASES},
+    **{
+        f"diagnose_{case}": functools.partial(source_diagnose, case)
+        for case in (*DIAGNOSE_CASES, *DIAGNOSE_HEAVIER_LIGHTER, *DIAGNOSE_CROSS_VALIDATED)
+    },
 }
 
 

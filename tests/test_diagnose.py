@@ -25,13 +25,9 @@ ROOT = Path(__file__).resolve().parents[1]
 #: the compact plan and the cases hidden alone are docs/figures.py's: docs/diagnose.md states the figures of these runs
 PLAN = tuple(Spec(*test) for test in figures.DIAGNOSE_PLAN)
 IDENTIFIED = figures.DIAGNOSE_CASES["paper"][0]
-#: a smaller plan of other frequencies, amplitudes and axes: z 1.2 Hz 4 mm, psi 2.5 Hz 0.6 deg, z 5 Hz 3 mm (psi held
-#: out)
-SMALL = (
-    Spec("z", 0.004, 1.2, 1.1, 0.3),
-    Spec("psi", math.radians(0.6), 2.5, 0.8, 0.3),
-    Spec("z", 0.003, 5.0, 0.6, 0.2),
-)
+#: a smaller plan of other frequencies, amplitudes and axes (docs/figures.py DIAGNOSE_SMALL): z 1.2 Hz 4 mm, psi 2.5 Hz
+#: 0.6 deg (held out), z 5 Hz 3 mm
+SMALL = tuple(Spec(*test) for test in figures.DIAGNOSE_SMALL)
 
 
 @pytest.fixture(scope="session")
@@ -167,13 +163,16 @@ def test_effect_outside_the_library_is_reported_unexplained(built_ssp, tmp_path)
 
 
 @pytest.mark.regime
-@pytest.mark.parametrize("backlash, seed", [(0.01, 7), (0.003, 8)])
-def test_backlash_hidden_alone_is_named_on_the_phase_free_score(built_ssp, tmp_path, backlash, seed):
+@pytest.mark.parametrize("case", ["backlash", "backlash_small"])
+def test_backlash_hidden_alone_is_named_on_the_phase_free_score(built_ssp, tmp_path, case):
     """Backlash hidden: the axes hunt (chaotically: even the exact truth does not reproduce the data sample by
     sample), so it is named and fitted on the band powers of the residual against ensembles of re-simulations
     (orchestration/diagnosis/phasefree.py), and the tests where the loop hunts are judged at the floor by their band
     powers."""
-    doc = run_case(built_ssp, tmp_path, {"backlash": backlash}, seed, figures=seed == 7)
+    truth, seed = figures.DIAGNOSE_CASES[case]
+    backlash = truth["backlash"]
+    doc = run_case(built_ssp, tmp_path, truth, seed, figures=seed == 7)
+    assert_the_docs_state(doc, case)
     effects = named(doc)
     assert set(effects) == {"backlash"}
     assert doc["verdict"]["status"] == "explained"

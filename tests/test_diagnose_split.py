@@ -15,19 +15,15 @@ import math
 
 import numpy as np
 import pytest
+from docs_figures import figures
 from test_diagnose import PLAN, ROOT, SMALL, built_ssp, compiled, named  # noqa: F401  (the module's fixture)
 
 from mast.analyses.synthesize import TestSpec as Spec
 from mast.analyses.synthesize import synthesize
 from mast.diagnosis import Options, diagnose
 
-PLAN_A = (
-    Spec("z", 0.004, 0.8, 1.1, 0.3),
-    Spec("psi", math.radians(0.7), 1.7, 0.8, 0.3),
-    Spec("z", 0.003, 3.3, 0.8, 0.2),
-    Spec("theta", math.radians(0.5), 4.2, 0.7, 0.2),
-    Spec("z", 0.0025, 5.8, 0.7, 0.2),
-)
+#: docs/figures.py DIAGNOSE_PLAN_A (docs/diagnose.md states the cross-validation of a diagnosis on it)
+PLAN_A = tuple(Spec(*test) for test in figures.DIAGNOSE_PLAN_A)
 PLAN_B = (
     Spec("z", 0.003, 2.5, 1.0, 0.25),
     Spec("psi", math.radians(0.6), 3.0, 0.7, 0.2),
@@ -159,7 +155,13 @@ LAGS = {
     "viscous-filter": ({"b_v": 1.5e-4, "T_meas": 0.0017}, SMALL, 324, "T_meas"),
     # the issue's two cases left wrong (docs/diagnose.md): a 1.2-1.5 ms delay carried less than 1 % of the nominal
     # model's gap and was never proposed (a stiffness K_t 4.95 named instead; "unexplained residual")
-    "coulomb-inertia-delay-A": ({"tau_c": 0.045, "J1_scale": 0.8, "delay_meas": 0.0012}, PLAN_A, 331, "delay_meas"),
+    # docs/figures.py DIAGNOSE_CROSS_VALIDATED: docs/diagnose.md states its values and cross-validation
+    "coulomb-inertia-delay-A": (
+        figures.DIAGNOSE_CROSS_VALIDATED["delay_plan_a"][0],
+        PLAN_A,
+        figures.DIAGNOSE_CROSS_VALIDATED["delay_plan_a"][1],
+        "delay_meas",
+    ),
     "coulomb-heavier-delay-small": ({"tau_c": 0.04, "J1_scale": 1.2, "delay_meas": 0.0015}, SMALL, 332, "delay_meas"),
 }
 KEYS = {"tau_c": "coulomb", "J1_scale": "inertia_motor", "b_v": "viscous", "delay_meas": "lag", "T_meas": "lag"}
@@ -176,6 +178,9 @@ def test_a_lag_among_other_effects_is_named_a_delay_or_a_filter_as_it_is(built_s
     within 5 % (or, for the lag on these short records, 3 standard deviations and 10 %)."""
     truth, plan, seed, form = LAGS[case]
     doc = run(built_ssp, tmp_path, {"actuator": truth}, plan, seed)
+    if case == "coulomb-inertia-delay-A":
+        problems = figures.check({"diagnose_delay_plan_a": figures.diagnose_values(doc)})
+        assert not problems, "\n".join(problems)
     effects = named(doc)
     assert set(effects) == {KEYS[p] for p in truth}, effects
     decided = effects["lag"]["evidence"]["filter_or_delay"]

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from docs_figures import figures
 from test_diagnose import PLAN, SMALL, built_ssp, compiled, named  # noqa: F401  (the module's fixture)
 
 from mast.analyses.synthesize import synthesize
@@ -24,27 +25,17 @@ def run(ssp: str, tmp, truth: dict, plan, seed: int, **options) -> dict:
     )
 
 
-@pytest.mark.parametrize(
-    "parameter, value, plan, seed",
-    [
-        ("J1_scale", 1.2, SMALL, 31),  # heavier motor side: the guide-side equivalent destabilises the loop
-        ("M_load", 2.9, PLAN, 32),  # heavier carriage (nominal 2.27 kg)
-        ("M_load", 1.6, SMALL, 33),  # lighter carriage
-        ("J1_scale", 1.15, PLAN, 35),  # heavier motor side, the default plan
-        ("M_load", 3.1, SMALL, 36),  # heavier carriage, the small plan
-        ("J1_scale", 0.85, SMALL, 37),  # lighter motor side, the small plan
-    ],
-    ids=[
-        "inertia-up-small-plan",
-        "mass-up-default-plan",
-        "mass-down-small-plan",
-        "inertia-up-default-plan",
-        "mass-up-small-plan",
-        "inertia-down-small-plan",
-    ],
-)
-def test_heavier_and_lighter_machines_are_named(built_ssp, tmp_path, parameter, value, plan, seed):
-    doc = run(built_ssp, tmp_path, {"actuator": {parameter: value}}, plan, seed)
+#: docs/figures.py DIAGNOSE_HEAVIER_LIGHTER: docs/diagnose.md states the fitted values of these runs
+HEAVIER_LIGHTER = figures.DIAGNOSE_HEAVIER_LIGHTER
+
+
+@pytest.mark.parametrize("case", list(HEAVIER_LIGHTER))
+def test_heavier_and_lighter_machines_are_named(built_ssp, tmp_path, case):
+    truth, seed, plan = HEAVIER_LIGHTER[case]
+    ((parameter, value),) = truth.items()
+    doc = run(built_ssp, tmp_path, {"actuator": truth}, {"compact": PLAN, "SMALL": SMALL}[plan], seed)
+    problems = figures.check({f"diagnose_{case}": figures.diagnose_values(doc)})
+    assert not problems, "\n".join(problems)
     effects = named(doc)
     assert len(effects) == 1, effects
     (effect,) = effects.values()

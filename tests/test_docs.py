@@ -312,13 +312,17 @@ def test_every_marked_figure_is_known():
 
 def test_marked_figures_of_the_system_files_and_designs_agree():
     """The gains MAST.ssd binds (docs/controller.md), the designs' margins at home (docs/mechanism.md), the drive
-    ratings (docs/sizing.md), the FMUs mast build writes and the archive limits (README, docs/interfaces.md)."""
+    ratings (docs/sizing.md), the FMUs mast build writes and the archive limits (README, docs/interfaces.md), the
+    inertias of paper Fig. 10's argument (docs/designs/README.md), the tests `mast synthesize` writes by default
+    (README)."""
     problems = figures.check(
         {
             "ssd": figures.source_ssd(),
             "designs": figures.source_designs(),
             "ratings": figures.source_ratings(),
             "build": figures.source_build(),
+            "inertias": figures.source_inertias(),
+            "defaults": figures.source_defaults(),
         }
     )
     assert not problems, "\n".join(problems)
@@ -329,6 +333,12 @@ def test_marked_workspace_figures_agree():
     problems = figures.check(
         {"workspace": figures.source_workspace(), "workspace_quick": figures.source_workspace(quick=True)}
     )
+    assert not problems, "\n".join(problems)
+
+
+def test_marked_sizing_figures_agree(built_native):
+    """docs/sizing.md: the drives of the default run and of the paper's 10 Hz z test against their ratings."""
+    problems = figures.check({"sizing": figures.source_sizing(built_native / "ssp" / "MAST.ssp")})
     assert not problems, "\n".join(problems)
 
 
@@ -356,13 +366,19 @@ def test_every_figure_source_is_checked_by_a_test():
         "reproduce",
         "ratings",
         "build",
+        "inertias",
+        "defaults",
+        "sizing",
         "emps",
+        "emps_diagnose",  # tests/test_emps.py, on the diagnosis it runs
         "hexapod",
         "hexapod_run",  # tests/test_hexapod_system.py, on the run it makes
         "animate",  # tests/test_animate.py
         "controllers_short",  # tests/test_controllers.py
         "designs_short",  # tests/test_compare.py
         *(f"diagnose_{case}" for case in figures.DIAGNOSE_CASES),  # tests/test_diagnose.py
+        *(f"diagnose_{case}" for case in figures.DIAGNOSE_HEAVIER_LIGHTER),  # tests/test_diagnose_unseen.py
+        *(f"diagnose_{case}" for case in figures.DIAGNOSE_CROSS_VALIDATED),  # tests/test_diagnose_split.py
     }
     assert set(figures.SOURCES) == checked, f"sources no test compares: {set(figures.SOURCES) - checked}"
 
@@ -375,11 +391,13 @@ def test_the_headline_figures_are_marked():
 
 
 # -- timings ------------------------------------------------------------------------------------------------
-# A timing (wall time of a command, a real-time factor, "x times faster", cases per second) depends on the machine
-# and its load: a page states one only with the command that measured it (a benchmark: benchmarks/*.py, `mast
-# bench`, `make bench...`; or the command timed, `` `time mast ...` ``) and the machine it ran on (the project's
-# 2-core development VM, an AMD EPYC), both in the same paragraph or table row. Figures of simulated time (a 10 s
-# run, a 1 ms cycle) are not timings and do not match.
+# A timing (wall or CPU time of a command, a real-time factor, "x times faster", cases per second) depends on the
+# machine and its load: a page states one only with the command that measured it (a benchmark: benchmarks/*.py, `mast
+# bench`, `make bench...`; or the command timed, `` `time mast ...` ``) and the machine it ran on (the project's 2-core
+# development VM, an AMD EPYC), both in the same paragraph or table row (a table row: or in the paragraph right before
+# its table, the table's caption). Every duration in seconds, minutes or hours is taken for a timing ("(102 s)" in a
+# table cell too) unless the words beside it say it is simulated time or a model's constant: "a 10 s run", "3 s of
+# motion", "at t = 1.2 s", "z at 2 Hz, 0.4 s", "time constants 42.8 s"; durations in ms and us are a model's cycles.
 _SECONDS = r"\d+(?:\.\d+)?\s*(?:s|ms|min|minutes?|seconds?|h|hours?)\b"
 TIMING = re.compile(
     r"\b(?:takes?|took|taking|runs? in|ran in|wall(?:[- ]clock| time)?|elapsed)\b[^.;|]{0,30}?"
@@ -392,14 +410,32 @@ TIMING = re.compile(
     r"|\d+(?:\.\d+)?\s*(?:cases|simulations|runs|steps)/s\b",
     re.I,
 )
+DURATION = re.compile(
+    r"(?<![\w.\-])(?:\d+(?:\.\d+)?(?:\s*s)?\s*(?:-|to|and|/|,)\s*)*\d+(?:\.\d+)?\s*(?:s|seconds?|min|minutes?|h|hours?)\b(?!/)"
+)
+#: the words right after a duration that make it simulated time ("a 10 s run", "1 s simulated", "3 s of motion")
+SIMULATED_AFTER = re.compile(
+    r"^\W{0,3}(?:of\s+(?!CPU|wall|gcc|compil)|simulated|runs?\b|tests?\b|records?\b|cycles?\b|windows?\b|sine|"
+    r"co-simulation|plus\b|long\b|apart\b|each\b|per\s+(?:test|case)|plan\b|minus\b|analysed)",
+    re.I,
+)
+#: the words right before a duration that make it simulated time or a constant ("at t = 1.2 s", "z at 2 Hz, 0.4 s")
+SIMULATED_BEFORE = re.compile(
+    r"(?:\bt\s*(?:=|>=|<=|<|>)|\bat|\bafter|\bevery|\bfor|\bover|\bfrom|\bstop(?:[- ]time)?|settl\w*|period\w*|"
+    r"\bfirst|\blast|\bwithin|\bruns?|\bof|\buntil|\bbefore|\blasts?|\bduration|\bthis|\bon|\bnearest|"
+    r"constants?|\bleast|min\(|records?\s*\(|Hz,|mm,|deg,|°,|samples,|`\w*\.ssp`,)"
+    r"\s*(?:about|the|a|its|only)?\s*$",
+    re.I,
+)
 MEASURED_BY = re.compile(r"benchmarks/\w+\.py|mast bench|make bench|`time [^`]+`")
 MACHINE = re.compile(r"development (?:VM|machine)|AMD EPYC|shared 2-core machine")
 
 
-def _prose(text: str) -> Iterator[tuple[int, str]]:
-    """(first line, text) of every paragraph and table row outside fenced blocks."""
+def _prose(text: str) -> Iterator[tuple[int, str, str]]:
+    """(first line, text, context) of every paragraph and table row outside fenced blocks: a paragraph's context is
+    itself, a table row's the row and the paragraph right before its table (the table's caption)."""
     block: list[str] = []
-    start, fenced = 1, False
+    start, fenced, caption = 1, False, ""
     for number, line in enumerate(text.splitlines(), 1):
         if line.startswith("```"):
             fenced = not fenced
@@ -408,22 +444,39 @@ def _prose(text: str) -> Iterator[tuple[int, str]]:
             block.append(line)
             continue
         if block:
-            yield start, " ".join(block)
+            caption = " ".join(block)
+            yield start, caption, caption
             block = []
         if not fenced and line.lstrip().startswith("|"):
-            yield number, line
+            yield number, line, caption + " " + line
+        elif not line.strip() or fenced:
+            caption = caption if not line.strip() and not fenced else ""
     if block:
-        yield start, " ".join(block)
+        yield start, " ".join(block), " ".join(block)
+
+
+def _durations(text: str) -> Iterator[re.Match]:
+    """The durations of ``text`` that are not marked simulated time or a constant by the words beside them."""
+    for match in DURATION.finditer(text):
+        if not (
+            SIMULATED_AFTER.search(text[match.end() : match.end() + 30])
+            or SIMULATED_BEFORE.search(text[max(0, match.start() - 25) : match.start()])
+        ):
+            yield match
 
 
 def bare_timings(text: str) -> list[tuple[int, str]]:
-    """(line, the timing) of every paragraph or table row of ``text`` stating a timing without naming both the
-    command that measured it and the machine."""
-    return [
-        (n, m[0])
-        for n, para in _prose(text)
-        if (m := TIMING.search(para)) and not (MEASURED_BY.search(para) and MACHINE.search(para))
-    ]
+    """(line, the timing) of every paragraph or table row of ``text`` stating a timing (a timing's wording, or any
+    duration not marked simulated) without naming both the command that measured it and the machine."""
+    found = []
+    for n, para, context in _prose(text):
+        if MEASURED_BY.search(context) and MACHINE.search(context):
+            continue
+        # inline code (`--stop-time 3`, `mast run ... 0.5`) and markers are not prose
+        prose = re.sub(r"<!--.*?-->", "", re.sub(r"`[^`]*`", lambda m: "`" + "x" * (len(m[0]) - 2) + "`", para))
+        if m := TIMING.search(prose) or next(_durations(prose), None):
+            found.append((n, m[0]))
+    return found
 
 
 def test_bare_timings_are_refused():
@@ -446,6 +499,23 @@ def test_the_timing_check_tells_a_timing_from_simulated_time():
     assert bare_timings(f"It took 152 s {vm}.\n") == [(1, "took 152 s")]  # measured how?
     assert bare_timings("A 10 s run with a 1 ms position cycle and a 100 us current cycle.\n") == []
     assert bare_timings("```\ntook 3 s\n```\n") == []
+    # any duration is a timing unless its words make it simulated time or a constant
+    assert bare_timings("| design | (102 s) |\n") == [(1, "102 s")]
+    assert bare_timings("| hidden | named | 199 s, 140 |\n") == [(1, "199 s")]
+    assert bare_timings("Cost: 16 simulations, 84 s.\n") == [(1, "84 s")]
+    assert bare_timings("About 5-6 s of CPU per design.\n") == [(1, "5-6 s")]
+    assert bare_timings(f"Measured (`time mast compare`, {vm}):\n\n| design | wall |\n|---|---|\n| T | 105 s |\n") == []
+    assert bare_timings("Measured by hand:\n\n| design | wall |\n|---|---|\n| T | 105 s |\n") == [(5, "105 s")]
+    for simulated in (
+        "A 10 s run.",
+        "3 s of motion.",
+        "The gap after t = 1.2 s.",
+        "The z sine (10 mm at 1 Hz, 3 s).",
+        "Time constants 42.8 s and 809 s.",
+        "Each test runs 1 s plus two periods.",
+        "| stepping | (1 s simulated) |",
+    ):
+        assert bare_timings(simulated + "\n") == [], simulated
 
 
 # -- running the blocks -------------------------------------------------------------------------------------

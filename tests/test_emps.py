@@ -14,6 +14,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 import scipy.io
+from docs_figures import figures
+from test_measured import documented_messages, documented_mismatches
 
 from fmus.actuator.load_axis import LoadAxisBlock, load_friction
 from fmus.common.parameters import ParameterError
@@ -171,6 +173,39 @@ def test_import_errors_name_the_file_and_the_variable(tmp_path, change, match):
     assert not (tmp_path / "out").exists()
 
 
+#: docs/measured-data.md's import errors: problem -> the .mat that makes it (_mat's variables changed)
+IRREGULAR = np.arange(200) * 1e-3
+IRREGULAR[12:] += 3e-4
+DOCUMENTED_IMPORT_ERRORS = {
+    "missing variable": {"qm": None},
+    "wrong shape": {"vir": np.ones((200, 2))},
+    "time not increasing": {"t": np.r_[np.arange(100), np.arange(99, 199)][:, None] * 1e-3},
+    "irregular sampling": {"t": IRREGULAR[:, None]},
+    "NaN or inf": {"vir": np.r_[np.zeros(50), np.nan, np.zeros(149)][:, None]},
+    "scale not a scalar": {"gtau": np.ones((2, 2))},
+}
+#: the table's rows checked elsewhere: problem -> where
+IMPORT_ERRORS_ELSEWHERE = {
+    "map problems": "a list of problems, not one message: test_import_csv_through_a_map_with_units",
+    "injected input without a unit": "test_injected_input_without_a_unit_is_refused",
+}
+
+
+def test_the_documented_import_errors_are_the_codes(tmp_path):
+    """Every example message of docs/measured-data.md's import errors is what `mast import` says for that problem."""
+    rows = documented_messages("### Errors name the file and the variable")
+    expected = set(DOCUMENTED_IMPORT_ERRORS) | set(IMPORT_ERRORS_ELSEWHERE)
+    assert set(rows) == expected, set(rows) ^ expected
+    actual = {}
+    for k, (problem, change) in enumerate(DOCUMENTED_IMPORT_ERRORS.items()):
+        (tmp_path / f"{k}").mkdir()
+        with pytest.raises(LabFileError) as error:
+            import_file(_mat(tmp_path / f"{k}" / "bad.mat", **change), MAP, tmp_path / f"{k}" / "out")
+        actual[problem] = str(error.value)
+    problems = documented_mismatches(rows, actual)
+    assert not problems, "docs/measured-data.md's import errors (update the page):\n" + "\n".join(problems)
+
+
 def test_import_csv_through_a_map_with_units(tmp_path):
     t = np.arange(100) * 1.0  # ms
     table = np.column_stack([t, 1000 * np.sin(t / 100), 1000 * np.sin(t / 100), np.cos(t), np.ones(100)])
@@ -267,6 +302,11 @@ def test_diagnose_names_friction_offset_and_asymmetry_on_the_emps_record(tmp_pat
     import_file(EMPS, MAP, tmp_path / "rec")
     out = tmp_path / "diag"
     doc = diagnose(Options(tmp_path / "rec", out, str(bench)), log=lambda *_: None)
+    # docs/emps.md's figures of this diagnosis (`python docs/figures.py --source emps_diagnose` writes them)
+    problems = figures.check(
+        {"emps_diagnose": figures.emps_diagnose_values(doc, load_records(tmp_path / "rec").tests[0])}
+    )
+    assert not problems, "\n".join(problems)
     sym = doc["symmetric_model"]
     assert set(sym["named"]) == {"mass", "viscous", "coulomb", "offset"}
     for p in ("M", "F_v", "F_c"):

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -15,6 +16,7 @@ from mast.data.measured import MeasuredDataError, load
 
 N = 400
 DT = 1e-3
+PAGE = Path(__file__).resolve().parents[1] / "docs" / "measured-data.md"
 
 
 @pytest.fixture(scope="module")
@@ -335,3 +337,104 @@ def test_csv_and_meta_with_a_utf8_byte_order_mark_load(tmp_path):
     for name in ("a.csv", "meta.json"):
         (folder / name).write_bytes(b"\xef\xbb\xbf" + (folder / name).read_bytes())
     np.testing.assert_array_equal(load(folder).tests[0].tau_m, plain.tests[0].tau_m)
+
+
+def _message(make) -> str:
+    with pytest.raises(MeasuredDataError) as error:
+        make()
+    return str(error.value)
+
+
+def _loaded_with(tmp: Path, test: dict | None = None, **load_options) -> str:
+    """The message of loading the clean table with ``test``'s keys changed in meta.json's test."""
+    folder = _write(tmp, {"a.csv": _table()})
+    meta = json.loads((folder / "meta.json").read_text())
+    meta["tests"][0].update(test or {})
+    (folder / "meta.json").write_text(json.dumps(meta))
+    return _message(lambda: load(folder, **load_options))
+
+
+def _text_in_a_number_field(tmp: Path) -> str:
+    folder = _write(tmp, {"a.csv": _table()})
+    lines = (folder / "a.csv").read_text().splitlines()
+    cells = lines[6].split(",")
+    cells[4] = "abc"  # rho_1 on line 7
+    lines[6] = ",".join(cells)
+    (folder / "a.csv").write_text("\n".join(lines) + "\n")
+    return _message(lambda: load(folder))
+
+
+def _not_listed(tmp: Path) -> str:
+    folder = _write(tmp, {"a.csv": _table()})
+    (folder / "extra.csv").write_text("time,x\n0,0\n")
+    return _message(lambda: load(folder))
+
+
+def _broken_message(kind: str):
+    def make(tmp: Path) -> str:
+        tab, meta_over, units = _broken(kind)
+        return _message(lambda: load(_write(tmp, {"a.csv": tab}, meta_over, units)))
+
+    return make
+
+
+#: docs/measured-data.md's validation table: problem -> the message the code gives for it on the tests' data
+DOCUMENTED = {
+    "missing column": _broken_message("missing column"),
+    "NaN, empty cell, inf": _broken_message("nan"),
+    "text in a number field": _text_in_a_number_field,
+    "gap": _broken_message("gap"),
+    "irregular sampling": _broken_message("irregular"),
+    "not increasing": _broken_message("not increasing"),
+    "unknown unit": _broken_message("unknown unit"),
+    "wrong unit (implausible values)": _broken_message("rho in mm labelled m"),
+    "positions in the wrong length unit, inside the stroke": lambda tmp: _message(
+        lambda: load(_write(tmp, {"a.csv": _table()}, units={"time": "s", "rho_cmd": "m", "rho": "um", "tau_m": "N.m"}))
+    ),
+    "a meta.json value that is not a number": lambda tmp: _loaded_with(tmp, {"frequency": "2 Hz"}),
+    "CSV not listed, listed but missing": _not_listed,
+    "another number of drives than the system's actuators (`mast diagnose`)": lambda tmp: _loaded_with(tmp, drives=6),
+    "currents without k_T": _broken_message("current without k_T"),
+    "a test file outside the folder": lambda tmp: _loaded_with(tmp, {"file": "../other/x.csv"}),
+}
+#: rows whose message needs more than loading the data: problem -> the test that checks it
+CHECKED_ELSEWHERE = {
+    "torques in the wrong unit, inside the bounds": (
+        "test_diagnose_refuses_torques_whose_unit_is_a_thousand_times_off_before_searching"
+    ),
+}
+
+
+def documented_messages(heading: str) -> dict[str, str]:
+    """The table under ``heading`` in docs/measured-data.md: problem -> its first example message (the first code
+    span of its last column)."""
+    text = PAGE.read_text()
+    table = text[text.index(heading) :]
+    table = table[table.index("\n|") + 1 : table.index("\n\n", table.index("\n|"))]
+    rows = {}
+    for line in table.splitlines()[2:]:
+        problem, message = line.strip("|").split(" | ", 1)
+        rows[problem.strip()] = re.search(r"`([^`]*)`", message)[1]
+    return rows
+
+
+def documented_mismatches(documented: dict[str, str], actual: dict[str, str]) -> list[str]:
+    """The rows whose documented message is not the actual one (``...`` stands for any text, DIR for a folder; a
+    message may start with the file's folder)."""
+    problems = []
+    for problem, message in actual.items():
+        pattern = re.escape(documented[problem]).replace(re.escape("..."), ".*").replace("DIR", ".+")
+        if not re.fullmatch(f"(?:.*/)?{pattern}", message, re.S):
+            problems.append(f"{problem}: the page says {documented[problem]!r}, the code {message!r}")
+    return problems
+
+
+def test_the_documented_messages_are_the_codes(tmp_path):
+    """Every example message of docs/measured-data.md's validation table is what the code says for that problem
+    (``...`` standing for the rest of the text, DIR for the folder), and every row is checked (here or by the test
+    named in CHECKED_ELSEWHERE)."""
+    rows = documented_messages("### Validation: every problem names the file and the column")
+    assert set(rows) == set(DOCUMENTED) | set(CHECKED_ELSEWHERE), set(rows) ^ (set(DOCUMENTED) | set(CHECKED_ELSEWHERE))
+    actual = {problem: make(tmp_path / f"d{k}") for k, (problem, make) in enumerate(DOCUMENTED.items())}
+    problems = documented_mismatches(rows, actual)
+    assert not problems, "docs/measured-data.md's validation table (update the page):\n" + "\n".join(problems)
