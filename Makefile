@@ -27,7 +27,8 @@ run: validate
 	$(BIN)/mast run build/ssp/MAST.ssp --motion z --amplitude 0.01 --frequency 1 --stop-time 3 --out results/z_1Hz
 
 # The suite on every core (pytest-xdist): a test file runs whole on one worker, so its module fixtures (builds,
-# shared simulations) are made once; `make test PYTEST_WORKERS=0` runs it in this one process.
+# shared simulations) are made once, but the diagnoses, whose tests go out one by one (tests/conftest.py, SPREAD);
+# `make test PYTEST_WORKERS=0` runs it in this one process.
 PYTEST_WORKERS ?= auto
 PYTEST_XDIST = -n $(PYTEST_WORKERS) --dist loadfile
 

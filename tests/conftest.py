@@ -9,6 +9,7 @@ from pathlib import Path
 
 import pytest
 from filelock import FileLock
+from xdist.scheduler import LoadFileScheduling
 
 from fmus.actuator.model import ActuatorBlock
 from fmus.controller.model import ControllerBlock
@@ -86,17 +87,54 @@ def build_once(tmp_path_factory: pytest.TempPathFactory, name: str, build: Calla
 
 
 @pytest.fixture(scope="session")
-def built_native(tmp_path_factory) -> Path:
-    """A build folder with the Python FMUs and SSPs and their native variants (``mast build --native``),
-    shared by the tests that run documented commands and benchmarks (tests/test_docs.py, test_benchmarks.py)."""
-    from mast.core.build import SSP_SRC, build_all
+def built(tmp_path_factory) -> Path:
+    """A build folder with the Python FMUs and every SSP (``mast build``), built once per session for every file
+    and worker that reads it (tests/test_cosim.py, test_fmi_behaviour.py, test_measured.py, test_reproduce.py);
+    tests write beside it, never into it."""
+    from mast.core.build import build_all
+
+    return build_once(tmp_path_factory, "build", lambda out: build_all(out, log=lambda *_: None))
+
+
+@pytest.fixture(scope="session")
+def built_native(tmp_path_factory, built) -> Path:
+    """A build folder with the Python FMUs and SSPs (a copy of ``built``) and their native variants (``mast build
+    --native``), shared by the tests that run documented commands and benchmarks (tests/test_docs.py,
+    test_benchmarks.py) and by the diagnoses' re-simulations (tests/test_diagnose.py)."""
+    from mast.core.build import SSP_SRC
     from mast.core.native.build import build_native_all
 
     def build(out: Path) -> None:
-        build_all(out, log=lambda *_: None)
+        shutil.copytree(built, out, dirs_exist_ok=True)
         build_native_all(out, sorted(SSP_SRC.glob("*.ssd")), log=lambda *_: None)
 
     return build_once(tmp_path_factory, "build_native", build)
+
+
+#: The test files whose tests pytest-xdist hands out one by one under ``make test`` (``--dist loadfile``): the
+#: diagnoses, each test a synthesize-and-diagnose run of tens of seconds to minutes on the session's build
+#: (``built_native``), with no module fixture. Every other file's tests stay together on one worker, so its module
+#: fixtures are made once.
+SPREAD = ("test_diagnose.py", "test_diagnose_backlash.py", "test_diagnose_split.py", "test_diagnose_unseen.py")
+
+
+class SpreadLoadFile(LoadFileScheduling):
+    """xdist's ``--dist loadfile`` but for the files of ``SPREAD``, each of whose tests is a work unit of its own.
+
+    xdist gives out the files with the most tests first and these single tests last, each to the first worker free:
+    the diagnoses spread over both workers fill the cores to the end, where whole files left one worker alone with
+    the last diagnosis file for minutes. (xdist's ``--dist loadgroup`` would say the same with marks, but its marks
+    do not reach the test ids under pytest 9.)"""
+
+    def _split_scope(self, nodeid: str) -> str:
+        path = nodeid.split("::", 1)[0]
+        return nodeid if Path(path).name in SPREAD else path
+
+
+@pytest.hookimpl(optionalhook=True)  # xdist's hook: unknown, and not called, under -p no:xdist
+def pytest_xdist_make_scheduler(config: pytest.Config, log) -> LoadFileScheduling | None:
+    """``SpreadLoadFile`` for ``--dist loadfile`` (the Makefile's ``make test``); xdist's own for the other modes."""
+    return SpreadLoadFile(config, log) if config.getvalue("dist") == "loadfile" else None
 
 
 def build_mechanism_system(name: str, out: Path) -> Path:

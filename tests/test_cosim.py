@@ -11,17 +11,9 @@ import pytest
 
 from mast.cli import main as cli_main
 from mast.cli import validate_all
-from mast.core.build import build_all
 from mast.core.master import SimulationError
 from mast.core.motion import SineMotion
 from mast.core.run import simulate
-
-
-@pytest.fixture(scope="session")
-def built(tmp_path_factory) -> Path:
-    out = tmp_path_factory.mktemp("build")
-    build_all(out, log=lambda *_: None)
-    return out
 
 
 @pytest.fixture(scope="session")

@@ -27,7 +27,7 @@ import pytest
 import mast.core.build as build
 from fmus.common.block import Block
 from fmus.common.parameters import Param
-from mast.core.build import FMU_REQUIREMENTS, FMUS, build_all, build_fmu
+from mast.core.build import FMU_REQUIREMENTS, FMUS, build_fmu
 
 ROOT = Path(__file__).resolve().parents[1]
 OK, WARNING, DISCARD, ERROR, FATAL = range(5)
@@ -36,13 +36,6 @@ IDENTIFIERS = [
     for spec in FMUS
     if spec.model_identifier in ("MastActuator", "MastMechanism", "MastController", "MastTrajectory")
 ]
-
-
-@pytest.fixture(scope="module")
-def built(tmp_path_factory) -> Path:
-    out = tmp_path_factory.mktemp("build")
-    build_all(out, log=lambda *_: None)
-    return out
 
 
 @functools.lru_cache(maxsize=None)

@@ -20,12 +20,9 @@ PAGE = Path(__file__).resolve().parents[1] / "docs" / "measured-data.md"
 
 
 @pytest.fixture(scope="module")
-def built_ssp(tmp_path_factory) -> str:
-    from mast.core.build import build_all
-
-    out = tmp_path_factory.mktemp("build")
-    build_all(out, log=lambda *_: None)
-    return str(out / "ssp" / "MAST.ssp")
+def built_ssp(built) -> str:
+    """MAST.ssp of the session's build (conftest.py, ``built``)."""
+    return str(built / "ssp" / "MAST.ssp")
 
 
 def _write(folder: Path, files: dict, meta_over: dict | None = None, units: dict | None = None) -> Path:

@@ -14,7 +14,6 @@ from docs_figures import figures
 from mast.analyses import paper
 from mast.analyses.identify import fit_targets
 from mast.analyses.reproduce import plan, reproduce
-from mast.core.build import build_all
 from mast.core.ssv import parse_ssv
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -36,9 +35,7 @@ FIELDS = {
 
 
 @pytest.fixture(scope="module")
-def report(tmp_path_factory):
-    built = tmp_path_factory.mktemp("build")
-    build_all(built, log=lambda *_: None)
+def report(built, tmp_path_factory):
     out = tmp_path_factory.mktemp("reproduce")
     # `mast reproduce` as the command runs it (without FMI, the full sweep): the figures docs/reproduction.md states
     summary = reproduce(str(built / "ssp" / "MAST.ssp"), out, workers=2, direct=True)
