@@ -29,10 +29,20 @@ from typing import Mapping, Optional, Sequence
 import numpy as np
 
 from .effects import BY_PARAMETER, MEASUREMENT, physical_bounds
+from .nonlinear import phase_free_stage
 from .plan import Excitation, folds
 from .resimulation import Point
 from .selection import PRACTICAL, RELATIVE, Atom
-from .stages import FD_STEP, Context, State, fit_state, fitted_parameters, lag_form, lag_form_text
+from .stages import (
+    FD_STEP,
+    Context,
+    State,
+    fit_state,
+    fitted_parameters,
+    lag_form,
+    lag_form_text,
+    residual_at_floor,
+)
 
 #: a fold's Gauss-Newton step moves no parameter by more than this share of its value (or of its change from the
 #: nominal value, when larger): beyond it the sensitivities, taken at the search's values, do not hold (a stiffness's
@@ -237,9 +247,14 @@ def _judge(ctx: Context, key: str, record: list) -> dict:
 
 
 def _remove(ctx: Context, state: State, key: str, verdict: dict, steps: list) -> State:
-    """A member the folds do not confirm: the rest refitted by re-simulation on the training tests."""
+    """A member the folds do not confirm: the rest refitted by re-simulation on the training tests. An effect of the
+    rest on the phase-free score (backlash: its value and evidence were found beside the removed member) is scored
+    again, phase-free, against the refitted rest (nonlinear.phase_free_stage), never refitted sample by sample."""
     a = next(x for x in state.selected if x.effect.key == key)
     rest, start = _without(state.selected, state.changes, a)
+    hunting = [x.effect for x in rest if x.effect.phase_free]
+    rest = tuple(x for x in rest if not x.effect.phase_free)
+    start = {p: v for p, v in start.items() if not any(p in e.parameters for e in hunting)}
     new = fit_state(ctx, rest, start) if rest else None
     if new is None:
         pt = ctx.model.trial({}, ctx.names, "cross-validation") if not rest else None
@@ -260,6 +275,9 @@ def _remove(ctx: Context, state: State, key: str, verdict: dict, steps: list) ->
     )
     verdict["note"] = "not confirmed by the folds: removed"
     ctx.log(f"diagnose:   cross-validation: {key} not confirmed by the folds: removed")
+    for e in hunting:
+        if not residual_at_floor(ctx, new.pt):
+            new = phase_free_stage(ctx, new, e, steps)
     return new
 
 
