@@ -11,7 +11,7 @@ import pytest
 
 from fmus.actuator.sensor import TorqueSensor
 from mast.diagnosis.effects import AXIS_OF, BY_KEY, MEASUREMENT, SimSignals, chain_for, column
-from mast.diagnosis.nonlinear import STIFFNESS_OCTAVES, STIFFNESS_REFINEMENTS, log_scan
+from mast.diagnosis.nonlinear import STIFFNESS_HALVINGS, STIFFNESS_OCTAVES, STIFFNESS_PER_OCTAVE, log_scan
 
 H = 1e-4
 NOMINAL = {
@@ -191,7 +191,7 @@ def test_the_stiffness_scan_finds_a_dip_narrower_than_its_grid(truth):
     grid = [k0 * 2.0**k for k in STIFFNESS_OCTAVES]
     on_grid = grid[int(np.argmin(cost(grid)))]
     assert abs(on_grid / truth - 1.0) > 0.1
-    found = log_scan(cost, k0, STIFFNESS_OCTAVES, STIFFNESS_REFINEMENTS, bounds)
+    found = log_scan(cost, k0, STIFFNESS_OCTAVES, STIFFNESS_PER_OCTAVE, STIFFNESS_HALVINGS, bounds)
     assert found == pytest.approx(truth, rel=0.02)
 
 
@@ -204,7 +204,7 @@ def test_the_stiffness_scan_stays_in_bounds_and_batches_its_values():
         batches.append(list(values))
         return [abs(math.log(v / 1.0)) for v in values]  # lowest below the lower bound
 
-    found = log_scan(cost, 67.7, STIFFNESS_OCTAVES, STIFFNESS_REFINEMENTS, (2.0, 1000.0))
+    found = log_scan(cost, 67.7, STIFFNESS_OCTAVES, STIFFNESS_PER_OCTAVE, STIFFNESS_HALVINGS, (2.0, 1000.0))
     assert all(2.0 <= v <= 1000.0 for b in batches for v in b)
-    assert len(batches) == 1 + STIFFNESS_REFINEMENTS and all(len(b) <= 2 for b in batches[1:])
+    assert len(batches) == 2 + STIFFNESS_HALVINGS and all(len(b) <= 2 for b in batches[2:])
     assert found == pytest.approx(2.0, rel=0.01)
