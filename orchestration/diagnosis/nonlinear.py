@@ -190,8 +190,8 @@ def log_scan(
 #: octave either side of the best on a fine grid (2.2 %), then two halvings of its step (0.5 %), scored on the full
 #: band of every training test (``_full_rss``). Its signature is the transmission mode (about 200 Hz at K_t 5 N m/rad),
 #: which rings for the whole record: the full-band RSS has a dip +-2 % wide at the true K_t, where the mode's phase
-#: matches the data's, among shallower ones; in the band (< 40 Hz) only the mode's aliases against the 1 ms update
-#: are left, a rugged plateau whose lowest point is elsewhere (K_t 4.62 for a truth of 5, SMALL seed 203; issue 27)
+#: matches the data's, among shallower ones; in the band (< 40 Hz) the cost is a rugged plateau whose lowest point is
+#: elsewhere (K_t 4.62 for a truth of 5, SMALL seed 203; issue 27, docs/diagnose.md)
 STIFFNESS_OCTAVES = (1, -1, -2, -3, -4, -5)
 STIFFNESS_PER_OCTAVE = 32
 STIFFNESS_HALVINGS = 2
