@@ -11,6 +11,7 @@ import pytest
 
 from fmus.actuator.sensor import TorqueSensor
 from mast.diagnosis.effects import AXIS_OF, BY_KEY, MEASUREMENT, SimSignals, chain_for, column
+from mast.diagnosis.nonlinear import STIFFNESS_HALVINGS, STIFFNESS_OCTAVES, STIFFNESS_PER_OCTAVE, log_scan
 
 H = 1e-4
 NOMINAL = {
@@ -167,3 +168,43 @@ def test_per_axis_subsets_stay_small():
     assert _per_axis_excess(("coulomb_axis1", "viscous_axis2", "offset_axis3"))
     assert not _per_axis_excess(("carriage_mass", "carriage_mass_axis1", "offset_axis3"))
     assert not _per_axis_excess(("coulomb_axis1", "coulomb_axis2", "inertia_motor"))
+
+
+def _dipped_cost(truth: float):
+    """A training cost like the transmission stiffness's (issue 27): a basin a few tens of percent wide in ln K_t,
+    rugged, with a dip +-2 % wide at the truth that holds its minimum."""
+
+    def cost(values):
+        x = np.log(np.asarray(values) / truth)
+        basin = 1000.0 + 300.0 * (1.0 - np.exp(-((x / 0.3) ** 2)))
+        return basin + 15.0 * np.sin(x / 0.011 + 1.0) - 150.0 * np.exp(-((x / 0.02) ** 2))
+
+    return cost
+
+
+@pytest.mark.parametrize("truth", [2.6, 5.0, 7.3, 12.0])
+def test_the_stiffness_scan_finds_a_dip_narrower_than_its_grid(truth):
+    """The refined log scan lands within 2 % of a narrow dip that the octave grid alone misses by more than
+    10 % (the grid is 67.7 N m/rad, the documented K_t, times 2^k)."""
+    k0, bounds = 67.7, BY_KEY["stiffness"].bounds["K_t"]
+    cost = _dipped_cost(truth)
+    grid = [k0 * 2.0**k for k in STIFFNESS_OCTAVES]
+    on_grid = grid[int(np.argmin(cost(grid)))]
+    assert abs(on_grid / truth - 1.0) > 0.1
+    found = log_scan(cost, k0, STIFFNESS_OCTAVES, STIFFNESS_PER_OCTAVE, STIFFNESS_HALVINGS, bounds)
+    assert found == pytest.approx(truth, rel=0.02)
+
+
+def test_the_stiffness_scan_stays_in_bounds_and_batches_its_values():
+    """Values beyond the bounds are never asked for (a minimum beyond them: the scan ends at the bound); every
+    halving asks its two values in one batch."""
+    batches = []
+
+    def cost(values):
+        batches.append(list(values))
+        return [abs(math.log(v / 1.0)) for v in values]  # lowest below the lower bound
+
+    found = log_scan(cost, 67.7, STIFFNESS_OCTAVES, STIFFNESS_PER_OCTAVE, STIFFNESS_HALVINGS, (2.0, 1000.0))
+    assert all(2.0 <= v <= 1000.0 for b in batches for v in b)
+    assert len(batches) == 2 + STIFFNESS_HALVINGS and all(len(b) <= 2 for b in batches[2:])
+    assert found == pytest.approx(2.0, rel=0.01)
