@@ -25,6 +25,8 @@ RELATIVE = 0.1
 SHARE_OF_GAP = 0.01
 #: at most this many effects on one axis only in a subset (two worn axes at once, not a per-axis refit of all)
 MAX_PER_AXIS = 2
+#: the explanations ranked next behind the best that may challenge it (``rivals``)
+RIVALS = 2
 
 
 @dataclass(frozen=True)
@@ -232,15 +234,51 @@ def select(
     # score: BIC on the training tests plus the held-out deviance n_ho ln(RSS_ho / n_ho): explanations the
     # training tests cannot tell apart (a heavier carriage, or more inertia and an offset, on z motions
     # only) are told apart by how they predict the held-out tests
-    best = min(admissible, key=reg.score) if admissible else reg.fit(())
-    # alternatives of a group (inertia on either side of the transmission): the preferred member is
-    # proposed whenever it is admissible; the alias check decides between them by re-simulation (in the
-    # band their linearised columns differ by how far the secant of each extrapolates, not by physics)
-    for a in list(best.atoms):
+    best = _preferred(reg, min(admissible, key=reg.score), admissible, library) if admissible else reg.fit(())
+    return best, fits
+
+
+def _preferred(
+    reg: Regression, fit: SubsetFit, admissible: Sequence[SubsetFit], library: Sequence[Effect]
+) -> SubsetFit:
+    """Alternatives of a group (inertia on either side of the transmission): the preferred member is proposed
+    whenever it is admissible; the alias check decides between them by re-simulation (in the band their
+    linearised columns differ by how far the secant of each extrapolates, not by physics)."""
+    for a in list(fit.atoms):
         if a.effect.group and not a.effect.preferred:
             pref = [e for e in library if e.group == a.effect.group and e.preferred][0]
-            want = {x.effect.key for x in best.atoms if x is not a} | {pref.key}
+            want = {x.effect.key for x in fit.atoms if x is not a} | {pref.key}
             cand = [f for f in admissible if {x.effect.key for x in f.atoms} == want]
             if cand:
-                best = min(cand, key=reg.score)
-    return best, fits
+                fit = min(cand, key=reg.score)
+    return fit
+
+
+def rivals(reg: Regression, best: SubsetFit, fits: Sequence[SubsetFit], library: Sequence[Effect] = LIBRARY) -> list:
+    """The RIVALS admissible explanations ranked next behind ``best`` by score (one per set of effects up to the
+    alternatives of a group, which the alias check separates), for ``held_out_prefers``."""
+    if not reg.n_ho:
+        return []
+    by_key = {e.key: e for e in library}
+
+    def explanation(fit: SubsetFit) -> frozenset:
+        return frozenset(by_key[a.effect.key].group or a.effect.key for a in fit.atoms)
+
+    admissible = sorted((f for f in fits if f.admissible), key=reg.score)
+    seen, out = {explanation(best)}, []
+    for fit in admissible:
+        if len(out) == RIVALS:
+            break
+        if explanation(fit) not in seen:
+            seen.add(explanation(fit))
+            out.append(_preferred(reg, fit, admissible, library))
+    return out
+
+
+def held_out_prefers(reg: Regression, rival: SubsetFit, fit: SubsetFit) -> bool:
+    """Whether the held-out tests rank ``rival`` above ``fit``, which the score ranks first: its predicted
+    held-out RSS is lower by what an effect must remove there (``held_out_needed``). Far from the data (a
+    nominal model 40-60 % off) the linearisation can let stand-ins fit the training tests better than the true
+    effects while predicting the held-out tests worse; the linear ranking cannot settle that, re-simulation can
+    (stages.regression_loop fits both)."""
+    return bool(reg.n_ho) and rival.rss_ho < fit.rss_ho - reg.held_out_needed(fit.rss_ho)

@@ -12,7 +12,19 @@ import numpy as np
 
 from .effects import AXIS_OF, BOUNDS, BY_PARAMETER, LIBRARY, MEASUREMENT, Chain, physical_bounds
 from .resimulation import Model, Point, resample
-from .selection import DELTA_BIC, PRACTICAL, RELATIVE, Atom, Band, Regression, atom_labels, select
+from .selection import (
+    DELTA_BIC,
+    PRACTICAL,
+    RELATIVE,
+    Atom,
+    Band,
+    Regression,
+    SubsetFit,
+    atom_labels,
+    held_out_prefers,
+    rivals,
+    select,
+)
 
 #: re-simulation steps (finite differences) for the parameters whose signature does not linearise well
 FD_STEP = {"tau_s": 2e-3, "omega_s": 0.3, "k_p": 6e-4, "k_v": 0.2, "k_i": 0.04, "i_max": 0.05, "K_t": 0.05}
@@ -79,15 +91,13 @@ def regression_loop(ctx: Context, state: State, atoms, rejected: set, steps: lis
             if math.isfinite(now.bic) and reg.score(best) >= reg.score(now):
                 break  # the regression sees nothing better than the current model
         ctx.log(f"diagnose: proposed by regression: {[a.label for a in proposal] or 'none'}")
-        start = dict(state.changes)
-        for a, c in zip(best.atoms, best.coef):
-            # a lag held as a delay stays one: the filter column's coefficient is its delay (the same phase slope)
-            p0 = fitted_parameters(a, state.changes)[0]
-            lo, hi = physical_bounds(p0, ctx.nominal)
-            start[p0] = float(np.clip(float(ctx.nominal[p0]) + c, lo, hi))
-            if a.grid is not None:
-                start[a.effect.parameters[1]] = a.grid
-        cand = fit_state(ctx, proposal, start, getattr(reg, "columns", {}), anchor=state.changes, lag_form=True)
+        chosen, cand = best, _fitted(ctx, state, reg, best, locked)
+        for rival in rivals(reg, best, fits):
+            if held_out_prefers(reg, rival, chosen) and atom_labels(rival.atoms + locked) != atom_labels(
+                state.selected
+            ):
+                chosen, cand = _challenge(ctx, state, reg, (chosen, cand), rival, locked, steps)
+        proposal, last_fit = tuple(chosen.atoms) + locked, (reg, chosen, fits)
         ok = cand is not None and verify(ctx, state, cand, steps, "regression")
         if cand is None:
             failed_step(ctx, state, proposal, steps, "regression")
@@ -96,6 +106,65 @@ def regression_loop(ctx: Context, state: State, atoms, rejected: set, steps: lis
         else:
             rejected.add(atom_labels(proposal))
     return state, last_fit
+
+
+def _fitted(ctx: Context, state: State, reg: Regression, fit: SubsetFit, locked: tuple) -> Optional[State]:
+    """The regression's subset ``fit`` (with the effects ``locked`` at their values) fitted by re-simulation from
+    its linear coefficients; None if it does not simulate."""
+    start = dict(state.changes)
+    for a, c in zip(fit.atoms, fit.coef):
+        # a lag held as a delay stays one: the filter column's coefficient is its delay (the same phase slope)
+        p0 = fitted_parameters(a, state.changes)[0]
+        lo, hi = physical_bounds(p0, ctx.nominal)
+        start[p0] = float(np.clip(float(ctx.nominal[p0]) + c, lo, hi))
+        if a.grid is not None:
+            start[a.effect.parameters[1]] = a.grid
+    proposal = tuple(fit.atoms) + locked
+    return fit_state(ctx, proposal, start, getattr(reg, "columns", {}), anchor=state.changes, lag_form=True)
+
+
+def resimulated_score(ctx: Context, state: State) -> float:
+    """The regression's score (selection.Regression.score) on the re-simulated model: training BIC in the band
+    plus the held-out deviance n_ho ln(RSS_ho / n_ho)."""
+    score = training_bic(ctx, state)
+    if ctx.held:
+        rss, n = band_rss(ctx, state.pt, ctx.held)
+        score += n * math.log(rss / n)
+    return score
+
+
+def _challenge(
+    ctx: Context, state: State, reg: Regression, current: tuple, rival: SubsetFit, locked: tuple, steps: list
+) -> tuple[SubsetFit, Optional[State]]:
+    """The proposal ``current`` (its subset fit, its state fitted by re-simulation or None) against a ``rival``
+    the held-out tests rank above it (selection.held_out_prefers): both fitted by re-simulation, the lower
+    re-simulated score goes on."""
+    fit, cand = current
+    labels = [[a.label for a in f.atoms + locked] for f in (fit, rival)]
+    ctx.log(
+        f"diagnose:   the held-out tests rank {labels[1]} above it (predicted held-out RSS {rival.rss_ho:.3g} "
+        f"against {fit.rss_ho:.3g}): fitted by re-simulation too"
+    )
+    fitted = _fitted(ctx, state, reg, rival, locked)
+    scores = [None if x is None else resimulated_score(ctx, x) for x in (cand, fitted)]
+    wins = scores[1] is not None and (scores[0] is None or scores[1] < scores[0])
+    steps.append(
+        {
+            "how": "held-out rival (re-simulated)",
+            "from": labels[0],
+            "to": labels[1],
+            "scores_re_simulated": scores,
+            "accepted": bool(wins),
+            "note": "the regression's score (training BIC + held-out deviance, in the band) of both, fitted by "
+            "re-simulation; the lower goes on",
+        }
+    )
+    ctx.log(
+        "diagnose:   re-simulated scores "
+        + ", ".join(f"{x} {'fails' if v is None else f'{v:.1f}'}" for x, v in zip(labels, scores))
+        + f": {'the rival' if wins else 'the proposal'} goes on"
+    )
+    return (rival, fitted) if wins else (fit, cand)
 
 
 #: a start whose simulation fails is moved back towards the current model this many times (halving the step)
