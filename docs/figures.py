@@ -319,9 +319,17 @@ DIAGNOSE_HEAVIER_LIGHTER = {
     "mass_up_small": ({"M_load": 3.1}, 36, "SMALL"),
     "inertia_down_small": ({"J1_scale": 0.85}, 37, "SMALL"),
 }
-#: the cross-validation of docs/diagnose.md: Coulomb friction, inertia and a 1.2 ms delay on PLAN_A
-#: (tests/test_diagnose_split.py LAGS "coulomb-inertia-delay-A"), as DIAGNOSE_HEAVIER_LIGHTER
-DIAGNOSE_CROSS_VALIDATED = {"delay_plan_a": ({"tau_c": 0.045, "J1_scale": 0.8, "delay_meas": 0.0012}, 331, "A")}
+#: a measurement lag among other effects, as a delay and as a filter (docs/diagnose.md "A lag among other effects",
+#: tests/test_diagnose_split.py): case -> (the truth set on every actuator, the seed, the plan of DIAGNOSE_PLANS);
+#: "delay_plan_a" also states its cross-validation (the held-out residual over the folds without each effect)
+DIAGNOSE_LAGS = {
+    "coulomb_inertia_delay": ({"tau_c": 0.05, "J1_scale": 0.75, "delay_meas": 0.0025}, 301, "compact"),
+    "coulomb_inertia_filter": ({"tau_c": 0.05, "J1_scale": 0.75, "T_meas": 0.0025}, 322, "compact"),
+    "viscous_delay": ({"b_v": 1.5e-4, "delay_meas": 0.0017}, 323, "SMALL"),
+    "viscous_filter": ({"b_v": 1.5e-4, "T_meas": 0.0017}, 324, "SMALL"),
+    "heavier_delay_small": ({"tau_c": 0.04, "J1_scale": 1.2, "delay_meas": 0.0015}, 332, "SMALL"),
+    "delay_plan_a": ({"tau_c": 0.045, "J1_scale": 0.8, "delay_meas": 0.0012}, 331, "A"),
+}
 #: the effects hidden alone on DIAGNOSE_PLAN (docs/diagnose.md, tests/test_diagnose.py): case -> (the truth set on
 #: every actuator, the seed of the synthetic noise)
 DIAGNOSE_CASES = {
@@ -359,21 +367,15 @@ FIGURES.update(
             for k in (1, 2)
             for what in ("before", "after", "floor")
         },
-        # heavier and lighter: the fitted value, as the cases above
+        # heavier and lighter, and the lags: the fitted value, as the cases above
         **{
             f"diagnose_{case}.{name}": Figure(
                 f"diagnose_{case}", (lambda n: lambda v: v["fitted"][n])(name), "{:.4g}", 1e-3 * abs(truth)
             )
-            for case, (truths, _, _) in DIAGNOSE_HEAVIER_LIGHTER.items()
+            for case, (truths, _, _) in {**DIAGNOSE_HEAVIER_LIGHTER, **DIAGNOSE_LAGS}.items()
             for name, truth in truths.items()
         },
         # the cross-validation: the held-out residual summed over the folds without each effect against with them
-        **{
-            f"diagnose_delay_plan_a.{name}": Figure(
-                "diagnose_delay_plan_a", (lambda n: lambda v: v["fitted"][n])(name), "{:.4g}", 1e-3 * abs(truth)
-            )
-            for name, truth in DIAGNOSE_CROSS_VALIDATED["delay_plan_a"][0].items()
-        },
         **{
             f"diagnose_delay_plan_a.without_{key}": Figure(
                 "diagnose_delay_plan_a", (lambda k: lambda v: v["cross_validation"][k])(key), fmt, tol
@@ -873,15 +875,15 @@ def _diagnose_build() -> Path:
 
 def source_diagnose(case: str) -> dict:
     """`mast diagnose` of DIAGNOSE_CASES[case] (on DIAGNOSE_PLAN, or DIAGNOSE_CASE_PLANS') or
-    DIAGNOSE_HEAVIER_LIGHTER[case] (on its plan) hidden by `mast synthesize` (the Python models synthesize, the native
-    variant re-simulates, as tests/test_diagnose.py runs it): its diagnose_values."""
+    DIAGNOSE_HEAVIER_LIGHTER[case] or DIAGNOSE_LAGS[case] (on its plan) hidden by `mast synthesize` (the Python models
+    synthesize, the native variant re-simulates, as tests/test_diagnose.py runs it): its diagnose_values."""
     from mast.analyses.synthesize import TestSpec, synthesize
     from mast.diagnosis import Options, diagnose
 
     truth, seed, plan_name = (
         (*DIAGNOSE_CASES[case], DIAGNOSE_CASE_PLANS.get(case, "compact"))
         if case in DIAGNOSE_CASES
-        else {**DIAGNOSE_HEAVIER_LIGHTER, **DIAGNOSE_CROSS_VALIDATED}[case]
+        else {**DIAGNOSE_HEAVIER_LIGHTER, **DIAGNOSE_LAGS}[case]
     )
     ssp = _diagnose_build()
     with tempfile.TemporaryDirectory(prefix="mast_figures_") as tmp:
@@ -1018,7 +1020,7 @@ SOURCES: dict[str, Callable[[], dict]] = {
     "designs_short": source_designs_short,
     **{
         f"diagnose_{case}": functools.partial(source_diagnose, case)
-        for case in (*DIAGNOSE_CASES, *DIAGNOSE_HEAVIER_LIGHTER, *DIAGNOSE_CROSS_VALIDATED)
+        for case in (*DIAGNOSE_CASES, *DIAGNOSE_HEAVIER_LIGHTER, *DIAGNOSE_LAGS)
     },
 }
 

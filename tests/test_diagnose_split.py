@@ -147,22 +147,15 @@ def cross_validated(doc: dict, report: str) -> None:
     assert "## Cross-validation" in report and all(f"without {e['key']}" in report for e in doc["named_effects"])
 
 
-#: a lag inside two- and three-effect combinations, as a delay and as a filter: (truth, plan, seed, form named)
+#: a lag inside two- and three-effect combinations, as a delay and as a filter (docs/figures.py DIAGNOSE_LAGS, whose
+#: values docs/diagnose.md states): case -> (truth, plan, seed, the form hidden). The issue's two cases left wrong
+#: (docs/diagnose.md): a 1.2-1.5 ms delay carried less than 1 % of the nominal model's gap and was never proposed (a
+#: stiffness K_t 4.95 named instead on PLAN_A; "unexplained residual" on SMALL, seed 332)
 LAGS = {
-    "coulomb-inertia-delay": ({"tau_c": 0.05, "J1_scale": 0.75, "delay_meas": 0.0025}, PLAN, 301, "delay_meas"),
-    "coulomb-inertia-filter": ({"tau_c": 0.05, "J1_scale": 0.75, "T_meas": 0.0025}, PLAN, 322, "T_meas"),
-    "viscous-delay": ({"b_v": 1.5e-4, "delay_meas": 0.0017}, SMALL, 323, "delay_meas"),
-    "viscous-filter": ({"b_v": 1.5e-4, "T_meas": 0.0017}, SMALL, 324, "T_meas"),
-    # the issue's two cases left wrong (docs/diagnose.md): a 1.2-1.5 ms delay carried less than 1 % of the nominal
-    # model's gap and was never proposed (a stiffness K_t 4.95 named instead; "unexplained residual")
-    # docs/figures.py DIAGNOSE_CROSS_VALIDATED: docs/diagnose.md states its values and cross-validation
-    "coulomb-inertia-delay-A": (
-        figures.DIAGNOSE_CROSS_VALIDATED["delay_plan_a"][0],
-        PLAN_A,
-        figures.DIAGNOSE_CROSS_VALIDATED["delay_plan_a"][1],
-        "delay_meas",
-    ),
-    "coulomb-heavier-delay-small": ({"tau_c": 0.04, "J1_scale": 1.2, "delay_meas": 0.0015}, SMALL, 332, "delay_meas"),
+    case: (truth, tuple(Spec(*test) for test in figures.DIAGNOSE_PLANS[plan]), seed, lag)
+    for case, (truth, seed, plan) in figures.DIAGNOSE_LAGS.items()
+    for lag in truth
+    if lag in ("delay_meas", "T_meas")
 }
 KEYS = {"tau_c": "coulomb", "J1_scale": "inertia_motor", "b_v": "viscous", "delay_meas": "lag", "T_meas": "lag"}
 
@@ -178,9 +171,6 @@ def test_a_lag_among_other_effects_is_named_a_delay_or_a_filter_as_it_is(built_s
     within 5 % (or, for the lag on these short records, 3 standard deviations and 10 %)."""
     truth, plan, seed, form = LAGS[case]
     doc = run(built_ssp, tmp_path, {"actuator": truth}, plan, seed)
-    if case == "coulomb-inertia-delay-A":
-        problems = figures.check({"diagnose_delay_plan_a": figures.diagnose_values(doc)})
-        assert not problems, "\n".join(problems)
     effects = named(doc)
     assert set(effects) == {KEYS[p] for p in truth}, effects
     decided = effects["lag"]["evidence"]["filter_or_delay"]
@@ -198,6 +188,8 @@ def test_a_lag_among_other_effects_is_named_a_delay_or_a_filter_as_it_is(built_s
         assert "delay or filter: not distinguishable on this plan" in doc["verdict"]["text"]
     cross_validated(doc, (tmp_path / "out" / "report.md").read_text())
     assert doc["cross_validation"]["lag_form"]["choice"] == decided["choice"]
+    problems = figures.check({f"diagnose_{case}": figures.diagnose_values(doc)})
+    assert not problems, "\n".join(problems)
 
 
 def test_the_named_effects_do_not_depend_on_the_split(built_ssp, tmp_path):
