@@ -297,6 +297,13 @@ DIAGNOSE_PLAN_A = (
     ("theta", math.radians(0.5), 4.2, 0.7, 0.2),
     ("z", 0.0025, 5.8, 0.7, 0.2),
 )
+#: three short tests (tests/test_diagnose_split.py PLAN_B): z 2.5 Hz, psi 3 Hz, z 6 Hz; the default split holds out psi
+#: alone, so no held-out test moves actuators 1 and 3
+DIAGNOSE_PLAN_B = (
+    ("z", 0.003, 2.5, 1.0, 0.25),
+    ("psi", math.radians(0.6), 3.0, 0.7, 0.2),
+    ("z", 0.0028, 6.0, 0.6, 0.2),
+)
 #: backlash hidden alone (tests/test_diagnose.py, docs/diagnose.md "Backlash, two values"): DIAGNOSE_PLAN with its two
 #: fast z tests at 10 Hz 8 mm and 15 Hz 5 mm. With the mechanism's inertial reaction at every 100 us step (issue 27)
 #: the loop hunts there (a backlash of 1e-6 more parts the torque by 1.1-3.0 mN m, 0.5-1.4 x the noise, at 0.03-0.1
@@ -308,7 +315,13 @@ DIAGNOSE_PLAN_FAST = (
     ("z", 0.008, 10.0, 0.8, 0.2),
     ("z", 0.005, 15.0, 0.6, 0.2),
 )
-DIAGNOSE_PLANS = {"compact": DIAGNOSE_PLAN, "SMALL": DIAGNOSE_SMALL, "A": DIAGNOSE_PLAN_A, "fast": DIAGNOSE_PLAN_FAST}
+DIAGNOSE_PLANS = {
+    "compact": DIAGNOSE_PLAN,
+    "SMALL": DIAGNOSE_SMALL,
+    "A": DIAGNOSE_PLAN_A,
+    "B": DIAGNOSE_PLAN_B,
+    "fast": DIAGNOSE_PLAN_FAST,
+}
 #: heavier and lighter machines on both plans (docs/diagnose.md "Heavier and lighter", tests/test_diagnose_unseen.py):
 #: case -> (the truth set on every actuator, the seed, the plan of DIAGNOSE_PLANS)
 DIAGNOSE_HEAVIER_LIGHTER = {
@@ -319,9 +332,44 @@ DIAGNOSE_HEAVIER_LIGHTER = {
     "mass_up_small": ({"M_load": 3.1}, 36, "SMALL"),
     "inertia_down_small": ({"J1_scale": 0.85}, 37, "SMALL"),
 }
-#: the cross-validation of docs/diagnose.md: Coulomb friction, inertia and a 1.2 ms delay on PLAN_A
-#: (tests/test_diagnose_split.py LAGS "coulomb-inertia-delay-A"), as DIAGNOSE_HEAVIER_LIGHTER
-DIAGNOSE_CROSS_VALIDATED = {"delay_plan_a": ({"tau_c": 0.045, "J1_scale": 0.8, "delay_meas": 0.0012}, 331, "A")}
+#: a measurement lag among other effects, as a delay and as a filter (docs/diagnose.md "A lag among other effects",
+#: tests/test_diagnose_split.py): case -> (the truth set on every actuator, the seed, the plan of DIAGNOSE_PLANS);
+#: "delay_plan_a" also states its cross-validation (the held-out residual over the folds without each effect)
+DIAGNOSE_LAGS = {
+    "coulomb_inertia_delay": ({"tau_c": 0.05, "J1_scale": 0.75, "delay_meas": 0.0025}, 301, "compact"),
+    "coulomb_inertia_filter": ({"tau_c": 0.05, "J1_scale": 0.75, "T_meas": 0.0025}, 322, "compact"),
+    "viscous_delay": ({"b_v": 1.5e-4, "delay_meas": 0.0017}, 323, "SMALL"),
+    "viscous_filter": ({"b_v": 1.5e-4, "T_meas": 0.0017}, 324, "SMALL"),
+    "heavier_delay_small": ({"tau_c": 0.04, "J1_scale": 1.2, "delay_meas": 0.0015}, 332, "SMALL"),
+    "delay_plan_a": ({"tau_c": 0.045, "J1_scale": 0.8, "delay_meas": 0.0012}, 331, "A"),
+}
+#: a motor-side inertia change on one axis beside a viscous change on all (docs/diagnose.md "Whatever the default
+#: split", tests/test_diagnose_split.py): case -> (the truth per component, the seed, the plan of DIAGNOSE_PLANS)
+DIAGNOSE_PER_AXIS = {
+    "axis2_plan_a": ({"actuator_2": {"J1_scale": 1.35}, "actuator": {"b_v": 1.6e-4}}, 302, "A"),
+    "axis1_plan_b": ({"actuator_1": {"J1_scale": 0.65}, "actuator": {"b_v": 1.5e-4}}, 314, "B"),
+    "axis2_plan_b": ({"actuator_2": {"J1_scale": 1.4}, "actuator": {"b_v": 1.7e-4}}, 315, "B"),
+    "axis3_plan_b": ({"actuator_3": {"J1_scale": 1.35}, "actuator": {"b_v": 1.4e-4}}, 316, "B"),
+}
+
+
+def per_axis_truth(hidden: Mapping[str, Mapping[str, float]]) -> dict[str, float]:
+    """A DIAGNOSE_PER_AXIS truth as the diagnosis names its parameters: an actuator's own scale factor as the increment
+    from 1 on its axis (J1_scale 1.35 on actuator 2: J1_scale_axis2 0.35), the values of every actuator as they are."""
+    out: dict[str, float] = {}
+    for component, values in hidden.items():
+        for name, value in values.items():
+            if component == "actuator":
+                out[name] = value
+            elif name.endswith("_scale"):
+                out[f"{name}_axis{component.removeprefix('actuator_')}"] = value - 1.0
+            else:
+                raise ValueError(
+                    f"DIAGNOSE_PER_AXIS: {component}.{name}: expected a scale factor (*_scale) on one axis"
+                )
+    return out
+
+
 #: the effects hidden alone on DIAGNOSE_PLAN (docs/diagnose.md, tests/test_diagnose.py): case -> (the truth set on
 #: every actuator, the seed of the synthetic noise)
 DIAGNOSE_CASES = {
@@ -359,21 +407,19 @@ FIGURES.update(
             for k in (1, 2)
             for what in ("before", "after", "floor")
         },
-        # heavier and lighter: the fitted value, as the cases above
+        # heavier and lighter, and the lags: the fitted value, as the cases above
         **{
             f"diagnose_{case}.{name}": Figure(
                 f"diagnose_{case}", (lambda n: lambda v: v["fitted"][n])(name), "{:.4g}", 1e-3 * abs(truth)
             )
-            for case, (truths, _, _) in DIAGNOSE_HEAVIER_LIGHTER.items()
+            for case, (truths, _, _) in {
+                **DIAGNOSE_HEAVIER_LIGHTER,
+                **DIAGNOSE_LAGS,
+                **{case: (per_axis_truth(hidden), *rest) for case, (hidden, *rest) in DIAGNOSE_PER_AXIS.items()},
+            }.items()
             for name, truth in truths.items()
         },
         # the cross-validation: the held-out residual summed over the folds without each effect against with them
-        **{
-            f"diagnose_delay_plan_a.{name}": Figure(
-                "diagnose_delay_plan_a", (lambda n: lambda v: v["fitted"][n])(name), "{:.4g}", 1e-3 * abs(truth)
-            )
-            for name, truth in DIAGNOSE_CROSS_VALIDATED["delay_plan_a"][0].items()
-        },
         **{
             f"diagnose_delay_plan_a.without_{key}": Figure(
                 "diagnose_delay_plan_a", (lambda k: lambda v: v["cross_validation"][k])(key), fmt, tol
@@ -872,23 +918,22 @@ def _diagnose_build() -> Path:
 
 
 def source_diagnose(case: str) -> dict:
-    """`mast diagnose` of DIAGNOSE_CASES[case] (on DIAGNOSE_PLAN, or DIAGNOSE_CASE_PLANS') or
-    DIAGNOSE_HEAVIER_LIGHTER[case] (on its plan) hidden by `mast synthesize` (the Python models synthesize, the native
-    variant re-simulates, as tests/test_diagnose.py runs it): its diagnose_values."""
+    """`mast diagnose` of DIAGNOSE_CASES[case] (on DIAGNOSE_PLAN, or DIAGNOSE_CASE_PLANS') or of the case of
+    DIAGNOSE_HEAVIER_LIGHTER, DIAGNOSE_LAGS or DIAGNOSE_PER_AXIS (on its plan) hidden by `mast synthesize` (the Python
+    models synthesize, the native variant re-simulates, as tests/test_diagnose.py runs it): its diagnose_values."""
     from mast.analyses.synthesize import TestSpec, synthesize
     from mast.diagnosis import Options, diagnose
 
     truth, seed, plan_name = (
         (*DIAGNOSE_CASES[case], DIAGNOSE_CASE_PLANS.get(case, "compact"))
         if case in DIAGNOSE_CASES
-        else {**DIAGNOSE_HEAVIER_LIGHTER, **DIAGNOSE_CROSS_VALIDATED}[case]
+        else {**DIAGNOSE_HEAVIER_LIGHTER, **DIAGNOSE_LAGS, **DIAGNOSE_PER_AXIS}[case]
     )
+    hidden = truth if case in DIAGNOSE_PER_AXIS else {"actuator": truth}
     ssp = _diagnose_build()
     with tempfile.TemporaryDirectory(prefix="mast_figures_") as tmp:
         data, plan = Path(tmp) / "data", tuple(TestSpec(*t) for t in DIAGNOSE_PLANS[plan_name])
-        synthesize(
-            str(ssp / "MAST.ssp"), data, {"actuator": truth}, tests=plan, direct=True, seed=seed, log=lambda *_: None
-        )
+        synthesize(str(ssp / "MAST.ssp"), data, hidden, tests=plan, direct=True, seed=seed, log=lambda *_: None)
         doc = diagnose(
             Options(data, Path(tmp) / "out", str(ssp / "native" / "MAST.ssp"), figures=False, direct=False),
             log=lambda *_: None,
@@ -1018,7 +1063,7 @@ SOURCES: dict[str, Callable[[], dict]] = {
     "designs_short": source_designs_short,
     **{
         f"diagnose_{case}": functools.partial(source_diagnose, case)
-        for case in (*DIAGNOSE_CASES, *DIAGNOSE_HEAVIER_LIGHTER, *DIAGNOSE_CROSS_VALIDATED)
+        for case in (*DIAGNOSE_CASES, *DIAGNOSE_HEAVIER_LIGHTER, *DIAGNOSE_LAGS, *DIAGNOSE_PER_AXIS)
     },
 }
 

@@ -11,8 +11,6 @@ holds out psi alone: no held-out test moves actuators 1 and 3. The data are synt
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import pytest
 from docs_figures import figures
@@ -24,11 +22,7 @@ from mast.diagnosis import Options, diagnose
 
 #: docs/figures.py DIAGNOSE_PLAN_A (docs/diagnose.md states the cross-validation of a diagnosis on it)
 PLAN_A = tuple(Spec(*test) for test in figures.DIAGNOSE_PLAN_A)
-PLAN_B = (
-    Spec("z", 0.003, 2.5, 1.0, 0.25),
-    Spec("psi", math.radians(0.6), 3.0, 0.7, 0.2),
-    Spec("z", 0.0028, 6.0, 0.6, 0.2),
-)
+PLAN_B = tuple(Spec(*test) for test in figures.DIAGNOSE_PLAN_B)
 
 
 def run(ssp: str, tmp, truth: dict, plan, seed: int) -> dict:
@@ -90,16 +84,10 @@ def test_the_split_gives_every_effect_the_plan_can_identify_a_test_on_each_side(
     assert small["inertia_motor_axis2"]["plan_meets"]
 
 
-#: a per-axis inertia change on each axis in turn with an all-axes viscous change: (plan, seed, axis, J1_scale of
-#: that axis, b_v of every axis). On PLAN_A the default split leaves axis 2 without a held-out fast test, on PLAN_B
-#: axes 1 and 3; axes 1 and 3 on PLAN_A (seeds 311, 313: named within 1 %, docs/diagnose.md) are left out to keep
-#: the suite's time, their default split could already test them
-PER_AXIS = {
-    "A-axis2": (PLAN_A, 302, 2, 1.35, 1.6e-4),
-    "B-axis1": (PLAN_B, 314, 1, 0.65, 1.5e-4),
-    "B-axis2": (PLAN_B, 315, 2, 1.4, 1.7e-4),
-    "B-axis3": (PLAN_B, 316, 3, 1.35, 1.4e-4),
-}
+#: a per-axis inertia change on each axis in turn with an all-axes viscous change (docs/figures.py DIAGNOSE_PER_AXIS,
+#: whose values docs/diagnose.md states). On PLAN_A the default split leaves axis 2 without a held-out fast test, on
+#: PLAN_B axes 1 and 3
+PER_AXIS = figures.DIAGNOSE_PER_AXIS
 
 
 @pytest.mark.parametrize("case", list(PER_AXIS))
@@ -107,13 +95,16 @@ def test_a_per_axis_effect_beside_an_all_axes_one_is_found_whatever_the_default_
     """The issue's first case: the viscous change was named, the per-axis inertia was not offered ("no such
     held-out test") and the verdict was "unexplained residual". Now both are named, within 5 %, the split holds out a
     fast test that moves that axis, and the report says which held-out tests checked each named effect."""
-    plan, seed, axis, scale, b_v = PER_AXIS[case]
-    doc = run(built_ssp, tmp_path, {f"actuator_{axis}": {"J1_scale": scale}, "actuator": {"b_v": b_v}}, plan, seed)
+    hidden, seed, plan = PER_AXIS[case]
+    doc = run(built_ssp, tmp_path, hidden, tuple(Spec(*test) for test in figures.DIAGNOSE_PLANS[plan]), seed)
     effects = named(doc)
+    (component,) = set(hidden) - {"actuator"}
+    axis = int(component.removeprefix("actuator_"))
     key = f"inertia_motor_axis{axis}"
     assert set(effects) == {key, "viscous"}, effects
-    assert effects[key]["parameters"][f"J1_scale_axis{axis}"] == pytest.approx(scale - 1.0, rel=0.05)
-    assert effects["viscous"]["parameters"]["b_v"] == pytest.approx(b_v, rel=0.05)
+    for name, truth in figures.per_axis_truth(hidden).items():
+        effect = effects[key if name.endswith(f"_axis{axis}") else "viscous"]
+        assert effect["parameters"][name] == pytest.approx(truth, rel=0.05)
     assert doc["verdict"]["status"] == "explained"
     assert doc["identifiability"][key]["plan_meets"] and doc["identifiability"][key]["split_meets"]
     moving_fast = {
@@ -130,6 +121,8 @@ def test_a_per_axis_effect_beside_an_all_axes_one_is_found_whatever_the_default_
     cross_validated(doc, report)
     # the per-axis inertia is judged on the folds holding out a fast test that moves that axis, never on the others
     assert set(effects[key]["evidence"]["cross_validation"]["folds"]) <= moving_fast
+    problems = figures.check({f"diagnose_{case}": figures.diagnose_values(doc)})
+    assert not problems, "\n".join(problems)
 
 
 def cross_validated(doc: dict, report: str) -> None:
@@ -147,22 +140,15 @@ def cross_validated(doc: dict, report: str) -> None:
     assert "## Cross-validation" in report and all(f"without {e['key']}" in report for e in doc["named_effects"])
 
 
-#: a lag inside two- and three-effect combinations, as a delay and as a filter: (truth, plan, seed, form named)
+#: a lag inside two- and three-effect combinations, as a delay and as a filter (docs/figures.py DIAGNOSE_LAGS, whose
+#: values docs/diagnose.md states): case -> (truth, plan, seed, the form hidden). The issue's two cases left wrong
+#: (docs/diagnose.md): a 1.2-1.5 ms delay carried less than 1 % of the nominal model's gap and was never proposed (a
+#: stiffness K_t 4.95 named instead on PLAN_A; "unexplained residual" on SMALL, seed 332)
 LAGS = {
-    "coulomb-inertia-delay": ({"tau_c": 0.05, "J1_scale": 0.75, "delay_meas": 0.0025}, PLAN, 301, "delay_meas"),
-    "coulomb-inertia-filter": ({"tau_c": 0.05, "J1_scale": 0.75, "T_meas": 0.0025}, PLAN, 322, "T_meas"),
-    "viscous-delay": ({"b_v": 1.5e-4, "delay_meas": 0.0017}, SMALL, 323, "delay_meas"),
-    "viscous-filter": ({"b_v": 1.5e-4, "T_meas": 0.0017}, SMALL, 324, "T_meas"),
-    # the issue's two cases left wrong (docs/diagnose.md): a 1.2-1.5 ms delay carried less than 1 % of the nominal
-    # model's gap and was never proposed (a stiffness K_t 4.95 named instead; "unexplained residual")
-    # docs/figures.py DIAGNOSE_CROSS_VALIDATED: docs/diagnose.md states its values and cross-validation
-    "coulomb-inertia-delay-A": (
-        figures.DIAGNOSE_CROSS_VALIDATED["delay_plan_a"][0],
-        PLAN_A,
-        figures.DIAGNOSE_CROSS_VALIDATED["delay_plan_a"][1],
-        "delay_meas",
-    ),
-    "coulomb-heavier-delay-small": ({"tau_c": 0.04, "J1_scale": 1.2, "delay_meas": 0.0015}, SMALL, 332, "delay_meas"),
+    case: (truth, tuple(Spec(*test) for test in figures.DIAGNOSE_PLANS[plan]), seed, lag)
+    for case, (truth, seed, plan) in figures.DIAGNOSE_LAGS.items()
+    for lag in truth
+    if lag in ("delay_meas", "T_meas")
 }
 KEYS = {"tau_c": "coulomb", "J1_scale": "inertia_motor", "b_v": "viscous", "delay_meas": "lag", "T_meas": "lag"}
 
@@ -178,9 +164,6 @@ def test_a_lag_among_other_effects_is_named_a_delay_or_a_filter_as_it_is(built_s
     within 5 % (or, for the lag on these short records, 3 standard deviations and 10 %)."""
     truth, plan, seed, form = LAGS[case]
     doc = run(built_ssp, tmp_path, {"actuator": truth}, plan, seed)
-    if case == "coulomb-inertia-delay-A":
-        problems = figures.check({"diagnose_delay_plan_a": figures.diagnose_values(doc)})
-        assert not problems, "\n".join(problems)
     effects = named(doc)
     assert set(effects) == {KEYS[p] for p in truth}, effects
     decided = effects["lag"]["evidence"]["filter_or_delay"]
@@ -198,6 +181,8 @@ def test_a_lag_among_other_effects_is_named_a_delay_or_a_filter_as_it_is(built_s
         assert "delay or filter: not distinguishable on this plan" in doc["verdict"]["text"]
     cross_validated(doc, (tmp_path / "out" / "report.md").read_text())
     assert doc["cross_validation"]["lag_form"]["choice"] == decided["choice"]
+    problems = figures.check({f"diagnose_{case}": figures.diagnose_values(doc)})
+    assert not problems, "\n".join(problems)
 
 
 def test_the_named_effects_do_not_depend_on_the_split(built_ssp, tmp_path):
