@@ -353,6 +353,27 @@ DIAGNOSE_PER_AXIS = {
 }
 
 
+#: effects on one axis and in the drive (docs/diagnose.md "One axis, and the drive", tests/test_diagnose_unseen.py):
+#: case -> (the truth per component, the seed, the plan of DIAGNOSE_PLANS, the effect named, its parameter, the value
+#: it must have: a per-axis parameter is the increment on that axis, M_load's from the nominal 2.27 kg)
+DIAGNOSE_ONE_AXIS_AND_DRIVE = {
+    "mass_down_axis1": (
+        {"actuator_1": {"M_load": 1.7}},
+        63,
+        "compact",
+        "carriage_mass_axis1",
+        "M_load_axis1",
+        1.7 - 2.27,
+    ),
+    "offset_axis3": ({"actuator_3": {"tau_offset": -0.006}}, 92, "compact", "offset_axis3", "tau_offset_axis3", -0.006),
+    "integral_gain": ({"controller": {"k_i": 2.27}}, 93, "SMALL", "velocity_integral", "k_i", 2.27),
+    "cycle_time": ({"controller": {"T_vel": 0.002}}, 81, "SMALL", "velocity_cycle", "T_vel", 0.002),
+    "current_limit": ({"controller": {"i_max": 3.3}}, 71, "compact", "current_limit", "i_max", 3.3),
+    # the position-loop gain 39 % above its documentation (21.52 1/s)
+    "position_gain_up": ({"controller": {"k_v": 30.0}}, 94, "compact", "position_gain", "k_v", 30.0),
+}
+
+
 def per_axis_truth(hidden: Mapping[str, Mapping[str, float]]) -> dict[str, float]:
     """A DIAGNOSE_PER_AXIS truth as the diagnosis names its parameters: an actuator's own scale factor as the increment
     from 1 on its axis (J1_scale 1.35 on actuator 2: J1_scale_axis2 0.35), the values of every actuator as they are."""
@@ -416,6 +437,7 @@ FIGURES.update(
                 **DIAGNOSE_HEAVIER_LIGHTER,
                 **DIAGNOSE_LAGS,
                 **{case: (per_axis_truth(hidden), *rest) for case, (hidden, *rest) in DIAGNOSE_PER_AXIS.items()},
+                **{case: ({p: v}, s, plan) for case, (_, s, plan, _, p, v) in DIAGNOSE_ONE_AXIS_AND_DRIVE.items()},
             }.items()
             for name, truth in truths.items()
         },
@@ -919,17 +941,23 @@ def _diagnose_build() -> Path:
 
 def source_diagnose(case: str) -> dict:
     """`mast diagnose` of DIAGNOSE_CASES[case] (on DIAGNOSE_PLAN, or DIAGNOSE_CASE_PLANS') or of the case of
-    DIAGNOSE_HEAVIER_LIGHTER, DIAGNOSE_LAGS or DIAGNOSE_PER_AXIS (on its plan) hidden by `mast synthesize` (the Python
-    models synthesize, the native variant re-simulates, as tests/test_diagnose.py runs it): its diagnose_values."""
+    DIAGNOSE_HEAVIER_LIGHTER, DIAGNOSE_LAGS, DIAGNOSE_PER_AXIS or DIAGNOSE_ONE_AXIS_AND_DRIVE (on its plan) hidden by
+    `mast synthesize` (the Python models synthesize, the native variant re-simulates, as tests/test_diagnose.py runs
+    it): its diagnose_values."""
     from mast.analyses.synthesize import TestSpec, synthesize
     from mast.diagnosis import Options, diagnose
 
     truth, seed, plan_name = (
         (*DIAGNOSE_CASES[case], DIAGNOSE_CASE_PLANS.get(case, "compact"))
         if case in DIAGNOSE_CASES
-        else {**DIAGNOSE_HEAVIER_LIGHTER, **DIAGNOSE_LAGS, **DIAGNOSE_PER_AXIS}[case]
+        else {
+            **DIAGNOSE_HEAVIER_LIGHTER,
+            **DIAGNOSE_LAGS,
+            **DIAGNOSE_PER_AXIS,
+            **{case: entry[:3] for case, entry in DIAGNOSE_ONE_AXIS_AND_DRIVE.items()},
+        }[case]
     )
-    hidden = truth if case in DIAGNOSE_PER_AXIS else {"actuator": truth}
+    hidden = truth if case in (*DIAGNOSE_PER_AXIS, *DIAGNOSE_ONE_AXIS_AND_DRIVE) else {"actuator": truth}
     ssp = _diagnose_build()
     with tempfile.TemporaryDirectory(prefix="mast_figures_") as tmp:
         data, plan = Path(tmp) / "data", tuple(TestSpec(*t) for t in DIAGNOSE_PLANS[plan_name])
@@ -1063,7 +1091,13 @@ SOURCES: dict[str, Callable[[], dict]] = {
     "designs_short": source_designs_short,
     **{
         f"diagnose_{case}": functools.partial(source_diagnose, case)
-        for case in (*DIAGNOSE_CASES, *DIAGNOSE_HEAVIER_LIGHTER, *DIAGNOSE_LAGS, *DIAGNOSE_PER_AXIS)
+        for case in (
+            *DIAGNOSE_CASES,
+            *DIAGNOSE_HEAVIER_LIGHTER,
+            *DIAGNOSE_LAGS,
+            *DIAGNOSE_PER_AXIS,
+            *DIAGNOSE_ONE_AXIS_AND_DRIVE,
+        )
     },
 }
 

@@ -377,10 +377,9 @@ def test_every_figure_source_is_checked_by_a_test():
         "controllers_short",  # tests/test_controllers.py
         "designs_short",  # tests/test_compare.py
         *(f"diagnose_{case}" for case in figures.DIAGNOSE_CASES),  # tests/test_diagnose.py
-        *(f"diagnose_{case}" for case in figures.DIAGNOSE_HEAVIER_LIGHTER),  # tests/test_diagnose_unseen.py
-        *(
-            f"diagnose_{case}" for case in (*figures.DIAGNOSE_LAGS, *figures.DIAGNOSE_PER_AXIS)
-        ),  # test_diagnose_split.py
+        # tests/test_diagnose_unseen.py
+        *(f"diagnose_{case}" for case in (*figures.DIAGNOSE_HEAVIER_LIGHTER, *figures.DIAGNOSE_ONE_AXIS_AND_DRIVE)),
+        *(f"diagnose_{case}" for case in (*figures.DIAGNOSE_LAGS, *figures.DIAGNOSE_PER_AXIS)),  # test_diagnose_split
     }
     assert set(figures.SOURCES) == checked, f"sources no test compares: {set(figures.SOURCES) - checked}"
 
