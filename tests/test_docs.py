@@ -373,6 +373,7 @@ def test_every_figure_source_is_checked_by_a_test():
         "emps_diagnose",  # tests/test_emps.py, on the diagnosis it runs
         "hexapod",
         "hexapod_run",  # tests/test_hexapod_system.py, on the run it makes
+        "diagnose_hexapod",  # tests/test_hexapod_diagnosis.py
         "animate",  # tests/test_animate.py
         "controllers_short",  # tests/test_controllers.py
         "designs_short",  # tests/test_compare.py
