@@ -353,6 +353,46 @@ DIAGNOSE_PER_AXIS = {
 }
 
 
+#: effects on one axis and in the drive (docs/diagnose.md "One axis, and the drive", tests/test_diagnose_unseen.py):
+#: case -> (the truth per component, the seed, the plan of DIAGNOSE_PLANS, the effect named, its parameter, the value
+#: it must have: a per-axis parameter is the increment on that axis, M_load's from the nominal 2.27 kg)
+DIAGNOSE_ONE_AXIS_AND_DRIVE = {
+    "mass_down_axis1": (
+        {"actuator_1": {"M_load": 1.7}},
+        63,
+        "compact",
+        "carriage_mass_axis1",
+        "M_load_axis1",
+        1.7 - 2.27,
+    ),
+    "offset_axis3": ({"actuator_3": {"tau_offset": -0.006}}, 92, "compact", "offset_axis3", "tau_offset_axis3", -0.006),
+    "integral_gain": ({"controller": {"k_i": 2.27}}, 93, "SMALL", "velocity_integral", "k_i", 2.27),
+    "cycle_time": ({"controller": {"T_vel": 0.002}}, 81, "SMALL", "velocity_cycle", "T_vel", 0.002),
+    "current_limit": ({"controller": {"i_max": 3.3}}, 71, "compact", "current_limit", "i_max", 3.3),
+    # the position-loop gain 39 % above its documentation (21.52 1/s)
+    "position_gain_up": ({"controller": {"k_v": 30.0}}, 94, "compact", "position_gain", "k_v", 30.0),
+}
+
+
+#: the hexapod's diagnosis (docs/diagnose.md "The hexapod", tests/test_hexapod_diagnosis.py): Coulomb friction
+#: 0.05 N m on drive 5 alone of the 6-UPS, three short sines (z 1.2 Hz 4 mm, x 2.5 Hz 4 mm held out, z 5 Hz 3 mm), the
+#: actuator-side effects on all axes and on each of the six drives (35 effects), re-simulated on the direct composition
+DIAGNOSE_HEXAPOD = {
+    "system": "6UPS",
+    "drive": 5,
+    "tau_c": 0.05,
+    "plan": (("z", 0.004, 1.2, 1.1, 0.3), ("x", 0.004, 2.5, 0.8, 0.3), ("z", 0.003, 5.0, 0.6, 0.2)),
+    "effects": ("coulomb", "viscous", "inertia_motor", "offset", "lag"),
+    "seed": 5,
+}
+
+
+def hexapod_library() -> tuple[str, ...]:
+    """DIAGNOSE_HEXAPOD's effects on all axes and on each of the six drives alone."""
+    effects = DIAGNOSE_HEXAPOD["effects"]
+    return effects + tuple(f"{e}_axis{j}" for e in effects for j in range(1, 7))
+
+
 def per_axis_truth(hidden: Mapping[str, Mapping[str, float]]) -> dict[str, float]:
     """A DIAGNOSE_PER_AXIS truth as the diagnosis names its parameters: an actuator's own scale factor as the increment
     from 1 on its axis (J1_scale 1.35 on actuator 2: J1_scale_axis2 0.35), the values of every actuator as they are."""
@@ -416,8 +456,28 @@ FIGURES.update(
                 **DIAGNOSE_HEAVIER_LIGHTER,
                 **DIAGNOSE_LAGS,
                 **{case: (per_axis_truth(hidden), *rest) for case, (hidden, *rest) in DIAGNOSE_PER_AXIS.items()},
+                **{case: ({p: v}, s, plan) for case, (_, s, plan, _, p, v) in DIAGNOSE_ONE_AXIS_AND_DRIVE.items()},
             }.items()
             for name, truth in truths.items()
+        },
+        # the hexapod: the fitted increment of drive 5's friction and its 95 % interval to 0.1 % of the truth's
+        # increment (the truth's increment is about 0.03 N m), every test's torque NRMSE [%] before and after
+        **{
+            f"diagnose_hexapod.{p}{what}": Figure(
+                "diagnose_hexapod",
+                (lambda q, w: lambda v: v["ci95"][q][w == "_hi"] if w else v["fitted"][q])(p, what),
+                "{:.6g}",
+                3e-5,
+            )
+            for p in (f"tau_c_axis{DIAGNOSE_HEXAPOD['drive']}",)
+            for what in ("", "_lo", "_hi")
+        },
+        **{
+            f"diagnose_hexapod.test_{k}_{what}": Figure(
+                "diagnose_hexapod", (lambda n, w: lambda v: v["tests"][n][w])(k, what), "{:.1f}", 0.05
+            )
+            for k in (1, 2, 3)
+            for what in ("before", "after", "floor")
         },
         # the cross-validation: the held-out residual summed over the folds without each effect against with them
         **{
@@ -917,19 +977,45 @@ def _diagnose_build() -> Path:
     return folder / "ssp"
 
 
+def source_diagnose_hexapod() -> dict:
+    """`mast diagnose --direct` of DIAGNOSE_HEXAPOD hidden by `mast synthesize` on the Python FMUs' MAST_<system>.ssp,
+    as tests/test_hexapod_diagnosis.py runs it: its diagnose_values."""
+    from mast.analyses.synthesize import TestSpec, synthesize
+    from mast.diagnosis import Options, diagnose
+
+    h = DIAGNOSE_HEXAPOD
+    ssp = str(_diagnose_build() / f"MAST_{h['system']}.ssp")
+    with tempfile.TemporaryDirectory(prefix="mast_figures_") as tmp:
+        data = Path(tmp) / "data"
+        hidden = {f"actuator_{h['drive']}": {"tau_c": h["tau_c"]}}
+        plan = tuple(TestSpec(*t) for t in h["plan"])
+        synthesize(ssp, data, hidden, tests=plan, direct=True, seed=h["seed"], log=lambda *_: None)
+        doc = diagnose(
+            Options(data, Path(tmp) / "out", ssp, figures=False, direct=True, library=hexapod_library()),
+            log=lambda *_: None,
+        )
+    return diagnose_values(doc)
+
+
 def source_diagnose(case: str) -> dict:
     """`mast diagnose` of DIAGNOSE_CASES[case] (on DIAGNOSE_PLAN, or DIAGNOSE_CASE_PLANS') or of the case of
-    DIAGNOSE_HEAVIER_LIGHTER, DIAGNOSE_LAGS or DIAGNOSE_PER_AXIS (on its plan) hidden by `mast synthesize` (the Python
-    models synthesize, the native variant re-simulates, as tests/test_diagnose.py runs it): its diagnose_values."""
+    DIAGNOSE_HEAVIER_LIGHTER, DIAGNOSE_LAGS, DIAGNOSE_PER_AXIS or DIAGNOSE_ONE_AXIS_AND_DRIVE (on its plan) hidden by
+    `mast synthesize` (the Python models synthesize, the native variant re-simulates, as tests/test_diagnose.py runs
+    it): its diagnose_values."""
     from mast.analyses.synthesize import TestSpec, synthesize
     from mast.diagnosis import Options, diagnose
 
     truth, seed, plan_name = (
         (*DIAGNOSE_CASES[case], DIAGNOSE_CASE_PLANS.get(case, "compact"))
         if case in DIAGNOSE_CASES
-        else {**DIAGNOSE_HEAVIER_LIGHTER, **DIAGNOSE_LAGS, **DIAGNOSE_PER_AXIS}[case]
+        else {
+            **DIAGNOSE_HEAVIER_LIGHTER,
+            **DIAGNOSE_LAGS,
+            **DIAGNOSE_PER_AXIS,
+            **{case: entry[:3] for case, entry in DIAGNOSE_ONE_AXIS_AND_DRIVE.items()},
+        }[case]
     )
-    hidden = truth if case in DIAGNOSE_PER_AXIS else {"actuator": truth}
+    hidden = truth if case in (*DIAGNOSE_PER_AXIS, *DIAGNOSE_ONE_AXIS_AND_DRIVE) else {"actuator": truth}
     ssp = _diagnose_build()
     with tempfile.TemporaryDirectory(prefix="mast_figures_") as tmp:
         data, plan = Path(tmp) / "data", tuple(TestSpec(*t) for t in DIAGNOSE_PLANS[plan_name])
@@ -1058,12 +1144,19 @@ SOURCES: dict[str, Callable[[], dict]] = {
     "workspace_quick": lambda: source_workspace(quick=True),
     "hexapod": source_hexapod,
     "hexapod_run": source_hexapod_run,
+    "diagnose_hexapod": source_diagnose_hexapod,
     "animate": source_animate,
     "controllers_short": source_controllers_short,
     "designs_short": source_designs_short,
     **{
         f"diagnose_{case}": functools.partial(source_diagnose, case)
-        for case in (*DIAGNOSE_CASES, *DIAGNOSE_HEAVIER_LIGHTER, *DIAGNOSE_LAGS, *DIAGNOSE_PER_AXIS)
+        for case in (
+            *DIAGNOSE_CASES,
+            *DIAGNOSE_HEAVIER_LIGHTER,
+            *DIAGNOSE_LAGS,
+            *DIAGNOSE_PER_AXIS,
+            *DIAGNOSE_ONE_AXIS_AND_DRIVE,
+        )
     },
 }
 

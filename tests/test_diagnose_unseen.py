@@ -167,18 +167,10 @@ def test_the_plan_says_which_effects_it_cannot_tell():
     assert not identifiability(mixed, ["backlash"])["backlash"]["plan_meets"]
 
 
-#: effects on one axis and on the drive (issue 18), values, plans and seeds away from those above and in docs/:
-#: (truth, plan, seed, the effect named, its parameter, the value it must have)
-ONE_AXIS_AND_DRIVE = {
-    # inertia on one axis: beside an all-axes viscous change, each axis on two plans, tests/test_diagnose_split.py
-    "mass-down-axis1": ({"actuator_1": {"M_load": 1.7}}, PLAN, 63, "carriage_mass_axis1", "M_load_axis1", 1.7 - 2.27),
-    "offset-axis3": ({"actuator_3": {"tau_offset": -0.006}}, PLAN, 92, "offset_axis3", "tau_offset_axis3", -0.006),
-    "integral-gain": ({"controller": {"k_i": 2.27}}, SMALL, 93, "velocity_integral", "k_i", 2.27),
-    "cycle-time": ({"controller": {"T_vel": 0.002}}, SMALL, 81, "velocity_cycle", "T_vel", 0.002),
-    "current-limit": ({"controller": {"i_max": 3.3}}, PLAN, 71, "current_limit", "i_max", 3.3),
-    # the position-loop gain 39 % above its documentation (21.52 1/s), the default plan
-    "position-gain-up": ({"controller": {"k_v": 30.0}}, PLAN, 94, "position_gain", "k_v", 30.0),
-}
+#: effects on one axis and on the drive (issue 18), values, plans and seeds away from those above and in docs/
+#: (docs/figures.py DIAGNOSE_ONE_AXIS_AND_DRIVE, whose fitted values docs/diagnose.md states); inertia on one axis
+#: beside an all-axes viscous change: each axis on two plans, tests/test_diagnose_split.py
+ONE_AXIS_AND_DRIVE = figures.DIAGNOSE_ONE_AXIS_AND_DRIVE
 
 
 @pytest.mark.parametrize("case", list(ONE_AXIS_AND_DRIVE))
@@ -192,8 +184,8 @@ def test_effects_on_one_axis_and_in_the_drive_are_named(built_ssp, tmp_path, cas
     (When the axes agree the all-axes effect is named: the all-axes cases above and in test_diagnose.py.)"""
     from mast.core.ssp import SSPArchive
 
-    truth, plan, seed, key, parameter, value = ONE_AXIS_AND_DRIVE[case]
-    doc = run(built_ssp, tmp_path, truth, plan, seed)
+    truth, seed, plan, key, parameter, value = ONE_AXIS_AND_DRIVE[case]
+    doc = run(built_ssp, tmp_path, truth, {"compact": PLAN, "SMALL": SMALL}[plan], seed)
     effects = named(doc)
     assert set(effects) == {key}, effects
     assert effects[key]["parameters"][parameter] == pytest.approx(value, rel=0.05)
@@ -212,6 +204,8 @@ def test_effects_on_one_axis_and_in_the_drive_are_named(built_ssp, tmp_path, cas
         assert am["axis_values"][component][base] == pytest.approx(
             truth[component][base], rel=0.05, abs=0.05 * abs(value)
         )
+    problems = figures.check({f"diagnose_{case}": figures.diagnose_values(doc)})
+    assert not problems, "\n".join(problems)
 
 
 #: causes outside the library (issue 18): (truth, plan, seed, what may be named)

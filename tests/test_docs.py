@@ -373,14 +373,14 @@ def test_every_figure_source_is_checked_by_a_test():
         "emps_diagnose",  # tests/test_emps.py, on the diagnosis it runs
         "hexapod",
         "hexapod_run",  # tests/test_hexapod_system.py, on the run it makes
+        "diagnose_hexapod",  # tests/test_hexapod_diagnosis.py
         "animate",  # tests/test_animate.py
         "controllers_short",  # tests/test_controllers.py
         "designs_short",  # tests/test_compare.py
         *(f"diagnose_{case}" for case in figures.DIAGNOSE_CASES),  # tests/test_diagnose.py
-        *(f"diagnose_{case}" for case in figures.DIAGNOSE_HEAVIER_LIGHTER),  # tests/test_diagnose_unseen.py
-        *(
-            f"diagnose_{case}" for case in (*figures.DIAGNOSE_LAGS, *figures.DIAGNOSE_PER_AXIS)
-        ),  # test_diagnose_split.py
+        # tests/test_diagnose_unseen.py
+        *(f"diagnose_{case}" for case in (*figures.DIAGNOSE_HEAVIER_LIGHTER, *figures.DIAGNOSE_ONE_AXIS_AND_DRIVE)),
+        *(f"diagnose_{case}" for case in (*figures.DIAGNOSE_LAGS, *figures.DIAGNOSE_PER_AXIS)),  # test_diagnose_split
     }
     assert set(figures.SOURCES) == checked, f"sources no test compares: {set(figures.SOURCES) - checked}"
 

@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from conftest import build_mechanism_system
+from docs_figures import figures
 
 from mast.analyses.synthesize import TestSpec as Spec
 from mast.analyses.synthesize import synthesize
@@ -28,18 +29,15 @@ from mast.diagnosis import Options, diagnose
 from mast.diagnosis.effects import LIBRARY, drive_of, for_drives
 
 ROOT = Path(__file__).resolve().parents[1]
-SYSTEM = "6UPS"  # the design (mast.core.designs): ssp/MAST_6UPS.ssd
-#: short tests where Coulomb friction stays identifiable (reversals in a training and a held-out test, every
-#: drive moving in both): z 1.2 Hz 4 mm, x 2.5 Hz 4 mm (held out), z 5 Hz 3 mm; 2.5 s simulated in all
-PLAN = (
-    Spec("z", 0.004, 1.2, 1.1, 0.3),
-    Spec("x", 0.004, 2.5, 0.8, 0.3),
-    Spec("z", 0.003, 5.0, 0.6, 0.2),
-)
-DRIVE, TAU_C = 5, 0.05  # the hidden effect: Coulomb friction of drive 5 [N m]
-#: the actuator-side effects (friction, inertia, lag, offset) on all axes and on each of the six alone
-EFFECTS = ("coulomb", "viscous", "inertia_motor", "offset", "lag")
-SEED = 5
+#: docs/figures.py DIAGNOSE_HEXAPOD (docs/diagnose.md states the diagnosis' figures): the design (mast.core.designs,
+#: ssp/MAST_6UPS.ssd); short tests where Coulomb friction stays identifiable (reversals in a training and a held-out
+#: test, every drive moving in both): z 1.2 Hz 4 mm, x 2.5 Hz 4 mm (held out), z 5 Hz 3 mm, 2.5 s simulated in all;
+#: the hidden effect, Coulomb friction of drive 5 [N m]; the actuator-side effects (friction, inertia, lag, offset) on
+#: all axes and on each of the six alone
+SYSTEM = figures.DIAGNOSE_HEXAPOD["system"]
+PLAN = tuple(Spec(*test) for test in figures.DIAGNOSE_HEXAPOD["plan"])
+DRIVE, TAU_C = figures.DIAGNOSE_HEXAPOD["drive"], figures.DIAGNOSE_HEXAPOD["tau_c"]
+SEED = figures.DIAGNOSE_HEXAPOD["seed"]
 
 
 @pytest.fixture(scope="module")
@@ -153,9 +151,8 @@ def test_the_diagnosis_names_the_friction_of_drive_5_within_5_percent(
     """Offered the actuator-side effects on all axes and on each drive alone (35 effects), the diagnosis names
     Coulomb friction on drive 5 alone, its increment within 5 % of the truth's, and writes the augmented model
     with drive 5's own parameter set, the report and its figures."""
-    library = EFFECTS + tuple(f"{e}_axis{j}" for e in EFFECTS for j in range(1, 7))
     doc = diagnose(
-        Options(hexapod_data["folder"], tmp_path / "out", hexapod_ssp, direct=True, library=library),
+        Options(hexapod_data["folder"], tmp_path / "out", hexapod_ssp, direct=True, library=figures.hexapod_library()),
         log=lambda *_: None,
     )
     named = {e["key"]: e for e in doc["named_effects"]}
@@ -171,6 +168,8 @@ def test_the_diagnosis_names_the_friction_of_drive_5_within_5_percent(
     ]
     for fig in ("fig_time.png", "fig_residual_signals.png", "fig_residual_frequency.png"):
         assert (tmp_path / "out" / fig).stat().st_size > 10_000 and fig in (tmp_path / "out" / "report.md").read_text()
+    problems = figures.check({"diagnose_hexapod": figures.diagnose_values(doc)})
+    assert not problems, "\n".join(problems)
 
 
 def test_data_of_another_drive_count_and_effects_of_drives_the_system_lacks_are_refused(hexapod_ssp, tmp_path):
