@@ -90,18 +90,21 @@ FIGURES: dict[str, Figure] = {
             ("worst_dexterity", "{:.1f}", 0.0),
         )
     },
-    # the designs' workspaces through home and their margins at home on the default grid (docs/designs/README.md): a
-    # range through home may move by one grid node (1 deg) between machines, like the volume
+    # the designs' workspaces through home, their margins at home and their largest static force inside on the default
+    # grid (docs/designs/README.md) and the quick one (docs/designs/3rps.md): a range through home may move by one grid
+    # node (1 deg, 4 deg) between machines, like the volume
     **{
-        f"workspace.{d}.{what}": Figure("workspace", (lambda v, d=d, w=what: v[d][w]), fmt, tol)
+        f"{grid}.{d}.{what}": Figure(grid, (lambda v, d=d, w=what: v[d][w]), fmt, tol)
+        for grid, node in (("workspace", 1.0), ("workspace_quick", 4.0))
         for d in ("3PRS_T", "3PRS_120", "3PRS_inclined")
         for what, fmt, tol in (
-            ("psi_home_lo_deg", "{:.0f}", 1.0),
-            ("psi_home_hi_deg", "{:.0f}", 1.0),
-            ("theta_home_lo_deg", "{:.0f}", 1.0),
-            ("theta_home_hi_deg", "{:.0f}", 1.0),
+            ("psi_home_lo_deg", "{:.0f}", node),
+            ("psi_home_hi_deg", "{:.0f}", node),
+            ("theta_home_lo_deg", "{:.0f}", node),
+            ("theta_home_hi_deg", "{:.0f}", node),
             ("margin_home", "{:.3f}", 0.0),
             ("singularity_home_m", "{:.3f}", 0.0),
+            ("largest_force_N", "{:.1f}", 0.0),
         )
     },
     # the designs' singularity margins at home (docs/mechanism.md)
@@ -109,6 +112,12 @@ FIGURES: dict[str, Figure] = {
         f"designs.{d}.{what}": Figure("designs", (lambda v, d=d, w=what: v[d][w]), fmt, 0.005)
         for d in ("3PRS_T", "3PRS_120", "3PRS_inclined")
         for what, fmt in (("parallel", "{:.3g}"), ("inverse", "{:.3g}"), ("dexterity", "{:.3g}"))
+    },
+    # their static forces at home [N]: in the mechanism per drive, each carriage's weight in its actuator (docs/designs)
+    **{
+        f"designs.{d}.{what}": Figure("designs", (lambda v, d=d, w=what: v[d][w]), "{:.2f}")
+        for d in ("3PRS_T", "3PRS_120", "3PRS_inclined")
+        for what in ("F_home_1", "F_home_2", "F_home_3", "carriage_N")
     },
     # docs/sizing.md "What it says for the MAST": the limiting drive of SIZING_RUNS (direct composition: another
     # machine's floats move these far below the printed digit)
@@ -244,6 +253,72 @@ FIGURES: dict[str, Figure] = {
             ("volume_xyz_L", "{:.1f}", 0.02),
             ("volume_angles_deg3", "{:.0f}", 60.0),
             ("volume_z_psi_theta_m_deg2", "{:.0f}", 0.4),
+            # ranges through home and extents: a grid node (20 mm, 3 deg) between machines
+            *((f"{c}_home_{end}_m", "{:.2f}", 0.02) for c in ("x", "y") for end in ("lo", "hi")),
+            *((f"z_home_{end}_m", "{:.3f}", 0.02) for end in ("lo", "hi")),
+            *((f"{c}_extent_{end}_m", "{:.2f}", 0.02) for c in ("x", "y") for end in ("lo", "hi")),
+            *((f"{c}_home_{end}_deg", "{:.0f}", 3.0) for c in ("psi", "theta", "phi") for end in ("lo", "hi")),
+            ("smallest_margin", "{:.3f}", 0.0),
+            ("worst_dexterity", "{:.1f}", 0.0),
+            ("largest_force_N", "{:.0f}", 0.0),
+            ("stroke_bound_pct", "{:.0f}", 0.0),
+            *((f"M_eig_{k}_kg", "{:.2f}", 0.0) for k in range(1, 7)),
+        ),
+    ),
+    # the 6-PUS beside it (docs/designs/6ups.md): as the 6-UPS's, on HEXAPOD_GRID
+    **_named(
+        "hexapod_pus",
+        (
+            ("z_home_m", "{:.4f}", 0.0),
+            ("parallel", "{:.3f}", 0.0),
+            ("inverse", "{:.3f}", 0.0),
+            ("dexterity", "{:.2f}", 0.0),
+            ("F_home", "{:.2f}", 0.0),
+            ("F_home_massless", "{:.2f}", 0.0),
+            *((f"M_eig_{k}_kg", "{:.2f}", 0.0) for k in range(1, 7)),
+            ("volume_xyz_L", "{:.1f}", 0.02),
+            *((f"{c}_home_{end}_m", "{:.2f}", 0.02) for c in ("x", "y") for end in ("lo", "hi")),
+            *((f"z_home_{end}_m", "{:.3f}", 0.02) for end in ("lo", "hi")),
+            *((f"xyz_{why}_pct", "{:.0f}", 0.0) for why in ("reach", "stroke", "singularity")),
+            ("volume_angles_deg3", "{:.0f}", 60.0),
+            *((f"{c}_home_{end}_deg", "{:.0f}", 3.0) for c in ("psi", "theta", "phi") for end in ("lo", "hi")),
+            ("volume_z_psi_theta_m_deg2", "{:.0f}", 0.4),
+        ),
+    ),
+    # the 3-RPS (docs/designs/3rps.md): its parasitic motion, statics, mass matrix and margins at home, its workspace on
+    # the default grid and on `mast compare --quick`'s (a range through home: a grid node between machines)
+    **_named(
+        "rps",
+        (
+            ("parasitic_phi_deg", "{:.3f}", 0.0),
+            ("parasitic_y_mm", "{:.2f}", 0.0),
+            ("parasitic_x_mm", "{:.2f}", 0.0),
+            ("F_home", "{:.2f}", 0.0),
+            ("tau_home_mNm", "{:.1f}", 0.0),
+            ("F_carriage", "{:.2f}", 0.0),
+            ("F_platform", "{:.2f}", 0.0),
+            ("F_rail", "{:.2f}", 0.0),
+            *((f"M_eig_{k}_kg", "{:.2f}", 0.0) for k in (1, 2, 3)),
+            ("cond", "{:.1f}", 0.0),
+            ("parallel", "{:.3f}", 0.0),
+            ("inverse", "{:.3f}", 0.0),
+            ("det", "{:.3f}", 0.0),
+            *(
+                (f"{grid}{what}", fmt, tol)
+                for grid, node in (("", 1.0), ("quick_", 4.0))
+                for what, fmt, tol in (
+                    ("volume_m_deg2", "{:.0f}", 0.5 if not grid else 0.8),
+                    *((f"{c}_home_{end}_deg", "{:.0f}", node) for c in ("psi", "theta") for end in ("lo", "hi")),
+                    *((f"{c}_extent_{end}_deg", "{:.0f}", node) for c in ("psi", "theta") for end in ("lo", "hi")),
+                    *((f"z_home_{end}_m", "{:.3f}", 0.0) for end in ("lo", "hi")),
+                    ("stroke_bound_pct", "{:.1f}", 0.0),
+                    ("singularity_home_m", "{:.3f}", 0.0),
+                    ("smallest_margin", "{:.3f}", 0.0),
+                    ("worst_dexterity", "{:.1f}", 0.0),
+                    ("largest_force_N", "{:.0f}", 0.0),
+                    ("largest_force_theta_deg", "{:.0f}", node),
+                )
+            ),
         ),
     ),
     # the 6-UPS as a system (docs/designs/6ups.md): its run z, 3 mm at 2 Hz, 0.4 s, Python FMUs (HEXAPOD_RUN);
@@ -1048,7 +1123,14 @@ def source_designs() -> dict:
         m = machine(name, 0.0)
         eng = m.engine()
         margins = eng.margins(eng.dk(m.rho_home)[0])
-        out[name] = {"parallel": margins.parallel, "inverse": margins.inverse, "dexterity": margins.dexterity}
+        F = eng.inverse_dynamics_at_pose(m.topology.home, [0.0] * 3, [0.0] * 3).t_rho
+        out[name] = {
+            "parallel": margins.parallel,
+            "inverse": margins.inverse,
+            "dexterity": margins.dexterity,
+            **{f"F_home_{k}": float(F[k - 1]) for k in (1, 2, 3)},
+            "carriage_N": m.drive["M_load"] * m.drive["g_guide"],
+        }
     return out
 
 
@@ -1071,16 +1153,64 @@ def source_workspace(quick: bool = False) -> dict:
             "theta_home_hi_deg": through_home["theta_deg"][1],
             "margin_home": min(s["home"]["margin_parallel"], s["home"]["margin_inverse"]),
             "singularity_home_m": s["distance_to_singularity_at_home_m"],
+            "largest_force_N": s["static_forces"]["largest_N"],
         }
     return out
 
 
+def home_mass_eigenvalues(m) -> list[float]:
+    """The eigenvalues [kg] of a machine's joint-space mass matrix at home, ascending."""
+    import numpy as np
+
+    n = len(m.topology.drives)
+    M = m.engine().inverse_dynamics_at_pose(m.topology.home, [0.0] * n, [0.0] * n).M
+    return [float(e) for e in np.linalg.eigvalsh(np.asarray(M, dtype=float).reshape(n, n))]
+
+
+def section_values(summary: Mapping) -> dict:
+    """A workspace summary's (``mast.analyses.workspace.summarize``) ranges through home and extents (``<c>_home_lo_m``,
+    ``<c>_extent_hi_deg``, ...), its smallest margin, worst dexterity, largest static force [N] and the share of its
+    boundary each cause bounds [%] (``<cause>_pct``: stroke, reach, singularity)."""
+    out: dict = {}
+    for what, ranges in (("home", summary["ranges_through_home"]), ("extent", summary["extent"])):
+        for column, (lo, hi) in ranges.items():
+            c, unit = column.rsplit("_", 1)
+            out[f"{c}_{what}_lo_{unit}"], out[f"{c}_{what}_hi_{unit}"] = lo, hi
+    causes = {
+        "outside the stroke": "stroke",
+        "not assemblable": "reach",
+        "within the margin of a singularity": "singularity",
+    }
+    return {
+        **out,
+        **{f"{name}_pct": 100 * summary["limited_by"].get(cause, 0.0) for cause, name in causes.items()},
+        "smallest_margin": summary["smallest_margin"]["value"],
+        "worst_dexterity": summary["worst_dexterity"]["value"],
+        "largest_force_N": summary["static_forces"]["largest_N"],
+        "singularity_home_m": summary["distance_to_singularity_at_home_m"],
+    }
+
+
+def _sections(m) -> dict[str, dict]:
+    """A six-coordinate machine's three workspace sections on HEXAPOD_GRID: x, y, z at the home orientation; psi,
+    theta, phi at the home position; z, psi, theta."""
+    from mast.analyses.workspace import compute, summarize
+
+    step, tilt = HEXAPOD_GRID[0], math.radians(HEXAPOD_GRID[1])
+    return {
+        sweep: summarize(compute(m, step, tilt, sweep=sweep.split(",")))
+        for sweep in ("x,y,z", "psi,theta,phi", "z,psi,theta")
+    }
+
+
 def source_hexapod() -> dict:
-    """The 6-UPS's margins and static forces at home (its description's values) and its workspaces on HEXAPOD_GRID:
-    x, y, z at the home orientation [L], psi, theta, phi at the home position [deg^3], z, psi, theta [m deg^2]."""
+    """The 6-UPS's margins, static forces and mass matrix at home (its description's values) and its workspaces on
+    HEXAPOD_GRID: x, y, z at the home orientation [L], psi, theta, phi at the home position [deg^3], z, psi, theta
+    [m deg^2], the ranges through home, and over the three the smallest margin, worst dexterity, the largest static
+    leg force of the x, y, z section and the smallest share of a boundary the strokes bound."""
     from fmus.mechanism.description import load
     from fmus.mechanism.engine import Engine
-    from mast.analyses.workspace import compute, machine, summarize
+    from mast.analyses.workspace import machine
 
     m = machine("6UPS")
     eng = m.engine()
@@ -1099,11 +1229,9 @@ def source_hexapod() -> dict:
         "I_rod",
     )
     F_bare = Engine(file.describe({**file.values(), **dict.fromkeys(legs, 0.0)}), g=file.values()["g"])
-    step, tilt = HEXAPOD_GRID[0], math.radians(HEXAPOD_GRID[1])
-    volume = {
-        sweep: summarize(compute(m, step, tilt, sweep=sweep.split(",")))
-        for sweep in ("x,y,z", "psi,theta,phi", "z,psi,theta")
-    }
+    volume = _sections(m)
+    sections = {sweep: section_values(s) for sweep, s in volume.items()}
+    xyz, angles = sections["x,y,z"], sections["psi,theta,phi"]
     return {
         "parallel": margins.parallel,
         "inverse": margins.inverse,
@@ -1114,7 +1242,106 @@ def source_hexapod() -> dict:
         "volume_xyz_L": 1e3 * volume["x,y,z"]["volume_m3"],
         "volume_angles_deg3": volume["psi,theta,phi"]["volume_deg3"],
         "volume_z_psi_theta_m_deg2": volume["z,psi,theta"]["volume_m_deg2"],
+        **{k: v for k, v in xyz.items() if k.startswith(("x_", "y_", "z_home"))},
+        **{k: v for k, v in angles.items() if "_home_" in k},
+        "smallest_margin": min(s["smallest_margin"] for s in sections.values()),
+        "worst_dexterity": max(s["worst_dexterity"] for s in sections.values()),
+        "largest_force_N": xyz["largest_force_N"],
+        "stroke_bound_pct": min(s["stroke_pct"] for s in sections.values()),
+        **{f"M_eig_{k}_kg": e for k, e in enumerate(home_mass_eigenvalues(m), 1)},
     }
+
+
+def source_hexapod_pus() -> dict:
+    """The 6-PUS's home height [m], margins, static carriage forces (and with massless links) and mass matrix at home,
+    its workspaces on HEXAPOD_GRID as the 6-UPS's, and what bounds the x, y, z section [%]."""
+    from fmus.mechanism.description import load
+    from fmus.mechanism.engine import Engine
+    from mast.analyses.workspace import machine
+
+    m = machine("6PUS")
+    eng = m.engine()
+    home = m.topology.home
+    margins = eng.margins(home)
+    F = eng.inverse_dynamics_at_pose(home, [0.0] * 6, [0.0] * 6).t_rho
+    file = load("6PUS")
+    bare = Engine(file.describe({**file.values(), "m_link": 0.0}), g=file.values()["g"])
+    volume = _sections(m)
+    xyz = section_values(volume["x,y,z"])
+    angles = section_values(volume["psi,theta,phi"])
+    return {
+        "z_home_m": home[2],
+        "parallel": margins.parallel,
+        "inverse": margins.inverse,
+        "dexterity": margins.dexterity,
+        "F_home": float(F[0]),
+        "F_home_massless": float(bare.inverse_dynamics_at_pose(home, [0.0] * 6, [0.0] * 6).t_rho[0]),
+        **{f"M_eig_{k}_kg": e for k, e in enumerate(home_mass_eigenvalues(m), 1)},
+        "volume_xyz_L": 1e3 * volume["x,y,z"]["volume_m3"],
+        **{k: v for k, v in xyz.items() if k.startswith(("x_home", "y_home", "z_home"))},
+        **{f"xyz_{why}_pct": xyz[f"{why}_pct"] for why in ("reach", "stroke", "singularity")},
+        "volume_angles_deg3": volume["psi,theta,phi"]["volume_deg3"],
+        **{k: v for k, v in angles.items() if "_home_" in k},
+        "volume_z_psi_theta_m_deg2": volume["z,psi,theta"]["volume_m_deg2"],
+    }
+
+
+def source_rps() -> dict:
+    """The 3-RPS (docs/designs/3rps.md): its parasitic motion at psi = theta = 10 deg [mm, deg]; at home its static leg
+    force [N] and motor torque [mN m] (through actuator_1's screw of ssp/MAST_3RPS.ssd), the force's parts (the
+    carriage's, the platform's, the rail's), the mass matrix' eigenvalues [kg], cond(drho/dq), margins and det; its
+    workspace on the default grid and (``quick_``) on `mast compare --quick`'s."""
+    from fmus.mechanism.description import load
+    from fmus.mechanism.engine import Engine
+    from mast.analyses.compare import WORKSPACE_GRID, WORKSPACE_GRID_QUICK
+    from mast.analyses.workspace import compute, machine, summarize
+    from mast.core.ssp import read_ssd
+
+    m = machine("3RPS")
+    eng = m.engine()
+    home = m.topology.home
+    x, y, _, _, _, phi = eng.pose((home[0], math.radians(10.0), math.radians(10.0)))
+    file = load("3RPS")
+    values = file.values()
+
+    def force(**zero: float) -> float:
+        engine = Engine(file.describe({**values, **zero}), g=values["g"])
+        return float(engine.inverse_dynamics_at_pose(home, [0.0] * 3, [0.0] * 3).t_rho[0])
+
+    F, no_carriage, platform = force(), force(m_carriage=0.0), force(m_carriage=0.0, m_cylinder=0.0)
+    actuator = read_ssd(ROOT / "ssp" / "MAST_3RPS.ssd").components["actuator_1"].parameters
+    margins = eng.margins(home)
+    out = {
+        "parasitic_phi_deg": math.degrees(phi),
+        "parasitic_y_mm": 1e3 * y,
+        "parasitic_x_mm": 1e3 * x,
+        "F_home": F,
+        "tau_home_mNm": 1e3 * F * float(actuator["p"]) / (2 * math.pi * float(actuator["i_r"])),
+        "F_carriage": F - no_carriage,
+        "F_platform": platform,
+        "F_rail": no_carriage - platform,
+        **{f"M_eig_{k}_kg": e for k, e in enumerate(home_mass_eigenvalues(m), 1)},
+        "cond": eng.jacobian(home)[2],
+        "parallel": margins.parallel,
+        "inverse": margins.inverse,
+    }
+    for prefix, grid in (("", WORKSPACE_GRID), ("quick_", WORKSPACE_GRID_QUICK)):
+        s = summarize(compute(m, *grid))
+        section = section_values(s)
+        out.update(
+            {
+                f"{prefix}volume_m_deg2": s["volume_m_deg2"],
+                **{f"{prefix}{k}": section[k] for k in section if k.startswith(("psi_", "theta_", "z_home"))},
+                f"{prefix}stroke_bound_pct": section["stroke_pct"],
+                **{
+                    f"{prefix}{k}": section[k]
+                    for k in ("singularity_home_m", "smallest_margin", "worst_dexterity", "largest_force_N")
+                },
+                f"{prefix}largest_force_theta_deg": s["static_forces"]["at"]["theta_deg"],
+            }
+        )
+        out.setdefault("det", s["home"]["det"])
+    return out
 
 
 def hexapod_run_values(summary: Mapping) -> dict:
@@ -1156,6 +1383,8 @@ SOURCES: dict[str, Callable[[], dict]] = {
     "workspace": source_workspace,
     "workspace_quick": lambda: source_workspace(quick=True),
     "hexapod": source_hexapod,
+    "hexapod_pus": source_hexapod_pus,
+    "rps": source_rps,
     "hexapod_run": source_hexapod_run,
     "diagnose_hexapod": source_diagnose_hexapod,
     "animate": source_animate,

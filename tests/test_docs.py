@@ -350,8 +350,12 @@ def test_marked_emps_replay_figures_agree():
 
 
 def test_marked_hexapod_figures_agree():
-    """docs/designs/6ups.md: the 6-UPS's margins and static forces at home, its workspaces on a coarse grid."""
-    problems = figures.check({"hexapod": figures.source_hexapod()})
+    """docs/designs/6ups.md: the 6-UPS's and 6-PUS's margins, static forces and mass matrices at home, their
+    workspaces on a coarse grid; docs/designs/3rps.md: the 3-RPS's parasitic motion, statics, mass matrix, margins
+    and workspaces."""
+    problems = figures.check(
+        {"hexapod": figures.source_hexapod(), "hexapod_pus": figures.source_hexapod_pus(), "rps": figures.source_rps()}
+    )
     assert not problems, "\n".join(problems)
 
 
@@ -372,6 +376,8 @@ def test_every_figure_source_is_checked_by_a_test():
         "emps",
         "emps_diagnose",  # tests/test_emps.py, on the diagnosis it runs
         "hexapod",
+        "hexapod_pus",
+        "rps",
         "hexapod_run",  # tests/test_hexapod_system.py, on the run it makes
         "diagnose_hexapod",  # tests/test_hexapod_diagnosis.py
         "animate",  # tests/test_animate.py

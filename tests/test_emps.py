@@ -173,16 +173,17 @@ def test_import_errors_name_the_file_and_the_variable(tmp_path, change, match):
     assert not (tmp_path / "out").exists()
 
 
-#: docs/measured-data.md's import errors: problem -> the .mat that makes it (_mat's variables changed)
+#: docs/measured-data.md's import errors: problem -> the .mats that make its messages (_mat's variables changed), one
+#: for each message the row quotes, in its order
 IRREGULAR = np.arange(200) * 1e-3
 IRREGULAR[12:] += 3e-4
 DOCUMENTED_IMPORT_ERRORS = {
-    "missing variable": {"qm": None},
-    "wrong shape": {"vir": np.ones((200, 2))},
-    "time not increasing": {"t": np.r_[np.arange(100), np.arange(99, 199)][:, None] * 1e-3},
-    "irregular sampling": {"t": IRREGULAR[:, None]},
-    "NaN or inf": {"vir": np.r_[np.zeros(50), np.nan, np.zeros(149)][:, None]},
-    "scale not a scalar": {"gtau": np.ones((2, 2))},
+    "missing variable": ({"qm": None},),
+    "wrong shape": ({"vir": np.ones((200, 2))}, {"qg": np.ones((150, 1))}),
+    "time not increasing": ({"t": np.r_[np.arange(100), np.arange(99, 199)][:, None] * 1e-3},),
+    "irregular sampling": ({"t": IRREGULAR[:, None]},),
+    "NaN or inf": ({"vir": np.r_[np.zeros(50), np.nan, np.zeros(149)][:, None]},),
+    "scale not a scalar": ({"gtau": np.ones((2, 2))},),
 }
 #: the table's rows checked elsewhere: problem -> where
 IMPORT_ERRORS_ELSEWHERE = {
@@ -196,12 +197,14 @@ def test_the_documented_import_errors_are_the_codes(tmp_path):
     rows = documented_messages("### Errors name the file and the variable")
     expected = set(DOCUMENTED_IMPORT_ERRORS) | set(IMPORT_ERRORS_ELSEWHERE)
     assert set(rows) == expected, set(rows) ^ expected
-    actual = {}
-    for k, (problem, change) in enumerate(DOCUMENTED_IMPORT_ERRORS.items()):
-        (tmp_path / f"{k}").mkdir()
-        with pytest.raises(LabFileError) as error:
-            import_file(_mat(tmp_path / f"{k}" / "bad.mat", **change), MAP, tmp_path / f"{k}" / "out")
-        actual[problem] = str(error.value)
+    actual: dict[str, list[str]] = {}
+    for k, (problem, changes) in enumerate(DOCUMENTED_IMPORT_ERRORS.items()):
+        for j, change in enumerate(changes):
+            folder = tmp_path / f"{k}_{j}"
+            folder.mkdir()
+            with pytest.raises(LabFileError) as error:
+                import_file(_mat(folder / "bad.mat", **change), MAP, folder / "out")
+            actual.setdefault(problem, []).append(str(error.value))
     problems = documented_mismatches(rows, actual)
     assert not problems, "docs/measured-data.md's import errors (update the page):\n" + "\n".join(problems)
 

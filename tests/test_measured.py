@@ -269,12 +269,13 @@ def test_synthesize_truth_out_is_a_folder_and_the_former_truth_file_is_refused(b
 
 def test_diagnose_refuses_torques_whose_unit_is_a_thousand_times_off_before_searching(built_ssp, tmp_path, capsys):
     """Torques in N.m declared as mN.m pass every plausibility bound of the loader; the nominal model's
-    torque (gravity, inertia, friction of the recorded motion) shows the factor 1000 at once."""
+    torque (gravity, inertia, friction of the recorded motion) shows the factor 1000 at once: the message
+    docs/measured-data.md's validation table quotes, whole, said by the command it names."""
     from mast.cli import main
 
     data = tmp_path / "data"
     assert (
-        main(["synthesize", built_ssp, "--out", str(data), "--tests", "z:0.005:4:0.3", "--direct", "--workers", "1"])
+        main(["synthesize", built_ssp, "--out", str(data), "--tests", "z:0.005:5:0.3", "--direct", "--workers", "1"])
         == 0
     )
     meta = json.loads((data / "meta.json").read_text())
@@ -283,7 +284,13 @@ def test_diagnose_refuses_torques_whose_unit_is_a_thousand_times_off_before_sear
     capsys.readouterr()
     assert main(["diagnose", built_ssp, "--measured", str(data), "--out", str(tmp_path / "d"), "--workers", "1"]) == 2
     err = capsys.readouterr().err
-    assert "z_4Hz.csv: column tau_m_1" in err and "units.tau_m (now 'mN.m')" in err and "0.001 times" in err
+    assert "z_5Hz.csv: column tau_m_1" in err and "units.tau_m (now 'mN.m')" in err and "0.001 times" in err
+    row = "torques in the wrong unit, inside the bounds"
+    said = documented_messages("### Validation: every problem names the file and the column")[row]
+    message = next(line for line in err.splitlines() if "z_5Hz.csv: column tau_m_1" in line)
+    message = message[message.index("z_5Hz.csv") :]
+    problems = documented_mismatches({row: said}, {row: ["mast diagnose", message]})
+    assert not problems, "docs/measured-data.md's validation table (update the page):\n" + "\n".join(problems)
 
 
 @pytest.mark.parametrize(
@@ -367,6 +374,18 @@ def _not_listed(tmp: Path) -> str:
     return _message(lambda: load(folder))
 
 
+def _listed_but_missing(tmp: Path) -> str:
+    folder = _write(tmp, {"a.csv": _table(), "z_9Hz.csv": _table()})
+    (folder / "z_9Hz.csv").unlink()
+    return _message(lambda: load(folder))
+
+
+def _commands_in_the_wrong_unit(tmp: Path) -> str:
+    """Commands in m declared as mm (the positions too): inside the stroke, but their swing is not the amplitude's."""
+    units = {"time": "s", "rho_cmd": "mm", "rho": "mm", "tau_m": "N.m"}
+    return _message(lambda: load(_write(tmp, {"z_5Hz.csv": _table()}, units=units)))
+
+
 def _broken_message(kind: str):
     def make(tmp: Path) -> str:
         tab, meta_over, units = _broken(kind)
@@ -375,26 +394,37 @@ def _broken_message(kind: str):
     return make
 
 
-#: docs/measured-data.md's validation table: problem -> the message the code gives for it on the tests' data
+#: docs/measured-data.md's validation table: problem -> the messages the code gives for it on the tests' data, one for
+#: each message the row quotes, in its order
 DOCUMENTED = {
-    "missing column": _broken_message("missing column"),
-    "NaN, empty cell, inf": _broken_message("nan"),
-    "text in a number field": _text_in_a_number_field,
-    "gap": _broken_message("gap"),
-    "irregular sampling": _broken_message("irregular"),
-    "not increasing": _broken_message("not increasing"),
-    "unknown unit": _broken_message("unknown unit"),
-    "wrong unit (implausible values)": _broken_message("rho in mm labelled m"),
-    "positions in the wrong length unit, inside the stroke": lambda tmp: _message(
-        lambda: load(_write(tmp, {"a.csv": _table()}, units={"time": "s", "rho_cmd": "m", "rho": "um", "tau_m": "N.m"}))
+    "missing column": (_broken_message("missing column"),),
+    "NaN, empty cell, inf": (_broken_message("nan"),),
+    "text in a number field": (_text_in_a_number_field,),
+    "gap": (_broken_message("gap"),),
+    "irregular sampling": (_broken_message("irregular"),),
+    "not increasing": (_broken_message("not increasing"),),
+    "unknown unit": (_broken_message("unknown unit"),),
+    "wrong unit (implausible values)": (
+        _broken_message("rho in mm labelled m"),
+        _broken_message("time in ms labelled s"),
     ),
-    "a meta.json value that is not a number": lambda tmp: _loaded_with(tmp, {"frequency": "2 Hz"}),
-    "CSV not listed, listed but missing": _not_listed,
-    "another number of drives than the system's actuators (`mast diagnose`)": lambda tmp: _loaded_with(tmp, drives=6),
-    "currents without k_T": _broken_message("current without k_T"),
-    "a test file outside the folder": lambda tmp: _loaded_with(tmp, {"file": "../other/x.csv"}),
+    "positions in the wrong length unit, inside the stroke": (
+        lambda tmp: _message(
+            lambda: load(
+                _write(tmp, {"a.csv": _table()}, units={"time": "s", "rho_cmd": "m", "rho": "um", "tau_m": "N.m"})
+            )
+        ),
+        _commands_in_the_wrong_unit,
+    ),
+    "a meta.json value that is not a number": (lambda tmp: _loaded_with(tmp, {"frequency": "2 Hz"}),),
+    "CSV not listed, listed but missing": (_not_listed, _listed_but_missing),
+    "another number of drives than the system's actuators (`mast diagnose`)": (
+        lambda tmp: _loaded_with(tmp, drives=6),
+    ),
+    "currents without k_T": (_broken_message("current without k_T"),),
+    "a test file outside the folder": (lambda tmp: _loaded_with(tmp, {"file": "../other/x.csv"}),),
 }
-#: rows whose message needs more than loading the data: problem -> the test that checks it
+#: rows whose message needs more than loading the data: problem -> the test that checks its quoted messages
 CHECKED_ELSEWHERE = {
     "torques in the wrong unit, inside the bounds": (
         "test_diagnose_refuses_torques_whose_unit_is_a_thousand_times_off_before_searching"
@@ -402,28 +432,46 @@ CHECKED_ELSEWHERE = {
 }
 
 
-def documented_messages(heading: str) -> dict[str, str]:
-    """The table under ``heading`` in docs/measured-data.md: problem -> its first example message (the first code
-    span of its last column)."""
+def documented_messages(heading: str) -> dict[str, list[str]]:
+    """The table under ``heading`` in docs/measured-data.md: problem -> every code span of its last column (the
+    messages it quotes, in their order)."""
     text = PAGE.read_text()
     table = text[text.index(heading) :]
     table = table[table.index("\n|") + 1 : table.index("\n\n", table.index("\n|"))]
     rows = {}
     for line in table.splitlines()[2:]:
         problem, message = line.strip("|").split(" | ", 1)
-        rows[problem.strip()] = re.search(r"`([^`]*)`", message)[1]
+        rows[problem.strip()] = re.findall(r"`([^`]*)`", message)
     return rows
 
 
-def documented_mismatches(documented: dict[str, str], actual: dict[str, str]) -> list[str]:
-    """The rows whose documented message is not the actual one (``...`` stands for any text, DIR for a folder; a
-    message may start with the file's folder)."""
+def documented_mismatches(documented: dict[str, list[str]], actual: dict[str, list[str]]) -> list[str]:
+    """The rows whose documented messages are not the actual ones, message by message: a row quotes as many as the
+    code gives, each the whole message (``...`` stands for any text, DIR for a folder; a message may start with the
+    file's folder)."""
     problems = []
-    for problem, message in actual.items():
-        pattern = re.escape(documented[problem]).replace(re.escape("..."), ".*").replace("DIR", ".+")
-        if not re.fullmatch(f"(?:.*/)?{pattern}", message, re.S):
-            problems.append(f"{problem}: the page says {documented[problem]!r}, the code {message!r}")
+    for problem, messages in actual.items():
+        quoted = documented[problem]
+        if len(quoted) != len(messages):
+            problems.append(
+                f"{problem}: the page quotes {len(quoted)} message(s) {quoted!r}, the code gives {messages!r}"
+            )
+            continue
+        for k, (said, message) in enumerate(zip(quoted, messages), 1):
+            pattern = re.escape(said).replace(re.escape("..."), ".*").replace("DIR", ".+")
+            if not re.fullmatch(f"(?:.*/)?{pattern}", message, re.S):
+                problems.append(f"{problem}: message {k}: the page says {said!r}, the code {message!r}")
     return problems
+
+
+def test_a_drifted_second_message_is_a_mismatch():
+    """Every quoted message of a row is compared, not only its first; a row that quotes fewer or more fails."""
+    page = {"p": ["a.csv: one ...", "b.csv: two ..."]}
+    assert documented_mismatches(page, {"p": ["a.csv: one x", "b.csv: two y"]}) == []
+    assert documented_mismatches(page, {"p": ["a.csv: one x", "b.csv: three y"]}) == [
+        "p: message 2: the page says 'b.csv: two ...', the code 'b.csv: three y'"
+    ]
+    assert documented_mismatches(page, {"p": ["a.csv: one x"]})
 
 
 def test_the_documented_messages_are_the_codes(tmp_path):
@@ -432,6 +480,9 @@ def test_the_documented_messages_are_the_codes(tmp_path):
     named in CHECKED_ELSEWHERE)."""
     rows = documented_messages("### Validation: every problem names the file and the column")
     assert set(rows) == set(DOCUMENTED) | set(CHECKED_ELSEWHERE), set(rows) ^ (set(DOCUMENTED) | set(CHECKED_ELSEWHERE))
-    actual = {problem: make(tmp_path / f"d{k}") for k, (problem, make) in enumerate(DOCUMENTED.items())}
+    actual = {
+        problem: [make(tmp_path / f"d{k}_{j}") for j, make in enumerate(makers)]
+        for k, (problem, makers) in enumerate(DOCUMENTED.items())
+    }
     problems = documented_mismatches(rows, actual)
     assert not problems, "docs/measured-data.md's validation table (update the page):\n" + "\n".join(problems)
