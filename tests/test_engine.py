@@ -268,7 +268,8 @@ def test_engines_are_shared_and_survive_deep_copies(mechanism_params):
 @pytest.mark.parametrize("sets", [(), ("geometry_3prs_inclined.ssv",), ("geometry_3prs_120.ssv",)])
 def test_forces_after_the_direct_kinematics_reuse_its_pose_bit_for_bit(mechanism_params, sets):
     """dk_kept + forces_kept (the mechanism block's hot path: the forces read the pose's geometry the direct
-    kinematics computed at q) give the very floats of dk + forces, which compute everything themselves."""
+    kinematics computed at q) give the very floats of dk + inertial (the forces, the pose, M and b), which compute
+    everything themselves; inertial's forces and pose are forces'."""
     from conftest import RESOURCES, read_values
 
     from fmus.mechanism.designs import engine
@@ -285,7 +286,9 @@ def test_forces_after_the_direct_kinematics_reuse_its_pose_bit_for_bit(mechanism
         (*plain,) = eng.dk(rho, q)
         q, J, cond, kept = eng.dk_kept(rho, q)
         assert [q, J, cond] == plain
-        assert eng.forces_kept(kept, q, J, rd, rdd) == eng.forces(q, J, rd, rdd)
+        full = eng.inertial(q, J, rd, rdd)
+        assert eng.forces_kept(kept, q, J, rd, rdd) == full
+        assert full[: eng.n + 6] == eng.forces(q, J, rd, rdd) and len(full) == eng.n + 6 + eng.n**2 + eng.n
 
 
 def test_engine_rejects_inconsistent_descriptions():

@@ -19,9 +19,10 @@ def test_default_ssd_is_schema_valid_and_complete():
     assert validate_ssd_schema(SSD) == []
     system = read_ssd(SSD)
     assert set(system.components) == {"controller", "actuator_1", "actuator_2", "actuator_3", "mechanism"}
-    # the 1 kHz exchange: every component at the position/velocity cycle (the current loop inside the actuators)
-    assert system.base_step == pytest.approx(1e-3)
-    assert all(c.step_size == pytest.approx(1e-3) for c in system.components.values())
+    # issue 27's exchange: every component at the current-loop cycle T_cur = 100 us (the controller's laws tick at
+    # T_pos = T_vel = 1 ms inside it, the mechanism's full update every T_mech = 1 ms: docs/interfaces.md "Timing")
+    assert system.base_step == pytest.approx(1e-4)
+    assert all(c.step_size == pytest.approx(1e-4) for c in system.components.values())
     assert system.system_inputs == ["z_cmd", "psi_cmd", "theta_cmd"]
     # every component input is fed by exactly one connection
     for name, comp in system.components.items():
@@ -68,7 +69,7 @@ def test_bindings_apply_in_order_later_overrides_earlier(tmp_path):
             ),
             "controler",
         ),
-        (lambda s: s.replace('<osp:StepSizeHint value="0.001"/>', '<osp:StepSizeHint value="-1"/>'), "StepSizeHint"),
+        (lambda s: s.replace('<osp:StepSizeHint value="0.0001"/>', '<osp:StepSizeHint value="-1"/>'), "StepSizeHint"),
         (lambda s: s.replace("resources/mass_3prs.ssv", "resources/missing.ssv"), "missing.ssv"),
         (lambda s: s[: len(s) // 2], "cannot read"),
     ],
