@@ -133,6 +133,12 @@ def test_model_error_names_component_and_time_and_keeps_partial_results():
     assert message.startswith("int: doStep at t=") and "state above 1e6" in message
     partial = info.value.result
     assert 0 < len(partial.time) < 101 and np.all(np.isfinite(partial["int.y"]))
+    # a process pool's worker hands the error back pickled: the message and the partial results survive
+    import pickle
+
+    back = pickle.loads(pickle.dumps(info.value))
+    assert type(back) is SimulationError and str(back) == message
+    assert np.array_equal(back.result.time, partial.time) and np.array_equal(back.result["int.y"], partial["int.y"])
 
 
 class NaNMaker(Block):

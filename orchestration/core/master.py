@@ -60,6 +60,10 @@ class SimulationError(RuntimeError):
         super().__init__(message)
         self.result = result
 
+    def __reduce__(self) -> tuple:
+        """Pickled with its message and result (a process pool's worker hands it back whole)."""
+        return type(self), (str(self), self.result)
+
 
 class Stimulus(Protocol):
     """Drives the system inputs (SSD system connectors)."""
