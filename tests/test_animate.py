@@ -18,7 +18,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 from docs_figures import figures
+from message_tables import documented_messages, documented_mismatches
 
+from fmus.mechanism import designs
+from fmus.mechanism.engine import Description
 from mast.analyses import animate
 from mast.cli import main as cli_main
 from mast.core.master import Result
@@ -237,6 +240,114 @@ def test_a_mechanism_without_geometry_is_refused_by_name(runs, tmp_path, capsys)
     del summary["system"]  # a run folder from before the record
     (folder / "summary.json").write_text(json.dumps(summary))
     assert "no 'system.parameters'" in refused(capsys, folder, tmp_path / "pages")
+
+
+def _summary(change):
+    """A change of a copied run folder's summary.json: ``change(summary)`` edits the parsed document."""
+
+    def make(folder: Path) -> Path:
+        summary = json.loads((folder / "summary.json").read_text())
+        change(summary)
+        (folder / "summary.json").write_text(json.dumps(summary))
+        return folder
+
+    return make
+
+
+def _results(change):
+    """A change of a copied run folder's results.csv: ``change(result)`` edits the signals."""
+
+    def make(folder: Path) -> Path:
+        result = Result.read_csv(folder / "results.csv")
+        change(result)
+        result.write_csv(folder / "results.csv")
+        return folder
+
+    return make
+
+
+def _write(name: str, text: str):
+    def make(folder: Path) -> Path:
+        (folder / name).write_text(text)
+        return folder
+
+    return make
+
+
+def _remove(name: str):
+    def make(folder: Path) -> Path:
+        (folder / name).unlink()
+        return folder
+
+    return make
+
+
+def _mechanism(name: str, value):
+    return _summary(lambda s: s["system"]["parameters"]["mechanism"].__setitem__(name, value))
+
+
+def _tilted(column: str):
+    """``column`` at 1.5 rad (86 deg, beyond the 3PRS's admissible 60 deg tilt) from the 5th sample on."""
+    return _results(lambda r: r.signals[column].__setitem__(slice(5, None), 1.5))
+
+
+class Unsketched(Description):
+    """A description written in Python that gives no drawing (``Description.sketch``'s default)."""
+
+    name = "unsketched"
+
+
+#: docs/animate.md's "Bad input" table: input -> how each of its quoted messages is made from a copy of a run folder
+BAD_INPUT = {
+    "a path that is not a folder": (lambda folder: folder / "nowhere",),
+    "a folder without `results.csv` or `summary.json`": (_remove("results.csv"), _remove("summary.json")),
+    "a `results.csv` that is not a run's table: text for a number, a header and no rows, times that do not increase": (
+        _write("results.csv", "time,mechanism.z\n0.0,x\n"),
+        _write("results.csv", "time,mechanism.z\n"),
+        _write("results.csv", "time,mechanism.z\n0.0,0.3\n0.0,0.3\n"),
+    ),
+    "a `summary.json` that is not a JSON object": (_write("summary.json", "{"), _write("summary.json", "[1]")),
+    "a run folder from before `system` was recorded": (_summary(lambda s: s.pop("system")),),
+    "a run without a mechanism component": (_summary(lambda s: s["system"]["parameters"].pop("mechanism")),),
+    "a design without geometry: the mechanism not attached (`actuators_only`, `attached` = 0)": (
+        _mechanism("attached", 0),
+    ),
+    "a geometry parameter missing, not a number, or out of its range": (
+        _summary(lambda s: s["system"]["parameters"]["mechanism"].pop("L")),
+        _mechanism("L", "long"),
+        _mechanism("L", -0.26),
+    ),
+    "a description without a drawing (a description written in Python whose `sketch` is empty)": (
+        _mechanism("kinematics", "unsketched"),
+    ),
+    "a pose column missing": (
+        _results(lambda r: r.signals.pop("mechanism.theta")),
+        _results(lambda r: r.signals.pop("theta_cmd")),
+    ),
+    "a pose the mechanism cannot assemble (a recorded tilt beyond the admissible 60 deg)": (
+        _tilted("mechanism.psi"),
+        _tilted("psi_cmd"),
+    ),
+}
+
+
+def test_the_documented_bad_input_messages_are_the_codes(runs, tmp_path, monkeypatch):
+    """Every row of docs/animate.md's "Bad input" table is made here, and the page quotes what the code says for it,
+    message by message (``...`` for any text, DIR for the folder)."""
+    monkeypatch.setitem(designs.KINEMATICS, "unsketched", lambda params, masses=True: Unsketched())
+    rows = documented_messages(ROOT / "docs" / "animate.md", "## Bad input")
+    assert set(rows) == set(BAD_INPUT), set(rows) ^ set(BAD_INPUT)
+    actual = {}
+    for k, (problem, makers) in enumerate(BAD_INPUT.items()):
+        actual[problem] = []
+        for j, make in enumerate(makers):
+            folder = tmp_path / f"{k}_{j}"
+            shutil.copytree(runs["3PRS_T"], folder)
+            with pytest.raises(animate.AnimateError) as error:
+                animate.replay(make(folder))
+            actual[problem].append(str(error.value))
+    problems = documented_mismatches(rows, actual)
+    assert not problems, "docs/animate.md's Bad input table (update the page):\n" + "\n".join(problems)
 
 
 def test_a_failed_write_leaves_the_old_page_and_no_temporary_file(runs, tmp_path, monkeypatch):

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 import scipy.io
 from docs_figures import figures
-from test_measured import documented_messages, documented_mismatches
+from message_tables import documented_messages, documented_mismatches
 
 from fmus.actuator.load_axis import LoadAxisBlock, load_friction
 from fmus.common.parameters import ParameterError
@@ -194,7 +194,7 @@ IMPORT_ERRORS_ELSEWHERE = {
 
 def test_the_documented_import_errors_are_the_codes(tmp_path):
     """Every example message of docs/measured-data.md's import errors is what `mast import` says for that problem."""
-    rows = documented_messages("### Errors name the file and the variable")
+    rows = documented_messages(REPO / "docs" / "measured-data.md", "### Errors name the file and the variable")
     expected = set(DOCUMENTED_IMPORT_ERRORS) | set(IMPORT_ERRORS_ELSEWHERE)
     assert set(rows) == expected, set(rows) ^ expected
     actual: dict[str, list[str]] = {}

@@ -6,11 +6,11 @@ from __future__ import annotations
 
 import json
 import math
-import re
 from pathlib import Path
 
 import numpy as np
 import pytest
+from message_tables import documented_messages, documented_mismatches
 
 from mast.data.measured import MeasuredDataError, load
 
@@ -286,7 +286,7 @@ def test_diagnose_refuses_torques_whose_unit_is_a_thousand_times_off_before_sear
     err = capsys.readouterr().err
     assert "z_5Hz.csv: column tau_m_1" in err and "units.tau_m (now 'mN.m')" in err and "0.001 times" in err
     row = "torques in the wrong unit, inside the bounds"
-    said = documented_messages("### Validation: every problem names the file and the column")[row]
+    said = documented_messages(PAGE, "### Validation: every problem names the file and the column")[row]
     message = next(line for line in err.splitlines() if "z_5Hz.csv: column tau_m_1" in line)
     message = message[message.index("z_5Hz.csv") :]
     problems = documented_mismatches({row: said}, {row: ["mast diagnose", message]})
@@ -432,53 +432,11 @@ CHECKED_ELSEWHERE = {
 }
 
 
-def documented_messages(heading: str) -> dict[str, list[str]]:
-    """The table under ``heading`` in docs/measured-data.md: problem -> every code span of its last column (the
-    messages it quotes, in their order)."""
-    text = PAGE.read_text()
-    table = text[text.index(heading) :]
-    table = table[table.index("\n|") + 1 : table.index("\n\n", table.index("\n|"))]
-    rows = {}
-    for line in table.splitlines()[2:]:
-        problem, message = line.strip("|").split(" | ", 1)
-        rows[problem.strip()] = re.findall(r"`([^`]*)`", message)
-    return rows
-
-
-def documented_mismatches(documented: dict[str, list[str]], actual: dict[str, list[str]]) -> list[str]:
-    """The rows whose documented messages are not the actual ones, message by message: a row quotes as many as the
-    code gives, each the whole message (``...`` stands for any text, DIR for a folder; a message may start with the
-    file's folder)."""
-    problems = []
-    for problem, messages in actual.items():
-        quoted = documented[problem]
-        if len(quoted) != len(messages):
-            problems.append(
-                f"{problem}: the page quotes {len(quoted)} message(s) {quoted!r}, the code gives {messages!r}"
-            )
-            continue
-        for k, (said, message) in enumerate(zip(quoted, messages), 1):
-            pattern = re.escape(said).replace(re.escape("..."), ".*").replace("DIR", ".+")
-            if not re.fullmatch(f"(?:.*/)?{pattern}", message, re.S):
-                problems.append(f"{problem}: message {k}: the page says {said!r}, the code {message!r}")
-    return problems
-
-
-def test_a_drifted_second_message_is_a_mismatch():
-    """Every quoted message of a row is compared, not only its first; a row that quotes fewer or more fails."""
-    page = {"p": ["a.csv: one ...", "b.csv: two ..."]}
-    assert documented_mismatches(page, {"p": ["a.csv: one x", "b.csv: two y"]}) == []
-    assert documented_mismatches(page, {"p": ["a.csv: one x", "b.csv: three y"]}) == [
-        "p: message 2: the page says 'b.csv: two ...', the code 'b.csv: three y'"
-    ]
-    assert documented_mismatches(page, {"p": ["a.csv: one x"]})
-
-
 def test_the_documented_messages_are_the_codes(tmp_path):
     """Every example message of docs/measured-data.md's validation table is what the code says for that problem
     (``...`` standing for the rest of the text, DIR for the folder), and every row is checked (here or by the test
     named in CHECKED_ELSEWHERE)."""
-    rows = documented_messages("### Validation: every problem names the file and the column")
+    rows = documented_messages(PAGE, "### Validation: every problem names the file and the column")
     assert set(rows) == set(DOCUMENTED) | set(CHECKED_ELSEWHERE), set(rows) ^ (set(DOCUMENTED) | set(CHECKED_ELSEWHERE))
     actual = {
         problem: [make(tmp_path / f"d{k}_{j}") for j, make in enumerate(makers)]

@@ -575,9 +575,9 @@ class DescriptionFile:
         self, params: Optional[Mapping[str, object]] = None, masses: bool = True, owner: str = ""
     ) -> dict[str, float]:
         """The parameters' values: the file's (``params`` None), or those of ``params``, which must hold every
-        parameter the description uses (ParameterError naming the first missing); ``masses=False``: those that are
-        not the geometry's (``kinematic``) are 0 (a kinematic model: massless bodies, no gravity), and need not be
-        in ``params``."""
+        parameter the description uses, as numbers (ParameterError naming the first missing or not a number);
+        ``masses=False``: those that are not the geometry's (``kinematic``) are 0 (a kinematic model: massless
+        bodies, no gravity), and need not be in ``params``."""
         out = {}
         for name, p in self.parameters.items():
             if not masses and name not in self.kinematic:
@@ -585,7 +585,13 @@ class DescriptionFile:
             elif params is None:
                 out[name] = p.value
             elif name in params:
-                out[name] = float(params[name])
+                try:
+                    out[name] = float(params[name])
+                except (TypeError, ValueError):
+                    raise ParameterError(
+                        f"{owner or self.path.name}: parameter {name!r} = {params[name]!r}: expected a number "
+                        f"[{p.unit}] ({self.name} description, {self.path.name})"
+                    ) from None
             elif name in self.traced:
                 raise ParameterError(
                     f"{owner or self.path.name}: missing parameter {name!r} [{p.unit}] of the "

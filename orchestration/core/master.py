@@ -116,7 +116,10 @@ class Result:
         """The signals of a CSV ``write_csv`` wrote (a header line ``time,NAME,...``, then one row per time)."""
         with open(path, encoding="utf-8") as handle:
             names = handle.readline().strip().split(",")
-        table = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+            rows = handle.read().splitlines()
+        table = np.loadtxt(rows, delimiter=",", ndmin=2) if rows else np.empty((0, len(names)))
+        if table.shape[1] != len(names):
+            raise ValueError(f"{table.shape[1]} columns of numbers under a header of {len(names)} names")
         return cls(table[:, 0].copy(), {n: table[:, j + 1].copy() for j, n in enumerate(names[1:])})
 
 
