@@ -431,6 +431,12 @@ DIAGNOSE_LAGS = {
     "heavier_delay_small": ({"tau_c": 0.04, "J1_scale": 1.2, "delay_meas": 0.0015}, 332, "SMALL"),
     "delay_plan_a": ({"tau_c": 0.045, "J1_scale": 0.8, "delay_meas": 0.0012}, 331, "A"),
 }
+#: backlash where fast z tests make the loop hunt (docs/diagnose.md "Backlash since the every-step reaction",
+#: tests/test_diagnose_backlash.py): case -> (the truth set on every actuator, the seed, the plan of DIAGNOSE_PLANS)
+DIAGNOSE_BACKLASH = {
+    "backlash_issue_fast": ({"backlash": 0.07}, 77, "issue_fast"),
+    "backlash_fast": ({"backlash": 0.05}, 75, "fast"),
+}
 #: a motor-side inertia change on one axis beside a viscous change on all (docs/diagnose.md "Whatever the default
 #: split", tests/test_diagnose_split.py): case -> (the truth per component, the seed, the plan of DIAGNOSE_PLANS)
 DIAGNOSE_PER_AXIS = {
@@ -596,6 +602,32 @@ FIGURES.update(
             )
             for case in ("backlash", "backlash_small")
             for what in ("", "_std", "_lo", "_hi")
+        },
+        # backlash where fast z tests hunt: its value, error [%] and 95 % interval, to the test's 5 % of the truth
+        **{
+            f"diagnose_{case}.backlash{what}": Figure(
+                f"diagnose_{case}",
+                (
+                    lambda w, t: (
+                        lambda v: (
+                            v["fitted"]["backlash"]
+                            if not w
+                            else 100 * (v["fitted"]["backlash"] / t - 1)
+                            if w == "_error_pct"
+                            else v["ci95"]["backlash"][w == "_hi"]
+                        )
+                    )
+                )(what, truth["backlash"]),
+                fmt,
+                tol,
+            )
+            for case, (truth, _, _) in DIAGNOSE_BACKLASH.items()
+            for what, fmt, tol in (
+                ("", "{:.4g}", 0.05 * truth["backlash"]),
+                ("_error_pct", "{:+.1f}", 5.0),
+                ("_lo", "{:.3g}", 0.05 * truth["backlash"]),
+                ("_hi", "{:.3g}", 0.05 * truth["backlash"]),
+            )
         },
         # the paper's case in full (docs/diagnose.md "The paper's case"): every test's NRMSE, the fitted values' std (to
         # the printed digit: a tenth of its last digit's unit moves the fit's covariance far more than floats do)
@@ -1087,7 +1119,8 @@ def source_diagnose_hexapod() -> dict:
 
 def source_diagnose(case: str) -> dict:
     """`mast diagnose` of DIAGNOSE_CASES[case] (on DIAGNOSE_PLAN, or DIAGNOSE_CASE_PLANS') or of the case of
-    DIAGNOSE_HEAVIER_LIGHTER, DIAGNOSE_LAGS, DIAGNOSE_PER_AXIS or DIAGNOSE_ONE_AXIS_AND_DRIVE (on its plan) hidden by
+    DIAGNOSE_HEAVIER_LIGHTER, DIAGNOSE_LAGS, DIAGNOSE_BACKLASH, DIAGNOSE_PER_AXIS or DIAGNOSE_ONE_AXIS_AND_DRIVE (on its
+    plan) hidden by
     `mast synthesize` (the Python models synthesize, the native variant re-simulates, as tests/test_diagnose.py runs
     it): its diagnose_values."""
     from mast.analyses.synthesize import TestSpec, synthesize
@@ -1099,6 +1132,7 @@ def source_diagnose(case: str) -> dict:
         else {
             **DIAGNOSE_HEAVIER_LIGHTER,
             **DIAGNOSE_LAGS,
+            **DIAGNOSE_BACKLASH,
             **DIAGNOSE_PER_AXIS,
             **{case: entry[:3] for case, entry in DIAGNOSE_ONE_AXIS_AND_DRIVE.items()},
         }[case]
@@ -1396,6 +1430,7 @@ SOURCES: dict[str, Callable[[], dict]] = {
             *DIAGNOSE_CASES,
             *DIAGNOSE_HEAVIER_LIGHTER,
             *DIAGNOSE_LAGS,
+            *DIAGNOSE_BACKLASH,
             *DIAGNOSE_PER_AXIS,
             *DIAGNOSE_ONE_AXIS_AND_DRIVE,
         )

@@ -387,6 +387,7 @@ def test_every_figure_source_is_checked_by_a_test():
         # tests/test_diagnose_unseen.py
         *(f"diagnose_{case}" for case in (*figures.DIAGNOSE_HEAVIER_LIGHTER, *figures.DIAGNOSE_ONE_AXIS_AND_DRIVE)),
         *(f"diagnose_{case}" for case in (*figures.DIAGNOSE_LAGS, *figures.DIAGNOSE_PER_AXIS)),  # test_diagnose_split
+        *(f"diagnose_{case}" for case in figures.DIAGNOSE_BACKLASH),  # tests/test_diagnose_backlash.py
     }
     assert set(figures.SOURCES) == checked, f"sources no test compares: {set(figures.SOURCES) - checked}"
 

@@ -2,18 +2,19 @@
 
 Run from the repository root after `make build` and `.venv/bin/mast build --native`:
     .venv/bin/python docs/figures/make_backlash_profile.py
-The issue's five-test plan (issue 18: z 0.7, 3.5, 6 Hz, psi 1.8 Hz, theta 4 Hz) with 3.5 mrad of backlash hidden
-(seed 71) is synthesized into a temporary folder; `mast diagnose` runs on it with the backlash scan replaced by 32
-values from 1.5 to 7.6 mrad and four realisations per value, and is stopped at the selection step, where every
-value's ensemble is at hand (about 650 test simulations, a few minutes on 2 cores). Drawn: the deviance on all
-tests with one and with four realisations per value, and pooled over the values within 2^(1/8) (two
-realisations each), as the diagnosis scores a value (phasefree.pooled).
+The issue's kind of plan with fast z tests (docs/figures.py DIAGNOSE_ISSUE_PLAN_FAST: z 0.7 Hz, psi 1.8 Hz, z 12 Hz
+6 mm, theta 4 Hz, z 16 Hz 4.5 mm; the fast z tests hunt) with 0.07 rad of backlash hidden (seed 77, the case of
+tests/test_diagnose_backlash.py) is synthesized into a temporary folder; `mast diagnose` runs on it with the backlash
+scan replaced by 32 values from 0.03 to 0.15 rad and four realisations per value, and is stopped at the selection
+step, where every value's ensemble is at hand (about 650 test simulations). Drawn: the deviance on all tests with one
+and with four realisations per value, and pooled over the values within 2^(1/8) (two realisations each), as the
+diagnosis scores a value (phasefree.pooled).
 """
 
 from __future__ import annotations
 
 import dataclasses
-import math
+import sys
 import tempfile
 from pathlib import Path
 
@@ -33,19 +34,20 @@ from mast.core.build import default_build_dir  # noqa: E402
 from mast.diagnosis import Options, diagnose  # noqa: E402
 from mast.diagnosis.phasefree import POOL_RATIO, pooled  # noqa: E402
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "tests"))
+from docs_figures import figures  # noqa: E402  (docs/figures.py: the plan and the case, loaded as the tests load it)
+
 OUT = Path(__file__).with_name("backlash_profile.png")
-PLAN = (
-    TestSpec("z", 0.004, 0.7, 1.2, 0.3),
-    TestSpec("psi", math.radians(0.7), 1.8, 0.9, 0.3),
-    TestSpec("z", 0.003, 3.5, 0.8, 0.2),
-    TestSpec("theta", math.radians(0.5), 4.0, 0.7, 0.2),
-    TestSpec("z", 0.0025, 6.0, 0.7, 0.2),
+PLAN = tuple(TestSpec(*test) for test in figures.DIAGNOSE_ISSUE_PLAN_FAST)
+(TRUTH,), SEED = (
+    figures.DIAGNOSE_BACKLASH["backlash_issue_fast"][0].values(),
+    figures.DIAGNOSE_BACKLASH["backlash_issue_fast"][1],
 )
-TRUTH, SEED, REALISATIONS = 3.5e-3, 71, 4
+REALISATIONS = 4
 #: a grid at 2^(1/6) over the basin's surroundings and one at 2^(1/16) across it (6 significant digits)
 VALUES = sorted(
-    {float(f"{1.5e-3 * 2 ** (k / 6):.6g}") for k in range(15)}
-    | {float(f"{2.6e-3 * 2 ** (k / 16):.6g}") for k in range(17)}
+    {float(f"{0.03 * 2 ** (k / 6):.6g}") for k in range(15)}
+    | {float(f"{0.052 * 2 ** (k / 16):.6g}") for k in range(17)}
 )
 
 
@@ -123,7 +125,7 @@ def main() -> None:
     ax.set_xlabel("backlash [mrad]")
     ax.set_ylabel("phase-free deviance, all five tests")
     ax.set_title(
-        f"Issue plan (z 0.7/3.5/6 Hz, psi 1.8 Hz, theta 4 Hz), truth {TRUTH * 1e3:g} mrad (dashed), seed {SEED}",
+        f"Issue plan, fast z (z 0.7/12/16 Hz, psi 1.8, theta 4 Hz), truth {TRUTH * 1e3:g} mrad (dashed), seed {SEED}",
         fontsize=8,
     )
     ax.legend(fontsize=7)
