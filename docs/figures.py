@@ -390,8 +390,8 @@ DIAGNOSE_PLAN_FAST = (
     ("z", 0.008, 10.0, 0.8, 0.2),
     ("z", 0.005, 15.0, 0.6, 0.2),
 )
-#: backlash on a plan of the issue's kind (tests/test_diagnose_backlash.py, docs/diagnose.md "Backlash on the issue's
-#: plan"): tests/test_diagnose.py ISSUE_PLAN (z, psi and theta; the fast z tests training) with its two fast z tests at
+#: backlash on a plan of the issue's kind (tests/test_diagnose_backlash.py, docs/diagnose.md "Backlash where the loop
+#: hunts"): tests/test_diagnose.py ISSUE_PLAN (z, psi and theta; the fast z tests training) with its two fast z tests at
 #: 12 Hz 6 mm and 16 Hz 4.5 mm instead of 3.5 Hz 3 mm and 6 Hz 2.5 mm: with the inertial reaction at every step (issue
 #: 27) a few mrad no longer make ISSUE_PLAN's loop hunt (0.05 rad: the nominal model at 1.07-1.34 x the noise floor),
 #: 0.07 rad makes these two hunt (1.7 and 1.9 x the noise)
@@ -431,7 +431,7 @@ DIAGNOSE_LAGS = {
     "heavier_delay_small": ({"tau_c": 0.04, "J1_scale": 1.2, "delay_meas": 0.0015}, 332, "SMALL"),
     "delay_plan_a": ({"tau_c": 0.045, "J1_scale": 0.8, "delay_meas": 0.0012}, 331, "A"),
 }
-#: backlash where fast z tests make the loop hunt (docs/diagnose.md "Backlash since the every-step reaction",
+#: backlash where fast z tests make the loop hunt (docs/diagnose.md "Backlash where the loop hunts",
 #: tests/test_diagnose_backlash.py): case -> (the truth set on every actuator, the seed, the plan of DIAGNOSE_PLANS)
 DIAGNOSE_BACKLASH = {
     "backlash_issue_fast": ({"backlash": 0.07}, 77, "issue_fast"),
