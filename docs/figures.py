@@ -345,6 +345,25 @@ FIGURES: dict[str, Figure] = {
             ("minute_MB", "{:.0f}", 0.5),
         ),
     ),
+    # docs/diagnose.md (branch auditC: the regions outside the backlash sections): the documented drive the tables
+    # compare with (ssp/MAST.ssd's controller, SI: the page's ms) and what the page reasons from (source_diagnose_model)
+    **{
+        f"ssd.controller.{name}": Figure(
+            "ssd", (lambda n, k: lambda v: v["controller"][n.removesuffix("_ms")] * k)(name, scale), "{:g}"
+        )
+        for name, scale in (("T_vel_ms", 1e3), ("T_pos_ms", 1e3), ("i_max", 1.0))
+    },
+    **_named(
+        "diagnose_model",
+        (
+            ("K_t", "{:.1f}", 0.0),
+            ("mode_Hz", "{:.0f}", 0.0),
+            ("mode_soft_Hz", "{:.0f}", 0.0),
+            ("holding_N", "{:.0f}", 0.0),
+            ("holding_kg", "{:.0f}", 0.0),
+            ("hexapod_effects", "{:d}", 0.0),
+        ),
+    ),
 }
 
 #: the 6-UPS system run of docs/designs/6ups.md: (axis, amplitude [m], frequency [Hz], stop time [s])
@@ -1403,6 +1422,41 @@ def source_hexapod_run() -> dict:
     return hexapod_run_values(summarize(result, stop, motion))
 
 
+#: docs/diagnose.md: the softer transmission [N m/rad] of tests/test_diagnose_unseen.py
+#: test_a_softer_transmission_is_named_as_itself
+DIAGNOSE_SOFT_K_T = 5.0
+
+
+def source_diagnose_model() -> dict:
+    """What docs/diagnose.md reasons from, from the parameter sets ssp/MAST.ssd binds (actuator_1, the controller):
+    the transmission's stiffness K_t [N m/rad] (paper Table 1) and its mode sqrt(K_t (J1 + J2) / (J1 J2)) [Hz] (paper
+    Eqs. 2-3) there and at DIAGNOSE_SOFT_K_T; the force along the guide [N] the drive holds at its current limit, k_T
+    i_max / i_R (friction aside), and the carriage mass [kg] whose weight that is (tests/test_diagnose_unseen.py
+    test_a_failed_trial_is_information_not_the_end: every trial that fails is heavier); the number of effects the
+    hexapod's diagnosis is offered (DIAGNOSE_HEXAPOD). No simulation."""
+    from fmus.actuator.model import transmission_ratio, two_inertia
+    from mast.core.ssp import read_ssd
+
+    system = read_ssd(ROOT / "ssp" / "MAST.ssd")
+    actuator = dict(system.components["actuator_1"].parameters)
+    K_t = float(actuator["K_t"])
+
+    def mode_Hz(stiffness: float) -> float:
+        J1, J2 = two_inertia(actuator)
+        return math.sqrt(stiffness * (J1 + J2) / (J1 * J2)) / (2 * math.pi)
+
+    i_R = transmission_ratio(float(actuator["p"]), float(actuator["i_r"]))
+    holding = float(actuator["k_T"]) * float(system.components["controller"].parameters["i_max"]) / i_R
+    return {
+        "K_t": K_t,
+        "mode_Hz": mode_Hz(K_t),
+        "mode_soft_Hz": mode_Hz(DIAGNOSE_SOFT_K_T),
+        "holding_N": holding,
+        "holding_kg": holding / float(actuator["g_guide"]),
+        "hexapod_effects": len(hexapod_library()),
+    }
+
+
 SOURCES: dict[str, Callable[[], dict]] = {
     "reproduce": source_reproduce,
     "ssd": source_ssd,
@@ -1435,6 +1489,7 @@ SOURCES: dict[str, Callable[[], dict]] = {
             *DIAGNOSE_ONE_AXIS_AND_DRIVE,
         )
     },
+    "diagnose_model": source_diagnose_model,
 }
 
 

@@ -388,6 +388,7 @@ def test_every_figure_source_is_checked_by_a_test():
         *(f"diagnose_{case}" for case in (*figures.DIAGNOSE_HEAVIER_LIGHTER, *figures.DIAGNOSE_ONE_AXIS_AND_DRIVE)),
         *(f"diagnose_{case}" for case in (*figures.DIAGNOSE_LAGS, *figures.DIAGNOSE_PER_AXIS)),  # test_diagnose_split
         *(f"diagnose_{case}" for case in figures.DIAGNOSE_BACKLASH),  # tests/test_diagnose_backlash.py
+        "diagnose_model",
     }
     assert set(figures.SOURCES) == checked, f"sources no test compares: {set(figures.SOURCES) - checked}"
 
@@ -397,6 +398,13 @@ def test_the_headline_figures_are_marked():
     text = (ROOT / "docs" / "reproduction.md").read_text()
     for key in ("reproduce.predictions_within", "reproduce.predictions", "reproduce.phase_10Hz_z"):
         assert f"<!-- figure {key} -->" in text, key
+
+
+def test_marked_diagnose_model_figures_agree():
+    """docs/diagnose.md: the documented drive its tables compare with (ssp/MAST.ssd's controller), the transmission's
+    stiffness and mode, the force and mass the drive holds at its current limit, the hexapod library's size."""
+    problems = figures.check({"ssd": figures.source_ssd(), "diagnose_model": figures.source_diagnose_model()})
+    assert not problems, "\n".join(problems)
 
 
 # -- timings ------------------------------------------------------------------------------------------------
