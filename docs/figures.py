@@ -1521,9 +1521,12 @@ def check(values: Mapping[str, dict], paths: list[Path] | None = None) -> list[s
             key, stated = match["key"], match["value"]
             figure = FIGURES.get(key)
             if figure is None:
+                prefix = key.split(".", 1)[0]
+                alike = sorted(k for k in FIGURES if k.split(".", 1)[0] == prefix)
                 problems.append(
-                    f"{where}:{line}: figure {key!r} is not in docs/figures.py FIGURES (known: "
-                    f"{', '.join(sorted(FIGURES))})"
+                    f"{where}:{line}: figure {key!r} is not in docs/figures.py FIGURES ("
+                    + (f"known of {prefix}: {', '.join(alike)}" if alike else f"known sources: {', '.join(SOURCES)}")
+                    + ")"
                 )
                 continue
             if figure.source not in values:
