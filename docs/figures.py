@@ -381,6 +381,9 @@ FIGURES: dict[str, Figure] = {
             ("trajectory_z", ("amplitude_z",), "{:g}", 1e3, "_mm"),
             ("trajectory_z", ("frequency",), "{:g}", 1.0, ""),
             ("attached", ("T_mech",), "{:g}", 1e3, "_ms"),
+            ("geometry_3prs_inclined", ("beta",), "{:.0f}", 180 / math.pi, "_deg"),
+            ("trajectory_6ups", ("amplitude_z",), "{:g}", 1e3, "_mm"),
+            ("trajectory_6ups", ("frequency",), "{:g}", 1.0, ""),
         )
         for name in names
     },
@@ -451,7 +454,8 @@ FIGURES: dict[str, Figure] = {
         ),
     ),
     # docs/batch.md, docs/controller.md: the cases the example configs expand to (`mast batch --dry-run`), the
-    # sine tests of `mast compare --controller` with every controller and the default test set: counts, exact
+    # sine tests of `mast compare --controller` with every controller and the default test set; docs/using-the-fmus.md:
+    # the signals `mast hosts` compares on MAST_standalone.ssp: counts, exact
     **_named(
         "examples",
         (
@@ -462,6 +466,7 @@ FIGURES: dict[str, Figure] = {
             ("monte_carlo_cases", "{:d}", 0.0),
             ("monte_carlo_study_cases", "{:d}", 0.0),
             ("controllers_full_tests", "{:d}", 0.0),
+            ("standalone_signals", "{:d}", 0.0),
         ),
     ),
 }
@@ -1602,11 +1607,14 @@ def source_examples(build: Path | None = None) -> dict:
     checkout's build/: `mast build` first): examples/friction_sweep.yaml's cases and frequency sweeps,
     examples/hexapod_sweep.toml's cases, examples/monte_carlo_bandwidth.toml's machines and cases and its script's
     (the nominal machine's sweep beside them); and the sine tests `mast compare --controller` runs with every
-    controller on the default test set, as designed and with the payload."""
+    controller on the default test set, as designed and with the payload; the signals MAST_standalone.ssp records by
+    default, which `mast hosts` compares."""
     from mast.analyses.compare import DEFAULT
     from mast.batch import BatchConfig, expand
     from mast.batch.cases import SystemInfo
     from mast.core.controllers import CONTROLLERS
+    from mast.core.run import default_signals
+    from mast.core.ssp import SSPArchive
 
     build = build or ROOT / "build"
 
@@ -1618,6 +1626,8 @@ def source_examples(build: Path | None = None) -> dict:
     friction, friction_cases = cases("friction_sweep.yaml")
     monte_carlo, monte_carlo_cases = cases("monte_carlo_bandwidth.toml")
     sweep = len(monte_carlo.cases["frequency"])
+    with SSPArchive(build / "ssp" / "MAST_standalone.ssp") as archive:
+        standalone = default_signals(archive.system)
     return {
         "friction_sweep_cases": len(friction_cases),
         "friction_sweep_groups": len(friction_cases) // len(friction.cases["frequency"]),
@@ -1626,6 +1636,7 @@ def source_examples(build: Path | None = None) -> dict:
         "monte_carlo_cases": len(monte_carlo_cases),
         "monte_carlo_study_cases": len(monte_carlo_cases) + sweep,
         "controllers_full_tests": 2 * len(CONTROLLERS) * len(DEFAULT.frequencies) * len(("z", "psi", "theta")),
+        "standalone_signals": len(standalone),
     }
 
 
