@@ -364,6 +364,130 @@ FIGURES: dict[str, Figure] = {
             ("hexapod_effects", "{:d}", 0.0),
         ),
     ),
+    # README.md, docs/actuator.md, controller.md, batch.md, interfaces.md, using-the-fmus.md, geometry.md (issue 30's
+    # last pass): the page's size in README's command table, to its printed digit
+    "animate.page_MB_rounded": Figure("animate", lambda v: v["page_MB"], "{:.1f}", 0.05),
+    # the parameter sets' values these pages restate (ssp/resources/<set>.ssv; scaled to the page's unit): the same
+    # number, no tolerance
+    **{
+        f"sets.{ssv}.{name}{suffix}": Figure("sets", (lambda s, n, k: lambda v: k * v[s][n])(ssv, name, scale), fmt)
+        for ssv, names, fmt, scale, suffix in (
+            (
+                "actuator_manufacturer",
+                (
+                    *("R", "L", "k_T", "k_E", "u_supply", "J_motor", "J_gearbox", "J_coupling", "J_brake", "J1_scale"),
+                    *("J_guide", "M_load", "K_t", "C_t", "tau_c", "omega_c", "b_v", "tau_s", "omega_s", "backlash"),
+                    *("tau_ripple", "T_meas", "delay_meas", "tau_offset", "g_guide", "n_dof"),
+                ),
+                "{:g}",
+                1.0,
+                "",
+            ),
+            ("actuator_manufacturer", ("ripple_period",), "{:.4g}", 1.0, ""),
+            ("actuator_manufacturer", ("tau_c",), "{:.3g}", 1.0, "_rounded"),
+            ("actuator_identified", ("J1_scale", "tau_c"), "{:g}", 1.0, ""),
+            ("actuator_paper_reading", ("M_load",), "{:g}", 1.0, ""),
+            ("transmission", ("i_r", "p"), "{:g}", 1.0, ""),
+            ("stroke_3prs", ("rho_0", "rho_min", "rho_max"), "{:g}", 1.0, ""),
+            ("drive", ("k_pc", "k_ic", "T_pos", "T_vel", "T_cur", "i_max", "u_max"), "{:g}", 1.0, ""),
+            ("drive", ("T_pos", "T_vel", "T_cur"), "{:g}", 1e3, "_ms"),
+            ("drive", ("T_cur",), "{:g}", 1e6, "_us"),
+            ("controller_joint", ("k_v", "k_p", "k_i"), "{:g}", 1.0, ""),
+            ("controller_computed_torque", ("zeta",), "{:g}", 1.0, ""),
+            ("controller_computed_torque", ("omega_n",), "{:g}", 1 / (2 * math.pi), "_Hz"),
+            ("geometry_3prs", ("H", "r", "L"), "{:g}", 1.0, ""),
+            ("mass_3prs", ("m_platform", "m_leg"), "{:g}", 1.0, ""),
+            ("trajectory_z", ("amplitude_z",), "{:g}", 1e3, "_mm"),
+            ("trajectory_z", ("frequency",), "{:g}", 1.0, ""),
+            ("attached", ("T_mech",), "{:g}", 1e3, "_ms"),
+            ("geometry_3prs_inclined", ("beta",), "{:.0f}", 180 / math.pi, "_deg"),
+            ("trajectory_6ups", ("amplitude_z",), "{:g}", 1e3, "_mm"),
+            ("trajectory_6ups", ("frequency",), "{:g}", 1.0, ""),
+        )
+        for name in names
+    },
+    # docs/actuator.md: what the actuator's relations give for its parameter sets (fmus.actuator.model): computed
+    # from the sets in closed form, to the printed digit
+    **_named(
+        "actuator",
+        (
+            ("i_R", "{:.3e}", 0.0),
+            ("J1", "{:.3e}", 0.0),
+            ("J1_identified", "{:.3e}", 0.0),
+            ("J2_guide", "{:.3e}", 0.0),
+            ("J2_carriage", "{:.3e}", 0.0),
+            ("J2", "{:.3e}", 0.0),
+            ("TF2_Hz", "{:.1f}", 0.0),
+            ("TF2_Hz_2", "{:.2f}", 0.0),
+            ("TF2_p66_Hz", "{:.0f}", 0.0),
+            ("TF1_Hz", "{:.1f}", 0.0),
+            ("TF1_Hz_rounded", "{:.0f}", 0.0),
+            ("TF1_identified_Hz", "{:.1f}", 0.0),
+            ("TF2d_Hz", "{:.1f}", 0.0),
+            ("TF2d_identified_Hz", "{:.1f}", 0.0),
+            ("J_for_table1_fn", "{:.3g}", 0.0),
+            ("J_for_table1_fn_pct", "{:.0f}", 0.0),
+            ("J_for_900Hz", "{:.3g}", 0.0),
+            ("reading_TF2_Hz", "{:.0f}", 0.0),
+            ("reading_TF1_Hz", "{:.0f}", 0.0),
+            ("reading_TF1_identified_Hz", "{:.0f}", 0.0),
+            ("R_over_L", "{:.0f}", 0.0),
+            ("zeta_TF1", "{:.1g}", 0.0),
+            ("phase_100us_rad", "{:.2f}", 0.0),
+            ("substeps_100us", "{:d}", 0.0),
+            ("substeps_1ms", "{:d}", 0.0),
+            ("substeps_46kHz_100us", "{:d}", 0.0),
+            ("backlash_substeps_100us", "{:d}", 0.0),
+            ("static_deflection_rad", "{:.2g}", 0.0),
+            ("static_deflection_um", "{:.2f}", 0.0),
+            ("friction_time_identified_us", "{:.0f}", 0.0),
+            ("friction_time_manufacturer_us", "{:.0f}", 0.0),
+            ("coupling_at_motor", "{:.3g}", 0.0),
+            ("coupling_J1_pct", "{:.0f}", 0.0),
+            ("coupling_J1_factor", "{:.2f}", 0.0),
+            ("eq23_guide_Nm", "{:.3f}", 0.0),
+            ("identified_over_eq23", "{:.1f}", 0.0),
+            ("gear_loss_Nm", "{:.4f}", 0.0),
+            ("eta_gear_pct", "{:.0f}", 0.0),
+            ("k_E_mV", "{:.2f}", 0.0),
+            ("k_T_mNm", "{:.1f}", 0.0),
+            ("k_T_k_E_pct", "{:.2f}", 0.0),
+            ("weight_torque_Nm", "{:.4f}", 0.0),
+            ("weight_over_tau_c_pct", "{:.0f}", 0.0),
+            ("creep_mm_s", "{:.2f}", 0.0),
+            ("creep_identified_mm_s", "{:.3f}", 0.0),
+            ("omega_c_carriage_mm_s", "{:.1g}", 0.0),
+            ("brake_J1_pct", "{:.0f}", 0.0),
+        ),
+    ),
+    # docs/geometry.md, docs/interfaces.md: the 3PRS's home pose from its description (fmus/mechanism/descriptions)
+    **_named(
+        "geometry",
+        (
+            ("z_home_m", "{:.6f}", 0.0),
+            ("z_home_m_3", "{:.3f}", 0.0),
+            ("leg_height_m", "{:.6f}", 0.0),
+            ("gamma_deg", "{:.2f}", 0.0),
+            ("gamma_deg_1", "{:.1f}", 0.0),
+            ("max_tilt_deg", "{:.0f}", 0.0),
+        ),
+    ),
+    # docs/batch.md, docs/controller.md: the cases the example configs expand to (`mast batch --dry-run`), the
+    # sine tests of `mast compare --controller` with every controller and the default test set; docs/using-the-fmus.md:
+    # the signals `mast hosts` compares on MAST_standalone.ssp: counts, exact
+    **_named(
+        "examples",
+        (
+            ("friction_sweep_cases", "{:d}", 0.0),
+            ("friction_sweep_groups", "{:d}", 0.0),
+            ("hexapod_sweep_cases", "{:d}", 0.0),
+            ("monte_carlo_machines", "{:d}", 0.0),
+            ("monte_carlo_cases", "{:d}", 0.0),
+            ("monte_carlo_study_cases", "{:d}", 0.0),
+            ("controllers_full_tests", "{:d}", 0.0),
+            ("standalone_signals", "{:d}", 0.0),
+        ),
+    ),
 }
 
 #: the 6-UPS system run of docs/designs/6ups.md: (axis, amplitude [m], frequency [Hz], stop time [s])
@@ -1457,6 +1581,153 @@ def source_diagnose_model() -> dict:
     }
 
 
+# -- README.md, docs/actuator.md, controller.md, batch.md, interfaces.md, using-the-fmus.md, geometry.md --------------
+def source_sets() -> dict:
+    """Every parameter set of ssp/resources: {set: {name: value}} (numbers only, SI as the sets state them)."""
+    from mast.core.ssv import parse_ssv
+
+    return {
+        path.stem: {name: v.value for name, v in parse_ssv(path).items() if isinstance(v.value, (int, float))}
+        for path in sorted((ROOT / "ssp" / "resources").glob("*.ssv"))
+    }
+
+
+def source_actuator() -> dict:
+    """docs/actuator.md's figures from the actuator's parameter sets (manufacturer: transmission.ssv,
+    actuator_manufacturer.ssv, stroke_3prs.ssv; identified: actuator_identified.ssv over it; the paper reading's
+    carriage: actuator_paper_reading.ssv's M_load) through ``fmus.actuator.model``: i_R [m/rad], J1, J2 [kg m^2],
+    the two-inertia model's natural frequencies [Hz], the inertia Table 1's f_n would need, the discretisation's
+    figures (electrical pole [1/s], phase of the fastest mode per 100 us step [rad], substeps), the static deflection
+    under the carriage's weight, the friction law's time constant [us], and the paper data's questionable points."""
+    from fmus.actuator.model import natural_frequencies, substep_rule, transmission_ratio, two_inertia
+
+    sets = source_sets()
+    p = {**sets["transmission"], **sets["actuator_manufacturer"], **sets["stroke_3prs"]}
+    ident = {**p, **sets["actuator_identified"]}
+    reading = {**p, "M_load": sets["actuator_paper_reading"]["M_load"]}
+    i_R = transmission_ratio(p["p"], p["i_r"])
+    J1, J2 = two_inertia(p)
+    f, f_ident = natural_frequencies(p), natural_frequencies(ident)
+    f_reading = natural_frequencies(reading)
+    f_reading_ident = natural_frequencies({**reading, "J1_scale": ident["J1_scale"]})
+    K_t, h = p["K_t"], 1e-4
+    omega_1 = 2 * math.pi * f["TF1"]
+    J_eff = J1 * J2 / (J1 + J2)
+    table1_fn = 986.5  # Hz, paper Table 1
+    J_fn = K_t / (2 * math.pi * table1_fn) ** 2
+    weight = i_R * p["M_load"] * p["g_guide"]
+    eq23 = 0.2 + 4.07e-2 * p["M_load"]  # paper Eq. 23 [N m at the guide shaft]
+    eta = sets["drive_ratings"]["eta_gear"]
+    raw_J1 = p["J_motor"] + p["J_gearbox"] + p["J_coupling"] + p["J_brake"]
+    J1_coupling_right = raw_J1 - p["J_coupling"] + p["J_coupling"] / p["i_r"] ** 2
+    return {
+        "i_R": i_R,
+        "J1": J1,
+        "J1_identified": two_inertia(ident)[0],
+        "J2_guide": p["J_guide"] / p["i_r"] ** 2,
+        "J2_carriage": p["M_load"] * i_R**2,
+        "J2": J2,
+        "TF2_Hz": f["TF2"],
+        "TF2_Hz_2": f["TF2"],
+        "TF2_p66_Hz": natural_frequencies({**p, "p": 0.066})["TF2"],
+        "TF1_Hz": f["TF1"],
+        "TF1_Hz_rounded": f["TF1"],
+        "TF1_identified_Hz": f_ident["TF1"],
+        "TF2d_Hz": f["TF2d"],
+        "TF2d_identified_Hz": f_ident["TF2d"],
+        "J_for_table1_fn": J_fn,
+        "J_for_table1_fn_pct": 100 * J_fn / J2,
+        "J_for_900Hz": K_t / (2 * math.pi * 900.0) ** 2,
+        "reading_TF2_Hz": f_reading["TF2"],
+        "reading_TF1_Hz": f_reading["TF1"],
+        "reading_TF1_identified_Hz": f_reading_ident["TF1"],
+        "R_over_L": p["R"] / p["L"],
+        "zeta_TF1": p["C_t"] / (2 * math.sqrt(K_t * J_eff)),
+        "phase_100us_rad": omega_1 * h,
+        "substeps_100us": substep_rule(omega_1, h, 0.0, 0.0, 1.0)[0],
+        "substeps_1ms": substep_rule(omega_1, 1e-3, 0.0, 0.0, 1.0)[0],
+        "substeps_46kHz_100us": substep_rule(2 * math.pi * 46e3, h, 0.0, 0.0, 1.0)[0],
+        "backlash_substeps_100us": substep_rule(omega_1, h, 1e-6, 0.0, 1.0)[0],
+        "static_deflection_rad": weight / K_t,
+        "static_deflection_um": 1e6 * i_R * weight / K_t,
+        "friction_time_identified_us": 1e6 * J2 * p["omega_c"] / ident["tau_c"],
+        "friction_time_manufacturer_us": 1e6 * J2 * p["omega_c"] / p["tau_c"],
+        "coupling_at_motor": p["J_coupling"] / p["i_r"] ** 2,
+        "coupling_J1_pct": 100 * (1 - J1_coupling_right / raw_J1),
+        "coupling_J1_factor": raw_J1 / J1_coupling_right,
+        "eq23_guide_Nm": eq23,
+        "identified_over_eq23": ident["tau_c"] / p["tau_c"],
+        "gear_loss_Nm": p["tau_c"] * (1 / eta - 1),
+        "eta_gear_pct": 100 * eta,
+        "k_E_mV": 1e3 * p["k_E"],
+        "k_T_mNm": 1e3 * p["k_T"],
+        "k_T_k_E_pct": 100 * (p["k_T"] / p["k_E"] - 1),
+        "weight_torque_Nm": weight,
+        "weight_over_tau_c_pct": 100 * weight / p["tau_c"],
+        "creep_mm_s": 1e3 * i_R * p["omega_c"] * math.atanh(weight / p["tau_c"]),
+        "creep_identified_mm_s": 1e3 * i_R * p["omega_c"] * math.atanh(weight / ident["tau_c"]),
+        "omega_c_carriage_mm_s": 1e3 * i_R * p["omega_c"],
+        "brake_J1_pct": 100 * p["J_brake"] / (raw_J1 - p["J_brake"]),
+    }
+
+
+def source_geometry() -> dict:
+    """The 3PRS's home pose (its description, 3PRS_T.toml): z [m], the legs' height above the sliders at mid-stroke
+    [m] and their elevation gamma [deg]; the largest tilt the kinematics admit (MAX_TILT) [deg]."""
+    from fmus.mechanism.kinematics import MAX_TILT
+    from mast.analyses.workspace import machine
+
+    m = machine("3PRS_T")
+    z, rho = m.topology.home[0], m.rho_home[0]
+    L = source_sets()["geometry_3prs"]["L"]
+    return {
+        "z_home_m": z,
+        "z_home_m_3": z,
+        "leg_height_m": z - rho,
+        "gamma_deg": math.degrees(math.asin((z - rho) / L)),
+        "gamma_deg_1": math.degrees(math.asin((z - rho) / L)),
+        "max_tilt_deg": math.degrees(MAX_TILT),
+    }
+
+
+def source_examples(build: Path | None = None) -> dict:
+    """The cases `mast batch --dry-run` lists for the example configs (their SSPs from ``build``, default the
+    checkout's build/: `mast build` first): examples/friction_sweep.yaml's cases and frequency sweeps,
+    examples/hexapod_sweep.toml's cases, examples/monte_carlo_bandwidth.toml's machines and cases and its script's
+    (the nominal machine's sweep beside them); and the sine tests `mast compare --controller` runs with every
+    controller on the default test set, as designed and with the payload; the signals MAST_standalone.ssp records by
+    default, which `mast hosts` compares."""
+    from mast.analyses.compare import DEFAULT
+    from mast.batch import BatchConfig, expand
+    from mast.batch.cases import SystemInfo
+    from mast.core.controllers import CONTROLLERS
+    from mast.core.run import default_signals
+    from mast.core.ssp import SSPArchive
+
+    build = build or ROOT / "build"
+
+    def cases(name: str) -> tuple[BatchConfig, list]:
+        config = BatchConfig.load(ROOT / "examples" / name)
+        systems = {v: SystemInfo.read(build / "ssp" / Path(path).name) for v, path in config.ssp.items()}
+        return config, expand(config, systems)
+
+    friction, friction_cases = cases("friction_sweep.yaml")
+    monte_carlo, monte_carlo_cases = cases("monte_carlo_bandwidth.toml")
+    sweep = len(monte_carlo.cases["frequency"])
+    with SSPArchive(build / "ssp" / "MAST_standalone.ssp") as archive:
+        standalone = default_signals(archive.system)
+    return {
+        "friction_sweep_cases": len(friction_cases),
+        "friction_sweep_groups": len(friction_cases) // len(friction.cases["frequency"]),
+        "hexapod_sweep_cases": len(cases("hexapod_sweep.toml")[1]),
+        "monte_carlo_machines": len(monte_carlo_cases) // sweep,
+        "monte_carlo_cases": len(monte_carlo_cases),
+        "monte_carlo_study_cases": len(monte_carlo_cases) + sweep,
+        "controllers_full_tests": 2 * len(CONTROLLERS) * len(DEFAULT.frequencies) * len(("z", "psi", "theta")),
+        "standalone_signals": len(standalone),
+    }
+
+
 SOURCES: dict[str, Callable[[], dict]] = {
     "reproduce": source_reproduce,
     "ssd": source_ssd,
@@ -1490,6 +1761,10 @@ SOURCES: dict[str, Callable[[], dict]] = {
         )
     },
     "diagnose_model": source_diagnose_model,
+    "sets": source_sets,
+    "actuator": source_actuator,
+    "geometry": source_geometry,
+    "examples": source_examples,
 }
 
 

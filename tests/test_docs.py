@@ -389,8 +389,27 @@ def test_every_figure_source_is_checked_by_a_test():
         *(f"diagnose_{case}" for case in (*figures.DIAGNOSE_LAGS, *figures.DIAGNOSE_PER_AXIS)),  # test_diagnose_split
         *(f"diagnose_{case}" for case in figures.DIAGNOSE_BACKLASH),  # tests/test_diagnose_backlash.py
         "diagnose_model",
+        "sets",
+        "actuator",
+        "geometry",
+        "examples",
     }
     assert set(figures.SOURCES) == checked, f"sources no test compares: {set(figures.SOURCES) - checked}"
+
+
+def test_marked_figures_of_the_parameter_sets_actuator_geometry_and_examples_agree(built_native):
+    """The parameter sets' values the pages restate (docs/actuator.md, controller.md, ...), what the actuator's
+    relations give for them (docs/actuator.md), the 3PRS's home pose (docs/geometry.md, interfaces.md), the cases
+    the example batch configs expand to and the controller comparison's sine tests (docs/batch.md, controller.md)."""
+    problems = figures.check(
+        {
+            "sets": figures.source_sets(),
+            "actuator": figures.source_actuator(),
+            "geometry": figures.source_geometry(),
+            "examples": figures.source_examples(built_native),
+        }
+    )
+    assert not problems, "\n".join(problems)
 
 
 def test_the_headline_figures_are_marked():
