@@ -387,6 +387,9 @@ def test_every_figure_source_is_checked_by_a_test():
         # tests/test_diagnose_unseen.py
         *(f"diagnose_{case}" for case in (*figures.DIAGNOSE_HEAVIER_LIGHTER, *figures.DIAGNOSE_ONE_AXIS_AND_DRIVE)),
         *(f"diagnose_{case}" for case in (*figures.DIAGNOSE_LAGS, *figures.DIAGNOSE_PER_AXIS)),  # test_diagnose_split
+        "design_pages",
+        "workspace_payload",
+        "native",
     }
     assert set(figures.SOURCES) == checked, f"sources no test compares: {set(figures.SOURCES) - checked}"
 
@@ -396,6 +399,22 @@ def test_the_headline_figures_are_marked():
     text = (ROOT / "docs" / "reproduction.md").read_text()
     for key in ("reproduce.predictions_within", "reproduce.predictions", "reproduce.phase_10Hz_z"):
         assert f"<!-- figure {key} -->" in text, key
+
+
+def test_marked_design_page_and_payload_workspace_figures_agree():
+    """docs/designs/*.md and docs/mechanism.md: the 3PRS designs at home, their forces' split on a 5 Hz sine, the 120°
+    layout's parasitic motion; docs/workspace.md: the T design's workspace with a 5 kg payload (default grid)."""
+    problems = figures.check(
+        {"design_pages": figures.source_design_pages(), "workspace_payload": figures.source_workspace_payload()}
+    )
+    assert not problems, "\n".join(problems)
+
+
+def test_marked_native_figures_agree(built_native):
+    """docs/native.md: the generated C of the native FMUs the tests built, the actuator's kernels, what the
+    parameters alone fix in the 3PRS's traced functions."""
+    problems = figures.check({"native": figures.source_native(built_native)})
+    assert not problems, "\n".join(problems)
 
 
 # -- timings ------------------------------------------------------------------------------------------------
