@@ -517,6 +517,7 @@ FIGURES: dict[str, Figure] = {
             *((f"{motion}_velocity_max_mN", "{:.1f}") for motion in ("z", "psi")),
         )
     },
+    "design_pages.compare_tests": Figure("design_pages", lambda v: v["compare_tests"], "{:d}"),
     "design_pages.3PRS_T.F_home_2_exact": Figure("design_pages", lambda v: v["3PRS_T"]["F_home_2"], "{:.4f}"),
     "design_pages.3PRS_120.parasitic_phi_deg": Figure(
         "design_pages", lambda v: v["3PRS_120"]["parasitic_phi_deg"], "{:.2f}"
@@ -1644,7 +1645,9 @@ def source_design_pages() -> dict:
     [N] and their sum, the mass matrix' eigenvalues [kg], cond(drho/dq), drho/dz of guide 1; the split of the forces
     into inertial, velocity and gravity terms [N] for the DOMINATES sines at 45 deg of the cycle (and the velocity
     terms' largest there [mN]); the 120 deg layout's parasitic motion at psi = theta = 10 deg [deg, mm]; the inclined
-    guides' gravity g_guide [m/s^2] its set binds; the actuators-only design's z above the mean carriage [m]."""
+    guides' gravity g_guide [m/s^2] its set binds; the actuators-only design's z above the mean carriage [m]; the sine
+    tests of docs/designs/README.md's full comparison of its four designs (``compare_tests``)."""
+    from mast.analyses.compare import DEFAULT, for_axes
     from mast.analyses.workspace import machine
     from mast.core.ssv import parse_ssv
 
@@ -1678,6 +1681,9 @@ def source_design_pages() -> dict:
     out["3PRS_inclined"]["g_guide"] = guide["g_guide"].value
     actuators_only = machine("actuators_only", 0.0)
     out["actuators_only"] = {"z_above_carriages_m": actuators_only.topology.home[0] - actuators_only.rho_home[0]}
+    # the full design comparison of docs/designs/README.md: its four designs, each motion of a 3PRS at each frequency
+    test_set = for_axes(DEFAULT, actuators_only.topology.names)
+    out["compare_tests"] = 4 * len(test_set.axes) * len(test_set.frequencies)
     return out
 
 
