@@ -561,6 +561,18 @@ FIGURES: dict[str, Figure] = {
             ("beyond_peak_pct", "{:.2f}", 0.0),
         ),
     ),
+    # `mast replay` of the diagnosed EMPS bench on the synthetic pulse record (docs/emps.md): relative errors [%], fit
+    # [%], to the printed digit (a closed loop of 24.84 s after a diagnosis: another machine's floats move far less);
+    # the import's warning: the step [N] and gain [N/V] it regresses, the edges it counts
+    **{
+        f"emps_pulses.{case}.{what}": Figure("emps_pulses", (lambda c, w: lambda v: v[c][w])(case, what), fmt, tol)
+        for case in ("applied", "before_injection", "not_applied", "nominal")
+        for what, fmt, tol in (("q_m", "{:.2g}", 5e-6), ("force", "{:.3g}", 0.005), ("force_fit", "{:.1f}", 0.05))
+    },
+    **{
+        f"emps_pulses.warning.{what}": Figure("emps_pulses", (lambda w: lambda v: v["warning"][w])(what), fmt, tol)
+        for what, fmt, tol in (("step_N", "{:.0f}", 0.5), ("gain_N_per_V", "{:.2f}", 0.005), ("edges", "{:d}", 0.0))
+    },
     # docs/native.md: the generated C of the native mechanisms [kB] and of the drive actuator [KiB], its step
     # kernels, what the parameters alone fix in the 3PRS's traced functions (the generator's output: exact)
     **_named(
@@ -1780,6 +1792,67 @@ def source_native(build: Path | None = None) -> dict:
     }
 
 
+def emps_pulses_values(diagnosed: Path, bench: Path, tmp: Path) -> dict:
+    """docs/emps.md "A record with injected inputs": the synthetic pulse record (examples/emps/pulse_record.py, the
+    truth simulated on ``bench``) imported as examples/emps/map_pulses.toml says (``applied``), with its effort
+    declared logged before the injection (``before_injection``: the import's warning's step [N], gain [N/V] and
+    edges too) and with the estimation record's map (``not_applied``: u_inj = 0), replayed with the ``diagnosed``
+    bench, and as imported replayed with the nominal ``bench``: {case: {q_m, force: relative error [%], force_fit}}."""
+    import importlib.util
+    import re
+
+    from mast.analyses.replay import replay
+    from mast.data.importer import import_file
+
+    spec = importlib.util.spec_from_file_location("pulse_record", ROOT / "examples" / "emps" / "pulse_record.py")
+    pulse_record = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(pulse_record)
+    record = tmp / "emps_pulses.mat"
+    pulse_record.make(EMPS_RECORD, record, bench)
+    maps = ROOT / "examples" / "emps"
+    before = tmp / "map_before_injection.toml"
+    text = (maps / "map_pulses.toml").read_text()
+    before.write_text(text.replace("sampled = true", 'sampled = true\ntap = "before_injection"', 1))
+    out: dict = {}
+    for case, mapping, ssp in (
+        ("applied", maps / "map_pulses.toml", diagnosed),
+        ("before_injection", before, diagnosed),
+        ("not_applied", maps / "map.toml", diagnosed),
+        ("nominal", maps / "map_pulses.toml", bench),
+    ):
+        summary = import_file(record, mapping, tmp / f"record_{case}")
+        if case == "before_injection":
+            found = re.search(r"steps by ([\d.]+) N \(([\d.]+) N/V\) at the (\d+) edges", " ".join(summary["warnings"]))
+            out["warning"] = {"step_N": float(found[1]), "gain_N_per_V": float(found[2]), "edges": int(found[3])}
+        signals = replay(ssp, tmp / f"record_{case}", tmp / f"replay_{case}", figures=False)["signals"]
+        out[case] = {
+            "q_m": signals["q_m"]["relative_error_pct"],
+            "force": signals["force"]["relative_error_pct"],
+            "force_fit": signals["force"]["fit_pct"],
+        }
+    return out
+
+
+def source_emps_pulses() -> dict:
+    """`mast diagnose` of the EMPS record on the bench (built into a temporary folder), then its diagnosed bench on
+    the synthetic pulse record: emps_pulses_values (tests/test_emps.py checks them on the diagnosis it runs); about
+    a minute and a half."""
+    from mast.core.build import FMUS, SSP_SRC, build_fmu, build_ssp
+    from mast.data.importer import import_file
+    from mast.diagnosis import Options, diagnose
+
+    with tempfile.TemporaryDirectory(prefix="mast_figures_") as tmp:
+        tmp = Path(tmp)
+        for spec in FMUS:
+            if spec.model_identifier in ("MastLoadAxis", "MastEmpsController"):
+                build_fmu(spec, tmp / "fmus")
+        bench = build_ssp(SSP_SRC / "EMPS_bench.ssd", tmp / "fmus", tmp / "ssp")
+        import_file(EMPS_RECORD, ROOT / "examples" / "emps" / "map.toml", tmp / "record")
+        diagnose(Options(tmp / "record", tmp / "out", str(bench), figures=False), log=lambda *_: None)
+        (tmp / "pulses").mkdir()
+        return emps_pulses_values(tmp / "out" / "EMPS_bench_diagnosed.ssp", bench, tmp / "pulses")
+
+
 SOURCES: dict[str, Callable[[], dict]] = {
     "reproduce": source_reproduce,
     "ssd": source_ssd,
@@ -1815,6 +1888,7 @@ SOURCES: dict[str, Callable[[], dict]] = {
     "design_pages": source_design_pages,
     "workspace_payload": source_workspace_payload,
     "native": source_native,
+    "emps_pulses": source_emps_pulses,
 }
 
 
