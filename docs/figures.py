@@ -586,6 +586,7 @@ FIGURES: dict[str, Figure] = {
             ("invariants_ikjac", "{:d}", 0.0),
             ("invariants_dynamics", "{:d}", 0.0),
             ("invariants_pose", "{:d}", 0.0),
+            *((f"chain_top_kHz_{n}", "{:.1f}", 0.0) for n in (4, 6, 8)),
         ),
     ),
 }
@@ -1756,9 +1757,9 @@ def source_workspace_payload() -> dict:
 
 def source_native(build: Path | None = None) -> dict:
     """docs/native.md's counts and sizes of the generated C, from the native FMUs of ``build`` (default: the checkout's
-    build/, `mast build --native` first): per mechanism the generated C [kB]; the drive actuator's generated C and
-    its linux64 binary [KiB], its step kernels in all and for n_dof = 2 and 1; and the assignments of the 3PRS's
-    traced ikjac, dynamics and pose that the parameters alone fix (translate.split_invariants)."""
+    build/, `mast build --native` first): per mechanism the generated C [kB]; the drive actuator's generated C [KiB]
+    and its step kernels in all and for n_dof = 2 and 1; the assignments of the 3PRS's traced ikjac, dynamics and pose
+    that the parameters alone fix (translate.split_invariants); the chains' top modes of why N_MAX = 8 [kHz]."""
     import re
     import zipfile
 
@@ -1789,7 +1790,21 @@ def source_native(build: Path | None = None) -> dict:
         "invariants_ikjac": hoisted["ikjac"],
         "invariants_dynamics": hoisted["forces"],
         "invariants_pose": hoisted["pose"],
+        # why N_MAX = 8: the top mode [kHz] of the paper's transmission (actuator_1 of ssp/MAST.ssd: its J2 and K_t)
+        # split evenly over n - 1 bodies and springs behind the motor's J1
+        **{f"chain_top_kHz_{n}": chain_top_mode_Hz(n) / 1e3 for n in (4, 6, 8)},
     }
+
+
+def chain_top_mode_Hz(n: int) -> float:
+    """The highest natural frequency [Hz] of an n-body chain: the motor side J1 of actuator_1 in ssp/MAST.ssd, then
+    its guide side J2 split into n - 1 equal bodies joined by n - 1 equal springs of stiffness (n - 1) K_t."""
+    from fmus.actuator.model import chain_frequencies, two_inertia
+    from mast.core.ssp import read_ssd
+
+    params = read_ssd(ROOT / "ssp" / "MAST.ssd").components["actuator_1"].parameters
+    J1, J2 = two_inertia(params)
+    return float(chain_frequencies([J1] + [J2 / (n - 1)] * (n - 1), [float(params["K_t"]) * (n - 1)] * (n - 1)).max())
 
 
 def emps_pulses_values(diagnosed: Path, bench: Path, tmp: Path) -> dict:
