@@ -561,6 +561,13 @@ FIGURES: dict[str, Figure] = {
             ("beyond_peak_pct", "{:.2f}", 0.0),
         ),
     ),
+    # `mast diagnose` of the EMPS record (docs/emps.md): the localisation's correlation and constant share, what the
+    # first re-simulated step lowers the cost by (tests/test_emps.py on its diagnosis, as the other emps_diagnose)
+    "emps_diagnose.sign_velocity_correlation": Figure(
+        "emps_diagnose", lambda v: v["sign_velocity_correlation"], "{:+.2f}", 0.005
+    ),
+    "emps_diagnose.bias_share_pct": Figure("emps_diagnose", lambda v: v["bias_share_pct"], "{:.1f}", 0.05),
+    "emps_diagnose.first_step_cost_pct": Figure("emps_diagnose", lambda v: v["first_step_cost_pct"], "{:.1f}", 0.05),
     # `mast replay` of the diagnosed EMPS bench on the synthetic pulse record (docs/emps.md): relative errors [%], fit
     # [%], to the printed digit (a closed loop of 24.84 s after a diagnosis: another machine's floats move far less);
     # the import's warning: the step [N] and gain [N/V] it regresses, the edges it counts
@@ -1194,6 +1201,11 @@ def emps_diagnose_values(doc: Mapping, record) -> dict:
         "residual_over_noise": doc["verdict"]["residual_over_noise_held_out"]["emps.force"],
         "noise_floor_N": doc["noise_floor"]["effort_std"],
         "simulations": doc["timing"]["simulations"],
+        # the localisation before: the force residual's correlation with sign(velocity), its constant part's share [%];
+        # the first re-simulated Gauss-Newton step from the regression's estimate: how much it lowers the cost [%]
+        "sign_velocity_correlation": doc["localise"]["before"]["emps.force"]["correlation"]["sign(velocity)"],
+        "bias_share_pct": 100 * doc["localise"]["before"]["emps.force"]["bias_share"],
+        "first_step_cost_pct": 100 * (1 - steps[0]["fit"]["rss_history"][-1] / steps[0]["fit"]["rss_history"][0]),
     }
     for model, gap in gaps.items():
         for part in ("training", "held-out", "whole"):
