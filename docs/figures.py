@@ -454,6 +454,21 @@ FIGURES: dict[str, Figure] = {
             ),
             *((f"paper_db3_from_{f}Hz", _forensic(f"paper_db3_from_{f}Hz"), "{:.1f}", 0.0) for f in (5, 10)),
             *((n, _forensic(n), "{:.0f}", 0.0) for n in ("m_actuator_kg", "m_actuator_manufacturer_kg")),
+            # the mass the reading removes from each carriage [kg] and its share of each set's reflected inertia [%]
+            ("reading_removes_kg", lambda v: _forensic("M_eq22_kg")(v) - _forensic("M_star_kg")(v), "{:.2f}", 0.0),
+            *(
+                (
+                    f"reading_share_{name}_pct",
+                    (
+                        lambda key: (
+                            lambda v: 100 * (_forensic("M_eq22_kg")(v) - _forensic("M_star_kg")(v)) / _forensic(key)(v)
+                        )
+                    )(mass),
+                    "{:.0f}",
+                    0.0,
+                )
+                for name, mass in (("manufacturer", "m_actuator_manufacturer_kg"), ("identified", "m_actuator_kg"))
+            ),
             *((f"m_mechanism_{k}_kg", _forensic(f"m_mechanism_{k}_kg"), "{:.2f}", 0.0) for k in (1, 2, 3)),
             *(
                 (f"mass_{label}kg_{what}_Hz", _forensic(f"mass_{extra}_{what}_Hz"), "{:.2f}", 0.005)
