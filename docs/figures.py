@@ -56,6 +56,36 @@ def _magnitude_pct(motion: str) -> Callable[[Mapping], float]:
     return lambda values: 100 * values["rows"][f"position_magnitude/{motion}/10Hz"]["ours"]
 
 
+def _forensic(name: str) -> Callable[[Mapping], float]:
+    return lambda values: values["summary"]["forensics"][name]
+
+
+#: the motions of `mast reproduce`'s rows
+MOTIONS = ("z", "psi", "theta")
+
+
+def _below_band(values: Mapping, motion: str) -> float:
+    """How far the 10 Hz position magnitude of ``motion`` lies below its band's lower end (its ratio)."""
+    row = values["rows"][f"position_magnitude/{motion}/10Hz"]
+    return row["tolerance_band"][0] - row["ours"]
+
+
+def _above_band(values: Mapping, motion: str) -> float:
+    """How far the 10 Hz position phase of ``motion`` lies above its band's upper end [deg]."""
+    row = values["rows"][f"position_phase/{motion}/10Hz"]
+    return row["ours"] - row["tolerance_band"][1]
+
+
+def _peaks(variant: str, motions: tuple, end: str) -> Callable[[Mapping], float]:
+    """The smallest (``end`` "lo") or largest ("hi") peak current command [A] of the 10 Hz tests of ``motions``."""
+    pick = min if end == "lo" else max
+    return lambda values: pick(
+        t["i_peak_A"]
+        for t in values["summary"]["limits"]
+        if t["variant"] == variant and t["motion"] in motions and t["frequency_Hz"] == 10.0
+    )
+
+
 def _named(source: str, rows: tuple[tuple[str, str, float], ...]) -> dict[str, Figure]:
     """``source.<name>`` for each (name, fmt, tolerance) of ``rows``: the value ``name`` of the source's flat dict."""
     return {f"{source}.{name}": Figure(source, (lambda n: lambda v: v[n])(name), fmt, tol) for name, fmt, tol in rows}
@@ -486,6 +516,242 @@ FIGURES: dict[str, Figure] = {
             ("monte_carlo_study_cases", "{:d}", 0.0),
             ("controllers_full_tests", "{:d}", 0.0),
             ("standalone_signals", "{:d}", 0.0),
+        ),
+    ),
+    # -- docs/reproduction.md, docs/mechanism.md, docs/workspace.md, docs/designs/*.md, docs/native.md (auditB) --
+    # docs/reproduction.md beyond its headline: rows of `mast reproduce` (a closed loop: each to its printed digit,
+    # far above what another machine's floats move), the forensic numbers of its report (the summary's "forensics")
+    # and the largest current commands of its time-domain tests (the summary's "limits")
+    **{
+        f"reproduce.{name}": Figure("reproduce", pick, fmt, tol)
+        for name, pick, fmt, tol in (
+            *(
+                (f"fit_z_{f.replace('.', '_')}Hz_{what}", pick, fmt, 0.05)
+                for f in ("0.4", "5")
+                for what, pick, fmt in (
+                    (
+                        "magnitude_pct",
+                        (lambda fr: lambda v: 100 * _row(f"position_magnitude/z/{fr}Hz")(v))(f),
+                        "{:.1f}",
+                    ),
+                    ("phase_deg", _row(f"position_phase/z/{f}Hz"), "{:.1f}"),
+                )
+            ),
+            *((f"bandwidth_{m}_Hz", _row(f"bandwidth/{m}"), "{:.2f}", 0.005) for m in ("z", "psi", "theta", "z_alone")),
+            (
+                "bandwidth_z_below_paper_pct",
+                lambda v: 100 * (1 - _row("bandwidth/z")(v) / v["rows"]["bandwidth/z"]["paper"]),
+                "{:.0f}",
+                0.5,
+            ),
+            ("alike_below_2Hz_pct", lambda v: 100 * _row("alike_below_2hz")(v), "{:.2f}", 0.005),
+            ("torque_difference_0_4Hz_Nm", _row("torque/difference_0.4Hz"), "{:.3f}", 0.0005),
+            ("torque_error_0_4Hz_pct", lambda v: 100 * _row("torque/error_0.4Hz")(v), "{:.0f}", 0.5),
+            ("torque_square_0_4Hz", _row("torque/square_0.4Hz"), "{:.2f}", 0.005),
+            ("torque_excess_10Hz_Nm", _row("torque/excess_10Hz"), "{:.3f}", 0.0005),
+            (
+                "torque_excess_10Hz_off_pct",
+                lambda v: 100 * (_row("torque/excess_10Hz")(v) / v["rows"]["torque/excess_10Hz"]["paper"] - 1),
+                "{:.1f}",
+                0.05,
+            ),
+            # the 10 Hz rows against their bands: how far each lies outside
+            ("magnitude_10Hz_z_below_band_pp", lambda v: 100 * _below_band(v, "z"), "{:.2f}", 0.005),
+            ("magnitude_10Hz_below_band_min", lambda v: min(_below_band(v, m) for m in MOTIONS), "{:.4f}", 5e-5),
+            ("magnitude_10Hz_below_band_max", lambda v: max(_below_band(v, m) for m in MOTIONS), "{:.4f}", 5e-5),
+            ("phase_10Hz_above_band_min_deg", lambda v: min(_above_band(v, m) for m in MOTIONS), "{:.1f}", 0.05),
+            ("phase_10Hz_above_band_max_deg", lambda v: max(_above_band(v, m) for m in MOTIONS), "{:.1f}", 0.05),
+            (
+                "phase_z_5_to_10Hz_deg",
+                lambda v: _row("position_phase/z/5Hz")(v) - _row("position_phase/z/10Hz")(v),
+                "{:.0f}",
+                0.5,
+            ),
+            # forensics: the resonances against the paper's (arithmetic of the parameters: no tolerance)
+            *(
+                (f"{name}{suffix}_Hz", _forensic(f"{name}{suffix}_Hz"), "{:.0f}", 0.0)
+                for name in ("tf2", "fn")
+                for suffix in ("", "_eq22")
+            ),
+            *(
+                (
+                    f"{name}{suffix}_vs_paper_pct",
+                    (lambda key, r: lambda v: 100 * (_forensic(key)(v) / v["rows"][r]["paper"] - 1))(
+                        f"{name}{suffix}_Hz", row
+                    ),
+                    "{:+.1f}",
+                    0.0,
+                )
+                for name, row in (("tf2", "tf2_resonance"), ("fn", "fn_table1"))
+                for suffix in ("", "_eq22")
+            ),
+            *((f"{n}", _forensic(n), "{:.2f}", 0.005) for n in ("db3_z_Hz", "db3_z_alone_Hz", "paper_phase_45_Hz")),
+            *(
+                (
+                    f"{n}_off_pct",
+                    (lambda key, r: lambda v: 100 * (_forensic(key)(v) / v["rows"][r]["paper"] - 1))(n, row),
+                    "{:.0f}",
+                    0.5,
+                )
+                for n, row in (("db3_z_Hz", "bandwidth/z"), ("db3_z_alone_Hz", "bandwidth/z_alone"))
+            ),
+            *((f"paper_db3_from_{f}Hz", _forensic(f"paper_db3_from_{f}Hz"), "{:.1f}", 0.0) for f in (5, 10)),
+            *((n, _forensic(n), "{:.0f}", 0.0) for n in ("m_actuator_kg", "m_actuator_manufacturer_kg")),
+            # the mass the reading removes from each carriage [kg] and its share of each set's reflected inertia [%]
+            ("reading_removes_kg", lambda v: _forensic("M_eq22_kg")(v) - _forensic("M_star_kg")(v), "{:.2f}", 0.0),
+            *(
+                (
+                    f"reading_share_{name}_pct",
+                    (
+                        lambda key: (
+                            lambda v: 100 * (_forensic("M_eq22_kg")(v) - _forensic("M_star_kg")(v)) / _forensic(key)(v)
+                        )
+                    )(mass),
+                    "{:.0f}",
+                    0.0,
+                )
+                for name, mass in (("manufacturer", "m_actuator_manufacturer_kg"), ("identified", "m_actuator_kg"))
+            ),
+            *((f"m_mechanism_{k}_kg", _forensic(f"m_mechanism_{k}_kg"), "{:.2f}", 0.0) for k in (1, 2, 3)),
+            *(
+                (f"mass_{label}kg_{what}_Hz", _forensic(f"mass_{extra}_{what}_Hz"), "{:.2f}", 0.005)
+                for extra, label in (("2.27", "2_27"), ("6", "6"))
+                for what in ("phase_45", "db3")
+            ),
+            *(
+                (f"tau_c_{n}_mNm", (lambda which: lambda v: 1e3 * _forensic(f"tau_c_{which}_Nm")(v))(n), "{:.1f}", 0.0)
+                for n in ("manufacturer", "identified")
+            ),
+            (
+                "tau_c_difference_mNm",
+                lambda v: 1e3 * (_forensic("tau_c_identified_Nm")(v) - _forensic("tau_c_manufacturer_Nm")(v)),
+                "{:.1f}",
+                0.0,
+            ),
+            ("peak_difference_Nm", _forensic("peak_difference_Nm"), "{:.3f}", 0.0005),
+            (
+                "peak_difference_off_pct",
+                lambda v: (
+                    100 * (1 - _forensic("peak_difference_Nm")(v) / v["rows"]["torque/difference_0.4Hz"]["paper"])
+                ),
+                "{:.0f}",
+                0.5,
+            ),
+            ("peak_error_pct", lambda v: 100 * _forensic("peak_error")(v), "{:.0f}", 0.5),
+            *((f"lowpass_{T}ms_Nm", _forensic(f"lowpass_{T}ms_Nm"), "{:.3f}", 0.0005) for T in (2, 5, 10)),
+            *((f"gain_{g}", _forensic(g), "{:.4g}", 0.0) for g in ("k_v", "k_p", "k_i")),
+            (
+                "fit_evaluations",
+                lambda v: int(re.search(r"over (\d+) evaluations", v["summary"]["forensics"]["fit"])[1]),
+                "{:d}",
+                0.0,
+            ),
+            # the largest current command of the 10 Hz tests [A]: the manufacturer set's tilts, the identified set's
+            *(
+                (f"i_peak_10Hz_{variant}_{end}_A", _peaks(label, motions, end), "{:.1f}", 0.05)
+                for variant, label, motions in (
+                    ("manufacturer_tilts", "Sim. Manufac.", ("psi", "theta")),
+                    ("identified", "Sim. Ident.", MOTIONS),
+                )
+                for end in ("lo", "hi")
+            ),
+        )
+    },
+    # the 3PRS designs at home, their forces' split on a 5 Hz sine, the 120 deg layout's parasitic motion, the
+    # inclined guides' gravity, the actuators-only pose (docs/designs/*.md, docs/mechanism.md): no simulation, the
+    # same floats on every machine to far below the printed digit
+    **{
+        f"design_pages.{d}.{what}": Figure("design_pages", (lambda de, w: lambda v: v[de][w])(d, what), fmt)
+        for d in ("3PRS_T", "3PRS_120", "3PRS_inclined")
+        for what, fmt in (
+            ("z_home_m", "{:.6f}"),
+            *((f"F_home_{k}", "{:.3f}") for k in (1, 2, 3)),
+            ("F_home_sum", "{:.4f}"),
+            *((f"M_eig_{k}_kg", "{:.2f}") for k in (1, 2, 3)),
+            ("cond", "{:.1f}"),
+            ("drho_dz", "{:.3f}"),
+            *((f"z_{part}_{k}", "{:.2f}") for part in ("F", "inertial", "gravity") for k in (1, 2, 3)),
+            *((f"psi_inertial_{k}", "{:.2f}") for k in (1, 2, 3)),
+            *((f"{motion}_velocity_max_mN", "{:.1f}") for motion in ("z", "psi")),
+        )
+    },
+    "design_pages.compare_tests": Figure("design_pages", lambda v: v["compare_tests"], "{:d}"),
+    "design_pages.3PRS_T.F_home_2_exact": Figure("design_pages", lambda v: v["3PRS_T"]["F_home_2"], "{:.4f}"),
+    "design_pages.3PRS_120.parasitic_phi_deg": Figure(
+        "design_pages", lambda v: v["3PRS_120"]["parasitic_phi_deg"], "{:.2f}"
+    ),
+    "design_pages.3PRS_120.parasitic_y_mm": Figure("design_pages", lambda v: v["3PRS_120"]["parasitic_y_mm"], "{:.1f}"),
+    "design_pages.3PRS_inclined.g_guide": Figure("design_pages", lambda v: v["3PRS_inclined"]["g_guide"], "{:.3f}"),
+    "design_pages.actuators_only.z_above_carriages_m": Figure(
+        "design_pages", lambda v: v["actuators_only"]["z_above_carriages_m"], "{:.6f}"
+    ),
+    # the designs' workspaces on the default grid beyond the figures above (docs/workspace.md, docs/designs/*.md): a
+    # height or a range through home may move by a grid node (5 mm, 1 deg) between machines, a boundary share by a face
+    # or two, a count of heights by one
+    **{
+        f"workspace.{d}.{what}": Figure("workspace", (lambda de, w: lambda v: v[de][w])(d, what), fmt, tol)
+        for d in ("3PRS_T", "3PRS_120", "3PRS_inclined")
+        for what, fmt, tol in (
+            ("z_home_lo_m", "{:.3f}", 0.005),
+            ("z_home_hi_m", "{:.3f}", 0.005),
+            *((f"{cause}_pct", "{:.1f}", 0.2) for cause in ("stroke", "singularity", "branch")),
+            *((f"square_{X}_{end}_m", "{:.3f}", 0.005) for X in (10, 15, 20) for end in ("lo", "hi")),
+            *((f"square_{X}_levels", "{:d}", 1.0) for X in (10, 15, 20)),
+            ("smallest_margin_z_m", "{:.2f}", 0.005),
+            ("smallest_margin_psi_deg", "{:.0f}", 1.0),
+            ("singular_z_m", "{:.2f}", 0.005),
+            ("singular_psi_deg", "{:.0f}", 1.0),
+            ("singular_theta_deg", "{:.0f}", 1.0),
+        )
+    },
+    # `mast workspace 3PRS_T --payload 5` (docs/workspace.md): forces [N], where the largest is, torques [N m]
+    **_named(
+        "workspace_payload",
+        (
+            ("F_home_1", "{:.1f}", 0.0),
+            ("largest_N", "{:.0f}", 0.0),
+            ("at_z_m", "{:.2f}", 0.005),
+            ("at_psi_deg", "{:.0f}", 1.0),
+            ("at_theta_deg", "{:.0f}", 1.0),
+            ("torque_Nm", "{:.3f}", 0.0),
+            ("peak_Nm", "{:.3f}", 0.0),
+            ("torque_over_peak", "{:.2f}", 0.0),
+            ("beyond_peak_pct", "{:.2f}", 0.0),
+        ),
+    ),
+    # `mast diagnose` of the EMPS record (docs/emps.md): the localisation's correlation and constant share, what the
+    # first re-simulated step lowers the cost by (tests/test_emps.py on its diagnosis, as the other emps_diagnose)
+    "emps_diagnose.sign_velocity_correlation": Figure(
+        "emps_diagnose", lambda v: v["sign_velocity_correlation"], "{:+.2f}", 0.005
+    ),
+    "emps_diagnose.bias_share_pct": Figure("emps_diagnose", lambda v: v["bias_share_pct"], "{:.1f}", 0.05),
+    "emps_diagnose.first_step_cost_pct": Figure("emps_diagnose", lambda v: v["first_step_cost_pct"], "{:.1f}", 0.05),
+    # `mast replay` of the diagnosed EMPS bench on the synthetic pulse record (docs/emps.md): relative errors [%], fit
+    # [%], to the printed digit (a closed loop of 24.84 s after a diagnosis: another machine's floats move far less);
+    # the import's warning: the step [N] and gain [N/V] it regresses, the edges it counts
+    **{
+        f"emps_pulses.{case}.{what}": Figure("emps_pulses", (lambda c, w: lambda v: v[c][w])(case, what), fmt, tol)
+        for case in ("applied", "before_injection", "not_applied", "nominal")
+        for what, fmt, tol in (("q_m", "{:.2g}", 5e-6), ("force", "{:.3g}", 0.005), ("force_fit", "{:.1f}", 0.05))
+    },
+    **{
+        f"emps_pulses.warning.{what}": Figure("emps_pulses", (lambda w: lambda v: v["warning"][w])(what), fmt, tol)
+        for what, fmt, tol in (("step_N", "{:.0f}", 0.5), ("gain_N_per_V", "{:.2f}", 0.005), ("edges", "{:d}", 0.0))
+    },
+    # docs/native.md: the generated C of the native mechanisms [kB] and of the drive actuator [KiB], its step
+    # kernels, what the parameters alone fix in the 3PRS's traced functions (the generator's output: exact)
+    **_named(
+        "native",
+        (
+            *((f"c_kB_{name}", "{:.0f}", 0.0) for name in ("3PRS", "3RPS", "6PUS", "6UPS")),
+            ("actuator_c_KiB", "{:.0f}", 0.0),
+            ("kernels", "{:d}", 0.0),
+            ("kernels_n2", "{:d}", 0.0),
+            ("kernels_n1", "{:d}", 0.0),
+            ("invariants_ikjac", "{:d}", 0.0),
+            ("invariants_dynamics", "{:d}", 0.0),
+            ("invariants_pose", "{:d}", 0.0),
+            *((f"chain_top_kHz_{n}", "{:.1f}", 0.0) for n in (4, 6, 8)),
         ),
     ),
 }
@@ -1125,6 +1391,11 @@ def emps_diagnose_values(doc: Mapping, record) -> dict:
         "residual_over_noise": doc["verdict"]["residual_over_noise_held_out"]["emps.force"],
         "noise_floor_N": doc["noise_floor"]["effort_std"],
         "simulations": doc["timing"]["simulations"],
+        # the localisation before: the force residual's correlation with sign(velocity), its constant part's share [%];
+        # the first re-simulated Gauss-Newton step from the regression's estimate: how much it lowers the cost [%]
+        "sign_velocity_correlation": doc["localise"]["before"]["emps.force"]["correlation"]["sign(velocity)"],
+        "bias_share_pct": 100 * doc["localise"]["before"]["emps.force"]["bias_share"],
+        "first_step_cost_pct": 100 * (1 - steps[0]["fit"]["rss_history"][-1] / steps[0]["fit"]["rss_history"][0]),
     }
     for model, gap in gaps.items():
         for part in ("training", "held-out", "whole"):
@@ -1318,7 +1589,8 @@ def source_workspace(quick: bool = False) -> dict:
 
     out = {}
     for name in ("3PRS_T", "3PRS_120", "3PRS_inclined"):
-        s = summarize(compute(machine(name), *(WORKSPACE_GRID_QUICK if quick else WORKSPACE_GRID)))
+        ws = compute(machine(name), *(WORKSPACE_GRID_QUICK if quick else WORKSPACE_GRID))
+        s = summarize(ws)
         through_home = s["ranges_through_home"]
         out[name] = {
             "volume_m_deg2": s["volume_m_deg2"],
@@ -1331,6 +1603,7 @@ def source_workspace(quick: bool = False) -> dict:
             "margin_home": min(s["home"]["margin_parallel"], s["home"]["margin_inverse"]),
             "singularity_home_m": s["distance_to_singularity_at_home_m"],
             "largest_force_N": s["static_forces"]["largest_N"],
+            **workspace_details(ws, s),
         }
     return out
 
@@ -1728,6 +2001,259 @@ def source_examples(build: Path | None = None) -> dict:
     }
 
 
+# -- docs/mechanism.md, docs/workspace.md, docs/designs/*.md, docs/native.md (auditB) ----------------------------------
+#: the 3PRS designs the design pages state figures of
+DESIGN_NAMES = ("3PRS_T", "3PRS_120", "3PRS_inclined")
+#: docs/designs: the sines of "what dominates": motion -> amplitude [m, rad], at DOMINATES_HZ, split at 45 deg of the
+#: cycle
+DOMINATES = {"z": 0.005, "psi": math.radians(0.8)}
+DOMINATES_HZ = 5.0
+#: docs/workspace.md: the squares of combined tilts (|psi|, |theta| <= X deg) whose heights the pages state
+SQUARES_DEG = (10, 15, 20)
+#: docs/workspace.md: the payload [kg] on the T design's platform, default grid
+WORKSPACE_PAYLOAD_KG = 5.0
+#: docs/native.md: the native mechanisms whose generated C the page sizes (FMU -> name on the page)
+NATIVE_MECHANISMS = {"MastMechanism": "3PRS", "Mast3RPS": "3RPS", "Mast6PUS": "6PUS", "Mast6UPS": "6UPS"}
+
+
+def sine_joints(eng, home, axis: int, amplitude: float, frequency: float, phase: float, h: float = 1e-4) -> tuple:
+    """(q, rho_dot, rho_ddot) of the pose ``home`` + ``amplitude`` sin(2 pi f t) along coordinate ``axis`` at
+    ``phase`` [rad]: rho_dot = drho/dq q_dot, rho_ddot by central second differences of the inverse kinematics over
+    ``h`` [s] (an error of order h^2, far below the printed digits)."""
+    w = 2 * math.pi * frequency
+    t = phase / w
+
+    def q_at(time: float) -> list[float]:
+        q = list(home)
+        q[axis] += amplitude * math.sin(w * time)
+        return q
+
+    q = q_at(t)
+    n = len(q)
+    A = eng.jacobian(q)[0]
+    q_dot = [0.0] * n
+    q_dot[axis] = amplitude * w * math.cos(w * t)
+    rho_dot = [sum(A[i * n + j] * q_dot[j] for j in range(n)) for i in range(n)]
+    before, now, after = (eng.ik(q_at(t + k * h)) for k in (-1, 0, 1))
+    rho_ddot = [(a - 2 * b + c) / h**2 for a, b, c in zip(after, now, before)]
+    return q, rho_dot, rho_ddot
+
+
+def source_design_pages() -> dict:
+    """The 3PRS designs' pages (docs/designs/*.md, docs/mechanism.md): per design at home its pose z [m], static forces
+    [N] and their sum, the mass matrix' eigenvalues [kg], cond(drho/dq), drho/dz of guide 1; the split of the forces
+    into inertial, velocity and gravity terms [N] for the DOMINATES sines at 45 deg of the cycle (and the velocity
+    terms' largest there [mN]); the 120 deg layout's parasitic motion at psi = theta = 10 deg [deg, mm]; the inclined
+    guides' gravity g_guide [m/s^2] its set binds; the actuators-only design's z above the mean carriage [m]; the sine
+    tests of docs/designs/README.md's full comparison of its four designs (``compare_tests``)."""
+    from mast.analyses.compare import DEFAULT, for_axes
+    from mast.analyses.workspace import machine
+    from mast.core.ssv import parse_ssv
+
+    out: dict = {}
+    for name in DESIGN_NAMES:
+        m = machine(name, 0.0)
+        eng = m.engine()
+        home = list(m.topology.home)
+        idp = eng.inverse_dynamics_at_pose(home, [0.0] * 3, [0.0] * 3)
+        A, _, cond = eng.jacobian(home)
+        d = {
+            "z_home_m": home[0],
+            **{f"F_home_{k}": float(f) for k, f in enumerate(idp.t_rho, 1)},
+            "F_home_sum": float(sum(idp.t_rho)),
+            **{f"M_eig_{k}_kg": e for k, e in enumerate(home_mass_eigenvalues(m), 1)},
+            "cond": cond,
+            "drho_dz": A[0],
+        }
+        for motion, amplitude in DOMINATES.items():
+            axis = m.topology.names.index(motion)
+            res = eng.inverse_dynamics_at_pose(*sine_joints(eng, home, axis, amplitude, DOMINATES_HZ, math.pi / 4))
+            for part, values in (("F", res.t_rho), ("inertial", res.I_term), ("velocity", res.c_term)):
+                d.update({f"{motion}_{part}_{k}": float(v) for k, v in enumerate(values, 1)})
+            d.update({f"{motion}_gravity_{k}": float(v) for k, v in enumerate(res.g_term, 1)})
+            d[f"{motion}_velocity_max_mN"] = 1e3 * max(abs(float(c)) for c in res.c_term)
+        out[name] = d
+    eng120 = machine("3PRS_120", 0.0).engine()
+    _, y, _, _, _, phi = eng120.pose((out["3PRS_120"]["z_home_m"], math.radians(10.0), math.radians(10.0)))
+    out["3PRS_120"].update({"parasitic_phi_deg": math.degrees(phi), "parasitic_y_mm": 1e3 * y})
+    guide = parse_ssv(ROOT / "ssp" / "resources" / "guide_inclined.ssv")
+    out["3PRS_inclined"]["g_guide"] = guide["g_guide"].value
+    actuators_only = machine("actuators_only", 0.0)
+    out["actuators_only"] = {"z_above_carriages_m": actuators_only.topology.home[0] - actuators_only.rho_home[0]}
+    # the full design comparison of docs/designs/README.md: its four designs, each motion of a 3PRS at each frequency
+    test_set = for_axes(DEFAULT, actuators_only.topology.names)
+    out["compare_tests"] = 4 * len(test_set.axes) * len(test_set.frequencies)
+    return out
+
+
+def workspace_details(ws, summary: Mapping) -> dict:
+    """A 3PRS workspace's figures beyond ``source_workspace``'s: z through home [m], the share of its boundary each
+    cause stops [%], where its smallest margin and its nearest sampled singular pose lie [m, deg], and per square of
+    SQUARES_DEG the heights at which every pose of the square is inside (``square_<X>_lo_m``, ``_hi_m``: NaN where
+    none) and their number (``square_<X>_levels``)."""
+    import numpy as np
+
+    from mast.analyses.workspace import INSIDE
+
+    z, psi, theta = (np.asarray(a) for a in ws.axes)
+    out: dict = {}
+    for X in SQUARES_DEG:
+        tilts = np.radians(X) + 1e-9
+        inside = ws.status[:, np.abs(psi) <= tilts][:, :, np.abs(theta) <= tilts] == INSIDE
+        levels = z[inside.all(axis=(1, 2))]
+        out[f"square_{X}_levels"] = len(levels)
+        out[f"square_{X}_lo_m"], out[f"square_{X}_hi_m"] = (
+            (float(levels.min()), float(levels.max())) if len(levels) else (math.nan, math.nan)
+        )
+    shares = summary["limited_by"]
+    at_margin = summary["smallest_margin"]["at"]
+    at_singular = summary["smallest_distance_to_singularity_m"]["at"]
+    return {
+        **out,
+        "z_home_lo_m": summary["ranges_through_home"]["z_m"][0],
+        "z_home_hi_m": summary["ranges_through_home"]["z_m"][1],
+        "stroke_pct": 100 * shares.get("outside the stroke", 0.0),
+        "singularity_pct": 100 * shares.get("within the margin of a singularity", 0.0),
+        "branch_pct": 100 * shares.get("on the other assembly branch", 0.0),
+        "smallest_margin_z_m": at_margin["z_m"],
+        "smallest_margin_psi_deg": at_margin["psi_deg"],
+        **({f"singular_{k}": v for k, v in at_singular.items()} if at_singular else {}),
+    }
+
+
+def source_workspace_payload() -> dict:
+    """`mast workspace 3PRS_T --payload WORKSPACE_PAYLOAD_KG` on the default grid: the static force of legs 1 and 3 at
+    home, the largest inside and where [N, m, deg], the motor torque that holds it and the drives' peak [N m], their
+    ratio and the share of the poses beyond the peak [%]; about 10 s."""
+    from mast.analyses.compare import WORKSPACE_GRID
+    from mast.analyses.workspace import compute, machine, summarize
+
+    forces = summarize(compute(machine("3PRS_T", WORKSPACE_PAYLOAD_KG), *WORKSPACE_GRID))["static_forces"]
+    return {
+        "F_home_1": forces["home_N"][0],
+        "F_home_3": forces["home_N"][2],
+        "largest_N": forces["largest_N"],
+        **{f"at_{k}": v for k, v in forces["at"].items()},
+        "torque_Nm": forces["largest_motor_torque_Nm"],
+        "peak_Nm": forces["motor_peak_torque_Nm"],
+        "torque_over_peak": forces["largest_torque_fraction_of_peak"],
+        "beyond_peak_pct": 100 * forces["fraction_of_poses_beyond_peak_torque"],
+    }
+
+
+def source_native(build: Path | None = None) -> dict:
+    """docs/native.md's counts and sizes of the generated C, from the native FMUs of ``build`` (default: the checkout's
+    build/, `mast build --native` first): per mechanism the generated C [kB]; the drive actuator's generated C [KiB]
+    and its step kernels in all and for n_dof = 2 and 1; the assignments of the 3PRS's traced ikjac, dynamics and pose
+    that the parameters alone fix (translate.split_invariants); the chains' top modes of why N_MAX = 8 [kHz]."""
+    import re
+    import zipfile
+
+    from fmus.mechanism.designs import traced_engine
+    from mast.core.build import default_parameters
+    from mast.core.native.translate import split_invariants
+
+    fmus = (build or ROOT / "build") / "fmus" / "native"
+
+    def size(fmu: str, member: str) -> int:
+        with zipfile.ZipFile(fmus / f"{fmu}.fmu") as z:
+            return z.getinfo(member).file_size
+
+    with zipfile.ZipFile(fmus / "MastActuator.fmu") as z:
+        source = z.read("sources/MastActuator_model.c").decode()
+    kernels = re.findall(r"^static int kernel_n(\d+)_\w+\(", source, re.M)
+    eng = traced_engine(default_parameters("MastMechanism"), "MastMechanism")
+    hoisted = {
+        name: split_invariants(eng._fn(name).source, list(eng.parameters))[2] for name in ("ikjac", "forces", "pose")
+    }
+    return {
+        **{f"c_kB_{label}": size(fmu, f"sources/{fmu}_model.c") / 1e3 for fmu, label in NATIVE_MECHANISMS.items()},
+        "actuator_c_KiB": len(source.encode()) / 2**10,
+        "actuator_so_KiB": size("MastActuator", "binaries/linux64/MastActuator.so") / 2**10,
+        "kernels": len(kernels),
+        "kernels_n2": kernels.count("2"),
+        "kernels_n1": kernels.count("1"),
+        "invariants_ikjac": hoisted["ikjac"],
+        "invariants_dynamics": hoisted["forces"],
+        "invariants_pose": hoisted["pose"],
+        # why N_MAX = 8: the top mode [kHz] of the paper's transmission (actuator_1 of ssp/MAST.ssd: its J2 and K_t)
+        # split evenly over n - 1 bodies and springs behind the motor's J1
+        **{f"chain_top_kHz_{n}": chain_top_mode_Hz(n) / 1e3 for n in (4, 6, 8)},
+    }
+
+
+def chain_top_mode_Hz(n: int) -> float:
+    """The highest natural frequency [Hz] of an n-body chain: the motor side J1 of actuator_1 in ssp/MAST.ssd, then
+    its guide side J2 split into n - 1 equal bodies joined by n - 1 equal springs of stiffness (n - 1) K_t."""
+    from fmus.actuator.model import chain_frequencies, two_inertia
+    from mast.core.ssp import read_ssd
+
+    params = read_ssd(ROOT / "ssp" / "MAST.ssd").components["actuator_1"].parameters
+    J1, J2 = two_inertia(params)
+    return float(chain_frequencies([J1] + [J2 / (n - 1)] * (n - 1), [float(params["K_t"]) * (n - 1)] * (n - 1)).max())
+
+
+def emps_pulses_values(diagnosed: Path, bench: Path, tmp: Path) -> dict:
+    """docs/emps.md "A record with injected inputs": the synthetic pulse record (examples/emps/pulse_record.py, the
+    truth simulated on ``bench``) imported as examples/emps/map_pulses.toml says (``applied``), with its effort
+    declared logged before the injection (``before_injection``: the import's warning's step [N], gain [N/V] and
+    edges too) and with the estimation record's map (``not_applied``: u_inj = 0), replayed with the ``diagnosed``
+    bench, and as imported replayed with the nominal ``bench``: {case: {q_m, force: relative error [%], force_fit}}."""
+    import importlib.util
+    import re
+
+    from mast.analyses.replay import replay
+    from mast.data.importer import import_file
+
+    spec = importlib.util.spec_from_file_location("pulse_record", ROOT / "examples" / "emps" / "pulse_record.py")
+    pulse_record = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(pulse_record)
+    record = tmp / "emps_pulses.mat"
+    pulse_record.make(EMPS_RECORD, record, bench)
+    maps = ROOT / "examples" / "emps"
+    before = tmp / "map_before_injection.toml"
+    text = (maps / "map_pulses.toml").read_text()
+    before.write_text(text.replace("sampled = true", 'sampled = true\ntap = "before_injection"', 1))
+    out: dict = {}
+    for case, mapping, ssp in (
+        ("applied", maps / "map_pulses.toml", diagnosed),
+        ("before_injection", before, diagnosed),
+        ("not_applied", maps / "map.toml", diagnosed),
+        ("nominal", maps / "map_pulses.toml", bench),
+    ):
+        summary = import_file(record, mapping, tmp / f"record_{case}")
+        if case == "before_injection":
+            found = re.search(r"steps by ([\d.]+) N \(([\d.]+) N/V\) at the (\d+) edges", " ".join(summary["warnings"]))
+            out["warning"] = {"step_N": float(found[1]), "gain_N_per_V": float(found[2]), "edges": int(found[3])}
+        signals = replay(ssp, tmp / f"record_{case}", tmp / f"replay_{case}", figures=False)["signals"]
+        out[case] = {
+            "q_m": signals["q_m"]["relative_error_pct"],
+            "force": signals["force"]["relative_error_pct"],
+            "force_fit": signals["force"]["fit_pct"],
+        }
+    return out
+
+
+def source_emps_pulses() -> dict:
+    """`mast diagnose` of the EMPS record on the bench (built into a temporary folder), then its diagnosed bench on
+    the synthetic pulse record: emps_pulses_values (tests/test_emps.py checks them on the diagnosis it runs); about
+    a minute and a half."""
+    from mast.core.build import FMUS, SSP_SRC, build_fmu, build_ssp
+    from mast.data.importer import import_file
+    from mast.diagnosis import Options, diagnose
+
+    with tempfile.TemporaryDirectory(prefix="mast_figures_") as tmp:
+        tmp = Path(tmp)
+        for spec in FMUS:
+            if spec.model_identifier in ("MastLoadAxis", "MastEmpsController"):
+                build_fmu(spec, tmp / "fmus")
+        bench = build_ssp(SSP_SRC / "EMPS_bench.ssd", tmp / "fmus", tmp / "ssp")
+        import_file(EMPS_RECORD, ROOT / "examples" / "emps" / "map.toml", tmp / "record")
+        diagnose(Options(tmp / "record", tmp / "out", str(bench), figures=False), log=lambda *_: None)
+        (tmp / "pulses").mkdir()
+        return emps_pulses_values(tmp / "out" / "EMPS_bench_diagnosed.ssp", bench, tmp / "pulses")
+
+
 SOURCES: dict[str, Callable[[], dict]] = {
     "reproduce": source_reproduce,
     "ssd": source_ssd,
@@ -1765,6 +2291,11 @@ SOURCES: dict[str, Callable[[], dict]] = {
     "actuator": source_actuator,
     "geometry": source_geometry,
     "examples": source_examples,
+    # docs/mechanism.md, docs/workspace.md, docs/designs/*.md, docs/native.md (auditB)
+    "design_pages": source_design_pages,
+    "workspace_payload": source_workspace_payload,
+    "native": source_native,
+    "emps_pulses": source_emps_pulses,
 }
 
 

@@ -393,6 +393,10 @@ def test_every_figure_source_is_checked_by_a_test():
         "actuator",
         "geometry",
         "examples",
+        "design_pages",
+        "workspace_payload",
+        "native",
+        "emps_pulses",  # tests/test_emps.py, on the diagnosis it runs
     }
     assert set(figures.SOURCES) == checked, f"sources no test compares: {set(figures.SOURCES) - checked}"
 
@@ -423,6 +427,22 @@ def test_marked_diagnose_model_figures_agree():
     """docs/diagnose.md: the documented drive its tables compare with (ssp/MAST.ssd's controller), the transmission's
     stiffness and mode, the force and mass the drive holds at its current limit, the hexapod library's size."""
     problems = figures.check({"ssd": figures.source_ssd(), "diagnose_model": figures.source_diagnose_model()})
+    assert not problems, "\n".join(problems)
+
+
+def test_marked_design_page_and_payload_workspace_figures_agree():
+    """docs/designs/*.md and docs/mechanism.md: the 3PRS designs at home, their forces' split on a 5 Hz sine, the 120°
+    layout's parasitic motion; docs/workspace.md: the T design's workspace with a 5 kg payload (default grid)."""
+    problems = figures.check(
+        {"design_pages": figures.source_design_pages(), "workspace_payload": figures.source_workspace_payload()}
+    )
+    assert not problems, "\n".join(problems)
+
+
+def test_marked_native_figures_agree(built_native):
+    """docs/native.md: the generated C of the native FMUs the tests built, the actuator's kernels, what the
+    parameters alone fix in the 3PRS's traced functions."""
+    problems = figures.check({"native": figures.source_native(built_native)})
     assert not problems, "\n".join(problems)
 
 

@@ -340,6 +340,12 @@ def test_diagnose_names_friction_offset_and_asymmetry_on_the_emps_record(tmp_pat
     assert again["signals"]["force"]["relative_error_pct"] == pytest.approx(
         force["after"]["whole"]["relative_error_pct"], rel=1e-6
     )
+    # docs/emps.md's table of the synthetic pulse record replayed with this diagnosis (`python docs/figures.py
+    # --source emps_pulses` writes it)
+    (tmp_path / "pulses").mkdir()
+    pulses = figures.emps_pulses_values(out / "EMPS_bench_diagnosed.ssp", bench, tmp_path / "pulses")
+    problems = figures.check({"emps_pulses": pulses})
+    assert not problems, "\n".join(problems)
 
 
 #: the EMPS law's gains (the .mat's scalars), and a plant for the synthetic pulse records

@@ -189,9 +189,9 @@ def reproduce(
     wall = time.perf_counter() - t0
     (out / "paper_table.json").write_text(json.dumps([_strict(r.as_dict()) for r in rows], indent=2, allow_nan=False))
     summary = _summary(rows, wall, len(flat), failures)
-    _write_report(
-        out, rows, figures, failures, summary, ssp, workers, _forensics(ssp, params, by_group, m_eq22), limits, by_group
-    )
+    forensics = forensic_values(ssp, params, by_group, m_eq22)
+    _write_report(out, rows, figures, failures, summary, ssp, workers, _forensic_lines(forensics), limits, by_group)
+    summary["forensics"], summary["limits"] = forensics, limits
     return summary
 
 
@@ -507,8 +507,10 @@ def _paper_phase_crossing() -> float:
     return float(brentq(lambda g: float(model(x, np.array([g]))[0]) - paper.BANDWIDTH_PHASE_DEG, 0.01, 20.0))
 
 
-def _forensics(ssp: str, params: dict, groups: dict, m_eq22: float) -> list[str]:
-    """The numbers behind docs/reproduction.md's paper forensics, computed from this run's parameters and results."""
+def forensic_values(ssp: str, params: dict, groups: dict, m_eq22: float) -> dict:
+    """The numbers behind docs/reproduction.md's paper forensics, computed from this run's parameters and results
+    (the summary's ``forensics``; the report's "Forensic numbers" write them): frequencies [Hz], masses [kg],
+    torques [N m], the gains."""
     from fmus.actuator.model import natural_frequencies, transmission_ratio, two_inertia
     from fmus.mechanism.dynamics import Masses, inverse_dynamics
     from fmus.mechanism.kinematics import Geometry
@@ -517,63 +519,103 @@ def _forensics(ssp: str, params: dict, groups: dict, m_eq22: float) -> list[str]
 
     mech, ctl = _component_params(ssp, "mechanism"), {**_component_params(ssp, "controller"), **reading_gains()}
     loop = _component_params(ssp, "actuator_1")  # the drive's current loop runs in the actuators
-    fit = parse_ssv(SSP_SRC / "resources" / f"{GAINS_SET}.ssv")["k_v"].source
     fn, eq22 = natural_frequencies(params), natural_frequencies({**params, "M_load": m_eq22})
     identified = resource_parameters(IDENTIFIED_SET)
     ident = {**params, **identified}
     i_R = transmission_ratio(params["p"], params["i_r"])
-    m_actuator = sum(two_inertia(ident)) / i_R**2
     rho0 = float(params["rho_0"])
     idp = inverse_dynamics(
         Geometry.from_params(mech), Masses.from_params(mech), np.full(3, rho0), np.zeros(3), np.zeros(3)
     )
-    m_mech = np.diag(idp.M)
-    m_total = float(mech["m_platform"]) + 3 * float(mech["m_leg"])
-    bw = {n: _bandwidth(groups[n]) for n in ("sweep_z", "sweep_z_alone")}
-    mass_bw = ", ".join(
-        f"+{extra:g} kg: {_phase_crossing(groups[f'mass_{extra:g}']):.2f} Hz at -45 deg, "
-        f"{_bandwidth(groups[f'mass_{extra:g}']):.2f} Hz at -3 dB"
-        for extra in EXTRA_MASS_KG
-    )
-    # the paper's own three magnitudes, read as a first-order lag: where its -3 dB point lies
-    fc = [f / math.sqrt(1.0 / mag**2 - 1.0) for f, (mag, _) in paper.POSITION_RESPONSE.items() if f >= 5.0]
-    tau_c_m = float(params["tau_c"])
     ident_t = {(r.axis, r.frequency): r for r in groups["time_ident"]}
     manuf_t = {(r.axis, r.frequency): r for r in groups["time_manuf"]}
     peak_i, peak_m = (max(d[("z", 0.4)].torque_peak) for d in (ident_t, manuf_t))
     r10 = ident_t[("z", 10.0)]
-    lp = []
+    lowpass = {}
     if r10.signals:
         for T in (0.0, 0.002, 0.005, 0.01):
             filt = _lowpass_periodic(r10.signals["time"], r10.signals["actuator_1.tau_m"], T)
-            lp.append(f"T = {1e3 * T:g} ms: {_ptp(manuf_t[('z', 10.0)]) - float(np.ptp(filt)):.3f} N m")
+            lowpass[f"{1e3 * T:g}"] = _ptp(manuf_t[("z", 10.0)]) - float(np.ptp(filt))
+    return {
+        "M_star_kg": float(params["M_load"]),
+        "M_eq22_kg": m_eq22,
+        "m_platform_kg": float(mech["m_platform"]),
+        "m_leg_kg": float(mech["m_leg"]),
+        "tf2_Hz": fn["TF2"],
+        "fn_Hz": fn["TF1"],
+        "tf2_eq22_Hz": eq22["TF2"],
+        "fn_eq22_Hz": eq22["TF1"],
+        "phase_45_z_Hz": _phase_crossing(groups["sweep_z"]),
+        "phase_45_z_alone_Hz": _phase_crossing(groups["sweep_z_alone"]),
+        "db3_z_Hz": _bandwidth(groups["sweep_z"]),
+        "db3_z_alone_Hz": _bandwidth(groups["sweep_z_alone"]),
+        "paper_phase_45_Hz": _paper_phase_crossing(),
+        # each drive's equivalent carriage mass (J1 + J2)/i_R^2, identified and manufacturer sets [kg]
+        "m_actuator_kg": sum(two_inertia(ident)) / i_R**2,
+        "m_actuator_manufacturer_kg": sum(two_inertia(params)) / i_R**2,
+        **{f"m_mechanism_{k}_kg": float(m) for k, m in enumerate(np.diag(idp.M), 1)},
+        **{
+            f"mass_{extra:g}_{what}_Hz": reading(groups[f"mass_{extra:g}"])
+            for extra in EXTRA_MASS_KG
+            for what, reading in (("phase_45", _phase_crossing), ("db3", _bandwidth))
+        },
+        # the paper's own magnitudes at 5 and 10 Hz read as a first-order lag: its -3 dB point
+        **{
+            f"paper_db3_from_{f:g}Hz": f / math.sqrt(1.0 / mag**2 - 1.0)
+            for f, (mag, _) in paper.POSITION_RESPONSE.items()
+            if f >= 5.0
+        },
+        "tau_c_manufacturer_Nm": float(params["tau_c"]),
+        "tau_c_identified_Nm": float(identified["tau_c"]),
+        "peak_difference_Nm": peak_i - peak_m,
+        "peak_error": 1 - peak_m / peak_i,
+        **{f"lowpass_{T}ms_Nm": v for T, v in lowpass.items()},
+        **{f"{g}": float(ctl[g]) for g in ("k_v", "k_p", "k_i", "T_cur", "T_vel", "T_pos", "i_max")},
+        **{f"{g}": float(loop[g]) for g in ("k_pc", "k_ic", "u_max")},
+        "fit": parse_ssv(SSP_SRC / "resources" / f"{GAINS_SET}.ssv")["k_v"].source,
+    }
+
+
+def _forensic_lines(v: dict) -> list[str]:
+    """The report's "Forensic numbers" from ``forensic_values``."""
+    mass_bw = ", ".join(
+        f"+{extra:g} kg: {v[f'mass_{extra:g}_phase_45_Hz']:.2f} Hz at -45 deg, {v[f'mass_{extra:g}_db3_Hz']:.2f} Hz "
+        "at -3 dB"
+        for extra in EXTRA_MASS_KG
+    )
+    lowpass = [k for k in v if k.startswith("lowpass_")]
+    fc = [v[k] for k in v if k.startswith("paper_db3_from_")]
+    m_total = v["m_platform_kg"] + 3 * v["m_leg_kg"]
+    m_mechanism = ", ".join(f"{v[f'm_mechanism_{k}_kg']:.2f}" for k in (1, 2, 3))
+    tau_m, tau_i = v["tau_c_manufacturer_Nm"], v["tau_c_identified_Nm"]
     return [
-        f"- Resonances (Fig. 7, Table 1): with Table 1's M* = {float(params['M_load']):g} kg as the moving carriage, "
-        f"TF2 = sqrt(K_t/J2) lies at {fn['TF2']:.0f} Hz and the free-free mode at {fn['TF1']:.0f} Hz; with Eq. 22's "
-        f"M_load = {m_eq22:g} kg (platform {float(mech['m_platform']):g} kg + 3 legs x {float(mech['m_leg']):g} kg = "
-        f"{m_total:.2f} kg, the MAST itself) they would lie at {eq22['TF2']:.0f} and {eq22['TF1']:.0f} Hz.",
-        f"- Bandwidth: phase -45 deg at {_phase_crossing(groups['sweep_z']):.2f} Hz with the MAST and "
-        f"{_phase_crossing(groups['sweep_z_alone']):.2f} Hz alone (the rows); -3 dB at {bw['sweep_z']:.2f} and "
-        f"{bw['sweep_z_alone']:.2f} Hz. The paper's own section 4.2 numbers: a first-order lag with a delay through "
-        f"its three phases crosses -45 deg at {_paper_phase_crossing():.2f} Hz. "
-        f"Each drive moves an equivalent carriage mass (J1 + J2)/i_R^2 = {m_actuator:.1f} kg (identified set), the "
-        f"MAST adds {', '.join(f'{m:.2f}' for m in m_mech)} kg along guides 1-3 at home. Extra moving mass per "
-        f"drive on the z bandwidth: {mass_bw} (the P / PI cascade peaks more as the velocity loop slows: mass "
-        f"raises the -3 dB point and barely moves the phase). The paper's own magnitudes read as a first-order "
-        f"lag put its -3 dB point at {', '.join(f'{x:.2f}' for x in fc)} Hz (from 5 and 10 Hz), not 3.5 Hz.",
-        f"- Torques at 0.4 Hz: the friction at the motor is {1e3 * tau_c_m:.1f} mN m (Eq. 23 through the gearbox) and "
-        f"{1e3 * identified['tau_c']:.1f} mN m identified; the square swing of each is twice that, so the "
-        f"peak-to-peak difference is about 2 x {1e3 * (identified['tau_c'] - tau_c_m):.1f} mN m. The peak "
-        f"(offset included) reading would give {peak_i - peak_m:.3f} N m and {100 * (1 - peak_m / peak_i):.0f} %.",
+        f"- Resonances (Fig. 7, Table 1): with Table 1's M* = {v['M_star_kg']:g} kg as the moving carriage, "
+        f"TF2 = sqrt(K_t/J2) lies at {v['tf2_Hz']:.0f} Hz and the free-free mode at {v['fn_Hz']:.0f} Hz; with Eq. 22's "
+        f"M_load = {v['M_eq22_kg']:g} kg (platform {v['m_platform_kg']:g} kg + 3 legs x {v['m_leg_kg']:g} kg = "
+        f"{m_total:.2f} kg, the MAST itself) they would lie at {v['tf2_eq22_Hz']:.0f} and {v['fn_eq22_Hz']:.0f} Hz.",
+        f"- Bandwidth: phase -45 deg at {v['phase_45_z_Hz']:.2f} Hz with the MAST and "
+        f"{v['phase_45_z_alone_Hz']:.2f} Hz alone (the rows); -3 dB at {v['db3_z_Hz']:.2f} and "
+        f"{v['db3_z_alone_Hz']:.2f} Hz. The paper's own section 4.2 numbers: a first-order lag with a delay through "
+        f"its three phases crosses -45 deg at {v['paper_phase_45_Hz']:.2f} Hz. "
+        f"Each drive moves an equivalent carriage mass (J1 + J2)/i_R^2 = {v['m_actuator_kg']:.1f} kg (identified set), "
+        f"the MAST adds {m_mechanism} kg along guides 1-3 at "
+        f"home. Extra moving mass per drive on the z bandwidth: {mass_bw} (the P / PI cascade peaks more as the "
+        "velocity loop slows: mass raises the -3 dB point and barely moves the phase). The paper's own magnitudes "
+        f"read as a first-order lag put its -3 dB point at {', '.join(f'{x:.2f}' for x in fc)} Hz (from 5 and 10 Hz), "
+        "not 3.5 Hz.",
+        f"- Torques at 0.4 Hz: the friction at the motor is {1e3 * tau_m:.1f} mN m (Eq. 23 through the gearbox) and "
+        f"{1e3 * tau_i:.1f} mN m identified; the square swing of each is twice that, so the "
+        f"peak-to-peak difference is about 2 x {1e3 * (tau_i - tau_m):.1f} mN m. The peak "
+        f"(offset included) reading would give {v['peak_difference_Nm']:.3f} N m and {100 * v['peak_error']:.0f} %.",
         "- Torque at 10 Hz, with the drive's torque low-pass on the measured (identified) torque, manufacturer minus "
-        "measured, peak-to-peak: " + ("; ".join(lp) if lp else "(no signals)") + ".",
-        f"- Controller: k_v = {float(ctl['k_v']):.4g} 1/s, k_p = {float(ctl['k_p']):.4g} A s/rad, k_i = "
-        f"{float(ctl['k_i']):.4g} A/rad (fitted), k_pc = {float(loop['k_pc']):.4g} V/A, k_ic = "
-        f"{float(loop['k_ic']):.4g} "
-        f"V/(A s), cycle times {1e6 * float(ctl['T_cur']):.0f} us / {1e3 * float(ctl['T_vel']):g} ms / "
-        f"{1e3 * float(ctl['T_pos']):g} ms (current / velocity / position); limits {float(ctl['i_max']):g} A, "
-        f"{float(loop['u_max']):g} V.",
-        f"- Gain fit and its residual: {fit}.",
+        "measured, peak-to-peak: "
+        + ("; ".join(f"T = {k.split('_')[1][:-2]} ms: {v[k]:.3f} N m" for k in lowpass) if lowpass else "(no signals)")
+        + ".",
+        f"- Controller: k_v = {v['k_v']:.4g} 1/s, k_p = {v['k_p']:.4g} A s/rad, k_i = "
+        f"{v['k_i']:.4g} A/rad (fitted), k_pc = {v['k_pc']:.4g} V/A, k_ic = {v['k_ic']:.4g} "
+        f"V/(A s), cycle times {1e6 * v['T_cur']:.0f} us / {1e3 * v['T_vel']:g} ms / "
+        f"{1e3 * v['T_pos']:g} ms (current / velocity / position); limits {v['i_max']:g} A, {v['u_max']:g} V.",
+        f"- Gain fit and its residual: {v['fit']}.",
     ]
 
 
