@@ -629,3 +629,58 @@ def test_documented_block_runs(block, scratch, built_native):
     assert proc.returncode == 0, (
         f"{block.where}:\n{text}\nexit {proc.returncode}\n{proc.stdout[-2000:]}\n{proc.stderr[-3000:]}"
     )
+
+
+# -- links ----------------------------------------------------------------------------------------------------------
+LINK = re.compile(r"(?<!!)\[[^\]]*\]\((?P<target>[^)\s]+)\)|!\[[^\]]*\]\((?P<image>[^)\s]+)\)")
+
+
+def slug(heading: str) -> str:
+    """The anchor GitHub gives a heading: lower case, markup and punctuation dropped (hyphens and underscores kept),
+    spaces as hyphens."""
+    text = re.sub(r"<!--.*?-->", "", heading).strip().lower()
+    text = re.sub(r"[^\w\- ]", "", text)
+    return text.replace(" ", "-")
+
+
+def anchors(page: Path) -> set[str]:
+    """The anchors of ``page``'s headings (outside code blocks); a repeated heading gets -1, -2, ... as on GitHub."""
+    found: set[str] = set()
+    fenced = False
+    for line in page.read_text().splitlines():
+        if FENCE.match(line):
+            fenced = not fenced
+        elif not fenced and line.startswith("#"):
+            base = slug(line.lstrip("#"))
+            name, k = base, 0
+            while name in found:
+                k += 1
+                name = f"{base}-{k}"
+            found.add(name)
+    return found
+
+
+def test_slug_is_githubs():
+    assert slug(" Speed") == "speed"
+    assert slug(" `mast diagnose`: name what the model is missing") == "mast-diagnose-name-what-the-model-is-missing"
+    assert slug(" Tool by tool (ecos, libcosim)") == "tool-by-tool-ecos-libcosim"
+
+
+def test_every_relative_link_and_anchor_resolves():
+    """A link of README.md or docs/ to a file of the repository names a file that exists, and its #anchor a heading
+    of that file (a renamed heading or a moved page fails here, not for a reader)."""
+    broken = []
+    for page in PAGES:
+        for number, line in enumerate(page.read_text().splitlines(), 1):
+            for match in LINK.finditer(line):
+                target = match["target"] or match["image"]
+                if re.match(r"[a-z]+:", target):  # http:, https:, mailto:
+                    continue
+                path, _, anchor = target.partition("#")
+                file = (page.parent / path).resolve() if path else page
+                where = f"{page.relative_to(ROOT)}:{number}: {target}"
+                if not file.exists():
+                    broken.append(f"{where}: no file {file.relative_to(ROOT) if file.is_relative_to(ROOT) else file}")
+                elif anchor and file.suffix == ".md" and anchor not in anchors(file):
+                    broken.append(f"{where}: no heading with the anchor #{anchor}")
+    assert not broken, "\n".join(broken)
