@@ -4,6 +4,9 @@ A figure in a page (README.md, docs/**/*.md) is marked where it stands, invisibl
 
     **<!-- figure reproduce.predictions_within -->10<!-- /figure --> of 18 predictions**
 
+A page that states a figure to other digits than its key's format says so after the key, a format specification:
+``<!-- figure geometry.z_home_m:.3f -->0.405<!-- /figure -->`` (the same value, written with ``{:.3f}``).
+
 ``KEY`` names an entry of ``FIGURES`` below: the source that computes it, its format and the tolerance a
 test compares the page with. ``python docs/figures.py`` computes every source the pages use (``--source
 NAME`` only those; ``reproduce`` runs ``mast reproduce``: minutes) and writes the values into the pages;
@@ -28,7 +31,9 @@ from pathlib import Path
 from typing import Callable, Iterator, Mapping
 
 ROOT = Path(__file__).resolve().parents[1]
-MARKER = re.compile(r"<!-- figure (?P<key>[\w\-]+(?:\.[\w\-]+)+) -->(?P<value>.*?)<!-- /figure -->")
+MARKER = re.compile(
+    r"<!-- figure (?P<key>[\w\-]+(?:\.[\w\-]+)+)(?::(?P<spec>[^\s>]+))? -->(?P<value>.*?)<!-- /figure -->"
+)
 REGENERATE = "python docs/figures.py"
 
 
@@ -396,7 +401,6 @@ FIGURES: dict[str, Figure] = {
     ),
     # README.md, docs/actuator.md, controller.md, batch.md, interfaces.md, using-the-fmus.md, geometry.md (issue 30's
     # last pass): the page's size in README's command table, to its printed digit
-    "animate.page_MB_rounded": Figure("animate", lambda v: v["page_MB"], "{:.1f}", 0.05),
     # the parameter sets' values these pages restate (ssp/resources/<set>.ssv; scaled to the page's unit): the same
     # number, no tolerance
     **{
@@ -414,7 +418,6 @@ FIGURES: dict[str, Figure] = {
                 "",
             ),
             ("actuator_manufacturer", ("ripple_period",), "{:.4g}", 1.0, ""),
-            ("actuator_manufacturer", ("tau_c",), "{:.3g}", 1.0, "_rounded"),
             ("actuator_identified", ("J1_scale", "tau_c"), "{:g}", 1.0, ""),
             ("actuator_paper_reading", ("M_load",), "{:g}", 1.0, ""),
             ("transmission", ("i_r", "p"), "{:g}", 1.0, ""),
@@ -448,10 +451,8 @@ FIGURES: dict[str, Figure] = {
             ("J2_carriage", "{:.3e}", 0.0),
             ("J2", "{:.3e}", 0.0),
             ("TF2_Hz", "{:.1f}", 0.0),
-            ("TF2_Hz_2", "{:.2f}", 0.0),
             ("TF2_p66_Hz", "{:.0f}", 0.0),
             ("TF1_Hz", "{:.1f}", 0.0),
-            ("TF1_Hz_rounded", "{:.0f}", 0.0),
             ("TF1_identified_Hz", "{:.1f}", 0.0),
             ("TF2d_Hz", "{:.1f}", 0.0),
             ("TF2d_identified_Hz", "{:.1f}", 0.0),
@@ -495,10 +496,8 @@ FIGURES: dict[str, Figure] = {
         "geometry",
         (
             ("z_home_m", "{:.6f}", 0.0),
-            ("z_home_m_3", "{:.3f}", 0.0),
             ("leg_height_m", "{:.6f}", 0.0),
             ("gamma_deg", "{:.2f}", 0.0),
-            ("gamma_deg_1", "{:.1f}", 0.0),
             ("max_tilt_deg", "{:.0f}", 0.0),
         ),
     ),
@@ -676,7 +675,6 @@ FIGURES: dict[str, Figure] = {
         )
     },
     "design_pages.compare_tests": Figure("design_pages", lambda v: v["compare_tests"], "{:d}"),
-    "design_pages.3PRS_T.F_home_2_exact": Figure("design_pages", lambda v: v["3PRS_T"]["F_home_2"], "{:.4f}"),
     "design_pages.3PRS_120.parasitic_phi_deg": Figure(
         "design_pages", lambda v: v["3PRS_120"]["parasitic_phi_deg"], "{:.2f}"
     ),
@@ -1901,10 +1899,8 @@ def source_actuator() -> dict:
         "J2_carriage": p["M_load"] * i_R**2,
         "J2": J2,
         "TF2_Hz": f["TF2"],
-        "TF2_Hz_2": f["TF2"],
         "TF2_p66_Hz": natural_frequencies({**p, "p": 0.066})["TF2"],
         "TF1_Hz": f["TF1"],
-        "TF1_Hz_rounded": f["TF1"],
         "TF1_identified_Hz": f_ident["TF1"],
         "TF2d_Hz": f["TF2d"],
         "TF2d_identified_Hz": f_ident["TF2d"],
@@ -1955,10 +1951,8 @@ def source_geometry() -> dict:
     L = source_sets()["geometry_3prs"]["L"]
     return {
         "z_home_m": z,
-        "z_home_m_3": z,
         "leg_height_m": z - rho,
         "gamma_deg": math.degrees(math.asin((z - rho) / L)),
-        "gamma_deg_1": math.degrees(math.asin((z - rho) / L)),
         "max_tilt_deg": math.degrees(MAX_TILT),
     }
 
@@ -2317,6 +2311,12 @@ def _number(text: str) -> float:
         return math.nan
 
 
+def written_as(match: re.Match, figure: Figure, computed: float) -> str:
+    """``computed`` as the marker ``match`` writes it: with its own format specification if it has one (module
+    docstring), else with the figure's."""
+    return ("{:" + match["spec"] + "}").format(computed) if match["spec"] else figure.fmt.format(computed)
+
+
 def check(values: Mapping[str, dict], paths: list[Path] | None = None) -> list[str]:
     """Every marked figure whose source is in ``values`` against the computed value: the disagreements, each
     naming the page, the line, both values and the command that regenerates the page. Unknown keys too."""
@@ -2338,10 +2338,11 @@ def check(values: Mapping[str, dict], paths: list[Path] | None = None) -> list[s
             if figure.source not in values:
                 continue
             computed = figure.pick(values[figure.source])
-            if figure.fmt.format(computed) != stated and not abs(_number(stated) - computed) <= figure.tolerance:
+            written = written_as(match, figure, computed)
+            if written != stated and not abs(_number(stated) - computed) <= figure.tolerance:
                 problems.append(
                     f"{where}:{line}: the page states {key} = {stated}, the code gives "
-                    f"{figure.fmt.format(computed)} (tolerance {figure.tolerance:g}): run `{REGENERATE} "
+                    f"{written} (tolerance {figure.tolerance:g}): run `{REGENERATE} "
                     f"--source {figure.source}` and say in the text why the figure moved"
                 )
     return problems
@@ -2361,11 +2362,13 @@ def write(values: Mapping[str, dict], paths: list[Path] | None = None) -> list[s
             figure = FIGURES.get(match["key"])
             if figure is None or figure.source not in values:
                 return match[0]
-            new = figure.fmt.format(figure.pick(values[figure.source]))
+            new = written_as(match, figure, figure.pick(values[figure.source]))
             if new != match["value"]:
                 line = text.count("\n", 0, match.start()) + 1
-                changes.append(f"{path.relative_to(ROOT)}:{line} {match['key']}: {match['value']} -> {new}")
-            return f"<!-- figure {match['key']} -->{new}<!-- /figure -->"
+                where = path.relative_to(ROOT) if path.is_relative_to(ROOT) else path
+                changes.append(f"{where}:{line} {match['key']}: {match['value']} -> {new}")
+            spec = f":{match['spec']}" if match["spec"] else ""
+            return f"<!-- figure {match['key']}{spec} -->{new}<!-- /figure -->"
 
         updated = MARKER.sub(replace, text)
         if updated != text:

@@ -359,6 +359,18 @@ def test_marked_hexapod_figures_agree():
     assert not problems, "\n".join(problems)
 
 
+def test_a_marker_may_state_its_figure_to_other_digits(tmp_path):
+    """``<!-- figure KEY:SPEC -->``: the page states KEY's value written with ``{:SPEC}``; check compares that, write
+    keeps the specification."""
+    page = tmp_path / "p.md"
+    page.write_text("z <!-- figure geometry.z_home_m:.3f -->0.405<!-- /figure --> m\n")
+    values = {"geometry": {"z_home_m": 0.405147}}
+    assert figures.check(values, [page]) == []
+    assert figures.check({"geometry": {"z_home_m": 0.4062}}, [page])  # 0.406 != 0.405, beyond the key's 0 tolerance
+    figures.write({"geometry": {"z_home_m": 0.4062}}, [page])
+    assert page.read_text() == "z <!-- figure geometry.z_home_m:.3f -->0.406<!-- /figure --> m\n"
+
+
 def test_every_figure_source_is_checked_by_a_test():
     """A source added to docs/figures.py is compared with the pages somewhere (here, tests/test_reproduce.py or the
     tests named beside them)."""
