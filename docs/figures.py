@@ -1871,6 +1871,7 @@ def source_actuator() -> dict:
     figures (electrical pole [1/s], phase of the fastest mode per 100 us step [rad], substeps), the static deflection
     under the carriage's weight, the friction law's time constant [us], and the paper data's questionable points."""
     from fmus.actuator.model import natural_frequencies, substep_rule, transmission_ratio, two_inertia
+    from mast.analyses import paper
 
     sets = source_sets()
     p = {**sets["transmission"], **sets["actuator_manufacturer"], **sets["stroke_3prs"]}
@@ -1884,10 +1885,9 @@ def source_actuator() -> dict:
     K_t, h = p["K_t"], 1e-4
     omega_1 = 2 * math.pi * f["TF1"]
     J_eff = J1 * J2 / (J1 + J2)
-    table1_fn = 986.5  # Hz, paper Table 1
-    J_fn = K_t / (2 * math.pi * table1_fn) ** 2
+    J_fn = K_t / (2 * math.pi * paper.FN_TABLE1) ** 2
     weight = i_R * p["M_load"] * p["g_guide"]
-    eq23 = 0.2 + 4.07e-2 * p["M_load"]  # paper Eq. 23 [N m at the guide shaft]
+    eq23 = p["tau_c"] * p["i_r"]  # the set's Eq. 23 friction, at the guide shaft [N m]
     eta = sets["drive_ratings"]["eta_gear"]
     raw_J1 = p["J_motor"] + p["J_gearbox"] + p["J_coupling"] + p["J_brake"]
     J1_coupling_right = raw_J1 - p["J_coupling"] + p["J_coupling"] / p["i_r"] ** 2
@@ -1965,6 +1965,7 @@ def source_examples(build: Path | None = None) -> dict:
     controller on the default test set, as designed and with the payload; the signals MAST_standalone.ssp records by
     default, which `mast hosts` compares."""
     from mast.analyses.compare import DEFAULT
+    from mast.analyses.workspace import machine
     from mast.batch import BatchConfig, expand
     from mast.batch.cases import SystemInfo
     from mast.core.controllers import CONTROLLERS
@@ -1983,6 +1984,7 @@ def source_examples(build: Path | None = None) -> dict:
     sweep = len(monte_carlo.cases["frequency"])
     with SSPArchive(build / "ssp" / "MAST_standalone.ssp") as archive:
         standalone = default_signals(archive.system)
+    coordinates = len(machine("3PRS_T").topology.names)
     return {
         "friction_sweep_cases": len(friction_cases),
         "friction_sweep_groups": len(friction_cases) // len(friction.cases["frequency"]),
@@ -1990,7 +1992,8 @@ def source_examples(build: Path | None = None) -> dict:
         "monte_carlo_machines": len(monte_carlo_cases) // sweep,
         "monte_carlo_cases": len(monte_carlo_cases),
         "monte_carlo_study_cases": len(monte_carlo_cases) + sweep,
-        "controllers_full_tests": 2 * len(CONTROLLERS) * len(DEFAULT.frequencies) * len(("z", "psi", "theta")),
+        # as designed and with the payload, every controller, frequency and coordinate of the 3PRS
+        "controllers_full_tests": 2 * len(CONTROLLERS) * len(DEFAULT.frequencies) * coordinates,
         "standalone_signals": len(standalone),
     }
 
