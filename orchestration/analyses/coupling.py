@@ -29,6 +29,7 @@ from scipy.linalg import expm
 
 from fmus.actuator.model import chain, state_matrices, transmission_ratio
 from fmus.mechanism.coupling import EXTRAPOLATION, condensation, extrapolated
+from fmus.mechanism.designs import engine
 
 __all__ = ["BANDWIDTH", "SCHEMES", "Drive", "Exchange", "exchange", "joint_space_mass"]
 
@@ -146,21 +147,16 @@ def _force_row(d: Drive, carried: float, h: float) -> tuple[np.ndarray, float]:
     scale[-1] = 1.0 / (1.0 + carried * d.i_R * d.i_R * d.B[-1])  # J_N / (J_N + D i_R^2)
     A = d.A * scale[:, None]
     B = d.B * scale * -d.i_R  # per newton told
-    # x' = A x + B c, x'' = A x' (the force held); T, T', T'' rows on (x, c)
-    T0 = (d.T, 0.0)
-    T1 = (d.T @ A, float(d.T @ B))
-    T2 = (d.T @ A @ A, float(d.T @ A @ B))
+    # x' = A x + B c, x'' = A x' (the force held): T, T', T'' as rows on x and weights of c
     tau = EXTRAPOLATION * h
-    row = extrapolated(np.array([T0[0]]), np.array([T1[0]]), np.array([T2[0]]), tau)[0]
-    held = float(extrapolated(np.array([T0[1]]), np.array([T1[1]]), np.array([T2[1]]), tau)[0])
+    row = extrapolated(d.T, d.T @ A, d.T @ A @ A, tau)
+    held = float(extrapolated(0.0, d.T @ B, d.T @ A @ B, tau))
     return row, held
 
 
 def joint_space_mass(mechanism: Mapping[str, object], q: "np.ndarray | None" = None) -> np.ndarray:
     """The joint-space mass matrix M [kg] of a mechanism parameter set at the pose ``q`` (its coordinates; by
     default its home pose)."""
-    from fmus.mechanism.designs import engine
-
     eng = engine(mechanism)
     top = eng.description.topology
     pose = list(top.home) if q is None else list(q)
