@@ -66,6 +66,7 @@ def simulate(
     step_sizes: Optional[Mapping[str, float]] = None,
     progress: Optional[Callable[[float], None]] = None,
     feedthrough: bool = False,
+    component: Optional[Callable[[str, type], BlockComponent]] = None,
 ) -> Result:
     """Run ``ssp`` (a built .ssp, or a .ssd whose FMUs exist) and return the recorded signals.
 
@@ -74,7 +75,8 @@ def simulate(
     A failing run raises SimulationError carrying the partial Result.
     ``stimulus=None`` runs a system without inputs (its command comes from a component).
     ``feedthrough=True``: declared direct feedthrough passed on within a tick, outside FMI 2.0's calling
-    sequence (master.py).
+    sequence (master.py). ``component`` (with ``direct``): makes each component from its name and block class in
+    place of ``BlockComponent`` (the monolithic reference's, mast.analyses.monolithic).
     """
     with SSPArchive(ssp) as archive, tempfile.TemporaryDirectory(prefix="mast_fmus_") as unzip_root:
         system = archive.system
@@ -90,7 +92,8 @@ def simulate(
             for name, spec in system.components.items():
                 fmu = system.fmu_path(name)
                 if direct:
-                    components[name] = BlockComponent(name, BlockComponent.class_for(fmu.stem, spec.parameters))
+                    make = component or BlockComponent
+                    components[name] = make(name, BlockComponent.class_for(fmu.stem, spec.parameters))
                 else:
                     # a native actuator with an n_dof above the chains it carries: the model generated with it
                     from .native.build import for_parameters
