@@ -47,13 +47,13 @@ def run(block: ActuatorBlock, u, F, h: float = H, n: int | None = None) -> dict[
     F = np.broadcast_to(np.asarray(F, dtype=float), (n,))
     block.set(u=u[0], F=F[0])
     block.initialize(0.0)
-    rows = [list(block.values[2:])]
+    rows = [list(block.values[len(block.INPUTS) :])]
     values = block.values
     for k in range(n):
         values[0] = u[k]
         values[1] = F[k]
         block.do_step(k * h, h)
-        rows.append(list(values[2:]))
+        rows.append(list(values[len(block.INPUTS) :]))
     data = np.array(rows)
     out = {name: data[:, j] for j, name in enumerate(block.OUTPUTS)}
     out["t"] = np.arange(n + 1) * h
@@ -616,7 +616,7 @@ def test_a_varying_step_compiles_nothing_per_step_and_matches_a_kernel_compiled_
         for k, h in enumerate(steps):
             block.values[:2] = [u[k], F[k]]
             block.do_step(t[k], h)
-            rows.append(list(block._x) + list(block.values[2:]))
+            rows.append(list(block._x) + list(block.values[len(block.INPUTS) :]))
         return np.array(rows), block
 
     few = model._COMPILED_STEP_SIZES

@@ -61,12 +61,14 @@ CURRENT_LOOP_PARAMETERS = (
     positive("u_max", "V", "Voltage command limit (symmetric)"),
 )
 _LOOP = tuple(p.name for p in CURRENT_LOOP_PARAMETERS)
+#: where the axis' output i_m stands among its values
+I_M = len(ActuatorBlock.INPUTS) + ActuatorBlock.OUTPUTS.index("i_m")
 
 
 class DriveActuatorBlock(Block):
     """One MAST linear axis with its drive's PI current loop: current command in (module docstring)."""
 
-    INPUTS = ("i_cmd", "F")
+    INPUTS = ("i_cmd", "F", "M_carried")
     OUTPUTS = (*ActuatorBlock.OUTPUTS, "u")
     PARAMETERS = (*ActuatorBlock.PARAMETERS, *CURRENT_LOOP_PARAMETERS)
     CYCLE_TIME = "T_cur"
@@ -96,7 +98,7 @@ class DriveActuatorBlock(Block):
         self._x_c, self._u = 0.0, 0.0
         self._step_ticks = (math.nan, 0, None, None)  # the axis' state is a new list
         axis = self.axis.values
-        axis[0], axis[1] = 0.0, self.values[1]
+        axis[0], axis[1], axis[2] = 0.0, self.values[1], self.values[2]
         self.axis.initialize(t0)
         self._publish()
 
@@ -111,7 +113,7 @@ class DriveActuatorBlock(Block):
         i_cmd = values[0]
         if i_cmd - i_cmd != 0.0:  # NaN or inf
             self._check(t)
-        axis[1] = values[1]  # F, held over the ticks (the kernel only reads it)
+        axis[1], axis[2] = values[1], values[2]  # F and M_carried, held over the ticks (the kernel only reads them)
         kp, kiT, u_max = self._gains
         x_c, u = self._x_c, self._u
         if ticks is not None:  # the loop below in one generated function (the same arithmetic)
@@ -119,18 +121,18 @@ class DriveActuatorBlock(Block):
             if not code:
                 self._x_c = x_c_end
                 self._u = u_end
-                values[2:] = [*axis[2:], u_end]  # _publish
+                values[3:] = [*axis[3:], u_end]  # _publish
                 return
             # it failed and wrote nothing: the loop below fails at the same tick, with the model's message
         kernel, x, sensor = block.stepper(T)  # the axis' do_step(t_k, T), without a call per tick
         for k in range(m):
-            u_next, x_c = pi_step(i_cmd - axis[7], x_c, kp, kiT, u_max)  # axis[7]: i_m at this tick
+            u_next, x_c = pi_step(i_cmd - axis[I_M], x_c, kp, kiT, u_max)  # i_m at this tick
             axis[0] = u
             code = kernel(axis, x)
             if code:
                 self.axis.fail(code, t + k * T, T)
             if sensor is not None:
-                axis[-1] = sensor.step(axis[-2], T)
+                axis[ActuatorBlock.TAU_MEAS] = sensor.step(axis[ActuatorBlock.TAU_M], T)
             u = u_next
         self._x_c, self._u = x_c, u
         self._publish()
@@ -153,4 +155,4 @@ class DriveActuatorBlock(Block):
             raise ModelError(f"{self.name}: input 'i_cmd' = {i_cmd} at t={t:.9g} s is not finite")
 
     def _publish(self) -> None:
-        self.values[2:] = [*self.axis.values[2:], self._u]
+        self.values[3:] = [*self.axis.values[3:], self._u]

@@ -381,18 +381,50 @@ def fastest_mode(J: Sequence[float], K: Sequence[float]) -> float:
 # --------------------------------------------------------------------------------------
 # The block
 # --------------------------------------------------------------------------------------
-INPUT_ERRORS = {1: "u", 2: "F"}
+def input_index(code: int) -> int:
+    """The position among the values of the input a kernel's failure ``code`` names (``INPUT_ERRORS``)."""
+    return 2 if code == 5 else code - 1
+
+
+def carried_ok(mass: float) -> bool:
+    """Whether ``mass`` [kg] may be carried on a load side: finite and >= 0 (a negative mass would make the
+    implicit step's divisor 1 + kappa reach 0)."""
+    return math.isfinite(mass) and mass >= 0.0
+
+
+#: the kernel's failure codes of its inputs, by the input's name (3: diverged, 4: out of the stroke)
+INPUT_ERRORS = {1: "u", 2: "F", 5: "M_carried"}
 
 
 class ActuatorBlock(Block):
     """One MAST linear axis: DC motor, gearbox, flexible transmission and belt guide."""
 
-    INPUTS = ("u", "F")
-    OUTPUTS = ("rho", "rho_dot", "rho_ddot", "theta_m", "omega_m", "i_m", "tau_m", "tau_meas")
+    INPUTS = ("u", "F", "M_carried")
+    OUTPUTS = (
+        "rho",
+        "rho_dot",
+        "rho_ddot",
+        "theta_m",
+        "omega_m",
+        "i_m",
+        "tau_m",
+        "tau_meas",
+        "F_drive",
+        "F_drive_dot",
+        "F_drive_ddot",
+        "m_drive",
+    )
+    #: where tau_m and tau_meas stand among the values (inputs, then outputs)
+    TAU_M, TAU_MEAS = 9, 10
     PARAMETERS = PARAMETERS
     UNITS = {
         "u": "V",
         "F": "N",
+        "M_carried": "kg",
+        "F_drive": "N",
+        "F_drive_dot": "N/s",
+        "F_drive_ddot": "N/s2",
+        "m_drive": "kg",
         "rho": "m",
         "rho_dot": "m/s",
         "rho_ddot": "m/s2",
@@ -404,7 +436,16 @@ class ActuatorBlock(Block):
     }
     DESCRIPTIONS = {
         "u": "voltage command from the controller (clipped to +-u_supply)",
-        "F": "force this actuator applies to the mechanism along its guide, positive upward",
+        "F": "force this actuator applies to the mechanism along its guide, positive upward, beyond M_carried "
+        "rho_ddot (with M_carried = 0: the whole force)",
+        "M_carried": "mass of the mechanism this actuator carries on its load side: the force on the mechanism is "
+        "F + M_carried rho_ddot (the mechanism's condensed interface, docs/coupling.md; 0: none)",
+        "F_drive": "force of the drive on its load side (transmission, weight, guide friction: all but the load "
+        "side's inertia and the mechanism), at the end of the step",
+        "F_drive_dot": "time derivative of F_drive along the model, its inputs held",
+        "F_drive_ddot": "second time derivative of F_drive along the model, its inputs held",
+        "m_drive": "load-side mass F_drive accelerates (n_dof = 1: the whole drive reflected to the guide; else "
+        "its last inertia)",
         "rho": "carriage position along the guide",
         "rho_dot": "carriage velocity",
         "rho_ddot": "carriage acceleration at the end of the step",
@@ -463,10 +504,10 @@ class ActuatorBlock(Block):
         """(Re)start from the initial state (rest, i = 0, springs undeflected, rho = rho_0), check the inputs
         and write the outputs of rest (``_write_outputs``)."""
         self._x = [0.0] * (2 * self.N + 1)
-        u, F = self.values[0], self.values[1]
-        for k, v in enumerate((u, F)):
-            if not math.isfinite(v):
-                raise ModelError(f"{self.name}: input '{INPUT_ERRORS[k + 1]}' = {v} at t={t0:.9g} s is not finite")
+        for code in INPUT_ERRORS:
+            value = self.values[input_index(code)]
+            if not (carried_ok(value) if code == 5 else math.isfinite(value)):
+                self.fail(code, t0, 0.0)
         self._write_outputs()
 
     def do_step(self, t: float, h: float) -> None:
@@ -478,13 +519,13 @@ class ActuatorBlock(Block):
             self.fail(code, t, h)
         if self._sensor is not None:
             values = self.values
-            values[-1] = self._sensor.step(values[-2], h)
+            values[self.TAU_MEAS] = self._sensor.step(values[self.TAU_M], h)
 
     def stepper(self, h: float) -> tuple[Callable, list, Optional[TorqueSensor]]:
         """What ``do_step(t, h)`` runs, for a caller that steps by h many times in a row (the drive's
         current loop): (kernel, x, sensor). ``kernel(values, x)`` advances the state ``x`` in place over h
         and writes the outputs into ``values``, returning 0 or a failure code for ``fail(code, t, h)``;
-        then, unless ``sensor`` is None, ``values[-1] = sensor.step(values[-2], h)``. Valid until the next
+        then, unless ``sensor`` is None, ``values[TAU_MEAS] = sensor.step(values[TAU_M], h)``. Valid until the next
         ``initialize``, ``set_state`` or step of another size."""
         if h != self._h:
             self._select(h)
@@ -507,7 +548,7 @@ class ActuatorBlock(Block):
             E = E.reshape(n, -1)
             namespace: dict = {"tanh": math.tanh, "exp": math.exp, "sin": math.sin, "pi_step": pi_step}
             found = self._ticks[key] = compile_generated(
-                _ticks_source(self, E[:, :n], E[:, n : n + 2], m),
+                _ticks_source(self, E[:, :n], E[:, n : n + 2], m, key / m),
                 "ticks",
                 f"{self.name}: drive ticks h={key!r} m={m}",
                 namespace,
@@ -540,13 +581,18 @@ class ActuatorBlock(Block):
             x[0],
             tau_m,
             tau_meas,
+            -p["M_load"] * p["g_guide"],  # the drive force at rest: the carriage's weight alone
+            0.0,
+            0.0,
+            float(self.constants["md"]),
         ]
 
     def fail(self, code: int, t: float, h: float) -> None:
         """Raise the ModelError of the kernel's failure ``code`` in the step from t over h [s]."""
         if code in INPUT_ERRORS:
-            name = INPUT_ERRORS[code]
-            raise ModelError(f"{self.name}: input '{name}' = {self.values[code - 1]} at t={t:.9g} s is not finite")
+            name, value = INPUT_ERRORS[code], self.values[input_index(code)]
+            what = "a finite mass >= 0 kg" if code == 5 else "finite"
+            raise ModelError(f"{self.name}: input '{name}' = {value} at t={t:.9g} s is not {what}")
         if code == 3:
             raise ModelError(f"{self.name}: diverged at t={t + h:.9g} s (non-finite state)")
         p = self.params
@@ -619,7 +665,7 @@ class ActuatorBlock(Block):
         if self.params["backlash"] > 0.0:
             source = backlash_kernel_source(self, h / m, m)
         else:
-            source = kernel_source(self, Phi, Gam, m)
+            source = kernel_source(self, Phi, Gam, m, h_sub=h / m)
         namespace: dict = {"tanh": math.tanh, "exp": math.exp, "sin": math.sin}
         kernel = compile_generated(
             source, "kernel", f"{self.name}: actuator kernel h={h!r} m={m}", namespace, largest_parameters(self.params)
@@ -642,7 +688,7 @@ class ActuatorBlock(Block):
             numbers += E.tolist()
         for E, c in zip(discretisations, cols):  # the friction solve of each: d omega_N(end) / d tau_L
             numbers += friction_constants(p, float(E[2 * self.N * c + n + 1])).values()
-        numbers.append(m)
+        numbers += [h / m, m]
         if self._bound is None:
             names = []
             for prefix, c in zip(("PC", "PG") if backlash else ("P",), cols):
@@ -651,7 +697,7 @@ class ActuatorBlock(Block):
                 names += rows.ravel().tolist()
             for prefix in ("FC_", "FG_") if backlash else ("F_",):
                 names += [prefix + k for k in friction_constants(p, 1.0)]
-            names.append("M_SUB")
+            names += ["H_SUB", "M_SUB"]
             if backlash:
                 source = backlash_kernel_source(self, h / m, m, named=True)
             else:
@@ -847,12 +893,61 @@ def friction_constants(p: Mapping[str, Value], b: float, stribeck: Optional[bool
     }
 
 
-def _friction_lines(p: Mapping[str, Value], b: float, prefix: Optional[str] = None) -> list[str]:
-    """The implicit friction solve for this parameter set (``a`` given, sets ``tf``): its constants
-    inlined, or (``prefix``) read from names ``prefix + key`` bound per step size."""
+def structure(N: int) -> list[tuple[int, int]]:
+    """The entries of ``state_matrices``' A that a chain of N inertias can have non-zero, by (row, column): the
+    current's row (i, omega_1), each angle's (its speed), each speed's (its neighbours' angles and speeds, the
+    current on omega_1)."""
+    out = [(0, 0), (0, N + 1)]
+    out += [(k, N + k) for k in range(1, N + 1)]
+    for k in range(1, N + 1):
+        near = [j for j in (k - 1, k, k + 1) if 1 <= j <= N]
+        out += ([(N + 1, 0)] if k == 1 else []) + [(N + k, j) for j in near] + [(N + k, N + j) for j in near]
+    return out
+
+
+#: the friction numbers that the carried mass scales (``_carried_lines``): by 1 / e, or by e
+_SCALED = {"btc": "/", "k": "/", "inv_b": "*", "b": "/", "bt": "/"}
+
+
+def _carried_lines(p: Mapping[str, Value], g: str, f: Mapping[str, str], tag: str) -> tuple[list[str], dict]:
+    """The mass M_carried on the load side over a substep, implicit as the friction (docs/coupling.md): its force
+    held at M_carried i_R^2 (omega_N(end) - omega_N) / h_sub, with ``q`` = M_carried i_R^2 / h_sub given, turns
+    the end speed's equation omega_N(end) = a - g tau_f into the same with a' = (a + kappa omega_N) / e,
+    g' = g / e, kappa = g q, e = 1 + kappa. ``g``: d omega_N(end) / d tau_L as text; ``f``: the friction solve's
+    numbers as text (``friction_constants``; empty without friction). Returns the lines that compute ``kap<tag>``,
+    ``e<tag>`` and the scaled numbers, and the numbers' text for the solve (with M_carried = 0 the same floats:
+    divided and multiplied by 1.0)."""
+    lines = [f"kap{tag} = {g}*q", f"e{tag} = 1.0 + kap{tag}"]
+    text = dict(f)
+    for key, op in _SCALED.items():
+        if key in f:
+            text[key] = f"{key}{tag}_"
+            lines.append(f"{text[key]} = {f[key]}{op}e{tag}")
+    if "lin" in f:
+        text["lin"] = f"lin{tag}_"
+        lines.append(f"lin{tag}_ = 1.0/(1.0 + {text['k']})")
+    return lines, text
+
+
+def _friction_text(p: Mapping[str, Value], b: float, prefix: Optional[str] = None) -> dict[str, str]:
+    """The implicit friction solve's numbers for this parameter set as text: inlined, or (``prefix``) the names
+    ``prefix + key`` bound per step size; empty without friction."""
+    if not (float(p["tau_c"]) > 0.0 or float(p["tau_s"]) > 0.0):
+        return {}
     constants = friction_constants(p, b)
-    text = {k: repr(v) if prefix is None else prefix + k for k, v in constants.items()}
-    return (_stribeck_source if float(p["tau_s"]) > 0.0 else _friction_source)(text, "")
+    return {k: repr(v) if prefix is None else prefix + k for k, v in constants.items()}
+
+
+def _solve_lines(p: Mapping[str, Value], text: Mapping[str, str], tag: str, wN: int) -> list[str]:
+    """One substep's end speed v and friction torque tf from ``a`` (the friction solve with the carried mass's
+    numbers ``text`` of ``_carried_lines``), then the torque w on the last inertia."""
+    body = [f"a = (a + kap{tag}*x{wN})/e{tag}"]
+    if text:
+        body += (_stribeck_source if float(p["tau_s"]) > 0.0 else _friction_source)(text, "")
+    else:
+        body += ["v = a", "tf = 0.0"]
+    body.append(f"w = tl - q*(v - x{wN}) - tf")
+    return body
 
 
 def kernel_constants(
@@ -880,8 +975,12 @@ def kernel_constants(
         "tau_s": real_or_traced(p["tau_s"]),
         "omega_s": real_or_traced(p["omega_s"]),
     }
+    c["iR2"] = i_R * i_R
+    c["md"] = 1.0 / (B[n - 1, 1] * (i_R * i_R))  # J_N / i_R^2: the load-side mass
     c.update({f"aw{j}": A[n - 1, j] for j in range(n)})
     c["bw"] = B[n - 1, 1]
+    c.update({f"a{i}_{j}": A[i, j] for i, j in structure(len(J))})
+    c["b00"] = B[0, 0]
     if len(J) == 2:  # backlash (two-inertia model only)
         hb = 0.5 * real_or_traced(p["backlash"])
         c.update(
@@ -916,61 +1015,134 @@ def _load_lines(block: ActuatorBlock, xs: Sequence[str], c: Mapping[str, str], r
     return [f"    tl = {c['niR']}*F - {c['weight']}", f"    {', '.join(xs)}, = x"]
 
 
-def _kernel_head(c: Mapping[str, str]) -> list[str]:
+def _kernel_head(c: Mapping[str, str], h_sub: str) -> list[str]:
     return [
         "def kernel(values, x):",
         "    u = values[0]",
         "    F = values[1]",
+        "    Dc = values[2]",
         "    if u - u != 0.0: return 1",
         "    if F - F != 0.0: return 2",
+        "    if Dc - Dc != 0.0 or Dc < 0.0: return 5",
         f"    if u > {c['us']}: u = {c['us']}",
         f"    elif u < {c['nus']}: u = {c['nus']}",
+        f"    q = Dc*{c['iR2']}/{h_sub}",
     ]
 
 
-def _kernel_tail(block: ActuatorBlock, xs: Sequence[str], alpha: str, c: Mapping[str, str]) -> list[str]:
+def _outputs_lines(
+    block: ActuatorBlock, xs: Sequence[str], alpha: str, torque: str, c: Mapping[str, str], symbolic: bool
+) -> list[str]:
+    """The outputs after a step (values after the inputs), from the state, ``alpha`` (the last inertia's
+    acceleration without the carried mass, as source) and ``torque`` (the torque on the last inertia from the
+    transmission or the motor, as source): the acceleration with the carried mass, the drive force and its two
+    derivatives along the model with the inputs held (docs/coupling.md)."""
     N, n_in = block.N, len(block.INPUTS)
-    wN = 2 * N
+    n, wN = 2 * N + 1, 2 * N
+    if symbolic:
+        A = {(i, j): c[f"a{i}_{j}"] for i, j in structure(N)}
+        b00 = c["b00"]
+    else:
+        A = {(i, j): block.A[i, j] for i, j in structure(N)}
+        b00 = block.B[0, 0]
+
+    def row(i: int, names: Sequence[str]) -> str:
+        return _lin([A.get((i, j), 0.0) for j in range(n)], names)
+
+    last = [j for j in range(n) if (wN, j) in A]
+    need = sorted({j for i in last if i != wN for j in range(n) if (i, j) in A} | set(last))
+    d = [f"d{j}" for j in range(n)]
+    e = [f"e{j}" for j in range(n)]
+    lines = [
+        f"    al = ({alpha})/(1.0 + Dc*{c['iR2']}*{c['bw']})",
+        f"    tn = tl - {c['niR']}*F",
+        f"    T = ({torque} + tn - tf)/{c['iR']}",
+    ]
+    for j in need:
+        if j == wN:
+            lines.append(f"    d{j} = al")
+        else:
+            extra = f" + {_lin([b00], ['u'])}" if j == 0 else ""
+            lines.append(f"    d{j} = {row(j, xs)}{extra}")
+    unused = [f"d{j}" for j in range(n) if j not in need]
+    if unused:
+        lines.append(f"    {', '.join(unused)} = {', '.join(['0.0'] * len(unused))}")
+    lines.append(f"    s1 = {row(wN, d)}")
+    for j in last:
+        lines.append(f"    e{j} = s1/(1.0 + Dc*{c['iR2']}*{c['bw']})" if j == wN else f"    e{j} = {row(j, d)}")
+    rest = [f"e{j}" for j in range(n) if j not in last]
+    if rest:
+        lines.append(f"    {', '.join(rest)} = {', '.join(['0.0'] * len(rest))}")
+    lines += [
+        f"    s2 = {row(wN, e)}",
+        f"    values[{n_in}:] = (rho, {c['iR']}*x{wN}, {c['iR']}*al, x1, x{N + 1}, x0, tm, tm, T, "
+        f"s1/({c['bw']}*{c['iR']}), s2/({c['bw']}*{c['iR']}), {c['md']})",
+    ]
+    return lines
+
+
+def _kernel_tail(
+    block: ActuatorBlock, xs: Sequence[str], alpha: str, torque: str, c: Mapping[str, str], symbolic: bool
+) -> list[str]:
+    N = block.N
     return [
         f"    s = {' + '.join(xs)}",
         "    if s - s != 0.0: return 3",
         f"    rho = {c['rho0']} + {c['iR']}*x{N}",
         f"    x[:] = ({', '.join(xs)},)",
         f"    tm = {c['kT']}*x0",
-        f"    values[{n_in}:] = (rho, {c['iR']}*x{wN}, {c['iR']}*({alpha}), x1, x{N + 1}, x0, tm, tm)",
+        *_outputs_lines(block, xs, alpha, torque, c, symbolic),
         f"    if rho < {c['rmin']} or rho > {c['rmax']}: return 4",
         "    return 0",
     ]
 
 
-def kernel_source(
-    block: ActuatorBlock, Phi: np.ndarray, Gam: np.ndarray, m: int, named: bool = False, symbolic: bool = False
-) -> str:
-    """Python source of ``kernel(values, x) -> int`` (0 ok, 1/2 bad input u/F, 3 diverged, 4 stroke).
+def _torque(block: ActuatorBlock, c: Mapping[str, str], symbolic: bool) -> str:
+    """The torque on the last inertia from its spring, damper, viscous friction (the motor's through a rigid
+    transmission), as source: J_N times the last row of A on the state."""
+    n = 2 * block.N + 1
+    coefs = [c[f"aw{j}"] for j in range(n)] if symbolic else list(block.A[n - 1])
+    return f"({_lin(coefs, [f'x{j}' for j in range(n)])})/{c['bw']}"
 
-    ``named``: Phi and Gam are arrays of names (``name_grid``), the friction constants and the
-    number of substeps (``M_SUB``) are names too: one source for every step size, bound to the
-    numbers by ``ActuatorBlock._bind``. ``symbolic`` (with ``named``): the parameters' numbers
+
+def kernel_source(
+    block: ActuatorBlock,
+    Phi: np.ndarray,
+    Gam: np.ndarray,
+    m: int,
+    named: bool = False,
+    symbolic: bool = False,
+    h_sub: float = 0.0,
+) -> str:
+    """Python source of ``kernel(values, x) -> int`` (0 ok, 1/2/5 bad input u/F/M_carried, 3 diverged, 4 stroke)
+    over m substeps of ``h_sub`` [s].
+
+    ``named``: Phi and Gam are arrays of names (``name_grid``), the friction constants, the substep
+    (``H_SUB``) and the number of substeps (``M_SUB``) are names too: one source for every step size, bound to
+    the numbers by ``ActuatorBlock._bind``. ``symbolic`` (with ``named``): the parameters' numbers
     too (``kernel_constants`` as ``Q_<key>``): one source for every parameter set of this
     structure (the native FMU's, mast.core.native.models).
     """
     xs = [f"x{j}" for j in range(2 * block.N + 1)]
     c = _numbers(block, symbolic)
-    lines = _kernel_head(c) + _load_lines(block, xs, c, float(block.params["tau_ripple"]) > 0.0)
-    body = _substep_lines(block, Phi, Gam, named)
+    lines = _kernel_head(c, "H_SUB" if named else repr(h_sub))
+    lines += _load_lines(block, xs, c, float(block.params["tau_ripple"]) > 0.0)
+    carried, body = _substep_lines(block, Phi, Gam, named)
+    lines += ["    " + s for s in carried]
     if m == 1 and not named:
         lines += ["    " + s for s in body]
     else:
         lines.append(f"    for _ in range({'M_SUB' if named else m}):")
         lines += ["        " + s for s in body]
-    lines += _kernel_tail(block, xs, _alpha(block, c, symbolic), c)
+    lines += _kernel_tail(block, xs, _alpha(block, c, symbolic), _torque(block, c, symbolic), c, symbolic)
     return "\n".join(lines) + "\n"
 
 
 def _substep_lines(
     block: ActuatorBlock, Phi: np.ndarray, Gam: np.ndarray, named: bool, shared: bool = False
-) -> list[str]:
-    """One substep (u, tl and the state x0.. given): the implicit friction torque tf, then the state.
+) -> tuple[list[str], list[str]]:
+    """(lines once per step, lines of one substep): the carried mass's numbers (``_carried_lines``), then per
+    substep (u, tl, q and the state x0.. given) the implicit end speed and friction torque tf, then the state.
 
     ``shared`` (numbers inlined): the friction's ``a`` and the new omega_N have the same terms but the
     last (tl, w), summed left to right: their common partial sum ``s_a`` is computed once, the same floats."""
@@ -980,31 +1152,30 @@ def _substep_lines(
     wN = 2 * N  # index of omega_N
     body = []
     rows = [_lin(list(Phi[j]) + [Gam[j, 0], Gam[j, 1]], xs + ["u", "w"]) for j in range(n)]
-    if float(p["tau_c"]) > 0.0 or float(p["tau_s"]) > 0.0:
-        a_terms = _lin(list(Phi[wN]) + [Gam[wN, 0], Gam[wN, 1]], xs + ["u", "tl"])
-        head = _lin(list(Phi[wN]) + [Gam[wN, 0]], xs + ["u"])
-        last = _lin([Gam[wN, 1]], ["w"])
-        to_tl = _lin([Gam[wN, 1]], ["tl"])
-        if (
-            shared
-            and not named
-            and head != "0.0"
-            and last != "0.0"
-            and rows[wN] == f"{head} + {last}"
-            and a_terms == f"{head} + {to_tl}"
-        ):
-            body.append(f"s_a = {head}")
-            a_terms, rows[wN] = f"s_a + {to_tl}", f"s_a + {last}"
-        body.append(f"a = {a_terms}")
-        body += _friction_lines(p, 1.0, "F_") if named else _friction_lines(p, float(Gam[wN, 1]))
-        body.append("w = tl - tf")
-    else:
-        body += ["tf = 0.0", "w = tl"]
+    a_terms = _lin(list(Phi[wN]) + [Gam[wN, 0], Gam[wN, 1]], xs + ["u", "tl"])
+    head = _lin(list(Phi[wN]) + [Gam[wN, 0]], xs + ["u"])
+    last = _lin([Gam[wN, 1]], ["w"])
+    to_tl = _lin([Gam[wN, 1]], ["tl"])
+    if (
+        shared
+        and not named
+        and head != "0.0"
+        and last != "0.0"
+        and rows[wN] == f"{head} + {last}"
+        and a_terms == f"{head} + {to_tl}"
+    ):
+        body.append(f"s_a = {head}")
+        a_terms, rows[wN] = f"s_a + {to_tl}", f"s_a + {last}"
+    body.append(f"a = {a_terms}")
+    g = Gam[wN, 1] if named else repr(float(Gam[wN, 1]))
+    text = _friction_text(p, 1.0 if named else float(Gam[wN, 1]), "F_" if named else None)
+    carried, text = _carried_lines(p, g, text, "")
+    body += _solve_lines(p, text, "", wN)
     news = [f"n{j}" for j in range(n)]
     for j in range(n):
         body.append(f"{news[j]} = {rows[j]}")
     body.append(f"{', '.join(xs)} = {', '.join(news)}")
-    return body
+    return carried, body
 
 
 def _alpha(block: ActuatorBlock, c: Mapping[str, str], symbolic: bool) -> str:
@@ -1014,7 +1185,7 @@ def _alpha(block: ActuatorBlock, c: Mapping[str, str], symbolic: bool) -> str:
     return _lin(coefs, [f"x{j}" for j in range(n)] + ["(tl - tf)"])
 
 
-def _ticks_source(block: ActuatorBlock, Phi: np.ndarray, Gam: np.ndarray, m: int) -> str:
+def _ticks_source(block: ActuatorBlock, Phi: np.ndarray, Gam: np.ndarray, m: int, h_sub: float) -> str:
     """Python source of the drive's current loop over ``ticks`` steps of T_cur in one function (drive.py):
 
         ticks(values, x, ticks, i_cmd, x_c, u_c, k_p, k_iT, u_max) -> (code, tick, x_c, u_c)
@@ -1027,10 +1198,15 @@ def _ticks_source(block: ActuatorBlock, Phi: np.ndarray, Gam: np.ndarray, m: int
     xs = [f"x{j}" for j in range(2 * N + 1)]
     c = _numbers(block, False)
     ripple = float(block.params["tau_ripple"]) > 0.0
+    carried, body = _substep_lines(block, Phi, Gam, False, shared=True)
     lines = [
         "def ticks(values, x, ticks, i_cmd, x_c, u_c, k_p, k_iT, u_max):",
         "    F = values[1]",
+        "    Dc = values[2]",
         "    if F - F != 0.0: return 2, 0, x_c, u_c",
+        "    if Dc - Dc != 0.0 or Dc < 0.0: return 5, 0, x_c, u_c",
+        f"    q = Dc*{c['iR2']}/{h_sub!r}",
+        *("    " + line for line in carried),
         f"    tl = {c['niR']}*F - {c['weight']}",
         f"    {', '.join(xs)}, = x",
         "    for k in range(ticks):",
@@ -1042,7 +1218,6 @@ def _ticks_source(block: ActuatorBlock, Phi: np.ndarray, Gam: np.ndarray, m: int
     ]
     if ripple:
         lines.append(f"        tl = {c['niR']}*F - {c['weight']} - {c['ripple']}*sin({c['rk']}*x{N})")
-    body = _substep_lines(block, Phi, Gam, False, shared=True)
     if m == 1:
         lines += ["        " + s for s in body]
     else:
@@ -1057,8 +1232,7 @@ def _ticks_source(block: ActuatorBlock, Phi: np.ndarray, Gam: np.ndarray, m: int
         f"    x[:] = ({', '.join(xs)},)",
         f"    tm = {c['kT']}*x0",
         "    values[0] = u_a",
-        f"    values[{len(block.INPUTS)}:] = (rho, {c['iR']}*x{2 * N}, {c['iR']}*({_alpha(block, c, False)}), "
-        f"x1, x{N + 1}, x0, tm, tm)",
+        *_outputs_lines(block, xs, _alpha(block, c, False), _torque(block, c, False), c, False),
         "    return 0, ticks, x_c, u_c",
     ]
     return "\n".join(lines) + "\n"
@@ -1132,8 +1306,15 @@ def backlash_kernel_source(
         )
     else:
         (Pc, Gc), (Pg, Gg) = _backlash_matrices(block, h_sub)
-    friction = float(p["tau_c"]) > 0.0 or float(p["tau_s"]) > 0.0
-    lines = _kernel_head(c) + _load_lines(block, xs, c, float(p["tau_ripple"]) > 0.0)
+    lines = _kernel_head(c, "H_SUB" if named else repr(h_sub))
+    lines += _load_lines(block, xs, c, float(p["tau_ripple"]) > 0.0)
+    modes = []
+    for Gam, prefix, tag in ((Gc, "FC_", "C"), (Gg, "FG_", "G")):
+        g = Gam[4, 1] if named else repr(float(Gam[4, 1]))
+        text = _friction_text(p, 1.0 if named else float(Gam[4, 1]), prefix if named else None)
+        carried, text = _carried_lines(p, g, text, tag)
+        lines += ["    " + line for line in carried]
+        modes.append(text)
     lines.append(f"    for _ in range({'M_SUB' if named else m}):")
     lines.append("        d = x1 - x2")
     lines += [
@@ -1147,19 +1328,17 @@ def backlash_kernel_source(
         "            pl = 0.0",
         "            contact = 0.0",
     ]
-    for cond, (Phi, Gam), prefix in (("if contact > 0.0:", (Pc, Gc), "FC_"), ("else:", (Pg, Gg), "FG_")):
+    for cond, (Phi, Gam), text, tag in (
+        ("if contact > 0.0:", (Pc, Gc), modes[0], "C"),
+        ("else:", (Pg, Gg), modes[1], "G"),
+    ):
         lines.append(f"        {cond}")
-        body = []
-        if friction:
-            body.append(
-                f"a = {_lin(list(Phi[4]) + list(Gam[4]), xs + ['u', 'tl', 'pl'])}"
-                if cond.startswith("if")
-                else f"a = {_lin(list(Phi[4]) + list(Gam[4, :2]), xs + ['u', 'tl'])}"
-            )
-            body += _friction_lines(p, 1.0, prefix) if named else _friction_lines(p, float(Gam[4, 1]))
-            body.append("w = tl - tf")
-        else:
-            body += ["tf = 0.0", "w = tl"]
+        body = [
+            f"a = {_lin(list(Phi[4]) + list(Gam[4]), xs + ['u', 'tl', 'pl'])}"
+            if cond.startswith("if")
+            else f"a = {_lin(list(Phi[4]) + list(Gam[4, :2]), xs + ['u', 'tl'])}"
+        ]
+        body += _solve_lines(p, text, tag, 4)
         ins = xs + ["u", "w", "pl"] if cond.startswith("if") else xs + ["u", "w"]
         for j in range(5):
             coefs = list(Phi[j]) + (list(Gam[j]) if cond.startswith("if") else list(Gam[j, :2]))
@@ -1173,5 +1352,5 @@ def backlash_kernel_source(
         "    else: ts = 0.0",
     ]
     alpha = f"(ts + tl - tf - {c['bv']}*x4)*{c['ij2']}"
-    lines += _kernel_tail(block, xs, alpha, c)
+    lines += _kernel_tail(block, xs, alpha, f"(ts - {c['bv']}*x4)", c, symbolic)
     return "\n".join(lines) + "\n"

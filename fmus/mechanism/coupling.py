@@ -30,31 +30,48 @@ exchanges after it was sampled, ``EXTRAPOLATION``), the delay leaves no energy i
 
 from __future__ import annotations
 
+from typing import Sequence
+
 import numpy as np
 
-__all__ = ["EXTRAPOLATION", "condensation", "condensed_forces", "extrapolated"]
+__all__ = ["EXTRAPOLATION", "condense", "condensation", "condensed_forces", "extrapolated"]
 
 #: how far ahead the drive forces are extrapolated, in exchange steps: sampled at t_n, they reach the mechanism
 #: in its step from t_n, whose output a drive applies over [t_(n+1), t_(n+2)], centred 1.5 steps after t_n
 EXTRAPOLATION = 1.5
 
 
-def condensation(M: np.ndarray, m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The condensed interface of the joint-space mass ``M`` [kg] (n x n) to drives of load-side masses ``m`` [kg].
+def condense(M: Sequence[float], m: Sequence[float]) -> tuple[list[float], list[float]]:
+    """The condensed interface of the joint-space mass ``M`` [kg] (n x n, row-major) to drives of load-side masses
+    ``m`` [kg] (each > 0): (W, D), the weights W (n x n row-major, zero diagonal) of the other drives' forces in each
+    drive's force and the masses D [kg] each drive carries (module docstring). Y = (M + m)^-1 by Gauss-Jordan
+    without pivoting (M + m is symmetric positive definite), in a fixed order of operations: the native mechanism
+    computes the same floats (mast_mechanism.c)."""
+    n = len(m)
+    A = [[M[i * n + j] + (m[i] if i == j else 0.0) for j in range(n)] + [1.0 if i == j else 0.0 for j in range(n)]
+         for i in range(n)]  # fmt: skip
+    for k in range(n):
+        inv = 1.0 / A[k][k]
+        A[k] = [v * inv for v in A[k]]
+        for i in range(n):
+            if i != k:
+                f = A[i][k]
+                A[i] = [v - f * w for v, w in zip(A[i], A[k])]
+    W = [0.0 if i == j else -A[i][n + j] / A[i][n + i] for i in range(n) for j in range(n)]
+    return W, [1.0 / A[i][n + i] - m[i] for i in range(n)]
 
-    Returns (W, D): the weights W (n x n, zero diagonal) of the other drives' forces in each drive's force, and
-    the masses D [kg] (n) each drive carries on its load side (module docstring)."""
+
+def condensation(M: np.ndarray, m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``condense`` of arrays, checked: (W (n x n), D (n)) for the joint-space mass ``M`` [kg] and the load-side
+    masses ``m`` [kg]."""
     M = np.asarray(M, dtype=float)
     m = np.asarray(m, dtype=float)
     if M.shape != (len(m), len(m)):
         raise ValueError(f"joint-space mass of shape {M.shape}: expected ({len(m)}, {len(m)}) for {len(m)} drives")
     if not np.all(m > 0.0):
         raise ValueError(f"load-side masses {m.tolist()}: expected every one > 0 kg")
-    Y = np.linalg.inv(M + np.diag(m))
-    y = np.diag(Y)
-    W = -Y / y[:, None]
-    np.fill_diagonal(W, 0.0)
-    return W, 1.0 / y - m
+    W, D = condense(M.ravel().tolist(), m.tolist())
+    return np.array(W).reshape(len(m), len(m)), np.array(D)
 
 
 def condensed_forces(b: np.ndarray, T: np.ndarray, W: np.ndarray) -> np.ndarray:

@@ -33,6 +33,7 @@ from typing import Callable, ClassVar, Mapping, Sequence
 from ..common.block import Block, ModelError
 from ..common.codegen import compile_generated
 from ..common.parameters import Param, ParameterError, Value
+from .coupling import EXTRAPOLATION, condense
 from .designs import (
     KINEMATIC_PARAMETERS,
     MASS_PARAMETERS,
@@ -93,7 +94,7 @@ def restarted_dk(rho, warm: float, S, out) -> int:
 def reaction(n: int) -> Callable[..., bool]:
     """The inertial reaction of n drives in straight-line Python (``MechanismBlock.inertial_forces``):
     ``reaction(values, M, b, checked=False)`` writes F_a = b_a + M_a1 rho_ddot_1 + ... + M_an rho_ddot_n (summed in
-    this order) into the block's ``values`` (inputs rho, rho_dot, rho_ddot, then F: n each), M row-major; it returns
+    this order) into the block's ``values`` (the inputs, ``Variables``, then F: n each), M row-major; it returns
     False and writes nothing when the accelerations' sum is not finite (a NaN or inf among them), unless
     ``checked``."""
     r = [f"r{c}" for c in range(n)]
@@ -104,14 +105,22 @@ def reaction(n: int) -> Callable[..., bool]:
         f"    s = {' + '.join(r)}\n"
         "    if s - s != 0.0 and not checked:\n"
         "        return False\n"
-        f"    values[{3 * n}:{4 * n}] = ({rows},)\n"
+        f"    values[{INPUT_KINDS * n}:{(INPUT_KINDS + 1) * n}] = ({rows},)\n"
         "    return True\n"
     )
     return compile_generated(source, "reaction", f"mechanism: inertial reaction of {n} drives", {})
 
 
-#: per drive kind: the units of its velocity, acceleration and of the force (torque) it takes
-_KIND_UNITS = {"linear": ("m/s", "m/s2", "N"), "rotary": ("rad/s", "rad/s2", "N.m")}
+#: per drive kind: the units of its velocity, acceleration, force (torque), its rates and its mass (inertia)
+_KIND_UNITS = {
+    "linear": ("m/s", "m/s2", "N", "N/s", "N/s2", "kg"),
+    "rotary": ("rad/s", "rad/s2", "N.m", "N.m/s", "N.m/s2", "kg.m2"),
+}
+
+#: the mechanism's inputs per drive, in order (``Variables``): its motion, then its drive's force, the force's two
+#: derivatives and its load-side mass (the condensed interface, fmus/mechanism/coupling.py)
+INPUT_NAMES = ("rho", "rho_dot", "rho_ddot", "F_drive", "F_drive_dot", "F_drive_ddot", "m_drive")
+INPUT_KINDS = len(INPUT_NAMES)
 
 #: what each pose output is (the parasitic ones, those not among the coordinates, say so)
 _POSE_DESCRIPTIONS = {
@@ -127,8 +136,10 @@ _POSE_DESCRIPTIONS = {
 @dataclass(frozen=True)
 class Variables:
     """The mechanism block's variables for a topology (docs/interfaces.md, the connector convention): inputs
-    ``rho_k``, ``rho_dot_k``, ``rho_ddot_k`` for k = 1..n, outputs ``F_k`` and the six pose components, with
-    their units (a linear drive's m, m/s, m/s2, N; a rotary drive's rad, rad/s, rad/s2, N.m) and descriptions."""
+    ``rho_k``, ``rho_dot_k``, ``rho_ddot_k`` and the drive's ``F_drive_k``, ``F_drive_dot_k``, ``F_drive_ddot_k``,
+    ``m_drive_k`` for k = 1..n, outputs ``F_k``, the six pose components, then the condensed interface ``Fc_k``,
+    ``Mc_k`` (docs/coupling.md), with their units (a linear drive's m, m/s, m/s2, N, N/s, N/s2, kg; a rotary
+    drive's rad, rad/s, rad/s2, N.m, N.m/s, N.m/s2, kg.m2) and descriptions."""
 
     inputs: tuple[str, ...]
     outputs: tuple[str, ...]
@@ -140,13 +151,37 @@ class Variables:
         """The variables of a mechanism with the independent ``coordinates`` (pose components) and drives of
         ``kinds`` ("linear" or "rotary", in order): ``Topology.names`` and the drives' kinds."""
         ks = range(1, len(kinds) + 1)
-        inputs = (*(f"rho_{k}" for k in ks), *(f"rho_dot_{k}" for k in ks), *(f"rho_ddot_{k}" for k in ks))
-        outputs = (*(f"F_{k}" for k in ks), *POSE)
+        inputs = tuple(f"{name}_{k}" for name in INPUT_NAMES for k in ks)
+        outputs = (*(f"F_{k}" for k in ks), *POSE, *(f"Fc_{k}" for k in ks), *(f"Mc_{k}" for k in ks))
         units, text = {}, {}
         for k, kind in zip(ks, kinds):
-            rate, acceleration, force = _KIND_UNITS[kind]
+            rate, acceleration, force, force_rate, force_acceleration, mass = _KIND_UNITS[kind]
             units.update(
-                {f"rho_{k}": DRIVE_UNITS[kind], f"rho_dot_{k}": rate, f"rho_ddot_{k}": acceleration, f"F_{k}": force}
+                {
+                    f"rho_{k}": DRIVE_UNITS[kind],
+                    f"rho_dot_{k}": rate,
+                    f"rho_ddot_{k}": acceleration,
+                    f"F_{k}": force,
+                    f"F_drive_{k}": force,
+                    f"F_drive_dot_{k}": force_rate,
+                    f"F_drive_ddot_{k}": force_acceleration,
+                    f"m_drive_{k}": mass,
+                    f"Fc_{k}": force,
+                    f"Mc_{k}": mass,
+                }
+            )
+            text.update(
+                {
+                    f"F_drive_{k}": f"Force of drive {k} on its load side: all but the load side's inertia and the "
+                    f"mechanism (the actuator's F_drive)",
+                    f"F_drive_dot_{k}": f"Time derivative of F_drive_{k}",
+                    f"F_drive_ddot_{k}": f"Second time derivative of F_drive_{k}",
+                    f"m_drive_{k}": f"Load-side mass of drive {k}, which F_drive_{k} accelerates (0: not connected, "
+                    f"no condensation)",
+                    f"Fc_{k}": f"Force to apply to drive {k} beyond Mc_{k} times its own acceleration: the mechanism "
+                    f"condensed on the other drives, their forces extrapolated 1.5 steps (docs/coupling.md)",
+                    f"Mc_{k}": f"Mass of the mechanism and the other drives that drive {k} carries on its load side",
+                }
             )
             if kind == "linear":
                 text.update(
@@ -285,16 +320,25 @@ class MechanismBlock(Block):
         self._T_mech = float(self.params[UPDATE_PERIOD.name])
         self._M: tuple[float, ...] = ()  # M_k (row-major) and b_k of the last full update (``inertial_forces``)
         self._b: tuple[float, ...] = ()
+        self._W: list[float] | None = None  # the condensed interface of the last full update (``_condense``)
+        self._D: list[float] = [0.0] * self.n
         self._reaction = reaction(self.n)
 
     # -------------------------------------------------------------------------------------
-    def _compute(self, t: float) -> None:
+    def _compute(self, t: float, h: float) -> None:
+        """The full update at ``t`` (module docstring), the drives' forces extrapolated over the step ``h`` [s]."""
         vals = self.values
         n = self.n
-        for k in range(3 * n):
+        for k in range(INPUT_KINDS * n):
             v = vals[k]
             if not math.isfinite(v):
                 raise ModelError(f"{self.name}: input '{self.INPUTS[k]}' = {v!r} is not finite at t = {t!r} s")
+        for k in range((INPUT_KINDS - 1) * n, INPUT_KINDS * n):
+            if vals[k] < 0.0:
+                raise ModelError(
+                    f"{self.name}: input '{self.INPUTS[k]}' = {vals[k]!r} at t = {t!r} s: expected a load-side "
+                    f"mass >= 0 (0: not connected)"
+                )
         rho = tuple(vals[:n])
         eng = self.engine
         try:
@@ -314,7 +358,42 @@ class MechanismBlock(Block):
         except OverflowError as exc:  # the equations built for these parameters (engine.overflow_hint)
             raise ParameterError(f"{self.name}: {exc}") from None
         self._guess = q
-        vals[3 * n :] = out
+        vals[INPUT_KINDS * n : (INPUT_KINDS + 1) * n + 6] = out
+        self._condense()
+        self._tell(h)
+
+    def _condense(self) -> None:
+        """The condensed interface of the last full update's M to the drives' load-side masses (``coupling.condense``);
+        none while a drive reports no mass (its m_drive not connected: the whole force, nothing carried) or
+        detached."""
+        n = self.n
+        m = self.values[(INPUT_KINDS - 1) * n : INPUT_KINDS * n]
+        if not self.attached or not all(v > 0.0 for v in m):
+            self._W, self._D = None, [0.0] * n
+            return
+        self._W, self._D = condense(self._M, m)
+
+    def _tell(self, h: float) -> None:
+        """Fc and Mc for the step ``h`` [s] (``Variables``): the bias plus the weighted other drives' forces,
+        extrapolated ``coupling.EXTRAPOLATION`` steps of h ahead by their derivatives; without a condensed interface
+        the whole force F, nothing carried."""
+        vals, n = self.values, self.n
+        at = (INPUT_KINDS + 1) * n + 6
+        if self._W is None:
+            vals[at : at + n] = vals[INPUT_KINDS * n : (INPUT_KINDS + 1) * n]
+            vals[at + n : at + 2 * n] = self._D
+            return
+        tau = EXTRAPOLATION * h
+        half = 0.5 * tau * tau
+        T = [vals[3 * n + j] + tau * vals[4 * n + j] + half * vals[5 * n + j] for j in range(n)]
+        b, W = self._b, self._W
+        for k in range(n):
+            acc = b[k]
+            for j in range(n):
+                if j != k:
+                    acc += W[k * n + j] * (T[j] - b[j])
+            vals[at + k] = acc
+        vals[at + n : at + 2 * n] = self._D
 
     @property
     def _rho_unit(self) -> str:
@@ -325,7 +404,7 @@ class MechanismBlock(Block):
         """Outputs at t0 from the current inputs (direct kinematics from the level pose)."""
         self._guess = None
         self._t0 = float(t0)
-        self._compute(t0)
+        self._compute(t0, 0.0)
 
     def do_step(self, t: float, h: float) -> None:
         """Outputs at t + h for the inputs held (algebraic: DK warm-started, then IDP) if the step [t, t + h)
@@ -336,8 +415,9 @@ class MechanismBlock(Block):
             eps = 1e-6 * (h if h < T else T)
             if self._t0 + math.ceil((t - self._t0 - eps) / T) * T >= t + h - eps:
                 self.inertial_forces(t + h)
+                self._tell(h)
                 return
-        self._compute(t + h)
+        self._compute(t + h, h)
 
     def inertial_forces(self, t: float) -> None:
         """F = M_k rho_ddot + b_k at ``t`` from the accelerations set now and the last full update's M_k, b_k
@@ -347,7 +427,7 @@ class MechanismBlock(Block):
         vals = self.values
         if not self._reaction(vals, self._M, self._b):
             n = self.n
-            for k in range(2 * n, 3 * n):
+            for k in range(2 * n, 3 * n):  # the accelerations
                 if not math.isfinite(vals[k]):
                     raise ModelError(
                         f"{self.name}: input '{self.INPUTS[k]}' = {vals[k]!r} is not finite at t = {t!r} s"

@@ -41,7 +41,12 @@ REPO = Path(__file__).resolve().parents[2]
 SSP_SRC = REPO / "ssp"
 
 #: per joint unit: (velocity, acceleration, force) units of a drive's joint quantities
-JOINT_RATES = {"m": ("m/s", "m/s2", "N"), "rad": ("rad/s", "rad/s2", "N.m")}
+JOINT_RATES = {
+    "m": ("m/s", "m/s2", "N", "N/s", "N/s2", "kg"),
+    "rad": ("rad/s", "rad/s2", "N.m", "N.m/s", "N.m/s2", "kg.m2"),
+}
+#: what a drive tells the mechanism beyond its motion, and what the mechanism answers (docs/coupling.md)
+DRIVE_FORCES = ("F_drive", "F_drive_dot", "F_drive_ddot", "m_drive")
 #: the actuator FMU's own connectors beside its joint quantities (unit, kind)
 ACTUATOR_SIGNALS = (("theta_m", "rad"), ("omega_m", "rad/s"), ("i_m", "A"), ("tau_m", "N.m"), ("u", "V"))
 _COUNTS = ("no", "one", "two", "three", "four", "five", "six", "seven", "eight", "nine", "ten", "eleven", "twelve")
@@ -110,8 +115,18 @@ def _count(n: int) -> str:
 
 
 def _joint(unit: str) -> dict[str, str]:
-    speed, acceleration, force = JOINT_RATES[unit]
-    return {"rho": unit, "rho_dot": speed, "rho_ddot": acceleration, "F": force}
+    speed, acceleration, force, force_rate, force_acceleration, mass = JOINT_RATES[unit]
+    return {
+        "rho": unit,
+        "rho_dot": speed,
+        "rho_ddot": acceleration,
+        "F": force,
+        "F_drive": force,
+        "F_drive_dot": force_rate,
+        "F_drive_ddot": force_acceleration,
+        "m_drive": mass,
+        "M_carried": mass,
+    }
 
 
 def system_ssd(description: SystemDescription, shape: Topology) -> ssd.SystemStructureDescription:
@@ -153,8 +168,10 @@ def system_ssd(description: SystemDescription, shape: Topology) -> ssd.SystemStr
             [
                 ssd.Connector("i_cmd", "input", unit="A"),
                 ssd.Connector("F", "input", unit=j["F"]),
+                ssd.Connector("M_carried", "input", unit=j["M_carried"]),
                 *(ssd.Connector(q, "output", unit=j[q]) for q in ("rho", "rho_dot", "rho_ddot")),
                 *(ssd.Connector(q, "output", unit=u) for q, u in ACTUATOR_SIGNALS),
+                *(ssd.Connector(q, "output", unit=j[q]) for q in DRIVE_FORCES),
             ],
             description.ratings,
             k=str(k),
@@ -168,11 +185,13 @@ def system_ssd(description: SystemDescription, shape: Topology) -> ssd.SystemStr
         [
             *(
                 ssd.Connector(f"{q}_{k}", "input", unit=j[q])
-                for q in ("rho", "rho_dot", "rho_ddot")
+                for q in ("rho", "rho_dot", "rho_ddot", *DRIVE_FORCES)
                 for k, j in zip(ks, joints)
             ),
             *(ssd.Connector(f"F_{k}", "output", unit=j["F"]) for k, j in zip(ks, joints)),
             *(ssd.Connector(p, "output", unit=POSE_UNITS[p]) for p in POSE),
+            *(ssd.Connector(f"Fc_{k}", "output", unit=j["F"]) for k, j in zip(ks, joints)),
+            *(ssd.Connector(f"Mc_{k}", "output", unit=j["M_carried"]) for k, j in zip(ks, joints)),
         ],
     )
     source = ""
@@ -189,8 +208,12 @@ def system_ssd(description: SystemDescription, shape: Topology) -> ssd.SystemStr
             ssd.Connection("controller", f"i_cmd_{k}", f"actuator_{k}", "i_cmd"),
             ssd.Connection(f"actuator_{k}", "rho", "controller", f"rho_{k}"),
             ssd.Connection(f"actuator_{k}", "omega_m", "controller", f"omega_m_{k}"),
-            *(ssd.Connection(f"actuator_{k}", q, "mechanism", f"{q}_{k}") for q in ("rho", "rho_dot", "rho_ddot")),
-            ssd.Connection("mechanism", f"F_{k}", f"actuator_{k}", "F"),
+            *(
+                ssd.Connection(f"actuator_{k}", q, "mechanism", f"{q}_{k}")
+                for q in ("rho", "rho_dot", "rho_ddot", *DRIVE_FORCES)
+            ),
+            ssd.Connection("mechanism", f"Fc_{k}", f"actuator_{k}", "F"),
+            ssd.Connection("mechanism", f"Mc_{k}", f"actuator_{k}", "M_carried"),
         ]
     system = ssd.System(description.system, description.description, [] if source else commands, elements, connections)
     return ssd.SystemStructureDescription(

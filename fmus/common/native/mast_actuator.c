@@ -17,7 +17,7 @@
 #define COLD
 #endif
 
-static const char *const INPUT_NAMES[] = {"u", "F"};   /* actuator.model.INPUT_ERRORS */
+static const char *const INPUT_NAMES[] = {"u", "F", "M_carried"};   /* actuator.model.INPUT_ERRORS */
 
 /* the chain lists' names, whether their numbers must be > 0 (else >= 0), their value references */
 static const char *const LIST_NAMES[3] = {"J_chain", "K_chain", "C_chain"};
@@ -182,6 +182,7 @@ static int discretise(mast_actuator_state *s, double h, mast_actuator_disc *d, c
         return MAST_MODEL_ERROR;
     }
     d->m = m;
+    d->H[v->hs] = h / m;
     if (!v->backlash) {
         for (int i = 0; i < nx; i++) {
             for (int j = 0; j < nx; j++) d->H[i * nx + j] = E[i * nm + j];
@@ -269,11 +270,14 @@ static COLD mast_actuator_disc *select(mast_actuator_state *s, double h, char *m
     return d;
 }
 
+/* the message of an input's failure code (actuator.model.INPUT_ERRORS: 1 u, 2 F, 5 M_carried) */
 static int input_error(const double *values, int code, double t, char *msg, size_t size)
 {
     char v[40];
-    mast_repr(values[code - 1], v, sizeof v);
-    snprintf(msg, size, "input '%s' = %s at t=%.9g s is not finite", INPUT_NAMES[code - 1], v, t);
+    int at = code == 5 ? 2 : code - 1;     /* actuator.model.input_index */
+    mast_repr(values[at], v, sizeof v);
+    snprintf(msg, size, "input '%s' = %s at t=%.9g s is not %s", INPUT_NAMES[at], v, t,
+             code == 5 ? "a finite mass >= 0 kg" : "finite");
     return MAST_MODEL_ERROR;
 }
 
@@ -291,19 +295,24 @@ int mast_actuator_initialize(void *state, double *values, const mast_parameters 
     }
     int code = setup(s, row, p, msg, size);
     if (code) return code;
-    double u = values[0], F = values[1];
+    double u = values[0], F = values[1], Dc = values[2];
     if (!isfinite(u)) return input_error(values, 1, t0, msg, size);
     if (!isfinite(F)) return input_error(values, 2, t0, msg, size);
+    if (!(isfinite(Dc) && Dc >= 0.0)) return input_error(values, 5, t0, msg, size);   /* actuator.model.carried_ok */
     double w = 0.0;
     double tm = Q[ACT_Q_KT] * 0.0;
     double T = p->real[ACT_VR_T_MEAS], delay = p->real[ACT_VR_DELAY_MEAS], offset = p->real[ACT_VR_TAU_OFFSET];
-    values[2] = Q[ACT_Q_RHO0] + Q[ACT_Q_IR] * 0.0;
-    values[3] = Q[ACT_Q_IR] * w;
-    values[4] = 0.0;   /* at rest until the first step: no loop with the mechanism's forces (ActuatorBlock) */
-    values[5] = 0.0; values[6] = 0.0; values[7] = 0.0; values[8] = tm;
+    values[3] = Q[ACT_Q_RHO0] + Q[ACT_Q_IR] * 0.0;
+    values[4] = Q[ACT_Q_IR] * w;
+    values[5] = 0.0;   /* at rest until the first step: no loop with the mechanism's forces (ActuatorBlock) */
+    values[6] = 0.0; values[7] = 0.0; values[8] = 0.0; values[ACT_TAU_M] = tm;
     s->sensor = !(T == 0.0 && delay == 0.0 && offset == 0.0);
     s->s_u0 = tm; s->s_y = tm; s->s_uprev = tm; s->s_h = NAN; s->s_len = 0; s->s_head = 0;
-    values[9] = s->sensor ? s->s_y + offset : tm;
+    values[ACT_TAU_MEAS] = s->sensor ? s->s_y + offset : tm;
+    values[ACT_F_DRIVE] = -Q[ACT_Q_MG];   /* the drive force at rest: the carriage's weight alone */
+    values[ACT_F_DRIVE + 1] = 0.0;
+    values[ACT_F_DRIVE + 2] = 0.0;
+    values[ACT_F_DRIVE + 3] = Q[ACT_Q_MD];
     return MAST_OK;
 }
 
@@ -311,7 +320,7 @@ int mast_actuator_initialize(void *state, double *values, const mast_parameters 
 static COLD int step_error(const mast_actuator_state *s, const double *values, int code, double t, double h,
                            char *msg, size_t size)
 {
-    if (code == 1 || code == 2) return input_error(values, code, t, msg, size);
+    if (code == 1 || code == 2 || code == 5) return input_error(values, code, t, msg, size);
     if (code == 3) {
         snprintf(msg, size, "diverged at t=%.9g s (non-finite state)", t + h);
         return MAST_MODEL_ERROR;
@@ -331,7 +340,7 @@ int mast_actuator_finish(mast_actuator_state *s, double *values, int code, const
                          char *msg, size_t size)
 {
     if (code) return step_error(s, values, code, t, h, msg, size);
-    return s->sensor ? sensor_step(s, values[8], h, p, values + 9, msg, size) : MAST_OK;
+    return s->sensor ? sensor_step(s, values[ACT_TAU_M], h, p, values + ACT_TAU_MEAS, msg, size) : MAST_OK;
 }
 
 int mast_actuator_do_step(void *state, double *values, const mast_parameters *p, double t, double h, char *msg,

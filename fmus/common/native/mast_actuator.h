@@ -4,8 +4,9 @@
  * it (mast_drive.c); what the generator writes for one parameter set: the sizes and the value references in
  * config.h, the kernels and the tables in <id>_model.c.
  *
- * The axis' values: inputs u [V], F [N], then its outputs (rho, rho_dot, rho_ddot, theta_m, omega_m, i_m, tau_m,
- * tau_meas). Every parameter is read at run time, n_dof too: one chain per n_dof of ACTUATOR_CHAINS.
+ * The axis' values: inputs u [V], F [N], M_carried [kg], then its outputs (rho, rho_dot, rho_ddot, theta_m, omega_m,
+ * i_m, tau_m, tau_meas, F_drive, F_drive_dot, F_drive_ddot, m_drive). Every parameter is read at run time, n_dof too:
+ * one chain per n_dof of ACTUATOR_CHAINS.
  */
 #ifndef MAST_ACTUATOR_H
 #define MAST_ACTUATOR_H
@@ -22,15 +23,22 @@
  *   ACT_Q_<NAME>             the slots in Q of the kernel constants the runtime reads (the same in every chain)
  *   ACT_VR_<NAME>            the value references of the parameters it reads */
 
-/* one step of a kernel: 0, or 1, 2 (input u, F not finite), 3 (diverged), 4 (carriage out of its stroke) */
+/* one step of a kernel: 0, or 1, 2 (input u, F not finite), 3 (diverged), 4 (carriage out of its stroke), 5 (input
+ * M_carried not a finite mass >= 0) */
 typedef int (*mast_actuator_step)(double *values, double *x, double *H, double *Q, double m);
 
-/* a kernel of a chain: its structure (friction 0 none, 1 Coulomb, 2 Stribeck; ripple; backlash) and where
- * its friction numbers start in H (in contact f0, in the gap f1) */
+/* a kernel of a chain: its structure (friction 0 none, 1 Coulomb, 2 Stribeck; ripple; backlash), where its friction
+ * numbers start in H (in contact f0, in the gap f1) and where its substep stands in H (hs) */
 typedef struct {
     mast_actuator_step step;
-    int friction, ripple, backlash, f0, f1;
+    int friction, ripple, backlash, f0, f1, hs;
 } mast_actuator_kernel;
+
+/* where the axis' inputs end and its outputs tau_m, tau_meas, F_drive stand among its values (ActuatorBlock) */
+#define ACT_INPUTS 3
+#define ACT_TAU_M 9
+#define ACT_TAU_MEAS 10
+#define ACT_F_DRIVE 11
 
 /* a chain n_dof = N: its numbers from the Real parameters and the chain lists (kernel_constants, the state
  * matrices, the backlash's systems: traced), its kernels (first, count in ACTUATOR_KERNELS) and the slots in Q

@@ -5,7 +5,7 @@
 #include "mast_drive.h"
 #include "mast_native.h"
 
-#define I_M 5   /* the axis' output i_m (ActuatorBlock.OUTPUTS) */
+#define I_M (ACT_INPUTS + 5)   /* the axis' output i_m among its values (drive.I_M) */
 
 static int command_error(const double *values, double t, char *msg, size_t size)
 {
@@ -16,8 +16,8 @@ static int command_error(const double *values, double t, char *msg, size_t size)
 
 static void outputs(const mast_drive_state *s, double *values)
 {
-    for (int k = 2; k < 2 + MAST_AXIS_OUTPUTS; k++) values[k] = s->av[k];
-    values[2 + MAST_AXIS_OUTPUTS] = s->u;
+    for (int k = ACT_INPUTS; k < ACT_INPUTS + MAST_AXIS_OUTPUTS; k++) values[k] = s->av[k];
+    values[ACT_INPUTS + MAST_AXIS_OUTPUTS] = s->u;
 }
 
 int mast_drive_initialize(void *state, double *values, const mast_parameters *p, double t0, char *msg, size_t size)
@@ -27,7 +27,7 @@ int mast_drive_initialize(void *state, double *values, const mast_parameters *p,
     act_current_gains(p->real[ACT_VR_K_PC], p->real[ACT_VR_K_IC], p->real[ACT_VR_T_CUR], p->real[ACT_VR_U_MAX],
                       s->gains);
     s->x_c = 0.0; s->u = 0.0;
-    s->av[0] = 0.0; s->av[1] = values[1];
+    s->av[0] = 0.0; s->av[1] = values[1]; s->av[2] = values[2];
     int code = mast_actuator_initialize(&s->a, s->av, p, t0, msg, size);
     if (code) return code;
     outputs(s, values);
@@ -50,9 +50,9 @@ int mast_drive_do_step(void *state, double *values, const mast_parameters *p, do
     mast_actuator_disc *d = mast_actuator_select(&s->a, T, msg, size);     /* the same for every tick */
     if (!d) return MAST_MODEL_ERROR;
     for (int k = 0; k < (int)m; k++) {      /* the PI on i_m at this tick; its voltage from the next one */
-        act_pi_step(values[0] - s->av[2 + I_M], s->x_c, s->gains[0], s->gains[1], s->gains[2], 0.0, PI);
+        act_pi_step(values[0] - s->av[I_M], s->x_c, s->gains[0], s->gains[1], s->gains[2], 0.0, PI);
         s->x_c = PI[1];
-        s->av[0] = s->u; s->av[1] = values[1];
+        s->av[0] = s->u; s->av[1] = values[1]; s->av[2] = values[2];
         int code = mast_actuator_advance(&s->a, d, s->av, p, t + k * T, T, msg, size);
         if (code) return code;
         s->u = PI[0];

@@ -1,17 +1,17 @@
 /* The native drive (mast_drive.c): fmus/actuator/drive.py's DriveActuatorBlock, the native actuator
- * (mast_actuator.h) run T_cur at a time behind the current loop's PI. Inputs i_cmd [A], F [N]; outputs the
- * axis' (rho ... tau_meas), then u [V]. config.h adds ACT_VR_K_PC, ACT_VR_K_IC, ACT_VR_T_CUR, ACT_VR_U_MAX. */
+ * (mast_actuator.h) run T_cur at a time behind the current loop's PI. Inputs i_cmd [A], F [N], M_carried [kg];
+ * outputs the axis' (rho ... m_drive), then u [V]. config.h adds ACT_VR_K_PC, ACT_VR_K_IC, ACT_VR_T_CUR, ACT_VR_U_MAX. */
 #ifndef MAST_DRIVE_H
 #define MAST_DRIVE_H
 
 #include "mast_actuator.h"
 
-/* the axis' outputs (values 2..9 of its own) */
-#define MAST_AXIS_OUTPUTS 8
+/* the axis' outputs (values ACT_INPUTS.. of its own) */
+#define MAST_AXIS_OUTPUTS 12
 
 typedef struct {
     mast_actuator_state a;
-    double av[2 + MAST_AXIS_OUTPUTS];   /* the axis' values: u, F, then its outputs */
+    double av[ACT_INPUTS + MAST_AXIS_OUTPUTS];   /* the axis' values: u, F, M_carried, then its outputs */
     double x_c, u, gains[3];
 } mast_drive_state;
 

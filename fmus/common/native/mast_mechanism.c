@@ -51,16 +51,78 @@ static int kinematics_error(const double *values, double t, const char *what, ch
     return MAST_KINEMATICS_ERROR;
 }
 
+#define OUT (MECH_KINDS * MECH_N)          /* where the outputs F start among the values */
+#define TOLD (OUT + MECH_N + 6)             /* where Fc starts; Mc after it */
+
+/* coupling.condense: W and D of M + diag(m) by Gauss-Jordan without pivoting, in the Python model's order */
+static void condense(mast_mechanism_state *s, const double *m)
+{
+    enum { N = MECH_N, N2 = 2 * MECH_N };
+    double A[MECH_N][2 * MECH_N];
+    for (int i = 0; i < N; i++)
+        for (int j = 0; j < N2; j++)
+            A[i][j] = j < N ? s->M[i * N + j] + (i == j ? m[i] : 0.0) : (j - N == i ? 1.0 : 0.0);
+    for (int k = 0; k < N; k++) {
+        double inv = 1.0 / A[k][k];
+        for (int j = 0; j < N2; j++) A[k][j] = A[k][j] * inv;
+        for (int i = 0; i < N; i++) {
+            if (i == k) continue;
+            double f = A[i][k];
+            for (int j = 0; j < N2; j++) A[i][j] = A[i][j] - f * A[k][j];
+        }
+    }
+    for (int i = 0; i < N; i++) {
+        for (int j = 0; j < N; j++) s->W[i * N + j] = i == j ? 0.0 : -A[i][N + j] / A[i][N + i];
+        s->D[i] = 1.0 / A[i][N + i] - m[i];
+    }
+}
+
+/* MechanismBlock._condense: the condensed interface of the last full update's M, none while a drive reports no
+ * load-side mass or detached */
+static void condense_update(mast_mechanism_state *s, const double *values, const mast_parameters *p)
+{
+    const double *m = values + (MECH_KINDS - 1) * MECH_N;
+    s->condensed = MECH_ATTACHED_VR < 0 || p->integer[MECH_ATTACHED_VR];
+    for (int k = 0; k < MECH_N; k++) s->condensed = s->condensed && m[k] > 0.0;
+    if (s->condensed) condense(s, m);
+    else for (int k = 0; k < MECH_N; k++) s->D[k] = 0.0;
+}
+
+/* MechanismBlock._tell: Fc and Mc for the step h */
+static void tell(const mast_mechanism_state *s, double *values, double h)
+{
+    const int n = MECH_N;
+    if (!s->condensed) {
+        for (int k = 0; k < n; k++) { values[TOLD + k] = values[OUT + k]; values[TOLD + n + k] = s->D[k]; }
+        return;
+    }
+    double tau = MECH_EXTRAPOLATION * h, half = 0.5 * tau * tau, T[MECH_N];
+    for (int j = 0; j < n; j++) T[j] = values[3 * n + j] + tau * values[4 * n + j] + half * values[5 * n + j];
+    for (int k = 0; k < n; k++) {
+        double acc = s->b[k];
+        for (int j = 0; j < n; j++) if (j != k) acc += s->W[k * n + j] * (T[j] - s->b[j]);
+        values[TOLD + k] = acc;
+        values[TOLD + n + k] = s->D[k];
+    }
+}
+
 /* MechanismBlock._compute: direct kinematics (restarted_dk), then the forces and the pose */
-static int compute(mast_mechanism_state *s, double *values, const mast_parameters *p, double t, char *msg,
+static int compute(mast_mechanism_state *s, double *values, const mast_parameters *p, double t, double h, char *msg,
                    size_t size)
 {
     char v[40], w[40];
     double qJ[MECH_N + MECH_N * MECH_N], *q = qJ, *J = qJ + MECH_N;
-    for (int k = 0; k < 3 * MECH_N; k++) {
+    for (int k = 0; k < MECH_KINDS * MECH_N; k++) {
         if (!isfinite(values[k])) {
             snprintf(msg, size, "input '%s' = %s is not finite at t = %s s", MECH_INPUT_NAMES[k],
                      mast_repr(values[k], v, sizeof v), mast_repr(t, w, sizeof w));
+            return MAST_MODEL_ERROR;
+        }
+    }
+    for (int k = (MECH_KINDS - 1) * MECH_N; k < MECH_KINDS * MECH_N; k++) {
+        if (values[k] < 0.0) {
+            snprintf(msg, size, "input '%s' = %s at t = %s s: expected a load-side mass >= 0 (0: not connected)",
+                     MECH_INPUT_NAMES[k], mast_repr(values[k], v, sizeof v), mast_repr(t, w, sizeof w));
             return MAST_MODEL_ERROR;
         }
     }
@@ -73,17 +135,19 @@ static int compute(mast_mechanism_state *s, double *values, const mast_parameter
         double out[MECH_N + 6 + MECH_N * MECH_N + MECH_N];
         code = mech_dynamics(q, J, values + MECH_N, values + 2 * MECH_N, s->P, s->K_dynamics, out);
         if (!code) {
-            memcpy(values + 3 * MECH_N, out, (MECH_N + 6) * sizeof(double));
+            memcpy(values + OUT, out, (MECH_N + 6) * sizeof(double));
             memcpy(s->M, out + MECH_N + 6, sizeof s->M);
             memcpy(s->b, out + MECH_N + 6 + MECH_N * MECH_N, sizeof s->b);
         }
     } else {   /* attached = 0: no force, the kinematics of the mechanism */
-        for (int k = 0; k < MECH_N; k++) values[3 * MECH_N + k] = 0.0;
-        code = mech_pose(q, s->P, s->K_pose, values + 4 * MECH_N);
+        for (int k = 0; k < MECH_N; k++) values[OUT + k] = 0.0;
+        code = mech_pose(q, s->P, s->K_pose, values + OUT + MECH_N);
     }
     if (code) return kinematics_error(values, t, mech_why(-code), msg, size);
     for (int k = 0; k < MECH_N; k++) s->q[k] = q[k];
     s->warm = 1;
+    condense_update(s, values, p);
+    tell(s, values, h);
     return MAST_OK;
 }
 
@@ -115,7 +179,7 @@ int mast_mechanism_initialize(void *state, double *values, const mast_parameters
     mast_mechanism_state *s = state;
     mast_mechanism_setup(s, p);
     s->t0 = t0;
-    return compute(s, values, p, t0, msg, size);
+    return compute(s, values, p, t0, 0.0, msg, size);
 }
 
 /* designs.describe: the mechanism the parameter 'kinematics' names must be this one */
@@ -242,7 +306,7 @@ static int inertial_forces(const mast_mechanism_state *s, double *values, const 
     for (int a = 0; a < MECH_N; a++) {
         double f = s->b[a];
         for (int c = 0; c < MECH_N; c++) f += s->M[a * MECH_N + c] * rdd[c];
-        values[3 * MECH_N + a] = f;
+        values[OUT + a] = f;
     }
     return MAST_OK;
 }
@@ -257,8 +321,12 @@ int mast_mechanism_do_step(void *state, double *values, const mast_parameters *p
     const double T = p->real[MECH_UPDATE_VR];
     if (T > 0.0) {
         const double eps = 1e-6 * (h < T ? h : T);
-        if (s->t0 + ceil((t - s->t0 - eps) / T) * T >= t + h - eps) return inertial_forces(s, values, p, t + h, msg, size);
+        if (s->t0 + ceil((t - s->t0 - eps) / T) * T >= t + h - eps) {
+            int code = inertial_forces(s, values, p, t + h, msg, size);
+            if (!code) tell(s, values, h);
+            return code;
+        }
     }
 #endif
-    return compute(s, values, p, t + h, msg, size);
+    return compute(s, values, p, t + h, h, msg, size);
 }

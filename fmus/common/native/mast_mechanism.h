@@ -41,6 +41,9 @@ typedef struct {
     double t0;                           /* the start time: full updates at t0 + k T_mech (MechanismBlock.do_step) */
     double M[MECH_N * MECH_N];           /* the last full update's joint-space mass matrix (row-major) and bias */
     double b[MECH_N];                    /* (Engine.inertial): between updates F = M rho_ddot + b */
+    int condensed;                       /* W and D hold the condensed interface of M (coupling.condense) */
+    double W[MECH_N * MECH_N];           /* the weights of the other drives' forces (row-major, zero diagonal) */
+    double D[MECH_N];                    /* the masses the drives carry */
     char why_text[1024];                 /* the message of a failed direct kinematics */
 } mast_mechanism_state;
 
@@ -70,7 +73,10 @@ extern const int MECH_TRACED_VR[MECH_NP];
 extern const int MECH_LENGTH_RADIUS[MECH_N];
 extern const double MECH_LENGTH_VALUE[MECH_N];
 extern const char *const MECH_COORDINATES[MECH_N];
-extern const char *const MECH_INPUT_NAMES[3 * MECH_N];
+/* the inputs per drive (mechanism.model.INPUT_NAMES: rho, rho_dot, rho_ddot, F_drive, F_drive_dot, F_drive_ddot,
+ * m_drive): the outputs F start at MECH_KINDS * MECH_N, then the pose, Fc and Mc (mechanism.model.Variables) */
+#define MECH_KINDS 7
+extern const char *const MECH_INPUT_NAMES[MECH_KINDS * MECH_N];
 /* the mechanism's name (the parameter 'kinematics' it computes), and every name that parameter may take */
 extern const char *const MECH_NAME;
 extern const char *const MECH_KINEMATICS[];

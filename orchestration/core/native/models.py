@@ -73,6 +73,7 @@ from typing import Mapping, Optional, Sequence
 
 from fmus.common.parameters import Param
 from fmus.controller.tick import DK_FAILED, MODEL_FAILED, layout, tick_sources
+from fmus.mechanism.coupling import EXTRAPOLATION
 
 from .translate import c_double, split_invariants, to_c
 
@@ -247,7 +248,9 @@ SENSOR_SAMPLES = 4096
 #: the oldest is recomputed when it comes back, about 3.4 us with the default parameters: docs/native.md)
 DISCRETISATIONS_KEPT = 8
 #: the kernel_constants the native actuator's runtime reads (the same slot in every chain's Q: config.h's ACT_Q_*)
-_SHARED_CONSTANTS = ("tau_c", "omega_c", "tau_s", "omega_s", "ripple", "rk", "iR", "mg", "kT", "rho0", "rmin", "rmax")
+_SHARED_CONSTANTS = (
+    "tau_c", "omega_c", "tau_s", "omega_s", "ripple", "rk", "iR", "mg", "kT", "rho0", "rmin", "rmax", "md"
+)  # fmt: skip
 
 
 def actuator_structures(parameters: Mapping[str, object]) -> tuple[int, ...]:
@@ -486,12 +489,23 @@ def _actuator_chain(
         for prefix in prefixes:
             friction_at.append(len(h_names))
             h_names += [prefix + k for k in (friction_keys[friction] if friction else [])]
+        h_names.append("H_SUB")  # the substep, for the carried mass (ActuatorBlock._bind's numbers)
         slots.update({n: ("H", k) for k, n in enumerate(h_names)})
         code.append(
             to_c(_indexed(source, slots, ("H", "Q", "M_SUB")), f"kernel_n{N}_{name}", arrays=("values", "x", "H", "Q"))
         )
         ripple = int(chosen["tau_ripple"] > 0.0)
-        rows.append((f"kernel_n{N}_{name}", fr_code[friction], ripple, int(backlash), friction_at[0], friction_at[-1]))
+        rows.append(
+            (
+                f"kernel_n{N}_{name}",
+                fr_code[friction],
+                ripple,
+                int(backlash),
+                friction_at[0],
+                friction_at[-1],
+                len(h_names) - 1,
+            )
+        )
         sizes.append(len(h_names))
     keys = list(constants)
     chain = (
@@ -553,12 +567,15 @@ def _mechanism(block, vrs: Mapping[str, int]) -> tuple[str, str]:
 
 
 def mechanism_variables(n: int) -> list[Variable]:
-    """The variables of a mechanism of ``n`` drives without parameters (the connector convention): inputs rho_k,
-    rho_dot_k, rho_ddot_k, outputs F_k and the pose x, y, z, psi, theta, phi."""
+    """The variables of a mechanism of ``n`` drives without parameters (the connector convention,
+    ``fmus.mechanism.model.Variables``): its inputs per drive, outputs F_k, the pose x, y, z, psi, theta, phi, Fc_k
+    and Mc_k."""
+    from fmus.mechanism.model import INPUT_NAMES
     from fmus.mechanism.topology import POSE
 
-    inputs = [f"{kind}_{k}" for kind in ("rho", "rho_dot", "rho_ddot") for k in range(1, n + 1)]
-    outputs = [f"F_{k}" for k in range(1, n + 1)] + list(POSE)
+    ks = range(1, n + 1)
+    inputs = [f"{kind}_{k}" for kind in INPUT_NAMES for k in ks]
+    outputs = [f"F_{k}" for k in ks] + list(POSE) + [f"Fc_{k}" for k in ks] + [f"Mc_{k}" for k in ks]
     return [
         Variable(name, vr, "Real", "input" if vr < len(inputs) else "output", 0.0)
         for vr, name in enumerate(inputs + outputs)
@@ -733,7 +750,7 @@ def mechanism_model(eng, vrs: Mapping[str, int], inputs: Sequence[str], bodies: 
         f"const int MECH_LENGTH_RADIUS[MECH_N] = {{{row(int(r) for r in radius)}}};",
         f"const double MECH_LENGTH_VALUE[MECH_N] = {{{row(lengths)}}};",
         f"const char *const MECH_COORDINATES[MECH_N] = {{{row(_literal(c) for c in d.coordinates)}}};",
-        f"const char *const MECH_INPUT_NAMES[3 * MECH_N] = {{{row(_literal(i) for i in inputs)}}};",
+        f"const char *const MECH_INPUT_NAMES[MECH_KINDS * MECH_N] = {{{row(_literal(i) for i in inputs)}}};",
         f"const char *const MECH_NAME = {_literal(d.name)};",
         f"const char *const MECH_KINEMATICS[] = {{{row(_literal(k) for k in kinematics)}}};",
         f"const int MECH_NKINEMATICS = {len(kinematics)};",
@@ -765,6 +782,7 @@ def mechanism_model(eng, vrs: Mapping[str, int], inputs: Sequence[str], bodies: 
             f"#define MECH_UPDATE_VR {vrs.get('T_mech', -1)}",
             f"#define MECH_MARGIN {c_double(eng.margin)}",
             f"#define MECH_COND_LIMIT {c_double(eng.cond_limit)}",
+            f"#define MECH_EXTRAPOLATION {c_double(EXTRAPOLATION)}",
             "#endif",
             "",
         ]
@@ -846,7 +864,7 @@ def _joint_controller(block, vrs: Mapping[str, int]) -> tuple[str, str]:
 
     eng = traced_engine(block.params, block.name, masses=model)
     mech_code, mech_config = mechanism_model(
-        eng, vrs, [v.name for v in mechanism_variables(eng.n)[: 3 * eng.n]], bodies=model
+        eng, vrs, [v.name for v in mechanism_variables(eng.n) if v.causality == "input"], bodies=model
     )
     L = layout(block.n, len(eng.parameters))  # the state's parameter slot: this engine's traced parameters
     if any(L[k] != v for k, v in type(block).LAYOUT.items() if v < L["P"]):
