@@ -1,5 +1,5 @@
 """The monolithic reference (mast.analyses.monolithic): the drives and the mechanism integrated as one system, and
-what today's exchange costs against it on the MAST."""
+what the condensed exchange (docs/coupling.md) costs against it on the MAST."""
 
 from __future__ import annotations
 
@@ -59,11 +59,15 @@ def test_the_reference_is_converged_in_its_tolerance(built):
 
 
 @pytest.mark.parametrize("kg", [0.0, 5.0])
-def test_todays_exchange_is_within_the_issues_bounds_of_the_reference(built, kg):
+def test_the_exchange_is_within_the_issues_bounds_of_the_reference(built, kg):
     e = errors(*runs(kg, 1e-4, built))
     assert e["rho"] < 1e-3 and e["i_m"] < 1e-2 and e["F"] < 1e-2, e
 
 
-def test_halving_the_exchange_halves_the_position_error(built):
-    coarse, fine = errors(*runs(0.0, 1e-4, built)), errors(*runs(0.0, 5e-5, built))
-    assert coarse["rho"] >= 2.0 * fine["rho"] and coarse["i_m"] >= 1.5 * fine["i_m"], (coarse, fine)
+@pytest.mark.parametrize("kg", [0.0, 50.0])
+def test_halving_the_exchange_halves_the_error(built, kg):
+    """First order in the exchange step, with no specimen and with 50 kg (where the error at 100 us is above the
+    issue's bounds: the start rings the belts' heave mode, which the exchange damps more than the reference,
+    docs/coupling.md)."""
+    coarse, fine = errors(*runs(kg, 1e-4, built)), errors(*runs(kg, 5e-5, built))
+    assert coarse["rho"] >= 1.8 * fine["rho"] and coarse["i_m"] >= 1.5 * fine["i_m"], (coarse, fine)
