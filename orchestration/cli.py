@@ -911,6 +911,14 @@ def main(argv=None) -> int:
     p.add_argument("--retry-failed", action="store_true", help="with --resume: run failed and crashed cases again")
     p.add_argument("--dry-run", action="store_true", help="list the cases and stop")
     p.add_argument("--no-plots", action="store_true", help="write no figures")
+    p.add_argument(
+        "--max-cases",
+        type=count,
+        metavar="N",
+        # the default lives in mast.batch (DEFAULT_MAX_CASES), too heavy to import for every command; a test
+        # holds this text to it
+        help="refuse a config that expands to more cases than N, counted before anything is built (default: 10000)",
+    )
     p.set_defaults(func=cmd_batch)
 
     args = parser.parse_args(argv)
