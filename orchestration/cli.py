@@ -571,7 +571,7 @@ def main(argv=None) -> int:
         help="the axis of the sine: a coordinate of the system's mechanism (the 3PRS's: z, psi, theta)",
     )
     p.add_argument("--amplitude", type=finite, default=0.01, help="metres for x, y, z, degrees for the angles")
-    p.add_argument("--frequency", type=nonnegative, default=1.0, help="Hz")
+    p.add_argument("--frequency", type=hertz, default=1.0, help="Hz of the sine (positive)")
     p.add_argument("--stop-time", type=seconds, default=2.0, help="s")
     p.add_argument(
         "--set", action="append", metavar="ELEMENT.PARAMETER=VALUE", help="override a parameter (repeatable)"

@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import re
 import signal
 import sys
 import textwrap
@@ -224,13 +225,34 @@ def test_case_expansion_dimensions_wildcards_and_seeded_samples(ssp):
         ({"grid": {"tau_c": [1.0]}}, "not ELEMENT.PARAMETER"),
         ({"random": {"samples": 2, "mechanism.m_platform": {"uniform": [1, 2]}}}, "seed"),
         ({"random": {"samples": 2, "seed": 1, "mechanism.m_platform": {"gauss": [1, 2]}}}, "expected one of"),
-        ({"motion": {"axis": "x", "amplitude": 1}}, "axis must be one of"),
+        ({"motion": {"axis": "x", "amplitude": 1, "frequency": 1}}, "axis must be one of"),
         ({"frequencies": [1]}, "unknown key"),
     ],
 )
 def test_config_errors_say_what_is_wrong(ssp, cases, message):
     with pytest.raises(BatchConfigError, match=message):
         expand(BatchConfig.from_dict(_config(ssp, **cases)))
+
+
+@pytest.mark.parametrize(
+    "cases, message",
+    [
+        (
+            {"motion": {"axis": "z", "amplitude": 0.001}, "frequency": [1, 0]},
+            "cases.frequency = 0: expected a positive",
+        ),
+        ({"motion": {"axis": "z", "amplitude": 0.001}, "frequency": -1}, "cases.frequency = -1: expected a positive"),
+        ({"motion": {"axis": "z", "amplitude": 0.001}, "frequency": math.inf}, "cases.frequency = inf"),
+        ({"motion": {"axis": "z", "amplitude": 0.001}, "frequency": "2"}, "cases.frequency = '2'"),
+        ({"motion": {"axis": "z", "amplitude": 0.001, "frequency": 0}}, "frequency = 0: expected a positive, finite"),
+        ({"motion": {"axis": "psi", "amplitude": 1, "frequency": math.nan}}, "frequency = nan"),
+        ({"motion": {"axis": "z", "amplitude": 0.001}}, "no frequency; give it"),
+    ],
+)
+def test_a_batch_motion_frequency_must_be_positive_and_finite(tmp_path, cases, message):
+    """A 0 Hz sine was accepted and ran silently as no motion at all."""
+    with pytest.raises(BatchConfigError, match=re.escape(message)):
+        BatchConfig.from_dict({"ssp": str(tmp_path / "none.ssp"), "cases": cases})
 
 
 def test_kept_signals_are_checked_before_running(ssp):
