@@ -138,7 +138,8 @@ def validate_all(build_dir: Path) -> list[str]:
     """Problems found in the built FMUs (fmpy validation) and SSPs (SSP 1.0 schema)."""
     from fmpy.validation import validate_fmu
 
-    from .core.ssp import safe_extract, validate_ssd_schema
+    from .core.ssp import check_archive, safe_extract, validate_ssd_schema
+    from .core.ssv import SSPFormatError
 
     problems = []
     fmus = sorted((build_dir / "fmus").glob("*.fmu"))
@@ -149,10 +150,19 @@ def validate_all(build_dir: Path) -> list[str]:
     if not fmus or not ssps:
         problems.append(f"{build_dir}: nothing built yet (run `mast build`)")
     for fmu in fmus:
+        try:  # what every reader of ours refuses (an entry leaving its folder, a zip bomb), fmpy does not look for
+            check_archive(fmu, fmu.name)
+        except SSPFormatError as err:
+            problems.append(str(err))
+            continue
         problems += [f"{fmu.name}: {p}" for p in validate_fmu(str(fmu))]
     for ssp in ssps:
         with tempfile.TemporaryDirectory() as tmp:
-            safe_extract(ssp, tmp)
+            try:
+                safe_extract(ssp, tmp, ssp.name)
+            except SSPFormatError as err:
+                problems.append(str(err))
+                continue
             problems += [f"{ssp.name}: {p}" for p in validate_ssd_schema(Path(tmp) / "SystemStructure.ssd")]
     return problems
 
@@ -369,11 +379,14 @@ def cmd_replay(args) -> int:
 
 
 def cmd_check_mechanism(args) -> int:
+    from .core.ssp import check_archive
     from .hosts.conformance import check_mechanism
 
     missing = [fmu for fmu in args.fmu if not Path(fmu).is_file()]
     if missing:
         raise FileNotFoundError(f"{', '.join(missing)}: no such FMU file")
+    for fmu in args.fmu:  # a truncated zip or an entry leaving its folder: one line here, not the child's traceback
+        check_archive(fmu)
     failed = 0
     for fmu in args.fmu:
         results = check_mechanism(fmu)
