@@ -938,7 +938,10 @@ def main(argv=None) -> int:
     try:
         return args.func(args)
     except (ValueError, OSError, RuntimeError) as err:
-        print(f"error: {err}", file=sys.stderr)
+        from .core.admissible import CommandError
+
+        # the command line takes angles in degrees, so a refused pose command is stated in degrees too
+        print(f"error: {err.in_degrees if isinstance(err, CommandError) else err}", file=sys.stderr)
         return 2
 
 
