@@ -257,7 +257,10 @@ def test_a_batch_motion_frequency_must_be_positive_and_finite(tmp_path, cases, m
 
 def test_kept_signals_are_checked_before_running(ssp):
     config = BatchConfig.from_dict(
-        {**_config(ssp, motion={"axis": "z", "amplitude": 0.001}), "outputs": {"keep": ["mechanism.zz"]}}
+        {
+            **_config(ssp, motion={"axis": "z", "amplitude": 0.001, "frequency": 5}),
+            "outputs": {"keep": ["mechanism.zz"]},
+        }
     )
     with pytest.raises(BatchConfigError, match="mechanism.zz not in"):
         expand(config)
