@@ -138,7 +138,8 @@ def validate_all(build_dir: Path) -> list[str]:
     """Problems found in the built FMUs (fmpy validation) and SSPs (SSP 1.0 schema)."""
     from fmpy.validation import validate_fmu
 
-    from .core.ssp import safe_extract, validate_ssd_schema
+    from .core.ssp import check_archive, safe_extract, validate_ssd_schema
+    from .core.ssv import SSPFormatError
 
     problems = []
     fmus = sorted((build_dir / "fmus").glob("*.fmu"))
@@ -149,10 +150,19 @@ def validate_all(build_dir: Path) -> list[str]:
     if not fmus or not ssps:
         problems.append(f"{build_dir}: nothing built yet (run `mast build`)")
     for fmu in fmus:
+        try:  # what every reader of ours refuses (an entry leaving its folder, a zip bomb), fmpy does not look for
+            check_archive(fmu, fmu.name)
+        except SSPFormatError as err:
+            problems.append(str(err))
+            continue
         problems += [f"{fmu.name}: {p}" for p in validate_fmu(str(fmu))]
     for ssp in ssps:
         with tempfile.TemporaryDirectory() as tmp:
-            safe_extract(ssp, tmp)
+            try:
+                safe_extract(ssp, tmp, ssp.name)
+            except SSPFormatError as err:
+                problems.append(str(err))
+                continue
             problems += [f"{ssp.name}: {p}" for p in validate_ssd_schema(Path(tmp) / "SystemStructure.ssd")]
     return problems
 
@@ -369,11 +379,14 @@ def cmd_replay(args) -> int:
 
 
 def cmd_check_mechanism(args) -> int:
+    from .core.ssp import check_archive
     from .hosts.conformance import check_mechanism
 
     missing = [fmu for fmu in args.fmu if not Path(fmu).is_file()]
     if missing:
         raise FileNotFoundError(f"{', '.join(missing)}: no such FMU file")
+    for fmu in args.fmu:  # a truncated zip or an entry leaving its folder: one line here, not the child's traceback
+        check_archive(fmu)
     failed = 0
     for fmu in args.fmu:
         results = check_mechanism(fmu)
@@ -571,7 +584,7 @@ def main(argv=None) -> int:
         help="the axis of the sine: a coordinate of the system's mechanism (the 3PRS's: z, psi, theta)",
     )
     p.add_argument("--amplitude", type=finite, default=0.01, help="metres for x, y, z, degrees for the angles")
-    p.add_argument("--frequency", type=nonnegative, default=1.0, help="Hz")
+    p.add_argument("--frequency", type=hertz, default=1.0, help="Hz of the sine (positive)")
     p.add_argument("--stop-time", type=seconds, default=2.0, help="s")
     p.add_argument(
         "--set", action="append", metavar="ELEMENT.PARAMETER=VALUE", help="override a parameter (repeatable)"
@@ -911,13 +924,24 @@ def main(argv=None) -> int:
     p.add_argument("--retry-failed", action="store_true", help="with --resume: run failed and crashed cases again")
     p.add_argument("--dry-run", action="store_true", help="list the cases and stop")
     p.add_argument("--no-plots", action="store_true", help="write no figures")
+    p.add_argument(
+        "--max-cases",
+        type=count,
+        metavar="N",
+        # the default lives in mast.batch (DEFAULT_MAX_CASES), too heavy to import for every command; a test
+        # holds this text to it
+        help="refuse a config that expands to more cases than N, counted before anything is built (default: 10000)",
+    )
     p.set_defaults(func=cmd_batch)
 
     args = parser.parse_args(argv)
     try:
         return args.func(args)
     except (ValueError, OSError, RuntimeError) as err:
-        print(f"error: {err}", file=sys.stderr)
+        from .core.admissible import CommandError
+
+        # the command line takes angles in degrees, so a refused pose command is stated in degrees too
+        print(f"error: {err.in_degrees if isinstance(err, CommandError) else err}", file=sys.stderr)
         return 2
 
 

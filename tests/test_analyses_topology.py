@@ -182,7 +182,9 @@ def test_batch_motion_axes_are_the_system_coordinates(tmp_path):
     cases = expand(config, {"default": info})
     assert [c.motion["axis"] for c in cases] == ["theta", "theta"]
     assert cases[1].parameters == {"actuator_1.tau_c": 0.02, "actuator_2.tau_c": 0.02}
-    psi = BatchConfig.from_dict({**config.raw, "cases": {"motion": {"axis": "psi", "amplitude": 0.5}}})
+    psi = BatchConfig.from_dict(
+        {**config.raw, "cases": {"motion": {"axis": "psi", "amplitude": 0.5, "frequency": 2.0}}}
+    )
     with pytest.raises(
         BatchConfigError,
         match=r"axis 'psi': axis must be one of the coordinates of planar.ssp's "

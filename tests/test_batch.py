@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import re
 import signal
 import sys
 import textwrap
@@ -224,7 +225,7 @@ def test_case_expansion_dimensions_wildcards_and_seeded_samples(ssp):
         ({"grid": {"tau_c": [1.0]}}, "not ELEMENT.PARAMETER"),
         ({"random": {"samples": 2, "mechanism.m_platform": {"uniform": [1, 2]}}}, "seed"),
         ({"random": {"samples": 2, "seed": 1, "mechanism.m_platform": {"gauss": [1, 2]}}}, "expected one of"),
-        ({"motion": {"axis": "x", "amplitude": 1}}, "axis must be one of"),
+        ({"motion": {"axis": "x", "amplitude": 1, "frequency": 1}}, "axis must be one of"),
         ({"frequencies": [1]}, "unknown key"),
     ],
 )
@@ -233,9 +234,33 @@ def test_config_errors_say_what_is_wrong(ssp, cases, message):
         expand(BatchConfig.from_dict(_config(ssp, **cases)))
 
 
+@pytest.mark.parametrize(
+    "cases, message",
+    [
+        (
+            {"motion": {"axis": "z", "amplitude": 0.001}, "frequency": [1, 0]},
+            "cases.frequency = 0: expected a positive",
+        ),
+        ({"motion": {"axis": "z", "amplitude": 0.001}, "frequency": -1}, "cases.frequency = -1: expected a positive"),
+        ({"motion": {"axis": "z", "amplitude": 0.001}, "frequency": math.inf}, "cases.frequency = inf"),
+        ({"motion": {"axis": "z", "amplitude": 0.001}, "frequency": "2"}, "cases.frequency = '2'"),
+        ({"motion": {"axis": "z", "amplitude": 0.001, "frequency": 0}}, "frequency = 0: expected a positive, finite"),
+        ({"motion": {"axis": "psi", "amplitude": 1, "frequency": math.nan}}, "frequency = nan"),
+        ({"motion": {"axis": "z", "amplitude": 0.001}}, "no frequency; give it"),
+    ],
+)
+def test_a_batch_motion_frequency_must_be_positive_and_finite(tmp_path, cases, message):
+    """A 0 Hz sine was accepted and ran silently as no motion at all."""
+    with pytest.raises(BatchConfigError, match=re.escape(message)):
+        BatchConfig.from_dict({"ssp": str(tmp_path / "none.ssp"), "cases": cases})
+
+
 def test_kept_signals_are_checked_before_running(ssp):
     config = BatchConfig.from_dict(
-        {**_config(ssp, motion={"axis": "z", "amplitude": 0.001}), "outputs": {"keep": ["mechanism.zz"]}}
+        {
+            **_config(ssp, motion={"axis": "z", "amplitude": 0.001, "frequency": 5}),
+            "outputs": {"keep": ["mechanism.zz"]},
+        }
     )
     with pytest.raises(BatchConfigError, match="mechanism.zz not in"):
         expand(config)
@@ -271,6 +296,56 @@ def test_example_configs_expand(ssp, name, count):
     config = BatchConfig.load(Path(__file__).resolve().parents[1] / "examples" / name)
     cases = expand(BatchConfig.from_dict({**config.raw, "ssp": str(ssp)}))
     assert len(cases) == count and all(c.motion for c in cases)
+
+
+def _runaway(tmp_path: Path) -> Path:
+    """A config of 10^7 cases (a grid of seven 10-value lists) on an SSP that does not exist: counting must come
+    before anything is read."""
+    config = tmp_path / "runaway.toml"
+    grid = "\n".join(f'"mechanism.p{k}" = {list(range(10))}' for k in range(7))
+    config.write_text(f'ssp = "{tmp_path / "none.ssp"}"\n[cases.grid]\n{grid}\n')
+    return config
+
+
+@pytest.mark.parametrize("dry_run", [[], ["--dry-run"]])
+def test_a_runaway_batch_is_counted_and_refused_before_anything_is_built(tmp_path, capsys, dry_run):
+    """10^7 cases ran out of memory after 85 s with a traceback; now refused at once, naming count and limit."""
+    import time
+
+    config = _runaway(tmp_path)
+    t0 = time.perf_counter()
+    assert cli_main(["batch", str(config), "--out", str(tmp_path / "o"), *dry_run]) == 2
+    assert time.perf_counter() - t0 < 5
+    err = capsys.readouterr().err
+    assert "the config expands to 10000000 cases (10000000 grid points), over the limit of 10000" in err
+    assert "--max-cases" in err and "Traceback" not in err
+    with pytest.raises(BatchConfigError, match="10000000 cases"):
+        run_batch(config, tmp_path / "o", progress=False)
+    assert not (tmp_path / "o").exists()
+    # a raised limit lets it through to the next check: the missing SSP
+    assert cli_main(["batch", str(config), "--out", str(tmp_path / "o"), "--max-cases", "10000000", *dry_run]) == 2
+    assert "none.ssp does not exist" in capsys.readouterr().err
+
+
+def test_the_case_count_is_the_expansions_and_the_help_states_the_default(ssp, capsys):
+    from mast.batch import DEFAULT_MAX_CASES, count_cases
+
+    config = BatchConfig.from_dict(
+        _config(
+            ssp,
+            motion=[{"axis": "z", "amplitude": 0.002}, {"axis": "psi", "amplitude": 0.5}],
+            frequency=[2, 5, 7],
+            grid={"mechanism.m_platform": [1.5, 2.5], "actuator_*.tau_c": [0.01, 0.02, 0.03]},
+            list=[{"actuator_1.tau_c": 0.02}, {"actuator_1.tau_c": 0.07}],
+            random={"samples": 2, "seed": 1, "mechanism.g": {"uniform": [9.7, 9.9]}},
+        )
+    )
+    assert count_cases(config) == len(expand(config)) == 2 * 2 * 6 * 2 * 3
+    with pytest.raises(BatchConfigError, match="144 cases .*2 random samples x 2 list entries x 6 grid points"):
+        expand(config, max_cases=143)
+    with pytest.raises(SystemExit):
+        cli_main(["batch", "--help"])
+    assert f"(default: {DEFAULT_MAX_CASES})" in " ".join(capsys.readouterr().out.split())
 
 
 # -- running batches ------------------------------------------------------------------------------------

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -106,6 +107,36 @@ def test_commands_outside_the_workspace_are_refused_before_the_first_step(ssp, m
         simulate(ssp, motion, 0.5, direct=True)
     # a motion that reaches its extremes only after the stop time is not refused for them
     assert len(simulate(ssp, SineMotion("z", 0.5, 0.01), 0.2, direct=True).time) == 201
+
+
+@pytest.mark.parametrize("motion", ["psi", "theta"])
+def test_a_refused_pose_command_is_stated_in_the_unit_the_command_line_took(ssp, tmp_path, capsys, motion):
+    """The command line takes degrees for the angles: its refusal stated the limit in radians only."""
+    out = tmp_path / "run"
+    argv = [
+        "run",
+        str(ssp),
+        "--motion",
+        motion,
+        "--amplitude",
+        "40",
+        "--frequency",
+        "50",
+        "--stop-time",
+        "0.01",
+        "--direct",
+    ]
+    assert cli_main([*argv, "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert re.fullmatch(
+        rf"error: {motion}_cmd = 40 deg \(0\.6981 rad\) is outside the workspace of 'mechanism': .*\. The largest "
+        rf"reachable {motion}_cmd on the way from the home pose \({motion}_cmd = 0 deg \(0 rad\)\) is \d+\.\d+ deg\n",
+        err,
+    ), err
+    assert " rad\n" not in err and not out.exists()
+    # the Python API, which takes radians, keeps them
+    with pytest.raises(ValueError, match=rf"largest reachable {motion}_cmd .* is 0\.\d+ rad$"):
+        simulate(ssp, SineMotion(motion, math.radians(40.0), 50.0), 0.01, direct=True)
 
 
 def test_cli_run_writes_results_summary_and_plot(ssp, tmp_path):

@@ -107,6 +107,11 @@ def a_file(tmp_path) -> Path:
         (["run", "--stop-time", "0"], "--stop-time: '0'"),
         (["run", "--record-step", "-1"], "--record-step: '-1'"),
         (["run", "--amplitude", "nan"], "--amplitude: 'nan'"),
+        (["run", "--frequency", "0"], "--frequency: '0': expected a positive, finite number of Hz"),
+        (["run", "--frequency", "-2"], "--frequency: '-2'"),
+        (["run", "--frequency", "inf"], "--frequency: 'inf'"),
+        (["run", "--frequency", "nan"], "--frequency: 'nan'"),
+        (["compare", "--mechanism", "a.fmu", "--out", "x", "--frequencies", "1", "0"], "--frequencies: '0'"),
         (["bench", "--stop-time", "inf"], "--stop-time: 'inf'"),
         (["hosts", "--stop-time", "-1"], "--stop-time: '-1'"),
         (["synthesize", "--out", "x", "--sample-time", "nan"], "--sample-time: 'nan'"),
@@ -158,6 +163,8 @@ def test_cli_refuses_an_output_that_is_a_file_before_running(capsys, a_file, arg
         (["synthesize", "--out", "{tmp}/x", "--resolution", "rho=-1"], "--resolution 'rho=-1'"),
         (["synthesize", "--out", "{tmp}/x", "--tests", "z:0.005:nan"], "--tests item 'z:0.005:nan'"),
         (["synthesize", "--out", "{tmp}/x", "--tests", "z:abc:1"], "--tests item 'z:abc:1'"),
+        (["synthesize", "--out", "{tmp}/x", "--tests", "z:0.005:1,theta:0.8:0"], "--tests item 'theta:0.8:0'"),
+        (["synthesize", "--out", "{tmp}/x", "--tests", "z:0.005:-1"], "a frequency > 0 Hz"),
     ],
 )
 def test_cli_synthesize_options_name_the_bad_item(capsys, tmp_path, argv, named):

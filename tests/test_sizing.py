@@ -188,6 +188,51 @@ def test_a_run_folder_without_results_is_named(tmp_path, capsys):
     assert list((tmp_path / "run").iterdir()) == []  # nothing written
 
 
+@pytest.mark.parametrize(
+    "edit, message",
+    [
+        (
+            lambda d: d["motion"].update(frequency_Hz="1"),
+            "field 'motion.frequency_Hz' is a string ('1'): expected a number",
+        ),
+        (
+            lambda d: d["motion"].update(frequency_Hz=-1),
+            "field 'motion.frequency_Hz' is -1: expected a finite number >= 0",
+        ),
+        (lambda d: d.update(motion=[1.0]), "field 'motion' is an array ([1.0]): expected an object"),
+        (lambda d: d.update(system=["a.ssp"]), "field 'system' is an array (['a.ssp']): expected an object"),
+        (lambda d: d["system"].update(ssp=3), "field 'system.ssp' is a number (3): expected a string"),
+        (lambda d: d["system"].update(parameters=[]), "field 'system.parameters' is an array ([]): expected an object"),
+        (
+            lambda d: d["system"].update(parameters={"actuator_1": 2.0}),
+            "field 'system.parameters.actuator_1' is a number (2.0): expected an object",
+        ),
+        (
+            lambda d: d["system"].update(parameters={"actuator_1": {"R": [1]}}),
+            "field 'system.parameters.actuator_1.R' is an array: expected a number, a string or a boolean",
+        ),
+    ],
+)
+def test_summary_fields_of_the_wrong_type_are_named(tmp_path, capsys, edit, message):
+    """They ended in a TypeError (or AttributeError) traceback; now the file, the field and what was expected."""
+    from mast.cli import main
+
+    write_run(tmp_path / "run")
+    path = tmp_path / "run" / "summary.json"
+    doc = json.loads(path.read_text())
+    edit(doc)
+    path.write_text(json.dumps(doc))
+    with pytest.raises(sizing.SizingError, match=re.escape(f"{path}: {message}")):
+        sizing.size_run(tmp_path / "run")
+    assert main(["sizing", str(tmp_path / "run"), "--no-plots"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"error: {path}: {message}") and "Traceback" not in err
+    assert sorted(f.name for f in (tmp_path / "run").iterdir()) == ["results.csv", "summary.json"]  # nothing written
+    path.write_text("[1, 2]")
+    with pytest.raises(sizing.SizingError, match=r"summary\.json: the document is an array: expected an object"):
+        sizing.size_run(tmp_path / "run")
+
+
 def test_ratings_missing_for_a_drive_are_named_and_nothing_is_written(tmp_path):
     ssd = copy_system(tmp_path)
     write_run(tmp_path / "run", ssd)

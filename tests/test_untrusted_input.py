@@ -236,3 +236,54 @@ def test_a_zip_bomb_inside_an_ssp_or_given_as_an_fmu_is_named(tmp_path, tmpdir_w
     assert not any(tmpdir_watch.iterdir())
     with pytest.raises(SSPFormatError, match=r"bomb\.fmu: entry 'modelDescription\.xml' is compressed"):
         fmu_parameters(tmp_path / "bomb.fmu")  # what `mast compare --mechanism X.fmu` reads first
+
+
+def _escaping(source: Path, path: Path) -> Path:
+    """A copy of the FMU ``source`` with one more entry, '../escape.txt', which would land beside its folder."""
+    path.write_bytes(source.read_bytes())
+    with zipfile.ZipFile(path, "a") as z:
+        z.writestr("../escape.txt", "outside")
+    return path
+
+
+@pytest.mark.parametrize("kind", ["truncated", "escaping"])
+def test_cli_check_mechanism_names_a_truncated_or_escaping_fmu_in_one_line(mechanism_fmu, tmp_path, capsys, kind):
+    """Both printed the checking subprocess's traceback (exit 1); now one line naming the file, exit 2."""
+    from mast.cli import main as cli_main
+
+    if kind == "truncated":
+        fmu = tmp_path / "cut.fmu"
+        fmu.write_bytes(mechanism_fmu.read_bytes()[:5000])
+        expected = f"error: {fmu}: not a readable zip archive (File is not a zip file)\n"
+    else:
+        fmu = _escaping(mechanism_fmu, tmp_path / "escape.fmu")
+        expected = f"error: {fmu}: entry '../escape.txt' would be extracted outside the target folder\n"
+    assert cli_main(["check-mechanism", str(mechanism_fmu), str(fmu)]) == 2
+    out, err = capsys.readouterr()
+    assert err == expected and out == ""  # checked before any FMU runs
+    assert not (tmp_path.parent / "escape.txt").exists()
+
+
+def test_validate_flags_an_fmu_or_ssp_entry_that_leaves_its_folder(mechanism_fmu, tmp_path, capsys):
+    """`mast validate` said "no problems" for an FMU holding a '../' entry (fmpy does not look); it now names it as
+    every reader of ours refuses it (core.ssp.check_archive), and an SSP's likewise, as a problem, not a traceback."""
+    from mast.cli import main as cli_main
+
+    build = tmp_path / "build"
+    (build / "fmus").mkdir(parents=True)
+    (build / "ssp").mkdir()
+    (build / "fmus" / mechanism_fmu.name).write_bytes(mechanism_fmu.read_bytes())
+    with zipfile.ZipFile(build / "ssp" / "S.ssp", "w") as z:
+        z.writestr("SystemStructure.ssd", SSD.read_text())
+    assert cli_main(["validate", "--build", str(build)]) == 0
+    assert capsys.readouterr().out == "validation: no problems\n"
+    _escaping(mechanism_fmu, build / "fmus" / "Escape.fmu")
+    with zipfile.ZipFile(build / "ssp" / "E.ssp", "w") as z:
+        z.writestr("SystemStructure.ssd", SSD.read_text())
+        z.writestr("../escape.txt", "outside")
+    assert cli_main(["validate", "--build", str(build)]) == 1
+    assert capsys.readouterr().out.splitlines() == [
+        "Escape.fmu: entry '../escape.txt' would be extracted outside the target folder",
+        "E.ssp: entry '../escape.txt' would be extracted outside the target folder",
+        "validation: 2 problem(s)",
+    ]

@@ -221,6 +221,58 @@ def read_results(path: Path) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     return table[:, 0], {name: table[:, k] for k, name in enumerate(header[1:], start=1)}
 
 
+_JSON_TYPES = (
+    (bool, "a boolean"),
+    (str, "a string"),
+    ((int, float), "a number"),
+    (list, "an array"),
+    (dict, "an object"),
+)
+
+
+def _json_type(value) -> str:
+    return next((name for kinds, name in _JSON_TYPES if isinstance(value, kinds)), "null")
+
+
+def _field(path: Path, doc: Mapping, key: str, where: str, kind: str):
+    """``doc[key]`` (None if absent or null) when its JSON type is ``kind`` ("a string", "a number", "an object"),
+    else SizingError naming the file, the field ``where + key`` and both types."""
+    value = doc.get(key)
+    if value is not None and _json_type(value) != kind:
+        raise SizingError(f"{path}: field '{where}{key}' is {_json_type(value)} ({value!r:.60}): expected {kind}")
+    return value
+
+
+def read_summary(path: Path) -> tuple[Optional[str], dict[str, dict[str, Value]], float]:
+    """(system.ssp, system.parameters, motion.frequency_Hz) of a run's summary.json, (None, {}, 0.0) for what it
+    lacks (or without one); SizingError naming the file and the field when one is not of the JSON type `mast run`
+    writes."""
+    if not path.is_file():
+        return None, {}, 0.0
+    try:
+        summary = json.loads(path.read_text())
+    except json.JSONDecodeError as err:
+        raise SizingError(f"{path}: not JSON ({err})") from None
+    if not isinstance(summary, dict):
+        raise SizingError(f"{path}: the document is {_json_type(summary)}: expected an object (what `mast run` writes)")
+    system = _field(path, summary, "system", "", "an object") or {}
+    ssp = _field(path, system, "ssp", "system.", "a string")
+    parameters = _field(path, system, "parameters", "system.", "an object") or {}
+    for component, values in parameters.items():
+        _field(path, parameters, component, "system.parameters.", "an object")
+        for name, value in (values or {}).items():
+            if _json_type(value) not in ("a number", "a string", "a boolean"):
+                raise SizingError(
+                    f"{path}: field 'system.parameters.{component}.{name}' is {_json_type(value)}: expected a "
+                    "number, a string or a boolean"
+                )
+    motion = _field(path, summary, "motion", "", "an object") or {}
+    frequency = _field(path, motion, "frequency_Hz", "motion.", "a number") or 0.0
+    if not math.isfinite(frequency) or frequency < 0:
+        raise SizingError(f"{path}: field 'motion.frequency_Hz' is {frequency!r}: expected a finite number >= 0 (Hz)")
+    return ssp, {c: dict(v or {}) for c, v in parameters.items()}, float(frequency)
+
+
 def duty_cycle(t: np.ndarray, frequency: float) -> Optional[slice]:
     """The samples of the run's last whole periods of a sine at ``frequency`` [Hz] (the first period dropped as
     the start's transient when the run holds two or more; as many periods as make a whole number of samples,
@@ -413,18 +465,11 @@ def size_run(
     system summary.json names; parameters: the values the run set, recorded in summary.json, unless given)."""
     run_dir = Path(run_dir)
     t, signals = read_results(run_dir / "results.csv")
-    summary = {}
-    if (run_dir / "summary.json").is_file():
-        try:
-            summary = json.loads((run_dir / "summary.json").read_text())
-        except json.JSONDecodeError as err:
-            raise SizingError(f"{run_dir / 'summary.json'}: not JSON ({err})") from None
-    system = summary.get("system") or {}
-    ssp = ssp or system.get("ssp")
+    recorded_ssp, recorded, frequency = read_summary(run_dir / "summary.json")
+    ssp = ssp or recorded_ssp
     if not ssp:
         raise SizingError(f"{run_dir}: summary.json names no system (runs before `mast sizing` existed): give --ssp")
-    parameters = parameters if parameters is not None else system.get("parameters") or {}
-    frequency = float((summary.get("motion") or {}).get("frequency_Hz") or 0.0)
+    parameters = parameters if parameters is not None else recorded
     if not Path(ssp).exists():
         raise SizingError(f"{ssp}: no such system (.ssp or .ssd)")
     try:

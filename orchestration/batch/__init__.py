@@ -38,7 +38,7 @@ by side.
 
 from __future__ import annotations
 
-from .cases import Case, SystemInfo, expand
+from .cases import DEFAULT_MAX_CASES, Case, SystemInfo, count_cases, expand
 from .config import BatchConfig, BatchConfigError
 from .runner import BatchResult, read_batch, run_batch
 from .store import FORMAT_VERSION, STATUSES
@@ -46,6 +46,7 @@ from .tables import describe, group_rows, summary_rows
 from .worker import run_case
 
 __all__ = [
+    "DEFAULT_MAX_CASES",
     "FORMAT_VERSION",
     "STATUSES",
     "BatchConfig",
@@ -53,6 +54,7 @@ __all__ = [
     "BatchResult",
     "Case",
     "SystemInfo",
+    "count_cases",
     "describe",
     "expand",
     "group_rows",

@@ -118,9 +118,55 @@ class Case:
         }
 
 
-def expand(config: BatchConfig, systems: Optional[Mapping[str, SystemInfo]] = None) -> list[Case]:
+#: the most cases a batch runs unless told otherwise (``mast batch --max-cases``, ``max_cases=``)
+DEFAULT_MAX_CASES = 10000
+
+
+def dimension_sizes(config: BatchConfig) -> dict[str, int]:
+    """How many entries each dimension of ``config`` present has (``cases.random.samples``, SSP variants,
+    ``cases.list``, ``cases.grid`` points, ``cases.motion``, ``cases.frequency``), outermost first, counted from
+    the config alone: nothing is drawn, read or built."""
+    c = config.cases
+    sizes = {}
+    if c.get("random"):
+        sizes["random samples"] = int(c["random"]["samples"])
+    sizes["ssp variants"] = len(as_list(c["ssp"])) if "ssp" in c else len(config.ssp)
+    if c.get("list"):
+        sizes["list entries"] = len(c["list"])
+    if c.get("grid"):
+        sizes["grid points"] = math.prod(len(values) for values in c["grid"].values())
+    if as_list(c.get("motion", [])):
+        sizes["motions"] = len(as_list(c["motion"]))
+    if "frequency" in c:
+        sizes["frequencies"] = len(as_list(c["frequency"]))
+    return sizes
+
+
+def count_cases(config: BatchConfig) -> int:
+    """The number of cases ``config`` expands into, without expanding it (the product of ``dimension_sizes``)."""
+    return math.prod(dimension_sizes(config).values())
+
+
+def check_case_count(config: BatchConfig, max_cases: int = DEFAULT_MAX_CASES) -> int:
+    """The number of cases of ``config``; BatchConfigError, giving the count, its factors and the limit, when it is
+    over ``max_cases`` (refused before anything is read, built or run: a runaway grid would exhaust the memory)."""
+    total = count_cases(config)
+    if total > max_cases:
+        factors = " x ".join(f"{n} {what}" for what, n in dimension_sizes(config).items() if n != 1)
+        raise BatchConfigError(
+            f"the config expands to {total} cases ({factors}), over the limit of {max_cases}: "
+            f"shrink the grid or raise the limit with --max-cases {total} (max_cases= in Python)"
+        )
+    return total
+
+
+def expand(
+    config: BatchConfig, systems: Optional[Mapping[str, SystemInfo]] = None, max_cases: int = DEFAULT_MAX_CASES
+) -> list[Case]:
     """Every case of ``config``: the product of its dimensions (random samples outermost, then SSP
-    variants, list entries, grid points, motions, frequencies innermost); ids c00000, c00001, ..."""
+    variants, list entries, grid points, motions, frequencies innermost); ids c00000, c00001, ...
+    More than ``max_cases`` cases are refused before anything is read (``check_case_count``)."""
+    total = check_case_count(config, max_cases)
     systems = dict(systems) if systems else {}
     for name, path in config.ssp.items():
         if name not in systems:
@@ -152,7 +198,6 @@ def expand(config: BatchConfig, systems: Optional[Mapping[str, SystemInfo]] = No
         dims.append([{"motion": dict(m)} for m in motions])
     if "frequency" in c:
         dims.append([{"frequency": float(f)} for f in as_list(c["frequency"])])
-    total = math.prod(len(d) for d in dims)
     width = max(5, len(str(total - 1)))
     cases = []
     for index, combo in enumerate(itertools.product(*dims)):

@@ -1,7 +1,8 @@
-"""``mast batch CONFIG --out DIR [--workers N] [--scheduler ADDRESS] [--resume]``.
+"""``mast batch CONFIG --out DIR [--workers N] [--scheduler ADDRESS] [--resume] [--max-cases N]``.
 
 Exit codes: 0 every case ok, 1 some cases failed or crashed (the batch went on and is complete),
-2 the config or the command is wrong, 130 interrupted (resume with --resume).
+2 the config or the command is wrong (a config over --max-cases cases among them), 130 interrupted (resume with
+--resume).
 """
 
 from __future__ import annotations
@@ -9,14 +10,15 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from . import BatchConfig, BatchConfigError, describe, expand, run_batch
+from . import DEFAULT_MAX_CASES, BatchConfig, BatchConfigError, describe, expand, run_batch
 
 
 def main(args) -> int:
+    max_cases = DEFAULT_MAX_CASES if args.max_cases is None else args.max_cases
     try:
         config = BatchConfig.load(args.config)
         if args.dry_run:
-            print(describe(expand(config)))
+            print(describe(expand(config, max_cases=max_cases)))
             return 0
         if args.retry_failed and not args.resume:
             raise BatchConfigError("--retry-failed goes with --resume")
@@ -28,6 +30,7 @@ def main(args) -> int:
             resume=args.resume,
             retry_failed=args.retry_failed,
             plots=not args.no_plots,
+            max_cases=max_cases,
         )
     except BatchConfigError as err:
         print(f"error: {err}", file=sys.stderr)

@@ -161,9 +161,15 @@ class BatchConfig:
                 )
             if "frequency" in m and "frequency" in c:
                 raise BatchConfigError("give the frequency either in cases.motion or in cases.frequency, not both")
+            if "frequency" in m:
+                _check_frequency(m["frequency"], f"cases.motion {dict(m)}: frequency")
+            elif "frequency" not in c:
+                raise BatchConfigError(
+                    f"cases.motion {dict(m)}: no frequency; give it (Hz) in the motion or in cases.frequency "
+                    "(leave the motion out to hold the home pose)"
+                )
         for f in as_list(c.get("frequency", [])):
-            if not isinstance(f, (int, float)) or not f >= 0:
-                raise BatchConfigError(f"cases.frequency: {f!r} is not a frequency >= 0 Hz")
+            _check_frequency(f, "cases.frequency")
         grid = c.get("grid", {})
         if not isinstance(grid, Mapping) or not all(isinstance(v, list) and v for v in grid.values()):
             raise BatchConfigError("cases.grid: expected a table of ELEMENT.PARAMETER = [value, ...] (non-empty lists)")
@@ -218,6 +224,13 @@ def _auto_or_nonnegative(value, what: str):
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not value >= 0 or not math.isfinite(value):
         raise BatchConfigError(f'{what} = {value!r}: expected "auto" or a number of seconds >= 0')
     return float(value)
+
+
+def _check_frequency(value, what: str) -> None:
+    """BatchConfigError naming ``what`` unless ``value`` is a positive, finite number of Hz (a sine of 0 Hz is no
+    motion: leave the motion out to hold the home pose)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 0 or not math.isfinite(value):
+        raise BatchConfigError(f"{what} = {value!r}: expected a positive, finite number of Hz")
 
 
 def _check_distribution(key: str, dist) -> None:

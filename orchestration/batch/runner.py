@@ -17,7 +17,7 @@ import numpy as np
 
 from fmus.mechanism.topology import Coordinate
 
-from .cases import Case, SystemInfo, digest_of, expand, sha256
+from .cases import DEFAULT_MAX_CASES, Case, SystemInfo, check_case_count, digest_of, expand, sha256
 from .config import BatchConfig, BatchConfigError
 from .executors import DaskCluster, LocalPool
 from .progress import BatchProgress
@@ -82,6 +82,7 @@ def run_batch(
     before_case: Optional[Callable[[Mapping], None]] = None,
     custom_metrics: Optional[Callable] = None,
     mp_context=None,
+    max_cases: int = DEFAULT_MAX_CASES,
 ) -> BatchResult:
     """Run every case of ``config`` and write the results to ``out`` (see the module docstring).
 
@@ -90,11 +91,13 @@ def run_batch(
     ``out``, skipping its finished cases (``retry_failed``: run its failed and crashed cases again).
     ``progress``: True for the progress bar on stderr, or a callable given the counts after each case.
     ``before_case(task)`` and ``custom_metrics(result, task) -> {name: value}`` run in the worker for
-    each case (module-level functions: they are pickled). Returns a :class:`BatchResult`; an
+    each case (module-level functions: they are pickled). ``max_cases``: a config that expands to more cases is
+    refused (BatchConfigError) before ``out`` is made. Returns a :class:`BatchResult`; an
     interrupted batch (Ctrl-C) raises KeyboardInterrupt after saving what finished.
     """
     if not isinstance(config, BatchConfig):
         config = BatchConfig.load(config) if isinstance(config, (str, Path)) else BatchConfig.from_dict(config)
+    check_case_count(config, max_cases)
     Path(out).mkdir(parents=True, exist_ok=True)
     with _Lock(Path(out) / ".lock"):
         return _run_batch(
@@ -109,6 +112,7 @@ def run_batch(
             before_case,
             custom_metrics,
             mp_context,
+            max_cases,
         )
 
 
@@ -148,6 +152,7 @@ def _run_batch(
     before_case,
     custom_metrics,
     mp_context,
+    max_cases,
 ) -> BatchResult:
     t0 = time.perf_counter()
     store = Store(out)
@@ -176,7 +181,7 @@ def _run_batch(
                 file=sys.stderr,
             )
         systems[name] = SystemInfo.read(copy)
-    cases = expand(config, systems)
+    cases = expand(config, systems, max_cases)
     by_id = {c.id: c for c in cases}
     finished = store.finished() if resume else {}
     for case_id, rec in finished.items():

@@ -24,17 +24,31 @@ from .motion import sine_extremes, system_axes, unit
 
 
 class CommandError(ValueError):
-    """A commanded pose outside the workspace of the system's mechanism."""
+    """A commanded pose outside the workspace of the system's mechanism; its message gives angles in radians (the
+    Python API's unit), ``in_degrees`` the same message in degrees (the command line's)."""
+
+    def __init__(self, message: str, in_degrees: Optional[str] = None) -> None:
+        super().__init__(message)
+        self.in_degrees = in_degrees or message
 
 
 class StrokeError(ValueError):
     """An actuator's stroke that excludes its drive's position at the mechanism's home pose."""
 
 
-def _show(axis: str, value: float) -> str:
+def _show(axis: str, value: float, degrees: bool = False) -> str:
     if unit(axis) == "m":
         return f"{axis}_cmd = {value:.6g} m"
+    if degrees:
+        return f"{axis}_cmd = {math.degrees(value):.6g} deg ({value:.4g} rad)"
     return f"{axis}_cmd = {value:.6g} rad ({math.degrees(value):.4g} deg)"
+
+
+def _amount(axis: str, value: float, degrees: bool = False) -> str:
+    """``value`` of coordinate ``axis`` with its unit: m, rad, or deg when ``degrees`` (an angle)."""
+    if degrees and unit(axis) != "m":
+        return f"{math.degrees(value):.6g} deg"
+    return f"{value:.6g} {unit(axis)}"
 
 
 def _plant(
@@ -159,7 +173,9 @@ def check_commands(
                 outside = mid
         limit = home[k] + inside * (pose[k] - home[k])
         side = "largest" if pose[k] > home[k] else "smallest"
-        raise CommandError(
-            f"{_show(axis, pose[k])} is outside the workspace of '{name}': {why}. The {side} reachable "
-            f"{axis}_cmd on the way from the home pose ({_show(axis, home[k])}) is {limit:.6g} {unit(axis)}"
-        )
+        said = [
+            f"{_show(axis, pose[k], deg)} is outside the workspace of '{name}': {why}. The {side} reachable "
+            f"{axis}_cmd on the way from the home pose ({_show(axis, home[k], deg)}) is {_amount(axis, limit, deg)}"
+            for deg in (False, True)
+        ]
+        raise CommandError(*said)

@@ -449,6 +449,13 @@ def check_mechanism(
 
         return check(BlockSubject(MechanismBlock.for_parameters(parameters), parameters), **kwargs)
     if isolate:  # the child's temporary files go to a folder removed here, even if the child crashes
+        from ..core.ssp import check_archive
+        from ..core.ssv import SSPFormatError
+
+        try:  # an archive no reader of ours opens is named in one line, not in the child's traceback
+            check_archive(target)
+        except SSPFormatError as err:
+            return [Check("runs in a host", False, str(err))]
         with tempfile.TemporaryDirectory(prefix="mast_check_") as tmp:
             proc = subprocess.run(
                 [sys.executable, "-m", "mast.hosts.conformance", "--json", str(target)],
