@@ -45,6 +45,7 @@ import numpy as np
 from fmus.common.parameters import Value
 
 from ..core.atomic import atomic_write
+from ..core.specimen import Specimen, with_specimen
 from ..core.ssp import SSPArchive, SystemSpec, read_ssd
 from ..core.ssv import SSPFormatError, parse_ssv
 from ..core.units import UnitError, parse_unit
@@ -404,15 +405,16 @@ def table(doc: Mapping) -> str:
     return "\n".join(lines) + "\n"
 
 
-def size_run(
+def run_system(
     run_dir: Union[str, Path],
     ssp: Optional[Union[str, Path]] = None,
     parameters: Optional[Mapping[str, Mapping[str, Value]]] = None,
-) -> tuple[dict, list[DriveSizing]]:
-    """Size the run in ``run_dir`` (results.csv, summary.json) against the ratings of ``ssp`` (default: the
-    system summary.json names; parameters: the values the run set, recorded in summary.json, unless given)."""
+    specimen: Optional[Specimen] = None,
+) -> tuple[dict, str, dict]:
+    """(summary.json, the system, its parameter overrides) of the run in ``run_dir``: ``ssp`` or the system
+    summary.json names; ``parameters`` or the values the run set, recorded in summary.json; ``specimen``: the one
+    the run carried, on the mechanism in place of a recorded payload."""
     run_dir = Path(run_dir)
-    t, signals = read_results(run_dir / "results.csv")
     summary = {}
     if (run_dir / "summary.json").is_file():
         try:
@@ -423,10 +425,25 @@ def size_run(
     ssp = ssp or system.get("ssp")
     if not ssp:
         raise SizingError(f"{run_dir}: summary.json names no system (runs before `mast sizing` existed): give --ssp")
-    parameters = parameters if parameters is not None else system.get("parameters") or {}
-    frequency = float((summary.get("motion") or {}).get("frequency_Hz") or 0.0)
     if not Path(ssp).exists():
         raise SizingError(f"{ssp}: no such system (.ssp or .ssd)")
+    recorded = parameters is None
+    parameters = parameters if parameters is not None else system.get("parameters") or {}
+    return summary, str(ssp), with_specimen(parameters, specimen, replace=recorded)
+
+
+def size_run(
+    run_dir: Union[str, Path],
+    ssp: Optional[Union[str, Path]] = None,
+    parameters: Optional[Mapping[str, Mapping[str, Value]]] = None,
+    specimen: Optional[Specimen] = None,
+) -> tuple[dict, list[DriveSizing]]:
+    """Size the run in ``run_dir`` (results.csv, summary.json) against the ratings of ``ssp`` (``run_system``: the
+    system summary.json names, the values the run set, a specimen in place of its payload, unless given)."""
+    run_dir = Path(run_dir)
+    t, signals = read_results(run_dir / "results.csv")
+    summary, ssp, parameters = run_system(run_dir, ssp, parameters, specimen)
+    frequency = float((summary.get("motion") or {}).get("frequency_Hz") or 0.0)
     try:
         if Path(ssp).suffix == ".ssd":  # the structure is enough: its FMUs need not be built
             drive_set = drives(read_ssd(ssp), parameters)

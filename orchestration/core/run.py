@@ -13,6 +13,7 @@ from fmus.common.parameters import Value
 from .components import BlockComponent, FMUComponent
 from .master import Master, Result, SimulationError, Stimulus
 from .motion import AXES, NoStimulus, SineMotion, bind, system_axes, unit
+from .specimen import Specimen, with_specimen
 from .ssp import SSPArchive, safe_extract
 
 
@@ -66,6 +67,7 @@ def simulate(
     step_sizes: Optional[Mapping[str, float]] = None,
     progress: Optional[Callable[[float], None]] = None,
     feedthrough: bool = False,
+    specimen: Optional[Specimen] = None,
 ) -> Result:
     """Run ``ssp`` (a built .ssp, or a .ssd whose FMUs exist) and return the recorded signals.
 
@@ -75,7 +77,11 @@ def simulate(
     ``stimulus=None`` runs a system without inputs (its command comes from a component).
     ``feedthrough=True``: declared direct feedthrough passed on within a tick, outside FMI 2.0's calling
     sequence (master.py).
+    ``specimen``: a specimen on the platform (``core.specimen.Specimen``), the mechanism's payload parameters added
+    to ``parameters`` (one of them set there too is refused); whether the drives hold it is
+    ``mast.analyses.specimen.check_held``, which the commands run first.
     """
+    parameters = with_specimen(parameters, specimen)
     with SSPArchive(ssp) as archive, tempfile.TemporaryDirectory(prefix="mast_fmus_") as unzip_root:
         system = archive.system
         if stimulus is None:
@@ -187,4 +193,12 @@ def write_outputs(
     return summary
 
 
-__all__ = ["simulate", "SimulationError", "SineMotion", "parse_overrides", "write_outputs", "motion_from_cli"]
+__all__ = [
+    "simulate",
+    "SimulationError",
+    "SineMotion",
+    "Specimen",
+    "parse_overrides",
+    "write_outputs",
+    "motion_from_cli",
+]

@@ -63,6 +63,25 @@ class Specimen:
         """The mechanism's payload parameter overrides (m_payload, payload_x/y/z, I_payload_xx..yz)."""
         return dict(zip(PAYLOAD_NAMES, (float(self.mass), *self.com, *self.inertia)))
 
+    @classmethod
+    def from_parameters(cls, params: Mapping[str, Value]) -> "Specimen":
+        """The specimen the mechanism's payload parameters ``params`` describe (one not given: 0)."""
+        v = [float(params.get(name, 0.0)) for name in PAYLOAD_NAMES]
+        return cls(v[0], tuple(v[1:4]), tuple(v[4:]))
+
+    def combined(self, other: "Specimen") -> "Specimen":
+        """This specimen and ``other`` bolted together: the masses added, the common centre of mass, the inertia
+        about it (each body's moved there by the parallel-axis theorem)."""
+        mass = self.mass + other.mass
+        if mass == 0.0:
+            return Specimen(0.0)
+        c = (self.mass * np.array(self.com) + other.mass * np.array(other.com)) / mass
+        total = np.zeros((3, 3))
+        for body in (self, other):
+            d = np.array(body.com) - c
+            total += body.tensor() + body.mass * (d @ d * np.eye(3) - np.outer(d, d))
+        return Specimen(mass, tuple(c), (*np.diag(total), total[0, 1], total[0, 2], total[1, 2]))
+
     def tensor(self) -> np.ndarray:
         """The 3x3 inertia matrix about the centre of mass [kg m^2]."""
         xx, yy, zz, xy, xz, yz = self.inertia
@@ -119,7 +138,7 @@ def parse(text: str) -> Specimen:
     """The command line's ``--specimen``: ``MASS[,X,Y,Z[,IXX,IYY,IZZ[,IXY,IXZ,IYZ]]]`` (kg, m, kg m^2; what is left
     out is 0) or a TOML file ``FILE.toml`` with ``mass`` [kg], ``com = [x, y, z]`` [m], ``inertia = [Ixx, Iyy,
     Izz, Ixy, Ixz, Iyz]`` [kg m^2] (com and inertia optional). SpecimenError naming the input otherwise."""
-    where = f"--specimen {text!r}"
+    where = f"--specimen {text or repr(text)}"
     if text.strip().lower().endswith(".toml"):
         return read(Path(text.strip()))
     values = _numbers(text, where)
