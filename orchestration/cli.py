@@ -9,11 +9,14 @@ import math
 import sys
 import tempfile
 from pathlib import Path
-from typing import Optional
+from typing import TYPE_CHECKING, Optional, Union
 
 from fmus.mechanism.topology import POSE
 
 from .core.build import default_build_dir
+
+if TYPE_CHECKING:
+    from .core.specimen import Specimen
 
 REPO = Path(__file__).resolve().parents[1]
 BUILD = default_build_dir()  # build/ of the checkout, or of the current directory after a plain install
@@ -97,7 +100,7 @@ def animate_folder(text: str) -> str:
     return folder(text)
 
 
-def specimen(text: str):
+def specimen(text: str) -> Specimen:
     """argparse type: ``--specimen MASS[,X,Y,Z[,IXX,IYY,IZZ[,IXY,IXZ,IYZ]]]`` or ``FILE.toml`` (core.specimen.parse),
     checked physical."""
     from .core.specimen import SpecimenError, parse
@@ -122,7 +125,9 @@ def add_specimen(p: argparse.ArgumentParser, text: str = SPECIMEN_HELP) -> None:
     p.add_argument("--specimen", type=specimen, metavar="MASS[,X,Y,Z[,IXX,...]]|FILE.toml", help=text)
 
 
-def specimen_overrides(args, overrides: Optional[dict], *systems) -> Optional[dict]:
+def specimen_overrides(
+    args: argparse.Namespace, overrides: Optional[dict], *systems: Union[str, Path, tuple[Path, dict]]
+) -> Optional[dict]:
     """``overrides`` with ``args.specimen`` on the mechanism, once the drives of every system are found to hold it at
     rest at home (``analyses.specimen.check_held``); a system is a path (.ssp/.ssd) or (path, the parameters of a
     mechanism FMU swapped into it)."""
