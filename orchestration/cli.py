@@ -854,7 +854,8 @@ def main(argv=None) -> int:
         default=PAYLOAD_MISMATCH_KG,
         metavar="KG",
         help="with --controller: also run every test with this payload on the platform, unknown to the "
-        f"controllers (default {PAYLOAD_MISMATCH_KG:g} kg; 0: no robustness runs)",
+        f"controllers: a point mass at P, bolted to --specimen's specimen if given (default {PAYLOAD_MISMATCH_KG:g} "
+        "kg; 0: no robustness runs)",
     )
     p.add_argument(
         "--out", type=folder, required=True, help="folder for comparison.csv/.json/.md, runs.csv, the plots, systems/"
@@ -907,7 +908,8 @@ def main(argv=None) -> int:
         type=nonnegative,
         default=0.0,
         metavar="KG",
-        help="payload on the platform, centre of mass at P (static actuator forces, default 0)",
+        help="payload on the platform, centre of mass at P (static actuator forces, default 0): the point mass "
+        "--specimen KG of the commands that run (docs/specimens.md)",
     )
     p.add_argument("--out", type=folder, help="folder for workspace.json, workspace.csv, workspace.png")
     p.add_argument(

@@ -35,7 +35,7 @@ def test_the_forms_give_the_mechanisms_payload_parameters(tmp_path):
     file.write_text("mass = 2.0\ncom = [0.05, -0.02, 0.1]\ninertia = [0.02, 0.03, 0.04, 0.001, -0.002, 0.003]\n")
     assert parse(str(file)).parameters() == {**full.parameters(), "payload_x": 0.05, "payload_y": -0.02}
     (tmp_path / "point.toml").write_text("mass = 3\n")
-    assert parse(str(tmp_path / "point.toml")) == Specimen(3.0, source=str(tmp_path / "point.toml"))
+    assert parse(str(tmp_path / "point.toml")) == Specimen(3.0)
 
 
 def _rotated(principal, angles) -> tuple:

@@ -15,7 +15,7 @@ line's ``--specimen MASS[,X,Y,Z[,IXX,IYY,IZZ[,IXY,IXZ,IYZ]]]`` or ``--specimen F
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Mapping, Optional
 
@@ -47,7 +47,7 @@ class Specimen:
     mass: float
     com: tuple[float, float, float] = (0.0, 0.0, 0.0)
     inertia: tuple[float, float, float, float, float, float] = (0.0,) * 6
-    source: str = ""  # what the user gave (the command line's text or file), for messages
+    source: str = field(default="", compare=False)  # what the user gave (text or file), for messages
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "com", tuple(float(v) for v in self.com))
