@@ -50,6 +50,7 @@ class Specimen:
     source: str = field(default="", compare=False)  # what the user gave (text or file), for messages
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "mass", float(self.mass))
         object.__setattr__(self, "com", tuple(float(v) for v in self.com))
         object.__setattr__(self, "inertia", tuple(float(v) for v in self.inertia))
         check(self)
