@@ -9,10 +9,14 @@ import math
 import sys
 import tempfile
 from pathlib import Path
+from typing import TYPE_CHECKING, Optional, Union
 
 from fmus.mechanism.topology import POSE
 
 from .core.build import default_build_dir
+
+if TYPE_CHECKING:
+    from .core.specimen import Specimen
 
 REPO = Path(__file__).resolve().parents[1]
 BUILD = default_build_dir()  # build/ of the checkout, or of the current directory after a plain install
@@ -94,6 +98,49 @@ def animate_folder(text: str) -> str:
             f"mast animate RUN_DIR --out DIR writes DIR/{PAGE}"
         )
     return folder(text)
+
+
+def specimen(text: str) -> Specimen:
+    """argparse type: ``--specimen MASS[,X,Y,Z[,IXX,IYY,IZZ[,IXY,IXZ,IYZ]]]`` or ``FILE.toml`` (core.specimen.parse),
+    checked physical."""
+    from .core.specimen import SpecimenError, parse
+
+    try:
+        return parse(text)
+    except SpecimenError as err:  # argparse names the option itself
+        raise argparse.ArgumentTypeError(str(err).removeprefix("--specimen ")) from None
+
+
+SPECIMEN_HELP = (
+    "a specimen bolted to the table: MASS[,X,Y,Z[,IXX,IYY,IZZ[,IXY,IXZ,IYZ]]]: mass in kg, its centre of mass "
+    "from the platform centre P in m (platform axes, z up), its inertia about the centre of mass in kg m^2 "
+    "(platform axes; what is left out is 0), or FILE.toml (keys mass, com, inertia); the mechanism's payload "
+    "parameters (as --set mechanism.m_payload=...), refused (exit 2) if not physical or if a drive cannot hold it "
+    "at rest at the home pose (docs/specimens.md)"
+)
+
+
+def add_specimen(p: argparse.ArgumentParser, text: str = SPECIMEN_HELP) -> None:
+    """The ``--specimen`` option every command that runs the mechanism shares."""
+    p.add_argument("--specimen", type=specimen, metavar="MASS[,X,Y,Z[,IXX,...]]|FILE.toml", help=text)
+
+
+def specimen_overrides(
+    args: argparse.Namespace, overrides: Optional[dict], *systems: Union[str, Path, tuple[Path, dict]]
+) -> Optional[dict]:
+    """``overrides`` with ``args.specimen`` on the mechanism, once the drives of every system are found to hold it at
+    rest at home (``analyses.specimen.check_held``); a system is a path (.ssp/.ssd) or (path, the parameters of a
+    mechanism FMU swapped into it)."""
+    if args.specimen is None:
+        return overrides
+    from .analyses.specimen import check_held, held_text
+    from .core.specimen import with_specimen
+
+    merged = with_specimen(overrides, args.specimen)
+    for system in systems:
+        ssp, mechanism = system if isinstance(system, tuple) else (system, None)
+        print(held_text(check_held(ssp, args.specimen, merged, mechanism)))
+    return merged
 
 
 def _number(text: str) -> float:
@@ -193,7 +240,7 @@ def cmd_run(args) -> int:
                 file=sys.stderr,
             )
             return 2
-    overrides = parse_overrides(args.set or [])
+    overrides = specimen_overrides(args, parse_overrides(args.set or []), ssp)
     with SSPArchive(ssp) as archive:  # --motion: a coordinate of the system's mechanism (its topology)
         axes = system_axes(archive.system, overrides)
     motion = motion_from_cli(args.motion, args.amplitude, args.frequency, axes, str(ssp))
@@ -308,7 +355,7 @@ def cmd_synthesize(args) -> int:
     synthesize(
         args.ssp,
         Path(args.out),
-        parse_overrides(args.set or []),
+        specimen_overrides(args, parse_overrides(args.set or []), args.ssp),
         tests=parse_tests(args.tests) if args.tests else DEFAULT_TESTS,
         noise=pairs(args.noise, "noise"),
         resolution=pairs(args.resolution, "resolution"),
@@ -342,6 +389,7 @@ def cmd_diagnose(args) -> int:
             Path(args.measured),
             Path(args.out),
             args.ssp,
+            parameters=specimen_overrides(args, {}, args.ssp),
             model=args.model,
             holdout=args.holdout.split(",") if args.holdout else None,
             workers=args.workers,
@@ -409,13 +457,27 @@ def cmd_compare(args) -> int:
         tuple(args.frequencies) if args.frequencies else base.frequencies,
         base.amplitudes,
     )
+    systems = []  # what runs: a system, a mechanism FMU in the base system, a controller in it
+    if args.specimen is not None:
+        from .analyses.workspace import described
+        from .core.components import fmu_parameters
+
+        for item in args.mechanism or args.controller:
+            path = Path(item)
+            if path.suffix in (".ssp", ".ssd"):
+                systems.append(path)
+            elif path.suffix == ".fmu" and args.mechanism:
+                systems.append((Path(args.ssd), fmu_parameters(path)))
+            elif not (args.mechanism and described(item)) and Path(args.ssd) not in systems:
+                systems.append(Path(args.ssd))
+    parameters = specimen_overrides(args, parse_overrides(args.set or []), *systems)
     comp = compare(
         args.mechanism or (),
         Path(args.out),
         test_set,
         workers=args.workers,
         direct=args.direct,
-        parameters=parse_overrides(args.set or []),
+        parameters=parameters,
         base_ssd=args.ssd,
         fmu_dir=args.fmus,
         progress=CountProgress("compare"),
@@ -488,7 +550,18 @@ def cmd_sizing(args) -> int:
     from .analyses.sizing import size_run, table, write
     from .core.run import parse_overrides
 
-    doc, sized = size_run(args.run_dir, args.ssp, parse_overrides(args.set) if args.set else None)
+    overrides = parse_overrides(args.set) if args.set else None
+    held = None
+    if args.specimen is not None:  # its static hold, checked before the run is sized
+        from .analyses.sizing import run_system
+        from .analyses.specimen import check_held, held_text
+
+        _, ssp, parameters = run_system(args.run_dir, args.ssp, overrides, args.specimen)
+        held = check_held(ssp, args.specimen, parameters)
+        print(held_text(held))
+    doc, sized = size_run(args.run_dir, args.ssp, overrides, args.specimen)
+    if held is not None:
+        doc["specimen"] = held
     files = write(doc, sized, Path(args.out or args.run_dir), plots=not args.no_plots)
     print(table(doc), end="")
     print(f"wrote {', '.join(str(f) for f in files)}")
@@ -589,6 +662,7 @@ def main(argv=None) -> int:
     p.add_argument(
         "--set", action="append", metavar="ELEMENT.PARAMETER=VALUE", help="override a parameter (repeatable)"
     )
+    add_specimen(p)
     p.add_argument(
         "--record",
         action="append",
@@ -645,6 +719,7 @@ def main(argv=None) -> int:
         metavar="ELEMENT.PARAMETER=VALUE",
         help="the truth: override a parameter (repeatable; 'actuator.X' sets X on every actuator)",
     )
+    add_specimen(p, "the truth's specimen: " + SPECIMEN_HELP)
     p.add_argument(
         "--noise",
         action="append",
@@ -701,6 +776,7 @@ def main(argv=None) -> int:
         help="nominal actuator parameter set: an .ssv file or the name of one in the SSP "
         "(default: the SSP's bindings, i.e. the manufacturer data)",
     )
+    add_specimen(p, "the specimen the measured machine carried, in the nominal model: " + SPECIMEN_HELP)
     p.add_argument(
         "--holdout",
         help="comma-separated test names to hold out (default: meta.json roles, else every "
@@ -791,7 +867,8 @@ def main(argv=None) -> int:
         default=PAYLOAD_MISMATCH_KG,
         metavar="KG",
         help="with --controller: also run every test with this payload on the platform, unknown to the "
-        f"controllers (default {PAYLOAD_MISMATCH_KG:g} kg; 0: no robustness runs)",
+        f"controllers: a point mass at P, bolted to --specimen's specimen if given (default {PAYLOAD_MISMATCH_KG:g} "
+        "kg; 0: no robustness runs)",
     )
     p.add_argument(
         "--out", type=folder, required=True, help="folder for comparison.csv/.json/.md, runs.csv, the plots, systems/"
@@ -814,6 +891,11 @@ def main(argv=None) -> int:
     )
     p.add_argument(
         "--set", action="append", metavar="ELEMENT.PARAMETER=VALUE", help="override a parameter in every design"
+    )
+    add_specimen(
+        p,
+        "on every run of every design or controller, unknown to the controllers (with --controller the "
+        "robustness runs add --payload's point mass at P to it): " + SPECIMEN_HELP,
     )
     p.add_argument("--workers", type=count, help="parallel processes (default: the number of cores)")
     p.add_argument("--direct", action="store_true", help="run the model objects without FMI (this project's FMUs only)")
@@ -839,7 +921,8 @@ def main(argv=None) -> int:
         type=nonnegative,
         default=0.0,
         metavar="KG",
-        help="payload on the platform, centre of mass at P (static actuator forces, default 0)",
+        help="payload on the platform, centre of mass at P (static actuator forces, default 0): the point mass "
+        "--specimen KG of the commands that run (docs/specimens.md)",
     )
     p.add_argument("--out", type=folder, help="folder for workspace.json, workspace.csv, workspace.png")
     p.add_argument(
@@ -909,6 +992,11 @@ def main(argv=None) -> int:
         metavar="ELEMENT.PARAMETER=VALUE",
         help="the run's parameter overrides (default: those summary.json records)",
     )
+    add_specimen(
+        p,
+        "the specimen the run carried, in place of the payload summary.json records (its static hold at home "
+        "against the ratings goes into sizing.json): " + SPECIMEN_HELP,
+    )
     p.add_argument("--out", type=folder, help="folder for sizing.json, sizing.md and the plots (default: RUN_DIR)")
     p.add_argument("--no-plots", action="store_true", help="write no figures")
     p.set_defaults(func=cmd_sizing)
@@ -923,6 +1011,7 @@ def main(argv=None) -> int:
     p.add_argument("--resume", action="store_true", help="go on with the batch in --out: skip its finished cases")
     p.add_argument("--retry-failed", action="store_true", help="with --resume: run failed and crashed cases again")
     p.add_argument("--dry-run", action="store_true", help="list the cases and stop")
+    add_specimen(p, "on every case (the config's [parameters], before its cases' own): " + SPECIMEN_HELP)
     p.add_argument("--no-plots", action="store_true", help="write no figures")
     p.add_argument(
         "--max-cases",

@@ -63,6 +63,7 @@ from ..core import ssd, ssv
 from ..core.build import default_build_dir
 from ..core.components import fmu_parameters
 from ..core.motion import system_axes
+from ..core.specimen import PAYLOAD_NAMES, Specimen
 from ..core.ssp import SSPArchive, mechanism_parameters
 from . import paper, sizing
 from .frequency import SineCase, SineResult, bandwidth, run_cases
@@ -129,11 +130,17 @@ class Candidate:
     workspace: Optional[dict] = None  # the design's `mast workspace` summary (designs only)
 
     def overrides(self, parameters: Optional[Mapping[str, Mapping[str, Value]]]) -> Optional[dict]:
-        """The caller's overrides, plus the unknown payload on the mechanism."""
+        """The caller's overrides, plus the unknown payload on the mechanism: a point mass at P, bolted to the
+        specimen the overrides put there (``--specimen``), if any."""
         if not self.payload_kg:
             return dict(parameters) if parameters else None
         out = {k: dict(v) for k, v in (parameters or {}).items()}
-        out.setdefault("mechanism", {})["m_payload"] = self.payload_kg
+        mechanism = out.setdefault("mechanism", {})
+        if any(name in mechanism for name in PAYLOAD_NAMES):
+            carried = Specimen.from_parameters(mechanism)
+            mechanism.update(carried.combined(Specimen(self.payload_kg)).parameters())
+        else:
+            mechanism["m_payload"] = self.payload_kg
         return out
 
 

@@ -45,6 +45,7 @@ import numpy as np
 from fmus.common.parameters import Value
 
 from ..core.atomic import atomic_write
+from ..core.specimen import Specimen, with_specimen
 from ..core.ssp import SSPArchive, SystemSpec, read_ssd
 from ..core.ssv import SSPFormatError, parse_ssv
 from ..core.units import UnitError, parse_unit
@@ -456,22 +457,38 @@ def table(doc: Mapping) -> str:
     return "\n".join(lines) + "\n"
 
 
+def run_system(
+    run_dir: Union[str, Path],
+    ssp: Optional[Union[str, Path]] = None,
+    parameters: Optional[Mapping[str, Mapping[str, Value]]] = None,
+    specimen: Optional[Specimen] = None,
+) -> tuple[float, str, dict]:
+    """(the motion's frequency [Hz], the system, its parameter overrides) of the run in ``run_dir``
+    (``read_summary``): ``ssp`` or the system summary.json names; ``parameters`` or the values the run set, recorded
+    in summary.json; ``specimen``: the one the run carried, on the mechanism in place of a recorded payload."""
+    run_dir = Path(run_dir)
+    recorded_ssp, recorded_parameters, frequency = read_summary(run_dir / "summary.json")
+    ssp = ssp or recorded_ssp
+    if not ssp:
+        raise SizingError(f"{run_dir}: summary.json names no system (runs before `mast sizing` existed): give --ssp")
+    if not Path(ssp).exists():
+        raise SizingError(f"{ssp}: no such system (.ssp or .ssd)")
+    recorded = parameters is None
+    parameters = parameters if parameters is not None else recorded_parameters
+    return frequency, str(ssp), with_specimen(parameters, specimen, replace=recorded)
+
+
 def size_run(
     run_dir: Union[str, Path],
     ssp: Optional[Union[str, Path]] = None,
     parameters: Optional[Mapping[str, Mapping[str, Value]]] = None,
+    specimen: Optional[Specimen] = None,
 ) -> tuple[dict, list[DriveSizing]]:
-    """Size the run in ``run_dir`` (results.csv, summary.json) against the ratings of ``ssp`` (default: the
-    system summary.json names; parameters: the values the run set, recorded in summary.json, unless given)."""
+    """Size the run in ``run_dir`` (results.csv, summary.json) against the ratings of ``ssp`` (``run_system``: the
+    system summary.json names, the values the run set, a specimen in place of its payload, unless given)."""
     run_dir = Path(run_dir)
     t, signals = read_results(run_dir / "results.csv")
-    recorded_ssp, recorded, frequency = read_summary(run_dir / "summary.json")
-    ssp = ssp or recorded_ssp
-    if not ssp:
-        raise SizingError(f"{run_dir}: summary.json names no system (runs before `mast sizing` existed): give --ssp")
-    parameters = parameters if parameters is not None else recorded
-    if not Path(ssp).exists():
-        raise SizingError(f"{ssp}: no such system (.ssp or .ssd)")
+    frequency, ssp, parameters = run_system(run_dir, ssp, parameters, specimen)
     try:
         if Path(ssp).suffix == ".ssd":  # the structure is enough: its FMUs need not be built
             drive_set = drives(read_ssd(ssp), parameters)

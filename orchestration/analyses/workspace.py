@@ -136,6 +136,7 @@ def _from_system(label: str, system, mechanism: Optional[Mapping] = None, payloa
             drive["g_guide"] = float(mech["g"]) * math.cos(float(mech["beta"]))
     if not (math.isfinite(payload) and payload >= 0.0):
         raise ValueError(f"--payload {payload!r}: expected a finite mass >= 0 kg")
+    kind = mech.get("kinematics", "3PRS")
     return Machine(
         label,
         mech,
@@ -144,12 +145,20 @@ def _from_system(label: str, system, mechanism: Optional[Mapping] = None, payloa
         tuple(float(a["rho_0"]) for a in acts),
         drive,
         float(payload),
+        body_masses(kind) if kind != "3PRS" and described(kind) else None,
     )
 
 
 def described(name: str) -> bool:
     """Whether ``name`` is a mechanism of a shipped description file (``designs.KINEMATICS``: 3PRS, 3RPS, ...)."""
     return name in KINEMATICS and not callable(KINEMATICS[name])
+
+
+def body_masses(name: str) -> tuple[str, ...]:
+    """The parameters of the bodies and gravity of the described mechanism ``name`` (its description's traced
+    parameters that are not its geometry's): what its static forces need."""
+    file = description(name)
+    return tuple(n for n in file.traced if n not in file.kinematic)
 
 
 def _from_description(name: str, payload: float = 0.0) -> Machine:
@@ -169,7 +178,7 @@ def _from_description(name: str, payload: float = 0.0) -> Machine:
         tuple(float(v) for v in rho_home),
         {},
         float(payload),
-        tuple(n for n in file.traced if n not in file.kinematic),
+        body_masses(name),
     )
 
 
@@ -498,10 +507,7 @@ def compute(
             f"{m.label}: {len(m.rho_home)} actuators for the {n} drives of {topology.name} "
             f"({', '.join(topology.joints)}): expected actuator_1..actuator_{n}"
         )
-    try:
-        home = eng.dk(m.rho_home)[0]
-    except KinematicsError as exc:
-        raise ValueError(f"{m.label}: no home pose for the carriages at rho_0 = {m.rho_home} m: {exc}") from None
+    home = home_pose(eng, m)
     sign = math.copysign(1.0, eng.margins(home).det)
     # the box: for a length coordinate the motion the drives' strokes allow (from the home Jacobian: all
     # carriages together for the 3PRS's z), for an angle +-35 deg; or on a fine grid the extent of a pass 4
@@ -548,10 +554,8 @@ def compute(
     forces = None
     if inside.any() and not m.missing_masses:
         forces = np.full((n,) + status.shape, np.nan)
-        Jq = np.linalg.inv(nodes.Jinv[inside])
         grids = _poses(np.meshgrid(*axes, indexing="ij"), home, swept)
-        zero = [0.0] * n
-        forces[:, inside] = eng.forces_many([g[inside] for g in grids], Jq, zero, zero)
+        forces[:, inside] = static_forces(eng, [g[inside] for g in grids], nodes.Jinv[inside])
     return Workspace(
         m,
         tuple(home),
@@ -573,6 +577,44 @@ def compute(
         topology,
         swept,
     )
+
+
+def home_pose(eng: Engine, m: Machine) -> tuple[float, ...]:
+    """The pose of machine ``m`` with every drive at its home joint value rho_0 (its direct kinematics); ValueError
+    naming the machine if it does not assemble there."""
+    try:
+        return tuple(eng.dk(m.rho_home)[0])
+    except KinematicsError as exc:
+        raise ValueError(f"{m.label}: no home pose for the carriages at rho_0 = {m.rho_home} m: {exc}") from None
+
+
+# ----------------------------------------------------------------------------- static forces
+def static_forces(eng: Engine, q: Sequence[np.ndarray], Jinv: np.ndarray) -> np.ndarray:
+    """The drive forces [N; N m rotary] that hold the mechanism (and its payload) at rest at the poses q (n arrays;
+    ``Jinv`` (..., n, n) = drho/dq there, from ``Engine.evaluate_many``): its inverse dynamics at zero joint speed
+    and acceleration, (n, ...)."""
+    zero = [0.0] * eng.n
+    return eng.forces_many(q, np.linalg.inv(Jinv), zero, zero)
+
+
+def held_force(F: np.ndarray, drive: Mapping) -> np.ndarray:
+    """The force a drive's guide carries at rest [N]: the mechanism's static force ``F`` plus its carriage's weight
+    along the guide (``Machine.drive``'s M_load g_guide; none when the system gives no actuator data)."""
+    return F + drive.get("M_load", 0.0) * drive.get("g_guide", 0.0)
+
+
+def home_static_forces(m: Machine) -> tuple[tuple[float, ...], np.ndarray]:
+    """(home pose, the static drive forces there [N; N m rotary], one per drive) of machine ``m`` with its payload;
+    ValueError naming the machine if its carriages at rho_0 do not assemble or its masses are not given."""
+    if m.missing_masses:
+        raise ValueError(f"{m.label}: the mechanism's parameters give no {', '.join(m.missing_masses)}")
+    eng = m.engine()
+    home = home_pose(eng, m)
+    q = [np.array([v]) for v in home]
+    _, Jinv, ok = eng.evaluate_many(q)
+    if not ok.all():
+        raise ValueError(f"{m.label}: the home pose {tuple(home)} does not assemble")
+    return tuple(float(v) for v in home), static_forces(eng, q, Jinv)[:, 0]
 
 
 # ----------------------------------------------------------------------------- one pose
@@ -858,7 +900,7 @@ def summarize(ws: Workspace) -> dict:
         d = m.drive
         if d:
             # motor torque holding the carriage and its share of the mechanism at rest (friction left out)
-            tau = (np.abs(F + d["M_load"] * d["g_guide"])).max(axis=0) * d["p"] / (2 * math.pi * d["i_r"])
+            tau = np.abs(held_force(F, d)).max(axis=0) * d["p"] / (2 * math.pi * d["i_r"])
             peak_torque = d["k_T"] * d["i_max"]
             out["static_forces"].update(
                 {

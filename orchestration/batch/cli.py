@@ -10,13 +10,33 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+from ..core.specimen import MECHANISM, PAYLOAD_NAMES
 from . import DEFAULT_MAX_CASES, BatchConfig, BatchConfigError, describe, expand, run_batch
+
+
+def with_specimen(config: BatchConfig, specimen) -> dict:
+    """The config's ``[parameters]`` with the specimen's on the mechanism (``--specimen``), once every SSP variant's
+    drives are found to hold it at rest at home; one of them set in ``[parameters]`` too is refused."""
+    from ..analyses.specimen import check_held, held_text
+
+    given = {k.partition(".")[2]: v for k, v in config.parameters.items() if k.partition(".")[0] == MECHANISM}
+    clash = sorted(set(given) & set(PAYLOAD_NAMES))
+    if clash:
+        raise BatchConfigError(
+            f"--specimen {specimen.label} and [parameters] {', '.join(f'{MECHANISM}.{k}' for k in clash)} of "
+            "the config both set the payload: give one"
+        )
+    for ssp in config.ssp.values():
+        print(held_text(check_held(ssp, specimen, {MECHANISM: given})))
+    return {**config.parameters, **{f"{MECHANISM}.{k}": v for k, v in specimen.parameters().items()}}
 
 
 def main(args) -> int:
     max_cases = DEFAULT_MAX_CASES if args.max_cases is None else args.max_cases
     try:
         config = BatchConfig.load(args.config)
+        if getattr(args, "specimen", None) is not None:
+            config.parameters = with_specimen(config, args.specimen)
         if args.dry_run:
             print(describe(expand(config, max_cases=max_cases)))
             return 0

@@ -13,6 +13,7 @@ from fmus.common.parameters import Value
 from .components import BlockComponent, FMUComponent
 from .master import Master, Result, SimulationError, Stimulus
 from .motion import AXES, NoStimulus, SineMotion, bind, system_axes, unit
+from .specimen import Specimen, with_specimen
 from .ssp import SSPArchive, safe_extract
 
 
@@ -67,6 +68,7 @@ def simulate(
     progress: Optional[Callable[[float], None]] = None,
     feedthrough: bool = False,
     component: Optional[Callable[[str, type], BlockComponent]] = None,
+    specimen: Optional[Specimen] = None,
 ) -> Result:
     """Run ``ssp`` (a built .ssp, or a .ssd whose FMUs exist) and return the recorded signals.
 
@@ -77,7 +79,11 @@ def simulate(
     ``feedthrough=True``: declared direct feedthrough passed on within a tick, outside FMI 2.0's calling
     sequence (master.py). ``component`` (with ``direct``): makes each component from its name and block class in
     place of ``BlockComponent`` (the monolithic reference's, mast.analyses.monolithic).
+    ``specimen``: a specimen on the platform (``core.specimen.Specimen``), the mechanism's payload parameters added
+    to ``parameters`` (one of them set there too is refused); whether the drives hold it is
+    ``mast.analyses.specimen.check_held``, which the commands run first.
     """
+    parameters = with_specimen(parameters, specimen)
     with SSPArchive(ssp) as archive, tempfile.TemporaryDirectory(prefix="mast_fmus_") as unzip_root:
         system = archive.system
         if stimulus is None:
@@ -190,4 +196,12 @@ def write_outputs(
     return summary
 
 
-__all__ = ["simulate", "SimulationError", "SineMotion", "parse_overrides", "write_outputs", "motion_from_cli"]
+__all__ = [
+    "simulate",
+    "SimulationError",
+    "SineMotion",
+    "Specimen",
+    "parse_overrides",
+    "write_outputs",
+    "motion_from_cli",
+]

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Optional, Sequence
+from typing import Mapping, Optional, Sequence
 
 from .effects import LIBRARY
 from .resimulation import DiagnosisError
@@ -24,6 +24,16 @@ class Options:
     native: bool = False  # re-simulate on the SSP's native variant (compiled FMUs, mast build --native)
     library: Sequence[str] = tuple(e.key for e in LIBRARY)
     figures: bool = True
+    #: overrides of the nominal model in every re-simulation, {component: {parameter: value}} (``--specimen``: the
+    #: mechanism's payload the measured machine carried)
+    parameters: Optional[Mapping[str, Mapping]] = None
+
+
+def with_parameters(base: dict, opt: Options) -> dict:
+    """The re-simulations' overrides ``base`` with ``opt.parameters`` merged in per component (``--specimen``)."""
+    for component, values in (opt.parameters or {}).items():
+        base.setdefault(component, {}).update(values)
+    return base
 
 
 def model_overrides(ssp: str, model: Optional[str]) -> dict:

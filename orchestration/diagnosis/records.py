@@ -166,7 +166,7 @@ def _localise(diag: Diagnosis, pt: Point) -> dict:
 
 def diagnose_records(opt, log: Callable[[str], None] = print) -> dict:
     """``mast diagnose`` on a record folder (module docstring); ``opt`` is options.Options."""
-    from .options import model_overrides
+    from .options import model_overrides, with_parameters
 
     t_start = time.perf_counter()
     records = load_records(opt.measured)
@@ -180,7 +180,7 @@ def diagnose_records(opt, log: Callable[[str], None] = print) -> dict:
     if not 0.0 < fraction < 1.0:
         raise DiagnosisError(f"--holdout-fraction {fraction!r}: expected a share between 0 and 1")
     cases, holdout_how = _cases(records, fraction, tuple(opt.holdout or ()))
-    base = {component: dict(model_over)} if model_over else {}
+    base = with_parameters({component: dict(model_over)} if model_over else {}, opt)
     model = AxisModel(opt.ssp, cases, component, base, direct=opt.direct)
     diag = Diagnosis(model, cases, Band(), log)
     log(

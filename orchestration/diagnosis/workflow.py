@@ -14,7 +14,7 @@ from .consistency import needs_check, only_consistent
 from .crossvalidation import cross_validate
 from .effects import AXIS_OF, BY_KEY, CONTROLLER_PARAMETERS, LIBRARY, drive_of, for_drives, noise_std
 from .nonlinear import nonlinear_stage, phase_free_stage
-from .options import Options, model_overrides
+from .options import Options, model_overrides, with_parameters
 from .plan import choose_split, excitation, excitations, identifiability
 from .report import jsonable, plot_figures, write_model, write_report
 from .resimulation import DiagnosisError, Model, Prepared, Simulator
@@ -231,7 +231,7 @@ def diagnose(opt: Options, log: Callable[[str], None] = print) -> dict:
         raise DiagnosisError(f"library: {err} ({opt.ssp})") from None
     model_over = model_overrides(opt.ssp, opt.model)
     nominal = {**ssp_drive, **ssp_actuator, **model_over, **{p: 0.0 for p in AXIS_OF if drive_of(p) <= drives}}
-    base = {a: dict(model_over) for a in actuators} if model_over else {}
+    base = with_parameters({a: dict(model_over) for a in actuators} if model_over else {}, opt)
     kinematics = controller_kinematics(opt.ssp)
     roles, split_how = _split(data, opt.holdout, keys)
     prepared: dict[str, Prepared] = {}
