@@ -1,0 +1,87 @@
+/* What the FMI glue of every MAST binary checks before it touches an instance: the native FMUs'
+ * wrapper (fmi2_wrapper.c) and the Python FMUs' C front (pythonfmu_shim.c) include it, each binary with a
+ * registry of its own.
+ *
+ * The live instances: the pointers this binary handed out and has not freed. A call with any other pointer
+ * (an instance freed already, one freed twice, a pointer never made here) is refused without reading through
+ * it: a freed instance's memory may belong to anyone by then, so no magic field in it can be trusted. A freed
+ * instance's block waits in a quarantine for MAST_QUARANTINE later frees before it goes back to malloc, so a
+ * new instance does not take at once the address a careless host still holds.
+ */
+#ifndef MAST_GUARD_H
+#define MAST_GUARD_H
+
+#include <stdlib.h>
+
+#define MAST_QUARANTINE 16
+
+static void **mast_live_set;
+static size_t mast_live_n, mast_live_cap;
+static void *mast_quarantine[MAST_QUARANTINE];
+static size_t mast_retired;
+static char mast_live_busy;
+
+/* a spin lock (no pthread to link): hosts may create and free instances from several threads */
+static void mast_live_lock(void)
+{
+    while (__atomic_test_and_set(&mast_live_busy, __ATOMIC_ACQUIRE)) {
+    }
+}
+static void mast_live_unlock(void) { __atomic_clear(&mast_live_busy, __ATOMIC_RELEASE); }
+
+/* the index of ``p`` among the live instances, or -1 (the lock held) */
+static long mast_live_index(const void *p)
+{
+    for (size_t k = 0; k < mast_live_n; k++)
+        if (mast_live_set[k] == p) return (long)k;
+    return -1;
+}
+
+/* a new instance made live (0: out of memory, the caller frees it) */
+static int mast_live_add(void *p)
+{
+    int ok = 1;
+    mast_live_lock();
+    if (mast_live_n == mast_live_cap) {
+        size_t cap = mast_live_cap ? 2 * mast_live_cap : 16;
+        void **grown = realloc(mast_live_set, cap * sizeof *grown);
+        if (grown) mast_live_set = grown, mast_live_cap = cap;
+        else ok = 0;
+    }
+    if (ok) mast_live_set[mast_live_n++] = p;
+    mast_live_unlock();
+    return ok;
+}
+
+/* ``p`` if it is a live instance of this binary, else NULL (never read) */
+static void *mast_live(void *p)
+{
+    if (!p) return NULL;
+    mast_live_lock();
+    long k = mast_live_index(p);
+    mast_live_unlock();
+    return k < 0 ? NULL : p;
+}
+
+/* ``p`` no longer live: 1 if it was (the caller releases what it holds, then mast_retire(p)), 0 if not */
+static int mast_live_remove(void *p)
+{
+    if (!p) return 0;
+    mast_live_lock();
+    long k = mast_live_index(p);
+    if (k >= 0) mast_live_set[k] = mast_live_set[--mast_live_n];
+    mast_live_unlock();
+    return k >= 0;
+}
+
+/* an instance's own block, freed MAST_QUARANTINE frees later (the oldest in the quarantine goes now) */
+static void mast_retire(void *p)
+{
+    mast_live_lock();
+    void *oldest = mast_quarantine[mast_retired % MAST_QUARANTINE];
+    mast_quarantine[mast_retired++ % MAST_QUARANTINE] = p;
+    mast_live_unlock();
+    free(oldest);
+}
+
+#endif
