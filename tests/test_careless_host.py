@@ -1,12 +1,16 @@
-"""What a careless host can do to an instance, on every route (native and Python FMUs): no crash.
+"""What a careless host can do to an instance, on every route (native and Python FMUs): no crash, no silent OK.
 
 A second fmi2FreeInstance and calls on a freed instance are refused without touching it (a C host in a
-subprocess, so a crash fails the test, not the suite; docs/using-the-fmus.md, "Behaviour a host can rely on").
+subprocess, so a crash fails the test, not the suite); every non-finite or negative time argument is refused with
+fmi2Error (fmi3Error) and a message naming it, in the same words on both routes (docs/using-the-fmus.md,
+"Behaviour a host can rely on").
 """
 
 from __future__ import annotations
 
+import ctypes
 import importlib.util
+import math
 import os
 import subprocess
 import sys
@@ -15,7 +19,7 @@ from pathlib import Path
 
 import pytest
 from lxml import etree
-from test_fmi_behaviour import ERROR
+from test_fmi_behaviour import ERROR, OK, Instance
 
 from mast.core.build import FMUS, build_fmu, build_fmu3, default_parameters
 from mast.core.native.build import build_native_fmu
@@ -23,8 +27,8 @@ from mast.core.native.compiler import compiler, fmi_headers
 from mast.hosts.cosim import HostUnavailable, host_environment
 
 HOST = Path(__file__).with_name("careless_host.c")
-#: the models of the tests
-MODELS = ("MastActuator",)
+#: the models of the tests: one with a cycle time (the actuator's drive, T_cur) and one without (the trajectory)
+MODELS = ("MastActuator", "MastTrajectory")
 
 
 @pytest.fixture(scope="module")
@@ -94,3 +98,59 @@ def test_an_fmi3_python_fmu_freed_twice_refuses_every_later_call_and_the_host_su
     done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, (done.returncode, done.stderr[-2000:])
     assert done.stdout.split() == [str(ERROR), str(ERROR), "0"], done.stdout
+
+
+@pytest.mark.parametrize("route", ["", "native/"])
+@pytest.mark.parametrize("ident", MODELS)
+def test_a_non_finite_or_negative_time_is_refused_and_named(fmus, ident, route):
+    """NaN, inf or a negative time as setupExperiment's start or stop time or doStep's communication point or
+    step size: fmi2Error and a message naming the argument and its value (the same on both routes); an undefined
+    stop time is not read; the instance goes on."""
+    inst = Instance(fmus[route + ident], "careless")
+    setup = inst.dll.fmi2SetupExperiment
+    expected = "{}: {} = {} s: a time must be finite and >= 0"
+    for start, defined, stop, name, value in (
+        (math.nan, 0, 0.0, "startTime", "nan"),
+        (-1.0, 0, 0.0, "startTime", "-1"),
+        (0.0, 1, math.inf, "stopTime", "inf"),
+        (0.0, 1, -0.5, "stopTime", "-0.5"),
+    ):
+        assert setup(inst.c, 0, 0.0, start, defined, stop) == ERROR
+        assert inst.log[-1] == (ERROR, expected.format("setupExperiment", name, value))
+    assert setup(inst.c, 0, 0.0, 0.0, 0, math.nan) == OK  # no stop time defined: its value means nothing
+    inst.slave.enterInitializationMode()
+    assert inst.dll.fmi2ExitInitializationMode(inst.c) == OK
+    h = 1e-4
+    for t, step, name, value in (
+        (0.0, math.nan, "communicationStepSize", "nan"),
+        (0.0, -h, "communicationStepSize", "-0.0001"),
+        (0.0, math.inf, "communicationStepSize", "inf"),
+        (math.nan, h, "currentCommunicationPoint", "nan"),
+        (-math.inf, h, "currentCommunicationPoint", "-inf"),
+    ):
+        assert inst.step(t, step) == ERROR
+        assert inst.log[-1] == (ERROR, expected.format("doStep", name, value))
+    assert inst.step(0.0, h) == OK, inst.log[-3:]
+    inst.close()
+
+
+@pytest.mark.skipif(importlib.util.find_spec("pythonfmu3") is None, reason="pythonfmu3 is not installed")
+def test_fmi3_refuses_a_non_finite_or_negative_time(tmp_path):
+    """The FMI 3.0 variant: fmi3EnterInitializationMode's start and stop time and fmi3DoStep's times, each
+    fmi3Error with the FMI 2.0 FMUs' words; the instance goes on."""
+    from test_fmi3 import Instance3
+
+    spec = next(s for s in FMUS if s.model_identifier == "MastActuator")
+    inst = Instance3(build_fmu3(spec, tmp_path), "careless")
+    enter = inst.slave.dll.fmi3EnterInitializationMode
+    c, d, b = inst.slave.component, ctypes.c_double, ctypes.c_bool
+    assert enter(c, b(False), d(0.0), d(math.nan), b(False), d(0.0)) == ERROR
+    assert inst.log[-1] == (ERROR, "enterInitializationMode: startTime = nan s: a time must be finite and >= 0")
+    assert enter(c, b(False), d(0.0), d(0.0), b(True), d(-2.0)) == ERROR
+    assert inst.log[-1] == (ERROR, "enterInitializationMode: stopTime = -2 s: a time must be finite and >= 0")
+    assert enter(c, b(False), d(0.0), d(0.0), b(True), d(1.0)) == OK
+    assert inst.slave.dll.fmi3ExitInitializationMode(c) == OK
+    assert inst.step(0.0, math.nan) == ERROR
+    assert inst.log[-1] == (ERROR, "doStep: communicationStepSize = nan s: a time must be finite and >= 0")
+    assert inst.step(0.0, 1e-4) == OK, inst.log[-3:]
+    inst.close()

@@ -20,7 +20,8 @@
  * loggingOn and SetDebugLogging), as the native FMUs do (native/fmi2_wrapper.c).
  * Nothing else changes: values, states and the other statuses pass through untouched. Before any of it, a call's
  * instance is checked against the instances this front made and has not freed (mast_guard.h): a second free
- * does nothing and any other call on a freed instance returns Error unread.
+ * does nothing and any other call on a freed instance returns Error unread; FMI 3.0's start and stop time are
+ * checked here too (pythonfmu3 does not pass the stop time on; the glue checks doStep's times, slave.py).
  */
 #define _GNU_SOURCE
 #include <dlfcn.h>
@@ -569,7 +570,13 @@ fmi3Status fmi3EnterInitializationMode(fmi3Instance c, fmi3Boolean toleranceDefi
 {
     Shim *s = mast_live(c);
     const fmi3ValueReference start = START_TIME_REFERENCE;
+    char msg[256];
     if (!s) return fmi3Error;
+    if (mast_bad_time("enterInitializationMode", "startTime", startTime, msg, sizeof msg) ||
+        (stopTimeDefined && mast_bad_time("enterInitializationMode", "stopTime", stopTime, msg, sizeof msg))) {
+        if (s->host_logger) pass_on(s, NULL, fmi3Error, "logStatusError", msg, 0);
+        return fmi3Error;
+    }
     s->model_status = -1;
     fmi3Status status = settled(s, s->api.SetFloat64(s->inner, &start, 1, &startTime, 1));
     if (status > fmi3Warning) return status;

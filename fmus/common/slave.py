@@ -44,6 +44,8 @@ Behaviour hosts rely on:
   layer) and freeInstance remain. More lenient than the standard, as hosts need: get
   is allowed in every state, and doStep after a Discard tries again (and is
   refused again while the cause stays);
+- a time argument that is not finite and >= 0 (doStep's, setupExperiment's) is an illegal call (fmi2Error),
+  in the native wrapper's words (``check_time``);
 - several instances, and instances that failed, come and go in one process
   (``_survive_pythonfmu_cleanup``, ``_drop_repeated_path``).
 """
@@ -55,6 +57,7 @@ import ctypes
 import functools
 import glob
 import json
+import math
 import os
 import struct
 import sys
@@ -108,6 +111,13 @@ ALIVE = (INSTANTIATED, INITIALIZATION, STEPPING, TERMINATED)
 
 class IllegalCall(RuntimeError):
     """A call the FMI state machine does not allow in the instance's state, or a value reference it cannot take."""
+
+
+def check_time(name: str, value: float) -> None:
+    """Refuse (IllegalCall) a time argument that is not finite and >= 0, naming it and its value, in the words
+    of the C glue (``mast_bad_time``, fmus/common/native/mast_guard.h)."""
+    if not (math.isfinite(value) and value >= 0.0):
+        raise IllegalCall(f"{name} = {value:.6g} s: a time must be finite and >= 0")
 
 
 class _Refused(IllegalCall):
@@ -502,12 +512,21 @@ class BlockWrapper:
         )
         return read, write
 
+    def _check_step(self, current_time: float, step_size: float) -> None:
+        """Refuse (IllegalCall) a doStep whose times are not finite and >= 0."""
+        check_time("currentCommunicationPoint", current_time)
+        check_time("communicationStepSize", step_size)
+
     def _front_step(self, current_time: float, step_size: float) -> int:
         """fmi2DoStep as the C front calls it (``pythonfmu_shim.c``, the fast path; pythonfmu's ``do_step`` with
         its checks, ``fmi_call``): 0 stepped; 3 stepped, 4 refused (Discard), each with messages logged, which
         the front has pythonfmu pass on; 2 not stepped (the instance failed earlier, or is not in step mode):
-        the front calls pythonfmu's fmi2DoStep, which says why."""
-        if self._failed is not None or self._phase != STEPPING:
+        the front calls pythonfmu's fmi2DoStep, which says why (also for a time it refuses: ``_check_step``)."""
+        if (
+            self._failed is not None
+            or self._phase != STEPPING
+            or not (0.0 <= current_time < math.inf and 0.0 <= step_size < math.inf)
+        ):  # the checked doStep answers, with its message
             return 2
         ok = self._step(current_time, step_size)
         if self.log_queue:

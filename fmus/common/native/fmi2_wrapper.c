@@ -15,8 +15,8 @@
  *   after it, an unknown value reference, a type that is not the variable's) is logged and
  *   returns Error, changing nothing;
  * - get/set FMU state: a copy of everything the instance holds;
- * - a call on an instance this binary did not make or has freed is refused unread (a second free does
- *   nothing; mast_guard.h).
+ * - a careless host: a call on an instance this binary did not make or has freed is refused unread (a second
+ *   free does nothing; mast_guard.h), a time that is not finite and >= 0 returns Error with a message naming it.
  * Errors and warnings are always passed to the host's logger (every '%' of a message escaped,
  * so a host that uses it as a printf format shows it as it is).
  */
@@ -252,8 +252,14 @@ fmi2Status fmi2SetupExperiment(fmi2Component comp, fmi2Boolean toleranceDefined,
                                fmi2Real startTime, fmi2Boolean stopTimeDefined, fmi2Real stopTime)
 {
     Instance *c = mast_live(comp);
-    (void)toleranceDefined; (void)tolerance; (void)stopTimeDefined; (void)stopTime;
+    char msg[MSG_SIZE];
+    (void)toleranceDefined; (void)tolerance;
     if (!c || !allowed(c, "fmi2SetupExperiment", IN_INSTANTIATED)) return fmi2Error;
+    if (mast_bad_time("setupExperiment", "startTime", startTime, msg, sizeof msg) ||
+        (stopTimeDefined && mast_bad_time("setupExperiment", "stopTime", stopTime, msg, sizeof msg))) {
+        LOG_ERROR(c, "%s", msg);
+        return fmi2Error;
+    }
     c->s.t0 = startTime;
     return fmi2OK;
 }
@@ -474,6 +480,11 @@ fmi2Status fmi2DoStep(fmi2Component comp, fmi2Real t, fmi2Real h, fmi2Boolean no
     if (!c) return fmi2Error;
     if (c->s.phase != STEPPING) {
         LOG_ERROR(c, "doStep at t=%.6g s: doStep before exitInitializationMode", t);
+        return fmi2Error;
+    }
+    if (mast_bad_time("doStep", "currentCommunicationPoint", t, msg, sizeof msg) ||
+        mast_bad_time("doStep", "communicationStepSize", h, msg, sizeof msg)) {
+        LOG_ERROR(c, "%s", msg);
         return fmi2Error;
     }
     if (c->s.failed) {

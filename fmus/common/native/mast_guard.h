@@ -1,16 +1,21 @@
-/* What the FMI glue of every MAST binary checks before it touches an instance: the native FMUs'
+/* What the FMI glue of every MAST binary checks before it touches an instance or takes a time: the native FMUs'
  * wrapper (fmi2_wrapper.c) and the Python FMUs' C front (pythonfmu_shim.c) include it, each binary with a
  * registry of its own.
  *
- * The live instances: the pointers this binary handed out and has not freed. A call with any other pointer
- * (an instance freed already, one freed twice, a pointer never made here) is refused without reading through
- * it: a freed instance's memory may belong to anyone by then, so no magic field in it can be trusted. A freed
- * instance's block waits in a quarantine for MAST_QUARANTINE later frees before it goes back to malloc, so a
- * new instance does not take at once the address a careless host still holds.
+ * - The live instances: the pointers this binary handed out and has not freed. A call with any other pointer
+ *   (an instance freed already, one freed twice, a pointer never made here) is refused without reading through
+ *   it: a freed instance's memory may belong to anyone by then, so no magic field in it can be trusted. A freed
+ *   instance's block waits in a quarantine for MAST_QUARANTINE later frees before it goes back to malloc, so a
+ *   new instance does not take at once the address a careless host still holds.
+ * - A time argument (a communication point, a step size, a start or stop time): finite and >= 0, else the call
+ *   is refused with a message naming the argument and its value (the Python glue words it the same way:
+ *   fmus/common/slave.py, ``check_time``).
  */
 #ifndef MAST_GUARD_H
 #define MAST_GUARD_H
 
+#include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 
 #define MAST_QUARANTINE 16
@@ -82,6 +87,18 @@ static void mast_retire(void *p)
     mast_quarantine[mast_retired++ % MAST_QUARANTINE] = p;
     mast_live_unlock();
     free(oldest);
+}
+
+/* a time argument that is not finite and >= 0: the message "<call>: <name> = <value> s: ..." in ``msg`` and 1;
+ * else 0. The value as Python's format ".6g" writes it (NaN without a sign, as Python has none for it). */
+static int mast_bad_time(const char *call, const char *name, double value, char *msg, size_t size)
+{
+    char text[32];
+    if (isfinite(value) && value >= 0.0) return 0;
+    if (isnan(value)) snprintf(text, sizeof text, "nan");
+    else snprintf(text, sizeof text, "%.6g", value);
+    snprintf(msg, size, "%s: %s = %s s: a time must be finite and >= 0", call, name, text);
+    return 1;
 }
 
 #endif
