@@ -1,9 +1,9 @@
-"""What a careless host can do to an instance, on every route (native and Python FMUs): no crash, no silent OK.
+"""What a careless host can do to an instance, on every route (native and Python FMUs): no crash, no hang, no silent OK.
 
 A second fmi2FreeInstance and calls on a freed instance are refused without touching it (a C host in a
-subprocess, so a crash fails the test, not the suite); every non-finite or negative time argument is refused with
-fmi2Error (fmi3Error) and a message naming it, in the same words on both routes (docs/using-the-fmus.md,
-"Behaviour a host can rely on").
+subprocess, so a crash fails the test, not the suite); a doStep longer than the model takes in bounded time and
+every non-finite or negative time argument are refused with fmi2Error (fmi3Error) and a message naming them, in
+the same words on both routes (docs/using-the-fmus.md, "Behaviour a host can rely on").
 """
 
 from __future__ import annotations
@@ -14,6 +14,7 @@ import math
 import os
 import subprocess
 import sys
+import time
 import zipfile
 from pathlib import Path
 
@@ -21,6 +22,7 @@ import pytest
 from lxml import etree
 from test_fmi_behaviour import ERROR, OK, Instance
 
+from fmus.common.slave import MAX_STEP_SIZE, MAX_STEP_TICKS
 from mast.core.build import FMUS, build_fmu, build_fmu3, default_parameters
 from mast.core.native.build import build_native_fmu
 from mast.core.native.compiler import compiler, fmi_headers
@@ -100,6 +102,35 @@ def test_an_fmi3_python_fmu_freed_twice_refuses_every_later_call_and_the_host_su
     assert done.stdout.split() == [str(ERROR), str(ERROR), "0"], done.stdout
 
 
+def _largest(inst: Instance, ident: str) -> tuple[float, str]:
+    """The largest step ``inst`` takes and how the message words it (MAX_STEP_TICKS of T_cur, else MAX_STEP_SIZE)."""
+    if ident != "MastActuator":
+        return MAX_STEP_SIZE, f"{MAX_STEP_SIZE:.6g} s"
+    tick = inst.slave.getReal([inst.vr["T_cur"]])[0]
+    return MAX_STEP_TICKS * tick, f"{MAX_STEP_TICKS * tick:.6g} s ({MAX_STEP_TICKS:.6g} ticks of T_cur = {tick:.6g} s)"
+
+
+@pytest.mark.parametrize("route", ["", "native/"])
+@pytest.mark.parametrize("ident", MODELS)
+def test_a_step_longer_than_the_model_takes_in_bounded_time_is_refused_at_once(fmus, ident, route):
+    """doStep over 1e9 s (minutes in the Python actuator before): fmi2Error within a second, the message naming
+    the largest step the FMU takes, the same words on both routes; the instance goes on."""
+    inst = Instance(fmus[route + ident], "careless")
+    assert inst.start() == OK
+    largest, words = _largest(inst, ident)
+    started = time.perf_counter()
+    assert inst.step(0.0, 1e9) == ERROR
+    assert time.perf_counter() - started < 1.0
+    assert inst.log[-1] == (
+        ERROR,
+        f"doStep: communicationStepSize = 1e+09 s exceeds the largest step this FMU takes, {words}",
+    )
+    assert inst.step(0.0, largest * (1 + 1e-9)) == ERROR  # just above the bound
+    h = 1e-4
+    assert inst.step(0.0, h) == OK, inst.log[-3:]
+    inst.close()
+
+
 @pytest.mark.parametrize("route", ["", "native/"])
 @pytest.mark.parametrize("ident", MODELS)
 def test_a_non_finite_or_negative_time_is_refused_and_named(fmus, ident, route):
@@ -135,9 +166,9 @@ def test_a_non_finite_or_negative_time_is_refused_and_named(fmus, ident, route):
 
 
 @pytest.mark.skipif(importlib.util.find_spec("pythonfmu3") is None, reason="pythonfmu3 is not installed")
-def test_fmi3_refuses_a_non_finite_or_negative_time(tmp_path):
-    """The FMI 3.0 variant: fmi3EnterInitializationMode's start and stop time and fmi3DoStep's times, each
-    fmi3Error with the FMI 2.0 FMUs' words; the instance goes on."""
+def test_fmi3_refuses_a_non_finite_or_negative_time_and_a_step_too_long(tmp_path):
+    """The FMI 3.0 variant: fmi3EnterInitializationMode's start and stop time, fmi3DoStep's times and a step
+    longer than the bound, each fmi3Error with the FMI 2.0 FMUs' words; the instance goes on."""
     from test_fmi3 import Instance3
 
     spec = next(s for s in FMUS if s.model_identifier == "MastActuator")
@@ -152,5 +183,7 @@ def test_fmi3_refuses_a_non_finite_or_negative_time(tmp_path):
     assert inst.slave.dll.fmi3ExitInitializationMode(c) == OK
     assert inst.step(0.0, math.nan) == ERROR
     assert inst.log[-1] == (ERROR, "doStep: communicationStepSize = nan s: a time must be finite and >= 0")
+    assert inst.step(0.0, 1e9) == ERROR
+    assert inst.log[-1][1].startswith("doStep: communicationStepSize = 1e+09 s exceeds the largest step")
     assert inst.step(0.0, 1e-4) == OK, inst.log[-3:]
     inst.close()

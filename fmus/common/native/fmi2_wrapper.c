@@ -16,7 +16,8 @@
  *   returns Error, changing nothing;
  * - get/set FMU state: a copy of everything the instance holds;
  * - a careless host: a call on an instance this binary did not make or has freed is refused unread (a second
- *   free does nothing; mast_guard.h), a time that is not finite and >= 0 returns Error with a message naming it.
+ *   free does nothing; mast_guard.h), a time that is not finite and >= 0 and a step longer than the model takes
+ *   in bounded time (mast_model.h, max_ticks) return Error with a message naming them.
  * Errors and warnings are always passed to the host's logger (every '%' of a message escaped,
  * so a host that uses it as a printf format shows it as it is).
  */
@@ -472,6 +473,21 @@ fmi2Status fmi2SetString(fmi2Component comp, const fmi2ValueReference vr[], size
 }
 
 /* ---------------------------------------------------------------------------------- stepping */
+/* a step longer than the model takes in bounded time (mast_model.h, max_ticks): 1 with the message (the Python
+ * FMUs' words: fmus/common/slave.py, ``_too_long``) */
+static int too_long(Instance *c, double h, char *msg)
+{
+    double tick = M->cycle_time >= 0 ? c->s.real[M->cycle_time] : 0.0;
+    double largest = M->cycle_time >= 0 ? M->max_ticks * tick : M->max_step;
+    if (h <= largest) return 0;
+    int n = snprintf(msg, MSG_SIZE, "doStep: communicationStepSize = %.6g s exceeds the largest step this FMU takes, "
+                     "%.6g s", h, largest);
+    if (M->cycle_time >= 0)
+        snprintf(msg + n, MSG_SIZE - (size_t)n, " (%.6g ticks of %s = %.6g s)", M->max_ticks,
+                 M->variables[M->cycle_time].name, tick);
+    return 1;
+}
+
 fmi2Status fmi2DoStep(fmi2Component comp, fmi2Real t, fmi2Real h, fmi2Boolean noSetFMUStatePriorToCurrentPoint)
 {
     Instance *c = mast_live(comp);
@@ -497,6 +513,10 @@ fmi2Status fmi2DoStep(fmi2Component comp, fmi2Real t, fmi2Real h, fmi2Boolean no
                   "failed: %s", t, c->s.eval_cause);
         c->s.refused = 1;
         return fmi2Discard;
+    }
+    if (too_long(c, h, msg)) {   /* after the refusals above: a failed instance may have no valid cycle time */
+        LOG_ERROR(c, "%s", msg);
+        return fmi2Error;
     }
     mast_parameters p = parameters_of(c);
     int code = M->do_step(c->s.state, c->s.real, &p, t, h, msg, MSG_SIZE);
