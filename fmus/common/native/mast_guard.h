@@ -89,6 +89,19 @@ static void mast_retire(void *p)
     free(oldest);
 }
 
+/* at unload (dlclose, or exit): the quarantine and the set released, so a host that unloads the binary loses no
+ * memory to them */
+__attribute__((destructor)) static void mast_live_release(void)
+{
+    for (size_t k = 0; k < MAST_QUARANTINE; k++) {
+        free(mast_quarantine[k]);
+        mast_quarantine[k] = NULL;
+    }
+    free(mast_live_set);
+    mast_live_set = NULL;
+    mast_live_n = mast_live_cap = 0;
+}
+
 /* a time argument that is not finite and >= 0: the message "<call>: <name> = <value> s: ..." in ``msg`` and 1;
  * else 0. The value as Python's format ".6g" writes it (NaN without a sign, as Python has none for it). */
 static int mast_bad_time(const char *call, const char *name, double value, char *msg, size_t size)
