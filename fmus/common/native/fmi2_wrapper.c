@@ -21,6 +21,7 @@
  * Errors and warnings are always passed to the host's logger (every '%' of a message escaped,
  * so a host that uses it as a printf format shows it as it is).
  */
+#define _GNU_SOURCE   /* dladdr (mast_guard.h) */
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>

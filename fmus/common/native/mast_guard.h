@@ -17,6 +17,11 @@
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
+#ifdef _WIN32
+#include <windows.h>
+#else
+#include <dlfcn.h>   /* dladdr: the includer defines _GNU_SOURCE first */
+#endif
 
 #define MAST_QUARANTINE 16
 
@@ -42,11 +47,28 @@ static long mast_live_index(const void *p)
     return -1;
 }
 
+/* This binary kept loaded until the process exits, so the registry outlives a host's unload: the ecos command
+ * line unloads an FMU's library after each fmi2Instantiate and loads it again (at the same address) for the
+ * next, its instances alive (measured: a fresh, empty registry each time refused every call of the earlier
+ * instances). */
+static void mast_pin(void)
+{
+#ifdef _WIN32
+    HMODULE self;
+    GetModuleHandleExA(GET_MODULE_HANDLE_EX_FLAG_FROM_ADDRESS | GET_MODULE_HANDLE_EX_FLAG_PIN, (LPCSTR)(void *)&mast_pin,
+                       &self);
+#else
+    Dl_info self;
+    if (dladdr((void *)&mast_pin, &self) && self.dli_fname) dlopen(self.dli_fname, RTLD_NOW | RTLD_NOLOAD | RTLD_NODELETE);
+#endif
+}
+
 /* a new instance made live (0: out of memory, the caller frees it) */
 static int mast_live_add(void *p)
 {
     int ok = 1;
     mast_live_lock();
+    if (!mast_live_cap) mast_pin();   /* the first instance */
     if (mast_live_n == mast_live_cap) {
         size_t cap = mast_live_cap ? 2 * mast_live_cap : 16;
         void **grown = realloc(mast_live_set, cap * sizeof *grown);
@@ -89,8 +111,8 @@ static void mast_retire(void *p)
     free(oldest);
 }
 
-/* at unload (dlclose, or exit): the quarantine and the set released, so a host that unloads the binary loses no
- * memory to them */
+/* at exit (or at the unload of a binary that made no instance: mast_pin): the quarantine and the set released,
+ * so a leak checker finds them freed */
 __attribute__((destructor)) static void mast_live_release(void)
 {
     for (size_t k = 0; k < MAST_QUARANTINE; k++) {
