@@ -114,8 +114,8 @@ class IllegalCall(RuntimeError):
 
 
 #: the largest step doStep takes, in ticks of the block's cycle time (``Block.CYCLE_TIME``): the drive and the
-#: controllers compute every tick, and a million ticks take about 2 s in Python (0.4 s native), so every accepted
-#: step ends in bounded time; the native FMUs take the same numbers (mast_model.h, written by the build)
+#: controllers compute every tick, and a million ticks take about 2 s in the Python actuator (0.4 s native), so every
+#: accepted step ends in bounded time; the native FMUs take the same numbers (mast_model.h, written by the build)
 MAX_STEP_TICKS = 1_000_000
 #: the same bound for a block without a cycle time [s]: a million of the MAST systems' 100 us exchange steps
 MAX_STEP_SIZE = 100.0
