@@ -12,7 +12,7 @@ from typing import List
 from pythonfmu import DefaultExperiment, Fmi2Causality, Fmi2Initial, Fmi2Slave, Fmi2Variability, Integer, Real, String
 from pythonfmu.enums import Fmi2Status
 
-from .slave import INSTANTIATED, STEPPING, BlockWrapper, FmiVocabulary, fast_get, fast_set, fmi_call
+from .slave import INSTANTIATED, STEPPING, BlockWrapper, FmiVocabulary, check_time, fast_get, fast_set, fmi_call
 
 # re-exported: the generated FMU entry module imports keep_alive from here (mast.core.build)
 from .slave import PARAMETERS_FILE as PARAMETERS_FILE
@@ -72,8 +72,12 @@ class BlockSlave(BlockWrapper, Fmi2Slave):
 
     @fmi_call(INSTANTIATED)
     def setup_experiment(self, start_time: float, stop_time, tolerance) -> None:
+        check_time("startTime", start_time)
+        if stop_time is not None:  # pythonfmu passes None when the host defines no stop time
+            check_time("stopTime", stop_time)
         self._setup(start_time)
 
     @fmi_call(STEPPING)
     def do_step(self, current_time: float, step_size: float) -> bool:
+        self._check_step(current_time, step_size)
         return self._step(current_time, step_size)

@@ -126,6 +126,7 @@ class BlockSlave3(BlockWrapper, Fmi3Slave):
 
     @fmi_call(STEPPING)
     def do_step(self, current_time: float, step_size: float) -> bool:
+        self._check_step(current_time, step_size)
         ok = self._step(current_time, step_size)
         if ok:
             self._time = current_time + step_size

@@ -18,13 +18,18 @@
  * The inner instance is created with logging on, so the relay sees every message; the host's
  * logger gets errors and warnings always and the other messages while logging is on (the host's
  * loggingOn and SetDebugLogging), as the native FMUs do (native/fmi2_wrapper.c).
- * Nothing else changes: values, states and the other statuses pass through untouched.
+ * Nothing else changes: values, states and the other statuses pass through untouched. Before any of it, a call's
+ * instance is checked against the instances this front made and has not freed (mast_guard.h): a second free
+ * does nothing and any other call on a freed instance returns Error unread; FMI 3.0's start and stop time are
+ * checked here too (pythonfmu3 does not pass the stop time on; the glue checks doStep's times, slave.py).
  */
 #define _GNU_SOURCE
 #include <dlfcn.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+
+#include "mast_guard.h"
 
 #define INNER_SUFFIX ".pythonfmu"   /* <modelIdentifier>.so -> <modelIdentifier>.pythonfmu.so */
 #define UNPAREN(...) __VA_ARGS__
@@ -302,6 +307,15 @@ static void release(Shim *s)
     free(s);
 }
 
+/* ``s`` made live (mast_guard.h) once its inner instance exists; else (or out of memory) released: NULL */
+static Shim *live_or_released(Shim *s)
+{
+    if (s->inner && mast_live_add(s)) return s;
+    if (s->inner) s->api.FreeInstance(s->inner);
+    release(s);
+    return NULL;
+}
+
 /* a new front with pythonfmu's library loaded and resolved, or NULL with the reason in *why (static text,
  * or dlerror's) and the failing path in *what */
 static Shim *load(const char **what, const char **why)
@@ -450,7 +464,7 @@ static int all_below(const fmi2ValueReference vr[], size_t nvr, size_t n)
 
 fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Real value[])
 {
-    Shim *s = c;
+    Shim *s = mast_live(c);
     if (!s) return fmi2Error;
     if (buffered(s) && all_below(vr, nvr, s->n_in)) {
         for (size_t i = 0; i < nvr; i++) s->io[vr[i]] = value[i];
@@ -469,7 +483,7 @@ fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
 
 fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Real value[])
 {
-    Shim *s = c;
+    Shim *s = mast_live(c);
     if (!s) return fmi2Error;
     if (buffered(s) && all_below(vr, nvr, s->n_io)) {
         for (size_t i = 0; i < nvr; i++) value[i] = s->io[vr[i]];
@@ -483,7 +497,7 @@ fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
 /* the step: the glue reads the inputs from the buffer and writes the outputs into it (slave.py, `_step`) */
 fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean noSetFMUStatePriorToCurrentPoint)
 {
-    Shim *s = c;
+    Shim *s = mast_live(c);
     if (!s) return fmi2Error;
     Shim *outer = stepping_now;
     stepping_now = s;
@@ -520,7 +534,7 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean noSet
 /* after a step the fast path saw refused, fmi2Terminated is true, as pythonfmu says after one it refused */
 fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind kind, fmi2Boolean *value)
 {
-    Shim *s = c;
+    Shim *s = mast_live(c);
     if (!s) return fmi2Error;
     if (s->refused && kind == fmi2Terminated) {
         *value = fmi2True;
@@ -535,9 +549,9 @@ fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind kind, fmi2
 #define after_call(s, fn, status) (status)
 #endif
 
-#define FORWARD0(fn) Status FMI(fn)(Instance c) { Shim *s = c; if (!s) { return STATUS_ERROR; } \
+#define FORWARD0(fn) Status FMI(fn)(Instance c) { Shim *s = mast_live(c); if (!s) { return STATUS_ERROR; } \
     before_call(s); s->model_status = -1; return after_call(s, #fn, settled(s, s->api.fn(s->inner))); }
-#define FORWARD(fn, params, args) Status FMI(fn)(Instance c, UNPAREN params) { Shim *s = c; \
+#define FORWARD(fn, params, args) Status FMI(fn)(Instance c, UNPAREN params) { Shim *s = mast_live(c); \
     if (!s) { return STATUS_ERROR; } before_call(s); s->model_status = -1; \
     return after_call(s, #fn, settled(s, s->api.fn(s->inner, UNPAREN args))); }
 FORWARDED0(FORWARD0)
@@ -554,9 +568,15 @@ FORWARDED(FORWARD)
 fmi3Status fmi3EnterInitializationMode(fmi3Instance c, fmi3Boolean toleranceDefined, fmi3Float64 tolerance,
                                        fmi3Float64 startTime, fmi3Boolean stopTimeDefined, fmi3Float64 stopTime)
 {
-    Shim *s = c;
+    Shim *s = mast_live(c);
     const fmi3ValueReference start = START_TIME_REFERENCE;
+    char msg[256];
     if (!s) return fmi3Error;
+    if (mast_bad_time("enterInitializationMode", "startTime", startTime, msg, sizeof msg) ||
+        (stopTimeDefined && mast_bad_time("enterInitializationMode", "stopTime", stopTime, msg, sizeof msg))) {
+        if (s->host_logger) pass_on(s, NULL, fmi3Error, "logStatusError", msg, 0);
+        return fmi3Error;
+    }
     s->model_status = -1;
     fmi3Status status = settled(s, s->api.SetFloat64(s->inner, &start, 1, &startTime, 1));
     if (status > fmi3Warning) return status;
@@ -566,10 +586,11 @@ fmi3Status fmi3EnterInitializationMode(fmi3Instance c, fmi3Boolean toleranceDefi
 }
 #endif
 
+/* a second free, or a free of a pointer never made here, touches nothing (mast_guard.h) */
 void FMI(FreeInstance)(Instance c)
 {
     Shim *s = c;
-    if (!s) return;
+    if (!mast_live_remove(s)) return;
 #if FMI_VERSION == 2
     if (s->py_step) {  /* the glue's step, released while the interpreter that pythonfmu's instance uses is there */
         int gil = python.ensure();
@@ -581,7 +602,8 @@ void FMI(FreeInstance)(Instance c)
 #if FMI_VERSION == 2
     free(s->io);
 #endif
-    release(s);
+    if (s->library) dlclose(s->library);
+    mast_retire(s);
 }
 
 #if FMI_VERSION == 2
@@ -605,11 +627,7 @@ fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String guid, f
     s->relayed.componentEnvironment = s;
     s->logging_on = loggingOn;
     s->inner = s->api.Instantiate(name, type, guid, resources, &s->relayed, visible, fmi2True);
-    if (!s->inner) {
-        release(s);
-        return NULL;
-    }
-    return s;
+    return live_or_released(s);
 }
 
 fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean loggingOn, size_t n, const fmi2String categories[])
@@ -645,11 +663,7 @@ fmi3Instance fmi3InstantiateCoSimulation(fmi3String name, fmi3String token, fmi3
     s->logging_on = loggingOn;
     s->inner = s->api.InstantiateCoSimulation(name, token, resources, visible, fmi3True, eventModeUsed,
                                               earlyReturnAllowed, required, nRequired, s, relay, update);
-    if (!s->inner) {
-        release(s);
-        return NULL;
-    }
-    return s;
+    return live_or_released(s);
 }
 
 /* the MAST FMUs are Co-Simulation FMUs only (modelDescription.xml declares nothing else) */
@@ -678,7 +692,7 @@ fmi3Instance fmi3InstantiateScheduledExecution(fmi3String name, fmi3String token
 fmi3Status fmi3SetDebugLogging(fmi3Instance c, fmi3Boolean loggingOn, size_t n, const fmi3String categories[])
 #endif
 {
-    Shim *s = c;
+    Shim *s = mast_live(c);
     (void)n; (void)categories;
     if (!s) return STATUS_ERROR;
     s->logging_on = loggingOn;  /* the inner instance keeps logging on: the relay filters */

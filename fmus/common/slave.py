@@ -44,6 +44,8 @@ Behaviour hosts rely on:
   layer) and freeInstance remain. More lenient than the standard, as hosts need: get
   is allowed in every state, and doStep after a Discard tries again (and is
   refused again while the cause stays);
+- a time argument that is not finite and >= 0 (doStep's, setupExperiment's) and a doStep longer than
+  ``_largest_step`` are illegal calls (fmi2Error), in the native wrapper's words (``check_time``);
 - several instances, and instances that failed, come and go in one process
   (``_survive_pythonfmu_cleanup``, ``_drop_repeated_path``).
 """
@@ -55,6 +57,7 @@ import ctypes
 import functools
 import glob
 import json
+import math
 import os
 import struct
 import sys
@@ -108,6 +111,21 @@ ALIVE = (INSTANTIATED, INITIALIZATION, STEPPING, TERMINATED)
 
 class IllegalCall(RuntimeError):
     """A call the FMI state machine does not allow in the instance's state, or a value reference it cannot take."""
+
+
+#: the largest step doStep takes, in ticks of the block's cycle time (``Block.CYCLE_TIME``): the drive and the
+#: controllers compute every tick, and a million ticks take about 2 s in the Python actuator (0.4 s native), so every
+#: accepted step ends in bounded time; the native FMUs take the same numbers (mast_model.h, written by the build)
+MAX_STEP_TICKS = 1_000_000
+#: the same bound for a block without a cycle time [s]: a million of the MAST systems' 100 us exchange steps
+MAX_STEP_SIZE = 100.0
+
+
+def check_time(name: str, value: float) -> None:
+    """Refuse (IllegalCall) a time argument that is not finite and >= 0, naming it and its value, in the words
+    of the C glue (``mast_bad_time``, fmus/common/native/mast_guard.h)."""
+    if not (math.isfinite(value) and value >= 0.0):
+        raise IllegalCall(f"{name} = {value:.6g} s: a time must be finite and >= 0")
 
 
 class _Refused(IllegalCall):
@@ -502,12 +520,35 @@ class BlockWrapper:
         )
         return read, write
 
+    def _largest_step(self) -> float:
+        """The largest step doStep takes [s] (MAX_STEP_TICKS of the cycle time, else MAX_STEP_SIZE)."""
+        cycle = self.block_class.CYCLE_TIME
+        return MAX_STEP_TICKS * float(self._params[cycle]) if cycle else MAX_STEP_SIZE
+
+    def _check_step(self, current_time: float, step_size: float) -> None:
+        """Refuse (IllegalCall) a doStep whose times are not finite and >= 0, or whose step is longer than
+        ``_largest_step`` (checked once the block initialised: the native wrapper's order, fmi2_wrapper.c)."""
+        check_time("currentCommunicationPoint", current_time)
+        check_time("communicationStepSize", step_size)
+        largest = self._largest_step() if self._init_error is None and self._eval_error is None else math.inf
+        if step_size > largest:
+            cycle = self.block_class.CYCLE_TIME
+            ticks = f" ({MAX_STEP_TICKS:.6g} ticks of {cycle} = {float(self._params[cycle]):.6g} s)" if cycle else ""
+            raise IllegalCall(
+                f"communicationStepSize = {step_size:.6g} s exceeds the largest step this FMU takes, "
+                f"{largest:.6g} s{ticks}"
+            )
+
     def _front_step(self, current_time: float, step_size: float) -> int:
         """fmi2DoStep as the C front calls it (``pythonfmu_shim.c``, the fast path; pythonfmu's ``do_step`` with
         its checks, ``fmi_call``): 0 stepped; 3 stepped, 4 refused (Discard), each with messages logged, which
         the front has pythonfmu pass on; 2 not stepped (the instance failed earlier, or is not in step mode):
-        the front calls pythonfmu's fmi2DoStep, which says why."""
-        if self._failed is not None or self._phase != STEPPING:
+        the front calls pythonfmu's fmi2DoStep, which says why (also for a time it refuses: ``_check_step``)."""
+        if (
+            self._failed is not None
+            or self._phase != STEPPING
+            or not (0.0 <= current_time < math.inf and 0.0 <= step_size <= self._largest_step())
+        ):  # the checked doStep answers, with its message
             return 2
         ok = self._step(current_time, step_size)
         if self.log_queue:

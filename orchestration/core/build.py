@@ -115,6 +115,8 @@ FLAT_SET_NAME = "default"
 #: the C front of the Python FMUs' binary (module docstring): one source for FMI 2.0 and 3.0 (FMI_VERSION),
 #: and where each version's Linux binary lives in the FMU (pythonfmu's library goes beside it)
 FRONT_SOURCE = FMUS_SRC / "common" / "pythonfmu_shim.c"
+#: the live-instance registry and time checks the front shares with the native FMUs' wrapper
+FRONT_GUARD = FMUS_SRC / "common" / "native" / "mast_guard.h"
 FRONT_BINARY = {2: "binaries/linux64/{}.so", 3: "binaries/x86_64-linux/{}.so"}
 
 
@@ -124,18 +126,22 @@ def status_front(fmi_version: int = 2) -> tuple[Optional[bytes], str]:
         return None, f"the C front is built for Linux x86_64 only (here: {sys.platform})"
     if not FRONT_SOURCE.is_file():
         return None, f"{FRONT_SOURCE} is missing from this installation"
-    return _compiled_front(FRONT_SOURCE.read_bytes(), fmi_version)
+    return _compiled_front(FRONT_SOURCE.read_bytes(), FRONT_GUARD.read_bytes(), fmi_version)
 
 
 @functools.lru_cache(maxsize=4)
-def _compiled_front(source: bytes, fmi_version: int) -> tuple[Optional[bytes], str]:
+def _compiled_front(source: bytes, guard: bytes, fmi_version: int) -> tuple[Optional[bytes], str]:
     from .native.compiler import NativeBuildError, compile_shared
 
     with tempfile.TemporaryDirectory(prefix="mast_front_") as tmp:
         target = Path(tmp) / "front.so"
         try:  # the version first; #line keeps the compiler's line numbers those of the file
             compile_shared(
-                {FRONT_SOURCE.name: f"#define FMI_VERSION {fmi_version}\n#line 1\n".encode() + source}, target
+                {
+                    FRONT_SOURCE.name: f"#define FMI_VERSION {fmi_version}\n#line 1\n".encode() + source,
+                    FRONT_GUARD.name: guard,
+                },
+                target,
             )
         except NativeBuildError as err:
             return None, str(err)

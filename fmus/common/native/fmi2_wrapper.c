@@ -14,16 +14,21 @@
  * - a call the FMI state machine does not allow (doStep before initialization, a parameter set
  *   after it, an unknown value reference, a type that is not the variable's) is logged and
  *   returns Error, changing nothing;
- * - get/set FMU state: a copy of everything the instance holds.
+ * - get/set FMU state: a copy of everything the instance holds;
+ * - a careless host: a call on an instance this binary did not make or has freed is refused unread (a second
+ *   free does nothing; mast_guard.h), a time that is not finite and >= 0 and a step longer than the model takes
+ *   in bounded time (mast_model.h, max_ticks) return Error with a message naming them.
  * Errors and warnings are always passed to the host's logger (every '%' of a message escaped,
  * so a host that uses it as a printf format shows it as it is).
  */
+#define _GNU_SOURCE   /* dladdr (mast_guard.h) */
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "fmi2Functions.h"
+#include "mast_guard.h"
 #include "mast_model.h"
 
 #define MSG_SIZE 1024
@@ -173,14 +178,14 @@ const char *fmi2GetVersion(void) { return fmi2Version; }
 
 fmi2Status fmi2SetDebugLogging(fmi2Component comp, fmi2Boolean loggingOn, size_t n, const fmi2String categories[])
 {
-    Instance *c = comp;
+    Instance *c = mast_live(comp);
     (void)n; (void)categories;
     if (!c) return fmi2Error;
     c->logging_on = loggingOn;
     return fmi2OK;
 }
 
-void fmi2FreeInstance(fmi2Component comp);
+static void destroy(Instance *c);
 
 fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String guid, fmi2String resources,
                               const fmi2CallbackFunctions *functions, fmi2Boolean visible, fmi2Boolean loggingOn)
@@ -212,8 +217,8 @@ fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String guid, f
     c->s.integer = calloc((size_t)M->n_variables, sizeof(int));
     c->s.string = calloc((size_t)M->n_variables, sizeof(char *));
     c->s.state = calloc(1, M->state_size ? M->state_size : 1);
-    if (!c->name || !c->s.real || !c->s.integer || !c->s.string || !c->s.state) {
-        fmi2FreeInstance(c);
+    if (!c->name || !c->s.real || !c->s.integer || !c->s.string || !c->s.state || !mast_live_add(c)) {
+        destroy(c);
         return NULL;
     }
     strcpy(c->name, name);
@@ -231,28 +236,39 @@ static void free_snapshot(Snapshot *s)
     free(s->state);
 }
 
-void fmi2FreeInstance(fmi2Component comp)
+/* what an instance holds, released; its own block retired (mast_guard.h) */
+static void destroy(Instance *c)
 {
-    Instance *c = comp;
-    if (!c) return;
     free_snapshot(&c->s);
     free(c->name);
-    free(c);
+    mast_retire(c);
+}
+
+/* a second free, or a free of a pointer never made here, touches nothing (mast_guard.h) */
+void fmi2FreeInstance(fmi2Component comp)
+{
+    if (mast_live_remove(comp)) destroy(comp);
 }
 
 fmi2Status fmi2SetupExperiment(fmi2Component comp, fmi2Boolean toleranceDefined, fmi2Real tolerance,
                                fmi2Real startTime, fmi2Boolean stopTimeDefined, fmi2Real stopTime)
 {
-    Instance *c = comp;
-    (void)toleranceDefined; (void)tolerance; (void)stopTimeDefined; (void)stopTime;
+    Instance *c = mast_live(comp);
+    char msg[MSG_SIZE];
+    (void)toleranceDefined; (void)tolerance;
     if (!c || !allowed(c, "fmi2SetupExperiment", IN_INSTANTIATED)) return fmi2Error;
+    if (mast_bad_time("setupExperiment", "startTime", startTime, msg, sizeof msg) ||
+        (stopTimeDefined && mast_bad_time("setupExperiment", "stopTime", stopTime, msg, sizeof msg))) {
+        LOG_ERROR(c, "%s", msg);
+        return fmi2Error;
+    }
     c->s.t0 = startTime;
     return fmi2OK;
 }
 
 fmi2Status fmi2EnterInitializationMode(fmi2Component comp)
 {
-    Instance *c = comp;
+    Instance *c = mast_live(comp);
     if (!c || !allowed(c, "fmi2EnterInitializationMode", IN_INSTANTIATED)) return fmi2Error;
     c->s.phase = INITIALIZATION;
     c->s.dirty = 1;
@@ -261,7 +277,7 @@ fmi2Status fmi2EnterInitializationMode(fmi2Component comp)
 
 fmi2Status fmi2ExitInitializationMode(fmi2Component comp)
 {
-    Instance *c = comp;
+    Instance *c = mast_live(comp);
     char msg[MSG_SIZE];
     if (!c || !allowed(c, "fmi2ExitInitializationMode", IN_INIT)) return fmi2Error;
     int code = initialize(c, msg);
@@ -277,7 +293,7 @@ fmi2Status fmi2ExitInitializationMode(fmi2Component comp)
 
 fmi2Status fmi2Terminate(fmi2Component comp)
 {
-    Instance *c = comp;
+    Instance *c = mast_live(comp);
     if (!c || !allowed(c, "fmi2Terminate", IN_STEP)) return fmi2Error;
     c->s.phase = TERMINATED;
     return fmi2OK;
@@ -285,7 +301,7 @@ fmi2Status fmi2Terminate(fmi2Component comp)
 
 fmi2Status fmi2Reset(fmi2Component comp)
 {
-    Instance *c = comp;
+    Instance *c = mast_live(comp);
     if (!c) return fmi2Error;
     set_starts(c);
     return fmi2OK;
@@ -316,7 +332,7 @@ static void tentative_outputs(Instance *c)
 
 fmi2Status fmi2GetReal(fmi2Component comp, const fmi2ValueReference vr[], size_t nvr, fmi2Real value[])
 {
-    Instance *c = comp;
+    Instance *c = mast_live(comp);
     if (!c || !allowed(c, "fmi2GetReal", ANY_PHASE)) return fmi2Error;
     if (nvr && (!vr || !value)) { LOG_ERROR(c, "fmi2GetReal: null argument"); return fmi2Error; }
     for (size_t k = 0; k < nvr; k++)
@@ -330,7 +346,7 @@ fmi2Status fmi2GetReal(fmi2Component comp, const fmi2ValueReference vr[], size_t
 
 fmi2Status fmi2GetInteger(fmi2Component comp, const fmi2ValueReference vr[], size_t nvr, fmi2Integer value[])
 {
-    Instance *c = comp;
+    Instance *c = mast_live(comp);
     if (!c || !allowed(c, "fmi2GetInteger", ANY_PHASE)) return fmi2Error;
     if (nvr && (!vr || !value)) { LOG_ERROR(c, "fmi2GetInteger: null argument"); return fmi2Error; }
     for (size_t k = 0; k < nvr; k++)
@@ -341,7 +357,7 @@ fmi2Status fmi2GetInteger(fmi2Component comp, const fmi2ValueReference vr[], siz
 
 fmi2Status fmi2GetBoolean(fmi2Component comp, const fmi2ValueReference vr[], size_t nvr, fmi2Boolean value[])
 {
-    Instance *c = comp;
+    Instance *c = mast_live(comp);
     (void)value;
     if (!c) return fmi2Error;
     if (nvr) { LOG_ERROR(c, "fmi2GetBoolean: unknown value reference %u (this FMU has no Boolean variable)", vr ? vr[0] : 0); return fmi2Error; }
@@ -350,7 +366,7 @@ fmi2Status fmi2GetBoolean(fmi2Component comp, const fmi2ValueReference vr[], siz
 
 fmi2Status fmi2GetString(fmi2Component comp, const fmi2ValueReference vr[], size_t nvr, fmi2String value[])
 {
-    Instance *c = comp;
+    Instance *c = mast_live(comp);
     if (!c || !allowed(c, "fmi2GetString", ANY_PHASE)) return fmi2Error;
     if (nvr && (!vr || !value)) { LOG_ERROR(c, "fmi2GetString: null argument"); return fmi2Error; }
     for (size_t k = 0; k < nvr; k++)
@@ -394,7 +410,7 @@ static fmi2Status after_set(Instance *c)
 
 fmi2Status fmi2SetReal(fmi2Component comp, const fmi2ValueReference vr[], size_t nvr, const fmi2Real value[])
 {
-    Instance *c = comp;
+    Instance *c = mast_live(comp);
     if (!c) return fmi2Error;
     if (nvr && (!vr || !value)) { LOG_ERROR(c, "fmi2SetReal: null argument"); return fmi2Error; }
     for (size_t k = 0; k < nvr; k++)
@@ -419,7 +435,7 @@ fmi2Status fmi2SetReal(fmi2Component comp, const fmi2ValueReference vr[], size_t
 
 fmi2Status fmi2SetInteger(fmi2Component comp, const fmi2ValueReference vr[], size_t nvr, const fmi2Integer value[])
 {
-    Instance *c = comp;
+    Instance *c = mast_live(comp);
     if (!c) return fmi2Error;
     if (nvr && (!vr || !value)) { LOG_ERROR(c, "fmi2SetInteger: null argument"); return fmi2Error; }
     for (size_t k = 0; k < nvr; k++)
@@ -431,7 +447,7 @@ fmi2Status fmi2SetInteger(fmi2Component comp, const fmi2ValueReference vr[], siz
 
 fmi2Status fmi2SetBoolean(fmi2Component comp, const fmi2ValueReference vr[], size_t nvr, const fmi2Boolean value[])
 {
-    Instance *c = comp;
+    Instance *c = mast_live(comp);
     (void)value;
     if (!c) return fmi2Error;
     if (nvr) { LOG_ERROR(c, "fmi2SetBoolean: unknown value reference %u (this FMU has no Boolean variable)", vr ? vr[0] : 0); return fmi2Error; }
@@ -440,7 +456,7 @@ fmi2Status fmi2SetBoolean(fmi2Component comp, const fmi2ValueReference vr[], siz
 
 fmi2Status fmi2SetString(fmi2Component comp, const fmi2ValueReference vr[], size_t nvr, const fmi2String value[])
 {
-    Instance *c = comp;
+    Instance *c = mast_live(comp);
     if (!c) return fmi2Error;
     if (nvr && (!vr || !value)) { LOG_ERROR(c, "fmi2SetString: null argument"); return fmi2Error; }
     for (size_t k = 0; k < nvr; k++) {
@@ -458,14 +474,34 @@ fmi2Status fmi2SetString(fmi2Component comp, const fmi2ValueReference vr[], size
 }
 
 /* ---------------------------------------------------------------------------------- stepping */
+/* a step longer than the model takes in bounded time (mast_model.h, max_ticks): 1 with the message (the Python
+ * FMUs' words: fmus/common/slave.py, ``_too_long``) */
+static int too_long(Instance *c, double h, char *msg)
+{
+    double tick = M->cycle_time >= 0 ? c->s.real[M->cycle_time] : 0.0;
+    double largest = M->cycle_time >= 0 ? M->max_ticks * tick : M->max_step;
+    if (h <= largest) return 0;
+    int n = snprintf(msg, MSG_SIZE, "doStep: communicationStepSize = %.6g s exceeds the largest step this FMU takes, "
+                     "%.6g s", h, largest);
+    if (M->cycle_time >= 0)
+        snprintf(msg + n, MSG_SIZE - (size_t)n, " (%.6g ticks of %s = %.6g s)", M->max_ticks,
+                 M->variables[M->cycle_time].name, tick);
+    return 1;
+}
+
 fmi2Status fmi2DoStep(fmi2Component comp, fmi2Real t, fmi2Real h, fmi2Boolean noSetFMUStatePriorToCurrentPoint)
 {
-    Instance *c = comp;
+    Instance *c = mast_live(comp);
     char msg[MSG_SIZE];
     (void)noSetFMUStatePriorToCurrentPoint;
     if (!c) return fmi2Error;
     if (c->s.phase != STEPPING) {
         LOG_ERROR(c, "doStep at t=%.6g s: doStep before exitInitializationMode", t);
+        return fmi2Error;
+    }
+    if (mast_bad_time("doStep", "currentCommunicationPoint", t, msg, sizeof msg) ||
+        mast_bad_time("doStep", "communicationStepSize", h, msg, sizeof msg)) {
+        LOG_ERROR(c, "%s", msg);
         return fmi2Error;
     }
     if (c->s.failed) {
@@ -479,6 +515,10 @@ fmi2Status fmi2DoStep(fmi2Component comp, fmi2Real t, fmi2Real h, fmi2Boolean no
         c->s.refused = 1;
         return fmi2Discard;
     }
+    if (too_long(c, h, msg)) {   /* after the refusals above: a failed instance may have no valid cycle time */
+        LOG_ERROR(c, "%s", msg);
+        return fmi2Error;
+    }
     mast_parameters p = parameters_of(c);
     int code = M->do_step(c->s.state, c->s.real, &p, t, h, msg, MSG_SIZE);
     c->s.refused = code != 0;
@@ -491,7 +531,7 @@ fmi2Status fmi2DoStep(fmi2Component comp, fmi2Real t, fmi2Real h, fmi2Boolean no
 
 fmi2Status fmi2CancelStep(fmi2Component comp)
 {
-    Instance *c = comp;
+    Instance *c = mast_live(comp);
     if (c) LOG_ERROR(c, "fmi2CancelStep: doStep is synchronous here, there is nothing to cancel");
     return fmi2Error;
 }
@@ -499,7 +539,7 @@ fmi2Status fmi2CancelStep(fmi2Component comp)
 fmi2Status fmi2SetRealInputDerivatives(fmi2Component comp, const fmi2ValueReference vr[], size_t nvr,
                                        const fmi2Integer order[], const fmi2Real value[])
 {
-    Instance *c = comp;
+    Instance *c = mast_live(comp);
     (void)vr; (void)nvr; (void)order; (void)value;
     if (c) LOG_ERROR(c, "fmi2SetRealInputDerivatives: not supported (canInterpolateInputs=false)");
     return fmi2Error;
@@ -508,7 +548,7 @@ fmi2Status fmi2SetRealInputDerivatives(fmi2Component comp, const fmi2ValueRefere
 fmi2Status fmi2GetRealOutputDerivatives(fmi2Component comp, const fmi2ValueReference vr[], size_t nvr,
                                         const fmi2Integer order[], fmi2Real value[])
 {
-    Instance *c = comp;
+    Instance *c = mast_live(comp);
     (void)vr; (void)nvr; (void)order; (void)value;
     if (c) LOG_ERROR(c, "fmi2GetRealOutputDerivatives: not supported (maxOutputDerivativeOrder=0)");
     return fmi2Error;
@@ -517,7 +557,7 @@ fmi2Status fmi2GetRealOutputDerivatives(fmi2Component comp, const fmi2ValueRefer
 fmi2Status fmi2GetDirectionalDerivative(fmi2Component comp, const fmi2ValueReference u[], size_t nu,
                                         const fmi2ValueReference z[], size_t nz, const fmi2Real dv[], fmi2Real dz[])
 {
-    Instance *c = comp;
+    Instance *c = mast_live(comp);
     (void)u; (void)nu; (void)z; (void)nz; (void)dv; (void)dz;
     if (c) LOG_ERROR(c, "fmi2GetDirectionalDerivative: not supported (providesDirectionalDerivative=false)");
     return fmi2Error;
@@ -525,7 +565,7 @@ fmi2Status fmi2GetDirectionalDerivative(fmi2Component comp, const fmi2ValueRefer
 
 static fmi2Status no_status(fmi2Component comp, const char *call)
 {
-    Instance *c = comp;
+    Instance *c = mast_live(comp);
     if (c) LOG_ERROR(c, "%s: doStep never runs asynchronously here: no status to ask for", call);
     return fmi2Error;
 }
@@ -539,7 +579,7 @@ fmi2Status fmi2GetIntegerStatus(fmi2Component c, const fmi2StatusKind s, fmi2Int
 /* fmi2Terminated: after a refused step the FMU cannot go on (as the Python FMUs answer) */
 fmi2Status fmi2GetBooleanStatus(fmi2Component comp, const fmi2StatusKind s, fmi2Boolean *v)
 {
-    Instance *c = comp;
+    Instance *c = mast_live(comp);
     if (!c || !v || s != fmi2Terminated) return no_status(comp, "fmi2GetBooleanStatus");
     *v = c->s.refused ? fmi2True : fmi2False;
     return fmi2OK;
@@ -584,7 +624,7 @@ typedef struct {
 
 fmi2Status fmi2GetFMUstate(fmi2Component comp, fmi2FMUstate *state)
 {
-    Instance *c = comp;
+    Instance *c = mast_live(comp);
     if (!c || !state) return fmi2Error;
     State *st = *state;
     if (st && st->owner == M) {    /* FMI: update the state the host passes back */
@@ -607,7 +647,7 @@ fmi2Status fmi2GetFMUstate(fmi2Component comp, fmi2FMUstate *state)
 
 fmi2Status fmi2SetFMUstate(fmi2Component comp, fmi2FMUstate state)
 {
-    Instance *c = comp;
+    Instance *c = mast_live(comp);
     State *st = state;
     Snapshot copy = {0};
     if (!c) return fmi2Error;
@@ -640,7 +680,7 @@ fmi2Status fmi2FreeFMUstate(fmi2Component comp, fmi2FMUstate *state)
 
 fmi2Status fmi2SerializedFMUstateSize(fmi2Component comp, fmi2FMUstate state, size_t *size)
 {
-    Instance *c = comp;
+    Instance *c = mast_live(comp);
     (void)state; (void)size;
     if (c) LOG_ERROR(c, "fmi2SerializedFMUstateSize: not supported (canSerializeFMUstate=false)");
     return fmi2Error;
@@ -648,7 +688,7 @@ fmi2Status fmi2SerializedFMUstateSize(fmi2Component comp, fmi2FMUstate state, si
 
 fmi2Status fmi2SerializeFMUstate(fmi2Component comp, fmi2FMUstate state, fmi2Byte data[], size_t size)
 {
-    Instance *c = comp;
+    Instance *c = mast_live(comp);
     (void)state; (void)data; (void)size;
     if (c) LOG_ERROR(c, "fmi2SerializeFMUstate: not supported (canSerializeFMUstate=false)");
     return fmi2Error;
@@ -656,7 +696,7 @@ fmi2Status fmi2SerializeFMUstate(fmi2Component comp, fmi2FMUstate state, fmi2Byt
 
 fmi2Status fmi2DeSerializeFMUstate(fmi2Component comp, const fmi2Byte data[], size_t size, fmi2FMUstate *state)
 {
-    Instance *c = comp;
+    Instance *c = mast_live(comp);
     (void)data; (void)size; (void)state;
     if (c) LOG_ERROR(c, "fmi2DeSerializeFMUstate: not supported (canSerializeFMUstate=false)");
     return fmi2Error;

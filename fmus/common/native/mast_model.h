@@ -49,6 +49,10 @@ typedef struct {
     /* NULL, or direct feedthrough (Block.evaluate): the outputs at the communication point from the inputs
        just set in step mode, once per point (called again there, it starts over from the state before) */
     int (*evaluate)(void *state, double *values, const mast_parameters *p, char *msg, size_t size);
+    /* the largest step doStep takes (a doStep in bounded time): max_ticks of the cycle-time parameter (its value
+       reference; Block.CYCLE_TIME), or max_step seconds when cycle_time is -1 (fmus/common/slave.py, MAX_STEP_*) */
+    int cycle_time;
+    double max_ticks, max_step;
 } mast_model;
 
 extern const mast_model MAST_MODEL;

@@ -51,6 +51,7 @@ SUPPORT = REPO / "fmus" / "common" / "native"
 #: direct kinematics); a kind of model adds its own (``models.RUNTIME``)
 SUPPORT_FILES = (
     "fmi2_wrapper.c",
+    "mast_guard.h",
     "mast_model.h",
     "mast_native.h",
     "mast_ranges.c",

@@ -104,6 +104,7 @@ def compile_shared(sources: Mapping[str, bytes], target: Path, platform: str = "
             str(target),
             *c_files,
             *(["-lm"] if platform != "win64" else []),
+            *(["-ldl"] if "linux" in platform else []),  # dladdr, dlopen (fmus/common/native/mast_guard.h)
         ]
         done = subprocess.run(cmd, capture_output=True, text=True)
         if done.returncode != 0:

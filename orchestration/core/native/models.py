@@ -72,6 +72,7 @@ from dataclasses import dataclass
 from typing import Mapping, Optional, Sequence
 
 from fmus.common.parameters import Param
+from fmus.common.slave import MAX_STEP_SIZE, MAX_STEP_TICKS
 from fmus.controller.tick import DK_FAILED, MODEL_FAILED, layout, tick_sources
 from fmus.mechanism.coupling import EXTRAPOLATION
 
@@ -198,13 +199,16 @@ def _model_struct(
     feedthrough: bool,
     state: str = "State",
     functions: str = "",
+    cycle_time: int = -1,
 ) -> str:
     """MAST_MODEL: the model's table row; ``state``: its state's type, ``functions``: the prefix of its initialize
-    and do_step (a runtime's, e.g. ``mast_mechanism_``)."""
+    and do_step (a runtime's, e.g. ``mast_mechanism_``); ``cycle_time``: the value reference of its cycle-time
+    parameter (-1: none), whose MAX_STEP_TICKS bound the step the wrapper accepts (else MAX_STEP_SIZE: slave.py)."""
     return (
         f"const mast_model MAST_MODEL = {{{_literal(identifier)}, {_literal(guid)}, {len(variables)}, VARIABLES, "
         f"{n_inputs}, {n_io}, sizeof({state}), check, {functions}initialize, {functions}do_step, "
-        f"{functions + 'evaluate' if feedthrough else 'NULL'}}};\n"
+        f"{functions + 'evaluate' if feedthrough else 'NULL'}, {cycle_time}, {c_double(MAX_STEP_TICKS)}, "
+        f"{c_double(MAX_STEP_SIZE)}}};\n"
     )
 
 
@@ -1213,7 +1217,17 @@ def emit_model(
             "\n",
             body,
             "\n",
-            _model_struct(identifier, guid, variables, n_inputs, n_io, bool(block_class.FEEDTHROUGH), state, functions),
+            _model_struct(
+                identifier,
+                guid,
+                variables,
+                n_inputs,
+                n_io,
+                bool(block_class.FEEDTHROUGH),
+                state,
+                functions,
+                vrs[block_class.CYCLE_TIME] if block_class.CYCLE_TIME else -1,
+            ),
         ]
     )
     return files
