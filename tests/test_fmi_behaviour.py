@@ -121,11 +121,16 @@ def drive(inst: Instance, first: int, n: int, h: float = 1e-4, seed: float = 0.0
 
 
 def _input(name: str, t: float, seed: float) -> float:
-    """Inputs each FMU accepts: current commands, forces, carriage motion and a pose near home."""
+    """Inputs each FMU accepts: current commands, forces, carriage motion, a pose near home, the condensed coupling's
+    masses and drive forces."""
     wave = np.sin(2 * np.pi * (3.0 + seed) * t)
     base = {"i_cmd": 4.0 * wave, "F": 6.0 + seed, "z_cmd": 0.405147 + 0.003 * wave, "psi_cmd": 0.0, "theta_cmd": 0.0}
     if name in base:
         return float(base[name])
+    if name.startswith("m_drive") or name == "M_carried":  # masses of the condensed coupling: >= 0
+        return 5.9 + float(wave)
+    if name.startswith("F_drive"):
+        return 20.0 * float(wave)
     if name.startswith("rho_dot"):
         return 0.01 * float(np.cos(2 * np.pi * 3.0 * t))
     if name.startswith("rho_ddot"):

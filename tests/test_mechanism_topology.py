@@ -92,7 +92,8 @@ def planar(monkeypatch, mechanism_params):
 
 
 def test_variables_follow_the_drives_and_coordinates():
-    io = Variables.of(("psi", "theta", "phi"), ("rotary", "rotary", "linear"))
+    full = Variables.of(("psi", "theta", "phi"), ("rotary", "rotary", "linear"))
+    io = full.required()  # the joint motion in, F and the pose out: what a mechanism must have to plug in
     assert io.inputs == (
         "rho_1",
         "rho_2",
@@ -108,16 +109,28 @@ def test_variables_follow_the_drives_and_coordinates():
     assert [io.units[v] for v in ("rho_1", "rho_dot_1", "rho_ddot_1", "F_1")] == ["rad", "rad/s", "rad/s2", "N.m"]
     assert [io.units[v] for v in ("rho_3", "rho_dot_3", "rho_ddot_3", "F_3")] == ["m", "m/s", "m/s2", "N"]
     assert "parasitic" in io.descriptions["z"] and "parasitic" not in io.descriptions["psi"]
+    # then the condensed interface (docs/coupling.md): the drives' forces, rates and masses in, Fc and Mc out
+    assert full.inputs[9:] == tuple(
+        f"{q}_{k}" for q in ("F_drive", "F_drive_dot", "F_drive_ddot", "m_drive") for k in (1, 2, 3)
+    )
+    assert full.outputs == (*io.outputs, "Fc_1", "Fc_2", "Fc_3", "Mc_1", "Mc_2", "Mc_3")
+    assert [full.units[v] for v in ("F_drive_1", "F_drive_dot_1", "m_drive_1", "Mc_1")] == [
+        "N.m",
+        "N.m/s",
+        "kg.m2",
+        "kg.m2",
+    ]
+    assert [full.units[v] for v in ("F_drive_3", "F_drive_ddot_3", "m_drive_3", "Fc_3")] == ["N", "N/s2", "kg", "N"]
     # the class's own are the 3PRS's: today's names and units
     assert MechanismBlock.INPUTS == Variables.of(("z", "psi", "theta"), ("linear",) * 3).inputs
-    assert MechanismBlock.OUTPUTS == ("F_1", "F_2", "F_3", "x", "y", "z", "psi", "theta", "phi")
+    assert MechanismBlock.OUTPUTS[:9] == ("F_1", "F_2", "F_3", "x", "y", "z", "psi", "theta", "phi")
 
 
 def test_a_two_drive_mechanism_block(planar):
     blk = MechanismBlock(planar)
-    assert blk.INPUTS == ("rho_1", "rho_2", "rho_dot_1", "rho_dot_2", "rho_ddot_1", "rho_ddot_2")
-    assert blk.OUTPUTS == ("F_1", "F_2", "x", "y", "z", "psi", "theta", "phi")
-    assert len(blk.values) == 14
+    assert blk.INPUTS[:6] == ("rho_1", "rho_2", "rho_dot_1", "rho_dot_2", "rho_ddot_1", "rho_ddot_2")
+    assert blk.OUTPUTS[:8] == ("F_1", "F_2", "x", "y", "z", "psi", "theta", "phi")
+    assert len(blk.values) == 7 * 2 + 8 + 2 * 2
     # at rest, level (equal sliders): by symmetry each leg holds half the platform's weight, and a massless
     # leg pinned at both ends pushes along itself, so each slider carries m g / 2 upward (statics)
     blk.set(rho_1=0.15, rho_2=0.15)
@@ -150,18 +163,18 @@ def test_a_class_fixed_to_one_topology_refuses_another(planar, mechanism_params)
 
 
 def test_the_fmu_registers_the_variables_of_its_parameters(planar, tmp_path):
-    """An FMU built with the scratch mechanism's parameters has its 6 inputs and 8 outputs, with their units."""
+    """An FMU built with the scratch mechanism's parameters has its 14 inputs and 12 outputs, with their units."""
     from fmus.mechanism.fmu import MastMechanism
 
     (tmp_path / "parameters.json").write_text(json.dumps(planar))
     slave = MastMechanism(instance_name="planar", resources=str(tmp_path))
     names = [v.name for v in slave.vars.values()]
-    assert names[:14] == [*MechanismBlock(planar).INPUTS, *MechanismBlock(planar).OUTPUTS]
+    assert names[:26] == [*MechanismBlock(planar).INPUTS, *MechanismBlock(planar).OUTPUTS]
     slave.setup_experiment(0.0, None, None)
     slave.enter_initialization_mode()
     slave.set_real([0, 1], [0.15, 0.15])
     slave.exit_initialization_mode()
-    F = slave.get_real([6, 7])
+    F = slave.get_real([14, 15])  # F_1, F_2 after the 14 inputs
     assert F == pytest.approx([0.5 * planar["m_platform"] * planar["g"]] * 2, rel=1e-12)
 
 

@@ -173,9 +173,9 @@ def test_a_six_drive_mechanism_is_generated_compiled_and_computes_the_python_eng
     library = tmp_path / "Hexapod.so"
     compile_shared(sources, library)
     model = MastModel.in_dll(ctypes.CDLL(str(library)), "MAST_MODEL")
-    assert (model.n_inputs, model.n_io) == (18, 30)
+    assert (model.n_inputs, model.n_io) == (7 * 6, 7 * 6 + 6 + 6 + 2 * 6)  # mechanism.model.Variables
     state = ctypes.create_string_buffer(model.state_size)
-    values = (ctypes.c_double * 30)()
+    values = (ctypes.c_double * model.n_io)()  # the drives' forces and masses 0: no condensation, F alone
     params = MastParameters()
     msg = ctypes.create_string_buffer(2048)
     rng = np.random.default_rng(6)
@@ -194,7 +194,7 @@ def test_a_six_drive_mechanism_is_generated_compiled_and_computes_the_python_eng
         assert code == 0, msg.value.decode()
         q, J, _ = eng.dk(rho, q_prev)
         expected = np.array(eng.forces(q, J, rd, rdd))
-        got = np.array(values[18:30])
+        got = np.array(values[42:54])  # F and the pose, after the 42 inputs
         np.testing.assert_allclose(got[6:], q_pose, atol=1e-11)  # the pose: the motion's own
         worst = max(worst, float(np.abs(got - expected).max() / np.abs(expected[:6]).max()))
         q_prev = q

@@ -125,7 +125,7 @@ def test_the_3rps_system_binds_its_description_everywhere():
     for k in (1, 2, 3):
         act = system.components[f"actuator_{k}"].parameters
         assert (act["M_load"], act["g_guide"], act["rho_min"], act["rho_max"]) == (0.0, 0.0, 0.26, 0.56)
-    assert len(system.connections) == 3 + 7 * 3
+    assert len(system.connections) == 3 + 12 * 3  # 12 per drive: docs/interfaces.md, the connector convention
 
 
 @pytest.fixture(scope="module")

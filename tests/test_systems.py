@@ -17,7 +17,7 @@ from mast.core.description_sets import SETS, differences
 from mast.core.designs import DESIGNS, STANDALONES, variant
 from mast.core.ssp import read_ssd, validate_ssd_schema
 from mast.core.ssv import SSPFormatError
-from mast.core.systems import MAST, STANDALONE, generate, system_ssd, topology
+from mast.core.systems import DRIVE_FORCES, MAST, STANDALONE, generate, system_ssd, topology
 
 ROOT = Path(__file__).resolve().parents[1]
 SSP = ROOT / "ssp"
@@ -52,9 +52,9 @@ def test_generated_default_system_reads_as_the_committed_one(tmp_path):
     generated = _system(tmp_path, generate(MAST))
     committed = read_ssd(SSP / "MAST.ssd")
     assert _semantics(generated) == _semantics(committed)
-    # the 3PRS: three actuators, 3 pose commands + 7 connections per drive
+    # the 3PRS: three actuators, 3 pose commands + 12 connections per drive
     assert [n for n in generated.components if n.startswith("actuator_")] == ["actuator_1", "actuator_2", "actuator_3"]
-    assert len(generated.connections) == 3 + 7 * 3 == 24
+    assert len(generated.connections) == 3 + 12 * 3 == 39
     assert all(generated.components[f"actuator_{k}"].ratings == "resources/drive_ratings.ssv" for k in (1, 2, 3))
 
 
@@ -73,7 +73,9 @@ def _expected_connections(names, n, source=""):
             (f"actuator_{k}", "rho", "mechanism", f"rho_{k}"),
             (f"actuator_{k}", "rho_dot", "mechanism", f"rho_dot_{k}"),
             (f"actuator_{k}", "rho_ddot", "mechanism", f"rho_ddot_{k}"),
-            ("mechanism", f"F_{k}", f"actuator_{k}", "F"),
+            *((f"actuator_{k}", q, "mechanism", f"{q}_{k}") for q in DRIVE_FORCES),
+            ("mechanism", f"Fc_{k}", f"actuator_{k}", "F"),
+            ("mechanism", f"Mc_{k}", f"actuator_{k}", "M_carried"),
         }
     return out
 
@@ -93,11 +95,12 @@ def test_a_six_drive_topology_gives_six_actuators_and_every_connection(tmp_path,
     assert actuators == [f"actuator_{k}" for k in range(1, 7)]
     source = "trajectory" if description.trajectory else ""
     got = {(c.start_element, c.start_connector, c.end_element, c.end_connector) for c in system.connections}
-    assert got == _expected_connections(POSE, 6, source) and len(system.connections) == 6 + 7 * 6
+    assert got == _expected_connections(POSE, 6, source) and len(system.connections) == 6 + 12 * 6
     assert system.system_inputs == ([] if source else [f"{c}_cmd" for c in POSE])
     mech = system.components["mechanism"]
-    assert mech.inputs == [f"{q}_{k}" for q in ("rho", "rho_dot", "rho_ddot") for k in range(1, 7)]
-    assert mech.outputs == [f"F_{k}" for k in range(1, 7)] + list(POSE)
+    assert mech.inputs == [f"{q}_{k}" for q in ("rho", "rho_dot", "rho_ddot", *DRIVE_FORCES) for k in range(1, 7)]
+    ks = range(1, 7)
+    assert mech.outputs == [f"F_{k}" for k in ks] + list(POSE) + [f"Fc_{k}" for k in ks] + [f"Mc_{k}" for k in ks]
     assert system.components["controller"].inputs[:6] == [f"{c}_cmd" for c in POSE]
     for k in range(1, 7):  # each actuator bound like the 3PRS's, with its ratings and step size
         a = system.components[f"actuator_{k}"]

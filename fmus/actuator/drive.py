@@ -122,6 +122,8 @@ class DriveActuatorBlock(Block):
                 self._x_c = x_c_end
                 self._u = u_end
                 values[3:] = [*axis[3:], u_end]  # _publish
+                if not block.condenses(h):
+                    values[ActuatorBlock.M_DRIVE] = 0.0
                 return
             # it failed and wrote nothing: the loop below fails at the same tick, with the model's message
         kernel, x, sensor = block.stepper(T)  # the axis' do_step(t_k, T), without a call per tick
@@ -136,6 +138,8 @@ class DriveActuatorBlock(Block):
             u = u_next
         self._x_c, self._u = x_c, u
         self._publish()
+        if not block.condenses(h):
+            values[ActuatorBlock.M_DRIVE] = 0.0
 
     def _prepare(self, h: float) -> None:
         """Check the step size h [s] (a multiple m of T_cur) and keep, until the next ``initialize`` or step of

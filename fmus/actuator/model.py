@@ -98,6 +98,10 @@ __all__ = [
 ]
 
 MAX_PHASE_PER_SUBSTEP = 2.0  # rad: fastest chain mode x substep (keeps the friction equation monotone)
+#: rad: the longest exchange step, as the fastest chain mode's phase over it, whose drive force the mechanism's
+#: extrapolation follows (docs/coupling.md: stable to 0.75 with the paper's belt); beyond, the drive reports no
+#: load-side mass and the mechanism falls back to the explicit exchange
+COUPLING_PHASE = 0.6
 BACKLASH_SUBSTEP = 1e-5  # s: longest substep with backlash (contact and separation resolved to 10 us)
 _KERNELS_KEPT = 32  # step functions kept, by step size
 _COMPILED_STEP_SIZES = 4  # a fixed-step host needs one or two; beyond, the host varies its step (see _bind)
@@ -414,8 +418,8 @@ class ActuatorBlock(Block):
         "F_drive_ddot",
         "m_drive",
     )
-    #: where tau_m and tau_meas stand among the values (inputs, then outputs)
-    TAU_M, TAU_MEAS = 9, 10
+    #: where tau_m, tau_meas and m_drive stand among the values (inputs, then outputs)
+    TAU_M, TAU_MEAS, M_DRIVE = 9, 10, 14
     PARAMETERS = PARAMETERS
     UNITS = {
         "u": "V",
@@ -520,6 +524,13 @@ class ActuatorBlock(Block):
         if self._sensor is not None:
             values = self.values
             values[self.TAU_MEAS] = self._sensor.step(values[self.TAU_M], h)
+        if not self.condenses(h):
+            self.values[self.M_DRIVE] = 0.0
+
+    def condenses(self, h: float) -> bool:
+        """Whether the mechanism may condense this drive at an exchange step of ``h`` [s]: its fastest chain mode
+        turns at most ``COUPLING_PHASE`` over the step (a rigid drive always)."""
+        return self._omega_max * h <= COUPLING_PHASE
 
     def stepper(self, h: float) -> tuple[Callable, list, Optional[TorqueSensor]]:
         """What ``do_step(t, h)`` runs, for a caller that steps by h many times in a row (the drive's

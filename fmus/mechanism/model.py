@@ -208,6 +208,19 @@ class Variables:
         text.update({p: _POSE_DESCRIPTIONS[p] + ("" if p in coordinates else " (parasitic)") for p in POSE})
         return cls(inputs, outputs, units, text)
 
+    def required(self) -> "Variables":
+        """The variables a mechanism must have to plug in (docs/interfaces.md): the joint motion in, F_k and the
+        pose out; the condensed interface (F_drive_k ... m_drive_k in, Fc_k and Mc_k out) is optional."""
+        n = len(self.inputs) // INPUT_KINDS
+        inputs, outputs = self.inputs[: 3 * n], self.outputs[: n + 6]
+        keep = set(inputs) | set(outputs)
+        return Variables(
+            inputs,
+            outputs,
+            {k: v for k, v in self.units.items() if k in keep},
+            {k: v for k, v in self.descriptions.items() if k in keep},
+        )
+
     @classmethod
     def of_topology(cls, topology: Topology) -> "Variables":
         return cls.of(topology.names, [d.kind for d in topology.drives])

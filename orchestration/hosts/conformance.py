@@ -77,15 +77,15 @@ class _Subject:
 
     @functools.cached_property
     def expected(self):
-        """The variables the subject must have (``model.Variables``): its topology's, else the 3PRS's."""
+        """The variables the subject must have (``model.Variables.required``): its topology's, else the 3PRS's."""
         from fmus.mechanism.model import MechanismBlock, Variables
 
         topology = self.topology
         if topology is None:
             return Variables(
                 MechanismBlock.INPUTS, MechanismBlock.OUTPUTS, MechanismBlock.UNITS, MechanismBlock.DESCRIPTIONS
-            )
-        return Variables.of_topology(topology)
+            ).required()
+        return Variables.of_topology(topology).required()
 
     def start(self, inputs: Sequence[float]) -> list[float]: ...
     def step(self, t: float, inputs: Sequence[float]) -> list[float]: ...

@@ -349,5 +349,7 @@ int mast_actuator_do_step(void *state, double *values, const mast_parameters *p,
     mast_actuator_state *s = state;
     mast_actuator_disc *d = mast_actuator_select(s, h, msg, size);
     if (!d) return MAST_MODEL_ERROR;
-    return mast_actuator_advance(s, d, values, p, t, h, msg, size);
+    int code = mast_actuator_advance(s, d, values, p, t, h, msg, size);
+    if (!code && !mast_actuator_condenses(s, h)) values[ACT_F_DRIVE + 3] = 0.0;
+    return code;
 }

@@ -97,6 +97,11 @@ int mast_actuator_do_step(void *state, double *values, const mast_parameters *p,
  * kept or made: ActuatorBlock._select; NULL with msg), then the step with it (inline: the kernel, then
  * mast_actuator_finish only for a failure or the torque measurement) */
 mast_actuator_disc *mast_actuator_select(mast_actuator_state *s, double h, char *msg, size_t size);
+/* ActuatorBlock.condenses: its fastest chain mode turns at most ACT_COUPLING_PHASE over an exchange of h */
+static inline int mast_actuator_condenses(const mast_actuator_state *s, double h)
+{
+    return s->omega_max * h <= ACT_COUPLING_PHASE;
+}
 int mast_actuator_finish(mast_actuator_state *s, double *values, int code, const mast_parameters *p, double t, double h,
                          char *msg, size_t size);
 static inline int mast_actuator_advance(mast_actuator_state *s, mast_actuator_disc *d, double *values,

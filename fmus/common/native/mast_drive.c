@@ -58,5 +58,6 @@ int mast_drive_do_step(void *state, double *values, const mast_parameters *p, do
         s->u = PI[0];
     }
     outputs(s, values);
+    if (!mast_actuator_condenses(&s->a, h)) values[ACT_F_DRIVE + 3] = 0.0;
     return MAST_OK;
 }

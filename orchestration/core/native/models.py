@@ -393,6 +393,7 @@ def _actuator(block, vrs: Mapping[str, int]) -> tuple[str, str]:
             f"#define ACT_KEPT {DISCRETISATIONS_KEPT}",
             f"#define ACT_SENSOR_SAMPLES {SENSOR_SAMPLES}",
             f"#define ACT_N_MAX {N_MAX}",
+            f"#define ACT_COUPLING_PHASE {c_double(am.COUPLING_PHASE)}",
             *(f"#define ACT_Q_{k.upper()} {i}" for k, i in shared.items()),
             *(
                 f"#define ACT_VR_{n.upper()} {vrs[n]}"
