@@ -30,7 +30,7 @@ from mast.core.run import default_signals, simulate
 from mast.core.ssd import NS
 from mast.core.ssp import SSPArchive, read_ssd, validate_ssd_schema
 from mast.core.ssv import parse_ssv
-from mast.hosts.cosim import PRINTED, HostError, availability, deviations, out_of_agreement, run_host
+from mast.hosts.cosim import PRINTED, HostError, availability, comparable, deviations, out_of_agreement, run_host
 
 ROOT = Path(__file__).resolve().parents[1]
 SSP_SRC = ROOT / "ssp"
@@ -109,7 +109,7 @@ def bound(built, tmp_path_factory) -> Path:
 
 
 #: every signal the standalone system records by default (every output of every component), and three parameters
-RECORDED = default_signals(read_ssd(SSP_SRC / "MAST_standalone.ssd"))
+RECORDED = comparable(default_signals(read_ssd(SSP_SRC / "MAST_standalone.ssd")))
 SIGNALS = RECORDED + ["actuator_1.tau_c", "actuator_2.tau_c", "trajectory.frequency"]
 
 

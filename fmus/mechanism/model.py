@@ -414,10 +414,14 @@ class MechanismBlock(Block):
         return units.pop() if len(units) == 1 else "(m or rad)"
 
     def initialize(self, t0: float) -> None:
-        """Outputs at t0 from the current inputs (direct kinematics from the level pose)."""
+        """Outputs at t0 from the current inputs (direct kinematics from the level pose); nothing condensed until
+        the first step, so that the initial point follows from the parameters whatever a host's initialisation
+        passes (the actuators' at-rest outputs reach the mechanism in some hosts' passes, not in others')."""
         self._guess = None
         self._t0 = float(t0)
         self._compute(t0, 0.0)
+        self._W, self._D = None, [0.0] * self.n
+        self._tell(0.0)
 
     def do_step(self, t: float, h: float) -> None:
         """Outputs at t + h for the inputs held (algebraic: DK warm-started, then IDP) if the step [t, t + h)

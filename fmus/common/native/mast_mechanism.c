@@ -179,7 +179,12 @@ int mast_mechanism_initialize(void *state, double *values, const mast_parameters
     mast_mechanism_state *s = state;
     mast_mechanism_setup(s, p);
     s->t0 = t0;
-    return compute(s, values, p, t0, 0.0, msg, size);
+    int code = compute(s, values, p, t0, 0.0, msg, size);
+    if (code) return code;
+    s->condensed = 0;   /* MechanismBlock.initialize: nothing condensed until the first step */
+    for (int k = 0; k < MECH_N; k++) s->D[k] = 0.0;
+    tell(s, values, 0.0);
+    return MAST_OK;
 }
 
 /* designs.describe: the mechanism the parameter 'kinematics' names must be this one */
