@@ -32,6 +32,7 @@ from typing import Callable, ClassVar, Mapping, Sequence
 
 from ..common.block import Block, ModelError
 from ..common.codegen import compile_generated
+from ..common.fixed_order import eig_max
 from ..common.parameters import Param, ParameterError, Value
 from .coupling import EXTRAPOLATION, condense
 from .designs import (
@@ -56,6 +57,11 @@ UPDATE_PERIOD = Param(
     minimum=0.0,
     maximum=1.0,
 )
+
+#: the mechanism condenses (docs/coupling.md) once its joint-space mass reaches this share of the drives' load-side
+#: masses (the largest eigenvalue of m^-1/2 M m^-1/2, from then on for the run): below it the explicit exchange is
+#: stable (on the MAST to about 0.9) and damps the drives' transmission modes as a lighter mechanism does
+CONDENSE_ABOVE = 0.5
 
 #: the code of a direct kinematics refused at (or near) a singularity (mast_model.h: MAST_SINGULARITY_ERROR)
 SINGULAR = 4
@@ -334,6 +340,7 @@ class MechanismBlock(Block):
         self._M: tuple[float, ...] = ()  # M_k (row-major) and b_k of the last full update (``inertial_forces``)
         self._b: tuple[float, ...] = ()
         self._W: list[float] | None = None  # the condensed interface of the last full update (``_condense``)
+        self._latched = False  # the mass ratio reached CONDENSE_ABOVE in this run
         self._D: list[float] = [0.0] * self.n
         self._reaction = reaction(self.n)
 
@@ -377,13 +384,19 @@ class MechanismBlock(Block):
 
     def _condense(self) -> None:
         """The condensed interface of the last full update's M to the drives' load-side masses (``coupling.condense``);
-        none while a drive reports no mass (its m_drive not connected: the whole force, nothing carried) or
-        detached."""
+        none while a drive reports no mass (its m_drive not connected: the whole force, nothing carried), detached,
+        or while the mass ratio has stayed below ``CONDENSE_ABOVE`` in this run."""
         n = self.n
         m = self.values[(INPUT_KINDS - 1) * n : INPUT_KINDS * n]
         if not self.attached or not all(v > 0.0 for v in m):
             self._W, self._D = None, [0.0] * n
             return
+        if not self._latched:
+            inv = [1.0 / math.sqrt(v) for v in m]
+            if eig_max([[self._M[i * n + j] * (inv[i] * inv[j]) for j in range(n)] for i in range(n)]) < CONDENSE_ABOVE:
+                self._W, self._D = None, [0.0] * n
+                return
+            self._latched = True
         self._W, self._D = condense(self._M, m)
 
     def _tell(self, h: float) -> None:
@@ -419,6 +432,7 @@ class MechanismBlock(Block):
         passes (the actuators' at-rest outputs reach the mechanism in some hosts' passes, not in others')."""
         self._guess = None
         self._t0 = float(t0)
+        self._latched = False
         self._compute(t0, 0.0)
         self._W, self._D = None, [0.0] * self.n
         self._tell(0.0)

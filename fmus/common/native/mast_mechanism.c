@@ -84,6 +84,14 @@ static void condense_update(mast_mechanism_state *s, const double *values, const
     const double *m = values + (MECH_KINDS - 1) * MECH_N;
     s->condensed = MECH_ATTACHED_VR < 0 || p->integer[MECH_ATTACHED_VR];
     for (int k = 0; k < MECH_N; k++) s->condensed = s->condensed && m[k] > 0.0;
+    if (s->condensed && !s->latched) {     /* model.CONDENSE_ABOVE: the largest eigenvalue of m^-1/2 M m^-1/2 */
+        double S[MECH_N * MECH_N], inv[MECH_N];
+        for (int k = 0; k < MECH_N; k++) inv[k] = 1.0 / sqrt(m[k]);
+        for (int i = 0; i < MECH_N; i++)
+            for (int j = 0; j < MECH_N; j++) S[i * MECH_N + j] = s->M[i * MECH_N + j] * (inv[i] * inv[j]);
+        if (mast_eig_max(MECH_N, S) < MECH_CONDENSE_ABOVE) s->condensed = 0;
+        else s->latched = 1;
+    }
     if (s->condensed) condense(s, m);
     else for (int k = 0; k < MECH_N; k++) s->D[k] = 0.0;
 }
@@ -179,6 +187,7 @@ int mast_mechanism_initialize(void *state, double *values, const mast_parameters
     mast_mechanism_state *s = state;
     mast_mechanism_setup(s, p);
     s->t0 = t0;
+    s->latched = 0;
     int code = compute(s, values, p, t0, 0.0, msg, size);
     if (code) return code;
     s->condensed = 0;   /* MechanismBlock.initialize: nothing condensed until the first step */

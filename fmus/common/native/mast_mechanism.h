@@ -42,6 +42,7 @@ typedef struct {
     double M[MECH_N * MECH_N];           /* the last full update's joint-space mass matrix (row-major) and bias */
     double b[MECH_N];                    /* (Engine.inertial): between updates F = M rho_ddot + b */
     int condensed;                       /* W and D hold the condensed interface of M (coupling.condense) */
+    int latched;                         /* the mass ratio reached MECH_CONDENSE_ABOVE in this run */
     double W[MECH_N * MECH_N];           /* the weights of the other drives' forces (row-major, zero diagonal) */
     double D[MECH_N];                    /* the masses the drives carry */
     char why_text[1024];                 /* the message of a failed direct kinematics */

@@ -75,6 +75,7 @@ from fmus.common.parameters import Param
 from fmus.common.slave import MAX_STEP_SIZE, MAX_STEP_TICKS
 from fmus.controller.tick import DK_FAILED, MODEL_FAILED, layout, tick_sources
 from fmus.mechanism.coupling import EXTRAPOLATION
+from fmus.mechanism.model import CONDENSE_ABOVE
 
 from .translate import c_double, split_invariants, to_c
 
@@ -788,6 +789,7 @@ def mechanism_model(eng, vrs: Mapping[str, int], inputs: Sequence[str], bodies: 
             f"#define MECH_MARGIN {c_double(eng.margin)}",
             f"#define MECH_COND_LIMIT {c_double(eng.cond_limit)}",
             f"#define MECH_EXTRAPOLATION {c_double(EXTRAPOLATION)}",
+            f"#define MECH_CONDENSE_ABOVE {c_double(CONDENSE_ABOVE)}",
             "#endif",
             "",
         ]
