@@ -45,6 +45,7 @@ tracking error, peak torque against frequency, nominal and with the payload).
 from __future__ import annotations
 
 import csv
+import dataclasses
 import json
 import math
 import re
@@ -61,7 +62,7 @@ from fmus.mechanism.topology import POSE, POSE_UNITS, Coordinate
 
 from ..core import ssd, ssv
 from ..core.build import default_build_dir
-from ..core.components import fmu_parameters
+from ..core.components import fmu_parameters, fmu_variables
 from ..core.motion import system_axes
 from ..core.specimen import PAYLOAD_NAMES, Specimen
 from ..core.ssp import SSPArchive, mechanism_parameters
@@ -172,9 +173,16 @@ class Comparison:
 
 # ----------------------------------------------------------------------------- systems
 def swapped_ssd(
-    base_text: str, fmu_name: str, params: Mapping[str, Value], label: str, component_name: str = "mechanism"
+    base_text: str,
+    fmu_name: str,
+    params: Mapping[str, Value],
+    label: str,
+    component_name: str = "mechanism",
+    condensed: bool = True,
 ) -> str:
-    """The base system's text with its ``mechanism`` (or ``controller``) swapped for the FMU (module docstring)."""
+    """The base system's text with its ``mechanism`` (or ``controller``) swapped for the FMU (module docstring);
+    ``condensed=False``: a mechanism FMU without the condensed coupling's variables, wired for the explicit
+    exchange (``explicit_wiring``)."""
     document = ssd.read(base_text.encode("utf-8"), "the base system")
     try:
         swapped = document.system.component(component_name)
@@ -192,8 +200,31 @@ def swapped_ssd(
             why = f"gravity along the guides of {fmu_name}: g cos(beta)"
         if extra:
             comp.bindings.append(_inline(extra, why))  # bound last: it overrides
+    if not condensed:
+        explicit_wiring(document.system)
     document.name = f"MAST_{label}"
     return document.to_bytes().decode("utf-8")
+
+
+#: the mechanism's connectors of the condensed coupling (docs/coupling.md), by the prefix of their names
+CONDENSED = ("F_drive_", "F_drive_dot_", "F_drive_ddot_", "m_drive_", "Fc_", "Mc_")
+
+
+def explicit_wiring(system: ssd.System) -> None:
+    """Wire ``system``'s mechanism for the explicit exchange (docs/interfaces.md, a mechanism FMU of another tool):
+    its F_k to the actuators' F, none of the condensed coupling's connectors or connections."""
+    mechanism = system.component("mechanism")
+    mechanism.connectors = [c for c in mechanism.connectors if not c.name.startswith(CONDENSED)]
+    wired = []
+    for c in system.connections:
+        if c.start_element == "mechanism" and c.start_connector.startswith("Fc_"):
+            wired.append(dataclasses.replace(c, start_connector="F_" + c.start_connector[3:]))
+        elif not (
+            (c.end_element == "mechanism" and c.end_connector.startswith(CONDENSED))
+            or (c.start_element == "mechanism" and c.start_connector.startswith(CONDENSED))
+        ):
+            wired.append(c)
+    system.connections = wired
 
 
 def own_system(fmu: Path, params: Mapping[str, Value]) -> Optional[Path]:
@@ -283,7 +314,8 @@ def prepare(
             target.symlink_to(path.resolve())
             ssd = tmp / f"{label}.ssd"
             text = own.read_text(encoding="utf-8") if own is not None else base_text
-            ssd.write_text(swapped_ssd(text, path.name, params, label, component), encoding="utf-8")
+            condensed = component != "mechanism" or "Fc_1" in fmu_variables(path)
+            ssd.write_text(swapped_ssd(text, path.name, params, label, component, condensed), encoding="utf-8")
             ssp = build_ssp(ssd, fmus, out / "systems")
         candidates.append(Candidate(label, str(ssp), str(path), params if component == "mechanism" else {}))
     return candidates

@@ -366,6 +366,16 @@ class BlockComponent:
         self.block = None
 
 
+def fmu_variables(fmu: Union[str, Path]) -> list[str]:
+    """The names of an FMU's variables (its modelDescription's, checked as ``fmu_parameters`` checks it)."""
+    from fmpy import read_model_description
+
+    from .ssp import check_archive
+
+    check_archive(fmu)
+    return [v.name for v in read_model_description(str(fmu)).modelVariables]
+
+
 def fmu_parameters(fmu: Union[str, Path]) -> dict[str, Value]:
     """Default (start) values of an FMU's parameters, typed."""
     from fmpy import read_model_description
